@@ -1,0 +1,27 @@
+"""postproc: compensate industrial-robot positioning error in robot programs.
+
+The public API for CAM post-processor hooks. It imports neither torch nor
+Pinocchio: compensating needs only lark, numpy and onnxruntime.
+"""
+from __future__ import annotations
+
+__version__ = "0.1.0"
+
+__all__ = ["compensate_text", "compensate_file", "load_model", "PostprocError", "__version__"]
+
+
+def __getattr__(name: str):
+    # Lazy so that `import postproc` stays cheap for CLI start-up and CAM hooks.
+    if name in ("compensate_text", "compensate_file"):
+        from . import compensate
+
+        return getattr(compensate, name)
+    if name == "load_model":
+        from .compensator import load_model
+
+        return load_model
+    if name == "PostprocError":
+        from .diagnostics import PostprocError
+
+        return PostprocError
+    raise AttributeError(name)

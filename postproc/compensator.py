@@ -1,0 +1,193 @@
+"""The compensator: one ONNX file that maps commanded TCP poses to positioning errors.
+
+Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (which runs it):
+
+* input ``pose``: float32 [N, 6] = X, Y, Z (mm), A, B, C (deg) in the robot base frame;
+* optional input ``previous_pose``: float32 [N, 6], the pose commanded just before each
+  target (program order), for models that learn direction-dependent error (backlash);
+  models without it are plain pose → error maps;
+* output ``error``: float32 [N, 3] mm, E = P_target − P_actual; normalisation lives inside
+  the graph;
+* ``metadata_props`` (values JSON-encoded where structured): ``postproc_contract`` "1",
+  ``name``, ``robot``, ``tool`` {"name", "frame"}, ``envelope`` {"box": [x0,x1,y0,y1,z0,z1],
+  "attitude": [A,B,C], "range": deg}, ``reach`` {"center": [x,y,z], "radius_min",
+  "radius_max"} (TCP distance from the shoulder), ``data_sha256``, ``method``,
+  ``structure``, ``accuracy`` {"val_mean_mm", "val_max_mm", ...}, ``iterations``.
+
+The command sent for target P is c = P + Ê(c), solved by fixed-point iteration from
+c₀ = P (one iteration = the method's c = P + Ê(P)).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .diagnostics import PostprocError
+from .resources import model_path
+
+CONTRACT_VERSION = "1"
+INPUT_POSE = "pose"
+INPUT_PREVIOUS = "previous_pose"
+OUTPUT_ERROR = "error"
+
+
+def _json_or_text(value: str):
+    try:
+        return json.loads(value)
+    except (ValueError, TypeError):
+        return value
+
+
+@dataclass
+class Envelope:
+    """The training envelope: a box of positions and a range of attitudes around a centre."""
+
+    box: np.ndarray  # [6] x0,x1,y0,y1,z0,z1
+    attitude: np.ndarray  # [3] A,B,C
+    range: float  # ± deg per component
+
+    def outside(self, poses: np.ndarray, tolerance_mm: float = 1.0, tolerance_deg: float = 0.5) -> np.ndarray:
+        """Boolean mask of poses [N, 6] outside the box or the attitude range."""
+        lo, hi = self.box[0::2] - tolerance_mm, self.box[1::2] + tolerance_mm
+        xyz = poses[:, :3]
+        out = np.any((xyz < lo) | (xyz > hi), axis=1)
+        # per component, as the network sees the numbers; angles wrap at ±180
+        d = (poses[:, 3:6] - self.attitude + 180.0) % 360.0 - 180.0
+        return out | np.any(np.abs(d) > self.range + tolerance_deg, axis=1)
+
+
+@dataclass
+class Compensator:
+    """A loaded compensator. Create with :func:`load_model`; reuse it for every program."""
+
+    path: Path
+    session: object  # onnxruntime.InferenceSession
+    metadata: dict = field(default_factory=dict)
+    sha256: str = ""
+    wants_previous: bool = False
+
+    @property
+    def name(self) -> str:
+        return str(self.metadata.get("name") or self.path.stem)
+
+    @property
+    def robot(self) -> str:
+        return str(self.metadata.get("robot", ""))
+
+    @property
+    def tool(self) -> dict:
+        tool = self.metadata.get("tool")
+        return tool if isinstance(tool, dict) else {}
+
+    @property
+    def envelope(self) -> Envelope | None:
+        env = self.metadata.get("envelope")
+        if not isinstance(env, dict):
+            return None
+        return Envelope(np.asarray(env["box"], float), np.asarray(env["attitude"], float), float(env["range"]))
+
+    @property
+    def nominal_attitude(self) -> np.ndarray | None:
+        env = self.envelope
+        return None if env is None else env.attitude
+
+    @property
+    def default_iterations(self) -> int:
+        try:
+            return max(1, int(self.metadata.get("iterations", 2)))
+        except (TypeError, ValueError):
+            return 2
+
+    def beyond_reach(self, positions: np.ndarray) -> np.ndarray:
+        """Boolean mask of positions [N, 3] that no configuration of the robot reaches."""
+        reach = self.metadata.get("reach")
+        if not isinstance(reach, dict):
+            return np.zeros(len(positions), bool)
+        r = np.linalg.norm(positions - np.asarray(reach["center"], float), axis=1)
+        return (r > float(reach["radius_max"])) | (r < float(reach.get("radius_min", 0.0)))
+
+    def predict(self, poses: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
+        """Ê for poses [N, 6] (robot base frame) in one batched call → [N, 3] mm (float64)."""
+        poses = np.ascontiguousarray(poses, dtype=np.float32).reshape(-1, 6)
+        feeds = {INPUT_POSE: poses}
+        if self.wants_previous:
+            prev = poses if previous is None else np.ascontiguousarray(previous, dtype=np.float32).reshape(-1, 6)
+            feeds[INPUT_PREVIOUS] = prev
+        if len(poses) == 0:
+            return np.zeros((0, 3))
+        (error,) = self.session.run([OUTPUT_ERROR], feeds)
+        error = np.asarray(error, dtype=np.float64)
+        if error.shape != (len(poses), 3):
+            raise PostprocError(f"model returned shape {error.shape}, expected ({len(poses)}, 3)", str(self.path))
+        return error
+
+    def command(self, poses: np.ndarray, iterations: int | None = None, previous: np.ndarray | None = None) -> np.ndarray:
+        """Commanded positions [N, 3] so that the robot lands on ``poses[:, :3]``: c = P + Ê(c)."""
+        iterations = self.default_iterations if iterations is None else iterations
+        if iterations < 1:
+            raise PostprocError("--iterations must be at least 1")
+        poses = np.asarray(poses, dtype=float).reshape(-1, 6)
+        trial = poses.copy()
+        for _ in range(iterations):
+            trial[:, :3] = poses[:, :3] + self.predict(trial, previous)
+        return trial[:, :3]
+
+
+def load_model(path: str | Path | None = None) -> Compensator:
+    """Load and check an ONNX compensator (default: the shipped ``models/default.onnx``)."""
+    path = Path(path) if path is not None else model_path()
+    if not path.is_file():
+        raise PostprocError(f"model not found: {path}", str(path))
+    try:
+        import onnxruntime as ort
+    except ImportError as exc:  # pragma: no cover - install problem
+        raise PostprocError(f"onnxruntime is not installed: {exc}") from exc
+    data = path.read_bytes()
+    options = ort.SessionOptions()
+    options.log_severity_level = 3
+    # small graphs: thread start-up costs more than it saves on a 2-core machine
+    options.intra_op_num_threads = 1
+    options.inter_op_num_threads = 1
+    try:
+        session = ort.InferenceSession(data, options, providers=["CPUExecutionProvider"])
+    except Exception as exc:  # onnxruntime raises its own exception types
+        raise PostprocError(f"not an ONNX model: {str(exc).splitlines()[0][:200]}", str(path)) from exc
+    inputs = {i.name: i for i in session.get_inputs()}
+    outputs = {o.name: o for o in session.get_outputs()}
+    problems = []
+    if INPUT_POSE not in inputs:
+        problems.append(f"no input '{INPUT_POSE}' (has {sorted(inputs)})")
+    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS}
+    if extra:
+        problems.append(f"unexpected inputs {sorted(extra)}")
+    if OUTPUT_ERROR not in outputs:
+        problems.append(f"no output '{OUTPUT_ERROR}' (has {sorted(outputs)})")
+    for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6)):
+        if name in inputs and (len(inputs[name].shape) != 2 or inputs[name].shape[1] not in (expected, None, "6")):
+            problems.append(f"input '{name}' has shape {inputs[name].shape}, expected [N, {expected}]")
+    if OUTPUT_ERROR in outputs and (len(outputs[OUTPUT_ERROR].shape) != 2 or outputs[OUTPUT_ERROR].shape[1] not in (3, None)):
+        problems.append(f"output '{OUTPUT_ERROR}' has shape {outputs[OUTPUT_ERROR].shape}, expected [N, 3]")
+    if problems:
+        raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path))
+    meta = {k: _json_or_text(v) for k, v in session.get_modelmeta().custom_metadata_map.items()}
+    return Compensator(
+        path=path,
+        session=session,
+        metadata=meta,
+        sha256=hashlib.sha256(data).hexdigest(),
+        wants_previous=INPUT_PREVIOUS in inputs,
+    )
+
+
+def contract_metadata(**fields) -> dict[str, str]:
+    """metadata_props for a compensator: structured values JSON-encoded, contract stamped."""
+    out = {"postproc_contract": CONTRACT_VERSION}
+    for key, value in fields.items():
+        if value is None:
+            continue
+        out[key] = value if isinstance(value, str) else json.dumps(value, default=float)
+    return out

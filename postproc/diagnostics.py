@@ -1,0 +1,55 @@
+"""Errors and warnings that point at a place in an input: ``path:line:col: CODE message``.
+
+Every module raises :class:`PostprocError` for bad input and collects :class:`Diagnostic`
+warnings; only the CLI decides how they are printed and which exit code they map to.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+# Exit codes shared by every subcommand (documented in the README).
+EXIT_OK = 0
+EXIT_FINDINGS = 1  # check found problems / verify exceeded --max-mean
+EXIT_ERROR = 2  # bad input, usage error, internal error: nothing was written
+
+
+@dataclass(frozen=True)
+class Diagnostic:
+    """One finding about an input, located by 1-based line and column (0 = unknown)."""
+
+    path: str
+    line: int
+    col: int
+    code: str
+    message: str
+    severity: str = "warning"  # "warning" | "error"
+
+    def format(self) -> str:
+        return f"{self.path}:{self.line}:{self.col}: {self.code} {self.message}"
+
+
+class PostprocError(Exception):
+    """Bad input or an impossible request. Carries a location when there is one."""
+
+    def __init__(self, message: str, path: str = "", line: int = 0, col: int = 0, code: str = "E000"):
+        super().__init__(message)
+        self.message = message
+        self.path = path
+        self.line = line
+        self.col = col
+        self.code = code
+
+    def diagnostic(self) -> Diagnostic:
+        return Diagnostic(self.path, self.line, self.col, self.code, self.message, "error")
+
+    def __str__(self) -> str:
+        if not self.path:
+            return f"{self.code} {self.message}"
+        return self.diagnostic().format()
+
+
+def line_col(text: str, offset: int) -> tuple[int, int]:
+    """1-based (line, column) of a character offset in ``text``."""
+    line = text.count("\n", 0, offset) + 1
+    start = text.rfind("\n", 0, offset) + 1
+    return line, offset - start + 1
