@@ -1,8 +1,9 @@
 """Robot programs as text + the Cartesian targets found in them.
 
-Each dialect module (``krl``, ``poses``) turns the text of a program into a
-:class:`Program`: the untouched texts of its files and, for every Cartesian target,
-where its X/Y/Z numbers stand in those texts and in which frame it was programmed.
+Each dialect module (``krl``, ``poses``) turns the texts of a program into a
+:class:`Program`: the untouched texts of its files and, for every Cartesian target, where
+its X/Y/Z numbers stand in those texts and in which frame it was programmed. Targets are
+kept as columns (numpy arrays), not one object per target: CAM programs have 10^6 of them.
 Nothing here knows about models: the compensator and the rewriter work on this.
 """
 from __future__ import annotations
@@ -14,79 +15,131 @@ import numpy as np
 
 from ..diagnostics import Diagnostic
 
-__all__ = ["Target", "Program", "NumberSpan", "read_program", "dialect_of", "STAMP_PREFIX"]
+__all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "read_program", "dialect_of", "STAMP_PREFIX", "MOTIONS"]
 
-# The one line postproc adds to a file it compensated (after a comment marker).
+# The one line postproc adds to a file it compensated (after the dialect's comment marker).
 STAMP_PREFIX = "postproc: compensated with model"
+
+# Motion kinds, stored per target as an index into this tuple.
+MOTIONS = ("LIN", "PTP", "CIRC-aux", "CIRC-end", "SLIN", "SPTP", "SCIRC-aux", "SCIRC-end", "SPL", "row")
 
 
 @dataclass(frozen=True)
-class NumberSpan:
-    """A number token in one file's text: ``text[start:end]`` is e.g. ``1950.1``."""
+class Frame:
+    """The frame a target was programmed in.
 
-    file: str  # key into Program.texts
-    start: int
-    end: int
+    ``base`` maps that frame to the robot base frame (4×4: INV_POS($ROBROOT):$BASE);
+    ``tool`` is the active $TOOL as X,Y,Z,A,B,C (None when unknown); ``label`` says where
+    they came from, e.g. ``BASE_DATA[3] / TOOL_DATA[1]``.
+    """
+
+    base: np.ndarray
+    tool: np.ndarray | None = None
+    label: str = ""
 
 
 @dataclass
-class Target:
-    """One Cartesian target of a program.
+class Targets:
+    """Columns, one row per Cartesian target, in program order.
 
-    ``pose`` is X,Y,Z,A,B,C (mm, deg) in the frame the program wrote it in, with any
-    components the program left out filled in as the controller would. ``spans`` holds the
-    X, Y, Z number tokens (None for a component the aggregate leaves out). ``base`` maps
-    that frame to the robot base frame (4×4); None means it could not be resolved
-    statically and the target is left as it is.
+    poses      [N, 6] float64  X,Y,Z,A,B,C in the target's own frame; NaN = a component
+                               the program leaves out and that could not be filled
+    spans      [N, 3, 2] int64 (start, end) of the X, Y, Z number tokens in
+                               ``Program.texts[file]``; -1 where the component is absent
+    file       [N] int32       index into Program.files of the text the numbers stand in
+    line, col  [N] int32       1-based location of the target's aggregate (for messages)
+    frame      [N] int32       index into Program.frames; -1 = not statically resolvable
+    motion     [N] int8        index into MOTIONS
     """
 
-    file: str
-    line: int
-    col: int
-    pose: np.ndarray
-    spans: tuple[NumberSpan | None, NumberSpan | None, NumberSpan | None]
-    base: np.ndarray | None = None
-    tool: np.ndarray | None = None  # $TOOL frame (6,) when known, for the model's tool check
-    motion: str = ""  # e.g. "LIN", "CIRC aux", "SPL", "row"
-    name: str = ""  # variable name when the target is a declared variable
+    poses: np.ndarray
+    spans: np.ndarray
+    file: np.ndarray
+    line: np.ndarray
+    col: np.ndarray
+    frame: np.ndarray
+    motion: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+
+class TargetsBuilder:
+    """Collects targets row by row (plain lists: cheap to append) and builds the columns."""
+
+    def __init__(self) -> None:
+        self.poses: list = []  # each a sequence of 6 floats
+        self.spans: list = []  # each a sequence of 6 ints (x0, x1, y0, y1, z0, z1)
+        self.file: list[int] = []
+        self.line: list[int] = []
+        self.col: list[int] = []
+        self.frame: list[int] = []
+        self.motion: list[int] = []
+
+    def add(self, pose, spans, file: int, line: int, col: int, frame: int, motion: int) -> None:
+        self.poses.append(pose)
+        self.spans.append(spans)
+        self.file.append(file)
+        self.line.append(line)
+        self.col.append(col)
+        self.frame.append(frame)
+        self.motion.append(motion)
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    def build(self) -> Targets:
+        n = len(self.poses)
+        return Targets(
+            poses=np.array(self.poses, dtype=np.float64).reshape(n, 6),
+            spans=np.array(self.spans, dtype=np.int64).reshape(n, 3, 2),
+            file=np.array(self.file, dtype=np.int32),
+            line=np.array(self.line, dtype=np.int32),
+            col=np.array(self.col, dtype=np.int32),
+            frame=np.array(self.frame, dtype=np.int32),
+            motion=np.array(self.motion, dtype=np.int8),
+        )
 
 
 @dataclass
 class Program:
-    """A parsed program: its files' texts (keys are paths or ``<stdin>``) and targets in order."""
+    """A parsed program: its files (paths or ``<stdin>``), their texts, targets in order."""
 
-    texts: dict[str, str]
-    targets: list[Target] = field(default_factory=list)
+    files: list[str]
+    texts: list[str]
+    targets: Targets
+    frames: list[Frame] = field(default_factory=list)
     diagnostics: list[Diagnostic] = field(default_factory=list)
     dialect: str = ""
-    # one text per file as written: the stamp found in it, if any
-    stamps: dict[str, str] = field(default_factory=dict)
-    newline: dict[str, str] = field(default_factory=dict)  # dominant line ending per file
+    stamps: dict[int, str] = field(default_factory=dict)  # file index → stamp line found in it
+    newlines: list[str] = field(default_factory=list)  # dominant line ending per file
+    comment: str = ";"  # the dialect's comment marker, for the stamp line
 
 
 KRL_SUFFIXES = {".src", ".dat", ".sub"}
+POSE_SUFFIXES = {".csv", ".txt", ".pose", ".poses", ".xyz"}
 
 
 def dialect_of(path: str | Path) -> str:
-    """'krl' for .src/.dat/.sub, 'poses' for .csv/.txt/.pose(s); ValueError otherwise."""
+    """'krl' for .src/.dat/.sub, 'poses' for .csv/.txt/.pose(s)/.xyz; ValueError otherwise."""
     suffix = Path(str(path)).suffix.lower()
     if suffix in KRL_SUFFIXES:
         return "krl"
-    if suffix in {".csv", ".txt", ".pose", ".poses", ".xyz"}:
+    if suffix in POSE_SUFFIXES:
         return "poses"
     raise ValueError(f"unknown program type {suffix!r} (expected .src/.dat or .csv/.txt)")
 
 
-def read_program(texts: dict[str, str], dialect: str, config: dict[str, str] | None = None) -> Program:
-    """Parse a program. ``texts`` maps file keys to contents (for KRL: the .src and,
-    when there is one, its .dat). ``config`` optionally holds ``$config.dat`` text(s) that
-    give BASE_DATA / TOOL_DATA. Raises PostprocError on bad input."""
+def read_program(files: list[str], texts: list[str], dialect: str, config: list[str] | None = None) -> Program:
+    """Parse a program made of ``files`` (for KRL: the .src first, then its .dat if any)
+    with contents ``texts``. ``config`` optionally holds ``$config.dat`` text(s) that give
+    BASE_DATA / TOOL_DATA. Raises PostprocError (with file:line:col) on bad input."""
     if dialect == "krl":
         from . import krl
 
-        return krl.read(texts, config=config)
+        return krl.read(files, texts, config=config)
     if dialect == "poses":
         from . import poses
 
-        return poses.read(texts)
+        return poses.read(files, texts)
     raise ValueError(f"unknown dialect {dialect!r}")
