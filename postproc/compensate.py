@@ -1,0 +1,373 @@
+"""The compensate use case: program → robot-base poses → one batched model call →
+corrected numbers in the program's own frame → new texts (+ stamp) → atomic write.
+
+This is what the CLI (``postproc compensate``) and the CAM-hook API
+(``postproc.compensate_text`` / ``postproc.compensate_file``) call.
+"""
+from __future__ import annotations
+
+import re
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import frames
+from .compensator import Compensator, load_model
+from .diagnostics import Diagnostic, PostprocError
+from .programs import STAMP_PREFIX, Program, dialect_of, read_program
+from .rewrite import apply_edits, format_many, insert_stamp, stamp_line, write_atomic
+
+__all__ = [
+    "Report",
+    "load_program",
+    "parse_program_text",
+    "robot_base_poses",
+    "compensate_program",
+    "compensate_text",
+    "compensate_file",
+    "DEFAULT_MAX_CORRECTION_MM",
+]
+
+# An error model that predicts more than this is wrong, not the robot (guard, --max-correction).
+DEFAULT_MAX_CORRECTION_MM = 5.0
+# Warnings of one kind listed one by one before they are summed up in one line.
+MAX_LISTED = 20
+STDIN = "<stdin>"
+
+
+@dataclass
+class Report:
+    """What a compensation did; ``outputs`` maps each file of the program to its new text."""
+
+    model: str = ""
+    model_sha256: str = ""
+    targets: int = 0
+    compensated: int = 0
+    skipped: int = 0
+    iterations: int = 0
+    max_correction_mm: float = 0.0
+    mean_correction_mm: float = 0.0
+    outside_envelope: int = 0
+    warnings: list[Diagnostic] = field(default_factory=list)
+    outputs: dict[str, str] = field(default_factory=dict)
+
+    def summary(self) -> str:
+        return (
+            f"{self.compensated} of {self.targets} targets compensated with {self.model} "
+            f"(max correction {self.max_correction_mm:.3f} mm, mean {self.mean_correction_mm:.3f} mm, "
+            f"{self.iterations} iteration{'s' if self.iterations != 1 else ''}"
+            + (f", {self.skipped} left as they were" if self.skipped else "")
+            + (f", {len(self.warnings)} warning{'s' if len(self.warnings) != 1 else ''}" if self.warnings else "")
+            + ")"
+        )
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def _decode(data: bytes, path: str) -> str:
+    if not data.strip():
+        raise PostprocError("empty file", path, 1, 1, "P105")
+    if b"\x00" in data[:65536]:
+        raise PostprocError("binary file (NUL bytes), not a robot program", path, 1, 1, "P106")
+    # latin-1 maps every byte to one character: whatever the file's encoding, bytes round-trip
+    return data.decode("latin-1")
+
+
+def _read(path: Path) -> str:
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise PostprocError("no such file", str(path), 0, 0, "P107") from None
+    except OSError as exc:
+        raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, "P107") from None
+    return _decode(data, str(path))
+
+
+def companion_dat(src: Path) -> Path | None:
+    """The .dat beside a .src (same stem, any case), if there is one."""
+    if src.suffix.lower() != ".src" or not src.parent.is_dir():
+        return None
+    for candidate in (src.with_suffix(".dat"), src.with_suffix(".DAT")):
+        if candidate.is_file():
+            return candidate
+    stem = src.stem.lower()
+    for candidate in src.parent.iterdir():
+        if candidate.suffix.lower() == ".dat" and candidate.stem.lower() == stem:
+            return candidate
+    return None
+
+
+def sniff_dialect(text: str) -> str:
+    """KRL or a pose list, for text that comes without a file name (stdin)."""
+    krl = re.search(r"^[ \t]*(?:&ACCESS|(?:GLOBAL\s+)?DEF(?:FCT|DAT)?\b|S?(?:LIN|PTP|CIRC)\b)", text, re.I | re.M)
+    return "krl" if krl else "poses"
+
+
+def parse_program_text(
+    text: str,
+    name: str = STDIN,
+    dialect: str | None = None,
+    dat_text: str | None = None,
+    config_texts: list[str] | None = None,
+) -> Program:
+    """Parse a program given as text (a .src with optional .dat text, or a pose list)."""
+    dialect = dialect or (dialect_of(name) if name != STDIN and Path(name).suffix else sniff_dialect(text))
+    files, texts = [name], [text]
+    if dat_text is not None:
+        files.append(str(Path(name).with_suffix(".dat")) if name != STDIN else "<stdin.dat>")
+        texts.append(dat_text)
+    return read_program(files, texts, dialect, config=config_texts)
+
+
+def _config_texts(config: str | Path | list | None) -> list[str] | None:
+    if config is None:
+        return None
+    paths = config if isinstance(config, list | tuple) else [config]
+    return [_read(Path(p)) for p in paths]
+
+
+def load_program(path: str | Path, config: str | Path | None = None, dialect: str | None = None) -> Program:
+    """Read a program from disk: a .src with its .dat companion, a lone .dat, or a pose list.
+    ``-`` reads standard input. ``config`` is a ``$config.dat`` for BASE_DATA / TOOL_DATA."""
+    if str(path) == "-":
+        return parse_program_text(_decode(sys.stdin.buffer.read(), STDIN), STDIN, dialect, None, _config_texts(config))
+    path = Path(path)
+    if dialect is None:
+        try:
+            dialect = dialect_of(path)
+        except ValueError as exc:
+            raise PostprocError(str(exc), str(path), 0, 0, "P108") from None
+    files, texts = [str(path)], [_read(path)]
+    dat = companion_dat(path) if dialect == "krl" else None
+    if dat is not None:
+        files.append(str(dat))
+        texts.append(_read(dat))
+    return read_program(files, texts, dialect, config=_config_texts(config))
+
+
+# --------------------------------------------------------------------------- frames
+
+
+def robot_base_poses(program: Program) -> tuple[np.ndarray, np.ndarray]:
+    """Every target's pose in the robot base frame [N, 6], and a mask of those whose frame
+    is known. Unknown orientation components stay NaN; unresolved rows are NaN."""
+    t = program.targets
+    out = np.full((len(t), 6), np.nan)
+    resolved = t.frame >= 0
+    for f in np.unique(t.frame[resolved]):
+        rows = np.flatnonzero(t.frame == f)
+        base = program.frames[f].base
+        out[rows, :3] = frames.transform_points(base, t.poses[rows, :3])
+        known = rows[~np.isnan(t.poses[rows, 3:6]).any(axis=1)]
+        if len(known):
+            rot = base[:3, :3] @ frames.rotation_from_abc(t.poses[known, 3:6])
+            out[known, 3:6] = frames.abc_from_rotation(rot)
+    return out, resolved
+
+
+# --------------------------------------------------------------------------- compensating
+
+
+def _where(program: Program, row: int) -> tuple[str, int, int]:
+    t = program.targets
+    return program.files[t.file[row]], int(t.line[row]), int(t.col[row])
+
+
+def _collect(program: Program, rows: np.ndarray, code: str, message: str, severity: str = "warning") -> list[Diagnostic]:
+    """One diagnostic per row up to MAX_LISTED, then one that counts the rest."""
+    out = [Diagnostic(*_where(program, r), code, message, severity) for r in rows[:MAX_LISTED]]
+    if len(rows) > MAX_LISTED:
+        path, line, col = _where(program, rows[MAX_LISTED])
+        out.append(Diagnostic(path, line, col, code, f"{message} (and {len(rows) - MAX_LISTED} more targets)", severity))
+    return out
+
+
+def _tool_mismatch(program: Program, model: Compensator) -> str | None:
+    frame = model.tool.get("frame") if model.tool else None
+    if frame is None:
+        return None
+    tools = {tuple(np.round(f.tool, 3)) for f in program.frames if f.tool is not None}
+    for tool in tools:
+        d = np.abs(np.asarray(tool) - np.asarray(frame, float))
+        if d[:3].max() > 0.5 or ((d[3:] + 180) % 360 - 180).max() > 0.1:
+            return f"the program's $TOOL {list(tool)} is not the model's tool {model.tool.get('name', '')} {list(frame)}"
+    return None
+
+
+def compensate_program(
+    program: Program,
+    model: Compensator,
+    *,
+    iterations: int | None = None,
+    strict: bool = False,
+    force: bool = False,
+    max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+) -> Report:
+    """Compensate every resolvable target of ``program``; the new texts are in ``Report.outputs``.
+
+    Raises PostprocError for what must not be written (double compensation without
+    ``force``, targets beyond reach, NaN or implausibly large corrections, and under
+    ``strict`` any warning).
+    """
+    report = Report(model=model.name, model_sha256=model.sha256, targets=len(program.targets))
+    warnings = list(program.diagnostics)
+    if program.stamps and not force:
+        index, stamp = next(iter(program.stamps.items()))
+        raise PostprocError(f"already compensated ({stamp.lstrip(';# ')}); use --force to compensate again",
+                            program.files[index], 1, 1, "P401")
+    mismatch = _tool_mismatch(program, model)
+    if mismatch and not force:
+        raise PostprocError(mismatch + "; use --force to compensate anyway", program.files[0], 1, 1, "P304")
+
+    t = program.targets
+    poses, resolved = robot_base_poses(program)
+    no_position = resolved & np.isnan(poses[:, :3]).any(axis=1)
+    if no_position.any():
+        warnings += _collect(program, np.flatnonzero(no_position), "P212",
+                             "position not fully known (partial aggregate with no preceding target): left as it is")
+    use = resolved & ~no_position
+    no_attitude = use & np.isnan(poses[:, 3:6]).any(axis=1)
+    if no_attitude.any():
+        nominal = model.nominal_attitude
+        if nominal is None:
+            raise PostprocError("target has no orientation and the model records no nominal attitude",
+                                *_where(program, int(np.flatnonzero(no_attitude)[0])), "P213")
+        poses[no_attitude, 3:6] = nominal
+        warnings += _collect(program, np.flatnonzero(no_attitude), "P213",
+                             f"orientation not known: the model's nominal attitude {list(map(float, nominal))} was assumed")
+    rows = np.flatnonzero(use)
+    sel = poses[rows]
+    if not np.isfinite(sel).all():
+        bad = rows[~np.isfinite(sel).all(axis=1)]
+        raise PostprocError("target is not a finite number", *_where(program, int(bad[0])), "P103")
+
+    far = model.beyond_reach(sel[:, :3])
+    if far.any():
+        path, line, col = _where(program, int(rows[far][0]))
+        raise PostprocError(f"target beyond the robot's reach ({int(far.sum())} such targets): no model can compensate there",
+                            path, line, col, "P302")
+    envelope = model.envelope
+    if envelope is not None:
+        outside = envelope.outside(sel)
+        report.outside_envelope = int(outside.sum())
+        if outside.any():
+            warnings += _collect(program, rows[outside], "P301", "target outside the model's training envelope")
+
+    if strict and warnings:
+        first = warnings[0]
+        raise PostprocError(f"{first.message} (--strict; {len(warnings)} warning(s) in all)",
+                            first.path, first.line, first.col, first.code)
+
+    # the pose commanded before each target: models that learn backlash use the approach direction
+    previous = np.vstack([sel[:1], sel[:-1]]) if model.wants_previous and len(sel) else None
+    report.iterations = model.default_iterations if iterations is None else iterations
+    commanded = model.command(sel, report.iterations, previous)
+    correction = commanded - sel[:, :3]
+    size = np.linalg.norm(correction, axis=1)
+    if not np.isfinite(correction).all():
+        raise PostprocError("the model returned NaN or inf", *_where(program, int(rows[~np.isfinite(size)][0])), "P305")
+    if len(size) and size.max() > max_correction_mm:
+        worst = int(np.argmax(size))
+        raise PostprocError(f"correction of {size[worst]:.3f} mm exceeds the bound of {max_correction_mm} mm: "
+                            "the model is wrong here", *_where(program, int(rows[worst])), "P303")
+
+    # back into each target's own frame: only the rotation of its base applies to a shift
+    local = np.empty_like(correction)
+    frame_of = t.frame[rows]
+    for f in np.unique(frame_of):
+        here = frame_of == f
+        local[here] = frames.rotate_vectors(frames.inverse(program.frames[f].base), correction[here])
+    new_xyz = t.poses[rows, :3] + local
+
+    outputs = list(program.texts)
+    spans = t.spans[rows]  # [M, 3, 2]
+    for index, text in enumerate(program.texts):
+        in_file = t.file[rows] == index
+        starts, ends = spans[in_file, :, 0].ravel(), spans[in_file, :, 1].ravel()
+        values = new_xyz[in_file].ravel()
+        present = starts >= 0
+        starts, ends, values = starts[present], ends[present], values[present]
+        tokens = [text[s:e] for s, e in zip(starts.tolist(), ends.tolist())]
+        outputs[index] = apply_edits(text, starts, ends, format_many(tokens, values))
+
+    stamp = stamp_line(program.comment, STAMP_PREFIX, model.name, model.sha256)
+    after = "&" if program.dialect == "krl" else None
+    for index, text in enumerate(outputs):
+        newline = program.newlines[index] if index < len(program.newlines) else "\n"
+        outputs[index] = insert_stamp(text, stamp, newline, after_headers=after)
+
+    report.compensated = len(rows)
+    report.skipped = len(t) - len(rows)
+    report.max_correction_mm = float(size.max()) if len(size) else 0.0
+    report.mean_correction_mm = float(size.mean()) if len(size) else 0.0
+    report.warnings = warnings
+    report.outputs = dict(zip(program.files, outputs))
+    return report
+
+
+def _model(model: Compensator | str | Path | None) -> Compensator:
+    return model if isinstance(model, Compensator) else load_model(model)
+
+
+def compensate_text(
+    text: str,
+    model: Compensator | str | Path | None = None,
+    *,
+    name: str = STDIN,
+    dialect: str | None = None,
+    dat_text: str | None = None,
+    config: str | Path | list | None = None,
+    iterations: int | None = None,
+    strict: bool = False,
+    force: bool = False,
+    max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+) -> tuple[str, Report]:
+    """Compensate a program given as text; returns the new text and the report.
+
+    For a KRL module pass its .dat as ``dat_text``: the new .dat is
+    ``report.outputs[<name>.dat]``. ``model`` is a loaded Compensator (reuse one for many
+    calls), a path, or None for the shipped default model.
+    """
+    program = parse_program_text(text, name, dialect, dat_text, _config_texts(config))
+    report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
+                                max_correction_mm=max_correction_mm)
+    return report.outputs[program.files[0]], report
+
+
+def output_paths(program: Program, out: Path) -> list[Path]:
+    """Where each file of the program goes: the main file to ``out``, its .dat beside it."""
+    paths = [out]
+    for extra in program.files[1:]:
+        paths.append(out.with_suffix(Path(extra).suffix))
+    return paths
+
+
+def compensate_file(
+    path: str | Path,
+    out: str | Path,
+    model: Compensator | str | Path | None = None,
+    *,
+    config: str | Path | None = None,
+    iterations: int | None = None,
+    strict: bool = False,
+    force: bool = False,
+    max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+) -> Report:
+    """Compensate a program file (with its .dat) into ``out`` (its .dat beside it).
+    Nothing is written unless everything succeeded; the files are replaced atomically."""
+    program = load_program(path, config)
+    report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
+                                max_correction_mm=max_correction_mm)
+    if str(out) == "-":
+        if len(program.files) > 1:
+            raise PostprocError("a program with a .dat cannot be written to standard output; give -o FILE",
+                                program.files[0], 0, 0, "P109")
+        sys.stdout.buffer.write(report.outputs[program.files[0]].encode("latin-1"))
+        sys.stdout.buffer.flush()
+        return report
+    targets = output_paths(program, Path(out))
+    write_atomic([(p, report.outputs[f]) for p, f in zip(targets, program.files)])
+    return report

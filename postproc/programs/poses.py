@@ -1,0 +1,137 @@
+"""Generic pose programs: a CSV with a header naming at least x,y,z (and a,b,c), or
+whitespace-separated ``x y z [a b c]`` lines with no header.
+
+Every row is a Cartesian target in the robot base frame. Other columns, comment lines
+(``#``, ``;``, ``//``) and blank lines are kept as they are. The syntax of a record is
+``grammars/poses.lark``; each distinct line shape (numbers abstracted) is parsed once and
+reused, so a million rows cost one regex pass, not a million parses.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import re
+
+import numpy as np
+from lark import Lark, UnexpectedInput
+
+from ..diagnostics import PostprocError
+from ..resources import grammar_path
+from . import MOTIONS, STAMP_PREFIX, Frame, Program, TargetsBuilder
+
+COLUMNS = ("x", "y", "z", "a", "b", "c")
+_COMMENT = re.compile(r"[ \t]*(#|;|//)")
+_ROW_MOTION = MOTIONS.index("row")
+
+
+@functools.lru_cache(maxsize=1)
+def _parser() -> Lark:
+    return Lark(grammar_path("poses.lark").read_text(), start="record", parser="lalr", maybe_placeholders=True)
+
+
+@functools.lru_cache(maxsize=1)
+def _number_re() -> re.Pattern:
+    # the grammar's own NUMBER terminal, so there is one definition of what a number is
+    return re.compile(_parser().get_terminal("NUMBER").pattern.to_regexp())
+
+
+def _fields(line: str, path: str, lineno: int, offset: int) -> list:
+    """Parse one record → list of (kind, token) per field; kind in number/word/string/None.
+    Tokens keep ``start_pos`` (offset in ``line``)."""
+    try:
+        tree = _parser().parse(line)
+    except UnexpectedInput as exc:
+        col = offset + exc.column if exc.column and exc.column > 0 else offset + 1
+        raise PostprocError(f"cannot read this record: unexpected {line[exc.pos_in_stream:exc.pos_in_stream + 10]!r}",
+                            path, lineno, col, "P101") from None
+    return [(None, None) if f is None else (f.data, f.children[0]) for f in tree.children]
+
+
+def _newline(text: str) -> str:
+    crlf = text.count("\r\n")
+    return "\r\n" if crlf and crlf >= text.count("\n") - crlf else "\n"
+
+
+def read(files: list[str], texts: list[str]) -> Program:
+    """Read a pose program (one file). Raises PostprocError with file:line:col on bad input."""
+    path, text = files[0], texts[0]
+    number = _number_re()
+    builder = TargetsBuilder()
+    stamps: dict[int, str] = {}
+    columns: dict[str, int] | None = None  # column name → field index
+    width = 0
+    shapes: dict[str, tuple] = {}  # line shape → ordinal of each x..c among the line's numbers
+    offset = 0
+    for lineno, raw in enumerate(text.splitlines(keepends=True), start=1):
+        start = offset
+        offset += len(raw)
+        line = raw.rstrip("\r\n")
+        body = line.strip()
+        if not body:
+            continue
+        if _COMMENT.match(line):
+            if STAMP_PREFIX in line:
+                stamps[0] = body
+            continue
+        lead = len(line) - len(line.lstrip())
+        if columns is None and any(ch.isalpha() for ch in number.sub("", body)):
+            fields = _fields(body, path, lineno, lead)
+            names = [str(tok).lower() if kind == "word" else "" for kind, tok in fields]
+            missing = [c for c in COLUMNS[:3] if c not in names]
+            if missing:
+                raise PostprocError(f"header has no column {', '.join(missing)} (needs x,y,z[,a,b,c])",
+                                    path, lineno, lead + 1, "P104")
+            columns = {c: names.index(c) for c in COLUMNS if c in names}
+            width = len(fields)
+            continue
+        shape = number.sub("0", body)
+        ordinals = shapes.get(shape)
+        if ordinals is None:
+            fields = _fields(body, path, lineno, lead)
+            if columns is None:  # headerless: x y z [a b c] by position
+                if len(fields) not in (3, 6) and len(fields) < 6:
+                    raise PostprocError(f"expected 3 or 6 numbers (x y z [a b c]), found {len(fields)} fields",
+                                        path, lineno, lead + 1, "P104")
+                columns = {c: i for i, c in enumerate(COLUMNS[: 6 if len(fields) >= 6 else 3])}
+                width = len(fields)
+            if len(fields) != width:
+                raise PostprocError(f"expected {width} fields as in the header, found {len(fields)}",
+                                    path, lineno, lead + 1, "P104")
+            # which regex match (of all number-looking runs in the line, words included) each
+            # numeric field is; lines of the same shape have the same runs in the same places
+            run_at = {m.start(): k for k, m in enumerate(number.finditer(body))}
+            ordinal_of = {i: run_at[tok.start_pos] for i, (kind, tok) in enumerate(fields) if kind == "number"}
+            for name, index in columns.items():
+                if index not in ordinal_of:
+                    kind, tok = fields[index]
+                    where = body.find(str(tok)) if tok is not None else 0
+                    raise PostprocError(f"column {name} is not a number: '{tok}'" if tok is not None
+                                        else f"column {name} is empty", path, lineno, lead + max(where, 0) + 1, "P103")
+            ordinals = tuple(ordinal_of.get(columns[c], -1) if c in columns else -1 for c in COLUMNS)
+            shapes[shape] = ordinals
+        matches = list(number.finditer(line))
+        pose = [math.nan] * 6
+        spans = [-1] * 6
+        for k, ordinal in enumerate(ordinals):
+            if ordinal < 0:
+                continue
+            m = matches[ordinal]
+            value = float(m.group())
+            if not math.isfinite(value):
+                raise PostprocError(f"{COLUMNS[k]} is not finite: {m.group()}", path, lineno, m.start() + 1, "P103")
+            pose[k] = value
+            if k < 3:
+                spans[2 * k], spans[2 * k + 1] = start + m.start(), start + m.end()
+        builder.add(pose, spans, 0, lineno, lead + 1, 0, _ROW_MOTION)
+    if columns is None:
+        raise PostprocError("no poses in this file (empty, or comments only)", path, 1, 1, "P105")
+    return Program(
+        files=list(files[:1]),
+        texts=list(texts[:1]),
+        targets=builder.build(),
+        frames=[Frame(np.eye(4), None, "robot base")],
+        dialect="poses",
+        stamps=stamps,
+        newlines=[_newline(text)],
+        comment="#",
+    )

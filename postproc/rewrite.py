@@ -1,0 +1,160 @@
+"""Corrected numbers → new program text, the stamp line, and atomic writes.
+
+Only the number tokens at the given spans change; every other character is copied.
+New numbers keep the token's style: sign, leading zero or not, decimal count (at least
+three decimals, i.e. µm resolution), exponent form.
+"""
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from .diagnostics import PostprocError
+
+__all__ = ["format_like", "format_many", "apply_edits", "insert_stamp", "stamp_line", "write_atomic"]
+
+MIN_DECIMALS = 3
+_TOKEN = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:([eE])([+-]?)(\d+))?\Z")
+
+
+def format_like(token: str, value: float) -> str:
+    """``value`` written in the style of ``token`` (e.g. '1900.' → '1900.347', '.5' → '.512')."""
+    m = _TOKEN.match(token)
+    if m is None or not (m.group(2) or m.group(3)):
+        raise ValueError(f"not a number token: {token!r}")
+    sign, whole, frac, e, esign, edigits = m.groups()
+    decimals = max(MIN_DECIMALS, len(frac or ""))
+    if e:
+        exponent = int(esign + edigits) if esign != "+" else int(edigits)
+        # keep the exponent; add as many mantissa decimals as it takes to stay at µm resolution
+        mantissa = value / 10.0**exponent
+        digits = max(len(frac or ""), MIN_DECIMALS + exponent, 0)
+        body = f"{abs(mantissa):.{digits}f}"
+        exp_text = e + (esign if esign else "") + str(abs(exponent)).zfill(len(edigits))
+        if exponent < 0 and esign != "-":
+            exp_text = e + "-" + str(abs(exponent)).zfill(len(edigits))
+        out = body + exp_text
+        negative = mantissa < 0 and float(body) != 0.0
+    else:
+        body = f"{abs(value):.{decimals}f}"
+        negative = value < 0 and float(body) != 0.0  # never write '-0.000'
+        if not whole and body.startswith("0."):
+            body = body[1:]  # '.5' style: no leading zero
+        out = body
+    if negative:
+        return "-" + out
+    return ("+" if sign == "+" else "") + out
+
+
+_PLAIN = re.compile(r"-?\d+\.\d+\Z")
+
+
+def format_many(tokens: Sequence[str], values: np.ndarray) -> list[str]:
+    """``format_like`` over many tokens; the common CAM case ('-12.5', '880.000') is fast."""
+    out = []
+    append = out.append
+    for token, value in zip(tokens, values.tolist()):
+        if _PLAIN.match(token):
+            decimals = len(token) - token.index(".") - 1
+            text = f"{value:.{decimals if decimals > MIN_DECIMALS else MIN_DECIMALS}f}"
+            if text[0] == "-" and float(text) == 0.0:
+                text = text[1:]
+            append(text)
+        else:
+            append(format_like(token, value))
+    return out
+
+
+def apply_edits(text: str, starts: np.ndarray, ends: np.ndarray, replacements: Sequence[str]) -> str:
+    """Replace ``text[starts[i]:ends[i]]`` by ``replacements[i]``; spans must not overlap."""
+    if len(starts) == 0:
+        return text
+    order = np.argsort(starts, kind="stable")
+    starts, ends = np.asarray(starts)[order], np.asarray(ends)[order]
+    if np.any(starts[1:] < ends[:-1]):
+        raise PostprocError("internal error: overlapping number spans")
+    pieces: list[str] = []
+    prev = 0
+    for s, e, i in zip(starts.tolist(), ends.tolist(), order.tolist()):
+        pieces.append(text[prev:s])
+        pieces.append(replacements[i])
+        prev = e
+    pieces.append(text[prev:])
+    return "".join(pieces)
+
+
+def stamp_line(comment: str, prefix: str, model_name: str, sha256: str) -> str:
+    return f"{comment} {prefix} {model_name} {sha256[:12]}"
+
+
+def insert_stamp(text: str, stamp: str, newline: str, after_headers: str | None = None) -> str:
+    """Insert ``stamp`` as a line of its own: after the leading lines that start with
+    ``after_headers`` (KRL's '&ACCESS'… lines must stay first), else at the top."""
+    pos = 0
+    if after_headers:
+        while pos < len(text) and text.startswith(after_headers, pos):
+            nl = text.find("\n", pos)
+            if nl < 0:  # headers only, no final newline
+                return text + newline + stamp
+            pos = nl + 1
+    return text[:pos] + stamp + newline + text[pos:]
+
+
+def write_atomic(outputs: Sequence[tuple[Path, str]]) -> None:
+    """Write all files or none: each to a temp file in its directory, then rename them all.
+
+    If a rename fails, files already renamed are put back as they were.
+    """
+    temps: list[tuple[Path, Path]] = []
+    try:
+        for path, text in outputs:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+            temps.append((Path(tmp), path))
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(text.encode("latin-1"))
+                fh.flush()
+                os.fsync(fh.fileno())
+            if path.exists():
+                os.chmod(tmp, path.stat().st_mode & 0o777)
+            else:
+                os.chmod(tmp, 0o666 & ~_umask())
+    except BaseException:
+        for tmp, _ in temps:
+            tmp.unlink(missing_ok=True)
+        raise
+    # keep the old versions until every rename has succeeded
+    backups: list[tuple[Path, Path | None]] = []
+    try:
+        for tmp, path in temps:
+            backup = None
+            if path.is_file():
+                # a hard link keeps the old contents at no cost once the rename replaces the name
+                backup = path.with_name(f".{path.name}.{os.getpid()}.bak")
+                backup.unlink(missing_ok=True)
+                os.link(path, backup)
+            os.replace(tmp, path)
+            backups.append((path, backup))
+    except BaseException:
+        for path, backup in reversed(backups):
+            if backup is not None:
+                os.replace(backup, path)
+            else:
+                path.unlink(missing_ok=True)
+        for tmp, _ in temps:
+            tmp.unlink(missing_ok=True)
+        raise
+    for _, backup in backups:
+        if backup is not None:
+            backup.unlink(missing_ok=True)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
