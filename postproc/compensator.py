@@ -122,14 +122,14 @@ class Compensator:
         (error,) = self.session.run([OUTPUT_ERROR], feeds)
         error = np.asarray(error, dtype=np.float64)
         if error.shape != (len(poses), 3):
-            raise PostprocError(f"model returned shape {error.shape}, expected ({len(poses)}, 3)", str(self.path))
+            raise PostprocError(f"model returned shape {error.shape}, expected ({len(poses)}, 3)", str(self.path), code="P306")
         return error
 
     def command(self, poses: np.ndarray, iterations: int | None = None, previous: np.ndarray | None = None) -> np.ndarray:
         """Commanded positions [N, 3] so that the robot lands on ``poses[:, :3]``: c = P + Ê(c)."""
         iterations = self.default_iterations if iterations is None else iterations
         if iterations < 1:
-            raise PostprocError("--iterations must be at least 1")
+            raise PostprocError("--iterations must be at least 1", code="P308")
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         trial = poses.copy()
         for _ in range(iterations):
@@ -141,7 +141,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
     """Load and check an ONNX compensator (default: the shipped ``models/default.onnx``)."""
     path = Path(path) if path is not None else model_path()
     if not path.is_file():
-        raise PostprocError(f"model not found: {path}", str(path))
+        raise PostprocError("model not found", str(path), code="P307")
     try:
         import onnxruntime as ort
     except ImportError as exc:  # pragma: no cover - install problem
@@ -155,7 +155,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
     try:
         session = ort.InferenceSession(data, options, providers=["CPUExecutionProvider"])
     except Exception as exc:  # onnxruntime raises its own exception types
-        raise PostprocError(f"not an ONNX model: {str(exc).splitlines()[0][:200]}", str(path)) from exc
+        raise PostprocError(f"not an ONNX model: {str(exc).splitlines()[0][:200]}", str(path), code="P306") from exc
     inputs = {i.name: i for i in session.get_inputs()}
     outputs = {o.name: o for o in session.get_outputs()}
     problems = []
@@ -172,7 +172,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
     if OUTPUT_ERROR in outputs and (len(outputs[OUTPUT_ERROR].shape) != 2 or outputs[OUTPUT_ERROR].shape[1] not in (3, None)):
         problems.append(f"output '{OUTPUT_ERROR}' has shape {outputs[OUTPUT_ERROR].shape}, expected [N, 3]")
     if problems:
-        raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path))
+        raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path), code="P306")
     meta = {k: _json_or_text(v) for k, v in session.get_modelmeta().custom_metadata_map.items()}
     return Compensator(
         path=path,

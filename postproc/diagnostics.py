@@ -25,6 +25,8 @@ class Diagnostic:
     severity: str = "warning"  # "warning" | "error"
 
     def format(self) -> str:
+        if self.line <= 0:  # about the whole file (unreadable, not a model, ...)
+            return f"{self.path}: {self.code} {self.message}"
         return f"{self.path}:{self.line}:{self.col}: {self.code} {self.message}"
 
 

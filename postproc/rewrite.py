@@ -138,7 +138,12 @@ def write_atomic(outputs: Sequence[tuple[Path, str]]) -> None:
                 backup = path.with_name(f".{path.name}.{os.getpid()}.bak")
                 backup.unlink(missing_ok=True)
                 os.link(path, backup)
-            os.replace(tmp, path)
+            try:
+                os.replace(tmp, path)
+            except BaseException:
+                if backup is not None:  # this one still holds its old contents
+                    backup.unlink(missing_ok=True)
+                raise
             backups.append((path, backup))
     except BaseException:
         for path, backup in reversed(backups):

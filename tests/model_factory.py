@@ -28,6 +28,7 @@ def affine_model(
     envelope: dict | None = DEFAULT_ENVELOPE,
     reach: dict | None = DEFAULT_REACH,
     previous_input: bool = False,
+    method: str = "affine-test",
     **extra_meta,
 ) -> Path:
     gain = np.zeros((3, 3)) if gain is None else np.asarray(gain, float)
@@ -60,7 +61,7 @@ def affine_model(
         tool=tool or {"name": "tool1", "frame": [0, 0, 200, 0, 0, 0]},
         envelope=envelope,
         reach=reach,
-        method="affine-test",
+        method=method,
         **extra_meta,
     )
     for k, v in meta.items():

@@ -1,0 +1,173 @@
+"""The compensate pipeline on pose programs and hand-built frames; CLI exit codes."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from postproc import frames
+from postproc.cli import main
+from postproc.compensate import compensate_program, compensate_text, robot_base_poses
+from postproc.compensator import load_model
+from postproc.diagnostics import PostprocError
+from postproc.programs import STAMP_PREFIX, Frame, Program, TargetsBuilder
+
+from conftest import REPO
+
+CSV = "# part\r\nname,x,y,z,a,b,c,feed\r\nP1,1950.1,12.5,880,0,90,0,100\r\nP2,2001.250,-12.5,900.,2,88,1,120\r\n"
+
+
+def without_stamp(text):
+    return "".join(line for line in text.splitlines(keepends=True) if STAMP_PREFIX not in line)
+
+
+def test_zero_model_changes_nothing_but_the_stamp(affine):
+    out, report = compensate_text(CSV, affine(), name="p.csv")
+    assert report.compensated == 2
+    # the numbers are rewritten in their style (≥ 3 decimals) but keep their values
+    assert without_stamp(out) == CSV.replace("1950.1,12.5,880,", "1950.100,12.500,880.000,").replace(
+        ",-12.5,900.,", ",-12.500,900.000,")
+    assert out.splitlines()[0] == f"# {STAMP_PREFIX} test-model {load_model(affine()).sha256[:12]}"
+
+
+def test_constant_offset_moves_exactly_xyz(affine):
+    out, report = compensate_text(CSV, affine(offset=(0.25, -0.5, 1.0)), name="p.csv")
+    rows = [line.split(",") for line in without_stamp(out).splitlines()[2:]]
+    assert [list(map(float, r[1:4])) for r in rows] == [[1950.35, 12.0, 881.0], [2001.5, -13.0, 901.0]]
+    assert [r[4:] for r in rows] == [["0", "90", "0", "100"], ["2", "88", "1", "120"]]
+    assert report.max_correction_mm == pytest.approx(np.linalg.norm([0.25, 0.5, 1.0]), abs=1e-6)
+
+
+def test_fixed_point_solves_c_equals_p_plus_error_of_c(affine):
+    gain = np.array([[2e-3, 0, 0], [0, -1e-3, 5e-4], [0, 0, 3e-3]])
+    centre = np.array([2000.0, 0.0, 900.0])
+    offset = np.array([0.3, -0.2, 0.1])
+    model = load_model(affine(offset=offset, gain=gain, centre=centre))
+    p = np.array([[2100.0, 300.0, 1000.0, 0, 90, 0]])
+    # c = p + offset + G (c − centre)  ⇔  (I − G) c = p + offset − G centre
+    exact = np.linalg.solve(np.eye(3) - gain, p[0, :3] + offset - gain @ centre)
+    assert np.allclose(model.command(p, iterations=8)[0], exact, atol=1e-4)
+    one_step = p[0, :3] + offset + gain @ (p[0, :3] - centre)
+    assert np.allclose(model.command(p, iterations=1)[0], one_step, atol=1e-4)
+
+
+def program_in_base(base_frame, pose):
+    text = "x,y,z\n" + ",".join(f"{v:.3f}" for v in pose[:3]) + "\n"
+    b = TargetsBuilder()
+    start = text.index("\n") + 1
+    toks = text[start:].rstrip("\n").split(",")
+    spans, pos = [], start
+    for tok in toks:
+        spans += [pos, pos + len(tok)]
+        pos += len(tok) + 1
+    b.add(list(pose), spans, 0, 2, 1, 0, 0)
+    return Program(["p.csv"], [text], b.build(), [Frame(frames.frame_to_matrix(base_frame))], dialect="poses",
+                   newlines=["\n"], comment="#")
+
+
+def test_correction_is_mapped_back_into_the_program_base(affine):
+    # base turned 90° about Z: a robot-base correction (0.3, −0.2, 0.1) is (−0.2, −0.3, 0.1) in it
+    program = program_in_base([1800, -400, 600, 90, 0, 0], [300.0, -100.0, 200.0, 0, 90, 0])
+    poses, resolved = robot_base_poses(program)
+    assert resolved.all() and np.allclose(poses[0, :3], [1800 + 100, -400 + 300, 800])
+    report = compensate_program(program, load_model(affine(offset=(0.3, -0.2, 0.1))))
+    values = report.outputs["p.csv"].splitlines()[-1].split(",")
+    assert np.allclose(list(map(float, values)), [299.8, -100.3, 200.1], atol=1e-9)
+
+
+def test_refuses_double_compensation_unless_forced(affine):
+    model = affine(offset=(0.1, 0, 0))
+    once, _ = compensate_text(CSV, model, name="p.csv")
+    with pytest.raises(PostprocError) as info:
+        compensate_text(once, model, name="p.csv")
+    assert info.value.code == "P401" and info.value.line == 1
+    twice, _ = compensate_text(once, model, name="p.csv", force=True)
+    assert "1950.300" in twice
+
+
+def test_outside_envelope_warns_and_strict_refuses(affine):
+    text = "x,y,z,a,b,c\n2000,0,900,0,90,0\n1000,0,900,0,90,0\n"
+    model = affine()
+    _, report = compensate_text(text, model, name="p.csv")
+    assert [(w.code, w.line) for w in report.warnings] == [("P301", 3)]
+    with pytest.raises(PostprocError) as info:
+        compensate_text(text, model, name="p.csv", strict=True)
+    assert (info.value.code, info.value.line) == ("P301", 3)
+
+
+def test_beyond_reach_is_an_error(affine):
+    with pytest.raises(PostprocError) as info:
+        compensate_text("x,y,z,a,b,c\n2000,0,900,0,90,0\n5000,0,900,0,90,0\n", affine(), name="p.csv")
+    assert (info.value.code, info.value.line) == ("P302", 3)
+
+
+def test_implausible_or_nan_corrections_are_refused(affine):
+    with pytest.raises(PostprocError) as info:
+        compensate_text(CSV, affine(offset=(6.0, 0, 0)), name="p.csv")
+    assert info.value.code == "P303"
+    with pytest.raises(PostprocError) as info:
+        compensate_text(CSV, affine(offset=(float("nan"), 0, 0)), name="p.csv")
+    assert info.value.code == "P305"
+
+
+def test_missing_orientation_takes_nominal_attitude_with_warning(affine):
+    _, report = compensate_text("2000 0 900\n", affine(offset=(0.1, 0, 0)), name="p.txt")
+    assert report.compensated == 1 and [w.code for w in report.warnings] == ["P213"]
+
+
+def test_not_a_compensator(tmp_path, affine):
+    junk = tmp_path / "junk.onnx"
+    junk.write_bytes(b"not onnx at all")
+    with pytest.raises(PostprocError, match="not an ONNX model"):
+        load_model(junk)
+    import onnx
+    from onnx import TensorProto, helper
+
+    g = helper.make_graph([helper.make_node("Identity", ["x"], ["y"])], "g",
+                          [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["N", 6])],
+                          [helper.make_tensor_value_info("y", TensorProto.FLOAT, ["N", 6])])
+    wrong = tmp_path / "wrong.onnx"
+    m = helper.make_model(g, opset_imports=[helper.make_opsetid("", 17)])
+    m.ir_version = 8
+    onnx.save(m, wrong)
+    with pytest.raises(PostprocError, match="no input 'pose'.*no output 'error'"):
+        load_model(wrong)
+    with pytest.raises(PostprocError, match="P307 model not found"):
+        load_model(tmp_path / "missing.onnx")
+
+
+def test_cli_exit_codes_and_nothing_written_on_error(tmp_path, affine, capsys):
+    src = tmp_path / "p.csv"
+    src.write_bytes(CSV.encode())
+    out = tmp_path / "out.csv"
+    model = str(affine(offset=(0.1, 0, 0)))
+    assert main(["compensate", str(src), "-o", str(out), "--model", model, "-q"]) == 0
+    first = out.read_bytes()
+    assert capsys.readouterr().err == ""
+    # a second run on the compensated output refuses: exit 2, message with location, nothing written
+    again = tmp_path / "again.csv"
+    assert main(["compensate", str(out), "-o", str(again), "--model", model]) == 2
+    assert capsys.readouterr().err.startswith(f"{out}:1:1: P401 ")
+    assert not again.exists()
+    # bad input does not touch an existing output
+    bad = tmp_path / "bad.csv"
+    bad.write_text("x,y,z\n1,zz,3\n")
+    assert main(["compensate", str(bad), "-o", str(out), "--model", model]) == 2
+    assert f"{bad}:2:3: P103" in capsys.readouterr().err
+    assert out.read_bytes() == first
+    for content, code in [(b"", "P105"), (b"\x00\x01binary", "P106")]:
+        bad.write_bytes(content)
+        assert main(["compensate", str(bad), "-o", str(out), "--model", model]) == 2
+        assert code in capsys.readouterr().err
+    assert main(["compensate", str(tmp_path / "nope.csv"), "-o", str(out), "--model", model]) == 2
+    assert main(["compensate", str(src), "-o", str(out), "--model", str(tmp_path / "none.onnx")]) == 2
+    assert out.read_bytes() == first
+
+
+def test_stdin_to_stdout_filter(affine):
+    model = str(affine(offset=(0.1, 0, 0)))
+    run = subprocess.run([sys.executable, "-m", "postproc", "compensate", "-", "-o", "-", "--model", model, "-q"],
+                         input=CSV.encode(), capture_output=True, cwd=REPO)
+    assert run.returncode == 0, run.stderr
+    assert run.stderr == b""
+    assert b"1950.200,12.500,880.000" in run.stdout and run.stdout.endswith(b",120\r\n")
