@@ -1,0 +1,359 @@
+"""Checks of robot programs for ``postproc check`` and the pre-commit hooks.
+
+Everything here returns :class:`~postproc.diagnostics.Diagnostic` lists; nothing prints.
+A program is checked for what would make ``postproc compensate`` (with the same model and
+settings) refuse or warn, plus what only matters once programs are kept in a repository:
+
+* syntax errors (the dialect reader's ``P1xx``);
+* targets the nominal robot cannot reach (``P302``, the model's ``reach``; ``P309`` with an
+  IK reachability test), outside the training envelope (``P301``), not finite (``P103``),
+  with a position or orientation that is not known (``P212``, ``P213``), a $TOOL that is not
+  the model's (``P304``), corrections the model makes NaN (``P305``) or implausibly large
+  (``P303``);
+* stamps: compensated with a model other than the configured one (``P402``), compensated
+  twice (``P403``), a .src and .dat that do not come from one compensation (``P404``);
+* freshness of configured source → output pairs (``P405`` stale, ``P406`` output missing,
+  ``P407`` output without source), by compensating the source in memory and comparing
+  bytes: git checkouts scramble mtimes, so they prove nothing.
+"""
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .compensate import (
+    DEFAULT_MAX_CORRECTION_MM,
+    MAX_LISTED,
+    _tool_mismatch,
+    compensate_program,
+    load_program,
+    output_paths,
+    robot_base_poses,
+)
+from .compensator import Compensator, load_model
+from .config import Config
+from .diagnostics import Diagnostic, PostprocError, line_col
+from .programs import STAMP_PREFIX, Program
+from .rewrite import write_atomic
+
+__all__ = [
+    "CODES",
+    "Stamp",
+    "find_stamps",
+    "check_program",
+    "check_file",
+    "check_files",
+    "check_fresh",
+    "program_paths",
+    "failed",
+]
+
+# The codes this module reports besides the readers' own (README "pre-commit" lists them all).
+CODES = {
+    "P103": "target position is not a finite number",
+    "P212": "target position not fully known (left as it is by compensate)",
+    "P213": "target orientation not known (the model's nominal attitude is assumed)",
+    "P301": "target outside the model's training envelope",
+    "P302": "target beyond the nominal robot's reach (model metadata 'reach')",
+    "P303": "the model's correction exceeds max_correction",
+    "P304": "the program's $TOOL is not the model's tool",
+    "P305": "the model returns NaN or inf at this target",
+    "P309": "no inverse-kinematics solution for this target (--robot)",
+    "P402": "compensated with a model other than the configured one",
+    "P403": "compensated twice",
+    "P404": "the .src and .dat do not come from one compensation",
+    "P405": "compensated output is stale: re-compensating its source gives other bytes",
+    "P406": "compensated output is missing",
+    "P407": "compensated output has no source",
+}
+
+# "path:line:col" of a stamp; the name may hold spaces, the hash is the last word
+_STAMP = re.compile(
+    r"^[ \t]*(?:;|#|//)[ \t]*" + re.escape(STAMP_PREFIX) + r"[ \t]+(?P<name>.*?)[ \t]+(?P<sha>[0-9a-fA-F]{6,64})[ \t]*\r?$",
+    re.M,
+)
+
+
+@dataclass(frozen=True)
+class Stamp:
+    """One ``; postproc: compensated with model <name> <sha256[:12]>`` line."""
+
+    file: int  # index into Program.files
+    line: int
+    col: int
+    name: str
+    sha: str
+
+    def same_model(self, model: Compensator) -> bool:
+        return self.name == model.name and model.sha256.startswith(self.sha.lower())
+
+
+def find_stamps(program: Program) -> list[Stamp]:
+    """Every stamp line in every file of the program, in file and line order."""
+    out = []
+    for index, text in enumerate(program.texts):
+        for m in _STAMP.finditer(text):
+            line, _ = line_col(text, m.start())
+            indent = len(m.group()) - len(m.group().lstrip(" \t"))
+            out.append(Stamp(index, line, indent + 1, m.group("name"), m.group("sha")))
+    return out
+
+
+def failed(diagnostics: Iterable[Diagnostic], strict: bool = False) -> bool:
+    """Whether the findings fail a check: any error, and under ``strict`` any warning too."""
+    return any(strict or d.severity == "error" for d in diagnostics)
+
+
+# --------------------------------------------------------------------------- one program
+
+
+def _rows(program: Program, rows: np.ndarray, code: str, message: str, severity: str) -> list[Diagnostic]:
+    """One diagnostic per target up to MAX_LISTED, then one that counts the rest."""
+    t = program.targets
+
+    def at(r: int, text: str) -> Diagnostic:
+        return Diagnostic(program.files[t.file[r]], int(t.line[r]), int(t.col[r]), code, text, severity)
+
+    out = [at(int(r), message) for r in rows[:MAX_LISTED]]
+    if len(rows) > MAX_LISTED:
+        out.append(at(int(rows[MAX_LISTED]), f"{message} (and {len(rows) - MAX_LISTED - 1} more targets)"))
+    return out
+
+
+def _stamp_findings(program: Program, model: Compensator) -> list[Diagnostic]:
+    stamps = find_stamps(program)
+    out: list[Diagnostic] = []
+    first: dict[int, Stamp] = {}
+    for s in stamps:
+        path = program.files[s.file]
+        if s.file in first:
+            f = first[s.file]
+            out.append(Diagnostic(path, s.line, s.col, "P403",
+                                  f"compensated twice: a second stamp (the first is on line {f.line}, "
+                                  f"model {f.name} {f.sha})", "error"))
+            continue
+        first[s.file] = s
+        if not s.same_model(model):
+            what = ("another version of model " + s.name) if s.name == model.name else f"model {s.name}"
+            out.append(Diagnostic(path, s.line, s.col, "P402",
+                                  f"compensated with {what} {s.sha}, not the configured {model.name} "
+                                  f"{model.sha256[:12]}", "error"))
+    if first and len(program.files) > 1:
+        # one compensation stamps every file of a module with the same line
+        keys = {i: (first[i].name, first[i].sha) if i in first else None for i in range(len(program.files))}
+        if len(set(keys.values())) > 1:
+            for i, key in keys.items():
+                others = [program.files[j] for j, k in keys.items() if k != key]
+                where = (first[i].line, first[i].col) if i in first else (1, 1)
+                state = f"stamped {key[0]} {key[1]}" if key else "not stamped"
+                out.append(Diagnostic(program.files[i], *where, "P404",
+                                      f"{state}, unlike {', '.join(others)}: the files of this module do not "
+                                      "come from one compensation", "error"))
+    return out
+
+
+def check_program(
+    program: Program,
+    model: Compensator,
+    *,
+    iterations: int | None = None,
+    max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    reachable: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> list[Diagnostic]:
+    """Every finding about a parsed program (see the module docstring), in no particular order.
+
+    ``reachable`` optionally maps robot-base poses [N, 6] to a bool mask [N] (e.g. IK of
+    the nominal robot); targets it rejects are ``P309`` errors.
+    """
+    out = list(program.diagnostics)
+    out += _stamp_findings(program, model)
+    mismatch = _tool_mismatch(program, model)
+    if mismatch:
+        out.append(Diagnostic(program.files[0], 1, 1, "P304", mismatch, "error"))
+
+    poses, resolved = robot_base_poses(program)
+    # the same selection compensate_program makes, so that a clean check means it will succeed
+    no_position = resolved & np.isnan(poses[:, :3]).any(axis=1)
+    out += _rows(program, np.flatnonzero(no_position), "P212",
+                 "position not fully known (partial aggregate with no preceding target): left as it is", "warning")
+    use = resolved & ~no_position
+    no_attitude = use & np.isnan(poses[:, 3:6]).any(axis=1)
+    if no_attitude.any():
+        nominal = model.nominal_attitude
+        if nominal is None:
+            out += _rows(program, np.flatnonzero(no_attitude), "P213",
+                         "target has no orientation and the model records no nominal attitude", "error")
+            use &= ~no_attitude
+        else:
+            poses[no_attitude, 3:6] = nominal
+            out += _rows(program, np.flatnonzero(no_attitude), "P213",
+                         f"orientation not known: the model's nominal attitude {list(map(float, nominal))} is assumed",
+                         "warning")
+    not_finite = use & ~np.isfinite(poses).all(axis=1)
+    out += _rows(program, np.flatnonzero(not_finite), "P103", "target is not a finite number", "error")
+    rows = np.flatnonzero(use & ~not_finite)
+    sel = poses[rows]
+    far = model.beyond_reach(sel[:, :3])
+    out += _rows(program, rows[far], "P302", "target beyond the robot's reach: no model can compensate there", "error")
+    if reachable is not None and len(sel):
+        no_ik = ~np.asarray(reachable(sel), bool) & ~far
+        out += _rows(program, rows[no_ik], "P309", "the nominal robot has no IK solution for this target", "error")
+    envelope = model.envelope
+    if envelope is not None:
+        out += _rows(program, rows[envelope.outside(sel)], "P301", "target outside the model's training envelope",
+                     "warning")
+    if len(sel):
+        previous = np.vstack([sel[:1], sel[:-1]]) if model.wants_previous else None
+        correction = model.command(sel, iterations, previous) - sel[:, :3]
+        size = np.linalg.norm(correction, axis=1)
+        bad = ~np.isfinite(size)
+        out += _rows(program, rows[bad], "P305", "the model returns NaN or inf here", "error")
+        large = np.flatnonzero(~bad & (size > max_correction_mm))
+        if len(large):
+            worst = large[np.argmax(size[large])]
+            out += _rows(program, rows[large], "P303",
+                         f"correction exceeds {max_correction_mm} mm (largest {size[worst]:.3f} mm): the model is "
+                         "wrong here", "error")
+    return out
+
+
+# --------------------------------------------------------------------------- files
+
+
+def _owner(path: Path) -> Path:
+    """The .src a .dat belongs to (same stem, any case, same folder), else the path itself."""
+    if path.suffix.lower() != ".dat" or not path.parent.is_dir():
+        return path
+    stem = path.stem.lower()
+    for candidate in sorted(path.parent.iterdir()):
+        if candidate.suffix.lower() == ".src" and candidate.stem.lower() == stem and candidate.is_file():
+            return candidate
+    return path
+
+
+def program_paths(paths: Iterable[str | Path]) -> list[Path]:
+    """The programs to read for these files: a .dat is read with its .src; no program twice."""
+    seen: dict[Path, None] = {}
+    for p in paths:
+        seen.setdefault(_owner(Path(p)), None)
+    return list(seen)
+
+
+def check_file(
+    path: str | Path,
+    model: Compensator,
+    *,
+    config: str | Path | list | None = None,
+    **options,
+) -> list[Diagnostic]:
+    """Read and check one program (a .src reads its .dat too); a syntax error is a finding."""
+    try:
+        program = load_program(path, config)
+    except PostprocError as exc:
+        return [exc.diagnostic()]
+    return check_program(program, model, **options)
+
+
+def check_files(
+    paths: Iterable[str | Path],
+    model: Compensator,
+    *,
+    config: str | Path | list | None = None,
+    ignore: Iterable[str] = (),
+    **options,
+) -> list[Diagnostic]:
+    """Check the programs these files belong to; findings sorted by path, line, column."""
+    ignored = set(ignore)
+    out: list[Diagnostic] = []
+    for path in program_paths(paths):
+        out += [d for d in check_file(path, model, config=config, **options) if d.code not in ignored]
+    return sorted(out, key=lambda d: (d.path, d.line, d.col, d.code))
+
+
+# --------------------------------------------------------------------------- freshness
+
+
+def _shown(path: Path) -> str:
+    """A path relative to the current directory when it is below it (as git and ruff show it)."""
+    try:
+        return os.path.relpath(path) if Path(path).resolve().is_relative_to(Path.cwd().resolve()) else str(path)
+    except ValueError:  # another drive
+        return str(path)
+
+
+def _first_difference(expected: str, actual: str) -> int:
+    n = min(len(expected), len(actual))
+    if expected[:n] == actual[:n]:
+        return n
+    a, b = np.frombuffer(expected[:n].encode("latin-1"), np.uint8), np.frombuffer(actual[:n].encode("latin-1"), np.uint8)
+    return int(np.argmax(a != b))
+
+
+def check_fresh(
+    cfg: Config,
+    model: Compensator,
+    *,
+    fix: bool = False,
+    ignore: Iterable[str] = (),
+) -> tuple[list[Diagnostic], list[Path]]:
+    """Compare every configured output with its source compensated in memory.
+
+    ``model`` is the configured model (pairs may name their own). With ``fix`` stale and
+    missing outputs are written (atomically, with their .dat) instead of reported.
+    Returns the findings and the files written.
+    """
+    if not cfg.fresh:
+        where = _shown(cfg.path) if cfg.path else "postproc.toml / pyproject.toml"
+        raise PostprocError("no fresh pairs are configured: add fresh = [{ source = \"src/*.src\", output = "
+                            "\"out/*.src\" }] under [tool.postproc]", where, 0, 0, "P601")
+    ignored = set(ignore)
+    models: dict[Path | None, Compensator] = {None: model}
+    findings: list[Diagnostic] = []
+    written: list[Path] = []
+    for pair in cfg.fresh:
+        if pair.model not in models:
+            models[pair.model] = load_model(pair.model)
+        pair_model = models[pair.model]
+        config = pair.config if pair.config is not None else cfg.config
+        for source, output in pair.matches():
+            shown_src, shown_out = _shown(source), _shown(output)
+            try:
+                program = load_program(source, list(config) if config else None)
+                report = compensate_program(
+                    program, pair_model, iterations=cfg.iterations, strict=cfg.strict,
+                    max_correction_mm=cfg.max_correction_mm or DEFAULT_MAX_CORRECTION_MM,
+                )
+            except PostprocError as exc:
+                d = exc.diagnostic()
+                findings.append(Diagnostic(_shown(Path(d.path)) if d.path else shown_src, d.line, d.col, d.code,
+                                           f"{d.message} (while compensating it for {shown_out})", "error"))
+                continue
+            targets = output_paths(program, output)
+            stale: list[Diagnostic] = []
+            for target, name in zip(targets, program.files):
+                expected = report.outputs[name]
+                if not target.is_file():
+                    stale.append(Diagnostic(shown_src, 0, 0, "P406",
+                                            f"no compensated output {_shown(target)}", "error"))
+                    continue
+                actual = target.read_bytes().decode("latin-1")
+                if actual != expected:
+                    line, col = line_col(actual, _first_difference(expected, actual))
+                    stale.append(Diagnostic(
+                        _shown(target), line, col, "P405",
+                        f"stale: compensating {_shown(Path(name))} with {pair_model.name} "
+                        f"{pair_model.sha256[:12]} gives other bytes from here on", "error"))
+            if stale and fix:
+                write_atomic([(t, report.outputs[f]) for t, f in zip(targets, program.files)])
+                written += targets
+            else:
+                findings += stale
+        findings += [Diagnostic(_shown(p), 0, 0, "P407", f"no source matches '{pair.source}' for this output",
+                                "warning") for p in pair.orphans()]
+    findings = [d for d in findings if d.code not in ignored]
+    return sorted(findings, key=lambda d: (d.path, d.line, d.col, d.code)), written

@@ -1,0 +1,128 @@
+"""postproc check: lint robot programs (and compensated outputs) as a pre-commit hook would."""
+from __future__ import annotations
+
+import sys
+
+EXAMPLES = """examples:
+  postproc check src/*.src out/*.src             syntax, reach, envelope, stamps of these programs
+  postproc check part.csv --model models/cell7.onnx --strict --ignore P301
+  postproc check --fresh                         outputs of [tool.postproc] fresh pairs up to date?
+  postproc check --fresh --fix                   ... and re-compensate the stale ones
+  postproc check weld.src --robot models/kr500.toml   also the nominal robot's IK (needs postproc[sim])
+
+settings: [tool.postproc] in pyproject.toml or postproc.toml, found from the current directory
+upwards (model, config, strict, max_correction, iterations, ignore, fresh); options override them.
+output: one `path:line:col: CODE message` line per finding on stdout.
+exit: 0 clean (warnings only, unless --strict), 1 findings, 2 usage or internal error.
+"""
+
+
+def add_parser(sub, common, formatter) -> None:
+    p = sub.add_parser(
+        "check",
+        parents=[common],
+        formatter_class=formatter,
+        help="check programs: syntax, reach, envelope, model stamps, stale outputs",
+        description="Report what would make `postproc compensate` refuse or warn (syntax errors, targets "
+        "beyond reach or outside the model's envelope, NaN), programs compensated with another model or "
+        "twice, and (--fresh) compensated outputs that no longer match their sources.",
+        epilog=EXAMPLES,
+    )
+    p.add_argument("files", nargs="*", metavar="FILE", help="programs (.src/.dat/.csv/.txt); a .dat is checked with its .src")
+    p.add_argument("--model", metavar="M", help="the configured ONNX model (default: settings, else models/default.onnx)")
+    p.add_argument("--config", metavar="CONFIG_DAT", action="append", help="$config.dat with BASE_DATA / TOOL_DATA (repeatable)")
+    p.add_argument("--settings", metavar="TOML", help="pyproject.toml or postproc.toml to read (default: searched upwards)")
+    p.add_argument("--fresh", action="store_true", help="check the configured source → output pairs")
+    p.add_argument("--fix", action="store_true", help="with --fresh: rewrite stale or missing outputs")
+    p.add_argument("--strict", action="store_true", default=None, help="warnings are findings too (exit 1)")
+    p.add_argument("--ignore", metavar="CODES", default="", help="comma-separated codes not to report, e.g. P301,P213")
+    p.add_argument("--max-correction", type=float, metavar="MM", help="corrections above this are findings (default 5 mm)")
+    p.add_argument("--iterations", type=int, metavar="K", help="fixed-point iterations (default: the model's)")
+    p.add_argument("--robot", metavar="DESC", nargs="?", const="",
+                   help="also test reachability with the nominal robot's IK (DESC: robot description, "
+                   "default models/kr500.toml; needs Pinocchio)")
+    p.set_defaults(run=run)
+
+
+def _reachable(description: str):
+    try:
+        from ..robot import Robot, load_description
+    except ImportError as exc:
+        from ..diagnostics import PostprocError
+
+        raise PostprocError(f"--robot needs Pinocchio (pip install 'postproc[sim]'): {exc}", code="P309") from None
+    robot = Robot(load_description(description or None))
+    return lambda poses: robot.ik(poses)[1]
+
+
+def _paint(line: str, severity: str, color: bool) -> str:
+    if not color:
+        return line
+    # bold location, red errors / yellow warnings, as ruff and compilers do
+    head, sep, rest = line.partition(": ")
+    code, _, message = rest.partition(" ")
+    tint = "\033[31m" if severity == "error" else "\033[33m"
+    return f"\033[1m{head}\033[0m{sep}{tint}{code}\033[0m {message}"
+
+
+def run(args) -> int:
+    from ..check import check_files, check_fresh, failed
+    from ..compensate import DEFAULT_MAX_CORRECTION_MM
+    from ..compensator import load_model
+    from ..config import load_config
+    from ..diagnostics import EXIT_ERROR, EXIT_FINDINGS, EXIT_OK
+    from . import use_color
+
+    if not args.files and not args.fresh:
+        print("postproc check: give programs to check, or --fresh (see postproc check --help)", file=sys.stderr)
+        return EXIT_ERROR
+    if args.fix and not args.fresh:
+        print("postproc check: --fix works with --fresh only", file=sys.stderr)
+        return EXIT_ERROR
+    cfg = load_config(args.settings)
+    if args.model:
+        cfg.model = args.model
+    if args.config:
+        cfg.config = tuple(args.config)
+    if args.strict is not None:
+        cfg.strict = True
+    if args.max_correction is not None:
+        cfg.max_correction_mm = args.max_correction
+    if args.iterations is not None:
+        cfg.iterations = args.iterations
+    ignore = set(cfg.ignore) | {c.strip().upper() for c in args.ignore.split(",") if c.strip()}
+    model = load_model(cfg.model)
+    if args.verbose:
+        print(f"postproc check: model {model.name} {model.sha256[:12]} ({model.path}); settings "
+              f"{cfg.path or 'none'}", file=sys.stderr)
+    options = dict(iterations=cfg.iterations, max_correction_mm=cfg.max_correction_mm or DEFAULT_MAX_CORRECTION_MM)
+    if args.robot is not None:
+        options["reachable"] = _reachable(args.robot)
+
+    findings = []
+    if args.files:
+        findings += check_files(args.files, model, config=list(cfg.config) if cfg.config else None, ignore=ignore,
+                                **options)
+    written = []
+    if args.fresh:
+        fresh, written = check_fresh(cfg, model, fix=args.fix, ignore=ignore)
+        findings += fresh
+
+    color = use_color(sys.stdout)
+    for d in findings:
+        if args.quiet and d.severity != "error" and not cfg.strict:
+            continue
+        print(_paint(d.format(), d.severity, color))
+    for path in written:
+        print(f"postproc check: rewrote {path}", file=sys.stderr)
+    if not args.quiet:
+        errors = sum(d.severity == "error" for d in findings)
+        warnings = len(findings) - errors
+        programs = len({d.path for d in findings})
+        if findings:
+            print(f"postproc check: {errors} error{'s' * (errors != 1)}, {warnings} warning{'s' * (warnings != 1)} "
+                  f"in {programs} file{'s' * (programs != 1)}" + (" (--strict: warnings count)" if cfg.strict and warnings else ""),
+                  file=sys.stderr)
+        else:
+            print("postproc check: clean", file=sys.stderr)
+    return EXIT_FINDINGS if failed(findings, cfg.strict) else EXIT_OK
