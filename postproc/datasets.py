@@ -15,6 +15,9 @@ here ``q1..q6`` (joint angles, deg) and ``temperature``. Metadata lines ``# key:
 precede the header; ``# frame: tracker`` says the measured columns are still in the
 tracker's frame (``train --register`` maps them into the base frame), ``# frame: base`` (or
 no frame line) says they are in the robot base frame already.
+
+Codes (as in training/data.py): P500 unreadable or empty, P501 not the expected columns,
+P502 a value that is not a finite number, P503 wrong number of fields.
 """
 from __future__ import annotations
 
@@ -33,7 +36,6 @@ __all__ = [
     "read_ipa",
     "parse_ipa",
     "rpy_to_abc",
-    "holdout_mask",
     "write_measurements",
     "read_metadata",
 ]
@@ -111,7 +113,7 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
 
     raw_lines = text.lstrip("\ufeff").splitlines()
     if not raw_lines or not raw_lines[0].strip():
-        raise PostprocError("empty file: expected an IPA header line", path, 1, 1, "P501")
+        raise PostprocError("empty file: expected an IPA header line", path, 1, 1, "P500")
     header = [h.strip() for h in raw_lines[0].split(";")]
     if len(header) == 1:
         raise PostprocError(
@@ -125,7 +127,7 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
     required = IPA_GOAL + IPA_JOINTS + IPA_MEASURED
     missing = [name for name in required if name not in where]
     if missing:
-        raise PostprocError(f"missing IPA column(s): {', '.join(missing)}", path, 1, 1, "P502")
+        raise PostprocError(f"missing IPA column(s): {', '.join(missing)}", path, 1, 1, "P501")
     optional = [name for name in IPA_MEASURED_ROTATION + (IPA_TEMPERATURE,) if name in where]
     has_rotation = all(name in where for name in IPA_MEASURED_ROTATION)
     wanted = list(required) + optional
@@ -133,7 +135,7 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
 
     numbered = [(i, line) for i, line in enumerate(raw_lines[1:], start=2) if line.strip()]
     if not numbered:
-        raise PostprocError("no data rows after the header", path, 1, 1, "P503")
+        raise PostprocError("no data rows after the header", path, 1, 1, "P500")
     line_no = np.array([i for i, _ in numbered])
     fields = [line.split(";") for _, line in numbered]
     counts = np.fromiter(map(len, fields), dtype=int, count=len(fields))
@@ -145,7 +147,7 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
             path,
             int(line_no[k]),
             1,
-            "P504",
+            "P503",
         )
     # fast path: one vectorised conversion; the slow search below only locates a bad cell
     cells = np.char.replace(np.char.strip(np.array(fields, dtype=str)[:, columns]), ",", ".")
@@ -163,7 +165,7 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
             path,
             int(line_no[r]),
             _column_offset(numbered[r][1], int(columns[c])),
-            "P505",
+            "P502",
         )
     col = {name: values[:, i] for i, name in enumerate(wanted)}
     goal = np.stack([col[name] for name in IPA_GOAL], axis=1)
@@ -192,23 +194,10 @@ def read_ipa(path: str | os.PathLike, branch: str = "nearest") -> IpaSeries:
     except FileNotFoundError:
         raise PostprocError("no such file", str(path), 0, 0, "P500") from None
     except UnicodeDecodeError as exc:
-        raise PostprocError(f"not UTF-8 text ({exc.reason} at byte {exc.start})", str(path), 0, 0, "P501") from None
+        raise PostprocError(f"not UTF-8 text ({exc.reason} at byte {exc.start})", str(path), 0, 0, "P500") from None
     except OSError as exc:
         raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, "P500") from None
     return parse_ipa(text, str(path), branch)
-
-
-def holdout_mask(n: int, val_fraction: float, seed: int) -> np.ndarray:
-    """[n] bool, True for the round(n·val_fraction) rows held out for validation.
-
-    The rows are drawn with ``numpy.random.default_rng(seed).permutation(n)``, so the same
-    (n, fraction, seed) always gives the same split, whatever the data.
-    """
-    if not 0.0 <= val_fraction < 1.0:
-        raise PostprocError(f"the validation fraction must be in [0, 1), got {val_fraction}", code="P506")
-    held = np.zeros(n, dtype=bool)
-    held[np.random.default_rng(seed).permutation(n)[: int(round(n * val_fraction))]] = True
-    return held
 
 
 def write_measurements(

@@ -9,11 +9,12 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from postproc.cli import main
-from postproc.datasets import MEASUREMENT_COLUMNS, holdout_mask, parse_ipa, read_ipa, read_metadata, rpy_to_abc
+from postproc.datasets import MEASUREMENT_COLUMNS, parse_ipa, read_ipa, read_metadata, rpy_to_abc
 from postproc.diagnostics import PostprocError
 from postproc.frames import rotation_from_abc
 from postproc.registration import register_measurements
 from postproc.resources import sample_path
+from postproc.training.data import parse_measurements, split_indices
 
 EXCERPT = sample_path("ipa/series_c_excerpt.csv")
 
@@ -125,7 +126,7 @@ def test_malformed_number_names_file_line_and_column(text, value):
     with pytest.raises(PostprocError) as info:
         parse_ipa(bad, "series.csv")
     err = info.value
-    assert (err.path, err.line, err.code) == ("series.csv", 5, "P505")
+    assert (err.path, err.line, err.code) == ("series.csv", 5, "P502")
     assert err.col == len(bad.splitlines()[4].split(";")[0]) + 2  # after the timestamp and its ';'
     assert "Goal x" in err.message
     assert str(err).startswith("series.csv:5:")
@@ -146,24 +147,16 @@ def test_structural_errors(text):
     short = "\n".join(lines[:6] + [lines[6].rsplit(";", 1)[0]] + lines[7:])
     with pytest.raises(PostprocError) as info:
         parse_ipa(short)
-    assert (info.value.line, info.value.code) == (7, "P504")
+    assert (info.value.line, info.value.code) == (7, "P503")
     with pytest.raises(PostprocError) as info:
         parse_ipa(text.replace("elbow_joint", "elbow"))
-    assert (info.value.line, info.value.code) == (1, "P502") and "elbow_joint" in info.value.message
+    assert (info.value.line, info.value.code) == (1, "P501") and "elbow_joint" in info.value.message
     with pytest.raises(PostprocError) as info:
         parse_ipa(",".join(MEASUREMENT_COLUMNS) + "\n1,2,3,4,5,6,7,8,9\n")
     assert info.value.code == "P501"
     with pytest.raises(PostprocError) as info:
         parse_ipa(lines[0] + "\n")
-    assert info.value.code == "P503"
-
-
-def test_holdout_mask_is_reproducible():
-    a = holdout_mask(2773, 0.2, 0)
-    assert a.sum() == 555 and np.array_equal(a, holdout_mask(2773, 0.2, 0))
-    assert not np.array_equal(a, holdout_mask(2773, 0.2, 1))
-    with pytest.raises(PostprocError):
-        holdout_mask(10, 1.0, 0)
+    assert info.value.code == "P500"
 
 
 def _read_csv(path) -> tuple[list[str], np.ndarray]:
@@ -183,6 +176,10 @@ def test_import_writes_tracker_frame_csv(tmp_path, series, capsys):
     assert np.allclose(table[:, :6], series.commanded, rtol=1e-11, atol=1e-9)
     assert np.array_equal(table[:, 6:9], series.measured)  # every digit of the source kept
     assert np.allclose(table[:, 9:15], series.joints, rtol=1e-11, atol=1e-9)
+    # what `postproc train` reads: the metadata lines are skipped, the extra columns ignored
+    data = parse_measurements(out.read_bytes(), str(out))
+    assert np.array_equal(data.poses, table[:, :6]) and np.array_equal(data.measured, table[:, 6:9])
+    assert np.array_equal(data.lines, np.arange(4, 154))  # after 2 metadata lines and the header
     assert "150 rows" in capsys.readouterr().err
 
 
@@ -193,7 +190,7 @@ def test_import_register_fits_on_training_rows(tmp_path, series):
     assert meta["frame"] == "base" and "120 rows" in meta["registration"]
     header, table = _read_csv(out)
     held = table[:, header.index("holdout")].astype(bool)
-    assert np.array_equal(held, holdout_mask(150, 0.2, 3))
+    assert np.array_equal(np.flatnonzero(held), split_indices(150, 0.2, 3)[1])  # train's own split
     expected, _, _ = register_measurements(series.commanded[:, :3], series.measured, ~held)
     assert np.allclose(table[:, 6:9], expected, atol=1e-6)
     transform = np.array(meta["tracker_to_base"].split(), dtype=float).reshape(3, 4)

@@ -61,8 +61,11 @@ def add_parser(sub, common, formatter) -> None:
 def run(args) -> int:
     import os
 
-    from ..datasets import holdout_mask, read_ipa, write_measurements
+    import numpy as np
+
+    from ..datasets import read_ipa, write_measurements
     from ..registration import register_measurements
+    from ..training.data import split_indices  # numpy only; the same draw as `train`
 
     series = read_ipa(args.src, branch=args.abc)
     extra = {f"q{i + 1}": series.joints[:, i] for i in range(6)}
@@ -72,7 +75,8 @@ def run(args) -> int:
     measured = series.measured
     summary = ""
     if args.register:
-        held = holdout_mask(len(series), args.val_fraction, args.split_seed)
+        held = np.zeros(len(series), dtype=bool)
+        held[split_indices(len(series), args.val_fraction, args.split_seed)[1]] = True
         measured, transform, rms = register_measurements(series.commanded[:, :3], series.measured, ~held)
         metadata = {
             "frame": "base",
