@@ -1,0 +1,250 @@
+"""postproc check: findings on pose programs, stamps, settings, freshness of outputs; CLI exit codes."""
+import os
+import time
+
+import numpy as np
+import pytest
+
+from postproc.check import check_files, check_fresh, check_program, failed, find_stamps, program_paths
+from postproc.cli import main
+from postproc.compensate import compensate_text, parse_program_text
+from postproc.compensator import load_model
+from postproc.config import load_config
+from postproc.diagnostics import PostprocError
+from postproc.programs import STAMP_PREFIX, Program, TargetsBuilder
+
+from model_factory import DEFAULT_ENVELOPE, DEFAULT_REACH
+
+# rows 2..6: inside everything / outside the envelope box / beyond the reach sphere / inside the
+# reach sphere's hole / attitude out of the envelope's range
+ROWS = [
+    (2000, 0, 900, 0, 90, 0),
+    (1000, 0, 900, 0, 90, 0),
+    (5000, 0, 900, 0, 90, 0),
+    (600, 0, 1100, 0, 90, 0),
+    (2000, 0, 900, 0, 60, 0),
+]
+TEXT = "x,y,z,a,b,c\n" + "".join(",".join(map(str, r)) + "\n" for r in ROWS)
+
+
+def expected_codes():
+    """Per-row findings computed from the model's metadata by hand, not by postproc."""
+    box = np.array(DEFAULT_ENVELOPE["box"], float)
+    out = set()
+    for line, row in enumerate(ROWS, start=2):
+        p = np.array(row, float)
+        r = np.linalg.norm(p[:3] - DEFAULT_REACH["center"])
+        if r > DEFAULT_REACH["radius_max"] or r < DEFAULT_REACH["radius_min"]:
+            out.add((line, "P302"))
+        inside = np.all(p[:3] >= box[0::2] - 1) and np.all(p[:3] <= box[1::2] + 1)
+        if not inside or np.any(np.abs(p[3:] - DEFAULT_ENVELOPE["attitude"]) > DEFAULT_ENVELOPE["range"] + 0.5):
+            out.add((line, "P301"))
+    return out
+
+
+def write(path, text):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(text.encode("latin-1"))
+    return path
+
+
+def test_reach_and_envelope_findings_point_at_their_rows(affine, tmp_path):
+    path = write(tmp_path / "p.csv", TEXT)
+    found = check_files([path], load_model(affine()))
+    assert {(d.line, d.code) for d in found} == expected_codes()
+    assert {d.code for d in found if d.severity == "error"} == {"P302"}
+    assert all(d.path == str(path) and d.col == 1 for d in found)
+    assert failed(found) and failed([d for d in found if d.code == "P301"], strict=True)
+    assert not failed([d for d in found if d.code == "P301"])
+
+
+def test_model_nan_and_implausible_corrections(affine, tmp_path):
+    path = write(tmp_path / "p.csv", "x,y,z,a,b,c\n2000,0,900,0,90,0\n")
+    assert [d.code for d in check_files([path], load_model(affine(offset=(6.0, 0, 0))))] == ["P303"]
+    assert check_files([path], load_model(affine(offset=(6.0, 0, 0))), max_correction_mm=7.0) == []
+    assert [d.code for d in check_files([path], load_model(affine(offset=(float("nan"), 0, 0))))] == ["P305"]
+
+
+def test_ik_reachability_is_passed_in(affine):
+    program = parse_program_text(TEXT, "p.csv")
+    rejected = []
+
+    def reachable(poses):
+        rejected.append(poses.copy())
+        return poses[:, 0] < 1500  # pretend only the near targets have an IK solution
+
+    found = check_program(program, load_model(affine()), reachable=reachable)
+    # rows beyond the reach sphere are P302 only; the others the callable rejects are P309
+    assert sorted(d.line for d in found if d.code == "P309") == [2, 6]
+    assert np.allclose(rejected[0][:, :3], np.array(ROWS, float)[:, :3])
+
+
+def test_stamps_other_model_twice_and_mixed_module(affine):
+    model, other = load_model(affine(offset=(0.1, 0, 0))), load_model(affine(offset=(0.2, 0, 0), name="cell 7"))
+    good = TEXT.splitlines(keepends=True)[0] + TEXT.splitlines(keepends=True)[1]
+    once, _ = compensate_text(good, model, name="p.csv")
+    assert check_program(parse_program_text(once, "p.csv"), model) == []
+    by_other, _ = compensate_text(good, other, name="p.csv")
+    (d,) = check_program(parse_program_text(by_other, "p.csv"), model)
+    assert (d.code, d.line, d.col) == ("P402", 1, 1) and f"cell 7 {other.sha256[:12]}" in d.message
+    twice, _ = compensate_text(once, model, name="p.csv", force=True)
+    found = check_program(parse_program_text(twice, "p.csv"), model)
+    assert [(d.code, d.line) for d in found] == [("P403", 2)]
+    # a module whose .src and .dat carry different stamps (or one carries none)
+    stamp = f"; {STAMP_PREFIX} {model.name} {model.sha256[:12]}"
+    empty = TargetsBuilder().build()
+    for dat in ("DEFDAT a\nENDDAT\n", f"&ACCESS RVP\n; {STAMP_PREFIX} {other.name} {other.sha256[:12]}\nDEFDAT a\n"):
+        program = Program(["a.src", "a.dat"], [f"{stamp}\nDEF a()\nEND\n", dat], empty)
+        found = [(d.path, d.code) for d in check_program(program, model) if d.code == "P404"]
+        assert found == [("a.src", "P404"), ("a.dat", "P404")]
+    assert [(s.file, s.line, s.name) for s in find_stamps(program)] == [(0, 1, model.name), (1, 2, other.name)]
+
+
+def test_syntax_errors_and_unreadable_files_are_findings(affine, tmp_path):
+    bad = write(tmp_path / "bad.csv", "x,y,z\n1,zz,3\n")
+    found = check_files([bad, tmp_path / "none.csv", write(tmp_path / "a.xyz.doc", "1 2 3\n")], load_model(affine()))
+    assert [(d.path, d.line, d.col, d.code) for d in found] == [
+        (str(tmp_path / "a.xyz.doc"), 0, 0, "P108"),
+        (str(bad), 2, 3, "P103"),
+        (str(tmp_path / "none.csv"), 0, 0, "P107"),
+    ]
+
+
+def test_a_dat_is_checked_with_its_src(tmp_path):
+    src, dat, lone = (write(tmp_path / n, "x") for n in ("Weld.SRC", "weld.dat", "other.dat"))
+    assert program_paths([dat, src, lone, tmp_path / "p.csv"]) == [src, lone, tmp_path / "p.csv"]
+
+
+# --------------------------------------------------------------------------- settings
+
+
+def test_settings_from_pyproject_or_postproc_toml(tmp_path):
+    write(tmp_path / "pyproject.toml", '[project]\nname = "cell"\n[tool.postproc]\nmodel = "m/cell.onnx"\n'
+          'config = ["KRC/$config.dat"]\nstrict = true\nmax_correction = 3\nignore = ["P301"]\n'
+          '[[tool.postproc.fresh]]\nsource = "src/**/*.src"\noutput = "out/**/*_c.src"\n')
+    sub = tmp_path / "src" / "deep"
+    sub.mkdir(parents=True)
+    cfg = load_config(start=sub)
+    assert cfg.path == tmp_path / "pyproject.toml"
+    assert (cfg.model, cfg.config, cfg.strict, cfg.max_correction_mm, cfg.ignore) == (
+        tmp_path / "m/cell.onnx", (tmp_path / "KRC/$config.dat",), True, 3.0, ("P301",))
+    for name in ("src/a.src", "src/deep/er/b.src", "src/c.dat"):
+        write(tmp_path / name, "x")
+    assert [(s.relative_to(tmp_path).as_posix(), o.relative_to(tmp_path).as_posix()) for s, o in cfg.fresh[0].matches()] \
+        == [("src/a.src", "out/a_c.src"), ("src/deep/er/b.src", "out/deep/er/b_c.src")]
+    # postproc.toml in a nearer folder wins, keys at its top level
+    write(sub / "postproc.toml", 'iterations = 3\n')
+    assert (load_config(start=sub).iterations, load_config(start=sub).model) == (3, None)
+
+
+@pytest.mark.parametrize("text, message, line", [
+    ("modle = 'x.onnx'\n", "unknown setting 'modle' in postproc.toml; did you mean 'model'?", 0),
+    ("strict = 1\n", "expected true or false (key 'strict')", 0),
+    ("fresh = [{ source = 'src/*.src', output = 'out/x.src' }]\n", "same wildcards", 0),
+    ("model = \n", "not valid TOML", 1),
+])
+def test_bad_settings_are_located(tmp_path, text, message, line):
+    write(tmp_path / "postproc.toml", text)
+    with pytest.raises(PostprocError) as info:
+        load_config(tmp_path / "postproc.toml")
+    assert message in info.value.message and info.value.code == "P601" and info.value.line == line
+
+
+# --------------------------------------------------------------------------- freshness
+
+
+@pytest.fixture
+def cell(tmp_path, affine, monkeypatch):
+    """A repository: pyproject with a model and a src → out pair, two compensated programs."""
+    monkeypatch.chdir(tmp_path)
+    affine(offset=(0.05, -0.02, 0.01))
+    os.replace(next(tmp_path.glob("model*.onnx")), tmp_path / "cell.onnx")
+    write(tmp_path / "pyproject.toml", '[tool.postproc]\nmodel = "cell.onnx"\n'
+          'fresh = [{ source = "src/*.csv", output = "out/*.csv" }]\n')
+    model = load_model(tmp_path / "cell.onnx")
+    for name, rows in (("a", ROWS[:1]), ("b", [(2100, 100, 1000, 0, 90, 0), (2150, 50, 950, 1, 91, 0)])):
+        text = "x,y,z,a,b,c\n" + "".join(",".join(map(str, r)) + "\n" for r in rows)
+        write(tmp_path / "src" / f"{name}.csv", text)
+        write(tmp_path / "out" / f"{name}.csv", compensate_text(text, model, name=f"{name}.csv")[0])
+    return tmp_path
+
+
+def test_fresh_outputs_are_clean_whatever_their_mtimes(cell):
+    cfg = load_config()
+    past = time.time() - 3600
+    for out in (cell / "out").iterdir():
+        os.utime(out, (past, past))  # outputs older than their sources: still fresh
+    assert check_fresh(cfg, load_model(cfg.model)) == ([], [])
+
+
+def test_stale_missing_and_orphan_outputs(cell, capsys):
+    source = cell / "src" / "b.csv"
+    source.write_text(source.read_text().replace("2150,50,950", "2150,50,951"))
+    (cell / "out" / "a.csv").unlink()
+    write(cell / "out" / "c.csv", "x,y,z\n1,2,3\n")
+    cfg = load_config()
+    found, written = check_fresh(cfg, load_model(cfg.model))
+    # the stale output is located at its first differing byte: row 2's z (line 4 after the stamp)
+    assert [(d.path, d.line, d.code, d.severity) for d in found] == [
+        (os.path.join("out", "b.csv"), 4, "P405", "error"),
+        (os.path.join("out", "c.csv"), 0, "P407", "warning"),
+        (os.path.join("src", "a.csv"), 0, "P406", "error"),
+    ]
+    # (2150, 50, 950) + (0.05, −0.02, 0.01) was written 2150.050,49.980,950.010: "95" is common
+    assert found[0].col == len("2150.050,49.980,95") + 1
+    assert main(["check", "--fresh", "-q"]) == 1
+    assert main(["check", "--fresh", "--fix", "-q"]) == 0
+    assert sorted(p.name for p in (cell / "out").iterdir()) == ["a.csv", "b.csv", "c.csv"]
+    assert main(["check", "--fresh", "-q", "--ignore", "P407"]) == 0
+    capsys.readouterr()
+
+
+def test_fresh_reports_a_source_that_cannot_be_compensated(cell):
+    write(cell / "src" / "d.csv", "x,y,z,a,b,c\n5000,0,900,0,90,0\n")
+    found, _ = check_fresh(load_config(), load_model(cell / "cell.onnx"))
+    assert [(d.path, d.line, d.code) for d in found] == [(os.path.join("src", "d.csv"), 2, "P302")]
+    assert "while compensating it for out" in found[0].message
+
+
+# --------------------------------------------------------------------------- command line
+
+
+def test_cli_output_and_exit_codes(affine, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("NO_COLOR", "1")
+    model = str(affine())
+    write(tmp_path / "p.csv", TEXT)
+    write(tmp_path / "ok.csv", TEXT.splitlines(keepends=True)[0] + TEXT.splitlines(keepends=True)[1])
+    assert main(["check", "ok.csv", "--model", model]) == 0
+    assert capsys.readouterr() == ("", "postproc check: clean\n")
+    assert main(["check", "p.csv", "ok.csv", "--model", model]) == 1
+    out, err = capsys.readouterr()
+    want = sorted(expected_codes())
+    assert [line.split(" ")[:2] for line in out.splitlines()] == [[f"p.csv:{n}:1:", c] for n, c in want]
+    assert err.startswith("postproc check: 2 errors, ")
+    # warnings alone pass unless --strict; -q prints errors only and no summary
+    assert main(["check", "p.csv", "--model", model, "--ignore", "P302"]) == 0
+    capsys.readouterr()
+    assert main(["check", "p.csv", "--model", model, "--ignore", "P302", "--strict"]) == 1
+    capsys.readouterr()
+    assert main(["check", "p.csv", "--model", model, "-q"]) == 1
+    out, err = capsys.readouterr()
+    assert err == "" and {line.split(" ")[1] for line in out.splitlines()} == {"P302"}
+    # usage and internal errors are 2
+    assert main(["check"]) == 2
+    assert main(["check", "ok.csv", "--model", str(tmp_path / "none.onnx")]) == 2
+    assert main(["check", "ok.csv", "--fix", "--model", model]) == 2
+    assert main(["check", "--fresh", "--model", model]) == 2  # no pairs configured
+    assert "P601 no fresh pairs" in capsys.readouterr().err
+
+
+def test_cli_robot_option_uses_the_nominal_ik(affine, tmp_path, capsys):
+    pytest.importorskip("pinocchio")
+    robot = pytest.importorskip("postproc.robot")
+    path = write(tmp_path / "p.csv", TEXT)
+    _, ok = robot.Robot().ik(np.array(ROWS, float))
+    far = {line for line, code in expected_codes() if code == "P302"}
+    want = [line for line, reach in enumerate(ok, start=2) if not reach and line not in far]
+    assert main(["check", str(path), "--model", str(affine()), "--robot"]) == 1
+    got = [int(line.split(":")[1]) for line in capsys.readouterr().out.splitlines() if " P309 " in line]
+    assert got == want and want  # the KR500's IK rejects at least one target the reach sphere lets through
