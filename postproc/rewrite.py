@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import re
 import tempfile
+from decimal import Decimal
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -31,8 +32,9 @@ def format_like(token: str, value: float) -> str:
     decimals = max(MIN_DECIMALS, len(frac or ""))
     if e:
         exponent = int(esign + edigits) if esign != "+" else int(edigits)
-        # keep the exponent; add as many mantissa decimals as it takes to stay at µm resolution
-        mantissa = value / 10.0**exponent
+        # keep the exponent; add as many mantissa decimals as it takes to stay at µm resolution.
+        # Decimal scales exactly: 10.0**exponent overflows or underflows for tokens like '0e400'
+        mantissa = Decimal(value).scaleb(-exponent)
         digits = max(len(frac or ""), MIN_DECIMALS + exponent, 0)
         body = f"{abs(mantissa):.{digits}f}"
         exp_text = e + (esign if esign else "") + str(abs(exponent)).zfill(len(edigits))
