@@ -347,7 +347,7 @@ def check_fresh(
                     stale.append(Diagnostic(
                         _shown(target), line, col, "P405",
                         f"stale: compensating {_shown(Path(name))} with {pair_model.name} "
-                        f"{pair_model.sha256[:12]} gives other bytes from here on", "error"))
+                        f"{pair_model.sha256[:12]} gives other bytes from here on (`postproc check --fresh --fix` rewrites it)", "error"))
             if stale and fix:
                 write_atomic([(t, report.outputs[f]) for t, f in zip(targets, program.files)])
                 written += targets
