@@ -1,0 +1,518 @@
+"""The nominal robot: a description file (TOML) → ``pin.Model`` + vectorised FK and analytic IK.
+
+A description (``models/kr500.toml`` is the example) lists the joints of a serial 6R arm with
+their origins (a pure offset at q = 0 for the robots postproc ships), axes, limits and link
+masses, then the flange, the tool (TCP), the payload, the workspace and optionally an
+``[errors]`` table that :mod:`postproc.simulator` reads. Units at every public interface
+are mm and degrees; Pinocchio works in metres and radians, converted here at the boundary.
+
+Pinocchio holds the model (built once with ``addJoint`` / ``appendBodyToJoint`` /
+``addFrame``; its ``Data`` reused) and computes gravity torques. Forward kinematics of many
+poses at once is numpy (:class:`Chain`, products of per-joint transforms over all poses in
+one go); the tests check it against ``pin.forwardKinematics``. The inverse kinematics is the
+controller's: closed form for the KUKA-type arm with a spherical wrist (8 branches),
+choosing per pose the branch nearest to a reference configuration.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import frames
+from .diagnostics import PostprocError
+from .resources import model_path
+
+__all__ = ["JointSpec", "RobotDescription", "load_description", "Chain", "Robot", "axis_rotations"]
+
+MM = 1e-3  # mm → m
+CODE_SYNTAX, CODE_KEY, CODE_VALUE, CODE_GEOMETRY = "P330", "P331", "P332", "P333"
+
+# table → key → kind; "vec:n" = n numbers, "num" = a number, "str" = text, "int" = an integer
+_SCHEMA: dict[str, dict[str, str]] = {
+    "robot": {"name": "str", "home": "vec:6"},
+    "joint": {"name": "str", "origin": "vec:6", "axis": "vec:3", "limits": "vec:2", "mass": "num",
+              "com": "vec:3", "inertia": "vec:3"},
+    "flange": {"origin": "vec:6"},
+    "tool": {"name": "str", "frame": "vec:6"},
+    "payload": {"mass": "num", "com": "vec:3"},
+    "workspace": {"box": "vec:6", "attitude": "vec:3", "range": "num"},
+    "errors": {},  # checked by postproc.simulator, which owns the error model
+}
+_REQUIRED = {"robot": ("name", "home"), "joint": ("name", "origin", "axis", "limits"), "flange": ("origin",),
+             "tool": ("frame",)}
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """One revolute joint: its frame in the previous one at q = 0, axis, limits, link mass."""
+
+    name: str
+    origin: np.ndarray  # [6] X,Y,Z mm, A,B,C deg
+    axis: np.ndarray  # [3] unit vector in the joint's own frame
+    limits: np.ndarray  # [2] deg
+    mass: float = 0.0  # kg, of the link this joint moves
+    com: np.ndarray = field(default_factory=lambda: np.zeros(3))  # mm, joint frame
+    inertia: np.ndarray | None = None  # [3] kg·m² principal moments about the COM (None: a 0.3 m sphere)
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """A robot as its description file gives it (mm, degrees, kg). Build with :func:`load_description`."""
+
+    name: str
+    joints: tuple[JointSpec, ...]
+    flange: np.ndarray  # [6] flange frame in the last joint's frame
+    tool: np.ndarray  # [6] TCP in the flange frame ($TOOL)
+    tool_name: str = "tool"
+    payload_mass: float = 0.0
+    payload_com: np.ndarray = field(default_factory=lambda: np.zeros(3))  # mm, flange frame
+    home_q: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    workspace: dict = field(default_factory=dict)  # box [6], attitude [3], range
+    errors: dict = field(default_factory=dict)  # the raw [errors] table (see postproc.simulator)
+    path: str = ""
+    text: str = ""  # the file's text, to point at a key's line in messages
+
+    def locate(self, table: str, key: str | None = None, index: int = 0) -> int:
+        """1-based line of ``key`` in ``[table]`` (the ``index``-th ``[[table]]``), 0 if not found."""
+        return _locate(self.text, table, key, index)
+
+    def error(self, message: str, table: str, key: str | None = None, code: str = CODE_VALUE) -> PostprocError:
+        """A PostprocError pointing at ``key`` of ``[table]`` in the description file."""
+        return PostprocError(message, self.path, self.locate(table, key), 1 if self.path else 0, code)
+
+    def replace(self, **changes) -> "RobotDescription":
+        """A copy with some fields changed (e.g. ``payload_mass=0``)."""
+        return dataclasses.replace(self, **changes)
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def _locate(text: str, table: str, key: str | None, index: int = 0) -> int:
+    current, seen = None, {}
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        head = re.match(r"^\[\[?\s*([A-Za-z0-9_.-]+)\s*\]\]?", line)
+        if head:
+            current = head.group(1)
+            seen[current] = seen.get(current, -1) + 1
+            if key is None and current == table and seen[current] == index:
+                return number
+            continue
+        if key is not None and current == table and seen.get(table) == index:
+            if re.match(rf"^{re.escape(key)}\s*=", line):
+                return number
+    return 0
+
+
+def _value(kind: str, value, where: str, fail) -> object:
+    if kind == "str":
+        if not isinstance(value, str):
+            raise fail(f"{where} must be text, got {value!r}")
+        return value
+    if kind == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise fail(f"{where} must be an integer, got {value!r}")
+        return value
+    if kind == "num":
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise fail(f"{where} must be a finite number, got {value!r}")
+        return float(value)
+    n = int(kind.split(":")[1])
+    ok = isinstance(value, list) and len(value) == n and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+    if not ok:
+        raise fail(f"{where} must be a list of {n} finite numbers, got {value!r}")
+    return np.asarray(value, dtype=float)
+
+
+def load_description(path: str | Path | None = None) -> RobotDescription:
+    """Read a robot description (default ``models/kr500.toml``); PostprocError (P33x) with
+    file:line on unknown keys, missing keys or bad values."""
+    path = Path(path) if path is not None else model_path("kr500.toml")
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise PostprocError(f"cannot read robot description: {exc.strerror or exc}", str(path), code=CODE_SYNTAX) from exc
+    except UnicodeDecodeError as exc:
+        raise PostprocError(f"robot description is not UTF-8 text: {exc.reason}", str(path), code=CODE_SYNTAX) from exc
+    return parse_description(text, str(path))
+
+
+def parse_description(text: str, path: str = "<robot>") -> RobotDescription:
+    """Parse the text of a robot description (see :func:`load_description`)."""
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        m = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
+        line, col = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
+        raise PostprocError(f"not valid TOML: {str(exc).split(' (at line')[0]}", path, line, col, CODE_SYNTAX) from None
+
+    def fail_at(table: str, key: str | None = None, index: int = 0, code: str = CODE_VALUE):
+        return lambda message: PostprocError(message, path, _locate(text, table, key, index) or 1, 1, code)
+
+    for table, body in doc.items():
+        if table not in _SCHEMA:
+            known = ", ".join(f"[{t}]" for t in _SCHEMA)
+            raise fail_at(table, code=CODE_KEY)(f"unknown table [{table}] (known: {known})")
+        if table == "joint" and not isinstance(body, list):
+            raise fail_at(table, code=CODE_KEY)("joints are an array of tables: write [[joint]]")
+        if table != "joint" and not isinstance(body, dict):
+            raise fail_at(table, code=CODE_KEY)(f"[{table}] must be a table")
+
+    def section(table: str, body: dict, index: int = 0) -> dict:
+        out = {}
+        schema = _SCHEMA[table]
+        for key, value in body.items():
+            if key not in schema:
+                raise fail_at(table, key, index, CODE_KEY)(
+                    f"unknown key '{key}' in [{table}] (known: {', '.join(schema)})")
+            out[key] = _value(schema[key], value, f"[{table}] {key}", fail_at(table, key, index))
+        for key in _REQUIRED.get(table, ()):
+            if key not in out:
+                raise fail_at(table, None, index, CODE_KEY)(f"[{table}] needs '{key}'")
+        return out
+
+    for table in ("robot", "flange", "tool"):
+        if table not in doc:
+            raise PostprocError(f"missing table [{table}]", path, 1, 1, CODE_KEY)
+    robot = section("robot", doc["robot"])
+    joints = []
+    for i, body in enumerate(doc.get("joint", [])):
+        j = section("joint", body, i)
+        norm = float(np.linalg.norm(j["axis"]))
+        if norm < 1e-9:
+            raise fail_at("joint", "axis", i)(f"joint {j['name']}: axis must not be zero")
+        if not j["limits"][0] < j["limits"][1]:
+            raise fail_at("joint", "limits", i)(f"joint {j['name']}: limits must be [lower, upper] with lower < upper")
+        mass = j.get("mass", 0.0)
+        if mass < 0:
+            raise fail_at("joint", "mass", i)(f"joint {j['name']}: mass must not be negative")
+        joints.append(JointSpec(j["name"], j["origin"], j["axis"] / norm, j["limits"], mass,
+                                j.get("com", np.zeros(3)), j.get("inertia")))
+    if len(joints) != 6:
+        raise PostprocError(f"a robot needs 6 [[joint]] tables, this one has {len(joints)}", path, 1, 1, CODE_GEOMETRY)
+    flange = section("flange", doc["flange"])
+    tool = section("tool", doc["tool"])
+    payload = section("payload", doc.get("payload", {}))
+    if payload.get("mass", 0.0) < 0:
+        raise fail_at("payload", "mass")("payload mass must not be negative")
+    workspace = section("workspace", doc.get("workspace", {}))
+    home = robot["home"]
+    for j, (spec, q) in enumerate(zip(joints, home)):
+        if not spec.limits[0] <= q <= spec.limits[1]:
+            raise fail_at("robot", "home")(f"home {spec.name} = {q:g} is outside its limits {spec.limits.tolist()}")
+    errors = doc.get("errors", {})
+    return RobotDescription(
+        name=robot["name"],
+        joints=tuple(joints),
+        flange=flange["origin"],
+        tool=tool["frame"],
+        tool_name=tool.get("name", "tool"),
+        payload_mass=payload.get("mass", 0.0),
+        payload_com=payload.get("com", np.zeros(3)),
+        home_q=home,
+        workspace=workspace,
+        errors=dict(errors),
+        path=path,
+        text=text,
+    )
+
+
+# --------------------------------------------------------------------------- kinematics
+
+
+def axis_rotations(axes: np.ndarray, q_rad: np.ndarray) -> np.ndarray:
+    """Rotations about unit ``axes`` [J, 3] by angles ``q_rad`` [N, J] → [N, J, 3, 3].
+
+    Rodrigues as c·I + s·[a]× + (1−c)·a·aᵀ: elementwise over all poses, no small matmuls."""
+    axes = np.asarray(axes, float)
+    k = np.zeros(axes.shape[:-1] + (3, 3))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -axes[..., 2], axes[..., 1], -axes[..., 0]
+    k[..., 1, 0], k[..., 2, 0], k[..., 2, 1] = axes[..., 2], -axes[..., 1], axes[..., 0]
+    aat = axes[..., :, None] * axes[..., None, :]
+    s, c = np.sin(q_rad)[..., None, None], np.cos(q_rad)[..., None, None]
+    return c * np.eye(3) + s * k + (1.0 - c) * aat
+
+
+class Chain:
+    """A serial chain of revolute joints, evaluated for many configurations at once (numpy).
+
+    ``placements`` [J, 4, 4] (mm) are joint frames in their parents at q = 0, ``axes`` [J, 3]
+    unit axes in the joint frames, ``end`` [4, 4] the end frame (flange, TCP) in the last joint
+    frame and ``base`` [4, 4] the first joint's parent in the reference frame.
+    """
+
+    def __init__(self, placements: np.ndarray, axes: np.ndarray, end: np.ndarray, base: np.ndarray | None = None):
+        self.placements = np.asarray(placements, float)
+        self.axes = np.asarray(axes, float)
+        self.end = np.asarray(end, float)
+        self.base = np.eye(4) if base is None else np.asarray(base, float)
+
+    def joint_frames(self, q_rad: np.ndarray) -> np.ndarray:
+        """[N, J+1, 4, 4]: each joint's frame after its rotation, then the end frame."""
+        q_rad = np.atleast_2d(np.asarray(q_rad, float))
+        rot = axis_rotations(self.axes, q_rad)
+        n, count = len(q_rad), len(self.axes)
+        out = np.empty((n, count + 1, 4, 4))
+        r = np.broadcast_to(self.base[:3, :3], (n, 3, 3))
+        p = np.broadcast_to(self.base[:3, 3], (n, 3))
+        for j in range(count):  # over joints (6), vectorised over poses
+            m = self.placements[j]
+            p = p + r @ m[:3, 3]
+            r = r @ m[:3, :3] @ rot[:, j]
+            out[:, j, :3, :3], out[:, j, :3, 3] = r, p
+        out[:, count, :3, :3] = r @ self.end[:3, :3]
+        out[:, count, :3, 3] = p + r @ self.end[:3, 3]
+        out[:, :, 3, :] = (0.0, 0.0, 0.0, 1.0)
+        return out
+
+    def transforms(self, q_rad: np.ndarray) -> np.ndarray:
+        """[N, 4, 4] end frames for configurations [N, J] (radians)."""
+        q_rad = np.atleast_2d(np.asarray(q_rad, float))
+        rot = axis_rotations(self.axes, q_rad)
+        n = len(q_rad)
+        r = np.broadcast_to(self.base[:3, :3], (n, 3, 3))
+        p = np.broadcast_to(self.base[:3, 3], (n, 3))
+        for j in range(len(self.axes)):
+            m = self.placements[j]
+            p = p + r @ m[:3, 3]
+            r = r @ m[:3, :3] @ rot[:, j]
+        out = np.zeros((n, 4, 4))
+        out[:, :3, :3] = r @ self.end[:3, :3]
+        out[:, :3, 3] = p + r @ self.end[:3, 3]
+        out[:, 3, 3] = 1.0
+        return out
+
+
+def _pin_inertia(pin, mass: float, com_mm: np.ndarray, inertia: np.ndarray | None):
+    moments = inertia if inertia is not None else np.full(3, 0.4 * mass * 0.3**2)
+    return pin.Inertia(float(mass), np.asarray(com_mm, float) * MM, np.diag(moments))
+
+
+def _se3(pin, frame_mm_deg: np.ndarray):
+    t = frames.frame_to_matrix(frame_mm_deg)
+    return pin.SE3(t[:3, :3].copy(), t[:3, 3] * MM)
+
+
+class Robot:
+    """The nominal robot: ``pin.Model`` built once (``model``, ``data``), FK, the controller's IK.
+
+    >>> robot = Robot()                       # models/kr500.toml
+    >>> poses = robot.fk([[0, -90, 90, 0, 45, 0]])
+    >>> q, ok = robot.ik(poses)
+    """
+
+    def __init__(self, description: RobotDescription | None = None):
+        import pinocchio as pin
+
+        self.description = description if description is not None else load_description()
+        d = self.description
+        self.name: str = d.name
+        self.tool: np.ndarray = d.tool.copy()
+        self.tool_name: str = d.tool_name
+        self.home_q: np.ndarray = d.home_q.copy()
+        self.joint_names: list[str] = [j.name for j in d.joints]
+        self.limits: np.ndarray = np.array([j.limits for j in d.joints])  # [6, 2] deg
+        placements = frames.frame_to_matrix(np.array([j.origin for j in d.joints]))
+        axes = np.array([j.axis for j in d.joints])
+        self.flange_chain = Chain(placements, axes, frames.frame_to_matrix(d.flange))
+        self.tool_matrix = frames.frame_to_matrix(d.tool)
+        self.chain = Chain(placements, axes, self.flange_chain.end @ self.tool_matrix)
+
+        # Pinocchio model, metres inside; payload as a separate body on A6 so it can be weighed
+        model = pin.Model()
+        model.name = d.name
+        parent = 0
+        for j, spec in enumerate(d.joints):
+            lo, hi = np.radians(spec.limits)
+            parent = model.addJoint(
+                parent, pin.JointModelRevoluteUnaligned(*spec.axis), _se3(pin, spec.origin), spec.name,
+                np.array([1e6]), np.array([10.0]), np.array([lo]), np.array([hi]))
+            model.appendBodyToJoint(parent, _pin_inertia(pin, spec.mass, spec.com, spec.inertia), pin.SE3.Identity())
+        flange = _se3(pin, d.flange)
+        self._unloaded = pin.Model(model)  # without the payload: gravity at mastering
+        if d.payload_mass > 0:
+            model.appendBodyToJoint(parent, _pin_inertia(pin, d.payload_mass, d.payload_com, None), flange)
+        fid = model.addFrame(pin.Frame("flange", parent, flange, pin.FrameType.OP_FRAME))
+        model.addFrame(pin.Frame("tcp", parent, fid, flange * _se3(pin, d.tool), pin.FrameType.OP_FRAME))
+        self.model = model
+        self.data = model.createData()
+        self._unloaded_data = self._unloaded.createData()
+        self._pin = pin
+        self._ik = _IkGeometry(self)
+
+    # ---------------------------------------------------------------- FK
+    def fk_matrix(self, q_deg: np.ndarray) -> np.ndarray:
+        """TCP transforms [N, 4, 4] (mm) for joint angles [N, 6] (deg)."""
+        return self.chain.transforms(np.radians(np.atleast_2d(np.asarray(q_deg, float))))
+
+    def fk(self, q_deg: np.ndarray) -> np.ndarray:
+        """TCP poses X,Y,Z,A,B,C [N, 6] (mm, deg; B in [-90, 90]) for joint angles [N, 6] (deg)."""
+        return frames.matrix_to_frame(self.fk_matrix(q_deg))
+
+    def pin_fk(self, q_deg: np.ndarray, frame: str = "tcp") -> np.ndarray:
+        """The same through Pinocchio (one call per pose; for checks, not for bulk work)."""
+        pin = self._pin
+        fid = self.model.getFrameId(frame)
+        q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
+        out = np.zeros((len(q), 4, 4))
+        for i, qi in enumerate(q):
+            pin.framesForwardKinematics(self.model, self.data, qi)
+            m = self.data.oMf[fid]
+            out[i, :3, :3], out[i, :3, 3], out[i, 3, 3] = m.rotation, m.translation / MM, 1.0
+        return out
+
+    # ---------------------------------------------------------------- gravity
+    def gravity_torques(self, q_deg: np.ndarray, payload: bool = True) -> np.ndarray:
+        """Joint torques [N, 6] (Nm) that hold the arm against gravity (pin.computeGeneralizedGravity)."""
+        pin = self._pin
+        model, data = (self.model, self.data) if payload else (self._unloaded, self._unloaded_data)
+        q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
+        out = np.empty_like(q)
+        for i, qi in enumerate(q):  # ~2 µs per call in C++: pin is the right tool here
+            out[i] = pin.computeGeneralizedGravity(model, data, qi)
+        return out
+
+    # ---------------------------------------------------------------- IK
+    def ik(self, poses: np.ndarray, reference_q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The controller's inverse kinematics: joint angles [N, 6] (deg) for TCP poses [N, 6]
+        (robot base frame, mm/deg) and a mask of poses reachable within the joint limits.
+
+        Of the 8 closed-form branches (shoulder, elbow, wrist flip) and the 360° turns of each
+        joint, the one nearest to ``reference_q`` ([6] or [N, 6], default HOME) is chosen;
+        rows that cannot be reached are NaN."""
+        poses = np.atleast_2d(np.asarray(poses, float))
+        ref = self.home_q if reference_q is None else np.asarray(reference_q, float)
+        ref = np.broadcast_to(ref, (len(poses), 6))
+        return self._ik.solve(frames.frame_to_matrix(poses), ref)
+
+    @property
+    def reach(self) -> dict:
+        """Sphere that holds every reachable TCP position: centre on the A1 axis at A2's height,
+        radius_max = A1→A2 offset + upper arm + forearm + wrist centre→TCP (conservative:
+        nothing reachable lies outside); radius_min 0."""
+        g = self._ik
+        radius = math.hypot(g.a1, 0.0) + g.l2 + g.l3 + float(np.linalg.norm(g.tcp0 - g.c0))
+        centre = g.p1 + np.array([0.0, 0.0, g.d1])
+        return {"center": [round(float(v), 3) for v in centre], "radius_min": 0.0, "radius_max": round(radius, 3)}
+
+    def __repr__(self) -> str:
+        return f"Robot({self.name!r}, tool={self.tool.tolist()})"
+
+
+class _IkGeometry:
+    """Closed-form IK of a KUKA-type arm: A1 about ±Z, A2/A3 about ±Y, spherical wrist
+    A4 (±X) · A5 (±Y) · A6 (±X); joint frames parallel to the base at q = 0."""
+
+    def __init__(self, robot: Robot):
+        d = robot.description
+        o = np.array([j.origin for j in d.joints])
+        axes = np.array([j.axis for j in d.joints])
+        want = [2, 1, 1, 0, 1, 0]  # which base axis each joint turns about
+        ok = np.allclose(o[:, 3:], 0.0) and all(abs(abs(axes[j, want[j]]) - 1.0) < 1e-12 for j in range(6))
+        ok = ok and np.allclose(o[1:, 1], 0.0) and np.allclose(o[4:6, 2], 0.0)
+        if not ok:
+            raise PostprocError(
+                "the analytic IK needs a KUKA-type arm: joint origins without rotation, axes A1 ±Z, A2/A3/A5 ±Y, "
+                "A4/A6 ±X, all origins after A1 in the XZ plane and A4, A5, A6 on one line (spherical wrist)",
+                d.path, d.locate("joint", None, 0), 1, CODE_GEOMETRY)
+        self.robot = robot
+        self.s = np.array([axes[j, want[j]] for j in range(6)])  # axis signs
+        self.p1 = o[0, :3]
+        self.a1, self.d1 = o[1, 0], o[1, 2]
+        self.L2 = np.array([o[2, 0], o[2, 2]])
+        self.L3 = np.array([o[3, 0] + o[4, 0], o[3, 2] + o[4, 2]])
+        self.l2, self.l3 = float(np.linalg.norm(self.L2)), float(np.linalg.norm(self.L3))
+        self.al2, self.al3 = math.atan2(self.L2[1], self.L2[0]), math.atan2(self.L3[1], self.L3[0])
+        zero = robot.flange_chain.joint_frames(np.zeros((1, 6)))[0]
+        self.c0 = zero[4, :3, 3]  # wrist centre = A5's origin, on the A4 and A6 axes
+        self.flange0 = zero[6]
+        self.tcp0 = (self.flange0 @ robot.tool_matrix)[:3, 3]
+        self.inv_tool = frames.inverse(robot.tool_matrix)
+
+    def solve(self, t_tcp: np.ndarray, ref_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = len(t_tcp)
+        s = self.s
+        t_fl = t_tcp @ self.inv_tool
+        r_all = t_fl[:, :3, :3] @ self.flange0[:3, :3].T  # product of the six axis rotations
+        c = t_fl[:, :3, 3] - r_all @ (self.flange0[:3, 3] - self.c0)
+        c = c - self.p1
+        ref = np.radians(ref_deg)
+
+        # A1: the wrist centre's azimuth, in front of the A1 axis or over the top (behind)
+        phi = np.arctan2(c[:, 1], c[:, 0])
+        r_xy = np.hypot(c[:, 0], c[:, 1])
+        branches, valid = [], []
+        for shoulder in (1.0, -1.0):
+            th1 = phi if shoulder > 0 else phi + np.pi
+            u = shoulder * r_xy - self.a1
+            w = c[:, 2] - self.d1
+            dist2 = u * u + w * w
+            kappa = (dist2 - self.l2**2 - self.l3**2) / (2 * self.l2 * self.l3)
+            reach_ok = np.abs(kappa) <= 1.0 + 1e-12
+            gamma0 = np.arccos(np.clip(kappa, -1.0, 1.0))
+            for elbow in (1.0, -1.0):
+                # angle between upper arm and forearm vectors in the arm plane
+                th3 = self.al3 - self.al2 - elbow * gamma0
+                ang = self.al3 - th3  # direction of the forearm vector before A2's rotation
+                w2 = np.stack([self.L2[0] + self.l3 * np.cos(ang), self.L2[1] + self.l3 * np.sin(ang)], axis=-1)
+                th2 = np.arctan2(w2[:, 1], w2[:, 0]) - np.arctan2(w, u)
+                q123 = np.stack([s[0] * th1, s[1] * th2, s[2] * th3], axis=-1)
+                rw = _rz_ry(th1, th2 + th3).swapaxes(-1, -2) @ r_all  # = Rx(α) Ry(β) Rx(γ)
+                for flip in (1.0, -1.0):
+                    sb = flip * np.hypot(rw[:, 0, 1], rw[:, 0, 2])
+                    beta = np.arctan2(sb, rw[:, 0, 0])
+                    alpha = np.arctan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
+                    gam = np.arctan2(flip * rw[:, 0, 1], flip * rw[:, 0, 2])
+                    singular = np.abs(sb) < 1e-10  # A5 ≈ 0: only A4 + A6 is defined; keep A4 at the reference
+                    if singular.any():
+                        alpha = np.where(singular, s[3] * ref[:, 3], alpha)
+                        gam = np.where(singular, np.arctan2(rw[:, 2, 1], rw[:, 1, 1]) - alpha, gam)
+                    q = np.concatenate([q123, np.stack([s[3] * alpha, s[4] * beta, s[5] * gam], axis=-1)], axis=-1)
+                    branches.append(q)
+                    valid.append(reach_ok)
+        q_all = np.degrees(np.stack(branches))  # [8, N, 6]
+        ok_all = np.stack(valid)
+        q_all, in_limits = self._nearest_turn(q_all, ref_deg)
+        ok_all &= in_limits
+        cost = np.where(ok_all, ((q_all - ref_deg) ** 2).sum(axis=-1), np.inf)
+        best = np.argmin(cost, axis=0)
+        q = q_all[best, np.arange(n)]
+        ok = np.isfinite(cost[best, np.arange(n)])
+        q[~ok] = np.nan
+        if ok.any():  # a closed form is exact; the check guards the reachability mask itself
+            back = self.robot.fk_matrix(q[ok])
+            bad = np.linalg.norm(back[:, :3, 3] - t_tcp[ok, :3, 3], axis=1) > 1e-6
+            bad |= np.abs(back[:, :3, :3] - t_tcp[ok, :3, :3]).max(axis=(1, 2)) > 1e-9
+            if bad.any():
+                idx = np.flatnonzero(ok)[bad]
+                ok[idx] = False
+                q[idx] = np.nan
+        return q, ok
+
+    def _nearest_turn(self, q_deg: np.ndarray, ref_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Add the multiple of 360° that brings each joint nearest to the reference within its
+        limits (the nearest turn, or the next one towards the inside of the limits)."""
+        lo, hi = self.robot.limits[:, 0], self.robot.limits[:, 1]
+        q = q_deg + 360.0 * np.rint((ref_deg - q_deg) / 360.0)
+        q += 360.0 * (q < lo - 1e-9)
+        q -= 360.0 * (q > hi + 1e-9)
+        inside = (q >= lo - 1e-9) & (q <= hi + 1e-9)
+        return q, inside.all(axis=-1)
+
+
+def _rz_ry(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rz(a)·Ry(b) for angle arrays [N] (radians) → [N, 3, 3]."""
+    ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+    r = np.empty(a.shape + (3, 3))
+    r[..., 0, 0], r[..., 0, 1], r[..., 0, 2] = ca * cb, -sa, ca * sb
+    r[..., 1, 0], r[..., 1, 1], r[..., 1, 2] = sa * cb, ca, sa * sb
+    r[..., 2, 0], r[..., 2, 1], r[..., 2, 2] = -sb, 0.0, cb
+    return r

@@ -1,0 +1,402 @@
+"""The "physical" robot and the laser tracker: the nominal robot + seeded, documented errors.
+
+A command (TCP pose, robot base frame) goes through the controller's IK on the *nominal*
+model (:meth:`postproc.robot.Robot.ik`, branch nearest HOME) to commanded joint angles q.
+The real robot then turns its joints to
+
+    q_true = q + zero offsets                                 (mastering)
+               + Σ_k a_jk·sin(n_k·q_j + φ_jk)                  (gear transmission error)
+               − d_j·b_j/2                                     (backlash: d = sign of the last motion)
+               − K⁻¹·(τ_g(q, payload) − τ_g(mastering, no load)) (compliance under gravity, pin)
+
+and its TCP lands at the real robot's forward kinematics of q_true: joint placements off by
+a small rigid motion each (position and direction of every axis, 6 numbers per joint), the
+base ($ROBROOT as registered) and the tool (TCP) off by small frames. d_j is the sign of
+joint j's last motion along the visiting order, starting from HOME: the robot is simulated
+along the order of a plan or a program, never pose by pose. The tracker adds its noise and
+the robot's repeatability (both Gaussian, per axis) to the true position.
+
+All magnitudes and the ``seed`` live in the description's ``[errors]`` table; a seed draws
+a fresh robot. ``target_mean_mm`` (if > 0) scales the geometric errors (placements, zero
+offsets, base, tool) of every drawn robot so that its mean error norm over the workspace
+(Latin hypercube, 2000 poses, fixed seed) is that figure; compliance, gear ripple, backlash
+and noise keep their physical sizes. The default robot (``seed`` of the file) is the one
+calibrated to Hu, Hua & Tian's uncompensated row (mean 0.754 mm).
+
+Vectorised throughout: IK/FK in numpy over all poses, backlash signs from ``np.diff`` with a
+forward fill; Pinocchio is called only for gravity torques.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import frames
+from .diagnostics import PostprocError
+from .robot import CODE_KEY, CODE_VALUE, Chain, Robot, RobotDescription, axis_rotations, load_description
+
+__all__ = ["ErrorSpec", "SimulatedRobot", "table2", "approach_signs", "CODE_REACH"]
+
+CODE_REACH = "P335"
+CALIBRATION_POSES = 2000
+CALIBRATION_SEED = 0
+
+# [errors] key → (kind, default); kinds as in postproc.robot, plus "ints" and "matrix"
+_ERROR_KEYS: dict[str, tuple[str, object]] = {
+    "seed": ("int", 0),
+    "target_mean_mm": ("num", 0.0),
+    "joint_position_mm": ("num", 0.0),
+    "joint_direction_deg": ("num", 0.0),
+    "zero_offset_deg": ("num", 0.0),
+    "base_position_mm": ("num", 0.0),
+    "base_rotation_deg": ("num", 0.0),
+    "tool_position_mm": ("num", 0.0),
+    "tool_rotation_deg": ("num", 0.0),
+    "stiffness": ("vec:6", None),
+    "stiffness_spread": ("num", 0.0),
+    "mastering_q": ("vec:6", None),
+    "ripple_orders": ("ints", []),
+    "ripple_deg": ("matrix", None),
+    "backlash_deg": ("vec:6", None),
+    "backlash_spread": ("num", 0.0),
+    "tracker_noise_mm": ("num", 0.0),
+    "repeatability_mm": ("num", 0.0),
+}
+
+
+@dataclass(frozen=True)
+class ErrorSpec:
+    """The ``[errors]`` table, checked: magnitudes (standard deviations unless noted)."""
+
+    seed: int = 0
+    target_mean_mm: float = 0.0
+    joint_position_mm: float = 0.0
+    joint_direction_deg: float = 0.0
+    zero_offset_deg: float = 0.0
+    base_position_mm: float = 0.0
+    base_rotation_deg: float = 0.0
+    tool_position_mm: float = 0.0
+    tool_rotation_deg: float = 0.0
+    stiffness: np.ndarray | None = None  # [6] Nm/rad; None = rigid
+    stiffness_spread: float = 0.0  # relative σ of each robot's stiffness
+    mastering_q: np.ndarray | None = None  # [6] deg; None = HOME
+    ripple_orders: tuple[int, ...] = ()
+    ripple_deg: np.ndarray = field(default_factory=lambda: np.zeros((6, 0)))  # [6, K] amplitudes
+    backlash_deg: np.ndarray = field(default_factory=lambda: np.zeros(6))  # [6] full lost motion
+    backlash_spread: float = 0.0  # relative half-width of the uniform draw around backlash_deg
+    tracker_noise_mm: float = 0.0
+    repeatability_mm: float = 0.0
+
+    @classmethod
+    def from_description(cls, d: RobotDescription) -> "ErrorSpec":
+        from .robot import _value  # the shared checker for numbers and vectors
+
+        raw = d.errors
+        values: dict[str, object] = {}
+        for key, value in raw.items():
+            if key not in _ERROR_KEYS:
+                raise d.error(f"unknown key '{key}' in [errors] (known: {', '.join(_ERROR_KEYS)})", "errors", key, CODE_KEY)
+            kind = _ERROR_KEYS[key][0]
+
+            def fail(message: str, key: str = key) -> PostprocError:
+                return d.error(message, "errors", key)
+
+            if kind == "ints":
+                if not isinstance(value, list) or not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in value):
+                    raise fail(f"[errors] {key} must be a list of positive integers (cycles per joint turn), got {value!r}")
+                values[key] = tuple(value)
+            elif kind == "matrix":
+                rows = value if isinstance(value, list) else None
+                if rows is None or len(rows) != 6:
+                    raise fail(f"[errors] {key} must be 6 rows (one per joint) of amplitudes, got {value!r}")
+                values[key] = np.array([_value(f"vec:{len(r) if isinstance(r, list) else -1}", r, f"[errors] {key}", fail)
+                                        for r in rows]) if all(isinstance(r, list) for r in rows) else None
+                if values[key] is None:
+                    raise fail(f"[errors] {key} must be 6 rows of numbers")
+            else:
+                values[key] = _value(kind, value, f"[errors] {key}", fail)
+        for key, value in values.items():
+            if key != "mastering_q" and isinstance(value, float) and value < 0:
+                raise d.error(f"[errors] {key} must not be negative", "errors", key)
+            if key in ("stiffness", "backlash_deg") and np.any(np.asarray(value) < 0):
+                raise d.error(f"[errors] {key} must not be negative", "errors", key)
+        if values.get("stiffness") is not None and np.any(values["stiffness"] <= 0):
+            raise d.error("[errors] stiffness must be positive (Nm/rad)", "errors", "stiffness")
+        orders = values.get("ripple_orders", ())
+        amps = values.get("ripple_deg")
+        if amps is None:
+            amps = np.zeros((6, len(orders)))
+        if amps.shape != (6, len(orders)):
+            raise d.error(f"[errors] ripple_deg must be 6 rows of {len(orders)} amplitudes (one per ripple_orders)",
+                          "errors", "ripple_deg" if "ripple_deg" in raw else "ripple_orders")
+        values["ripple_deg"] = amps
+        if values.get("backlash_deg") is None:
+            values.pop("backlash_deg", None)
+        return cls(**values)
+
+
+def table2(error_norms: np.ndarray) -> dict:
+    """The method's Table 2 figures of positioning-error norms (mm): max, min, mean, std."""
+    e = np.asarray(error_norms, float)
+    if e.size == 0:
+        return {"max": math.nan, "min": math.nan, "mean": math.nan, "std": math.nan}
+    return {"max": float(e.max()), "min": float(e.min()), "mean": float(e.mean()), "std": float(e.std(ddof=1)) if e.size > 1 else 0.0}
+
+
+def approach_signs(q_deg: np.ndarray, start_q: np.ndarray, start_sign: float = 1.0) -> np.ndarray:
+    """Sign (+1/−1) of each joint's last motion when the robot visits ``q_deg`` [N, 6] in order
+    from ``start_q``; a joint that has not moved keeps its previous sign (``start_sign`` before
+    the first move). Vectorised: np.diff, then a forward fill of the last nonzero sign."""
+    q = np.atleast_2d(np.asarray(q_deg, float))
+    seq = np.vstack([np.asarray(start_q, float)[None, :], q])
+    step = np.diff(seq, axis=0)
+    sign = np.where(np.abs(step) > 1e-9, np.sign(step), 0.0)
+    sign = np.vstack([np.full((1, q.shape[1]), start_sign), sign])
+    last = np.where(sign != 0, np.arange(len(sign))[:, None], 0)
+    last = np.maximum.accumulate(last, axis=0)
+    return np.take_along_axis(sign, last, axis=0)[1:]
+
+
+def _small_transform(rotvec_rad: np.ndarray, offset_mm: np.ndarray) -> np.ndarray:
+    """[..., 4, 4] rigid transforms from rotation vectors [..., 3] and offsets [..., 3]."""
+    angle = np.linalg.norm(rotvec_rad, axis=-1)
+    axis = np.where(angle[..., None] > 0, rotvec_rad / np.where(angle > 0, angle, 1.0)[..., None], [0.0, 0.0, 1.0])
+    t = np.zeros(rotvec_rad.shape[:-1] + (4, 4))
+    t[..., :3, :3] = axis_rotations(axis, angle)
+    t[..., :3, 3] = offset_mm
+    t[..., 3, 3] = 1.0
+    return t
+
+
+def _workspace_poses(workspace: dict, n: int, seed: int) -> np.ndarray | None:
+    """LHS poses over the description's workspace (as ``postproc plan`` draws them)."""
+    if not {"box", "attitude", "range"} <= set(workspace):
+        return None
+    from scipy.stats import qmc
+
+    box, att, rng = np.asarray(workspace["box"]), np.asarray(workspace["attitude"]), float(workspace["range"])
+    lo = np.concatenate([box[0::2], att - rng])
+    hi = np.concatenate([box[1::2], att + rng])
+    return qmc.scale(qmc.LatinHypercube(d=6, seed=seed).random(n), lo, hi)
+
+
+class SimulatedRobot:
+    """The real robot: nominal model + errors drawn with ``seed`` (None = the file's default,
+    calibrated robot), and the simulated laser tracker.
+
+    >>> sim = SimulatedRobot()                 # models/kr500.toml, default robot
+    >>> measured = sim.measure(plan_poses, rng_seed=0)
+    """
+
+    def __init__(self, description: RobotDescription | None = None, seed: int | None = None):
+        self.description = description if description is not None else load_description()
+        self.robot = Robot(self.description)
+        self.spec = ErrorSpec.from_description(self.description)
+        self.seed = self.spec.seed if seed is None else int(seed)
+        self.is_default = seed is None or int(seed) == self.spec.seed
+        self._draw()
+        self.scale = 1.0
+        self._reference = self._reference_set()
+        self._build_chain()
+        if self.spec.target_mean_mm > 0:
+            self._calibrate(self.spec.target_mean_mm)
+
+    # ---------------------------------------------------------------- drawing a robot
+    def _draw(self) -> None:
+        s, robot = self.spec, self.robot
+
+        def rng(part: int) -> np.random.Generator:  # one stream per error kind: adding one keeps the others
+            return np.random.default_rng([self.seed, part])
+
+        self.joint_offsets_mm = rng(1).normal(0.0, s.joint_position_mm, (6, 3))
+        self.joint_tilts_rad = np.radians(rng(2).normal(0.0, s.joint_direction_deg, (6, 3)))
+        self.zero_offsets_deg = rng(3).normal(0.0, s.zero_offset_deg, 6)
+        base = rng(4)
+        self.base_error = (np.radians(base.normal(0.0, s.base_rotation_deg, 3)), base.normal(0.0, s.base_position_mm, 3))
+        tool = rng(5)
+        self.tool_error = (np.radians(tool.normal(0.0, s.tool_rotation_deg, 3)), tool.normal(0.0, s.tool_position_mm, 3))
+        if s.stiffness is not None:
+            factor = np.clip(rng(6).normal(1.0, s.stiffness_spread, 6), 0.5, 1.5)
+            self.stiffness = s.stiffness * factor  # Nm/rad
+        else:
+            self.stiffness = None
+        k = len(s.ripple_orders)
+        ripple = rng(7)
+        self.ripple_orders = np.asarray(s.ripple_orders, float)
+        self.ripple_amp_deg = s.ripple_deg * ripple.uniform(0.5, 1.5, (6, k))
+        self.ripple_phase = ripple.uniform(0.0, 2 * np.pi, (6, k))
+        self.backlash_deg = s.backlash_deg * rng(8).uniform(1 - s.backlash_spread, 1 + s.backlash_spread, 6)
+        mastering = robot.home_q if s.mastering_q is None else s.mastering_q
+        self._tau_mastering = robot.gravity_torques(mastering, payload=False)[0]
+
+    def _build_chain(self) -> None:
+        """The real robot's kinematics with the geometric errors scaled by ``self.scale``, in
+        the base frame the tracker registration gives: the rigid motion that best fits the
+        real robot's positions to the commanded ones over the workspace (as a measurement
+        campaign sets its frame up), then the drawn registration error on top of it."""
+        from scipy.spatial.transform import Rotation
+
+        r, k = self.robot, self.scale
+        nominal = r.chain
+        placements = nominal.placements @ _small_transform(k * self.joint_tilts_rad, k * self.joint_offsets_mm)
+        tool = _small_transform(k * self.tool_error[0], k * self.tool_error[1])
+        end = r.flange_chain.end @ r.tool_matrix @ tool
+        base = _small_transform(self.base_error[0], self.base_error[1])
+        if self._reference is not None:
+            poses, q, joint_errors = self._reference
+            raw = Chain(placements, nominal.axes, end).transforms(np.radians(q + joint_errors + k * self.zero_offsets_deg))
+            raw = raw[:, :3, 3]
+            target = poses[:, :3]
+            # R·raw + t ≈ target in the least-squares sense (Kabsch, via scipy)
+            rot, _ = Rotation.align_vectors(target - target.mean(0), raw - raw.mean(0))
+            fit = np.eye(4)
+            fit[:3, :3] = rot.as_matrix()
+            fit[:3, 3] = target.mean(0) - fit[:3, :3] @ raw.mean(0)
+            base = base @ fit
+        self.chain = Chain(placements, nominal.axes, end, base)
+
+    def _calibrate(self, target: float) -> None:
+        from scipy.optimize import brentq
+
+        if self._reference is None:
+            raise self.description.error("[errors] target_mean_mm needs a [workspace] table with box, attitude, range",
+                                         "errors", "target_mean_mm")
+        poses, q, joint_errors = self._reference
+
+        def mean_error(scale: float) -> float:
+            self.scale = scale
+            self._build_chain()
+            actual = self._tcp(q, joint_errors)
+            return float(np.linalg.norm(poses[:, :3] - actual, axis=1).mean()) - target
+
+        low = mean_error(0.0)
+        if low >= 0:  # compliance, ripple and backlash alone already exceed the target
+            raise self.description.error(
+                f"[errors] the non-geometric errors alone give {low + target:.3f} mm > target_mean_mm {target}: "
+                "stiffen the joints or lower ripple/backlash", "errors", "target_mean_mm")
+        high = 1.0
+        while mean_error(high) < 0:
+            high *= 2.0
+            if high > 1e6:
+                raise self.description.error("[errors] no geometric error magnitudes given: cannot reach target_mean_mm",
+                                             "errors", "target_mean_mm")
+        self.scale = brentq(mean_error, 0.0, high, xtol=1e-6, rtol=1e-9)
+        self._build_chain()
+
+    def _reference_set(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Workspace poses (LHS, fixed seed) visited from HOME: for registration and calibration."""
+        poses = _workspace_poses(self.description.workspace, CALIBRATION_POSES, CALIBRATION_SEED)
+        if poses is None:
+            return None
+        q, ok = self.robot.ik(poses)
+        if not ok.all():
+            raise self.description.error("the [workspace] box is not reachable everywhere", "workspace", "box", CODE_REACH)
+        return poses, q, self._joint_errors(q, approach_signs(q, self.robot.home_q))
+
+    # ---------------------------------------------------------------- the physics
+    def deflection(self, q_deg: np.ndarray, payload: bool = True) -> np.ndarray:
+        """Joint deflection under gravity [N, 6] (deg): −K⁻¹·(τ_g(q) − τ_g at mastering)."""
+        q = np.atleast_2d(np.asarray(q_deg, float))
+        if self.stiffness is None:
+            return np.zeros_like(q)
+        tau = self.robot.gravity_torques(q, payload=payload) - self._tau_mastering
+        return -np.degrees(tau / self.stiffness)
+
+    def ripple(self, q_deg: np.ndarray) -> np.ndarray:
+        """Gear transmission error [N, 6] (deg) at commanded joint angles."""
+        q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
+        if not len(self.ripple_orders):
+            return np.zeros_like(q)
+        phase = q[:, :, None] * self.ripple_orders + self.ripple_phase
+        return (self.ripple_amp_deg * np.sin(phase)).sum(axis=-1)
+
+    def _joint_errors(self, q_deg: np.ndarray, signs: np.ndarray) -> np.ndarray:
+        """Everything the joints add to the command except the (scaled) zero offsets."""
+        return self.ripple(q_deg) - signs * self.backlash_deg / 2 + self.deflection(q_deg)
+
+    def _tcp(self, q_deg: np.ndarray, joint_errors: np.ndarray) -> np.ndarray:
+        q_true = q_deg + joint_errors + self.scale * self.zero_offsets_deg
+        return self.chain.transforms(np.radians(q_true))[:, :3, 3]
+
+    # ---------------------------------------------------------------- public
+    def reachable(self, poses: np.ndarray) -> np.ndarray:
+        """Mask of commanded poses [N, 6] the controller can reach (nominal IK within limits)."""
+        return self.robot.ik(poses)[1]
+
+    def joint_angles(self, poses: np.ndarray) -> np.ndarray:
+        """The controller's commanded joint angles [N, 6] (deg) for TCP poses [N, 6]: nominal
+        IK, branch nearest HOME. Raises PostprocError (P335) if any pose is out of reach."""
+        poses = np.atleast_2d(np.asarray(poses, float))
+        q, ok = self.robot.ik(poses)
+        if not ok.all():
+            bad = np.flatnonzero(~ok)
+            raise PostprocError(
+                f"{len(bad)} of {len(poses)} poses are out of reach of {self.robot.name} "
+                f"(first: row {bad[0] + 1}, {np.round(poses[bad[0]], 3).tolist()})", code=CODE_REACH)
+        return q
+
+    def approach_directions(self, poses: np.ndarray, start_q: np.ndarray | None = None) -> np.ndarray:
+        """Sign (+1/−1) [N, 6] of each joint's last motion when the poses are visited in order
+        from ``start_q`` (default HOME): the side each joint's backlash is taken up on."""
+        start = self.robot.home_q if start_q is None else np.asarray(start_q, float)
+        return approach_signs(self.joint_angles(poses), start)
+
+    def true_joint_angles(self, poses: np.ndarray, start_q: np.ndarray | None = None) -> np.ndarray:
+        """Joint angles [N, 6] (deg) the real joints take when the poses are visited in order."""
+        q = self.joint_angles(poses)
+        start = self.robot.home_q if start_q is None else np.asarray(start_q, float)
+        return q + self._joint_errors(q, approach_signs(q, start)) + self.scale * self.zero_offsets_deg
+
+    def actual_positions(self, commanded_poses: np.ndarray, start_q: np.ndarray | None = None) -> np.ndarray:
+        """Where the TCP really goes [N, 3] (mm, robot base frame) when the commanded poses
+        [N, 6] are visited in order from ``start_q`` (default HOME). Deterministic: no noise."""
+        q = self.joint_angles(commanded_poses)
+        start = self.robot.home_q if start_q is None else np.asarray(start_q, float)
+        return self._tcp(q, self._joint_errors(q, approach_signs(q, start)))
+
+    def measure(self, commanded_poses: np.ndarray, rng_seed: int | None = 0,
+                start_q: np.ndarray | None = None) -> np.ndarray:
+        """Tracker readings [N, 3] (mm, robot base frame): the actual positions + the robot's
+        repeatability + tracker noise (Gaussian, per axis), visited in order."""
+        actual = self.actual_positions(commanded_poses, start_q)
+        rng = np.random.default_rng(rng_seed)
+        sigma = math.hypot(self.spec.tracker_noise_mm, self.spec.repeatability_mm)
+        return actual + rng.normal(0.0, 1.0, actual.shape) * sigma
+
+    @property
+    def noise_mm(self) -> float:
+        """Per-axis standard deviation of a measurement about the true mean position (mm)."""
+        return math.hypot(self.spec.tracker_noise_mm, self.spec.repeatability_mm)
+
+    def true_error(self, poses: np.ndarray, start_q: np.ndarray | None = None) -> np.ndarray:
+        """E = P_target − P_actual [N, 3] (mm) for poses visited in order (no noise)."""
+        poses = np.atleast_2d(np.asarray(poses, float))
+        return poses[:, :3] - self.actual_positions(poses, start_q)
+
+    def describe(self) -> dict:
+        """The drawn robot's parameters (for reports and tests)."""
+        k = self.scale
+        return {
+            "robot": self.robot.name,
+            "seed": self.seed,
+            "default": self.is_default,
+            "geometric_scale": k,
+            "joint_offsets_mm": (k * self.joint_offsets_mm).tolist(),
+            "joint_tilts_deg": np.degrees(k * self.joint_tilts_rad).tolist(),
+            "zero_offsets_deg": (k * self.zero_offsets_deg).tolist(),
+            "base_error": {"rotation_deg": np.degrees(k * self.base_error[0]).tolist(),
+                           "offset_mm": (k * self.base_error[1]).tolist()},
+            "tool_error": {"rotation_deg": np.degrees(k * self.tool_error[0]).tolist(),
+                           "offset_mm": (k * self.tool_error[1]).tolist()},
+            "stiffness_nm_per_rad": None if self.stiffness is None else self.stiffness.tolist(),
+            "ripple_orders": self.ripple_orders.tolist(),
+            "ripple_amplitude_deg": self.ripple_amp_deg.tolist(),
+            "backlash_deg": self.backlash_deg.tolist(),
+            "tracker_noise_mm": self.spec.tracker_noise_mm,
+            "repeatability_mm": self.spec.repeatability_mm,
+        }
+
+    def __repr__(self) -> str:
+        return f"SimulatedRobot({self.robot.name!r}, seed={self.seed}{' (default)' if self.is_default else ''})"
