@@ -33,6 +33,8 @@ CONTRACT_VERSION = "1"
 INPUT_POSE = "pose"
 INPUT_PREVIOUS = "previous_pose"
 OUTPUT_ERROR = "error"
+# More fixed-point iterations than this is a typo or a hostile model card, not a method (a hang).
+MAX_ITERATIONS = 100
 
 
 def _json_or_text(value: str):
@@ -72,7 +74,9 @@ class Compensator:
 
     @property
     def name(self) -> str:
-        return str(self.metadata.get("name") or self.path.stem)
+        # it goes into the stamp line: one line of printable ASCII, whatever the model card says
+        name = str(self.metadata.get("name") or self.path.stem)
+        return "".join(c if " " <= c <= "~" else c.encode("unicode_escape").decode("ascii") for c in name)
 
     @property
     def robot(self) -> str:
@@ -119,7 +123,11 @@ class Compensator:
             feeds[INPUT_PREVIOUS] = prev
         if len(poses) == 0:
             return np.zeros((0, 3))
-        (error,) = self.session.run([OUTPUT_ERROR], feeds)
+        try:
+            (error,) = self.session.run([OUTPUT_ERROR], feeds)
+        except Exception as exc:  # onnxruntime's own types: a graph that does not run on [N, 6]
+            raise PostprocError(f"the model failed on {len(poses)} poses: {str(exc).splitlines()[0][:200]}",
+                                str(self.path), code="P306") from None
         error = np.asarray(error, dtype=np.float64)
         if error.shape != (len(poses), 3):
             raise PostprocError(f"model returned shape {error.shape}, expected ({len(poses)}, 3)", str(self.path), code="P306")
@@ -128,8 +136,8 @@ class Compensator:
     def command(self, poses: np.ndarray, iterations: int | None = None, previous: np.ndarray | None = None) -> np.ndarray:
         """Commanded positions [N, 3] so that the robot lands on ``poses[:, :3]``: c = P + Ê(c)."""
         iterations = self.default_iterations if iterations is None else iterations
-        if iterations < 1:
-            raise PostprocError("--iterations must be at least 1", code="P308")
+        if not 1 <= iterations <= MAX_ITERATIONS:
+            raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code="P308")
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         trial = poses.copy()
         for _ in range(iterations):
@@ -167,13 +175,20 @@ def load_model(path: str | Path | None = None) -> Compensator:
     if OUTPUT_ERROR not in outputs:
         problems.append(f"no output '{OUTPUT_ERROR}' (has {sorted(outputs)})")
     for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6)):
-        if name in inputs and (len(inputs[name].shape) != 2 or inputs[name].shape[1] not in (expected, None, "6")):
+        if name in inputs and (len(inputs[name].shape) != 2 or inputs[name].shape[1] not in (expected, None, "6")
+                               or isinstance(inputs[name].shape[0], int)):
             problems.append(f"input '{name}' has shape {inputs[name].shape}, expected [N, {expected}]")
     if OUTPUT_ERROR in outputs and (len(outputs[OUTPUT_ERROR].shape) != 2 or outputs[OUTPUT_ERROR].shape[1] not in (3, None)):
         problems.append(f"output '{OUTPUT_ERROR}' has shape {outputs[OUTPUT_ERROR].shape}, expected [N, 3]")
+    for node in (*inputs.values(), *outputs.values()):
+        if node.name in (INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR) and node.type != "tensor(float)":
+            problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
     if problems:
         raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path), code="P306")
     meta = {k: _json_or_text(v) for k, v in session.get_modelmeta().custom_metadata_map.items()}
+    problem = _metadata_problem(meta)
+    if problem:
+        raise PostprocError(f"model card (metadata_props) is malformed: {problem}", str(path), code="P306")
     return Compensator(
         path=path,
         session=session,
@@ -181,6 +196,37 @@ def load_model(path: str | Path | None = None) -> Compensator:
         sha256=hashlib.sha256(data).hexdigest(),
         wants_previous=INPUT_PREVIOUS in inputs,
     )
+
+
+def _numbers(value, n: int) -> bool:
+    """``value`` is a list of ``n`` finite numbers."""
+    try:
+        return isinstance(value, list) and len(value) == n and bool(np.isfinite(np.asarray(value, float)).all())
+    except (TypeError, ValueError):
+        return False
+
+
+def _metadata_problem(meta: dict) -> str | None:
+    """What is wrong with the parts of a model card that ``compensate`` relies on, if anything."""
+    env = meta.get("envelope")
+    if env is not None:
+        if not (isinstance(env, dict) and _numbers(env.get("box"), 6) and _numbers(env.get("attitude"), 3)
+                and _numbers([env.get("range")], 1) and env["range"] >= 0):
+            return "'envelope' needs box [x0,x1,y0,y1,z0,z1], attitude [A,B,C] and range ≥ 0"
+        if any(lo > hi for lo, hi in zip(env["box"][0::2], env["box"][1::2])):
+            return f"'envelope' box {env['box']} has a lower bound above its upper bound"
+    reach = meta.get("reach")
+    if reach is not None and not (isinstance(reach, dict) and _numbers(reach.get("center"), 3)
+                                  and _numbers([reach.get("radius_max"), reach.get("radius_min", 0.0)], 2)
+                                  and reach["radius_max"] > 0):
+        return "'reach' needs center [x,y,z], radius_max > 0 and optionally radius_min"
+    tool = meta.get("tool")
+    if isinstance(tool, dict) and tool.get("frame") is not None and not _numbers(tool["frame"], 6):
+        return "'tool' frame must be [X,Y,Z,A,B,C]"
+    iterations = meta.get("iterations")
+    if iterations is not None and not (isinstance(iterations, int) and 1 <= iterations <= MAX_ITERATIONS):
+        return f"'iterations' must be a whole number from 1 to {MAX_ITERATIONS}, not {iterations!r}"
+    return None
 
 
 def contract_metadata(**fields) -> dict[str, str]:
