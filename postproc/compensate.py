@@ -6,6 +6,7 @@ This is what the CLI (``postproc compensate``) and the CAM-hook API
 """
 from __future__ import annotations
 
+import math
 import re
 import sys
 from dataclasses import dataclass, field
@@ -28,6 +29,7 @@ __all__ = [
     "compensate_text",
     "compensate_file",
     "DEFAULT_MAX_CORRECTION_MM",
+    "write_outputs",
 ]
 
 # An error model that predicts more than this is wrong, not the robot (guard, --max-correction).
@@ -197,6 +199,16 @@ def _tool_mismatch(program: Program, model: Compensator) -> str | None:
     return None
 
 
+def _robot_mismatch(robot: str | None, model: Compensator) -> str | None:
+    if not robot:
+        return None
+    if not model.robot:
+        return f"the model does not say which robot it was trained on (the program is for {robot})"
+    if model.robot.casefold() != robot.casefold():
+        return f"the model was trained on robot {model.robot}, the program is for {robot}"
+    return None
+
+
 def compensate_program(
     program: Program,
     model: Compensator,
@@ -205,13 +217,17 @@ def compensate_program(
     strict: bool = False,
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    robot: str | None = None,
 ) -> Report:
     """Compensate every resolvable target of ``program``; the new texts are in ``Report.outputs``.
 
-    Raises PostprocError for what must not be written (double compensation without
-    ``force``, targets beyond reach, NaN or implausibly large corrections, and under
-    ``strict`` any warning).
+    Raises PostprocError for what must not be written (double compensation, a model for
+    another robot (``robot``, the program's robot name) or tool, unless ``force``; targets
+    beyond reach, NaN or implausibly large corrections, and under ``strict`` any warning).
     """
+    if not (isinstance(max_correction_mm, int | float) and 0 < max_correction_mm < math.inf):
+        # NaN would switch the bound off silently: every comparison with it is False
+        raise PostprocError(f"--max-correction must be a positive number of mm, not {max_correction_mm}", code="P308")
     report = Report(model=model.name, model_sha256=model.sha256, targets=len(program.targets))
     warnings = list(program.diagnostics)
     if program.stamps and not force:
@@ -221,6 +237,9 @@ def compensate_program(
     mismatch = _tool_mismatch(program, model)
     if mismatch and not force:
         raise PostprocError(mismatch + "; use --force to compensate anyway", program.files[0], 1, 1, "P304")
+    mismatch = _robot_mismatch(robot, model)
+    if mismatch and not force:
+        raise PostprocError(mismatch + "; use --force to compensate anyway", str(model.path), 0, 0, "P310")
 
     t = program.targets
     poses, resolved = robot_base_poses(program)
@@ -324,6 +343,7 @@ def compensate_text(
     strict: bool = False,
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    robot: str | None = None,
 ) -> tuple[str, Report]:
     """Compensate a program given as text; returns the new text and the report.
 
@@ -333,7 +353,7 @@ def compensate_text(
     """
     program = parse_program_text(text, name, dialect, dat_text, _config_texts(config))
     report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
-                                max_correction_mm=max_correction_mm)
+                                max_correction_mm=max_correction_mm, robot=robot)
     return report.outputs[program.files[0]], report
 
 
@@ -355,12 +375,13 @@ def compensate_file(
     strict: bool = False,
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    robot: str | None = None,
 ) -> Report:
     """Compensate a program file (with its .dat) into ``out`` (its .dat beside it).
     Nothing is written unless everything succeeded; the files are replaced atomically."""
     program = load_program(path, config)
     report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
-                                max_correction_mm=max_correction_mm)
+                                max_correction_mm=max_correction_mm, robot=robot)
     if str(out) == "-":
         if len(program.files) > 1:
             raise PostprocError("a program with a .dat cannot be written to standard output; give -o FILE",
@@ -369,5 +390,27 @@ def compensate_file(
         sys.stdout.buffer.flush()
         return report
     targets = output_paths(program, Path(out))
-    write_atomic([(p, report.outputs[f]) for p, f in zip(targets, program.files)])
+    write_outputs([(p, report.outputs[f]) for p, f in zip(targets, program.files)])
     return report
+
+
+def write_outputs(outputs: list[tuple[Path, str]]) -> None:
+    """:func:`write_atomic`, refusing what it cannot do right (two files of a module onto one
+    path, e.g. ``-o x.dat`` for a .src; a directory) and reporting OS errors as P110."""
+    seen: dict[Path, Path] = {}
+    for path, _ in outputs:
+        key = path.resolve()
+        if key in seen:
+            raise PostprocError(f"two files of the program would both be written to {path}: give -o a name "
+                                "with the program's suffix", str(path), 0, 0, "P110")
+        if path.is_dir():
+            raise PostprocError("is a directory: give -o a file name", str(path), 0, 0, "P110")
+        parent = next((p for p in path.parents if p.exists()), None)
+        if parent is not None and not parent.is_dir():
+            raise PostprocError(f"cannot write: {parent} is not a directory", str(path), 0, 0, "P110")
+        seen[key] = path
+    try:
+        write_atomic(outputs)
+    except OSError as exc:
+        where = exc.filename2 or exc.filename or outputs[0][0]
+        raise PostprocError(f"cannot write: {exc.strerror or exc}", str(where), 0, 0, "P110") from None
