@@ -30,7 +30,10 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--max-correction", type=float, metavar="MM", default=None,
                    help="refuse corrections larger than this (default 5 mm)")
     p.add_argument("--strict", action="store_true", help="treat warnings as errors")
-    p.add_argument("--force", action="store_true", help="compensate an already compensated program / another tool's program")
+    p.add_argument("--robot", metavar="NAME", help="the robot the program is for: refuse a model trained on another "
+                   "(its 'robot' metadata), unless --force")
+    p.add_argument("--force", action="store_true",
+                   help="compensate an already compensated program / another tool's or robot's program")
     p.set_defaults(run=run)
 
 
@@ -42,6 +45,7 @@ def run(args) -> int:
         strict=args.strict,
         force=args.force,
         max_correction_mm=DEFAULT_MAX_CORRECTION_MM if args.max_correction is None else args.max_correction,
+        robot=args.robot,
     )
     if args.input == "-":
         from ..compensator import load_model
@@ -51,9 +55,9 @@ def run(args) -> int:
         if args.output != "-":
             from pathlib import Path
 
-            from ..rewrite import write_atomic
+            from ..compensate import write_outputs
 
-            write_atomic([(Path(args.output), report.outputs[program.files[0]])])
+            write_outputs([(Path(args.output), report.outputs[program.files[0]])])
         else:
             sys.stdout.buffer.write(report.outputs[program.files[0]].encode("latin-1"))
             sys.stdout.buffer.flush()
