@@ -62,7 +62,10 @@ def read(files: list[str], texts: list[str]) -> Program:
     width = 0
     shapes: dict[str, tuple] = {}  # line shape → ordinal of each x..c among the line's numbers
     offset = 0
-    for lineno, raw in enumerate(text.splitlines(keepends=True), start=1):
+    # lines end at "\n" only, as diagnostics.line_col counts them: str.splitlines would also
+    # split at \x0b, \x0c, \x1c-\x1e and \x85 (NEL), which latin-1 text can hold
+    for lineno, raw in enumerate(text.split("\n"), start=1):
+        raw = raw + "\n" if offset + len(raw) < len(text) else raw
         start = offset
         offset += len(raw)
         line = raw.rstrip("\r\n")
