@@ -41,7 +41,7 @@ def format_like(token: str, value: float) -> str:
         if exponent < 0 and esign != "-":
             exp_text = e + "-" + str(abs(exponent)).zfill(len(edigits))
         out = body + exp_text
-        negative = mantissa < 0 and float(body) != 0.0
+        negative = mantissa < 0 and Decimal(body) != 0  # float(body) underflows to 0 for '…e400'
     else:
         body = f"{abs(value):.{decimals}f}"
         negative = value < 0 and float(body) != 0.0  # never write '-0.000'
