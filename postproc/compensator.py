@@ -111,7 +111,8 @@ class Compensator:
         reach = self.metadata.get("reach")
         if not isinstance(reach, dict):
             return np.zeros(len(positions), bool)
-        r = np.linalg.norm(positions - np.asarray(reach["center"], float), axis=1)
+        with np.errstate(over="ignore"):  # 1e200 mm is beyond reach, not worth a RuntimeWarning
+            r = np.linalg.norm(positions - np.asarray(reach["center"], float), axis=1)
         return (r > float(reach["radius_max"])) | (r < float(reach.get("radius_min", 0.0)))
 
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
