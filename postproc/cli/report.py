@@ -1,0 +1,64 @@
+"""postproc report: Table 2, plots and the model card from measured errors."""
+from __future__ import annotations
+
+import sys
+
+EXAMPLES = """examples:
+  postproc report measured.csv --model models/cell7.onnx -o report/
+  postproc report verify_measured.csv -o report/ --title "Cell 7 after compensation"
+
+MEASURED.csv has the header x,y,z,a,b,c,x_meas,y_meas,z_meas (commanded pose, measured
+position; E = (x,y,z) - (x_meas,y_meas,z_meas)). "After" is E - Ê(pose), the first-order
+residual of compensating with the model; if the file also has x_after,y_after,z_after
+(positions measured when the compensated commands ran) those give the measured "after".
+
+writes: report.md (Table 2: max/min/mean/std of |E| before and after, mm; the model card),
+summary.json, series.csv + histogram.csv (the plotted numbers), error_histogram.png,
+error_vectors.png, predicted_vs_measured.png (needs matplotlib: pip install 'postproc[report]').
+"""
+
+
+def add_parser(sub, common, formatter) -> None:
+    p = sub.add_parser(
+        "report",
+        parents=[common],
+        formatter_class=formatter,
+        help="accuracy report: Table 2, error plots, model card",
+        description="Write an accuracy report of measured positioning errors before and after "
+        "compensation: Table 2 figures, plots (PNG) and the model card, as Markdown + JSON.",
+        epilog=EXAMPLES,
+    )
+    p.add_argument("measured", metavar="MEASURED.csv", help="measurement CSV (x,y,z,a,b,c,x_meas,y_meas,z_meas[,x_after,...])")
+    p.add_argument("-o", "--output", metavar="DIR", required=True, help="folder to write the report into (created)")
+    p.add_argument("--model", metavar="M", help="ONNX compensator (default: [tool.postproc] model, else the shipped one)")
+    p.add_argument("--title", default="Positioning accuracy", help="heading of report.md")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from ..compensator import load_model
+    from ..config import load_config
+    from ..diagnostics import PostprocError
+    from ..report import read_report_data, write_report
+
+    try:
+        import matplotlib  # noqa: F401  (only to fail early with a clear message)
+    except ImportError:
+        raise PostprocError("postproc report needs matplotlib: pip install 'postproc[report]'") from None
+    model = load_model(args.model or load_config().model)
+    data = read_report_data(args.measured, model)
+    files = write_report(data, args.output, args.title)
+    if not args.quiet:
+        from ..report import summary
+
+        numbers = summary(data)
+        before, after = numbers["table2_mm"]["before"], numbers["table2_mm"]["after"]
+        print(f"postproc report: {len(data)} poses, mean |E| {before['mean']:.3f} mm → {after['mean']:.3f} mm "
+              f"({data.after_kind}); max {before['max']:.3f} → {after['max']:.3f} mm; wrote {files['markdown']}",
+              file=sys.stderr)
+        if data.outside_envelope:
+            print(f"postproc report: {data.outside_envelope} poses are outside the model's envelope", file=sys.stderr)
+        if args.verbose:
+            for role, path in files.items():
+                print(f"  {role}: {path}", file=sys.stderr)
+    return 0

@@ -1,0 +1,333 @@
+"""Accuracy reports: Table 2 figures, plots and the model card, from measured errors.
+
+Input is a set of commanded poses with the positions the robot reached (a measurement CSV
+``x,y,z,a,b,c,x_meas,y_meas,z_meas``). Before compensation the error is E = P − P_meas.
+"After" is, by default, the first-order residual a compensation leaves, E − Ê(P) with Ê the
+model's prediction; when the CSV also has ``x_after,y_after,z_after`` — the positions
+reached when the *compensated* commands were run (``postproc verify`` and a real cell's
+re-measurement give those) — it is the measured residual P − P_after.
+
+:func:`write_report` writes, into one folder: ``report.md`` (Table 2, the model card, the
+figures), ``summary.json`` (the same numbers), ``series.csv`` and ``histogram.csv`` (every
+number each plot shows, so that a reader or a test can check the plots) and three PNGs.
+matplotlib is imported only in :func:`write_plots`, with the Agg canvas (no display).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .compensator import Compensator
+from .diagnostics import PostprocError
+from .simulator import table2  # max, min, mean, std (ddof 1): the method's Table 2 figures
+
+__all__ = [
+    "ReportData",
+    "read_report_data",
+    "table2",
+    "histogram",
+    "write_series",
+    "write_plots",
+    "write_report",
+    "FIGURES",
+]
+
+AFTER_COLUMNS = ("x_after", "y_after", "z_after")
+FIGURES = {
+    "histogram": "error_histogram.png",
+    "vectors": "error_vectors.png",
+    "predicted": "predicted_vs_measured.png",
+}
+BINS = 30
+MAX_ARROWS = 400  # more arrows than this hide each other in a 3-D quiver
+
+
+@dataclass
+class ReportData:
+    """Errors at measured poses; ``after`` is what is left with compensation ([N, 3] mm)."""
+
+    poses: np.ndarray  # [N, 6] commanded X,Y,Z,A,B,C (robot base frame)
+    error: np.ndarray  # [N, 3] E = P − P_meas before compensation
+    after: np.ndarray  # [N, 3] E − Ê (first order) or P − P_after (measured)
+    predicted: np.ndarray | None = None  # [N, 3] Ê(P), when a model is given
+    after_kind: str = "first-order"  # "first-order" | "measured"
+    source: str = ""
+    source_sha256: str = ""
+    model_card: dict = field(default_factory=dict)  # the model's metadata + file, sha256
+    outside_envelope: int = 0
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    @property
+    def before_norm(self) -> np.ndarray:
+        return np.linalg.norm(self.error, axis=1)
+
+    @property
+    def after_norm(self) -> np.ndarray:
+        return np.linalg.norm(self.after, axis=1)
+
+
+def _after_columns(data: bytes, lines: np.ndarray, path: str) -> np.ndarray | None:
+    """``x_after,y_after,z_after`` of the rows at file ``lines``, if the header names them."""
+    text = data.removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
+    header_at = next(i for i, raw in enumerate(text) if raw.strip() and not raw.lstrip().startswith("#"))
+    header = [h.strip().lower() for h in text[header_at].split(",")]
+    present = [c in header for c in AFTER_COLUMNS]
+    if not any(present):
+        return None
+    if not all(present):
+        raise PostprocError(f"give all of {','.join(AFTER_COLUMNS)} or none", path, header_at + 1, 1, "P501")
+    index = [header.index(c) for c in AFTER_COLUMNS]
+    out = np.empty((len(lines), 3))
+    for row, line in enumerate(lines.tolist()):
+        fields = text[line - 1].split(",")
+        try:
+            out[row] = [float(fields[i]) for i in index]
+        except ValueError:
+            out[row] = math.nan
+        if not np.isfinite(out[row]).all():
+            raise PostprocError("x_after/y_after/z_after is not a finite number", path, line, 1, "P502")
+    return out
+
+
+def model_card(model: Compensator) -> dict:
+    """The model's metadata (the model card) plus where it came from."""
+    return {"file": str(model.path), "sha256": model.sha256, **model.metadata}
+
+
+def read_report_data(path: str | Path, model: Compensator | None = None) -> ReportData:
+    """Read a measurement CSV (optionally with ``*_after`` columns) and apply ``model``.
+
+    Without ``model`` and without ``*_after`` columns there is no "after": PostprocError."""
+    from .training.data import parse_measurements  # numpy only; the one reader of this format
+
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise PostprocError(f"cannot read measurement file: {exc.strerror or exc}", str(path), code="P500") from None
+    m = parse_measurements(data, str(path))
+    error = m.poses[:, :3] - m.measured
+    reached = _after_columns(data, m.lines, str(path))
+    predicted = model.predict(m.poses) if model is not None else None
+    if predicted is not None and not np.isfinite(predicted).all():
+        raise PostprocError("the model returns NaN or inf on these poses", str(model.path), code="P305")
+    if reached is not None:
+        after, kind = m.poses[:, :3] - reached, "measured"
+    elif predicted is not None:
+        after, kind = error - predicted, "first-order"
+    else:
+        raise PostprocError("nothing to compare: give --model (first-order residual E − Ê) or x_after,y_after,"
+                            "z_after columns (measured with compensation)", str(path), code="P501")
+    envelope = model.envelope if model is not None else None
+    return ReportData(
+        poses=m.poses,
+        error=error,
+        after=after,
+        predicted=predicted,
+        after_kind=kind,
+        source=str(path),
+        source_sha256=hashlib.sha256(data).hexdigest(),
+        model_card=model_card(model) if model is not None else {},
+        outside_envelope=int(envelope.outside(m.poses).sum()) if envelope is not None else 0,
+    )
+
+
+def histogram(data: ReportData, bins: int = BINS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(edges [bins+1], counts before [bins], counts after [bins]) on common bins from 0."""
+    top = max(float(data.before_norm.max()), float(data.after_norm.max()), 1e-6)
+    edges = np.linspace(0.0, top, bins + 1)
+    return edges, np.histogram(data.before_norm, edges)[0], np.histogram(data.after_norm, edges)[0]
+
+
+def write_series(data: ReportData, folder: Path) -> dict[str, Path]:
+    """series.csv (per point: pose, E, Ê, after, norms) and histogram.csv (bins, counts)."""
+    columns = {
+        "x": data.poses[:, 0], "y": data.poses[:, 1], "z": data.poses[:, 2],
+        "a": data.poses[:, 3], "b": data.poses[:, 4], "c": data.poses[:, 5],
+        "ex": data.error[:, 0], "ey": data.error[:, 1], "ez": data.error[:, 2],
+    }
+    if data.predicted is not None:
+        columns.update(ex_pred=data.predicted[:, 0], ey_pred=data.predicted[:, 1], ez_pred=data.predicted[:, 2])
+    columns.update(ax=data.after[:, 0], ay=data.after[:, 1], az=data.after[:, 2],
+                   norm_before=data.before_norm, norm_after=data.after_norm)
+    series = folder / "series.csv"
+    np.savetxt(series, np.column_stack(list(columns.values())), fmt="%.9g", delimiter=",",
+               header=",".join(columns), comments="")
+    edges, before, after = histogram(data)
+    hist = folder / "histogram.csv"
+    np.savetxt(hist, np.column_stack([edges[:-1], edges[1:], before, after]), fmt=["%.9g", "%.9g", "%d", "%d"],
+               delimiter=",", header="bin_lo,bin_hi,count_before,count_after", comments="")
+    return {"series": series, "histogram_csv": hist}
+
+
+def vector_rows(n: int, limit: int = MAX_ARROWS) -> np.ndarray:
+    """The rows drawn as arrows: all, or ``limit`` evenly spaced ones (summary.json lists them)."""
+    return np.arange(n) if n <= limit else np.unique(np.linspace(0, n - 1, limit).round().astype(int))
+
+
+def _vector_scale(data: ReportData) -> float:
+    """Arrow magnification: the largest error drawn as 8 % of the measured box's diagonal."""
+    span = float(np.linalg.norm(np.ptp(data.poses[:, :3], axis=0)))
+    largest = max(float(data.before_norm.max()), 1e-9)
+    return max(span, 1.0) * 0.08 / largest
+
+
+def write_plots(data: ReportData, folder: Path, dpi: int = 90) -> dict[str, Path]:
+    """The three figures as PNGs (matplotlib, Agg canvas: no display needed)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    after_label = "after, |E − Ê| (first order)" if data.after_kind == "first-order" else "after, measured"
+    written: dict[str, Path] = {}
+
+    def save(fig: Figure, key: str) -> None:
+        FigureCanvasAgg(fig)
+        path = folder / FIGURES[key]
+        fig.savefig(path, dpi=dpi, metadata={"Software": None})  # no version string: same data, same bytes
+        written[key] = path
+
+    # 1. histogram of error norms, before and after, on common bins
+    edges, before, after = histogram(data)
+    fig = Figure(figsize=(6.4, 3.6), layout="constrained")
+    ax = fig.add_subplot()
+    width = edges[1] - edges[0]
+    ax.bar(edges[:-1], before, width=width, align="edge", alpha=0.55, label="before, |E|", color="tab:red")
+    ax.bar(edges[:-1], after, width=width, align="edge", alpha=0.55, label=after_label, color="tab:blue")
+    for norms, color in ((data.before_norm, "tab:red"), (data.after_norm, "tab:blue")):
+        ax.axvline(norms.mean(), color=color, linestyle="--", linewidth=1)
+    ax.set_xlabel("positioning error norm (mm); dashed: mean")
+    ax.set_ylabel("poses")
+    ax.set_title(f"Error norms at {len(data)} poses")
+    ax.legend(loc="upper right", framealpha=0.9)
+    save(fig, "histogram")
+
+    # 2. error vectors over the box, before and after, same magnification
+    scale = _vector_scale(data)
+    fig = Figure(figsize=(9.0, 4.2), layout="constrained")
+    top = float(data.before_norm.max())
+    rows = vector_rows(len(data))
+    p = data.poses[rows, :3]
+    for k, (vectors, norms, label) in enumerate(((data.error, data.before_norm, "before, E"),
+                                                 (data.after, data.after_norm, after_label))):
+        ax = fig.add_subplot(1, 2, k + 1, projection="3d")
+        # at the commanded position, along E: the direction from where the robot went to where it was sent
+        ax.quiver(p[:, 0], p[:, 1], p[:, 2], *(vectors[rows] * scale).T, colors=_colormap(norms[rows] / max(top, 1e-9)),
+                  linewidth=0.8, arrow_length_ratio=0.25)
+        drawn = "" if len(rows) == len(data) else f", {len(rows)} of {len(data)} drawn"
+        ax.set_title(f"{label}\nmean {norms.mean():.3f} mm, arrows ×{scale:.0f}{drawn}", fontsize=9)
+        ax.set_xlabel("X mm", fontsize=8)
+        ax.set_ylabel("Y mm", fontsize=8)
+        ax.set_zlabel("Z mm", fontsize=8)
+        ax.tick_params(labelsize=7)
+    save(fig, "vectors")
+
+    # 3. predicted vs measured error per axis (only with a model)
+    if data.predicted is not None:
+        fig = Figure(figsize=(9.0, 3.3), layout="constrained")
+        for k, axis in enumerate("XYZ"):
+            ax = fig.add_subplot(1, 3, k + 1)
+            measured, predicted = data.error[:, k], data.predicted[:, k]
+            lo, hi = min(measured.min(), predicted.min()), max(measured.max(), predicted.max())
+            ax.plot([lo, hi], [lo, hi], color="grey", linewidth=1)
+            ax.scatter(measured, predicted, s=6, alpha=0.7)
+            ax.set_title(f"{axis}: R² {_r2(measured, predicted):.3f}", fontsize=9)
+            ax.set_xlabel(f"measured E{axis.lower()} (mm)", fontsize=8)
+            ax.set_ylabel(f"predicted Ê{axis.lower()} (mm)", fontsize=8)
+            ax.set_aspect("equal", adjustable="datalim")
+        save(fig, "predicted")
+    return written
+
+
+def _colormap(values: np.ndarray) -> np.ndarray:
+    from matplotlib import colormaps
+
+    return colormaps["viridis"](np.clip(values, 0.0, 1.0))
+
+
+def _r2(measured: np.ndarray, predicted: np.ndarray) -> float:
+    ss = float(((measured - measured.mean()) ** 2).sum())
+    return 1.0 - float(((measured - predicted) ** 2).sum()) / ss if ss > 0 else math.nan
+
+
+def _card_rows(card: dict) -> list[str]:
+    rows = []
+    for key, value in card.items():
+        text = value if isinstance(value, str) else json.dumps(value, separators=(", ", ": "))
+        rows.append(f"| {key} | `{text.replace('|', '¦')}` |")
+    return rows
+
+
+def summary(data: ReportData) -> dict:
+    """The numbers of the report (summary.json)."""
+    before, after = table2(data.before_norm), table2(data.after_norm)
+    return {
+        "source": data.source,
+        "source_sha256": data.source_sha256,
+        "poses": len(data),
+        "after": data.after_kind,
+        "table2_mm": {"before": before, "after": after},
+        "mean_reduction": 1.0 - after["mean"] / before["mean"] if before["mean"] else math.nan,
+        "outside_envelope": data.outside_envelope,
+        "vector_scale": _vector_scale(data),
+        "vector_rows": vector_rows(len(data)).tolist(),
+        "model": data.model_card,
+    }
+
+
+def write_markdown(data: ReportData, numbers: dict, figures: dict[str, Path], path: Path, title: str) -> None:
+    before, after = numbers["table2_mm"]["before"], numbers["table2_mm"]["after"]
+    after_label = ("after, \\|E − Ê\\| (first-order residual)" if data.after_kind == "first-order"
+                   else "after, measured with compensation")
+    lines = [
+        f"# {title}",
+        "",
+        f"{len(data)} poses from `{Path(data.source).name}` (sha256 `{data.source_sha256[:12]}`)"
+        + (f", model `{data.model_card.get('name', '')}` (sha256 `{str(data.model_card.get('sha256', ''))[:12]}`)"
+           if data.model_card else "") + ".",
+        "",
+        "| positioning error (mm) | max | min | mean | std |",
+        "|---|---:|---:|---:|---:|",
+        f"| before, \\|E\\| | {before['max']:.3f} | {before['min']:.3f} | {before['mean']:.3f} | {before['std']:.3f} |",
+        f"| {after_label} | {after['max']:.3f} | {after['min']:.3f} | {after['mean']:.3f} | {after['std']:.3f} |",
+        "",
+        f"Mean error reduced by {100 * numbers['mean_reduction']:.1f} %. Std with ddof 1.",
+    ]
+    if data.after_kind == "first-order":
+        lines.append("\"After\" is E − Ê at the measured poses: what compensation leaves to first order, "
+                     "not a measurement of the compensated robot.")
+    if data.outside_envelope:
+        lines.append(f"**{data.outside_envelope} of {len(data)} poses lie outside the model's training envelope.**")
+    lines += [""]
+    captions = {"histogram": "Error norms before and after", "vectors": "Error vectors over the measured box",
+                "predicted": "Predicted vs measured error per axis"}
+    for key, figure in figures.items():
+        lines += [f"![{captions[key]}]({figure.name})", ""]
+    if data.model_card:
+        lines += ["## Model card", "", "| field | value |", "|---|---|", *_card_rows(data.model_card), ""]
+    lines += ["Plotted numbers: `series.csv` (per pose), `histogram.csv` (bins); figures: `summary.json`.", ""]
+    path.write_text("\n".join(lines), encoding="utf-8")
+
+
+def write_report(data: ReportData, folder: str | Path, title: str = "Positioning accuracy") -> dict[str, Path]:
+    """Write the whole report into ``folder`` (created); returns every file by role."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise PostprocError(f"cannot create the report folder: {exc.strerror}", str(folder), code="P107") from None
+    if len(data) == 0:
+        raise PostprocError("no poses to report on", data.source, code="P500")
+    files = write_series(data, folder)
+    figures = write_plots(data, folder)
+    numbers = summary(data)
+    numbers["files"] = {k: p.name for k, p in {**files, **figures}.items()}
+    (folder / "summary.json").write_text(json.dumps(numbers, indent=1, default=float) + "\n", encoding="utf-8")
+    write_markdown(data, numbers, figures, folder / "report.md", title)
+    return {**files, **figures, "summary": folder / "summary.json", "markdown": folder / "report.md"}

@@ -1,0 +1,147 @@
+"""postproc report: the numbers beside the plots, Table 2 and the PNGs, checked against values
+computed here from the data and the affine model's formula (not from postproc's code)."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from postproc.cli import main
+from postproc.diagnostics import PostprocError
+
+pytest.importorskip("matplotlib")
+
+OFFSET = np.array([0.2, -0.1, 0.3])
+GAIN = np.array([[1e-3, 0, 0], [0, -8e-4, 2e-4], [3e-4, 0, 1.2e-3]])
+CENTRE = np.array([2000.0, 0.0, 900.0])
+
+
+def measurement(n=120, seed=3):
+    """Poses in the default envelope; E = the model's field + a part it cannot predict."""
+    rng = np.random.default_rng(seed)
+    poses = np.column_stack([rng.uniform([1700, -600, 500], [2300, 600, 1300], (n, 3)),
+                             rng.uniform(-5, 5, n), 90 + rng.uniform(-5, 5, n), rng.uniform(-5, 5, n)])
+    predicted = OFFSET + (poses[:, :3] - CENTRE) @ GAIN.T
+    error = predicted + rng.normal(scale=0.05, size=(n, 3))
+    return poses, error, predicted
+
+
+def write_csv(path, poses, measured, after=None):
+    cols = [poses, measured] + ([after] if after is not None else [])
+    header = "x,y,z,a,b,c,x_meas,y_meas,z_meas" + (",x_after,y_after,z_after" if after is not None else "")
+    np.savetxt(path, np.hstack(cols), fmt="%.6f", delimiter=",", header="# cell 7, 2026-11-21\n" + header, comments="")
+    return path
+
+
+def read_csv(path):
+    with open(path) as fh:
+        names = fh.readline().strip().split(",")
+    table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    return {name: table[:, i] for i, name in enumerate(names)}
+
+
+def table2_here(d):
+    return {"max": d.max(), "min": d.min(), "mean": d.mean(), "std": np.sqrt(((d - d.mean()) ** 2).sum() / (len(d) - 1))}
+
+
+def png_pixels(path):
+    import matplotlib.image
+
+    head = path.read_bytes()[:8]
+    assert head == b"\x89PNG\r\n\x1a\n"
+    return matplotlib.image.imread(path)
+
+
+def test_report_numbers_plots_and_model_card(affine, tmp_path, capsys):
+    poses, error, predicted = measurement()
+    # rounding to 6 decimals in the CSV is part of the data: use the file's numbers
+    csv = write_csv(tmp_path / "measured.csv", poses, poses[:, :3] - error)
+    table = np.loadtxt(csv, delimiter=",", skiprows=2)
+    poses, error = table[:, :6], table[:, :3] - table[:, 6:9]
+    predicted = OFFSET + (poses[:, :3] - CENTRE) @ GAIN.T
+    after = error - predicted
+    model = affine(offset=OFFSET, gain=GAIN, centre=CENTRE, name="cell7-test")
+    out = tmp_path / "report"
+    assert main(["report", str(csv), "--model", str(model), "-o", str(out)]) == 0
+    assert "120 poses" in capsys.readouterr().err
+
+    series = read_csv(out / "series.csv")
+    assert np.allclose(np.column_stack([series[k] for k in "xyzabc"]), poses, atol=1e-6)
+    assert np.allclose(np.column_stack([series[k] for k in ("ex", "ey", "ez")]), error, atol=1e-6)
+    # the model runs in float32: µm agreement
+    assert np.allclose(np.column_stack([series[k] for k in ("ex_pred", "ey_pred", "ez_pred")]), predicted, atol=1e-4)
+    assert np.allclose(np.column_stack([series[k] for k in ("ax", "ay", "az")]), after, atol=1e-4)
+    before_norm, after_norm = np.linalg.norm(error, axis=1), np.linalg.norm(after, axis=1)
+    assert np.allclose(series["norm_before"], before_norm, atol=1e-6)
+    assert np.allclose(series["norm_after"], after_norm, atol=1e-4)
+
+    hist = read_csv(out / "histogram.csv")
+    # 30 common bins from 0 to the largest norm, before or after
+    edges = np.linspace(0, max(before_norm.max(), after_norm.max()), 31)
+    assert np.allclose(np.append(hist["bin_lo"], hist["bin_hi"][-1]), edges, atol=1e-6)
+    assert np.array_equal(hist["count_before"], np.histogram(before_norm, edges)[0])
+    assert np.array_equal(hist["count_after"], np.histogram(after_norm, edges)[0])
+    assert hist["count_before"].sum() == hist["count_after"].sum() == 120
+
+    summary = json.loads((out / "summary.json").read_text())
+    for key, norms in (("before", before_norm), ("after", after_norm)):
+        for stat, value in table2_here(norms).items():
+            assert summary["table2_mm"][key][stat] == pytest.approx(value, abs=1e-4), (key, stat)
+    assert summary["model"]["name"] == "cell7-test" and summary["model"]["robot"] == "KR500-sim"
+    assert summary["model"]["envelope"]["box"] == [1700, 2300, -600, 600, 500, 1300]
+    assert summary["outside_envelope"] == 0 and summary["poses"] == 120
+
+    md = (out / "report.md").read_text()
+    b, a = table2_here(before_norm), table2_here(after_norm)
+    assert f"| {b['max']:.3f} | {b['min']:.3f} | {b['mean']:.3f} | {b['std']:.3f} |" in md
+    assert f"| {a['max']:.3f} | {a['min']:.3f} | {a['mean']:.3f} | {a['std']:.3f} |" in md
+    assert "| name | `cell7-test` |" in md and "| robot | `KR500-sim` |" in md
+
+    for name in ("error_histogram.png", "error_vectors.png", "predicted_vs_measured.png"):
+        assert f"]({name})" in md
+        assert (out / name).stat().st_size > 10_000
+        pixels = png_pixels(out / name)
+        assert pixels.shape[0] > 250 and pixels.shape[1] > 500
+        assert pixels[..., :3].std() > 0.05  # not a blank canvas
+
+
+def test_measured_after_columns_replace_the_first_order_residual(affine, tmp_path):
+    poses, error, _ = measurement(40, seed=5)
+    reached_after = poses[:, :3] - np.random.default_rng(9).normal(scale=0.03, size=(40, 3))
+    csv = write_csv(tmp_path / "verify.csv", poses, poses[:, :3] - error, reached_after)
+    table = np.loadtxt(csv, delimiter=",", skiprows=2)
+    out = tmp_path / "r"
+    assert main(["report", str(csv), "--model", str(affine(offset=OFFSET)), "-o", str(out), "-q"]) == 0
+    series = read_csv(out / "series.csv")
+    assert np.allclose(series["norm_after"], np.linalg.norm(table[:, :3] - table[:, 9:12], axis=1), atol=1e-6)
+    assert json.loads((out / "summary.json").read_text())["after"] == "measured"
+    assert "measured with compensation" in (out / "report.md").read_text()
+
+
+def test_poses_outside_the_envelope_are_counted(affine, tmp_path):
+    poses, error, _ = measurement(30, seed=6)
+    poses[:4, 0] = 1500.0  # x below the box's 1700 (− 1 mm tolerance)
+    csv = write_csv(tmp_path / "m.csv", poses, poses[:, :3] - error)
+    out = tmp_path / "r"
+    assert main(["report", str(csv), "--model", str(affine()), "-o", str(out), "-q"]) == 0
+    assert json.loads((out / "summary.json").read_text())["outside_envelope"] == 4
+    assert "4 of 30 poses lie outside" in (out / "report.md").read_text()
+
+
+def test_bad_input_is_located(affine, tmp_path, capsys):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("x,y,z,a,b,c,x_meas,y_meas,z_meas\n1,2,3,0,90,0,1,2,nan\n")
+    assert main(["report", str(bad), "--model", str(affine()), "-o", str(tmp_path / "r")]) == 2
+    assert capsys.readouterr().err.startswith(f"{bad}:2:")
+    from postproc.report import read_report_data
+
+    poses, error, _ = measurement(5)
+    with pytest.raises(PostprocError, match="nothing to compare"):
+        read_report_data(write_csv(tmp_path / "m.csv", poses, poses[:, :3] - error), None)
+
+
+def test_matplotlib_is_imported_only_to_draw():
+    code = "import sys, postproc.report, postproc.cli.report; print('matplotlib' in sys.modules)"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.stdout.strip() == "False", done.stderr
