@@ -263,6 +263,7 @@ class _Plan:
     chain: list  # [R] bool: does the row become the current position (CIRC aux: no)
     spl: bool  # an SPL segment (must stand inside SPLINE … ENDSPLINE)
     ph: list  # placeholder positions in the shape
+    free: list = ()  # slots that carry their own sign (accelerator alternatives)
 
 
 def _tok(tree):
@@ -473,26 +474,67 @@ class _HotRows:
 
 class _Accel:
     """One regex matching, line by line, the frequent hot shapes with their numbers as
-    groups; any other line falls into the last group and goes to the interpreter."""
+    groups; any other line falls into the last group and goes to the interpreter.
 
-    MAX = 12
+    Alternatives are *sign-free* shapes (``_generalise``): a target component may carry
+    a sign or not, so ``{X 1,Y -2}`` and ``{X -1,Y 2}`` share one alternative."""
 
-    def __init__(self, shapes: list):
-        self.shapes = shapes[: self.MAX]
-        alts, self.first = [], []
+    MAX = 8
+
+    def __init__(self, alts: list):
+        self.alts = alts[: self.MAX]  # (sign-free text, plan)
+        parts_all, self.first = [], []
         g = 1
-        for sh in self.shapes:
+        for text, plan in self.alts:
             parts, last = [], 0
-            for p in sh.ph:
-                parts.append(re.escape(sh.text[last:p]))
-                parts.append("(" + _NUM + ")")
+            free = set(plan.free)
+            for j, p in enumerate(plan.ph):
+                parts.append(re.escape(text[last:p]))
+                parts.append("([-+]?" + _NUM + ")" if j in free else "(" + _NUM + ")")
                 last = p + 1
-            parts.append(re.escape(sh.text[last:]))
-            alts.append("".join(parts))
+            parts.append(re.escape(text[last:]))
+            parts_all.append("".join(parts))
             self.first.append(g)
-            g += len(sh.ph)
+            g += len(plan.ph)
         self.fallback = g
-        self.regex = re.compile("^(?:" + "|".join(alts) + r"|([^\n]*))$", re.M)
+        self.regex = re.compile("^(?:" + "|".join(parts_all) + r"|([^\n]*))$", re.M)
+
+
+def _generalise(shape: _Shape):
+    """(sign-free text, plan) of a hot shape: the sign written before a target component
+    moves into the number slot (the slot then matches ``[-+]?number``)."""
+    plan = shape.plan
+    text = shape.text
+    free, drop = set(), set()
+    for r in range(len(plan.motion)):
+        for c in range(6):
+            j = int(plan.slots[r, c])
+            if j < 0:
+                continue
+            if plan.gap[r, c] == 1:
+                drop.add(plan.ph[j] - 1)
+                free.add(j)
+            elif plan.gap[r, c] == 0:
+                free.add(j)
+    out, keep = [], []
+    for i, ch in enumerate(text):
+        if i not in drop:
+            keep.append(i)
+            out.append(ch)
+    newpos = {old: new for new, old in enumerate(keep)}
+    ph = [newpos[p] for p in plan.ph]
+    brace = [newpos[b] for b in plan.brace]
+    neg = plan.neg.copy()
+    gap = plan.gap.copy()
+    for r in range(len(plan.motion)):
+        for c in range(6):
+            if int(plan.slots[r, c]) in free:
+                neg[r, c] = False
+                gap[r, c] = 0
+    g = _Plan(slots=plan.slots, neg=neg, gap=gap, brace=brace, motion=plan.motion, chain=plan.chain,
+              spl=plan.spl, ph=ph)
+    g.free = sorted(free)
+    return "".join(out), g
 
 
 # ---------------------------------------------------------------------------- reader
@@ -674,65 +716,78 @@ class _Reader:
     def scan_accelerated(self, text: str, nlines: int, hot_lines) -> None:
         """Learn the shapes of the first lines with the interpreter, then read chunks with one
         regex over the frequent hot shapes; lines it does not take go to the interpreter."""
+        from operator import itemgetter
+
         starts = self.starts
         learn = 2048
-        accel_dirty = False
         self.scan_lines(range(learn), hot_lines)
-        counts = {}
-        for sh, entry in hot_lines.items():
-            counts[sh] = len(entry[0])
-        i = learn
-        accel = None
+        counts, plans = {}, {}
+
+        def learn_from(entries):
+            dirty = False
+            for sh, entry in entries.items():
+                if sh.plan is None:
+                    continue
+                g = _generalise(sh)
+                if g[0] not in plans:
+                    plans[g[0]] = g[1]
+                    dirty = True
+                counts[g[0]] = counts.get(g[0], 0) + len(entry[0])
+            return dirty
+
+        learn_from(hot_lines)
+        accel, dirty, i = None, True, learn
         while i < nlines:
-            if accel is None or accel_dirty:
+            if dirty:
                 ranked = sorted(counts, key=counts.get, reverse=True)
-                accel = _Accel(ranked)
-                accel_dirty = False
+                new = _Accel([(t, plans[t]) for t in ranked])
+                if accel is None or [a[0] for a in new.alts] != [a[0] for a in accel.alts]:
+                    accel = new
+                dirty = False
             a = int(starts[i])
             j = int(np.searchsorted(starts, a + self.CHUNK, "left"))
             j = min(max(j, i + 1), nlines)
             b = int(starts[j]) if j < len(starts) else len(text)
-            chunk = text[a:b]
-            rows = accel.regex.findall(chunk)
+            rows = accel.regex.findall(text[a:b])
             n = j - i
-            if len(rows) < n:  # cannot happen (one match per line): read it line by line
+            if len(rows) < n or not accel.alts:  # (never: one match per line) line by line
                 self.scan_lines(range(i, j), hot_lines)
                 i = j
                 continue
-            rows = rows[:n]
-            cols = list(zip(*rows)) if accel.shapes else [tuple(r for r in rows)]
-            fallback = cols[accel.fallback - 1] if accel.shapes else cols[0]
+            del rows[n:]
+            cols = list(zip(*rows))
+            del rows
+            fallback = cols[accel.fallback - 1]
             line0 = np.arange(i, j, dtype=np.int64)
             is_hot = np.zeros(n, bool)
-            for s, sh in enumerate(accel.shapes):
-                g = accel.first[s]
-                if not sh.ph:
-                    continue
+            for (gtext, plan), g in zip(accel.alts, accel.first):
                 m = np.fromiter(map(bool, cols[g - 1]), bool, n)
                 if not m.any():
                     continue
                 is_hot |= m
                 sel = np.flatnonzero(m)
-                sub = [[cols[g - 1 + q][k] for k in sel] for q in range(len(sh.ph))] if len(sel) < n else \
-                    [cols[g - 1 + q] for q in range(len(sh.ph))]
-                self.hot.add(sh.plan, self.fi, line0[sel], starts[line0[sel]], sub, self.key0)
-                counts[sh] = counts.get(sh, 0) + len(sel)
-            del cols, rows
+                if len(sel) == n:
+                    sub = [cols[g - 1 + q] for q in range(len(plan.ph))]
+                else:
+                    pick = itemgetter(*sel.tolist()) if len(sel) > 1 else (lambda c, k=int(sel[0]): (c[k],))
+                    sub = [pick(cols[g - 1 + q]) for q in range(len(plan.ph))]
+                self.hot.add(plan, self.fi, line0[sel], starts[line0[sel]], sub, self.key0)
+                counts[gtext] += len(sel)
+            del cols
             rest = np.flatnonzero(~is_hot)
-            # the interpreter reads the other lines in order; SPL/DEF checks of the hot
-            # lines are done on the whole file afterwards (finish_file)
             if len(rest):
-                new = {}
-                for k in rest:
-                    li = i + int(k)
-                    self.line_at(li, int(starts[li]), fallback[k], new)
-                for sh, entry in new.items():
+                found = {}
+                for k in rest.tolist():
+                    li = i + k
+                    self.line_at(li, int(starts[li]), fallback[k], found)
+                for sh, entry in found.items():
                     e = hot_lines.setdefault(sh, ([], [], []))
                     for q in range(3):
                         e[q].extend(entry[q])
-                    counts[sh] = counts.get(sh, 0) + len(entry[0])
-                    if sh not in accel.shapes and len(entry[0]) > 64:
-                        accel_dirty = True
+                if sum(len(e[0]) for e in found.values()) > 64:
+                    dirty = learn_from(found) or dirty
+                else:
+                    learn_from(found)
             i = j
 
     def finish_file(self, nlines: int) -> None:

@@ -1,0 +1,86 @@
+"""Speed of the KRL reader on a generated CAM program (default 1,000,000 LIN lines).
+
+    python benchmarks/krl_read_speed.py [--lines N] [--crlf]
+
+Prints lines/s of ``postproc.programs.krl.read``, its peak memory (tracemalloc, measured in
+a second run because tracing slows Python down) and, for comparison, the time of a plain
+regex pass that rewrites the X/Y/Z numbers of the same text.
+"""
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+
+def cam_program(lines: int, crlf: bool, seed: int = 0) -> str:
+    """A CAM-style module: header, $BASE/$TOOL, then ``lines`` LIN lines (1 in 50 with
+    only X/Y/Z, 1 in 1000 a $VEL.CP setting)."""
+    rng = np.random.default_rng(seed)
+    xyz = rng.uniform([-200, -300, 0], [200, 300, 400], size=(lines, 3))
+    abc = rng.uniform(-5, 5, size=(lines, 3)) + [0, 90, 0]
+    out = ["&ACCESS RVP", "&REL 1", "DEF cam_big( )", "$BASE = {X 2000.0,Y 0.0,Z 600.0,A 0.0,B 0.0,C 0.0}",
+           "$TOOL = {X 0.0,Y 0.0,Z 150.0,A 0.0,B 0.0,C 0.0}", "$VEL.CP = 0.2", "$APO.CVEL = 90"]
+    for i in range(lines):
+        x, y, z = xyz[i]
+        a, b, c = abc[i]
+        if i % 1000 == 999:
+            out.append("$VEL.CP = 0.25")
+        if i % 50 == 7:
+            out.append(f"LIN {{X {x:.3f},Y {y:.3f},Z {z:.3f}}} C_VEL")
+        else:
+            out.append(f"LIN {{X {x:.3f},Y {y:.3f},Z {z:.3f},A {a:.3f},B {b:.3f},C {c:.3f}}} C_VEL")
+    out.append("END")
+    nl = "\r\n" if crlf else "\n"
+    return nl.join(out) + nl
+
+
+PLAIN = re.compile(r"(\{X )(-?[\d.]+)(,Y )(-?[\d.]+)(,Z )(-?[\d.]+)")
+
+
+def plain_pass(text: str) -> str:
+    """What a minimal rewrite does: find each X/Y/Z triple and write numbers back."""
+    return PLAIN.sub(lambda m: f"{m[1]}{float(m[2]):.3f}{m[3]}{float(m[4]):.3f}{m[5]}{float(m[6]):.3f}", text)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--lines", type=int, default=1_000_000)
+    ap.add_argument("--crlf", action="store_true")
+    ap.add_argument("--no-memory", action="store_true", help="skip the (slow) tracemalloc run")
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    from postproc.programs import krl
+
+    krl.parser()
+    print(f"import + parser: {time.perf_counter() - t0:.3f} s")
+    text = cam_program(args.lines, args.crlf)
+    nlines = text.count("\n")
+    print(f"program: {nlines:,} lines, {len(text) / 1e6:.1f} MB")
+    t0 = time.perf_counter()
+    prog = krl.read(["cam_big.src"], [text])
+    dt = time.perf_counter() - t0
+    print(f"krl.read: {dt:.2f} s = {nlines / dt:,.0f} lines/s, {len(prog.targets):,} targets "
+          f"({len(prog.targets) / dt:,.0f} targets/s)")
+    t0 = time.perf_counter()
+    plain_pass(text)
+    dp = time.perf_counter() - t0
+    print(f"plain regex rewrite pass: {dp:.2f} s (read / plain = {dt / dp:.2f})")
+    if not args.no_memory:
+        del prog
+        tracemalloc.start()
+        krl.read(["cam_big.src"], [text])
+        _, peak = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        print(f"peak memory of read (tracemalloc, beyond the {len(text) / 1e6:.0f} MB text): {peak / 1e6:.0f} MB")
+
+
+if __name__ == "__main__":
+    main()
