@@ -135,5 +135,5 @@ def test_version_and_help_with_examples(capsys):
     assert {"compensate", "check", "report"} <= set(built)
     for name, parser in sub.choices.items():
         text = parser.format_help()
-        assert "examples:" in text, f"postproc {name} --help shows no examples"
+        assert "examples:" in text.lower(), f"postproc {name} --help shows no examples"
         assert "-q, --quiet" in text and "-v, --verbose" in text, f"postproc {name} lacks -q/-v"
