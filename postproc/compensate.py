@@ -194,8 +194,8 @@ def _tool_mismatch(program: Program, model: Compensator) -> str | None:
     tools = {tuple(np.round(f.tool, 3)) for f in program.frames if f.tool is not None}
     for tool in tools:
         d = np.abs(np.asarray(tool) - np.asarray(frame, float))
-        if d[:3].max() > 0.5 or ((d[3:] + 180) % 360 - 180).max() > 0.1:
-            return f"the program's $TOOL {list(tool)} is not the model's tool {model.tool.get('name', '')} {list(frame)}"
+        if d[:3].max() > 0.5 or np.abs((d[3:] + 180) % 360 - 180).max() > 0.1:
+            return f"the program's $TOOL {[float(v) for v in tool]} is not the model's tool {model.tool.get('name', '')} {list(frame)}"
     return None
 
 
