@@ -1,0 +1,427 @@
+"""Mutation fuzzing of `postproc compensate` on the sample corpus.
+
+    python benchmarks/fuzz.py [--mutants 10000] [--seed 0] [--subprocess 50] [--timeout 10] [--keep DIR]
+
+Takes every sample program (samples/krl/*: a .src with its .dat; samples/poses/*), applies
+random byte, token and line mutations (delete, duplicate, swap, insert garbage or a
+keyword, replace a number by an edge case, truncate, change line endings) and compensates
+each mutant with a constant-offset model. Every mutant must end in one of two ways:
+
+* exit 0, and the output round-trips: re-reading it gives the same targets (count, file,
+  line, column, frame, motion), every byte outside the X/Y/Z number tokens is the mutant's
+  (apart from the one stamp line), and every number moved by exactly the model's offset
+  taken into the target's base (Rᵀ·offset), or not at all for targets left as they were;
+* exit 2 with one `path:line:col: CODE message` (or `path: CODE message`) line on stderr,
+  the previous output files byte-identical, and no temporary file left behind.
+
+Anything else is a crash (a traceback, "internal error", another exit code, a malformed
+message), a wrong output, or a hang (over --timeout seconds). Mutants run in-process through
+``postproc.cli.main`` for speed; --subprocess of them also through `python -m postproc`.
+Prints the counts; with --keep, the offending mutants are saved for reproduction.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / "tests"))  # model_factory: small ONNX models built with onnx.helper
+
+OFFSET = (0.3, -0.2, 0.1)  # mm, the constant-offset model's error in the robot base frame
+MESSAGE = re.compile(r"(?P<path>.+?):(?:(?P<line>\d+):(?P<col>\d+):)? (?P<code>P\d{3}) (?P<message>.+)")
+
+# Pieces a mutation may insert: KRL and pose-list syntax, and numbers that break naive readers.
+KEYWORDS = [
+    "LIN", "PTP", "CIRC", "SPTP", "SLIN", "SCIRC", "SPL", "SPLINE", "ENDSPLINE", "DEF", "END", "DEFDAT",
+    "ENDDAT", "DEFFCT", "ENDFCT", "DECL", "GLOBAL", "PUBLIC", "E6POS", "POS", "FRAME", "E6AXIS", "AXIS",
+    "$BASE", "$TOOL", "$ROBROOT", "$NULLFRAME", "BASE_DATA[1]", "TOOL_DATA[2]", "BAS(#BASE,1)",
+    "BAS(#TOOL,1)", ";FOLD ", ";ENDFOLD", "{", "}", ",", ":", "=", "[", "]", "(", ")", "X ", "Y ", "Z ",
+    "A ", "B ", "C ", "S ", "T ", "E1 ", "'B010'", "'H2F'", '"text"', '"', "'", ";", "&ACCESS RVP", "&REL 3",
+    "C_DIS", "C_VEL", "C_PTP", "WITH $VEL={CP 0.2}", "LIN_REL", "PTP_REL", "#BASE", "#TOOL", "INV_POS(",
+    "XP1", "P[3]", "IF", "ENDIF", "FOR", "ENDFOR", "CA 90", "\n", "\r\n", "\r", "\t", " ", "  ",
+    "x", "y", "z", "a", "b", "c", "name", "#", "//", "nan", "inf", "-", "+", ".", "e", "E5",
+    "; postproc: compensated with model",
+]
+NUMBERS = ["nan", "inf", "-inf", "1e999", "-1e999", "1e-400", "0e400", "1.5E+03", "-0.000", ".5", "5.", "+5",
+           "1e308", "123456789012345678901234567890", "0.0000001", "-", ".", "1e", "1.2.3", "2000", "-2000",
+           "99999", "1E+3", "0x10", "1_000"]
+TOKEN = re.compile(rb"\s+|[A-Za-z_$][\w$]*|[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|.", re.S)
+NUMBER = re.compile(rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
+
+
+class Hang(BaseException):
+    """Raised by the alarm: a BaseException so that the CLI's last-resort handler lets it through."""
+
+
+@dataclass
+class Sample:
+    name: str
+    files: dict[str, bytes]  # file name → bytes; the first is the one given to compensate
+
+
+def corpus(root: Path = REPO / "samples") -> list[Sample]:
+    """Every sample program: a KRL .src with its .dat (same stem), a lone .dat, a pose list."""
+    samples = []
+    krl = sorted((root / "krl").glob("*")) if (root / "krl").is_dir() else []
+    by_stem: dict[str, list[Path]] = {}
+    for path in krl:
+        if path.suffix.lower() in (".src", ".dat") and not path.name.startswith("$"):
+            by_stem.setdefault(path.stem.lower(), []).append(path)
+    for stem, paths in sorted(by_stem.items()):
+        paths.sort(key=lambda p: p.suffix.lower() != ".src")  # .src first
+        samples.append(Sample(paths[0].name, {p.name: p.read_bytes() for p in paths}))
+    for path in sorted((root / "poses").glob("*")):
+        if path.suffix.lower() in (".csv", ".txt"):
+            samples.append(Sample(path.name, {path.name: path.read_bytes()}))
+    return samples
+
+
+# --------------------------------------------------------------------------- mutations
+
+
+def _span(rng: np.random.Generator, n: int, longest: int = 24) -> tuple[int, int]:
+    if n == 0:
+        return 0, 0
+    start = int(rng.integers(0, n))
+    length = min(int(rng.geometric(0.25)), longest, n - start)
+    return start, start + length
+
+
+def _byte_op(data: bytes, rng: np.random.Generator) -> bytes:
+    op = rng.choice(["delete", "duplicate", "swap", "garbage", "keyword", "truncate", "flip"])
+    n = len(data)
+    s, e = _span(rng, n)
+    at = int(rng.integers(0, n + 1))
+    if op == "delete":
+        return data[:s] + data[e:]
+    if op == "duplicate":
+        return data[:at] + data[s:e] + data[at:]
+    if op == "swap":
+        s2, e2 = _span(rng, n)
+        if e <= s2 or e2 <= s:
+            (s, e), (s2, e2) = sorted([(s, e), (s2, e2)])
+            return data[:s] + data[s2:e2] + data[e:s2] + data[s:e] + data[e2:]
+        return data
+    if op == "garbage":
+        return data[:at] + rng.integers(0, 256, int(rng.integers(1, 9)), dtype=np.uint8).tobytes() + data[at:]
+    if op == "keyword":
+        return data[:at] + KEYWORDS[int(rng.integers(len(KEYWORDS)))].encode() + data[at:]
+    if op == "truncate":
+        return data[:at]
+    if op == "flip" and n:  # one character for a neighbour of it: digits for digits, letters for letters
+        i = int(rng.integers(0, n))
+        return data[:i] + bytes([(data[i] + int(rng.choice([-1, 1]))) % 256]) + data[i + 1:]
+    return data
+
+
+def _token_op(data: bytes, rng: np.random.Generator) -> bytes:
+    tokens = TOKEN.findall(data)
+    if not tokens:
+        return data
+    op = rng.choice(["delete", "duplicate", "swap", "number", "keyword"])
+    i = int(rng.integers(len(tokens)))
+    if op == "delete":
+        del tokens[i]
+    elif op == "duplicate":
+        tokens.insert(i, tokens[i])
+    elif op == "swap":
+        j = int(rng.integers(len(tokens)))
+        tokens[i], tokens[j] = tokens[j], tokens[i]
+    elif op == "number":
+        numbers = [k for k, t in enumerate(tokens) if NUMBER.match(t)]
+        if numbers:
+            i = numbers[int(rng.integers(len(numbers)))]
+            tokens[i] = NUMBERS[int(rng.integers(len(NUMBERS)))].encode()
+    else:
+        tokens[i] = KEYWORDS[int(rng.integers(len(KEYWORDS)))].encode()
+    return b"".join(tokens)
+
+
+def _line_op(data: bytes, rng: np.random.Generator) -> bytes:
+    lines = data.splitlines(keepends=True)
+    if not lines:
+        return data
+    op = rng.choice(["delete", "duplicate", "swap", "crlf", "lf", "no-final-newline"])
+    i, j = int(rng.integers(len(lines))), int(rng.integers(len(lines)))
+    if op == "delete":
+        del lines[i]
+    elif op == "duplicate":
+        lines.insert(j, lines[i])
+    elif op == "swap":
+        lines[i], lines[j] = lines[j], lines[i]
+    elif op == "crlf":
+        lines[i] = lines[i].rstrip(b"\r\n") + b"\r\n"
+    elif op == "lf":
+        lines[i] = lines[i].rstrip(b"\r\n") + b"\n"
+    else:
+        lines[-1] = lines[-1].rstrip(b"\r\n")
+    return b"".join(lines)
+
+
+def mutate(sample: Sample, rng: np.random.Generator) -> dict[str, bytes]:
+    """A copy of the sample's files with 1-3 mutations in one of them."""
+    files = dict(sample.files)
+    name = list(files)[int(rng.integers(len(files)))]
+    data = files[name]
+    for _ in range(int(rng.integers(1, 4))):
+        kind = rng.choice(["byte", "token", "line"], p=[0.4, 0.4, 0.2])
+        data = {"byte": _byte_op, "token": _token_op, "line": _line_op}[kind](data, rng)
+    files[name] = data
+    return files
+
+
+# --------------------------------------------------------------------------- one run
+
+
+@dataclass
+class Outcome:
+    kind: str  # output | error | crash | wrong | hang
+    detail: str = ""
+
+
+def _run_inprocess(argv: list[str], timeout: float) -> tuple[int | str, str]:
+    from postproc.cli import main
+
+    def alarm(signum, frame):
+        raise Hang()
+
+    err = io.StringIO()
+    previous = signal.signal(signal.SIGALRM, alarm)
+    signal.setitimer(signal.ITIMER_REAL, timeout)
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            code: int | str = main(argv)
+    except Hang:
+        code = "hang"
+    except BaseException as exc:  # noqa: BLE001 - anything escaping main is a crash
+        code = f"raised {type(exc).__name__}: {exc}"
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+    return code, err.getvalue()
+
+
+def _run_subprocess(argv: list[str], timeout: float) -> tuple[int | str, str]:
+    try:
+        proc = subprocess.run([sys.executable, "-m", "postproc", *argv], capture_output=True, timeout=timeout,
+                              cwd=REPO)
+    except subprocess.TimeoutExpired:
+        return "hang", ""
+    return proc.returncode, proc.stderr.decode("utf-8", "replace")
+
+
+def _strip_stamp(text: str, stamp: str) -> str | None:
+    """The text without the one stamp line postproc added (None if it is not there)."""
+    for newline in ("\r\n", "\n"):
+        if stamp + newline in text:
+            return text.replace(stamp + newline, "", 1)
+    for newline in ("\r\n", "\n"):
+        if text.endswith(newline + stamp):  # headers only, no final newline
+            return text[: -len(newline + stamp)]
+    return None
+
+
+def _segments(text: str, spans: np.ndarray) -> list[str]:
+    """The text between the number tokens at ``spans`` [K, 2] (unique, present)."""
+    out, prev = [], 0
+    for s, e in spans.tolist():
+        out.append(text[prev:s])
+        prev = e
+    out.append(text[prev:])
+    return out
+
+
+def check_output(files: list[str], texts: list[str], outputs: list[str], model, offset=OFFSET) -> str | None:
+    """Why ``outputs`` is not the mutant ``texts`` compensated by a constant-offset model
+    (None when it is). ``files`` are the mutant's file names (messages and dialect)."""
+    from postproc import frames
+    from postproc.programs import STAMP_PREFIX, dialect_of, read_program
+
+    dialect = dialect_of(files[0])
+    before = read_program(files, texts, dialect)
+    try:
+        read_program(files, outputs, dialect)  # the output as written, stamp included
+    except Exception as exc:  # noqa: BLE001
+        return f"output does not re-read: {exc}"
+    stamp = f"{before.comment} {STAMP_PREFIX} {model.name} {model.sha256[:12]}"
+    stripped = [_strip_stamp(t, stamp) for t in outputs]
+    if any(t is None for t in stripped):
+        return "a file has no stamp line"
+    after = read_program(files, stripped, dialect)
+    a, b = before.targets, after.targets
+    if len(a) != len(b):
+        return f"{len(a)} targets before, {len(b)} after"
+    for column in ("file", "line", "col", "frame", "motion"):
+        if not np.array_equal(getattr(a, column), getattr(b, column)):
+            return f"targets differ in {column}"
+    if not np.array_equal(a.spans < 0, b.spans < 0):
+        return "different X/Y/Z components present"
+    for index in range(len(files)):
+        rows = a.file == index
+        sa = np.unique(a.spans[rows].reshape(-1, 2), axis=0)
+        sb = np.unique(b.spans[rows].reshape(-1, 2), axis=0)
+        sa, sb = sa[sa[:, 0] >= 0], sb[sb[:, 0] >= 0]
+        if _segments(texts[index], sa) != _segments(stripped[index], sb):
+            return f"{files[index]}: bytes outside the number tokens changed"
+    # every present number moved by the offset taken into its base, or not at all
+    moved = (a.frame >= 0) & np.isfinite(a.poses[:, :3]).all(axis=1)
+    expected = np.zeros((len(a), 3))
+    for f in np.unique(a.frame[moved]):
+        rows = moved & (a.frame == f)
+        expected[rows] = frames.rotate_vectors(frames.inverse(before.frames[f].base), np.asarray(offset, float))
+    present = a.spans[:, :, 0] >= 0
+    old = _values(texts, a)
+    new = _values(stripped, b)
+    tol = 0.0005 + 1e-9 * np.abs(old) + 1e-9
+    bad = present & ~(np.abs(new - old - expected) <= tol)
+    if bad.any():
+        r, k = map(int, np.argwhere(bad)[0])
+        return (f"target at {files[a.file[r]]}:{a.line[r]}: {'XYZ'[k]} {old[r, k]!r} → {new[r, k]!r}, "
+                f"expected a change of {expected[r, k]:+.4f}")
+    return None
+
+
+def _values(texts: list[str], t) -> np.ndarray:
+    """The numbers as written at the X/Y/Z spans (NaN where absent)."""
+    out = np.full((len(t), 3), np.nan)
+    for r, k in zip(*np.nonzero(t.spans[:, :, 0] >= 0)):
+        s, e = t.spans[r, k]
+        out[r, k] = float(texts[t.file[r]][s:e])
+    return out
+
+
+class Fuzzer:
+    """Runs mutants of the corpus in a scratch directory and classifies each outcome."""
+
+    def __init__(self, work: Path, timeout: float = 10.0, offset=OFFSET):
+        from model_factory import affine_model
+        from postproc.compensator import load_model
+
+        self.work = work
+        self.model_path = affine_model(work / "offset.onnx", offset=offset)
+        self.model = load_model(self.model_path)
+        self.offset = offset
+        self.timeout = timeout
+        self.src, self.out = work / "in", work / "out"
+        self.prior: dict[str, bytes] = {}  # previous output files, which an error must leave alone
+
+    def run(self, files: dict[str, bytes], subprocess_run: bool = False, prior: bool = False) -> Outcome:
+        for folder in (self.src, self.out):
+            shutil.rmtree(folder, ignore_errors=True)
+            folder.mkdir()
+        for name, data in files.items():
+            (self.src / name).write_bytes(data)
+        main = list(files)[0]
+        target = self.out / main
+        existing: dict[str, bytes] = {}
+        if prior:  # an earlier output in place: an error must leave it byte-identical
+            for name in files:
+                (self.out / name).write_bytes(b"previous output of " + name.encode() + b"\n")
+            existing = {p.name: p.read_bytes() for p in self.out.iterdir()}
+        argv = ["compensate", str(self.src / main), "-o", str(target), "--model", str(self.model_path), "-q"]
+        code, err = (_run_subprocess if subprocess_run else _run_inprocess)(argv, self.timeout)
+        if code == "hang":
+            return Outcome("hang", f"over {self.timeout} s")
+        if isinstance(code, str):
+            return Outcome("crash", code)
+        if "Traceback" in err or "internal error" in err or " E000 " in err:
+            return Outcome("crash", err.strip()[-400:])
+        left = {p.name: p.read_bytes() for p in self.out.iterdir()}
+        if code == 2:
+            lines = err.strip().splitlines()
+            m = MESSAGE.fullmatch(lines[0]) if len(lines) == 1 else None
+            if m is None:
+                return Outcome("crash", f"exit 2 without one 'path:line:col: CODE message' line: {err[-300:]!r}")
+            if left != existing:
+                return Outcome("wrong", f"exit 2 but the output directory changed: {sorted(left)}")
+            return Outcome("error", f"{m.group('code')}")
+        if code != 0:
+            return Outcome("crash", f"exit {code}: {err[-300:]}")
+        if err:
+            return Outcome("crash", f"exit 0 with -q but stderr: {err[-300:]!r}")
+        if set(left) != set(files):
+            return Outcome("wrong", f"output files {sorted(left)}, expected {sorted(files)}")
+        names = list(files)
+        problem = check_output([str(self.src / n) for n in names],
+                               [files[n].decode("latin-1") for n in names],
+                               [left[n].decode("latin-1") for n in names], self.model, self.offset)
+        return Outcome("wrong", problem) if problem else Outcome("output")
+
+
+def fuzz(mutants: int, seed: int = 0, subprocesses: int = 0, timeout: float = 10.0, keep: Path | None = None,
+         samples: list[Sample] | None = None) -> tuple[Counter, Counter, list[tuple[str, Outcome]]]:
+    """Run ``mutants`` mutants (``subprocesses`` of them through `python -m postproc`).
+    Returns the outcome counts, the error codes seen, and the bad outcomes."""
+    samples = samples if samples is not None else corpus()
+    if not samples:
+        raise SystemExit("no samples")
+    rng = np.random.default_rng(seed)
+    counts: Counter = Counter()
+    codes: Counter = Counter()
+    bad: list[tuple[str, Outcome]] = []
+    every = max(1, mutants // subprocesses) if subprocesses else 0
+    with tempfile.TemporaryDirectory(prefix="postproc-fuzz-") as tmp:
+        fuzzer = Fuzzer(Path(tmp), timeout)
+        for sample in samples:  # the unmutated corpus must compensate cleanly
+            outcome = fuzzer.run(sample.files)
+            if outcome.kind != "output":
+                bad.append((f"{sample.name} (unmutated)", outcome))
+        for i in range(mutants):
+            sample = samples[int(rng.integers(len(samples)))]
+            files = mutate(sample, rng)
+            outcome = fuzzer.run(files, subprocess_run=bool(every) and i % every == 0, prior=bool(i % 2))
+            counts[outcome.kind] += 1
+            if outcome.kind == "error":
+                codes[outcome.detail] += 1
+            elif outcome.kind != "output":
+                bad.append((f"mutant {i} of {sample.name}", outcome))
+                if keep is not None:
+                    folder = keep / f"mutant{i:06d}"
+                    folder.mkdir(parents=True, exist_ok=True)
+                    for name, data in files.items():
+                        (folder / name).write_bytes(data)
+                    (folder / "outcome.txt").write_text(f"{outcome.kind}: {outcome.detail}\n")
+    counts["subprocess"] = len(range(0, mutants, every)) if every else 0
+    return counts, codes, bad
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--mutants", type=int, default=10_000)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--subprocess", type=int, default=50, help="how many mutants also run as a real process")
+    parser.add_argument("--timeout", type=float, default=10.0, help="seconds per mutant before it counts as a hang")
+    parser.add_argument("--keep", type=Path, help="save crashing / wrong / hanging mutants here")
+    args = parser.parse_args()
+    samples = corpus()
+    start = time.perf_counter()
+    counts, codes, bad = fuzz(args.mutants, args.seed, args.subprocess, args.timeout, args.keep, samples)
+    wall = time.perf_counter() - start
+    print(f"corpus: {len(samples)} programs ({', '.join(s.name for s in samples)})")
+    print(f"mutants tried: {args.mutants:,} (seed {args.seed}; {counts['subprocess']} also as a subprocess) "
+          f"in {wall:.0f} s")
+    print(f"clean outputs (exit 0, round-trips): {counts['output']:,}")
+    print(f"clean errors (exit 2, path:line:col: CODE message, nothing written): {counts['error']:,}")
+    print(f"crashes: {counts['crash']}  wrong outputs: {counts['wrong']}  hangs: {counts['hang']}")
+    print("error codes: " + ", ".join(f"{c} {n}" for c, n in sorted(codes.items())))
+    for where, outcome in bad[:20]:
+        print(f"  {outcome.kind}: {where}: {outcome.detail}")
+    if bad:
+        sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()
