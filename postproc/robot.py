@@ -393,6 +393,20 @@ class Robot:
         ref = np.broadcast_to(ref, (len(poses), 6))
         return self._ik.solve(frames.frame_to_matrix(poses), ref)
 
+    def status_turn(self, q_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """KUKA Status and Turn [N] ints of joint angles [N, 6]: S bit 0 = wrist centre behind
+        the A1 axis (overhead), bit 1 = A3 at or beyond the stretched-arm angle, bit 2 = A5 ≤ 0;
+        T bit i = A(i+1) < 0."""
+        q = np.atleast_2d(np.asarray(q_deg, float))
+        f = self.flange_chain.joint_frames(np.radians(q))
+        centre = np.einsum("nji,nj->ni", f[:, 0, :3, :3], f[:, 4, :3, 3] - f[:, 0, :3, 3])
+        g = self._ik
+        stretched = math.degrees(g.s[2] * (g.al3 - g.al2))  # A3 with the forearm in line with the upper arm
+        beyond = q[:, 2] >= stretched if g.s[2] > 0 else q[:, 2] <= stretched
+        status = (centre[:, 0] < 0).astype(int) | (beyond.astype(int) << 1) | ((q[:, 4] <= 0).astype(int) << 2)
+        turn = ((q < 0).astype(int) << np.arange(6)).sum(axis=1)
+        return status, turn
+
     @property
     def reach(self) -> dict:
         """Sphere that holds every reachable TCP position: centre on the A1 axis at A2's height,

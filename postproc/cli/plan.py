@@ -1,0 +1,80 @@
+"""postproc plan: a Latin hypercube measurement plan (CSV) and its KRL measurement program."""
+from __future__ import annotations
+
+import sys
+
+EXAMPLES = """examples:
+  postproc plan -n 2000 --seed 0 -o plan.csv --krl measure.src
+  postproc plan -n 500 --box 1800 2200 -400 400 600 1200 --attitude 0 90 0 --range 5 -o small.csv
+  postproc plan -n 2000 --robot cell7.toml -o plan.csv        (box/attitude from its [workspace])
+
+The plan is the visiting order: `postproc measure plan.csv -o measured.csv` simulates it,
+the KRL program drives a real robot through it (LIN, settle, $OUT[1] to the tracker, wait
+for $IN[1]). Poses the nominal robot cannot reach are refused (exit 2, nothing written).
+"""
+
+
+def add_parser(sub, common, formatter) -> None:
+    p = sub.add_parser(
+        "plan",
+        parents=[common],
+        formatter_class=formatter,
+        help="Latin hypercube measurement plan (CSV) and KRL measurement program",
+        description="Draw N poses by Latin hypercube sampling (scipy.stats.qmc, seeded): positions in a box, "
+        "A/B/C within ±range of a working attitude; write them as plan CSV (x,y,z,a,b,c, in visiting order) "
+        "and optionally as a runnable KRL measurement program. Defaults: the robot's [workspace] "
+        "(KR500-sim: X 1700..2300, Y -600..600, Z 500..1300 mm, A 0 B 90 C 0 ± 10°).",
+        epilog=EXAMPLES,
+    )
+    p.add_argument("-n", "--poses", type=int, default=2000, metavar="N", help="number of poses (default 2000)")
+    p.add_argument("--seed", type=int, default=0, help="Latin hypercube seed (default 0)")
+    p.add_argument("--box", type=float, nargs=6, metavar=("X0", "X1", "Y0", "Y1", "Z0", "Z1"),
+                   help="position box in the robot base frame, mm")
+    p.add_argument("--attitude", type=float, nargs=3, metavar=("A", "B", "C"), help="working attitude, deg")
+    p.add_argument("--range", type=float, metavar="DEG", help="± range of each of A, B, C around the attitude")
+    p.add_argument("--robot", metavar="FILE", help="robot description (default models/kr500.toml)")
+    p.add_argument("-o", "--output", metavar="PLAN_CSV", required=True, help="plan CSV to write")
+    p.add_argument("--krl", metavar="SRC", help="also write a KRL measurement program (.src, module named after it)")
+    p.add_argument("--wait", type=float, default=1.0, metavar="S", help="settling time before each measurement (default 1 s)")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    import numpy as np
+
+    from ..diagnostics import PostprocError
+    from ..planning import DEFAULT_ATTITUDE, DEFAULT_BOX, DEFAULT_RANGE, krl_measurement_program, latin_hypercube, \
+        plan_csv_text, round_poses
+    from ..rewrite import write_atomic
+    from ..robot import Robot, load_description
+
+    description = load_description(args.robot)
+    ws = description.workspace
+    box = args.box if args.box is not None else ws.get("box", DEFAULT_BOX)
+    attitude = args.attitude if args.attitude is not None else ws.get("attitude", DEFAULT_ATTITUDE)
+    range_deg = args.range if args.range is not None else ws.get("range", DEFAULT_RANGE)
+    if args.krl is not None and Path(args.krl).suffix.lower() != ".src":
+        raise PostprocError(f"--krl {args.krl}: a KRL program is a .src file", code="P512")
+    poses = round_poses(latin_hypercube(args.poses, box, attitude, range_deg, args.seed))
+    robot = Robot(description)
+    _, ok = robot.ik(poses)
+    if not ok.all():
+        bad = np.flatnonzero(~ok)
+        raise PostprocError(
+            f"{len(bad)} of {len(poses)} poses are out of reach of {robot.name} with tool {robot.tool_name} "
+            f"(first: pose {bad[0] + 1} = {poses[bad[0]].tolist()}); shrink --box or --range, or move the box",
+            description.path, code="P335")
+    outputs = [(Path(args.output), plan_csv_text(poses))]
+    if args.krl is not None:
+        src = Path(args.krl)
+        comment = f"Latin hypercube seed {args.seed}, box {list(map(float, box))}, attitude {list(map(float, attitude))} ± {range_deg:g}"
+        outputs.append((src, krl_measurement_program(poses, src.stem, robot, wait_s=args.wait, comment=comment)))
+    write_atomic(outputs)
+    if not args.quiet:
+        written = " + ".join(str(p) for p, _ in outputs)
+        print(f"postproc: {written}: {len(poses)} poses (LHS seed {args.seed}) in X {box[0]:g}..{box[1]:g} "
+              f"Y {box[2]:g}..{box[3]:g} Z {box[4]:g}..{box[5]:g} mm, A {attitude[0]:g} B {attitude[1]:g} "
+              f"C {attitude[2]:g} ± {range_deg:g}°, all reachable by {robot.name}", file=sys.stderr)
+    return 0

@@ -1,0 +1,250 @@
+"""Measurement plans: Latin hypercube poses in a box, the plan CSV and a KRL measurement program.
+
+A plan is an [N, 6] array of TCP poses X,Y,Z,A,B,C (mm, deg, robot base frame) in visiting
+order. ``latin_hypercube`` draws it (scipy.stats.qmc, seeded) as the method does: positions
+uniform in a box, each of A, B, C within ± range of a working attitude. The plan is written
+as CSV (header ``x,y,z,a,b,c``) and, for the robot, as a runnable KRL program that moves
+LIN to each pose, lets it settle and hands over to the tracker.
+"""
+from __future__ import annotations
+
+import io
+import math
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .diagnostics import PostprocError
+
+__all__ = [
+    "DEFAULT_BOX",
+    "DEFAULT_ATTITUDE",
+    "DEFAULT_RANGE",
+    "POSE_COLUMNS",
+    "latin_hypercube",
+    "round_poses",
+    "plan_csv_text",
+    "write_plan_csv",
+    "read_pose_csv",
+    "krl_measurement_program",
+    "write_krl_measurement_program",
+]
+
+# the calibration box of the method (Hu, Hua & Tian) and models/kr500.toml's [workspace]
+DEFAULT_BOX = (1700.0, 2300.0, -600.0, 600.0, 500.0, 1300.0)
+DEFAULT_ATTITUDE = (0.0, 90.0, 0.0)
+DEFAULT_RANGE = 10.0
+POSE_COLUMNS = ("x", "y", "z", "a", "b", "c")
+# digits written for mm and degrees: the plan CSV and the KRL program hold the same numbers
+MM_DECIMALS, DEG_DECIMALS = 3, 4
+
+
+def latin_hypercube(
+    n: int,
+    box=DEFAULT_BOX,
+    attitude=DEFAULT_ATTITUDE,
+    range_deg: float = DEFAULT_RANGE,
+    seed: int | None = 0,
+) -> np.ndarray:
+    """``n`` poses [n, 6]: X,Y,Z Latin-hypercube sampled in ``box`` (x0,x1,y0,y1,z0,z1 mm),
+    A,B,C in ``attitude`` ± ``range_deg`` (deg), one 6-D hypercube (scipy.stats.qmc)."""
+    from scipy.stats import qmc
+
+    box = np.asarray(box, float)
+    attitude = np.asarray(attitude, float)
+    if n < 1:
+        raise PostprocError(f"a plan needs at least 1 pose, got {n}", code="P512")
+    if box.shape != (6,) or np.any(box[1::2] < box[0::2]):
+        raise PostprocError(f"box must be X0 X1 Y0 Y1 Z0 Z1 with X0 <= X1 etc., got {box.tolist()}", code="P512")
+    if attitude.shape != (3,) or not range_deg >= 0:
+        raise PostprocError("attitude must be A B C and range a non-negative number of degrees", code="P512")
+    lo = np.concatenate([box[0::2], attitude - range_deg])
+    hi = np.concatenate([box[1::2], attitude + range_deg])
+    unit = qmc.LatinHypercube(d=6, seed=seed).random(n)
+    return lo + unit * (hi - lo)  # qmc.scale refuses degenerate (lo == hi) dimensions
+
+
+def round_poses(poses: np.ndarray) -> np.ndarray:
+    """Poses rounded as they are written (0.001 mm, 0.0001°), so CSV and KRL agree."""
+    poses = np.asarray(poses, float)
+    return np.concatenate([np.round(poses[:, :3], MM_DECIMALS), np.round(poses[:, 3:6], DEG_DECIMALS)], axis=1) + 0.0
+
+
+def plan_csv_text(poses: np.ndarray) -> str:
+    """The plan as CSV text: header ``x,y,z,a,b,c``, one pose per row, in visiting order."""
+    buf = io.StringIO()
+    fmt = [f"%.{MM_DECIMALS}f"] * 3 + [f"%.{DEG_DECIMALS}f"] * 3
+    np.savetxt(buf, round_poses(poses), fmt=fmt, delimiter=",", header=",".join(POSE_COLUMNS), comments="")
+    return buf.getvalue()
+
+
+def write_plan_csv(path: str | Path, poses: np.ndarray) -> None:
+    """Write the plan CSV atomically (temp file beside it, then rename)."""
+    from .rewrite import write_atomic
+
+    write_atomic([(Path(path), plan_csv_text(poses))])
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def read_pose_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """Poses [N, 6] and their 1-based file lines [N] from a CSV whose header names at least
+    x,y,z,a,b,c (any case, any order, extra columns ignored; blank lines and ``#`` comments
+    skipped). PostprocError with file:line:col (P500–P503, as the measurement reader) on
+    anything malformed."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise PostprocError(f"cannot read pose file: {exc.strerror or exc}", str(path), code="P500") from exc
+    return parse_pose_csv(data.removeprefix(b"\xef\xbb\xbf").decode("latin-1"), str(path))
+
+
+def parse_pose_csv(text: str, path: str = "<poses>") -> tuple[np.ndarray, np.ndarray]:
+    """Parse the text of a pose CSV (see :func:`read_pose_csv`)."""
+    lines = text.splitlines()
+    poses = _parse_pose_lines(lines, path)
+    first = next(i for i, raw in enumerate(lines) if raw.strip() and not raw.lstrip().startswith("#"))
+    numbers = np.array([i + 1 for i in range(first + 1, len(lines))
+                        if lines[i].strip() and not lines[i].lstrip().startswith("#")], dtype=np.int64)
+    return poses, numbers
+
+
+def _parse_pose_lines(lines: list[str], path: str) -> np.ndarray:
+    first = next((i for i, raw in enumerate(lines) if raw.strip() and not raw.lstrip().startswith("#")), None)
+    if first is None:
+        raise PostprocError("empty pose file (expected a header with x,y,z,a,b,c)", path, 1, 1, "P500")
+    header = [h.strip().lower() for h in lines[first].split(",")]
+    missing = [c for c in POSE_COLUMNS if c not in header]
+    if missing:
+        raise PostprocError(f"header lacks column(s) {', '.join(missing)} (need {','.join(POSE_COLUMNS)})",
+                            path, first + 1, 1, "P501")
+    dupes = sorted({c for c in POSE_COLUMNS if header.count(c) > 1})
+    if dupes:
+        raise PostprocError(f"column(s) {', '.join(dupes)} appear more than once", path, first + 1, 1, "P501")
+    index = [header.index(c) for c in POSE_COLUMNS]
+    body = "\n".join(lines[first + 1:])
+    try:  # fast path for well-formed files (10^5 rows); the slow scan below finds the culprit
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "input contained no data" is reported below
+            table = np.loadtxt(io.StringIO(body), delimiter=",", comments="#", ndmin=2, dtype=float)
+        if table.shape[1] == len(header) and np.isfinite(table[:, index]).all():
+            if len(table) == 0:
+                raise PostprocError("pose file has a header but no rows", path, first + 1, 1, "P500")
+            return table[:, index].copy()
+    except ValueError:
+        pass
+    rows = []
+    for number in range(first + 2, len(lines) + 1):
+        raw = lines[number - 1]
+        if not raw.strip() or raw.lstrip().startswith("#"):
+            continue
+        fields = raw.split(",")
+        if len(fields) != len(header):
+            raise PostprocError(f"row has {len(fields)} fields, the header has {len(header)}", path, number, 1, "P503")
+        row = []
+        for i in index:
+            col = sum(len(f) + 1 for f in fields[:i]) + len(fields[i]) - len(fields[i].lstrip()) + 1
+            try:
+                value = float(fields[i])
+            except ValueError:
+                value = math.nan
+            if not math.isfinite(value):
+                shown = fields[i].strip() or "(empty)"
+                raise PostprocError(f"column '{header[i]}': '{shown}' is not a finite number", path, number, col, "P502")
+            row.append(value)
+        rows.append(row)
+    if not rows:
+        raise PostprocError("pose file has a header but no rows", path, first + 1, 1, "P500")
+    return np.asarray(rows, dtype=float)
+
+
+# --------------------------------------------------------------------------- KRL
+
+
+def _krl_pos(pose: np.ndarray, status: int | None = None, turn: int | None = None) -> str:
+    x, y, z, a, b, c = pose
+    text = (f"X {x:.{MM_DECIMALS}f},Y {y:.{MM_DECIMALS}f},Z {z:.{MM_DECIMALS}f},"
+            f"A {a:.{DEG_DECIMALS}f},B {b:.{DEG_DECIMALS}f},C {c:.{DEG_DECIMALS}f}")
+    if status is not None:
+        text += f",S 'B{status:03b}',T 'B{turn:06b}'"
+    return "{" + text + "}"
+
+
+def _krl_frame(frame: np.ndarray) -> str:
+    return "{" + ",".join(f"{k} {v:.4f}" for k, v in zip("XYZABC", frame)) + "}"
+
+
+def krl_measurement_program(
+    poses: np.ndarray,
+    name: str,
+    robot,
+    wait_s: float = 1.0,
+    approach_mm: float = 100.0,
+    trigger_out: int = 1,
+    done_in: int = 1,
+    comment: str = "",
+) -> str:
+    """A runnable KRL module (one .src, targets inline) that measures ``poses`` in order:
+    HOME, PTP above the first pose, then for each pose LIN to it, settle ``wait_s``, raise
+    $OUT[trigger_out] and wait for the tracker's $IN[done_in], then retreat and HOME.
+
+    ``robot`` (a :class:`postproc.robot.Robot`) gives HOME, the tool and the S/T of the
+    approach PTP. Targets are in the robot base frame ($BASE = $NULLFRAME)."""
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,23}", name):
+        raise PostprocError(f"'{name}' is not a KRL module name (letters, digits, _; at most 24; not starting "
+                            "with a digit): name the .src file like one", code="P512")
+    poses = round_poses(np.atleast_2d(poses))
+    above = poses[[0, -1]].copy()
+    above[:, 2] += approach_mm
+    q, ok = robot.ik(above)
+    if not ok.all():
+        raise PostprocError(f"the approach {approach_mm:g} mm above the first/last pose is out of reach", code="P335")
+    status, turn = robot.status_turn(q)
+    home = ",".join(f"A{i + 1} {v:.4f}" for i, v in enumerate(robot.home_q))
+    nl = "\n"
+    head = [
+        "&ACCESS RVP",
+        "&REL 1",
+        f"&COMMENT postproc measurement program, {len(poses)} poses",
+        f"DEF {name}( )",
+        f"; postproc measurement program: {len(poses)} poses in visiting order{', ' + comment if comment else ''}",
+        f"; robot {robot.name}, tool {robot.tool_name}; targets in the robot base frame",
+        f"; at each pose: LIN, settle {wait_s:g} s, $OUT[{trigger_out}]=TRUE asks the tracker to measure,",
+        f"; $IN[{done_in}]=TRUE says it has; a measurement row is written per pose in this order",
+        "BAS(#INITMOV, 0)",
+        "$BASE = $NULLFRAME",
+        f"$TOOL = {_krl_frame(robot.tool)}",
+        "$VEL.CP = 0.2",
+        "$ACC.CP = 1.0",
+        "$APO.CDIS = 0.0",
+        f"$OUT[{trigger_out}] = FALSE",
+        f"PTP {{{home}}}",
+        f"PTP {_krl_pos(above[0], int(status[0]), int(turn[0]))}",
+    ]
+    body = [f"LIN {_krl_pos(p)}{nl}MEASURE_HERE( )" for p in poses]
+    tail = [
+        f"LIN {_krl_pos(above[1])}",
+        f"PTP {{{home}}}",
+        "END",
+        "",
+        "DEF MEASURE_HERE( )",
+        f"WAIT SEC {wait_s:.2f}",
+        f"$OUT[{trigger_out}] = TRUE",
+        f"WAIT FOR $IN[{done_in}]",
+        f"$OUT[{trigger_out}] = FALSE",
+        f"WAIT FOR NOT $IN[{done_in}]",
+        "END",
+    ]
+    return nl.join(head + body + tail) + nl
+
+
+def write_krl_measurement_program(path: str | Path, poses: np.ndarray, robot, **options) -> None:
+    """Write :func:`krl_measurement_program` to ``path`` (.src, module named after the file), atomically."""
+    from .rewrite import write_atomic
+
+    path = Path(path)
+    write_atomic([(path, krl_measurement_program(poses, path.stem, robot, **options))])
