@@ -1,6 +1,7 @@
 """postproc check: findings on pose programs, stamps, settings, freshness of outputs; CLI exit codes."""
 import os
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -248,3 +249,51 @@ def test_cli_robot_option_uses_the_nominal_ik(affine, tmp_path, capsys):
     assert main(["check", str(path), "--model", str(affine()), "--robot"]) == 1
     got = [int(line.split(":")[1]) for line in capsys.readouterr().out.splitlines() if " P309 " in line]
     assert got == want and want  # the KR500's IK rejects at least one target the reach sphere lets through
+
+
+# --------------------------------------------------------------------------- KRL modules
+
+SRC = ("&ACCESS RVP\r\n&REL 1\r\nDEF weld( )\r\n$BASE = $NULLFRAME\r\n$TOOL = {X 0.0,Y 0.0,Z 200.0,A 0.0,B 0.0,C 0.0}\r\n"
+       "PTP XP1\r\nLIN XP2 C_DIS\r\nLIN {X 2100.0,Y 50.0,Z 950.0,A 0.0,B 90.0,C 0.0}\r\nEND\r\n")
+E6 = ",A 0.0,B 90.0,C 0.0,S 2,T 35,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}"
+DAT = ("&ACCESS RVP\r\n&REL 1\r\nDEFDAT weld\r\nDECL E6POS XP1={X 2000.0,Y 0.0,Z 900.0" + E6 + "\r\n"
+       "DECL E6POS XP2={X 2050.0,Y -100.0,Z 900.0" + E6 + "\r\nENDDAT\r\n")
+krl = pytest.mark.skipif(not __import__("importlib").util.find_spec("postproc.programs.krl"),
+                         reason="the KRL reader is not there yet")
+
+
+@krl
+def test_krl_module_findings_via_src_or_dat(affine, tmp_path):
+    far = SRC.replace("END\r\n", "LIN {X 5000.0,Y 0.0,Z 900.0,A 0.0,B 90.0,C 0.0}\r\nEND\r\n")
+    src, dat = write(tmp_path / "weld.src", far), write(tmp_path / "weld.dat", DAT)
+    model = load_model(affine())
+    for given in ([src], [dat], [src, dat]):
+        found = check_files(given, model)
+        assert [(d.path, d.line, d.col, d.code) for d in found] == [
+            (str(src), 9, 5, "P301"), (str(src), 9, 5, "P302")], given
+    write(tmp_path / "weld.dat", DAT.replace("Z 900.0", "Z 900.0.0", 1))
+    (d,) = check_files([dat], model)
+    assert (d.path, d.line, d.code) == (str(dat), 4, "P101")
+
+
+@krl
+def test_krl_module_stamps_and_freshness(affine, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    os.replace(affine(offset=(0.1, 0, 0)), tmp_path / "cell.onnx")
+    write(tmp_path / "postproc.toml", 'model = "cell.onnx"\nfresh = [{ source = "src/*.src", output = "out/*.src" }]\n')
+    write(tmp_path / "src" / "weld.src", SRC)
+    write(tmp_path / "src" / "weld.dat", DAT)
+    assert main(["check", "--fresh", "--fix", "-q"]) == 0
+    model = load_model(tmp_path / "cell.onnx")
+    out_src, out_dat = tmp_path / "out" / "weld.src", tmp_path / "out" / "weld.dat"
+    # both files of the module are written and stamped alike; XP1 moved by 0.1 mm in X
+    assert "DECL E6POS XP1={X 2000.100,Y 0.000,Z 900.000," in out_dat.read_text()
+    assert check_files([out_src], model) == []
+    # an edited .dat makes the output .dat stale, located at the changed number
+    write(tmp_path / "src" / "weld.dat", DAT.replace("Y -100.0", "Y -101.0"))
+    found, _ = check_fresh(load_config(), model)
+    assert [(d.path, d.line, d.code) for d in found] == [(os.path.join("out", "weld.dat"), 6, "P405")]
+    # the uncompensated .dat copied over the compensated one: a mixed module
+    write(out_dat, DAT)
+    assert sorted((Path(d.path).name, d.code) for d in check_files([out_dat], model)) == [
+        ("weld.dat", "P404"), ("weld.src", "P404")]

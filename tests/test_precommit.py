@@ -5,6 +5,7 @@ user: this checkout's working tree (tracked and untracked, not ignored files) is
 a temporary git repository that serves as the hook repository. The install takes 15–25 s on
 this machine (pip resolves from the configured indexes / find-links), hence `slow`.
 """
+import importlib.util
 import os
 import re
 import shutil
@@ -13,7 +14,7 @@ import sys
 
 import pytest
 
-from postproc.compensate import compensate_text
+from postproc.compensate import compensate_file
 from postproc.compensator import load_model
 
 from conftest import REPO
@@ -21,13 +22,21 @@ from model_factory import DEFAULT_REACH, affine_model
 
 pytestmark = [
     pytest.mark.slow,
+    pytest.mark.skipif(importlib.util.find_spec("postproc.programs.krl") is None, reason="the KRL reader is not there yet"),
     pytest.mark.skipif(shutil.which("pre-commit") is None, reason="pre-commit is not installed (pip install 'postproc[test]')"),
 ]
 
 FINDING = re.compile(r"^(\S+):(\d+):(\d+): (P\d{3}) ", re.M)
-GOOD = "x,y,z,a,b,c\n2000,0,900,0,90,0\n2100,150,1000,2,88,0\n"
 FAR = (5000.0, 0.0, 900.0)  # |FAR − reach centre| > radius_max: beyond reach
-BAD = "x,y,z,a,b,c\n2000,0,900,0,90,0\n" + ",".join(map(str, FAR)) + ",0,90,0\n"
+E6 = ",A 0.0,B 90.0,C 0.0,S 2,T 35,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}"
+SRC = ("&ACCESS RVP\r\n&REL 1\r\nDEF weld( )\r\n$BASE = $NULLFRAME\r\n"
+       "$TOOL = {X 0.0,Y 0.0,Z 200.0,A 0.0,B 0.0,C 0.0}\r\nPTP XP1\r\nLIN XP2 C_DIS\r\n"
+       "LIN {X 2100.0,Y 50.0,Z 950.0,A 0.0,B 90.0,C 0.0}\r\nEND\r\n")
+DAT = ("&ACCESS RVP\r\n&REL 1\r\nDEFDAT weld\r\nDECL E6POS XP1={X 2000.0,Y 0.0,Z 900.0" + E6 + "\r\n"
+       "DECL E6POS XP2={X 2050.0,Y -100.0,Z 900.0" + E6 + "\r\nENDDAT\r\n")
+# a module without a .dat: inline targets only, the last one (line 8) beyond reach
+BAD = (SRC.replace("DEF weld", "DEF far").replace("PTP XP1\r\nLIN XP2 C_DIS\r\n", "PTP {X 2000.0,Y 0.0,Z 900.0,A 0.0,B 90.0,C 0.0}\r\n")
+       .replace("END\r\n", "LIN {X %.1f,Y %.1f,Z %.1f,A 0.0,B 90.0,C 0.0}\r\nEND\r\n" % FAR))
 
 
 def _env(home):
@@ -60,11 +69,10 @@ def cell(tmp_path_factory):
     repo = tmp_path_factory.mktemp("cell")
     affine_model(repo / "cell.onnx", offset=(0.05, -0.02, 0.01), name="cell-model")
     (repo / "pyproject.toml").write_text(
-        '[tool.postproc]\nmodel = "cell.onnx"\nfresh = [{ source = "src/*.csv", output = "out/*.csv" }]\n')
+        '[tool.postproc]\nmodel = "cell.onnx"\nfresh = [{ source = "src/*.src", output = "out/*.src" }]\n')
     (repo / ".pre-commit-config.yaml").write_text(
         f"repos:\n- repo: {hook}\n  rev: {rev}\n  hooks:\n"
-        "  - id: postproc-check\n    files: '\\.csv$'\n"  # pose lists are not checked by default
-        "  - id: postproc-fresh\n")
+        "  - id: postproc-check\n  - id: postproc-fresh\n")  # as a user writes it: default files
     for cmd in (["git", "init", "-q"], [sys.executable, "-m", "pre_commit", "install"]):
         done = run(cmd, repo, env)
         assert done.returncode == 0, done.stdout + done.stderr
@@ -87,40 +95,40 @@ def hook_section(output, name):
 
 def test_hooks_pass_good_programs_and_stop_bad_ones(cell):
     repo, env = cell
-    model = load_model(repo / "cell.onnx")
     (repo / "src").mkdir()
-    (repo / "out").mkdir()
-    (repo / "src" / "part.csv").write_text(GOOD)
-    (repo / "out" / "part.csv").write_text(compensate_text(GOOD, model, name="part.csv")[0])
+    (repo / "src" / "weld.src").write_bytes(SRC.encode())
+    (repo / "src" / "weld.dat").write_bytes(DAT.encode())
+    compensate_file(repo / "src" / "weld.src", repo / "out" / "weld.src", load_model(repo / "cell.onnx"))
+    assert (repo / "out" / "weld.dat").is_file()
     code, output = commit(repo, env, "good")
     assert code == 0, output
     assert hook_section(output, "postproc check (robot programs)")[0] == "Passed"
     assert hook_section(output, "postproc compensated outputs up to date")[0] == "Passed"
 
-    # a program with a target beyond the robot's reach: the commit is refused, the line named
+    # a module with a target beyond the robot's reach: the commit is refused, the line named
     far = sum((a - b) ** 2 for a, b in zip(FAR, DEFAULT_REACH["center"])) ** 0.5
     assert far > DEFAULT_REACH["radius_max"]
     (repo / "programs").mkdir()
-    (repo / "programs" / "bad.csv").write_text(BAD)
+    (repo / "programs" / "far.src").write_bytes(BAD.encode())
     code, output = commit(repo, env, "bad")
     assert code == 1
     status, section = hook_section(output, "postproc check (robot programs)")
     assert status == "Failed" and "- exit code: 1" in section
     findings = FINDING.findall(section)
-    assert ("programs/bad.csv", "3", "1", "P302") in findings
-    assert {f[0] for f in findings} == {"programs/bad.csv"}
+    assert ("programs/far.src", "8", "5", "P302") in findings  # at the aggregate of "LIN {X 5000.0,…"
+    assert {f[0] for f in findings} == {"programs/far.src"}
     assert run(["git", "reset", "-q", "HEAD", "programs"], repo, env).returncode == 0
     shutil.rmtree(repo / "programs")
 
-    # a source edited without re-compensating its output: the fresh hook names the output line
-    (repo / "src" / "part.csv").write_text(GOOD.replace("2100,150,1000", "2100,150,1001"))
+    # a .dat edited without re-compensating: the fresh hook names the output line
+    (repo / "src" / "weld.dat").write_bytes(DAT.replace("Y -100.0", "Y -101.0").encode())
     code, output = commit(repo, env, "stale")
     assert code == 1
     assert hook_section(output, "postproc check (robot programs)")[0] == "Passed"
     status, section = hook_section(output, "postproc compensated outputs up to date")
     assert status == "Failed" and "- exit code: 1" in section
-    # line 1 is the stamp, 2 the header, 4 the edited row
-    assert [f[:2] + f[3:] for f in FINDING.findall(section)] == [("out/part.csv", "4", "P405")]
+    # &ACCESS, &REL, the stamp, DEFDAT, XP1, then XP2 on line 6
+    assert [f[:2] + f[3:] for f in FINDING.findall(section)] == [("out/weld.dat", "6", "P405")]
 
     # the fix the message suggests makes the commit go through
     fixed = run([sys.executable, "-m", "postproc", "check", "--fresh", "--fix"], repo, env)
