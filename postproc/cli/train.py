@@ -1,0 +1,194 @@
+"""``postproc train``: measurement CSV → a compensator ONNX file (the method: GPSO-DNN)."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+METHODS = ("gpso", "ga", "pso", "plain")  # postproc.training.METHODS, without importing torch here
+OPTIMIZERS = ("lm", "lbfgs", "adam", "momentum", "gd")
+
+EXAMPLES = """\
+Data: a CSV with the header x,y,z,a,b,c,x_meas,y_meas,z_meas (mm, deg, robot base frame):
+the commanded TCP pose and the measured TCP position, one row per visited pose. The model
+learns E = P_target − P_measured. `--val-fraction` of the rows (drawn with --split-seed)
+are held out and only scored on.
+
+Methods: gpso (the method: GPSO-searched initial weights, then backprop), ga, pso, plain
+(random initial weights). Backprop optimiser: lm (Levenberg–Marquardt, the default, as
+MATLAB's trainlm), lbfgs, adam, momentum, gd (the method's lr 0.01).
+
+Examples:
+  postproc train measured.csv -o models/cell3.onnx --robot models/kr500.toml --name cell3
+  postproc train measured.csv -o m.onnx --method ga --seed 1
+  postproc train measured.csv -o m.onnx --search        # pick the hidden layers first (minutes)
+"""
+
+
+def _hidden(text: str) -> tuple[int, ...]:
+    try:
+        values = tuple(int(v) for v in text.replace(" ", "").split(",") if v)
+    except ValueError:
+        values = ()
+    if not values or any(v < 1 for v in values):
+        raise argparse.ArgumentTypeError(f"expected positive layer widths like 20,10,5, got {text!r}")
+    return values
+
+
+def _positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def add_parser(sub, common, formatter) -> None:
+    p = sub.add_parser(
+        "train",
+        parents=[common],
+        formatter_class=formatter,
+        help="learn an error model from measurements and write it as ONNX",
+        description="Train the error model (GPSO-DNN by default) on a measurement CSV and export it as a compensator.",
+        epilog=EXAMPLES,
+    )
+    p.add_argument("data", metavar="DATA.csv", help="measurement CSV")
+    p.add_argument("-o", "--output", required=True, metavar="MODEL.onnx", help="model file to write")
+    p.add_argument("--method", choices=METHODS, default="gpso", help="initial-weight search (default gpso)")
+    p.add_argument("--hidden", type=_hidden, default=(20, 10, 5), metavar="W,W,...", help="hidden layer widths (default 20,10,5)")
+    p.add_argument("--optimizer", choices=OPTIMIZERS, default=None, help="backprop optimiser (default lm)")
+    p.add_argument("--search", action="store_true", help="search the hidden layers first (1-6 layers of 3-16 nodes; minutes)")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the training's random draws (default 0)")
+    p.add_argument("--split-seed", type=int, default=0, metavar="S", help="seed of the validation draw (default 0)")
+    p.add_argument("--val-fraction", type=float, default=0.05, metavar="F", help="rows held out for validation (default 0.05)")
+    p.add_argument("--epochs", type=_positive, default=500, metavar="N", help="backprop epochs at most (default 500)")
+    p.add_argument("--name", help="model name for the metadata (default: the output file's stem)")
+    p.add_argument("--robot", metavar="NAME|FILE.toml", help="robot name, or its description file (adds reach and tool)")
+    p.add_argument(
+        "--register",
+        action="store_true",
+        help="measured columns are in a tracker's frame: fit the rigid tracker → base transform on the training rows",
+    )
+    p.set_defaults(run=run)
+
+
+def _robot_metadata(robot: str | None) -> dict:
+    """robot / reach / tool metadata from a robot description, when there is one to read."""
+    if not robot:
+        return {}
+    path = Path(robot)
+    try:
+        from ..robot import Robot, load_description
+    except ImportError:  # robot description support (pin) not installed: the name only
+        return {"robot": robot}
+    if path.suffix == ".toml":
+        description = load_description(path)
+    else:
+        default = load_description()
+        if default.name != robot:
+            return {"robot": robot}  # an unknown robot: record its name, claim no reach
+        description = default
+    r = Robot(description)
+    return {
+        "robot": r.name,
+        "reach": r.reach,
+        "tool": {"name": r.tool_name, "frame": [round(float(v), 6) for v in r.tool]},
+    }
+
+
+def run(args) -> int:
+    import numpy as np
+
+    from ..diagnostics import PostprocError
+    from ..training.data import check_size, envelope_of, read_measurements, split_indices
+    from . import show_progress
+
+    data = read_measurements(args.data)
+    train_rows, val_rows = split_indices(len(data), args.val_fraction, args.split_seed)
+    # a robot description is read before the long part, so that a typo fails fast
+    robot_meta = _robot_metadata(args.robot)
+    poses, measured = data.poses, data.measured
+    notes = []
+    frame = data.meta.get("frame", "base").lower()
+    if args.register:
+        from ..registration import register_measurements
+
+        mask = np.zeros(len(data), dtype=bool)
+        mask[train_rows] = True
+        measured, _, rms = register_measurements(poses[:, :3], measured, mask)
+        notes.append(f"registered tracker → base on {len(train_rows)} training rows (rms {rms:.3f} mm)")
+    elif frame != "base":
+        raise PostprocError(
+            f"measured columns are in the {frame}'s frame ('# frame: {frame}'): train with --register",
+            args.data,
+            code="P507",
+        )
+    if data.holdout is not None and len(val_rows) and not data.holdout[val_rows].all():
+        seen = int((~data.holdout[val_rows]).sum())
+        notes.append(
+            f"warning: {seen} validation row(s) were used by the file's registration (holdout = 0): "
+            "the validation figures are optimistic; use the import's --split-seed and a smaller --val-fraction"
+        )
+    errors = poses[:, :3] - measured
+
+    progress = show_progress(args)
+    hidden = args.hidden
+    if args.search:
+        from ..training.search import format_table, search_structure
+
+        result = search_structure(
+            poses[train_rows], errors[train_rows], args.method, args.optimizer, args.epochs, args.seed, progress=progress
+        )
+        if not args.quiet:
+            print(format_table(result))
+        hidden = result.best
+
+    from ..training import ErrorModel, residual_stats
+    from ..training.network import Structure
+
+    structure = Structure(tuple(hidden))
+    check_size(len(train_rows), structure.n_params, str(structure), args.data)
+    model = ErrorModel(hidden, args.method, args.optimizer, args.epochs, seed=args.seed, progress=progress)
+    model.fit(poses[train_rows], errors[train_rows])
+
+    val = residual_stats(errors[val_rows] - model.predict(poses[val_rows]))
+    unc = residual_stats(errors[val_rows])
+    accuracy = {
+        "val_mean_mm": val["mean"],
+        "val_max_mm": val["max"],
+        "val_std_mm": val["std"],
+        "train_mean_mm": model.train_stats_["mean"],
+        "n_train": len(train_rows),
+        "n_val": len(val_rows),
+        "val_uncompensated_mean_mm": unc["mean"],
+        "val_uncompensated_max_mm": unc["max"],
+    }
+    accuracy = {k: (round(v, 6) if isinstance(v, float) else v) for k, v in accuracy.items()}
+    iterations = max(2, model.fixed_point_iterations(poses[train_rows]))
+    metadata = {
+        "name": args.name or Path(args.output).stem,
+        "robot": "",
+        "envelope": envelope_of(poses),
+        "data_sha256": data.sha256,
+        "accuracy": accuracy,
+        "iterations": iterations,
+    }
+    metadata.update(robot_meta)
+    model.export_onnx(args.output, **metadata)
+
+    if not args.quiet:
+        for note in notes:
+            print(note, file=sys.stderr)
+        print(f"model     {args.output}  ({model.label}, structure {structure}, {structure.n_params} weights, "
+              f"{model.fit_seconds_['total']:.1f} s, backprop stopped: {model.stopped_} after {len(model.losses_)} epochs)")
+        print(f"data      {args.data}: {len(train_rows)} training rows, {len(val_rows)} validation rows")
+        if len(val_rows):
+            print(f"{'|E| mm (validation)':<26} {'mean':>7} {'max':>7} {'std':>7}")
+            print(f"{'uncompensated':<26} {unc['mean']:7.4f} {unc['max']:7.4f} {unc['std']:7.4f}")
+            print(f"{'residual |E − Ê|':<26} {val['mean']:7.4f} {val['max']:7.4f} {val['std']:7.4f}")
+        print(f"{'residual |E − Ê| (train)':<26} {model.train_stats_['mean']:7.4f} {model.train_stats_['max']:7.4f} "
+              f"{model.train_stats_['std']:7.4f}")
+        print(f"postproc train: wrote {args.output}", file=sys.stderr)
+    return 0

@@ -1,0 +1,244 @@
+"""Measurement CSV → arrays, checked row by row; the split; the envelope of the data.
+
+The file (docs/ARCHITECTURE.md): header ``x,y,z,a,b,c,x_meas,y_meas,z_meas`` (mm, deg,
+robot base frame; commanded TCP pose, measured TCP position), one row per visited pose in
+visiting order. E = P_target − P_measured. Column names are matched case-insensitively and
+in any order; extra columns (a point id, a timestamp) are ignored, except ``holdout`` (1 = a
+row that an earlier registration did not see, see ``postproc import``); blank lines and lines
+starting with ``#`` are skipped, and ``# key: value`` lines before the header are kept as
+metadata (``# frame: tracker`` = measured columns still in the tracker's frame).
+
+Codes: P500 unreadable/empty, P501 missing or misnamed column, P502 a value that is not a
+finite number, P503 wrong number of fields, P504 duplicate pose, P505 too few points for the
+network, P506 a split that leaves a side empty.
+
+numpy only: no torch here, so bad data is reported before torch is even loaded.
+"""
+from __future__ import annotations
+
+import difflib
+import hashlib
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..diagnostics import PostprocError
+
+__all__ = [
+    "COLUMNS",
+    "Measurements",
+    "read_measurements",
+    "parse_measurements",
+    "split_indices",
+    "check_size",
+    "min_points",
+    "envelope_of",
+    "wrap_deg",
+]
+
+POSE_COLUMNS = ("x", "y", "z", "a", "b", "c")
+MEAS_COLUMNS = ("x_meas", "y_meas", "z_meas")
+COLUMNS = POSE_COLUMNS + MEAS_COLUMNS
+
+
+@dataclass
+class Measurements:
+    """One measurement file as arrays; ``lines`` maps each row back to its 1-based file line."""
+
+    poses: np.ndarray  # [N, 6] commanded X,Y,Z,A,B,C
+    measured: np.ndarray  # [N, 3] measured X,Y,Z
+    lines: np.ndarray  # [N] int
+    sha256: str  # of the file's bytes, for the model's data_sha256
+    path: str = ""
+    meta: dict = field(default_factory=dict)  # '# key: value' lines before the header
+    holdout: np.ndarray | None = None  # [N] bool from a 'holdout' column, if any
+
+    @property
+    def errors(self) -> np.ndarray:
+        """E = P_target − P_measured, [N, 3] mm."""
+        return self.poses[:, :3] - self.measured
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+
+def read_measurements(path: str | Path) -> Measurements:
+    """Read and check a measurement CSV; raise PostprocError (P5xx) at the first bad place."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise PostprocError(f"cannot read measurement file: {exc.strerror or exc}", str(path), code="P500") from exc
+    return parse_measurements(data, str(path))
+
+
+def parse_measurements(data: bytes, path: str = "<data>") -> Measurements:
+    """Parse the bytes of a measurement CSV (see the module docstring)."""
+    sha = hashlib.sha256(data).hexdigest()
+    # any byte decodes as latin-1; numbers and names are ASCII anyway (a UTF-8 BOM is dropped)
+    text = data.removeprefix(b"\xef\xbb\xbf").decode("latin-1")
+    rows: list[list[float]] = []
+    lines: list[int] = []
+    header: list[str] | None = None
+    index: list[int] = []
+    meta: dict[str, str] = {}
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            key, sep, value = line[1:].partition(":")
+            if header is None and sep:
+                meta[key.strip().lower()] = value.strip()
+            continue
+        if header is None:
+            header = [f.strip().lower() for f in raw.split(",")]
+            index = _column_index(header, raw, path, number)
+            if "holdout" in header:
+                index.append(header.index("holdout"))
+            continue
+        fields = raw.split(",")
+        if len(fields) != len(header):
+            raise PostprocError(
+                f"row has {len(fields)} fields, the header has {len(header)}", path, number, 1, "P503"
+            )
+        starts = _field_starts(raw)
+        row = []
+        for i in index:
+            try:
+                value = float(fields[i])
+            except ValueError:
+                value = math.nan
+            if not math.isfinite(value):
+                shown = fields[i].strip() or "(empty)"
+                raise PostprocError(
+                    f"column '{header[i]}': '{shown}' is not a finite number", path, number, starts[i] + 1, "P502"
+                )
+            row.append(value)
+        rows.append(row)
+        lines.append(number)
+    if header is None:
+        raise PostprocError("empty measurement file (expected header " + ",".join(COLUMNS) + ")", path, code="P500")
+    if not rows:
+        raise PostprocError("measurement file has a header but no data rows", path, code="P500")
+    table = np.asarray(rows, dtype=np.float64)
+    line_numbers = np.asarray(lines, dtype=np.int64)
+    _check_duplicates(table[:, :6], line_numbers, path)
+    holdout = table[:, 9] != 0 if table.shape[1] > 9 else None
+    return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout)
+
+
+def _field_starts(raw: str) -> list[int]:
+    starts, pos = [], 0
+    for field in raw.split(","):
+        starts.append(pos + len(field) - len(field.lstrip()))
+        pos += len(field) + 1
+    return starts
+
+
+def _column_index(header: list[str], raw: str, path: str, line: int) -> list[int]:
+    missing = [name for name in COLUMNS if name not in header]
+    if not missing:
+        duplicated = sorted({h for h in header if h in COLUMNS and header.count(h) > 1})
+        if duplicated:
+            raise PostprocError(f"column(s) {', '.join(duplicated)} appear more than once", path, line, 1, "P501")
+        return [header.index(name) for name in COLUMNS]
+    unknown = [h for h in header if h not in COLUMNS]
+    hints, col = [], 1
+    for name in missing:
+        close = difflib.get_close_matches(name, unknown, n=1, cutoff=0.5)
+        if close:
+            hints.append(f"'{close[0]}' for '{name}'?")
+            if col == 1:  # point at the first misnamed column
+                col = _field_starts(raw)[header.index(close[0])] + 1
+    message = f"missing column(s) {', '.join(missing)}; the header must name {','.join(COLUMNS)}"
+    if hints:
+        message += " (misnamed: " + ", ".join(hints) + ")"
+    raise PostprocError(message, path, line, col, "P501")
+
+
+def _check_duplicates(poses: np.ndarray, lines: np.ndarray, path: str) -> None:
+    # Two rows with the same commanded pose would give the network two answers for one input:
+    # repeated measurements belong averaged into one row.
+    _, first, inverse = np.unique(poses, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    dup = np.nonzero(first[inverse] != np.arange(len(poses)))[0]
+    if len(dup):
+        i = dup[0]
+        raise PostprocError(
+            f"duplicate pose: same x,y,z,a,b,c as line {lines[first[inverse[i]]]} "
+            f"({len(dup)} duplicate row(s) in all; average repeated measurements into one row)",
+            path,
+            int(lines[i]),
+            1,
+            "P504",
+        )
+
+
+def split_indices(n: int, val_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Random (seeded) train / validation row indices; each side sorted (visiting order kept)."""
+    if not 0.0 <= val_fraction < 1.0:
+        raise PostprocError(f"--val-fraction must be in [0, 1), got {val_fraction}", code="P506")
+    n_val = int(round(n * val_fraction))
+    if val_fraction > 0 and n_val == 0:
+        n_val = 1
+    if n - n_val < 1:
+        raise PostprocError(f"{n} rows leave no training points at --val-fraction {val_fraction}", code="P506")
+    order = np.random.default_rng(seed).permutation(n)
+    return np.sort(order[n_val:]), np.sort(order[:n_val])
+
+
+def min_points(n_weights: int) -> int:
+    """Fewest training rows for a network of ``n_weights`` weights and biases.
+
+    Each row gives three numbers (Ex, Ey, Ez), so 3·n_train ≥ n_weights: at least as many
+    fitted numbers as free parameters. Below that the fit interpolates noise.
+    """
+    return math.ceil(n_weights / 3)
+
+
+def check_size(n_train: int, n_weights: int, structure: str, path: str = "") -> None:
+    """Raise P505 when ``n_train`` rows are too few for a network of ``n_weights`` parameters."""
+    need = min_points(n_weights)
+    if n_train < need:
+        raise PostprocError(
+            f"{n_train} training points are too few for structure {structure} ({n_weights} weights): "
+            f"need at least {need} (3 per point ≥ weights); measure more points or use a smaller --hidden",
+            path,
+            code="P505",
+        )
+
+
+def wrap_deg(angles: np.ndarray) -> np.ndarray:
+    """Angles to [−180, 180)."""
+    return (np.asarray(angles, dtype=float) + 180.0) % 360.0 - 180.0
+
+
+def attitude_centre(abc: np.ndarray) -> np.ndarray:
+    """Per component, the middle of the smallest arc holding all the angles (wrap-aware).
+
+    KUKA tools pointing down sit at C ≈ ±180; a plain min/max there would span 360°.
+    """
+    abc = np.asarray(abc, dtype=float).reshape(-1, 3)
+    centre = np.empty(3)
+    for k in range(3):  # three components, not a loop over data
+        a = np.sort(wrap_deg(abc[:, k]))
+        gaps = np.diff(np.concatenate([a, a[:1] + 360.0]))
+        j = int(np.argmax(gaps))  # the arc outside the data is the widest gap
+        start, end = a[(j + 1) % len(a)], a[j]
+        span = (end - start) % 360.0
+        centre[k] = wrap_deg(start + span / 2.0)
+    return centre
+
+
+def envelope_of(poses: np.ndarray) -> dict:
+    """The contract's envelope of training poses: position box, attitude centre and ± range."""
+    poses = np.asarray(poses, dtype=float)
+    lo, hi = poses[:, :3].min(axis=0), poses[:, :3].max(axis=0)
+    centre = attitude_centre(poses[:, 3:6])
+    dev = np.abs(wrap_deg(poses[:, 3:6] - centre)).max()
+    return {
+        "box": [float(v) for pair in zip(lo, hi) for v in pair],
+        "attitude": [round(float(v), 6) for v in centre],
+        "range": float(math.ceil(dev)),
+    }

@@ -1,0 +1,251 @@
+"""``ErrorModel``: the scikit-learn-style estimator that runs the whole training method.
+
+    model = ErrorModel(hidden=(20, 10, 5), method="gpso", seed=0).fit(poses, errors)
+    model.predict(poses)            # [N, 3] mm
+    model.export_onnx("m.onnx", name="cell-3", robot="KR500")
+
+fit = standardise → search initial weights (GPSO / GA / PSO / plain) on the training MSE →
+refine by backprop (``optimizer``) → keep the network. Fitted attributes end in ``_``.
+Everything random draws from one ``torch.Generator`` seeded with ``seed``, and ``fit`` runs
+torch on one thread (restored afterwards): the same seed and data give the same model, and
+for networks this small a second thread costs more in synchronisation than it saves
+(measured 6× slower on the shared 2-core machine).
+"""
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+from pathlib import Path
+import numpy as np
+import torch
+
+from . import baselines
+from .data import check_size, envelope_of
+from .gpso import InitResult, gpso
+from .network import ErrorNet, Scaling, Structure, forward, parse_hidden
+from .optimise import OPTIMIZERS, refine
+
+__all__ = ["ErrorModel", "METHODS", "DEFAULT_OPTIMIZER", "residual_stats"]
+
+METHODS = ("gpso", "ga", "pso", "plain")
+# The backprop optimiser used after the weight search unless told otherwise: the best of
+# gd / momentum / adam / lbfgs / lm measured after GPSO (models/README.md, benchmarks/train_speed.py).
+DEFAULT_OPTIMIZER = "lm"
+METHOD_LABEL = {"gpso": "GPSO-DNN", "ga": "GA-DNN", "pso": "PSO-DNN", "plain": "DNN"}
+
+
+@contextmanager
+def _one_thread():
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+def residual_stats(residual: np.ndarray) -> dict:
+    """mean / max / min / std (ddof 1, as MATLAB's std) of the per-point distance |r| in mm."""
+    d = np.linalg.norm(np.asarray(residual, float).reshape(-1, 3), axis=1)
+    if len(d) == 0:
+        return {"mean": None, "max": None, "min": None, "std": None}
+    return {
+        "mean": float(d.mean()),
+        "max": float(d.max()),
+        "min": float(d.min()),
+        "std": float(d.std(ddof=1)) if len(d) > 1 else 0.0,
+    }
+
+
+class ErrorModel:
+    """Learned positioning error E(pose) of one robot + tool.
+
+    Parameters
+    ----------
+    hidden: hidden layer widths (the method's [20, 10, 5] by default).
+    method: initial-weight search: "gpso" (the method), "ga", "pso", "plain" (random).
+    optimizer: backprop optimiser after the search ("lm", "lbfgs", "adam", "momentum", "gd");
+        None → DEFAULT_OPTIMIZER.
+    epochs, lr, goal: backprop budget, learning rate (gd/momentum/adam), MSE goal
+        (standardised units).
+    population, generations: None → the method's (GPSO 20×50, GA 50×100, PSO 40×100).
+    inertia: GPSO's inertia weight, "constant" (0.7298) or "linear" (0.9 → 0.4).
+    seed: seeds every random draw.
+    progress: show a tqdm bar on stderr.
+    """
+
+    def __init__(
+        self,
+        hidden=(20, 10, 5),
+        method: str = "gpso",
+        optimizer: str | None = None,
+        epochs: int = 500,
+        lr: float = 0.01,
+        goal: float = 1e-5,
+        population: int | None = None,
+        generations: int | None = None,
+        inertia: str = "constant",
+        seed: int = 0,
+        progress: bool = False,
+    ):
+        self.hidden = hidden
+        self.method = method
+        self.optimizer = optimizer
+        self.epochs = epochs
+        self.lr = lr
+        self.goal = goal
+        self.population = population
+        self.generations = generations
+        self.inertia = inertia
+        self.seed = seed
+        self.progress = progress
+
+    # -- scikit-learn conventions -------------------------------------------------------
+    def get_params(self, deep: bool = True) -> dict:
+        keys = ("hidden", "method", "optimizer", "epochs", "lr", "goal", "population", "generations", "inertia", "seed", "progress")
+        return {k: getattr(self, k) for k in keys}
+
+    def set_params(self, **params) -> "ErrorModel":
+        for k, v in params.items():
+            if k not in self.get_params():
+                raise ValueError(f"unknown parameter {k!r}")
+            setattr(self, k, v)
+        return self
+
+    def __repr__(self) -> str:
+        return f"ErrorModel(hidden={tuple(parse_hidden(self.hidden))}, method={self.method!r}, optimizer={self.optimizer_name!r}, seed={self.seed})"
+
+    @property
+    def optimizer_name(self) -> str:
+        return self.optimizer or DEFAULT_OPTIMIZER
+
+    @property
+    def label(self) -> str:
+        """e.g. 'GPSO-DNN + lm'."""
+        return f"{METHOD_LABEL.get(self.method, self.method)} + {self.optimizer_name}"
+
+    # -- fitting ---------------------------------------------------------------------------
+    def fit(self, poses: np.ndarray, errors: np.ndarray) -> "ErrorModel":
+        """Fit to commanded poses [N, 6] and their errors E = P_target − P_measured [N, 3] mm."""
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
+        errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
+        if len(poses) != len(errors):
+            raise ValueError(f"{len(poses)} poses but {len(errors)} errors")
+        if self.method not in METHODS:
+            raise ValueError(f"unknown method {self.method!r} ({'|'.join(METHODS)})")
+        if self.optimizer_name not in OPTIMIZERS:
+            raise ValueError(f"unknown optimizer {self.optimizer_name!r} ({'|'.join(OPTIMIZERS)})")
+        structure = Structure(parse_hidden(self.hidden))
+        check_size(len(poses), structure.n_params, str(structure))
+        with _one_thread():
+            self._fit(structure, poses, errors)
+        return self
+
+    def _fit(self, structure: Structure, poses: np.ndarray, errors: np.ndarray) -> None:
+        t0 = time.perf_counter()
+        scaling = Scaling.fit(poses, errors)
+        x = torch.as_tensor(scaling.inputs(poses))
+        y = torch.as_tensor(scaling.outputs(errors))
+        gen = torch.Generator().manual_seed(int(self.seed))
+
+        def fitness(theta: torch.Tensor) -> torch.Tensor:  # [P, D] → [P] training MSE
+            with torch.no_grad():
+                return torch.mean((forward(structure, theta, x) - y) ** 2, dim=(1, 2))
+
+        generations = self._generations()
+        bar = self._bar(generations + self.epochs)
+        tick = (lambda i, f: bar.update(1)) if bar is not None else None
+        dim = structure.n_params
+        if self.method == "gpso":
+            init = gpso(fitness, dim, self.population or 20, generations, self.inertia, gen, callback=tick)
+        elif self.method == "ga":
+            init = baselines.ga(fitness, dim, self.population or 50, generations, generator=gen, callback=tick)
+        elif self.method == "pso":
+            init = baselines.pso(fitness, dim, self.population or 40, generations, generator=gen, callback=tick)
+        else:
+            init = baselines.plain(fitness, dim, generator=gen)
+        t1 = time.perf_counter()
+        if bar is not None:
+            bar.set_description(f"{self.method} → {self.optimizer_name}")
+        result = refine(structure, init.theta, x, y, self.optimizer_name, self.epochs, self.lr, self.goal, callback=tick)
+        if bar is not None:
+            bar.close()
+        t2 = time.perf_counter()
+
+        self.structure_ = structure
+        self.n_weights_ = structure.n_params
+        self.scaling_ = scaling
+        self.params_ = result.theta.detach().numpy().copy()
+        self.init_: InitResult = init
+        self.history_ = list(init.history)  # best fitness (training MSE, standardised) per generation
+        self.losses_ = list(result.losses)  # training MSE per backprop epoch
+        self.stopped_ = result.stopped
+        self.envelope_ = envelope_of(poses)
+        self.n_train_ = len(poses)
+        self.fit_seconds_ = {"init": t1 - t0, "backprop": t2 - t1, "total": t2 - t0}
+        self.net_ = ErrorNet(structure, self.params_, scaling, torch.float64).eval()
+        self.train_stats_ = residual_stats(errors - self.predict(poses))
+
+    def _generations(self) -> int:
+        if self.method == "plain":
+            return 0
+        if self.generations is not None:
+            return int(self.generations)
+        return {"gpso": 50, "ga": 100, "pso": 100}[self.method]
+
+    def _bar(self, total: int):
+        if not self.progress:
+            return None
+        from tqdm import tqdm
+
+        return tqdm(total=total, desc=self.method, unit="step", leave=False, dynamic_ncols=True)
+
+    # -- using the fitted model ------------------------------------------------------------
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "net_"):
+            raise RuntimeError("ErrorModel is not fitted yet: call fit(poses, errors) first")
+
+    def predict(self, poses: np.ndarray) -> np.ndarray:
+        """Ê [N, 3] mm for poses [N, 6] (float64 throughout)."""
+        self._check_fitted()
+        with torch.no_grad():
+            out = self.net_(torch.as_tensor(np.asarray(poses, dtype=np.float64).reshape(-1, 6)))
+        return out.numpy()
+
+    def module(self, dtype: torch.dtype = torch.float32) -> ErrorNet:
+        """The fitted network as a torch module computing in ``dtype`` (for export)."""
+        self._check_fitted()
+        return ErrorNet(self.structure_, self.params_, self.scaling_, dtype).eval()
+
+    def fixed_point_iterations(self, poses: np.ndarray, tol_mm: float = 1e-3, most: int = 10) -> int:
+        """Iterations k of c = P + Ê(c) after which one more changes no command by > tol_mm."""
+        self._check_fitted()
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
+        trial = poses.copy()
+        trial[:, :3] = poses[:, :3] + self.predict(poses)
+        for k in range(1, most):
+            nxt = poses[:, :3] + self.predict(trial)
+            change = float(np.max(np.abs(nxt - trial[:, :3]))) if len(poses) else 0.0
+            trial[:, :3] = nxt
+            if change <= tol_mm:
+                return k
+        return most
+
+    def export_onnx(self, path: str | Path, float64: bool = False, **metadata) -> Path:
+        """Write the fitted model as a contract ONNX file (atomically); ``metadata`` as in the
+        contract (name, robot, tool, envelope, reach, data_sha256, accuracy, iterations).
+
+        method, structure and envelope default to this model's; iterations to 2.
+        """
+        from .export import export_onnx
+
+        self._check_fitted()
+        meta = {
+            "method": self.label,
+            "structure": str(self.structure_),
+            "envelope": self.envelope_,
+            "iterations": 2,
+        }
+        meta.update(metadata)
+        return export_onnx(self.module(torch.float64 if float64 else torch.float32), path, meta)
+

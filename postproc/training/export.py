@@ -1,0 +1,78 @@
+"""Export a fitted network as a contract ONNX file (see postproc/compensator.py).
+
+torch.onnx.export (the TorchScript exporter: the dynamo one needs onnxscript, which the
+``train`` extra does not pull in), opset 17, input ``pose`` float32 [N, 6] with a dynamic
+batch axis, output ``error`` float32 [N, 3]; angle unwrapping and standardisation are inside
+the graph. Metadata go into ``metadata_props`` through ``contract_metadata``. The file is
+written to a temporary name in the target folder and moved into place, so a failed export
+never leaves a half-written model.
+"""
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+import warnings
+from pathlib import Path
+
+import onnx
+import torch
+
+from ..compensator import INPUT_POSE, OUTPUT_ERROR, contract_metadata
+from ..diagnostics import PostprocError
+
+__all__ = ["export_onnx", "onnx_bytes", "write_atomic", "OPSET"]
+
+OPSET = 17
+
+
+def onnx_bytes(module: torch.nn.Module, metadata: dict) -> bytes:
+    """The serialised ONNX model of ``module`` (pose [N, 6] → error [N, 3]) with metadata."""
+    buffer = io.BytesIO()
+    with warnings.catch_warnings():
+        # the TorchScript exporter announces its deprecation on every call
+        warnings.simplefilter("ignore")
+        torch.onnx.export(
+            module.eval(),
+            (torch.zeros(2, 6, dtype=torch.float32),),
+            buffer,
+            dynamo=False,
+            input_names=[INPUT_POSE],
+            output_names=[OUTPUT_ERROR],
+            dynamic_axes={INPUT_POSE: {0: "N"}, OUTPUT_ERROR: {0: "N"}},
+            opset_version=OPSET,
+            do_constant_folding=True,
+        )
+    model = onnx.load_from_string(buffer.getvalue())
+    model.graph.name = "postproc_error_model"
+    model.producer_name = "postproc.training"
+    del model.metadata_props[:]
+    for key, value in contract_metadata(**metadata).items():
+        model.metadata_props.add(key=key, value=value)
+    onnx.checker.check_model(model)
+    return model.SerializeToString()
+
+
+def write_atomic(path: str | Path, data: bytes) -> Path:
+    """Write bytes to ``path`` via a temporary file in the same folder + os.replace."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise PostprocError(f"output folder does not exist: {folder}", str(path), code="P500")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    return path
+
+
+def export_onnx(module: torch.nn.Module, path: str | Path, metadata: dict) -> Path:
+    """Export ``module`` with ``metadata`` to ``path`` (atomically)."""
+    return write_atomic(path, onnx_bytes(module, metadata))

@@ -1,0 +1,149 @@
+"""Structure search: which hidden layers, scored on a validation split of the training data.
+
+The method searched 1–6 hidden layers of 3–16 nodes each. All 14^6 combinations cannot be
+trained, so this searches **equal widths** — (n,)*L for L in 1..6 and n in 3..16, 84
+structures — plus the method's own choice (20, 10, 5) as a reference, by successive halving:
+
+1. screen: every candidate gets the chosen weight search (GPSO by default) and 300 L-BFGS
+   epochs (cheap: its cost grows with the number of weights D, Levenberg–Marquardt's with D²);
+2. final: the ``keep`` best of the screen are trained with the full method (the chosen
+   optimiser, all epochs) and the one with the lowest validation mean |E − Ê| wins.
+
+The validation split is drawn from the *training* rows (``val_fraction`` of them, seeded), so
+the held-out rows that ``postproc train`` reports on are never used to choose. Candidates
+with more weights than the data support (see ``data.min_points``) are listed and skipped.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from .data import min_points, split_indices
+from .estimator import ErrorModel
+from .network import Structure
+
+__all__ = ["Candidate", "SearchResult", "candidates", "search_structure", "format_table"]
+
+METHOD_STRUCTURE = (20, 10, 5)
+SCREEN_OPTIMIZER, SCREEN_EPOCHS = "lbfgs", 300
+
+
+@dataclass
+class Candidate:
+    hidden: tuple[int, ...]
+    n_weights: int
+    screen_mm: float | None = None  # validation mean |E − Ê| after the screen
+    final_mm: float | None = None  # … after the full method (finalists only)
+    final_max_mm: float | None = None
+    seconds: float = 0.0
+    note: str = ""
+
+    @property
+    def label(self) -> str:
+        return ",".join(str(v) for v in self.hidden)
+
+
+@dataclass
+class SearchResult:
+    best: tuple[int, ...]
+    candidates: list[Candidate] = field(default_factory=list)
+    n_fit: int = 0
+    n_val: int = 0
+
+
+def candidates(layers=range(1, 7), widths=range(3, 17)) -> list[tuple[int, ...]]:
+    """Equal-width structures plus the method's (20, 10, 5)."""
+    out = [(n,) * n_layers for n_layers in layers for n in widths]
+    if METHOD_STRUCTURE not in out:
+        out.append(METHOD_STRUCTURE)
+    return out
+
+
+def _val_mean(model: ErrorModel, poses: np.ndarray, errors: np.ndarray) -> tuple[float, float]:
+    d = np.linalg.norm(errors - model.predict(poses), axis=1)
+    return float(d.mean()), float(d.max())
+
+
+def search_structure(
+    poses: np.ndarray,
+    errors: np.ndarray,
+    method: str = "gpso",
+    optimizer: str | None = None,
+    epochs: int = 500,
+    seed: int = 0,
+    val_fraction: float = 0.2,
+    keep: int = 6,
+    structures: list[tuple[int, ...]] | None = None,
+    screen_epochs: int = SCREEN_EPOCHS,
+    progress: bool = False,
+    log: Callable[[str], None] | None = None,
+) -> SearchResult:
+    """Search structures on (poses, errors); returns the winner and every candidate's scores."""
+    import time
+
+    fit_rows, val_rows = split_indices(len(poses), val_fraction, seed)
+    if len(val_rows) == 0:
+        raise ValueError("structure search needs a validation split (val_fraction > 0)")
+    px, ex, pv, ev = poses[fit_rows], errors[fit_rows], poses[val_rows], errors[val_rows]
+    pool = [Candidate(h, Structure(h).n_params) for h in (structures or candidates())]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(pool) + keep, desc="search", unit="net", leave=False, dynamic_ncols=True)
+    for cand in pool:
+        if len(fit_rows) < min_points(cand.n_weights):
+            cand.note = f"skipped: needs ≥ {min_points(cand.n_weights)} points"
+            if bar is not None:
+                bar.update(1)
+            continue
+        t = time.perf_counter()
+        model = ErrorModel(cand.hidden, method, SCREEN_OPTIMIZER, screen_epochs, seed=seed).fit(px, ex)
+        cand.screen_mm = _val_mean(model, pv, ev)[0]
+        cand.seconds += time.perf_counter() - t
+        if bar is not None:
+            bar.update(1)
+        if log is not None:
+            log(f"screen {cand.label:<18} {cand.screen_mm:.4f} mm")
+    screened = sorted((c for c in pool if c.screen_mm is not None), key=lambda c: c.screen_mm)
+    if not screened:
+        raise ValueError("no candidate structure fits the amount of data")
+    for cand in screened[:keep]:
+        t = time.perf_counter()
+        model = ErrorModel(cand.hidden, method, optimizer, epochs, seed=seed).fit(px, ex)
+        cand.final_mm, cand.final_max_mm = _val_mean(model, pv, ev)
+        cand.seconds += time.perf_counter() - t
+        if bar is not None:
+            bar.update(1)
+        if log is not None:
+            log(f"final  {cand.label:<18} {cand.final_mm:.4f} mm")
+    if bar is not None:
+        bar.close()
+    best = min((c for c in pool if c.final_mm is not None), key=lambda c: c.final_mm)
+    return SearchResult(best.hidden, pool, len(fit_rows), len(val_rows))
+
+
+def format_table(result: SearchResult, screen_epochs: int = SCREEN_EPOCHS) -> str:
+    """The search as a text table, best first (finalists, then the screened, then skipped)."""
+
+    def key(c: Candidate):
+        return (c.final_mm is None, c.final_mm or 0.0, c.screen_mm is None, c.screen_mm or 0.0)
+
+    head = (
+        f"structure search: {len(result.candidates)} candidates, fit on {result.n_fit} points, "
+        f"scored on {result.n_val} (mean |E − Ê| mm on the search's validation split)\n"
+        f"{'hidden':<18} {'weights':>7} {'screen':>8} {'final':>8} {'final max':>9} {'s':>6}\n"
+    )
+    lines = []
+    for c in sorted(result.candidates, key=key):
+        mark = "  ← chosen" if c.hidden == result.best else ""
+        if c.hidden == METHOD_STRUCTURE:
+            mark += "  (the method's)"
+        screen = f"{c.screen_mm:8.4f}" if c.screen_mm is not None else f"{'-':>8}"
+        final = f"{c.final_mm:8.4f}" if c.final_mm is not None else f"{'-':>8}"
+        fmax = f"{c.final_max_mm:9.4f}" if c.final_max_mm is not None else f"{'-':>9}"
+        lines.append(f"{c.label:<18} {c.n_weights:7d} {screen} {final} {fmax} {c.seconds:6.1f}{mark}{'  ' + c.note if c.note else ''}")
+    foot = f"\nscreen: {screen_epochs} L-BFGS epochs after the weight search; final: the full method"
+    return head + "\n".join(lines) + foot

@@ -1,0 +1,145 @@
+"""ErrorModel: training lowers the error, every method and optimiser runs, ONNX round trip."""
+from __future__ import annotations
+
+import numpy as np
+import onnx
+import onnxruntime as ort
+import pytest
+import torch
+
+from postproc.compensator import load_model
+from postproc.diagnostics import PostprocError
+from postproc.training import ErrorModel
+from postproc.training.data import split_indices
+from postproc.training.search import format_table, search_structure
+from postproc.training.synthetic import synthetic_measurements
+
+# small budgets: the point is behaviour, not the method's full figures (benchmarks/ has those)
+SMALL = dict(generations=8, epochs=25)
+
+
+@pytest.fixture(scope="module")
+def data():
+    poses, measured = synthetic_measurements(600, seed=11)
+    errors = poses[:, :3] - measured
+    train, val = split_indices(len(poses), 0.2, 0)
+    return poses, errors, train, val
+
+
+@pytest.fixture(scope="module")
+def fitted(data):
+    poses, errors, train, _ = data
+    return ErrorModel(seed=0, **SMALL).fit(poses[train], errors[train])
+
+
+def _val_ratio(model, data) -> float:
+    poses, errors, _, val = data
+    residual = np.linalg.norm(errors[val] - model.predict(poses[val]), axis=1)
+    return residual.mean() / np.linalg.norm(errors[val], axis=1).mean()
+
+
+def test_default_method_lowers_the_error_clearly(fitted, data):
+    assert _val_ratio(fitted, data) < 0.5
+    assert fitted.structure_.sizes == (6, 20, 10, 5, 3) and fitted.n_weights_ == 423
+    assert len(fitted.history_) == SMALL["generations"] and np.all(np.diff(fitted.history_) <= 0)
+    assert fitted.losses_[-1] < fitted.init_.fitness  # backprop improved on the searched start
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["ga", "pso", "plain"])
+def test_baseline_methods_train(method, data):
+    poses, errors, train, _ = data
+    model = ErrorModel(method=method, seed=1, **SMALL).fit(poses[train], errors[train])
+    assert len(model.history_) == (0 if method == "plain" else SMALL["generations"])
+    assert _val_ratio(model, data) < 0.8
+
+
+@pytest.mark.parametrize("optimizer", ["gd", "momentum", "adam", "lbfgs", "lm"])
+def test_every_optimizer_lowers_the_training_loss(optimizer, data):
+    poses, errors, train, _ = data
+    model = ErrorModel(hidden=(8, 4), optimizer=optimizer, generations=3, epochs=15, seed=2)
+    model.fit(poses[train], errors[train])
+    assert model.losses_[-1] < model.init_.fitness
+    assert model.label.endswith(optimizer)
+
+
+def test_same_seed_same_model_other_seed_other_model(data):
+    poses, errors, train, _ = data
+    kw = dict(hidden=(6, 4), generations=3, epochs=5)
+    a = ErrorModel(seed=3, **kw).fit(poses[train], errors[train])
+    b = ErrorModel(seed=3, **kw).fit(poses[train], errors[train])
+    c = ErrorModel(seed=4, **kw).fit(poses[train], errors[train])
+    assert np.array_equal(a.params_, b.params_) and not np.array_equal(a.params_, c.params_)
+
+
+def test_too_few_points_and_unfitted_use(data):
+    poses, errors, _, _ = data
+    with pytest.raises(PostprocError) as info:
+        ErrorModel().fit(poses[:100], errors[:100])  # 423 weights need 141 rows
+    assert info.value.code == "P505"
+    with pytest.raises(RuntimeError):
+        ErrorModel().predict(poses)
+
+
+def test_onnx_round_trip_matches_torch_and_meets_the_contract(fitted, data, tmp_path):
+    poses, _, train, _ = data
+    path = fitted.export_onnx(tmp_path / "m.onnx", name="synthetic", robot="KR500-sim", data_sha256="ab" * 32,
+                              accuracy={"val_mean_mm": 0.1})
+    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    (onnx_out,) = session.run(["error"], {"pose": poses[train].astype(np.float32)})
+    # torch in float64 on the same float32-rounded poses that the ONNX graph received
+    torch_out = fitted.predict(poses[train].astype(np.float32).astype(np.float64))
+    assert np.max(np.abs(onnx_out - torch_out)) <= 1e-5  # mm
+    model = onnx.load(path)
+    assert model.opset_import[0].version == 17
+    assert model.graph.input[0].type.tensor_type.shape.dim[0].dim_param  # dynamic batch axis
+    comp = load_model(path)
+    assert comp.name == "synthetic" and comp.robot == "KR500-sim"
+    assert comp.metadata["structure"] == "6-20-10-5-3" and comp.metadata["method"] == "GPSO-DNN + lm"
+    assert comp.metadata["iterations"] == 2 and comp.metadata["postproc_contract"] == 1
+    assert comp.metadata["data_sha256"] == "ab" * 32 and comp.metadata["accuracy"]["val_mean_mm"] == 0.1
+    env = comp.envelope
+    assert env is not None and not env.outside(poses[train]).any()
+    assert np.allclose(comp.predict(poses[:5]), fitted.predict(poses[:5]), atol=1e-4)
+    assert list(tmp_path.iterdir()) == [path]  # no temporary file left behind
+
+
+def test_float64_internal_export(fitted, data, tmp_path):
+    poses, _, train, _ = data
+    path = fitted.export_onnx(tmp_path / "m64.onnx", float64=True)
+    comp = load_model(path)  # still float32 at the edges, as the contract wants
+    p32 = poses[train].astype(np.float32).astype(np.float64)
+    assert np.max(np.abs(comp.predict(p32) - fitted.predict(p32))) <= 1e-6
+
+
+def test_export_into_a_missing_folder_writes_nothing(fitted, tmp_path):
+    with pytest.raises(PostprocError):
+        fitted.export_onnx(tmp_path / "absent" / "m.onnx")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_fixed_point_iterations_of_a_smooth_model(fitted, data):
+    poses, _, train, _ = data
+    k = fitted.fixed_point_iterations(poses[train])
+    assert 1 <= k <= 4  # |dÊ/dP| ≪ 1 for a ~1 mm field over a 600 mm box: fast contraction
+
+
+@pytest.mark.slow
+def test_structure_search_on_a_few_candidates(data):
+    poses, errors, train, _ = data
+    result = search_structure(poses[train], errors[train], structures=[(3,), (8, 8), (300, 300)],
+                              keep=2, epochs=15, screen_epochs=30, seed=0)
+    by_hidden = {c.hidden: c for c in result.candidates}
+    assert "skipped" in by_hidden[(300, 300)].note  # too many weights for 384 rows
+    finalists = [c for c in result.candidates if c.final_mm is not None]
+    assert len(finalists) == 2 and result.best in {c.hidden for c in finalists}
+    assert by_hidden[result.best].final_mm == min(c.final_mm for c in finalists)
+    table = format_table(result)
+    assert "← chosen" in table and "8,8" in table
+
+
+def test_torch_stays_single_threaded_only_during_fit(data):
+    poses, errors, train, _ = data
+    before = torch.get_num_threads()
+    ErrorModel(hidden=(4,), generations=1, epochs=1).fit(poses[train], errors[train])
+    assert torch.get_num_threads() == before
