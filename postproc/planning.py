@@ -194,6 +194,8 @@ def krl_measurement_program(
 
     ``robot`` (a :class:`postproc.robot.Robot`) gives HOME, the tool and the S/T of the
     approach PTP. Targets are in the robot base frame ($BASE = $NULLFRAME)."""
+    if not comment.isascii():  # controllers read .src as ANSI: keep the program plain ASCII
+        comment = comment.encode("ascii", "replace").decode()
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,23}", name):
         raise PostprocError(f"'{name}' is not a KRL module name (letters, digits, _; at most 24; not starting "
                             "with a digit): name the .src file like one", code="P512")

@@ -69,7 +69,7 @@ def run(args) -> int:
     outputs = [(Path(args.output), plan_csv_text(poses))]
     if args.krl is not None:
         src = Path(args.krl)
-        comment = f"Latin hypercube seed {args.seed}, box {list(map(float, box))}, attitude {list(map(float, attitude))} ± {range_deg:g}"
+        comment = f"Latin hypercube seed {args.seed}, box {list(map(float, box))}, attitude {list(map(float, attitude))} +- {range_deg:g} deg"
         outputs.append((src, krl_measurement_program(poses, src.stem, robot, wait_s=args.wait, comment=comment)))
     write_atomic(outputs)
     if not args.quiet:

@@ -1,0 +1,94 @@
+"""Latin hypercube plans, the plan CSV, the KRL measurement program, and the plan/measure commands."""
+import numpy as np
+import pytest
+
+from postproc import frames
+from postproc.cli import main
+from postproc.compensate import load_program, robot_base_poses
+from postproc.diagnostics import PostprocError
+from postproc.planning import DEFAULT_BOX, latin_hypercube, parse_pose_csv, read_pose_csv
+
+
+def test_latin_hypercube_is_one_point_per_stratum_in_every_dimension():
+    n = 50
+    poses = latin_hypercube(n, box=(0, 100, -10, 10, 5, 6), attitude=(0, 90, 0), range_deg=10, seed=4)
+    lo = np.array([0, -10, 5, -10, 80, -10])
+    hi = np.array([100, 10, 6, 10, 100, 10])
+    strata = np.floor((poses - lo) / (hi - lo) * n).astype(int)
+    for d in range(6):
+        assert sorted(strata[:, d]) == list(range(n))
+    np.testing.assert_array_equal(poses, latin_hypercube(n, (0, 100, -10, 10, 5, 6), (0, 90, 0), 10, seed=4))
+    assert not np.allclose(poses, latin_hypercube(n, (0, 100, -10, 10, 5, 6), (0, 90, 0), 10, seed=5))
+
+
+def test_plan_writes_csv_and_a_krl_program_the_reader_understands(tmp_path):
+    plan, src = tmp_path / "plan.csv", tmp_path / "measure.src"
+    assert main(["plan", "-n", "40", "--seed", "3", "-o", str(plan), "--krl", str(src), "-q"]) == 0
+    lines = plan.read_text().splitlines()
+    assert lines[0] == "x,y,z,a,b,c" and len(lines) == 41
+    poses, numbers = read_pose_csv(plan)
+    assert numbers.tolist() == list(range(2, 42))
+    box = np.array(DEFAULT_BOX)
+    assert np.all((poses[:, :3] >= box[0::2]) & (poses[:, :3] <= box[1::2]))
+    assert np.all(np.abs(poses[:, 3:] - [0, 90, 0]) <= 10)
+    text = src.read_text()
+    assert text.count("\nLIN {") == 41 and text.count("MEASURE_HERE( )") == 41  # + retreat; + the DEF
+    assert "DEF measure( )" in text and "WAIT SEC 1.00" in text and "WAIT FOR $IN[1]" in text
+    # the lead's KRL reader finds every measurement pose, in order, with the same numbers
+    program = load_program(src)
+    base_poses, resolved = robot_base_poses(program)
+    assert resolved.all()
+    # approach PTP first, retreat LIN last; A,B,C compared as rotations (the reader may write
+    # B > 90° as the equivalent A±180, 180−B, C±180)
+    np.testing.assert_allclose(base_poses[1:-1, :3], poses[:, :3], atol=1e-9)
+    np.testing.assert_allclose(frames.rotation_from_abc(base_poses[1:-1, 3:]), frames.rotation_from_abc(poses[:, 3:]),
+                               atol=1e-9)
+    np.testing.assert_allclose(base_poses[0, :3], poses[0, :3] + [0, 0, 100])
+
+
+def test_plan_refuses_poses_out_of_reach_and_writes_nothing(tmp_path, capsys):
+    plan, src = tmp_path / "plan.csv", tmp_path / "m.src"
+    code = main(["plan", "-n", "20", "--box", "3000", "3600", "-100", "100", "500", "900", "-o", str(plan),
+                 "--krl", str(src)])
+    assert code == 2
+    assert "out of reach of KR500-sim" in capsys.readouterr().err
+    assert not plan.exists() and not src.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_measure_writes_the_training_csv_in_visiting_order(tmp_path):
+    plan, out = tmp_path / "plan.csv", tmp_path / "measured.csv"
+    plan.write_text("# my plan\nid,X,Y,Z,A,B,C\n1,2000,0,900,0,90,0\n\n2,2100,100,800,2,88,-1\n3,1800,-200,1000,0,95,5\n")
+    assert main(["measure", str(plan), "-o", str(out), "--seed", "4", "-q"]) == 0
+    lines = out.read_text().splitlines()
+    assert lines[0] == "x,y,z,a,b,c,x_meas,y_meas,z_meas"
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    np.testing.assert_array_equal(table[:, :6], [[2000, 0, 900, 0, 90, 0], [2100, 100, 800, 2, 88, -1],
+                                                 [1800, -200, 1000, 0, 95, 5]])
+    assert np.all(np.linalg.norm(table[:, 6:] - table[:, :3], axis=1) < 3)
+    # the training reader takes it as it is
+    from postproc.training.data import read_measurements
+
+    assert len(read_measurements(out)) == 3
+
+
+@pytest.mark.parametrize("content, line, col, code", [
+    ("x,y,z,a,b,c\n2000,0,900,0,90,0\n2000,0,900,0,90\n", 3, 1, "P503"),
+    ("x,y,z,a,b,c\n2000,0,900,0,90,0\n2000,zero,900,0,90,0\n", 3, 6, "P502"),
+    ("x,y,z,a,b\n2000,0,900,0,90\n", 1, 1, "P501"),
+    ("x,y,z,a,b,c\n2000,0,900,0,90,0\n9000,0,900,0,90,0\n", 3, 1, "P335"),
+])
+def test_measure_bad_input_says_where_and_writes_nothing(tmp_path, capsys, content, line, col, code):
+    plan, out = tmp_path / "plan.csv", tmp_path / "measured.csv"
+    plan.write_text(content)
+    assert main(["measure", str(plan), "-o", str(out)]) == 2
+    assert capsys.readouterr().err.startswith(f"{plan}:{line}:{col}: {code} ")
+    assert not out.exists()
+
+
+def test_pose_csv_reader_ignores_extra_columns_and_comments():
+    poses, lines = parse_pose_csv("# head\nc,B,a,z,y,x,note\n6,5,4,3,2,1,hello\n# mid\n\n12,11,10,9,8,7,x\n")
+    np.testing.assert_array_equal(poses, [[1, 2, 3, 4, 5, 6], [7, 8, 9, 10, 11, 12]])
+    assert lines.tolist() == [3, 6]
+    with pytest.raises(PostprocError, match="no rows"):
+        parse_pose_csv("x,y,z,a,b,c\n")
