@@ -5,12 +5,15 @@ warnings; only the CLI decides how they are printed and which exit code they map
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 # Exit codes shared by every subcommand (documented in the README).
 EXIT_OK = 0
 EXIT_FINDINGS = 1  # check found problems / verify exceeded --max-mean
 EXIT_ERROR = 2  # bad input, usage error, internal error: nothing was written
+
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
 
 
 @dataclass(frozen=True)
@@ -25,9 +28,11 @@ class Diagnostic:
     severity: str = "warning"  # "warning" | "error"
 
     def format(self) -> str:
+        # one line whatever the input held: a quoted '\r' or ESC would garble the terminal
+        message = _CONTROL.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), self.message)
         if self.line <= 0:  # about the whole file (unreadable, not a model, ...)
-            return f"{self.path}: {self.code} {self.message}"
-        return f"{self.path}:{self.line}:{self.col}: {self.code} {self.message}"
+            return f"{self.path}: {self.code} {message}"
+        return f"{self.path}:{self.line}:{self.col}: {self.code} {message}"
 
 
 class PostprocError(Exception):
