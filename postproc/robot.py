@@ -310,8 +310,6 @@ class Robot:
     """
 
     def __init__(self, description: RobotDescription | None = None):
-        import pinocchio as pin
-
         self.description = description if description is not None else load_description()
         d = self.description
         self.name: str = d.name
@@ -325,8 +323,16 @@ class Robot:
         self.flange_chain = Chain(placements, axes, frames.frame_to_matrix(d.flange))
         self.tool_matrix = frames.frame_to_matrix(d.tool)
         self.chain = Chain(placements, axes, self.flange_chain.end @ self.tool_matrix)
+        self._ik = _IkGeometry(self)
+        self._model = None
 
-        # Pinocchio model, metres inside; payload as a separate body on A6 so it can be weighed
+    def _build_model(self) -> None:
+        """The pin.Model (metres inside), built once on first use: planning needs only numpy
+        kinematics and starts faster without importing Pinocchio."""
+        import pinocchio as pin
+
+        d = self.description
+        # payload as a separate body on A6 so that the unloaded model can be kept too
         model = pin.Model()
         model.name = d.name
         parent = 0
@@ -342,11 +348,24 @@ class Robot:
             model.appendBodyToJoint(parent, _pin_inertia(pin, d.payload_mass, d.payload_com, None), flange)
         fid = model.addFrame(pin.Frame("flange", parent, flange, pin.FrameType.OP_FRAME))
         model.addFrame(pin.Frame("tcp", parent, fid, flange * _se3(pin, d.tool), pin.FrameType.OP_FRAME))
-        self.model = model
-        self.data = model.createData()
+        self._model = model
+        self._data = model.createData()
         self._unloaded_data = self._unloaded.createData()
         self._pin = pin
-        self._ik = _IkGeometry(self)
+
+    @property
+    def model(self):
+        """The ``pin.Model`` of the nominal robot with its payload (built once)."""
+        if self._model is None:
+            self._build_model()
+        return self._model
+
+    @property
+    def data(self):
+        """The ``pin.Data`` reused by every Pinocchio call."""
+        if self._model is None:
+            self._build_model()
+        return self._data
 
     # ---------------------------------------------------------------- FK
     def fk_matrix(self, q_deg: np.ndarray) -> np.ndarray:
@@ -359,21 +378,24 @@ class Robot:
 
     def pin_fk(self, q_deg: np.ndarray, frame: str = "tcp") -> np.ndarray:
         """The same through Pinocchio (one call per pose; for checks, not for bulk work)."""
+        model, data = self.model, self.data
         pin = self._pin
-        fid = self.model.getFrameId(frame)
+        fid = model.getFrameId(frame)
         q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
         out = np.zeros((len(q), 4, 4))
         for i, qi in enumerate(q):
-            pin.framesForwardKinematics(self.model, self.data, qi)
-            m = self.data.oMf[fid]
+            pin.framesForwardKinematics(model, data, qi)
+            m = data.oMf[fid]
             out[i, :3, :3], out[i, :3, 3], out[i, 3, 3] = m.rotation, m.translation / MM, 1.0
         return out
 
     # ---------------------------------------------------------------- gravity
     def gravity_torques(self, q_deg: np.ndarray, payload: bool = True) -> np.ndarray:
         """Joint torques [N, 6] (Nm) that hold the arm against gravity (pin.computeGeneralizedGravity)."""
+        if self._model is None:
+            self._build_model()
+        model, data = (self._model, self._data) if payload else (self._unloaded, self._unloaded_data)
         pin = self._pin
-        model, data = (self.model, self.data) if payload else (self._unloaded, self._unloaded_data)
         q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
         out = np.empty_like(q)
         for i, qi in enumerate(q):  # ~2 µs per call in C++: pin is the right tool here

@@ -245,7 +245,7 @@ class SimulatedRobot:
         the base frame the tracker registration gives: the rigid motion that best fits the
         real robot's positions to the commanded ones over the workspace (as a measurement
         campaign sets its frame up), then the drawn registration error on top of it."""
-        from scipy.spatial.transform import Rotation
+        from .registration import fit_rigid, transform_matrix  # numpy only (scipy.spatial costs 0.2 s to import)
 
         r, k = self.robot, self.scale
         nominal = r.chain
@@ -258,40 +258,54 @@ class SimulatedRobot:
             raw = Chain(placements, nominal.axes, end).transforms(np.radians(q + joint_errors + k * self.zero_offsets_deg))
             raw = raw[:, :3, 3]
             target = poses[:, :3]
-            # R·raw + t ≈ target in the least-squares sense (Kabsch, via scipy)
-            rot, _ = Rotation.align_vectors(target - target.mean(0), raw - raw.mean(0))
-            fit = np.eye(4)
-            fit[:3, :3] = rot.as_matrix()
-            fit[:3, 3] = target.mean(0) - fit[:3, :3] @ raw.mean(0)
-            base = base @ fit
+            base = base @ transform_matrix(*fit_rigid(raw, target))  # R·raw + t ≈ target (Kabsch)
         self.chain = Chain(placements, nominal.axes, end, base)
 
     def _calibrate(self, target: float) -> None:
-        from scipy.optimize import brentq
-
+        """Solve mean error norm (scale) = target for the geometric scale; the mean is monotone
+        and nearly linear in the scale, so a bracketed secant (Illinois) converges in a few
+        steps. (scipy.optimize would do the same but costs 0.3–0.6 s to import per command.)"""
         if self._reference is None:
             raise self.description.error("[errors] target_mean_mm needs a [workspace] table with box, attitude, range",
                                          "errors", "target_mean_mm")
         poses, q, joint_errors = self._reference
 
-        def mean_error(scale: float) -> float:
+        def excess(scale: float) -> float:
             self.scale = scale
             self._build_chain()
             actual = self._tcp(q, joint_errors)
             return float(np.linalg.norm(poses[:, :3] - actual, axis=1).mean()) - target
 
-        low = mean_error(0.0)
-        if low >= 0:  # compliance, ripple and backlash alone already exceed the target
+        a, fa = 0.0, excess(0.0)
+        if fa >= 0:  # compliance, ripple and backlash alone already exceed the target
             raise self.description.error(
-                f"[errors] the non-geometric errors alone give {low + target:.3f} mm > target_mean_mm {target}: "
+                f"[errors] the non-geometric errors alone give {fa + target:.3f} mm > target_mean_mm {target}: "
                 "stiffen the joints or lower ripple/backlash", "errors", "target_mean_mm")
-        high = 1.0
-        while mean_error(high) < 0:
-            high *= 2.0
-            if high > 1e6:
+        b, fb = 1.0, excess(1.0)
+        while fb < 0:
+            a, fa = b, fb
+            b *= 4.0
+            if b > 1e6:
                 raise self.description.error("[errors] no geometric error magnitudes given: cannot reach target_mean_mm",
                                              "errors", "target_mean_mm")
-        self.scale = brentq(mean_error, 0.0, high, xtol=1e-6, rtol=1e-9)
+            fb = excess(b)
+        side = 0
+        for _ in range(60):
+            c = b - fb * (b - a) / (fb - fa)
+            fc = excess(c)
+            if abs(fc) < 1e-7 * target:
+                break
+            if (fc < 0) == (fa < 0):
+                a, fa = c, fc
+                if side == -1:
+                    fb /= 2
+                side = -1
+            else:
+                b, fb = c, fc
+                if side == 1:
+                    fa /= 2
+                side = 1
+        self.scale = c
         self._build_chain()
 
     def _reference_set(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
