@@ -20,15 +20,16 @@ from .diagnostics import PostprocError
 __all__ = ["format_like", "format_many", "apply_edits", "insert_stamp", "stamp_line", "write_atomic"]
 
 MIN_DECIMALS = 3
-_TOKEN = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:([eE])([+-]?)(\d+))?\Z")
+# KRL allows blanks between a sign and its number ('X - 5'): the reader's span covers both
+_TOKEN = re.compile(r"([+-]?)([ \t]*)(\d*)(?:\.(\d*))?(?:([eE])([+-]?)(\d+))?\Z")
 
 
 def format_like(token: str, value: float) -> str:
     """``value`` written in the style of ``token`` (e.g. '1900.' → '1900.347', '.5' → '.512')."""
     m = _TOKEN.match(token)
-    if m is None or not (m.group(2) or m.group(3)):
+    if m is None or not (m.group(3) or m.group(4)):
         raise ValueError(f"not a number token: {token!r}")
-    sign, whole, frac, e, esign, edigits = m.groups()
+    sign, gap, whole, frac, e, esign, edigits = m.groups()
     decimals = max(MIN_DECIMALS, len(frac or ""))
     if e:
         exponent = int(esign + edigits) if esign != "+" else int(edigits)
@@ -49,8 +50,8 @@ def format_like(token: str, value: float) -> str:
             body = body[1:]  # '.5' style: no leading zero
         out = body
     if negative:
-        return "-" + out
-    return ("+" if sign == "+" else "") + out
+        return "-" + (gap if sign else "") + out
+    return ("+" + gap if sign == "+" else "") + out
 
 
 _PLAIN = re.compile(r"-?\d+\.\d+\Z")
