@@ -6,6 +6,7 @@ This is what the CLI (``postproc compensate``) and the CAM-hook API
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import re
 import sys
@@ -310,7 +311,12 @@ def compensate_program(
         present = starts >= 0
         starts, ends, values = starts[present], ends[present], values[present]
         tokens = [text[s:e] for s, e in zip(starts.tolist(), ends.tolist())]
-        outputs[index] = apply_edits(text, starts, ends, format_many(tokens, values))
+        owners = np.repeat(rows[in_file], 3)[present]
+        read = t.poses[owners, np.tile([0, 1, 2], int(in_file.sum()))[present]]
+        _verify_numbers(program, owners, tokens, read, 0.0, "is not the {} read for the target")
+        replacements = format_many(tokens, values)
+        _verify_numbers(program, owners, replacements, values, 5e-4, "does not read back as the corrected {}")
+        outputs[index] = apply_edits(text, starts, ends, replacements)
 
     stamp = stamp_line(program.comment, STAMP_PREFIX, model.name, model.sha256)
     after = "&" if program.dialect == "krl" else None
@@ -325,6 +331,34 @@ def compensate_program(
     report.warnings = warnings
     report.outputs = dict(zip(program.files, outputs))
     return report
+
+
+def _floats(tokens: list[str]) -> np.ndarray:
+    """The numbers the tokens read as (NaN where one does not); blanks after a sign allowed."""
+    try:
+        return np.fromiter(map(float, tokens), np.float64, len(tokens))
+    except ValueError:
+        out = np.full(len(tokens), np.nan)
+        for i, token in enumerate(tokens):
+            with contextlib.suppress(ValueError):
+                out[i] = float(token.replace(" ", "").replace("\t", ""))
+        return out
+
+
+def _verify_numbers(program: Program, owners: np.ndarray, tokens: list[str], values: np.ndarray, rounding: float,
+                    what: str) -> None:
+    """A check before anything is written, independent of the reader and the formatter:
+    the tokens at the spans read as ``values`` (to ``rounding``: 0 for the numbers as read,
+    the half µm the format keeps for the replacements). On the spans as read it catches a
+    reader bug (a span that is not the number it took), on the replacements a formatting
+    bug; either becomes a refusal (P190), never a wrong program."""
+    tolerance = rounding + 1e-9 * np.maximum(1.0, np.abs(values))
+    bad = np.flatnonzero(~(np.abs(_floats(tokens) - values) <= tolerance))
+    if len(bad):
+        i = int(bad[0])
+        raise PostprocError(f"refusing to write: the number {tokens[i]!r} {what.format(float(values[i]))} "
+                            "(a postproc bug: please report it with this program)", *_where(program, int(owners[i])),
+                            "P190")
 
 
 def _model(model: Compensator | str | Path | None) -> Compensator:
