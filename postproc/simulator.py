@@ -28,6 +28,7 @@ forward fill; Pinocchio is called only for gravity torques.
 """
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field
 
@@ -200,6 +201,7 @@ class SimulatedRobot:
         self.spec = ErrorSpec.from_description(self.description)
         self.seed = self.spec.seed if seed is None else int(seed)
         self.is_default = seed is None or int(seed) == self.spec.seed
+        self._last_ik: tuple | None = None
         self._draw()
         self.scale = 1.0
         self._reference = self._reference_set()
@@ -344,15 +346,24 @@ class SimulatedRobot:
         return self.chain.transforms(np.radians(q_true))[:, :3, 3]
 
     # ---------------------------------------------------------------- public
+    def _ik(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nominal IK (branch nearest HOME), remembered for the last pose array: a command
+        typically asks reachable() and then measures the same 10^5 poses."""
+        poses = np.ascontiguousarray(np.atleast_2d(np.asarray(poses, float)))
+        key = (poses.shape, hashlib.blake2b(poses.tobytes(), digest_size=16).digest())
+        if self._last_ik is None or self._last_ik[0] != key:
+            self._last_ik = (key, *self.robot.ik(poses))
+        return self._last_ik[1].copy(), self._last_ik[2].copy()
+
     def reachable(self, poses: np.ndarray) -> np.ndarray:
         """Mask of commanded poses [N, 6] the controller can reach (nominal IK within limits)."""
-        return self.robot.ik(poses)[1]
+        return self._ik(poses)[1]
 
     def joint_angles(self, poses: np.ndarray) -> np.ndarray:
         """The controller's commanded joint angles [N, 6] (deg) for TCP poses [N, 6]: nominal
         IK, branch nearest HOME. Raises PostprocError (P335) if any pose is out of reach."""
         poses = np.atleast_2d(np.asarray(poses, float))
-        q, ok = self.robot.ik(poses)
+        q, ok = self._ik(poses)
         if not ok.all():
             bad = np.flatnonzero(~ok)
             raise PostprocError(

@@ -120,3 +120,17 @@ def test_error_table_keys_are_checked(tmp_path):
     with pytest.raises(PostprocError, match="unknown key 'backlash_sprad' in \\[errors\\]") as info:
         SimulatedRobot.from_file(path)
     assert info.value.line == text.splitlines().index(next(s for s in text.splitlines() if "backlash_sprad" in s)) + 1
+
+
+def test_verify_reads_krl_with_frames(capsys):
+    from conftest import REPO
+
+    krl = REPO / "samples" / "krl"
+    args = ["verify", str(krl / "weld_cell.src"), str(krl / "weld_cell.src"), "--config", str(krl / "config" / "$config.dat")]
+    assert main(args + ["--json", "--no-noise"]) == 0
+    captured = capsys.readouterr()
+    figures = json.loads(captured.out)
+    assert figures["targets"] > 5 and figures["skipped"] == 0
+    assert figures["before"] == figures["after"]  # the same program, no noise: the same positions
+    assert 0.05 < figures["before"]["mean"] < 2.0
+    assert "$TOOL" in captured.err  # the sample's tool is not the simulated robot's: said, not hidden
