@@ -814,6 +814,7 @@ class _Reader:
         self.la = a
         self.lt = line
         self.sh = sh
+        self._nums = None  # before a syntax error is reported: its column needs this line's numbers
         if sh.kind == "error":
             self.syntax_error(sh.error)
         if sh.fold:
@@ -826,7 +827,6 @@ class _Reader:
                 self.warn(self.path, i + 1, col, "P105", ";ENDFOLD without ;FOLD")
         if sh.tree is None:
             return
-        self._nums = None
         stmt = None
         for c in sh.tree.children:
             if hasattr(c, "data"):
