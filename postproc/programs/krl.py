@@ -428,7 +428,8 @@ class _HotRows:
     def __init__(self):
         self.parts = []
 
-    def add(self, plan: _Plan, fi: int, line0: np.ndarray, start: np.ndarray, cols: list, key0: int) -> None:
+    def add(self, plan: _Plan, fi: int, line0: np.ndarray, start: np.ndarray, cols: list, key0: int,
+            where=None) -> None:
         """``line0``: 0-based line numbers, ``start``: line start offsets, ``cols[j]``: the
         j-th number string of each line (a sequence, one per line)."""
         n = len(line0)
@@ -440,6 +441,12 @@ class _HotRows:
         lens = {j: np.fromiter(map(len, cols[j]), np.int64, n) for j in range(need_len)}
         vals = {j: np.array(cols[j], dtype=np.float64) for j in used}
         ph = np.array(plan.ph, dtype=np.int64)
+        for j, v in vals.items():
+            if not np.isfinite(v).all():  # 1E999: P103 at the token
+                k = int(np.flatnonzero(~np.isfinite(v))[0])
+                off = int(start[k]) + int(ph[j]) + sum(len(cols[q][k]) - 1 for q in range(j))
+                path, text = where
+                raise PostprocError(f"'{cols[j][k]}' is not a finite number", path, *line_col(text, off), "P103")
         # offset of slot j in its line: ph[j] + Σ_{i<j} (len_i − 1)
         shift = [np.zeros(n, np.int64)]
         for j in range(need_len):
@@ -606,7 +613,7 @@ class _Reader:
         for key, (path, line, col, msg, count) in self.unknown_frames.items():
             if count:
                 self.diagnostics.append(Diagnostic(path, line, col, "P201",
-                                                   f"{msg}: {count} target(s) from here on left as written"))
+                                                   f"{msg}: {count} target(s) left as written"))
         return Program(files=self.files, texts=self.texts, targets=targets, frames=self.frames,
                        diagnostics=self.diagnostics, dialect="krl", stamps=stamps, newlines=newlines, comment=";")
 
@@ -654,7 +661,8 @@ class _Reader:
             self.scan_lines(range(nlines), hot_lines)
         for sh, (lines, starts, nums) in hot_lines.items():
             cols = list(zip(*nums)) if sh.ph else []
-            self.hot.add(sh.plan, fi, np.array(lines, np.int64), np.array(starts, np.int64), cols, self.key0)
+            self.hot.add(sh.plan, fi, np.array(lines, np.int64), np.array(starts, np.int64), cols, self.key0,
+                         (self.path, self.text))
         self.finish_file(nlines)
         self.check_parts(self.hot.parts[first_part:])
 
@@ -771,7 +779,7 @@ class _Reader:
                 else:
                     pick = itemgetter(*sel.tolist()) if len(sel) > 1 else (lambda c, k=int(sel[0]): (c[k],))
                     sub = [pick(cols[g - 1 + q]) for q in range(len(plan.ph))]
-                self.hot.add(plan, self.fi, line0[sel], starts[line0[sel]], sub, self.key0)
+                self.hot.add(plan, self.fi, line0[sel], starts[line0[sel]], sub, self.key0, (self.path, self.text))
                 counts[gtext] += len(sel)
             del cols
             rest = np.flatnonzero(~is_hot)
@@ -879,7 +887,12 @@ class _Reader:
             found = f"'{found}'"
         elif isinstance(exc, UnexpectedCharacters):
             pos = exc.pos_in_stream
-            found = f"'{self.lt[self.abs_pos(pos) - self.la]}'"
+            rest = self.lt[self.abs_pos(pos) - self.la:]
+            bad = re.match(r"[-+]?[\d.][\w.]*(?:[eE][-+]?\w*)?", rest)
+            if bad:
+                raise PostprocError(f"syntax error: malformed number '{bad.group()}'", self.path, self.ln,
+                                    self.col(pos), "P101")
+            found = f"'{rest[:1]}'"
         else:
             pos = len(shape.rstrip())
             found = "end of line"
@@ -1474,7 +1487,7 @@ class _Reader:
         why = st.base if isinstance(st.base, _Unknown) else (
             st.robroot if isinstance(st.robroot, _Unknown) else None)
         if why is not None:
-            key = (self.path, why.where[0], why.why)
+            key = (self.path, why.why)
             if key not in self.unknown_frames:
                 self.unknown_frames[key] = [self.path, why.where[0] or self.ln, why.where[1] or 1,
                                             f"frame not statically known ({why.why})", 0]
