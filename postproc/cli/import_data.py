@@ -63,6 +63,12 @@ def run(args) -> int:
 
     import numpy as np
 
+    from ..diagnostics import PostprocError
+
+    try:
+        import scipy.spatial  # noqa: F401  (angle conversions)
+    except ImportError:
+        raise PostprocError("postproc import needs scipy: pip install 'postproc[train]'") from None
     from ..datasets import read_ipa, write_measurements
     from ..registration import register_measurements
     from ..training.data import split_indices  # numpy only; the same draw as `train`
