@@ -125,3 +125,14 @@ def test_searches_are_reproducible_from_the_generator():
     b = gpso(_sphere, 8, population=6, generations=5, generator=_gen(7))
     c = gpso(_sphere, 8, population=6, generations=5, generator=_gen(8))
     assert torch.equal(a.theta, b.theta) and not torch.equal(a.theta, c.theta)
+
+
+def test_written_out_jacobian_equals_torch_func():
+    from postproc.training.network import jacobian
+
+    s = Structure((7, 5, 4))
+    g = _gen(10)
+    theta = torch.rand(s.n_params, generator=g, dtype=torch.float64) * 2 - 1
+    x = torch.randn(40, 6, generator=g, dtype=torch.float64)
+    reference = torch.func.jacrev(lambda t: forward(s, t, x).reshape(-1))(theta)
+    assert torch.allclose(jacobian(s, theta, x), reference, atol=1e-12)

@@ -143,3 +143,41 @@ def test_torch_stays_single_threaded_only_during_fit(data):
     before = torch.get_num_threads()
     ErrorModel(hidden=(4,), generations=1, epochs=1).fit(poses[train], errors[train])
     assert torch.get_num_threads() == before
+
+
+def test_prediction_depends_on_the_rotation_not_on_its_abc_triple(fitted, data, tmp_path):
+    # compensate (like a controller) may hand the model (A+180, 180−B, C+180) for (A, B, C):
+    # the same rotation, so it must get the same Ê — also in the exported graph
+    from postproc import frames
+
+    poses = data[0][:50]
+    alt = poses.copy()
+    alt[:, 3:6] = (poses[:, 3:6] + [180.0, 0.0, 180.0] + 180.0) % 360.0 - 180.0
+    alt[:, 4] = 180.0 - poses[:, 4]
+    assert np.allclose(frames.rotation_from_abc(alt[:, 3:6]), frames.rotation_from_abc(poses[:, 3:6]))
+    assert np.allclose(fitted.predict(alt), fitted.predict(poses), atol=1e-9)
+    comp = load_model(fitted.export_onnx(tmp_path / "m.onnx"))
+    assert np.allclose(comp.predict(alt), comp.predict(poses), atol=2e-5)
+    canonical = frames.matrix_to_frame(frames.frame_to_matrix(poses))  # B in [−90, 90]
+    assert np.allclose(comp.predict(canonical), comp.predict(poses), atol=2e-5)
+
+
+def test_envelope_of_a_tool_pointing_down_holds_its_poses_in_either_abc_triple(tmp_path):
+    # the default robot's working attitude is B = 90: half of its poses have B > 90, which
+    # compensate re-expresses as (A+180, 180−B, C+180); the model card's envelope must still hold them
+    from postproc import frames
+
+    rng = np.random.default_rng(0)
+    poses = np.column_stack([rng.uniform(1700, 2300, 400), rng.uniform(-600, 600, 400), rng.uniform(500, 1300, 400),
+                             rng.uniform(-10, 10, 400), rng.uniform(80, 100, 400), rng.uniform(-10, 10, 400)])
+    errors = 0.3 * np.sin(poses[:, :3] / 200.0)
+    model = ErrorModel(hidden=(6,), generations=2, epochs=3).fit(poses, errors)
+    comp = load_model(model.export_onnx(tmp_path / "down.onnx"))
+    assert comp.metadata["envelope"]["attitude"] == pytest.approx([0, 90, 0], abs=0.5)
+    canonical = frames.matrix_to_frame(frames.frame_to_matrix(poses))
+    assert (canonical[:, 4] <= 90).all() and (np.abs(canonical[:, 3]) > 90).any()
+    assert not comp.envelope.outside(canonical).any() and not comp.envelope.outside(poses).any()
+    assert np.allclose(comp.predict(canonical), comp.predict(poses), atol=2e-5)
+    tilted = canonical.copy()
+    tilted[:, 4] -= 15.0  # 15° further from the working attitude than any training pose
+    assert comp.envelope.outside(tilted).all()

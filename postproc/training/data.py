@@ -35,6 +35,7 @@ __all__ = [
     "check_size",
     "min_points",
     "envelope_of",
+    "attitude_centre",
     "wrap_deg",
 ]
 

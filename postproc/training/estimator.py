@@ -16,6 +16,7 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 from pathlib import Path
+
 import numpy as np
 import torch
 
@@ -29,7 +30,7 @@ __all__ = ["ErrorModel", "METHODS", "DEFAULT_OPTIMIZER", "residual_stats"]
 
 METHODS = ("gpso", "ga", "pso", "plain")
 # The backprop optimiser used after the weight search unless told otherwise: the best of
-# gd / momentum / adam / lbfgs / lm measured after GPSO (models/README.md, benchmarks/train_speed.py).
+# gd / momentum / adam / lbfgs / lm measured after GPSO (models/README.md, benchmarks/train_compare.py).
 DEFAULT_OPTIMIZER = "lm"
 METHOD_LABEL = {"gpso": "GPSO-DNN", "ga": "GA-DNN", "pso": "PSO-DNN", "plain": "DNN"}
 

@@ -2,7 +2,7 @@
 
 torch.onnx.export (the TorchScript exporter: the dynamo one needs onnxscript, which the
 ``train`` extra does not pull in), opset 17, input ``pose`` float32 [N, 6] with a dynamic
-batch axis, output ``error`` float32 [N, 3]; angle unwrapping and standardisation are inside
+batch axis, output ``error`` float32 [N, 3]; pose features and standardisation are inside
 the graph. Metadata go into ``metadata_props`` through ``contract_metadata``. The file is
 written to a temporary name in the target folder and moved into place, so a failed export
 never leaves a half-written model.

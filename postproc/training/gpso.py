@@ -4,7 +4,7 @@ Each generation (population P, flat weight vectors as particle positions):
 
 1. PSO move: v ← w·v + c1·r1·(pbest − x) + c2·r2·(gbest − x), x ← x + v
    (c1 = c2 = 1.4962; w = 0.7298 constant by default — measured better than 0.9→0.4 on our
-   data, see ``benchmarks/train_speed.py --inertia``);
+   data, see ``benchmarks/train_compare.py --inertia``);
 2. fitness (training MSE, standardised units) of the whole population in one batched pass;
    update personal and global bests;
 3. selection: keep the better half by fitness;

@@ -1,4 +1,4 @@
-"""The error network: a ReLU MLP pose (6) → E (3), its standardisation, batched evaluation.
+"""The error network: a ReLU MLP pose (6) → E (3), its input features and standardisation.
 
 Weights live in one flat vector θ (what GPSO/GA/PSO move around as particle positions).
 :func:`forward` evaluates θ of shape [D] or a whole population [P, D] with one batched
@@ -7,14 +7,24 @@ torch module, with the standardisation inside, for ``predict`` and the ONNX expo
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-from .data import attitude_centre, wrap_deg
 
-__all__ = ["Structure", "Scaling", "forward", "ErrorNet", "parse_hidden"]
+__all__ = [
+    "Structure",
+    "Scaling",
+    "forward",
+    "jacobian",
+    "ErrorNet",
+    "parse_hidden",
+    "pose_features",
+    "rotation_matrices",
+    "mean_rotation",
+]
 
 N_IN, N_OUT = 6, 3
 
@@ -87,20 +97,85 @@ def forward(structure: Structure, theta: torch.Tensor, x: torch.Tensor) -> torch
     return h
 
 
+def jacobian(structure: Structure, theta: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    """∂ forward(θ, x) / ∂θ for one network θ [D] at points x [N, 6] → [N·3, D] (rows n-major).
+
+    Backprop written out for the MLP: with a_{l−1} the input of layer l and δ_l[n, k, :] =
+    ∂f_k/∂z_l, ∂f_k/∂W_l[i, j] = a_{l−1}[n, i]·δ_l[n, k, j] and ∂f_k/∂b_l = δ_l. A handful of
+    batched ops instead of torch.func's vmap(jacrev): the same numbers, 10× faster (4 vs 43 ms
+    for 1900 points and 423 weights) and no warm-up; a test compares the two.
+    """
+    layers = structure.unflatten(theta)
+    inputs, masks = [], []
+    h = x
+    for i, (w, b) in enumerate(layers):
+        inputs.append(h)
+        z = h @ w + b
+        if i < len(layers) - 1:
+            masks.append((z > 0).to(z.dtype))
+            h = torch.relu(z)
+    n = x.shape[0]
+    delta = torch.eye(N_OUT, dtype=x.dtype).expand(n, N_OUT, N_OUT)  # ∂f/∂z_L
+    blocks: list[torch.Tensor] = []
+    for i in range(len(layers) - 1, -1, -1):
+        w, _ = layers[i]
+        a = inputs[i]
+        blocks.append(delta)  # bias block [N, 3, out]
+        blocks.append(torch.einsum("ni,nkj->nkij", a, delta).reshape(n, N_OUT, -1))  # weight block
+        if i > 0:
+            delta = (delta @ w.T) * masks[i - 1][:, None, :]
+    return torch.cat(blocks[::-1], dim=2).reshape(n * N_OUT, -1)
+
+
+def rotation_matrices(abc_deg: torch.Tensor) -> torch.Tensor:
+    """[N, 3] KUKA A,B,C (deg) → [N, 3, 3] R = Rz(A)·Ry(B)·Rx(C) (as postproc.frames, in torch)."""
+    a, b, c = (abc_deg * (math.pi / 180.0)).unbind(dim=1)
+    ca, sa, cb, sb, cc, sc = torch.cos(a), torch.sin(a), torch.cos(b), torch.sin(b), torch.cos(c), torch.sin(c)
+    rows = [
+        ca * cb, ca * sb * sc - sa * cc, ca * sb * cc + sa * sc,
+        sa * cb, sa * sb * sc + ca * cc, sa * sb * cc - ca * sc,
+        -sb, cb * sc, cb * cc,
+    ]  # fmt: skip
+    return torch.stack(rows, dim=1).reshape(-1, 3, 3)
+
+
+def pose_features(pose: torch.Tensor, centre: torch.Tensor) -> torch.Tensor:
+    """The network's 6 inputs: X, Y, Z and the attitude's deviation from ``centre`` [3, 3].
+
+    The deviation is the axis·sin(angle) vector of Rc^T·R, in degrees. Unlike raw A,B,C it is
+    the same for every A,B,C triple of one rotation — (A, B, C) and (A+180, 180−B, C+180) —
+    and smooth at B = ±90°, where the working attitude of a tool pointing down sits and where
+    A and C alone are not even defined. (The controller, and ``compensate``, may re-express a
+    programmed A,B,C in the other triple; a model of raw A,B,C would then see another input.)
+    """
+    m = centre.T @ rotation_matrices(pose[:, 3:6])
+    dev = torch.stack([m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]], dim=1)
+    return torch.cat([pose[:, 0:3], dev * (90.0 / math.pi)], dim=1)  # ½·(…)·180/π
+
+
+def mean_rotation(abc_deg: np.ndarray) -> np.ndarray:
+    """The chordal mean of the rotations of A,B,C rows: the mean matrix projected onto SO(3)."""
+    r = torch.as_tensor(np.asarray(abc_deg, dtype=np.float64).reshape(-1, 3))
+    u, _, vt = np.linalg.svd(rotation_matrices(r).mean(dim=0).numpy())
+    d = np.sign(np.linalg.det(u @ vt))
+    return u @ np.diag([1.0, 1.0, d]) @ vt
+
+
 @dataclass
 class Scaling:
-    """Input and output standardisation; A,B,C are first wrapped around the data's attitude centre."""
+    """Input features (position + attitude deviation from the data's mean rotation) and
+    output standardisation; everything the exported graph needs besides the weights."""
 
-    attitude: np.ndarray  # [3] deg
-    x_mean: np.ndarray  # [6]
+    centre: np.ndarray  # [3, 3] mean rotation of the training attitudes
+    x_mean: np.ndarray  # [6] of the features
     x_std: np.ndarray  # [6]
     y_mean: np.ndarray  # [3]
     y_std: np.ndarray  # [3]
 
     @classmethod
     def fit(cls, poses: np.ndarray, errors: np.ndarray) -> "Scaling":
-        centre = attitude_centre(poses[:, 3:6])
-        x = cls._unwrap(poses, centre)
+        centre = mean_rotation(poses[:, 3:6])
+        x = cls._features(poses, centre)
         # a constant column (e.g. one fixed attitude) would divide by zero: leave it unscaled
         x_std = x.std(axis=0)
         y_std = errors.std(axis=0)
@@ -113,20 +188,19 @@ class Scaling:
         )
 
     @staticmethod
-    def _unwrap(poses: np.ndarray, centre: np.ndarray) -> np.ndarray:
-        x = np.array(poses, dtype=np.float64).reshape(-1, 6)
-        x[:, 3:6] = wrap_deg(x[:, 3:6] - centre)
-        return x
+    def _features(poses: np.ndarray, centre: np.ndarray) -> np.ndarray:
+        p = torch.as_tensor(np.asarray(poses, dtype=np.float64).reshape(-1, 6))
+        return pose_features(p, torch.as_tensor(centre)).numpy()
 
     def inputs(self, poses: np.ndarray) -> np.ndarray:
-        return (self._unwrap(poses, self.attitude) - self.x_mean) / self.x_std
+        return (self._features(poses, self.centre) - self.x_mean) / self.x_std
 
     def outputs(self, errors: np.ndarray) -> np.ndarray:
         return (np.asarray(errors, dtype=np.float64) - self.y_mean) / self.y_std
 
 
 class ErrorNet(torch.nn.Module):
-    """pose [N, 6] (any float dtype) → E [N, 3] mm: unwrap angles, standardise, MLP, unscale.
+    """pose [N, 6] (any float dtype) → E [N, 3] mm: features, standardise, MLP, unscale.
 
     ``dtype`` is the internal precision; the output is cast back to the input's dtype so the
     exported graph takes and returns float32 while computing in float64 when asked.
@@ -140,7 +214,7 @@ class ErrorNet(torch.nn.Module):
         def buf(name: str, value) -> None:
             self.register_buffer(name, torch.as_tensor(np.asarray(value, dtype=np.float64), dtype=dtype))
 
-        buf("attitude", scaling.attitude)
+        buf("centre", scaling.centre)
         buf("x_mean", scaling.x_mean)
         buf("x_std", scaling.x_std)
         buf("y_mean", scaling.y_mean)
@@ -154,9 +228,7 @@ class ErrorNet(torch.nn.Module):
             self.layers.append(lin)
 
     def forward(self, pose: torch.Tensor) -> torch.Tensor:
-        p = pose.to(self.dtype)
-        abc = torch.remainder(p[:, 3:6] - self.attitude + 180.0, 360.0) - 180.0
-        h = (torch.cat([p[:, 0:3], abc], dim=1) - self.x_mean) / self.x_std
+        h = (pose_features(pose.to(self.dtype), self.centre) - self.x_mean) / self.x_std
         for i, layer in enumerate(self.layers):
             h = layer(h)
             if i < len(self.layers) - 1:

@@ -9,8 +9,8 @@ choice here; all of them work on the full training batch, one update per epoch:
 * ``adam``: Adam, lr 0.01;
 * ``lbfgs``: L-BFGS with a strong-Wolfe line search, one iteration per epoch;
 * ``lm``: Levenberg–Marquardt as MATLAB's trainlm (μ from 1e-3, ×0.1 on success, ×10 on
-  failure, stop at μ > 1e10); the Jacobian of the residuals comes from
-  ``vmap(jacrev)`` per training point ([N·3, D], a few hundred weights: cheap).
+  failure, stop at μ > 1e10); the Jacobian of the residuals [N·3, D] is the MLP's backprop
+  written out (``network.jacobian``; a few hundred weights: JᵀJ is cheap).
 
 The MSE is in standardised output units (each of Ex, Ey, Ez scaled to unit variance), so the
 goal 1e-5 means a residual ~0.3 % of the spread of the errors.
@@ -22,7 +22,7 @@ from typing import Callable
 
 import torch
 
-from .network import Structure, forward
+from .network import Structure, forward, jacobian
 
 __all__ = ["OPTIMIZERS", "RefineResult", "refine"]
 
@@ -103,11 +103,6 @@ def _levenberg_marquardt(
     def residuals(t: torch.Tensor) -> torch.Tensor:
         return (forward(structure, t, x) - y).reshape(-1)
 
-    def one(t: torch.Tensor, xi: torch.Tensor) -> torch.Tensor:
-        return forward(structure, t, xi[None])[0]
-
-    # per-point Jacobian [N, 3, D]: three vector-Jacobian products per point, vectorised
-    jacobian = torch.func.vmap(torch.func.jacrev(one), in_dims=(None, 0))
     eye = torch.eye(theta.numel(), dtype=theta.dtype)
     mu = MU_START
     r = residuals(theta)
@@ -118,7 +113,7 @@ def _levenberg_marquardt(
         if loss <= goal:
             stopped = "goal"
             break
-        j = jacobian(theta, x).reshape(n_res, -1)
+        j = jacobian(structure, theta, x)
         jtj, jtr = j.T @ j, j.T @ r
         while True:
             step = torch.linalg.solve(jtj + mu * eye, jtr)
