@@ -57,9 +57,15 @@ class Envelope:
         lo, hi = self.box[0::2] - tolerance_mm, self.box[1::2] + tolerance_mm
         xyz = poses[:, :3]
         out = np.any((xyz < lo) | (xyz > hi), axis=1)
-        # per component, as the network sees the numbers; angles wrap at ±180
-        d = (poses[:, 3:6] - self.attitude + 180.0) % 360.0 - 180.0
-        return out | np.any(np.abs(d) > self.range + tolerance_deg, axis=1)
+        # per component; angles wrap at ±180. A rotation has two A,B,C triples, (A, B, C) and
+        # (A+180, 180−B, C+180), and compensate passes the one with |B| ≤ 90: an envelope
+        # around B = 90 (tool pointing down) holds half its poses in the other triple.
+        abc = poses[:, 3:6]
+        alt = abc + np.array([180.0, 0.0, 180.0])
+        alt[:, 1] = 180.0 - abc[:, 1]
+        limit = self.range + tolerance_deg
+        d, d_alt = ((t - self.attitude + 180.0) % 360.0 - 180.0 for t in (abc, alt))
+        return out | (np.any(np.abs(d) > limit, axis=1) & np.any(np.abs(d_alt) > limit, axis=1))
 
 
 @dataclass
