@@ -38,7 +38,7 @@ from . import frames
 from .diagnostics import PostprocError
 from .robot import CODE_KEY, CODE_VALUE, Chain, Robot, RobotDescription, axis_rotations, load_description
 
-__all__ = ["ErrorSpec", "SimulatedRobot", "table2", "approach_signs", "CODE_REACH"]
+__all__ = ["ErrorSpec", "SimulatedRobot", "table2", "approach_signs", "small_transform", "CODE_REACH"]
 
 CODE_REACH = "P335"
 CALIBRATION_POSES = 2000
@@ -160,7 +160,7 @@ def approach_signs(q_deg: np.ndarray, start_q: np.ndarray, start_sign: float = 1
     return np.take_along_axis(sign, last, axis=0)[1:]
 
 
-def _small_transform(rotvec_rad: np.ndarray, offset_mm: np.ndarray) -> np.ndarray:
+def small_transform(rotvec_rad: np.ndarray, offset_mm: np.ndarray) -> np.ndarray:
     """[..., 4, 4] rigid transforms from rotation vectors [..., 3] and offsets [..., 3]."""
     angle = np.linalg.norm(rotvec_rad, axis=-1)
     axis = np.where(angle[..., None] > 0, rotvec_rad / np.where(angle > 0, angle, 1.0)[..., None], [0.0, 0.0, 1.0])
@@ -251,10 +251,10 @@ class SimulatedRobot:
 
         r, k = self.robot, self.scale
         nominal = r.chain
-        placements = nominal.placements @ _small_transform(k * self.joint_tilts_rad, k * self.joint_offsets_mm)
-        tool = _small_transform(k * self.tool_error[0], k * self.tool_error[1])
+        placements = nominal.placements @ small_transform(k * self.joint_tilts_rad, k * self.joint_offsets_mm)
+        tool = small_transform(k * self.tool_error[0], k * self.tool_error[1])
         end = r.flange_chain.end @ r.tool_matrix @ tool
-        base = _small_transform(self.base_error[0], self.base_error[1])
+        base = small_transform(self.base_error[0], self.base_error[1])
         if self._reference is not None:
             poses, q, joint_errors = self._reference
             raw = Chain(placements, nominal.axes, end).transforms(np.radians(q + joint_errors + k * self.zero_offsets_deg))
