@@ -114,6 +114,8 @@ class Program:
     stamps: dict[int, str] = field(default_factory=dict)  # file index → stamp line found in it
     newlines: list[str] = field(default_factory=list)  # dominant line ending per file
     comment: str = ";"  # the dialect's comment marker, for the stamp line
+    config: list[str] | None = None  # the $config.dat texts it was read with (to read it again)
+    from_text: bool = False  # made by read_program: its texts, read again, give it again
 
 
 KRL_SUFFIXES = {".src", ".dat", ".sub"}
@@ -137,9 +139,14 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
     if dialect == "krl":
         from . import krl
 
-        return krl.read(files, texts, config=config)
+        program = krl.read(files, texts, config=config)
+        program.config = list(config) if config else None
+        program.from_text = True
+        return program
     if dialect == "poses":
         from . import poses
 
-        return poses.read(files, texts)
+        program = poses.read(files, texts)
+        program.from_text = True
+        return program
     raise ValueError(f"unknown dialect {dialect!r}")
