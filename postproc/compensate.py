@@ -6,7 +6,6 @@ This is what the CLI (``postproc compensate``) and the CAM-hook API
 """
 from __future__ import annotations
 
-import contextlib
 import math
 import re
 import sys
@@ -18,6 +17,7 @@ import numpy as np
 from . import frames
 from .compensator import Compensator, load_model
 from .diagnostics import Diagnostic, PostprocError
+from .guards import ROUNDING_MM, check_numbers, check_round_trip
 from .programs import STAMP_PREFIX, Program, dialect_of, read_program
 from .rewrite import apply_edits, format_many, insert_stamp, stamp_line, write_atomic
 
@@ -313,10 +313,12 @@ def compensate_program(
         tokens = [text[s:e] for s, e in zip(starts.tolist(), ends.tolist())]
         owners = np.repeat(rows[in_file], 3)[present]
         read = t.poses[owners, np.tile([0, 1, 2], int(in_file.sum()))[present]]
-        _verify_numbers(program, owners, tokens, read, 0.0, "is not the {} read for the target")
+        check_numbers(program, owners, tokens, read, 0.0, "is not the {} read for the target")
         replacements = format_many(tokens, values)
-        _verify_numbers(program, owners, replacements, values, 5e-4, "does not read back as the corrected {}")
+        check_numbers(program, owners, replacements, values, ROUNDING_MM, "does not read back as the corrected {}")
         outputs[index] = apply_edits(text, starts, ends, replacements)
+    if program.from_text:  # (a Program built by hand has no text to read it from)
+        check_round_trip(program, outputs, rows, new_xyz)
 
     stamp = stamp_line(program.comment, STAMP_PREFIX, model.name, model.sha256)
     after = "&" if program.dialect == "krl" else None
@@ -331,34 +333,6 @@ def compensate_program(
     report.warnings = warnings
     report.outputs = dict(zip(program.files, outputs))
     return report
-
-
-def _floats(tokens: list[str]) -> np.ndarray:
-    """The numbers the tokens read as (NaN where one does not); blanks after a sign allowed."""
-    try:
-        return np.fromiter(map(float, tokens), np.float64, len(tokens))
-    except ValueError:
-        out = np.full(len(tokens), np.nan)
-        for i, token in enumerate(tokens):
-            with contextlib.suppress(ValueError):
-                out[i] = float(token.replace(" ", "").replace("\t", ""))
-        return out
-
-
-def _verify_numbers(program: Program, owners: np.ndarray, tokens: list[str], values: np.ndarray, rounding: float,
-                    what: str) -> None:
-    """A check before anything is written, independent of the reader and the formatter:
-    the tokens at the spans read as ``values`` (to ``rounding``: 0 for the numbers as read,
-    the half µm the format keeps for the replacements). On the spans as read it catches a
-    reader bug (a span that is not the number it took), on the replacements a formatting
-    bug; either becomes a refusal (P190), never a wrong program."""
-    tolerance = rounding + 1e-9 * np.maximum(1.0, np.abs(values))
-    bad = np.flatnonzero(~(np.abs(_floats(tokens) - values) <= tolerance))
-    if len(bad):
-        i = int(bad[0])
-        raise PostprocError(f"refusing to write: the number {tokens[i]!r} {what.format(float(values[i]))} "
-                            "(a postproc bug: please report it with this program)", *_where(program, int(owners[i])),
-                            "P190")
 
 
 def _model(model: Compensator | str | Path | None) -> Compensator:

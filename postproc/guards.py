@@ -1,0 +1,116 @@
+"""The last checks before a compensated program is written, independent of the reader and
+the formatter that produced it: a bug in either, or a program whose numbers cannot be
+changed one target at a time, becomes a refusal (``PostprocError``), never a wrong program.
+
+* :func:`check_numbers` — the tokens at the targets' spans read as the numbers the reader
+  took (a span on the wrong token), and the new tokens as the corrected values (P190);
+* :func:`check_round_trip` — the new texts, read again, are the same program with only the
+  corrected X/Y/Z: the same targets in the same frames, every other component as it was
+  (P191). This catches what no single edit shows, e.g. a position variable that is both a
+  motion target (so it is compensated) and a frame (``$BASE = XP1``, ``XP1:XP2``): changing
+  its numbers would move every target programmed in that frame.
+"""
+from __future__ import annotations
+
+import contextlib
+
+import numpy as np
+
+from .diagnostics import PostprocError
+from .programs import Program, read_program
+
+__all__ = ["check_numbers", "check_round_trip", "ROUNDING_MM"]
+
+# New numbers are written with at least three decimals: half a µm of rounding at most.
+ROUNDING_MM = 5e-4
+
+
+def _where(program: Program, row: int) -> tuple[str, int, int]:
+    t = program.targets
+    return program.files[t.file[row]], int(t.line[row]), int(t.col[row])
+
+
+def _floats(tokens: list[str]) -> np.ndarray:
+    """The numbers the tokens read as (NaN where one does not); blanks after a sign allowed."""
+    try:
+        return np.fromiter(map(float, tokens), np.float64, len(tokens))
+    except ValueError:
+        out = np.full(len(tokens), np.nan)
+        for i, token in enumerate(tokens):
+            with contextlib.suppress(ValueError):
+                out[i] = float(token.replace(" ", "").replace("\t", ""))
+        return out
+
+
+def check_numbers(program: Program, owners: np.ndarray, tokens: list[str], values: np.ndarray, rounding: float,
+                  what: str) -> None:
+    """Refuse (P190) unless every token reads as its value to ``rounding`` (0 for the
+    numbers as read; :data:`ROUNDING_MM` for replacements). ``owners`` are the target rows
+    the tokens belong to (for the message); ``what`` says what a mismatch means, with a
+    ``{}`` for the value."""
+    tolerance = rounding + 1e-9 * np.maximum(1.0, np.abs(values))
+    bad = np.flatnonzero(~(np.abs(_floats(tokens) - values) <= tolerance))
+    if len(bad):
+        i = int(bad[0])
+        raise PostprocError(f"refusing to write: the number {tokens[i]!r} {what.format(float(values[i]))} "
+                            "(a postproc bug: please report it with this program)", *_where(program, int(owners[i])),
+                            "P190")
+
+
+def _refuse(program: Program, rows: np.ndarray, message: str) -> PostprocError:
+    where = _where(program, int(rows[0])) if len(rows) else (program.files[0], 1, 1)
+    return PostprocError(f"refusing to write: {message}", *where, "P191")
+
+
+def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_xyz: np.ndarray) -> None:
+    """Read ``texts`` (the program's files with the corrected numbers, before the stamp)
+    again and refuse (P191) unless they hold the same targets (file, line, motion) in the
+    same frames, with ``new_xyz`` [len(rows), 3] at the compensated targets' written X/Y/Z
+    (to the rounding of the format) and every other written component unchanged."""
+    a = program.targets
+    try:
+        again = read_program(program.files, texts, program.dialect, config=program.config)
+    except PostprocError as exc:
+        raise PostprocError(f"refusing to write: the compensated text does not read again ({exc.message})",
+                            exc.path, exc.line, exc.col, "P191") from None
+    b = again.targets
+    if len(a) != len(b):
+        first_extra = np.array([min(len(a), len(b))])  # the first target one side lacks
+        raise _refuse(program if len(a) > len(b) else again, first_extra,
+                      f"the compensated text reads as {len(b)} targets, not {len(a)}")
+    for column in ("file", "line", "motion"):
+        differ = np.flatnonzero(getattr(a, column) != getattr(b, column))
+        if len(differ):
+            raise _refuse(program, differ, f"the compensated text reads as other targets ({column} differs)")
+    # frames: the same base for every target (matrices compared, indices may differ)
+    known = a.frame >= 0
+    differ = np.flatnonzero(known != (b.frame >= 0))
+    if len(differ):
+        raise _refuse(program, differ, "the frame of this target is not statically known in the compensated text")
+    pairs = np.unique(np.stack([a.frame[known], b.frame[known]], axis=1), axis=0)
+    for i, j in pairs.tolist():
+        before, after = program.frames[i], again.frames[j]
+        same_tool = (before.tool is None) == (after.tool is None) and (
+            before.tool is None or np.allclose(before.tool, after.tool, rtol=0.0, atol=1e-9))
+        if not (same_tool and np.allclose(before.base, after.base, rtol=0.0, atol=1e-9)):
+            moved = after.base[:3, 3] - before.base[:3, 3] if same_tool else np.subtract(after.tool, before.tool)[:3]
+            raise _refuse(program, np.flatnonzero((a.frame == i) & (b.frame == j)),
+                          f"compensating moves the {'base' if same_tool else 'tool'} of this target ({before.label}, "
+                          f"by {float(np.linalg.norm(moved)):.3f} mm): a position that is compensated as a motion "
+                          "target is also used as a frame")
+    # values: the corrected X/Y/Z where compensated and written, everything else as it was
+    expected = a.poses.copy()
+    expected[rows, :3] = new_xyz
+    written = np.zeros(a.poses.shape, bool)
+    written[:, :3] = a.spans[:, :, 0] >= 0
+    written[:, 3:] = True  # orientation is never rewritten (NaN where unknown, on both sides)
+    compensated = np.zeros(len(a), bool)
+    compensated[rows] = True
+    tolerance = np.where(compensated[:, None], ROUNDING_MM, 0.0) + 1e-9 * np.maximum(1.0, np.abs(expected))
+    same = (np.abs(b.poses - expected) <= tolerance) | (np.isnan(b.poses) & np.isnan(expected))
+    bad = np.flatnonzero((written & ~same).any(axis=1))
+    if len(bad):
+        r = int(bad[0])
+        k = int(np.flatnonzero(written[r] & ~same[r])[0])
+        raise _refuse(program, bad, f"the compensated text reads {'XYZABC'[k]} {b.poses[r, k]!r} at this target, "
+                      f"expected {expected[r, k]!r}: its numbers are shared with another target")
