@@ -111,8 +111,9 @@ def identification_design(sim: SimulatedRobot, poses: np.ndarray) -> np.ndarray:
             placements[j] = placements[j] @ bump(k)
             cols.append((Chain(placements, r.chain.axes, r.chain.end).transforms(qr)[:, :3, 3] - nominal) / eps)
     for k in range(6):  # tool, base
-        cols.append((Chain(r.chain.placements, r.chain.axes, r.chain.end @ bump(k)).transforms(qr)[:, :3, 3] - nominal) / eps)
-        cols.append((Chain(r.chain.placements, r.chain.axes, r.chain.end, bump(k)).transforms(qr)[:, :3, 3] - nominal) / eps)
+        for chain in (Chain(r.chain.placements, r.chain.axes, r.chain.end @ bump(k)),
+                      Chain(r.chain.placements, r.chain.axes, r.chain.end, bump(k))):
+            cols.append((chain.transforms(qr)[:, :3, 3] - nominal) / eps)
     tau = r.gravity_torques(q)
     for j in range(6):  # joint-angle errors: zero offset, backlash, compliance, ripple
         dq = np.zeros(6)

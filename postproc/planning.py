@@ -154,7 +154,8 @@ def _parse_pose_lines(lines: list[str], path: str) -> np.ndarray:
                 value = math.nan
             if not math.isfinite(value):
                 shown = fields[i].strip() or "(empty)"
-                raise PostprocError(f"column '{header[i]}': '{shown}' is not a finite number", path, number, col, "P502")
+                raise PostprocError(f"column '{header[i]}': '{shown}' is not a finite number",
+                                    path, number, col, "P502")
             row.append(value)
         rows.append(row)
     if not rows:

@@ -28,7 +28,8 @@ from . import frames
 from .diagnostics import PostprocError
 from .resources import model_path
 
-__all__ = ["JointSpec", "RobotDescription", "load_description", "Chain", "Robot", "axis_rotations"]
+__all__ = ["JointSpec", "RobotDescription", "load_description", "parse_description", "check_value", "Chain", "Robot",
+           "axis_rotations"]
 
 MM = 1e-3  # mm → m
 CODE_SYNTAX, CODE_KEY, CODE_VALUE, CODE_GEOMETRY = "P330", "P331", "P332", "P333"
@@ -111,7 +112,8 @@ def _locate(text: str, table: str, key: str | None, index: int = 0) -> int:
     return 0
 
 
-def _value(kind: str, value, where: str, fail) -> object:
+def check_value(kind: str, value, where: str, fail) -> object:
+    """``value`` as ``kind`` ("str", "int", "num" or "vec:n"), else raise ``fail(message)``."""
     if kind == "str":
         if not isinstance(value, str):
             raise fail(f"{where} must be text, got {value!r}")
@@ -139,7 +141,8 @@ def load_description(path: str | Path | None = None) -> RobotDescription:
     try:
         text = path.read_bytes().decode("utf-8")
     except OSError as exc:
-        raise PostprocError(f"cannot read robot description: {exc.strerror or exc}", str(path), code=CODE_SYNTAX) from exc
+        raise PostprocError(f"cannot read robot description: {exc.strerror or exc}", str(path),
+                            code=CODE_SYNTAX) from exc
     except UnicodeDecodeError as exc:
         raise PostprocError(f"robot description is not UTF-8 text: {exc.reason}", str(path), code=CODE_SYNTAX) from exc
     return parse_description(text, str(path))
@@ -173,7 +176,7 @@ def parse_description(text: str, path: str = "<robot>") -> RobotDescription:
             if key not in schema:
                 raise fail_at(table, key, index, CODE_KEY)(
                     f"unknown key '{key}' in [{table}] (known: {', '.join(schema)})")
-            out[key] = _value(schema[key], value, f"[{table}] {key}", fail_at(table, key, index))
+            out[key] = check_value(schema[key], value, f"[{table}] {key}", fail_at(table, key, index))
         for key in _REQUIRED.get(table, ()):
             if key not in out:
                 raise fail_at(table, None, index, CODE_KEY)(f"[{table}] needs '{key}'")

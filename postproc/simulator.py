@@ -36,7 +36,7 @@ import numpy as np
 
 from . import frames
 from .diagnostics import PostprocError
-from .robot import CODE_KEY, CODE_VALUE, Chain, Robot, RobotDescription, axis_rotations, load_description
+from .robot import CODE_KEY, Chain, Robot, RobotDescription, axis_rotations, check_value, load_description
 
 __all__ = ["ErrorSpec", "SimulatedRobot", "table2", "approach_signs", "small_transform", "CODE_REACH"]
 
@@ -44,26 +44,26 @@ CODE_REACH = "P335"
 CALIBRATION_POSES = 2000
 CALIBRATION_SEED = 0
 
-# [errors] key → (kind, default); kinds as in postproc.robot, plus "ints" and "matrix"
-_ERROR_KEYS: dict[str, tuple[str, object]] = {
-    "seed": ("int", 0),
-    "target_mean_mm": ("num", 0.0),
-    "joint_position_mm": ("num", 0.0),
-    "joint_direction_deg": ("num", 0.0),
-    "zero_offset_deg": ("num", 0.0),
-    "base_position_mm": ("num", 0.0),
-    "base_rotation_deg": ("num", 0.0),
-    "tool_position_mm": ("num", 0.0),
-    "tool_rotation_deg": ("num", 0.0),
-    "stiffness": ("vec:6", None),
-    "stiffness_spread": ("num", 0.0),
-    "mastering_q": ("vec:6", None),
-    "ripple_orders": ("ints", []),
-    "ripple_deg": ("matrix", None),
-    "backlash_deg": ("vec:6", None),
-    "backlash_spread": ("num", 0.0),
-    "tracker_noise_mm": ("num", 0.0),
-    "repeatability_mm": ("num", 0.0),
+# [errors] key → kind (as postproc.robot.check_value; "orders": positive integers, "amplitudes": 6 rows)
+_ERROR_KEYS: dict[str, str] = {
+    "seed": "int",
+    "target_mean_mm": "num",
+    "joint_position_mm": "num",
+    "joint_direction_deg": "num",
+    "zero_offset_deg": "num",
+    "base_position_mm": "num",
+    "base_rotation_deg": "num",
+    "tool_position_mm": "num",
+    "tool_rotation_deg": "num",
+    "stiffness": "vec:6",
+    "stiffness_spread": "num",
+    "mastering_q": "vec:6",
+    "ripple_orders": "orders",
+    "ripple_deg": "amplitudes",
+    "backlash_deg": "vec:6",
+    "backlash_spread": "num",
+    "tracker_noise_mm": "num",
+    "repeatability_mm": "num",
 }
 
 
@@ -92,50 +92,41 @@ class ErrorSpec:
 
     @classmethod
     def from_description(cls, d: RobotDescription) -> "ErrorSpec":
-        from .robot import _value  # the shared checker for numbers and vectors
-
-        raw = d.errors
+        """Check the description's ``[errors]`` table; PostprocError (P331/P332) at the key's line."""
         values: dict[str, object] = {}
-        for key, value in raw.items():
+        for key, value in d.errors.items():
             if key not in _ERROR_KEYS:
-                raise d.error(f"unknown key '{key}' in [errors] (known: {', '.join(_ERROR_KEYS)})", "errors", key, CODE_KEY)
-            kind = _ERROR_KEYS[key][0]
-
-            def fail(message: str, key: str = key) -> PostprocError:
-                return d.error(message, "errors", key)
-
-            if kind == "ints":
-                if not isinstance(value, list) or not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in value):
-                    raise fail(f"[errors] {key} must be a list of positive integers (cycles per joint turn), got {value!r}")
-                values[key] = tuple(value)
-            elif kind == "matrix":
-                rows = value if isinstance(value, list) else None
-                if rows is None or len(rows) != 6:
-                    raise fail(f"[errors] {key} must be 6 rows (one per joint) of amplitudes, got {value!r}")
-                values[key] = np.array([_value(f"vec:{len(r) if isinstance(r, list) else -1}", r, f"[errors] {key}", fail)
-                                        for r in rows]) if all(isinstance(r, list) for r in rows) else None
-                if values[key] is None:
-                    raise fail(f"[errors] {key} must be 6 rows of numbers")
-            else:
-                values[key] = _value(kind, value, f"[errors] {key}", fail)
-        for key, value in values.items():
-            if key != "mastering_q" and isinstance(value, float) and value < 0:
-                raise d.error(f"[errors] {key} must not be negative", "errors", key)
-            if key in ("stiffness", "backlash_deg") and np.any(np.asarray(value) < 0):
-                raise d.error(f"[errors] {key} must not be negative", "errors", key)
-        if values.get("stiffness") is not None and np.any(values["stiffness"] <= 0):
-            raise d.error("[errors] stiffness must be positive (Nm/rad)", "errors", "stiffness")
+                known = ", ".join(_ERROR_KEYS)
+                raise d.error(f"unknown key '{key}' in [errors] (known: {known})", "errors", key, CODE_KEY)
+            values[key] = _checked(d, key, _ERROR_KEYS[key], value)
         orders = values.get("ripple_orders", ())
-        amps = values.get("ripple_deg")
-        if amps is None:
-            amps = np.zeros((6, len(orders)))
+        amps = values.setdefault("ripple_deg", np.zeros((6, len(orders))))
         if amps.shape != (6, len(orders)):
-            raise d.error(f"[errors] ripple_deg must be 6 rows of {len(orders)} amplitudes (one per ripple_orders)",
-                          "errors", "ripple_deg" if "ripple_deg" in raw else "ripple_orders")
-        values["ripple_deg"] = amps
-        if values.get("backlash_deg") is None:
-            values.pop("backlash_deg", None)
+            where = "ripple_deg" if "ripple_deg" in d.errors else "ripple_orders"
+            raise d.error(f"[errors] ripple_deg must be 6 rows of {len(orders)} amplitudes, one per ripple_orders",
+                          "errors", where)
         return cls(**values)
+
+
+def _checked(d: RobotDescription, key: str, kind: str, value) -> object:
+    def fail(message: str) -> PostprocError:
+        return d.error(message, "errors", key)
+
+    where = f"[errors] {key}"
+    if kind == "orders":
+        if not isinstance(value, list) or not all(type(v) is int and v > 0 for v in value):
+            raise fail(f"{where} must be a list of positive integers (cycles per joint turn), got {value!r}")
+        return tuple(value)
+    if kind == "amplitudes":
+        if not isinstance(value, list) or len(value) != 6 or not all(isinstance(r, list) for r in value):
+            raise fail(f"{where} must be 6 rows (one per joint) of amplitudes, got {value!r}")
+        return np.array([check_value(f"vec:{len(r)}", r, where, fail) for r in value]).reshape(6, -1)
+    checked = check_value(kind, value, where, fail)
+    if key != "mastering_q" and np.any(np.asarray(checked) < 0):
+        raise fail(f"{where} must not be negative")
+    if key == "stiffness" and np.any(checked <= 0):
+        raise fail(f"{where} must be positive (Nm/rad)")
+    return checked
 
 
 def table2(error_norms: np.ndarray) -> dict:
@@ -143,7 +134,9 @@ def table2(error_norms: np.ndarray) -> dict:
     e = np.asarray(error_norms, float)
     if e.size == 0:
         return {"max": math.nan, "min": math.nan, "mean": math.nan, "std": math.nan}
-    return {"max": float(e.max()), "min": float(e.min()), "mean": float(e.mean()), "std": float(e.std(ddof=1)) if e.size > 1 else 0.0}
+    # std with ddof 1, as MATLAB's std (the method's figures; postproc.training reports the same)
+    std = float(e.std(ddof=1)) if e.size > 1 else 0.0
+    return {"max": float(e.max()), "min": float(e.min()), "mean": float(e.mean()), "std": std}
 
 
 def approach_signs(q_deg: np.ndarray, start_q: np.ndarray, start_sign: float = 1.0) -> np.ndarray:
@@ -225,9 +218,11 @@ class SimulatedRobot:
         self.joint_tilts_rad = np.radians(rng(2).normal(0.0, s.joint_direction_deg, (6, 3)))
         self.zero_offsets_deg = rng(3).normal(0.0, s.zero_offset_deg, 6)
         base = rng(4)
-        self.base_error = (np.radians(base.normal(0.0, s.base_rotation_deg, 3)), base.normal(0.0, s.base_position_mm, 3))
+        self.base_error = (np.radians(base.normal(0.0, s.base_rotation_deg, 3)),
+                           base.normal(0.0, s.base_position_mm, 3))
         tool = rng(5)
-        self.tool_error = (np.radians(tool.normal(0.0, s.tool_rotation_deg, 3)), tool.normal(0.0, s.tool_position_mm, 3))
+        self.tool_error = (np.radians(tool.normal(0.0, s.tool_rotation_deg, 3)),
+                           tool.normal(0.0, s.tool_position_mm, 3))
         if s.stiffness is not None:
             factor = np.clip(rng(6).normal(1.0, s.stiffness_spread, 6), 0.5, 1.5)
             self.stiffness = s.stiffness * factor  # Nm/rad
@@ -257,8 +252,8 @@ class SimulatedRobot:
         base = small_transform(self.base_error[0], self.base_error[1])
         if self._reference is not None:
             poses, q, joint_errors = self._reference
-            raw = Chain(placements, nominal.axes, end).transforms(np.radians(q + joint_errors + k * self.zero_offsets_deg))
-            raw = raw[:, :3, 3]
+            q_true = q + joint_errors + k * self.zero_offsets_deg
+            raw = Chain(placements, nominal.axes, end).transforms(np.radians(q_true))[:, :3, 3]
             target = poses[:, :3]
             base = base @ transform_matrix(*fit_rigid(raw, target))  # R·raw + t ≈ target (Kabsch)
         self.chain = Chain(placements, nominal.axes, end, base)
@@ -288,8 +283,8 @@ class SimulatedRobot:
             a, fa = b, fb
             b *= 4.0
             if b > 1e6:
-                raise self.description.error("[errors] no geometric error magnitudes given: cannot reach target_mean_mm",
-                                             "errors", "target_mean_mm")
+                raise self.description.error(
+                    "[errors] no geometric error magnitudes given: cannot reach target_mean_mm", "errors", "target_mean_mm")
             fb = excess(b)
         side = 0
         for _ in range(60):
@@ -317,7 +312,8 @@ class SimulatedRobot:
             return None
         q, ok = self.robot.ik(poses)
         if not ok.all():
-            raise self.description.error("the [workspace] box is not reachable everywhere", "workspace", "box", CODE_REACH)
+            raise self.description.error("the [workspace] box is not reachable everywhere", "workspace", "box",
+                                         CODE_REACH)
         return poses, q, self._joint_errors(q, approach_signs(q, self.robot.home_q))
 
     # ---------------------------------------------------------------- the physics
@@ -428,7 +424,8 @@ class SimulatedRobot:
             before, after = self.actual_positions(targets), self.actual_positions(commands)
         e_before = np.linalg.norm(targets[:, :3] - before, axis=1)
         e_after = np.linalg.norm(targets[:, :3] - after, axis=1)
-        return {"before": table2(e_before), "after": table2(e_after), "errors_before": e_before, "errors_after": e_after}
+        return {"before": table2(e_before), "after": table2(e_after),
+                "errors_before": e_before, "errors_after": e_after}
 
     def describe(self) -> dict:
         """The drawn robot's parameters (for reports and tests)."""

@@ -58,7 +58,8 @@ def test_plan_refuses_poses_out_of_reach_and_writes_nothing(tmp_path, capsys):
 
 def test_measure_writes_the_training_csv_in_visiting_order(tmp_path):
     plan, out = tmp_path / "plan.csv", tmp_path / "measured.csv"
-    plan.write_text("# my plan\nid,X,Y,Z,A,B,C\n1,2000,0,900,0,90,0\n\n2,2100,100,800,2,88,-1\n3,1800,-200,1000,0,95,5\n")
+    plan.write_text("# my plan\nid,X,Y,Z,A,B,C\n1,2000,0,900,0,90,0\n\n"
+                    "2,2100,100,800,2,88,-1\n3,1800,-200,1000,0,95,5\n")
     assert main(["measure", str(plan), "-o", str(out), "--seed", "4", "-q"]) == 0
     lines = out.read_text().splitlines()
     assert lines[0] == "x,y,z,a,b,c,x_meas,y_meas,z_meas"

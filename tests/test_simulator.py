@@ -126,7 +126,8 @@ def test_verify_reads_krl_with_frames(capsys):
     from conftest import REPO
 
     krl = REPO / "samples" / "krl"
-    args = ["verify", str(krl / "weld_cell.src"), str(krl / "weld_cell.src"), "--config", str(krl / "config" / "$config.dat")]
+    src, config = str(krl / "weld_cell.src"), str(krl / "config" / "$config.dat")
+    args = ["verify", src, src, "--config", config]
     assert main(args + ["--json", "--no-noise"]) == 0
     captured = capsys.readouterr()
     figures = json.loads(captured.out)

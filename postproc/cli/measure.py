@@ -28,7 +28,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("plan", metavar="PLAN_CSV", help="poses to visit, in order (header with x,y,z,a,b,c)")
     p.add_argument("-o", "--output", metavar="MEASURED_CSV", required=True, help="measurement CSV to write")
     p.add_argument("--robot", metavar="FILE", help="robot description with [errors] (default models/kr500.toml)")
-    p.add_argument("--robot-seed", type=int, metavar="S", help="draw another robot (default: the file's calibrated one)")
+    p.add_argument("--robot-seed", type=int, metavar="S",
+                   help="draw another robot (default: the file's calibrated one)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="measurement noise seed (default 0)")
     p.set_defaults(run=run)
 

@@ -35,7 +35,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--robot", metavar="FILE", help="robot description (default models/kr500.toml)")
     p.add_argument("-o", "--output", metavar="PLAN_CSV", required=True, help="plan CSV to write")
     p.add_argument("--krl", metavar="SRC", help="also write a KRL measurement program (.src, module named after it)")
-    p.add_argument("--wait", type=float, default=1.0, metavar="S", help="settling time before each measurement (default 1 s)")
+    p.add_argument("--wait", type=float, default=1.0, metavar="S",
+                   help="settling time before each measurement (default 1 s)")
     p.set_defaults(run=run)
 
 
@@ -69,7 +70,8 @@ def run(args) -> int:
     outputs = [(Path(args.output), plan_csv_text(poses))]
     if args.krl is not None:
         src = Path(args.krl)
-        comment = f"Latin hypercube seed {args.seed}, box {list(map(float, box))}, attitude {list(map(float, attitude))} +- {range_deg:g} deg"
+        comment = (f"Latin hypercube seed {args.seed}, box {list(map(float, box))}, "
+                   f"attitude {list(map(float, attitude))} +- {range_deg:g} deg")
         outputs.append((src, krl_measurement_program(poses, src.stem, robot, wait_s=args.wait, comment=comment)))
     write_atomic(outputs)
     if not args.quiet:

@@ -29,7 +29,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("original", metavar="ORIGINAL", help="the program as written (.src/.dat or pose list)")
     p.add_argument("compensated", metavar="COMPENSATED", help="the same program after `postproc compensate`")
     p.add_argument("--robot", metavar="FILE", help="robot description with [errors] (default models/kr500.toml)")
-    p.add_argument("--robot-seed", type=int, metavar="S", help="draw another robot (default: the file's calibrated one)")
+    p.add_argument("--robot-seed", type=int, metavar="S",
+                   help="draw another robot (default: the file's calibrated one)")
     p.add_argument("--config", metavar="CONFIG_DAT", help="$config.dat with BASE_DATA / TOOL_DATA")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="measurement noise seed (default 0)")
     p.add_argument("--no-noise", action="store_true", help="exact positions: no tracker noise, no repeatability")
@@ -100,10 +101,11 @@ def run(args) -> int:
     for program, poses, label in ((original, p_orig, "ORIGINAL"), (compensated, p_comp, "COMPENSATED")):
         ok = sim.reachable(poses)
         if not ok.all():
-            r = rows[np.flatnonzero(~ok)[0]]
-            t = program.targets
-            raise PostprocError(f"{label} target out of reach of {sim.robot.name}: {np.round(poses[r == rows][0], 3).tolist()}"
-                                + (f" (and {int((~ok).sum()) - 1} more)" if (~ok).sum() > 1 else ""),
+            bad = np.flatnonzero(~ok)
+            r, t = rows[bad[0]], program.targets
+            more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
+            raise PostprocError(f"{label} target out of reach of {sim.robot.name}: "
+                                f"{np.round(poses[bad[0]], 3).tolist()}{more}",
                                 program.files[t.file[r]], int(t.line[r]), int(t.col[r]), CODE_REACH)
     tools = {tuple(np.round(f.tool, 3)) for f in original.frames if f.tool is not None}
     for tool in tools:
