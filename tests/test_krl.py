@@ -306,6 +306,18 @@ def test_named_targets_and_declaration_forms():
     assert p.diagnostics == []
 
 
+def test_names_differing_in_digits_share_a_shape_but_keep_their_meaning():
+    dat = "DEFDAT t\n" + "".join(f"DECL E6POS XP{i}={{X {i},Y 2,Z 3}}\n" for i in (1, 12, 305)) + \
+        "DECL E6AXIS XA1={A1 1,A2 2}\nDECL E6POS XA12={X 7,Y 8,Z 9}\nENDDAT\n"
+    p = read(module("LIN XP1", "LIN XP12", "LIN XP305", "PTP XA1", "PTP XA12", "PTP {A1 5}", "PTP {A 5,X 1,Y 2,Z 3}",
+                    "LIN {X 1,Y 2,Z 3,E1 4}"), dat)
+    np.testing.assert_allclose(p.targets.poses[:, 0], [1, 12, 305, 7, 1, 1])
+    assert p.targets.file.tolist() == [1, 1, 1, 1, 0, 0]
+    with pytest.raises(PostprocError) as e:
+        read(module("LIN XP1", "LIN XP13"), dat)
+    assert e.value.message == "undeclared target name 'XP13'" and (e.value.line, e.value.col) == (3, 5)
+
+
 def test_variable_given_an_aggregate_in_the_src():
     p = read(module("DECL E6POS XP", "XP = {X 1,Y 2,Z 3,A 0,B 90,C 0}", "LIN XP", "XP = {X 5}", "LIN XP"))
     t = p.targets
@@ -526,6 +538,8 @@ def big_program(n: int) -> str:
             out.append(f"$VEL.CP = {abs(a) / 100}")
         elif k == 25:
             out.append(f"LIN {{Y {y}}}")
+        elif k == 40:
+            out.append(f"LIN {{X {x},Y {y},Z {z},A {a},B {b},C {c}}} C_VEL ; seg{i} P{i}.")
         elif k == 30:
             out.append(f"SPLINE\nSPL {{X {x},Y {y},Z {z},A {a},B {b},C {c}}}\nENDSPLINE")
         else:

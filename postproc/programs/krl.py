@@ -2,9 +2,10 @@
 
 Syntax lives in ``grammars/krl.lark`` (one statement per physical line, as KRL has it).
 Speed comes from parsing each distinct line *shape* once: a line with every number token
-replaced by ``0`` (``NUMBER_RE``). Whatever the parse of a shape tells (the statement, which
-of its numbers are a target's X…C) holds for every line of that shape, so the numbers of
-the line are all that is left to read. Target lines of frequent shapes are then read
+and every digit run ending a name (``XP12``, ``FP3``) replaced by ``0`` (``SHAPE_RE``).
+Whatever the parse of a shape tells (the statement, which of its numbers are a target's
+X…C) holds for every line of that shape, so the numbers and names of the line are all that
+is left to read. Target lines of frequent shapes are then read
 without a Python loop: one regex built from those shapes (``_Accel``) pulls the numbers of
 a whole chunk of text at once and numpy turns them into poses and spans. Everything else
 (declarations, frames, block structure, motions to names) goes line by line through the
@@ -33,13 +34,17 @@ from ..frames import compose, frame_to_matrix, inverse, matrix_to_frame
 from ..resources import grammar_path
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 
-__all__ = ["read", "NUMBER_RE", "parser"]
+__all__ = ["read", "NUMBER_RE", "SHAPE_RE", "parser"]
 
 # A number token: what the grammar's NUMBER matches (same look-arounds), so that the k-th
 # match of a line is the k-th NUMBER the parser sees (or a digit string inside a comment
 # or a string, which no rule ever reads as a value).
 _NUM = r"(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 NUMBER_RE = re.compile(r"(?<![\w$.])" + _NUM + r"(?![\w.])")
+# The shape placeholders: number tokens (group 1) and the digits ending a name (XP12 → XP0;
+# in P[3] the 3 is a number): lines that differ only there share one parse.
+_NAME_DIGITS = r"(?:(?<=[^\W\d])|(?<=\$))\d+(?![\w$])"
+SHAPE_RE = re.compile(r"(?<![\w$.])(" + _NUM + r")(?![\w.])|" + _NAME_DIGITS)
 _PLACEHOLDER = "0"
 
 XYZABC = ("X", "Y", "Z", "A", "B", "C")
@@ -236,12 +241,14 @@ class _Shape:
     """What the parse of one line shape says. ``kind``: 'blank', 'hot' (a motion whose
     targets are literal Cartesian aggregates: read vectorised) or 'stmt'."""
 
-    __slots__ = ("text", "kind", "tree", "ph", "phidx", "plan", "fold", "error")
+    __slots__ = ("text", "kind", "tree", "ph", "phidx", "names", "plan", "fold", "error")
 
     def __init__(self, text):
         self.text = text
-        self.ph = [m.start() for m in NUMBER_RE.finditer(text)]
+        ms = list(SHAPE_RE.finditer(text))
+        self.ph = [m.start() for m in ms]  # every placeholder, in order (the line's "slots")
         self.phidx = {p: j for j, p in enumerate(self.ph)}
+        self.names = [m.start() for m in ms if m.group(1) is None]  # those inside names
         self.kind = "stmt"
         self.tree = None
         self.plan = None
@@ -264,6 +271,7 @@ class _Plan:
     spl: bool  # an SPL segment (must stand inside SPLINE … ENDSPLINE)
     ph: list  # placeholder positions in the shape
     free: list = ()  # slots that carry their own sign (accelerator alternatives)
+    names: list = ()  # slots that are the digits ending a name
 
 
 def _tok(tree):
@@ -303,7 +311,8 @@ def _hot_aggregate(agg, shape):
         keys[name] = item.children[-1]
     if typ is not None and typ not in ("POS", "E6POS"):
         return None
-    if typ is None and (keys.keys() & _AXIS_KEYS or not keys.keys() & {"X", "Y", "Z"}):
+    # (in a shape A1…A6 read A0)
+    if typ is None and (keys.keys() & (_AXIS_KEYS | {"A0"}) or not keys.keys() & {"X", "Y", "Z"}):
         return None
     slots, neg, gap = [-1] * 6, [False] * 6, [0] * 6
     for k, v in keys.items():
@@ -393,6 +402,7 @@ def _analyse(shape: _Shape) -> None:
         chain=[r[2] for r in rows],
         spl=kw == "SPL",
         ph=shape.ph,
+        names=[shape.phidx[p] for p in shape.names],
     )
     shape.kind = "hot"
 
@@ -494,10 +504,10 @@ class _Accel:
         g = 1
         for text, plan in self.alts:
             parts, last = [], 0
-            free = set(plan.free)
+            free, names = set(plan.free), set(plan.names)
             for j, p in enumerate(plan.ph):
                 parts.append(re.escape(text[last:p]))
-                parts.append("([-+]?" + _NUM + ")" if j in free else "(" + _NUM + ")")
+                parts.append(r"(\d+)" if j in names else "([-+]?" + _NUM + ")" if j in free else "(" + _NUM + ")")
                 last = p + 1
             parts.append(re.escape(text[last:]))
             parts_all.append("".join(parts))
@@ -539,7 +549,7 @@ def _generalise(shape: _Shape):
                 neg[r, c] = False
                 gap[r, c] = 0
     g = _Plan(slots=plan.slots, neg=neg, gap=gap, brace=brace, motion=plan.motion, chain=plan.chain,
-              spl=plan.spl, ph=ph)
+              spl=plan.spl, ph=ph, names=plan.names)
     g.free = sorted(free)
     return "".join(out), g
 
@@ -694,12 +704,12 @@ class _Reader:
             self.line_at(i, a, text[a:b], hot_lines)
 
     def line_at(self, i: int, a: int, line: str, hot_lines) -> None:
-        sh = self.shape(NUMBER_RE.sub(_PLACEHOLDER, line))
+        sh = self.shape(SHAPE_RE.sub(_PLACEHOLDER, line))
         k = sh.kind
         if k == "blank":
             return
         if k == "hot":
-            nums = NUMBER_RE.findall(line) if sh.ph else []
+            nums = [m.group() for m in SHAPE_RE.finditer(line)] if sh.ph else []
             entry = hot_lines.get(sh)
             if entry is None:
                 entry = hot_lines[sh] = ([], [], [])
@@ -835,8 +845,9 @@ class _Reader:
                 self.warn(self.path, i + 1, col, "P105", ";ENDFOLD without ;FOLD")
         if sh.tree is None:
             return
+        tree = self.concrete(sh.tree) if sh.names else sh.tree
         stmt = None
-        for c in sh.tree.children:
+        for c in tree.children:
             if hasattr(c, "data"):
                 stmt = c
         if stmt is None:
@@ -847,10 +858,35 @@ class _Reader:
         if handler is not None:
             handler(stmt)
 
+    def concrete(self, tree):
+        """``tree`` with the names of this line (a shape has XP0 where the line has XP12);
+        positions stay those of the shape."""
+        from lark import Token, Tree
+
+        names = self.sh.names
+        changed = False
+        out = []
+        for c in tree.children:
+            if isinstance(c, Token):
+                if c.type in ("NAME", "ENUM", "BITS") and any(c.start_pos <= p < c.end_pos for p in names):
+                    c = Token.new_borrow_pos(c.type, self.text[self.abs_pos(c.start_pos):self.abs_pos(c.end_pos)], c)
+                    changed = True
+            elif c is not None:
+                new = self.concrete(c)
+                changed |= new is not c
+                c = new
+            out.append(c)
+        if not changed:
+            return tree
+        new = Tree(tree.data, out, tree._meta)
+        if hasattr(tree, "meta_brace"):
+            new.meta_brace = tree.meta_brace
+        return new
+
     # positions and numbers of the current line
     def nums(self):
         if self._nums is None:
-            self._nums = [(m.start() + self.la, m.end() + self.la) for m in NUMBER_RE.finditer(self.lt)]
+            self._nums = [(m.start() + self.la, m.end() + self.la) for m in SHAPE_RE.finditer(self.lt)]
         return self._nums
 
     def abs_pos(self, shape_pos: int) -> int:
@@ -882,7 +918,7 @@ class _Reader:
         shape = self.sh.text
         if isinstance(exc, UnexpectedToken) and exc.token.type != "$END":
             pos = exc.token.start_pos
-            found = self.text[self.abs_pos(pos): self.abs_pos(pos) + len(exc.token)] \
+            found = self.text[self.abs_pos(pos): self.abs_pos(exc.token.end_pos)] \
                 if exc.token.type != "NUMBER" else self.text[slice(*self.nums()[self.sh.phidx[pos]])]
             found = f"'{found}'"
         elif isinstance(exc, UnexpectedCharacters):
