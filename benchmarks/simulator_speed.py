@@ -41,7 +41,8 @@ def main() -> None:
     timed("backlash signs (np.diff + forward fill)", approach_signs, q, sim.robot.home_q)
     timed("true FK (numpy)", sim.chain.transforms, q / 57.29577951308232)
     print(f"  {'(parts)':42s} {time.perf_counter() - t0:7.3f} s")
-    timed(f"measure({args.n}) end to end", sim.measure, poses, 0)
+    fresh = SimulatedRobot()  # no remembered IK: the end-to-end figure solves it again
+    timed(f"measure({args.n}) end to end (fresh robot)", fresh.measure, poses, 0)
 
     print("CLI, 2000 poses (fresh processes, start-up included)")
     with tempfile.TemporaryDirectory() as tmp:
@@ -55,6 +56,11 @@ def main() -> None:
             total += dt
             print(f"  postproc {argv[0]:33s} {dt:7.3f} s")
         print(f"  {'plan + measure':42s} {total:7.3f} s")
+        big = Path(tmp) / "big.csv"
+        subprocess.run([sys.executable, "-m", "postproc", "plan", "-n", str(args.n), "-o", str(big), "-q"], check=True)
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "postproc", "measure", str(big), "-o", str(measured), "-q"], check=True)
+        print(f"  postproc measure, {args.n} poses (CSV in/out) {time.perf_counter() - t0:7.3f} s")
 
 
 if __name__ == "__main__":
