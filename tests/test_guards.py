@@ -262,3 +262,66 @@ def test_output_that_cannot_be_written(run, affine, tmp_path):
     status, err, _ = run(GOOD, affine(), output=blocker / "sub" / "out.csv")
     assert status == 2 and f"P110 cannot write: {blocker} is not a directory" in err
     assert list(run.out_dir.iterdir()) == [] and blocker.read_text() == "x"
+
+
+# --------------------------------------------------------------------------- the last checks
+
+
+KRL_FRAME_VARIABLE = ("DEF cell( )\r\nLIN XP1\r\n$BASE = XP1\r\nLIN XP2\r\nEND\r\n",
+                      "DEFDAT cell\r\nDECL E6POS XP1={X 1900.0,Y 0.0,Z 900.0,A 0.0,B 90.0,C 0.0}\r\n"
+                      "DECL E6POS XP2={X 10.0,Y 20.0,Z 30.0,A 0.0,B 0.0,C 0.0}\r\nENDDAT\r\n")
+
+
+def krl_run(tmp_path, capsys, src, dat, model, *options):
+    (tmp_path / "cell.src").write_text(src, newline="")
+    (tmp_path / "cell.dat").write_text(dat, newline="")
+    out = tmp_path / "out"
+    out.mkdir(exist_ok=True)
+    code = main(["compensate", str(tmp_path / "cell.src"), "-o", str(out / "cell.src"), "--model", str(model), *options])
+    return code, capsys.readouterr().err, sorted(p.name for p in out.iterdir())
+
+
+def test_position_used_as_a_frame_is_not_compensated(tmp_path, capsys, affine):
+    # XP1 is a motion target and, after it, the base of XP2: correcting XP1's numbers would
+    # move XP2 by the same amount (and XP2's own correction on top)
+    model = affine(offset=(0.3, -0.2, 0.1), tool={"name": "any"})
+    code, err, written = krl_run(tmp_path, capsys, *KRL_FRAME_VARIABLE, model)
+    assert code == 2 and written == []
+    assert err.startswith(f"{tmp_path / 'cell.dat'}:3:16: P191 refusing to write: compensating moves the base of this "
+                          "target (XP1, by 0.374 mm)")
+    # the same with XP1 as the tool
+    src = KRL_FRAME_VARIABLE[0].replace("$BASE = XP1", "$TOOL = XP1")
+    code, err, written = krl_run(tmp_path, capsys, src, KRL_FRAME_VARIABLE[1], model)
+    assert code == 2 and written == [] and "P191 refusing to write: compensating moves the tool" in err
+    # used as a frame only (not a motion target), XP1 stays as it is and XP2 is compensated in it
+    src = KRL_FRAME_VARIABLE[0].replace("LIN XP1\r\n", "")
+    code, err, written = krl_run(tmp_path, capsys, src, KRL_FRAME_VARIABLE[1], model, "-q")
+    assert code == 0 and written == ["cell.dat", "cell.src"]
+    dat = (tmp_path / "out" / "cell.dat").read_text()
+    # base XP1 is turned by B = 90 (Ry(90)): the robot-base offset (0.3, -0.2, 0.1) is
+    # Ry(90)ᵀ·offset = (-0.1, -0.2, 0.3) in it
+    assert "XP1={X 1900.0,Y 0.0,Z 900.0," in dat and "XP2={X 9.900,Y 19.800,Z 30.300," in dat
+
+
+@pytest.mark.parametrize("number", ["1.5E+3.0", "1e+5.0", "20e+00.5"])
+def test_malformed_number_is_refused_whichever_check_sees_it(tmp_path, capsys, affine, number):
+    # the KRL reader took the digits after 'e+' for the number (Z 1.5E+3.0 read as 3.0 with
+    # its span on '1.5'): the last check refuses it (P190) if the reader does not (P101)
+    src = f"DEF cell( )\nLIN {{X 2000.0,Y 0.0,Z {number}}}\nEND\n"
+    dat = "DEFDAT cell\nENDDAT\n"
+    code, err, written = krl_run(tmp_path, capsys, src, dat, affine(tool={"name": "any"}))
+    assert code == 2 and written == [], err
+    assert re.match(rf"{re.escape(str(tmp_path / 'cell.src'))}:2:\d+: P(101|190) ", err), err
+
+
+def test_formatter_bug_is_refused(run, affine, monkeypatch):
+    import postproc.compensate
+
+    real = postproc.compensate.format_many
+
+    def off_by_two_microns(tokens, values):
+        return real(tokens, values + np.where(np.arange(len(values)) == 4, 0.002, 0.0))
+
+    monkeypatch.setattr(postproc.compensate, "format_many", off_by_two_microns)
+    refused(run(GOOD, affine(offset=(0.1, 0, 0))), run, "P190", run.src(), 3, 1,
+            r"the number '100\.002' does not read back as the corrected 100\.0")
