@@ -23,8 +23,8 @@ Predictors:
   mlp-joints  the same on sin, cos of the joint angles
   kin         kinematic identification: UR10 DH deviations (24), probe offset (3), base
               pose (6) and gravity compliance of joints 2-4 (6) by scipy least_squares
-  kin+gp      kin, then gp-joints on its residual
-  kin+mlp     kin, then mlp-joints on its residual
+  kin+gp      kin, then gp-joints on its residual (its time excludes kin's fit)
+  kin+mlp     kin, then mlp-joints on its residual (likewise)
 Single thread (torch.set_num_threads(1); set OMP_NUM_THREADS=1 for numpy's BLAS too).
 """
 from __future__ import annotations

@@ -155,7 +155,6 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
         values = cells.astype(float)
         bad_cell = np.argwhere(~np.isfinite(values))
     except ValueError:
-        values = None
         bad_cell = np.argwhere(~np.vectorize(_is_number, otypes=[bool])(cells))
     if bad_cell.size:
         r, c = bad_cell[0]
