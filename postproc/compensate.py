@@ -165,7 +165,13 @@ def robot_base_poses(program: Program) -> tuple[np.ndarray, np.ndarray]:
         base = program.frames[f].base
         out[rows, :3] = frames.transform_points(base, t.poses[rows, :3])
         known = rows[~np.isnan(t.poses[rows, 3:6]).any(axis=1)]
-        if len(known):
+        if not len(known):
+            continue
+        if np.allclose(base[:3, :3], np.eye(3), atol=1e-12):
+            # keep the triple as written: A,B,C and (A±180, 180−B, C±180) are one rotation,
+            # but a model and its envelope see numbers
+            out[known, 3:6] = t.poses[known, 3:6]
+        else:
             rot = base[:3, :3] @ frames.rotation_from_abc(t.poses[known, 3:6])
             out[known, 3:6] = frames.abc_from_rotation(rot)
     return out, resolved

@@ -171,3 +171,10 @@ def test_stdin_to_stdout_filter(affine):
     assert run.returncode == 0, run.stderr
     assert run.stderr == b""
     assert b"1950.200,12.500,880.000" in run.stdout and run.stdout.endswith(b",120\r\n")
+
+
+def test_robot_base_keeps_the_written_attitude_when_the_base_does_not_rotate():
+    # B = 95 is the same rotation as (A+180, 85, C+180); the numbers as written must reach the model
+    program = program_in_base([100, 0, 0, 0, 0, 0], [2000.0, 0.0, 900.0, 3.0, 95.0, -2.0])
+    poses, _ = robot_base_poses(program)
+    assert np.allclose(poses[0], [2100, 0, 900, 3, 95, -2])
