@@ -25,7 +25,7 @@ Predictors:
               pose (6) and gravity compliance of joints 2-4 (6) by scipy least_squares
   kin+gp      kin, then gp-joints on its residual (its time excludes kin's fit)
   kin+mlp     kin, then mlp-joints on its residual (likewise)
-Single thread (torch.set_num_threads(1); set OMP_NUM_THREADS=1 for numpy's BLAS too).
+Single thread (torch.set_num_threads(1); OMP/OpenBLAS/MKL_NUM_THREADS default to 1).
 """
 from __future__ import annotations
 
@@ -35,10 +35,13 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-from scipy.linalg import cho_factor, cho_solve
-from scipy.optimize import least_squares, minimize
-from scipy.spatial.transform import Rotation
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one core for numpy's BLAS too; must precede the numpy import
+
+import numpy as np  # noqa: E402
+from scipy.linalg import cho_factor, cho_solve  # noqa: E402
+from scipy.optimize import least_squares, minimize  # noqa: E402
+from scipy.spatial.transform import Rotation  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
