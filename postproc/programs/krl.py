@@ -573,7 +573,7 @@ def read(files: list[str], texts: list[str], config: list[str] | None = None) ->
 
 
 class _Reader:
-    CHUNK = 1 << 22  # characters of text per vectorised chunk
+    CHUNK = 1 << 17  # characters per vectorised chunk: small enough that its strings stay in cache
 
     def __init__(self, files, texts, config, accelerate: bool = True):
         if len(files) != len(texts):
@@ -1734,11 +1734,27 @@ class _Reader:
     # ---------------------------------------------------------------- assembling
 
     def assemble(self) -> Targets:
+        """All rows (hot parts + the interpreter's rows) in program order → Targets: frames of
+        hot rows from the timeline, partial aggregates filled, only emitted rows kept."""
         c = self.cold
         n = len(c["key"])
         parts = list(self.hot.parts)
+        tk = np.array([t[0] for t in self.timeline], np.int64)
+        tf = np.array([t[1] for t in self.timeline], np.int32)
+        start = self.start_frame() if parts and not len(tk) else -1
         for p in parts:
             p.pop("spl", None)
+            m = len(p["key"])
+            # the frame in force at their line: the last timeline entry before them
+            at = np.searchsorted(tk, p["key"], "right") - 1
+            f = np.where(at >= 0, tf[np.maximum(at, 0)], start) if len(tk) else np.full(m, start, np.int32)
+            p["frame"] = f.astype(np.int32)
+            p["emit"] = np.ones(m, bool)
+            if len(tk) and (f < 0).any():
+                for r, cnt in zip(*np.unique(at[f < 0], return_counts=True)):
+                    reason = self.timeline[r][2] if r >= 0 else None
+                    if reason in self.unknown_frames:
+                        self.unknown_frames[reason][4] += int(cnt)
         if n:
             parts.append(dict(
                 key=np.array(c["key"], np.int64), pose=np.array(c["pose"], float).reshape(n, 6),
@@ -1750,32 +1766,16 @@ class _Reader:
             ))
         if not parts:
             return _empty_targets()
-        for p in parts:
-            m = len(p["key"])
-            if "frame" not in p:
-                p["frame"] = np.full(m, -2, np.int32)  # from the timeline
-                p["emit"] = np.ones(m, bool)
-        cols = {k: np.concatenate([p[k] for p in parts]) for k in
-                ("key", "pose", "written", "spans", "file", "line", "col", "motion", "chain", "frame", "emit")}
-        order = np.argsort(cols["key"], kind="stable")
-        cols = {k: v[order] for k, v in cols.items()}
-        # hot rows: the frame in force at their line
-        hot = cols["frame"] == -2
-        if hot.any():
-            if self.timeline:
-                tk = np.array([t[0] for t in self.timeline], np.int64)
-                tf = np.array([t[1] for t in self.timeline], np.int32)
-                at = np.searchsorted(tk, cols["key"][hot], "right") - 1
-                f = np.where(at >= 0, tf[np.maximum(at, 0)], self.start_frame())
-                cols["frame"][hot] = f
-                for r, cnt in zip(*np.unique(at[f < 0], return_counts=True)):
-                    reason = self.timeline[r][2]
-                    if reason in self.unknown_frames:
-                        self.unknown_frames[reason][4] += int(cnt)
-            else:
-                cols["frame"][hot] = self.start_frame()
-        # partial aggregates: missing components from the preceding chain row
-        pose, written, chain = cols["pose"], cols["written"], cols["chain"]
+
+        def column(k, rows=None):
+            v = np.concatenate([p[k] for p in parts]) if len(parts) > 1 else parts[0][k]
+            return v if rows is None else v[rows]
+
+        order = np.argsort(column("key"), kind="stable")
+        pose, written, chain = column("pose", order), column("written", order), column("chain", order)
+        emit = column("emit", order)
+        # partial aggregates: a component not written comes from the last chain row before
+        # (the current position; barrier rows hold NaN)
         m = len(pose)
         ar = np.arange(m)
         for k in range(6):
@@ -1784,25 +1784,15 @@ class _Reader:
                 continue
             src = np.where(chain & w, ar, -1)
             np.maximum.accumulate(src, out=src)
-            # a row that did not write k takes it from the last chain row before it
-            need = ~w
-            prev = np.where(need, src, ar)
+            need = np.flatnonzero(~w)
+            prev = src[need]
             ok = prev >= 0
-            filled = np.full(m, np.nan)
-            filled[ok] = pose[prev[ok], k]
-            pose[:, k] = np.where(need, filled, pose[:, k])
-        emit = cols["emit"]
-        bad = emit & ~np.isfinite(pose[:, :3]).all(axis=1) & (cols["spans"][:, 0::2] >= 0).any(axis=1)
-        del bad
-        nonfinite = emit & written.any(axis=1) & np.isinf(pose).any(axis=1)
-        if nonfinite.any():
-            r = int(np.flatnonzero(nonfinite)[0])
-            fi = int(cols["file"][r])
-            raise PostprocError("a target component is not a finite number", self.files[fi], int(cols["line"][r]),
-                                int(cols["col"][r]), "P103")
-        sel = np.flatnonzero(emit)
-        frame = cols["frame"][sel]
-        # keep only the frames targets use, in order of first use
+            pose[need[ok], k] = pose[prev[ok], k]
+            pose[need[~ok], k] = np.nan
+        keep = np.flatnonzero(emit)
+        sel = order[keep]
+        frame = column("frame", sel)
+        # only the frames targets use, in order of first use
         used, first = np.unique(frame[frame >= 0], return_index=True)
         used = used[np.argsort(first)]
         remap = np.full(len(self.frames) + 1, -1, np.int32)
@@ -1810,13 +1800,13 @@ class _Reader:
         frame = np.where(frame >= 0, remap[frame], -1).astype(np.int32)
         self.frames[:] = [self.frames[k] for k in used]
         return Targets(
-            poses=pose[sel].copy(),
-            spans=cols["spans"][sel].reshape(len(sel), 3, 2).copy(),
-            file=cols["file"][sel],
-            line=cols["line"][sel],
-            col=cols["col"][sel],
+            poses=pose[keep],
+            spans=column("spans", sel).reshape(len(sel), 3, 2),
+            file=column("file", sel),
+            line=column("line", sel),
+            col=column("col", sel),
             frame=frame,
-            motion=cols["motion"][sel],
+            motion=column("motion", sel),
         )
 
     def start_frame(self) -> int:
