@@ -56,6 +56,7 @@ _MOTION = {m: i for i, m in enumerate(MOTIONS)}
 _KIND_OF = {"PTP": "PTP", "LIN": "LIN", "SPTP": "SPTP", "SLIN": "SLIN", "SPL": "SPL"}
 _STANDARD_AXIS = re.compile(r"^XHOME\d*$|^\$AXIS_\w+$|^\$H_AXIS\w*$", re.I)
 _RUNTIME_POS = re.compile(r"^\$POS_\w+$", re.I)
+_BLANK = re.compile(r"\s*")
 _FOLD = re.compile(r"^\s*;\s*(END)?FOLD\b", re.I)
 
 # ---------------------------------------------------------------------------- parser
@@ -583,6 +584,7 @@ class _Reader:
         self.shapes: dict[str, _Shape] = {}
         self.diagnostics: list[Diagnostic] = []
         self.frames: list[Frame] = []
+        self.newline: dict[int, str] = {}
         self.frame_ix: dict = {}
         self.unknown_frames: dict = {}  # reason key → [path, line, col, message, count]
         self.hot = _HotRows()
@@ -608,8 +610,7 @@ class _Reader:
         targets = self.assemble()
         stamps, newlines = {}, []
         for fi, text in enumerate(self.texts):
-            crlf = text.count("\r\n")
-            newlines.append("\r\n" if crlf and crlf * 2 >= text.count("\n") else "\n")
+            newlines.append(self.newline.get(fi, "\n"))
             at = text.find(STAMP_PREFIX)
             while at >= 0:
                 a = text.rfind("\n", 0, at) + 1
@@ -657,10 +658,14 @@ class _Reader:
         self.def_lines: list = []  # (first, last) 1-based lines of DEF/DEFFCT bodies
         self.spline_lines: list = []
         self.block_open = {}
-        if not text.strip():
+        if _BLANK.fullmatch(text):
             raise PostprocError("the file is empty", path, 1, 1, "P104")
         data = text.encode("latin-1", "replace") if not text.isascii() else text.encode("ascii")
-        nl = np.flatnonzero(np.frombuffer(data, np.uint8) == 10)
+        raw = np.frombuffer(data, np.uint8)
+        nl = np.flatnonzero(raw == 10)
+        if role == "module":  # the dominant line ending, for the rewriter
+            crlf = int(np.count_nonzero(raw[nl[nl > 0] - 1] == 13))
+            self.newline[fi] = "\r\n" if crlf and 2 * crlf >= len(nl) else "\n"
         self.starts = np.concatenate([[0], nl + 1]).astype(np.int64)
         nlines = len(self.starts) - (1 if text.endswith("\n") else 0)
         hot_lines = {}  # shape → (lines, starts, numbers) read by the interpreter loop
