@@ -11,7 +11,7 @@ a whole chunk of text at once and numpy turns them into poses and spans. Everyth
 (declarations, frames, block structure, motions to names) goes line by line through the
 interpreter (``_Reader``), in textual order.
 
-Semantics (see the README of the reader in the module report / tests):
+Semantics (tests/test_krl.py shows each on a small program):
 
 * a Target is a Cartesian motion target (inline POS/E6POS/FRAME aggregate or the
   aggregate a position variable was given: its .dat declaration or an assignment);
@@ -28,6 +28,8 @@ import re
 from dataclasses import dataclass
 
 import numpy as np
+from lark import Lark, Token, Tree
+from lark.exceptions import UnexpectedCharacters, UnexpectedInput, UnexpectedToken
 
 from ..diagnostics import Diagnostic, PostprocError, line_col
 from ..frames import compose, frame_to_matrix, inverse, matrix_to_frame
@@ -68,8 +70,6 @@ def parser():
     """The LALR parser of ``grammars/krl.lark`` (built once, cached on disk by lark)."""
     global _PARSER
     if _PARSER is None:
-        from lark import Lark
-
         _PARSER = Lark(
             grammar_path("krl.lark").read_text(),
             parser="lalr",
@@ -275,15 +275,6 @@ class _Plan:
     names: list = ()  # slots that are the digits ending a name
 
 
-def _tok(tree):
-    from lark import Token
-
-    for c in tree.children:
-        if isinstance(c, Token):
-            return c
-    return None
-
-
 def _number_slot(expr, shape: _Shape):
     """(slot, negative, gap) when ``expr`` is a literal number (optionally signed)."""
     if expr.data == "number":
@@ -297,8 +288,6 @@ def _number_slot(expr, shape: _Shape):
 
 def _hot_aggregate(agg, shape):
     """Slots of a literal Cartesian aggregate (or None when it is not one)."""
-    from lark import Token
-
     ch = agg.children
     typ = None
     if ch and isinstance(ch[0], Token):
@@ -329,9 +318,6 @@ def _hot_aggregate(agg, shape):
 
 def _analyse(shape: _Shape) -> None:
     """Parse ``shape.text`` and decide how lines of this shape are read."""
-    from lark import Token, Tree
-    from lark.exceptions import UnexpectedInput
-
     text = shape.text
     stripped = text.strip()
     if not stripped:
@@ -418,8 +404,6 @@ def _mark_brace(agg, text: str) -> None:
 
 
 def _first_pos(tree):
-    from lark import Token
-
     for c in tree.children:
         if isinstance(c, Token):
             return c.start_pos
@@ -621,7 +605,7 @@ class _Reader:
                     stamps[fi] = line.strip()
                     break
                 at = text.find(STAMP_PREFIX, b)
-        for key, (path, line, col, msg, count) in self.unknown_frames.items():
+        for path, line, col, msg, count in self.unknown_frames.values():
             if count:
                 self.diagnostics.append(Diagnostic(path, line, col, "P201",
                                                    f"{msg}: {count} target(s) left as written"))
@@ -814,7 +798,6 @@ class _Reader:
             i = j
 
     def finish_file(self, nlines: int) -> None:
-        end = nlines
         if self.blocks:
             kind, line, col, detail = self.blocks[-1]
             closer = {"DEF": "END", "DEFFCT": "ENDFCT", "DEFDAT": "ENDDAT", "IF": "ENDIF", "FOR": "ENDFOR",
@@ -827,7 +810,6 @@ class _Reader:
         if self.role == "module" and self.fi == 0 and not self.has_def:
             what = "a data list (DEFDAT) with no DEF" if self.has_dat else "no DEF"
             raise PostprocError(f"{what}: expected a KRL module with DEF name( ) … END", self.path, 1, 1, "P104")
-        del end
 
     # ---------------------------------------------------------------- interpreting a line
 
@@ -866,8 +848,6 @@ class _Reader:
     def concrete(self, tree):
         """``tree`` with the names of this line (a shape has XP0 where the line has XP12);
         positions stay those of the shape."""
-        from lark import Token, Tree
-
         names = self.sh.names
         changed = False
         out = []
@@ -918,8 +898,6 @@ class _Reader:
         return _Num(float(self.text[s:e]), s, e)
 
     def syntax_error(self, exc):
-        from lark.exceptions import UnexpectedCharacters, UnexpectedToken
-
         shape = self.sh.text
         if isinstance(exc, UnexpectedToken) and exc.token.type != "$END":
             pos = exc.token.start_pos
@@ -968,15 +946,11 @@ class _Reader:
         pass
 
     def s_def_head(self, node):
-        from lark import Token
-
         names = [c for c in node.children if isinstance(c, Token) and c.type == "NAME"]
         name = names[0]
         self.begin_def(name, node)
 
     def s_fct_head(self, node):
-        from lark import Token
-
         names = [c for c in node.children if isinstance(c, Token) and c.type == "NAME"]
         self.begin_def(names[0], node, kind="DEFFCT")
 
@@ -1112,8 +1086,6 @@ class _Reader:
 
     def value(self, expr):
         """A declaration's / assignment's right-hand side → _Agg, scalar or _Unknown."""
-        from lark import Token
-
         d = expr.data
         if d == "aggregate":
             return self.aggregate(expr)
@@ -1128,7 +1100,6 @@ class _Reader:
             return str(expr.children[0])
         if d == "bits":
             return str(expr.children[0])
-        tok = expr.children[0] if isinstance(expr.children[0], Token) else None
         return _Unknown("a run-time value", (self.ln, self.col(_first_pos(expr) or 0)))
 
     def literal_number(self, expr):
@@ -1142,8 +1113,6 @@ class _Reader:
         return None
 
     def aggregate(self, node) -> _Agg:
-        from lark import Token
-
         ch = node.children
         typ = None
         if ch and isinstance(ch[0], Token):
@@ -1176,8 +1145,6 @@ class _Reader:
         return _Agg(fields, typ, self.fi, self.ln, self.col(brace), None)
 
     def s_decl(self, node):
-        from lark import Token, Tree
-
         typ = None
         for c in node.children:
             if isinstance(c, Tree) and c.data == "type":
@@ -1490,8 +1457,6 @@ class _Reader:
 
     def with_frames(self, children):
         """The frame state for a motion/spline with a WITH list ($BASE/$TOOL in it)."""
-        from lark import Tree
-
         st = self.state
         items = []
         for c in children:
@@ -1820,8 +1785,6 @@ class _Reader:
 
 
 def _last_end(tree):
-    from lark import Token
-
     end = 0
     for c in tree.children:
         if isinstance(c, Token):
