@@ -429,6 +429,26 @@ def test_base_settings_from_config(setting, origin, rot):
     np.testing.assert_allclose(p.frames[p.targets.frame[0]].base, transform(rz(rot), origin), atol=1e-9)
 
 
+def test_tool_settings_and_with_lists():
+    cfg = [text_of(SAMPLES / "config" / "$config.dat")]
+    dat = ("DEFDAT t\nDECL FDAT FT={TOOL_NO 1,BASE_NO 2,IPO_FRAME #TCP}\n"
+           "DECL FDAT FB={TOOL_NO 2,BASE_NO 1,IPO_FRAME #BASE}\nENDDAT\n")
+    p = read(module(
+        "BAS(#TOOL, 2)", "BAS(#BASE, 1)",
+        "LIN {X 1,Y 2,Z 3}",
+        "SLIN {X 4,Y 5,Z 6} WITH $TOOL = STOOL2(FB), $BASE = SBASE(2)",
+        "LIN {X 7,Y 8,Z 9}",
+        "SLIN {X 1,Y 2,Z 3} WITH $BASE = SBASE(FT.BASE_NO), $IPO_MODE = SIPO_MODE(FT.IPO_FRAME)",
+    ), dat, config=cfg)
+    t = p.targets
+    origin = [p.frames[f].base[:3, 3].tolist() if f >= 0 else None for f in t.frame]
+    # the WITH list holds for its motion only; external TCP (#TCP) is not resolved
+    assert origin == [[1850, -300, 650], [1780, 150, 700], [1850, -300, 650], None]
+    np.testing.assert_allclose(p.frames[t.frame[0]].tool, [0, 0, 185, 0, 0, 0])
+    np.testing.assert_allclose(p.frames[t.frame[1]].tool, [0, 0, 185, 0, 0, 0])
+    assert codes(p) == ["P201"] and "#TCP" in p.diagnostics[0].message
+
+
 @pytest.mark.parametrize("setting,message", [
     ("BAS(#BASE, 3)", "BASE_DATA[3]"),
     ("$BASE = BASE_DATA[N]", "run-time index"),

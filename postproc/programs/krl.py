@@ -1473,7 +1473,13 @@ class _Reader:
                     t = frame_to_matrix(np.array(t))
                 st = self.replace_state(st, which, t, label)
             elif lhs.data == "name" and lhs.children[0].upper() == "$IPO_MODE":
-                if rhs.data == "enum" and rhs.children[0].upper() == "#TCP":
+                mode = rhs.children[0].upper() if rhs.data == "enum" else None
+                if rhs.data == "fcall" and rhs.children[0].upper() == "SIPO_MODE":
+                    arg = next((x for x in rhs.children[1].children if x is not None), None)
+                    if arg is not None and arg.data == "member" and arg.children[0].data == "name":
+                        f = self.fdat_of(arg.children[0])
+                        mode = f.get(arg.children[1].upper()) if isinstance(f, _Agg) else None
+                if isinstance(mode, str) and mode.upper() == "#TCP":
                     st = _FrameState(_Unknown("external TCP ($IPO_MODE #TCP) is not supported", (self.ln, 1)), "",
                                      st.tool, st.tool_label, st.robroot)
         return st
