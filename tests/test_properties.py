@@ -32,7 +32,7 @@ from postproc.compensator import load_model
 from postproc.programs import STAMP_PREFIX
 
 OFFSET = np.array([0.3, -0.2, 0.1])
-SETTINGS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+SETTINGS = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 @pytest.fixture(scope="module")
