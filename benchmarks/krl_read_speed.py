@@ -1,6 +1,6 @@
 """Speed of the KRL reader on a generated CAM program (default 1,000,000 LIN lines).
 
-    python benchmarks/krl_read_speed.py [--lines N] [--crlf]
+    python benchmarks/krl_read_speed.py [--lines N] [--crlf] [--named N]
 
 Prints lines/s of ``postproc.programs.krl.read``, its peak memory (tracemalloc, measured in
 a second run because tracing slows Python down) and, for comparison, the time of a plain
@@ -42,6 +42,19 @@ def cam_program(lines: int, crlf: bool, seed: int = 0) -> str:
     return nl.join(out) + nl
 
 
+def named_program(points: int) -> tuple[str, str]:
+    """A teach-pendant style module: ``LIN XPi C_DIS`` in the .src, ``DECL E6POS XPi={…}``
+    in the .dat (every line a different name: the shape cache must abstract the digits)."""
+    rng = np.random.default_rng(1)
+    xyz = rng.uniform([-200, -300, 0], [200, 300, 400], size=(points, 3))
+    src = ["DEF named( )", "$BASE = {X 2000.0,Y 0.0,Z 600.0,A 0.0,B 0.0,C 0.0}"]
+    src += [f"LIN XP{i + 1} C_DIS" for i in range(points)] + ["END"]
+    dat = ["DEFDAT named"] + [
+        f"DECL E6POS XP{i + 1}={{X {x:.3f},Y {y:.3f},Z {z:.3f},A 0.0,B 90.0,C 0.0,S 6,T 18,E1 0.0,E2 0.0}}"
+        for i, (x, y, z) in enumerate(xyz)] + ["ENDDAT"]
+    return "\n".join(src) + "\n", "\n".join(dat) + "\n"
+
+
 PLAIN = re.compile(r"(\{X )(-?[\d.]+)(,Y )(-?[\d.]+)(,Z )(-?[\d.]+)")
 
 
@@ -55,6 +68,8 @@ def main() -> None:
     ap.add_argument("--lines", type=int, default=1_000_000)
     ap.add_argument("--crlf", action="store_true")
     ap.add_argument("--no-memory", action="store_true", help="skip the (slow) tracemalloc run")
+    ap.add_argument("--named", type=int, default=0, metavar="N",
+                    help="also time a teach-pendant style module of N named points (.src + .dat)")
     args = ap.parse_args()
     t0 = time.perf_counter()
     from postproc.programs import krl
@@ -73,6 +88,13 @@ def main() -> None:
     plain_pass(text)
     dp = time.perf_counter() - t0
     print(f"plain regex rewrite pass: {dp:.2f} s (read / plain = {dt / dp:.2f})")
+    if args.named:
+        src, dat = named_program(args.named)
+        t0 = time.perf_counter()
+        prog = krl.read(["named.src", "named.dat"], [src, dat])
+        dt = time.perf_counter() - t0
+        n = src.count("\n") + dat.count("\n")
+        print(f"named points: {len(prog.targets):,} targets, {n:,} lines in {dt:.2f} s = {n / dt:,.0f} lines/s")
     if not args.no_memory:
         del prog
         tracemalloc.start()

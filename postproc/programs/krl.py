@@ -1715,18 +1715,22 @@ class _Reader:
         c = self.cold
         n = len(c["key"])
         parts = list(self.hot.parts)
+        self.timeline.sort(key=lambda t: t[0])  # (already in order: one file after the other, line by line)
         tk = np.array([t[0] for t in self.timeline], np.int64)
         tf = np.array([t[1] for t in self.timeline], np.int32)
-        start = self.start_frame() if parts and not len(tk) else -1
         for p in parts:
             p.pop("spl", None)
             m = len(p["key"])
             # the frame in force at their line: the last timeline entry before them
             at = np.searchsorted(tk, p["key"], "right") - 1
-            f = np.where(at >= 0, tf[np.maximum(at, 0)], start) if len(tk) else np.full(m, start, np.int32)
+            if (at < 0).any():  # (cannot happen after a DEF: it starts the timeline)
+                tk, tf = np.concatenate([[-1], tk]), np.concatenate([[self.start_frame()], tf])
+                self.timeline.insert(0, (-1, int(tf[0]), None))
+                at = at + 1
+            f = tf[at]
             p["frame"] = f.astype(np.int32)
             p["emit"] = np.ones(m, bool)
-            if len(tk) and (f < 0).any():
+            if (f < 0).any():
                 for r, cnt in zip(*np.unique(at[f < 0], return_counts=True)):
                     reason = self.timeline[r][2] if r >= 0 else None
                     if reason in self.unknown_frames:
