@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import gc
 import re
+from bisect import bisect_left
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,8 +45,9 @@ __all__ = ["read", "NUMBER_RE", "SHAPE_RE", "parser"]
 _NUM = r"(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 NUMBER_RE = re.compile(r"(?<![\w$.])" + _NUM + r"(?![\w.])")
 # The shape placeholders: number tokens (group 1) and the digits ending a name (XP12 → XP0;
-# in P[3] the 3 is a number): lines that differ only there share one parse.
-_NAME_DIGITS = r"(?:(?<=[^\W\d])|(?<=\$))\d+(?![\w$])"
+# in P[3] the 3 is a number): lines that differ only there share one parse. The component
+# names A1…A6 / E1…E6 stay as written (one letter + digits): they tell axis from Cartesian.
+_NAME_DIGITS = r"(?:(?<=[^\W\d])|(?<=\$))(?<!(?<![\w$])[AaEe])\d+(?![\w$])"
 SHAPE_RE = re.compile(r"(?<![\w$.])(" + _NUM + r")(?![\w.])|" + _NAME_DIGITS)
 _PLACEHOLDER = "0"
 
@@ -242,7 +244,7 @@ class _Shape:
     """What the parse of one line shape says. ``kind``: 'blank', 'hot' (a motion whose
     targets are literal Cartesian aggregates: read vectorised) or 'stmt'."""
 
-    __slots__ = ("text", "kind", "tree", "ph", "phidx", "names", "plan", "fold", "error")
+    __slots__ = ("text", "kind", "tree", "ph", "phidx", "names", "name_paths", "plan", "fold", "error")
 
     def __init__(self, text):
         self.text = text
@@ -250,6 +252,7 @@ class _Shape:
         self.ph = [m.start() for m in ms]  # every placeholder, in order (the line's "slots")
         self.phidx = {p: j for j, p in enumerate(self.ph)}
         self.names = [m.start() for m in ms if m.group(1) is None]  # those inside names
+        self.name_paths = None  # where in the tree those names are (on first use)
         self.kind = "stmt"
         self.tree = None
         self.plan = None
@@ -301,8 +304,7 @@ def _hot_aggregate(agg, shape):
         keys[name] = item.children[-1]
     if typ is not None and typ not in ("POS", "E6POS"):
         return None
-    # (in a shape A1…A6 read A0)
-    if typ is None and (keys.keys() & (_AXIS_KEYS | {"A0"}) or not keys.keys() & {"X", "Y", "Z"}):
+    if typ is None and (keys.keys() & _AXIS_KEYS or not keys.keys() & {"X", "Y", "Z"}):
         return None
     slots, neg, gap = [-1] * 6, [False] * 6, [0] * 6
     for k, v in keys.items():
@@ -401,6 +403,22 @@ def _mark_brace(agg, text: str) -> None:
         agg.meta_brace = -1
         return
     agg.meta_brace = text.rfind("{", 0, first)
+
+
+def _name_paths(tree, names) -> list:
+    """Child-index paths to the tokens of ``tree`` that hold a name placeholder."""
+    out = []
+
+    def walk(node, path):
+        for i, c in enumerate(node.children):
+            if isinstance(c, Token):
+                if c.type in ("NAME", "ENUM", "BITS") and any(c.start_pos <= p < c.end_pos for p in names):
+                    out.append(path + (i,))
+            elif c is not None:
+                walk(c, path + (i,))
+
+    walk(tree, ())
+    return out
 
 
 def _first_pos(tree):
@@ -847,44 +865,48 @@ class _Reader:
 
     def concrete(self, tree):
         """``tree`` with the names of this line (a shape has XP0 where the line has XP12);
-        positions stay those of the shape."""
-        names = self.sh.names
-        changed = False
-        out = []
-        for c in tree.children:
+        positions stay those of the shape. Only the nodes above such names are copied."""
+        sh = self.sh
+        if sh.name_paths is None:
+            sh.name_paths = _name_paths(tree, sh.names)
+        return self._rebuild(tree, sh.name_paths) if sh.name_paths else tree
+
+    def _rebuild(self, node, paths):
+        groups: dict = {}
+        for p in paths:
+            groups.setdefault(p[0], []).append(p[1:])
+        children = list(node.children)
+        for i, sub in groups.items():
+            c = children[i]
             if isinstance(c, Token):
-                if c.type in ("NAME", "ENUM", "BITS") and any(c.start_pos <= p < c.end_pos for p in names):
-                    c = Token.new_borrow_pos(c.type, self.text[self.abs_pos(c.start_pos):self.abs_pos(c.end_pos)], c)
-                    changed = True
-            elif c is not None:
-                new = self.concrete(c)
-                changed |= new is not c
-                c = new
-            out.append(c)
-        if not changed:
-            return tree
-        new = Tree(tree.data, out, tree._meta)
-        if hasattr(tree, "meta_brace"):
-            new.meta_brace = tree.meta_brace
+                text = self.text[self.abs_pos(c.start_pos):self.abs_pos(c.end_pos)]
+                children[i] = Token.new_borrow_pos(c.type, text, c)
+            else:
+                children[i] = self._rebuild(c, sub)
+        new = Tree(node.data, children, node._meta)
+        if hasattr(node, "meta_brace"):
+            new.meta_brace = node.meta_brace
         return new
 
     # positions and numbers of the current line
     def nums(self):
+        """(start, end) in the file of each placeholder of the current line, in order."""
         if self._nums is None:
-            self._nums = [(m.start() + self.la, m.end() + self.la) for m in SHAPE_RE.finditer(self.lt)]
+            la = self.la
+            self._nums = [(m.start() + la, m.end() + la) for m in SHAPE_RE.finditer(self.lt)]
+            cum, extra = [0], 0
+            for a, b in self._nums:  # how much longer than its "0" each placeholder is
+                extra += b - a - 1
+                cum.append(extra)
+            self._cum = cum
         return self._nums
 
     def abs_pos(self, shape_pos: int) -> int:
         """Offset in the file of a position in the current line's shape."""
-        ph = self.sh.ph
-        extra = 0
-        if ph:
-            nums = self.nums()
-            for j, p in enumerate(ph):
-                if p >= shape_pos:
-                    break
-                extra += nums[j][1] - nums[j][0] - 1
-        return self.la + shape_pos + extra
+        if not self.sh.ph:
+            return self.la + shape_pos
+        self.nums()
+        return self.la + shape_pos + self._cum[bisect_left(self.sh.ph, shape_pos)]
 
     def col(self, shape_pos: int) -> int:
         return self.abs_pos(shape_pos) - self.la + 1
