@@ -592,6 +592,19 @@ def test_accelerated_read_reports_errors_at_the_token():
     assert (e.value.code, e.value.line, e.value.col) == ("P103", line, 16)
 
 
+@pytest.mark.parametrize("tail,line_of,message", [
+    ("END\nLIN {X 1,Y 2,Z 3,A 0,B 90,C 0} C_VEL\n", "LIN {X 1,Y 2,Z 3,", "inside DEF"),
+    ("SPL {X 1,Y 2,Z 3,A 0,B 90,C 0}\nEND\n", "SPL", "inside SPLINE"),
+])
+def test_accelerated_read_checks_the_block_structure(tail, line_of, message):
+    src = big_program(6000)
+    src = src[: src.rindex("END")] + tail
+    with pytest.raises(PostprocError) as e:
+        read(src)
+    line = src[: src.rindex(line_of)].count("\n") + 1
+    assert (e.value.code, e.value.line, e.value.col) == ("P101", line, 1) and message in e.value.message
+
+
 def test_planning_measurement_program_reads_back():
     """The measurement programs postproc writes (planning.py) read back: the N poses plus
     the approach/retreat points, all in $NULLFRAME with the robot's tool."""
