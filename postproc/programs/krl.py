@@ -598,8 +598,6 @@ class _Reader:
         self.local: dict[str, _Var] | None = None
         self.targets_of: dict[int, tuple] = {}  # id(_Agg) → (frame, line) of its first use
         self.call_states: dict[str, list] = {}
-        self.def_spans: list = []  # (key0, key1) of DEF bodies of the main file
-        self.spline_spans: list = []
 
     # ---------------------------------------------------------------- driver
 
@@ -652,7 +650,6 @@ class _Reader:
         self.state = _START
         self.saved_state = None
         self.fdat = None
-        self.pos_known = True
         self.in_def = False
         self.has_def = False
         self.has_dat = False
@@ -661,7 +658,9 @@ class _Reader:
         self.spline_lines: list = []
         self.block_open = {}
         if _BLANK.fullmatch(text):
-            raise PostprocError("the file is empty", path, 1, 1, "P104")
+            if role == "module" and fi == 0:
+                raise PostprocError("the file is empty", path, 1, 1, "P104")
+            return  # an empty .dat or $config.dat declares nothing
         data = text.encode("latin-1", "replace") if not text.isascii() else text.encode("ascii")
         raw = np.frombuffer(data, np.uint8)
         nl = np.flatnonzero(raw == 10)
@@ -1469,8 +1468,7 @@ class _Reader:
                 data = "BASE_DATA" if cmd == "#BASE" else "TOOL_DATA"
                 new, label = self.data_frame(data, (n,)), f"{data}[{n}]"
             self.set_state(self.replace_state(st, which, new, label))
-        elif cmd in ("#PTP_PARAMS", "#CP_PARAMS", "#FRAMES", "#PTP_DAT", "#CP_DAT") and cmd in (
-                "#PTP_PARAMS", "#CP_PARAMS", "#FRAMES"):
+        elif cmd in ("#PTP_PARAMS", "#CP_PARAMS", "#FRAMES"):  # $BASE/$TOOL from FDAT_ACT
             base, bl = self.fdat_base(self.fdat)
             tool, tl = self.fdat_tool(self.fdat)
             st = self.replace_state(st, "$BASE", base, bl)
