@@ -88,6 +88,7 @@ _SHOWN = {
     "NUMBER": "a number", "NAME": "a name", "STRING": "a string", "$END": "end of line",
     "ENUM": "a #value", "APPROX": "C_PTP/C_DIS/C_VEL/C_ORI/C_SPL", "MOVE": "a motion",
     "COMP_OP": "a comparison", "ADD_OP": "'+' or '-'", "BITS": "a bit literal",
+    "VALUE": "a value ({…}, a name or a number)",
 }
 _OPERATORS = {"ADD_OP", "MUL_OP", "AND_OP", "OR_OP", "EXOR_OP", "COMP_OP", "COLON", "DOT",
               "LSQB", "LPAR", "COMMENT", "NOT_OP", "BITS", "STRING", "ENUM"}
@@ -936,14 +937,21 @@ class _Reader:
         else:
             pos = len(shape.rstrip())
             found = "end of line"
-        expected = sorted(getattr(exc, "expected", None) or getattr(exc, "allowed", None) or [])
-        shown = [e for e in expected if e not in _OPERATORS] or expected
+        if isinstance(exc, UnexpectedToken) and exc.token.type == "COMMENT":
+            found = "';' (a comment)"
+        expected = set(getattr(exc, "expected", None) or getattr(exc, "allowed", None) or [])
+        if "COMMENT" in expected:  # a comment may end any statement: say "end of line" once
+            expected = (expected - {"COMMENT"}) | {"$END"}
+        if {"NUMBER", "NAME", "LBRACE"} <= expected:  # anything that starts an expression
+            expected = (expected - {"NUMBER", "NAME", "LBRACE", "STRING", "ENUM", "BITS", "LPAR", "ADD_OP",
+                                    "NOT_OP"}) | {"VALUE"}
+        shown = sorted(e for e in expected if e not in _OPERATORS) or sorted(expected)
         depth = 0
         for ch in shape[:pos]:
             depth += (ch == "{") - (ch == "}")
         where = " in aggregate" if depth > 0 else ""
         if shown and len(shown) <= 5:
-            names = [_SHOWN.get(e, e if e.isupper() else e) for e in shown]
+            names = [_SHOWN.get(e, e) for e in shown]
             exp = ", ".join(names[:-1]) + (" or " if len(names) > 1 else "") + names[-1]
             msg = f"expected {exp}{where}, found {found}"
         else:
