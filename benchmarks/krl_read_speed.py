@@ -102,6 +102,10 @@ def main() -> None:
         _, peak = tracemalloc.get_traced_memory()
         tracemalloc.stop()
         print(f"peak memory of read (tracemalloc, beyond the {len(text) / 1e6:.0f} MB text): {peak / 1e6:.0f} MB")
+    import resource
+
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB on Linux
+    print(f"peak resident memory of this whole process (text, copies, numpy): {rss:.0f} MB")
 
 
 if __name__ == "__main__":
