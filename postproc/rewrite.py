@@ -17,7 +17,7 @@ import numpy as np
 
 from .diagnostics import PostprocError
 
-__all__ = ["format_like", "format_many", "apply_edits", "insert_stamp", "stamp_line", "write_atomic"]
+__all__ = ["format_like", "format_many", "apply_edits", "insert_stamp", "stamp_line", "write_atomic", "recover"]
 
 MIN_DECIMALS = 3
 # KRL allows blanks between a sign and its number ('X - 5'): the reader's span covers both
@@ -111,9 +111,18 @@ def insert_stamp(text: str, stamp: str, newline: str, after_headers: str | None 
 def write_atomic(outputs: Sequence[tuple[Path, str]]) -> None:
     """Write all files or none: each to a temp file in its directory, then rename them all.
 
-    If a rename fails, files already renamed are put back as they were.
+    If a rename fails, files already renamed are put back as they were. Two renames cannot
+    be one atomic step, so for a module (.src + .dat) a journal naming the renames is
+    written first and removed last: if the process dies between the renames (SIGKILL,
+    power loss), :func:`recover` — which the next write to the same files runs first —
+    completes them, so a mix of new and old files never outlives the next run.
     """
+    outputs = list(outputs)
+    journal = _journal(outputs[0][0]) if len(outputs) > 1 else None
+    if journal is not None:
+        recover(outputs[0][0])
     temps: list[tuple[Path, Path]] = []
+    backups: dict[Path, Path] = {}
     try:
         for path, text in outputs:
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -127,39 +136,78 @@ def write_atomic(outputs: Sequence[tuple[Path, str]]) -> None:
                 os.chmod(tmp, path.stat().st_mode & 0o777)
             else:
                 os.chmod(tmp, 0o666 & ~_umask())
-    except BaseException:
-        for tmp, _ in temps:
-            tmp.unlink(missing_ok=True)
-        raise
-    # keep the old versions until every rename has succeeded
-    backups: list[tuple[Path, Path | None]] = []
-    try:
-        for tmp, path in temps:
-            backup = None
+        # the old versions, kept (hard links: no copy) until every rename has succeeded; all
+        # made before the first rename, so that the renames follow each other closely
+        for _, path in temps:
             if path.is_file():
-                # a hard link keeps the old contents at no cost once the rename replaces the name
                 backup = path.with_name(f".{path.name}.{os.getpid()}.bak")
                 backup.unlink(missing_ok=True)
                 os.link(path, backup)
-            try:
-                os.replace(tmp, path)
-            except BaseException:
-                if backup is not None:  # this one still holds its old contents
-                    backup.unlink(missing_ok=True)
-                raise
-            backups.append((path, backup))
+                backups[path] = backup
+        if journal is not None:
+            _write_journal(journal, temps, backups)
     except BaseException:
-        for path, backup in reversed(backups):
-            if backup is not None:
-                os.replace(backup, path)
-            else:
-                path.unlink(missing_ok=True)
-        for tmp, _ in temps:
+        for tmp in [t for t, _ in temps] + list(backups.values()):
             tmp.unlink(missing_ok=True)
         raise
-    for _, backup in backups:
-        if backup is not None:
-            backup.unlink(missing_ok=True)
+    renamed: list[Path] = []
+    try:
+        for tmp, path in temps:
+            os.replace(tmp, path)
+            renamed.append(path)
+    except BaseException:
+        if journal is not None:  # first: a rollback must not be rolled forward later
+            journal.unlink(missing_ok=True)
+        for path in reversed(renamed):
+            if path in backups:
+                os.replace(backups.pop(path), path)
+            else:
+                path.unlink(missing_ok=True)
+        for tmp in [t for t, _ in temps] + list(backups.values()):
+            tmp.unlink(missing_ok=True)
+        raise
+    if journal is not None:
+        journal.unlink(missing_ok=True)
+    for backup in backups.values():
+        backup.unlink(missing_ok=True)
+
+
+def _journal(first: Path) -> Path:
+    return first.with_name(f".{first.name}.postproc-journal")
+
+
+def _write_journal(journal: Path, temps: list[tuple[Path, Path]], backups: dict[Path, Path]) -> None:
+    """The renames to come, one 'temp<TAB>target<TAB>backup' line each; written to a temp
+    file and renamed, so a journal is complete or absent."""
+    lines = "".join(f"{tmp}\t{path}\t{backups.get(path, '')}\n" for tmp, path in temps)
+    fd, tmp = tempfile.mkstemp(prefix=journal.name + ".", suffix=".tmp", dir=journal.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(lines)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, journal)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def recover(first: Path) -> bool:
+    """Complete the renames of a write to ``first`` (and the files written with it) that
+    was killed between them; True if there was one. Safe to run any number of times."""
+    journal = _journal(Path(first))
+    try:
+        lines = journal.read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        return False
+    for line in lines:
+        tmp, path, backup = line.split("\t")
+        if Path(tmp).exists():
+            os.replace(tmp, path)
+        if backup:
+            Path(backup).unlink(missing_ok=True)
+    journal.unlink(missing_ok=True)
+    return True
 
 
 def _umask() -> int:
