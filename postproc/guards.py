@@ -87,8 +87,9 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
     differ = np.flatnonzero(known != (b.frame >= 0))
     if len(differ):
         raise _refuse(program, differ, "the frame of this target is not statically known in the compensated text")
-    pairs = np.unique(np.stack([a.frame[known], b.frame[known]], axis=1), axis=0)
-    for i, j in pairs.tolist():
+    width = int(b.frame.max(initial=0)) + 1  # (one code per pair of frame indices: a 1-D unique is fast)
+    codes = np.unique(a.frame[known].astype(np.int64) * width + b.frame[known])
+    for i, j in zip((codes // width).tolist(), (codes % width).tolist()):
         before, after = program.frames[i], again.frames[j]
         same_tool = (before.tool is None) == (after.tool is None) and (
             before.tool is None or np.allclose(before.tool, after.tool, rtol=0.0, atol=1e-9))
