@@ -128,7 +128,7 @@ def test_fixed_point_iterations_of_a_smooth_model(fitted, data):
 def test_structure_search_on_a_few_candidates(data):
     poses, errors, train, _ = data
     result = search_structure(poses[train], errors[train], structures=[(3,), (8, 8), (300, 300)],
-                              keep=2, epochs=15, screen_epochs=30, seed=0)
+                              keep=2, final_seeds=1, epochs=15, screen_epochs=30, seed=0)
     by_hidden = {c.hidden: c for c in result.candidates}
     assert "skipped" in by_hidden[(300, 300)].note  # too many weights for 384 rows
     finalists = [c for c in result.candidates if c.final_mm is not None]
@@ -136,6 +136,16 @@ def test_structure_search_on_a_few_candidates(data):
     assert by_hidden[result.best].final_mm == min(c.final_mm for c in finalists)
     table = format_table(result)
     assert "← chosen" in table and "8,8" in table
+
+
+def test_search_candidates_cover_the_methods_grid_families():
+    from postproc.training.search import candidates
+
+    c = candidates()
+    assert len(c) == len(set(c)) == 150
+    assert all((n,) * k in c for k in range(1, 7) for n in range(3, 17))  # every equal-width net
+    assert (20, 10, 5) in c and (16, 8, 4) in c and (9, 4, 3) in c
+    assert all(1 <= len(h) <= 6 and min(h) >= 3 for h in c if h != (20, 10, 5))
 
 
 def test_torch_stays_single_threaded_only_during_fit(data):

@@ -1,13 +1,16 @@
 """Structure search: which hidden layers, scored on a validation split of the training data.
 
 The method searched 1–6 hidden layers of 3–16 nodes each. All 14^6 combinations cannot be
-trained, so this searches **equal widths** — (n,)*L for L in 1..6 and n in 3..16, 84
-structures — plus the method's own choice (20, 10, 5) as a reference, by successive halving:
+trained, so this searches two families — **equal widths** (n,)*L and **halving widths**
+(n, n/2, n/4, …, never below 3, like the method's 20-10-5) for L in 1..6 and n in 3..16,
+149 distinct structures — plus the method's own (20, 10, 5) as a reference, by successive
+halving:
 
 1. screen: every candidate gets the chosen weight search (GPSO by default) and 300 L-BFGS
    epochs (cheap: its cost grows with the number of weights D, Levenberg–Marquardt's with D²);
 2. final: the ``keep`` best of the screen are trained with the full method (the chosen
-   optimiser, all epochs) and the one with the lowest validation mean |E − Ê| wins.
+   optimiser, all epochs), once per seed of ``final_seeds`` (the same seeds for each, so a
+   lucky start does not decide), and the lowest mean validation |E − Ê| wins.
 
 The validation split is drawn from the *training* rows (``val_fraction`` of them, seeded), so
 the held-out rows that ``postproc train`` reports on are never used to choose. Candidates
@@ -51,14 +54,14 @@ class SearchResult:
     candidates: list[Candidate] = field(default_factory=list)
     n_fit: int = 0
     n_val: int = 0
+    final_seeds: int = 1
 
 
 def candidates(layers=range(1, 7), widths=range(3, 17)) -> list[tuple[int, ...]]:
-    """Equal-width structures plus the method's (20, 10, 5)."""
-    out = [(n,) * n_layers for n_layers in layers for n in widths]
-    if METHOD_STRUCTURE not in out:
-        out.append(METHOD_STRUCTURE)
-    return out
+    """Equal-width and halving-width structures (distinct) plus the method's (20, 10, 5)."""
+    equal = [(n,) * n_layers for n_layers in layers for n in widths]
+    halving = [tuple(max(3, round(n / 2**i)) for i in range(n_layers)) for n_layers in layers for n in widths]
+    return list(dict.fromkeys(equal + halving + [METHOD_STRUCTURE]))
 
 
 def _val_mean(model: ErrorModel, poses: np.ndarray, errors: np.ndarray) -> tuple[float, float]:
@@ -75,6 +78,7 @@ def search_structure(
     seed: int = 0,
     val_fraction: float = 0.2,
     keep: int = 6,
+    final_seeds: int = 2,
     structures: list[tuple[int, ...]] | None = None,
     screen_epochs: int = SCREEN_EPOCHS,
     progress: bool = False,
@@ -92,7 +96,7 @@ def search_structure(
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(pool) + keep, desc="search", unit="net", leave=False, dynamic_ncols=True)
+        bar = tqdm(total=len(pool) + keep * final_seeds, desc="search", unit="net", leave=False, dynamic_ncols=True)
     for cand in pool:
         if len(fit_rows) < min_points(cand.n_weights):
             cand.note = f"skipped: needs ≥ {min_points(cand.n_weights)} points"
@@ -112,17 +116,21 @@ def search_structure(
         raise ValueError("no candidate structure fits the amount of data")
     for cand in screened[:keep]:
         t = time.perf_counter()
-        model = ErrorModel(cand.hidden, method, optimizer, epochs, seed=seed).fit(px, ex)
-        cand.final_mm, cand.final_max_mm = _val_mean(model, pv, ev)
+        scores = []
+        for k in range(final_seeds):
+            model = ErrorModel(cand.hidden, method, optimizer, epochs, seed=seed + k).fit(px, ex)
+            scores.append(_val_mean(model, pv, ev))
+            if bar is not None:
+                bar.update(1)
+        cand.final_mm = float(np.mean([m for m, _ in scores]))
+        cand.final_max_mm = float(np.mean([m for _, m in scores]))
         cand.seconds += time.perf_counter() - t
-        if bar is not None:
-            bar.update(1)
         if log is not None:
             log(f"final  {cand.label:<18} {cand.final_mm:.4f} mm")
     if bar is not None:
         bar.close()
     best = min((c for c in pool if c.final_mm is not None), key=lambda c: c.final_mm)
-    return SearchResult(best.hidden, pool, len(fit_rows), len(val_rows))
+    return SearchResult(best.hidden, pool, len(fit_rows), len(val_rows), final_seeds)
 
 
 def format_table(result: SearchResult, screen_epochs: int = SCREEN_EPOCHS) -> str:
@@ -145,5 +153,6 @@ def format_table(result: SearchResult, screen_epochs: int = SCREEN_EPOCHS) -> st
         final = f"{c.final_mm:8.4f}" if c.final_mm is not None else f"{'-':>8}"
         fmax = f"{c.final_max_mm:9.4f}" if c.final_max_mm is not None else f"{'-':>9}"
         lines.append(f"{c.label:<18} {c.n_weights:7d} {screen} {final} {fmax} {c.seconds:6.1f}{mark}{'  ' + c.note if c.note else ''}")
-    foot = f"\nscreen: {screen_epochs} L-BFGS epochs after the weight search; final: the full method"
+    foot = (f"\nscreen: {screen_epochs} L-BFGS epochs after the weight search; final: the full method, "
+            f"mean over {result.final_seeds} seed(s)")
     return head + "\n".join(lines) + foot
