@@ -17,7 +17,7 @@ import numpy as np
 from . import frames
 from .compensator import Compensator, load_model
 from .diagnostics import Diagnostic, PostprocError
-from .guards import ROUNDING_MM, check_numbers, check_round_trip
+from .guards import ROUNDING_MM, check_memory, check_numbers, check_round_trip
 from .programs import STAMP_PREFIX, Program, dialect_of, read_program
 from .rewrite import apply_edits, format_many, insert_stamp, stamp_line, write_atomic
 
@@ -143,8 +143,9 @@ def load_program(path: str | Path, config: str | Path | None = None, dialect: st
             dialect = dialect_of(path)
         except ValueError as exc:
             raise PostprocError(str(exc), str(path), 0, 0, "P108") from None
-    files, texts = [str(path)], [_read(path)]
     dat = companion_dat(path) if dialect == "krl" else None
+    check_memory([path] + ([dat] if dat is not None else []))
+    files, texts = [str(path)], [_read(path)]
     if dat is not None:
         files.append(str(dat))
         texts.append(_read(dat))

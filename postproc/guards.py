@@ -9,20 +9,50 @@ changed one target at a time, becomes a refusal (``PostprocError``), never a wro
   (P191). This catches what no single edit shows, e.g. a position variable that is both a
   motion target (so it is compensated) and a frame (``$BASE = XP1``, ``XP1:XP2``): changing
   its numbers would move every target programmed in that frame.
+
+And one first check: :func:`check_memory` refuses (P111) a program too large to compensate
+in this machine's memory, instead of being killed by the kernel after minutes of work.
 """
 from __future__ import annotations
 
 import contextlib
+from pathlib import Path
 
 import numpy as np
 
 from .diagnostics import PostprocError
 from .programs import Program, read_program
 
-__all__ = ["check_numbers", "check_round_trip", "ROUNDING_MM"]
+__all__ = ["check_numbers", "check_round_trip", "check_memory", "ROUNDING_MM", "MEMORY_PER_INPUT_BYTE"]
 
 # New numbers are written with at least three decimals: half a µm of rounding at most.
 ROUNDING_MM = 5e-4
+# Peak memory of compensating, per byte of program text: ≈ 70 MB + 24 × the input on a KRL
+# CAM program (benchmarks/compensate_speed.py --memory). A program is refused when even 20×
+# its size is more than the memory available: it would be killed half-way otherwise.
+MEMORY_PER_INPUT_BYTE = 20
+
+
+def _available_bytes() -> int | None:
+    """MemAvailable + SwapFree (Linux), None where unknown."""
+    try:
+        with open("/proc/meminfo") as fh:
+            info = {k: int(v.split()[0]) * 1024 for k, v in (line.split(":", 1) for line in fh)}
+    except (OSError, ValueError):
+        return None
+    return info.get("MemAvailable", 0) + info.get("SwapFree", 0) if "MemAvailable" in info else None
+
+
+def check_memory(paths: list[Path]) -> None:
+    """Refuse (P111) programs whose files will not fit in memory while being compensated."""
+    size = sum(p.stat().st_size for p in paths if p.is_file())
+    available = _available_bytes()
+    if available is None or size * MEMORY_PER_INPUT_BYTE <= available:
+        return
+    raise PostprocError(f"too large to compensate here: {size / 1e6:,.0f} MB of program needs about "
+                        f"{size * MEMORY_PER_INPUT_BYTE / 1e9:,.1f} GB of memory, {available / 1e9:,.1f} GB are "
+                        f"available; split it into programs of at most {available / MEMORY_PER_INPUT_BYTE / 1e6:,.0f} MB",
+                        str(paths[0]), 0, 0, "P111")
 
 
 def _where(program: Program, row: int) -> tuple[str, int, int]:
