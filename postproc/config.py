@@ -7,6 +7,7 @@
     strict = false                       # warnings count as findings / refuse to compensate
     max_correction = 5.0                 # mm, refuse larger corrections
     iterations = 2                       # fixed-point iterations (default: the model's)
+    robot = "KR500-sim"                  # refuse models trained on another robot (unless --force)
     ignore = ["P301"]                    # check: codes not reported
     fresh = [                            # compensated outputs kept in git beside their sources
       { source = "src/*.src", output = "out/*.src" },
@@ -30,7 +31,7 @@ from .diagnostics import PostprocError
 __all__ = ["Config", "FreshPair", "find_config", "load_config", "CONFIG_NAME"]
 
 CONFIG_NAME = "postproc.toml"
-KEYS = ("model", "config", "strict", "max_correction", "iterations", "ignore", "fresh")
+KEYS = ("model", "config", "strict", "max_correction", "iterations", "ignore", "fresh", "robot")
 PAIR_KEYS = ("source", "output", "model", "config")
 # a wildcard of a pair pattern; `**/` (any number of directories, also none) comes first
 _WILDCARD = re.compile(r"\*\*/|\*\*|\*|\?")
@@ -77,6 +78,7 @@ class Config:
     strict: bool = False
     max_correction_mm: float | None = None
     iterations: int | None = None
+    robot: str | None = None  # the robot the programs are for: models trained on another are refused
     ignore: tuple[str, ...] = ()
     fresh: list[FreshPair] = field(default_factory=list)
 
@@ -153,6 +155,10 @@ def parse_config(table: dict, path: Path) -> Config:
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise _error("expected a whole number ≥ 1", path, "iterations")
         cfg.iterations = value
+    if "robot" in table:
+        if not isinstance(table["robot"], str) or not table["robot"].strip():
+            raise _error("expected the robot's name, as in the model card (e.g. \"KR500-sim\")", path, "robot")
+        cfg.robot = table["robot"].strip()
     if "ignore" in table:
         value = table["ignore"]
         if not isinstance(value, list) or not all(isinstance(v, str) and re.fullmatch(r"P\d{3}", v) for v in value):
