@@ -32,6 +32,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--strict", action="store_true", help="treat warnings as errors")
     p.add_argument("--robot", metavar="NAME", help="the robot the program is for: refuse a model trained on another "
                    "(its 'robot' metadata), unless --force")
+    p.add_argument("--settings", metavar="TOML", help="pyproject.toml or postproc.toml to read (default: searched "
+                   "upwards from the current directory); options override its [tool.postproc] values")
     p.add_argument("--force", action="store_true",
                    help="compensate an already compensated program / another tool's or robot's program")
     p.set_defaults(run=run)
@@ -39,13 +41,18 @@ def add_parser(sub, common, formatter) -> None:
 
 def run(args) -> int:
     from ..compensate import DEFAULT_MAX_CORRECTION_MM, compensate_file, compensate_program, load_program
+    from ..config import load_config
 
+    cfg = load_config(args.settings)  # [tool.postproc]: the options given here win
+    args.model = args.model or cfg.model
+    args.config = args.config or (list(cfg.config) if cfg.config else None)
+    max_correction = args.max_correction if args.max_correction is not None else cfg.max_correction_mm
     kwargs = dict(
-        iterations=args.iterations,
-        strict=args.strict,
+        iterations=args.iterations if args.iterations is not None else cfg.iterations,
+        strict=args.strict or cfg.strict,
         force=args.force,
-        max_correction_mm=DEFAULT_MAX_CORRECTION_MM if args.max_correction is None else args.max_correction,
-        robot=args.robot,
+        max_correction_mm=DEFAULT_MAX_CORRECTION_MM if max_correction is None else max_correction,
+        robot=args.robot or cfg.robot,
     )
     if args.input == "-":
         from ..compensator import load_model
