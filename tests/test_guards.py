@@ -335,3 +335,15 @@ def test_program_too_large_for_memory_is_refused_before_reading(run, affine, mon
             message=r"too large to compensate here: 0 MB of program needs about 0\.0 GB of memory, 0\.0 GB are available")
     monkeypatch.setattr(postproc.guards, "_available_bytes", lambda: None)  # not known: go ahead
     assert run(GOOD, affine(), "-q")[0] == 0
+
+
+def test_robot_from_the_settings(run, affine, tmp_path):
+    model = affine(robot="KR500-sim")
+    settings = tmp_path / "postproc.toml"
+    settings.write_text('robot = "KR16-R1610"\n')
+    refused(run(GOOD, model, "--settings", str(settings)), run, "P310", model, message="the program is for KR16-R1610")
+    # the option overrides the settings; --force overrides both
+    assert run(GOOD, model, "--settings", str(settings), "--robot", "KR500-sim", "-q")[0] == 0
+    assert run(GOOD, model, "--settings", str(settings), "--force", "-q")[0] == 0
+    settings.write_text("robot = 500\n")
+    refused(run(GOOD, model, "--settings", str(settings)), run, "P601", settings, message="expected the robot's name")
