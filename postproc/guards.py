@@ -27,10 +27,11 @@ __all__ = ["check_numbers", "check_round_trip", "check_memory", "ROUNDING_MM", "
 
 # New numbers are written with at least three decimals: half a µm of rounding at most.
 ROUNDING_MM = 5e-4
-# Peak memory of compensating, per byte of program text: ≈ 70 MB + 24 × the input on a KRL
-# CAM program (benchmarks/compensate_speed.py --memory). A program is refused when even 20×
-# its size is more than the memory available: it would be killed half-way otherwise.
-MEMORY_PER_INPUT_BYTE = 20
+# Peak memory of compensating, per byte of program text: ≈ 56 MB + 27 × the input on a KRL CAM
+# program of 1M LIN lines (benchmarks/compensate_speed.py --memory), 31 × on a pose CSV (shorter
+# lines per target). A program is refused when 30 × its size is more than the memory available:
+# it would be killed half-way otherwise.
+MEMORY_PER_INPUT_BYTE = 30
 
 
 def _available_bytes() -> int | None:
