@@ -1,19 +1,22 @@
 """Speed of `postproc compensate` on a generated CAM program.
 
-    python benchmarks/compensate_speed.py [--targets 1000000] [--model models/default.onnx]
+    python benchmarks/compensate_speed.py [--targets 1000000] [--model models/default.onnx] [--memory]
 
 Prints targets/s and peak memory of the CLI on a program of N `LIN {X …,Y …,Z …,A …,B …,C …}
 C_VEL` lines, the time of a plain Python pass that reads the file, rewrites the same X/Y/Z
 numbers by regex and writes it (the floor any rewriter must pay), their ratio, and the
 wall time of a 100-line program end to end (process start included).
 Goals (issue 2): ≥ 100,000 targets/s, ≤ 3× the regex pass, peak ≤ 2 GB, 100 lines ≤ 0.5 s.
+
+With --memory it also runs the CLI on 1/10 and 1/3 of the program and fits its peak RSS
+(each process measured on its own, os.wait4) as a + b·size: b is the peak RSS per MB of
+input, and (MemAvailable − a) / b the largest program that fits in this machine's memory.
 """
 from __future__ import annotations
 
 import argparse
 import os
 import re
-import resource
 import subprocess
 import sys
 import tempfile
@@ -56,22 +59,62 @@ def regex_pass(src: Path, dst: Path) -> float:
     return time.perf_counter() - start
 
 
+# `python -m postproc …` that reports its own peak RSS on exit. (A child's ru_maxrss counts the
+# parent's pages it shares between fork and exec: this benchmark's own 100s of MB.)
+_CLI = ("import atexit, sys\n"
+        "from postproc.cli import main\n"
+        "atexit.register(lambda: sys.stderr.write('peak-kB ' + next(l.split()[1] for l in open('/proc/self/status')"
+        " if l.startswith('VmHWM')) + '\\n'))\n"
+        "sys.exit(main(sys.argv[1:]))\n")
+
+
 def run_cli(args: list[str]) -> tuple[float, float]:
     """Wall seconds and peak RSS (MB) of one `postproc …` process."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     start = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "postproc", *args], capture_output=True, text=True, cwd=REPO)
+    proc = subprocess.run([sys.executable, "-c", _CLI, *args], capture_output=True, text=True, cwd=REPO)
     wall = time.perf_counter() - start
     if proc.returncode != 0:
         sys.exit(f"postproc failed: {proc.stderr}")
-    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    return wall, max(peak, before) / 1024
+    peak = int(proc.stderr.split("peak-kB ")[-1].split()[0])
+    return wall, peak / 1024
+
+
+def _memory_run(tmp: Path, n: int, model: str, peaks: list) -> float:
+    src = tmp / f"mem{n}.src"
+    make_cam_program(src, n)
+    wall, peak = run_cli(["compensate", str(src), "-o", str(tmp / "mem_out.src"), "--model", model, "-q"])
+    size = src.stat().st_size / 1e6
+    peaks.append(peak)
+    print(f"memory: {n:>9,} targets, {size:7.1f} MB in: peak RSS {peak:7,.0f} MB "
+          f"({peak / size:.1f} MB per MB of input), {wall:.1f} s")
+    src.unlink()
+    return size
+
+
+def available_mb() -> float:
+    with open("/proc/meminfo") as fh:
+        info = dict(line.split(":", 1) for line in fh)
+    return int(info["MemAvailable"].split()[0]) / 1024
+
+
+def memory(targets: int, model: str) -> None:
+    """Peak RSS against input size; what fits in this machine's memory."""
+    sizes, peaks = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in (targets // 10, targets // 3, targets):
+            sizes.append(_memory_run(Path(tmp), n, model, peaks))
+    slope, intercept = np.polyfit(sizes, peaks, 1)
+    free = available_mb()
+    print(f"memory: peak RSS ≈ {intercept:.0f} MB + {slope:.1f} × input MB; MemAvailable {free:,.0f} MB → "
+          f"largest program that fits ≈ {(free - intercept) / slope:,.0f} MB "
+          f"(≈ {(free - intercept) / slope / (sizes[-1] / targets) / 1e6:,.1f} M targets of this shape)")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--targets", type=int, default=1_000_000)
     parser.add_argument("--model", default=str(REPO / "models" / "default.onnx"))
+    parser.add_argument("--memory", action="store_true", help="also: peak RSS against input size (3 more runs)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -83,6 +126,7 @@ def main() -> None:
         wall, peak = run_cli(["compensate", str(big), "-o", str(tmp / "out.src"), "--model", args.model, "-q"])
         small_walls = [run_cli(["compensate", str(small), "-o", str(tmp / "s.src"), "--model", args.model, "-q"])[0]
                        for _ in range(5)]
+
     rate = args.targets / wall
     print(f"program: {args.targets:,} LIN targets, {size_mb:.1f} MB; cores: {os.cpu_count()}")
     print(f"postproc compensate: {wall:.2f} s wall (process start included) = {rate:,.0f} targets/s "
@@ -90,6 +134,8 @@ def main() -> None:
     print(f"regex pass (read, rewrite X/Y/Z, write): {regex_s:.2f} s; ratio {wall / regex_s:.2f}x (goal <= 3x)")
     print(f"100-target program end to end: median {np.median(small_walls):.3f} s, "
           f"best {min(small_walls):.3f} s (goal <= 0.5 s)")
+    if args.memory:
+        memory(args.targets, args.model)
 
 
 if __name__ == "__main__":
