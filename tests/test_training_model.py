@@ -1,6 +1,8 @@
 """ErrorModel: training lowers the error, every method and optimiser runs, ONNX round trip."""
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import onnx
 import onnxruntime as ort
@@ -102,6 +104,9 @@ def test_onnx_round_trip_matches_torch_and_meets_the_contract(fitted, data, tmp_
     assert env is not None and not env.outside(poses[train]).any()
     assert np.allclose(comp.predict(poses[:5]), fitted.predict(poses[:5]), atol=1e-4)
     assert list(tmp_path.iterdir()) == [path]  # no temporary file left behind
+    umask = os.umask(0)
+    os.umask(umask)
+    assert path.stat().st_mode & 0o777 == 0o666 & ~umask  # readable like any file, not mkstemp's 0600
 
 
 def test_float64_internal_export(fitted, data, tmp_path):
