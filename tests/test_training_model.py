@@ -47,7 +47,6 @@ def test_default_method_lowers_the_error_clearly(fitted, data):
     assert fitted.losses_[-1] < fitted.init_.fitness  # backprop improved on the searched start
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("method", ["ga", "pso", "plain"])
 def test_baseline_methods_train(method, data):
     poses, errors, train, _ = data
@@ -129,7 +128,6 @@ def test_fixed_point_iterations_of_a_smooth_model(fitted, data):
     assert 1 <= k <= 4  # |dÊ/dP| ≪ 1 for a ~1 mm field over a 600 mm box: fast contraction
 
 
-@pytest.mark.slow
 def test_structure_search_on_a_few_candidates(data):
     poses, errors, train, _ = data
     result = search_structure(poses[train], errors[train], structures=[(3,), (8, 8), (300, 300)],
