@@ -125,3 +125,9 @@ def test_register_maps_tracker_measurements(tmp_path, csv_text):
     assert main(["train", str(src), "-o", str(out), "-q", "--register"] + FAST) == 0
     acc = json.loads(json.dumps(load_model(out).metadata["accuracy"]))
     assert acc["val_uncompensated_mean_mm"] < 3.0  # in the base frame again (the offset alone is ~500 mm)
+
+
+def test_bad_search_on_too_few_points(tmp_path, capsys, csv_text):
+    head = "\n".join(csv_text.splitlines()[:12]) + "\n"  # 11 rows: no candidate network fits
+    err = _bad(tmp_path, capsys, head, "--search")
+    assert "bad.csv" in err and "P505" in err and "too few for any candidate" in err

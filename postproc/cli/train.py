@@ -138,9 +138,14 @@ def run(args) -> int:
     if args.search:
         from ..training.search import format_table, search_structure
 
-        result = search_structure(
-            poses[train_rows], errors[train_rows], args.method, args.optimizer, args.epochs, args.seed, progress=progress
-        )
+        try:
+            result = search_structure(
+                poses[train_rows], errors[train_rows], args.method, args.optimizer, args.epochs, args.seed,
+                progress=progress,
+            )
+        except PostprocError as exc:
+            exc.path = exc.path or args.data  # too few points for every candidate: say which file
+            raise
         if not args.quiet:
             print(format_table(result))
         hidden = result.best

@@ -18,11 +18,13 @@ with more weights than the data support (see ``data.min_points``) are listed and
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
+from ..diagnostics import PostprocError
 from .data import min_points, split_indices
 from .estimator import ErrorModel
 from .network import Structure
@@ -85,8 +87,6 @@ def search_structure(
     log: Callable[[str], None] | None = None,
 ) -> SearchResult:
     """Search structures on (poses, errors); returns the winner and every candidate's scores."""
-    import time
-
     fit_rows, val_rows = split_indices(len(poses), val_fraction, seed)
     if len(val_rows) == 0:
         raise ValueError("structure search needs a validation split (val_fraction > 0)")
@@ -113,7 +113,11 @@ def search_structure(
             log(f"screen {cand.label:<18} {cand.screen_mm:.4f} mm")
     screened = sorted((c for c in pool if c.screen_mm is not None), key=lambda c: c.screen_mm)
     if not screened:
-        raise ValueError("no candidate structure fits the amount of data")
+        raise PostprocError(
+            f"{len(fit_rows)} points are too few for any candidate structure (the smallest needs "
+            f"{min(min_points(c.n_weights) for c in pool)} after the search's validation split)",
+            code="P505",
+        )
     for cand in screened[:keep]:
         t = time.perf_counter()
         scores = []
