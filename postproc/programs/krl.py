@@ -1201,7 +1201,7 @@ class _Reader:
             if e is None:
                 return None
             v = self.literal_number(e) if e.data in ("number", "signed") else None
-            if v is None or v.value != int(v.value):
+            if v is None or not np.isfinite(v.value) or v.value != int(v.value):  # (int(inf) raises)
                 return None
             out.append(int(v.value))
         return tuple(out) if out else None
