@@ -250,6 +250,12 @@ def compensate_program(
         raise PostprocError(mismatch + "; use --force to compensate anyway", str(model.path), 0, 0, "P310")
 
     t = program.targets
+    broken = [i for i, f in enumerate(program.frames) if not np.isfinite(f.base).all()]
+    in_broken = np.flatnonzero(np.isin(t.frame, broken)) if broken else []
+    if len(in_broken):  # (else its targets would only be 'not fully known', P212, and skipped)
+        r = int(in_broken[0])
+        raise PostprocError(f"the frame of this target ({program.frames[t.frame[r]].label}) is not a finite number",
+                            *_where(program, r), "P103")
     poses, resolved = robot_base_poses(program)
     no_position = resolved & np.isnan(poses[:, :3]).any(axis=1)
     if no_position.any():
@@ -270,6 +276,11 @@ def compensate_program(
     if not np.isfinite(sel).all():
         bad = rows[~np.isfinite(sel).all(axis=1)]
         raise PostprocError("target is not a finite number", *_where(program, int(bad[0])), "P103")
+    too_large = np.abs(sel) >= np.finfo(np.float32).max  # the model takes float32
+    if too_large.any():
+        r = int(np.flatnonzero(too_large.any(axis=1))[0])
+        raise PostprocError(f"target has a component too large for the model (float32): {sel[r].tolist()}",
+                            *_where(program, int(rows[r])), "P103")
 
     far = model.beyond_reach(sel[:, :3])
     if far.any():
