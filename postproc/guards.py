@@ -123,8 +123,8 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
     for i, j in zip((codes // width).tolist(), (codes % width).tolist()):
         before, after = program.frames[i], again.frames[j]
         same_tool = (before.tool is None) == (after.tool is None) and (
-            before.tool is None or np.allclose(before.tool, after.tool, rtol=0.0, atol=1e-9))
-        if not (same_tool and np.allclose(before.base, after.base, rtol=0.0, atol=1e-9)):
+            before.tool is None or np.allclose(before.tool, after.tool, rtol=0.0, atol=1e-9, equal_nan=True))
+        if not (same_tool and np.allclose(before.base, after.base, rtol=0.0, atol=1e-9, equal_nan=True)):
             moved = after.base[:3, 3] - before.base[:3, 3] if same_tool else np.subtract(after.tool, before.tool)[:3]
             raise _refuse(program, np.flatnonzero((a.frame == i) & (b.frame == j)),
                           f"compensating moves the {'base' if same_tool else 'tool'} of this target ({before.label}, "
