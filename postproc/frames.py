@@ -22,7 +22,8 @@ __all__ = [
 def rotation_from_abc(abc: np.ndarray) -> np.ndarray:
     """[..., 3] A,B,C in degrees → [..., 3, 3] rotation Rz(A)·Ry(B)·Rx(C)."""
     a, b, c = np.moveaxis(np.radians(np.asarray(abc, dtype=float)), -1, 0)
-    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
+    with np.errstate(invalid="ignore"):  # an infinite angle gives NaN (callers check), not a warning
+        ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
     r = np.empty(a.shape + (3, 3))
     r[..., 0, 0] = ca * cb
     r[..., 0, 1] = ca * sb * sc - sa * cc
