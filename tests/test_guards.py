@@ -347,3 +347,13 @@ def test_robot_from_the_settings(run, affine, tmp_path):
     assert run(GOOD, model, "--settings", str(settings), "--force", "-q")[0] == 0
     settings.write_text("robot = 500\n")
     refused(run(GOOD, model, "--settings", str(settings)), run, "P601", settings, message="expected the robot's name")
+
+
+def test_non_finite_frame_or_float32_overflow_is_refused(tmp_path, capsys, run, affine):
+    # a base with an infinite angle: its targets used to be skipped as 'not fully known'
+    src = "DEF cell( )\n$BASE = {X 0.0,Y 0.0,Z 0.0,A 1E999,B 0.0,C 0.0}\nLIN {X 10.0,Y 0.0,Z 900.0}\nEND\n"
+    code, err, written = krl_run(tmp_path, capsys, src, "DEFDAT cell\nENDDAT\n", affine(tool={"name": "any"}))
+    assert code == 2 and written == [] and re.match(rf"{re.escape(str(tmp_path / 'cell.src'))}:\d+:\d+: P103 ", err)
+    # finite in float64, infinite for the model's float32 input
+    text = GOOD.replace("P2,2100.000,100.000,950.000,1,89,0", "P2,2100.000,100.000,950.000,1e300,89,0")
+    refused(run(text, affine()), run, "P103", run.src(), 3, 1, "too large for the model")
