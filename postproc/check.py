@@ -208,7 +208,7 @@ def check_program(
         out += _rows(program, rows[envelope.outside(sel)], "P301", "target outside the model's training envelope",
                      "warning")
     if len(sel):
-        previous = np.vstack([sel[:1], sel[:-1]]) if model.wants_previous else None
+        previous = None  # rows in program order: command() chains each target to the previous command
         correction = model.command(sel, iterations, previous) - sel[:, :3]
         size = np.linalg.norm(correction, axis=1)
         bad = ~np.isfinite(size)

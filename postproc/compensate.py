@@ -300,7 +300,7 @@ def compensate_program(
                             first.path, first.line, first.col, first.code)
 
     # the pose commanded before each target: models that learn backlash use the approach direction
-    previous = np.vstack([sel[:1], sel[:-1]]) if model.wants_previous and len(sel) else None
+    previous = None  # rows in program order: command() chains each target to the previous command
     report.iterations = model.default_iterations if iterations is None else iterations
     commanded = model.command(sel, report.iterations, previous)
     correction = commanded - sel[:, :3]

@@ -5,7 +5,9 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
 * input ``pose``: float32 [N, 6] = X, Y, Z (mm), A, B, C (deg) in the robot base frame;
 * optional input ``previous_pose``: float32 [N, 6], the pose commanded just before each
   target (program order), for models that learn direction-dependent error (backlash);
-  models without it are plain pose → error maps;
+  ``compensate`` passes the previous target's compensated command (the first target's
+  previous pose is the target itself: nothing is known before it); models without it are
+  plain pose → error maps;
 * output ``error``: float32 [N, 3] mm, E = P_target − P_actual; normalisation lives inside
   the graph;
 * ``metadata_props`` (values JSON-encoded where structured): ``postproc_contract`` "1",
@@ -141,14 +143,20 @@ class Compensator:
         return error
 
     def command(self, poses: np.ndarray, iterations: int | None = None, previous: np.ndarray | None = None) -> np.ndarray:
-        """Commanded positions [N, 3] so that the robot lands on ``poses[:, :3]``: c = P + Ê(c)."""
+        """Commanded positions [N, 3] so that the robot lands on ``poses[:, :3]``: c = P + Ê(c).
+
+        For a model with ``previous_pose``: ``previous`` [N, 6] as given, or None = the rows are
+        in program order and each target comes from the previous row's command."""
         iterations = self.default_iterations if iterations is None else iterations
         if not 1 <= iterations <= MAX_ITERATIONS:
             raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code="P308")
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         trial = poses.copy()
         for _ in range(iterations):
-            trial[:, :3] = poses[:, :3] + self.predict(trial, previous)
+            # rows in program order and no ``previous`` given: the pose commanded before each
+            # target is the previous target's *command* (the first target's is itself: not known)
+            prev = previous if previous is not None or not self.wants_previous else np.vstack([trial[:1], trial[:-1]])
+            trial[:, :3] = poses[:, :3] + self.predict(trial, prev)
         return trial[:, :3]
 
 
