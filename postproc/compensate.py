@@ -248,6 +248,13 @@ def compensate_program(
     mismatch = _robot_mismatch(robot, model)
     if mismatch and not force:
         raise PostprocError(mismatch + "; use --force to compensate anyway", str(model.path), 0, 0, "P310")
+    shared = next((d for d in program.diagnostics if d.code == "P202"), None)
+    if shared is not None and not force:
+        # one set of numbers, two frames: the correction written is wrong for one of the uses
+        # (in a base turned by 180°, twice the error the robot had uncompensated)
+        raise PostprocError(shared.message.replace(": compensated for the first", "") + ": no one correction is "
+                            "right for both; give each use its own position, or --force to compensate for the first",
+                            shared.path, shared.line, shared.col, "P202")
 
     t = program.targets
     broken = [i for i, f in enumerate(program.frames) if not np.isfinite(f.base).all()]
