@@ -357,3 +357,16 @@ def test_non_finite_frame_or_float32_overflow_is_refused(tmp_path, capsys, run, 
     # finite in float64, infinite for the model's float32 input
     text = GOOD.replace("P2,2100.000,100.000,950.000,1,89,0", "P2,2100.000,100.000,950.000,1e300,89,0")
     refused(run(text, affine()), run, "P103", run.src(), 3, 1, "too large for the model")
+
+
+def test_position_used_in_two_frames_is_refused_unless_forced(tmp_path, capsys, affine):
+    src = ("DEF cell( )\n$BASE = {X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}\nLIN XP1\n"
+           "$BASE = {X 0.0,Y 0.0,Z 0.0,A 180.0,B 0.0,C 0.0}\nLIN XP1\nEND\n")
+    dat = "DEFDAT cell\nDECL E6POS XP1={X 1900.0,Y 0.0,Z 900.0,A 0.0,B 90.0,C 0.0}\nENDDAT\n"
+    model = affine(offset=(0.3, -0.2, 0.1), tool={"name": "any"})
+    code, err, written = krl_run(tmp_path, capsys, src, dat, model)
+    assert code == 2 and written == []
+    assert err.startswith(f"{tmp_path / 'cell.src'}:5:5: P202 XP1 is used in another frame than at its first use "
+                          "(line 3): no one correction is right for both")
+    code, err, written = krl_run(tmp_path, capsys, src, dat, model, "--force", "-q")
+    assert code == 0 and "XP1={X 1900.300,Y -0.200,Z 900.100," in (tmp_path / "out" / "cell.dat").read_text()
