@@ -1,0 +1,325 @@
+"""A robot arm in torch: forward kinematics, gravity torques and the closed-form inverse
+kinematics of the nominal arm — the pieces of the kinematic error model (``kinematic.py``)
+that are fitted here and run inside the exported ONNX graph.
+
+Everything is float64 and vectorised over poses; the only loop is over the six joints.
+ONNX Runtime has no float64 Atan / Acos kernel, so the IK evaluates those two functions in
+float32 (``_atan2`` / ``_acos``): a joint angle off by 1e-7 rad moves the *error* the model
+predicts by ~1e-7 mm, because the error is the difference of two chains evaluated at the
+same angles (nominal minus identified), not a position.
+
+Two IK families, one branch each (the branch the controller uses over the data, see
+``choose_branch``): ``KukaIK`` (A1 about ±Z, A2/A3/A5 about ±Y, A4/A6 about ±X with a
+spherical wrist: postproc.robot's geometry, same formulas) and ``UrIK`` (Universal-Robots
+type: three parallel shoulder/elbow/wrist-1 axes and an offset wrist).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+
+from .. import frames
+from ..diagnostics import PostprocError
+from ..robot import RobotDescription
+from .network import rotation_matrices
+
+__all__ = ["Arm", "axis_rotations", "small_rotation", "pose_matrices", "KukaIK", "UrIK", "make_ik", "choose_branch",
+           "GRAVITY"]
+
+GRAVITY = 9.81  # m/s², along −Z of the robot base frame (as Pinocchio's default)
+MM = 1e-3
+
+
+def _t(value) -> torch.Tensor:
+    return torch.as_tensor(np.asarray(value, dtype=np.float64))
+
+
+def axis_rotations(axes: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
+    """Rotations about unit ``axes`` [J, 3] by ``q`` [N, J] rad → [N, J, 3, 3] (Rodrigues)."""
+    zero = torch.zeros_like(axes[:, 0])
+    k = torch.stack([zero, -axes[:, 2], axes[:, 1], axes[:, 2], zero, -axes[:, 0], -axes[:, 1], axes[:, 0], zero],
+                    dim=-1).reshape(-1, 3, 3)
+    aat = axes[:, :, None] * axes[:, None, :]
+    s, c = torch.sin(q)[..., None, None], torch.cos(q)[..., None, None]
+    eye = torch.eye(3, dtype=q.dtype)
+    return c * eye + s * k + (1.0 - c) * aat
+
+
+def small_rotation(rotvec: torch.Tensor) -> torch.Tensor:
+    """[..., 3] rotation vectors → [..., 3, 3]; exact Rodrigues, smooth (and differentiable) at 0."""
+    theta2 = (rotvec * rotvec).sum(-1, keepdim=True)[..., None]
+    theta = torch.sqrt(theta2 + 1e-300)
+    # sin θ/θ and (1 − cos θ)/θ² by their series below 1e-4 rad (exact to 1e-17 there)
+    small = theta < 1e-4
+    a = torch.where(small, 1.0 - theta2 / 6.0, torch.sin(theta) / theta)
+    b = torch.where(small, 0.5 - theta2 / 24.0, (1.0 - torch.cos(theta)) / torch.where(small, 1.0, theta2))
+    x, y, z = rotvec.unbind(-1)
+    zero = torch.zeros_like(x)
+    k = torch.stack([zero, -z, y, z, zero, -x, -y, x, zero], dim=-1).reshape(*rotvec.shape[:-1], 3, 3)
+    return torch.eye(3, dtype=rotvec.dtype) + a * k + b * (k @ k)
+
+
+def pose_matrices(pose: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Poses [N, 6] (mm, KUKA A,B,C deg) → rotations [N, 3, 3] and positions [N, 3]."""
+    return rotation_matrices(pose[:, 3:6]), pose[:, 0:3]
+
+
+def _atan2(y: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    return torch.atan2(y.float(), x.float()).to(y.dtype)
+
+
+def _acos(x: torch.Tensor) -> torch.Tensor:
+    return torch.acos(x.float()).to(x.dtype)
+
+
+class Arm:
+    """The nominal arm of a robot description as float64 tensors (mm, rad, kg).
+
+    Joint j's frame at q is ``placements[j]`` (in its parent) turned by q_j about ``axes[j]``;
+    the TCP is ``end`` (flange · tool) in the last joint's frame. Link masses and centres of
+    mass are the description's; the payload rides on the last joint at the flange.
+    """
+
+    def __init__(self, description: RobotDescription):
+        d = self.description = description
+        self.name = d.name
+        self.placements = _t(frames.frame_to_matrix(np.array([j.origin for j in d.joints])))
+        self.axes = _t(np.array([j.axis for j in d.joints]))
+        self.flange = _t(frames.frame_to_matrix(d.flange))
+        self.tool = _t(frames.frame_to_matrix(d.tool))
+        self.end = self.flange @ self.tool
+        self.masses = _t([j.mass for j in d.joints])
+        self.coms = _t(np.array([j.com for j in d.joints]))
+        payload_com = frames.frame_to_matrix(d.flange) @ np.r_[d.payload_com, 1.0]
+        self.payload_mass = float(d.payload_mass)
+        self.payload_com = _t(payload_com[:3])  # in the last joint's frame
+        self.home_q = _t(np.radians(d.home_q))
+        self.limits = _t(np.radians(np.array([j.limits for j in d.joints])))
+
+    def frames(self, q: torch.Tensor, placements: torch.Tensor | None = None, end: torch.Tensor | None = None,
+               base: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Joint rotations [N, J, 3, 3], joint origins [N, J, 3] and TCP positions [N, 3] (mm)
+        at q [N, J] rad, for the nominal chain or one with other ``placements`` / ``end`` / ``base``."""
+        placements = self.placements if placements is None else placements
+        end = self.end if end is None else end
+        rot = axis_rotations(self.axes, q)
+        n = q.shape[0]
+        if base is None:
+            r = torch.eye(3, dtype=q.dtype).expand(n, 3, 3)
+            p = torch.zeros(n, 3, dtype=q.dtype)
+        else:
+            r = base[:3, :3].expand(n, 3, 3)
+            p = base[:3, 3].expand(n, 3)
+        rs, ps = [], []
+        for j in range(self.axes.shape[0]):  # six joints, every pose at once
+            m = placements[j]
+            p = p + r @ m[:3, 3]
+            r = r @ m[:3, :3] @ rot[:, j]
+            rs.append(r)
+            ps.append(p)
+        tcp = p + r @ end[:3, 3]
+        return torch.stack(rs, dim=1), torch.stack(ps, dim=1), tcp
+
+    def tcp(self, q: torch.Tensor, **chain) -> torch.Tensor:
+        """TCP positions [N, 3] mm at q [N, J] rad."""
+        return self.frames(q, **chain)[2]
+
+    def gravity_torques(self, rotations: torch.Tensor, origins: torch.Tensor) -> torch.Tensor:
+        """Joint torques [N, J] (Nm) that hold the arm against gravity, from the joint frames of
+        :meth:`frames` (as ``pin.computeGeneralizedGravity``): τ_j = −ω_j · Σ_{i≥j} (c_i − p_j) × m_i·g."""
+        coms = origins + (rotations @ self.coms[None, :, :, None])[..., 0]  # [N, J, 3] mm
+        weights = self.masses.clone()
+        if self.payload_mass > 0:  # the payload joins the last link: one combined centre of mass
+            pay = origins[:, -1] + rotations[:, -1] @ self.payload_com
+            total = weights[-1] + self.payload_mass
+            last = (coms[:, -1] * weights[-1] + pay * self.payload_mass) / total
+            coms = torch.cat([coms[:, :-1], last[:, None]], dim=1)
+            weights = torch.cat([weights[:-1], total.reshape(1)])
+        # moment of the links beyond j about the base origin and their mass, summed from the tip
+        moment = torch.flip(torch.cumsum(torch.flip(coms * weights[:, None], [1]), 1), [1])  # Σ m_i c_i
+        mass = torch.flip(torch.cumsum(torch.flip(weights, [0]), 0), [0])  # Σ m_i
+        lever = (moment - mass[:, None] * origins) * MM  # Σ m_i (c_i − p_j), kg·m
+        force = torch.tensor([0.0, 0.0, -GRAVITY], dtype=lever.dtype)
+        torque = torch.linalg.cross(lever, force.expand_as(lever))
+        omega = (rotations @ self.axes[None, :, :, None])[..., 0]
+        return -(omega * torque).sum(-1)
+
+
+# --------------------------------------------------------------------------- IK
+
+
+class KukaIK(torch.nn.Module):
+    """Closed-form IK of a KUKA-type arm for one branch (shoulder, elbow, wrist flip ∈ ±1):
+    postproc.robot's formulas in torch. pose [N, 6] → q [N, 6] rad (turns not unwrapped:
+    everything downstream is periodic in q)."""
+
+    family = "kuka"
+
+    def __init__(self, description: RobotDescription, branch: tuple[float, float, float] = (1.0, 1.0, 1.0)):
+        super().__init__()
+        from ..robot import Robot
+
+        g = Robot(description)._ik  # checks the geometry (P333 for other arms)
+        self.branch = tuple(float(b) for b in branch)
+        for name, value in (("s", g.s), ("p1", g.p1), ("L2", g.L2), ("flange0", g.flange0), ("c0", g.c0),
+                            ("inv_tool", g.inv_tool)):
+            self.register_buffer(name, _t(value))
+        self.a1, self.d1, self.l2, self.l3 = float(g.a1), float(g.d1), float(g.l2), float(g.l3)
+        self.al2, self.al3 = float(g.al2), float(g.al3)
+
+    def forward(self, pose: torch.Tensor) -> torch.Tensor:
+        shoulder, elbow, flip = self.branch
+        s = self.s
+        r_tcp, p_tcp = pose_matrices(pose)
+        r_fl = r_tcp @ self.inv_tool[:3, :3]
+        p_fl = p_tcp + (r_tcp @ self.inv_tool[:3, 3:4])[..., 0]
+        r_all = r_fl @ self.flange0[:3, :3].T
+        c = p_fl - (r_all @ (self.flange0[:3, 3] - self.c0)[:, None])[..., 0] - self.p1
+        phi = _atan2(c[:, 1], c[:, 0])
+        r_xy = torch.sqrt(c[:, 0] ** 2 + c[:, 1] ** 2)
+        th1 = phi if shoulder > 0 else phi + math.pi
+        u = shoulder * r_xy - self.a1
+        w = c[:, 2] - self.d1
+        kappa = (u * u + w * w - self.l2**2 - self.l3**2) / (2 * self.l2 * self.l3)
+        gamma0 = _acos(torch.clamp(kappa, -1.0, 1.0))
+        th3 = self.al3 - self.al2 - elbow * gamma0
+        ang = self.al3 - th3
+        w2x = self.L2[0] + self.l3 * torch.cos(ang)
+        w2y = self.L2[1] + self.l3 * torch.sin(ang)
+        th2 = _atan2(w2y, w2x) - _atan2(w, u)
+        # Rz(th1)·Ry(th2 + th3), transposed, times r_all = Rx(α) Ry(β) Rx(γ)
+        b = th2 + th3
+        ca, sa, cb, sb = torch.cos(th1), torch.sin(th1), torch.cos(b), torch.sin(b)
+        zero = torch.zeros_like(ca)
+        rzry = torch.stack([ca * cb, -sa, ca * sb, sa * cb, ca, sa * sb, -sb, zero, cb], dim=-1).reshape(-1, 3, 3)
+        rw = rzry.transpose(1, 2) @ r_all
+        sbeta = flip * torch.sqrt(rw[:, 0, 1] ** 2 + rw[:, 0, 2] ** 2)
+        beta = _atan2(sbeta, rw[:, 0, 0])
+        alpha = _atan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
+        gam = _atan2(flip * rw[:, 0, 1], flip * rw[:, 0, 2])
+        # A5 ≈ 0: only A4 + A6 is defined; A4 stays at 0 (HOME), A6 takes the sum
+        singular = torch.abs(sbeta) < 1e-10
+        alpha = torch.where(singular, torch.zeros_like(alpha), alpha)
+        gam = torch.where(singular, _atan2(rw[:, 2, 1], rw[:, 1, 1]), gam)
+        return torch.stack([s[0] * th1, s[1] * th2, s[2] * th3, s[3] * alpha, s[4] * beta, s[5] * gam], dim=1)
+
+    @staticmethod
+    def branches() -> list[tuple[float, float, float]]:
+        return [(sh, el, fl) for sh in (1.0, -1.0) for el in (1.0, -1.0) for fl in (1.0, -1.0)]
+
+
+class UrIK(torch.nn.Module):
+    """Closed-form IK of a Universal-Robots-type arm for one branch (shoulder, wrist, elbow ∈ ±1).
+
+    The description must have its joint frames parallel to the base at q = 0 (pure offsets, as
+    models/ur10.toml): A1 about ±Z; A2, A3, A4 about one horizontal axis ±Y; A5 about ±Z;
+    A6 about ±Y; links of A2 → A3 → A4 along X in the plane of A1 (the arm stretched at q = 0).
+    It is mapped on the standard DH form (d1, a2, a3, d4, d5, d6) of Hawkins' solution.
+    """
+
+    family = "ur"
+
+    def __init__(self, description: RobotDescription, branch: tuple[float, float, float] = (1.0, 1.0, 1.0)):
+        super().__init__()
+        o = np.array([j.origin for j in description.joints])
+        axes = np.array([j.axis for j in description.joints])
+        want = [2, 1, 1, 1, 2, 1]
+        ok = np.allclose(o[:, 3:], 0.0) and all(abs(abs(axes[j, want[j]]) - 1.0) < 1e-12 for j in range(6))
+        ok = ok and np.allclose(axes[1], axes[2]) and np.allclose(axes[1], axes[3])
+        ok = ok and np.allclose(o[1, :2], 0.0) and np.allclose(o[2:4, 1:], 0.0) and np.allclose(o[4, [0, 2]], 0.0)
+        ok = ok and np.allclose(o[5, :2], 0.0) and np.allclose(o[0, :2], 0.0)
+        if not ok:
+            raise PostprocError(
+                "the UR-type IK needs joint origins without rotation, axes A1 ±Z, A2 = A3 = A4 ±Y, A5 ±Z, A6 ±Y, "
+                "A2 above A1, A3 and A4 along X from it, A5 beside A4 (Y), A6 below/above A5 (Z)",
+                description.path, description.locate("joint", None, 0), 1, "P333")
+        self.branch = tuple(float(b) for b in branch)
+        s = np.array([axes[j, want[j]] for j in range(6)])
+        self.register_buffer("s", _t(s))
+        # the chain at q = 0 in the base frame: A2 at height z2, upper arm and forearm along X,
+        # the wrist offsets along Y (y5 = A4 → A5) and Z (z6 = A5 → A6), then the flange
+        self.z0 = float(o[0, 2] + o[1, 2])
+        self.a2, self.a3 = float(o[2, 0]), float(o[3, 0])
+        self.y4 = float(o[4, 1])  # A4 → A5 along the shoulder axis
+        self.z5 = float(o[5, 2])  # A5 → A6 along Z
+        end = frames.frame_to_matrix(description.flange) @ frames.frame_to_matrix(description.tool)
+        self.register_buffer("end", _t(end))  # TCP in the A6 frame (parallel to the base at q = 0)
+        self.register_buffer("inv_end", _t(frames.inverse(end)))
+
+    def forward(self, pose: torch.Tensor) -> torch.Tensor:
+        shoulder, wrist, elbow = self.branch
+        r_tcp, p_tcp = pose_matrices(pose)
+        # the A6 frame: origin on the A6 axis, rotation R6 = Rz(t1)·Ry(t2+t3+t4)·Rz(t5)·Ry(t6)
+        # with t_j = s_j·q_j (every joint frame parallel to the base at q = 0)
+        r6 = r_tcp @ self.inv_end[:3, :3]
+        p6 = p_tcp + (r_tcp @ self.inv_end[:3, 3:4])[..., 0]
+        # t1: every joint origin from A2 to A6 lies in the plane y4 off the A1 axis along the
+        # shoulder axis ŷ1 = Rz(t1)·e_y, so −sin t1·x6 + cos t1·y6 = y4, i.e. ρ·sin(ψ − t1) = y4
+        rho = torch.sqrt(p6[:, 0] ** 2 + p6[:, 1] ** 2)
+        psi = _atan2(p6[:, 1], p6[:, 0])
+        lateral = torch.asin(torch.clamp(self.y4 / rho, -1.0, 1.0).float()).to(rho.dtype)
+        t1 = psi - lateral if shoulder > 0 else psi - math.pi + lateral
+        c1, s1 = torch.cos(t1), torch.sin(t1)
+        # t5: the A6 axis (R6·e_y) is ŷ1 turned by t5 about the A5 axis: ŷ1·(R6·e_y) = cos t5
+        t5 = wrist * _acos(torch.clamp(-s1 * r6[:, 0, 1] + c1 * r6[:, 1, 1], -1.0, 1.0))
+        # R' = Rz(−t1)·R6 = Ry(a)·Rz(t5)·Ry(t6): row 1 = sin t5·(cos t6, ·, sin t6),
+        # column 1 = (−cos a·sin t5, ·, sin a·sin t5), a = t2 + t3 + t4
+        zero, one = torch.zeros_like(c1), torch.ones_like(c1)
+        rz = torch.stack([c1, s1, zero, -s1, c1, zero, zero, zero, one], -1).reshape(-1, 3, 3)
+        rp = rz @ r6
+        sin5 = torch.sin(t5)
+        sin5 = torch.where(torch.abs(sin5) < 1e-10, torch.ones_like(sin5), sin5)  # wrist singular: any t6
+        t6 = _atan2(rp[:, 1, 2] / sin5, rp[:, 1, 0] / sin5)
+        t234 = _atan2(rp[:, 2, 1] / sin5, -rp[:, 0, 1] / sin5)
+        # A5's origin p5 = p6 − z5·Rz(t1)·Ry(a)·e_z; in the arm plane (along Rz(t1)·e_x and −Z,
+        # from A2) the links A2 → A3 → A4 are the planar arm u = a2·c2 + a3·c23, w = a2·s2 + a3·s23
+        c234, s234 = torch.cos(t234), torch.sin(t234)
+        p5 = p6 - self.z5 * torch.stack([c1 * s234, s1 * s234, c234], dim=1)
+        u = c1 * p5[:, 0] + s1 * p5[:, 1]
+        w = self.z0 - p5[:, 2]
+        kappa = (u * u + w * w - self.a2**2 - self.a3**2) / (2 * self.a2 * self.a3)
+        t3 = elbow * _acos(torch.clamp(kappa, -1.0, 1.0))
+        t2 = _atan2(w, u) - _atan2(self.a3 * torch.sin(t3), self.a2 + self.a3 * torch.cos(t3))
+        t4 = t234 - t2 - t3
+        return torch.stack([t1, t2, t3, t4, t5, t6], dim=1) * self.s
+
+    @staticmethod
+    def branches() -> list[tuple[float, float, float]]:
+        return [(sh, wr, el) for sh in (1.0, -1.0) for wr in (1.0, -1.0) for el in (1.0, -1.0)]
+
+
+def make_ik(description: RobotDescription, family: str | None = None, branch=(1.0, 1.0, 1.0)) -> torch.nn.Module:
+    """The IK module of a description: ``family`` "kuka" or "ur", or None = the first that fits."""
+    if family in (None, "kuka"):
+        try:
+            return KukaIK(description, branch)
+        except PostprocError:
+            if family == "kuka":
+                raise
+    return UrIK(description, branch)
+
+
+def _wrap(angle: torch.Tensor) -> torch.Tensor:
+    return torch.remainder(angle + math.pi, 2 * math.pi) - math.pi
+
+
+def choose_branch(description: RobotDescription, poses: np.ndarray, q_deg: np.ndarray,
+                  family: str | None = None) -> tuple[torch.nn.Module, float]:
+    """The IK branch that reproduces the controller's joint angles ``q_deg`` [N, 6] for
+    ``poses`` [N, 6] on most rows; returns (IK module, fraction of rows it matches to 1°: a
+    planner's numerical IK leaves ~0.05°, another branch is tens of degrees away)."""
+    pose = _t(poses)
+    q = _t(np.radians(q_deg))
+    best, best_share = None, -1.0
+    family_ik = make_ik(description, family)
+    for branch in family_ik.branches():
+        ik = type(family_ik)(description, branch)
+        with torch.no_grad():
+            got = ik(pose)
+        match = (torch.abs(_wrap(got - q)) < math.radians(1.0)).all(dim=1)
+        share = float(match.double().mean())
+        if share > best_share:
+            best, best_share = ik, share
+    return best, best_share

@@ -1,0 +1,266 @@
+"""``HybridModel``: kinematic identification first, a small network on what it leaves.
+
+    model = HybridModel(load_description("models/kr500.toml"), seed=0).fit(poses, errors, previous)
+    model.predict(poses, previous)          # Ê [N, 3] mm
+    model.export_onnx("m.onnx", name="cell-3")
+
+fit = :class:`~postproc.training.kinematic.KinematicModel` (geometry, compliance, backlash
+with the approach direction, gear ripple orders found in the data) on every training row,
+then — only if it pays on rows it did not see — an ensemble of small MLPs on the
+identified model's residual, with the nominal joint angles (sin, cos) as inputs. The
+exported graph is one ONNX model with the contract's inputs: ``pose`` and, when backlash
+was identified, ``previous_pose``; the IK of the nominal arm, the identified arm and the
+networks are all inside it, so ``compensate`` needs only onnxruntime.
+"""
+from __future__ import annotations
+
+import io
+import math
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..compensator import INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, contract_metadata
+from ..robot import RobotDescription
+from .data import envelope_of
+from .estimator import _one_thread, residual_stats
+from .export import OPSET, write_atomic
+from .features import joint_features
+from .kinematic import KinematicErrorModule, KinematicModel
+
+__all__ = ["HybridModel", "HybridModule", "ResidualNet"]
+
+# the residual network is kept only if it lowers the mean residual on rows it did not see by
+# at least this fraction (else it would mostly learn the measurement noise)
+KEEP_GAIN = 0.03
+
+
+class ResidualNet(torch.nn.Module):
+    """Joint features (sin, cos of q) → residual error [N, 3] mm: standardise, tanh MLP, unscale."""
+
+    def __init__(self, n_in: int, hidden: tuple[int, ...], x_mean, x_std, y_std):
+        super().__init__()
+        layers: list[torch.nn.Module] = []
+        width = n_in
+        for h in hidden:
+            layers += [torch.nn.Linear(width, h, dtype=torch.float64), torch.nn.Tanh()]
+            width = h
+        layers.append(torch.nn.Linear(width, 3, dtype=torch.float64))
+        self.net = torch.nn.Sequential(*layers)
+        for name, value in (("x_mean", x_mean), ("x_std", x_std), ("y_std", y_std)):
+            self.register_buffer(name, torch.as_tensor(np.asarray(value, dtype=np.float64)))
+
+    def forward(self, features: torch.Tensor) -> torch.Tensor:
+        return self.net((features - self.x_mean) / self.x_std) * self.y_std
+
+
+class HybridModule(torch.nn.Module):
+    """pose [N, 6] (+ previous_pose [N, 6]) → Ê [N, 3]: identified arm + mean of the residual nets."""
+
+    def __init__(self, kinematic: KinematicErrorModule, nets: list[ResidualNet]):
+        super().__init__()
+        self.kinematic = kinematic
+        self.nets = torch.nn.ModuleList(nets)
+
+    @property
+    def uses_previous(self) -> bool:
+        return self.kinematic.use_previous
+
+    def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None) -> torch.Tensor:
+        dtype = pose.dtype
+        prev = previous_pose.to(torch.float64) if previous_pose is not None else None
+        error, q, _ = self.kinematic.parts(pose.to(torch.float64), prev)
+        if len(self.nets):
+            features = joint_features(q)
+            error = error + torch.stack([net(features) for net in self.nets]).mean(dim=0)
+        return error.to(dtype)
+
+
+def _train_net(x: np.ndarray, y: np.ndarray, hidden: tuple[int, ...], epochs: int, seed: int) -> ResidualNet:
+    """Full-batch Adam with a cosine-annealed rate on standardised inputs and outputs."""
+    gen = torch.Generator().manual_seed(seed)
+    x_std = np.where(x.std(0) > 1e-9, x.std(0), 1.0)
+    y_std = np.where(y.std(0) > 1e-12, y.std(0), 1.0)
+    net = ResidualNet(x.shape[1], hidden, x.mean(0), x_std, y_std)
+    with torch.no_grad():  # seeded initialisation (torch's default init draws from the global RNG)
+        for layer in net.net:
+            if isinstance(layer, torch.nn.Linear):
+                bound = 1.0 / math.sqrt(layer.in_features)
+                layer.weight.copy_((torch.rand(layer.weight.shape, generator=gen, dtype=torch.float64) * 2 - 1) * bound)
+                layer.bias.zero_()
+    xt, yt = torch.as_tensor(x), torch.as_tensor(y)
+    opt = torch.optim.Adam(net.parameters(), lr=3e-3)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, epochs)
+    for _ in range(epochs):
+        opt.zero_grad()
+        loss = torch.mean(((net(xt) - yt) / net.y_std) ** 2)
+        loss.backward()
+        opt.step()
+        sched.step()
+    return net.eval()
+
+
+class HybridModel:
+    """Learned positioning error of one robot + tool: identified arm + residual networks.
+
+    Parameters
+    ----------
+    description: the robot's nominal description (``models/*.toml``); its IK family (KUKA-type
+        or UR-type) and the controller's branch are found from the data.
+    residual: "auto" (keep the networks only if they help on held-back rows), "always", "none".
+    hidden, epochs, ensemble: the residual networks (tanh MLPs, Adam, full batch).
+    seed: seeds every random draw.
+    kinematic: keyword arguments of :class:`KinematicModel` (groups, max_order, max_ripple, ...).
+    """
+
+    def __init__(self, description: RobotDescription, residual: str = "auto", hidden=(32, 32), epochs: int = 1500,
+                 ensemble: int = 3, seed: int = 0, kinematic: dict | None = None, progress: bool = False):
+        self.description = description
+        self.residual = residual
+        self.hidden = tuple(hidden)
+        self.epochs = epochs
+        self.ensemble = ensemble
+        self.seed = seed
+        self.kinematic = dict(kinematic or {})
+        self.progress = progress
+
+    @property
+    def label(self) -> str:
+        kin = "kinematic identification"
+        if getattr(self, "nets_", None):
+            return f"{kin} + residual MLP x{len(self.nets_)} ({'-'.join(map(str, self.hidden))}, joint features)"
+        return kin
+
+    def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
+            q_deg: np.ndarray | None = None) -> "HybridModel":
+        """Fit to commanded poses [N, 6], errors E = P − P_measured [N, 3], the pose visited before
+        each row [N, 6] (None: visiting order unknown, no backlash) and the controller's joint
+        angles [N, 6] if the data has them."""
+        if self.residual not in ("auto", "always", "none"):
+            raise ValueError(f"residual must be auto, always or none, not {self.residual!r}")
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
+        errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
+        with _one_thread():
+            t0 = time.perf_counter()
+            self.kinematic_ = KinematicModel(self.description, **self.kinematic).fit(poses, errors, previous, q_deg)
+            t1 = time.perf_counter()
+            self.nets_ = self._fit_residual(poses, self.kinematic_.train_residual_)
+            t2 = time.perf_counter()
+        self.module_ = HybridModule(self.kinematic_.module_, self.nets_).eval()
+        self.envelope_ = envelope_of(poses)
+        q = np.degrees(self.kinematic_.joint_angles(poses))
+        self.joint_range_ = [[round(float(a), 3), round(float(b), 3)] for a, b in zip(q.min(0), q.max(0))]
+        self.n_train_ = len(poses)
+        self.fit_seconds_ = {"kinematic": t1 - t0, "residual": t2 - t1, "total": t2 - t0}
+        self.train_stats_ = residual_stats(errors - self.predict(poses, previous))
+        return self
+
+    def _fit_residual(self, poses: np.ndarray, residual: np.ndarray) -> list[ResidualNet]:
+        if self.residual == "none" or self.ensemble < 1:
+            return []
+        x = joint_features(torch.as_tensor(self.kinematic_.joint_angles(poses))).numpy()
+        self.residual_check_ = None
+        if self.residual == "auto":
+            # train on 85 % of the rows, compare on the other 15 %: keep only if it pays
+            order = np.random.default_rng(self.seed).permutation(len(x))
+            held, fit_rows = order[: len(x) * 15 // 100], order[len(x) * 15 // 100:]
+            if len(held) < 10:
+                return []
+            net = _train_net(x[fit_rows], residual[fit_rows], self.hidden, self.epochs, self.seed)
+            with torch.no_grad():
+                after = np.linalg.norm(residual[held] - net(torch.as_tensor(x[held])).numpy(), axis=1).mean()
+            before = np.linalg.norm(residual[held], axis=1).mean()
+            self.residual_check_ = {"before_mm": float(before), "after_mm": float(after)}
+            if after > (1.0 - KEEP_GAIN) * before:
+                return []
+        return [_train_net(x, residual, self.hidden, self.epochs, self.seed + 1 + k) for k in range(self.ensemble)]
+
+    # ------------------------------------------------------------------ using it
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "module_"):
+            raise RuntimeError("HybridModel is not fitted yet: call fit(poses, errors) first")
+
+    @property
+    def uses_previous(self) -> bool:
+        self._check_fitted()
+        return self.module_.uses_previous
+
+    def predict(self, poses: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
+        """Ê [N, 3] mm for poses [N, 6] and the poses visited before them (None: unknown)."""
+        self._check_fitted()
+        pose = torch.as_tensor(np.asarray(poses, dtype=np.float64).reshape(-1, 6))
+        prev = None if previous is None else torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
+        with torch.no_grad():
+            return self.module_(pose, prev).numpy()
+
+    def fixed_point_iterations(self, poses: np.ndarray, tol_mm: float = 1e-3, most: int = 10) -> int:
+        """Iterations k of c = P + Ê(c) (each target coming from its predecessor's command, as
+        ``compensate`` runs them) after which one more changes no command by more than tol_mm."""
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
+        trial = poses.copy()
+        for k in range(1, most + 1):
+            prev = np.vstack([trial[:1], trial[:-1]]) if self.uses_previous else None
+            nxt = poses[:, :3] + self.predict(trial, prev)
+            change = float(np.max(np.abs(nxt - trial[:, :3]))) if len(poses) else 0.0
+            trial[:, :3] = nxt
+            if change <= tol_mm:
+                return k
+        return most
+
+    def describe(self) -> dict:
+        """What the fit found: ripple orders, backlash, compliance, residual networks."""
+        self._check_fitted()
+        km = self.kinematic_
+        p = km.parameters()
+        return {
+            "ripple": [[int(j) + 1, int(n)] for j, n in km.layout_.ripple],
+            "backlash_deg": [round(float(v), 5) for v in np.degrees(p["backlash"])] if km.use_previous_ else None,
+            "ik_branch": list(km.ik_.branch),
+            "ik_family": km.ik_.family,
+            "residual_nets": len(self.nets_),
+            "residual_check": getattr(self, "residual_check_", None),
+        }
+
+    def export_onnx(self, path: str | Path, **metadata) -> Path:
+        """Write the fitted model as one contract ONNX file (atomically). method, structure,
+        envelope (+ joint ranges) and iterations default to this model's."""
+        self._check_fitted()
+        envelope = dict(self.envelope_)
+        envelope["joints"] = self.joint_range_
+        meta = {"method": self.label, "structure": self.structure, "envelope": envelope, "iterations": 2}
+        meta.update(metadata)
+        return write_atomic(path, onnx_bytes(self.module_, meta, self.uses_previous))
+
+    @property
+    def structure(self) -> str:
+        km = self.kinematic_
+        parts = [f"{km.layout_.n} kinematic parameters ({', '.join(km.layout_.groups)}, "
+                 f"{len(km.layout_.ripple)} ripple orders)", f"IK {km.ik_.family} branch {list(km.ik_.branch)}"]
+        if self.nets_:
+            parts.append(f"{len(self.nets_)} x MLP 12-{'-'.join(map(str, self.hidden))}-3 on sin/cos q")
+        return "; ".join(parts)
+
+
+def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool) -> bytes:
+    """The serialised contract ONNX model of ``module`` (pose [, previous_pose] → error)."""
+    import onnx
+
+    inputs = [INPUT_POSE, INPUT_PREVIOUS] if previous else [INPUT_POSE]
+    example = tuple(torch.tensor([[2000.0, 0.0, 900.0, 0.0, 90.0, 0.0]] * 2, dtype=torch.float32) for _ in inputs)
+    buffer = io.BytesIO()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation notice, tracer warnings
+        torch.onnx.export(module.eval(), example, buffer, dynamo=False, input_names=inputs,
+                          output_names=[OUTPUT_ERROR], dynamic_axes={n: {0: "N"} for n in inputs + [OUTPUT_ERROR]},
+                          opset_version=OPSET, do_constant_folding=True)
+    model = onnx.load_from_string(buffer.getvalue())
+    model.graph.name = "postproc_error_model"
+    model.producer_name = "postproc.training"
+    del model.metadata_props[:]
+    for key, value in contract_metadata(**metadata).items():
+        model.metadata_props.add(key=key, value=value)
+    onnx.checker.check_model(model)
+    return model.SerializeToString()

@@ -1,0 +1,408 @@
+"""Kinematic + compliance identification: the robot's error as the nominal arm with
+identified parameters, fitted by least squares on the measured points.
+
+The controller sends joint angles q = IK_nominal(P) for a commanded pose P. The real arm
+turns its joints to q + δq and its TCP lands at FK_identified(q + δq), so
+
+    Ê(P) = FK_nominal(q) − FK_identified(q + δq(q, s)),      q = IK_nominal(P)
+
+with these parameter groups (all small; the fit is Gauss–Newton with the exact Jacobian
+from torch, columns scaled to unit norm and a tiny ridge that settles the redundant
+directions — e.g. a zero offset and a placement turned about its own joint axis):
+
+* ``placement``: each joint frame off by a small rigid motion (rotation vector, offset; 6
+  per joint) — link lengths, axis directions, mastering;
+* ``base`` (6) and ``tool`` (TCP offset, 3): the measured frames;
+* ``zero``: joint zero offsets (6);
+* ``compliance``: δq_j = c_j·τ_j(q), τ the gravity torques of the nominal model (masses in
+  the robot description) — joint stiffness;
+* ``backlash``: δq_j = −b_j·s_j, s_j the sign of joint j's last motion (the visiting order)
+  — lost motion; only when the order is known (``signs``);
+* ``ripple``: δq_j += a·sin(n·q_j) + b·cos(n·q_j) for (joint, order) pairs — gear
+  transmission error. The orders are *searched*, not assumed: after the fit of the other
+  groups, every joint and order 1…``max_order`` is a candidate; the pair that explains most
+  of the residual (orthogonal to the parameters already in) is added while its χ² gain
+  beats a Bonferroni-style threshold, and the model is refitted.
+
+Everything stays in torch (float64), so the same module is fitted here and exported to ONNX
+with the IK of the nominal arm in front of it (``KinematicErrorModule``).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from ..diagnostics import PostprocError
+from ..robot import RobotDescription
+from .arm import Arm, choose_branch, make_ik, small_rotation
+from .features import motion_signs
+
+__all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS"]
+
+GROUPS = ("placement", "base", "tool", "zero", "compliance", "backlash")
+DEFAULT_GROUPS = GROUPS
+# the prior's unit sizes: 1 mrad (0.057°) for angles, 1 mm for offsets
+PRIOR_RAD, PRIOR_MM = 1e-3, 1.0
+# a pose whose IK does not bring the nominal arm back onto it (mm) is out of reach
+REACH_TOLERANCE_MM = 0.01
+# joint steps below this (rad) count as no motion: float32 IK noise is ~1e-7 rad
+SIGN_DEADBAND = 1e-5
+
+
+@dataclass
+class Layout:
+    """Where each parameter group sits in the flat vector θ."""
+
+    groups: tuple[str, ...]
+    ripple: list[tuple[int, int]] = field(default_factory=list)  # (joint, order) pairs
+
+    @property
+    def sizes(self) -> dict[str, int]:
+        size = {"placement": 36, "base": 6, "tool": 3, "zero": 6, "compliance": 6, "backlash": 6}
+        out = {g: size[g] for g in GROUPS if g in self.groups}
+        out["ripple"] = 2 * len(self.ripple)
+        return out
+
+    @property
+    def n(self) -> int:
+        return sum(self.sizes.values())
+
+    def slices(self) -> dict[str, slice]:
+        out, pos = {}, 0
+        for name, k in self.sizes.items():
+            out[name] = slice(pos, pos + k)
+            pos += k
+        return out
+
+    def unpack(self, theta: torch.Tensor) -> dict[str, torch.Tensor]:
+        """θ → the group tensors (zeros for groups not identified)."""
+        s = self.slices()
+        zero = theta.new_zeros
+
+        def get(name: str, shape: tuple[int, ...]) -> torch.Tensor:
+            return theta[s[name]].reshape(shape) if name in s else zero(shape)
+
+        return {
+            "placement": get("placement", (6, 6)),
+            "base": get("base", (6,)),
+            "tool": get("tool", (3,)),
+            "zero": get("zero", (6,)),
+            "compliance": get("compliance", (6,)),
+            "backlash": get("backlash", (6,)),
+            "ripple": theta[s["ripple"]].reshape(-1, 2),
+        }
+
+
+def _rigid(rotvec: torch.Tensor, offset: torch.Tensor) -> torch.Tensor:
+    """[..., 4, 4] from rotation vectors [..., 3] and offsets [..., 3]."""
+    r = small_rotation(rotvec)
+    top = torch.cat([r, offset[..., :, None]], dim=-1)
+    bottom = torch.zeros(*top.shape[:-2], 1, 4, dtype=top.dtype)
+    bottom[..., 0, 3] = 1.0
+    return torch.cat([top, bottom], dim=-2)
+
+
+def identified_chain(arm: Arm, p: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """The identified arm's placements, end (TCP) and base as tensors (differentiable in p)."""
+    placements = arm.placements @ _rigid(p["placement"][:, :3], p["placement"][:, 3:])
+    end = arm.end + torch.cat(
+        [torch.cat([torch.zeros(3, 3, dtype=arm.end.dtype), (arm.end[:3, :3] @ p["tool"])[:, None]], 1),
+         torch.zeros(1, 4, dtype=arm.end.dtype)], 0)
+    base = _rigid(p["base"][:3], p["base"][3:])
+    return {"placements": placements, "end": end, "base": base}
+
+
+def joint_error(p: dict[str, torch.Tensor], q: torch.Tensor, signs: torch.Tensor, tau: torch.Tensor,
+                ripple_joint: torch.Tensor, ripple_order: torch.Tensor) -> torch.Tensor:
+    """δq [N, 6] rad: zero offsets + compliance·τ − backlash·s + Σ ripple."""
+    dq = p["zero"] + p["compliance"] * tau - p["backlash"] * signs
+    if len(ripple_joint):
+        phase = q[:, ripple_joint] * ripple_order  # [N, R]
+        terms = torch.sin(phase) * p["ripple"][:, 0] + torch.cos(phase) * p["ripple"][:, 1]
+        onehot = torch.nn.functional.one_hot(ripple_joint, 6).to(q.dtype)  # [R, 6]
+        dq = dq + terms @ onehot
+    return dq
+
+
+def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, signs: torch.Tensor,
+             tau: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """TCP positions [N, 3] of the identified arm, their Jacobian [N, 3, P] w.r.t. θ and the
+    sensitivity to each joint angle [N, 3, 6], from one forward pass (geometric Jacobian).
+
+    A joint angle turns everything after it about its axis ω_j through its origin p_j:
+    ∂tcp/∂q_j = ω_j × (tcp − p_j); the joint-space groups are that column times their
+    regressor (1, τ_j, −s_j, sin/cos n·q_j). A placement's small rotation turns the rest of the
+    chain about the placement's own axes, its offset shifts it along them; the base turns and
+    shifts everything; the tool offset moves along the TCP frame's axes. (For the rotation
+    vectors this is the derivative at 0 applied at θ: |θ| ~ 1e-3 makes the difference ~1e-3
+    relative, which costs Levenberg–Marquardt an iteration, not accuracy.)"""
+    p = layout.unpack(theta)
+    chain = identified_chain(arm, p)
+    ripple_joint = torch.tensor([j for j, _ in layout.ripple], dtype=torch.long)
+    ripple_order = torch.tensor([float(n) for _, n in layout.ripple], dtype=torch.float64)
+    dq = joint_error(p, q, signs, tau, ripple_joint, ripple_order)
+    rot, org, tcp = arm.frames(q + dq, **chain)
+    n = q.shape[0]
+    omega = (rot @ arm.axes[None, :, :, None])[..., 0]  # [N, 6, 3]
+    lever = tcp[:, None, :] - org  # [N, 6, 3]
+    sens = torch.linalg.cross(omega, lever).transpose(1, 2)  # [N, 3, 6]
+    cols: dict[str, torch.Tensor] = {}
+    if "placement" in layout.groups:
+        before = torch.cat([chain["base"][:3, :3].expand(n, 1, 3, 3), rot[:, :-1]], dim=1)  # frame before joint j
+        axes = before @ arm.placements[:, :3, :3]  # [N, 6, 3, 3]: the placement's own axes (columns)
+        turn = torch.linalg.cross(axes.transpose(2, 3), lever[:, :, None, :].expand(n, 6, 3, 3))  # [N, 6, k, 3]
+        shift = axes.transpose(2, 3)  # [N, 6, k, 3]
+        cols["placement"] = torch.cat([turn, shift], dim=2).permute(0, 3, 1, 2).reshape(n, 3, 36)
+    if "base" in layout.groups:
+        eye = torch.eye(3, dtype=q.dtype)
+        turn = torch.linalg.cross(eye[None].expand(n, 3, 3), (tcp - chain["base"][:3, 3])[:, None, :].expand(n, 3, 3))
+        cols["base"] = torch.cat([turn.transpose(1, 2), eye.expand(n, 3, 3)], dim=2)
+    if "tool" in layout.groups:
+        cols["tool"] = rot[:, -1] @ arm.end[:3, :3]
+    if "zero" in layout.groups:
+        cols["zero"] = sens
+    if "compliance" in layout.groups:
+        cols["compliance"] = sens * tau[:, None, :]
+    if "backlash" in layout.groups:
+        cols["backlash"] = -sens * signs[:, None, :]
+    if len(layout.ripple):
+        phase = q[:, ripple_joint] * ripple_order
+        sj = sens[:, :, ripple_joint]  # [N, 3, R]
+        cols["ripple"] = torch.stack([sj * torch.sin(phase)[:, None, :], sj * torch.cos(phase)[:, None, :]],
+                                     dim=-1).reshape(n, 3, -1)
+    jac = torch.cat([cols[name] for name in layout.sizes if layout.sizes[name]], dim=2)
+    return tcp, jac, sens
+
+
+def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, pose: torch.Tensor,
+                   previous: torch.Tensor) -> torch.Tensor:
+    """Approach signs [N, 6] for q = IK(pose) reached from ``previous`` [N, 6]. A row whose
+    previous pose is the pose itself (compensate's first target: nothing known before it) is
+    taken as reached from HOME, where robot programs start."""
+    same = (previous == pose).all(dim=1, keepdim=True)
+    q_prev = torch.where(same, home_q.expand_as(q), ik(previous))
+    return motion_signs(q, q_prev, eps=SIGN_DEADBAND)
+
+
+class KinematicErrorModule(torch.nn.Module):
+    """pose [N, 6] (+ previous_pose [N, 6]) → Ê [N, 3] mm for an identified arm (ONNX-exportable)."""
+
+    def __init__(self, arm: Arm, ik: torch.nn.Module, layout: Layout, theta: np.ndarray, use_previous: bool):
+        super().__init__()
+        self.arm, self.ik, self.layout, self.use_previous = arm, ik, layout, use_previous
+        self.register_buffer("theta", torch.as_tensor(np.asarray(theta, dtype=np.float64)))
+        self.register_buffer("ripple_joint", torch.tensor([j for j, _ in layout.ripple], dtype=torch.long))
+        self.register_buffer("ripple_order", torch.tensor([float(n) for _, n in layout.ripple], dtype=torch.float64))
+
+    def parts(self, pose: torch.Tensor, previous: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(Ê [N, 3], q [N, 6], signs [N, 6]) for float64 poses."""
+        q = self.ik(pose)
+        signs = torch.zeros_like(q)
+        if self.use_previous and previous is not None:
+            signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous)
+        return self.error_at(q, signs), q, signs
+
+    def error_at(self, q: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:
+        p = self.layout.unpack(self.theta)
+        rot, org, tcp_nominal = self.arm.frames(q)
+        tau = self.arm.gravity_torques(rot, org)
+        dq = joint_error(p, q, signs, tau, self.ripple_joint, self.ripple_order)
+        return tcp_nominal - self.arm.tcp(q + dq, **identified_chain(self.arm, p))
+
+    def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None) -> torch.Tensor:
+        dtype = pose.dtype
+        prev = previous_pose.to(torch.float64) if previous_pose is not None else None
+        return self.parts(pose.to(torch.float64), prev)[0].to(dtype)
+
+
+class KinematicModel:
+    """Identified kinematic + compliance (+ backlash, gear ripple) error model of one robot.
+
+    >>> km = KinematicModel(load_description()).fit(poses, errors, signs)
+    >>> km.predict(poses, previous)          # Ê [N, 3] mm
+    """
+
+    def __init__(self, description: RobotDescription, groups: tuple[str, ...] = DEFAULT_GROUPS,
+                 ripple: str | list[tuple[int, int]] = "search", max_order: int = 100, ripple_joints=range(6),
+                 max_ripple: int = 120, prior: float = 1e-3, iterations: int = 20, family: str | None = None):
+        self.description = description
+        self.groups = tuple(groups)
+        self.ripple = ripple
+        self.max_order = max_order
+        self.ripple_joints = tuple(ripple_joints)
+        self.max_ripple = max_ripple
+        self.prior = prior
+        self.iterations = iterations
+        self.family = family
+
+    # ------------------------------------------------------------------ fitting
+    def joint_angles(self, poses: np.ndarray) -> np.ndarray:
+        """Nominal IK [N, 6] rad of the chosen branch (after ``fit``)."""
+        with torch.no_grad():
+            return self.ik_(torch.as_tensor(np.asarray(poses, dtype=np.float64))).numpy()
+
+    def _choose_ik(self, poses: np.ndarray, q_deg: np.ndarray | None) -> None:
+        if q_deg is None and (self.family in (None, "kuka")):
+            try:
+                from ..robot import Robot
+
+                q_deg, ok = Robot(self.description).ik(poses)
+                if not ok.all():
+                    q_deg = None
+            except Exception:  # not a KUKA-type arm: the default branch of the other family
+                q_deg = None
+        if q_deg is None:
+            self.ik_ = make_ik(self.description, self.family)
+            self.branch_share_ = math.nan
+        else:
+            self.ik_, self.branch_share_ = choose_branch(self.description, poses, q_deg, self.family)
+
+    def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
+            q_deg: np.ndarray | None = None) -> "KinematicModel":
+        """Fit to commanded poses [N, 6], errors E = P − P_measured [N, 3] and (optionally) the
+        pose visited before each row [N, 6] (``features.previous_poses`` of the rows in their
+        visiting order; the row itself = came from HOME); ``q_deg`` [N, 6] are the controller's
+        joint angles if the data has them (they pick the IK branch)."""
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
+        errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
+        self.arm_ = Arm(self.description)
+        self._choose_ik(poses, q_deg)
+        groups = tuple(g for g in self.groups if g != "backlash" or previous is not None)
+        self.use_previous_ = "backlash" in groups
+        with torch.no_grad():
+            q = self.ik_(torch.as_tensor(poses))
+            rot, org, tcp = self.arm_.frames(q)
+            tau = self.arm_.gravity_torques(rot, org)
+            miss = torch.linalg.norm(tcp - torch.as_tensor(poses[:, :3]), dim=1).numpy()
+            if np.any(miss > REACH_TOLERANCE_MM):
+                bad = np.flatnonzero(miss > REACH_TOLERANCE_MM)
+                raise PostprocError(
+                    f"{len(bad)} of {len(poses)} poses are out of reach of the nominal {self.description.name} "
+                    f"(IK {self.ik_.family} branch {list(self.ik_.branch)}; first: row {bad[0] + 1}, "
+                    f"{np.round(poses[bad[0]], 3).tolist()}): is this the robot of the data (--robot)?",
+                    self.description.path, code="P508")
+            s = torch.zeros_like(q)
+            if previous is not None:
+                prev = torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
+                s = approach_signs(self.ik_, self.arm_.home_q, q, torch.as_tensor(poses), prev)
+        measured = tcp - torch.as_tensor(errors)
+        fixed = list(self.ripple) if isinstance(self.ripple, list) else []
+        layout = Layout(groups, fixed)
+        theta = self._levenberg_marquardt(layout, np.zeros(layout.n), q, s, tau, measured, self.iterations)
+        self.ripple_search_ = []
+        if self.ripple == "search":
+            while len(layout.ripple) < self.max_ripple:
+                # the best order of each joint that passes (the joints' columns hardly overlap)
+                picks = self._best_ripple(layout, q)[: self.max_ripple - len(layout.ripple)]
+                if not picks:
+                    break
+                self.ripple_search_ += picks
+                layout = Layout(groups, layout.ripple + [pick for pick, _ in picks])
+                # a few iterations per round (warm start); the full fit at the end
+                theta = self._levenberg_marquardt(layout, np.r_[theta, np.zeros(2 * len(picks))], q, s, tau,
+                                                  measured, 3)
+            if self.ripple_search_:
+                theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
+        self.layout_ = layout
+        self.theta_ = theta
+        self.module_ = KinematicErrorModule(self.arm_, self.ik_, layout, theta, self.use_previous_)
+        with torch.no_grad():
+            fitted = self.module_.error_at(q, s).numpy()
+        self.train_residual_ = errors - fitted
+        self.n_train_ = len(poses)
+        return self
+
+    def _prior_scales(self, layout: Layout, tau: torch.Tensor) -> np.ndarray:
+        """A typical size of every parameter (rad, mm, rad/Nm): the prior's unit."""
+        tau_max = torch.abs(tau).amax(dim=0).numpy()
+        compliance = np.where(tau_max > 1e-9, PRIOR_RAD / np.maximum(tau_max, 1e-9), PRIOR_RAD)
+        unit = {"placement": np.tile(np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], 6),
+                "base": np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], "tool": np.full(3, PRIOR_MM),
+                "zero": np.full(6, PRIOR_RAD), "compliance": compliance, "backlash": np.full(6, PRIOR_RAD),
+                "ripple": np.full(2 * len(layout.ripple), PRIOR_RAD)}
+        return np.concatenate([unit[name] for name in layout.sizes])
+
+    def _levenberg_marquardt(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
+                             iterations: int) -> np.ndarray:
+        """min ‖FK_id − measured‖² + prior·Σ(θ/σ)² by Levenberg–Marquardt with the geometric
+        Jacobian (:func:`jacobian`). The weak prior (``self.prior``, mm² per σ², σ a typical
+        size of each parameter) decides only what the data do not: directions no measurement
+        sees (a zero offset and a placement turned about its own axis; A6's angle when the TCP
+        sits on the A6 axis) stay near zero instead of wandering off."""
+        arm = self.arm_
+        target = measured.numpy()
+        sigma = self._prior_scales(layout, tau)
+        w2 = self.prior / sigma**2  # the prior's curvature per parameter
+
+        def evaluate(t: np.ndarray):
+            tcp, jac, sens = jacobian(arm, layout, torch.as_tensor(t), q, s, tau)
+            r = (tcp.numpy() - target).reshape(-1)
+            return r, jac.numpy().reshape(len(r), -1), sens.numpy(), float(r @ r + (w2 * t * t).sum())
+
+        r, jac, sens, cost = evaluate(theta)
+        mu = 1e-3
+        for _ in range(iterations):
+            jtj = jac.T @ jac + np.diag(w2)
+            grad = jac.T @ r + w2 * theta
+            diag = np.maximum(np.diag(jtj), 1e-30)
+            while True:
+                trial = theta - np.linalg.solve(jtj + mu * np.diag(diag), grad)
+                out = evaluate(trial)
+                if out[3] <= cost or mu > 1e8:
+                    break
+                mu *= 10.0
+            if out[3] > cost:
+                break
+            gain = cost - out[3]
+            theta, (r, jac, sens, cost) = trial, out
+            mu = max(mu / 10.0, 1e-9)
+            if gain <= 1e-9 * cost:
+                break
+        self._state = (r, jac, sens)
+        return theta
+
+    def _best_ripple(self, layout: Layout, q: torch.Tensor) -> list[tuple[tuple[int, int], float]]:
+        """Per joint, the order whose sin/cos columns explain most of the current residual beyond
+        the parameters already in (its χ² gain with the residual's variance), for the joints
+        where that beats the threshold (χ²₂ tail 1 % over all candidates); best first."""
+        r, jac, sens = self._state
+        n_rows, n_par = jac.shape
+        norms = np.linalg.norm(jac, axis=0)
+        basis, _ = np.linalg.qr(jac[:, norms > 1e-12] / norms[norms > 1e-12])
+        sigma2 = float(r @ r) / max(n_rows - n_par, 1)
+        orders = np.arange(1, self.max_order + 1)
+        threshold = 2.0 * math.log(len(self.ripple_joints) * len(orders) / 0.01)
+        taken = set(layout.ripple)
+        picks = []
+        qn = q.numpy()
+        for j in self.ripple_joints:  # six joints; all orders at once
+            phase = qn[:, j, None] * orders  # [N, K]
+            regress = np.concatenate([np.sin(phase), np.cos(phase)], axis=1)  # [N, 2K]
+            c = (sens[:, :, j, None] * regress[:, None, :]).reshape(n_rows, -1)  # [3N, 2K]
+            c = c - basis @ (basis.T @ c)  # what the parameters already in cannot explain
+            cs, cc = c[:, : len(orders)], c[:, len(orders):]
+            g11, g22, g12 = (cs * cs).sum(0), (cc * cc).sum(0), (cs * cc).sum(0)
+            b1, b2 = cs.T @ r, cc.T @ r
+            det = g11 * g22 - g12**2
+            ok = det > 1e-9 * g11 * g22
+            gain = np.where(ok, (g22 * b1**2 - 2 * g12 * b1 * b2 + g11 * b2**2) / np.where(ok, det, 1.0), 0.0) / sigma2
+            gain[[k for k, n in enumerate(orders) if (j, int(n)) in taken]] = 0.0
+            k = int(np.argmax(gain))
+            if gain[k] > threshold:
+                picks.append(((j, int(orders[k])), float(gain[k])))
+        return sorted(picks, key=lambda pick: -pick[1])
+
+    # ------------------------------------------------------------------ using it
+    def predict(self, poses: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
+        """Ê [N, 3] mm for poses [N, 6] (and the poses visited before them, if known)."""
+        pose = torch.as_tensor(np.asarray(poses, dtype=np.float64).reshape(-1, 6))
+        prev = None if previous is None else torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
+        with torch.no_grad():
+            return self.module_(pose, prev).numpy()
+
+    def parameters(self) -> dict[str, np.ndarray]:
+        """The identified groups (rad, mm, rad/Nm) as numpy arrays."""
+        return {k: v.numpy() for k, v in self.layout_.unpack(torch.as_tensor(self.theta_)).items()}
