@@ -1,0 +1,115 @@
+"""``postproc train --method hybrid|kinematic``: the identified arm (+ residual networks).
+
+Called by :mod:`postproc.cli.train` after it has read, split and (``--register``) registered
+the data; this part needs the robot's nominal description (``--robot FILE.toml``, default the
+shipped models/kr500.toml), reads the controller's joint angles if the file has ``q1..q6``
+columns (they pick the IK branch) and takes the visiting order from the row order.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HYBRID_METHODS = ("hybrid", "kinematic")
+DEFAULT_HIDDEN = (32, 32)  # the residual networks'
+DEFAULT_EPOCHS = 1500
+
+
+def _description(robot: str | None):
+    from ..diagnostics import PostprocError
+    from ..robot import load_description
+
+    if robot and Path(robot).suffix == ".toml":
+        return load_description(robot)
+    default = load_description()
+    if robot and robot != default.name:
+        raise PostprocError(f"--method hybrid identifies the robot's kinematics: give its description file "
+                            f"(--robot FILE.toml), not the name {robot!r}; or use --method gpso", code="P508")
+    return default
+
+
+def arm_metadata(description) -> dict:
+    """robot / reach / tool for the model card. KUKA-type arms: postproc.robot's reach sphere;
+    others: a conservative sphere about A2's origin on the A1 axis (every link after it laid end
+    to end)."""
+    import math
+
+    from ..robot import Robot
+
+    tool = {"name": description.tool_name, "frame": [round(float(v), 6) for v in description.tool]}
+    try:
+        reach = Robot(description).reach
+    except Exception:  # not a KUKA-type arm: no closed-form IK in postproc.robot
+        origins = np.array([j.origin[:3] for j in description.joints])
+        centre = origins[0] + [0.0, 0.0, origins[1, 2]]
+        flange = np.asarray(description.flange[:3])
+        radius = (math.hypot(*origins[1, :2]) + float(np.linalg.norm(origins[2:], axis=1).sum())
+                  + float(np.linalg.norm(flange)) + float(np.linalg.norm(description.tool[:3])))
+        reach = {"center": [round(float(v), 3) for v in centre], "radius_min": 0.0, "radius_max": round(radius, 3)}
+    return {"robot": description.name, "reach": reach, "tool": tool}
+
+
+def run_hybrid(args, data, measured: np.ndarray, train_rows: np.ndarray, val_rows: np.ndarray, notes: list[str]) -> int:
+    from ..training import residual_stats
+    from ..training.features import joint_columns, previous_poses
+    from ..training.hybrid import HybridModel
+
+    description = _description(args.robot)
+    poses = data.poses
+    errors = poses[:, :3] - measured
+    # rows in visiting order (the first came from HOME): the approach direction of each joint
+    previous = None if args.pose_only else previous_poses(poses)
+    q_deg = joint_columns(data.path, data.lines) if data.path else None
+    model = HybridModel(
+        description,
+        residual="auto" if args.method == "hybrid" else "none",
+        hidden=args.hidden or DEFAULT_HIDDEN,
+        epochs=args.epochs or DEFAULT_EPOCHS,
+        seed=args.seed,
+    )
+    rows = (lambda a, r: None if a is None else a[r])  # noqa: E731
+    model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows))
+
+    val = residual_stats(errors[val_rows] - model.predict(poses[val_rows], rows(previous, val_rows)))
+    unc = residual_stats(errors[val_rows])
+    accuracy = {
+        "val_mean_mm": val["mean"],
+        "val_max_mm": val["max"],
+        "val_std_mm": val["std"],
+        "train_mean_mm": model.train_stats_["mean"],
+        "n_train": len(train_rows),
+        "n_val": len(val_rows),
+        "val_uncompensated_mean_mm": unc["mean"],
+        "val_uncompensated_max_mm": unc["max"],
+    }
+    accuracy = {k: (round(v, 6) if isinstance(v, float) else v) for k, v in accuracy.items()}
+    metadata = {
+        "name": args.name or Path(args.output).stem,
+        "data_sha256": data.sha256,
+        "accuracy": accuracy,
+        "iterations": max(2, model.fixed_point_iterations(poses[train_rows])),
+        "identified": model.describe(),
+    }
+    metadata.update(arm_metadata(description))
+    model.export_onnx(args.output, **metadata)
+
+    if not args.quiet:
+        for note in notes:
+            print(note, file=sys.stderr)
+        found = model.describe()
+        order = "backlash from the visiting order" if model.uses_previous else "no visiting order"
+        print(f"model     {args.output}  ({model.label}; {model.structure}; {order}; "
+              f"{model.fit_seconds_['total']:.1f} s)")
+        if found["ripple"]:
+            print(f"ripple    joint:order {' '.join(f'A{j}:{n}' for j, n in found['ripple'])}")
+        print(f"data      {args.data}: {len(train_rows)} training rows, {len(val_rows)} validation rows")
+        if len(val_rows):
+            print(f"{'|E| mm (validation)':<26} {'mean':>7} {'max':>7} {'std':>7}")
+            print(f"{'uncompensated':<26} {unc['mean']:7.4f} {unc['max']:7.4f} {unc['std']:7.4f}")
+            print(f"{'residual |E − Ê|':<26} {val['mean']:7.4f} {val['max']:7.4f} {val['std']:7.4f}")
+        s = model.train_stats_
+        print(f"{'residual |E − Ê| (train)':<26} {s['mean']:7.4f} {s['max']:7.4f} {s['std']:7.4f}")
+        print(f"postproc train: wrote {args.output}", file=sys.stderr)
+    return 0
