@@ -5,7 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
-METHODS = ("gpso", "ga", "pso", "plain")  # postproc.training.METHODS, without importing torch here
+METHODS = ("hybrid", "kinematic", "gpso", "ga", "pso", "plain")  # see EXAMPLES; no torch import here
 OPTIMIZERS = ("lm", "lbfgs", "adam", "momentum", "gd")
 
 EXAMPLES = """\
@@ -14,13 +14,19 @@ the commanded TCP pose and the measured TCP position, one row per visited pose. 
 learns E = P_target − P_measured. `--val-fraction` of the rows (drawn with --split-seed)
 are held out and only scored on.
 
-Methods: gpso (the method: GPSO-searched initial weights, then backprop), ga, pso, plain
-(random initial weights). Backprop optimiser: lm (Levenberg–Marquardt, the default, as
-MATLAB's trainlm), lbfgs, adam, momentum, gd (the method's lr 0.01).
+Methods: hybrid (the default: the robot's kinematics, compliance, backlash and gear ripple
+identified on its nominal description --robot FILE.toml, default models/kr500.toml, plus
+residual networks on the joint angles when they help on held-back rows; the visiting order
+of the rows gives the approach directions, and the model takes previous_pose), kinematic
+(the identification alone), gpso (the method of Hu, Hua & Tian: GPSO-searched initial weights
+of a pose-only MLP, then backprop), ga, pso, plain (random initial weights). Backprop
+optimiser of the pose-only MLPs: lm (Levenberg–Marquardt, the default, as MATLAB's trainlm),
+lbfgs, adam, momentum, gd (the method's lr 0.01).
 
 Examples:
   postproc train measured.csv -o models/cell3.onnx --robot models/kr500.toml --name cell3
-  postproc train measured.csv -o m.onnx --method ga --seed 1
+  postproc train measured.csv -o m.onnx --method gpso --seed 1
+  postproc train ipa.csv --register --robot models/ur10.toml -o ur10.onnx --val-fraction 0.2
   postproc train measured.csv -o m.onnx --search        # pick the hidden layers first (minutes)
 """
 
@@ -51,21 +57,27 @@ def add_parser(sub, common, formatter) -> None:
         parents=[common],
         formatter_class=formatter,
         help="learn an error model from measurements and write it as ONNX",
-        description="Train the error model (GPSO-DNN by default) on a measurement CSV and export it as a compensator.",
+        description="Train the error model (identified kinematics + residual networks by default) on a measurement "
+        "CSV and export it as a compensator.",
         epilog=EXAMPLES,
     )
     p.add_argument("data", metavar="DATA.csv", help="measurement CSV")
     p.add_argument("-o", "--output", required=True, metavar="MODEL.onnx", help="model file to write")
-    p.add_argument("--method", choices=METHODS, default="gpso", help="initial-weight search (default gpso)")
-    p.add_argument("--hidden", type=_hidden, default=(20, 10, 5), metavar="W,W,...", help="hidden layer widths (default 20,10,5)")
+    p.add_argument("--method", choices=METHODS, default="hybrid", help="the model (default hybrid; see below)")
+    p.add_argument("--hidden", type=_hidden, default=None, metavar="W,W,...",
+                   help="hidden layer widths (default 20,10,5; hybrid's residual networks 32,32)")
     p.add_argument("--optimizer", choices=OPTIMIZERS, default=None, help="backprop optimiser (default lm)")
     p.add_argument("--search", action="store_true", help="search the hidden layers first (1-6 layers of 3-16 nodes; minutes)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the training's random draws (default 0)")
     p.add_argument("--split-seed", type=int, default=0, metavar="S", help="seed of the validation draw (default 0)")
     p.add_argument("--val-fraction", type=float, default=0.05, metavar="F", help="rows held out for validation (default 0.05)")
-    p.add_argument("--epochs", type=_positive, default=500, metavar="N", help="backprop epochs at most (default 500)")
+    p.add_argument("--epochs", type=_positive, default=None, metavar="N",
+                   help="backprop epochs at most (default 500; hybrid's residual networks 1500)")
     p.add_argument("--name", help="model name for the metadata (default: the output file's stem)")
-    p.add_argument("--robot", metavar="NAME|FILE.toml", help="robot name, or its description file (adds reach and tool)")
+    p.add_argument("--robot", metavar="NAME|FILE.toml", help="robot name, or its description file (adds reach and tool; "
+                   "hybrid/kinematic: the nominal description to identify, default models/kr500.toml)")
+    p.add_argument("--pose-only", action="store_true",
+                   help="hybrid/kinematic: ignore the visiting order (no backlash; the model takes the pose only)")
     p.add_argument(
         "--register",
         action="store_true",
@@ -134,7 +146,12 @@ def run(args) -> int:
     errors = poses[:, :3] - measured
 
     progress = show_progress(args)
-    hidden = args.hidden
+    from .train_hybrid import HYBRID_METHODS, run_hybrid
+
+    if args.method in HYBRID_METHODS:
+        return run_hybrid(args, data, measured, train_rows, val_rows, notes)
+    hidden = args.hidden or (20, 10, 5)
+    args.epochs = args.epochs or 500
     if args.search:
         from ..training.search import format_table, search_structure
 
