@@ -12,7 +12,7 @@ from postproc.training.data import parse_measurements
 from postproc.training.synthetic import synthetic_measurements, to_csv
 
 HEADER = "x,y,z,a,b,c,x_meas,y_meas,z_meas"
-FAST = ["--hidden", "8,4", "--epochs", "15"]
+FAST = ["--method", "gpso", "--hidden", "8,4", "--epochs", "15"]  # the GPSO-DNN path (default: hybrid)
 
 
 @pytest.fixture(scope="module")
