@@ -370,3 +370,16 @@ def test_position_used_in_two_frames_is_refused_unless_forced(tmp_path, capsys, 
                           "(line 3): no one correction is right for both")
     code, err, written = krl_run(tmp_path, capsys, src, dat, model, "--force", "-q")
     assert code == 0 and "XP1={X 1900.300,Y -0.200,Z 900.100," in (tmp_path / "out" / "cell.dat").read_text()
+
+
+def test_module_files_onto_one_path_are_refused(tmp_path, capsys, affine):
+    (tmp_path / "cell.src").write_text("DEF cell( )\nLIN XP1\nEND\n")
+    (tmp_path / "cell.dat").write_text("DEFDAT cell\nDECL E6POS XP1={X 1900.0,Y 0.0,Z 900.0}\nENDDAT\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    # '-o x.dat' for a .src: the .dat would overwrite the .src just written
+    code = main(["compensate", str(tmp_path / "cell.src"), "-o", str(out / "x.dat"), "--model",
+                 str(affine(tool={"name": "any"}))])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith(f"{out / 'x.dat'}: P110 two files of the program would both be written")
+    assert list(out.iterdir()) == []
