@@ -321,6 +321,7 @@ def without_stamp(text: str, model) -> str:
 # --------------------------------------------------------------------------- properties
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(module=krl_module(canonical=True))
 def test_zero_model_reproduces_the_module_byte_for_byte(models, module):
@@ -333,6 +334,7 @@ def test_zero_model_reproduces_the_module_byte_for_byte(models, module):
     assert report.compensated == sum(t["delta"] is not None for t in targets)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(module=krl_module(canonical=False))
 def test_offset_model_moves_exactly_the_target_numbers_by_the_offset_in_their_base(models, module):
@@ -352,6 +354,7 @@ def test_offset_model_moves_exactly_the_target_numbers_by_the_offset_in_their_ba
                 assert abs(change - target["delta"][k]) <= 5e-4 + 1e-9, (old, new, target)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(module=krl_module(canonical=False))
 def test_output_reads_as_the_same_targets_in_the_same_frames(models, module):
