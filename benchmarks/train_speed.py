@@ -5,8 +5,9 @@
 Without --data it plans and measures 2000 poses on the default simulated robot
 (`postproc plan -n 2000 --seed 0`, `postproc measure`) — or, without the simulator, writes
 the synthetic error field — then runs `postproc train DATA -o …` (5 % held out → 1900
-training points) as a separate process, as a user would, and prints the wall time of the
-whole command (start-up, torch import, training, export) and its own report.
+training points) as a separate process, as a user would, once with `--method gpso` (the
+GPSO-DNN method with its defaults) and once with the command's default method, and prints
+the wall time of each whole command (start-up, torch import, training, export) and its report.
 """
 from __future__ import annotations
 
@@ -52,13 +53,14 @@ def main() -> None:
         data, source = (Path(args.data), args.data) if args.data else make_data(folder)
         print(f"data: {source}")
         print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} (shared: timings are under that load)")
-        for i in range(args.repeat):
-            t = time.perf_counter()
-            run = run_cli("train", str(data), "-o", str(folder / "m.onnx"), *args.extra, capture_output=True)
-            wall = time.perf_counter() - t
-            print(run.stdout.rstrip())
-            print(f"run {i + 1}: `postproc train` wall time {wall:.1f} s (budget 120 s), "
-                  f"load average after {os.getloadavg()[0]:.2f}")
+        for label, method in (("--method gpso", ["--method", "gpso"]), ("default method", [])):
+            for i in range(args.repeat):
+                t = time.perf_counter()
+                run = run_cli("train", str(data), "-o", str(folder / "m.onnx"), *method, *args.extra, capture_output=True)
+                wall = time.perf_counter() - t
+                print(f"--- postproc train ({label})")
+                print(run.stdout.rstrip())
+                print(f"run {i + 1}: wall time {wall:.1f} s (budget 120 s), load average after {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":
