@@ -5,7 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
-METHODS = ("hybrid", "kinematic", "gpso", "ga", "pso", "plain")  # see EXAMPLES; no torch import here
+METHODS = ("hybrid", "kinematic", "dnn-joints", "gpso", "ga", "pso", "plain")  # see EXAMPLES; no torch import here
 OPTIMIZERS = ("lm", "lbfgs", "adam", "momentum", "gd")
 
 EXAMPLES = """\
@@ -18,7 +18,8 @@ Methods: hybrid (the default: the robot's kinematics, compliance, backlash and g
 identified on its nominal description --robot FILE.toml, default models/kr500.toml, plus
 residual networks on the joint angles when they help on held-back rows; the visiting order
 of the rows gives the approach directions, and the model takes previous_pose), kinematic
-(the identification alone), gpso (the method of Hu, Hua & Tian: GPSO-searched initial weights
+(the identification alone), dnn-joints (no identification: an ensemble of MLPs on the
+nominal joint angles and approach directions), gpso (the method of Hu, Hua & Tian: GPSO-searched initial weights
 of a pose-only MLP, then backprop), ga, pso, plain (random initial weights). Backprop
 optimiser of the pose-only MLPs: lm (Levenberg–Marquardt, the default, as MATLAB's trainlm),
 lbfgs, adam, momentum, gd (the method's lr 0.01).
@@ -120,7 +121,8 @@ def run(args) -> int:
     data = read_measurements(args.data)
     train_rows, val_rows = split_indices(len(data), args.val_fraction, args.split_seed)
     # a robot description is read before the long part, so that a typo fails fast
-    robot_meta = _robot_metadata(args.robot)
+    # (hybrid methods read it themselves: it is the model, and may be an arm postproc.robot cannot solve)
+    robot_meta = {} if args.method in ("hybrid", "kinematic", "dnn-joints") else _robot_metadata(args.robot)
     poses, measured = data.poses, data.measured
     notes = []
     frame = data.meta.get("frame", "base").lower()
