@@ -1,4 +1,5 @@
-"""``postproc train --method hybrid|kinematic``: the identified arm (+ residual networks).
+"""``postproc train --method hybrid|kinematic|dnn-joints``: the identified arm (+ residual
+networks), or networks on the joint angles alone.
 
 Called by :mod:`postproc.cli.train` after it has read, split and (``--register``) registered
 the data; this part needs the robot's nominal description (``--robot FILE.toml``, default the
@@ -12,9 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
-HYBRID_METHODS = ("hybrid", "kinematic")
-DEFAULT_HIDDEN = (32, 32)  # the residual networks'
+HYBRID_METHODS = ("hybrid", "kinematic", "dnn-joints")
+DEFAULT_HIDDEN = {"hybrid": (32, 32), "kinematic": (32, 32), "dnn-joints": (64, 64)}  # the networks'
 DEFAULT_EPOCHS = 1500
+# dnn-joints: no identification, only the networks on the joint angles (+ approach signs)
+SETTINGS = {"hybrid": {"residual": "auto"}, "kinematic": {"residual": "none"},
+            "dnn-joints": {"residual": "always", "kinematic": {"groups": (), "ripple": []}}}
 
 
 def _description(robot: str | None):
@@ -64,10 +68,10 @@ def run_hybrid(args, data, measured: np.ndarray, train_rows: np.ndarray, val_row
     q_deg = joint_columns(data.path, data.lines) if data.path else None
     model = HybridModel(
         description,
-        residual="auto" if args.method == "hybrid" else "none",
-        hidden=args.hidden or DEFAULT_HIDDEN,
+        hidden=args.hidden or DEFAULT_HIDDEN[args.method],
         epochs=args.epochs or DEFAULT_EPOCHS,
         seed=args.seed,
+        **SETTINGS[args.method],
     )
     rows = (lambda a, r: None if a is None else a[r])  # noqa: E731
     model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows))

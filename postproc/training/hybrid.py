@@ -39,7 +39,8 @@ KEEP_GAIN = 0.03
 
 
 class ResidualNet(torch.nn.Module):
-    """Joint features (sin, cos of q) → residual error [N, 3] mm: standardise, tanh MLP, unscale."""
+    """Joint features (sin, cos of q [+ approach signs]) → residual error [N, 3] mm:
+    standardise, tanh MLP, unscale."""
 
     def __init__(self, n_in: int, hidden: tuple[int, ...], x_mean, x_std, y_std):
         super().__init__()
@@ -72,9 +73,9 @@ class HybridModule(torch.nn.Module):
     def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None) -> torch.Tensor:
         dtype = pose.dtype
         prev = previous_pose.to(torch.float64) if previous_pose is not None else None
-        error, q, _ = self.kinematic.parts(pose.to(torch.float64), prev)
+        error, q, signs = self.kinematic.parts(pose.to(torch.float64), prev)
         if len(self.nets):
-            features = joint_features(q)
+            features = joint_features(q, signs if self.uses_previous else None)
             error = error + torch.stack([net(features) for net in self.nets]).mean(dim=0)
         return error.to(dtype)
 
@@ -130,9 +131,10 @@ class HybridModel:
     @property
     def label(self) -> str:
         kin = "kinematic identification"
-        if getattr(self, "nets_", None):
-            return f"{kin} + residual MLP x{len(self.nets_)} ({'-'.join(map(str, self.hidden))}, joint features)"
-        return kin
+        nets = f"MLP x{len(getattr(self, 'nets_', []))} ({'-'.join(map(str, self.hidden))}, joint features)"
+        if hasattr(self, "kinematic_") and not self.kinematic_.layout_.n:
+            return nets
+        return f"{kin} + residual {nets}" if getattr(self, "nets_", None) else kin
 
     def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
             q_deg: np.ndarray | None = None) -> "HybridModel":
@@ -161,7 +163,9 @@ class HybridModel:
     def _fit_residual(self, poses: np.ndarray, residual: np.ndarray) -> list[ResidualNet]:
         if self.residual == "none" or self.ensemble < 1:
             return []
-        x = joint_features(torch.as_tensor(self.kinematic_.joint_angles(poses))).numpy()
+        km = self.kinematic_
+        x = joint_features(torch.as_tensor(km.train_q_),
+                           torch.as_tensor(km.train_signs_) if km.use_previous_ else None).numpy()
         self.residual_check_ = None
         if self.residual == "auto":
             # train on 85 % of the rows, compare on the other 15 %: keep only if it pays
@@ -240,7 +244,9 @@ class HybridModel:
         parts = [f"{km.layout_.n} kinematic parameters ({', '.join(km.layout_.groups)}, "
                  f"{len(km.layout_.ripple)} ripple orders)", f"IK {km.ik_.family} branch {list(km.ik_.branch)}"]
         if self.nets_:
-            parts.append(f"{len(self.nets_)} x MLP 12-{'-'.join(map(str, self.hidden))}-3 on sin/cos q")
+            n_in = 18 if self.uses_previous else 12
+            inputs = "sin/cos q, approach signs" if self.uses_previous else "sin/cos q"
+            parts.append(f"{len(self.nets_)} x MLP {n_in}-{'-'.join(map(str, self.hidden))}-3 on {inputs}")
         return "; ".join(parts)
 
 

@@ -271,7 +271,7 @@ class KinematicModel:
         self.arm_ = Arm(self.description)
         self._choose_ik(poses, q_deg)
         groups = tuple(g for g in self.groups if g != "backlash" or previous is not None)
-        self.use_previous_ = "backlash" in groups
+        self.use_previous_ = previous is not None  # the approach signs: backlash, and the residual nets' inputs
         with torch.no_grad():
             q = self.ik_(torch.as_tensor(poses))
             rot, org, tcp = self.arm_.frames(q)
@@ -291,7 +291,9 @@ class KinematicModel:
         measured = tcp - torch.as_tensor(errors)
         fixed = list(self.ripple) if isinstance(self.ripple, list) else []
         layout = Layout(groups, fixed)
-        theta = self._levenberg_marquardt(layout, np.zeros(layout.n), q, s, tau, measured, self.iterations)
+        theta = np.zeros(layout.n)
+        if layout.n:
+            theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
         self.ripple_search_ = []
         if self.ripple == "search":
             while len(layout.ripple) < self.max_ripple:
@@ -311,6 +313,7 @@ class KinematicModel:
         self.module_ = KinematicErrorModule(self.arm_, self.ik_, layout, theta, self.use_previous_)
         with torch.no_grad():
             fitted = self.module_.error_at(q, s).numpy()
+        self.train_q_, self.train_signs_ = q.numpy(), s.numpy()
         self.train_residual_ = errors - fitted
         self.n_train_ = len(poses)
         return self
