@@ -86,10 +86,10 @@ def test_cam_pocket_counts_every_lin_and_both_circ_points():
     assert p.newlines == ["\r\n"] and p.dialect == "krl" and p.comment == ";"
     assert p.diagnostics == []
     assert_spans_exact(p)
-    # one frame: $BASE translation (1850, -300, 650), $TOOL Z 185
+    # one frame: $BASE translation (1850, -300, 650), $TOOL = the KR500-sim spindle X 300 Z 75
     assert len(p.frames) == 1 and (p.targets.frame == 0).all()
     np.testing.assert_allclose(p.frames[0].base, transform(np.eye(3), [1850, -300, 650]), atol=1e-12)
-    np.testing.assert_allclose(p.frames[0].tool, [0, 0, 185, 0, 0, 0])
+    np.testing.assert_allclose(p.frames[0].tool, [300, 0, 75, 0, 0, 0])
     # in the shipped model's envelope once in the robot base
     xyz = p.targets.poses[:, :3] + [1850, -300, 650]
     assert (xyz.min(0) >= [1750, -550, 550]).all() and (xyz.max(0) <= [2250, 550, 1250]).all()
@@ -126,7 +126,7 @@ def test_weld_cell_targets_frames_and_spans():
     # BASE_DATA[1] / TOOL_DATA[1] of $config.dat, everywhere (FDAT path, SBASE/STOOL2, subroutine)
     assert len(p.frames) == 1 and (t.frame == 0).all()
     np.testing.assert_allclose(p.frames[0].base, transform(np.eye(3), [1850, -300, 650]), atol=1e-12)
-    np.testing.assert_allclose(p.frames[0].tool, [12.5, 0, 385, 0, -30, 0])
+    np.testing.assert_allclose(p.frames[0].tool, [300, 0, 75, 0, 0, 0])
     # the partial SPL {X 250,Y 180,Z 40} takes A,B,C of the point before it (XP10)
     spl = int(np.flatnonzero((t.file == 0) & (t.motion == MOTIONS.index("SPL")))[0])
     np.testing.assert_allclose(t.poses[spl], [250, 180, 40, -3, 92, 0])

@@ -15,7 +15,7 @@ import math
 from pathlib import Path
 
 BASE = (1850.0, -300.0, 650.0, 0.0, 0.0, 0.0)
-TOOL = (0.0, 0.0, 185.0, 0.0, 0.0, 0.0)
+TOOL = (300.0, 0.0, 75.0, 0.0, 0.0, 0.0)  # the KR500-sim spindle (models/kr500.toml)
 X0, X1, Y0, Y1 = 40.0, 360.0, 40.0, 560.0  # pocket outline in the base
 Z_TOP, Z_SAFE = 420.0, 440.0
 STEP_Z, STEP_XY, CORNER = 12.0, 8.0, 20.0
