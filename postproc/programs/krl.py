@@ -1534,7 +1534,8 @@ class _Reader:
             return -1, key
         base = compose(inverse(st.robroot), st.base) if st.robroot is not _I4 else st.base
         tool = st.tool if isinstance(st.tool, tuple) else None
-        key = (np.round(base, 9).tobytes(), None if tool is None else tuple(round(x, 9) for x in tool))
+        with np.errstate(over="ignore", invalid="ignore"):  # a 1e308 frame: refused later, not a warning here
+            key = (np.round(base, 9).tobytes(), None if tool is None else tuple(round(x, 9) for x in tool))
         ix = self.frame_ix.get(key)
         if ix is None:
             if isinstance(st.tool, _Unknown) and st.tool.why:
