@@ -55,21 +55,43 @@ def format_like(token: str, value: float) -> str:
 
 
 _PLAIN = re.compile(r"-?\d+\.\d+\Z")
+_ALL_PLAIN = re.compile(r"(?:-?\d+\.\d+\n)*-?\d+\.\d+")
+
+
+def _format_plain(values: np.ndarray, decimals: np.ndarray) -> list[str]:
+    """'%.{d}f' per value, one format string per distinct decimal count; never '-0.000'."""
+    decimals = np.maximum(decimals, MIN_DECIMALS)
+    # values that round to zero are written as zero: no '-0.000'
+    values = np.where(np.abs(values) < 0.5 * 10.0 ** -decimals, 0.0, values)
+    kinds = np.unique(decimals)
+    if len(kinds) == 1:
+        fmt = f"%.{int(kinds[0])}f"
+        return [fmt % v for v in values.tolist()]
+    out: list[str] = [""] * len(values)
+    for d in kinds.tolist():
+        idx = np.flatnonzero(decimals == d)
+        fmt = f"%.{d}f"
+        for i, v in zip(idx.tolist(), values[idx].tolist()):
+            out[i] = fmt % v
+    return out
 
 
 def format_many(tokens: Sequence[str], values: np.ndarray) -> list[str]:
-    """``format_like`` over many tokens; the common CAM case ('-12.5', '880.000') is fast."""
+    """``format_like`` over many tokens. The common CAM case (every token plain, like
+    '-12.5' or '880.000') is checked with one regex over all tokens and formatted in bulk."""
+    values = np.asarray(values, dtype=np.float64)
+    if not len(tokens):
+        return []
+    if _ALL_PLAIN.fullmatch("\n".join(tokens)):
+        chars = np.array(tokens)
+        decimals = np.char.str_len(chars) - np.char.find(chars, ".") - 1
+        return _format_plain(values, decimals)
     out = []
-    append = out.append
     for token, value in zip(tokens, values.tolist()):
         if _PLAIN.match(token):
-            decimals = len(token) - token.index(".") - 1
-            text = f"{value:.{decimals if decimals > MIN_DECIMALS else MIN_DECIMALS}f}"
-            if text[0] == "-" and float(text) == 0.0:
-                text = text[1:]
-            append(text)
+            out.append(_format_plain(np.array([value]), np.array([len(token) - token.index(".") - 1]))[0])
         else:
-            append(format_like(token, value))
+            out.append(format_like(token, value))
     return out
 
 
@@ -81,13 +103,11 @@ def apply_edits(text: str, starts: np.ndarray, ends: np.ndarray, replacements: S
     starts, ends = np.asarray(starts)[order], np.asarray(ends)[order]
     if np.any(starts[1:] < ends[:-1]):
         raise PostprocError("internal error: overlapping number spans")
-    pieces: list[str] = []
-    prev = 0
-    for s, e, i in zip(starts.tolist(), ends.tolist(), order.tolist()):
-        pieces.append(text[prev:s])
-        pieces.append(replacements[i])
-        prev = e
-    pieces.append(text[prev:])
+    gaps_from = [0, *ends.tolist()]
+    gaps_to = [*starts.tolist(), len(text)]
+    pieces: list[str] = [""] * (2 * len(starts) + 1)
+    pieces[0::2] = [text[a:b] for a, b in zip(gaps_from, gaps_to)]
+    pieces[1::2] = [replacements[i] for i in order.tolist()]
     return "".join(pieces)
 
 

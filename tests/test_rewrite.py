@@ -65,3 +65,9 @@ def test_write_atomic_all_or_nothing(tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["p.dat", "p.src"]  # no temp files left
     write_atomic([(a, "new src"), (b, "new dat")])
     assert a.read_text() == "new src" and b.read_text() == "new dat"
+
+
+def test_bulk_plain_path_keeps_each_tokens_decimals_and_no_negative_zero():
+    tokens = ["1.0", "-2.50", "12.34567", "0.000", "-7.1234"]
+    values = np.array([1.23456, -2.5, 12.3, -0.0004, -7.12341])
+    assert format_many(tokens, values) == ["1.235", "-2.500", "12.30000", "0.000", "-7.1234"]
