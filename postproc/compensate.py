@@ -19,7 +19,7 @@ from .compensator import Compensator, load_model
 from .diagnostics import Diagnostic, PostprocError
 from .guards import ROUNDING_MM, check_memory, check_numbers, check_round_trip
 from .programs import STAMP_PREFIX, Program, dialect_of, read_program
-from .rewrite import apply_edits, format_many, insert_stamp, stamp_line, write_atomic
+from .rewrite import check_disjoint, format_many, splice, insert_stamp, stamp_line, write_atomic
 
 __all__ = [
     "Report",
@@ -327,21 +327,7 @@ def compensate_program(
         local[here] = frames.rotate_vectors(frames.inverse(program.frames[f].base), correction[here])
     new_xyz = t.poses[rows, :3] + local
 
-    outputs = list(program.texts)
-    spans = t.spans[rows]  # [M, 3, 2]
-    for index, text in enumerate(program.texts):
-        in_file = t.file[rows] == index
-        starts, ends = spans[in_file, :, 0].ravel(), spans[in_file, :, 1].ravel()
-        values = new_xyz[in_file].ravel()
-        present = starts >= 0
-        starts, ends, values = starts[present], ends[present], values[present]
-        tokens = [text[s:e] for s, e in zip(starts.tolist(), ends.tolist())]
-        owners = np.repeat(rows[in_file], 3)[present]
-        read = t.poses[owners, np.tile([0, 1, 2], int(in_file.sum()))[present]]
-        check_numbers(program, owners, tokens, read, 0.0, "is not the {} read for the target")
-        replacements = format_many(tokens, values)
-        check_numbers(program, owners, replacements, values, ROUNDING_MM, "does not read back as the corrected {}")
-        outputs[index] = apply_edits(text, starts, ends, replacements)
+    outputs = [_rewrite_file(program, index, text, rows, new_xyz) for index, text in enumerate(program.texts)]
     # KRL only: a pose list has one frame and no variables, so nothing but its spans (checked
     # above) can go wrong; a Program built by hand has no text to read it from
     if program.from_text and program.dialect == "krl":
@@ -360,6 +346,42 @@ def compensate_program(
     report.warnings = warnings
     report.outputs = dict(zip(program.files, outputs))
     return report
+
+
+# Edits are made this many tokens at a time: a million-target program never holds all its
+# tokens, their replacements and the pieces of the new text at once (peak memory).
+EDIT_CHUNK = 1 << 17
+
+
+def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, new_xyz: np.ndarray) -> str:
+    """``text`` (file ``index`` of the program) with the X/Y/Z tokens of targets ``rows``
+    replaced by ``new_xyz``, each token checked before and after (guards.check_numbers)."""
+    t = program.targets
+    mine = np.flatnonzero(t.file[rows] == index)
+    starts = t.spans[rows[mine], :, 0].ravel()
+    ends = t.spans[rows[mine], :, 1].ravel()
+    values = new_xyz[mine].ravel()
+    owners = np.repeat(rows[mine], 3)
+    read = t.poses[owners, np.tile([0, 1, 2], len(mine))]
+    keep = starts >= 0  # components the aggregate leaves out have no token
+    order = np.argsort(starts[keep], kind="stable")
+    starts, ends, values, owners, read = (a[keep][order] for a in (starts, ends, values, owners, read))
+    if not len(starts):
+        return text
+    check_disjoint(starts, ends)
+    parts, prev = [], 0
+    for at in range(0, len(starts), EDIT_CHUNK):
+        chunk = slice(at, at + EDIT_CHUNK)
+        s, e = starts[chunk].tolist(), ends[chunk].tolist()
+        tokens = [text[a:b] for a, b in zip(s, e)]
+        check_numbers(program, owners[chunk], tokens, read[chunk], 0.0, "is not the {} read for the target")
+        replacements = format_many(tokens, values[chunk])
+        check_numbers(program, owners[chunk], replacements, values[chunk], ROUNDING_MM,
+                      "does not read back as the corrected {}")
+        parts.append(splice(text, prev, s, e, replacements))
+        prev = e[-1]
+    parts.append(text[prev:])
+    return "".join(parts)
 
 
 def _model(model: Compensator | str | Path | None) -> Compensator:

@@ -35,6 +35,7 @@ CONTRACT_VERSION = "1"
 INPUT_POSE = "pose"
 INPUT_PREVIOUS = "previous_pose"
 OUTPUT_ERROR = "error"
+PREDICT_BATCH = 65536
 # More fixed-point iterations than this is a typo or a hostile model card, not a method (a hang).
 MAX_ITERATIONS = 100
 
@@ -124,22 +125,30 @@ class Compensator:
         return (r > float(reach["radius_max"])) | (r < float(reach.get("radius_min", 0.0)))
 
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
-        """Ê for poses [N, 6] (robot base frame) in one batched call → [N, 3] mm (float64)."""
+        """Ê for poses [N, 6] (robot base frame) → [N, 3] mm (float64). Batched: one
+        onnxruntime call per PREDICT_BATCH poses (a whole CAM program in one call would make
+        the runtime hold every intermediate layer for every target at once)."""
         poses = np.ascontiguousarray(poses, dtype=np.float32).reshape(-1, 6)
-        feeds = {INPUT_POSE: poses}
         if self.wants_previous:
-            prev = poses if previous is None else np.ascontiguousarray(previous, dtype=np.float32).reshape(-1, 6)
-            feeds[INPUT_PREVIOUS] = prev
+            previous = poses if previous is None else np.ascontiguousarray(previous, dtype=np.float32).reshape(-1, 6)
         if len(poses) == 0:
             return np.zeros((0, 3))
-        try:
-            (error,) = self.session.run([OUTPUT_ERROR], feeds)
-        except Exception as exc:  # onnxruntime's own types: a graph that does not run on [N, 6]
-            raise PostprocError(f"the model failed on {len(poses)} poses: {str(exc).splitlines()[0][:200]}",
-                                str(self.path), code="P306") from None
-        error = np.asarray(error, dtype=np.float64)
-        if error.shape != (len(poses), 3):
-            raise PostprocError(f"model returned shape {error.shape}, expected ({len(poses)}, 3)", str(self.path), code="P306")
+        error = np.empty((len(poses), 3))
+        for at in range(0, len(poses), PREDICT_BATCH):
+            batch = slice(at, at + PREDICT_BATCH)
+            feeds = {INPUT_POSE: poses[batch]}
+            if self.wants_previous:
+                feeds[INPUT_PREVIOUS] = previous[batch]
+            try:
+                (out,) = self.session.run([OUTPUT_ERROR], feeds)
+            except Exception as exc:  # onnxruntime's own types: a graph that does not run on [N, 6]
+                raise PostprocError(f"the model failed on {len(poses)} poses: {str(exc).splitlines()[0][:200]}",
+                                    str(self.path), code="P306") from None
+            out = np.asarray(out)
+            if out.shape != (len(feeds[INPUT_POSE]), 3):
+                raise PostprocError(f"model returned shape {out.shape}, expected ({len(feeds[INPUT_POSE])}, 3)",
+                                    str(self.path), code="P306")
+            error[batch] = out
         return error
 
     def command(self, poses: np.ndarray, iterations: int | None = None, previous: np.ndarray | None = None) -> np.ndarray:

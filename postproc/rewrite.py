@@ -17,7 +17,7 @@ import numpy as np
 
 from .diagnostics import PostprocError
 
-__all__ = ["format_like", "format_many", "apply_edits", "insert_stamp", "stamp_line", "write_atomic", "recover"]
+__all__ = ["format_like", "format_many", "apply_edits", "splice", "check_disjoint", "insert_stamp", "stamp_line", "write_atomic", "recover"]
 
 MIN_DECIMALS = 3
 # KRL allows blanks between a sign and its number ('X - 5'): the reader's span covers both
@@ -95,20 +95,30 @@ def format_many(tokens: Sequence[str], values: np.ndarray) -> list[str]:
     return out
 
 
+def splice(text: str, start: int, starts: list[int], ends: list[int], replacements: Sequence[str]) -> str:
+    """``text[start:ends[-1]]`` with each ``text[starts[i]:ends[i]]`` replaced by
+    ``replacements[i]``; the spans are sorted, do not overlap and begin at or after ``start``."""
+    pieces: list[str] = [""] * (2 * len(starts))
+    pieces[0::2] = [text[a:b] for a, b in zip([start, *ends[:-1]], starts)]
+    pieces[1::2] = replacements
+    return "".join(pieces)
+
+
+def check_disjoint(starts: np.ndarray, ends: np.ndarray) -> None:
+    """Sorted spans must not overlap: two edits of one token would corrupt it."""
+    if np.any(starts[1:] < ends[:-1]):
+        raise PostprocError("internal error: overlapping number spans")
+
+
 def apply_edits(text: str, starts: np.ndarray, ends: np.ndarray, replacements: Sequence[str]) -> str:
     """Replace ``text[starts[i]:ends[i]]`` by ``replacements[i]``; spans must not overlap."""
     if len(starts) == 0:
         return text
     order = np.argsort(starts, kind="stable")
     starts, ends = np.asarray(starts)[order], np.asarray(ends)[order]
-    if np.any(starts[1:] < ends[:-1]):
-        raise PostprocError("internal error: overlapping number spans")
-    gaps_from = [0, *ends.tolist()]
-    gaps_to = [*starts.tolist(), len(text)]
-    pieces: list[str] = [""] * (2 * len(starts) + 1)
-    pieces[0::2] = [text[a:b] for a, b in zip(gaps_from, gaps_to)]
-    pieces[1::2] = [replacements[i] for i in order.tolist()]
-    return "".join(pieces)
+    check_disjoint(starts, ends)
+    body = splice(text, 0, starts.tolist(), ends.tolist(), [replacements[i] for i in order.tolist()])
+    return body + text[int(ends[-1]):]
 
 
 def stamp_line(comment: str, prefix: str, model_name: str, sha256: str) -> str:
