@@ -1355,12 +1355,12 @@ class _Reader:
     def int_of(self, expr):
         v = self.literal_number(expr) if expr.data in ("number", "signed") else None
         if v is not None:
-            return int(v.value)
+            return int(v.value) if np.isfinite(v.value) else None  # (int(inf) raises)
         if expr.data == "member" and expr.children[0].data == "name":
             f = self.fdat_of(expr.children[0])
             if isinstance(f, _Agg):
                 x = f.get(expr.children[1].upper())
-                if isinstance(x, _Num):
+                if isinstance(x, _Num) and np.isfinite(x.value):
                     return int(x.value)
         return None
 
@@ -1388,6 +1388,8 @@ class _Reader:
             return _Unknown("external TCP (IPO_FRAME #TCP) is not supported", (self.ln, 1)), ""
         if not isinstance(n, _Num):
             return _Unknown("FDAT without TOOL_NO", (self.ln, 1)), ""
+        if not np.isfinite(n.value) or n.value != int(n.value):  # (int(inf) raises)
+            return _Unknown("FDAT with a TOOL_NO that is not a whole number", (self.ln, 1)), ""
         k = int(n.value)
         if k == 0:
             return _I4, "$NULLFRAME"
@@ -1402,6 +1404,8 @@ class _Reader:
             return _Unknown("external TCP (IPO_FRAME #TCP) is not supported", (self.ln, 1)), ""
         if not isinstance(n, _Num):
             return _Unknown("FDAT without BASE_NO", (self.ln, 1)), ""
+        if not np.isfinite(n.value) or n.value != int(n.value):  # (int(inf) raises)
+            return _Unknown("FDAT with a BASE_NO that is not a whole number", (self.ln, 1)), ""
         k = int(n.value)
         if k == 0:
             return _I4, "$NULLFRAME"
