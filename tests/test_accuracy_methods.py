@@ -91,7 +91,9 @@ def test_onnx_graph_agrees_with_torch(measured_csv):
     held32, prev32 = held.astype(np.float32).astype(float), prev_held.astype(np.float32).astype(float)
     expected = model.predict(held32, prev32)
     got = onnx_model.predict(held32, prev32)
-    assert np.abs(got - expected).max() < 1e-4  # mm; the graph computes in float64 inside
+    # mm: float64 inside, but Atan/Acos run in float32 (onnxruntime has no float64 kernels) and
+    # torch's and onnxruntime's differ by an ulp: 1e-7 rad of a joint is ~3e-4 mm at the TCP
+    assert np.abs(got - expected).max() < 1e-3
     assert np.abs(expected).max() > 0.5
 
 

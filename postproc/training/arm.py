@@ -25,7 +25,7 @@ from ..diagnostics import PostprocError
 from ..robot import RobotDescription
 from .network import rotation_matrices
 
-__all__ = ["Arm", "axis_rotations", "small_rotation", "pose_matrices", "KukaIK", "UrIK", "make_ik", "choose_branch",
+__all__ = ["Arm", "axis_rotations", "mm", "mc", "mv", "turn_columns", "turn_rows", "small_rotation", "pose_matrices", "KukaIK", "UrIK", "make_ik", "choose_branch",
            "GRAVITY"]
 
 GRAVITY = 9.81  # m/s², along −Z of the robot base frame (as Pinocchio's default)
@@ -45,6 +45,61 @@ def axis_rotations(axes: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
     s, c = torch.sin(q)[..., None, None], torch.cos(q)[..., None, None]
     eye = torch.eye(3, dtype=q.dtype)
     return c * eye + s * k + (1.0 - c) * aat
+
+
+# Batched 3x3 products are written out so that the exported graph avoids onnxruntime's
+# MatMul over millions of tiny matrices (13 ms per product for 1e5 poses): a product with a
+# constant is one GEMM over all rows (2 ms), a turn about a coordinate axis mixes two columns.
+
+
+def mm(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """[..., 3, 3] @ [..., 3, 3] for two batches (training-side helper)."""
+    return a @ b
+
+
+def mc(a: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+    """[..., 3, 3] @ constant [3, 3]: one GEMM over all rows."""
+    return (a.reshape(-1, 3) @ c).reshape(a.shape)
+
+
+def mv(a: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """[..., 3, 3] @ [..., 3] (v batched or constant)."""
+    if v.dim() == 1:  # (Mul + ReduceSum: faster in onnxruntime than a MatMul with a vector)
+        return (a * v).sum(-1)
+    return (a @ v[..., None])[..., 0]
+
+
+def _axis_index(axis: torch.Tensor) -> tuple[int, float] | None:
+    """(k, sign) if ``axis`` is ±e_k, else None."""
+    a = axis.detach().numpy() if isinstance(axis, torch.Tensor) else np.asarray(axis)
+    k = int(np.argmax(np.abs(a)))
+    return (k, float(np.sign(a[k]))) if abs(abs(a[k]) - 1.0) < 1e-12 else None
+
+
+def turn_columns(x: torch.Tensor, axis: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
+    """x @ R(axis, q) for x [N, 3, 3], q [N]: about a coordinate axis two columns mix; else
+    Rodrigues, c·x + s·x[a]× + (1 − c)·(x a) aᵀ, with products by constants only."""
+    c, s = torch.cos(q)[:, None], torch.sin(q)[:, None]
+    aligned = _axis_index(axis)
+    if aligned is None:
+        k = torch.stack([torch.zeros_like(axis[0]), -axis[2], axis[1], axis[2], torch.zeros_like(axis[0]), -axis[0],
+                         -axis[1], axis[0], torch.zeros_like(axis[0])]).reshape(3, 3)
+        return c[..., None] * x + s[..., None] * mc(x, k) + (1 - c)[..., None] * mv(x, axis)[..., None] * axis
+    k, sign = aligned
+    s = sign * s
+    i, j = [(1, 2), (2, 0), (0, 1)][k]  # R_k mixes columns i, j: (x_i c + x_j s, −x_i s + x_j c)
+    cols = list(x.unbind(-1))
+    cols[i], cols[j] = cols[i] * c + cols[j] * s, cols[j] * c - cols[i] * s
+    return torch.stack(cols, dim=-1)
+
+
+def turn_rows(x: torch.Tensor, k: int, q: torch.Tensor) -> torch.Tensor:
+    """R_k(q)ᵀ @ x for x [N, 3, 3], q [N]: undo a turn about coordinate axis k from the left."""
+    c, s = torch.cos(q)[:, None], torch.sin(q)[:, None]
+    i, j = [(1, 2), (2, 0), (0, 1)][k]
+    rows = list(x.unbind(-2))
+    rows[i], rows[j] = rows[i] * c + rows[j] * s, rows[j] * c - rows[i] * s
+    return torch.stack(rows, dim=-2)
 
 
 def small_rotation(rotvec: torch.Tensor) -> torch.Tensor:
@@ -104,7 +159,6 @@ class Arm:
         at q [N, J] rad, for the nominal chain or one with other ``placements`` / ``end`` / ``base``."""
         placements = self.placements if placements is None else placements
         end = self.end if end is None else end
-        rot = axis_rotations(self.axes, q)
         n = q.shape[0]
         if base is None:
             r = torch.eye(3, dtype=q.dtype).expand(n, 3, 3)
@@ -113,13 +167,16 @@ class Arm:
             r = base[:3, :3].expand(n, 3, 3)
             p = base[:3, 3].expand(n, 3)
         rs, ps = [], []
+        eye = torch.eye(3, dtype=q.dtype)
         for j in range(self.axes.shape[0]):  # six joints, every pose at once
             m = placements[j]
-            p = p + r @ m[:3, 3]
-            r = r @ m[:3, :3] @ rot[:, j]
+            p = p + mv(r, m[:3, 3])
+            if m.requires_grad or not torch.equal(m[:3, :3], eye):  # (the nominal placements are pure offsets)
+                r = mc(r, m[:3, :3])
+            r = turn_columns(r, self.axes[j], q[:, j])
             rs.append(r)
             ps.append(p)
-        tcp = p + r @ end[:3, 3]
+        tcp = p + mv(r, end[:3, 3])
         return torch.stack(rs, dim=1), torch.stack(ps, dim=1), tcp
 
     def tcp(self, q: torch.Tensor, **chain) -> torch.Tensor:
@@ -129,10 +186,10 @@ class Arm:
     def gravity_torques(self, rotations: torch.Tensor, origins: torch.Tensor) -> torch.Tensor:
         """Joint torques [N, J] (Nm) that hold the arm against gravity, from the joint frames of
         :meth:`frames` (as ``pin.computeGeneralizedGravity``): τ_j = −ω_j · Σ_{i≥j} (c_i − p_j) × m_i·g."""
-        coms = origins + (rotations @ self.coms[None, :, :, None])[..., 0]  # [N, J, 3] mm
+        coms = origins + torch.stack([mv(rotations[:, j], self.coms[j]) for j in range(len(self.coms))], 1)  # mm
         weights = self.masses.clone()
         if self.payload_mass > 0:  # the payload joins the last link: one combined centre of mass
-            pay = origins[:, -1] + rotations[:, -1] @ self.payload_com
+            pay = origins[:, -1] + mv(rotations[:, -1], self.payload_com)
             total = weights[-1] + self.payload_mass
             last = (coms[:, -1] * weights[-1] + pay * self.payload_mass) / total
             coms = torch.cat([coms[:, :-1], last[:, None]], dim=1)
@@ -143,7 +200,7 @@ class Arm:
         lever = (moment - mass[:, None] * origins) * MM  # Σ m_i (c_i − p_j), kg·m
         force = torch.tensor([0.0, 0.0, -GRAVITY], dtype=lever.dtype)
         torque = torch.linalg.cross(lever, force.expand_as(lever))
-        omega = (rotations @ self.axes[None, :, :, None])[..., 0]
+        omega = torch.stack([mv(rotations[:, j], self.axes[j]) for j in range(len(self.axes))], 1)
         return -(omega * torque).sum(-1)
 
 
@@ -173,10 +230,9 @@ class KukaIK(torch.nn.Module):
         shoulder, elbow, flip = self.branch
         s = self.s
         r_tcp, p_tcp = pose_matrices(pose)
-        r_fl = r_tcp @ self.inv_tool[:3, :3]
-        p_fl = p_tcp + (r_tcp @ self.inv_tool[:3, 3:4])[..., 0]
-        r_all = r_fl @ self.flange0[:3, :3].T
-        c = p_fl - (r_all @ (self.flange0[:3, 3] - self.c0)[:, None])[..., 0] - self.p1
+        r_all = mc(r_tcp, self.inv_tool[:3, :3] @ self.flange0[:3, :3].T)
+        p_fl = p_tcp + mv(r_tcp, self.inv_tool[:3, 3])
+        c = p_fl - mv(r_all, self.flange0[:3, 3] - self.c0) - self.p1
         phi = _atan2(c[:, 1], c[:, 0])
         r_xy = torch.sqrt(c[:, 0] ** 2 + c[:, 1] ** 2)
         th1 = phi if shoulder > 0 else phi + math.pi
@@ -189,12 +245,8 @@ class KukaIK(torch.nn.Module):
         w2x = self.L2[0] + self.l3 * torch.cos(ang)
         w2y = self.L2[1] + self.l3 * torch.sin(ang)
         th2 = _atan2(w2y, w2x) - _atan2(w, u)
-        # Rz(th1)·Ry(th2 + th3), transposed, times r_all = Rx(α) Ry(β) Rx(γ)
-        b = th2 + th3
-        ca, sa, cb, sb = torch.cos(th1), torch.sin(th1), torch.cos(b), torch.sin(b)
-        zero = torch.zeros_like(ca)
-        rzry = torch.stack([ca * cb, -sa, ca * sb, sa * cb, ca, sa * sb, -sb, zero, cb], dim=-1).reshape(-1, 3, 3)
-        rw = rzry.transpose(1, 2) @ r_all
+        # (Rz(th1)·Ry(th2 + th3))ᵀ · r_all = Rx(α) Ry(β) Rx(γ)
+        rw = turn_rows(turn_rows(r_all, 2, th1), 1, th2 + th3)
         sbeta = flip * torch.sqrt(rw[:, 0, 1] ** 2 + rw[:, 0, 2] ** 2)
         beta = _atan2(sbeta, rw[:, 0, 0])
         alpha = _atan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
@@ -253,8 +305,8 @@ class UrIK(torch.nn.Module):
         r_tcp, p_tcp = pose_matrices(pose)
         # the A6 frame: origin on the A6 axis, rotation R6 = Rz(t1)·Ry(t2+t3+t4)·Rz(t5)·Ry(t6)
         # with t_j = s_j·q_j (every joint frame parallel to the base at q = 0)
-        r6 = r_tcp @ self.inv_end[:3, :3]
-        p6 = p_tcp + (r_tcp @ self.inv_end[:3, 3:4])[..., 0]
+        r6 = mc(r_tcp, self.inv_end[:3, :3])
+        p6 = p_tcp + mv(r_tcp, self.inv_end[:3, 3])
         # t1: every joint origin from A2 to A6 lies in the plane y4 off the A1 axis along the
         # shoulder axis ŷ1 = Rz(t1)·e_y, so −sin t1·x6 + cos t1·y6 = y4, i.e. ρ·sin(ψ − t1) = y4
         rho = torch.sqrt(p6[:, 0] ** 2 + p6[:, 1] ** 2)
@@ -266,9 +318,7 @@ class UrIK(torch.nn.Module):
         t5 = wrist * _acos(torch.clamp(-s1 * r6[:, 0, 1] + c1 * r6[:, 1, 1], -1.0, 1.0))
         # R' = Rz(−t1)·R6 = Ry(a)·Rz(t5)·Ry(t6): row 1 = sin t5·(cos t6, ·, sin t6),
         # column 1 = (−cos a·sin t5, ·, sin a·sin t5), a = t2 + t3 + t4
-        zero, one = torch.zeros_like(c1), torch.ones_like(c1)
-        rz = torch.stack([c1, s1, zero, -s1, c1, zero, zero, zero, one], -1).reshape(-1, 3, 3)
-        rp = rz @ r6
+        rp = turn_rows(r6, 2, t1)
         sin5 = torch.sin(t5)
         sin5 = torch.where(torch.abs(sin5) < 1e-10, torch.ones_like(sin5), sin5)  # wrist singular: any t6
         t6 = _atan2(rp[:, 1, 2] / sin5, rp[:, 1, 0] / sin5)
