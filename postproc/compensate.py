@@ -328,9 +328,11 @@ def compensate_program(
     new_xyz = t.poses[rows, :3] + local
 
     outputs = [_rewrite_file(program, index, text, rows, new_xyz) for index, text in enumerate(program.texts)]
-    # KRL only: a pose list has one frame and no variables, so nothing but its spans (checked
-    # above) can go wrong; a Program built by hand has no text to read it from
-    if program.from_text and program.dialect == "krl":
+    # KRL with position variables only: their numbers may be read elsewhere too (as a frame,
+    # by another target), which no single edit shows. Inline aggregates belong to one motion,
+    # and each of their tokens was checked above; so were a pose list's. A Program built by
+    # hand has no text to read it from.
+    if program.from_text and program.dialect == "krl" and program.named_targets:
         check_round_trip(program, outputs, rows, new_xyz)
 
     stamp = stamp_line(program.comment, STAMP_PREFIX, model.name, model.sha256)

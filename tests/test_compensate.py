@@ -178,3 +178,11 @@ def test_robot_base_keeps_the_written_attitude_when_the_base_does_not_rotate():
     program = program_in_base([100, 0, 0, 0, 0, 0], [2000.0, 0.0, 900.0, 3.0, 95.0, -2.0])
     poses, _ = robot_base_poses(program)
     assert np.allclose(poses[0], [2100, 0, 900, 3, 95, -2])
+
+
+def test_reader_says_when_targets_are_variables():
+    # compensate reads a program with variables again before writing (guards.check_round_trip)
+    from postproc.compensate import load_program
+
+    assert load_program(REPO / "samples/krl/cam_pocket.src").named_targets is False
+    assert load_program(REPO / "samples/krl/weld_cell.src", REPO / "samples/krl/config/$config.dat").named_targets

@@ -116,6 +116,9 @@ class Program:
     comment: str = ";"  # the dialect's comment marker, for the stamp line
     config: list[str] | None = None  # the $config.dat texts it was read with (to read it again)
     from_text: bool = False  # made by read_program: its texts, read again, give it again
+    # some targets are variables (declared or assigned aggregates), whose numbers other
+    # statements may read too (e.g. as a frame); False: every target is an inline aggregate
+    named_targets: bool = True
 
 
 KRL_SUFFIXES = {".src", ".dat", ".sub"}

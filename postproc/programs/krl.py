@@ -627,6 +627,7 @@ class _Reader:
                 self.diagnostics.append(Diagnostic(path, line, col, "P201",
                                                    f"{msg}: {count} target(s) left as written"))
         return Program(files=self.files, texts=self.texts, targets=targets, frames=self.frames,
+                       named_targets=bool(self.targets_of),
                        diagnostics=self.diagnostics, dialect="krl", stamps=stamps, newlines=newlines, comment=";")
 
     def warn(self, path, line, col, code, msg):
