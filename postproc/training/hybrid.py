@@ -134,7 +134,9 @@ class HybridModel:
         nets = f"MLP x{len(getattr(self, 'nets_', []))} ({'-'.join(map(str, self.hidden))}, joint features)"
         if hasattr(self, "kinematic_") and not self.kinematic_.layout_.n:
             return nets
-        return f"{kin} + residual {nets}" if getattr(self, "nets_", None) else kin
+        if getattr(self, "nets_", None):
+            return f"{kin} + residual {nets}"
+        return f"{kin} (hybrid: residual MLPs tried, not kept)" if self.residual == "auto" else kin
 
     def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
             q_deg: np.ndarray | None = None) -> "HybridModel":

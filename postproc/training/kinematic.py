@@ -49,7 +49,7 @@ PRIOR_RAD, PRIOR_MM = 1e-3, 1.0
 # a pose whose IK does not bring the nominal arm back onto it (mm) is out of reach
 REACH_TOLERANCE_MM = 0.01
 # joint steps below this (rad) count as no motion: float32 IK noise is ~1e-7 rad
-SIGN_DEADBAND = 1e-5
+SIGN_DEADBAND = 2e-6
 
 
 @dataclass
