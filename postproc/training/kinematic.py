@@ -4,28 +4,29 @@ identified parameters, fitted by least squares on the measured points.
 The controller sends joint angles q = IK_nominal(P) for a commanded pose P. The real arm
 turns its joints to q + δq and its TCP lands at FK_identified(q + δq), so
 
-    Ê(P) = FK_nominal(q) − FK_identified(q + δq(q, s)),      q = IK_nominal(P)
+    Ê(P) = P − FK_identified(q + δq(q, s)),      q = IK_nominal(P)
 
-with these parameter groups (all small; the fit is Gauss–Newton with the exact Jacobian
-from torch, columns scaled to unit norm and a tiny ridge that settles the redundant
-directions — e.g. a zero offset and a placement turned about its own joint axis):
+with these parameter groups (all small; the fit is Levenberg–Marquardt with the geometric
+Jacobian and a weak prior that settles the directions no measurement sees — e.g. a zero
+offset and a placement turned about its own joint axis are one parameter):
 
 * ``placement``: each joint frame off by a small rigid motion (rotation vector, offset; 6
   per joint) — link lengths, axis directions, mastering;
 * ``base`` (6) and ``tool`` (TCP offset, 3): the measured frames;
 * ``zero``: joint zero offsets (6);
-* ``compliance``: δq_j = c_j·τ_j(q), τ the gravity torques of the nominal model (masses in
-  the robot description) — joint stiffness;
-* ``backlash``: δq_j = −b_j·s_j, s_j the sign of joint j's last motion (the visiting order)
-  — lost motion; only when the order is known (``signs``);
+* ``compliance``: δq_j = c_j·τ_j(q), τ the gravity torques of the arm (masses in the robot
+  description) — joint stiffness;
+* ``backlash``: δq_j = −b_j·s_j, s_j the sign of joint j's motion from the previous pose
+  (the visiting order) — lost motion; only when the order is known (``previous``);
 * ``ripple``: δq_j += a·sin(n·q_j) + b·cos(n·q_j) for (joint, order) pairs — gear
   transmission error. The orders are *searched*, not assumed: after the fit of the other
-  groups, every joint and order 1…``max_order`` is a candidate; the pair that explains most
-  of the residual (orthogonal to the parameters already in) is added while its χ² gain
-  beats a Bonferroni-style threshold, and the model is refitted.
+  groups, every joint and order 1…``max_order`` is a candidate; per joint the order that
+  explains most of the residual (orthogonal to the parameters already in) is added while its
+  χ² gain beats a Bonferroni-style threshold, and the model is refitted.
 
-Everything stays in torch (float64), so the same module is fitted here and exported to ONNX
-with the IK of the nominal arm in front of it (``KinematicErrorModule``).
+Everything stays in torch (float64), so the same functions are fitted here and exported to
+ONNX with the IK of the nominal arm in front of them (``KinematicErrorModule``, which
+evaluates the fitted model with one forward kinematics: see there).
 """
 from __future__ import annotations
 
@@ -257,7 +258,7 @@ class KinematicErrorModule(torch.nn.Module):
 class KinematicModel:
     """Identified kinematic + compliance (+ backlash, gear ripple) error model of one robot.
 
-    >>> km = KinematicModel(load_description()).fit(poses, errors, signs)
+    >>> km = KinematicModel(load_description()).fit(poses, errors, previous_poses(poses))
     >>> km.predict(poses, previous)          # Ê [N, 3] mm
     """
 
