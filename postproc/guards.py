@@ -27,10 +27,10 @@ __all__ = ["check_numbers", "check_round_trip", "check_memory", "ROUNDING_MM", "
 
 # New numbers are written with at least three decimals: half a µm of rounding at most.
 ROUNDING_MM = 5e-4
-# Peak memory of compensating, per byte of program text: ≈ 56 MB + 27 × the input on a KRL CAM
-# program of 1M LIN lines (benchmarks/compensate_speed.py --memory), 31 × on a pose CSV (shorter
-# lines per target). A program is refused when 30 × its size is more than the memory available:
-# it would be killed half-way otherwise.
+# Peak memory of compensating, per byte of program text (benchmarks/compensate_speed.py, 1M
+# targets): 13 × on a KRL CAM program (69.5 MB → 916 MB), 27 × on a pose CSV (40 MB → 1.06 GB:
+# shorter lines per target). A program is refused when 30 × its size is more than the memory
+# available: it would be killed half-way otherwise.
 MEMORY_PER_INPUT_BYTE = 30
 
 
