@@ -115,7 +115,9 @@ def read_report_data(path: str | Path, model: Compensator | None = None) -> Repo
     m = parse_measurements(data, str(path))
     error = m.poses[:, :3] - m.measured
     reached = _after_columns(data, m.lines, str(path))
-    predicted = model.predict(m.poses) if model is not None else None
+    # rows in visiting order: a model that takes previous_pose sees each row's predecessor
+    previous = np.vstack([m.poses[:1], m.poses[:-1]]) if model is not None and model.wants_previous else None
+    predicted = model.predict(m.poses, previous) if model is not None else None
     if predicted is not None and not np.isfinite(predicted).all():
         raise PostprocError("the model returns NaN or inf on these poses", str(model.path), code="P305")
     if reached is not None:
