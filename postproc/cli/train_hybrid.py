@@ -76,6 +76,10 @@ def run_hybrid(args, data, measured: np.ndarray, train_rows: np.ndarray, val_row
     rows = (lambda a, r: None if a is None else a[r])  # noqa: E731
     model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows))
 
+    share = model.kinematic_.branch_share_
+    if share == share and share < 0.99:  # (NaN: no joint angles to compare with)
+        notes.append(f"warning: {100 * (1 - share):.1f} % of the training rows were reached on another IK branch "
+                     f"than {list(model.kinematic_.ik_.branch)}: the model assumes that one everywhere")
     val = residual_stats(errors[val_rows] - model.predict(poses[val_rows], rows(previous, val_rows)))
     unc = residual_stats(errors[val_rows])
     accuracy = {

@@ -345,9 +345,14 @@ def make_ik(description: RobotDescription, family: str | None = None, branch=(1.
     if family in (None, "kuka"):
         try:
             return KukaIK(description, branch)
-        except PostprocError:
+        except PostprocError as kuka:
             if family == "kuka":
                 raise
+            try:
+                return UrIK(description, branch)
+            except PostprocError as ur:
+                raise PostprocError(f"no closed-form IK for this arm: {kuka.message}; or {ur.message}",
+                                    ur.path, ur.line, ur.col, ur.code) from None
     return UrIK(description, branch)
 
 
