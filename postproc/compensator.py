@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -134,7 +135,8 @@ class Compensator:
         if len(poses) == 0:
             return np.zeros((0, 3))
         error = np.empty((len(poses), 3))
-        for at in range(0, len(poses), PREDICT_BATCH):
+
+        def run(at: int) -> None:
             batch = slice(at, at + PREDICT_BATCH)
             feeds = {INPUT_POSE: poses[batch]}
             if self.wants_previous:
@@ -149,6 +151,17 @@ class Compensator:
                 raise PostprocError(f"model returned shape {out.shape}, expected ({len(feeds[INPUT_POSE])}, 3)",
                                     str(self.path), code="P306")
             error[batch] = out
+
+        starts = range(0, len(poses), PREDICT_BATCH)
+        if len(starts) == 1:
+            run(0)
+        else:
+            # batches on every core: the session runs single-threaded (cheap start for small
+            # programs) and releases the GIL, so one thread per core fills the machine
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(max_workers=min(os.cpu_count() or 1, 8)) as pool:
+                list(pool.map(run, starts))
         return error
 
     def command(self, poses: np.ndarray, iterations: int | None = None, previous: np.ndarray | None = None) -> np.ndarray:

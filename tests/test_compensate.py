@@ -186,3 +186,17 @@ def test_reader_says_when_targets_are_variables():
 
     assert load_program(REPO / "samples/krl/cam_pocket.src").named_targets is False
     assert load_program(REPO / "samples/krl/weld_cell.src", REPO / "samples/krl/config/$config.dat").named_targets
+
+
+def test_batches_run_in_parallel_give_the_one_call_result(affine, monkeypatch):
+    import postproc.compensator as compensator
+
+    gain = np.array([[2e-3, 0, 0], [0, -1e-3, 5e-4], [0, 0, 3e-3]])
+    model = load_model(affine(offset=(0.3, -0.2, 0.1), gain=gain))
+    rng = np.random.default_rng(3)
+    poses = np.c_[rng.uniform(1800, 2200, (1000, 3)), np.zeros((1000, 3))]
+    whole = model.predict(poses)
+    monkeypatch.setattr(compensator, "PREDICT_BATCH", 64)  # 16 batches on a thread pool
+    assert np.array_equal(model.predict(poses), whole)
+    expected = np.array([0.3, -0.2, 0.1]) + (poses[:, :3] - [2000, 0, 900]) @ gain.T
+    assert np.allclose(whole, expected, atol=1e-4)
