@@ -8,8 +8,9 @@ settings) refuse or warn, plus what only matters once programs are kept in a rep
 * targets the nominal robot cannot reach (``P302``, the model's ``reach``; ``P309`` with an
   IK reachability test), outside the training envelope (``P301``), not finite (``P103``),
   with a position or orientation that is not known (``P212``, ``P213``), a $TOOL that is not
-  the model's (``P304``), corrections the model makes NaN (``P305``) or implausibly large
-  (``P303``);
+  the model's (``P304``) or a model trained on another robot (``P310``), corrections the
+  model makes NaN (``P305``) or implausibly large (``P303``), one set of numbers used in two
+  frames (``P202``); then, if none of these, whatever else ``compensate_program`` refuses;
 * stamps: compensated with a model other than the configured one (``P402``), compensated
   twice (``P403``), a .src and .dat that do not come from one compensation (``P404``);
 * freshness of configured source → output pairs (``P405`` stale, ``P406`` output missing,
@@ -21,7 +22,7 @@ from __future__ import annotations
 import os
 import re
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,7 @@ import numpy as np
 from .compensate import (
     DEFAULT_MAX_CORRECTION_MM,
     MAX_LISTED,
+    _robot_mismatch,
     _tool_mismatch,
     compensate_program,
     load_program,
@@ -56,6 +58,7 @@ __all__ = [
 # The codes this module reports besides the readers' own (README "pre-commit" lists them all).
 CODES = {
     "P103": "target position is not a finite number",
+    "P202": "one set of numbers used as targets in two frames (compensate refuses it)",
     "P212": "target position not fully known (left as it is by compensate)",
     "P213": "target orientation not known (the model's nominal attitude is assumed)",
     "P301": "target outside the model's training envelope",
@@ -63,7 +66,8 @@ CODES = {
     "P303": "the model's correction exceeds max_correction",
     "P304": "the program's $TOOL is not the model's tool",
     "P305": "the model returns NaN or inf at this target",
-    "P309": "no inverse-kinematics solution for this target (--robot)",
+    "P309": "no inverse-kinematics solution for this target (--robot FILE.toml)",
+    "P310": "the model was trained on another robot than the configured one",
     "P402": "compensated with a model other than the configured one",
     "P403": "compensated twice",
     "P404": "the .src and .dat do not come from one compensation",
@@ -163,21 +167,26 @@ def check_program(
     *,
     iterations: int | None = None,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    robot: str | None = None,
     reachable: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> list[Diagnostic]:
     """Every finding about a parsed program (see the module docstring), in no particular order.
 
+    ``robot`` is the robot the program is for (a model trained on another is ``P310``);
     ``reachable`` optionally maps robot-base poses [N, 6] to a bool mask [N] (e.g. IK of
-    the nominal robot); targets it rejects are ``P309`` errors.
+    the nominal robot); targets it rejects are ``P309`` errors. When nothing else is found,
+    the program is compensated in memory as ``postproc compensate`` would, so that whatever
+    else makes it refuse is a finding too: a clean check means compensate succeeds.
     """
-    out = list(program.diagnostics)
+    # one set of numbers used in two frames: compensate refuses it (a warning of the reader)
+    out = [replace(d, severity="error") if d.code == "P202" else d for d in program.diagnostics]
     out += _stamp_findings(program, model)
-    mismatch = _tool_mismatch(program, model)
-    if mismatch:
-        out.append(Diagnostic(program.files[0], 1, 1, "P304", mismatch, "error"))
+    for code, mismatch in (("P304", _tool_mismatch(program, model)), ("P310", _robot_mismatch(robot, model))):
+        if mismatch:
+            out.append(Diagnostic(program.files[0], 1, 1, code, mismatch, "error"))
 
     poses, resolved = robot_base_poses(program)
-    # the same selection compensate_program makes, so that a clean check means it will succeed
+    # the same selection compensate_program makes, listing every target where it stops at one
     no_position = resolved & np.isnan(poses[:, :3]).any(axis=1)
     out += _rows(program, np.flatnonzero(no_position), "P212",
                  "position not fully known (partial aggregate with no preceding target): left as it is", "warning")
@@ -194,8 +203,9 @@ def check_program(
             out += _rows(program, np.flatnonzero(no_attitude), "P213",
                          f"orientation not known: the model's nominal attitude {list(map(float, nominal))} is assumed",
                          "warning")
-    not_finite = use & ~np.isfinite(poses).all(axis=1)
-    out += _rows(program, np.flatnonzero(not_finite), "P103", "target is not a finite number", "error")
+    not_finite = use & ~(np.abs(poses) < np.finfo(np.float32).max).all(axis=1)  # NaN, inf, beyond float32
+    out += _rows(program, np.flatnonzero(not_finite), "P103", "target is not a finite number (or too large for the "
+                 "model's float32)", "error")
     rows = np.flatnonzero(use & ~not_finite)
     sel = poses[rows]
     far = model.beyond_reach(sel[:, :3])
@@ -208,8 +218,7 @@ def check_program(
         out += _rows(program, rows[envelope.outside(sel)], "P301", "target outside the model's training envelope",
                      "warning")
     if len(sel):
-        previous = None  # rows in program order: command() chains each target to the previous command
-        correction = model.command(sel, iterations, previous) - sel[:, :3]
+        correction = model.command(sel, iterations) - sel[:, :3]
         size = np.linalg.norm(correction, axis=1)
         bad = ~np.isfinite(size)
         out += _rows(program, rows[bad], "P305", "the model returns NaN or inf here", "error")
@@ -219,6 +228,14 @@ def check_program(
             out += _rows(program, rows[large], "P303",
                          f"correction exceeds {max_correction_mm} mm (largest {size[worst]:.3f} mm): the model is "
                          "wrong here", "error")
+    if not failed(out):
+        # the safety net: compensate's own guards (frames, round trip, ...) on the same settings;
+        # a stamped program is forced past "already compensated", which the stamp checks cover
+        try:
+            compensate_program(program, model, iterations=iterations, max_correction_mm=max_correction_mm,
+                               robot=robot, force=bool(program.stamps))
+        except PostprocError as exc:
+            out.append(exc.diagnostic())
     return out
 
 
@@ -325,7 +342,7 @@ def check_fresh(
             try:
                 program = load_program(source, list(config) if config else None)
                 report = compensate_program(
-                    program, pair_model, iterations=cfg.iterations, strict=cfg.strict,
+                    program, pair_model, iterations=cfg.iterations, strict=cfg.strict, robot=cfg.robot,
                     max_correction_mm=cfg.max_correction_mm or DEFAULT_MAX_CORRECTION_MM,
                 )
             except PostprocError as exc:

@@ -26,6 +26,11 @@ fake_cam_post = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(fake_cam_post)
 
 
+def cam_model(affine, offset):
+    """An affine model measured with the fake CAM post's tool (else postproc refuses: P304)."""
+    return affine(offset=offset, tool={"name": "spindle", "frame": list(fake_cam_post.TOOL)})
+
+
 def krl_available() -> bool:
     return importlib.util.find_spec("postproc.programs.krl") is not None
 
@@ -98,14 +103,14 @@ def cli_env(**extra):
 def test_pipe_filter_example(affine, tmp_path, fmt):
     out = tmp_path / f"pocket.{'csv' if fmt == 'csv' else 'src'}"
     env = cli_env(CAM_FORMAT="--csv" if fmt == "csv" else "")
-    done = subprocess.run(["sh", str(HOOK / "pipe_filter.sh"), str(out), str(affine(offset=OFFSET))],
+    done = subprocess.run(["sh", str(HOOK / "pipe_filter.sh"), str(out), str(cam_model(affine, OFFSET))],
                           capture_output=True, text=True, env=env)
     assert done.returncode == 0, done.stderr
     text = out.read_bytes().decode("latin-1")
     assert np.allclose(compensated_xyz(text, fmt), expected_xyz(100, OFFSET), atol=1e-9)
     # a model postproc refuses (6 mm > max correction): non-zero exit, message, no output file
     out.unlink()
-    done = subprocess.run(["sh", str(HOOK / "pipe_filter.sh"), str(out), str(affine(offset=(6, 0, 0)))],
+    done = subprocess.run(["sh", str(HOOK / "pipe_filter.sh"), str(out), str(cam_model(affine, (6, 0, 0)))],
                           capture_output=True, text=True, env=env)
     assert done.returncode != 0 and " P303 " in done.stderr
     assert not out.exists() and not list(tmp_path.glob("pocket.*"))
@@ -113,7 +118,7 @@ def test_pipe_filter_example(affine, tmp_path, fmt):
 
 @pytest.mark.parametrize("fmt", FORMATS)
 def test_api_hook_example(affine, tmp_path, fmt):
-    args = [sys.executable, str(HOOK / "api_hook.py"), str(tmp_path / "out"), "--model", str(affine(offset=OFFSET))]
+    args = [sys.executable, str(HOOK / "api_hook.py"), str(tmp_path / "out"), "--model", str(cam_model(affine, OFFSET))]
     done = subprocess.run(args + (["--csv"] if fmt == "csv" else []), capture_output=True, text=True, env=cli_env())
     assert done.returncode == 0, done.stderr
     for name, points in (("roughing", 100), ("semi", 250), ("finishing", 1000)):

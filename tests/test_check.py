@@ -239,6 +239,18 @@ def test_cli_output_and_exit_codes(affine, tmp_path, capsys, monkeypatch):
     assert "P601 no fresh pairs" in capsys.readouterr().err
 
 
+def test_a_model_for_another_robot_is_a_finding(affine, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    ok = write(tmp_path / "ok.csv", TEXT.splitlines(keepends=True)[0] + TEXT.splitlines(keepends=True)[1])
+    model = str(affine())  # robot "KR500-sim" in its card
+    assert main(["check", "ok.csv", "--model", model, "--robot", "kr500-SIM", "-q"]) == 0  # names: any case
+    assert main(["check", "ok.csv", "--model", model, "--robot", "UR10"]) == 1
+    assert capsys.readouterr().out.startswith("ok.csv:1:1: P310 the model was trained on robot KR500-sim")
+    write(tmp_path / "postproc.toml", 'robot = "UR10"\n')
+    assert main(["check", "ok.csv", "--model", model, "-q"]) == 1
+    capsys.readouterr()
+
+
 def test_cli_robot_option_uses_the_nominal_ik(affine, tmp_path, capsys):
     pytest.importorskip("pinocchio")
     robot = pytest.importorskip("postproc.robot")
@@ -246,7 +258,9 @@ def test_cli_robot_option_uses_the_nominal_ik(affine, tmp_path, capsys):
     _, ok = robot.Robot().ik(np.array(ROWS, float))
     far = {line for line, code in expected_codes() if code == "P302"}
     want = [line for line, reach in enumerate(ok, start=2) if not reach and line not in far]
-    assert main(["check", str(path), "--model", str(affine()), "--robot"]) == 1
+    from postproc.resources import model_path
+
+    assert main(["check", str(path), "--model", str(affine()), "--robot", str(model_path("kr500.toml"))]) == 1
     got = [int(line.split(":")[1]) for line in capsys.readouterr().out.splitlines() if " P309 " in line]
     assert got == want and want  # the KR500's IK rejects at least one target the reach sphere lets through
 
@@ -297,3 +311,20 @@ def test_krl_module_stamps_and_freshness(affine, tmp_path, monkeypatch):
     write(out_dat, DAT)
     assert sorted((Path(d.path).name, d.code) for d in check_files([out_dat], model)) == [
         ("weld.dat", "P404"), ("weld.src", "P404")]
+
+
+def test_what_else_compensate_refuses_is_a_finding(affine):
+    # a frame that is not finite: the targets' positions are unknown (P212, a warning only),
+    # but compensate refuses the program: the in-memory compensation reports its P103
+    from postproc.programs import Frame
+
+    text = "x,y,z\n2000.000,0.000,900.000\n"
+    builder = TargetsBuilder()
+    builder.add([2000.0, 0.0, 900.0, 0.0, 90.0, 0.0], [6, 14, 15, 20, 21, 28], 0, 2, 1, 0, 0)
+    base = np.eye(4)
+    base[0, 3] = np.nan
+    program = Program(["p.csv"], [text], builder.build(), [Frame(base, None, "BASE_DATA[3]")], dialect="poses",
+                      newlines=["\n"], comment="#")
+    found = check_program(program, load_model(affine()))
+    assert [(d.code, d.severity) for d in found] == [("P212", "warning"), ("P103", "error")]
+    assert "BASE_DATA[3]" in found[1].message and failed(found)

@@ -8,10 +8,11 @@ EXAMPLES = """examples:
   postproc check part.csv --model models/cell7.onnx --strict --ignore P301
   postproc check --fresh                         outputs of [tool.postproc] fresh pairs up to date?
   postproc check --fresh --fix                   ... and re-compensate the stale ones
-  postproc check weld.src --robot models/kr500.toml   also the nominal robot's IK (needs postproc[sim])
+  postproc check weld.src --robot models/kr500.toml   the model is for this robot? its IK reaches? (postproc[sim])
 
 settings: [tool.postproc] in pyproject.toml or postproc.toml, found from the current directory
-upwards (model, config, strict, max_correction, iterations, ignore, fresh); options override them.
+upwards (model, config, robot, strict, max_correction, iterations, ignore, fresh); options
+override them.
 output: one `path:line:col: CODE message` line per finding on stdout.
 exit: 0 clean (warnings only, unless --strict), 1 findings, 2 usage or internal error.
 """
@@ -38,21 +39,27 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--ignore", metavar="CODES", default="", help="comma-separated codes not to report, e.g. P301,P213")
     p.add_argument("--max-correction", type=float, metavar="MM", help="corrections above this are findings (default 5 mm)")
     p.add_argument("--iterations", type=int, metavar="K", help="fixed-point iterations (default: the model's)")
-    p.add_argument("--robot", metavar="DESC", nargs="?", const="",
-                   help="also test reachability with the nominal robot's IK (DESC: robot description, "
-                   "default models/kr500.toml; needs Pinocchio)")
+    p.add_argument("--robot", metavar="NAME|FILE.toml",
+                   help="the robot the programs are for (default: settings 'robot'): a model trained on another is "
+                   "a finding; with a description file also the nominal robot's IK reachability (needs Pinocchio)")
     p.set_defaults(run=run)
 
 
-def _reachable(description: str):
+def _robot(value: str):
+    """(robot name, reachability test or None) for --robot NAME or --robot FILE.toml."""
+    from pathlib import Path
+
+    if not (value.lower().endswith(".toml") or Path(value).is_file()):
+        return value, None
+    from ..diagnostics import PostprocError
+
     try:
         from ..robot import Robot, load_description
-    except ImportError as exc:
-        from ..diagnostics import PostprocError
 
-        raise PostprocError(f"--robot needs Pinocchio (pip install 'postproc[sim]'): {exc}", code="P309") from None
-    robot = Robot(load_description(description or None))
-    return lambda poses: robot.ik(poses)[1]
+        robot = Robot(load_description(value))
+    except ImportError as exc:
+        raise PostprocError(f"--robot FILE.toml needs Pinocchio (pip install 'postproc[sim]'): {exc}", value) from None
+    return robot.name, lambda poses: robot.ik(poses)[1]
 
 
 def _paint(line: str, severity: str, color: bool) -> str:
@@ -96,8 +103,10 @@ def run(args) -> int:
         print(f"postproc check: model {model.name} {model.sha256[:12]} ({model.path}); settings "
               f"{cfg.path or 'none'}", file=sys.stderr)
     options = dict(iterations=cfg.iterations, max_correction_mm=cfg.max_correction_mm or DEFAULT_MAX_CORRECTION_MM)
-    if args.robot is not None:
-        options["reachable"] = _reachable(args.robot)
+    options["robot"] = cfg.robot
+    if args.robot:
+        options["robot"], options["reachable"] = _robot(args.robot)
+        cfg.robot = options["robot"]  # --fresh compensates for the same robot
 
     findings = []
     if args.files:

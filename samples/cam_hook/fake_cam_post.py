@@ -15,7 +15,9 @@ import sys
 # robot base frame, inside the shipped model's envelope: tool pointing down (A 0, B 90, C 0)
 CENTRE = (2000.0, 0.0, 900.0)
 ATTITUDE = (0.0, 90.0, 0.0)
-TOOL = (0.0, 0.0, 200.0, 0.0, 0.0, 0.0)
+# the cell's spindle (TOOL_DATA[1]): the tool the shipped model was measured with; postproc
+# refuses (P304) a program whose $TOOL is not the model's
+TOOL = (300.0, 0.0, 75.0, 0.0, 0.0, 0.0)
 
 
 def toolpath(points: int = 100) -> list[tuple[float, ...]]:
