@@ -3,9 +3,10 @@
 Input is a set of commanded poses with the positions the robot reached (a measurement CSV
 ``x,y,z,a,b,c,x_meas,y_meas,z_meas``). Before compensation the error is E = P − P_meas.
 "After" is, by default, the first-order residual a compensation leaves, E − Ê(P) with Ê the
-model's prediction; when the CSV also has ``x_after,y_after,z_after`` — the positions
-reached when the *compensated* commands were run (``postproc verify`` and a real cell's
-re-measurement give those) — it is the measured residual P − P_after.
+model's prediction. With the positions reached when the *compensated* commands were run —
+a second measurement CSV of the compensated program (``postproc measure`` of the output of
+``postproc compensate``, or the real cell's tracker), or ``x_after,y_after,z_after`` columns
+in the first — it is the measured residual P − P_after.
 
 :func:`write_report` writes, into one folder: ``report.md`` (Table 2, the model card, the
 figures), ``summary.json`` (the same numbers), ``series.csv`` and ``histogram.csv`` (every
@@ -101,20 +102,53 @@ def model_card(model: Compensator) -> dict:
     return {"file": str(model.path), "sha256": model.sha256, **model.metadata}
 
 
-def read_report_data(path: str | Path, model: Compensator | None = None) -> ReportData:
-    """Read a measurement CSV (optionally with ``*_after`` columns) and apply ``model``.
-
-    Without ``model`` and without ``*_after`` columns there is no "after": PostprocError."""
+def _read(path: Path):
     from .training.data import parse_measurements  # numpy only; the one reader of this format
 
-    path = Path(path)
     try:
         data = path.read_bytes()
     except OSError as exc:
         raise PostprocError(f"cannot read measurement file: {exc.strerror or exc}", str(path), code="P500") from None
-    m = parse_measurements(data, str(path))
+    return data, parse_measurements(data, str(path))
+
+
+# Rows of a re-measurement of the compensated program belong to the target rows if only X/Y/Z
+# moved, and by no more than a correction can be (compensate's bound is 5 mm by default).
+AFTER_POSITION_MM = 10.0
+AFTER_ATTITUDE_DEG = 0.01
+
+
+def _reached_after(path: Path, targets: np.ndarray) -> np.ndarray:
+    """Positions reached in a measurement of the compensated program (``--after``), row by row."""
+    _, m = _read(path)
+    if len(m) != len(targets):
+        raise PostprocError(f"{len(m)} rows, the measurement before compensation has {len(targets)}: measure the "
+                            "compensated program in the same order", str(path), code="P503")
+    moved = np.linalg.norm(m.poses[:, :3] - targets[:, :3], axis=1)
+    turned = np.abs((m.poses[:, 3:] - targets[:, 3:] + 180.0) % 360.0 - 180.0).max(axis=1)
+    bad = np.flatnonzero((moved > AFTER_POSITION_MM) | (turned > AFTER_ATTITUDE_DEG))
+    if len(bad):
+        raise PostprocError(f"row does not belong to row {bad[0] + 1} before compensation (commanded pose "
+                            f"{moved[bad[0]]:.3f} mm / {turned[bad[0]]:.3f}° away; only X/Y/Z change, by a "
+                            "correction): not the same program in the same order", str(path),
+                            int(m.lines[bad[0]]), 1, "P503")
+    return m.measured
+
+
+def read_report_data(path: str | Path, model: Compensator | None = None, after: str | Path | None = None) -> ReportData:
+    """Read a measurement CSV and apply ``model``.
+
+    "After" is measured if ``after`` is given (a measurement of the compensated program:
+    same rows in the same order, commands = the compensated poses) or the CSV has
+    ``x_after,y_after,z_after`` columns; else it is the first-order residual E − Ê, which
+    needs ``model``."""
+    path = Path(path)
+    data, m = _read(path)
     error = m.poses[:, :3] - m.measured
-    reached = _after_columns(data, m.lines, str(path))
+    if after is not None and _after_columns(data, m.lines, str(path)) is not None:
+        raise PostprocError("give the positions after compensation once: x_after.. columns or --after, not both",
+                            str(path), code="P501")
+    reached = _reached_after(Path(after), m.poses) if after is not None else _after_columns(data, m.lines, str(path))
     # rows in visiting order: a model that takes previous_pose sees each row's predecessor
     previous = np.vstack([m.poses[:1], m.poses[:-1]]) if model is not None and model.wants_previous else None
     predicted = model.predict(m.poses, previous) if model is not None else None
@@ -125,8 +159,8 @@ def read_report_data(path: str | Path, model: Compensator | None = None) -> Repo
     elif predicted is not None:
         after, kind = error - predicted, "first-order"
     else:
-        raise PostprocError("nothing to compare: give --model (first-order residual E − Ê) or x_after,y_after,"
-                            "z_after columns (measured with compensation)", str(path), code="P501")
+        raise PostprocError("nothing to compare: give --model (first-order residual E − Ê), --after (a measurement "
+                            "of the compensated program) or x_after,y_after,z_after columns", str(path), code="P501")
     envelope = model.envelope if model is not None else None
     return ReportData(
         poses=m.poses,

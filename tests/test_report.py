@@ -145,3 +145,27 @@ def test_matplotlib_is_imported_only_to_draw():
     code = "import sys, postproc.report, postproc.cli.report; print('matplotlib' in sys.modules)"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.stdout.strip() == "False", done.stderr
+
+
+def test_after_from_a_measurement_of_the_compensated_program(affine, tmp_path):
+    poses, error, _ = measurement(50, seed=8)
+    before = write_csv(tmp_path / "before.csv", poses, poses[:, :3] - error)
+    rng = np.random.default_rng(4)
+    commands = poses.copy()
+    commands[:, :3] += error + rng.normal(scale=0.01, size=(50, 3))  # what compensate wrote
+    reached = poses[:, :3] + rng.normal(scale=0.02, size=(50, 3))  # where the robot then went
+    after = write_csv(tmp_path / "after.csv", commands, reached)
+    reached = np.loadtxt(after, delimiter=",", skiprows=2)[:, 6:9]
+    targets = np.loadtxt(before, delimiter=",", skiprows=2)[:, :3]
+    out = tmp_path / "r"
+    assert main(["report", str(before), "--after", str(after), "--model", str(affine()), "-o", str(out), "-q"]) == 0
+    series = read_csv(out / "series.csv")
+    assert np.allclose(series["norm_after"], np.linalg.norm(targets - reached, axis=1), atol=1e-6)
+    assert json.loads((out / "summary.json").read_text())["after"] == "measured"
+    # rows of another program (or another order) are refused, located in the after file
+    write_csv(tmp_path / "shuffled.csv", commands[::-1], reached[::-1])
+    with pytest.raises(PostprocError) as info:
+        from postproc.report import read_report_data
+
+        read_report_data(before, None, tmp_path / "shuffled.csv")
+    assert (info.value.code, info.value.line) == ("P503", 3) and "row 1" in info.value.message

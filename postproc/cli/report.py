@@ -5,12 +5,19 @@ import sys
 
 EXAMPLES = """examples:
   postproc report measured.csv --model models/cell7.onnx -o report/
-  postproc report verify_measured.csv -o report/ --title "Cell 7 after compensation"
+  postproc report before.csv --after after.csv --model models/cell7.onnx -o report/
+
+  # on the simulated robot: measure a test plan as written and as compensated
+  postproc plan -n 300 --seed 2 -o test.csv
+  postproc compensate test.csv -o test_comp.csv --model m.onnx
+  postproc measure test.csv -o before.csv && postproc measure test_comp.csv -o after.csv
+  postproc report before.csv --after after.csv --model m.onnx -o report/
 
 MEASURED.csv has the header x,y,z,a,b,c,x_meas,y_meas,z_meas (commanded pose, measured
 position; E = (x,y,z) - (x_meas,y_meas,z_meas)). "After" is E - Ê(pose), the first-order
-residual of compensating with the model; if the file also has x_after,y_after,z_after
-(positions measured when the compensated commands ran) those give the measured "after".
+residual of compensating with the model, unless --after gives the positions measured when
+the compensated program ran (its x_meas,y_meas,z_meas, row by row; or x_after,y_after,z_after
+columns in MEASURED.csv): then it is the measured residual.
 
 writes: report.md (Table 2: max/min/mean/std of |E| before and after, mm; the model card),
 summary.json, series.csv + histogram.csv (the plotted numbers), error_histogram.png,
@@ -31,6 +38,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("measured", metavar="MEASURED.csv", help="measurement CSV (x,y,z,a,b,c,x_meas,y_meas,z_meas[,x_after,...])")
     p.add_argument("-o", "--output", metavar="DIR", required=True, help="folder to write the report into (created)")
     p.add_argument("--model", metavar="M", help="ONNX compensator (default: [tool.postproc] model, else the shipped one)")
+    p.add_argument("--after", metavar="AFTER.csv",
+                   help="measurement of the compensated program (same rows, same order): the measured 'after'")
     p.add_argument("--title", default="Positioning accuracy", help="heading of report.md")
     p.set_defaults(run=run)
 
@@ -46,7 +55,7 @@ def run(args) -> int:
     except ImportError:
         raise PostprocError("postproc report needs matplotlib: pip install 'postproc[report]'") from None
     model = load_model(args.model or load_config().model)
-    data = read_report_data(args.measured, model)
+    data = read_report_data(args.measured, model, args.after)
     files = write_report(data, args.output, args.title)
     if not args.quiet:
         from ..report import summary
