@@ -327,7 +327,7 @@ def check_fresh(
     if not cfg.fresh:
         where = _shown(cfg.path) if cfg.path else "postproc.toml / pyproject.toml"
         raise PostprocError("no fresh pairs are configured: add fresh = [{ source = \"src/*.src\", output = "
-                            "\"out/*.src\" }] under [tool.postproc]", where, 0, 0, "P601")
+                            "\"out/*.src\" }] under [tool.postproc]", where, 0, 0, "P610")
     ignored = set(ignore)
     models: dict[Path | None, Compensator] = {None: model}
     findings: list[Diagnostic] = []

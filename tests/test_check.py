@@ -148,7 +148,7 @@ def test_bad_settings_are_located(tmp_path, text, message, line):
     write(tmp_path / "postproc.toml", text)
     with pytest.raises(PostprocError) as info:
         load_config(tmp_path / "postproc.toml")
-    assert message in info.value.message and info.value.code == "P601" and info.value.line == line
+    assert message in info.value.message and info.value.code == "P610" and info.value.line == line
 
 
 # --------------------------------------------------------------------------- freshness
@@ -236,7 +236,7 @@ def test_cli_output_and_exit_codes(affine, tmp_path, capsys, monkeypatch):
     assert main(["check", "ok.csv", "--model", str(tmp_path / "none.onnx")]) == 2
     assert main(["check", "ok.csv", "--fix", "--model", model]) == 2
     assert main(["check", "--fresh", "--model", model]) == 2  # no pairs configured
-    assert "P601 no fresh pairs" in capsys.readouterr().err
+    assert "P610 no fresh pairs" in capsys.readouterr().err
 
 
 def test_a_model_for_another_robot_is_a_finding(affine, tmp_path, capsys, monkeypatch):
