@@ -1,5 +1,6 @@
 """postproc check: findings on pose programs, stamps, settings, freshness of outputs; CLI exit codes."""
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -328,3 +329,15 @@ def test_what_else_compensate_refuses_is_a_finding(affine):
     found = check_program(program, load_model(affine()))
     assert [(d.code, d.severity) for d in found] == [("P212", "warning"), ("P103", "error")]
     assert "BASE_DATA[3]" in found[1].message and failed(found)
+
+
+def test_colour_only_on_a_terminal_without_no_color(affine, tmp_path, capsys, monkeypatch):
+    path = write(tmp_path / "p.csv", TEXT)
+    model = str(affine())
+    monkeypatch.setattr(sys.stdout, "isatty", lambda: True)
+    monkeypatch.delenv("NO_COLOR", raising=False)
+    assert main(["check", str(path), "--model", model, "-q"]) == 1
+    assert "\033[31mP302\033[0m" in capsys.readouterr().out
+    monkeypatch.setenv("NO_COLOR", "1")
+    assert main(["check", str(path), "--model", model, "-q"]) == 1
+    assert "\033[" not in capsys.readouterr().out
