@@ -5,7 +5,8 @@
 Posts three programs of a job (the same toolpath at three sizes here). The model is loaded
 once — loading creates the onnxruntime session — and reused for every program: each
 ``compensate_text`` call is then one batched model call and a text rewrite. The API imports
-neither torch, Pinocchio nor matplotlib, so this adds about 0.15 s of imports to the post.
+neither torch, Pinocchio nor matplotlib: about 0.15 s of imports and 0.17 s to create the
+shipped model's session, then a few ms per program.
 """
 from __future__ import annotations
 
