@@ -5,7 +5,6 @@ user: this checkout's working tree (tracked and untracked, not ignored files) is
 a temporary git repository that serves as the hook repository. The install takes 15–25 s on
 this machine (pip resolves from the configured indexes / find-links), hence `slow`.
 """
-import importlib.util
 import os
 import re
 import shutil
@@ -20,10 +19,10 @@ from postproc.compensator import load_model
 from conftest import REPO
 from model_factory import DEFAULT_REACH, affine_model
 
+PRE_COMMIT = shutil.which("pre-commit")
 pytestmark = [
     pytest.mark.slow,
-    pytest.mark.skipif(importlib.util.find_spec("postproc.programs.krl") is None, reason="the KRL reader is not there yet"),
-    pytest.mark.skipif(shutil.which("pre-commit") is None, reason="pre-commit is not installed (pip install 'postproc[test]')"),
+    pytest.mark.skipif(PRE_COMMIT is None, reason="pre-commit is not installed (pip install 'postproc[test]')"),
 ]
 
 FINDING = re.compile(r"^(\S+):(\d+):(\d+): (P\d{3}) ", re.M)
@@ -73,7 +72,7 @@ def cell(tmp_path_factory):
     (repo / ".pre-commit-config.yaml").write_text(
         f"repos:\n- repo: {hook}\n  rev: {rev}\n  hooks:\n"
         "  - id: postproc-check\n  - id: postproc-fresh\n")  # as a user writes it: default files
-    for cmd in (["git", "init", "-q"], [sys.executable, "-m", "pre_commit", "install"]):
+    for cmd in (["git", "init", "-q"], [PRE_COMMIT, "install"]):
         done = run(cmd, repo, env)
         assert done.returncode == 0, done.stdout + done.stderr
     return repo, env
