@@ -190,7 +190,7 @@ def main() -> None:
         row(label, [r["after"] for r in results[method]], label if label in PAPER else None)
     if default_row is not None:
         row("train default", [default_row], None)
-    print(f"\nfit times (s, 1 thread, shared machine): " + ", ".join(
+    print("\nfit times (s, 1 thread, shared machine): " + ", ".join(
         f"{METHODS[m]} {np.mean([r['fit_s'] for r in results[m]]):.1f}" for m in methods))
     if iteration_check:
         print(f"fixed-point iterations ({METHODS[methods[0]]}, seed {seeds[0]}): " + ", ".join(

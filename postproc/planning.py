@@ -9,7 +9,6 @@ LIN to each pose, lets it settle and hands over to the tracker.
 from __future__ import annotations
 
 import io
-import math
 import re
 import warnings
 from pathlib import Path
@@ -17,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .diagnostics import PostprocError
+from .training.data import parse_rows
 
 __all__ = [
     "DEFAULT_BOX",
@@ -137,30 +137,10 @@ def _parse_pose_lines(lines: list[str], path: str) -> np.ndarray:
             return table[:, index].copy()
     except ValueError:
         pass
-    rows = []
-    for number in range(first + 2, len(lines) + 1):
-        raw = lines[number - 1]
-        if not raw.strip() or raw.lstrip().startswith("#"):
-            continue
-        fields = raw.split(",")
-        if len(fields) != len(header):
-            raise PostprocError(f"row has {len(fields)} fields, the header has {len(header)}", path, number, 1, "P503")
-        row = []
-        for i in index:
-            col = sum(len(f) + 1 for f in fields[:i]) + len(fields[i]) - len(fields[i].lstrip()) + 1
-            try:
-                value = float(fields[i])
-            except ValueError:
-                value = math.nan
-            if not math.isfinite(value):
-                shown = fields[i].strip() or "(empty)"
-                raise PostprocError(f"column '{header[i]}': '{shown}' is not a finite number",
-                                    path, number, col, "P502")
-            row.append(value)
-        rows.append(row)
-    if not rows:
+    table, _ = parse_rows(lines, first, header, index, path)
+    if not len(table):
         raise PostprocError("pose file has a header but no rows", path, first + 1, 1, "P500")
-    return np.asarray(rows, dtype=float)
+    return table
 
 
 # --------------------------------------------------------------------------- KRL

@@ -34,7 +34,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import frames
 from .diagnostics import PostprocError
 from .robot import CODE_KEY, Chain, Robot, RobotDescription, axis_rotations, check_value, load_description
 

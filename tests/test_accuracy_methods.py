@@ -5,12 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import torch
 
 from postproc.cli import main
 from postproc.compensate import compensate_text
 from postproc.compensator import load_model
-from postproc.planning import latin_hypercube, plan_csv_text
+from postproc.planning import latin_hypercube
 from postproc.simulator import SimulatedRobot
 from postproc.training.features import previous_poses
 from postproc.training.synthetic import synthetic_measurements, to_csv

@@ -242,7 +242,7 @@ def test_cli_output_and_exit_codes(affine, tmp_path, capsys, monkeypatch):
 
 def test_a_model_for_another_robot_is_a_finding(affine, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    ok = write(tmp_path / "ok.csv", TEXT.splitlines(keepends=True)[0] + TEXT.splitlines(keepends=True)[1])
+    write(tmp_path / "ok.csv", TEXT.splitlines(keepends=True)[0] + TEXT.splitlines(keepends=True)[1])
     model = str(affine())  # robot "KR500-sim" in its card
     assert main(["check", "ok.csv", "--model", model, "--robot", "kr500-SIM", "-q"]) == 0  # names: any case
     assert main(["check", "ok.csv", "--model", model, "--robot", "UR10"]) == 1

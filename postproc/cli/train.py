@@ -169,7 +169,7 @@ def run(args) -> int:
             print(format_table(result))
         hidden = result.best
 
-    from ..training import ErrorModel, residual_stats
+    from ..training import ErrorModel, accuracy_card
     from ..training.network import Structure
 
     structure = Structure(tuple(hidden))
@@ -177,19 +177,8 @@ def run(args) -> int:
     model = ErrorModel(hidden, args.method, args.optimizer, args.epochs, seed=args.seed, progress=progress)
     model.fit(poses[train_rows], errors[train_rows])
 
-    val = residual_stats(errors[val_rows] - model.predict(poses[val_rows]))
-    unc = residual_stats(errors[val_rows])
-    accuracy = {
-        "val_mean_mm": val["mean"],
-        "val_max_mm": val["max"],
-        "val_std_mm": val["std"],
-        "train_mean_mm": model.train_stats_["mean"],
-        "n_train": len(train_rows),
-        "n_val": len(val_rows),
-        "val_uncompensated_mean_mm": unc["mean"],
-        "val_uncompensated_max_mm": unc["max"],
-    }
-    accuracy = {k: (round(v, 6) if isinstance(v, float) else v) for k, v in accuracy.items()}
+    accuracy = accuracy_card(errors[val_rows], model.predict(poses[val_rows]), model.train_stats_["mean"],
+                             len(train_rows))
     # c = P + Ê(c): iterations after which one more moves no training command by > 0.001 mm;
     # at least 2 (one more batched call is cheap insurance off the training poses)
     settled = model.fixed_point_iterations(poses[train_rows])
@@ -212,11 +201,18 @@ def run(args) -> int:
               f"{model.fit_seconds_['total']:.1f} s, backprop stopped: {model.stopped_} after {len(model.losses_)} epochs)")
         print(f"data      {args.data}: {len(train_rows)} training rows, {len(val_rows)} validation rows; "
               f"fixed point settles after {settled} iteration(s), model card says {iterations}")
-        if len(val_rows):
-            print(f"{'|E| mm (validation)':<26} {'mean':>7} {'max':>7} {'std':>7}")
-            print(f"{'uncompensated':<26} {unc['mean']:7.4f} {unc['max']:7.4f} {unc['std']:7.4f}")
-            print(f"{'residual |E − Ê|':<26} {val['mean']:7.4f} {val['max']:7.4f} {val['std']:7.4f}")
-        print(f"{'residual |E − Ê| (train)':<26} {model.train_stats_['mean']:7.4f} {model.train_stats_['max']:7.4f} "
-              f"{model.train_stats_['std']:7.4f}")
+        print_figures(accuracy, model.train_stats_)
         print(f"postproc train: wrote {args.output}", file=sys.stderr)
     return 0
+
+
+def print_figures(accuracy: dict, train_stats: dict) -> None:
+    """The validation table train prints at the end (stdout), from the model card's figures."""
+    if accuracy["n_val"]:
+        a = accuracy
+        print(f"{'|E| mm (validation)':<26} {'mean':>7} {'max':>7} {'std':>7}")
+        print(f"{'uncompensated':<26} {a['val_uncompensated_mean_mm']:7.4f} {a['val_uncompensated_max_mm']:7.4f} "
+              f"{a['val_uncompensated_std_mm']:7.4f}")
+        print(f"{'residual |E − Ê|':<26} {a['val_mean_mm']:7.4f} {a['val_max_mm']:7.4f} {a['val_std_mm']:7.4f}")
+    s = train_stats
+    print(f"{'residual |E − Ê| (train)':<26} {s['mean']:7.4f} {s['max']:7.4f} {s['std']:7.4f}")

@@ -56,7 +56,8 @@ def arm_metadata(description) -> dict:
 
 
 def run_hybrid(args, data, measured: np.ndarray, train_rows: np.ndarray, val_rows: np.ndarray, notes: list[str]) -> int:
-    from ..training import residual_stats
+    from ..training import accuracy_card
+    from .train import print_figures
     from ..training.features import joint_columns, previous_poses
     from ..training.hybrid import HybridModel
 
@@ -80,19 +81,8 @@ def run_hybrid(args, data, measured: np.ndarray, train_rows: np.ndarray, val_row
     if share == share and share < 0.99:  # (NaN: no joint angles to compare with)
         notes.append(f"warning: {100 * (1 - share):.1f} % of the training rows were reached on another IK branch "
                      f"than {list(model.kinematic_.ik_.branch)}: the model assumes that one everywhere")
-    val = residual_stats(errors[val_rows] - model.predict(poses[val_rows], rows(previous, val_rows)))
-    unc = residual_stats(errors[val_rows])
-    accuracy = {
-        "val_mean_mm": val["mean"],
-        "val_max_mm": val["max"],
-        "val_std_mm": val["std"],
-        "train_mean_mm": model.train_stats_["mean"],
-        "n_train": len(train_rows),
-        "n_val": len(val_rows),
-        "val_uncompensated_mean_mm": unc["mean"],
-        "val_uncompensated_max_mm": unc["max"],
-    }
-    accuracy = {k: (round(v, 6) if isinstance(v, float) else v) for k, v in accuracy.items()}
+    accuracy = accuracy_card(errors[val_rows], model.predict(poses[val_rows], rows(previous, val_rows)),
+                             model.train_stats_["mean"], len(train_rows))
     metadata = {
         "name": args.name or Path(args.output).stem,
         "data_sha256": data.sha256,
@@ -113,11 +103,6 @@ def run_hybrid(args, data, measured: np.ndarray, train_rows: np.ndarray, val_row
         if found["ripple"]:
             print(f"ripple    joint:order {' '.join(f'A{j}:{n}' for j, n in found['ripple'])}")
         print(f"data      {args.data}: {len(train_rows)} training rows, {len(val_rows)} validation rows")
-        if len(val_rows):
-            print(f"{'|E| mm (validation)':<26} {'mean':>7} {'max':>7} {'std':>7}")
-            print(f"{'uncompensated':<26} {unc['mean']:7.4f} {unc['max']:7.4f} {unc['std']:7.4f}")
-            print(f"{'residual |E − Ê|':<26} {val['mean']:7.4f} {val['max']:7.4f} {val['std']:7.4f}")
-        s = model.train_stats_
-        print(f"{'residual |E − Ê| (train)':<26} {s['mean']:7.4f} {s['max']:7.4f} {s['std']:7.4f}")
+        print_figures(accuracy, model.train_stats_)
         print(f"postproc train: wrote {args.output}", file=sys.stderr)
     return 0

@@ -10,11 +10,11 @@ loading torch.
 """
 from __future__ import annotations
 
-__all__ = ["ErrorModel", "METHODS", "DEFAULT_OPTIMIZER", "OPTIMIZERS", "residual_stats"]
+__all__ = ["ErrorModel", "METHODS", "DEFAULT_OPTIMIZER", "OPTIMIZERS", "residual_stats", "accuracy_card"]
 
 
 def __getattr__(name: str):
-    if name in ("ErrorModel", "METHODS", "DEFAULT_OPTIMIZER", "residual_stats"):
+    if name in ("ErrorModel", "METHODS", "DEFAULT_OPTIMIZER", "residual_stats", "accuracy_card"):
         from . import estimator
 
         return getattr(estimator, name)

@@ -31,6 +31,7 @@ __all__ = [
     "Measurements",
     "read_measurements",
     "parse_measurements",
+    "parse_rows",
     "split_indices",
     "check_size",
     "min_points",
@@ -80,30 +81,46 @@ def parse_measurements(data: bytes, path: str = "<data>") -> Measurements:
     sha = hashlib.sha256(data).hexdigest()
     # any byte decodes as latin-1; numbers and names are ASCII anyway (a UTF-8 BOM is dropped)
     text = data.removeprefix(b"\xef\xbb\xbf").decode("latin-1")
-    rows: list[list[float]] = []
-    lines: list[int] = []
     header: list[str] | None = None
     index: list[int] = []
     meta: dict[str, str] = {}
-    for number, raw in enumerate(text.splitlines(), start=1):
+    lines = text.splitlines()
+    first = None
+    for first, raw in enumerate(lines):
         line = raw.strip()
-        if not line or line.startswith("#"):
-            key, sep, value = line[1:].partition(":")
-            if header is None and sep:
-                meta[key.strip().lower()] = value.strip()
-            continue
-        if header is None:
+        if line and not line.startswith("#"):
             header = [f.strip().lower() for f in raw.split(",")]
-            index = _column_index(header, raw, path, number)
+            index = _column_index(header, raw, path, first + 1)
             if "holdout" in header:
                 index.append(header.index("holdout"))
+            break
+        key, sep, value = line[1:].partition(":")
+        if sep:
+            meta[key.strip().lower()] = value.strip()
+    if header is None:
+        raise PostprocError("empty measurement file (expected header " + ",".join(COLUMNS) + ")", path, code="P500")
+    table, line_numbers = parse_rows(lines, first, header, index, path)
+    if not len(table):
+        raise PostprocError("measurement file has a header but no data rows", path, code="P500")
+    _check_duplicates(table[:, :6], line_numbers, path)
+    holdout = table[:, 9] != 0 if table.shape[1] > 9 else None
+    return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout)
+
+
+def parse_rows(lines: list[str], first: int, header: list[str], index: list[int],
+               path: str) -> tuple[np.ndarray, np.ndarray]:
+    """The columns ``index`` of the rows after header line ``lines[first]`` as floats [N, len(index)]
+    and their 1-based line numbers [N]; blank and ``#`` lines skipped. PostprocError with
+    file:line:col on a row of another width (P503) or a value that is not a finite number (P502)."""
+    rows, numbers = [], []
+    for number in range(first + 2, len(lines) + 1):
+        raw = lines[number - 1]
+        line = raw.strip()
+        if not line or line.startswith("#"):
             continue
         fields = raw.split(",")
         if len(fields) != len(header):
-            raise PostprocError(
-                f"row has {len(fields)} fields, the header has {len(header)}", path, number, 1, "P503"
-            )
-        starts = _field_starts(raw)
+            raise PostprocError(f"row has {len(fields)} fields, the header has {len(header)}", path, number, 1, "P503")
         row = []
         for i in index:
             try:
@@ -112,28 +129,19 @@ def parse_measurements(data: bytes, path: str = "<data>") -> Measurements:
                 value = math.nan
             if not math.isfinite(value):
                 shown = fields[i].strip() or "(empty)"
-                raise PostprocError(
-                    f"column '{header[i]}': '{shown}' is not a finite number", path, number, starts[i] + 1, "P502"
-                )
+                raise PostprocError(f"column '{header[i]}': '{shown}' is not a finite number",
+                                    path, number, _field_starts(raw)[i] + 1, "P502")
             row.append(value)
         rows.append(row)
-        lines.append(number)
-    if header is None:
-        raise PostprocError("empty measurement file (expected header " + ",".join(COLUMNS) + ")", path, code="P500")
-    if not rows:
-        raise PostprocError("measurement file has a header but no data rows", path, code="P500")
-    table = np.asarray(rows, dtype=np.float64)
-    line_numbers = np.asarray(lines, dtype=np.int64)
-    _check_duplicates(table[:, :6], line_numbers, path)
-    holdout = table[:, 9] != 0 if table.shape[1] > 9 else None
-    return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout)
+        numbers.append(number)
+    return np.asarray(rows, dtype=np.float64).reshape(-1, len(index)), np.asarray(numbers, dtype=np.int64)
 
 
 def _field_starts(raw: str) -> list[int]:
     starts, pos = [], 0
-    for field in raw.split(","):
-        starts.append(pos + len(field) - len(field.lstrip()))
-        pos += len(field) + 1
+    for text in raw.split(","):
+        starts.append(pos + len(text) - len(text.lstrip()))
+        pos += len(text) + 1
     return starts
 
 

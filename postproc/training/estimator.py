@@ -58,6 +58,25 @@ def residual_stats(residual: np.ndarray) -> dict:
     }
 
 
+def accuracy_card(val_errors: np.ndarray, val_predicted: np.ndarray, train_mean_mm: float, n_train: int) -> dict:
+    """The model card's ``accuracy``: validation residual |E − Ê| and the uncompensated error
+    on the same rows (mm, rounded to 1 nm), the training residual, the split sizes."""
+    val = residual_stats(val_errors - val_predicted)
+    unc = residual_stats(val_errors)
+    card = {
+        "val_mean_mm": val["mean"],
+        "val_max_mm": val["max"],
+        "val_std_mm": val["std"],
+        "train_mean_mm": train_mean_mm,
+        "n_train": n_train,
+        "n_val": len(val_errors),
+        "val_uncompensated_mean_mm": unc["mean"],
+        "val_uncompensated_max_mm": unc["max"],
+        "val_uncompensated_std_mm": unc["std"],
+    }
+    return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in card.items()}
+
+
 class ErrorModel:
     """Learned positioning error E(pose) of one robot + tool.
 

@@ -18,7 +18,7 @@ from pathlib import Path
 import onnx
 import torch
 
-from ..compensator import INPUT_POSE, OUTPUT_ERROR, contract_metadata
+from ..compensator import INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, contract_metadata
 from ..diagnostics import PostprocError
 
 __all__ = ["export_onnx", "onnx_bytes", "write_atomic", "OPSET"]
@@ -26,20 +26,23 @@ __all__ = ["export_onnx", "onnx_bytes", "write_atomic", "OPSET"]
 OPSET = 17
 
 
-def onnx_bytes(module: torch.nn.Module, metadata: dict) -> bytes:
-    """The serialised ONNX model of ``module`` (pose [N, 6] → error [N, 3]) with metadata."""
+def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False) -> bytes:
+    """The serialised ONNX model of ``module`` (pose [N, 6] [, previous_pose [N, 6]] → error
+    [N, 3]) with metadata."""
+    inputs = [INPUT_POSE, INPUT_PREVIOUS] if previous else [INPUT_POSE]
+    example = tuple(torch.tensor([[2000.0, 0.0, 900.0, 0.0, 90.0, 0.0]] * 2, dtype=torch.float32) for _ in inputs)
     buffer = io.BytesIO()
     with warnings.catch_warnings():
         # the TorchScript exporter announces its deprecation on every call
         warnings.simplefilter("ignore")
         torch.onnx.export(
             module.eval(),
-            (torch.zeros(2, 6, dtype=torch.float32),),
+            example,
             buffer,
             dynamo=False,
-            input_names=[INPUT_POSE],
+            input_names=inputs,
             output_names=[OUTPUT_ERROR],
-            dynamic_axes={INPUT_POSE: {0: "N"}, OUTPUT_ERROR: {0: "N"}},
+            dynamic_axes={name: {0: "N"} for name in inputs + [OUTPUT_ERROR]},
             opset_version=OPSET,
             do_constant_folding=True,
         )

@@ -14,20 +14,17 @@ networks are all inside it, so ``compensate`` needs only onnxruntime.
 """
 from __future__ import annotations
 
-import io
 import math
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from ..compensator import INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, contract_metadata
 from ..robot import RobotDescription
 from .data import envelope_of
 from .estimator import _one_thread, residual_stats
-from .export import OPSET, write_atomic
+from .export import onnx_bytes, write_atomic
 from .features import joint_features
 from .kinematic import KinematicErrorModule, KinematicModel
 
@@ -254,24 +251,3 @@ class HybridModel:
             parts.append(f"{len(self.nets_)} x MLP {n_in}-{'-'.join(map(str, self.hidden))}-3 on {inputs}")
         return "; ".join(parts)
 
-
-def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool) -> bytes:
-    """The serialised contract ONNX model of ``module`` (pose [, previous_pose] → error)."""
-    import onnx
-
-    inputs = [INPUT_POSE, INPUT_PREVIOUS] if previous else [INPUT_POSE]
-    example = tuple(torch.tensor([[2000.0, 0.0, 900.0, 0.0, 90.0, 0.0]] * 2, dtype=torch.float32) for _ in inputs)
-    buffer = io.BytesIO()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation notice, tracer warnings
-        torch.onnx.export(module.eval(), example, buffer, dynamo=False, input_names=inputs,
-                          output_names=[OUTPUT_ERROR], dynamic_axes={n: {0: "N"} for n in inputs + [OUTPUT_ERROR]},
-                          opset_version=OPSET, do_constant_folding=True)
-    model = onnx.load_from_string(buffer.getvalue())
-    model.graph.name = "postproc_error_model"
-    model.producer_name = "postproc.training"
-    del model.metadata_props[:]
-    for key, value in contract_metadata(**metadata).items():
-        model.metadata_props.add(key=key, value=value)
-    onnx.checker.check_model(model)
-    return model.SerializeToString()
