@@ -42,22 +42,31 @@ def run(args) -> int:
 
     from ..diagnostics import PostprocError
     from ..planning import read_pose_csv
+    from ..progress import stages
     from ..rewrite import write_atomic
     from ..simulator import CODE_REACH, SimulatedRobot
+    from . import show_progress
 
-    poses, lines = read_pose_csv(args.plan)
-    sim = SimulatedRobot.from_file(args.robot, args.robot_seed)
-    ok = sim.reachable(poses)
-    if not ok.all():
-        bad = np.flatnonzero(~ok)
-        raise PostprocError(f"pose out of reach of {sim.robot.name}: {poses[bad[0]].tolist()}"
-                            + (f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""),
-                            args.plan, int(lines[bad[0]]), 1, CODE_REACH)
-    measured = sim.measure(poses, rng_seed=args.seed)
-    buf = io.StringIO()
-    np.savetxt(buf, np.hstack([poses, measured]), fmt=["%.10g"] * 6 + ["%.4f"] * 3, delimiter=",",
-               header="x,y,z,a,b,c,x_meas,y_meas,z_meas", comments="")
-    write_atomic([(Path(args.output), buf.getvalue())])
+    with stages(["read plan", "draw robot", "controller IK", "simulate and measure", "write"], "measure",
+                show_progress(args)) as stage:
+        stage("read plan")
+        poses, lines = read_pose_csv(args.plan)
+        stage("draw robot")
+        sim = SimulatedRobot.from_file(args.robot, args.robot_seed)
+        stage("controller IK")
+        ok = sim.reachable(poses)
+        if not ok.all():
+            bad = np.flatnonzero(~ok)
+            raise PostprocError(f"pose out of reach of {sim.robot.name}: {poses[bad[0]].tolist()}"
+                                + (f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""),
+                                args.plan, int(lines[bad[0]]), 1, CODE_REACH)
+        stage("simulate and measure")
+        measured = sim.measure(poses, rng_seed=args.seed)
+        buf = io.StringIO()
+        np.savetxt(buf, np.hstack([poses, measured]), fmt=["%.10g"] * 6 + ["%.4f"] * 3, delimiter=",",
+                   header="x,y,z,a,b,c,x_meas,y_meas,z_meas", comments="")
+        stage("write")
+        write_atomic([(Path(args.output), buf.getvalue())])
     if not args.quiet:
         e = np.linalg.norm(poses[:, :3] - measured, axis=1)
         which = "default" if sim.is_default else "drawn"

@@ -48,8 +48,10 @@ def run(args) -> int:
     from ..diagnostics import PostprocError
     from ..planning import DEFAULT_ATTITUDE, DEFAULT_BOX, DEFAULT_RANGE, krl_measurement_program, latin_hypercube, \
         plan_csv_text, round_poses
+    from ..progress import stages
     from ..rewrite import write_atomic
     from ..robot import Robot, load_description
+    from . import show_progress
 
     description = load_description(args.robot)
     ws = description.workspace
@@ -58,22 +60,26 @@ def run(args) -> int:
     range_deg = args.range if args.range is not None else ws.get("range", DEFAULT_RANGE)
     if args.krl is not None and Path(args.krl).suffix.lower() != ".src":
         raise PostprocError(f"--krl {args.krl}: a KRL program is a .src file", code="P512")
-    poses = round_poses(latin_hypercube(args.poses, box, attitude, range_deg, args.seed))
-    robot = Robot(description)
-    _, ok = robot.ik(poses)
-    if not ok.all():
-        bad = np.flatnonzero(~ok)
-        raise PostprocError(
-            f"{len(bad)} of {len(poses)} poses are out of reach of {robot.name} with tool {robot.tool_name} "
-            f"(first: pose {bad[0] + 1} = {poses[bad[0]].tolist()}); shrink --box or --range, or move the box",
-            description.path, code="P335")
-    outputs = [(Path(args.output), plan_csv_text(poses))]
-    if args.krl is not None:
-        src = Path(args.krl)
-        comment = (f"Latin hypercube seed {args.seed}, box {list(map(float, box))}, "
-                   f"attitude {list(map(float, attitude))} +- {range_deg:g} deg")
-        outputs.append((src, krl_measurement_program(poses, src.stem, robot, wait_s=args.wait, comment=comment)))
-    write_atomic(outputs)
+    with stages(["sample", "reach check (IK)", "write"], "plan", show_progress(args)) as stage:
+        stage("sample")
+        poses = round_poses(latin_hypercube(args.poses, box, attitude, range_deg, args.seed))
+        robot = Robot(description)
+        stage("reach check (IK)")
+        _, ok = robot.ik(poses)
+        if not ok.all():
+            bad = np.flatnonzero(~ok)
+            raise PostprocError(
+                f"{len(bad)} of {len(poses)} poses are out of reach of {robot.name} with tool {robot.tool_name} "
+                f"(first: pose {bad[0] + 1} = {poses[bad[0]].tolist()}); shrink --box or --range, or move the box",
+                description.path, code="P335")
+        stage("write")
+        outputs = [(Path(args.output), plan_csv_text(poses))]
+        if args.krl is not None:
+            src = Path(args.krl)
+            comment = (f"Latin hypercube seed {args.seed}, box {list(map(float, box))}, "
+                       f"attitude {list(map(float, attitude))} +- {range_deg:g} deg")
+            outputs.append((src, krl_measurement_program(poses, src.stem, robot, wait_s=args.wait, comment=comment)))
+        write_atomic(outputs)
     if not args.quiet:
         written = " + ".join(str(p) for p, _ in outputs)
         print(f"postproc: {written}: {len(poses)} poses (LHS seed {args.seed}) in X {box[0]:g}..{box[1]:g} "

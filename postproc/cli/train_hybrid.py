@@ -57,9 +57,10 @@ def arm_metadata(description) -> dict:
 
 def run_hybrid(args, data, measured: np.ndarray, train_rows: np.ndarray, val_rows: np.ndarray, notes: list[str]) -> int:
     from ..training import accuracy_card
-    from .train import print_figures
     from ..training.features import joint_columns, previous_poses
     from ..training.hybrid import HybridModel
+    from . import show_progress
+    from .train import print_figures
 
     description = _description(args.robot)
     poses = data.poses
@@ -72,6 +73,7 @@ def run_hybrid(args, data, measured: np.ndarray, train_rows: np.ndarray, val_row
         hidden=args.hidden or DEFAULT_HIDDEN[args.method],
         epochs=args.epochs or DEFAULT_EPOCHS,
         seed=args.seed,
+        progress=show_progress(args),
         **SETTINGS[args.method],
     )
     rows = (lambda a, r: None if a is None else a[r])  # noqa: E731

@@ -18,7 +18,7 @@ from typing import Callable
 
 import torch
 
-from .gpso import InitResult, W_CONSTANT, pso_velocity
+from .gpso import InitResult, W_CONSTANT, arithmetic_crossover, pso_velocity
 
 __all__ = ["ga", "pso", "plain"]
 
@@ -57,8 +57,8 @@ def ga(
         x1, x2 = x[parents[:n_pairs]], x[parents[n_pairs:]]
         p = torch.rand(n_pairs, 1, generator=gen, dtype=dtype)
         cross = torch.rand(n_pairs, 1, generator=gen, dtype=dtype) < crossover
-        c1 = torch.where(cross, p * x1 + (1 - p) * x2, x1)
-        c2 = torch.where(cross, (1 - p) * x1 + p * x2, x2)
+        m1, m2 = arithmetic_crossover(x1, x2, p)
+        c1, c2 = torch.where(cross, m1, x1), torch.where(cross, m2, x2)
         off = torch.cat([c1, c2])[:n_off]
         mask = torch.rand(off.shape, generator=gen, dtype=dtype) < mutation
         off = off + mask * torch.randn(off.shape, generator=gen, dtype=dtype) * MUTATION_SIGMA

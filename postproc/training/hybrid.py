@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..progress import stages
 from ..robot import RobotDescription
 from .data import envelope_of
 from .estimator import _one_thread, residual_stats
@@ -144,10 +145,13 @@ class HybridModel:
             raise ValueError(f"residual must be auto, always or none, not {self.residual!r}")
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
-        with _one_thread():
+        names = ["kinematic identification", "residual networks"]
+        with _one_thread(), stages(names, "hybrid", self.progress) as stage:
             t0 = time.perf_counter()
+            stage(names[0])
             self.kinematic_ = KinematicModel(self.description, **self.kinematic).fit(poses, errors, previous, q_deg)
             t1 = time.perf_counter()
+            stage(names[1])
             self.nets_ = self._fit_residual(poses, self.kinematic_.train_residual_)
             t2 = time.perf_counter()
         self.module_ = HybridModule(self.kinematic_.module_, self.nets_).eval()
