@@ -30,12 +30,12 @@ import numpy as np
 from .compensate import (
     DEFAULT_MAX_CORRECTION_MM,
     MAX_LISTED,
-    _robot_mismatch,
-    _tool_mismatch,
     compensate_program,
     load_program,
     output_paths,
     robot_base_poses,
+    robot_mismatch,
+    tool_mismatch,
 )
 from .compensator import Compensator, load_model
 from .config import Config
@@ -181,7 +181,7 @@ def check_program(
     # one set of numbers used in two frames: compensate refuses it (a warning of the reader)
     out = [replace(d, severity="error") if d.code == "P202" else d for d in program.diagnostics]
     out += _stamp_findings(program, model)
-    for code, mismatch in (("P304", _tool_mismatch(program, model)), ("P310", _robot_mismatch(robot, model))):
+    for code, mismatch in (("P304", tool_mismatch(program, model)), ("P310", robot_mismatch(robot, model))):
         if mismatch:
             out.append(Diagnostic(program.files[0], 1, 1, code, mismatch, "error"))
 

@@ -33,6 +33,8 @@ __all__ = [
     "compensate_file",
     "DEFAULT_MAX_CORRECTION_MM",
     "write_outputs",
+    "tool_mismatch",
+    "robot_mismatch",
 ]
 
 # An error model that predicts more than this is wrong, not the robot (guard, --max-correction).
@@ -197,7 +199,8 @@ def _collect(program: Program, rows: np.ndarray, code: str, message: str, severi
     return out
 
 
-def _tool_mismatch(program: Program, model: Compensator) -> str | None:
+def tool_mismatch(program: Program, model: Compensator) -> str | None:
+    """Why the model's tool does not fit the program's active $TOOL (None: it fits, or unknown)."""
     frame = model.tool.get("frame") if model.tool else None
     if frame is None:
         return None
@@ -209,7 +212,8 @@ def _tool_mismatch(program: Program, model: Compensator) -> str | None:
     return None
 
 
-def _robot_mismatch(robot: str | None, model: Compensator) -> str | None:
+def robot_mismatch(robot: str | None, model: Compensator) -> str | None:
+    """Why the model (trained on its card's robot) does not fit ``robot`` (None: it does, or unknown)."""
     if not robot:
         return None
     if not model.robot:
@@ -244,10 +248,10 @@ def compensate_program(
         index, stamp = next(iter(program.stamps.items()))
         raise PostprocError(f"already compensated ({stamp.lstrip(';# ')}); use --force to compensate again",
                             program.files[index], 1, 1, "P401")
-    mismatch = _tool_mismatch(program, model)
+    mismatch = tool_mismatch(program, model)
     if mismatch and not force:
         raise PostprocError(mismatch + "; use --force to compensate anyway", program.files[0], 1, 1, "P304")
-    mismatch = _robot_mismatch(robot, model)
+    mismatch = robot_mismatch(robot, model)
     if mismatch and not force:
         raise PostprocError(mismatch + "; use --force to compensate anyway", str(model.path), 0, 0, "P310")
     shared = next((d for d in program.diagnostics if d.code == "P202"), None)
