@@ -214,11 +214,15 @@ def check_program(
         no_ik = ~np.asarray(reachable(sel), bool) & ~far
         out += _rows(program, rows[no_ik], "P309", "the nominal robot has no IK solution for this target", "error")
     envelope = model.envelope
-    if envelope is not None:
-        out += _rows(program, rows[envelope.outside(sel)], "P301", "target outside the model's training envelope",
-                     "warning")
+    outside = envelope.outside(sel) if envelope is not None else np.zeros(len(sel), bool)
+    out += _rows(program, rows[outside], "P301", "target outside the model's training envelope", "warning")
     if len(sel):
-        correction = model.command(sel, iterations) - sel[:, :3]
+        commanded, joints = model.command(sel, iterations, joints=True)
+        if envelope is not None and joints is not None:
+            away = envelope.outside_joints(joints) & ~outside
+            out += _rows(program, rows[away], "P301", "target's joint angles outside those the model was trained on",
+                         "warning")
+        correction = commanded - sel[:, :3]
         size = np.linalg.norm(correction, axis=1)
         bad = ~np.isfinite(size)
         out += _rows(program, rows[bad], "P305", "the model returns NaN or inf here", "error")

@@ -199,6 +199,14 @@ def _collect(program: Program, rows: np.ndarray, code: str, message: str, severi
     return out
 
 
+def _joints_away(q_deg: np.ndarray, ranges: np.ndarray) -> str:
+    """'A4 -35.2° (trained -20.1…19.8°)' for the joint of ``q_deg`` [6] farthest out of its range."""
+    lo, hi = ranges[:, 0], ranges[:, 1]
+    beyond = np.maximum(lo - q_deg, q_deg - hi) / np.maximum(hi - lo, 1e-9)
+    j = int(np.argmax(beyond))
+    return f"A{j + 1} {q_deg[j]:.1f}°, trained {lo[j]:.1f}…{hi[j]:.1f}°"
+
+
 def tool_mismatch(program: Program, model: Compensator) -> str | None:
     """Why the model's tool does not fit the program's active $TOOL (None: it fits, or unknown)."""
     frame = model.tool.get("frame") if model.tool else None
@@ -324,7 +332,7 @@ def compensate_program(
     except BaseException:
         stream.close()
         raise
-    commanded, new_xyz = stream.result()
+    commanded, new_xyz, joints = stream.result()
     correction = commanded - sel[:, :3]
     size = np.linalg.norm(correction, axis=1)
     if not np.isfinite(correction).all():
@@ -334,6 +342,18 @@ def compensate_program(
         raise PostprocError(f"correction of {size[worst]:.3f} mm exceeds the bound of {max_correction_mm} mm: "
                             "the model is wrong here", *_where(program, int(rows[worst])), "P303")
     assert outputs is not None  # _Unsafe is raised only for what the two guards above refuse
+    if envelope is not None and joints is not None:
+        # in the box and attitude range but not in the joint ranges trained on (a wrist turned
+        # the other way): warned as the envelope is, targets already warned for not repeated
+        away = envelope.outside_joints(joints) & ~outside
+        if away.any():
+            report.outside_envelope += int(away.sum())
+            found = _collect(program, rows[away], "P301", "target's joint angles outside those the model was trained on "
+                             f"({_joints_away(joints[away][0], envelope.joints)})")
+            if strict:
+                first = found[0]
+                raise PostprocError(f"{first.message} (--strict)", first.path, first.line, first.col, first.code)
+            warnings += found
 
     # KRL with position variables only: their numbers may be read elsewhere too (as a frame,
     # by another target), which no single edit shows. Inline aggregates belong to one motion,
@@ -375,6 +395,7 @@ class _CommandStream:
                  rows: np.ndarray, max_correction_mm: float):
         self.commanded = np.full((len(poses), 3), np.nan)
         self.new_xyz = np.full((len(poses), 3), np.nan)
+        self.joints = np.full((len(poses), 6), np.nan) if model.has_joints else None
         self.ready = 0  # rows [0, ready) are filled
         self.unsafe = False
         self._error: BaseException | None = None
@@ -389,9 +410,10 @@ class _CommandStream:
                                         name="postproc-model", daemon=True)
         self._thread.start()
 
-    def _run(self, chunks: Iterator[tuple[int, np.ndarray]], poses: np.ndarray, bound: float) -> None:
+    def _run(self, chunks: Iterator[tuple[int, np.ndarray, np.ndarray | None]], poses: np.ndarray,
+             bound: float) -> None:
         try:
-            for start, commands in chunks:
+            for start, commands, q in chunks:
                 if self._cancel:
                     return
                 end = start + len(commands)
@@ -403,6 +425,8 @@ class _CommandStream:
                     here = frame_of == f
                     local[here] = frames.rotate_vectors(frames.inverse(self._bases[f]), correction[here])
                 self.commanded[start:end] = commands
+                if self.joints is not None:
+                    self.joints[start:end] = q
                 self.new_xyz[start:end] = self._written[start:end] + local
                 with np.errstate(invalid="ignore"):
                     unsafe = not (np.isfinite(correction).all() and np.linalg.norm(correction, axis=1).max() <= bound)
@@ -430,13 +454,13 @@ class _CommandStream:
         self._cancel = True
         self._thread.join()
 
-    def result(self) -> tuple[np.ndarray, np.ndarray]:
-        """(commanded [N, 3] in the robot base, corrected numbers [N, 3] in each target's frame),
-        every row, once the thread is done."""
+    def result(self) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """(commanded [N, 3] in the robot base, corrected numbers [N, 3] in each target's frame,
+        the targets' joint angles [N, 6] deg or None), every row, once the thread is done."""
         self._thread.join()
         if self._error is not None:
             raise self._error
-        return self.commanded, self.new_xyz
+        return self.commanded, self.new_xyz, self.joints
 
 
 def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, stream: _CommandStream) -> str:

@@ -10,9 +10,12 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   plain pose → error maps;
 * output ``error``: float32 [N, 3] mm, E = P_target − P_actual; normalisation lives inside
   the graph;
+* optional output ``joints``: float32 [N, 6] deg, the controller's joint angles (nominal IK)
+  the model computed for ``pose``: with ``envelope.joints`` in the card, ``compensate`` warns
+  for targets whose joints lie outside the trained ranges (a pose-box can hide a wrist flip);
 * ``metadata_props`` (values JSON-encoded where structured): ``postproc_contract`` "1",
   ``name``, ``robot``, ``tool`` {"name", "frame"}, ``envelope`` {"box": [x0,x1,y0,y1,z0,z1],
-  "attitude": [A,B,C], "range": deg}, ``reach`` {"center": [x,y,z], "radius_min",
+  "attitude": [A,B,C], "range": deg, optional "joints": [[lo, hi] × 6] deg}, ``reach`` {"center": [x,y,z], "radius_min",
   "radius_max"} (TCP distance from the shoulder), ``data_sha256``, ``method``,
   ``structure``, ``accuracy`` {"val_mean_mm", "val_max_mm", ...}, ``iterations``.
 
@@ -37,10 +40,13 @@ CONTRACT_VERSION = "1"
 INPUT_POSE = "pose"
 INPUT_PREVIOUS = "previous_pose"
 OUTPUT_ERROR = "error"
+OUTPUT_JOINTS = "joints"
 # (8192 rows: the intermediates of the hybrid graph stay in cache, 11 % faster than 65536; measured)
 PREDICT_BATCH = 8192
 # Rows per chunk of ``command_chunks``: the unit compensate overlaps model runs and rewriting by.
 COMMAND_CHUNK = 1 << 16
+# Joint ranges of the envelope are widened by this share of each range (+ 0.5°) before warning.
+JOINT_MARGIN = 0.05
 # More fixed-point iterations than this is a typo or a hostile model card, not a method (a hang).
 MAX_ITERATIONS = 100
 
@@ -59,6 +65,7 @@ class Envelope:
     box: np.ndarray  # [6] x0,x1,y0,y1,z0,z1
     attitude: np.ndarray  # [3] A,B,C
     range: float  # ± deg per component
+    joints: np.ndarray | None = None  # [6, 2] deg: each joint's range over the training poses
 
     def outside(self, poses: np.ndarray, tolerance_mm: float = 1.0, tolerance_deg: float = 0.5) -> np.ndarray:
         """Boolean mask of poses [N, 6] outside the box or the attitude range."""
@@ -75,6 +82,17 @@ class Envelope:
         d, d_alt = ((t - self.attitude + 180.0) % 360.0 - 180.0 for t in (abc, alt))
         return out | (np.any(np.abs(d) > limit, axis=1) & np.any(np.abs(d_alt) > limit, axis=1))
 
+    def outside_joints(self, q_deg: np.ndarray) -> np.ndarray:
+        """Boolean mask of joint angles [N, 6] (deg) outside the trained ranges widened by
+        JOINT_MARGIN of each range + 0.5° (the training poses sample the box, not its joint-space
+        hull: a pose inside the box may turn a joint a little past what any training pose did)."""
+        if self.joints is None:
+            return np.zeros(len(q_deg), bool)
+        lo, hi = self.joints[:, 0], self.joints[:, 1]
+        margin = JOINT_MARGIN * (hi - lo) + 0.5
+        with np.errstate(invalid="ignore"):
+            return np.any((q_deg < lo - margin) | (q_deg > hi + margin), axis=1)
+
 
 @dataclass
 class Compensator:
@@ -85,6 +103,7 @@ class Compensator:
     metadata: dict = field(default_factory=dict)
     sha256: str = ""
     wants_previous: bool = False
+    has_joints: bool = False  # the graph also outputs ``joints``
 
     @property
     def name(self) -> str:
@@ -106,7 +125,8 @@ class Compensator:
         env = self.metadata.get("envelope")
         if not isinstance(env, dict):
             return None
-        return Envelope(np.asarray(env["box"], float), np.asarray(env["attitude"], float), float(env["range"]))
+        joints = np.asarray(env["joints"], float) if env.get("joints") is not None else None
+        return Envelope(np.asarray(env["box"], float), np.asarray(env["attitude"], float), float(env["range"]), joints)
 
     @property
     def nominal_attitude(self) -> np.ndarray | None:
@@ -129,16 +149,16 @@ class Compensator:
             r = np.linalg.norm(positions - np.asarray(reach["center"], float), axis=1)
         return (r > float(reach["radius_max"])) | (r < float(reach.get("radius_min", 0.0)))
 
-    def predict(self, poses: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
-        """Ê for poses [N, 6] (robot base frame) → [N, 3] mm (float64). Batched: one
+    def predict(self, poses: np.ndarray, previous: np.ndarray | None = None, joints: bool = False):
+        """Ê for poses [N, 6] (robot base frame) → [N, 3] mm (float64). With ``joints``: (Ê, the
+        model's joint angles [N, 6] deg, or None for a model without that output). Batched: one
         onnxruntime call per PREDICT_BATCH poses (a whole CAM program in one call would make
         the runtime hold every intermediate layer for every target at once)."""
         poses = np.ascontiguousarray(poses, dtype=np.float32).reshape(-1, 6)
         if self.wants_previous:
             previous = poses if previous is None else np.ascontiguousarray(previous, dtype=np.float32).reshape(-1, 6)
-        if len(poses) == 0:
-            return np.zeros((0, 3))
-        error = np.empty((len(poses), 3))
+        names = [OUTPUT_ERROR, OUTPUT_JOINTS] if joints and self.has_joints else [OUTPUT_ERROR]
+        results = [np.empty((len(poses), 3)), np.empty((len(poses), 6))][:len(names)]
 
         def run(at: int) -> None:
             batch = slice(at, at + PREDICT_BATCH)
@@ -146,52 +166,61 @@ class Compensator:
             if self.wants_previous:
                 feeds[INPUT_PREVIOUS] = previous[batch]
             try:
-                (out,) = self.session.run([OUTPUT_ERROR], feeds)
+                outs = self.session.run(names, feeds)
             except Exception as exc:  # onnxruntime's own types: a graph that does not run on [N, 6]
                 raise PostprocError(f"the model failed on {len(poses)} poses: {str(exc).splitlines()[0][:200]}",
                                     str(self.path), code="P306") from None
-            out = np.asarray(out)
-            if out.shape != (len(feeds[INPUT_POSE]), 3):
-                raise PostprocError(f"model returned shape {out.shape}, expected ({len(feeds[INPUT_POSE])}, 3)",
-                                    str(self.path), code="P306")
-            error[batch] = out
+            for name, out, result in zip(names, outs, results):
+                out = np.asarray(out)
+                if out.shape != (len(feeds[INPUT_POSE]), result.shape[1]):
+                    raise PostprocError(f"model returned shape {out.shape}, expected ({len(feeds[INPUT_POSE])}, "
+                                        f"{result.shape[1]}) (output '{name}')", str(self.path), code="P306")
+                result[batch] = out
 
         starts = range(0, len(poses), PREDICT_BATCH)
         if len(starts) == 1:
             run(0)
-        else:
+        elif len(starts) > 1:
             # batches on every core: the session runs single-threaded (cheap start for small
             # programs) and releases the GIL, so one thread per core fills the machine
             from concurrent.futures import ThreadPoolExecutor
 
             with ThreadPoolExecutor(max_workers=min(os.cpu_count() or 1, 8)) as pool:
                 list(pool.map(run, starts))
-        return error
+        if not joints:
+            return results[0]
+        return results[0], (results[1] if len(results) > 1 else None)
 
-    def command(self, poses: np.ndarray, iterations: int | None = None, previous: np.ndarray | None = None) -> np.ndarray:
+    def command(self, poses: np.ndarray, iterations: int | None = None, previous: np.ndarray | None = None,
+                joints: bool = False):
         """Commanded positions [N, 3] so that the robot lands on ``poses[:, :3]``: c = P + Ê(c).
+        With ``joints``: (commands, the targets' joint angles [N, 6] deg or None; see ``predict``).
 
         For a model with ``previous_pose``: ``previous`` [N, 6] as given, or None = the rows are
         in program order and each target comes from the previous row's command."""
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         out = np.empty((len(poses), 3))
-        for start, commands in self.command_chunks(poses, iterations, previous):
+        q = np.empty((len(poses), 6)) if joints and self.has_joints else None
+        for start, commands, q_part in self.command_chunks(poses, iterations, previous):
             out[start:start + len(commands)] = commands
-        return out
+            if q is not None:
+                q[start:start + len(commands)] = q_part
+        return (out, q) if joints else out
 
     def command_chunks(self, poses: np.ndarray, iterations: int | None = None, previous: np.ndarray | None = None,
-                       chunk: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
-        """``command`` chunk by chunk in row order: yields (first row, commands [n, 3]), the same
-        numbers as one ``command`` call (each chunk takes its first row's previous pose, per
-        iteration, from the chunk before), so a caller can use the first rows while the model
-        runs on the next ones. ``chunk``: rows per chunk (default COMMAND_CHUNK)."""
+                       chunk: int | None = None) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+        """``command`` chunk by chunk in row order: yields (first row, commands [n, 3], the
+        targets' joint angles [n, 6] deg or None), the same numbers as one ``command`` call (each
+        chunk takes its first row's previous pose, per iteration, from the chunk before), so a
+        caller can use the first rows while the model runs on the next ones. ``chunk``: rows
+        per chunk (default COMMAND_CHUNK)."""
         iterations = self.default_iterations if iterations is None else iterations
         if not 1 <= iterations <= MAX_ITERATIONS:
             raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code="P308")
         return self._chunks(np.asarray(poses, dtype=float).reshape(-1, 6), iterations, previous, chunk or COMMAND_CHUNK)
 
     def _chunks(self, poses: np.ndarray, iterations: int, previous: np.ndarray | None,
-                chunk: int) -> Iterator[tuple[int, np.ndarray]]:
+                chunk: int) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         chained = previous is None and self.wants_previous
         # the last row of the chunk before, after each iteration k (k = 0: the target itself)
         before: list[np.ndarray] | None = None
@@ -199,6 +228,7 @@ class Compensator:
             part = poses[start:start + chunk]
             trial = part.copy()
             last = [trial[-1].copy()]
+            q = None
             for k in range(iterations):
                 if chained:
                     # the pose commanded before each target is the previous target's *command*
@@ -207,11 +237,14 @@ class Compensator:
                     prev = np.vstack([head, trial[:-1]])
                 else:
                     prev = None if previous is None else previous[start:start + chunk]
-                trial[:, :3] = part[:, :3] + self.predict(trial, prev)
+                if k == 0:  # the first run is at the targets themselves: their joint angles
+                    error, q = self.predict(trial, prev, joints=True)
+                else:
+                    error = self.predict(trial, prev)
+                trial[:, :3] = part[:, :3] + error
                 last.append(trial[-1].copy())
             before = last
-            yield start, trial[:, :3]
-
+            yield start, trial[:, :3], q
 
 def load_model(path: str | Path | None = None) -> Compensator:
     """Load and check an ONNX compensator (default: the shipped ``models/default.onnx``)."""
@@ -248,8 +281,11 @@ def load_model(path: str | Path | None = None) -> Compensator:
             problems.append(f"input '{name}' has shape {inputs[name].shape}, expected [N, {expected}]")
     if OUTPUT_ERROR in outputs and (len(outputs[OUTPUT_ERROR].shape) != 2 or outputs[OUTPUT_ERROR].shape[1] not in (3, None)):
         problems.append(f"output '{OUTPUT_ERROR}' has shape {outputs[OUTPUT_ERROR].shape}, expected [N, 3]")
+    if OUTPUT_JOINTS in outputs and (len(outputs[OUTPUT_JOINTS].shape) != 2
+                                     or outputs[OUTPUT_JOINTS].shape[1] not in (6, None)):
+        problems.append(f"output '{OUTPUT_JOINTS}' has shape {outputs[OUTPUT_JOINTS].shape}, expected [N, 6]")
     for node in (*inputs.values(), *outputs.values()):
-        if node.name in (INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR) and node.type != "tensor(float)":
+        if node.name in (INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, OUTPUT_JOINTS) and node.type != "tensor(float)":
             problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
     if problems:
         raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path), code="P306")
@@ -263,6 +299,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
         metadata=meta,
         sha256=hashlib.sha256(data).hexdigest(),
         wants_previous=INPUT_PREVIOUS in inputs,
+        has_joints=OUTPUT_JOINTS in outputs,
     )
 
 
@@ -283,6 +320,10 @@ def _metadata_problem(meta: dict) -> str | None:
             return "'envelope' needs box [x0,x1,y0,y1,z0,z1], attitude [A,B,C] and range ≥ 0"
         if any(lo > hi for lo, hi in zip(env["box"][0::2], env["box"][1::2])):
             return f"'envelope' box {env['box']} has a lower bound above its upper bound"
+        joints = env.get("joints")
+        if joints is not None and not (isinstance(joints, list) and len(joints) == 6
+                                       and all(_numbers(r, 2) and r[0] <= r[1] for r in joints)):
+            return "'envelope' joints must be six [lo, hi] ranges (deg)"
     reach = meta.get("reach")
     if reach is not None and not (isinstance(reach, dict) and _numbers(reach.get("center"), 3)
                                   and _numbers([reach.get("radius_max"), reach.get("radius_min", 0.0)], 2)

@@ -1,4 +1,5 @@
 """The compensate pipeline on pose programs and hand-built frames; CLI exit codes."""
+import re
 import subprocess
 import sys
 
@@ -226,7 +227,7 @@ def test_commands_in_chunks_equal_the_whole_program_fixed_point(monkeypatch):
     # so chunks are a multiple of the vector width, as COMMAND_CHUNK and PREDICT_BATCH are
     monkeypatch.setattr(compensator, "COMMAND_CHUNK", 64)
     chunks = list(model.command_chunks(poses))
-    assert [start for start, _ in chunks] == list(range(0, 300, 64))
+    assert [start for start, _, _ in chunks] == list(range(0, 300, 64))
     assert np.allclose(model.command(poses), trial[:, :3], rtol=0, atol=1e-9)
     # a chunk that ignored its predecessor (took its first row as coming from itself) differs
     alone = model.command(poses[64:128])
@@ -262,3 +263,63 @@ def test_a_guard_failing_in_a_late_chunk_names_the_worst_target(affine, monkeypa
         compensate_text(text, model, name="p.csv", max_correction_mm=2.0)
     assert (info.value.code, info.value.line) == ("P303", 201)
     assert "correction of 3.0" in info.value.message
+
+
+def test_shipped_model_outputs_the_controllers_joint_angles():
+    # the graph's own IK, exported as ``joints``: the nominal robot's (Pinocchio model) IK
+    from postproc.robot import Robot, load_description
+
+    model = load_model()
+    assert model.has_joints and model.envelope.joints.shape == (6, 2)
+    poses = _cam_path(200, seed=2)
+    error, q = model.predict(poses, joints=True)
+    assert np.array_equal(error, model.predict(poses))
+    expected, ok = Robot(load_description()).ik(poses)
+    assert ok.all() and np.abs(q - expected).max() < 2e-3  # deg (float32 output)
+
+
+def _with_joint_ranges(tmp_path, ranges):
+    """The shipped model with other trained joint ranges in its card."""
+    import json
+
+    import onnx
+
+    from postproc.resources import model_path
+
+    graph = onnx.load(str(model_path()))
+    prop = next(p for p in graph.metadata_props if p.key == "envelope")
+    envelope = json.loads(prop.value)
+    envelope["joints"] = ranges
+    prop.value = json.dumps(envelope)
+    path = tmp_path / "narrow.onnx"
+    onnx.save(graph, str(path))
+    return path
+
+
+def test_targets_outside_the_trained_joint_ranges_warn(tmp_path):
+    from postproc.check import check_files
+
+    trained = load_model().envelope.joints.tolist()
+    narrow = [list(r) for r in trained]
+    narrow[0] = [-2.0, 2.0]  # A1 trained only near 0: the box's sides (A1 ≈ ±11°) lie outside
+    model = load_model(_with_joint_ranges(tmp_path, narrow))
+    text = "x,y,z,a,b,c\n2000,0,900,0,90,0\n2000,400,900,0,90,0\n2000,-20,900,0,90,0\n"
+    new, report = compensate_text(text, model, name="p.csv")
+    assert [(w.code, w.line) for w in report.warnings] == [("P301", 3)]
+    # (KUKA's A1 turns about the downward axis: +Y is a negative A1)
+    assert re.search(r"joint angles outside .* \(A1 -11\.\d°, trained -2\.0…2\.0°\)$", report.warnings[0].message)
+    assert report.outside_envelope == 1 and new.count("\n") == text.count("\n") + 1
+    with pytest.raises(PostprocError) as info:
+        compensate_text(text, model, name="p.csv", strict=True)
+    assert (info.value.code, info.value.line) == ("P301", 3)
+    path = tmp_path / "p.csv"
+    path.write_text(text)
+    assert [(d.code, d.line) for d in check_files([path], model)] == [("P301", 3)]
+    # the trained ranges themselves: nothing to say
+    assert compensate_text(text, load_model(), name="p.csv")[1].warnings == []
+
+
+def test_malformed_joint_ranges_in_the_card_are_refused(tmp_path):
+    with pytest.raises(PostprocError) as info:
+        load_model(_with_joint_ranges(tmp_path, [[0, 1]] * 5))
+    assert info.value.code == "P306" and "joints" in info.value.message

@@ -18,7 +18,7 @@ from pathlib import Path
 import onnx
 import torch
 
-from ..compensator import INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, contract_metadata
+from ..compensator import INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, OUTPUT_JOINTS, contract_metadata
 from ..diagnostics import PostprocError
 
 __all__ = ["export_onnx", "onnx_bytes", "write_atomic", "OPSET"]
@@ -26,10 +26,11 @@ __all__ = ["export_onnx", "onnx_bytes", "write_atomic", "OPSET"]
 OPSET = 17
 
 
-def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False) -> bytes:
+def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False, joints: bool = False) -> bytes:
     """The serialised ONNX model of ``module`` (pose [N, 6] [, previous_pose [N, 6]] → error
-    [N, 3]) with metadata."""
+    [N, 3] [, joints [N, 6] deg]) with metadata."""
     inputs = [INPUT_POSE, INPUT_PREVIOUS] if previous else [INPUT_POSE]
+    outputs = [OUTPUT_ERROR, OUTPUT_JOINTS] if joints else [OUTPUT_ERROR]
     example = tuple(torch.tensor([[2000.0, 0.0, 900.0, 0.0, 90.0, 0.0]] * 2, dtype=torch.float32) for _ in inputs)
     buffer = io.BytesIO()
     with warnings.catch_warnings():
@@ -41,8 +42,8 @@ def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False) 
             buffer,
             dynamo=False,
             input_names=inputs,
-            output_names=[OUTPUT_ERROR],
-            dynamic_axes={name: {0: "N"} for name in inputs + [OUTPUT_ERROR]},
+            output_names=outputs,
+            dynamic_axes={name: {0: "N"} for name in inputs + outputs},
             opset_version=OPSET,
             do_constant_folding=True,
         )

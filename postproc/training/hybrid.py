@@ -68,14 +68,32 @@ class HybridModule(torch.nn.Module):
     def uses_previous(self) -> bool:
         return self.kinematic.use_previous
 
-    def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None) -> torch.Tensor:
+    def error_and_joints(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None
+                         ) -> tuple[torch.Tensor, torch.Tensor]:
+        """(Ê [N, 3], the controller's joint angles q [N, 6] rad) in the dtype of ``pose``."""
         dtype = pose.dtype
         prev = previous_pose.to(torch.float64) if previous_pose is not None else None
         error, q, signs = self.kinematic.parts(pose.to(torch.float64), prev)
         if len(self.nets):
             features = joint_features(q, signs if self.uses_previous else None)
             error = error + torch.stack([net(features) for net in self.nets]).mean(dim=0)
-        return error.to(dtype)
+        return error.to(dtype), q.to(dtype)
+
+    def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None) -> torch.Tensor:
+        return self.error_and_joints(pose, previous_pose)[0]
+
+
+class _WithJoints(torch.nn.Module):
+    """The exported graph: ``error`` and ``joints`` (deg), so that compensate can check the
+    joint ranges of the envelope with onnxruntime alone."""
+
+    def __init__(self, module: HybridModule):
+        super().__init__()
+        self.module = module
+
+    def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None):
+        error, q = self.module.error_and_joints(pose, previous_pose)
+        return error, q * (180.0 / math.pi)  # (torch.rad2deg has no ONNX export)
 
 
 def _train_net(x: np.ndarray, y: np.ndarray, hidden: tuple[int, ...], epochs: int, seed: int) -> ResidualNet:
@@ -242,7 +260,7 @@ class HybridModel:
         envelope["joints"] = self.joint_range_
         meta = {"method": self.label, "structure": self.structure, "envelope": envelope, "iterations": 2}
         meta.update(metadata)
-        return write_atomic(path, onnx_bytes(self.module_, meta, self.uses_previous))
+        return write_atomic(path, onnx_bytes(_WithJoints(self.module_), meta, self.uses_previous, joints=True))
 
     @property
     def structure(self) -> str:
