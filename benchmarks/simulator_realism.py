@@ -36,7 +36,8 @@ import torch
 from postproc.planning import latin_hypercube
 from postproc.robot import load_description
 from postproc.robot import Chain
-from postproc.simulator import SimulatedRobot, approach_signs, small_transform, table2
+from postproc.simulator import SimulatedRobot, approach_signs, small_transform
+from postproc.stats import table2
 
 
 def adam_mlp(poses: np.ndarray, errors: np.ndarray, seed: int, epochs: int = 3000):

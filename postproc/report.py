@@ -25,7 +25,7 @@ import numpy as np
 
 from .compensator import Compensator
 from .diagnostics import PostprocError
-from .simulator import table2  # max, min, mean, std (ddof 1): the method's Table 2 figures
+from .stats import table2  # max, min, mean, std (ddof 1): the method's Table 2 figures
 
 __all__ = [
     "ReportData",

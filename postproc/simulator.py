@@ -36,6 +36,7 @@ import numpy as np
 
 from .diagnostics import PostprocError
 from .robot import CODE_KEY, Chain, Robot, RobotDescription, axis_rotations, check_value, load_description
+from .stats import table2
 
 __all__ = ["ErrorSpec", "SimulatedRobot", "table2", "approach_signs", "small_transform", "CODE_REACH"]
 
@@ -126,16 +127,6 @@ def _checked(d: RobotDescription, key: str, kind: str, value) -> object:
     if key == "stiffness" and np.any(checked <= 0):
         raise fail(f"{where} must be positive (Nm/rad)")
     return checked
-
-
-def table2(error_norms: np.ndarray) -> dict:
-    """The method's Table 2 figures of positioning-error norms (mm): max, min, mean, std."""
-    e = np.asarray(error_norms, float)
-    if e.size == 0:
-        return {"max": math.nan, "min": math.nan, "mean": math.nan, "std": math.nan}
-    # std with ddof 1, as MATLAB's std (the method's figures; postproc.training reports the same)
-    std = float(e.std(ddof=1)) if e.size > 1 else 0.0
-    return {"max": float(e.max()), "min": float(e.min()), "mean": float(e.mean()), "std": std}
 
 
 def approach_signs(q_deg: np.ndarray, start_q: np.ndarray, start_sign: float = 1.0) -> np.ndarray:

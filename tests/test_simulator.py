@@ -9,7 +9,8 @@ from postproc.cli import main
 from postproc.diagnostics import PostprocError
 from postproc.planning import latin_hypercube, plan_csv_text
 from postproc.robot import load_description
-from postproc.simulator import SimulatedRobot, approach_signs, table2
+from postproc.simulator import SimulatedRobot, approach_signs
+from postproc.stats import table2
 
 PAPER = {"max": 1.5, "min": 0.1, "mean": 0.754, "std": 0.34}  # Hu, Hua & Tian, Table 2, uncompensated
 

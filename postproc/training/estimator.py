@@ -13,6 +13,7 @@ for networks this small a second thread costs more in synchronisation than it sa
 """
 from __future__ import annotations
 
+import math
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -20,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..stats import table2
 from . import baselines
 from .data import check_size, envelope_of
 from .gpso import InitResult, gpso
@@ -46,16 +48,10 @@ def _one_thread():
 
 
 def residual_stats(residual: np.ndarray) -> dict:
-    """mean / max / min / std (ddof 1, as MATLAB's std) of the per-point distance |r| in mm."""
-    d = np.linalg.norm(np.asarray(residual, float).reshape(-1, 3), axis=1)
-    if len(d) == 0:
-        return {"mean": None, "max": None, "min": None, "std": None}
-    return {
-        "mean": float(d.mean()),
-        "max": float(d.max()),
-        "min": float(d.min()),
-        "std": float(d.std(ddof=1)) if len(d) > 1 else 0.0,
-    }
+    """Table 2 figures (postproc.stats.table2) of the per-point distance |r| in mm; None for
+    no points (a model card's JSON has no NaN)."""
+    figures = table2(np.linalg.norm(np.asarray(residual, float).reshape(-1, 3), axis=1))
+    return {k: None if math.isnan(v) else v for k, v in figures.items()}
 
 
 def accuracy_card(val_errors: np.ndarray, val_predicted: np.ndarray, train_mean_mm: float, n_train: int) -> dict:
