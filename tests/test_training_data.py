@@ -125,3 +125,14 @@ def test_synthetic_csv_round_trips():
     poses, measured = synthetic_measurements(50, seed=1)
     data = parse_measurements(to_csv(poses, measured).encode())
     assert np.allclose(data.poses, poses, atol=1e-4) and np.allclose(data.measured, measured, atol=1e-4)
+
+
+def test_joint_columns_are_read_with_the_file_and_are_optional():
+    head = "x,y,z,a,b,c,x_meas,y_meas,z_meas,q1,q2,q3,q4,q5,q6\n"
+    rows = "2000,0,900,0,90,0,2000.1,0,900,1,-40,90,0,40,-1\n# a comment\n2100,0,900,0,90,0,2100,0.2,900,2,-41,91,0,41,-2\n"
+    data = parse_measurements((head + rows).encode())
+    assert data.joints.tolist() == [[1, -40, 90, 0, 40, -1], [2, -41, 91, 0, 41, -2]]
+    # an unreadable joint value drops the extra columns, not the data
+    data = parse_measurements((head + rows.replace(",40,-1", ",nan,-1")).encode())
+    assert data.joints is None and len(data) == 2
+    assert parse_measurements(b"x,y,z,a,b,c,x_meas,y_meas,z_meas\n1,2,3,0,90,0,1,2,3\n").joints is None

@@ -89,11 +89,13 @@ def add_parser(sub, common, formatter) -> None:
 
 def _robot_metadata(robot: str | None) -> dict:
     """robot / reach / tool metadata from a robot description, when there is one to read."""
+    from .train_hybrid import arm_metadata
+
     if not robot:
         return {}
     path = Path(robot)
     try:
-        from ..robot import Robot, load_description
+        from ..robot import load_description
     except ImportError:  # robot description support (pin) not installed: the name only
         return {"robot": robot}
     if path.suffix == ".toml":
@@ -103,12 +105,7 @@ def _robot_metadata(robot: str | None) -> dict:
         if default.name != robot:
             return {"robot": robot}  # an unknown robot: record its name, claim no reach
         description = default
-    r = Robot(description)
-    return {
-        "robot": r.name,
-        "reach": r.reach,
-        "tool": {"name": r.tool_name, "frame": [round(float(v), 6) for v in r.tool]},
-    }
+    return arm_metadata(description)
 
 
 def run(args) -> int:
@@ -117,12 +114,13 @@ def run(args) -> int:
     from ..diagnostics import PostprocError
     from ..training.data import check_size, envelope_of, read_measurements, split_indices
     from . import show_progress
+    from .train_hybrid import HYBRID_METHODS, run_hybrid
 
     data = read_measurements(args.data)
     train_rows, val_rows = split_indices(len(data), args.val_fraction, args.split_seed)
     # a robot description is read before the long part, so that a typo fails fast
     # (hybrid methods read it themselves: it is the model, and may be an arm postproc.robot cannot solve)
-    robot_meta = {} if args.method in ("hybrid", "kinematic", "dnn-joints") else _robot_metadata(args.robot)
+    robot_meta = {} if args.method in HYBRID_METHODS else _robot_metadata(args.robot)
     poses, measured = data.poses, data.measured
     notes = []
     frame = data.meta.get("frame", "base").lower()
@@ -148,10 +146,8 @@ def run(args) -> int:
     errors = poses[:, :3] - measured
 
     progress = show_progress(args)
-    from .train_hybrid import HYBRID_METHODS, run_hybrid
-
     if args.method in HYBRID_METHODS:
-        return run_hybrid(args, data, measured, train_rows, val_rows, notes)
+        return run_hybrid(args, data, errors, train_rows, val_rows, notes, progress)
     hidden = args.hidden or (20, 10, 5)
     args.epochs = args.epochs or 500
     if args.search:

@@ -55,25 +55,26 @@ def arm_metadata(description) -> dict:
     return {"robot": description.name, "reach": reach, "tool": tool}
 
 
-def run_hybrid(args, data, measured: np.ndarray, train_rows: np.ndarray, val_rows: np.ndarray, notes: list[str]) -> int:
+def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows: np.ndarray, notes: list[str],
+               progress: bool) -> int:
+    """Fit, export and report a hybrid-family model; ``errors`` [N, 3] = E of ``data``'s rows
+    (after any registration)."""
     from ..training import accuracy_card
-    from ..training.features import joint_columns, previous_poses
+    from ..training.features import previous_poses
     from ..training.hybrid import HybridModel
-    from . import show_progress
     from .train import print_figures
 
     description = _description(args.robot)
     poses = data.poses
-    errors = poses[:, :3] - measured
     # rows in visiting order (the first came from HOME): the approach direction of each joint
     previous = None if args.pose_only else previous_poses(poses)
-    q_deg = joint_columns(data.path, data.lines) if data.path else None
+    q_deg = data.joints
     model = HybridModel(
         description,
         hidden=args.hidden or DEFAULT_HIDDEN[args.method],
         epochs=args.epochs or DEFAULT_EPOCHS,
         seed=args.seed,
-        progress=show_progress(args),
+        progress=progress,
         **SETTINGS[args.method],
     )
     rows = (lambda a, r: None if a is None else a[r])  # noqa: E731
@@ -85,12 +86,13 @@ def run_hybrid(args, data, measured: np.ndarray, train_rows: np.ndarray, val_row
                      f"than {list(model.kinematic_.ik_.branch)}: the model assumes that one everywhere")
     accuracy = accuracy_card(errors[val_rows], model.predict(poses[val_rows], rows(previous, val_rows)),
                              model.train_stats_["mean"], len(train_rows))
+    found = model.describe()
     metadata = {
         "name": args.name or Path(args.output).stem,
         "data_sha256": data.sha256,
         "accuracy": accuracy,
         "iterations": max(2, model.fixed_point_iterations(poses[train_rows])),
-        "identified": model.describe(),
+        "identified": found,
     }
     metadata.update(arm_metadata(description))
     model.export_onnx(args.output, **metadata)
@@ -98,7 +100,6 @@ def run_hybrid(args, data, measured: np.ndarray, train_rows: np.ndarray, val_row
     if not args.quiet:
         for note in notes:
             print(note, file=sys.stderr)
-        found = model.describe()
         order = "backlash from the visiting order" if model.uses_previous else "no visiting order"
         print(f"model     {args.output}  ({model.label}; {model.structure}; {order}; "
               f"{model.fit_seconds_['total']:.1f} s)")

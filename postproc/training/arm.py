@@ -23,9 +23,10 @@ import torch
 from .. import frames
 from ..diagnostics import PostprocError
 from ..robot import RobotDescription
+from .features import wrapped_step
 from .network import rotation_matrices
 
-__all__ = ["Arm", "axis_rotations", "mm", "mc", "mv", "turn_columns", "turn_rows", "small_rotation", "pose_matrices", "KukaIK", "UrIK", "make_ik", "choose_branch",
+__all__ = ["Arm", "axis_rotations", "mc", "mv", "turn_columns", "turn_rows", "small_rotation", "pose_matrices", "KukaIK", "UrIK", "make_ik", "choose_branch",
            "GRAVITY"]
 
 GRAVITY = 9.81  # m/s², along −Z of the robot base frame (as Pinocchio's default)
@@ -50,11 +51,6 @@ def axis_rotations(axes: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
 # Batched 3x3 products are written out so that the exported graph avoids onnxruntime's
 # MatMul over millions of tiny matrices (13 ms per product for 1e5 poses): a product with a
 # constant is one GEMM over all rows (2 ms), a turn about a coordinate axis mixes two columns.
-
-
-def mm(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """[..., 3, 3] @ [..., 3, 3] for two batches (training-side helper)."""
-    return a @ b
 
 
 def mc(a: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
@@ -139,7 +135,6 @@ class Arm:
 
     def __init__(self, description: RobotDescription):
         d = self.description = description
-        self.name = d.name
         self.placements = _t(frames.frame_to_matrix(np.array([j.origin for j in d.joints])))
         self.axes = _t(np.array([j.axis for j in d.joints]))
         self.flange = _t(frames.frame_to_matrix(d.flange))
@@ -151,7 +146,6 @@ class Arm:
         self.payload_mass = float(d.payload_mass)
         self.payload_com = _t(payload_com[:3])  # in the last joint's frame
         self.home_q = _t(np.radians(d.home_q))
-        self.limits = _t(np.radians(np.array([j.limits for j in d.joints])))
 
     def frames(self, q: torch.Tensor, placements: torch.Tensor | None = None, end: torch.Tensor | None = None,
                base: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -356,10 +350,6 @@ def make_ik(description: RobotDescription, family: str | None = None, branch=(1.
     return UrIK(description, branch)
 
 
-def _wrap(angle: torch.Tensor) -> torch.Tensor:
-    return torch.remainder(angle + math.pi, 2 * math.pi) - math.pi
-
-
 def choose_branch(description: RobotDescription, poses: np.ndarray, q_deg: np.ndarray,
                   family: str | None = None) -> tuple[torch.nn.Module, float]:
     """The IK branch that reproduces the controller's joint angles ``q_deg`` [N, 6] for
@@ -373,7 +363,7 @@ def choose_branch(description: RobotDescription, poses: np.ndarray, q_deg: np.nd
         ik = type(family_ik)(description, branch)
         with torch.no_grad():
             got = ik(pose)
-        match = (torch.abs(_wrap(got - q)) < math.radians(1.0)).all(dim=1)
+        match = (torch.abs(wrapped_step(got, q)) < math.radians(1.0)).all(dim=1)
         share = float(match.double().mean())
         if share > best_share:
             best, best_share = ik, share

@@ -56,6 +56,7 @@ class Measurements:
     path: str = ""
     meta: dict = field(default_factory=dict)  # '# key: value' lines before the header
     holdout: np.ndarray | None = None  # [N] bool from a 'holdout' column, if any
+    joints: np.ndarray | None = None  # [N, 6] deg from 'q1'..'q6' (the controller's angles), if all there
 
     @property
     def errors(self) -> np.ndarray:
@@ -104,7 +105,21 @@ def parse_measurements(data: bytes, path: str = "<data>") -> Measurements:
         raise PostprocError("measurement file has a header but no data rows", path, code="P500")
     _check_duplicates(table[:, :6], line_numbers, path)
     holdout = table[:, 9] != 0 if table.shape[1] > 9 else None
-    return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout)
+    return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout,
+                        _joint_columns(lines, first, header, path))
+
+
+def _joint_columns(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:
+    """The controller's joint angles [N, 6] (deg) from ``q1..q6`` (``postproc import`` writes
+    them); None without them, or with a value that is not a finite number: they are an extra,
+    not worth refusing the data for."""
+    wanted = [f"q{i}" for i in range(1, 7)]
+    if not set(wanted) <= set(header):
+        return None
+    try:
+        return parse_rows(lines, first, header, [header.index(n) for n in wanted], path)[0]
+    except PostprocError:
+        return None
 
 
 def parse_rows(lines: list[str], first: int, header: list[str], index: list[int],

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import torch
 
-__all__ = ["previous_poses", "motion_signs", "wrapped_step", "joint_features", "joint_columns"]
+__all__ = ["previous_poses", "motion_signs", "wrapped_step", "joint_features"]
 
 
 def previous_poses(poses: np.ndarray, first: np.ndarray | None = None) -> np.ndarray:
@@ -52,25 +52,3 @@ def joint_features(q: torch.Tensor, signs: torch.Tensor | None = None) -> torch.
     if signs is not None:
         parts.append(signs)
     return torch.cat(parts, dim=1)
-
-
-def joint_columns(path: str, lines: np.ndarray) -> np.ndarray | None:
-    """The controller's joint angles [N, 6] (deg) from a measurement CSV's ``q1..q6`` columns
-    (``postproc import`` writes them), for the rows at file ``lines`` (1-based, from
-    ``training.data.read_measurements``); None when the file has no such columns."""
-    with open(path, encoding="latin-1") as f:
-        text = f.read().splitlines()
-    header = next((i for i, raw in enumerate(text) if raw.strip() and not raw.lstrip().startswith("#")), None)
-    if header is None:
-        return None
-    names = [h.strip().lower() for h in text[header].split(",")]
-    wanted = [f"q{i}" for i in range(1, 7)]
-    if not set(wanted) <= set(names):
-        return None
-    index = [names.index(n) for n in wanted]
-    rows = np.array([text[i - 1].split(",") for i in np.asarray(lines, dtype=int)], dtype=str)
-    try:
-        q = rows[:, index].astype(float)
-    except (ValueError, IndexError):
-        return None  # the columns are an extra: a bad one is not worth refusing the data for
-    return q if np.isfinite(q).all() else None

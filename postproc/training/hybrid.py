@@ -26,7 +26,7 @@ from ..robot import RobotDescription
 from .data import envelope_of
 from .estimator import _one_thread, residual_stats
 from .export import onnx_bytes, write_atomic
-from .features import joint_features
+from .features import joint_features, previous_poses
 from .kinematic import KinematicErrorModule, KinematicModel
 
 __all__ = ["HybridModel", "HybridModule", "ResidualNet"]
@@ -170,18 +170,18 @@ class HybridModel:
             self.kinematic_ = KinematicModel(self.description, **self.kinematic).fit(poses, errors, previous, q_deg)
             t1 = time.perf_counter()
             stage(names[1])
-            self.nets_ = self._fit_residual(poses, self.kinematic_.train_residual_)
+            self.nets_ = self._fit_residual(self.kinematic_.train_residual_)
             t2 = time.perf_counter()
         self.module_ = HybridModule(self.kinematic_.module_, self.nets_).eval()
         self.envelope_ = envelope_of(poses)
-        q = np.degrees(self.kinematic_.joint_angles(poses))
+        q = np.degrees(self.kinematic_.train_q_)  # (the nominal IK of the training poses)
         self.joint_range_ = [[round(float(a), 3), round(float(b), 3)] for a, b in zip(q.min(0), q.max(0))]
         self.n_train_ = len(poses)
         self.fit_seconds_ = {"kinematic": t1 - t0, "residual": t2 - t1, "total": t2 - t0}
         self.train_stats_ = residual_stats(errors - self.predict(poses, previous))
         return self
 
-    def _fit_residual(self, poses: np.ndarray, residual: np.ndarray) -> list[ResidualNet]:
+    def _fit_residual(self, residual: np.ndarray) -> list[ResidualNet]:
         if self.residual == "none" or self.ensemble < 1:
             return []
         km = self.kinematic_
@@ -232,7 +232,7 @@ class HybridModel:
         trial = poses.copy()
         history = []
         for _ in range(most):
-            prev = np.vstack([trial[:1], trial[:-1]]) if self.uses_previous else None
+            prev = previous_poses(trial) if self.uses_previous else None
             trial[:, :3] = poses[:, :3] + self.predict(trial, prev)
             history.append(trial[:, :3].copy())
         final = history[-1]

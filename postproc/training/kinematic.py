@@ -276,11 +276,6 @@ class KinematicModel:
         self.family = family
 
     # ------------------------------------------------------------------ fitting
-    def joint_angles(self, poses: np.ndarray) -> np.ndarray:
-        """Nominal IK [N, 6] rad of the chosen branch (after ``fit``)."""
-        with torch.no_grad():
-            return self.ik_(torch.as_tensor(np.asarray(poses, dtype=np.float64))).numpy()
-
     def _choose_ik(self, poses: np.ndarray, q_deg: np.ndarray | None) -> None:
         if q_deg is None and (self.family in (None, "kuka")):
             try:
