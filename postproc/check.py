@@ -216,8 +216,9 @@ def check_program(
     envelope = model.envelope
     outside = envelope.outside(sel) if envelope is not None else np.zeros(len(sel), bool)
     out += _rows(program, rows[outside], "P301", "target outside the model's training envelope", "warning")
+    commands = None
     if len(sel):
-        commanded, joints = model.command(sel, iterations, joints=True)
+        commanded, joints = commands = model.command(sel, iterations, joints=True)
         if envelope is not None and joints is not None:
             away = envelope.outside_joints(joints) & ~outside
             out += _rows(program, rows[away], "P301", "target's joint angles outside those the model was trained on",
@@ -237,7 +238,7 @@ def check_program(
         # a stamped program is forced past "already compensated", which the stamp checks cover
         try:
             compensate_program(program, model, iterations=iterations, max_correction_mm=max_correction_mm,
-                               robot=robot, force=bool(program.stamps))
+                               robot=robot, force=bool(program.stamps), _commands=commands)
         except PostprocError as exc:
             out.append(exc.diagnostic())
     return out

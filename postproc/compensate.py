@@ -240,8 +240,11 @@ def compensate_program(
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
     robot: str | None = None,
+    _commands: tuple[np.ndarray, np.ndarray | None] | None = None,
 ) -> Report:
     """Compensate every resolvable target of ``program``; the new texts are in ``Report.outputs``.
+    (``_commands``: ``model.command(poses, iterations, joints=True)`` of exactly these targets,
+    already computed by ``check``, which runs this as its last safety net.)
 
     Raises PostprocError for what must not be written (double compensation, a model for
     another robot (``robot``, the program's robot name) or tool, unless ``force``; targets
@@ -324,7 +327,9 @@ def compensate_program(
     # approach direction, for models that learn backlash). The model runs on a background
     # thread, chunk by chunk, while this one rewrites the numbers of the chunks already done.
     report.iterations = model.default_iterations if iterations is None else iterations
-    stream = _CommandStream(model, sel, report.iterations, program, rows, max_correction_mm)
+    if _commands is not None and len(_commands[0]) != len(sel):
+        raise ValueError(f"_commands has {len(_commands[0])} rows for {len(sel)} targets")
+    stream = _CommandStream(model, sel, report.iterations, program, rows, max_correction_mm, _commands)
     try:
         outputs = [_rewrite_file(program, index, text, rows, stream) for index, text in enumerate(program.texts)]
     except _Unsafe:
@@ -392,10 +397,13 @@ class _CommandStream:
     the rewrite of the first targets overlaps the model run on the later ones."""
 
     def __init__(self, model: Compensator, poses: np.ndarray, iterations: int, program: Program,
-                 rows: np.ndarray, max_correction_mm: float):
+                 rows: np.ndarray, max_correction_mm: float, computed: tuple | None = None):
         self.commanded = np.full((len(poses), 3), np.nan)
         self.new_xyz = np.full((len(poses), 3), np.nan)
-        self.joints = np.full((len(poses), 6), np.nan) if model.has_joints else None
+        # the targets' joint angles, only where the model card has joint ranges to check them against
+        envelope = model.envelope
+        wanted = model.has_joints and envelope is not None and envelope.joints is not None
+        self.joints = np.full((len(poses), 6), np.nan) if wanted else None
         self.ready = 0  # rows [0, ready) are filled
         self.unsafe = False
         self._error: BaseException | None = None
@@ -405,7 +413,10 @@ class _CommandStream:
         self._frame_of = t.frame[rows]
         self._written = t.poses[rows, :3]
         self._bases = [f.base for f in program.frames]
-        chunks = model.command_chunks(poses, iterations)  # checks ``iterations`` here, not on the thread
+        if computed is not None:  # (commands and joints of every row, from the caller)
+            chunks = iter([(0, *computed)])
+        else:  # checks ``iterations`` here, not on the thread
+            chunks = model.command_chunks(poses, iterations, joints=wanted)
         self._thread = threading.Thread(target=self._run, args=(chunks, poses, max_correction_mm),
                                         name="postproc-model", daemon=True)
         self._thread.start()
@@ -425,7 +436,7 @@ class _CommandStream:
                     here = frame_of == f
                     local[here] = frames.rotate_vectors(frames.inverse(self._bases[f]), correction[here])
                 self.commanded[start:end] = commands
-                if self.joints is not None:
+                if self.joints is not None and q is not None:
                     self.joints[start:end] = q
                 self.new_xyz[start:end] = self._written[start:end] + local
                 with np.errstate(invalid="ignore"):

@@ -201,26 +201,27 @@ class Compensator:
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         out = np.empty((len(poses), 3))
         q = np.empty((len(poses), 6)) if joints and self.has_joints else None
-        for start, commands, q_part in self.command_chunks(poses, iterations, previous):
+        for start, commands, q_part in self.command_chunks(poses, iterations, previous, joints=joints):
             out[start:start + len(commands)] = commands
             if q is not None:
                 q[start:start + len(commands)] = q_part
         return (out, q) if joints else out
 
     def command_chunks(self, poses: np.ndarray, iterations: int | None = None, previous: np.ndarray | None = None,
-                       chunk: int | None = None) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+                       chunk: int | None = None, joints: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         """``command`` chunk by chunk in row order: yields (first row, commands [n, 3], the
-        targets' joint angles [n, 6] deg or None), the same numbers as one ``command`` call (each
+        targets' joint angles [n, 6] deg if ``joints`` and the model has them, else None), the same numbers as one ``command`` call (each
         chunk takes its first row's previous pose, per iteration, from the chunk before), so a
         caller can use the first rows while the model runs on the next ones. ``chunk``: rows
         per chunk (default COMMAND_CHUNK)."""
         iterations = self.default_iterations if iterations is None else iterations
         if not 1 <= iterations <= MAX_ITERATIONS:
             raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code="P308")
-        return self._chunks(np.asarray(poses, dtype=float).reshape(-1, 6), iterations, previous, chunk or COMMAND_CHUNK)
+        return self._chunks(np.asarray(poses, dtype=float).reshape(-1, 6), iterations, previous, chunk or COMMAND_CHUNK,
+                            joints)
 
     def _chunks(self, poses: np.ndarray, iterations: int, previous: np.ndarray | None,
-                chunk: int) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+                chunk: int, joints: bool) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         chained = previous is None and self.wants_previous
         # the last row of the chunk before, after each iteration k (k = 0: the target itself)
         before: list[np.ndarray] | None = None
@@ -237,7 +238,7 @@ class Compensator:
                     prev = np.vstack([head, trial[:-1]])
                 else:
                     prev = None if previous is None else previous[start:start + chunk]
-                if k == 0:  # the first run is at the targets themselves: their joint angles
+                if k == 0 and joints:  # the first run is at the targets themselves: their joint angles
                     error, q = self.predict(trial, prev, joints=True)
                 else:
                     error = self.predict(trial, prev)

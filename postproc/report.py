@@ -120,12 +120,14 @@ AFTER_ATTITUDE_DEG = 0.01
 
 def _reached_after(path: Path, targets: np.ndarray) -> np.ndarray:
     """Positions reached in a measurement of the compensated program (``--after``), row by row."""
+    from .training.data import wrap_deg
+
     _, m = _read(path)
     if len(m) != len(targets):
         raise PostprocError(f"{len(m)} rows, the measurement before compensation has {len(targets)}: measure the "
                             "compensated program in the same order", str(path), code="P503")
     moved = np.linalg.norm(m.poses[:, :3] - targets[:, :3], axis=1)
-    turned = np.abs((m.poses[:, 3:] - targets[:, 3:] + 180.0) % 360.0 - 180.0).max(axis=1)
+    turned = np.abs(wrap_deg(m.poses[:, 3:] - targets[:, 3:])).max(axis=1)
     bad = np.flatnonzero((moved > AFTER_POSITION_MM) | (turned > AFTER_ATTITUDE_DEG))
     if len(bad):
         raise PostprocError(f"row does not belong to row {bad[0] + 1} before compensation (commanded pose "

@@ -86,12 +86,13 @@ def format_many(tokens: Sequence[str], values: np.ndarray) -> list[str]:
         chars = np.array(tokens)
         decimals = np.char.str_len(chars) - np.char.find(chars, ".") - 1
         return _format_plain(values, decimals)
-    out = []
-    for token, value in zip(tokens, values.tolist()):
-        if _PLAIN.match(token):
-            out.append(_format_plain(np.array([value]), np.array([len(token) - token.index(".") - 1]))[0])
-        else:
-            out.append(format_like(token, value))
+    # a mix: the plain tokens in bulk all the same, the others one by one
+    plain = [i for i, token in enumerate(tokens) if _PLAIN.match(token)]
+    out = [format_like(token, value) if not _PLAIN.match(token) else "" for token, value in zip(tokens, values.tolist())]
+    if plain:
+        decimals = np.array([len(tokens[i]) - tokens[i].index(".") - 1 for i in plain])
+        for i, text in zip(plain, _format_plain(values[plain], decimals)):
+            out[i] = text
     return out
 
 

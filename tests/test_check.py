@@ -341,3 +341,17 @@ def test_colour_only_on_a_terminal_without_no_color(affine, tmp_path, capsys, mo
     monkeypatch.setenv("NO_COLOR", "1")
     assert main(["check", str(path), "--model", model, "-q"]) == 1
     assert "\033[" not in capsys.readouterr().out
+
+
+def test_check_runs_the_model_once_for_a_clean_program(tmp_path, monkeypatch):
+    # the safety net (compensate_program) reuses check's commands instead of a second fixed point
+    from postproc.compensator import Compensator
+
+    path = tmp_path / "p.csv"
+    path.write_text("x,y,z,a,b,c\n2000,0,900,0,90,0\n2050,100,950,0,90,0\n")
+    model = load_model()
+    calls = []
+    real = Compensator.predict
+    monkeypatch.setattr(Compensator, "predict", lambda self, *a, **k: calls.append(1) or real(self, *a, **k))
+    assert check_files([path], model) == []
+    assert len(calls) == model.default_iterations

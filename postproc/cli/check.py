@@ -103,10 +103,9 @@ def run(args) -> int:
         print(f"postproc check: model {model.name} {model.sha256[:12]} ({model.path}); settings "
               f"{cfg.path or 'none'}", file=sys.stderr)
     options = dict(iterations=cfg.iterations, max_correction_mm=cfg.max_correction_mm or DEFAULT_MAX_CORRECTION_MM)
+    if args.robot:  # (into the settings too: --fresh compensates for the same robot)
+        cfg.robot, options["reachable"] = _robot(args.robot)
     options["robot"] = cfg.robot
-    if args.robot:
-        options["robot"], options["reachable"] = _robot(args.robot)
-        cfg.robot = options["robot"]  # --fresh compensates for the same robot
 
     findings = []
     if args.files:
