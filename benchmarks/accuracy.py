@@ -36,7 +36,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -47,11 +46,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from _common import cli as run_cli, krl_program  # noqa: E402
+from postproc.planning import read_pose_csv  # noqa: E402
+
 EVAL_SEEDS = (101, 102, 103, 104, 105)
 DEFAULT_DATA = "/work/shared/datasets/ipa-robot-accuracy"
 SERIES_C = "Series_C/measurements_random_poses.csv"
 FEW_REAL = 200  # the real-data row with as few training points as target 2
-# name → (train options, compensate options, uses the robot description)
+# name → (train options, compensate options); KINEMATIC: the methods that read the robot description
 METHODS: dict[str, tuple[list[str], list[str]]] = {
     "hybrid": ([], []),
     "hybrid-1step": ([], ["--iterations", "1"]),
@@ -65,22 +67,8 @@ ENV = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_TH
 
 
 def cli(*args: str) -> tuple[str, float]:
-    """Run `postproc ARGS` (niced); (stdout, wall seconds)."""
-    t0 = time.perf_counter()
-    run = subprocess.run(["nice", "-n", "5", sys.executable, "-m", "postproc", *args], cwd=ROOT, text=True,
-                         capture_output=True, env=ENV)
-    if run.returncode not in (0, 1):
-        raise SystemExit(f"postproc {' '.join(args)} failed ({run.returncode}):\n{run.stderr}")
-    return run.stdout, time.perf_counter() - t0
-
-
-def krl_program(name: str, csv: Path) -> str:
-    from postproc.planning import read_pose_csv
-
-    poses, _ = read_pose_csv(csv)
-    lines = [f"DEF {name}( )"] + ["  LIN {" + ",".join(f"{k} {v:.4f}" for k, v in zip("XYZABC", p)) + "}"
-                                  for p in poses]
-    return "\n".join(lines + ["END", ""])
+    """Run `postproc ARGS` niced, one thread per process: (stdout, wall seconds)."""
+    return run_cli(*args, nice=True, env=ENV)
 
 
 def sim_part(label: str, n_train: int, methods: list[str], seeds: list[int], work: Path) -> dict:
@@ -90,7 +78,7 @@ def sim_part(label: str, n_train: int, methods: list[str], seeds: list[int], wor
     if not held_csv.exists():
         cli("plan", "-n", "100", "--seed", "1000", "-o", str(held_csv), "-q")
     src = work / "held_out.src"
-    src.write_text(krl_program("held_out", held_csv))
+    src.write_text(krl_program("held_out", read_pose_csv(held_csv)[0]))
     results: dict = {"n_train": n_train, "seeds": seeds, "rows": []}
     print(f"\n== {label}: {n_train} training points (plan -n {n_train} --seed 0), 100 held-out targets "
           f"(plan -n 100 --seed 1000), robots {seeds}", flush=True)
@@ -143,7 +131,6 @@ def real_part(methods: list[str], data_dir: str, work: Path) -> dict:
     print(f"{'method':<13} {'mean':>7} {'max':>7} {'train':>7}  {'uncomp. mean':>12} {'max':>7}  {'train s':>7}")
     from postproc.compensator import load_model
 
-    done: dict[tuple, dict] = {}
     for method in methods:
         train_opts, comp_opts = METHODS[method]
         if comp_opts:
@@ -154,7 +141,6 @@ def real_part(methods: list[str], data_dir: str, work: Path) -> dict:
                          "--split-seed", "0", "--seed", "0", "-q", *robot, *train_opts)
         acc = load_model(model).metadata["accuracy"]
         row = {"method": method, "accuracy": acc, "train_s": seconds}
-        done[tuple(train_opts)] = row
         results["rows"].append(row)
         print(f"{method:<13} {acc['val_mean_mm']:7.4f} {acc['val_max_mm']:7.4f} {acc['train_mean_mm']:7.4f}  "
               f"{acc['val_uncompensated_mean_mm']:12.3f} {acc['val_uncompensated_max_mm']:7.3f}  {seconds:7.1f}",
@@ -178,6 +164,7 @@ def real_few(src: Path, n: int) -> dict:
     from postproc.datasets import read_ipa
     from postproc.registration import register_measurements
     from postproc.robot import load_description
+    from postproc.training import accuracy_card
     from postproc.training.data import split_indices
     from postproc.training.features import previous_poses
     from postproc.training.hybrid import HybridModel
@@ -195,12 +182,9 @@ def real_few(src: Path, n: int) -> dict:
     model = HybridModel(load_description(ROOT / "models" / "ur10.toml"), seed=0)
     model.fit(series.commanded[train], errors[train], previous[train], series.joints[train])
     seconds = time.perf_counter() - t0
-    residual = np.linalg.norm(errors[held] - model.predict(series.commanded[held], previous[held]), axis=1)
-    before = np.linalg.norm(errors[held], axis=1)
-    return {"method": f"hybrid-{n}", "train_s": seconds,
-            "accuracy": {"val_mean_mm": float(residual.mean()), "val_max_mm": float(residual.max()),
-                         "train_mean_mm": model.train_stats_["mean"], "val_uncompensated_mean_mm": float(before.mean()),
-                         "val_uncompensated_max_mm": float(before.max()), "n_train": n, "n_val": len(held)}}
+    accuracy = accuracy_card(errors[held], model.predict(series.commanded[held], previous[held]),
+                             model.train_stats_["mean"], n)
+    return {"method": f"hybrid-{n}", "train_s": seconds, "accuracy": accuracy}
 
 
 def main() -> None:

@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -36,6 +35,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from _common import cli, krl_program  # noqa: E402
 from postproc.training import ErrorModel  # noqa: E402
 from postproc.training.data import read_measurements, split_indices  # noqa: E402
 
@@ -47,21 +47,6 @@ PAPER = {  # Hu, Hua & Tian, Table 2 (mm): max, min, mean, std
 }
 METHODS = {"gpso": "GPSO-DNN", "ga": "GA-DNN", "pso": "PSO-DNN", "plain": "DNN (plain)"}
 KEYS = ("max", "min", "mean", "std")
-
-
-def cli(*args: str) -> str:
-    run = subprocess.run([sys.executable, "-m", "postproc", *args], cwd=ROOT, text=True, capture_output=True)
-    if run.returncode not in (0, 1):
-        raise SystemExit(f"postproc {' '.join(args)} failed ({run.returncode}):\n{run.stderr}")
-    return run.stdout
-
-
-def krl_program(name: str, poses: np.ndarray) -> str:
-    lines = [f"DEF {name}( )"]
-    lines += [
-        "  LIN {" + ",".join(f"{k} {v:.4f}" for k, v in zip("XYZABC", pose)) + "}" for pose in poses
-    ]
-    return "\n".join(lines + ["END", ""])
 
 
 def _model_method(path: Path) -> str:
@@ -142,7 +127,7 @@ def main() -> None:
                                   data_sha256=data.sha256)
                 comp = work / f"comp_{method}_{seed}.src"
                 cli("compensate", str(src), "-o", str(comp), "--model", str(onnx_path), "-q")
-                report = json.loads(cli("verify", str(src), str(comp), "--json", "-q"))
+                report = json.loads(cli("verify", str(src), str(comp), "--json", "-q")[0])
                 before = report["before"]
                 results.setdefault(method, []).append({"seed": seed, "after": report["after"], "fit_s": fit_s,
                                                       "init_fitness": model.init_.fitness,
@@ -152,7 +137,7 @@ def main() -> None:
                     for k in (1, 2, 3):
                         ck = work / f"comp_iter{k}.src"
                         cli("compensate", str(src), "-o", str(ck), "--model", str(onnx_path), "--iterations", str(k), "-q")
-                        iteration_check[k] = json.loads(cli("verify", str(src), str(ck), "--json", "-q"))["after"]
+                        iteration_check[k] = json.loads(cli("verify", str(src), str(ck), "--json", "-q")[0])["after"]
                 if method != "plain":
                     histories.setdefault(method, []).append(
                         {"seed": seed, "history": model.history_, "evaluations": evaluations_per_generation(method, model)})
@@ -166,7 +151,7 @@ def main() -> None:
             fit_s = time.perf_counter() - t
             comp = work / "comp_default.src"
             cli("compensate", str(src), "-o", str(comp), "--model", str(model_path), "-q")
-            default_row = json.loads(cli("verify", str(src), str(comp), "--json", "-q"))["after"]
+            default_row = json.loads(cli("verify", str(src), str(comp), "--json", "-q")[0])["after"]
             method_name = _model_method(model_path)
             print(f"  postproc train default ({method_name}): {fit_s:5.1f} s (whole command), "
                   f"mean after {default_row['mean']:.3f} mm", flush=True)

@@ -405,7 +405,8 @@ class SimulatedRobot:
         targets = np.atleast_2d(np.asarray(targets, float))
         commands = np.atleast_2d(np.asarray(commands, float))
         if targets.shape != commands.shape:
-            raise PostprocError(f"{len(targets)} targets but {len(commands)} commands: they must correspond row by row")
+            raise PostprocError(f"targets {targets.shape} but commands {commands.shape}: they must be poses [N, 6] "
+                                "that correspond row by row")
         if noise:
             seeds = np.random.SeedSequence(rng_seed).spawn(2)
             before = self.measure(targets, seeds[0])

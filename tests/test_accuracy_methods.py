@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.compensate import compensate_text
+from postproc.compensate import compensate_text, parse_program_text
 from postproc.compensator import load_model
+from postproc.datasets import write_measurements
 from postproc.planning import latin_hypercube
 from postproc.simulator import SimulatedRobot
 from postproc.training.features import previous_poses
@@ -31,8 +32,7 @@ def measured_csv(tmp_path_factory, sim):
     poses = latin_hypercube(300, seed=0)
     measured = sim.measure(poses, rng_seed=0)
     path = folder / "measured.csv"
-    rows = np.hstack([poses, measured])
-    path.write_text("x,y,z,a,b,c,x_meas,y_meas,z_meas\n" + "\n".join(",".join(f"{v:.6f}" for v in r) for r in rows) + "\n")
+    write_measurements(path, poses, measured)
     return path
 
 
@@ -64,15 +64,14 @@ def test_compensated_program_lands_on_target(hybrid_model, sim):
     targets = latin_hypercube(40, seed=1000)
     text, report = compensate_text(krl(targets), hybrid_model)
     assert report.compensated == 40
-    commands = np.array([[float(v.split()[1]) for v in line.strip()[5:-1].split(",")]
-                         for line in text.splitlines() if line.strip().startswith("LIN")])
+    commands = parse_program_text(text, "held.src").targets.poses
     result = sim.verify(targets, commands, rng_seed=0)
     assert result["before"]["mean"] > 0.5
     assert result["after"]["mean"] < 0.10  # target 2's 0.15 mm from 300 points, with margin
     assert result["after"]["max"] < 0.30
 
 
-def test_onnx_graph_agrees_with_torch(measured_csv):
+def test_onnx_graph_agrees_with_torch(measured_csv, tmp_path):
     from postproc.robot import load_description
     from postproc.training.data import read_measurements
     from postproc.training.hybrid import HybridModel
@@ -81,7 +80,7 @@ def test_onnx_graph_agrees_with_torch(measured_csv):
     prev = previous_poses(data.poses)
     model = HybridModel(load_description(), residual="always", ensemble=2, epochs=50, seed=0)
     model.fit(data.poses, data.errors, prev)
-    path = measured_csv.parent / "agree.onnx"
+    path = tmp_path / "agree.onnx"
     model.export_onnx(path, name="agree")
     onnx_model = load_model(path)
     held = latin_hypercube(200, seed=5)
