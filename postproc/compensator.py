@@ -191,38 +191,35 @@ class Compensator:
             return results[0]
         return results[0], (results[1] if len(results) > 1 else None)
 
-    def command(self, poses: np.ndarray, iterations: int | None = None, previous: np.ndarray | None = None,
-                joints: bool = False):
+    def command(self, poses: np.ndarray, iterations: int | None = None, joints: bool = False):
         """Commanded positions [N, 3] so that the robot lands on ``poses[:, :3]``: c = P + Ê(c).
         With ``joints``: (commands, the targets' joint angles [N, 6] deg or None; see ``predict``).
-
-        For a model with ``previous_pose``: ``previous`` [N, 6] as given, or None = the rows are
-        in program order and each target comes from the previous row's command."""
+        The rows are in program order: for a model with ``previous_pose`` each target comes from
+        the previous row's command."""
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         out = np.empty((len(poses), 3))
         q = np.empty((len(poses), 6)) if joints and self.has_joints else None
-        for start, commands, q_part in self.command_chunks(poses, iterations, previous, joints=joints):
+        for start, commands, q_part in self.command_chunks(poses, iterations, joints=joints):
             out[start:start + len(commands)] = commands
             if q is not None:
                 q[start:start + len(commands)] = q_part
         return (out, q) if joints else out
 
-    def command_chunks(self, poses: np.ndarray, iterations: int | None = None, previous: np.ndarray | None = None,
-                       chunk: int | None = None, joints: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
-        """``command`` chunk by chunk in row order: yields (first row, commands [n, 3], the
-        targets' joint angles [n, 6] deg if ``joints`` and the model has them, else None), the same numbers as one ``command`` call (each
-        chunk takes its first row's previous pose, per iteration, from the chunk before), so a
-        caller can use the first rows while the model runs on the next ones. ``chunk``: rows
-        per chunk (default COMMAND_CHUNK)."""
+    def command_chunks(self, poses: np.ndarray, iterations: int | None = None,
+                       joints: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+        """``command`` chunk by chunk (COMMAND_CHUNK rows) in row order: yields (first row,
+        commands [n, 3], the targets' joint angles [n, 6] deg if ``joints`` and the model has
+        them, else None), the same numbers as one ``command`` call (each chunk takes its first
+        row's previous pose, per iteration, from the chunk before), so a caller can use the
+        first rows while the model runs on the next ones."""
         iterations = self.default_iterations if iterations is None else iterations
         if not 1 <= iterations <= MAX_ITERATIONS:
             raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code="P308")
-        return self._chunks(np.asarray(poses, dtype=float).reshape(-1, 6), iterations, previous, chunk or COMMAND_CHUNK,
-                            joints)
+        return self._chunks(np.asarray(poses, dtype=float).reshape(-1, 6), iterations, joints)
 
-    def _chunks(self, poses: np.ndarray, iterations: int, previous: np.ndarray | None,
-                chunk: int, joints: bool) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
-        chained = previous is None and self.wants_previous
+    def _chunks(self, poses: np.ndarray, iterations: int,
+                joints: bool) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+        chunk = COMMAND_CHUNK  # (read at call time: tests make it small)
         # the last row of the chunk before, after each iteration k (k = 0: the target itself)
         before: list[np.ndarray] | None = None
         for start in range(0, len(poses), chunk):
@@ -231,13 +228,12 @@ class Compensator:
             last = [trial[-1].copy()]
             q = None
             for k in range(iterations):
-                if chained:
+                prev = None
+                if self.wants_previous:
                     # the pose commanded before each target is the previous target's *command*
                     # (the first target's is itself: nothing is known before it)
                     head = trial[:1] if before is None else before[k][None]
                     prev = np.vstack([head, trial[:-1]])
-                else:
-                    prev = None if previous is None else previous[start:start + chunk]
                 if k == 0 and joints:  # the first run is at the targets themselves: their joint angles
                     error, q = self.predict(trial, prev, joints=True)
                 else:
@@ -246,6 +242,7 @@ class Compensator:
                 last.append(trial[-1].copy())
             before = last
             yield start, trial[:, :3], q
+
 
 def load_model(path: str | Path | None = None) -> Compensator:
     """Load and check an ONNX compensator (default: the shipped ``models/default.onnx``)."""

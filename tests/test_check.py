@@ -317,15 +317,11 @@ def test_krl_module_stamps_and_freshness(affine, tmp_path, monkeypatch):
 def test_what_else_compensate_refuses_is_a_finding(affine):
     # a frame that is not finite: the targets' positions are unknown (P212, a warning only),
     # but compensate refuses the program: the in-memory compensation reports its P103
-    from postproc.programs import Frame
+    from conftest import program_in_base
 
-    text = "x,y,z\n2000.000,0.000,900.000\n"
-    builder = TargetsBuilder()
-    builder.add([2000.0, 0.0, 900.0, 0.0, 90.0, 0.0], [6, 14, 15, 20, 21, 28], 0, 2, 1, 0, 0)
     base = np.eye(4)
     base[0, 3] = np.nan
-    program = Program(["p.csv"], [text], builder.build(), [Frame(base, None, "BASE_DATA[3]")], dialect="poses",
-                      newlines=["\n"], comment="#")
+    program = program_in_base(base, [2000.0, 0.0, 900.0, 0.0, 90.0, 0.0], "BASE_DATA[3]")
     found = check_program(program, load_model(affine()))
     assert [(d.code, d.severity) for d in found] == [("P212", "warning"), ("P103", "error")]
     assert "BASE_DATA[3]" in found[1].message and failed(found)

@@ -6,14 +6,13 @@ import sys
 import numpy as np
 import pytest
 
-from postproc import frames
 from postproc.cli import main
 from postproc.compensate import compensate_program, compensate_text, robot_base_poses
 from postproc.compensator import load_model
 from postproc.diagnostics import PostprocError
-from postproc.programs import STAMP_PREFIX, Frame, Program, TargetsBuilder
+from postproc.programs import STAMP_PREFIX
 
-from conftest import REPO
+from conftest import REPO, program_in_base
 
 CSV = "# part\r\nname,x,y,z,a,b,c,feed\r\nP1,1950.1,12.5,880,0,90,0,100\r\nP2,2001.250,-12.5,900.,2,88,1,120\r\n"
 
@@ -50,20 +49,6 @@ def test_fixed_point_solves_c_equals_p_plus_error_of_c(affine):
     assert np.allclose(model.command(p, iterations=8)[0], exact, atol=1e-4)
     one_step = p[0, :3] + offset + gain @ (p[0, :3] - centre)
     assert np.allclose(model.command(p, iterations=1)[0], one_step, atol=1e-4)
-
-
-def program_in_base(base_frame, pose):
-    text = "x,y,z\n" + ",".join(f"{v:.3f}" for v in pose[:3]) + "\n"
-    b = TargetsBuilder()
-    start = text.index("\n") + 1
-    toks = text[start:].rstrip("\n").split(",")
-    spans, pos = [], start
-    for tok in toks:
-        spans += [pos, pos + len(tok)]
-        pos += len(tok) + 1
-    b.add(list(pose), spans, 0, 2, 1, 0, 0)
-    return Program(["p.csv"], [text], b.build(), [Frame(frames.frame_to_matrix(base_frame))], dialect="poses",
-                   newlines=["\n"], comment="#")
 
 
 def test_correction_is_mapped_back_into_the_program_base(affine):

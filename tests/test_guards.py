@@ -272,12 +272,13 @@ KRL_FRAME_VARIABLE = ("DEF cell( )\r\nLIN XP1\r\n$BASE = XP1\r\nLIN XP2\r\nEND\r
                       "DECL E6POS XP2={X 10.0,Y 20.0,Z 30.0,A 0.0,B 0.0,C 0.0}\r\nENDDAT\r\n")
 
 
-def krl_run(tmp_path, capsys, src, dat, model, *options):
+def krl_run(tmp_path, capsys, src, dat, model, *options, output="cell.src"):
+    """Compensate cell.src/.dat into tmp_path/out/``output``: (exit code, stderr, files in out/)."""
     (tmp_path / "cell.src").write_text(src, newline="")
     (tmp_path / "cell.dat").write_text(dat, newline="")
     out = tmp_path / "out"
     out.mkdir(exist_ok=True)
-    code = main(["compensate", str(tmp_path / "cell.src"), "-o", str(out / "cell.src"), "--model", str(model), *options])
+    code = main(["compensate", str(tmp_path / "cell.src"), "-o", str(out / output), "--model", str(model), *options])
     return code, capsys.readouterr().err, sorted(p.name for p in out.iterdir())
 
 
@@ -373,13 +374,10 @@ def test_position_used_in_two_frames_is_refused_unless_forced(tmp_path, capsys, 
 
 
 def test_module_files_onto_one_path_are_refused(tmp_path, capsys, affine):
-    (tmp_path / "cell.src").write_text("DEF cell( )\nLIN XP1\nEND\n")
-    (tmp_path / "cell.dat").write_text("DEFDAT cell\nDECL E6POS XP1={X 1900.0,Y 0.0,Z 900.0}\nENDDAT\n")
-    out = tmp_path / "out"
-    out.mkdir()
     # '-o x.dat' for a .src: the .dat would overwrite the .src just written
-    code = main(["compensate", str(tmp_path / "cell.src"), "-o", str(out / "x.dat"), "--model",
-                 str(affine(tool={"name": "any"}))])
-    err = capsys.readouterr().err
+    code, err, written = krl_run(tmp_path, capsys, "DEF cell( )\nLIN XP1\nEND\n",
+                                 "DEFDAT cell\nDECL E6POS XP1={X 1900.0,Y 0.0,Z 900.0}\nENDDAT\n",
+                                 affine(tool={"name": "any"}), output="x.dat")
+    out = tmp_path / "out"
     assert code == 2 and err.startswith(f"{out / 'x.dat'}: P110 two files of the program would both be written")
-    assert list(out.iterdir()) == []
+    assert written == []

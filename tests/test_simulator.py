@@ -136,3 +136,12 @@ def test_verify_reads_krl_with_frames(capsys):
     assert figures["before"] == figures["after"]  # the same program, no noise: the same positions
     assert 0.05 < figures["before"]["mean"] < 2.0
     assert "$TOOL" not in captured.err  # the sample uses the simulated robot's tool: nothing to warn about
+
+
+def test_verify_notes_a_program_tool_other_than_the_robots(tmp_path, capsys):
+    src = tmp_path / "p.src"
+    src.write_text("DEF p( )\n$TOOL = {X 10, Y 0, Z 250, A 0, B 0, C 0}\n"
+                   "LIN {X 2000, Y 0, Z 900, A 0, B 90, C 0}\nLIN {X 2050, Y 100, Z 950, A 0, B 90, C 0}\nEND\n")
+    assert main(["verify", str(src), str(src), "--json", "--no-noise"]) == 0
+    err = capsys.readouterr().err
+    assert "the program's $TOOL [10.0, 0.0, 250.0, 0.0, 0.0, 0.0] is not the simulated robot's tool" in err
