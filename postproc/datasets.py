@@ -21,14 +21,15 @@ P502 a value that is not a finite number, P503 wrong number of fields.
 """
 from __future__ import annotations
 
+import io
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .diagnostics import PostprocError
+from .rewrite import write_atomic
 
 __all__ = [
     "MEASUREMENT_COLUMNS",
@@ -216,17 +217,10 @@ def write_measurements(
     names = list(MEASUREMENT_COLUMNS) + list(extra)
     table = np.column_stack([commanded, measured] + [np.asarray(v, dtype=float) for v in extra.values()])
     comments = "".join(f"# {key}: {value}\n" for key, value in (metadata or {}).items())
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as out:
-            out.write(comments)
-            np.savetxt(out, table, fmt="%.12g", delimiter=",", header=",".join(names), comments="")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    text = io.StringIO()
+    text.write(comments)
+    np.savetxt(text, table, fmt="%.12g", delimiter=",", header=",".join(names), comments="")
+    write_atomic([(Path(path), text.getvalue().encode("utf-8"))])
 
 
 def read_metadata(path: str | os.PathLike) -> dict[str, str]:

@@ -139,8 +139,9 @@ def insert_stamp(text: str, stamp: str, newline: str, after_headers: str | None 
     return text[:pos] + stamp + newline + text[pos:]
 
 
-def write_atomic(outputs: Sequence[tuple[Path, str]]) -> None:
+def write_atomic(outputs: Sequence[tuple[Path, str | bytes]]) -> None:
     """Write all files or none: each to a temp file in its directory, then rename them all.
+    Texts are written as latin-1 (a program's bytes, as read); bytes as they are.
 
     If a rename fails, files already renamed are put back as they were. Two renames cannot
     be one atomic step, so for a module (.src + .dat) a journal naming the renames is
@@ -160,7 +161,7 @@ def write_atomic(outputs: Sequence[tuple[Path, str]]) -> None:
             fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
             temps.append((Path(tmp), path))
             with os.fdopen(fd, "wb") as fh:
-                fh.write(text.encode("latin-1"))
+                fh.write(text.encode("latin-1") if isinstance(text, str) else text)
                 fh.flush()
                 os.fsync(fh.fileno())
             if path.exists():

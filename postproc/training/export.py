@@ -10,14 +10,13 @@ never leaves a half-written model.
 from __future__ import annotations
 
 import io
-import os
-import tempfile
 import warnings
 from pathlib import Path
 
 import onnx
 import torch
 
+from .. import rewrite
 from ..compensator import INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, OUTPUT_JOINTS, contract_metadata
 from ..diagnostics import PostprocError
 
@@ -58,31 +57,13 @@ def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False, 
 
 
 def write_atomic(path: str | Path, data: bytes) -> Path:
-    """Write bytes to ``path`` via a temporary file in the same folder + os.replace."""
+    """Write bytes to ``path`` atomically (rewrite.write_atomic) into a folder that must exist."""
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise PostprocError(f"output folder does not exist: {folder}", str(path), code="P500")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        # mkstemp makes the file 0600; give it the mode a plain open() would (or the old file's)
-        os.chmod(tmp, path.stat().st_mode & 0o777 if path.exists() else 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    rewrite.write_atomic([(path, data)])
     return path
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def export_onnx(module: torch.nn.Module, path: str | Path, metadata: dict) -> Path:
