@@ -102,14 +102,14 @@ def model_card(model: Compensator) -> dict:
     return {"file": str(model.path), "sha256": model.sha256, **model.metadata}
 
 
-def _read(path: Path):
+def _read(path: Path, repeats: bool = False):
     from .training.data import parse_measurements  # numpy only; the one reader of this format
 
     try:
         data = path.read_bytes()
     except OSError as exc:
         raise PostprocError(f"cannot read measurement file: {exc.strerror or exc}", str(path), code="P500") from None
-    return data, parse_measurements(data, str(path))
+    return data, parse_measurements(data, str(path), repeats)
 
 
 # Rows of a re-measurement of the compensated program belong to the target rows if only X/Y/Z
@@ -122,7 +122,7 @@ def _reached_after(path: Path, targets: np.ndarray) -> np.ndarray:
     """Positions reached in a measurement of the compensated program (``--after``), row by row."""
     from .training.data import wrap_deg
 
-    _, m = _read(path)
+    _, m = _read(path, repeats=True)  # row by row against the targets: a pose may repeat (ISO 9283 cycles)
     if len(m) != len(targets):
         raise PostprocError(f"{len(m)} rows, the measurement before compensation has {len(targets)}: measure the "
                             "compensated program in the same order", str(path), code="P503")

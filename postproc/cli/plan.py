@@ -7,6 +7,8 @@ EXAMPLES = """examples:
   postproc plan -n 2000 --seed 0 -o plan.csv --krl measure.src
   postproc plan -n 500 --box 1800 2200 -400 400 600 1200 --attitude 0 90 0 --range 5 -o small.csv
   postproc plan -n 2000 --robot cell7.toml -o plan.csv        (box/attitude from its [workspace])
+  postproc plan --iso9283 -o iso.csv --krl iso.src             (ISO 9283 pose test, 30 cycles)
+  postproc plan --iso9283 --cube 2000 0 900 400 --cycles 10 -o iso.csv
 
 The plan is the visiting order: `postproc measure plan.csv -o measured.csv` simulates it,
 the KRL program drives a real robot through it (LIN, settle, $OUT[1] to the tracker, wait
@@ -37,6 +39,13 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--krl", metavar="SRC", help="also write a KRL measurement program (.src, module named after it)")
     p.add_argument("--wait", type=float, default=1.0, metavar="S",
                    help="settling time before each measurement (default 1 s)")
+    iso = p.add_argument_group("ISO 9283 pose test (instead of the Latin hypercube)")
+    iso.add_argument("--iso9283", action="store_true",
+                     help="the standard's pose test: P1..P5 in the diagonal plane of the largest cube of the box "
+                     "(reachable), cycles P1 P5 P4 P3 P2 at the working attitude; CSV gets pose,cycle columns")
+    iso.add_argument("--cube", type=float, nargs=4, metavar=("CX", "CY", "CZ", "SIDE"),
+                     help="a given test cube (centre and side, mm) instead of the largest one")
+    iso.add_argument("--cycles", type=int, default=30, metavar="N", help="cycles (the standard: 30)")
     p.set_defaults(run=run)
 
 
@@ -60,6 +69,10 @@ def run(args) -> int:
     range_deg = args.range if args.range is not None else ws.get("range", DEFAULT_RANGE)
     if args.krl is not None and Path(args.krl).suffix.lower() != ".src":
         raise PostprocError(f"--krl {args.krl}: a KRL program is a .src file", code="P512")
+    if args.iso9283:
+        from .iso9283 import run_plan
+
+        return run_plan(args, description, box, attitude)
     with stages(["sample", "reach check (IK)", "write"], "plan", show_progress(args)) as stage:
         stage("sample")
         poses = round_poses(latin_hypercube(args.poses, box, attitude, range_deg, args.seed))

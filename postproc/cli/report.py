@@ -6,6 +6,7 @@ import sys
 EXAMPLES = """examples:
   postproc report measured.csv --model models/cell7.onnx -o report/
   postproc report before.csv --after after.csv --model models/cell7.onnx -o report/
+  postproc report --iso9283 iso_before.csv --after iso_after.csv -o cert/   (ISO 9283 + certificate)
 
   # on the simulated robot: measure a test plan as written and as compensated
   postproc plan -n 300 --seed 2 -o test.csv
@@ -41,6 +42,9 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--after", metavar="AFTER.csv",
                    help="measurement of the compensated program (same rows, same order): the measured 'after'")
     p.add_argument("--title", default="Positioning accuracy", help="heading of report.md")
+    p.add_argument("--iso9283", action="store_true",
+                   help="ISO 9283 pose test: cluster rows to their poses, AP/RP per pose before (and --after) "
+                   "compensation; writes iso9283.json and the certificate (certificate.md/.html/.png)")
     p.set_defaults(run=run)
 
 
@@ -54,6 +58,10 @@ def run(args) -> int:
         import matplotlib  # noqa: F401  (only to fail early with a clear message)
     except ImportError:
         raise PostprocError("postproc report needs matplotlib: pip install 'postproc[report]'") from None
+    if args.iso9283:  # the model only for the certificate's card: never a default that may be another robot's
+        from .iso9283 import run_report
+
+        return run_report(args, load_model(args.model) if args.model else None)
     model = load_model(args.model or load_config().model)
     data = read_report_data(args.measured, model, args.after)
     files = write_report(data, args.output, args.title)

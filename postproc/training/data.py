@@ -77,8 +77,9 @@ def read_measurements(path: str | Path) -> Measurements:
     return parse_measurements(data, str(path))
 
 
-def parse_measurements(data: bytes, path: str = "<data>") -> Measurements:
-    """Parse the bytes of a measurement CSV (see the module docstring)."""
+def parse_measurements(data: bytes, path: str = "<data>", repeats: bool = False) -> Measurements:
+    """Parse the bytes of a measurement CSV (see the module docstring). Rows repeating a pose
+    are refused (P504) unless ``repeats`` (a repeatability test, ISO 9283, measures each pose n times)."""
     sha = hashlib.sha256(data).hexdigest()
     # any byte decodes as latin-1; numbers and names are ASCII anyway (a UTF-8 BOM is dropped)
     text = data.removeprefix(b"\xef\xbb\xbf").decode("latin-1")
@@ -103,7 +104,8 @@ def parse_measurements(data: bytes, path: str = "<data>") -> Measurements:
     table, line_numbers = parse_rows(lines, first, header, index, path)
     if not len(table):
         raise PostprocError("measurement file has a header but no data rows", path, code="P500")
-    _check_duplicates(table[:, :6], line_numbers, path)
+    if not repeats:
+        _check_duplicates(table[:, :6], line_numbers, path)
     holdout = table[:, 9] != 0 if table.shape[1] > 9 else None
     return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout,
                         _joint_columns(lines, first, header, path))

@@ -1,0 +1,252 @@
+"""The calibration certificate: one page a customer files when a cell is signed off.
+
+It states what was tested (robot, tool, measurement device, the measured files and their
+sha256, the date of issue), the ISO 9283 pose figures before and after compensation, the
+method's Table 2 of the positioning-error norms, the identified parameters that moved and a
+plot. Anything the inputs do not record is printed as "not recorded", never guessed.
+
+One list of blocks (headings, paragraphs, tables, images) is rendered twice: as Markdown
+(``certificate.md`` beside ``certificate.png``) and as one self-contained HTML page
+(``certificate.html``: inline CSS, the PNG inlined as base64, no external reference, so it
+opens offline). ``iso9283.json`` holds every number. matplotlib is imported only to plot.
+"""
+from __future__ import annotations
+
+import base64
+import datetime as _dt
+import html
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .diagnostics import PostprocError
+from .iso9283 import IsoResult, iso_summary
+from .stats import table2
+
+__all__ = ["NOT_RECORDED", "certificate_blocks", "render_markdown", "render_html", "write_certificate"]
+
+NOT_RECORDED = "not recorded"
+PLOT = "certificate.png"
+MAX_POSE_ROWS = 12  # the page lists this many poses (worst AP first when there are more); all in iso9283.json
+
+
+def _card_value(card: dict, key: str):
+    value = card.get(key)
+    if isinstance(value, dict):
+        value = value.get("name")
+    return value if value not in (None, "") else None
+
+
+UNIT_SUFFIXES = ("_deg", "_mm", "_rad", "_mm_per_n", "_deg_per_nm")
+
+
+def _moved_parameters(card: dict) -> list[list[str]]:
+    """Rows (parameter, value, uncertainty) of the identified parameters that moved from their
+    nominal value: the non-zero numbers of the model card's ``identified`` whose key names a
+    unit (``backlash_deg`` …; orders, branches and flags are not parameters). The uncertainty
+    comes from ``identified_std`` (same keys) where the card has it."""
+    rows = []
+    identified = card.get("identified") or {}
+    uncertainty = card.get("identified_std") or {}
+    for key, value in identified.items():
+        if not key.endswith(UNIT_SUFFIXES) or not _numeric(value):
+            continue
+        values = np.asarray(value, dtype=float).ravel()
+        if not np.any(values != 0):
+            continue
+        std = uncertainty.get(key)
+        shown = ", ".join(f"{v:.5g}" for v in values)
+        rows.append([key, shown, ", ".join(f"{v:.2g}" for v in np.ravel(std)) if std is not None else NOT_RECORDED])
+    if "ripple" in identified:
+        rows.append(["gear-ripple orders (joint, harmonic)",
+                     "; ".join(f"A{j} ×{h}" for j, h in identified["ripple"]), "–"])
+    return rows
+
+
+def _numeric(value) -> bool:
+    try:
+        return np.asarray(value, dtype=float).size > 0
+    except (TypeError, ValueError):
+        return False
+
+
+def _f(v, digits: int = 3) -> str:
+    return "–" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{digits}f}"
+
+
+def certificate_blocks(result: IsoResult, card: dict | None = None, date: str | None = None,
+                       plot: str | None = PLOT) -> list[tuple]:
+    """The certificate's content as blocks: ("h1"|"h2"|"p", text), ("table", header, rows),
+    ("img", file, caption)."""
+    card = card or {}
+    meta = result.meta or {}
+    date = date or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    b, a = result.before, result.after
+    robot = _card_value(card, "robot") or meta.get("robot")
+    tool = _card_value(card, "tool") or meta.get("tool")
+    device = meta.get("device") or meta.get("tracker")
+    identity = [
+        ["robot", robot or NOT_RECORDED],
+        ["tool", tool or NOT_RECORDED],
+        ["measurement device", device or f"{NOT_RECORDED} (no '# device:' line in the measurement file)"],
+        ["measured, before", f"{Path(result.source).name} — sha256 {result.source_sha256}"],
+        ["measured, after", f"{Path(result.after_source).name} — sha256 {result.after_sha256}" if a is not None
+         else "no measurement of the compensated program (before only)"],
+        ["model", f"{card.get('name', '')} — sha256 {card.get('sha256', '')}" if card.get("sha256")
+         else NOT_RECORDED],
+        ["frame of the measurements", meta.get("frame", "base") + (f"; {meta['registration']}"
+                                                                    if meta.get("registration") else "")],
+        ["date of issue", date],
+    ]
+    blocks: list[tuple] = [("h1", "Calibration certificate — ISO 9283 pose test"), ("table", ["", ""], identity)]
+
+    order = np.argsort(-b.ap, kind="stable")[:MAX_POSE_ROWS] if len(b) > MAX_POSE_ROWS else np.arange(len(b))
+    header = ["pose", "n", "X, Y, Z (mm)", "AP before", "RP before"] + (["AP after", "RP after"] if a else [])
+    rows = []
+    for k in order:
+        row = [f"P{k + 1}", str(b.n[k]), ", ".join(f"{v:.1f}" for v in b.command[k, :3]), _f(b.ap[k]), _f(b.rp[k])]
+        if a is not None:
+            row += [_f(a.ap[k]), _f(a.rp[k])]
+        rows.append(row)
+    summary = iso_summary(result)
+    ob = summary["before"]["overall"]
+    worst = ["all poses (worst)", f"{b.n.min()}–{b.n.max()}", "", _f(ob["AP_max"]), _f(ob["RP_max"])]
+    if a is not None:
+        oa = summary["after"]["overall"]
+        worst += [_f(oa["AP_max"]), _f(oa["RP_max"])]
+    rows.append(worst)
+    shown = "" if len(order) == len(b) else f" The {len(order)} of {len(b)} poses with the largest AP before are listed."
+    blocks += [("h2", "ISO 9283 pose accuracy (AP) and repeatability (RP), mm"), ("table", header, rows),
+               ("p", "AP: distance of the barycentre of the attained positions from the command (ISO 9283:1998 "
+                     "§7.2.1); RP = l̄ + 3·S_l (§7.2.2). n = cycles measured per pose." + shown)]
+    if b.n.min() < 30:
+        blocks.append(("p", f"Fewer than the standard's 30 cycles at {int((b.n < 30).sum())} of {len(b)} poses: "
+                            "the standard's formulas, not a test to the standard."))
+    if b.ap_abc is not None:
+        o_rows = [[f"P{k + 1}"] + [_f(v, 4) for v in b.ap_abc[k]] + [_f(v, 4) for v in b.rp_abc[k]] for k in order]
+        blocks += [("h2", "Orientation (deg, before)"),
+                   ("table", ["pose", "APa", "APb", "APc", "RPa ±", "RPb ±", "RPc ±"], o_rows)]
+    else:
+        blocks.append(("p", "Orientation: " + NOT_RECORDED + " (no a_meas, b_meas, c_meas columns)."))
+
+    t_before = table2(np.linalg.norm(result.deviation, axis=1))
+    t_rows = [["before"] + [_f(t_before[k]) for k in ("max", "min", "mean", "std")]]
+    if result.deviation_after is not None:
+        t_after = table2(np.linalg.norm(result.deviation_after, axis=1))
+        t_rows.append(["after, measured"] + [_f(t_after[k]) for k in ("max", "min", "mean", "std")])
+    blocks += [("h2", "Table 2: positioning-error norm over all rows, mm"),
+               ("table", ["", "max", "min", "mean", "std"], t_rows)]
+
+    moved = _moved_parameters(card)
+    blocks.append(("h2", "Identified parameters that moved"))
+    if moved:
+        blocks.append(("table", ["parameter", "identified value", "uncertainty (1σ)"], moved))
+        if not card.get("identified_std"):
+            blocks.append(("p", "Uncertainty: " + NOT_RECORDED + " in the model card."))
+        if card.get("structure"):
+            blocks.append(("p", f"Model structure: {card['structure']}; the model card records only the values "
+                                "listed here, the others are " + NOT_RECORDED + "."))
+    else:
+        blocks.append(("p", NOT_RECORDED + (" (no model given)" if not card else " (the model card lists none)")))
+    if plot:
+        blocks.append(("img", plot, "AP and RP per pose, before and after compensation"))
+    return blocks
+
+
+def _md_cell(text: str) -> str:
+    return str(text).replace("|", "¦")
+
+
+def render_markdown(blocks: list[tuple]) -> str:
+    out: list[str] = []
+    for block in blocks:
+        kind = block[0]
+        if kind == "h1":
+            out += [f"# {block[1]}", ""]
+        elif kind == "h2":
+            out += [f"## {block[1]}", ""]
+        elif kind == "p":
+            out += [block[1], ""]
+        elif kind == "table":
+            header, rows = block[1], block[2]
+            out.append("| " + " | ".join(_md_cell(h) for h in header) + " |")
+            out.append("|" + "|".join("---" for _ in header) + "|")
+            out += ["| " + " | ".join(_md_cell(c) for c in row) + " |" for row in rows]
+            out.append("")
+        elif kind == "img":
+            out += [f"![{block[2]}]({block[1]})", ""]
+    return "\n".join(out)
+
+
+CSS = """body{font-family:DejaVu Sans,Arial,sans-serif;max-width:1100px;margin:24px auto;color:#111;font-size:14px}
+h1{font-size:22px;border-bottom:2px solid #333;padding-bottom:6px}h2{font-size:16px;margin-top:18px}
+table{border-collapse:collapse;margin:6px 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}
+td:first-child,th:first-child{text-align:left}table.kv td{text-align:left}img{max-width:100%}p{margin:6px 0}"""
+
+
+def render_html(blocks: list[tuple], folder: Path) -> str:
+    """One self-contained page: images from ``folder`` inlined as base64 data URIs."""
+    out = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+           "<title>Calibration certificate</title>", f"<style>{CSS}</style></head><body>"]
+    for block in blocks:
+        kind = block[0]
+        if kind in ("h1", "h2", "p"):
+            out.append(f"<{kind}>{html.escape(block[1])}</{kind}>")
+        elif kind == "table":
+            header, rows = block[1], block[2]
+            out.append("<table>" if any(header) else '<table class="kv">')
+            if any(header):
+                out.append("<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in header) + "</tr>")
+            out += ["<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows]
+            out.append("</table>")
+        elif kind == "img":
+            data = base64.b64encode((folder / block[1]).read_bytes()).decode("ascii")
+            out.append(f'<img alt="{html.escape(block[2])}" src="data:image/png;base64,{data}">')
+    out.append("</body></html>")
+    return "\n".join(out) + "\n"
+
+
+def write_plot(result: IsoResult, path: Path, max_poses: int = 40) -> None:
+    """AP and RP per pose, before and after (bars), 1400 × 560 px."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    b, a = result.before, result.after
+    k = np.arange(min(len(b), max_poses))
+    fig = Figure(figsize=(14, 5.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    for i, (name, pick) in enumerate((("AP", lambda f: f.ap), ("RP", lambda f: f.rp))):
+        ax = fig.add_subplot(1, 2, i + 1)
+        width = 0.4 if a is not None else 0.8
+        ax.bar(k - (width / 2 if a is not None else 0), pick(b)[k], width, label="before", color="tab:red")
+        if a is not None:
+            ax.bar(k + width / 2, pick(a)[k], width, label="after (measured)", color="tab:blue")
+        ax.set_xticks(k, [f"P{j + 1}" for j in k], rotation=90 if len(k) > 10 else 0, fontsize=8)
+        ax.set_ylabel(f"{name} (mm)")
+        ax.set_title(f"pose {'accuracy' if name == 'AP' else 'repeatability'} {name} per pose"
+                     + ("" if len(k) == len(b) else f" (first {len(k)} of {len(b)})"))
+        ax.legend()
+        ax.grid(axis="y", alpha=0.3)
+    fig.savefig(path, dpi=100, metadata={"Software": None})
+
+
+def write_certificate(result: IsoResult, folder: str | Path, model=None, date: str | None = None) -> dict[str, Path]:
+    """Write iso9283.json, certificate.png, certificate.md and certificate.html into ``folder``."""
+    from .report import model_card
+
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise PostprocError(f"cannot create the report folder: {exc.strerror}", str(folder), code="P107") from None
+    card = model_card(model) if model is not None else {}
+    numbers = iso_summary(result)
+    (folder / "iso9283.json").write_text(json.dumps(numbers, indent=1) + "\n", encoding="utf-8")
+    write_plot(result, folder / PLOT)
+    blocks = certificate_blocks(result, card, date)
+    (folder / "certificate.md").write_text(render_markdown(blocks), encoding="utf-8")
+    (folder / "certificate.html").write_text(render_html(blocks, folder), encoding="utf-8")
+    return {"iso9283_json": folder / "iso9283.json", "plot": folder / PLOT,
+            "certificate_md": folder / "certificate.md", "certificate_html": folder / "certificate.html"}
