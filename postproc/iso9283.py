@@ -29,7 +29,10 @@ When the commands of one pose are not bit-identical (a data set whose planner ji
 by a fraction of a millimetre, as IPA Series D), the same formulas are applied to the
 deviations d_j = attained_j − command_j: x̄ − x_c becomes the mean of d_j, and l_j the distance
 of d_j from that mean. With identical commands this is exactly the standard's figure.
-Angles are compared wrapped to (−180°, 180°]. numpy only.
+Orientation deviations a_j − a_c, b_j − b_c, c_j − c_c are taken as rotations about the base
+X, Y, Z axes (the rotation vector of R_attained·R_commandᵀ, :func:`orientation_deviation`),
+not as differences of KUKA A, B, C, which are undefined at the usual B = 90° attitude.
+numpy only.
 """
 from __future__ import annotations
 
@@ -48,10 +51,11 @@ __all__ = [
     "ORIENTATION_COLUMNS",
     "IsoCube",
     "largest_cube",
-    "test_plan",
+    "pose_test_plan",
     "iso_test",
     "iso_plan_csv_text",
     "cluster_poses",
+    "orientation_deviation",
     "PoseFigures",
     "pose_figures",
     "IsoResult",
@@ -122,7 +126,7 @@ def _with_attitude(points: np.ndarray, attitude) -> np.ndarray:
     return np.hstack([points, np.broadcast_to(np.asarray(attitude, float), (len(points), 3))])
 
 
-def test_plan(cube: IsoCube, attitude=(0.0, 90.0, 0.0), cycles: int = ISO_CYCLES) -> tuple[np.ndarray, np.ndarray]:
+def pose_test_plan(cube: IsoCube, attitude=(0.0, 90.0, 0.0), cycles: int = ISO_CYCLES) -> tuple[np.ndarray, np.ndarray]:
     """The test's visiting order: ``cycles`` × (P1, P5, P4, P3, P2) at ``attitude``.
     Returns poses [5·cycles, 6] and their pose numbers [5·cycles] (1…5)."""
     if cycles < 1:
@@ -135,7 +139,7 @@ def test_plan(cube: IsoCube, attitude=(0.0, 90.0, 0.0), cycles: int = ISO_CYCLES
 def iso_test(box, attitude, reachable=None, cube: IsoCube | None = None,
              cycles: int = ISO_CYCLES) -> tuple[IsoCube, np.ndarray, np.ndarray]:
     """The whole test plan: ``cube`` (or the largest reachable one of ``box``), its poses in
-    visiting order and their pose numbers (see :func:`test_plan`). P335 if a given cube's
+    visiting order and their pose numbers (see :func:`pose_test_plan`). P335 if a given cube's
     points are out of reach."""
     if cube is None:
         cube = largest_cube(box, reachable, attitude)
@@ -145,7 +149,7 @@ def iso_test(box, attitude, reachable=None, cube: IsoCube | None = None,
         ok = np.asarray(reachable(_with_attitude(cube.points(), attitude)))
         if not ok.all():
             raise PostprocError(f"P{int(np.flatnonzero(~ok)[0]) + 1} of the given cube is out of reach", code="P335")
-    poses, numbers = test_plan(cube, attitude, cycles)
+    poses, numbers = pose_test_plan(cube, attitude, cycles)
     return cube, poses, numbers
 
 
@@ -170,18 +174,23 @@ def cluster_poses(commanded: np.ndarray, position_mm: float = POSITION_TOLERANCE
                   attitude_deg: float = ATTITUDE_TOLERANCE_DEG, chunk: int = 2048) -> np.ndarray:
     """Rows [N, 6] → pose labels [N] (0…K−1, numbered by first appearance): rows belong to one
     nominal pose when a chain of rows links them, each link closer than ``position_mm`` and
-    with A, B, C within ``attitude_deg`` (connected components, by label propagation over
-    chunked distance blocks)."""
+    with orientations less than ``attitude_deg`` apart (the angle of R₁ᵀR₂, so that two A,B,C
+    triples of one rotation — at B = ±90° A and C trade — are one pose). Connected components
+    by label propagation over chunked distance blocks."""
+    from .frames import rotation_from_abc
+
     poses = np.asarray(commanded, float)
     n = len(poses)
+    flat = rotation_from_abc(poses[:, 3:]).reshape(n, 9)  # trace(R1ᵀ R2) = flat1 · flat2
+    cos_limit = 1.0 + 2.0 * math.cos(math.radians(attitude_deg))
     labels = np.arange(n)
     while True:
         new = labels.copy()
         for start in range(0, n, chunk):
-            block = poses[start:start + chunk]
-            near = (np.linalg.norm(block[:, None, :3] - poses[None, :, :3], axis=2) < position_mm) & \
-                   (np.abs(_wrap(block[:, None, 3:] - poses[None, :, 3:])).max(axis=2) < attitude_deg)
-            new[start:start + chunk] = np.where(near, labels[None, :], n).min(axis=1)
+            block = slice(start, start + chunk)
+            near = (np.linalg.norm(poses[block, None, :3] - poses[None, :, :3], axis=2) < position_mm) & \
+                   (flat[block] @ flat.T > cos_limit)
+            new[block] = np.where(near, labels[None, :], n).min(axis=1)
         new = new[new]  # pointer jumping: follow the smallest label one more step
         if np.array_equal(new, labels):
             break
@@ -189,6 +198,23 @@ def cluster_poses(commanded: np.ndarray, position_mm: float = POSITION_TOLERANCE
     _, first, inverse = np.unique(labels, return_index=True, return_inverse=True)
     rank = np.argsort(np.argsort(first))  # clusters numbered by the row where each first appears
     return rank[inverse.ravel()]
+
+
+def orientation_deviation(commanded_abc: np.ndarray, attained_abc: np.ndarray) -> np.ndarray:
+    """[N, 3] deg: the attained orientation's deviation from the command as rotations about the
+    base X, Y, Z axes (rotation vector of R_attained·R_commandᵀ). For the small deviations of a
+    pose test these are the a, b, c deviations about the base axes, and they stay defined at
+    B = ±90°, where KUKA's A and C (and so ā − a_c) are not."""
+    from .frames import rotation_from_abc
+
+    r = rotation_from_abc(np.asarray(attained_abc, float)) @ np.swapaxes(
+        rotation_from_abc(np.asarray(commanded_abc, float)), 1, 2)
+    vee = np.stack([r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0], r[:, 1, 0] - r[:, 0, 1]], axis=1) / 2.0
+    sin = np.linalg.norm(vee, axis=1)
+    angle = np.arctan2(sin, (np.trace(r, axis1=1, axis2=2) - 1.0) / 2.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.where(sin > 1e-12, angle / sin, 1.0)
+    return np.degrees(vee * scale[:, None])
 
 
 # --------------------------------------------------------------------------- figures
@@ -252,7 +278,7 @@ def pose_figures(commanded: np.ndarray, attained: np.ndarray, labels: np.ndarray
         rp=l_mean + 3.0 * s_l,
     )
     if attained_abc is not None:
-        da = _wrap(np.asarray(attained_abc, float) - commanded[:, 3:])
+        da = orientation_deviation(commanded[:, 3:], attained_abc)
         figures.ap_abc = _group_mean(da, labels, k, counts)
         figures.rp_abc = 3.0 * _group_std(da, labels, k, counts)
     return figures
