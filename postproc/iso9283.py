@@ -72,10 +72,6 @@ POSITION_TOLERANCE_MM = 1.0  # rows whose commands lie closer than this are one 
 ATTITUDE_TOLERANCE_DEG = 0.5  # … if their A, B, C also agree within this
 
 
-def _wrap(deg: np.ndarray) -> np.ndarray:
-    return (np.asarray(deg, float) + 180.0) % 360.0 - 180.0
-
-
 @dataclass(frozen=True)
 class IsoCube:
     """An axis-parallel test cube (robot base frame, mm)."""
@@ -225,7 +221,7 @@ class PoseFigures:
     """ISO 9283 figures of every pose (arrays over K poses; mm, deg)."""
 
     n: np.ndarray  # [K] cycles measured
-    command: np.ndarray  # [K, 6] mean command of the pose
+    command: np.ndarray  # [K, 6] mean commanded position, the first row's A, B, C
     ap_xyz: np.ndarray  # [K, 3] APx, APy, APz
     ap: np.ndarray  # [K] AP_P
     l_mean: np.ndarray  # [K] l̄
@@ -266,8 +262,7 @@ def pose_figures(commanded: np.ndarray, attained: np.ndarray, labels: np.ndarray
     l_mean = _group_mean(l[:, None], labels, k, counts)[:, 0]
     s_l = _group_std(l[:, None], labels, k, counts)[:, 0]
     command = commanded[:, :3].copy()
-    attitude_ref = commanded[np.unique(labels, return_index=True)[1], 3:]  # one row's A,B,C per pose
-    attitude = attitude_ref + _group_mean(_wrap(commanded[:, 3:] - attitude_ref[labels]), labels, k, counts)
+    attitude = commanded[np.unique(labels, return_index=True)[1], 3:]  # the first row's A,B,C: a valid rotation
     figures = PoseFigures(
         n=counts.astype(int),
         command=np.hstack([_group_mean(command, labels, k, counts), attitude]),
