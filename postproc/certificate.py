@@ -227,7 +227,9 @@ def write_plot(result: IsoResult, path: Path, max_poses: int = 40) -> None:
         ax.set_ylabel(f"{name} (mm)")
         ax.set_title(f"pose {'accuracy' if name == 'AP' else 'repeatability'} {name} per pose"
                      + ("" if len(k) == len(b) else f" (first {len(k)} of {len(b)})"))
-        ax.legend()
+        top = np.nanmax(np.r_[pick(b)[k], pick(a)[k] if a is not None else []]) if len(k) else 1.0
+        ax.set_ylim(0.0, 1.25 * top if np.isfinite(top) and top > 0 else 1.0)  # room for the legend above the bars
+        ax.legend(loc="upper right", ncol=2)
         ax.grid(axis="y", alpha=0.3)
     fig.savefig(path, dpi=100, metadata={"Software": None})
 
