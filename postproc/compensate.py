@@ -259,7 +259,7 @@ def compensate_program(
         index, stamp = next(iter(program.stamps.items()))
         raise PostprocError(f"already compensated ({stamp.lstrip(';# ')}); use --force to compensate again",
                             program.files[index], 1, 1, "P401")
-    mismatch = tool_mismatch(program, model)
+    mismatch = None if model.wants_tool else tool_mismatch(program, model)  # (a model with a tool input: any)
     if mismatch and not force:
         raise PostprocError(mismatch + "; use --force to compensate anyway", program.files[0], 1, 1, "P304")
     mismatch = robot_mismatch(robot, model)
@@ -311,6 +311,10 @@ def compensate_program(
         path, line, col = _where(program, int(rows[far][0]))
         raise PostprocError(f"target beyond the robot's reach ({int(far.sum())} such targets): no model can compensate there",
                             path, line, col, "P302")
+    q_in = tool_in = None
+    if model.wants_joints or model.wants_tool:
+        rows, sel, q_in, tool_in, found = controller_inputs(program, model, rows, sel)
+        warnings += found
     envelope = model.envelope
     if envelope is not None:
         outside = envelope.outside(sel)
@@ -329,7 +333,7 @@ def compensate_program(
     report.iterations = model.default_iterations if iterations is None else iterations
     if _commands is not None and len(_commands[0]) != len(sel):
         raise ValueError(f"_commands has {len(_commands[0])} rows for {len(sel)} targets")
-    stream = _CommandStream(model, sel, report.iterations, program, rows, max_correction_mm, _commands)
+    stream = _CommandStream(model, sel, report.iterations, program, rows, max_correction_mm, _commands, q_in, tool_in)
     try:
         outputs = [_rewrite_file(program, index, text, rows, stream) for index, text in enumerate(program.texts)]
     except _Unsafe:
@@ -382,6 +386,59 @@ def compensate_program(
     return report
 
 
+# --------------------------------------------------------------------------- joints and tool
+
+
+def model_description(model: Compensator):
+    """The robot description of the model's robot (the shipped ``models/*.toml`` whose
+    [robot] name is the card's ``robot``), or None."""
+    from .resources import model_path
+    from .robot import load_description
+
+    folder = model_path("kr500.toml").parent
+    for path in sorted(folder.glob("*.toml")):
+        description = load_description(path)
+        if model.robot and description.name.casefold() == model.robot.casefold():
+            return description
+    return None
+
+
+def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, sel: np.ndarray):
+    """The model's ``joints`` / ``tool`` inputs for targets ``rows`` at base poses ``sel``:
+    (rows kept, their poses, joint angles [n, 6] deg or None, TCPs [n, 6] or None, warnings).
+    Targets whose configuration has no joint angles on the nominal arm (P309) are left as
+    written. The tool is the program's $TOOL where known, else the model's (its card)."""
+    from . import configuration
+    from .robot import Robot
+
+    description = model_description(model)
+    if description is None:
+        raise PostprocError(f"the model takes joint angles and postproc has no robot description for its robot "
+                            f"{model.robot or '(none named)'}", str(model.path), 0, 0, "P311")
+    card_tool = model.tool.get("frame") if model.tool else None
+    default_tool = np.asarray(card_tool if card_tool is not None else description.tool, float)
+    tools = np.tile(default_tool, (len(rows), 1))
+    t = program.targets
+    for f in np.unique(t.frame[rows]):
+        if program.frames[f].tool is not None:
+            tools[t.frame[rows] == f] = program.frames[f].tool
+    warnings: list[Diagnostic] = []
+    q = None
+    if model.wants_joints:
+        robot = Robot(description.replace(tool=default_tool))
+        start, _ = robot.ik(sel[:1], robot.home_q)
+        if model.has_joints and np.isfinite(start).all():  # the branch of the model's own IK
+            _, own = model.predict(sel[:1], joints=True, q=start, tool=tools[:1] if model.wants_tool else None)
+            start = own if np.isfinite(own).all() else start
+        q, ok = configuration.target_joints(robot, t, rows, sel, tools,
+                                            start[0] if np.isfinite(start).all() else None)
+        if not ok.all():
+            warnings += _collect(program, rows[~ok], "P309", "no joint angles for this target in its arm configuration "
+                                 "(S/T, or the one its motion keeps) on the nominal robot: left as it is")
+            rows, sel, q, tools = rows[ok], sel[ok], q[ok], tools[ok]
+    return rows, sel, q, (tools if model.wants_tool else None), warnings
+
+
 # Edits are made this many tokens at a time: a million-target program never holds all its
 # tokens, their replacements and the pieces of the new text at once (peak memory).
 EDIT_CHUNK = 1 << 17
@@ -397,7 +454,8 @@ class _CommandStream:
     the rewrite of the first targets overlaps the model run on the later ones."""
 
     def __init__(self, model: Compensator, poses: np.ndarray, iterations: int, program: Program,
-                 rows: np.ndarray, max_correction_mm: float, computed: tuple | None = None):
+                 rows: np.ndarray, max_correction_mm: float, computed: tuple | None = None,
+                 q_deg: np.ndarray | None = None, tool: np.ndarray | None = None):
         self.commanded = np.full((len(poses), 3), np.nan)
         self.new_xyz = np.full((len(poses), 3), np.nan)
         # the targets' joint angles, only where the model card has joint ranges to check them against
@@ -416,7 +474,7 @@ class _CommandStream:
         if computed is not None:  # (commands and joints of every row, from the caller)
             chunks = iter([(0, *computed)])
         else:  # checks ``iterations`` here, not on the thread
-            chunks = model.command_chunks(poses, iterations, joints=wanted)
+            chunks = model.command_chunks(poses, iterations, joints=wanted, q_deg=q_deg, tool=tool)
         self._thread = threading.Thread(target=self._run, args=(chunks, poses, max_correction_mm),
                                         name="postproc-model", daemon=True)
         self._thread.start()

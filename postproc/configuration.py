@@ -41,6 +41,9 @@ from .robot import Robot
 __all__ = ["UNSTATED", "branch_table", "stated_joints", "controller_joints", "status_turn_of"]
 
 UNSTATED = -1  # S or T not written for a target
+# A joint this close to 0° fits either sign of T: a pose written with 3 decimals moves its
+# joint angles by up to ~1e-3° (a joint taught at 0° may come back at −0.0004°).
+SIGN_TOLERANCE_DEG = 1e-3
 # passes over the program for PTP targets that switch branch (each pass settles at least one switch)
 MAX_PASSES = 20
 
@@ -49,11 +52,22 @@ def _wrap(deg: np.ndarray) -> np.ndarray:
     return (deg + 180.0) % 360.0 - 180.0
 
 
-def branch_table(robot: Robot, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def branch_table(robot: Robot, poses: np.ndarray, tools: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Joint angles of each branch indexed by its status: [8 (S), N, 6] deg (one turn within the
-    limits, NaN where that branch does not reach the pose) and the mask [8, N]."""
+    limits, NaN where that branch does not reach the pose) and the mask [8, N]. ``tools``
+    [N, 6]: each pose's TCP on the flange (default the robot's tool)."""
     poses = np.atleast_2d(np.asarray(poses, float))
     n = len(poses)
+    if tools is not None:
+        tools = np.asarray(tools, float).reshape(n, 6)
+        table = np.full((8, n, 6), np.nan)
+        ok = np.zeros((8, n), bool)
+        distinct, which = np.unique(tools, axis=0, return_inverse=True)
+        for k, tool in enumerate(distinct):  # over the few tools of a program
+            rows = np.flatnonzero(which.ravel() == k)
+            arm = robot if np.array_equal(tool, robot.tool) else Robot(robot.description.replace(tool=tool))
+            table[:, rows], ok[:, rows] = branch_table(arm, poses[rows])
+        return table, ok
     q_all, ok_all = robot.ik_branches(poses, np.zeros(6))
     status, _ = robot.status_turn(np.nan_to_num(q_all))
     table = np.full((8, n, 6), np.nan)
@@ -74,7 +88,8 @@ def _turn_for_sign(robot: Robot, q: np.ndarray, turn: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore"):
         for k in (0, -1, 1, -2, 2):
             c = q + 360.0 * k
-            fits = (c >= lo - 1e-9) & (c <= hi + 1e-9) & ((c < 0) == want_negative)
+            sign_ok = np.where(want_negative, c < SIGN_TOLERANCE_DEG, c > -SIGN_TOLERANCE_DEG)
+            fits = (c >= lo - 1e-9) & (c <= hi + 1e-9) & sign_ok
             closer = fits & (abs(k) < best_d)
             best = np.where(closer, c, best)
             best_d = np.where(closer, abs(k), best_d)
@@ -90,15 +105,16 @@ def status_turn_of(robot: Robot, q_deg: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def stated_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.ndarray,
-                  reference: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  reference: np.ndarray | None = None, tools: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The joint angles [N, 6] (deg) of the branch each target's S and T state, and a mask of
     the targets that have one. Poses [N, 6] in the robot base frame (TCP with the robot's
     tool); S, T [N] ints. Joints whose T is UNSTATED take the turn nearest ``reference``
-    ([6] or [N, 6], default HOME); a target whose S is UNSTATED takes the branch nearest it."""
+    ([6] or [N, 6], default HOME); a target whose S is UNSTATED takes the branch nearest it.
+    ``tools`` [N, 6]: each target's TCP on the flange (default the robot's tool)."""
     poses = np.atleast_2d(np.asarray(poses, float))
     n = len(poses)
     ref = np.broadcast_to(robot.home_q if reference is None else np.asarray(reference, float), (n, 6))
-    table, ok = branch_table(robot, poses)
+    table, ok = branch_table(robot, poses, tools)
     return _choose(robot, table, ok, np.asarray(status).reshape(n), np.asarray(turn).reshape(n), ref)
 
 
@@ -121,11 +137,13 @@ def _choose(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray,
 
 
 def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.ndarray,
-                      ptp: np.ndarray, initial_q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                      ptp: np.ndarray, initial_q: np.ndarray | None = None,
+                      tools: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The joint angles [N, 6] (deg) the controller uses for targets in program order, and a mask
     of the targets that have them: stated S/T where given, else the controller's rules (module
     docstring). ``ptp`` [N] bool marks PTP motions (PTP, SPTP; the rest keep the configuration);
-    ``initial_q`` [6] the axis position before the first target (default HOME)."""
+    ``initial_q`` [6] the axis position before the first target (default HOME); ``tools`` [N, 6]
+    each target's TCP on the flange (default the robot's tool)."""
     poses = np.atleast_2d(np.asarray(poses, float))
     n = len(poses)
     status = np.asarray(status, int).reshape(n)
@@ -134,7 +152,7 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
     start = np.asarray(robot.home_q if initial_q is None else initial_q, float).reshape(6)
     if n == 0:
         return np.zeros((0, 6)), np.zeros(0, bool)
-    table, ok = branch_table(robot, poses)
+    table, ok = branch_table(robot, poses, tools)
     start_s = int(status_turn_of(robot, start[None])[0][0])
     # the branch each target is on: stated, else the previous target's (the first: the start's)
     branch = np.where(status >= 0, status, UNSTATED)
@@ -214,3 +232,35 @@ def _continue_turns(robot: Robot, table: np.ndarray, ok: np.ndarray, branch: np.
     found = reached & np.isfinite(q).all(axis=1)
     q[~found] = np.nan
     return q, found
+
+
+# --------------------------------------------------------------------------- targets of a program
+
+# Motions that take the solution nearest the current axis position when no S is stated; the
+# others (LIN, CIRC, SLIN, SCIRC, SPL) keep the configuration. A pose list's rows are points
+# visited one by one (a measurement plan): PTP-like.
+_NEAREST = ("PTP", "SPTP", "row")
+
+
+def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, tools: np.ndarray | None = None,
+                  initial_q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The controller's joint angles [n, 6] (deg) for ``rows`` of a program's ``Targets`` (in
+    program order) at ``poses`` [n, 6] (robot base, TCP) with ``tools`` [n, 6], and a mask of
+    those that have them: the program's own joint angles where it gives them (``Targets.joints``),
+    else its S/T (``Targets.config``), else the controller's rules (module docstring)."""
+    from .programs import MOTIONS
+
+    rows = np.asarray(rows, int)
+    n = len(rows)
+    config = getattr(targets, "config", None)
+    if config is None:
+        status = turn = np.full(n, UNSTATED)
+    else:
+        status, turn = (np.asarray(config[rows, k], int) for k in (0, 1))
+    nearest = np.isin(np.asarray(targets.motion)[rows], [MOTIONS.index(m) for m in _NEAREST])
+    q, ok = controller_joints(robot, poses, status, turn, nearest, initial_q, tools)
+    given = getattr(targets, "joints", None)
+    if given is not None:
+        own = np.isfinite(given[rows]).all(axis=1)
+        q[own], ok[own] = given[rows][own], True
+    return q, ok
