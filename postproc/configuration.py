@@ -138,12 +138,15 @@ def _choose(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray,
 
 def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.ndarray,
                       ptp: np.ndarray, initial_q: np.ndarray | None = None,
-                      tools: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                      tools: np.ndarray | None = None,
+                      independent: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The joint angles [N, 6] (deg) the controller uses for targets in program order, and a mask
     of the targets that have them: stated S/T where given, else the controller's rules (module
     docstring). ``ptp`` [N] bool marks PTP motions (PTP, SPTP; the rest keep the configuration);
     ``initial_q`` [6] the axis position before the first target (default HOME); ``tools`` [N, 6]
-    each target's TCP on the flange (default the robot's tool)."""
+    each target's TCP on the flange (default the robot's tool); ``independent`` [N] bool: rows
+    solved on their own, nearest ``initial_q`` whatever came before (a pose list's rows: each
+    pose reached as ``measure`` reaches it, the branch nearest HOME)."""
     poses = np.atleast_2d(np.asarray(poses, float))
     n = len(poses)
     status = np.asarray(status, int).reshape(n)
@@ -158,6 +161,13 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
     branch = np.where(status >= 0, status, UNSTATED)
     free_ptp = (status < 0) & ptp
     free_ptp[0] = status[0] < 0  # the first target: nearest the start position, whatever its motion
+    alone = np.zeros(n, bool) if independent is None else np.asarray(independent, bool).reshape(n)
+    free_ptp &= ~alone
+    q_alone = ok_alone = None
+    if alone.any():
+        q_alone, ok_alone = _choose(robot, table[:, alone], ok[:, alone], status[alone], turn[alone],
+                                    np.broadcast_to(start, (int(alone.sum()), 6)))
+        branch[alone] = np.where(ok_alone, status_turn_of(robot, q_alone)[0], branch[alone])
     q = found = None
     for _ in range(MAX_PASSES):
         filled = _forward_fill(branch, start_s)
@@ -174,6 +184,8 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
         if np.array_equal(new, branch):
             break
         branch = new
+    if alone.any():
+        q[alone], found[alone] = q_alone, ok_alone
     return q, found
 
 
@@ -237,9 +249,20 @@ def _continue_turns(robot: Robot, table: np.ndarray, ok: np.ndarray, branch: np.
 # --------------------------------------------------------------------------- targets of a program
 
 # Motions that take the solution nearest the current axis position when no S is stated; the
-# others (LIN, CIRC, SLIN, SCIRC, SPL) keep the configuration. A pose list's rows are points
-# visited one by one (a measurement plan): PTP-like.
-_NEAREST = ("PTP", "SPTP", "row")
+# others (LIN, CIRC, SLIN, SCIRC, SPL) keep the configuration.
+_NEAREST = ("PTP", "SPTP")
+# A pose list's rows are poses reached one by one as `measure` reaches a plan's: without s,t,
+# each on the branch nearest HOME (the simulator's and today's models' choice).
+_INDEPENDENT = ("row",)
+
+
+def execution_kinds(motion: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(PTP-like, independent) masks [N] of motion kinds (indices into programs.MOTIONS)."""
+    from .programs import MOTIONS
+
+    motion = np.asarray(motion)
+    return (np.isin(motion, [MOTIONS.index(m) for m in _NEAREST]),
+            np.isin(motion, [MOTIONS.index(m) for m in _INDEPENDENT]))
 
 
 def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, tools: np.ndarray | None = None,
@@ -248,8 +271,6 @@ def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, to
     program order) at ``poses`` [n, 6] (robot base, TCP) with ``tools`` [n, 6], and a mask of
     those that have them: the program's own joint angles where it gives them (``Targets.joints``),
     else its S/T (``Targets.config``), else the controller's rules (module docstring)."""
-    from .programs import MOTIONS
-
     rows = np.asarray(rows, int)
     n = len(rows)
     config = getattr(targets, "config", None)
@@ -257,8 +278,8 @@ def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, to
         status = turn = np.full(n, UNSTATED)
     else:
         status, turn = (np.asarray(config[rows, k], int) for k in (0, 1))
-    nearest = np.isin(np.asarray(targets.motion)[rows], [MOTIONS.index(m) for m in _NEAREST])
-    q, ok = controller_joints(robot, poses, status, turn, nearest, initial_q, tools)
+    nearest, alone = execution_kinds(np.asarray(targets.motion)[rows])
+    q, ok = controller_joints(robot, poses, status, turn, nearest, initial_q, tools, alone)
     given = getattr(targets, "joints", None)
     if given is not None:
         own = np.isfinite(given[rows]).all(axis=1)

@@ -387,18 +387,11 @@ class SimulatedRobot:
                      motions: np.ndarray | None = None) -> np.ndarray:
         """The controller's commanded joint angles [N, 6] (deg) for TCP poses [N, 6]: nominal
         IK, branch nearest HOME; with ``config`` [N, 2] (S, T; -1 = not stated) the stated
-        branches and the controller's rules from HOME (``motions`` [N] bool: PTP-like rows,
-        default all), with ``tools`` [N, 6] each row's TCP. Raises PostprocError (P335) if any
-        pose is out of reach (in its configuration)."""
+        branches and the controller's rules from HOME (``motions`` [N] kinds, programs.MOTIONS indices;
+        default: every row on its own, as a plan's), with ``tools`` [N, 6] each row's TCP.
+        Raises PostprocError (P335) if any pose is out of reach (in its configuration)."""
         poses = np.atleast_2d(np.asarray(poses, float))
-        if config is None and tools is None:
-            q, ok = self._ik(poses)
-        else:
-            n = len(poses)
-            config = np.full((n, 2), configuration.UNSTATED) if config is None else np.asarray(config, int)
-            ptp = np.ones(n, bool) if motions is None else np.asarray(motions, bool)
-            q, ok = configuration.controller_joints(self.robot, poses, config[:, 0], config[:, 1], ptp,
-                                                    self.robot.home_q, tools)
+        q, ok = self._configured_ik(poses, config, tools, motions)
         if not ok.all():
             bad = np.flatnonzero(~ok)
             raise PostprocError(
@@ -409,14 +402,21 @@ class SimulatedRobot:
     def reachable_in(self, poses: np.ndarray, config: np.ndarray | None = None, tools: np.ndarray | None = None,
                      motions: np.ndarray | None = None) -> np.ndarray:
         """Mask of poses reachable in their configuration (see :meth:`joint_angles`)."""
-        if config is None and tools is None:
-            return self.reachable(poses)
-        poses = np.atleast_2d(np.asarray(poses, float))
+        return self._configured_ik(np.atleast_2d(np.asarray(poses, float)), config, tools, motions)[1]
+
+    def _configured_ik(self, poses, config, tools, motions) -> tuple[np.ndarray, np.ndarray]:
+        """``motions``: None = every row on its own (nearest HOME), else [N] motion kinds
+        (programs.MOTIONS indices: PTP-like, keep-configuration and independent rows)."""
+        if config is None and motions is None and (tools is None or np.allclose(tools, self.robot.tool)):
+            return self._ik(poses)  # (the plain case, cached)
         n = len(poses)
         config = np.full((n, 2), configuration.UNSTATED) if config is None else np.asarray(config, int)
-        ptp = np.ones(n, bool) if motions is None else np.asarray(motions, bool)
+        if motions is None:
+            ptp, alone = np.zeros(n, bool), np.ones(n, bool)
+        else:
+            ptp, alone = configuration.execution_kinds(motions)
         return configuration.controller_joints(self.robot, poses, config[:, 0], config[:, 1], ptp,
-                                               self.robot.home_q, tools)[1]
+                                               self.robot.home_q, tools, alone)
 
     def approach_directions(self, poses: np.ndarray, start_q: np.ndarray | None = None) -> np.ndarray:
         """Sign (+1/−1) [N, 6] of each joint's last motion when the poses are visited in order
