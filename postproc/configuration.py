@@ -41,9 +41,10 @@ from .robot import Robot
 __all__ = ["UNSTATED", "branch_table", "stated_joints", "controller_joints", "status_turn_of"]
 
 UNSTATED = -1  # S or T not written for a target
-# A joint this close to 0° fits either sign of T: a pose written with 3 decimals moves its
-# joint angles by up to ~1e-3° (a joint taught at 0° may come back at −0.0004°).
-SIGN_TOLERANCE_DEG = 1e-3
+# A joint this close to 0° fits either sign of T (the turn of the written angle is kept): a
+# pose written with 3 decimals moves its joint angles by ~1e-3°, and a compensated command
+# (S and T left as written) by ~0.1° (a target taught at A6 −0.01° is commanded at +0.01°).
+SIGN_TOLERANCE_DEG = 0.5
 # passes over the program for PTP targets that switch branch (each pass settles at least one switch)
 MAX_PASSES = 20
 

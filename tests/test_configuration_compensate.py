@@ -60,23 +60,40 @@ def test_the_joint_angles_of_each_targets_stated_branch_reach_the_model(tmp_path
     assert np.abs(correction[0] - correction[1]).max() > 0.1
 
 
+def _krl_text(poses, motions):
+    body = "".join(f"{m} {{X {p[0]:.5f}, Y {p[1]:.5f}, Z {p[2]:.5f}, A {p[3]:.5f}, B {p[4]:.5f}, C {p[5]:.5f}}}\n"
+                   for p, m in zip(poses, motions))
+    return "DEF p( )\n$BASE = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n$TOOL = {X 300, Y 0, Z 75, A 0, B 0, C 0}\n" + body + "END\n"
+
+
+def _krl_xyz(text):
+    import re
+
+    return np.array([[float(v) for v in re.findall(r"[XYZ] (-?[\d.]+)", line)[:3]]
+                     for line in text.splitlines() if line.startswith(("PTP", "LIN"))])
+
+
 def test_without_status_the_controllers_rule_decides(tmp_path, q_targets):
+    from postproc.compensate import compensate_program, parse_program_text
+
     robot = Robot()
     model = load_model(joint_model(tmp_path / "j.onnx", GAIN))
     q_all = q_targets[1] + np.array([[0, 0, 0, 0, 0, 0], [1, 1, -1, 1, 1, 1], [2, 2, -2, 2, 2, 2]])
     poses = robot.fk(q_all)
     status, turn = robot.status_turn(q_all[:1])
-    # the first states its (flipped-wrist) configuration, the rows after it do not: nearest the one before
-    s = np.array([status[0], -1, -1])
-    t = np.array([turn[0], -1, -1])
-    out, report = compensate_text(_csv(poses, s, t), model, name="p.csv")
     expected = np.sin(np.radians(q_all)) @ GAIN.T
-    np.testing.assert_allclose(_read_xyz(out) - poses[:, :3], expected, atol=2e-6)
-    # nothing stated: the branch nearest HOME, not the flipped one
-    out, _ = compensate_text(_csv(poses), model, name="p.csv")
-    q_home, _ = robot.ik(poses[:1])
-    assert np.abs(q_home[0] - q_all[0]).max() > 90
-    assert np.abs(_read_xyz(out)[0] - poses[0, :3] - expected[0]).max() > 0.05
+    # KRL: the PTP states its (flipped-wrist) configuration, the LINs after it keep it
+    program = parse_program_text(_krl_text(poses, ["PTP", "LIN", "LIN"]), "p.src")
+    program.targets.config = np.array([[status[0], turn[0]], [-1, -1], [-1, -1]], np.int16)
+    report = compensate_program(program, model)
+    np.testing.assert_allclose(_krl_xyz(report.outputs["p.src"]) - poses[:, :3], expected, atol=2e-5)
+    # a pose list's rows without s,t: each on the branch nearest HOME (as measure reaches a plan)
+    out, _ = compensate_text(_csv(poses, np.array([status[0], -1, -1]), np.array([turn[0], -1, -1])), model,
+                             name="p.csv")
+    q_home, _ = robot.ik(poses)
+    assert np.abs(q_home[1:] - q_all[1:]).max() > 90
+    np.testing.assert_allclose(_read_xyz(out) - poses[:, :3],
+                               np.vstack([expected[:1], np.sin(np.radians(q_home[1:])) @ GAIN.T]), atol=2e-5)
 
 
 def test_joint_columns_are_passed_as_they_are(tmp_path, q_targets):
