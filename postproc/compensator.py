@@ -234,8 +234,8 @@ class Compensator:
         return (out, q_out) if joints else out
 
     def command_chunks(self, poses: np.ndarray, iterations: int | None = None, joints: bool = False,
-                       q_deg: np.ndarray | None = None,
-                       tool: np.ndarray | None = None) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+                       q_deg: np.ndarray | None = None, tool: np.ndarray | None = None,
+                       orientation: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         """``command`` chunk by chunk (COMMAND_CHUNK rows) in row order: yields (first row,
         commands [n, 3], the targets' joint angles [n, 6] deg if ``joints`` and the model has
         them, else None), the same numbers as one ``command`` call (each chunk takes its first
@@ -243,16 +243,22 @@ class Compensator:
         first rows while the model runs on the next ones. ``q_deg`` and ``tool`` [N, 6] are the
         targets' joint angles and TCPs for a model with those inputs; each iteration passes the
         target's own joint angles (a command differs from its target by the error, ~1 mm: its
-        joint angles by ~0.05°, which changes a sub-mm error by ~1e-3 mm)."""
+        joint angles by ~0.05°, which changes a sub-mm error by ~1e-3 mm). With ``orientation``
+        the commands are full poses [n, 6]: the fixed point on the orientation too, R_c =
+        exp(−r̂(c))·R_P with r̂ the model's ``rotation_error`` (the A,B,C triple nearest P's)."""
+        if orientation and not self.has_rotation:
+            raise PostprocError(f"the model has no output '{OUTPUT_ROTATION}': it cannot correct orientation "
+                                "(train it on data with a_meas,b_meas,c_meas)", str(self.path), code="P306")
         iterations = self.default_iterations if iterations is None else iterations
         if not 1 <= iterations <= MAX_ITERATIONS:
             raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code="P308")
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         _extra_inputs(self, len(poses), q_deg, tool)  # (checked here, not on the caller's thread)
-        return self._chunks(poses, iterations, joints, q_deg, tool)
+        return self._chunks(poses, iterations, joints, q_deg, tool, orientation)
 
     def _chunks(self, poses: np.ndarray, iterations: int, joints: bool, q_deg: np.ndarray | None = None,
-                tool: np.ndarray | None = None) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+                tool: np.ndarray | None = None,
+                orientation: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         chunk = COMMAND_CHUNK  # (read at call time: tests make it small)
         # the last row of the chunk before, after each iteration k (k = 0: the target itself)
         before: list[np.ndarray] | None = None
@@ -270,14 +276,37 @@ class Compensator:
                     # (the first target's is itself: nothing is known before it)
                     head = trial[:1] if before is None else before[k][None]
                     prev = np.vstack([head, trial[:-1]])
+                rotation = None
                 if k == 0 and joints:  # the first run is at the targets themselves: their joint angles
-                    error, q = self.predict(trial, prev, joints=True, **given)
+                    error, q, *rotation = self.predict(trial, prev, joints=True, rotation=orientation, **given)
                 else:
-                    error = self.predict(trial, prev, **given)
+                    error, *rotation = self.predict(trial, prev, rotation=orientation, **given) if orientation \
+                        else (self.predict(trial, prev, **given),)
                 trial[:, :3] = part[:, :3] + error
+                if orientation:
+                    trial[:, 3:6] = _corrected_attitude(part[:, 3:6], rotation[0])
                 last.append(trial[-1].copy())
             before = last
-            yield start, trial[:, :3], q
+            yield start, (trial if orientation else trial[:, :3]), q
+
+
+def _corrected_attitude(abc: np.ndarray, rotation_error_deg: np.ndarray) -> np.ndarray:
+    """A,B,C [N, 3] of exp(−r)·R(abc) (r: rotation vectors [N, 3] deg, nominal → actual in the
+    base frame), on the triple and turns nearest ``abc``: the robot turned by r lands on abc."""
+    from . import frames
+
+    r = np.radians(np.asarray(rotation_error_deg, float))
+    angle = np.linalg.norm(r, axis=1)
+    axis = r / np.where(angle > 0, angle, 1.0)[:, None]
+    k = np.zeros((len(r), 3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+    k = k - k.swapaxes(1, 2)
+    s, c = np.sin(-angle)[:, None, None], np.cos(-angle)[:, None, None]
+    undo = np.eye(3) + s * k + (1 - c) * (k @ k)  # Rodrigues: exp(−r)
+    new = frames.abc_from_rotation(undo @ frames.rotation_from_abc(abc))
+    alt = np.stack([new[:, 0] + 180.0, 180.0 - new[:, 1], new[:, 2] + 180.0], axis=1)
+    near = [abc + (t - abc + 180.0) % 360.0 - 180.0 for t in (new, alt)]
+    return np.where((np.abs(near[1] - abc).max(axis=1) < np.abs(near[0] - abc).max(axis=1))[:, None], near[1], near[0])
 
 
 def _extra_inputs(model: Compensator, n: int, q: np.ndarray | None, tool: np.ndarray | None) -> dict:

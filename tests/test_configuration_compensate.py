@@ -150,3 +150,43 @@ def test_a_model_with_a_tool_input_gets_each_targets_tool_and_takes_any_tool(tmp
                     for line in out.splitlines() if line.startswith("PTP")])
     expected = np.sin(np.radians(q)) @ GAIN.T + tool[:3] @ tool_gain[:, :3].T
     np.testing.assert_allclose(got - poses[:, :3], expected, atol=2e-5)
+
+
+ROT = np.array([[0.02, -0.01, 0.03, 0.01, -0.02, 0.015],
+                [0.01, 0.02, -0.015, 0.02, 0.01, -0.01],
+                [-0.02, 0.01, 0.01, -0.01, 0.02, 0.02]])  # deg of rotation error per unit sin(q)
+
+
+def test_orientation_is_corrected_by_the_models_rotation_error(tmp_path, q_targets):
+    from postproc.cli import main
+    from postproc.frames import rotation_from_abc
+    from postproc.simulator import small_transform
+
+    robot = Robot()
+    model_file = joint_model(tmp_path / "r.onnx", GAIN, rotation_gain=ROT)
+    poses = robot.fk(q_targets)
+    status, turn = robot.status_turn(q_targets)
+    program, out = tmp_path / "p.csv", tmp_path / "out.csv"
+    program.write_text(_csv(poses, status, turn))
+    assert main(["compensate", str(program), "-o", str(out), "--model", str(model_file), "--orientation", "-q"]) == 0
+    rows = [r.split(",") for r in out.read_text().splitlines() if r and r[0] in "-0123456789"]
+    written = np.array([[float(v) for v in r[:6]] for r in rows])
+    np.testing.assert_allclose(written[:, :3] - poses[:, :3], np.sin(np.radians(q_targets)) @ GAIN.T, atol=2e-6)
+    # the robot turns the command by r (nominal → actual): it lands on the target's orientation
+    r = np.radians(np.sin(np.radians(q_targets)) @ ROT.T)
+    landed = small_transform(r, np.zeros((len(r), 3)))[:, :3, :3] @ rotation_from_abc(written[:, 3:6])
+    np.testing.assert_allclose(landed, rotation_from_abc(poses[:, 3:6]), atol=2e-6)  # (6 decimals written)
+    assert np.abs(written[:, 3:6] - poses[:, 3:6]).max() > 0.005  # A/B/C really changed
+    assert np.abs(written[:, 3:6] - poses[:, 3:6]).max() < 1.0  # on the triple as written
+
+
+def test_orientation_needs_a_model_with_rotation_error(tmp_path, q_targets, capsys):
+    from postproc.cli import main
+
+    robot = Robot()
+    model_file = joint_model(tmp_path / "j.onnx", GAIN)
+    program, out = tmp_path / "p.csv", tmp_path / "out.csv"
+    status, turn = robot.status_turn(q_targets)
+    program.write_text(_csv(robot.fk(q_targets), status, turn))
+    assert main(["compensate", str(program), "-o", str(out), "--model", str(model_file), "--orientation"]) == 2
+    assert "P306" in capsys.readouterr().err and not out.exists()

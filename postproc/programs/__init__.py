@@ -54,6 +54,8 @@ class Targets:
                                the reader states none)
     joints     [N, 6] float64  the controller's joint angles (deg) where the program gives
                                them (a pose list's q1..q6), NaN elsewhere (None: none given)
+    abc_spans  [N, 3, 2] int64 (start, end) of the A, B, C tokens, -1 where absent (None: the
+                               reader does not locate them; ``compensate --orientation`` needs them)
     """
 
     poses: np.ndarray
@@ -65,6 +67,7 @@ class Targets:
     motion: np.ndarray
     config: np.ndarray | None = None
     joints: np.ndarray | None = None
+    abc_spans: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.poses)

@@ -68,6 +68,7 @@ def read(files: list[str], texts: list[str]) -> Program:
     width = 0
     shapes: dict[str, tuple] = {}  # line shape → ordinal of each x..c among the line's numbers
     offset = 0
+    abc_spans: list = []  # where each row's A, B, C numbers stand
     extras: list | None = None  # s, t, q1..q6 of each row when the header names any of them
     # lines end at "\n" only, as diagnostics.line_col counts them: str.splitlines would also
     # split at \x0b, \x0c, \x1c-\x1e and \x85 (NEL), which latin-1 text can hold
@@ -124,6 +125,7 @@ def read(files: list[str], texts: list[str]) -> Program:
         matches = list(number.finditer(line))
         pose = [math.nan] * 6
         spans = [-1] * 6
+        abc = [-1] * 6
         if extras is not None:
             extra = [math.nan] * len(_OPTIONAL)
             for k, ordinal in enumerate(ordinals[6:]):
@@ -145,10 +147,14 @@ def read(files: list[str], texts: list[str]) -> Program:
             pose[k] = value
             if k < 3:
                 spans[2 * k], spans[2 * k + 1] = start + m.start(), start + m.end()
+            else:
+                abc[2 * k - 6], abc[2 * k - 5] = start + m.start(), start + m.end()
+        abc_spans.append(abc)
         builder.add(pose, spans, 0, lineno, lead + 1, 0, _ROW_MOTION)
     if columns is None:
         raise PostprocError("no poses in this file (empty, or comments only)", path, 1, 1, "P105")
     targets = builder.build()
+    targets.abc_spans = np.array(abc_spans, dtype=np.int64).reshape(len(targets), 3, 2)
     if extras is not None:
         table = np.array(extras, float).reshape(len(targets), len(_OPTIONAL))
         if any(c in columns for c in CONFIG):
