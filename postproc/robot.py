@@ -493,8 +493,7 @@ class Robot:
         shape = q.shape[:-1]
         q = q.reshape(-1, 6)
         g = self._solver
-        f = self.flange_chain.joint_frames(np.radians(q))
-        centre = np.einsum("nji,nj->ni", f[:, 0, :3, :3], f[:, g.wrist_index, :3, 3] - f[:, 0, :3, 3])
+        centre = self._wrist_in_a1(np.radians(q), g.wrist_index)
         stretched = math.degrees(g.s[2] * g.stretched)  # A3 with the forearm in line with the upper arm
         from_stretched = (q[:, 2] - stretched + 180.0) % 360.0 - 180.0
         beyond = from_stretched >= 0 if g.s[2] > 0 else from_stretched <= 0
@@ -502,6 +501,21 @@ class Robot:
         status = (centre[:, 0] < 0).astype(int) | (beyond.astype(int) << 1) | (flipped.astype(int) << 2)
         turn = ((q < 0).astype(int) << np.arange(6)).sum(axis=1)
         return status.reshape(shape), turn.reshape(shape)
+
+    def _wrist_in_a1(self, q_rad: np.ndarray, wrist: int) -> np.ndarray:
+        """The origin of joint ``wrist`` [N, 3] in A1's turned frame (relative to A1's origin):
+        the chain walked only as far as needed (status bit 0 of 10^6 branches)."""
+        chain = self.flange_chain
+        m = chain.placements
+        rot = axis_rotations(chain.axes[:wrist], q_rad[:, :wrist])
+        r = np.broadcast_to(m[0][:3, :3], (len(q_rad), 3, 3)) @ rot[:, 0]  # A1's frame (base = identity)
+        r1 = r
+        p = np.zeros((len(q_rad), 3))
+        for j in range(1, wrist + 1):
+            p = p + r @ m[j][:3, 3]
+            if j < wrist:
+                r = r @ m[j][:3, :3] @ rot[:, j]
+        return np.einsum("nji,nj->ni", r1, p)
 
     @property
     def reach(self) -> dict:
