@@ -190,3 +190,27 @@ def test_orientation_needs_a_model_with_rotation_error(tmp_path, q_targets, caps
     program.write_text(_csv(robot.fk(q_targets), status, turn))
     assert main(["compensate", str(program), "-o", str(out), "--model", str(model_file), "--orientation"]) == 2
     assert "P306" in capsys.readouterr().err and not out.exists()
+
+
+def test_ur_type_arm_targets_get_their_branch_joints(tmp_path):
+    from postproc.resources import model_path
+    from postproc.robot import load_description
+
+    ur = Robot(load_description(model_path("ur10.toml")))
+    model = load_model(joint_model(tmp_path / "ur.onnx", GAIN, robot="UR10",
+                                   tool={"name": "probe", "frame": ur.tool.tolist()}))
+    q = np.array([[20.0, -80.0, 70.0, -60.0, 50.0, 30.0], [20.0, -80.0, 70.0, -60.0, -50.0, 30.0],
+                  [-30.0, -100.0, -60.0, 200.0, 80.0, -150.0]])
+    poses = ur.fk(q)
+    status, turn = ur.status_turn(q)
+    out, report = compensate_text(_csv(poses, status, turn), model, name="p.csv")
+    assert report.compensated == 3
+    np.testing.assert_allclose(_read_xyz(out) - poses[:, :3], np.sin(np.radians(q)) @ GAIN.T, atol=2e-6)
+
+
+def test_a_model_for_a_robot_without_description_is_refused(tmp_path, q_targets):
+    from postproc.diagnostics import PostprocError
+
+    model = load_model(joint_model(tmp_path / "x.onnx", GAIN, robot="KR1000-unknown"))
+    with pytest.raises(PostprocError, match="P311"):
+        compensate_text(_csv(Robot().fk(q_targets)), model, name="p.csv")
