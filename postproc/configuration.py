@@ -70,12 +70,12 @@ def branch_table(robot: Robot, poses: np.ndarray, tools: np.ndarray | None = Non
             table[:, rows], ok[:, rows] = branch_table(arm, poses[rows])
         return table, ok
     q_all, ok_all = robot.ik_branches(poses, np.zeros(6))
-    status, _ = robot.status_turn(np.nan_to_num(q_all))
+    b, i = np.nonzero(ok_all)
+    status, _ = robot.status_turn(q_all[b, i])  # (only the branches that reach: ~half of them)
     table = np.full((8, n, 6), np.nan)
     ok = np.zeros((8, n), bool)
-    b, i = np.nonzero(ok_all)
-    table[status[b, i], i] = q_all[b, i]
-    ok[status[b, i], i] = True
+    table[status, i] = q_all[b, i]
+    ok[status, i] = True
     return table, ok
 
 

@@ -461,7 +461,7 @@ class Robot:
         q_all[~ok_all] = np.nan
         flat = ok_all.ravel()
         if flat.any():  # a closed form is exact; the check guards the reachability masks themselves
-            target = np.broadcast_to(t_tcp, (8,) + t_tcp.shape).reshape(-1, 4, 4)[flat]
+            target = t_tcp[np.nonzero(ok_all)[1]]  # (the row of each reaching branch, in flat order)
             back = self.fk_matrix(q_all.reshape(-1, 6)[flat])
             bad = np.linalg.norm(back[:, :3, 3] - target[:, :3, 3], axis=1) > 1e-6
             bad |= np.abs(back[:, :3, :3] - target[:, :3, :3]).max(axis=(1, 2)) > 1e-9
