@@ -47,7 +47,7 @@ from .diagnostics import PostprocError
 from .robot import CODE_KEY, Chain, Robot, RobotDescription, axis_rotations, check_value, load_description
 from .stats import table2
 
-__all__ = ["ErrorSpec", "SimulatedRobot", "table2", "approach_signs", "small_transform", "CODE_REACH"]
+__all__ = ["ErrorSpec", "SimulatedRobot", "table2", "approach_signs", "small_transform", "rotation_angle_deg", "CODE_REACH"]
 
 CODE_REACH = "P335"
 CALIBRATION_POSES = 2000
@@ -179,6 +179,13 @@ def _workspace_poses(workspace: dict, n: int, seed: int) -> np.ndarray | None:
     strata = np.argsort(rng.random((n, 6)), axis=0)
     unit = (strata + rng.random((n, 6))) / n
     return lo + unit * (hi - lo)
+
+
+def rotation_angle_deg(abc_a: np.ndarray, abc_b: np.ndarray) -> np.ndarray:
+    """The angle [N] (deg) of the rotation between two orientations given as A,B,C [N, 3]."""
+    relative = frames.rotation_from_abc(abc_a).swapaxes(-1, -2) @ frames.rotation_from_abc(abc_b)
+    cos = (np.trace(relative, axis1=-2, axis2=-1) - 1.0) / 2.0
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
 def _nearest_triple(abc: np.ndarray, ref: np.ndarray) -> np.ndarray:
@@ -478,7 +485,9 @@ class SimulatedRobot:
         goes| when commanded the target itself (before) and the compensated command (after),
         each run in order from HOME; measured with tracker noise + repeatability unless
         ``noise`` is False. Returns {"before": table2, "after": table2, "errors_before",
-        "errors_after"} (the last two [N] arrays of norms, mm). ``options`` (config, tools,
+        "errors_after"} (the last two [N] arrays of norms, mm), and "orientation_before" /
+        "orientation_after": Table 2 of the angle (deg) between the target's and the actual
+        orientation (a 6-DOF probe, ``orientation_noise_deg``). ``options`` (config, tools,
         motions; see :meth:`actual_poses`): the program's configurations and tools, for both runs."""
         targets = np.atleast_2d(np.asarray(targets, float))
         commands = np.atleast_2d(np.asarray(commands, float))
@@ -487,14 +496,17 @@ class SimulatedRobot:
                                 "that correspond row by row")
         if noise:
             seeds = np.random.SeedSequence(rng_seed).spawn(2)
-            before = self.measure(targets, seeds[0], **options)
-            after = self.measure(commands, seeds[1], **options)
+            before = self.measure(targets, seeds[0], orientation=True, **options)
+            after = self.measure(commands, seeds[1], orientation=True, **options)
         else:
-            before, after = self.actual_positions(targets, **options), self.actual_positions(commands, **options)
-        e_before = np.linalg.norm(targets[:, :3] - before, axis=1)
-        e_after = np.linalg.norm(targets[:, :3] - after, axis=1)
+            before = frames.matrix_to_frame(self.actual_poses(targets, **options))
+            after = frames.matrix_to_frame(self.actual_poses(commands, **options))
+        e_before = np.linalg.norm(targets[:, :3] - before[:, :3], axis=1)
+        e_after = np.linalg.norm(targets[:, :3] - after[:, :3], axis=1)
+        r_before, r_after = (rotation_angle_deg(targets[:, 3:6], m[:, 3:6]) for m in (before, after))
         return {"before": table2(e_before), "after": table2(e_after),
-                "errors_before": e_before, "errors_after": e_after}
+                "errors_before": e_before, "errors_after": e_after,
+                "orientation_before": table2(r_before), "orientation_after": table2(r_after)}
 
     def describe(self) -> dict:
         """The drawn robot's parameters (for reports and tests)."""

@@ -152,3 +152,22 @@ def test_verify_runs_a_program_with_its_own_tool(tmp_path, capsys):
     spindle = np.linalg.norm(poses[:, :3] - sim.actual_positions(poses), axis=1)
     assert figures["before"]["mean"] == pytest.approx(own.mean(), abs=1e-9)
     assert abs(own.mean() - spindle.mean()) > 0.01  # the tool matters: not the robot's spindle
+
+
+def test_verify_reports_orientation_and_a_perfect_orientation_correction_removes_it():
+    from postproc import frames
+
+    sim = SimulatedRobot()
+    poses = latin_hypercube(60, seed=4)
+    command = poses.copy()
+    for _ in range(4):  # the simulator as the perfect model, on the full pose
+        actual = sim.actual_poses(command)
+        command[:, :3] = poses[:, :3] + (command[:, :3] - actual[:, :3, 3])  # c = P + E(c)
+        turn = actual[:, :3, :3] @ frames.rotation_from_abc(command[:, 3:6]).swapaxes(-1, -2)  # nominal → actual
+        command[:, 3:6] = frames.abc_from_rotation(turn.swapaxes(-1, -2) @ frames.rotation_from_abc(poses[:, 3:6]))
+    result = sim.verify(poses, command, noise=False)
+    assert 0.005 < result["orientation_before"]["mean"] < 1.0  # deg: the drawn robot turns the tool too
+    assert result["orientation_after"]["mean"] < 1e-4
+    assert result["after"]["mean"] < 1e-3
+    same = sim.verify(poses, poses, noise=False)
+    assert same["orientation_before"] == same["orientation_after"]

@@ -135,6 +135,8 @@ def run(args) -> int:
         "noise": not args.no_noise,
         "before": result["before"],
         "after": result["after"],
+        "orientation_before_deg": result["orientation_before"],
+        "orientation_after_deg": result["orientation_after"],
     }
     if args.max_mean is not None:
         figures["max_mean"] = args.max_mean
@@ -152,6 +154,10 @@ def run(args) -> int:
         for label in ("before", "after"):
             s = result[label]
             print(f"{label:12s}{s['max']:9.3f}{s['min']:9.3f}{s['mean']:9.3f}{s['std']:9.3f}")
+        print("Orientation error (deg)")
+        for label in ("before", "after"):
+            s = result["orientation_" + label]
+            print(f"{label:12s}{s['max']:9.4f}{s['min']:9.4f}{s['mean']:9.4f}{s['std']:9.4f}")
     if not args.quiet:
         gate = "" if args.max_mean is None else (f"; FAILED: mean {result['after']['mean']:.3f} > {args.max_mean:g} mm"
                                                  if failed else f"; mean within {args.max_mean:g} mm")
