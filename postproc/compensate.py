@@ -431,7 +431,8 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
     q = None
     if model.wants_joints:
         robot = Robot(description.replace(tool=default_tool))
-        start, _ = robot.ik(sel[:1], robot.home_q)
+        first = robot if np.array_equal(tools[0], default_tool) else Robot(description.replace(tool=tools[0]))
+        start, _ = first.ik(sel[:1], robot.home_q)
         if model.has_joints and np.isfinite(start).all():  # the branch of the model's own IK
             _, own = model.predict(sel[:1], joints=True, q=start, tool=tools[:1] if model.wants_tool else None)
             start = own if np.isfinite(own).all() else start
