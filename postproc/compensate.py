@@ -241,10 +241,12 @@ def compensate_program(
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
     robot: str | None = None,
     _commands: tuple[np.ndarray, np.ndarray | None] | None = None,
+    orientation: bool = False,
 ) -> Report:
     """Compensate every resolvable target of ``program``; the new texts are in ``Report.outputs``.
     (``_commands``: ``model.command(poses, iterations, joints=True)`` of exactly these targets,
-    already computed by ``check``, which runs this as its last safety net.)
+    already computed by ``check``, which runs this as its last safety net.) With
+    ``orientation`` A/B/C are corrected too (the model's ``rotation_error``; P306 without it).
 
     Raises PostprocError for what must not be written (double compensation, a model for
     another robot (``robot``, the program's robot name) or tool, unless ``force``; targets
@@ -259,7 +261,7 @@ def compensate_program(
         index, stamp = next(iter(program.stamps.items()))
         raise PostprocError(f"already compensated ({stamp.lstrip(';# ')}); use --force to compensate again",
                             program.files[index], 1, 1, "P401")
-    mismatch = tool_mismatch(program, model)
+    mismatch = None if model.wants_tool else tool_mismatch(program, model)  # (a model with a tool input: any)
     if mismatch and not force:
         raise PostprocError(mismatch + "; use --force to compensate anyway", program.files[0], 1, 1, "P304")
     mismatch = robot_mismatch(robot, model)
@@ -311,6 +313,12 @@ def compensate_program(
         path, line, col = _where(program, int(rows[far][0]))
         raise PostprocError(f"target beyond the robot's reach ({int(far.sum())} such targets): no model can compensate there",
                             path, line, col, "P302")
+    if orientation:
+        _orientation_check(program, model, rows)
+    q_in = tool_in = None
+    if model.wants_joints or model.wants_tool:
+        rows, sel, q_in, tool_in, found = controller_inputs(program, model, rows, sel)
+        warnings += found
     envelope = model.envelope
     if envelope is not None:
         outside = envelope.outside(sel)
@@ -329,7 +337,8 @@ def compensate_program(
     report.iterations = model.default_iterations if iterations is None else iterations
     if _commands is not None and len(_commands[0]) != len(sel):
         raise ValueError(f"_commands has {len(_commands[0])} rows for {len(sel)} targets")
-    stream = _CommandStream(model, sel, report.iterations, program, rows, max_correction_mm, _commands)
+    stream = _CommandStream(model, sel, report.iterations, program, rows, max_correction_mm, _commands, q_in, tool_in,
+                            orientation)
     try:
         outputs = [_rewrite_file(program, index, text, rows, stream) for index, text in enumerate(program.texts)]
     except _Unsafe:
@@ -382,6 +391,92 @@ def compensate_program(
     return report
 
 
+# --------------------------------------------------------------------------- joints and tool
+
+
+def model_description(model: Compensator):
+    """The robot description of the model's robot (the shipped ``models/*.toml`` whose
+    [robot] name is the card's ``robot``), or None."""
+    from .resources import model_path
+    from .robot import load_description
+
+    folder = model_path("kr500.toml").parent
+    for path in sorted(folder.glob("*.toml")):
+        description = load_description(path)
+        if model.robot and description.name.casefold() == model.robot.casefold():
+            return description
+    return None
+
+
+def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, sel: np.ndarray):
+    """The model's ``joints`` / ``tool`` inputs for targets ``rows`` at base poses ``sel``:
+    (rows kept, their poses, joint angles [n, 6] deg or None, TCPs [n, 6] or None, warnings).
+    Targets whose configuration has no joint angles on the nominal arm (P309) are left as
+    written. The tool is the program's $TOOL where known, else the model's (its card)."""
+    from . import configuration
+    from .robot import Robot
+
+    description = model_description(model)
+    if description is None:
+        raise PostprocError(f"the model takes joint angles and postproc has no robot description for its robot "
+                            f"{model.robot or '(none named)'}", str(model.path), 0, 0, "P311")
+    card_tool = model.tool.get("frame") if model.tool else None
+    default_tool = np.asarray(card_tool if card_tool is not None else description.tool, float)
+    tools = np.tile(default_tool, (len(rows), 1))
+    t = program.targets
+    for f in np.unique(t.frame[rows]):
+        if program.frames[f].tool is not None:
+            tools[t.frame[rows] == f] = program.frames[f].tool
+    warnings: list[Diagnostic] = []
+    q = None
+    if model.wants_joints:
+        robot = Robot(description.replace(tool=default_tool))
+        first = robot if np.array_equal(tools[0], default_tool) else Robot(description.replace(tool=tools[0]))
+        start, _ = first.ik(sel[:1], robot.home_q)
+        if model.has_joints and np.isfinite(start).all():  # the branch of the model's own IK
+            _, own = model.predict(sel[:1], joints=True, q=start, tool=tools[:1] if model.wants_tool else None)
+            start = own if np.isfinite(own).all() else start
+        q, ok = configuration.target_joints(robot, t, rows, sel, tools,
+                                            start[0] if np.isfinite(start).all() else None)
+        if not ok.all():
+            warnings += _collect(program, rows[~ok], "P309", "no joint angles for this target in its arm configuration "
+                                 "(S/T, or the one its motion keeps) on the nominal robot: left as it is")
+            rows, sel, q, tools = rows[ok], sel[ok], q[ok], tools[ok]
+    return rows, sel, q, (tools if model.wants_tool else None), warnings
+
+
+def _orientation_check(program: Program, model: Compensator, rows: np.ndarray) -> None:
+    """Refuse ``--orientation`` when it cannot be done right: no ``rotation_error`` output
+    (P306), A/B/C tokens the reader does not locate (P312) or targets without A/B/C (P312)."""
+    if not model.has_rotation:
+        raise PostprocError("the model has no output 'rotation_error': it cannot correct orientation (train it on "
+                            "data with a_meas,b_meas,c_meas); compensate without --orientation", str(model.path),
+                            0, 0, "P306")
+    spans = program.targets.abc_spans
+    if spans is None:
+        raise PostprocError(f"--orientation: the {program.dialect} reader does not locate A/B/C numbers yet",
+                            program.files[0], 1, 1, "P312")
+    missing = rows[(spans[rows, :, 0] < 0).any(axis=1)]
+    if len(missing):
+        raise PostprocError("--orientation: this target does not write all of A, B, C", *_where(program, int(missing[0])),
+                            "P312")
+
+
+def _local_attitude(abc_base: np.ndarray, bases: list, frame_of: np.ndarray, written: np.ndarray) -> np.ndarray:
+    """A,B,C in each target's own frame of commanded attitudes in the base, on the triple and
+    turns nearest the numbers as written."""
+    out = abc_base.copy()
+    for f in np.unique(frame_of):
+        here = frame_of == f
+        rot = bases[f][:3, :3]
+        if not np.allclose(rot, np.eye(3), atol=1e-12):
+            out[here] = frames.abc_from_rotation(rot.T @ frames.rotation_from_abc(abc_base[here]))
+    alt = np.stack([out[:, 0] + 180.0, 180.0 - out[:, 1], out[:, 2] + 180.0], axis=1)
+    near = [written + (t - written + 180.0) % 360.0 - 180.0 for t in (out, alt)]
+    return np.where((np.abs(near[1] - written).max(axis=1) < np.abs(near[0] - written).max(axis=1))[:, None],
+                    near[1], near[0])
+
+
 # Edits are made this many tokens at a time: a million-target program never holds all its
 # tokens, their replacements and the pieces of the new text at once (peak memory).
 EDIT_CHUNK = 1 << 17
@@ -397,9 +492,12 @@ class _CommandStream:
     the rewrite of the first targets overlaps the model run on the later ones."""
 
     def __init__(self, model: Compensator, poses: np.ndarray, iterations: int, program: Program,
-                 rows: np.ndarray, max_correction_mm: float, computed: tuple | None = None):
+                 rows: np.ndarray, max_correction_mm: float, computed: tuple | None = None,
+                 q_deg: np.ndarray | None = None, tool: np.ndarray | None = None, orientation: bool = False):
         self.commanded = np.full((len(poses), 3), np.nan)
-        self.new_xyz = np.full((len(poses), 3), np.nan)
+        # the corrected numbers in each target's frame: X,Y,Z (and A,B,C with ``orientation``)
+        self.new_xyz = np.full((len(poses), 6 if orientation else 3), np.nan)
+        self._written_abc = program.targets.poses[rows, 3:6] if orientation else None
         # the targets' joint angles, only where the model card has joint ranges to check them against
         envelope = model.envelope
         wanted = model.has_joints and envelope is not None and envelope.joints is not None
@@ -416,7 +514,8 @@ class _CommandStream:
         if computed is not None:  # (commands and joints of every row, from the caller)
             chunks = iter([(0, *computed)])
         else:  # checks ``iterations`` here, not on the thread
-            chunks = model.command_chunks(poses, iterations, joints=wanted)
+            chunks = model.command_chunks(poses, iterations, joints=wanted, q_deg=q_deg, tool=tool,
+                                          orientation=orientation)
         self._thread = threading.Thread(target=self._run, args=(chunks, poses, max_correction_mm),
                                         name="postproc-model", daemon=True)
         self._thread.start()
@@ -428,6 +527,10 @@ class _CommandStream:
                 if self._cancel:
                     return
                 end = start + len(commands)
+                if self._written_abc is not None:
+                    self.new_xyz[start:end, 3:] = _local_attitude(commands[:, 3:6], self._bases, self._frame_of[start:end],
+                                                                  self._written_abc[start:end])
+                    commands = commands[:, :3]
                 correction = commands - poses[start:end, :3]
                 # back into each target's own frame: only the rotation of its base applies to a shift
                 local = np.empty_like(correction)
@@ -438,7 +541,7 @@ class _CommandStream:
                 self.commanded[start:end] = commands
                 if self.joints is not None and q is not None:
                     self.joints[start:end] = q
-                self.new_xyz[start:end] = self._written[start:end] + local
+                self.new_xyz[start:end, :3] = self._written[start:end] + local
                 with np.errstate(invalid="ignore"):
                     unsafe = not (np.isfinite(correction).all() and np.linalg.norm(correction, axis=1).max() <= bound)
                 with self._changed:
@@ -480,10 +583,12 @@ def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, str
     before and after (guards.check_numbers)."""
     t = program.targets
     mine = np.flatnonzero(t.file[rows] == index)
-    starts = t.spans[rows[mine], :, 0].ravel()
-    ends = t.spans[rows[mine], :, 1].ravel()
-    at_row = np.repeat(mine, 3)  # position in ``rows`` (and in the stream)
-    axis = np.tile([0, 1, 2], len(mine))
+    spans = t.spans if stream.new_xyz.shape[1] == 3 else np.concatenate([t.spans, t.abc_spans], axis=1)
+    width = spans.shape[1]
+    starts = spans[rows[mine], :, 0].ravel()
+    ends = spans[rows[mine], :, 1].ravel()
+    at_row = np.repeat(mine, width)  # position in ``rows`` (and in the stream)
+    axis = np.tile(np.arange(width), len(mine))
     keep = starts >= 0  # components the aggregate leaves out have no token
     order = np.argsort(starts[keep], kind="stable")
     starts, ends, at_row, axis = (a[keep][order] for a in (starts, ends, at_row, axis))
@@ -525,6 +630,7 @@ def compensate_text(
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
     robot: str | None = None,
+    orientation: bool = False,
 ) -> tuple[str, Report]:
     """Compensate a program given as text; returns the new text and the report.
 
@@ -534,7 +640,7 @@ def compensate_text(
     """
     program = parse_program_text(text, name, dialect, dat_text, _config_texts(config))
     report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
-                                max_correction_mm=max_correction_mm, robot=robot)
+                                max_correction_mm=max_correction_mm, robot=robot, orientation=orientation)
     return report.outputs[program.files[0]], report
 
 
@@ -557,12 +663,13 @@ def compensate_file(
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
     robot: str | None = None,
+    orientation: bool = False,
 ) -> Report:
     """Compensate a program file (with its .dat) into ``out`` (its .dat beside it).
     Nothing is written unless everything succeeded; the files are replaced atomically."""
     program = load_program(path, config)
     report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
-                                max_correction_mm=max_correction_mm, robot=robot)
+                                max_correction_mm=max_correction_mm, robot=robot, orientation=orientation)
     if str(out) == "-":
         if len(program.files) > 1:
             raise PostprocError("a program with a .dat cannot be written to standard output; give -o FILE",

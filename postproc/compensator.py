@@ -8,11 +8,18 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   ``compensate`` passes the previous target's compensated command (the first target's
   previous pose is the target itself: nothing is known before it); models without it are
   plain pose → error maps;
+* optional input ``joints``: float32 [N, 6] deg, the controller's joint angles at each target
+  (``compensate`` computes them from the targets' S/T with the nominal IK, see
+  postproc.configuration): a model with it evaluates its arm there, not at its own IK's branch;
+* optional input ``tool``: float32 [N, 6], the TCP on the flange (X,Y,Z,A,B,C, the program's
+  ``$TOOL``) of each target: a model with it compensates programs with any tool;
 * output ``error``: float32 [N, 3] mm, E = P_target − P_actual; normalisation lives inside
   the graph;
 * optional output ``joints``: float32 [N, 6] deg, the controller's joint angles (nominal IK)
   the model computed for ``pose``: with ``envelope.joints`` in the card, ``compensate`` warns
   for targets whose joints lie outside the trained ranges (a pose-box can hide a wrist flip);
+* optional output ``rotation_error``: float32 [N, 3] deg, the orientation error as a rotation
+  vector of nominal → actual in the base frame (``compensate --orientation``);
 * ``metadata_props`` (values JSON-encoded where structured): ``postproc_contract`` "1",
   ``name``, ``robot``, ``tool`` {"name", "frame"}, ``envelope`` {"box": [x0,x1,y0,y1,z0,z1],
   "attitude": [A,B,C], "range": deg, optional "joints": [[lo, hi] × 6] deg}, ``reach`` {"center": [x,y,z], "radius_min",
@@ -39,6 +46,9 @@ from .resources import model_path
 CONTRACT_VERSION = "1"
 INPUT_POSE = "pose"
 INPUT_PREVIOUS = "previous_pose"
+INPUT_JOINTS = "joints"
+INPUT_TOOL = "tool"
+OUTPUT_ROTATION = "rotation_error"
 OUTPUT_ERROR = "error"
 OUTPUT_JOINTS = "joints"
 # (8192 rows: the intermediates of the hybrid graph stay in cache, 11 % faster than 65536; measured)
@@ -104,6 +114,9 @@ class Compensator:
     sha256: str = ""
     wants_previous: bool = False
     has_joints: bool = False  # the graph also outputs ``joints``
+    wants_joints: bool = False  # the graph takes the controller's joint angles (input ``joints``)
+    wants_tool: bool = False  # the graph takes each target's TCP on the flange (input ``tool``)
+    has_rotation: bool = False  # the graph also outputs ``rotation_error``
 
     @property
     def name(self) -> str:
@@ -149,22 +162,33 @@ class Compensator:
             r = np.linalg.norm(positions - np.asarray(reach["center"], float), axis=1)
         return (r > float(reach["radius_max"])) | (r < float(reach.get("radius_min", 0.0)))
 
-    def predict(self, poses: np.ndarray, previous: np.ndarray | None = None, joints: bool = False):
+    def predict(self, poses: np.ndarray, previous: np.ndarray | None = None, joints: bool = False,
+                q: np.ndarray | None = None, tool: np.ndarray | None = None, rotation: bool = False):
         """Ê for poses [N, 6] (robot base frame) → [N, 3] mm (float64). With ``joints``: (Ê, the
-        model's joint angles [N, 6] deg, or None for a model without that output). Batched: one
+        model's joint angles [N, 6] deg, or None for a model without that output). ``q`` [N, 6]
+        deg and ``tool`` [N, 6] feed the inputs ``joints`` and ``tool`` (required when the model
+        has them). With ``rotation``: Ê and the rotation error [N, 3] deg last. Batched: one
         onnxruntime call per PREDICT_BATCH poses (a whole CAM program in one call would make
         the runtime hold every intermediate layer for every target at once)."""
         poses = np.ascontiguousarray(poses, dtype=np.float32).reshape(-1, 6)
         if self.wants_previous:
             previous = poses if previous is None else np.ascontiguousarray(previous, dtype=np.float32).reshape(-1, 6)
+        extra = _extra_inputs(self, len(poses), q, tool)
         names = [OUTPUT_ERROR, OUTPUT_JOINTS] if joints and self.has_joints else [OUTPUT_ERROR]
         results = [np.empty((len(poses), 3)), np.empty((len(poses), 6))][:len(names)]
+        if rotation:
+            if not self.has_rotation:
+                raise PostprocError(f"the model has no output '{OUTPUT_ROTATION}'", str(self.path), code="P306")
+            names.append(OUTPUT_ROTATION)
+            results.append(np.empty((len(poses), 3)))
 
         def run(at: int) -> None:
             batch = slice(at, at + PREDICT_BATCH)
             feeds = {INPUT_POSE: poses[batch]}
             if self.wants_previous:
                 feeds[INPUT_PREVIOUS] = previous[batch]
+            for name, value in extra.items():
+                feeds[name] = value[batch]
             try:
                 outs = self.session.run(names, feeds)
             except Exception as exc:  # onnxruntime's own types: a graph that does not run on [N, 6]
@@ -187,43 +211,61 @@ class Compensator:
 
             with ThreadPoolExecutor(max_workers=min(os.cpu_count() or 1, 8)) as pool:
                 list(pool.map(run, starts))
-        if not joints:
-            return results[0]
-        return results[0], (results[1] if len(results) > 1 else None)
+        out = [results[0]]
+        if joints:
+            out.append(results[1] if self.has_joints else None)
+        if rotation:
+            out.append(results[-1])
+        return out[0] if len(out) == 1 else tuple(out)
 
-    def command(self, poses: np.ndarray, iterations: int | None = None, joints: bool = False):
+    def command(self, poses: np.ndarray, iterations: int | None = None, joints: bool = False,
+                q: np.ndarray | None = None, tool: np.ndarray | None = None):
         """Commanded positions [N, 3] so that the robot lands on ``poses[:, :3]``: c = P + Ê(c).
         With ``joints``: (commands, the targets' joint angles [N, 6] deg or None; see ``predict``).
         The rows are in program order: for a model with ``previous_pose`` each target comes from
         the previous row's command."""
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         out = np.empty((len(poses), 3))
-        q = np.empty((len(poses), 6)) if joints and self.has_joints else None
-        for start, commands, q_part in self.command_chunks(poses, iterations, joints=joints):
+        q_out = np.empty((len(poses), 6)) if joints and self.has_joints else None
+        for start, commands, q_part in self.command_chunks(poses, iterations, joints=joints, q_deg=q, tool=tool):
             out[start:start + len(commands)] = commands
-            if q is not None:
-                q[start:start + len(commands)] = q_part
-        return (out, q) if joints else out
+            if q_out is not None:
+                q_out[start:start + len(commands)] = q_part
+        return (out, q_out) if joints else out
 
-    def command_chunks(self, poses: np.ndarray, iterations: int | None = None,
-                       joints: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+    def command_chunks(self, poses: np.ndarray, iterations: int | None = None, joints: bool = False,
+                       q_deg: np.ndarray | None = None, tool: np.ndarray | None = None,
+                       orientation: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         """``command`` chunk by chunk (COMMAND_CHUNK rows) in row order: yields (first row,
         commands [n, 3], the targets' joint angles [n, 6] deg if ``joints`` and the model has
         them, else None), the same numbers as one ``command`` call (each chunk takes its first
         row's previous pose, per iteration, from the chunk before), so a caller can use the
-        first rows while the model runs on the next ones."""
+        first rows while the model runs on the next ones. ``q_deg`` and ``tool`` [N, 6] are the
+        targets' joint angles and TCPs for a model with those inputs; each iteration passes the
+        target's own joint angles (a command differs from its target by the error, ~1 mm: its
+        joint angles by ~0.05°, which changes a sub-mm error by ~1e-3 mm). With ``orientation``
+        the commands are full poses [n, 6]: the fixed point on the orientation too, R_c =
+        exp(−r̂(c))·R_P with r̂ the model's ``rotation_error`` (the A,B,C triple nearest P's)."""
+        if orientation and not self.has_rotation:
+            raise PostprocError(f"the model has no output '{OUTPUT_ROTATION}': it cannot correct orientation "
+                                "(train it on data with a_meas,b_meas,c_meas)", str(self.path), code="P306")
         iterations = self.default_iterations if iterations is None else iterations
         if not 1 <= iterations <= MAX_ITERATIONS:
             raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code="P308")
-        return self._chunks(np.asarray(poses, dtype=float).reshape(-1, 6), iterations, joints)
+        poses = np.asarray(poses, dtype=float).reshape(-1, 6)
+        _extra_inputs(self, len(poses), q_deg, tool)  # (checked here, not on the caller's thread)
+        return self._chunks(poses, iterations, joints, q_deg, tool, orientation)
 
-    def _chunks(self, poses: np.ndarray, iterations: int,
-                joints: bool) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+    def _chunks(self, poses: np.ndarray, iterations: int, joints: bool, q_deg: np.ndarray | None = None,
+                tool: np.ndarray | None = None,
+                orientation: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         chunk = COMMAND_CHUNK  # (read at call time: tests make it small)
         # the last row of the chunk before, after each iteration k (k = 0: the target itself)
         before: list[np.ndarray] | None = None
         for start in range(0, len(poses), chunk):
             part = poses[start:start + chunk]
+            given = {"q": None if q_deg is None else q_deg[start:start + chunk],
+                     "tool": None if tool is None else tool[start:start + chunk]}
             trial = part.copy()
             last = [trial[-1].copy()]
             q = None
@@ -234,14 +276,52 @@ class Compensator:
                     # (the first target's is itself: nothing is known before it)
                     head = trial[:1] if before is None else before[k][None]
                     prev = np.vstack([head, trial[:-1]])
+                rotation = None
                 if k == 0 and joints:  # the first run is at the targets themselves: their joint angles
-                    error, q = self.predict(trial, prev, joints=True)
+                    error, q, *rotation = self.predict(trial, prev, joints=True, rotation=orientation, **given)
                 else:
-                    error = self.predict(trial, prev)
+                    error, *rotation = self.predict(trial, prev, rotation=orientation, **given) if orientation \
+                        else (self.predict(trial, prev, **given),)
                 trial[:, :3] = part[:, :3] + error
+                if orientation:
+                    trial[:, 3:6] = _corrected_attitude(part[:, 3:6], rotation[0])
                 last.append(trial[-1].copy())
             before = last
-            yield start, trial[:, :3], q
+            yield start, (trial if orientation else trial[:, :3]), q
+
+
+def _corrected_attitude(abc: np.ndarray, rotation_error_deg: np.ndarray) -> np.ndarray:
+    """A,B,C [N, 3] of exp(−r)·R(abc) (r: rotation vectors [N, 3] deg, nominal → actual in the
+    base frame), on the triple and turns nearest ``abc``: the robot turned by r lands on abc."""
+    from . import frames
+
+    r = np.radians(np.asarray(rotation_error_deg, float))
+    angle = np.linalg.norm(r, axis=1)
+    axis = r / np.where(angle > 0, angle, 1.0)[:, None]
+    k = np.zeros((len(r), 3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+    k = k - k.swapaxes(1, 2)
+    s, c = np.sin(-angle)[:, None, None], np.cos(-angle)[:, None, None]
+    undo = np.eye(3) + s * k + (1 - c) * (k @ k)  # Rodrigues: exp(−r)
+    new = frames.abc_from_rotation(undo @ frames.rotation_from_abc(abc))
+    alt = np.stack([new[:, 0] + 180.0, 180.0 - new[:, 1], new[:, 2] + 180.0], axis=1)
+    near = [abc + (t - abc + 180.0) % 360.0 - 180.0 for t in (new, alt)]
+    return np.where((np.abs(near[1] - abc).max(axis=1) < np.abs(near[0] - abc).max(axis=1))[:, None], near[1], near[0])
+
+
+def _extra_inputs(model: Compensator, n: int, q: np.ndarray | None, tool: np.ndarray | None) -> dict:
+    """The feeds of the optional inputs ``joints`` / ``tool`` the model has (float32 [n, 6])."""
+    feeds = {}
+    for name, wanted, value in ((INPUT_JOINTS, model.wants_joints, q), (INPUT_TOOL, model.wants_tool, tool)):
+        if not wanted:
+            continue
+        if value is None:
+            raise PostprocError(f"the model needs input '{name}' [N, 6] and none was given", str(model.path), code="P306")
+        value = np.ascontiguousarray(value, dtype=np.float32)
+        if value.shape != (n, 6):
+            raise PostprocError(f"input '{name}' has shape {value.shape}, expected ({n}, 6)", str(model.path), code="P306")
+        feeds[name] = value
+    return feeds
 
 
 def load_model(path: str | Path | None = None) -> Compensator:
@@ -268,12 +348,12 @@ def load_model(path: str | Path | None = None) -> Compensator:
     problems = []
     if INPUT_POSE not in inputs:
         problems.append(f"no input '{INPUT_POSE}' (has {sorted(inputs)})")
-    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS}
+    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL}
     if extra:
         problems.append(f"unexpected inputs {sorted(extra)}")
     if OUTPUT_ERROR not in outputs:
         problems.append(f"no output '{OUTPUT_ERROR}' (has {sorted(outputs)})")
-    for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6)):
+    for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6), (INPUT_JOINTS, 6), (INPUT_TOOL, 6)):
         if name in inputs and (len(inputs[name].shape) != 2 or inputs[name].shape[1] not in (expected, None, "6")
                                or isinstance(inputs[name].shape[0], int)):
             problems.append(f"input '{name}' has shape {inputs[name].shape}, expected [N, {expected}]")
@@ -282,8 +362,12 @@ def load_model(path: str | Path | None = None) -> Compensator:
     if OUTPUT_JOINTS in outputs and (len(outputs[OUTPUT_JOINTS].shape) != 2
                                      or outputs[OUTPUT_JOINTS].shape[1] not in (6, None)):
         problems.append(f"output '{OUTPUT_JOINTS}' has shape {outputs[OUTPUT_JOINTS].shape}, expected [N, 6]")
+    if OUTPUT_ROTATION in outputs and (len(outputs[OUTPUT_ROTATION].shape) != 2
+                                       or outputs[OUTPUT_ROTATION].shape[1] not in (3, None)):
+        problems.append(f"output '{OUTPUT_ROTATION}' has shape {outputs[OUTPUT_ROTATION].shape}, expected [N, 3]")
     for node in (*inputs.values(), *outputs.values()):
-        if node.name in (INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, OUTPUT_JOINTS) and node.type != "tensor(float)":
+        if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, OUTPUT_ERROR, OUTPUT_JOINTS,
+                         OUTPUT_ROTATION) and node.type != "tensor(float)":
             problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
     if problems:
         raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path), code="P306")
@@ -298,6 +382,9 @@ def load_model(path: str | Path | None = None) -> Compensator:
         sha256=hashlib.sha256(data).hexdigest(),
         wants_previous=INPUT_PREVIOUS in inputs,
         has_joints=OUTPUT_JOINTS in outputs,
+        wants_joints=INPUT_JOINTS in inputs,
+        wants_tool=INPUT_TOOL in inputs,
+        has_rotation=OUTPUT_ROTATION in outputs,
     )
 
 

@@ -5,6 +5,12 @@ order. ``latin_hypercube`` draws it (scipy.stats.qmc, seeded) as the method does
 uniform in a box, each of A, B, C within ± range of a working attitude. The plan is written
 as CSV (header ``x,y,z,a,b,c``) and, for the robot, as a runnable KRL program that moves
 LIN to each pose, lets it settle and hands over to the tracker.
+
+A plan may state each pose's arm configuration (``plan_configurations``: the branch the
+controller takes from HOME, or every other pose in the flipped-wrist configuration): the CSV
+then has ``s,t`` columns and the KRL program moves PTP to each pose with its S and T (a LIN
+cannot change the configuration). A plan may be for another tool than the description's
+(``$TOOL`` in the program, the reach check with that TCP).
 """
 from __future__ import annotations
 
@@ -28,6 +34,10 @@ __all__ = [
     "plan_csv_text",
     "write_plan_csv",
     "read_pose_csv",
+    "read_plan_config",
+    "parse_tool",
+    "plan_configurations",
+    "WRIST_CHOICES",
     "krl_measurement_program",
     "write_krl_measurement_program",
 ]
@@ -72,19 +82,85 @@ def round_poses(poses: np.ndarray) -> np.ndarray:
     return np.concatenate([np.round(poses[:, :3], MM_DECIMALS), np.round(poses[:, 3:6], DEG_DECIMALS)], axis=1) + 0.0
 
 
-def plan_csv_text(poses: np.ndarray) -> str:
-    """The plan as CSV text: header ``x,y,z,a,b,c``, one pose per row, in visiting order."""
+def plan_csv_text(poses: np.ndarray, config: np.ndarray | None = None) -> str:
+    """The plan as CSV text: header ``x,y,z,a,b,c`` (``,s,t`` with ``config`` [N, 2]), one
+    pose per row, in visiting order."""
     buf = io.StringIO()
     fmt = [f"%.{MM_DECIMALS}f"] * 3 + [f"%.{DEG_DECIMALS}f"] * 3
-    np.savetxt(buf, round_poses(poses), fmt=fmt, delimiter=",", header=",".join(POSE_COLUMNS), comments="")
+    table, header = round_poses(poses), list(POSE_COLUMNS)
+    if config is not None:
+        table = np.hstack([table, np.asarray(config, float).reshape(-1, 2)])
+        fmt, header = fmt + ["%d", "%d"], header + ["s", "t"]
+    np.savetxt(buf, table, fmt=fmt, delimiter=",", header=",".join(header), comments="")
     return buf.getvalue()
 
 
-def write_plan_csv(path: str | Path, poses: np.ndarray) -> None:
+def write_plan_csv(path: str | Path, poses: np.ndarray, config: np.ndarray | None = None) -> None:
     """Write the plan CSV atomically (temp file beside it, then rename)."""
     from .rewrite import write_atomic
 
-    write_atomic([(Path(path), plan_csv_text(poses))])
+    write_atomic([(Path(path), plan_csv_text(poses, config))])
+
+
+# how a plan chooses each pose's configuration: the controller's from HOME, or every other
+# pose in the flipped-wrist configuration (both wrist configurations in one data set)
+WRIST_CHOICES = ("home", "both")
+
+
+def plan_configurations(robot, poses: np.ndarray, wrist: str = "home") -> tuple[np.ndarray, np.ndarray]:
+    """S/T [N, 2] for each pose of a plan and a mask of the poses reachable so: ``wrist``
+    "home" = the branch nearest HOME (the controller's own choice), "both" = every other pose
+    (odd rows) in the flipped-wrist configuration of that (S bit 2 toggled; the pose keeps the
+    HOME branch where the flipped one is out of reach or limits)."""
+    from . import configuration
+
+    if wrist not in WRIST_CHOICES:
+        raise PostprocError(f"--wrist must be one of {', '.join(WRIST_CHOICES)}, not {wrist!r}", code="P512")
+    q, ok = robot.ik(poses)
+    status, turn = configuration.status_turn_of(robot, q)
+    if wrist == "both":
+        odd = np.zeros(len(poses), bool)
+        odd[1::2] = True
+        odd &= ok
+        flipped, found = configuration.stated_joints(robot, poses[odd], status[odd] ^ 4,
+                                                     np.full(int(odd.sum()), configuration.UNSTATED))
+        rows = np.flatnonzero(odd)[found]
+        s_f, t_f = configuration.status_turn_of(robot, flipped[found])
+        status[rows], turn[rows] = s_f, t_f
+    return np.stack([status, turn], axis=1), ok
+
+
+def parse_tool(text: str) -> np.ndarray:
+    """``X,Y,Z,A,B,C`` (mm, deg) → [6]; PostprocError P512 otherwise."""
+    try:
+        tool = np.array([float(v) for v in str(text).split(",")])
+    except ValueError:
+        tool = np.zeros(0)
+    if tool.shape != (6,) or not np.isfinite(tool).all():
+        raise PostprocError(f"a tool is X,Y,Z,A,B,C (six numbers, mm and deg), not {text!r}", code="P512")
+    return tool
+
+
+def read_plan_config(path: str | Path) -> np.ndarray | None:
+    """The ``s,t`` columns [N, 2] of a plan/pose CSV (ints; -1 where empty), None without them."""
+    text = Path(path).read_bytes().removeprefix(b"\xef\xbb\xbf").decode("latin-1")
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    header = [h.strip().lower() for h in lines[0].split(",")]
+    if "s" not in header or "t" not in header:
+        return None
+    cols = [header.index("s"), header.index("t")]
+    out = np.full((len(lines) - 1, 2), -1, dtype=np.int64)
+    for i, line in enumerate(lines[1:]):
+        fields = line.split(",")
+        for k, c in enumerate(cols):
+            value = fields[c].strip() if c < len(fields) else ""
+            if value:
+                try:
+                    out[i, k] = int(float(value))
+                except ValueError:
+                    raise PostprocError(f"column {'st'[k]} is not an integer: {value!r}", str(path), i + 2, 1,
+                                        "P503") from None
+    return out
 
 
 # --------------------------------------------------------------------------- reading
@@ -168,13 +244,15 @@ def krl_measurement_program(
     trigger_out: int = 1,
     done_in: int = 1,
     comment: str = "",
+    config: np.ndarray | None = None,
 ) -> str:
     """A runnable KRL module (one .src, targets inline) that measures ``poses`` in order:
     HOME, PTP above the first pose, then for each pose LIN to it, settle ``wait_s``, raise
     $OUT[trigger_out] and wait for the tracker's $IN[done_in], then retreat and HOME.
 
     ``robot`` (a :class:`postproc.robot.Robot`) gives HOME, the tool and the S/T of the
-    approach PTP. Targets are in the robot base frame ($BASE = $NULLFRAME)."""
+    approach PTP. Targets are in the robot base frame ($BASE = $NULLFRAME). With ``config``
+    [N, 2] (S, T per pose) each pose is reached PTP with its S and T (E6POS components)."""
     if not comment.isascii():  # controllers read .src as ANSI: keep the program plain ASCII
         comment = comment.encode("ascii", "replace").decode()
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,23}", name):
@@ -208,7 +286,11 @@ def krl_measurement_program(
         f"PTP {{{home}}}",
         f"PTP {_krl_pos(above[0], int(status[0]), int(turn[0]))}",
     ]
-    body = [f"LIN {_krl_pos(p)}{nl}MEASURE_HERE( )" for p in poses]
+    if config is None:
+        body = [f"LIN {_krl_pos(p)}{nl}MEASURE_HERE( )" for p in poses]
+    else:
+        config = np.asarray(config, int).reshape(len(poses), 2)
+        body = [f"PTP {_krl_pos(p, int(st[0]), int(st[1]))}{nl}MEASURE_HERE( )" for p, st in zip(poses, config)]
     tail = [
         f"LIN {_krl_pos(above[1])}",
         f"PTP {{{home}}}",

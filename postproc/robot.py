@@ -326,8 +326,29 @@ class Robot:
         self.flange_chain = Chain(placements, axes, frames.frame_to_matrix(d.flange))
         self.tool_matrix = frames.frame_to_matrix(d.tool)
         self.chain = Chain(placements, axes, self.flange_chain.end @ self.tool_matrix)
-        self._ik = _IkGeometry(self)
+        try:
+            self._solver: _IkGeometry | _UrIkGeometry = _IkGeometry(self)
+            self._kuka_error: PostprocError | None = None
+        except PostprocError as kuka:
+            try:
+                self._solver = _UrIkGeometry(self)
+            except PostprocError as ur:
+                raise PostprocError(f"no closed-form IK for this arm: {kuka.message}; or {ur.message}",
+                                    ur.path, ur.line, ur.col, ur.code) from None
+            self._kuka_error = kuka
         self._model = None
+
+    @property
+    def family(self) -> str:
+        """'kuka' (KUKA-type arm, spherical wrist) or 'ur' (Universal-Robots-type wrist)."""
+        return self._solver.family
+
+    @property
+    def _ik(self) -> "_IkGeometry":
+        """The KUKA-type geometry (training.arm.KukaIK reads its dimensions); P333 for other arms."""
+        if self._kuka_error is not None:
+            raise self._kuka_error
+        return self._solver
 
     def _build_model(self) -> None:
         """The pin.Model (metres inside), built once on first use: planning needs only numpy
@@ -410,27 +431,91 @@ class Robot:
         """The controller's inverse kinematics: joint angles [N, 6] (deg) for TCP poses [N, 6]
         (robot base frame, mm/deg) and a mask of poses reachable within the joint limits.
 
-        Of the 8 closed-form branches (shoulder, elbow, wrist flip) and the 360° turns of each
+        Of the 8 closed-form branches (shoulder, elbow, wrist) and the 360° turns of each
         joint, the one nearest to ``reference_q`` ([6] or [N, 6], default HOME) is chosen;
         rows that cannot be reached are NaN."""
+        q_all, ok_all = self.ik_branches(poses, reference_q)
+        ref = self.home_q if reference_q is None else np.asarray(reference_q, float)
+        ref = np.broadcast_to(ref, q_all.shape[1:])
+        cost = np.where(ok_all, ((q_all - ref) ** 2).sum(axis=-1), np.inf)
+        best = np.argmin(cost, axis=0)
+        n = np.arange(q_all.shape[1])
+        q = q_all[best, n]
+        ok = ok_all[best, n]
+        q[~ok] = np.nan
+        return q, ok
+
+    def ik_branches(self, poses: np.ndarray, reference_q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Every closed-form branch: joint angles [8, N, 6] (deg; each joint on the 360° turn
+        nearest ``reference_q`` within its limits, default HOME) and a mask [8, N] of the
+        branches that reach the pose within the limits (FK checked: 1e-6 mm, 1e-9 rad).
+        Which branch is which: :meth:`status_turn` of the angles."""
         poses = np.atleast_2d(np.asarray(poses, float))
         ref = self.home_q if reference_q is None else np.asarray(reference_q, float)
         ref = np.broadcast_to(ref, (len(poses), 6))
-        return self._ik.solve(frames.frame_to_matrix(poses), ref)
+        t_tcp = frames.frame_to_matrix(poses)
+        q_all, ok_all = self._solver.branches(t_tcp, np.radians(ref))
+        q_all = np.degrees(q_all)
+        q_all, in_limits = self.nearest_turn(q_all, ref)
+        ok_all &= in_limits
+        q_all[~ok_all] = np.nan
+        flat = ok_all.ravel()
+        if flat.any():  # a closed form is exact; the check guards the reachability masks themselves
+            target = t_tcp[np.nonzero(ok_all)[1]]  # (the row of each reaching branch, in flat order)
+            back = self.fk_matrix(q_all.reshape(-1, 6)[flat])
+            bad = np.linalg.norm(back[:, :3, 3] - target[:, :3, 3], axis=1) > 1e-6
+            bad |= np.abs(back[:, :3, :3] - target[:, :3, :3]).max(axis=(1, 2)) > 1e-9
+            if bad.any():
+                idx = np.flatnonzero(flat)[bad]
+                ok_all.ravel()[idx] = False
+                q_all.reshape(-1, 6)[idx] = np.nan
+        return q_all, ok_all
+
+    def nearest_turn(self, q_deg: np.ndarray, ref_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Add the multiple of 360° that brings each joint nearest to the reference within its
+        limits (the nearest turn, or the next one towards the inside of the limits); and a
+        mask of the rows whose joints are then all within the limits."""
+        lo, hi = self.limits[:, 0], self.limits[:, 1]
+        with np.errstate(invalid="ignore"):
+            q = q_deg + 360.0 * np.rint((ref_deg - q_deg) / 360.0)
+            q += 360.0 * (q < lo - 1e-9)
+            q -= 360.0 * (q > hi + 1e-9)
+            inside = (q >= lo - 1e-9) & (q <= hi + 1e-9)
+        return q, inside.all(axis=-1)
 
     def status_turn(self, q_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """KUKA Status and Turn [N] ints of joint angles [N, 6]: S bit 0 = wrist centre behind
-        the A1 axis (overhead), bit 1 = A3 at or beyond the stretched-arm angle, bit 2 = A5 ≤ 0;
-        T bit i = A(i+1) < 0."""
+        """KUKA Status and Turn [N] ints of joint angles [N, 6]: S bit 0 = wrist point behind
+        the A1 axis (overhead), bit 1 = A3 at or beyond the stretched-arm angle, bit 2 = A5 ≤ 0
+        (A5 taken in (−180°, 180°]); T bit i = A(i+1) < 0. The wrist point is the wrist centre (A5's origin) of a KUKA-type
+        arm and A6's origin of a UR-type arm (UR controllers have no S/T: this is postproc's
+        mapping of their shoulder, elbow and wrist branches on KUKA's bits)."""
         q = np.atleast_2d(np.asarray(q_deg, float))
-        f = self.flange_chain.joint_frames(np.radians(q))
-        centre = np.einsum("nji,nj->ni", f[:, 0, :3, :3], f[:, 4, :3, 3] - f[:, 0, :3, 3])
-        g = self._ik
-        stretched = math.degrees(g.s[2] * (g.al3 - g.al2))  # A3 with the forearm in line with the upper arm
-        beyond = q[:, 2] >= stretched if g.s[2] > 0 else q[:, 2] <= stretched
-        status = (centre[:, 0] < 0).astype(int) | (beyond.astype(int) << 1) | ((q[:, 4] <= 0).astype(int) << 2)
+        shape = q.shape[:-1]
+        q = q.reshape(-1, 6)
+        g = self._solver
+        centre = self._wrist_in_a1(np.radians(q), g.wrist_index)
+        stretched = math.degrees(g.s[2] * g.stretched)  # A3 with the forearm in line with the upper arm
+        from_stretched = (q[:, 2] - stretched + 180.0) % 360.0 - 180.0
+        beyond = from_stretched >= 0 if g.s[2] > 0 else from_stretched <= 0
+        flipped = (q[:, 4] + 180.0) % 360.0 - 180.0 <= 0  # (a UR wrist turns ±360°: the branch, not the turn)
+        status = (centre[:, 0] < 0).astype(int) | (beyond.astype(int) << 1) | (flipped.astype(int) << 2)
         turn = ((q < 0).astype(int) << np.arange(6)).sum(axis=1)
-        return status, turn
+        return status.reshape(shape), turn.reshape(shape)
+
+    def _wrist_in_a1(self, q_rad: np.ndarray, wrist: int) -> np.ndarray:
+        """The origin of joint ``wrist`` [N, 3] in A1's turned frame (relative to A1's origin):
+        the chain walked only as far as needed (status bit 0 of 10^6 branches)."""
+        chain = self.flange_chain
+        m = chain.placements
+        rot = axis_rotations(chain.axes[:wrist], q_rad[:, :wrist])
+        r = np.broadcast_to(m[0][:3, :3], (len(q_rad), 3, 3)) @ rot[:, 0]  # A1's frame (base = identity)
+        r1 = r
+        p = np.zeros((len(q_rad), 3))
+        for j in range(1, wrist + 1):
+            p = p + r @ m[j][:3, 3]
+            if j < wrist:
+                r = r @ m[j][:3, :3] @ rot[:, j]
+        return np.einsum("nji,nj->ni", r1, p)
 
     @property
     def reach(self) -> dict:
@@ -476,14 +561,23 @@ class _IkGeometry:
         self.tcp0 = (self.flange0 @ robot.tool_matrix)[:3, 3]
         self.inv_tool = frames.inverse(robot.tool_matrix)
 
-    def solve(self, t_tcp: np.ndarray, ref_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        n = len(t_tcp)
+    family = "kuka"
+    wrist_index = 4  # the wrist point of S bit 0: A5's origin (the wrist centre)
+
+    @property
+    def stretched(self) -> float:
+        """θ3 (rad) with the forearm in line with the upper arm."""
+        return self.al3 - self.al2
+
+    def branches(self, t_tcp: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The 8 closed-form solutions [8, N, 6] (rad, principal angles) of TCP transforms
+        [N, 4, 4] and their reachability [8, N]; ``ref`` [N, 6] (rad) keeps A4 at a wrist
+        singularity (A5 = 0, where only A4 + A6 is defined)."""
         s = self.s
         t_fl = t_tcp @ self.inv_tool
         r_all = t_fl[:, :3, :3] @ self.flange0[:3, :3].T  # product of the six axis rotations
         c = t_fl[:, :3, 3] - r_all @ (self.flange0[:3, 3] - self.c0)
         c = c - self.p1
-        ref = np.radians(ref_deg)
 
         # A1: the wrist centre's azimuth, in front of the A1 axis or over the top (behind)
         phi = np.arctan2(c[:, 1], c[:, 0])
@@ -517,34 +611,82 @@ class _IkGeometry:
                     q = np.concatenate([q123, np.stack([s[3] * alpha, s[4] * beta, s[5] * gam], axis=-1)], axis=-1)
                     branches.append(q)
                     valid.append(reach_ok)
-        q_all = np.degrees(np.stack(branches))  # [8, N, 6]
-        ok_all = np.stack(valid)
-        q_all, in_limits = self._nearest_turn(q_all, ref_deg)
-        ok_all &= in_limits
-        cost = np.where(ok_all, ((q_all - ref_deg) ** 2).sum(axis=-1), np.inf)
-        best = np.argmin(cost, axis=0)
-        q = q_all[best, np.arange(n)]
-        ok = np.isfinite(cost[best, np.arange(n)])
-        q[~ok] = np.nan
-        if ok.any():  # a closed form is exact; the check guards the reachability mask itself
-            back = self.robot.fk_matrix(q[ok])
-            bad = np.linalg.norm(back[:, :3, 3] - t_tcp[ok, :3, 3], axis=1) > 1e-6
-            bad |= np.abs(back[:, :3, :3] - t_tcp[ok, :3, :3]).max(axis=(1, 2)) > 1e-9
-            if bad.any():
-                idx = np.flatnonzero(ok)[bad]
-                ok[idx] = False
-                q[idx] = np.nan
-        return q, ok
+        q_all = (np.stack(branches) + np.pi) % (2 * np.pi) - np.pi
+        return q_all, np.stack(valid)
 
-    def _nearest_turn(self, q_deg: np.ndarray, ref_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Add the multiple of 360° that brings each joint nearest to the reference within its
-        limits (the nearest turn, or the next one towards the inside of the limits)."""
-        lo, hi = self.robot.limits[:, 0], self.robot.limits[:, 1]
-        q = q_deg + 360.0 * np.rint((ref_deg - q_deg) / 360.0)
-        q += 360.0 * (q < lo - 1e-9)
-        q -= 360.0 * (q > hi + 1e-9)
-        inside = (q >= lo - 1e-9) & (q <= hi + 1e-9)
-        return q, inside.all(axis=-1)
+
+class _UrIkGeometry:
+    """Closed-form IK of a Universal-Robots-type arm (as ``models/ur10.toml``; the numpy twin of
+    training.arm.UrIK, all 8 branches): A1 about ±Z; A2 = A3 = A4 about ±Y; A5 about ±Z; A6
+    about ±Y; A2 above A1, A3 and A4 along X from it, A5 beside A4 (Y), A6 below A5 (Z)."""
+
+    family = "ur"
+    wrist_index = 5  # the wrist point of S bit 0: A6's origin (on the A6 axis)
+    stretched = 0.0  # θ3 with the forearm in line with the upper arm
+
+    def __init__(self, robot: Robot):
+        d = robot.description
+        o = np.array([j.origin for j in d.joints])
+        axes = np.array([j.axis for j in d.joints])
+        want = [2, 1, 1, 1, 2, 1]
+        ok = np.allclose(o[:, 3:], 0.0) and all(abs(abs(axes[j, want[j]]) - 1.0) < 1e-12 for j in range(6))
+        ok = ok and np.allclose(axes[1], axes[2]) and np.allclose(axes[1], axes[3])
+        ok = ok and np.allclose(o[1, :2], 0.0) and np.allclose(o[2:4, 1:], 0.0) and np.allclose(o[4, [0, 2]], 0.0)
+        ok = ok and np.allclose(o[5, :2], 0.0) and np.allclose(o[0, :2], 0.0)
+        if not ok:
+            raise PostprocError(
+                "the UR-type IK needs joint origins without rotation, axes A1 ±Z, A2 = A3 = A4 ±Y, A5 ±Z, A6 ±Y, "
+                "A2 above A1, A3 and A4 along X from it, A5 beside A4 (Y), A6 below/above A5 (Z)",
+                d.path, d.locate("joint", None, 0), 1, CODE_GEOMETRY)
+        self.s = np.array([axes[j, want[j]] for j in range(6)])
+        self.z0 = float(o[0, 2] + o[1, 2])
+        self.a2, self.a3 = float(o[2, 0]), float(o[3, 0])
+        self.y4 = float(o[4, 1])  # A4 → A5 along the shoulder axis
+        self.z5 = float(o[5, 2])  # A5 → A6 along Z
+        self.inv_end = frames.inverse(robot.flange_chain.end @ robot.tool_matrix)  # A6 frame from the TCP
+
+    def branches(self, t_tcp: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """As :meth:`_IkGeometry.branches`; at the wrist singularity (A5 = 0) A6 keeps the reference."""
+        t6 = t_tcp @ self.inv_end
+        r6, p6 = t6[:, :3, :3], t6[:, :3, 3]
+        rho = np.hypot(p6[:, 0], p6[:, 1])
+        psi = np.arctan2(p6[:, 1], p6[:, 0])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = self.y4 / rho
+        lateral_ok = np.abs(ratio) <= 1.0
+        lateral = np.arcsin(np.clip(ratio, -1.0, 1.0))
+        branches, valid = [], []
+        for shoulder in (1.0, -1.0):
+            t1 = psi - lateral if shoulder > 0 else psi - np.pi + lateral
+            c1, s1 = np.cos(t1), np.sin(t1)
+            # R' = Rz(−t1)·R6 = Ry(t2 + t3 + t4)·Rz(t5)·Ry(t6)
+            rp = np.einsum("nij,njk->nik", _rz_ry(-t1, np.zeros_like(t1)), r6)
+            cos5 = np.clip(rp[:, 1, 1], -1.0, 1.0)
+            for wrist in (1.0, -1.0):
+                t5 = wrist * np.arccos(cos5)
+                sin5 = np.sin(t5)
+                singular = np.abs(sin5) < 1e-10
+                safe = np.where(singular, 1.0, sin5)
+                t6a = np.arctan2(rp[:, 1, 2] / safe, rp[:, 1, 0] / safe)
+                t234 = np.arctan2(rp[:, 2, 1] / safe, -rp[:, 0, 1] / safe)
+                if singular.any():  # R' = Ry(t234 + t6) (t5 = 0) or Ry(t234 − t6)·Rz(π) (t5 = π)
+                    t6a = np.where(singular, self.s[5] * ref[:, 5], t6a)
+                    total = np.arctan2(rp[:, 0, 2], rp[:, 0, 0] * np.sign(cos5))
+                    t234 = np.where(singular, total - np.sign(cos5) * t6a, t234)
+                c234, s234 = np.cos(t234), np.sin(t234)
+                p5 = p6 - self.z5 * np.stack([c1 * s234, s1 * s234, c234], axis=1)
+                u = c1 * p5[:, 0] + s1 * p5[:, 1]
+                w = self.z0 - p5[:, 2]
+                kappa = (u * u + w * w - self.a2**2 - self.a3**2) / (2 * self.a2 * self.a3)
+                reach_ok = lateral_ok & (np.abs(kappa) <= 1.0 + 1e-12)
+                for elbow in (1.0, -1.0):
+                    t3 = elbow * np.arccos(np.clip(kappa, -1.0, 1.0))
+                    t2 = np.arctan2(w, u) - np.arctan2(self.a3 * np.sin(t3), self.a2 + self.a3 * np.cos(t3))
+                    t4 = t234 - t2 - t3
+                    branches.append(np.stack([t1, t2, t3, t4, t5, t6a], axis=1) * self.s)
+                    valid.append(reach_ok)
+        q_all = (np.stack(branches) + np.pi) % (2 * np.pi) - np.pi
+        return q_all, np.stack(valid)
 
 
 def _rz_ry(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -25,6 +25,14 @@ calibrated to Hu, Hua & Tian's uncompensated row (mean 0.754 mm).
 
 Vectorised throughout: IK/FK in numpy over all poses, backlash signs from ``np.diff`` with a
 forward fill; Pinocchio is called only for gravity torques.
+
+Arm configuration and tools: a command may carry its Status/Turn (``config`` [N, 2], -1 = not
+stated; the controller's rules of :mod:`postproc.configuration` for the rest, from HOME) or
+its joint angles, and its own TCP on the flange (``tools`` [N, 6], default the description's
+tool). The drawn tool error is a mount error on the flange: for the description's tool T₀ the
+real TCP is flange·T₀·E, for another tool T it is flange·(T₀·E·T₀⁻¹)·T, the same physical
+error carried by the flange. ``actual_poses`` / ``measure(..., orientation=True)`` give the
+TCP's orientation too (a 6-DOF tracker probe), with ``orientation_noise_deg`` per angle.
 """
 from __future__ import annotations
 
@@ -34,11 +42,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import configuration, frames
 from .diagnostics import PostprocError
 from .robot import CODE_KEY, Chain, Robot, RobotDescription, axis_rotations, check_value, load_description
 from .stats import table2
 
-__all__ = ["ErrorSpec", "SimulatedRobot", "table2", "approach_signs", "small_transform", "CODE_REACH"]
+__all__ = ["ErrorSpec", "SimulatedRobot", "table2", "approach_signs", "small_transform", "rotation_angle_deg", "CODE_REACH"]
 
 CODE_REACH = "P335"
 CALIBRATION_POSES = 2000
@@ -64,6 +73,7 @@ _ERROR_KEYS: dict[str, str] = {
     "backlash_spread": "num",
     "tracker_noise_mm": "num",
     "repeatability_mm": "num",
+    "orientation_noise_deg": "num",
 }
 
 
@@ -89,6 +99,7 @@ class ErrorSpec:
     backlash_spread: float = 0.0  # relative half-width of the uniform draw around backlash_deg
     tracker_noise_mm: float = 0.0
     repeatability_mm: float = 0.0
+    orientation_noise_deg: float = 0.0  # per-angle noise of a 6-DOF probe's A, B, C
 
     @classmethod
     def from_description(cls, d: RobotDescription) -> "ErrorSpec":
@@ -168,6 +179,25 @@ def _workspace_poses(workspace: dict, n: int, seed: int) -> np.ndarray | None:
     strata = np.argsort(rng.random((n, 6)), axis=0)
     unit = (strata + rng.random((n, 6))) / n
     return lo + unit * (hi - lo)
+
+
+def rotation_angle_deg(abc_a: np.ndarray, abc_b: np.ndarray) -> np.ndarray:
+    """The angle [N] (deg) of the rotation between two orientations given as A,B,C [N, 3]."""
+    relative = frames.rotation_from_abc(abc_a).swapaxes(-1, -2) @ frames.rotation_from_abc(abc_b)
+    cos = (np.trace(relative, axis1=-2, axis2=-1) - 1.0) / 2.0
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def _nearest_triple(abc: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """Of the two A,B,C triples of each rotation, (A, B, C) and (A+180, 180−B, C+180), the one
+    nearest ``ref`` [N, 3], each angle on the turn nearest the reference's (the probe reads
+    angles as the program writes them: B = 93° stays 93°, not 87° with A and C turned)."""
+    alt = np.stack([abc[:, 0] + 180.0, 180.0 - abc[:, 1], abc[:, 2] + 180.0], axis=1)
+    out = []
+    for t in (abc, alt):
+        out.append(ref + (t - ref + 180.0) % 360.0 - 180.0)
+    far = [np.abs(t - ref).max(axis=1) for t in out]
+    return np.where((far[1] < far[0])[:, None], out[1], out[0])
 
 
 class SimulatedRobot:
@@ -327,9 +357,24 @@ class SimulatedRobot:
         """Everything the joints add to the command except the (scaled) zero offsets."""
         return self.ripple(q_deg) - signs * self.backlash_deg / 2 + self.deflection(q_deg)
 
-    def _tcp(self, q_deg: np.ndarray, joint_errors: np.ndarray) -> np.ndarray:
-        q_true = q_deg + joint_errors + self.scale * self.zero_offsets_deg
-        return self.chain.transforms(np.radians(q_true))[:, :3, 3]
+    def _tcp(self, q_deg: np.ndarray, joint_errors: np.ndarray, tools: np.ndarray | None = None) -> np.ndarray:
+        return self._tcp_matrix(q_deg, joint_errors, tools)[:, :3, 3]
+
+    def _tcp_matrix(self, q_deg: np.ndarray, joint_errors: np.ndarray, tools: np.ndarray | None = None) -> np.ndarray:
+        """The real TCP transforms [N, 4, 4]; ``tools`` [N, 6] each row's TCP on the flange."""
+        q_true = np.radians(q_deg + joint_errors + self.scale * self.zero_offsets_deg)
+        if tools is None:
+            return self.chain.transforms(q_true)
+        tools = np.asarray(tools, float).reshape(len(q_true), 6)
+        out = np.empty((len(q_true), 4, 4))
+        distinct, which = np.unique(tools, axis=0, return_inverse=True)
+        r, k = self.robot, self.scale
+        mount = r.tool_matrix @ small_transform(k * self.tool_error[0], k * self.tool_error[1]) @ frames.inverse(r.tool_matrix)
+        for i, tool in enumerate(distinct):  # over the few tools of a program
+            rows = which.ravel() == i
+            end = r.flange_chain.end @ mount @ frames.frame_to_matrix(tool)
+            out[rows] = Chain(self.chain.placements, self.chain.axes, end, self.chain.base).transforms(q_true[rows])
+        return out
 
     # ---------------------------------------------------------------- public
     def _ik(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -345,17 +390,40 @@ class SimulatedRobot:
         """Mask of commanded poses [N, 6] the controller can reach (nominal IK within limits)."""
         return self._ik(poses)[1]
 
-    def joint_angles(self, poses: np.ndarray) -> np.ndarray:
+    def joint_angles(self, poses: np.ndarray, config: np.ndarray | None = None, tools: np.ndarray | None = None,
+                     motions: np.ndarray | None = None) -> np.ndarray:
         """The controller's commanded joint angles [N, 6] (deg) for TCP poses [N, 6]: nominal
-        IK, branch nearest HOME. Raises PostprocError (P335) if any pose is out of reach."""
+        IK, branch nearest HOME; with ``config`` [N, 2] (S, T; -1 = not stated) the stated
+        branches and the controller's rules from HOME (``motions`` [N] kinds, programs.MOTIONS indices;
+        default: every row on its own, as a plan's), with ``tools`` [N, 6] each row's TCP.
+        Raises PostprocError (P335) if any pose is out of reach (in its configuration)."""
         poses = np.atleast_2d(np.asarray(poses, float))
-        q, ok = self._ik(poses)
+        q, ok = self._configured_ik(poses, config, tools, motions)
         if not ok.all():
             bad = np.flatnonzero(~ok)
             raise PostprocError(
                 f"{len(bad)} of {len(poses)} poses are out of reach of {self.robot.name} "
                 f"(first: row {bad[0] + 1}, {np.round(poses[bad[0]], 3).tolist()})", code=CODE_REACH)
         return q
+
+    def reachable_in(self, poses: np.ndarray, config: np.ndarray | None = None, tools: np.ndarray | None = None,
+                     motions: np.ndarray | None = None) -> np.ndarray:
+        """Mask of poses reachable in their configuration (see :meth:`joint_angles`)."""
+        return self._configured_ik(np.atleast_2d(np.asarray(poses, float)), config, tools, motions)[1]
+
+    def _configured_ik(self, poses, config, tools, motions) -> tuple[np.ndarray, np.ndarray]:
+        """``motions``: None = every row on its own (nearest HOME), else [N] motion kinds
+        (programs.MOTIONS indices: PTP-like, keep-configuration and independent rows)."""
+        if config is None and motions is None and (tools is None or np.allclose(tools, self.robot.tool)):
+            return self._ik(poses)  # (the plain case, cached)
+        n = len(poses)
+        config = np.full((n, 2), configuration.UNSTATED) if config is None else np.asarray(config, int)
+        if motions is None:
+            ptp, alone = np.zeros(n, bool), np.ones(n, bool)
+        else:
+            ptp, alone = configuration.execution_kinds(motions)
+        return configuration.controller_joints(self.robot, poses, config[:, 0], config[:, 1], ptp,
+                                               self.robot.home_q, tools, alone)
 
     def approach_directions(self, poses: np.ndarray, start_q: np.ndarray | None = None) -> np.ndarray:
         """Sign (+1/−1) [N, 6] of each joint's last motion when the poses are visited in order
@@ -369,21 +437,37 @@ class SimulatedRobot:
         start = self.robot.home_q if start_q is None else np.asarray(start_q, float)
         return q + self._joint_errors(q, approach_signs(q, start)) + self.scale * self.zero_offsets_deg
 
-    def actual_positions(self, commanded_poses: np.ndarray, start_q: np.ndarray | None = None) -> np.ndarray:
-        """Where the TCP really goes [N, 3] (mm, robot base frame) when the commanded poses
-        [N, 6] are visited in order from ``start_q`` (default HOME). Deterministic: no noise."""
-        q = self.joint_angles(commanded_poses)
+    def actual_poses(self, commanded_poses: np.ndarray, start_q: np.ndarray | None = None, *,
+                     q_deg: np.ndarray | None = None, config: np.ndarray | None = None,
+                     tools: np.ndarray | None = None, motions: np.ndarray | None = None) -> np.ndarray:
+        """Where the TCP really goes as transforms [N, 4, 4] (mm, robot base frame) when the
+        commanded poses [N, 6] are visited in order from ``start_q`` (default HOME), at the
+        joint angles ``q_deg`` if given, else in their configuration ``config`` (see
+        :meth:`joint_angles`), with each row's ``tools``. Deterministic: no noise."""
+        q = self.joint_angles(commanded_poses, config, tools, motions) if q_deg is None else np.asarray(q_deg, float)
         start = self.robot.home_q if start_q is None else np.asarray(start_q, float)
-        return self._tcp(q, self._joint_errors(q, approach_signs(q, start)))
+        return self._tcp_matrix(q, self._joint_errors(q, approach_signs(q, start)), tools)
+
+    def actual_positions(self, commanded_poses: np.ndarray, start_q: np.ndarray | None = None, **options) -> np.ndarray:
+        """Where the TCP really goes [N, 3] (mm, robot base frame): :meth:`actual_poses`' positions."""
+        return self.actual_poses(commanded_poses, start_q, **options)[:, :3, 3]
 
     def measure(self, commanded_poses: np.ndarray, rng_seed: int | None = 0,
-                start_q: np.ndarray | None = None) -> np.ndarray:
+                start_q: np.ndarray | None = None, orientation: bool = False, **options) -> np.ndarray:
         """Tracker readings [N, 3] (mm, robot base frame): the actual positions + the robot's
-        repeatability + tracker noise (Gaussian, per axis), visited in order."""
-        actual = self.actual_positions(commanded_poses, start_q)
+        repeatability + tracker noise (Gaussian, per axis), visited in order. With
+        ``orientation``: [N, 6], the probe's A, B, C too (+ ``orientation_noise_deg``).
+        ``options``: q_deg, config, tools, motions (see :meth:`actual_poses`)."""
+        actual = self.actual_poses(commanded_poses, start_q, **options)
         rng = np.random.default_rng(rng_seed)
         sigma = math.hypot(self.spec.tracker_noise_mm, self.spec.repeatability_mm)
-        return actual + rng.normal(0.0, 1.0, actual.shape) * sigma
+        xyz = actual[:, :3, 3] + rng.normal(0.0, 1.0, (len(actual), 3)) * sigma
+        if not orientation:
+            return xyz
+        abc = _nearest_triple(frames.matrix_to_frame(actual)[:, 3:], np.atleast_2d(commanded_poses)[:, 3:6])
+        if self.spec.orientation_noise_deg > 0:
+            abc = abc + rng.normal(0.0, self.spec.orientation_noise_deg, abc.shape)
+        return np.hstack([xyz, abc])
 
     @property
     def noise_mm(self) -> float:
@@ -396,12 +480,15 @@ class SimulatedRobot:
         return poses[:, :3] - self.actual_positions(poses, start_q)
 
     def verify(self, targets: np.ndarray, commands: np.ndarray, rng_seed: int | None = 0,
-               noise: bool = True) -> dict:
+               noise: bool = True, **options) -> dict:
         """The method's Table 2 before and after compensation: error = |target − where the robot
         goes| when commanded the target itself (before) and the compensated command (after),
         each run in order from HOME; measured with tracker noise + repeatability unless
         ``noise`` is False. Returns {"before": table2, "after": table2, "errors_before",
-        "errors_after"} (the last two [N] arrays of norms, mm)."""
+        "errors_after"} (the last two [N] arrays of norms, mm), and "orientation_before" /
+        "orientation_after": Table 2 of the angle (deg) between the target's and the actual
+        orientation (a 6-DOF probe, ``orientation_noise_deg``). ``options`` (config, tools,
+        motions; see :meth:`actual_poses`): the program's configurations and tools, for both runs."""
         targets = np.atleast_2d(np.asarray(targets, float))
         commands = np.atleast_2d(np.asarray(commands, float))
         if targets.shape != commands.shape:
@@ -409,14 +496,17 @@ class SimulatedRobot:
                                 "that correspond row by row")
         if noise:
             seeds = np.random.SeedSequence(rng_seed).spawn(2)
-            before = self.measure(targets, seeds[0])
-            after = self.measure(commands, seeds[1])
+            before = self.measure(targets, seeds[0], orientation=True, **options)
+            after = self.measure(commands, seeds[1], orientation=True, **options)
         else:
-            before, after = self.actual_positions(targets), self.actual_positions(commands)
-        e_before = np.linalg.norm(targets[:, :3] - before, axis=1)
-        e_after = np.linalg.norm(targets[:, :3] - after, axis=1)
+            before = frames.matrix_to_frame(self.actual_poses(targets, **options))
+            after = frames.matrix_to_frame(self.actual_poses(commands, **options))
+        e_before = np.linalg.norm(targets[:, :3] - before[:, :3], axis=1)
+        e_after = np.linalg.norm(targets[:, :3] - after[:, :3], axis=1)
+        r_before, r_after = (rotation_angle_deg(targets[:, 3:6], m[:, 3:6]) for m in (before, after))
         return {"before": table2(e_before), "after": table2(e_after),
-                "errors_before": e_before, "errors_after": e_after}
+                "errors_before": e_before, "errors_after": e_after,
+                "orientation_before": table2(r_before), "orientation_after": table2(r_after)}
 
     def describe(self) -> dict:
         """The drawn robot's parameters (for reports and tests)."""

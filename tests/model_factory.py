@@ -70,3 +70,53 @@ def affine_model(
     path = Path(path)
     onnx.save(model, path)
     return path
+
+
+def joint_model(path: Path, gain: np.ndarray, tool_gain: np.ndarray | None = None, rotation_gain: np.ndarray | None = None,
+                robot: str = "KR500-sim", tool: dict | None = None, name: str = "joint-test", **extra_meta) -> Path:
+    """A model of the arm's joints: E = gain · sin(joints) [+ tool_gain · tool[:3]] (input
+    ``joints`` [N, 6] deg, optional input ``tool``), optional output ``rotation_error`` =
+    rotation_gain · sin(joints) deg; E does not depend on ``pose`` at all, so a test sees which
+    joint angles compensate passed."""
+    gain = np.asarray(gain, float)
+    nodes = [
+        helper.make_node("Mul", ["joints", "rad"], ["q"]),
+        helper.make_node("Sin", ["q"], ["sq"]),
+        helper.make_node("MatMul", ["sq", "gainT"], ["e_q"]),
+        # pose enters with weight 0 (every contract input must be used by the graph)
+        helper.make_node("ReduceSum", ["pose", "ax1"], ["psum"], keepdims=1),
+        helper.make_node("Mul", ["psum", "zero"], ["p0"]),
+        helper.make_node("Add", ["e_q", "p0"], ["e_qp"]),
+    ]
+    inits = [
+        numpy_helper.from_array(np.array(np.pi / 180, np.float32), "rad"),
+        numpy_helper.from_array(gain.T.astype(np.float32), "gainT"),
+        numpy_helper.from_array(np.array([1], np.int64), "ax1"),
+        numpy_helper.from_array(np.array(0.0, np.float32), "zero"),
+    ]
+    inputs = [helper.make_tensor_value_info("pose", TensorProto.FLOAT, ["N", 6]),
+              helper.make_tensor_value_info("joints", TensorProto.FLOAT, ["N", 6])]
+    outputs = [helper.make_tensor_value_info("error", TensorProto.FLOAT, ["N", 3])]
+    if tool_gain is not None:
+        inputs.append(helper.make_tensor_value_info("tool", TensorProto.FLOAT, ["N", 6]))
+        nodes += [helper.make_node("MatMul", ["tool", "toolT"], ["e_t"]),
+                  helper.make_node("Add", ["e_qp", "e_t"], ["error"])]
+        inits.append(numpy_helper.from_array(np.asarray(tool_gain, float).T.astype(np.float32), "toolT"))
+    else:
+        nodes.append(helper.make_node("Identity", ["e_qp"], ["error"]))
+    if rotation_gain is not None:
+        nodes.append(helper.make_node("MatMul", ["sq", "rotT"], ["rotation_error"]))
+        inits.append(numpy_helper.from_array(np.asarray(rotation_gain, float).T.astype(np.float32), "rotT"))
+        outputs.append(helper.make_tensor_value_info("rotation_error", TensorProto.FLOAT, ["N", 3]))
+    graph = helper.make_graph(nodes, "joints", inputs, outputs, inits)
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    model.ir_version = 8
+    meta = contract_metadata(name=name, robot=robot, tool=tool or {"name": "spindle", "frame": [300, 0, 75, 0, 0, 0]},
+                             envelope=extra_meta.pop("envelope", None), reach=DEFAULT_REACH,
+                             method="joint-test", **extra_meta)
+    for k, v in meta.items():
+        model.metadata_props.add(key=k, value=v)
+    onnx.checker.check_model(model)
+    path = Path(path)
+    onnx.save(model, path)
+    return path

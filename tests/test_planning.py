@@ -62,11 +62,22 @@ def test_measure_writes_the_training_csv_in_visiting_order(tmp_path):
                     "2,2100,100,800,2,88,-1\n3,1800,-200,1000,0,95,5\n")
     assert main(["measure", str(plan), "-o", str(out), "--seed", "4", "-q"]) == 0
     lines = out.read_text().splitlines()
-    assert lines[0] == "x,y,z,a,b,c,x_meas,y_meas,z_meas"
+    assert lines[0] == "x,y,z,a,b,c,x_meas,y_meas,z_meas,a_meas,b_meas,c_meas,q1,q2,q3,q4,q5,q6"
     table = np.loadtxt(out, delimiter=",", skiprows=1)
     np.testing.assert_array_equal(table[:, :6], [[2000, 0, 900, 0, 90, 0], [2100, 100, 800, 2, 88, -1],
                                                  [1800, -200, 1000, 0, 95, 5]])
-    assert np.all(np.linalg.norm(table[:, 6:] - table[:, :3], axis=1) < 3)
+    assert np.all(np.linalg.norm(table[:, 6:9] - table[:, :3], axis=1) < 3)
+    # the probe's orientation: near the commanded, written as the program writes it (B 95, not 85)
+    from postproc.frames import rotation_from_abc
+
+    relative = rotation_from_abc(table[:, 3:6]).swapaxes(-1, -2) @ rotation_from_abc(table[:, 9:12])
+    angle = np.degrees(np.arccos(np.clip((np.trace(relative, axis1=1, axis2=2) - 1) / 2, -1, 1)))
+    assert np.all((angle > 1e-3) & (angle < 1.0))
+    assert np.abs(table[:, 10] - table[:, 4]).max() < 1.0
+    # the controller's joint angles: the nominal FK gives the commanded pose back
+    from postproc.robot import Robot
+
+    np.testing.assert_allclose(Robot().fk(table[:, 12:18])[:, :3], table[:, :3], atol=1e-3)
     # the training reader takes it as it is
     from postproc.training.data import read_measurements
 
@@ -93,3 +104,34 @@ def test_pose_csv_reader_ignores_extra_columns_and_comments():
     assert lines.tolist() == [3, 6]
     with pytest.raises(PostprocError, match="no rows"):
         parse_pose_csv("x,y,z,a,b,c\n")
+
+
+def test_plan_with_both_wrists_is_measured_in_its_configurations(tmp_path):
+    from postproc.robot import Robot
+
+    plan, out, src = tmp_path / "plan.csv", tmp_path / "m.csv", tmp_path / "meas.src"
+    assert main(["plan", "-n", "40", "--wrist", "both", "-o", str(plan), "--krl", str(src), "-q"]) == 0
+    header = plan.read_text().splitlines()[0]
+    assert header == "x,y,z,a,b,c,s,t"
+    st = np.loadtxt(plan, delimiter=",", skiprows=1)[:, 6:8].astype(int)
+    assert (st[0::2, 0] & 4 == 0).mean() > 0.9 and (st[1::2, 0] & 4 == 4).mean() > 0.9  # both wrists
+    ptp = [ln for ln in src.read_text().splitlines() if ln.startswith("PTP {X")]
+    assert len(ptp) == 41 and all(",S 'B" in ln and ",T 'B" in ln for ln in ptp)
+    assert main(["measure", str(plan), "-o", str(out), "-q"]) == 0
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    robot = Robot()
+    s, t = robot.status_turn(table[:, 12:18])
+    np.testing.assert_array_equal(np.stack([s, t], axis=1), st)  # measured in the stated configurations
+    np.testing.assert_array_equal(table[:, 18:20], st)
+
+
+def test_measure_with_another_tool_records_it(tmp_path):
+    plan, out = tmp_path / "plan.csv", tmp_path / "m.csv"
+    plan.write_text("x,y,z,a,b,c\n2000,0,900,0,90,0\n2100,100,800,2,88,-1\n")
+    assert main(["measure", str(plan), "-o", str(out), "--tool", "150,20,250,0,0,0", "-q"]) == 0
+    assert out.read_text().splitlines()[0] == "# tool: 150,20,250,0,0,0"
+    from postproc.robot import Robot, load_description
+
+    table = np.loadtxt(out, delimiter=",", skiprows=2)
+    arm = Robot(load_description().replace(tool=np.array([150.0, 20, 250, 0, 0, 0])))
+    np.testing.assert_allclose(arm.fk(table[:, 12:18])[:, :3], table[:, :3], atol=1e-3)

@@ -138,10 +138,36 @@ def test_verify_reads_krl_with_frames(capsys):
     assert "$TOOL" not in captured.err  # the sample uses the simulated robot's tool: nothing to warn about
 
 
-def test_verify_notes_a_program_tool_other_than_the_robots(tmp_path, capsys):
+def test_verify_runs_a_program_with_its_own_tool(tmp_path, capsys):
     src = tmp_path / "p.src"
     src.write_text("DEF p( )\n$TOOL = {X 10, Y 0, Z 250, A 0, B 0, C 0}\n"
                    "LIN {X 2000, Y 0, Z 900, A 0, B 90, C 0}\nLIN {X 2050, Y 100, Z 950, A 0, B 90, C 0}\nEND\n")
     assert main(["verify", str(src), str(src), "--json", "--no-noise"]) == 0
-    err = capsys.readouterr().err
-    assert "the program's $TOOL [10.0, 0.0, 250.0, 0.0, 0.0, 0.0] is not the simulated robot's tool" in err
+    figures = json.loads(capsys.readouterr().out)
+    sim = SimulatedRobot()
+    poses = np.array([[2000, 0, 900, 0, 90, 0], [2050, 100, 950, 0, 90, 0]], float)
+    tool = np.tile([10.0, 0, 250, 0, 0, 0], (2, 1))
+    lin = np.zeros(2, np.int8)  # LIN: the second keeps the first's configuration
+    own = np.linalg.norm(poses[:, :3] - sim.actual_positions(poses, tools=tool, motions=lin), axis=1)
+    spindle = np.linalg.norm(poses[:, :3] - sim.actual_positions(poses), axis=1)
+    assert figures["before"]["mean"] == pytest.approx(own.mean(), abs=1e-9)
+    assert abs(own.mean() - spindle.mean()) > 0.01  # the tool matters: not the robot's spindle
+
+
+def test_verify_reports_orientation_and_a_perfect_orientation_correction_removes_it():
+    from postproc import frames
+
+    sim = SimulatedRobot()
+    poses = latin_hypercube(60, seed=4)
+    command = poses.copy()
+    for _ in range(4):  # the simulator as the perfect model, on the full pose
+        actual = sim.actual_poses(command)
+        command[:, :3] = poses[:, :3] + (command[:, :3] - actual[:, :3, 3])  # c = P + E(c)
+        turn = actual[:, :3, :3] @ frames.rotation_from_abc(command[:, 3:6]).swapaxes(-1, -2)  # nominal → actual
+        command[:, 3:6] = frames.abc_from_rotation(turn.swapaxes(-1, -2) @ frames.rotation_from_abc(poses[:, 3:6]))
+    result = sim.verify(poses, command, noise=False)
+    assert 0.005 < result["orientation_before"]["mean"] < 1.0  # deg: the drawn robot turns the tool too
+    assert result["orientation_after"]["mean"] < 1e-4
+    assert result["after"]["mean"] < 1e-3
+    same = sim.verify(poses, poses, noise=False)
+    assert same["orientation_before"] == same["orientation_after"]

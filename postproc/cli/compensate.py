@@ -30,6 +30,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--max-correction", type=float, metavar="MM", default=None,
                    help="refuse corrections larger than this (default 5 mm)")
     p.add_argument("--strict", action="store_true", help="treat warnings as errors")
+    p.add_argument("--orientation", action="store_true",
+                   help="correct A/B/C too (a model with output rotation_error; pose lists)")
     p.add_argument("--robot", metavar="NAME", help="the robot the program is for: refuse a model trained on another "
                    "(its 'robot' metadata), unless --force")
     p.add_argument("--settings", metavar="TOML", help="pyproject.toml or postproc.toml to read (default: searched "
@@ -53,6 +55,7 @@ def run(args) -> int:
         force=args.force,
         max_correction_mm=DEFAULT_MAX_CORRECTION_MM if max_correction is None else max_correction,
         robot=args.robot or cfg.robot,
+        orientation=args.orientation,
     )
     if args.input == "-":
         from ..compensator import load_model

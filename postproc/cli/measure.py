@@ -8,8 +8,11 @@ EXAMPLES = """examples:
   postproc measure plan.csv -o measured_s3.csv --robot-seed 3 --seed 1
   postproc measure plan.csv -o measured.csv --robot cell7.toml
 
-Output header: x,y,z,a,b,c,x_meas,y_meas,z_meas (commanded TCP pose and measured TCP
-position, mm/deg, robot base frame), rows in visiting order: what `postproc train` reads.
+Output header: x,y,z,a,b,c,x_meas,y_meas,z_meas,a_meas,b_meas,c_meas,q1..q6 (commanded TCP
+pose, measured TCP pose (a 6-DOF probe), the controller's joint angles; mm/deg, robot base
+frame), rows in visiting order: what `postproc train` reads. A plan with s,t columns is run in
+those configurations (s,t copied to the output); with --tool the output starts with
+`# tool: X,Y,Z,A,B,C`.
 """
 
 
@@ -31,6 +34,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--robot-seed", type=int, metavar="S",
                    help="draw another robot (default: the file's calibrated one)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="measurement noise seed (default 0)")
+    p.add_argument("--tool", metavar="X,Y,Z,A,B,C",
+                   help="the TCP on the flange measured (default the description's [tool])")
     p.set_defaults(run=run)
 
 
@@ -41,7 +46,7 @@ def run(args) -> int:
     import numpy as np
 
     from ..diagnostics import PostprocError
-    from ..planning import read_pose_csv
+    from ..planning import parse_tool, read_plan_config, read_pose_csv
     from ..progress import stages
     from ..rewrite import write_atomic
     from ..simulator import CODE_REACH, SimulatedRobot
@@ -51,20 +56,30 @@ def run(args) -> int:
                 show_progress(args)) as stage:
         stage("read plan")
         poses, lines = read_pose_csv(args.plan)
+        config = read_plan_config(args.plan)
+        tool = None if args.tool is None else parse_tool(args.tool)
         stage("draw robot")
         sim = SimulatedRobot.from_file(args.robot, args.robot_seed)
+        tools = None if tool is None else np.tile(tool, (len(poses), 1))
         stage("controller IK")
-        ok = sim.reachable(poses)
+        ok = sim.reachable_in(poses, config, tools)
         if not ok.all():
             bad = np.flatnonzero(~ok)
             raise PostprocError(f"pose out of reach of {sim.robot.name}: {poses[bad[0]].tolist()}"
                                 + (f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""),
                                 args.plan, int(lines[bad[0]]), 1, CODE_REACH)
         stage("simulate and measure")
-        measured = sim.measure(poses, rng_seed=args.seed)
+        q = sim.joint_angles(poses, config, tools)
+        measured = sim.measure(poses, rng_seed=args.seed, orientation=True, q_deg=q, tools=tools)
         buf = io.StringIO()
-        np.savetxt(buf, np.hstack([poses, measured]), fmt=["%.10g"] * 6 + ["%.4f"] * 3, delimiter=",",
-                   header="x,y,z,a,b,c,x_meas,y_meas,z_meas", comments="")
+        if tool is not None:
+            buf.write("# tool: " + ",".join(f"{v:g}" for v in tool) + "\n")
+        columns = "x,y,z,a,b,c,x_meas,y_meas,z_meas,a_meas,b_meas,c_meas,q1,q2,q3,q4,q5,q6"
+        table, fmt = np.hstack([poses, measured, q]), ["%.10g"] * 6 + ["%.4f"] * 3 + ["%.5f"] * 3 + ["%.6f"] * 6
+        if config is not None:
+            table, fmt, columns = np.hstack([table, config]), fmt + ["%d", "%d"], columns + ",s,t"
+        np.savetxt(buf, table, fmt=fmt, delimiter=",", header=columns, comments="")
+        measured = measured[:, :3]
         stage("write")
         write_atomic([(Path(args.output), buf.getvalue())])
     if not args.quiet:

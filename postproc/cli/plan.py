@@ -37,6 +37,11 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--robot", metavar="FILE", help="robot description (default models/kr500.toml)")
     p.add_argument("-o", "--output", metavar="PLAN_CSV", required=True, help="plan CSV to write")
     p.add_argument("--krl", metavar="SRC", help="also write a KRL measurement program (.src, module named after it)")
+    p.add_argument("--wrist", choices=("home", "both"),
+                   help="state each pose's configuration (s,t columns; KRL: PTP with S/T): 'home' = the branch "
+                   "nearest HOME, 'both' = every other pose in the flipped-wrist configuration")
+    p.add_argument("--tool", metavar="X,Y,Z,A,B,C", help="the TCP on the flange the plan is measured with "
+                   "(default the description's [tool]): $TOOL of the KRL program and the reach check")
     p.add_argument("--wait", type=float, default=1.0, metavar="S",
                    help="settling time before each measurement (default 1 s)")
     iso = p.add_argument_group("ISO 9283 pose test (instead of the Latin hypercube)")
@@ -56,13 +61,15 @@ def run(args) -> int:
 
     from ..diagnostics import PostprocError
     from ..planning import DEFAULT_ATTITUDE, DEFAULT_BOX, DEFAULT_RANGE, krl_measurement_program, latin_hypercube, \
-        plan_csv_text, round_poses
+        parse_tool, plan_configurations, plan_csv_text, round_poses
     from ..progress import stages
     from ..rewrite import write_atomic
     from ..robot import Robot, load_description
     from . import show_progress
 
     description = load_description(args.robot)
+    if args.tool is not None:
+        description = description.replace(tool=parse_tool(args.tool), tool_name=f"$TOOL {args.tool}")
     ws = description.workspace
     box = args.box if args.box is not None else ws.get("box", DEFAULT_BOX)
     attitude = args.attitude if args.attitude is not None else ws.get("attitude", DEFAULT_ATTITUDE)
@@ -78,7 +85,11 @@ def run(args) -> int:
         poses = round_poses(latin_hypercube(args.poses, box, attitude, range_deg, args.seed))
         robot = Robot(description)
         stage("reach check (IK)")
-        _, ok = robot.ik(poses)
+        config = None
+        if args.wrist is not None:
+            config, ok = plan_configurations(robot, poses, args.wrist)
+        else:
+            _, ok = robot.ik(poses)
         if not ok.all():
             bad = np.flatnonzero(~ok)
             raise PostprocError(
@@ -86,12 +97,13 @@ def run(args) -> int:
                 f"(first: pose {bad[0] + 1} = {poses[bad[0]].tolist()}); shrink --box or --range, or move the box",
                 description.path, code="P335")
         stage("write")
-        outputs = [(Path(args.output), plan_csv_text(poses))]
+        outputs = [(Path(args.output), plan_csv_text(poses, config))]
         if args.krl is not None:
             src = Path(args.krl)
             comment = (f"Latin hypercube seed {args.seed}, box {list(map(float, box))}, "
                        f"attitude {list(map(float, attitude))} +- {range_deg:g} deg")
-            outputs.append((src, krl_measurement_program(poses, src.stem, robot, wait_s=args.wait, comment=comment)))
+            outputs.append((src, krl_measurement_program(poses, src.stem, robot, wait_s=args.wait, comment=comment,
+                                                                  config=config)))
         write_atomic(outputs)
     if not args.quiet:
         written = " + ".join(str(p) for p, _ in outputs)

@@ -67,6 +67,22 @@ def _fill(poses, program, attitude, name: str):
     return out, notes
 
 
+def execution(program, rows, sim) -> dict:
+    """How the controller runs targets ``rows`` of ``program``: their S/T (``Targets.config``),
+    motion kinds (configuration.execution_kinds) and $TOOL (the simulated robot's tool where the
+    program's is unknown) — the options of SimulatedRobot.verify. Both runs use the ORIGINAL's."""
+    import numpy as np
+
+    t = program.targets
+    config = getattr(t, "config", None)
+    tools = np.tile(sim.robot.tool, (len(rows), 1))
+    for f in np.unique(t.frame[rows]):
+        if program.frames[f].tool is not None:
+            tools[t.frame[rows] == f] = program.frames[f].tool
+    return {"config": None if config is None else np.asarray(config[rows], int), "tools": tools,
+            "motions": t.motion[rows]}
+
+
 def run(args) -> int:
     import json
 
@@ -99,7 +115,7 @@ def run(args) -> int:
     notes += n1 + n2
     rows = np.flatnonzero(keep)
     for program, poses, label in ((original, p_orig, "ORIGINAL"), (compensated, p_comp, "COMPENSATED")):
-        ok = sim.reachable(poses)
+        ok = sim.reachable_in(poses, **execution(original, rows, sim))
         if not ok.all():
             bad = np.flatnonzero(~ok)
             r, t = rows[bad[0]], program.targets
@@ -107,12 +123,8 @@ def run(args) -> int:
             raise PostprocError(f"{label} target out of reach of {sim.robot.name}: "
                                 f"{np.round(poses[bad[0]], 3).tolist()}{more}",
                                 program.files[t.file[r]], int(t.line[r]), int(t.col[r]), CODE_REACH)
-    tools = {tuple(np.round(f.tool, 3)) for f in original.frames if f.tool is not None}
-    for tool in tools:
-        if np.abs(np.asarray(tool) - sim.robot.tool).max() > 0.01:
-            notes.append(f"the program's $TOOL {[float(v) for v in tool]} is not the simulated robot's tool "
-                         f"{sim.robot.tool.tolist()}: simulated with the robot's tool")
-    result = sim.verify(p_orig, p_comp, rng_seed=args.seed, noise=not args.no_noise)
+    options = execution(original, rows, sim)
+    result = sim.verify(p_orig, p_comp, rng_seed=args.seed, noise=not args.no_noise, **options)
     failed = args.max_mean is not None and result["after"]["mean"] > args.max_mean
     figures = {
         "targets": int(len(p_orig)),
@@ -123,6 +135,8 @@ def run(args) -> int:
         "noise": not args.no_noise,
         "before": result["before"],
         "after": result["after"],
+        "orientation_before_deg": result["orientation_before"],
+        "orientation_after_deg": result["orientation_after"],
     }
     if args.max_mean is not None:
         figures["max_mean"] = args.max_mean
@@ -140,6 +154,10 @@ def run(args) -> int:
         for label in ("before", "after"):
             s = result[label]
             print(f"{label:12s}{s['max']:9.3f}{s['min']:9.3f}{s['mean']:9.3f}{s['std']:9.3f}")
+        print("Orientation error (deg)")
+        for label in ("before", "after"):
+            s = result["orientation_" + label]
+            print(f"{label:12s}{s['max']:9.4f}{s['min']:9.4f}{s['mean']:9.4f}{s['std']:9.4f}")
     if not args.quiet:
         gate = "" if args.max_mean is None else (f"; FAILED: mean {result['after']['mean']:.3f} > {args.max_mean:g} mm"
                                                  if failed else f"; mean within {args.max_mean:g} mm")

@@ -50,6 +50,12 @@ class Targets:
     line, col  [N] int32       1-based location of the target's aggregate (for messages)
     frame      [N] int32       index into Program.frames; -1 = not statically resolvable
     motion     [N] int8        index into MOTIONS
+    config     [N, 2] int16    (S, T) Status and Turn as written, -1 where not stated (None:
+                               the reader states none)
+    joints     [N, 6] float64  the controller's joint angles (deg) where the program gives
+                               them (a pose list's q1..q6), NaN elsewhere (None: none given)
+    abc_spans  [N, 3, 2] int64 (start, end) of the A, B, C tokens, -1 where absent (None: the
+                               reader does not locate them; ``compensate --orientation`` needs them)
     """
 
     poses: np.ndarray
@@ -59,6 +65,9 @@ class Targets:
     col: np.ndarray
     frame: np.ndarray
     motion: np.ndarray
+    config: np.ndarray | None = None
+    joints: np.ndarray | None = None
+    abc_spans: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.poses)

@@ -1,7 +1,9 @@
 """Generic pose programs: a CSV with a header naming at least x,y,z (and a,b,c), or
 whitespace-separated ``x y z [a b c]`` lines with no header.
 
-Every row is a Cartesian target in the robot base frame. Other columns, comment lines
+Every row is a Cartesian target in the robot base frame. Optional columns ``s,t`` (Status
+and Turn, integers; empty = not stated) give the arm configuration and ``q1..q6`` the joint
+angles (deg) the controller uses, passed to the model as they are. Other columns, comment lines
 (``#``, ``;``, ``//``) and blank lines are kept as they are. The syntax of a record is
 ``grammars/poses.lark``; each distinct line shape (numbers abstracted) is parsed once and
 reused, so a million rows cost one regex pass, not a million parses.
@@ -20,6 +22,10 @@ from ..resources import grammar_path
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, TargetsBuilder
 
 COLUMNS = ("x", "y", "z", "a", "b", "c")
+CONFIG = ("s", "t")
+JOINTS = ("q1", "q2", "q3", "q4", "q5", "q6")
+_OPTIONAL = CONFIG + JOINTS
+_ALL = COLUMNS + _OPTIONAL
 _COMMENT = re.compile(r"[ \t]*(#|;|//)")
 _ROW_MOTION = MOTIONS.index("row")
 
@@ -62,6 +68,8 @@ def read(files: list[str], texts: list[str]) -> Program:
     width = 0
     shapes: dict[str, tuple] = {}  # line shape → ordinal of each x..c among the line's numbers
     offset = 0
+    abc_spans: list = []  # where each row's A, B, C numbers stand
+    extras: list | None = None  # s, t, q1..q6 of each row when the header names any of them
     # lines end at "\n" only, as diagnostics.line_col counts them: str.splitlines would also
     # split at \x0b, \x0c, \x1c-\x1e and \x85 (NEL), which latin-1 text can hold
     for lineno, raw in enumerate(text.split("\n"), start=1):
@@ -84,8 +92,10 @@ def read(files: list[str], texts: list[str]) -> Program:
             if missing:
                 raise PostprocError(f"header has no column {', '.join(missing)} (needs x,y,z[,a,b,c])",
                                     path, lineno, lead + 1, "P104")
-            columns = {c: names.index(c) for c in COLUMNS if c in names}
+            columns = {c: names.index(c) for c in _ALL if c in names}
             width = len(fields)
+            if any(c in columns for c in _OPTIONAL):
+                extras = []
             continue
         shape = number.sub("0", body)
         ordinals = shapes.get(shape)
@@ -105,17 +115,29 @@ def read(files: list[str], texts: list[str]) -> Program:
             run_at = {m.start(): k for k, m in enumerate(number.finditer(body))}
             ordinal_of = {i: run_at[tok.start_pos] for i, (kind, tok) in enumerate(fields) if kind == "number"}
             for name, index in columns.items():
-                if index not in ordinal_of:
+                if index not in ordinal_of and not (name in _OPTIONAL and fields[index][1] is None):
                     kind, tok = fields[index]
                     where = body.find(str(tok)) if tok is not None else 0
                     raise PostprocError(f"column {name} is not a number: '{tok}'" if tok is not None
                                         else f"column {name} is empty", path, lineno, lead + max(where, 0) + 1, "P103")
-            ordinals = tuple(ordinal_of.get(columns[c], -1) if c in columns else -1 for c in COLUMNS)
+            ordinals = tuple(ordinal_of.get(columns[c], -1) if c in columns else -1 for c in _ALL)
             shapes[shape] = ordinals
         matches = list(number.finditer(line))
         pose = [math.nan] * 6
         spans = [-1] * 6
-        for k, ordinal in enumerate(ordinals):
+        abc = [-1] * 6
+        if extras is not None:
+            extra = [math.nan] * len(_OPTIONAL)
+            for k, ordinal in enumerate(ordinals[6:]):
+                if ordinal >= 0:
+                    m = matches[ordinal]
+                    value = float(m.group())
+                    if not math.isfinite(value) or (k < 2 and not (value == int(value) and 0 <= value < 64)):
+                        raise PostprocError(f"{_OPTIONAL[k]} must be {'an integer 0…63' if k < 2 else 'finite'}: "
+                                            f"{m.group()}", path, lineno, m.start() + 1, "P103")
+                    extra[k] = value
+            extras.append(extra)
+        for k, ordinal in enumerate(ordinals[:6]):
             if ordinal < 0:
                 continue
             m = matches[ordinal]
@@ -125,13 +147,24 @@ def read(files: list[str], texts: list[str]) -> Program:
             pose[k] = value
             if k < 3:
                 spans[2 * k], spans[2 * k + 1] = start + m.start(), start + m.end()
+            else:
+                abc[2 * k - 6], abc[2 * k - 5] = start + m.start(), start + m.end()
+        abc_spans.append(abc)
         builder.add(pose, spans, 0, lineno, lead + 1, 0, _ROW_MOTION)
     if columns is None:
         raise PostprocError("no poses in this file (empty, or comments only)", path, 1, 1, "P105")
+    targets = builder.build()
+    targets.abc_spans = np.array(abc_spans, dtype=np.int64).reshape(len(targets), 3, 2)
+    if extras is not None:
+        table = np.array(extras, float).reshape(len(targets), len(_OPTIONAL))
+        if any(c in columns for c in CONFIG):
+            targets.config = np.where(np.isnan(table[:, :2]), -1, table[:, :2]).astype(np.int16)
+        if any(c in columns for c in JOINTS):
+            targets.joints = table[:, 2:]
     return Program(
         files=list(files[:1]),
         texts=list(texts[:1]),
-        targets=builder.build(),
+        targets=targets,
         frames=[Frame(np.eye(4), None, "robot base")],
         dialect="poses",
         stamps=stamps,

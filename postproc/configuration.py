@@ -1,0 +1,288 @@
+"""Arm configuration: which joint angles the controller will use for each Cartesian target.
+
+A pose has up to 8 closed-form solutions (shoulder, elbow, wrist) and, for joints that turn
+more than 360°, several turns of each. KUKA's Status and Turn pick one
+(``../shared/KRL-NOTES.md``; KSS manual, "Status and Turn"):
+
+* S bit 0: the wrist point behind the A1 axis (overhead area), bit 1: A3 at or beyond the
+  stretched-arm angle (elbow), bit 2: A5 ≤ 0 (wrist flip);
+* T bit i set ⇔ A(i+1) < 0 (which turn of each joint).
+
+For a UR-type arm (``models/ur10.toml``, no S/T on its controller) postproc uses the same bits
+for the same geometric facts (:meth:`postproc.robot.Robot.status_turn`): bit 0 = A6's origin
+behind the shoulder-pan axis (UR "shoulder left/right"), bit 1 = the elbow branch (elbow
+joint ≥ 0), bit 2 = wrist-2 ≤ 0 (wrist up/down, taken in (−180°, 180°]); T as KUKA's.
+
+Targets without S/T follow the controller, in program order:
+
+* a LIN/CIRC target keeps the configuration (same branch as the target before it) and every
+  joint moves continuously from there (the turn nearest to the previous target's angle);
+* a PTP target takes the solution nearest to the current axis position (the previous
+  target's joint angles), over all branches and turns;
+* the first target, if it states no S, takes the solution nearest ``initial_q``, the axis
+  position before it (for a LIN too: HOME's A5 = 0 lies on the wrist-flip boundary); ``compensate``
+  passes the joint angles the model's own IK gives for the first target (the model's
+  ``joints`` output: today's behaviour), or HOME for a model without it.
+
+A stated S without T keeps each joint's turn nearest to the previous angle; a stated T fixes
+each joint's sign (the turn inside the limits with that sign). Targets whose configuration has
+no solution (the pose unreachable on that branch, within the limits) come back NaN with
+``ok`` False: the caller leaves them as written.
+
+numpy only: the nominal arm is :class:`postproc.robot.Robot`'s numpy kinematics (Pinocchio is
+imported by robot.py only for gravity and checks).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .robot import Robot
+
+__all__ = ["UNSTATED", "branch_table", "stated_joints", "controller_joints", "status_turn_of"]
+
+UNSTATED = -1  # S or T not written for a target
+# A joint this close to 0° fits either sign of T (the turn of the written angle is kept): a
+# pose written with 3 decimals moves its joint angles by ~1e-3°, and a compensated command
+# (S and T left as written) by ~0.1° (a target taught at A6 −0.01° is commanded at +0.01°).
+SIGN_TOLERANCE_DEG = 0.5
+# passes over the program for PTP targets that switch branch (each pass settles at least one switch)
+MAX_PASSES = 20
+
+
+def _wrap(deg: np.ndarray) -> np.ndarray:
+    return (deg + 180.0) % 360.0 - 180.0
+
+
+def branch_table(robot: Robot, poses: np.ndarray, tools: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Joint angles of each branch indexed by its status: [8 (S), N, 6] deg (one turn within the
+    limits, NaN where that branch does not reach the pose) and the mask [8, N]. ``tools``
+    [N, 6]: each pose's TCP on the flange (default the robot's tool)."""
+    poses = np.atleast_2d(np.asarray(poses, float))
+    n = len(poses)
+    if tools is not None:
+        tools = np.asarray(tools, float).reshape(n, 6)
+        table = np.full((8, n, 6), np.nan)
+        ok = np.zeros((8, n), bool)
+        distinct, which = np.unique(tools, axis=0, return_inverse=True)
+        for k, tool in enumerate(distinct):  # over the few tools of a program
+            rows = np.flatnonzero(which.ravel() == k)
+            arm = robot if np.array_equal(tool, robot.tool) else Robot(robot.description.replace(tool=tool))
+            table[:, rows], ok[:, rows] = branch_table(arm, poses[rows])
+        return table, ok
+    q_all, ok_all = robot.ik_branches(poses, np.zeros(6))
+    b, i = np.nonzero(ok_all)
+    status, _ = robot.status_turn(q_all[b, i])  # (only the branches that reach: ~half of them)
+    table = np.full((8, n, 6), np.nan)
+    ok = np.zeros((8, n), bool)
+    table[status, i] = q_all[b, i]
+    ok[status, i] = True
+    return table, ok
+
+
+def _turn_for_sign(robot: Robot, q: np.ndarray, turn: np.ndarray) -> np.ndarray:
+    """Each joint of ``q`` [..., 6] on the turn whose sign T [...] states (nearest to ``q``
+    within the limits); NaN where no turn has that sign within the limits."""
+    lo, hi = robot.limits[:, 0], robot.limits[:, 1]
+    want_negative = ((turn[..., None] >> np.arange(6)) & 1).astype(bool)
+    best = np.full(q.shape, np.nan)
+    best_d = np.full(q.shape, np.inf)
+    with np.errstate(invalid="ignore"):
+        for k in (0, -1, 1, -2, 2):
+            c = q + 360.0 * k
+            sign_ok = np.where(want_negative, c < SIGN_TOLERANCE_DEG, c > -SIGN_TOLERANCE_DEG)
+            fits = (c >= lo - 1e-9) & (c <= hi + 1e-9) & sign_ok
+            closer = fits & (abs(k) < best_d)
+            best = np.where(closer, c, best)
+            best_d = np.where(closer, abs(k), best_d)
+    return best
+
+
+def status_turn_of(robot: Robot, q_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(S, T) [N] of joint angles [N, 6] (NaN rows: UNSTATED)."""
+    q = np.atleast_2d(np.asarray(q_deg, float))
+    bad = ~np.isfinite(q).all(axis=1)
+    s, t = robot.status_turn(np.nan_to_num(q))
+    return np.where(bad, UNSTATED, s), np.where(bad, UNSTATED, t)
+
+
+def stated_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.ndarray,
+                  reference: np.ndarray | None = None, tools: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The joint angles [N, 6] (deg) of the branch each target's S and T state, and a mask of
+    the targets that have one. Poses [N, 6] in the robot base frame (TCP with the robot's
+    tool); S, T [N] ints. Joints whose T is UNSTATED take the turn nearest ``reference``
+    ([6] or [N, 6], default HOME); a target whose S is UNSTATED takes the branch nearest it.
+    ``tools`` [N, 6]: each target's TCP on the flange (default the robot's tool)."""
+    poses = np.atleast_2d(np.asarray(poses, float))
+    n = len(poses)
+    ref = np.broadcast_to(robot.home_q if reference is None else np.asarray(reference, float), (n, 6))
+    table, ok = branch_table(robot, poses, tools)
+    return _choose(robot, table, ok, np.asarray(status).reshape(n), np.asarray(turn).reshape(n), ref)
+
+
+def _choose(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, turn: np.ndarray,
+            ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    n = table.shape[1]
+    near, in_limits = robot.nearest_turn(table, ref)
+    signed = _turn_for_sign(robot, table, np.broadcast_to(turn, (8, n)))
+    cand = np.where((turn >= 0)[None, :, None], signed, near)
+    good = ok & in_limits & np.isfinite(cand).all(axis=-1)
+    good &= (status < 0)[None] | (np.arange(8)[:, None] == status[None])
+    with np.errstate(invalid="ignore"):
+        cost = np.where(good, ((cand - ref) ** 2).sum(axis=-1), np.inf)
+    best = np.argmin(cost, axis=0)
+    rows = np.arange(n)
+    q = cand[best, rows]
+    found = np.isfinite(cost[best, rows])
+    q[~found] = np.nan
+    return q, found
+
+
+def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.ndarray,
+                      ptp: np.ndarray, initial_q: np.ndarray | None = None,
+                      tools: np.ndarray | None = None,
+                      independent: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The joint angles [N, 6] (deg) the controller uses for targets in program order, and a mask
+    of the targets that have them: stated S/T where given, else the controller's rules (module
+    docstring). ``ptp`` [N] bool marks PTP motions (PTP, SPTP; the rest keep the configuration);
+    ``initial_q`` [6] the axis position before the first target (default HOME); ``tools`` [N, 6]
+    each target's TCP on the flange (default the robot's tool); ``independent`` [N] bool: rows
+    solved on their own, nearest ``initial_q`` whatever came before (a pose list's rows: each
+    pose reached as ``measure`` reaches it, the branch nearest HOME)."""
+    poses = np.atleast_2d(np.asarray(poses, float))
+    n = len(poses)
+    status = np.asarray(status, int).reshape(n)
+    turn = np.asarray(turn, int).reshape(n)
+    ptp = np.asarray(ptp, bool).reshape(n)
+    start = np.asarray(robot.home_q if initial_q is None else initial_q, float).reshape(6)
+    if n == 0:
+        return np.zeros((0, 6)), np.zeros(0, bool)
+    table, ok = branch_table(robot, poses, tools)
+    start_s = int(status_turn_of(robot, start[None])[0][0])
+    # the branch each target is on: stated, else the previous target's (the first: the start's)
+    branch = np.where(status >= 0, status, UNSTATED)
+    free_ptp = (status < 0) & ptp
+    free_ptp[0] = status[0] < 0  # the first target: nearest the start position, whatever its motion
+    alone = np.zeros(n, bool) if independent is None else np.asarray(independent, bool).reshape(n)
+    free_ptp &= ~alone
+    q_alone = ok_alone = None
+    if alone.any():
+        q_alone, ok_alone = _choose(robot, table[:, alone], ok[:, alone], status[alone], turn[alone],
+                                    np.broadcast_to(start, (int(alone.sum()), 6)))
+        branch[alone] = np.where(ok_alone, status_turn_of(robot, q_alone)[0], branch[alone])
+    q = found = None
+    for _ in range(MAX_PASSES):
+        filled = _forward_fill(branch, start_s)
+        q, found = _continue_turns(robot, table, ok, filled, turn, start)
+        if not free_ptp.any():
+            break
+        # PTP without S: the solution nearest the previous target's joint angles, any branch
+        previous = np.vstack([start[None], _forward_fill_rows(q)[:-1]])
+        q_ptp, ok_ptp = _choose(robot, table[:, free_ptp], ok[:, free_ptp], np.full(int(free_ptp.sum()), UNSTATED),
+                                turn[free_ptp], previous[free_ptp])
+        chosen = np.where(ok_ptp, status_turn_of(robot, q_ptp)[0], UNSTATED)
+        new = branch.copy()
+        new[free_ptp] = chosen
+        if np.array_equal(new, branch):
+            break
+        branch = new
+    if alone.any():
+        q[alone], found[alone] = q_alone, ok_alone
+    return q, found
+
+
+def _forward_fill(values: np.ndarray, first: int) -> np.ndarray:
+    """UNSTATED entries take the last stated value before them (``first`` before any)."""
+    idx = np.where(values >= 0, np.arange(len(values)), -1)
+    np.maximum.accumulate(idx, out=idx)
+    return np.where(idx >= 0, values[np.maximum(idx, 0)], first)
+
+
+def _forward_fill_rows(q: np.ndarray) -> np.ndarray:
+    """Rows with NaN take the last finite row before them (HOME-free: the first stays NaN)."""
+    good = np.isfinite(q).all(axis=1)
+    idx = np.where(good, np.arange(len(q)), -1)
+    np.maximum.accumulate(idx, out=idx)
+    out = q[np.maximum(idx, 0)].copy()
+    out[idx < 0] = np.nan
+    return out
+
+
+def _continue_turns(robot: Robot, table: np.ndarray, ok: np.ndarray, branch: np.ndarray, turn: np.ndarray,
+                    start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Joint angles on the given branches [N]: joints with a stated T on that turn, the others
+    continuing from the previous target (unwrapped from the turn before: continuous motion),
+    brought inside the limits. A run restarts after a target without solution."""
+    n = len(branch)
+    rows = np.arange(n)
+    principal = table[branch, rows]
+    reached = ok[branch, rows]
+    principal[~reached] = np.nan
+    # the joint path: each step the shortest way round, from the start position
+    anchors = np.vstack([start[None], principal])
+    steps = _wrap(np.diff(anchors, axis=0))
+    broken = ~np.isfinite(steps).all(axis=1)
+    steps[broken] = 0.0
+    path = start + np.cumsum(steps, axis=0)
+    # the motion restarts at a target with a stated T (its turn) and after an unreachable
+    # target (the target's own turn nearest the start position)
+    stated = (turn >= 0) & reached
+    restart = stated | (broken & reached)
+    if restart.any():
+        first_rows = np.flatnonzero(restart)
+        anchor = robot.nearest_turn(principal[first_rows], np.broadcast_to(start, (len(first_rows), 6)))[0]
+        signed = stated[first_rows]
+        anchor[signed] = _turn_for_sign(robot, principal[first_rows[signed]], turn[first_rows[signed]])
+        offset = np.zeros((len(first_rows) + 1, 6))
+        fits = np.isfinite(anchor).all(axis=1)
+        offset[1:][fits] = anchor[fits] - path[first_rows[fits]]
+        path = path + offset[np.cumsum(restart)]
+        reached[first_rows[~fits]] = False  # a stated T no turn within the limits has
+    # the same turns on the exact angles (no drift of the sums), brought inside the limits
+    with np.errstate(invalid="ignore"):
+        q = principal + 360.0 * np.rint((path - principal) / 360.0)
+    q, _ = robot.nearest_turn(q, q)
+    q[~reached] = np.nan
+    found = reached & np.isfinite(q).all(axis=1)
+    q[~found] = np.nan
+    return q, found
+
+
+# --------------------------------------------------------------------------- targets of a program
+
+# Motions that take the solution nearest the current axis position when no S is stated; the
+# others (LIN, CIRC, SLIN, SCIRC, SPL) keep the configuration.
+_NEAREST = ("PTP", "SPTP")
+# A pose list's rows are poses reached one by one as `measure` reaches a plan's: without s,t,
+# each on the branch nearest HOME (the simulator's and today's models' choice).
+_INDEPENDENT = ("row",)
+
+
+def execution_kinds(motion: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(PTP-like, independent) masks [N] of motion kinds (indices into programs.MOTIONS)."""
+    from .programs import MOTIONS
+
+    motion = np.asarray(motion)
+    return (np.isin(motion, [MOTIONS.index(m) for m in _NEAREST]),
+            np.isin(motion, [MOTIONS.index(m) for m in _INDEPENDENT]))
+
+
+def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, tools: np.ndarray | None = None,
+                  initial_q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The controller's joint angles [n, 6] (deg) for ``rows`` of a program's ``Targets`` (in
+    program order) at ``poses`` [n, 6] (robot base, TCP) with ``tools`` [n, 6], and a mask of
+    those that have them: the program's own joint angles where it gives them (``Targets.joints``),
+    else its S/T (``Targets.config``), else the controller's rules (module docstring)."""
+    rows = np.asarray(rows, int)
+    n = len(rows)
+    config = getattr(targets, "config", None)
+    if config is None:
+        status = turn = np.full(n, UNSTATED)
+    else:
+        status, turn = (np.asarray(config[rows, k], int) for k in (0, 1))
+    nearest, alone = execution_kinds(np.asarray(targets.motion)[rows])
+    q, ok = controller_joints(robot, poses, status, turn, nearest, initial_q, tools, alone)
+    given = getattr(targets, "joints", None)
+    if given is not None:
+        own = np.isfinite(given[rows]).all(axis=1)
+        q[own], ok[own] = given[rows][own], True
+    return q, ok

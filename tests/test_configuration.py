@@ -1,0 +1,111 @@
+"""S/T → joint angles (postproc.configuration) on the nominal KUKA-type and UR-type arms."""
+import numpy as np
+import pytest
+
+from postproc import configuration as cf
+from postproc.resources import model_path
+from postproc.robot import Robot, load_description
+
+
+@pytest.fixture(scope="module", params=["kr500.toml", "ur10.toml"])
+def arm(request):
+    return Robot(load_description(model_path(request.param)))
+
+
+def _random_q(robot, n, seed):
+    rng = np.random.default_rng(seed)
+    lo, hi = robot.limits[:, 0], robot.limits[:, 1]
+    return rng.uniform(0.9 * np.maximum(lo, -170), 0.9 * np.minimum(hi, 170), (n, 6))
+
+
+def test_every_branch_round_trips_through_pinocchio(arm):
+    q = _random_q(arm, 4000, 1)
+    status, turn = arm.status_turn(q)
+    assert set(status.tolist()) == set(range(8))  # all 8 branches are exercised
+    got, ok = cf.stated_joints(arm, arm.fk(q), status, turn)
+    assert ok.all()
+    np.testing.assert_allclose(got, q, atol=1e-6)  # the very joint angles: branch and turn
+    for s in range(8):
+        rows = np.flatnonzero(status == s)[:5]
+        back = arm.pin_fk(got[rows])  # Pinocchio, not postproc's own chain
+        want = arm.fk_matrix(q[rows])
+        assert np.abs(back[:, :3, 3] - want[:, :3, 3]).max() <= 1e-6
+        assert np.abs(back[:, :3, :3] - want[:, :3, :3]).max() <= 1e-9
+        assert (arm.status_turn(got[rows])[0] == s).all()
+
+
+def test_other_branches_are_other_joint_angles_of_the_same_pose(arm):
+    q = _random_q(arm, 300, 2)
+    poses = arm.fk(q)
+    status, _ = arm.status_turn(q)
+    flipped = status ^ 4  # the other wrist
+    got, ok = cf.stated_joints(arm, poses, flipped, np.full(len(q), cf.UNSTATED))
+    assert ok.mean() > 0.5
+    assert (arm.status_turn(got[ok])[0] == flipped[ok]).all()
+    assert np.abs(got[ok] - q[ok]).max(axis=1).min() > 1.0  # really another configuration
+    np.testing.assert_allclose(arm.fk(got[ok])[:, :3], poses[ok, :3], atol=1e-6)
+
+
+def test_a_turn_no_solution_has_is_not_found():
+    robot = Robot()  # KR500: A5 within ±118°, so T bit 4 must agree with S bit 2
+    q = np.array([[10.0, -80.0, 100.0, 20.0, 40.0, 30.0]])
+    status, turn = robot.status_turn(q)
+    got, ok = cf.stated_joints(robot, robot.fk(q), status, turn ^ (1 << 4))
+    assert not ok[0] and np.isnan(got[0]).all()
+    got, ok = cf.stated_joints(robot, robot.fk(q), status, turn ^ (1 << 5))  # A6 −330°: another turn
+    assert ok[0] and got[0, 5] == pytest.approx(30.0 - 360.0)
+
+
+def test_lin_keeps_the_stated_configuration_and_moves_continuously(arm):
+    q0 = _random_q(arm, 1, 3)[0]
+    q0[4] = -40.0 if arm.family == "kuka" else q0[4]
+    path = q0 + np.linspace(0.0, 1.0, 400)[:, None] * np.array([15.0, 8.0, -10.0, 200.0, 20.0, 250.0])
+    lo, hi = arm.limits[:, 0], arm.limits[:, 1]
+    path = path[((path >= lo) & (path <= hi)).all(axis=1)]
+    status, turn = arm.status_turn(path[:1])
+    s = np.full(len(path), cf.UNSTATED)
+    t = np.full(len(path), cf.UNSTATED)
+    s[0], t[0] = status[0], turn[0]
+    got, ok = cf.controller_joints(arm, arm.fk(path), s, t, np.zeros(len(path), bool))
+    assert ok.all()
+    np.testing.assert_allclose(got, path, atol=1e-6)  # A4/A6 past ±180° on their own turn
+    # the controller's own IK from HOME picks another branch or turn for many of these
+    nominal, _ = arm.ik(arm.fk(path))
+    assert np.abs(nominal - path).max() > 10.0
+
+
+def test_ptp_without_status_takes_the_solution_nearest_the_previous_axis_position():
+    robot = Robot()
+    a = np.array([0.0, -70.0, 95.0, 170.0, -50.0, 160.0])  # flipped wrist, far from HOME's
+    b = a + np.array([5.0, 3.0, -4.0, 2.0, -3.0, 4.0])
+    poses = robot.fk(np.vstack([a, b]))
+    s, t = robot.status_turn(a[None])
+    got, ok = cf.controller_joints(robot, poses, [s[0], cf.UNSTATED], [t[0], cf.UNSTATED], [True, True])
+    assert ok.all()
+    np.testing.assert_allclose(got[1], b, atol=1e-6)
+    # without anything stated the start position decides: from HOME the other wrist (A4 ≈ −10°)
+    got, ok = cf.controller_joints(robot, poses, [cf.UNSTATED] * 2, [cf.UNSTATED] * 2, [True, True])
+    assert (robot.status_turn(got)[0] & 4 == 0).all()
+    got, ok = cf.controller_joints(robot, poses, [cf.UNSTATED] * 2, [cf.UNSTATED] * 2, [True, True], initial_q=a)
+    np.testing.assert_allclose(got, np.vstack([a, b]), atol=1e-6)
+
+
+def test_unreachable_targets_are_not_found_and_the_motion_restarts_after_them():
+    robot = Robot()
+    q = np.array([[0.0, -90.0, 90.0, 0.0, 45.0, 0.0], [5.0, -85.0, 85.0, 5.0, 40.0, 5.0]])
+    poses = robot.fk(q)
+    poses = np.vstack([poses[:1], [[9000.0, 0, 0, 0, 0, 0]], poses[1:]])
+    got, ok = cf.controller_joints(robot, poses, [cf.UNSTATED] * 3, [cf.UNSTATED] * 3, [False] * 3)
+    assert ok.tolist() == [True, False, True]
+    np.testing.assert_allclose(got[[0, 2]], q, atol=1e-6)
+
+
+def test_configuration_does_not_import_pinocchio_or_torch():
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np; from postproc import configuration as cf; from postproc.robot import Robot;"
+            "r = Robot(); cf.controller_joints(r, r.fk([[0, -90, 90, 0, 45, 0]]), [-1], [-1], [False]);"
+            "print('pinocchio' in sys.modules, 'torch' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "False"]
