@@ -18,7 +18,10 @@ def add_parser(sub, common, formatter) -> None:
         formatter_class=formatter,
         help="rewrite a program with compensated target coordinates",
         description="Send every Cartesian target of a KRL (.src + .dat) or pose-list program through the "
-        "error model and write the program back with corrected X/Y/Z; every other byte stays as it was.",
+        "error model and write the program back with corrected X/Y/Z; every other byte stays as it was "
+        "(partial aggregates get the X/Y/Z their correction needs written in). Exit 0: every target "
+        "compensated; 1: written, but some targets left as written (the summary line says which codes); "
+        "2: refused, nothing written.",
         epilog=EXAMPLES,
     )
     p.add_argument("input", metavar="IN", help="program (.src with its .dat beside it, .csv/.txt pose list) or - for stdin")
@@ -34,6 +37,10 @@ def add_parser(sub, common, formatter) -> None:
                    "(its 'robot' metadata), unless --force")
     p.add_argument("--settings", metavar="TOML", help="pyproject.toml or postproc.toml to read (default: searched "
                    "upwards from the current directory); options override its [tool.postproc] values")
+    p.add_argument("--no-fill-partial", dest="fill_partial", action="store_false",
+                   help="refuse (P214) partial aggregates like LIN {Z 1250} instead of writing into them the X/Y/Z "
+                   "their correction needs (the controller takes missing components from the previous compensated "
+                   "command)")
     p.add_argument("--force", action="store_true",
                    help="compensate an already compensated program / another tool's or robot's program")
     p.set_defaults(run=run)
@@ -42,6 +49,7 @@ def add_parser(sub, common, formatter) -> None:
 def run(args) -> int:
     from ..compensate import DEFAULT_MAX_CORRECTION_MM, compensate_file, compensate_program, load_program
     from ..config import load_config
+    from ..diagnostics import EXIT_FINDINGS, EXIT_OK
 
     cfg = load_config(args.settings)  # [tool.postproc]: the options given here win
     args.model = args.model or cfg.model
@@ -53,6 +61,7 @@ def run(args) -> int:
         force=args.force,
         max_correction_mm=DEFAULT_MAX_CORRECTION_MM if max_correction is None else max_correction,
         robot=args.robot or cfg.robot,
+        fill_partial=args.fill_partial,
     )
     if args.input == "-":
         from ..compensator import load_model
@@ -74,4 +83,5 @@ def run(args) -> int:
         for w in report.warnings:
             print(w.format(), file=sys.stderr)
         print(f"postproc: {report.summary()}", file=sys.stderr)
-    return 0
+    # like `ruff --fix` with findings left: the output is written, but not everything was done
+    return EXIT_OK if report.complete else EXIT_FINDINGS
