@@ -216,6 +216,20 @@ def check_file(
     return check_program(program, model, **options)
 
 
+def _data_list_findings(path: Path) -> list[Diagnostic]:
+    """A data list without a DEF ($config.dat, a PUBLIC points list): not a program, but its
+    syntax is checked (read as the configuration of an empty module)."""
+    from .compensate import _read
+    from .programs import read_program
+
+    try:
+        read_program([str(path.with_suffix(".src"))], ["DEF empty()\nEND\n"], "krl", config=[_read(path)])
+    except PostprocError as exc:
+        d = exc.diagnostic()
+        return [replace(d, path=str(path))]
+    return []
+
+
 def check_files(
     paths: Iterable[str | Path],
     model: Compensator,
@@ -224,12 +238,36 @@ def check_files(
     ignore: Iterable[str] = (),
     **options,
 ) -> list[Diagnostic]:
-    """Check the programs these files belong to; findings sorted by path, line, column."""
+    """Check the programs these files belong to, as one cell: directories are searched for
+    KRL files, a ``$config.dat`` among them is the configuration of the others (unless
+    ``config`` is given), a data list without a DEF is checked for syntax only; findings
+    sorted by path, line, column."""
+    from .cell import KRL, is_config
+
     ignored = set(ignore)
+    files: list[Path] = []
+    for p in map(Path, paths):
+        files += sorted(q for q in p.rglob("*") if q.suffix.lower() in KRL and q.is_file()) if p.is_dir() else [p]
+    configs = [f for f in files if is_config(f)]
+    if config is None and configs:
+        config = [str(c) for c in configs]
     out: list[Diagnostic] = []
-    for path in program_paths(paths):
-        out += [d for d in check_file(path, model, config=config, **options) if d.code not in ignored]
+    for path in program_paths(files):
+        if path.suffix.lower() == ".dat" and (is_config(path) or _data_list(path)):
+            found = _data_list_findings(path)
+        else:
+            found = check_file(path, model, config=config, **options)
+        out += [d for d in found if d.code not in ignored]
     return sorted(out, key=lambda d: (d.path, d.line, d.col, d.code))
+
+
+def _data_list(path: Path) -> bool:
+    """A .dat (with no .src beside it) that holds no DEF: a data list, not a program."""
+    try:
+        text = path.read_bytes().decode("latin-1")
+    except OSError:
+        return False
+    return re.search(r"^[ \t]*(?:GLOBAL[ \t]+)?DEF(?:FCT)?[ \t]", text, re.I | re.M) is None
 
 
 # --------------------------------------------------------------------------- freshness
