@@ -55,6 +55,7 @@ CODES = {
     "P202": "one set of numbers used as targets in two frames (compensate refuses it)",
     "P212": "target position not fully known (left as it is by compensate)",
     "P213": "target orientation not known (the model's nominal attitude is assumed)",
+    "P214": "partial aggregate refused (compensate --no-fill-partial; filled in by default)",
     "P301": "target outside the model's training envelope",
     "P302": "target beyond the nominal robot's reach (model metadata 'reach')",
     "P303": "the model's correction exceeds max_correction",
