@@ -456,26 +456,25 @@ def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, str
         s, e = starts[chunk].tolist(), ends[chunk].tolist()
         values = stream.wait(int(at_row[chunk].max()) + 1)[at_row[chunk], axis[chunk]]
         new = piece[chunk] >= 0
-        if new.all():
-            replacements = []
+        if not new.any():  # (the common case: no partial aggregate in the chunk)
+            tokens = [text[a:b] for a, b in zip(s, e)]
+            check_numbers(program, owners[chunk], tokens, read[chunk], 0.0, "is not the {} read for the target")
+            replacements = format_many(tokens, values)
+            check_numbers(program, owners[chunk], replacements, values, ROUNDING_MM,
+                          "does not read back as the corrected {}")
         else:
-            numbers = np.flatnonzero(~new)
+            replacements = [""] * len(s)
+            numbers, added = np.flatnonzero(~new), np.flatnonzero(new)
             tokens = [text[s[i]:e[i]] for i in numbers.tolist()]
             check_numbers(program, owners[chunk][numbers], tokens, read[chunk][numbers], 0.0,
                           "is not the {} read for the target")
-            replacements = format_many(tokens, values[numbers])
-            check_numbers(program, owners[chunk][numbers], replacements, values[numbers], ROUNDING_MM,
+            formatted = format_many(tokens, values[numbers])
+            check_numbers(program, owners[chunk][numbers], formatted, values[numbers], ROUNDING_MM,
                           "does not read back as the corrected {}")
-        if new.any():
-            added = np.flatnonzero(new)
             pieces = inserts.text(piece[chunk][added], values[added])
             check_inserted(program, owners[chunk][added], pieces, axis[chunk][added], values[added])
-            merged = [""] * len(s)
-            for i, r in zip(numbers.tolist() if not new.all() else [], replacements):
-                merged[i] = r
-            for i, r in zip(added.tolist(), pieces):
-                merged[i] = r
-            replacements = merged
+            for i, r in zip(numbers.tolist() + added.tolist(), formatted + pieces):
+                replacements[i] = r
         parts.append(splice(text, prev, s, e, replacements))
         prev = e[-1]
     parts.append(text[prev:])

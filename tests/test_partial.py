@@ -74,3 +74,20 @@ def test_weld_cell_partial_target_lands_as_if_written_in_full(tmp_path):
         errors[name] = sim.verify(*poses, noise=False)["errors_after"][17]  # the 18th target: line 114
     assert errors["partial"] == pytest.approx(errors["full"], abs=1e-3)
     assert errors["partial"] < 0.1  # (0.195 mm when X, Y were inherited from the previous command)
+
+
+def test_the_last_checks_accept_the_inserted_components_and_catch_a_wrong_one(affine, monkeypatch):
+    # a module with position variables: the new texts are read again (P191) with the filled-in
+    # components counted as written; a formatter that writes a wrong number is refused (P190)
+    dat = "DEFDAT m\n  DECL E6POS XP1={X 2000.0,Y 0.0,Z 900.0,A 0.0,B 90.0,C 0.0}\nENDDAT\n"
+    src = "DEF m()\n  LIN XP1\n  LIN {Z 950.0}\nEND\n"
+    model = load_model(affine(offset=(0.3, -0.2, 0.1), gain=GAIN))
+    out, report = compensate_text(src, model, name="m.src", dat_text=dat)
+    assert report.complete and parse_program_text(out, "m.src", dat_text=report.outputs["m.dat"]).named_targets
+    assert re.search(r"LIN \{X 2000\.\d{3},Y -?0\.\d{3},Z 950\.\d{3}\}", out)
+    import postproc.compensate as compensate
+
+    monkeypatch.setattr(compensate, "format_like", lambda token, value: format(value + 0.01, ".3f"))
+    with pytest.raises(compensate.PostprocError) as info:
+        compensate_text(src, model, name="m.src", dat_text=dat)
+    assert (info.value.code, info.value.line) == ("P190", 3)
