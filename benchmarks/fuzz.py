@@ -7,7 +7,7 @@ random byte, token and line mutations (delete, duplicate, swap, insert garbage o
 keyword, replace a number by an edge case, truncate, change line endings) and compensates
 each mutant with a constant-offset model. Every mutant must end in one of two ways:
 
-* exit 0, and the output round-trips: re-reading it gives the same targets (count, file,
+* exit 0 (or 1: targets left as written), and the output round-trips: re-reading it gives the same targets (count, file,
   line, column, frame, motion), every byte outside the X/Y/Z number tokens is the mutant's
   (apart from the one stamp line), and every number moved by exactly the model's offset
   taken into the target's base (Rᵀ·offset), or not at all for targets left as they were;
@@ -243,13 +243,40 @@ def _strip_stamp(text: str, stamp: str) -> str | None:
     return None
 
 
-def _segments(text: str, spans: np.ndarray) -> list[str]:
-    """The text between the number tokens at ``spans`` [K, 2] (unique, present)."""
-    out, prev = [], 0
-    for s, e in spans.tolist():
-        out.append(text[prev:s])
+def _segments(text: str, spans: np.ndarray, cuts: list[tuple[int, int]] = ()) -> list[str]:
+    """The text between the number tokens at ``spans`` [K, 2] (unique, present), without
+    the ``cuts`` (components written into partial aggregates)."""
+    items = sorted([(s, e, False) for s, e in spans.tolist()] + [(s, e, True) for s, e in cuts])
+    out, piece, prev = [], "", 0
+    for s, e, cut in items:
+        piece += text[prev:s]
         prev = e
-    out.append(text[prev:])
+        if not cut:
+            out.append(piece)
+            piece = ""
+    out.append(piece + text[prev:])
+    return out
+
+
+_SEP = re.compile(r"[ \t]*,[ \t]*")
+
+
+def _inserted(text: str, spans: np.ndarray, filled: np.ndarray, present: np.ndarray) -> list[tuple[int, int]]:
+    """Where the components filled in stand in ``text``: name, number and the separator that
+    came with it (the one after it when a written component follows, else the one before)."""
+    out = []
+    for r, k in zip(*np.nonzero(filled)):
+        s, e = (int(v) for v in spans[r, k])
+        j = s - 1
+        while j >= 0 and text[j] in " \t":
+            j -= 1
+        start = j  # the name's one letter
+        if present[r, k + 1:].any():
+            m = _SEP.match(text, e)
+            out.append((start, m.end() if m else e))
+        else:
+            before = re.search(r"[ \t]*,[ \t]*\Z", text[max(0, start - 40):start])
+            out.append((start - (len(before.group()) if before else 0), e))
     return out
 
 
@@ -269,36 +296,46 @@ def check_output(files: list[str], texts: list[str], outputs: list[str], model, 
         return f"output does not re-read: {exc}"
     stamp = f"{before.comment} {STAMP_PREFIX} {model.name} {model.sha256[:12]}"
     stripped = [_strip_stamp(t, stamp) for t in outputs]
-    if any(t is None for t in stripped):
-        return "a file has no stamp line"
+    a = before.targets
+    moved = (a.frame >= 0) & np.isfinite(a.poses[:, :3]).all(axis=1)  # what compensate changes
+    for index, text in enumerate(stripped):
+        changed = bool(moved[a.file == index].any())
+        if text is None and changed:
+            return f"{files[index]} has no stamp line"
+        if text is None:
+            stripped[index] = outputs[index]
+            if stamp in outputs[index]:
+                return f"{files[index]}: a stamp line in a file in which no target was compensated"
     after = read_program(files, stripped, dialect, config=config)
-    a, b = before.targets, after.targets
+    b = after.targets
     if len(a) != len(b):
         return f"{len(a)} targets before, {len(b)} after"
     # (not col: a longer number earlier on the line moves the aggregates after it)
     for column in ("file", "line", "frame", "motion"):
         if not np.array_equal(getattr(a, column), getattr(b, column)):
             return f"targets differ in {column}"
-    if not np.array_equal(a.spans < 0, b.spans < 0):
+    # partial aggregates of compensated targets get their missing X/Y/Z written in
+    present = a.spans[:, :, 0] >= 0
+    filled = ~present & moved[:, None]
+    if not np.array_equal(present | filled, b.spans[:, :, 0] >= 0):
         return "different X/Y/Z components present"
     for index in range(len(files)):
         rows = a.file == index
         sa = np.unique(a.spans[rows].reshape(-1, 2), axis=0)
-        sb = np.unique(b.spans[rows].reshape(-1, 2), axis=0)
-        sa, sb = sa[sa[:, 0] >= 0], sb[sb[:, 0] >= 0]
-        if _segments(texts[index], sa) != _segments(stripped[index], sb):
-            return f"{files[index]}: bytes outside the number tokens changed"
+        sa = sa[sa[:, 0] >= 0]
+        sb = np.unique(b.spans[rows][present[rows]].reshape(-1, 2), axis=0)
+        cuts = _inserted(stripped[index], b.spans, filled & rows[:, None], present)
+        if _segments(texts[index], sa) != _segments(stripped[index], sb, cuts):
+            return f"{files[index]}: bytes outside the number tokens (and the components filled in) changed"
     # every present number moved by the offset taken into its base, or not at all
-    moved = (a.frame >= 0) & np.isfinite(a.poses[:, :3]).all(axis=1)
     expected = np.zeros((len(a), 3))
     for f in np.unique(a.frame[moved]):
         rows = moved & (a.frame == f)
         expected[rows] = frames.rotate_vectors(frames.inverse(before.frames[f].base), np.asarray(offset, float))
-    present = a.spans[:, :, 0] >= 0
-    old = _values(texts, a)
+    old = np.where(present, _values(texts, a), a.poses[:, :3])  # filled in: the value the target took
     new = _values(stripped, b)
     tol = 0.0005 + 1e-9 * np.abs(old) + 1e-9
-    bad = present & ~(np.abs(new - old - expected) <= tol)
+    bad = (present | filled) & ~(np.abs(new - old - expected) <= tol)
     if bad.any():
         r, k = map(int, np.argwhere(bad)[0])
         return (f"target at {files[a.file[r]]}:{a.line[r]}: {'XYZ'[k]} {old[r, k]!r} → {new[r, k]!r}, "
@@ -371,10 +408,10 @@ class Fuzzer:
             if m.group("code") == "P190":
                 return Outcome("caught", lines[0])
             return Outcome("error", f"{m.group('code')}")
-        if code != 0:
+        if code not in (0, 1):  # (1: written, with targets left as written)
             return Outcome("crash", f"exit {code}: {err[-300:]}")
         if err:
-            return Outcome("crash", f"exit 0 with -q but stderr: {err[-300:]!r}")
+            return Outcome("crash", f"exit {code} with -q but stderr: {err[-300:]!r}")
         if set(left) != set(files):
             return Outcome("wrong", f"output files {sorted(left)}, expected {sorted(files)}")
         names = list(files)

@@ -4,15 +4,17 @@ Everything here returns :class:`~postproc.diagnostics.Diagnostic` lists; nothing
 A program is checked for what would make ``postproc compensate`` (with the same model and
 settings) refuse or warn, plus what only matters once programs are kept in a repository:
 
-* syntax errors (the dialect reader's ``P1xx``);
+* syntax errors (the dialect reader's ``P1xx``), the reader's warnings (``P2xx``);
 * targets the nominal robot cannot reach (``P302``, the model's ``reach``; ``P309`` with an
   IK reachability test), outside the training envelope (``P301``), not finite (``P103``),
   with a position or orientation that is not known (``P212``, ``P213``), a $TOOL that is not
   the model's (``P304``) or a model trained on another robot (``P310``), corrections the
   model makes NaN (``P305``) or implausibly large (``P303``), one set of numbers used in two
-  frames (``P202``); then, if none of these, whatever else ``compensate_program`` refuses;
+  frames (``P202``): the rules of :mod:`postproc.findings`, which compensate applies too;
+  then, if none is an error, the last checks before writing (``P190``, ``P191``);
 * stamps: compensated with a model other than the configured one (``P402``), compensated
-  twice (``P403``), a .src and .dat that do not come from one compensation (``P404``);
+  twice (``P403``), a .src and .dat that do not come from one compensation (``P404``; a
+  file without targets that compensate changes carries no stamp, and needs none);
 * freshness of configured source → output pairs (``P405`` stale, ``P406`` output missing,
   ``P407`` output without source), by compensating the source in memory and comparing
   bytes: git checkouts scramble mtimes, so they prove nothing.
@@ -27,16 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .compensate import (
-    DEFAULT_MAX_CORRECTION_MM,
-    MAX_LISTED,
-    compensate_program,
-    load_program,
-    output_paths,
-    robot_base_poses,
-    robot_mismatch,
-    tool_mismatch,
-)
+from .compensate import compensate_program, load_program, output_paths, rewrite_program
+from .findings import DEFAULT_MAX_CORRECTION_MM, Settings, findings, run_model, select
 from .compensator import Compensator, load_model
 from .config import Config
 from .diagnostics import Diagnostic, PostprocError, line_col
@@ -61,6 +55,7 @@ CODES = {
     "P202": "one set of numbers used as targets in two frames (compensate refuses it)",
     "P212": "target position not fully known (left as it is by compensate)",
     "P213": "target orientation not known (the model's nominal attitude is assumed)",
+    "P214": "partial aggregate refused (compensate --no-fill-partial; filled in by default)",
     "P301": "target outside the model's training envelope",
     "P302": "target beyond the nominal robot's reach (model metadata 'reach')",
     "P303": "the model's correction exceeds max_correction",
@@ -116,20 +111,7 @@ def failed(diagnostics: Iterable[Diagnostic], strict: bool = False) -> bool:
 # --------------------------------------------------------------------------- one program
 
 
-def _rows(program: Program, rows: np.ndarray, code: str, message: str, severity: str) -> list[Diagnostic]:
-    """One diagnostic per target up to MAX_LISTED, then one that counts the rest."""
-    t = program.targets
-
-    def at(r: int, text: str) -> Diagnostic:
-        return Diagnostic(program.files[t.file[r]], int(t.line[r]), int(t.col[r]), code, text, severity)
-
-    out = [at(int(r), message) for r in rows[:MAX_LISTED]]
-    if len(rows) > MAX_LISTED:
-        out.append(at(int(rows[MAX_LISTED]), f"{message} (and {len(rows) - MAX_LISTED - 1} more targets)"))
-    return out
-
-
-def _stamp_findings(program: Program, model: Compensator) -> list[Diagnostic]:
+def _stamp_findings(program: Program, model: Compensator, selection) -> list[Diagnostic]:
     stamps = find_stamps(program)
     out: list[Diagnostic] = []
     first: dict[int, Stamp] = {}
@@ -149,7 +131,10 @@ def _stamp_findings(program: Program, model: Compensator) -> list[Diagnostic]:
                                   f"{model.sha256[:12]}", "error"))
     if first and len(program.files) > 1:
         # one compensation stamps every file of a module with the same line
-        keys = {i: (first[i].name, first[i].sha) if i in first else None for i in range(len(program.files))}
+        # (a file without a target compensate would change is not stamped: it did not change)
+        changes = set(program.targets.file[selection.rows].tolist())
+        keys = {i: (first[i].name, first[i].sha) if i in first else None for i in range(len(program.files))
+                if i in first or i in changes}
         if len(set(keys.values())) > 1:
             for i, key in keys.items():
                 others = [program.files[j] for j, k in keys.items() if k != key]
@@ -174,71 +159,22 @@ def check_program(
 
     ``robot`` is the robot the program is for (a model trained on another is ``P310``);
     ``reachable`` optionally maps robot-base poses [N, 6] to a bool mask [N] (e.g. IK of
-    the nominal robot); targets it rejects are ``P309`` errors. When nothing else is found,
-    the program is compensated in memory as ``postproc compensate`` would, so that whatever
-    else makes it refuse is a finding too: a clean check means compensate succeeds.
+    the nominal robot); targets it rejects are ``P309`` errors. The rules are compensate's
+    (:func:`postproc.findings.findings`); when none is an error, the program is rewritten in
+    memory from the same commands, so that the last checks before writing (P190, P191) are
+    findings too: a clean check means compensate succeeds.
     """
-    # one set of numbers used in two frames: compensate refuses it (a warning of the reader)
-    out = [replace(d, severity="error") if d.code == "P202" else d for d in program.diagnostics]
-    out += _stamp_findings(program, model)
-    for code, mismatch in (("P304", tool_mismatch(program, model)), ("P310", robot_mismatch(robot, model))):
-        if mismatch:
-            out.append(Diagnostic(program.files[0], 1, 1, code, mismatch, "error"))
-
-    poses, resolved = robot_base_poses(program)
-    # the same selection compensate_program makes, listing every target where it stops at one
-    no_position = resolved & np.isnan(poses[:, :3]).any(axis=1)
-    out += _rows(program, np.flatnonzero(no_position), "P212",
-                 "position not fully known (partial aggregate with no preceding target): left as it is", "warning")
-    use = resolved & ~no_position
-    no_attitude = use & np.isnan(poses[:, 3:6]).any(axis=1)
-    if no_attitude.any():
-        nominal = model.nominal_attitude
-        if nominal is None:
-            out += _rows(program, np.flatnonzero(no_attitude), "P213",
-                         "target has no orientation and the model records no nominal attitude", "error")
-            use &= ~no_attitude
-        else:
-            poses[no_attitude, 3:6] = nominal
-            out += _rows(program, np.flatnonzero(no_attitude), "P213",
-                         f"orientation not known: the model's nominal attitude {list(map(float, nominal))} is assumed",
-                         "warning")
-    not_finite = use & ~(np.abs(poses) < np.finfo(np.float32).max).all(axis=1)  # NaN, inf, beyond float32
-    out += _rows(program, np.flatnonzero(not_finite), "P103", "target is not a finite number (or too large for the "
-                 "model's float32)", "error")
-    rows = np.flatnonzero(use & ~not_finite)
-    sel = poses[rows]
-    far = model.beyond_reach(sel[:, :3])
-    out += _rows(program, rows[far], "P302", "target beyond the robot's reach: no model can compensate there", "error")
-    if reachable is not None and len(sel):
-        no_ik = ~np.asarray(reachable(sel), bool) & ~far
-        out += _rows(program, rows[no_ik], "P309", "the nominal robot has no IK solution for this target", "error")
-    envelope = model.envelope
-    outside = envelope.outside(sel) if envelope is not None else np.zeros(len(sel), bool)
-    out += _rows(program, rows[outside], "P301", "target outside the model's training envelope", "warning")
-    commands = None
-    if len(sel):
-        commanded, joints = commands = model.command(sel, iterations, joints=True)
-        if envelope is not None and joints is not None:
-            away = envelope.outside_joints(joints) & ~outside
-            out += _rows(program, rows[away], "P301", "target's joint angles outside those the model was trained on",
-                         "warning")
-        correction = commanded - sel[:, :3]
-        size = np.linalg.norm(correction, axis=1)
-        bad = ~np.isfinite(size)
-        out += _rows(program, rows[bad], "P305", "the model returns NaN or inf here", "error")
-        large = np.flatnonzero(~bad & (size > max_correction_mm))
-        if len(large):
-            worst = large[np.argmax(size[large])]
-            out += _rows(program, rows[large], "P303",
-                         f"correction exceeds {max_correction_mm} mm (largest {size[worst]:.3f} mm): the model is "
-                         "wrong here", "error")
+    settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot,
+                        reachable=reachable)
+    selection = select(program, model, settings)
+    commands = run_model(model, selection, iterations)
+    # a stamp is the stamp rules' business here (P402-P404), not "already compensated"
+    out = [d for d in program.diagnostics if d.code != "P202"]
+    out += [d for d in findings(program, commands, model, settings) if d.code != "P401"]
+    out += _stamp_findings(program, model, selection)
     if not failed(out):
-        # the safety net: compensate's own guards (frames, round trip, ...) on the same settings;
-        # a stamped program is forced past "already compensated", which the stamp checks cover
         try:
-            compensate_program(program, model, iterations=iterations, max_correction_mm=max_correction_mm,
-                               robot=robot, force=bool(program.stamps), _commands=commands)
+            rewrite_program(program, commands, model)
         except PostprocError as exc:
             out.append(exc.diagnostic())
     return out
@@ -281,6 +217,20 @@ def check_file(
     return check_program(program, model, **options)
 
 
+def _data_list_findings(path: Path) -> list[Diagnostic]:
+    """A data list without a DEF ($config.dat, a PUBLIC points list): not a program, but its
+    syntax is checked (read as the configuration of an empty module)."""
+    from .compensate import _read
+    from .programs import read_program
+
+    try:
+        read_program([str(path.with_suffix(".src"))], ["DEF empty()\nEND\n"], "krl", config=[_read(path)])
+    except PostprocError as exc:
+        d = exc.diagnostic()
+        return [replace(d, path=str(path))]
+    return []
+
+
 def check_files(
     paths: Iterable[str | Path],
     model: Compensator,
@@ -289,12 +239,36 @@ def check_files(
     ignore: Iterable[str] = (),
     **options,
 ) -> list[Diagnostic]:
-    """Check the programs these files belong to; findings sorted by path, line, column."""
+    """Check the programs these files belong to, as one cell: directories are searched for
+    KRL files, a ``$config.dat`` among them is the configuration of the others (unless
+    ``config`` is given), a data list without a DEF is checked for syntax only; findings
+    sorted by path, line, column."""
+    from .cell import KRL, is_config
+
     ignored = set(ignore)
+    files: list[Path] = []
+    for p in map(Path, paths):
+        files += sorted(q for q in p.rglob("*") if q.suffix.lower() in KRL and q.is_file()) if p.is_dir() else [p]
+    configs = [f for f in files if is_config(f)]
+    if config is None and configs:
+        config = [str(c) for c in configs]
     out: list[Diagnostic] = []
-    for path in program_paths(paths):
-        out += [d for d in check_file(path, model, config=config, **options) if d.code not in ignored]
+    for path in program_paths(files):
+        if path.suffix.lower() == ".dat" and (is_config(path) or _data_list(path)):
+            found = _data_list_findings(path)
+        else:
+            found = check_file(path, model, config=config, **options)
+        out += [d for d in found if d.code not in ignored]
     return sorted(out, key=lambda d: (d.path, d.line, d.col, d.code))
+
+
+def _data_list(path: Path) -> bool:
+    """A .dat (with no .src beside it) that holds no DEF: a data list, not a program."""
+    try:
+        text = path.read_bytes().decode("latin-1")
+    except OSError:
+        return False
+    return re.search(r"^[ \t]*(?:GLOBAL[ \t]+)?DEF(?:FCT)?[ \t]", text, re.I | re.M) is None
 
 
 # --------------------------------------------------------------------------- freshness

@@ -16,12 +16,28 @@ from typing import Iterator
 
 import numpy as np
 
+from collections import Counter
+
 from . import frames
 from .compensator import Compensator, load_model
 from .diagnostics import Diagnostic, PostprocError
-from .guards import ROUNDING_MM, check_memory, check_numbers, check_round_trip
+from .findings import (
+    DEFAULT_MAX_CORRECTION_MM,
+    Commands,
+    Selection,
+    Settings,
+    command_findings,
+    missing_xyz,
+    outside_envelope,
+    robot_base_poses,
+    robot_mismatch,
+    select_with_findings,
+    tool_mismatch,
+    where,
+)
+from .guards import ROUNDING_MM, check_inserted, check_memory, check_numbers, check_round_trip
 from .programs import STAMP_PREFIX, Program, dialect_of, read_program
-from .rewrite import check_disjoint, format_many, splice, insert_stamp, stamp_line, write_atomic
+from .rewrite import check_disjoint, format_like, format_many, insert_stamp, splice, stamp_line, write_atomic
 
 __all__ = [
     "Report",
@@ -29,6 +45,7 @@ __all__ = [
     "parse_program_text",
     "robot_base_poses",
     "compensate_program",
+    "rewrite_program",
     "compensate_text",
     "compensate_file",
     "DEFAULT_MAX_CORRECTION_MM",
@@ -37,38 +54,56 @@ __all__ = [
     "robot_mismatch",
 ]
 
-# An error model that predicts more than this is wrong, not the robot (guard, --max-correction).
-DEFAULT_MAX_CORRECTION_MM = 5.0
-# Warnings of one kind listed one by one before they are summed up in one line.
-MAX_LISTED = 20
 STDIN = "<stdin>"
 
 
 @dataclass
 class Report:
-    """What a compensation did; ``outputs`` maps each file of the program to its new text."""
+    """What a compensation did. ``outputs`` maps each file of the program to its new text
+    (unchanged, without a stamp, where no target was compensated; ``changed`` lists the
+    others); ``left_codes`` counts the targets left as written by the code that says why."""
 
     model: str = ""
     model_sha256: str = ""
     targets: int = 0
     compensated: int = 0
-    skipped: int = 0
+    left: int = 0
+    left_codes: dict[str, int] = field(default_factory=dict)
     iterations: int = 0
     max_correction_mm: float = 0.0
     mean_correction_mm: float = 0.0
     outside_envelope: int = 0
     warnings: list[Diagnostic] = field(default_factory=list)
     outputs: dict[str, str] = field(default_factory=dict)
+    changed: list[str] = field(default_factory=list)
+
+    @property
+    def skipped(self) -> int:  # (the name before ``left``)
+        return self.left
+
+    @property
+    def codes(self) -> list[str]:
+        """The codes of the warnings and of the targets left as written, sorted, once each."""
+        return sorted({d.code for d in self.warnings} | set(self.left_codes))
+
+    @property
+    def complete(self) -> bool:
+        """Every Cartesian target was compensated (the CLI's exit 0)."""
+        return self.left == 0
 
     def summary(self) -> str:
-        return (
-            f"{self.compensated} of {self.targets} targets compensated with {self.model} "
-            f"(max correction {self.max_correction_mm:.3f} mm, mean {self.mean_correction_mm:.3f} mm, "
-            f"{self.iterations} iteration{'s' if self.iterations != 1 else ''}"
-            + (f", {self.skipped} left as they were" if self.skipped else "")
-            + (f", {len(self.warnings)} warning{'s' if len(self.warnings) != 1 else ''}" if self.warnings else "")
-            + ")"
-        )
+        """``17 of 19 compensated, 2 left as written: P201 ×2; model …`` (one line)."""
+        head = f"{self.compensated} of {self.targets} compensated"
+        if self.left:
+            head += f", {self.left} left as written: " + ", ".join(
+                f"{code} ×{n}" for code, n in sorted(self.left_codes.items()))
+        details = (f"model {self.model}, max correction {self.max_correction_mm:.3f} mm, mean "
+                   f"{self.mean_correction_mm:.3f} mm, {self.iterations} iteration{'s' if self.iterations != 1 else ''}")
+        if self.warnings:
+            details += f", {len(self.warnings)} warning{'s' if len(self.warnings) != 1 else ''}"
+        if not self.changed:
+            details += "; nothing changed: the output is the input as it was, unstamped"
+        return f"{head}; {details}"
 
 
 # --------------------------------------------------------------------------- reading
@@ -156,79 +191,51 @@ def load_program(path: str | Path, config: str | Path | None = None, dialect: st
     return read_program(files, texts, dialect, config=_config_texts(config))
 
 
-# --------------------------------------------------------------------------- frames
-
-
-def robot_base_poses(program: Program) -> tuple[np.ndarray, np.ndarray]:
-    """Every target's pose in the robot base frame [N, 6], and a mask of those whose frame
-    is known. Unknown orientation components stay NaN; unresolved rows are NaN."""
-    t = program.targets
-    out = np.full((len(t), 6), np.nan)
-    resolved = t.frame >= 0
-    for f in np.unique(t.frame[resolved]):
-        rows = np.flatnonzero(t.frame == f)
-        base = program.frames[f].base
-        out[rows, :3] = frames.transform_points(base, t.poses[rows, :3])
-        known = rows[~np.isnan(t.poses[rows, 3:6]).any(axis=1)]
-        if not len(known):
-            continue
-        if np.allclose(base[:3, :3], np.eye(3), atol=1e-12):
-            # keep the triple as written: A,B,C and (A±180, 180−B, C±180) are one rotation,
-            # but a model and its envelope see numbers
-            out[known, 3:6] = t.poses[known, 3:6]
-        else:
-            rot = base[:3, :3] @ frames.rotation_from_abc(t.poses[known, 3:6])
-            out[known, 3:6] = frames.abc_from_rotation(rot)
-    return out, resolved
-
-
 # --------------------------------------------------------------------------- compensating
 
 
-def _where(program: Program, row: int) -> tuple[str, int, int]:
+def _left_codes(program: Program, selection: Selection) -> Counter:
+    """Why each target not compensated was left as written: its code, counted. Rows of the
+    program's Targets are P201 (frame not known) or P212 (position not known); the reader's
+    P210/P211 targets never became rows and count one each."""
     t = program.targets
-    return program.files[t.file[row]], int(t.line[row]), int(t.col[row])
+    left = np.ones(len(t), bool)
+    left[selection.rows] = False
+    codes: Counter = Counter()
+    unknown_frame = int((left & (t.frame < 0)).sum())
+    if unknown_frame:
+        codes["P201"] = unknown_frame
+    by_rule = 0
+    for code, rows in selection.left.items():
+        codes[code] += len(rows)
+        by_rule += len(rows)
+    if left.sum() > unknown_frame + by_rule:
+        codes["P212"] = int(left.sum()) - unknown_frame - by_rule
+    for d in program.diagnostics:
+        if d.code in ("P210", "P211"):
+            codes[d.code] += 1
+    return codes
 
 
-def _collect(program: Program, rows: np.ndarray, code: str, message: str, severity: str = "warning") -> list[Diagnostic]:
-    """One diagnostic per row up to MAX_LISTED, then one that counts the rest."""
-    out = [Diagnostic(*_where(program, r), code, message, severity) for r in rows[:MAX_LISTED]]
-    if len(rows) > MAX_LISTED:
-        path, line, col = _where(program, rows[MAX_LISTED])
-        out.append(Diagnostic(path, line, col, code, f"{message} (and {len(rows) - MAX_LISTED} more targets)", severity))
-    return out
+def _outside(model: Compensator, commands: Commands) -> int:
+    """How many targets are outside the training envelope (box, attitude or joint ranges)."""
+    outside = outside_envelope(model, commands.selection)
+    envelope = model.envelope
+    if envelope is not None and envelope.joints is not None and commands.joints is not None:
+        outside |= envelope.outside_joints(commands.joints)
+    return int(outside.sum())
 
 
-def _joints_away(q_deg: np.ndarray, ranges: np.ndarray) -> str:
-    """'A4 -35.2° (trained -20.1…19.8°)' for the joint of ``q_deg`` [6] farthest out of its range."""
-    lo, hi = ranges[:, 0], ranges[:, 1]
-    beyond = np.maximum(lo - q_deg, q_deg - hi) / np.maximum(hi - lo, 1e-9)
-    j = int(np.argmax(beyond))
-    return f"A{j + 1} {q_deg[j]:.1f}°, trained {lo[j]:.1f}…{hi[j]:.1f}°"
-
-
-def tool_mismatch(program: Program, model: Compensator) -> str | None:
-    """Why the model's tool does not fit the program's active $TOOL (None: it fits, or unknown)."""
-    frame = model.tool.get("frame") if model.tool else None
-    if frame is None:
-        return None
-    tools = {tuple(np.round(f.tool, 3)) for f in program.frames if f.tool is not None}
-    for tool in tools:
-        d = np.abs(np.asarray(tool) - np.asarray(frame, float))
-        if d[:3].max() > 0.5 or np.abs((d[3:] + 180) % 360 - 180).max() > 0.1:
-            return f"the program's $TOOL {[float(v) for v in tool]} is not the model's tool {model.tool.get('name', '')} {list(frame)}"
-    return None
-
-
-def robot_mismatch(robot: str | None, model: Compensator) -> str | None:
-    """Why the model (trained on its card's robot) does not fit ``robot`` (None: it does, or unknown)."""
-    if not robot:
-        return None
-    if not model.robot:
-        return f"the model does not say which robot it was trained on (the program is for {robot})"
-    if model.robot.casefold() != robot.casefold():
-        return f"the model was trained on robot {model.robot}, the program is for {robot}"
-    return None
+def _raise_first(found: list[Diagnostic], strict: bool) -> None:
+    """Refuse on the first error, and under ``strict`` on the first warning."""
+    errors = [d for d in found if d.severity == "error"]
+    if errors:
+        first = errors[0]
+        raise PostprocError(first.message, first.path, first.line, first.col, first.code)
+    if strict and found:
+        first = found[0]
+        raise PostprocError(f"{first.message} (--strict; {len(found)} warning(s) in all)",
+                            first.path, first.line, first.col, first.code)
 
 
 def compensate_program(
@@ -240,209 +247,98 @@ def compensate_program(
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
     robot: str | None = None,
-    _commands: tuple[np.ndarray, np.ndarray | None] | None = None,
+    fill_partial: bool = True,
     orientation: bool = False,
 ) -> Report:
-    """Compensate every resolvable target of ``program``; the new texts are in ``Report.outputs``.
-    (``_commands``: ``model.command(poses, iterations, joints=True)`` of exactly these targets,
-    already computed by ``check``, which runs this as its last safety net.) With
+    """Compensate every resolvable target of ``program``; the new texts are in ``Report.outputs``
+    (a file in which no target was compensated is returned as it was, without a stamp). With
     ``orientation`` A/B/C are corrected too (the model's ``rotation_error``; P306 without it).
 
-    Raises PostprocError for what must not be written (double compensation, a model for
-    another robot (``robot``, the program's robot name) or tool, unless ``force``; targets
-    beyond reach, NaN or implausibly large corrections, and under ``strict`` any warning).
+    Raises PostprocError for what must not be written: every error of
+    :func:`postproc.findings.findings` (double compensation, a model for another robot or
+    tool, unless ``force``; targets beyond reach, NaN or implausibly large corrections;
+    partial aggregates with ``fill_partial=False``), under ``strict`` any warning, and
+    whatever the last checks (guards.py) refuse. Targets left as written (frame or position
+    not known) are counted in ``Report.left`` / ``Report.left_codes``.
     """
-    if not (isinstance(max_correction_mm, int | float) and 0 < max_correction_mm < math.inf):
-        # NaN would switch the bound off silently: every comparison with it is False
-        raise PostprocError(f"--max-correction must be a positive number of mm, not {max_correction_mm}", code="P308")
-    report = Report(model=model.name, model_sha256=model.sha256, targets=len(program.targets))
-    warnings = list(program.diagnostics)
-    if program.stamps and not force:
-        index, stamp = next(iter(program.stamps.items()))
-        raise PostprocError(f"already compensated ({stamp.lstrip(';# ')}); use --force to compensate again",
-                            program.files[index], 1, 1, "P401")
-    mismatch = None if model.wants_tool else tool_mismatch(program, model)  # (a model with a tool input: any)
-    if mismatch and not force:
-        raise PostprocError(mismatch + "; use --force to compensate anyway", program.files[0], 1, 1, "P304")
-    mismatch = robot_mismatch(robot, model)
-    if mismatch and not force:
-        raise PostprocError(mismatch + "; use --force to compensate anyway", str(model.path), 0, 0, "P310")
-    shared = next((d for d in program.diagnostics if d.code == "P202"), None)
-    if shared is not None and not force:
-        # one set of numbers, two frames: the correction written is wrong for one of the uses
-        # (in a base turned by 180°, twice the error the robot had uncompensated)
-        raise PostprocError(shared.message.replace(": compensated for the first", "") + ": no one correction is "
-                            "right for both; give each use its own position, or --force to compensate for the first",
-                            shared.path, shared.line, shared.col, "P202")
-
-    t = program.targets
-    broken = [i for i, f in enumerate(program.frames) if not np.isfinite(f.base).all()]
-    in_broken = np.flatnonzero(np.isin(t.frame, broken)) if broken else []
-    if len(in_broken):  # (else its targets would only be 'not fully known', P212, and skipped)
-        r = int(in_broken[0])
-        raise PostprocError(f"the frame of this target ({program.frames[t.frame[r]].label}) is not a finite number",
-                            *_where(program, r), "P103")
-    poses, resolved = robot_base_poses(program)
-    no_position = resolved & np.isnan(poses[:, :3]).any(axis=1)
-    if no_position.any():
-        warnings += _collect(program, np.flatnonzero(no_position), "P212",
-                             "position not fully known (partial aggregate with no preceding target): left as it is")
-    use = resolved & ~no_position
-    no_attitude = use & np.isnan(poses[:, 3:6]).any(axis=1)
-    if no_attitude.any():
-        nominal = model.nominal_attitude
-        if nominal is None:
-            raise PostprocError("target has no orientation and the model records no nominal attitude",
-                                *_where(program, int(np.flatnonzero(no_attitude)[0])), "P213")
-        poses[no_attitude, 3:6] = nominal
-        warnings += _collect(program, np.flatnonzero(no_attitude), "P213",
-                             f"orientation not known: the model's nominal attitude {list(map(float, nominal))} was assumed")
-    rows = np.flatnonzero(use)
-    sel = poses[rows]
-    if not np.isfinite(sel).all():
-        bad = rows[~np.isfinite(sel).all(axis=1)]
-        raise PostprocError("target is not a finite number", *_where(program, int(bad[0])), "P103")
-    too_large = np.abs(sel) >= np.finfo(np.float32).max  # the model takes float32
-    if too_large.any():
-        r = int(np.flatnonzero(too_large.any(axis=1))[0])
-        raise PostprocError(f"target has a component too large for the model (float32): {sel[r].tolist()}",
-                            *_where(program, int(rows[r])), "P103")
-
-    far = model.beyond_reach(sel[:, :3])
-    if far.any():
-        path, line, col = _where(program, int(rows[far][0]))
-        raise PostprocError(f"target beyond the robot's reach ({int(far.sum())} such targets): no model can compensate there",
-                            path, line, col, "P302")
+    settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot, force=force,
+                        fill_partial=fill_partial)
+    selection, found = select_with_findings(program, model, settings)
+    warnings = [d for d in program.diagnostics if d.code != "P202" or force] + found
+    _raise_first(found, False)
+    _raise_first(warnings, strict)
     if orientation:
-        _orientation_check(program, model, rows)
-    q_in = tool_in = None
-    if model.wants_joints or model.wants_tool:
-        rows, sel, q_in, tool_in, found = controller_inputs(program, model, rows, sel)
-        warnings += found
-    envelope = model.envelope
-    if envelope is not None:
-        outside = envelope.outside(sel)
-        report.outside_envelope = int(outside.sum())
-        if outside.any():
-            warnings += _collect(program, rows[outside], "P301", "target outside the model's training envelope")
-
-    if strict and warnings:
-        first = warnings[0]
-        raise PostprocError(f"{first.message} (--strict; {len(warnings)} warning(s) in all)",
-                            first.path, first.line, first.col, first.code)
-
+        _orientation_check(program, model, selection.rows)
+    report = Report(model=model.name, model_sha256=model.sha256, iterations=
+                    model.default_iterations if iterations is None else iterations)
     # rows in program order: the model chains each target to the previous one's command (the
     # approach direction, for models that learn backlash). The model runs on a background
     # thread, chunk by chunk, while this one rewrites the numbers of the chunks already done.
-    report.iterations = model.default_iterations if iterations is None else iterations
-    if _commands is not None and len(_commands[0]) != len(sel):
-        raise ValueError(f"_commands has {len(_commands[0])} rows for {len(sel)} targets")
-    stream = _CommandStream(model, sel, report.iterations, program, rows, max_correction_mm, _commands, q_in, tool_in,
-                            orientation)
-    try:
-        outputs = [_rewrite_file(program, index, text, rows, stream) for index, text in enumerate(program.texts)]
-    except _Unsafe:
-        outputs = None  # the guards below say why, for the worst target of the whole program
-    except BaseException:
-        stream.close()
-        raise
+    stream = _CommandStream(model, selection, report.iterations, program, max_correction_mm, orientation=orientation)
+    outputs = _rewrite(program, selection, stream)
     commanded, new_xyz, joints = stream.result()
-    correction = commanded - sel[:, :3]
-    size = np.linalg.norm(correction, axis=1)
-    if not np.isfinite(correction).all():
-        raise PostprocError("the model returned NaN or inf", *_where(program, int(rows[~np.isfinite(size)][0])), "P305")
-    if len(size) and size.max() > max_correction_mm:
-        worst = int(np.argmax(size))
-        raise PostprocError(f"correction of {size[worst]:.3f} mm exceeds the bound of {max_correction_mm} mm: "
-                            "the model is wrong here", *_where(program, int(rows[worst])), "P303")
-    assert outputs is not None  # _Unsafe is raised only for what the two guards above refuse
-    if envelope is not None and joints is not None:
-        # in the box and attitude range but not in the joint ranges trained on (a wrist turned
-        # the other way): warned as the envelope is, targets already warned for not repeated
-        away = envelope.outside_joints(joints) & ~outside
-        if away.any():
-            report.outside_envelope += int(away.sum())
-            found = _collect(program, rows[away], "P301", "target's joint angles outside those the model was trained on "
-                             f"({_joints_away(joints[away][0], envelope.joints)})")
-            if strict:
-                first = found[0]
-                raise PostprocError(f"{first.message} (--strict)", first.path, first.line, first.col, first.code)
-            warnings += found
+    commands = Commands(selection, commanded, joints)
+    after = command_findings(program, commands, model, settings)
+    _raise_first(after, strict)
+    assert outputs is not None  # _Unsafe is raised only for what output_rule refuses
+    warnings += after
+    outputs = _finish(program, model, selection, outputs, new_xyz)
 
-    # KRL with position variables only: their numbers may be read elsewhere too (as a frame,
-    # by another target), which no single edit shows. Inline aggregates belong to one motion,
-    # and each of their tokens was checked above; so were a pose list's. A Program built by
-    # hand has no text to read it from.
-    if program.from_text and program.dialect == "krl" and program.named_targets:
-        check_round_trip(program, outputs, rows, new_xyz)
-
-    stamp = stamp_line(program.comment, STAMP_PREFIX, model.name, model.sha256)
-    after = "&" if program.dialect == "krl" else None
-    for index, text in enumerate(outputs):
-        newline = program.newlines[index] if index < len(program.newlines) else "\n"
-        outputs[index] = insert_stamp(text, stamp, newline, after_headers=after)
-
-    report.compensated = len(rows)
-    report.skipped = len(t) - len(rows)
+    size = np.linalg.norm(commanded - selection.poses[:, :3], axis=1)
+    left = _left_codes(program, selection)
+    report.compensated = len(selection.rows)
+    report.left = sum(left.values())
+    report.targets = report.compensated + report.left
+    report.left_codes = dict(left)
     report.max_correction_mm = float(size.max()) if len(size) else 0.0
     report.mean_correction_mm = float(size.mean()) if len(size) else 0.0
+    report.outside_envelope = _outside(model, commands)
     report.warnings = warnings
+    report.changed = [program.files[i] for i in sorted(set(program.targets.file[selection.rows].tolist()))]
     report.outputs = dict(zip(program.files, outputs))
     return report
 
 
-# --------------------------------------------------------------------------- joints and tool
+def rewrite_program(program: Program, commands: Commands, model: Compensator) -> dict[str, str]:
+    """The new texts of ``program`` for ``commands`` (computed already, e.g. by ``check``),
+    through the same rewrite and last checks (P190, P191) as :func:`compensate_program`."""
+    stream = _CommandStream(model, commands.selection, 1, program, math.inf, commands)
+    outputs = _rewrite(program, commands.selection, stream)
+    _, new_xyz, _ = stream.result()
+    return dict(zip(program.files, _finish(program, model, commands.selection, outputs, new_xyz)))
 
 
-def model_description(model: Compensator):
-    """The robot description of the model's robot (the shipped ``models/*.toml`` whose
-    [robot] name is the card's ``robot``), or None."""
-    from .resources import model_path
-    from .robot import load_description
-
-    folder = model_path("kr500.toml").parent
-    for path in sorted(folder.glob("*.toml")):
-        description = load_description(path)
-        if model.robot and description.name.casefold() == model.robot.casefold():
-            return description
-    return None
+def _rewrite(program: Program, selection: Selection, stream: "_CommandStream") -> list[str] | None:
+    """Every file's text with the selected targets' numbers replaced (None: a chunk failed a
+    guard of the model output; command_findings says which)."""
+    try:
+        return [_rewrite_file(program, index, text, selection.rows, stream) for index, text in enumerate(program.texts)]
+    except _Unsafe:
+        return None
+    except BaseException:
+        stream.close()
+        raise
 
 
-def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, sel: np.ndarray):
-    """The model's ``joints`` / ``tool`` inputs for targets ``rows`` at base poses ``sel``:
-    (rows kept, their poses, joint angles [n, 6] deg or None, TCPs [n, 6] or None, warnings).
-    Targets whose configuration has no joint angles on the nominal arm (P309) are left as
-    written. The tool is the program's $TOOL where known, else the model's (its card)."""
-    from . import configuration
-    from .robot import Robot
+def _finish(program: Program, model: Compensator, selection: Selection, outputs: list[str],
+            new_xyz: np.ndarray) -> list[str]:
+    """The round trip (guards.check_round_trip) and the stamp on each file that changed."""
+    rows = selection.rows
+    # KRL with position variables only: their numbers may be read elsewhere too (as a frame,
+    # by another target), which no single edit shows. Inline aggregates belong to one motion,
+    # and each of their tokens was checked when written; so were a pose list's. A Program built
+    # by hand has no text to read it from.
+    if program.from_text and program.dialect == "krl" and program.named_targets:
+        check_round_trip(program, outputs, rows, new_xyz, filled=missing_xyz(program, rows))
+    stamp = stamp_line(program.comment, STAMP_PREFIX, model.name, model.sha256)
+    after = "&" if program.dialect == "krl" else None
+    changed = set(program.targets.file[rows].tolist())
+    out = list(outputs)
+    for index in changed:
+        newline = program.newlines[index] if index < len(program.newlines) else "\n"
+        out[index] = insert_stamp(out[index], stamp, newline, after_headers=after)
+    return out
 
-    description = model_description(model)
-    if description is None:
-        raise PostprocError(f"the model takes joint angles and postproc has no robot description for its robot "
-                            f"{model.robot or '(none named)'}", str(model.path), 0, 0, "P311")
-    card_tool = model.tool.get("frame") if model.tool else None
-    default_tool = np.asarray(card_tool if card_tool is not None else description.tool, float)
-    tools = np.tile(default_tool, (len(rows), 1))
-    t = program.targets
-    for f in np.unique(t.frame[rows]):
-        if program.frames[f].tool is not None:
-            tools[t.frame[rows] == f] = program.frames[f].tool
-    warnings: list[Diagnostic] = []
-    q = None
-    if model.wants_joints:
-        robot = Robot(description.replace(tool=default_tool))
-        first = robot if np.array_equal(tools[0], default_tool) else Robot(description.replace(tool=tools[0]))
-        start, _ = first.ik(sel[:1], robot.home_q)
-        if model.has_joints and np.isfinite(start).all():  # the branch of the model's own IK
-            _, own = model.predict(sel[:1], joints=True, q=start, tool=tools[:1] if model.wants_tool else None)
-            start = own if np.isfinite(own).all() else start
-        q, ok = configuration.target_joints(robot, t, rows, sel, tools,
-                                            start[0] if np.isfinite(start).all() else None)
-        if not ok.all():
-            warnings += _collect(program, rows[~ok], "P309", "no joint angles for this target in its arm configuration "
-                                 "(S/T, or the one its motion keeps) on the nominal robot: left as it is")
-            rows, sel, q, tools = rows[ok], sel[ok], q[ok], tools[ok]
-    return rows, sel, q, (tools if model.wants_tool else None), warnings
 
 
 def _orientation_check(program: Program, model: Compensator, rows: np.ndarray) -> None:
@@ -458,7 +354,7 @@ def _orientation_check(program: Program, model: Compensator, rows: np.ndarray) -
                             program.files[0], 1, 1, "P312")
     missing = rows[(spans[rows, :, 0] < 0).any(axis=1)]
     if len(missing):
-        raise PostprocError("--orientation: this target does not write all of A, B, C", *_where(program, int(missing[0])),
+        raise PostprocError("--orientation: this target does not write all of A, B, C", *where(program, int(missing[0])),
                             "P312")
 
 
@@ -491,9 +387,9 @@ class _CommandStream:
     commands and the corrected numbers in each target's own frame, filled in row order, so
     the rewrite of the first targets overlaps the model run on the later ones."""
 
-    def __init__(self, model: Compensator, poses: np.ndarray, iterations: int, program: Program,
-                 rows: np.ndarray, max_correction_mm: float, computed: tuple | None = None,
-                 q_deg: np.ndarray | None = None, tool: np.ndarray | None = None, orientation: bool = False):
+    def __init__(self, model: Compensator, selection: Selection, iterations: int, program: Program,
+                 max_correction_mm: float, computed: Commands | None = None, orientation: bool = False):
+        poses, rows = selection.poses, selection.rows
         self.commanded = np.full((len(poses), 3), np.nan)
         # the corrected numbers in each target's frame: X,Y,Z (and A,B,C with ``orientation``)
         self.new_xyz = np.full((len(poses), 6 if orientation else 3), np.nan)
@@ -512,9 +408,9 @@ class _CommandStream:
         self._written = t.poses[rows, :3]
         self._bases = [f.base for f in program.frames]
         if computed is not None:  # (commands and joints of every row, from the caller)
-            chunks = iter([(0, *computed)])
+            chunks = iter([(0, computed.commanded, computed.joints)])
         else:  # checks ``iterations`` here, not on the thread
-            chunks = model.command_chunks(poses, iterations, joints=wanted, q_deg=q_deg, tool=tool,
+            chunks = model.command_chunks(poses, iterations, joints=wanted, q_deg=selection.joints, tool=selection.tool,
                                           orientation=orientation)
         self._thread = threading.Thread(target=self._run, args=(chunks, poses, max_correction_mm),
                                         name="postproc-model", daemon=True)
@@ -543,7 +439,7 @@ class _CommandStream:
                     self.joints[start:end] = q
                 self.new_xyz[start:end, :3] = self._written[start:end] + local
                 with np.errstate(invalid="ignore"):
-                    unsafe = not (np.isfinite(correction).all() and np.linalg.norm(correction, axis=1).max() <= bound)
+                    unsafe = not (np.isfinite(correction).all() and np.linalg.norm(correction, axis=1).max(initial=0.0) <= bound)
                 with self._changed:
                     self.unsafe |= unsafe
                     self.ready = end
@@ -580,18 +476,27 @@ class _CommandStream:
 def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, stream: _CommandStream) -> str:
     """``text`` (file ``index`` of the program) with the X/Y/Z tokens of targets ``rows``
     replaced by their corrected numbers from ``stream`` as they come, each token checked
-    before and after (guards.check_numbers)."""
+    before and after (guards.check_numbers), and the X/Y/Z a partial aggregate leaves out
+    written into it (:func:`fill_partial`, checked by guards.check_inserted)."""
     t = program.targets
     mine = np.flatnonzero(t.file[rows] == index)
+    # X,Y,Z (and A,B,C with --orientation: stream.new_xyz has 6 columns then)
     spans = t.spans if stream.new_xyz.shape[1] == 3 else np.concatenate([t.spans, t.abc_spans], axis=1)
     width = spans.shape[1]
     starts = spans[rows[mine], :, 0].ravel()
     ends = spans[rows[mine], :, 1].ravel()
     at_row = np.repeat(mine, width)  # position in ``rows`` (and in the stream)
     axis = np.tile(np.arange(width), len(mine))
-    keep = starts >= 0  # components the aggregate leaves out have no token
-    order = np.argsort(starts[keep], kind="stable")
-    starts, ends, at_row, axis = (a[keep][order] for a in (starts, ends, at_row, axis))
+    keep = starts >= 0  # components the aggregate leaves out have no token...
+    # ...X/Y/Z are written in (A/B/C: --orientation refuses targets that leave them out)
+    inserts = fill_partial(text, starts.reshape(-1, width)[:, :3], ends.reshape(-1, width)[:, :3])
+    starts = np.concatenate([starts[keep], inserts.at])
+    ends = np.concatenate([ends[keep], inserts.at])
+    at_row = np.concatenate([at_row[keep], mine[inserts.row]])
+    axis = np.concatenate([axis[keep], inserts.axis])
+    piece = np.concatenate([np.full(int(keep.sum()), -1), np.arange(len(inserts.at))])
+    order = np.argsort(starts, kind="stable")  # (inserts at one place stay in axis order)
+    starts, ends, at_row, axis, piece = (a[order] for a in (starts, ends, at_row, axis, piece))
     if not len(starts):
         return text
     check_disjoint(starts, ends)
@@ -601,16 +506,93 @@ def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, str
     for at in range(0, len(starts), EDIT_CHUNK):
         chunk = slice(at, at + EDIT_CHUNK)
         s, e = starts[chunk].tolist(), ends[chunk].tolist()
-        tokens = [text[a:b] for a, b in zip(s, e)]
-        check_numbers(program, owners[chunk], tokens, read[chunk], 0.0, "is not the {} read for the target")
         values = stream.wait(int(at_row[chunk].max()) + 1)[at_row[chunk], axis[chunk]]
-        replacements = format_many(tokens, values)
-        check_numbers(program, owners[chunk], replacements, values, ROUNDING_MM,
-                      "does not read back as the corrected {}")
+        new = piece[chunk] >= 0
+        if not new.any():  # (the common case: no partial aggregate in the chunk)
+            tokens = [text[a:b] for a, b in zip(s, e)]
+            check_numbers(program, owners[chunk], tokens, read[chunk], 0.0, "is not the {} read for the target")
+            replacements = format_many(tokens, values)
+            check_numbers(program, owners[chunk], replacements, values, ROUNDING_MM,
+                          "does not read back as the corrected {}")
+        else:
+            replacements = [""] * len(s)
+            numbers, added = np.flatnonzero(~new), np.flatnonzero(new)
+            tokens = [text[s[i]:e[i]] for i in numbers.tolist()]
+            check_numbers(program, owners[chunk][numbers], tokens, read[chunk][numbers], 0.0,
+                          "is not the {} read for the target")
+            formatted = format_many(tokens, values[numbers])
+            check_numbers(program, owners[chunk][numbers], formatted, values[numbers], ROUNDING_MM,
+                          "does not read back as the corrected {}")
+            pieces = inserts.text(piece[chunk][added], values[added])
+            check_inserted(program, owners[chunk][added], pieces, axis[chunk][added], values[added])
+            for i, r in zip(numbers.tolist() + added.tolist(), formatted + pieces):
+                replacements[i] = r
         parts.append(splice(text, prev, s, e, replacements))
         prev = e[-1]
     parts.append(text[prev:])
     return "".join(parts)
+
+
+@dataclass
+class _Inserts:
+    """The X/Y/Z components to write into partial aggregates: where (``at``, an offset in the
+    text), for which row of the file's targets and axis, and how (the aggregate's style)."""
+
+    at: np.ndarray
+    row: np.ndarray
+    axis: np.ndarray
+    before: list[str]  # text before the name (a separator when inserted after a component)
+    names: list[str]
+    gaps: list[str]  # between the name and the number
+    like: list[str]  # the neighbour's number token, whose style the number takes
+    after: list[str]  # text after the number (a separator when inserted before a component)
+
+    def text(self, which: np.ndarray, values: np.ndarray) -> list[str]:
+        return [self.before[k] + self.names[k] + self.gaps[k] + format_like(self.like[k], v) + self.after[k]
+                for k, v in zip(which.tolist(), values.tolist())]
+
+
+_SEPARATOR = re.compile(r"[ \t]*,[ \t]*")
+
+
+def fill_partial(text: str, starts: np.ndarray, ends: np.ndarray) -> _Inserts:
+    """Where and how to write the X/Y/Z that aggregates leave out (``starts``/``ends`` [n, 3]
+    their number tokens' spans, -1 where absent; at least one present per row): a missing
+    component goes before the next written one (``{Z 1250}`` → ``{X …,Y …,Z 1250}``), or after
+    the last (``{X 1}`` → ``{X 1,Y …,Z …}``), with the aggregate's separator (``,`` or ``, ``),
+    the case of its names, the blanks between name and number, and its numbers' style.
+    Only rows with a missing component are looked at (one Python step each)."""
+    out = _Inserts(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), [], [], [], [], [])
+    partial = np.flatnonzero((starts < 0).any(axis=1) & (starts >= 0).any(axis=1))
+    at, row, axis = [], [], []
+    for r in partial.tolist():
+        present = [k for k in range(3) if starts[r, k] >= 0]
+        names, gaps = {}, {}
+        for k in present:
+            j = int(starts[r, k]) - 1
+            while j >= 0 and text[j] in " \t":
+                j -= 1
+            names[k] = j  # offset of the component's name (one letter X/Y/Z)
+            gaps[k] = text[j + 1:int(starts[r, k])]
+        # the separator: between two written components, else after the last one, else ','
+        sep = next((m.group() for m in (_SEPARATOR.match(text, int(ends[r, k])) for k in present) if m), ",")
+        k0 = present[0]
+        upper = text[names[k0]].isupper()
+        for k in range(3):
+            if starts[r, k] >= 0:
+                continue
+            later = [j for j in present if j > k]
+            name = "XYZ"[k] if upper else "xyz"[k]
+            if later:
+                j = later[0]
+                at.append(names[j]), out.before.append(""), out.after.append(sep)
+            else:
+                j = present[-1]
+                at.append(int(ends[r, j])), out.before.append(sep), out.after.append("")
+            row.append(r), axis.append(k)
+            out.names.append(name), out.gaps.append(gaps[j]), out.like.append(text[int(starts[r, j]):int(ends[r, j])])
+    out.at, out.row, out.axis = (np.array(a, np.int64) for a in (at, row, axis))
+    return out
 
 
 def _model(model: Compensator | str | Path | None) -> Compensator:
@@ -630,6 +612,7 @@ def compensate_text(
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
     robot: str | None = None,
+    fill_partial: bool = True,
     orientation: bool = False,
 ) -> tuple[str, Report]:
     """Compensate a program given as text; returns the new text and the report.
@@ -640,7 +623,8 @@ def compensate_text(
     """
     program = parse_program_text(text, name, dialect, dat_text, _config_texts(config))
     report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
-                                max_correction_mm=max_correction_mm, robot=robot, orientation=orientation)
+                                max_correction_mm=max_correction_mm, robot=robot, fill_partial=fill_partial,
+                                orientation=orientation)
     return report.outputs[program.files[0]], report
 
 
@@ -663,13 +647,15 @@ def compensate_file(
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
     robot: str | None = None,
+    fill_partial: bool = True,
     orientation: bool = False,
 ) -> Report:
     """Compensate a program file (with its .dat) into ``out`` (its .dat beside it).
     Nothing is written unless everything succeeded; the files are replaced atomically."""
     program = load_program(path, config)
     report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
-                                max_correction_mm=max_correction_mm, robot=robot, orientation=orientation)
+                                max_correction_mm=max_correction_mm, robot=robot, fill_partial=fill_partial,
+                                orientation=orientation)
     if str(out) == "-":
         if len(program.files) > 1:
             raise PostprocError("a program with a .dat cannot be written to standard output; give -o FILE",

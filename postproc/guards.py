@@ -16,6 +16,7 @@ in this machine's memory, instead of being killed by the kernel after minutes of
 from __future__ import annotations
 
 import contextlib
+import re
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +24,7 @@ import numpy as np
 from .diagnostics import PostprocError
 from .programs import Program, read_program
 
-__all__ = ["check_numbers", "check_round_trip", "check_memory", "ROUNDING_MM", "MEMORY_PER_INPUT_BYTE"]
+__all__ = ["check_numbers", "check_inserted", "check_round_trip", "check_memory", "ROUNDING_MM", "MEMORY_PER_INPUT_BYTE"]
 
 # New numbers are written with at least three decimals: half a µm of rounding at most.
 ROUNDING_MM = 5e-4
@@ -88,16 +89,37 @@ def check_numbers(program: Program, owners: np.ndarray, tokens: list[str], value
                             "P190")
 
 
+_INSERTED = re.compile(r"[ \t]*,?[ \t]*([XYZxyz])[ \t]*(\S+?)[ \t]*,?[ \t]*\Z")
+
+
+def check_inserted(program: Program, owners: np.ndarray, pieces: list[str], axes: np.ndarray,
+                   values: np.ndarray) -> None:
+    """Refuse (P190) unless every component written into a partial aggregate is one
+    ``[sep] NAME number [sep]`` with the name of its axis and the number reading as its
+    corrected value to :data:`ROUNDING_MM`."""
+    numbers = []
+    for i, (piece, k) in enumerate(zip(pieces, axes.tolist())):
+        m = _INSERTED.match(piece)
+        if m is None or m.group(1).upper() != "XYZ"[k]:
+            raise PostprocError(f"refusing to write: {piece!r} is not the {'XYZ'[k]} component to insert (a postproc "
+                                "bug: please report it with this program)", *_where(program, int(owners[i])), "P190")
+        numbers.append(m.group(2))
+    check_numbers(program, owners, numbers, values, ROUNDING_MM, "does not read back as the corrected {} written in")
+
+
 def _refuse(program: Program, rows: np.ndarray, message: str) -> PostprocError:
     where = _where(program, int(rows[0])) if len(rows) else (program.files[0], 1, 1)
     return PostprocError(f"refusing to write: {message}", *where, "P191")
 
 
-def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_xyz: np.ndarray) -> None:
+def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_xyz: np.ndarray,
+                     filled: np.ndarray | None = None) -> None:
     """Read ``texts`` (the program's files with the corrected numbers, before the stamp)
     again and refuse (P191) unless they hold the same targets (file, line, motion) in the
     same frames, with ``new_xyz`` [len(rows), 3] at the compensated targets' written X/Y/Z
-    (to the rounding of the format) and every other written component unchanged."""
+    (to the rounding of the format) and every other written component unchanged.
+    ``filled`` [len(rows), 3]: the X/Y/Z written into partial aggregates; they must now be
+    written, with their ``new_xyz``."""
     a = program.targets
     try:
         again = read_program(program.files, texts, program.dialect, config=program.config)
@@ -135,6 +157,13 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
     expected[rows, :3] = new_xyz
     written = np.zeros(a.poses.shape, bool)
     written[:, :3] = a.spans[:, :, 0] >= 0
+    if filled is not None and len(rows):
+        written[rows, :3] |= filled
+        gained = np.zeros(a.poses.shape[0:1] + (3,), bool)
+        gained[rows] = filled
+        lost = np.flatnonzero((gained & (b.spans[:, :, 0] < 0)).any(axis=1))
+        if len(lost):
+            raise _refuse(program, lost, "a component written into this partial aggregate does not read again")
     written[:, 3:] = True  # orientation is never rewritten (NaN where unknown, on both sides)
     compensated = np.zeros(len(a), bool)
     compensated[rows] = True

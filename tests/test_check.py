@@ -95,10 +95,13 @@ def test_stamps_other_model_twice_and_mixed_module(affine):
     # a module whose .src and .dat carry different stamps (or one carries none)
     stamp = f"; {STAMP_PREFIX} {model.name} {model.sha256[:12]}"
     empty = TargetsBuilder().build()
-    for dat in ("DEFDAT a\nENDDAT\n", f"&ACCESS RVP\n; {STAMP_PREFIX} {other.name} {other.sha256[:12]}\nDEFDAT a\n"):
+    # (a .dat without targets is not stamped: compensate changed nothing in it)
+    for dat, expected in (("DEFDAT a\nENDDAT\n", []),
+                          (f"&ACCESS RVP\n; {STAMP_PREFIX} {other.name} {other.sha256[:12]}\nDEFDAT a\n",
+                           [("a.src", "P404"), ("a.dat", "P404")])):
         program = Program(["a.src", "a.dat"], [f"{stamp}\nDEF a()\nEND\n", dat], empty)
         found = [(d.path, d.code) for d in check_program(program, model) if d.code == "P404"]
-        assert found == [("a.src", "P404"), ("a.dat", "P404")]
+        assert found == expected
     assert [(s.file, s.line, s.name) for s in find_stamps(program)] == [(0, 1, model.name), (1, 2, other.name)]
 
 
@@ -246,10 +249,10 @@ def test_a_model_for_another_robot_is_a_finding(affine, tmp_path, capsys, monkey
     model = str(affine())  # robot "KR500-sim" in its card
     assert main(["check", "ok.csv", "--model", model, "--robot", "kr500-SIM", "-q"]) == 0  # names: any case
     assert main(["check", "ok.csv", "--model", model, "--robot", "UR10"]) == 1
-    assert capsys.readouterr().out.startswith("ok.csv:1:1: P310 the model was trained on robot KR500-sim")
+    assert capsys.readouterr().out.startswith(f"{model}: P310 the model was trained on robot KR500-sim")
     write(tmp_path / "postproc.toml", 'robot = "UR10"\n')
     assert main(["check", "ok.csv", "--model", model, "-q"]) == 1  # the robot from the settings
-    assert capsys.readouterr().out.startswith("ok.csv:1:1: P310 the model was trained on robot KR500-sim")
+    assert capsys.readouterr().out.startswith(f"{model}: P310 the model was trained on robot KR500-sim")
 
 
 def test_cli_robot_option_uses_the_nominal_ik(affine, tmp_path, capsys):
@@ -315,16 +318,16 @@ def test_krl_module_stamps_and_freshness(affine, tmp_path, monkeypatch):
 
 
 def test_what_else_compensate_refuses_is_a_finding(affine):
-    # a frame that is not finite: the targets' positions are unknown (P212, a warning only),
-    # but compensate refuses the program: the in-memory compensation reports its P103
+    # a frame that is not finite: compensate refuses the program (P103, one rule for both),
+    # its targets are not also 'position not known' (P212)
     from conftest import program_in_base
 
     base = np.eye(4)
     base[0, 3] = np.nan
     program = program_in_base(base, [2000.0, 0.0, 900.0, 0.0, 90.0, 0.0], "BASE_DATA[3]")
     found = check_program(program, load_model(affine()))
-    assert [(d.code, d.severity) for d in found] == [("P212", "warning"), ("P103", "error")]
-    assert "BASE_DATA[3]" in found[1].message and failed(found)
+    assert [(d.code, d.severity) for d in found] == [("P103", "error")]
+    assert "BASE_DATA[3]" in found[0].message and failed(found)
 
 
 def test_colour_only_on_a_terminal_without_no_color(affine, tmp_path, capsys, monkeypatch):

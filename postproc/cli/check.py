@@ -5,6 +5,7 @@ import sys
 
 EXAMPLES = """examples:
   postproc check src/*.src out/*.src             syntax, reach, envelope, stamps of these programs
+  postproc check KRC/R1                          a cell: every module, with its System/$config.dat
   postproc check part.csv --model models/cell7.onnx --strict --ignore P301
   postproc check --fresh                         outputs of [tool.postproc] fresh pairs up to date?
   postproc check --fresh --fix                   ... and re-compensate the stale ones
@@ -29,7 +30,9 @@ def add_parser(sub, common, formatter) -> None:
         "twice, and (--fresh) compensated outputs that no longer match their sources.",
         epilog=EXAMPLES,
     )
-    p.add_argument("files", nargs="*", metavar="FILE", help="programs (.src/.dat/.csv/.txt); a .dat is checked with its .src")
+    p.add_argument("files", nargs="*", metavar="FILE", help="programs (.src/.dat/.csv/.txt) or directories, checked as one "
+                   "cell: a .dat is checked with its .src, a $config.dat among them configures the others, a data list "
+                   "without DEF is checked for syntax")
     p.add_argument("--model", metavar="M", help="the configured ONNX model (default: settings, else models/default.onnx)")
     p.add_argument("--config", metavar="CONFIG_DAT", action="append", help="$config.dat with BASE_DATA / TOOL_DATA (repeatable)")
     p.add_argument("--settings", metavar="TOML", help="pyproject.toml or postproc.toml to read (default: searched upwards)")

@@ -8,6 +8,7 @@ EXAMPLES = """examples:
   postproc compensate weld_cell.src -o out/weld_cell.src --config KRC/R1/System/$config.dat
   cam-post ... | postproc compensate - -o - > part.src          (filter: stdin → stdout)
   postproc compensate poses.csv -o poses_comp.csv --model models/cell7.onnx --strict
+  postproc compensate backup/KRC/R1 -o out/R1        (a cell: every module, System/$config.dat found)
 """
 
 
@@ -18,13 +19,21 @@ def add_parser(sub, common, formatter) -> None:
         formatter_class=formatter,
         help="rewrite a program with compensated target coordinates",
         description="Send every Cartesian target of a KRL (.src + .dat) or pose-list program through the "
-        "error model and write the program back with corrected X/Y/Z; every other byte stays as it was.",
+        "error model and write the program back with corrected X/Y/Z; every other byte stays as it was "
+        "(partial aggregates get the X/Y/Z their correction needs written in). Exit 0: every target "
+        "compensated; 1: written, but some targets left as written (the summary line says which codes); "
+        "2: refused, nothing written.",
         epilog=EXAMPLES,
     )
-    p.add_argument("input", metavar="IN", help="program (.src with its .dat beside it, .csv/.txt pose list) or - for stdin")
-    p.add_argument("-o", "--output", metavar="OUT", required=True, help="where to write (its .dat goes beside it); - for stdout")
+    p.add_argument("input", metavar="IN", nargs="+",
+                   help="program (.src with its .dat beside it, .csv/.txt pose list) or - for stdin; or a cell: "
+                   "several KRL files or a directory (a controller backup KRC/R1/), compensated as one unit")
+    p.add_argument("-o", "--output", metavar="OUT", required=True,
+                   help="where to write (its .dat goes beside it); - for stdout; for a cell a directory (OUTDIR), "
+                   "the input's tree mirrored below it")
     p.add_argument("--model", metavar="M", help="ONNX compensator (default: the shipped models/default.onnx)")
-    p.add_argument("--config", metavar="CONFIG_DAT", help="$config.dat with BASE_DATA / TOOL_DATA")
+    p.add_argument("--config", metavar="CONFIG_DAT", help="$config.dat with BASE_DATA / TOOL_DATA (for a cell "
+                   "directory, default: its System/$config.dat)")
     p.add_argument("--dialect", choices=["krl", "poses"], help="program type for stdin (default: detected)")
     p.add_argument("--iterations", type=int, metavar="K", help="fixed-point iterations c ← P + Ê(c) (default: the model's)")
     p.add_argument("--max-correction", type=float, metavar="MM", default=None,
@@ -36,14 +45,21 @@ def add_parser(sub, common, formatter) -> None:
                    "(its 'robot' metadata), unless --force")
     p.add_argument("--settings", metavar="TOML", help="pyproject.toml or postproc.toml to read (default: searched "
                    "upwards from the current directory); options override its [tool.postproc] values")
+    p.add_argument("--no-fill-partial", dest="fill_partial", action="store_false",
+                   help="refuse (P214) partial aggregates like LIN {Z 1250} instead of writing into them the X/Y/Z "
+                   "their correction needs (the controller takes missing components from the previous compensated "
+                   "command)")
     p.add_argument("--force", action="store_true",
                    help="compensate an already compensated program / another tool's or robot's program")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
+    from pathlib import Path
+
     from ..compensate import DEFAULT_MAX_CORRECTION_MM, compensate_file, compensate_program, load_program
     from ..config import load_config
+    from ..diagnostics import EXIT_FINDINGS, EXIT_OK
 
     cfg = load_config(args.settings)  # [tool.postproc]: the options given here win
     args.model = args.model or cfg.model
@@ -56,15 +72,22 @@ def run(args) -> int:
         max_correction_mm=DEFAULT_MAX_CORRECTION_MM if max_correction is None else max_correction,
         robot=args.robot or cfg.robot,
         orientation=args.orientation,
+        fill_partial=args.fill_partial,
     )
-    if args.input == "-":
+    inputs = args.input
+    cell = len(inputs) > 1 or Path(inputs[0]).is_dir()
+    if cell:
+        from ..cell import compensate_cell, find_cell
+        from ..compensator import load_model
+
+        config = [args.config] if isinstance(args.config, str) else args.config
+        report = compensate_cell(find_cell(inputs, config), args.output, load_model(args.model), **kwargs)
+    elif inputs[0] == "-":
         from ..compensator import load_model
 
         program = load_program("-", args.config, args.dialect)
         report = compensate_program(program, load_model(args.model), **kwargs)
         if args.output != "-":
-            from pathlib import Path
-
             from ..compensate import write_outputs
 
             write_outputs([(Path(args.output), report.outputs[program.files[0]])])
@@ -72,9 +95,10 @@ def run(args) -> int:
             sys.stdout.buffer.write(report.outputs[program.files[0]].encode("latin-1"))
             sys.stdout.buffer.flush()
     else:
-        report = compensate_file(args.input, args.output, args.model, config=args.config, **kwargs)
+        report = compensate_file(inputs[0], args.output, args.model, config=args.config, **kwargs)
     if not args.quiet:
         for w in report.warnings:
             print(w.format(), file=sys.stderr)
         print(f"postproc: {report.summary()}", file=sys.stderr)
-    return 0
+    # like `ruff --fix` with findings left: the output is written, but not everything was done
+    return EXIT_OK if report.complete else EXIT_FINDINGS

@@ -1,0 +1,157 @@
+"""A robot cell as one unit: a set of KRL files or a controller backup directory
+(``KRC/R1/``) → its modules (.src/.sub with their .dat), its data lists without a DEF, its
+``$config.dat``; compensated together and written together (one atomic write of every
+file, the journal of ``rewrite.write_atomic``), the output tree mirroring the input's.
+
+Reading: each module is read with the cell's ``$config.dat`` (BASE_DATA, TOOL_DATA). The
+reader does not resolve globals across modules yet (the KRL package will): a target whose
+point lives in another module is left as written with the reader's located warning, never
+compensated in a guessed frame. A data list without a DEF (a PUBLIC points list) is fine
+in a cell: it is written as it is (no target of its own is known to be in any frame).
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .compensate import Report, compensate_program, load_program, write_outputs
+from .compensator import Compensator
+from .diagnostics import PostprocError
+
+__all__ = ["Cell", "find_cell", "compensate_cell", "is_config", "CONFIG_NAME"]
+
+CONFIG_NAME = "$config.dat"
+KRL = {".src", ".sub", ".dat"}
+MODULES = {".src", ".sub"}
+
+
+def is_config(path: Path) -> bool:
+    return path.name.casefold() == CONFIG_NAME.casefold()
+
+
+@dataclass
+class Cell:
+    """The files of a cell: ``root`` (what output paths are relative to), ``modules``
+    (each its main file, then its .dat if any), ``data_lists`` (.dat without a module),
+    ``config`` ($config.dat files: given, or found in the cell)."""
+
+    root: Path
+    modules: list[list[Path]] = field(default_factory=list)
+    data_lists: list[Path] = field(default_factory=list)
+    config: list[Path] = field(default_factory=list)
+
+    @property
+    def files(self) -> list[Path]:
+        return [p for m in self.modules for p in m] + self.data_lists + [c for c in self.config if self.inside(c)]
+
+    def inside(self, path: Path) -> bool:
+        return path.resolve().is_relative_to(self.root.resolve())
+
+
+def _found_config(root: Path) -> list[Path]:
+    """``root/System/$config.dat``, else the shallowest ``System/$config.dat`` below ``root``
+    (``KRC/`` → ``KRC/R1/System/$config.dat``); several at one depth: refused (P112)."""
+    found = sorted(p for p in root.rglob("*") if is_config(p) and p.parent.name.casefold() == "system" and p.is_file())
+    if not found:
+        return []
+    depth = min(len(p.relative_to(root).parts) for p in found)
+    shallowest = [p for p in found if len(p.relative_to(root).parts) == depth]
+    if len(shallowest) > 1:
+        raise PostprocError(f"several $config.dat in this cell ({', '.join(str(p) for p in shallowest)}): give "
+                            "--config", str(root), 0, 0, "P112")
+    return shallowest
+
+
+def find_cell(paths: list[str | Path], config: list[str | Path] | None = None) -> Cell:
+    """The cell made of these files and directories (searched recursively for .src, .sub
+    and .dat). ``config`` None: a ``$config.dat`` given among the files, else the one in
+    the directory's ``System/`` (see :func:`_found_config`)."""
+    files: list[Path] = []
+    dirs = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            dirs.append(p)
+            files += sorted(q for q in p.rglob("*") if q.suffix.lower() in KRL and q.is_file())
+        elif p.is_file():
+            files.append(p)
+        else:
+            raise PostprocError("no such file or directory", str(p), 0, 0, "P107")
+    if not files:
+        raise PostprocError("no KRL files (.src, .sub, .dat) here", str(paths[0]) if paths else "", 0, 0, "P107")
+    parents = [d for d in dirs] + [f.parent for f in files if not any(f.resolve().is_relative_to(d.resolve()) for d in dirs)]
+    root = Path(os.path.commonpath([str(p.resolve()) for p in parents]))
+    given = [Path(c) for c in config] if config else []
+    found = [f for f in files if is_config(f)]
+    if not given:
+        given = found or [c for d in dirs for c in _found_config(d)][:1]
+    cell = Cell(root=root, config=given)
+    unique = list(dict.fromkeys(f.resolve() for f in files))
+    by_stem: dict[tuple[Path, str], Path] = {}
+    for f in unique:
+        if f.suffix.lower() in MODULES:
+            by_stem.setdefault((f.parent, f.stem.casefold()), f)
+    dats = {}
+    for f in unique:
+        if f.suffix.lower() != ".dat" or is_config(f):
+            continue
+        owner = by_stem.get((f.parent, f.stem.casefold()))
+        if owner is None:
+            # (a .dat given alone may still have its .src beside it, not given)
+            cell.data_lists.append(f)
+        else:
+            dats[owner] = f
+    for f in unique:
+        if f.suffix.lower() in MODULES:
+            cell.modules.append([f] + ([dats[f]] if f in dats else []))
+    for f in unique:
+        if is_config(f) and f not in [c.resolve() for c in cell.config]:
+            cell.data_lists.append(f)
+    return cell
+
+
+def _merge(reports: list[Report]) -> Report:
+    """One report of the whole cell (counts summed, correction figures over every target)."""
+    out = Report(model=reports[0].model, model_sha256=reports[0].model_sha256, iterations=reports[0].iterations)
+    total = 0.0
+    for r in reports:
+        out.targets += r.targets
+        out.compensated += r.compensated
+        out.left += r.left
+        for code, n in r.left_codes.items():
+            out.left_codes[code] = out.left_codes.get(code, 0) + n
+        out.max_correction_mm = max(out.max_correction_mm, r.max_correction_mm)
+        total += r.mean_correction_mm * r.compensated
+        out.outside_envelope += r.outside_envelope
+        out.warnings += r.warnings
+        out.outputs.update(r.outputs)
+        out.changed += r.changed
+    out.mean_correction_mm = total / out.compensated if out.compensated else 0.0
+    return out
+
+
+def compensate_cell(cell: Cell, out_dir: str | Path, model: Compensator, **options) -> Report:
+    """Compensate every module of ``cell`` (``options`` as for ``compensate_program``) and
+    write all its files below ``out_dir`` at their paths relative to ``cell.root``, all or
+    none. Nothing is written if any module is refused (the first refusal is raised)."""
+    out_dir = Path(out_dir)
+    if out_dir.resolve() == cell.root.resolve() or cell.root.resolve().is_relative_to(out_dir.resolve()):
+        raise PostprocError("-o is the cell's own directory: give another directory, the cell's files stay as "
+                            "they are", str(out_dir), 0, 0, "P110")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise PostprocError("is not a directory: a cell is written to a directory (-o OUTDIR)", str(out_dir), 0, 0,
+                            "P110")
+    config = [str(c) for c in cell.config] or None
+    reports = []
+    for files in cell.modules:
+        program = load_program(files[0], config)
+        reports.append(compensate_program(program, model, **options))
+    report = _merge(reports) if reports else Report(model=model.name, model_sha256=model.sha256)
+    outputs: list[tuple[Path, str | bytes]] = []
+    for name, text in report.outputs.items():
+        outputs.append((out_dir / Path(name).resolve().relative_to(cell.root), text))
+    for path in cell.data_lists + [c for c in cell.config if cell.inside(c)]:
+        outputs.append((out_dir / path.resolve().relative_to(cell.root), path.read_bytes()))
+    if outputs:
+        write_outputs(outputs)
+    return report

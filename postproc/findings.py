@@ -1,0 +1,368 @@
+"""The rules about a program's targets that both ``compensate`` and ``check`` apply: one
+rule, one place. :func:`findings` returns every finding as a :class:`Diagnostic`;
+``compensate`` raises on the first error (and, under ``--strict``, on any warning),
+``check`` reports them all.
+
+One function per code family, in the order compensate applies them:
+
+* :func:`stamp_rule` P401 (already compensated), :func:`fit_rule` P304/P310 (another tool
+  or robot), :func:`shared_rule` P202 (one set of numbers in two frames) — each lifted by
+  ``force``;
+* :func:`frame_rule` P103 (a frame that is not finite);
+* :func:`known_rule` P212 (position not known), P213 (orientation not known), P214
+  (a partial aggregate, refused only with ``fill_partial=False``);
+* :func:`finite_rule` P103 (not finite, or beyond float32);
+* :func:`reach_rule` P302 (beyond the model's reach), P309 (no IK, with ``reachable``);
+* :func:`envelope_rule` P301 (outside the training box / attitude range);
+* with the model's commands: :func:`output_rule` P305 (NaN), P303 (too large),
+  :func:`joints_rule` P301 (joint angles outside the trained ranges).
+
+:func:`select` says which targets the model takes (their robot-base poses, the nominal
+attitude filled in where the program gives none); :class:`Commands` is what the model
+returned for them.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import frames
+from .compensator import Compensator
+from .diagnostics import Diagnostic, PostprocError
+from .programs import Program
+
+__all__ = [
+    "Settings", "Selection", "Commands", "select", "findings", "static_findings", "command_findings",
+    "robot_base_poses", "tool_mismatch", "robot_mismatch", "collect", "MAX_LISTED", "DEFAULT_MAX_CORRECTION_MM",
+]
+
+# An error model that predicts more than this is wrong, not the robot (guard, --max-correction).
+DEFAULT_MAX_CORRECTION_MM = 5.0
+# Findings of one kind listed one by one before the next one sums up the rest.
+MAX_LISTED = 20
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What the rules depend on besides the program and the model."""
+
+    iterations: int | None = None
+    max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM
+    robot: str | None = None  # the robot the program is for (P310)
+    force: bool = False  # lifts P401, P304, P310, P202
+    fill_partial: bool = True  # False: a partial aggregate is refused (P214), not filled in
+    reachable: Callable[[np.ndarray], np.ndarray] | None = None  # robot-base poses → bool mask (P309)
+
+    def __post_init__(self):
+        bound = self.max_correction_mm
+        if not (isinstance(bound, int | float) and 0 < bound < math.inf):
+            # NaN would switch the bound off silently: every comparison with it is False
+            raise PostprocError(f"--max-correction must be a positive number of mm, not {bound}", code="P308")
+
+
+@dataclass
+class Selection:
+    """The targets the model takes: ``rows`` into Program.targets, ``poses`` [len(rows), 6]
+    in the robot base (nominal attitude where the program gives none)."""
+
+    rows: np.ndarray
+    poses: np.ndarray
+    joints: np.ndarray | None = None  # [len(rows), 6] deg: the model's input ``joints`` (controller.py)
+    tool: np.ndarray | None = None  # [len(rows), 6]: the model's input ``tool``
+    # targets left as written by a rule of this module (not the reader's): code → rows
+    left: dict = field(default_factory=dict)
+
+
+@dataclass
+class Commands:
+    """The model's commands for a selection: ``commanded`` [M, 3] robot base, ``joints``
+    [M, 6] deg or None (only where the model card has joint ranges)."""
+
+    selection: Selection
+    commanded: np.ndarray
+    joints: np.ndarray | None = None
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def robot_base_poses(program: Program) -> tuple[np.ndarray, np.ndarray]:
+    """Every target's pose in the robot base frame [N, 6], and a mask of those whose frame
+    is known. Unknown orientation components stay NaN; unresolved rows are NaN."""
+    t = program.targets
+    out = np.full((len(t), 6), np.nan)
+    resolved = t.frame >= 0
+    for f in np.unique(t.frame[resolved]):
+        rows = np.flatnonzero(t.frame == f)
+        base = program.frames[f].base
+        out[rows, :3] = frames.transform_points(base, t.poses[rows, :3])
+        known = rows[~np.isnan(t.poses[rows, 3:6]).any(axis=1)]
+        if not len(known):
+            continue
+        if np.allclose(base[:3, :3], np.eye(3), atol=1e-12):
+            # keep the triple as written: A,B,C and (A±180, 180−B, C±180) are one rotation,
+            # but a model and its envelope see numbers
+            out[known, 3:6] = t.poses[known, 3:6]
+        else:
+            rot = base[:3, :3] @ frames.rotation_from_abc(t.poses[known, 3:6])
+            out[known, 3:6] = frames.abc_from_rotation(rot)
+    return out, resolved
+
+
+def where(program: Program, row: int) -> tuple[str, int, int]:
+    t = program.targets
+    return program.files[t.file[row]], int(t.line[row]), int(t.col[row])
+
+
+def collect(program: Program, rows: np.ndarray, code: str, message: str | Callable[[int], str],
+            severity: str = "warning") -> list[Diagnostic]:
+    """One diagnostic per row up to MAX_LISTED, then one at the next row that counts the
+    targets after it. ``message``: one text, or a function of the position in ``rows``."""
+    text = message if callable(message) else (lambda i: message)
+    out = [Diagnostic(*where(program, int(r)), code, text(i), severity) for i, r in enumerate(rows[:MAX_LISTED])]
+    if len(rows) > MAX_LISTED:
+        rest = len(rows) - MAX_LISTED - 1
+        more = f" (and {rest} more target{'s' * (rest != 1)})" if rest else ""
+        out.append(Diagnostic(*where(program, int(rows[MAX_LISTED])), code, text(MAX_LISTED) + more, severity))
+    return out
+
+
+def tool_mismatch(program: Program, model: Compensator) -> str | None:
+    """Why the model's tool does not fit the program's active $TOOL (None: it fits, or unknown)."""
+    frame = model.tool.get("frame") if model.tool else None
+    if frame is None:
+        return None
+    tools = {tuple(np.round(f.tool, 3)) for f in program.frames if f.tool is not None}
+    for tool in tools:
+        d = np.abs(np.asarray(tool) - np.asarray(frame, float))
+        if d[:3].max() > 0.5 or np.abs((d[3:] + 180) % 360 - 180).max() > 0.1:
+            return f"the program's $TOOL {[float(v) for v in tool]} is not the model's tool {model.tool.get('name', '')} {list(frame)}"
+    return None
+
+
+def robot_mismatch(robot: str | None, model: Compensator) -> str | None:
+    """Why the model (trained on its card's robot) does not fit ``robot`` (None: it does, or unknown)."""
+    if not robot:
+        return None
+    if not model.robot:
+        return f"the model does not say which robot it was trained on (the program is for {robot})"
+    if model.robot.casefold() != robot.casefold():
+        return f"the model was trained on robot {model.robot}, the program is for {robot}"
+    return None
+
+
+def _joints_away(q_deg: np.ndarray, ranges: np.ndarray) -> str:
+    """'A4 -35.2°, trained -20.1…19.8°' for the joint of ``q_deg`` [6] farthest out of its range."""
+    lo, hi = ranges[:, 0], ranges[:, 1]
+    beyond = np.maximum(lo - q_deg, q_deg - hi) / np.maximum(hi - lo, 1e-9)
+    j = int(np.argmax(beyond))
+    return f"A{j + 1} {q_deg[j]:.1f}°, trained {lo[j]:.1f}…{hi[j]:.1f}°"
+
+
+def missing_xyz(program: Program, rows: np.ndarray) -> np.ndarray:
+    """[len(rows), 3] bool: the X/Y/Z components these targets' aggregates leave out."""
+    return program.targets.spans[rows, :, 0] < 0
+
+
+# --------------------------------------------------------------------------- rules
+
+
+def stamp_rule(program: Program, settings: Settings) -> list[Diagnostic]:
+    """P401: a stamped program is compensated already."""
+    if not program.stamps or settings.force:
+        return []
+    index, stamp = next(iter(program.stamps.items()))
+    return [Diagnostic(program.files[index], 1, 1, "P401", f"already compensated ({stamp.lstrip(';# ')}); "
+                       "use --force to compensate again", "error")]
+
+
+def fit_rule(program: Program, model: Compensator, settings: Settings) -> list[Diagnostic]:
+    """P304 a model for another tool, P310 for another robot."""
+    if settings.force:
+        return []
+    out = []
+    mismatch = None if model.wants_tool else tool_mismatch(program, model)  # (a model with a tool input: any)
+    if mismatch:
+        out.append(Diagnostic(program.files[0], 1, 1, "P304", mismatch + "; use --force to compensate anyway", "error"))
+    mismatch = robot_mismatch(settings.robot, model)
+    if mismatch:
+        out.append(Diagnostic(str(model.path), 0, 0, "P310", mismatch + "; use --force to compensate anyway", "error"))
+    return out
+
+
+def shared_rule(program: Program, settings: Settings) -> list[Diagnostic]:
+    """P202 (the reader's warning): one set of numbers, two frames — the correction written
+    is wrong for one of the uses (in a base turned by 180°, twice the error uncompensated)."""
+    if settings.force:
+        return []
+    return [Diagnostic(d.path, d.line, d.col, "P202", d.message.replace(": compensated for the first", "")
+                       + ": no one correction is right for both; give each use its own position, or --force to "
+                       "compensate for the first", "error") for d in program.diagnostics if d.code == "P202"]
+
+
+def frame_rule(program: Program, use: np.ndarray) -> list[Diagnostic]:
+    """P103: a frame that is not finite (its targets would only be 'not fully known').
+    Narrows ``use``."""
+    t = program.targets
+    broken = [i for i, f in enumerate(program.frames) if not np.isfinite(f.base).all()]
+    rows = np.flatnonzero(np.isin(t.frame, broken)) if broken else np.zeros(0, int)
+    use[rows] = False
+    return collect(program, rows, "P103", lambda i: f"the frame of this target ({program.frames[t.frame[rows[i]]].label}) "
+                   "is not a finite number", "error")
+
+
+def known_rule(program: Program, model: Compensator, settings: Settings, poses: np.ndarray,
+               use: np.ndarray) -> list[Diagnostic]:
+    """P212 position not known (left as written), P213 orientation not known (the model's
+    nominal attitude assumed; an error without one), P214 a partial aggregate under
+    ``fill_partial=False``. Narrows ``use`` and fills ``poses`` in place."""
+    no_position = use & np.isnan(poses[:, :3]).any(axis=1)
+    out = collect(program, np.flatnonzero(no_position), "P212",
+                  "position not fully known (partial aggregate with no preceding target): left as it is")
+    use &= ~no_position
+    no_attitude = use & np.isnan(poses[:, 3:6]).any(axis=1)
+    if no_attitude.any():
+        nominal = model.nominal_attitude
+        rows = np.flatnonzero(no_attitude)
+        if nominal is None:
+            out += collect(program, rows, "P213", "target has no orientation and the model records no nominal "
+                           "attitude", "error")
+            use &= ~no_attitude
+        else:
+            poses[no_attitude, 3:6] = nominal
+            out += collect(program, rows, "P213",
+                           f"orientation not known: the model's nominal attitude {list(map(float, nominal))} is assumed")
+    if not settings.fill_partial:
+        rows = np.flatnonzero(use)
+        partial = rows[missing_xyz(program, rows).any(axis=1)]
+        out += collect(program, partial, "P214", "partial aggregate: the controller takes its missing X/Y/Z from the "
+                       "previous commanded (compensated) position, i.e. another target's correction; write the target "
+                       "in full, or compensate without --no-fill-partial to have them written in", "error")
+    return out
+
+
+def finite_rule(program: Program, poses: np.ndarray, use: np.ndarray) -> list[Diagnostic]:
+    """P103: a target that is not finite or beyond the model's float32. Narrows ``use``."""
+    bad = use & ~(np.abs(poses) < np.finfo(np.float32).max).all(axis=1)  # NaN, inf, beyond float32
+    use &= ~bad
+    return collect(program, np.flatnonzero(bad), "P103", "target is not a finite number (or too large for the "
+                   "model's float32)", "error")
+
+
+def reach_rule(program: Program, model: Compensator, settings: Settings, selection: Selection) -> list[Diagnostic]:
+    """P302 beyond the model's reach; P309 no IK solution (``settings.reachable``)."""
+    rows, sel = selection.rows, selection.poses
+    far = model.beyond_reach(sel[:, :3])
+    out = collect(program, rows[far], "P302", "target beyond the robot's reach: no model can compensate there", "error")
+    if settings.reachable is not None and len(sel):
+        no_ik = ~np.asarray(settings.reachable(sel), bool) & ~far
+        out += collect(program, rows[no_ik], "P309", "the nominal robot has no IK solution for this target", "error")
+    return out
+
+
+def outside_envelope(model: Compensator, selection: Selection) -> np.ndarray:
+    envelope = model.envelope
+    return envelope.outside(selection.poses) if envelope is not None else np.zeros(len(selection.rows), bool)
+
+
+def envelope_rule(program: Program, model: Compensator, selection: Selection) -> list[Diagnostic]:
+    """P301: outside the model's training box or attitude range (a warning)."""
+    return collect(program, selection.rows[outside_envelope(model, selection)], "P301",
+                   "target outside the model's training envelope")
+
+
+def output_rule(program: Program, settings: Settings, commands: Commands) -> list[Diagnostic]:
+    """P305 the model returns NaN or inf; P303 a correction above the bound (worst first)."""
+    rows = commands.selection.rows
+    size = np.linalg.norm(commands.commanded - commands.selection.poses[:, :3], axis=1)
+    bad = ~np.isfinite(size)
+    out = collect(program, rows[bad], "P305", "the model returns NaN or inf at this target", "error")
+    bound = settings.max_correction_mm
+    large = np.flatnonzero(~bad & (size > bound))
+    large = large[np.argsort(-size[large], kind="stable")]
+    out += collect(program, rows[large], "P303", lambda i: f"correction of {size[large[i]]:.3f} mm exceeds the bound "
+                   f"of {bound} mm: the model is wrong here", "error")
+    return out
+
+
+def joints_rule(program: Program, model: Compensator, commands: Commands) -> list[Diagnostic]:
+    """P301: joint angles outside those trained on (a wrist turned the other way), for
+    targets inside the box and attitude range (those outside are warned already)."""
+    envelope = model.envelope
+    if envelope is None or commands.joints is None or envelope.joints is None:
+        return []
+    away = np.flatnonzero(envelope.outside_joints(commands.joints) & ~outside_envelope(model, commands.selection))
+    q = commands.joints
+    return collect(program, commands.selection.rows[away], "P301", lambda i: "target's joint angles outside those the "
+                   f"model was trained on ({_joints_away(q[away[i]], envelope.joints)})")
+
+
+# --------------------------------------------------------------------------- all
+
+
+def select_with_findings(program: Program, model: Compensator, settings: Settings) -> tuple[Selection, list[Diagnostic]]:
+    """The targets the model takes, and every finding that needs no model output."""
+    out = stamp_rule(program, settings) + fit_rule(program, model, settings) + shared_rule(program, settings)
+    poses, use = robot_base_poses(program)
+    out += frame_rule(program, use)
+    out += known_rule(program, model, settings, poses, use)
+    out += finite_rule(program, poses, use)
+    rows = np.flatnonzero(use)
+    selection = Selection(rows, poses[rows])
+    out += reach_rule(program, model, settings, selection)
+    if model.wants_joints or model.wants_tool:
+        selection, found = configuration_rule(program, model, selection)
+        out += found
+    out += envelope_rule(program, model, selection)
+    return selection, out
+
+
+def configuration_rule(program: Program, model: Compensator, selection: Selection) -> tuple[Selection, list[Diagnostic]]:
+    """P309 (a warning): a target whose arm configuration has no joint angles on the nominal
+    robot, left as written; the others get the model's ``joints`` / ``tool`` inputs."""
+    from .controller import controller_inputs
+
+    rows, poses, q, tool, found = controller_inputs(program, model, selection.rows, selection.poses, collect)
+    left = dict(selection.left)
+    dropped = np.setdiff1d(selection.rows, rows)
+    if len(dropped):
+        left["P309"] = dropped
+    return Selection(rows, poses, q, tool, left), found
+
+
+def select(program: Program, model: Compensator, settings: Settings = Settings()) -> Selection:
+    """The targets the model takes (known position, finite), robot-base poses with the
+    nominal attitude filled in."""
+    return select_with_findings(program, model, settings)[0]
+
+
+def static_findings(program: Program, model: Compensator, settings: Settings) -> list[Diagnostic]:
+    """Every finding that needs no model output."""
+    return select_with_findings(program, model, settings)[1]
+
+
+def command_findings(program: Program, commands: Commands, model: Compensator, settings: Settings) -> list[Diagnostic]:
+    """Every finding about the model's commands for the selected targets."""
+    return output_rule(program, settings, commands) + joints_rule(program, model, commands)
+
+
+def findings(program: Program, commands: Commands | None, model: Compensator, settings: Settings) -> list[Diagnostic]:
+    """Every finding of these rules about ``program`` (reader warnings other than P202 are
+    not repeated). ``commands`` None: only those that need no model output."""
+    out = static_findings(program, model, settings)
+    if commands is not None:
+        out += command_findings(program, commands, model, settings)
+    return out
+
+
+def run_model(model: Compensator, selection: Selection, iterations: int | None) -> Commands:
+    """The model's fixed-point commands (and joint angles where the card has joint ranges)."""
+    envelope = model.envelope
+    wanted = model.has_joints and envelope is not None and envelope.joints is not None
+    if not len(selection.rows):
+        return Commands(selection, np.zeros((0, 3)), np.zeros((0, 6)) if wanted else None)
+    commanded, joints = model.command(selection.poses, iterations, joints=True, q=selection.joints, tool=selection.tool)
+    return Commands(selection, commanded, joints if wanted else None)
