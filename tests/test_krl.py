@@ -24,9 +24,7 @@ def read(src: str, dat: str | None = None, config: list[str] | None = None, acce
     if dat is not None:
         files.append("t.dat")
         texts.append(dat)
-    if accelerate:
-        return krl.read(files, texts, config=config)
-    return krl._Reader(files, texts, config or [], accelerate=False).run()
+    return krl.read(files, texts, config=config, accelerate=accelerate)
 
 
 def module(*lines: str) -> str:
