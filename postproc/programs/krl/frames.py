@@ -23,6 +23,8 @@ class _FrameState:
         def eq(a, b):
             if isinstance(a, np.ndarray) and isinstance(b, np.ndarray):
                 return np.allclose(a, b)
+            if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+                return False
             return a is b or a == b
 
         return eq(self.base, other.base) and eq(self.tool, other.tool) and eq(self.robroot, other.robroot)
@@ -99,6 +101,12 @@ class Frames:
         v = self.literal_number(expr) if expr.data in ("number", "signed") else None
         if v is not None:
             return int(v.value) if np.isfinite(v.value) else None  # (int(inf) raises)
+        if expr.data == "name":  # a variable (or a parameter bound at a call) holding a whole number
+            var = self.lookup(expr.children[0])
+            v = None if var is None or var.array else var.value
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and v == int(v):
+                return int(v)
+            return None
         if expr.data == "member" and expr.children[0].data == "name":
             f = self.fdat_of(expr.children[0])
             if isinstance(f, _Agg):
@@ -259,14 +267,20 @@ class Frames:
         self.barrier()
 
     def frame_index(self, st: _FrameState):
-        """(index into Program.frames or -1, reason key for P201)."""
-        why = st.base if isinstance(st.base, _Unknown) else (
-            st.robroot if isinstance(st.robroot, _Unknown) else None)
+        """(index into Program.frames or -1, reason key for P201/P203).
+
+        A target is left as written (-1) when its base (P201) or its tool (P203: $TOOL set
+        but not resolvable, e.g. TOOL_DATA[6] not in the data given) is not known; a tool
+        never set in the program (None) is not a reason."""
+        why, code = (st.base, "P201") if isinstance(st.base, _Unknown) else (
+            (st.robroot, "P201") if isinstance(st.robroot, _Unknown) else (
+                (st.tool, "P203") if isinstance(st.tool, _Unknown) and st.tool.why else (None, "")))
         if why is not None:
-            key = (self.path, why.why)
+            key = (self.path, code, why.why)
             if key not in self.unknown_frames:
+                what = "frame" if code == "P201" else "tool"
                 self.unknown_frames[key] = [self.path, why.where[0] or self.ln, why.where[1] or 1,
-                                            f"frame not statically known ({why.why})", 0]
+                                            f"{what} not statically known ({why.why})", 0, code]
             return -1, key
         base = compose(inverse(st.robroot), st.base) if st.robroot is not _I4 else st.base
         tool = st.tool if isinstance(st.tool, tuple) else None
@@ -274,9 +288,6 @@ class Frames:
             key = (np.round(base, 9).tobytes(), None if tool is None else tuple(round(x, 9) for x in tool))
         ix = self.frame_ix.get(key)
         if ix is None:
-            if isinstance(st.tool, _Unknown) and st.tool.why:
-                self.warn(self.path, st.tool.where[0] or self.ln, st.tool.where[1] or 1, "P203",
-                          f"tool not statically known ({st.tool.why}): Frame.tool left empty")
             label = st.base_label + (f" / {st.tool_label}" if st.tool_label else "")
             ix = self.frame_ix[key] = len(self.frames)
             self.frames.append(Frame(base=base.copy(), tool=None if tool is None else np.array(tool), label=label))

@@ -11,6 +11,7 @@ from ...diagnostics import Diagnostic, PostprocError
 from ..model import Frame, Program, STAMP_PREFIX
 from .assemble import Assembly
 from .blocks import Blocks
+from .calls import Calls
 from .fast_path import FastPath, _HotRows, _Shape, _analyse, _name_paths
 from .frames import Frames, _START
 from .scopes import Scopes
@@ -36,7 +37,7 @@ def read(files: list[str], texts: list[str], config: list[str] | None = None, ac
             gc.enable()
 
 
-class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors, Assembly):
+class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors, Assembly, Calls):
     """The KRL reader: one module per concept, each contributing its methods."""
 
     def __init__(self, files, texts, config, accelerate: bool = True):
@@ -49,7 +50,7 @@ class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors,
         self.frames: list[Frame] = []
         self.newline: dict[int, str] = {}
         self.frame_ix: dict = {}
-        self.unknown_frames: dict = {}  # reason key → [path, line, col, message, count]
+        self.unknown_frames: dict = {}  # reason key → [path, line, col, message, count, code]
         self.hot = _HotRows()
         self.cold = {k: [] for k in ("key", "pose", "written", "spans", "file", "line", "col", "motion",
                                      "frame", "emit", "chain")}
@@ -80,9 +81,9 @@ class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors,
                     stamps[fi] = line.strip()
                     break
                 at = text.find(STAMP_PREFIX, b)
-        for path, line, col, msg, count in self.unknown_frames.values():
+        for path, line, col, msg, count, code in self.unknown_frames.values():
             if count:
-                self.diagnostics.append(Diagnostic(path, line, col, "P201",
+                self.diagnostics.append(Diagnostic(path, line, col, code,
                                                    f"{msg}: {count} target(s) left as written"))
         return Program(files=self.files, texts=self.texts, targets=targets, frames=self.frames,
                        named_targets=bool(self.targets_of),

@@ -18,6 +18,8 @@ class Scopes:
 
     def declare(self, name, type_, array, value=None, elems=None):
         u = str(name).upper()
+        if self.role == "effect" and value is None and self.local is not None and u in self.local:
+            return self.local[u]  # DECL of a parameter bound at the call: keeps its value
         var = _Var(u, type_, array, value, {} if array else None)
         if self.role == "config":
             self.globals[u] = var

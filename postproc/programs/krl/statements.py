@@ -96,9 +96,11 @@ class Statements:
             self.bas(args[0].children[0].upper(), args[1] if len(args) > 1 else None)
             return
         self.call_states.setdefault(name, []).append(self.state)
+        self.after_call(node.children[0], args, node)
 
     def s_bare_call(self, node):
         self.call_states.setdefault(node.children[0].upper(), []).append(self.state)
+        self.after_call(node.children[0], [], node)
 
     def barrier(self):
         """The current position is unknown from here on (partial aggregates get NaN)."""
