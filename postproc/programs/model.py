@@ -41,8 +41,17 @@ class Targets:
                                ``Program.texts[file]``; -1 where the component is absent
     file       [N] int32       index into Program.files of the text the numbers stand in
     line, col  [N] int32       1-based location of the target's aggregate (for messages)
-    frame      [N] int32       index into Program.frames; -1 = not statically resolvable
+    frame      [N] int32       index into Program.frames; -1 = left as written: the base
+                               (P201) or the tool (P203: $TOOL set but not resolvable, e.g.
+                               TOOL_DATA[6] not known, or unknown after a call) is not known
     motion     [N] int8        index into MOTIONS
+    config     [N, 2] int16    (S, T) the target states (integers, 'B010' / 'H2' literals,
+                               inline or in the POS/E6POS variable's value); -1 where it
+                               does not state it (then a PTP takes the configuration nearest
+                               the current axes, LIN/CIRC keep the current one)
+
+    A frame's ``tool`` of None means the program never sets $TOOL (the model's tool is
+    assumed); a $TOOL that is set but not known makes the target's frame -1.
     """
 
     poses: np.ndarray
@@ -52,6 +61,11 @@ class Targets:
     col: np.ndarray
     frame: np.ndarray
     motion: np.ndarray
+    config: np.ndarray | None = None  # None: no target states S/T (filled with -1)
+
+    def __post_init__(self) -> None:
+        if self.config is None:
+            self.config = np.full((len(self.poses), 2), -1, np.int16)
 
     def __len__(self) -> int:
         return len(self.poses)

@@ -11,7 +11,7 @@ def _empty_targets() -> Targets:
     return Targets(
         poses=np.zeros((0, 6)), spans=np.zeros((0, 3, 2), np.int64), file=np.zeros(0, np.int32),
         line=np.zeros(0, np.int32), col=np.zeros(0, np.int32), frame=np.zeros(0, np.int32),
-        motion=np.zeros(0, np.int8),
+        motion=np.zeros(0, np.int8), config=np.zeros((0, 2), np.int16),
     )
 
 
@@ -51,7 +51,7 @@ class Assembly:
                 file=np.array(c["file"], np.int32), line=np.array(c["line"], np.int32),
                 col=np.array(c["col"], np.int32), motion=np.array(c["motion"], np.int8),
                 chain=np.array(c["chain"], bool), frame=np.array(c["frame"], np.int32),
-                emit=np.array(c["emit"], bool),
+                emit=np.array(c["emit"], bool), config=np.array(c["config"], np.int16).reshape(n, 2),
             ))
         if not parts:
             return _empty_targets()
@@ -96,6 +96,7 @@ class Assembly:
             col=column("col", sel),
             frame=frame,
             motion=column("motion", sel),
+            config=column("config", sel),
         )
 
     def start_frame(self) -> int:

@@ -50,6 +50,7 @@ class _Plan:
     ph: list  # placeholder positions in the shape
     free: list = ()  # slots that carry their own sign (accelerator alternatives)
     names: list = ()  # slots that are the digits ending a name
+    st: np.ndarray = None  # [R, 2] int, slots of S and T (unsigned numbers), -1 = not written
 
 
 def _number_slot(expr, shape: _Shape):
@@ -80,16 +81,21 @@ def _hot_aggregate(agg, shape):
         return None
     if typ is None and (keys.keys() & _AXIS_KEYS or not keys.keys() & {"X", "Y", "Z"}):
         return None
-    slots, neg, gap = [-1] * 6, [False] * 6, [0] * 6
+    slots, neg, gap, st = [-1] * 6, [False] * 6, [0] * 6, [-1, -1]
     for k, v in keys.items():
         if k in _COMP:
             s = _number_slot(v, shape)
             if s is None:
                 return None  # the interpreter reports it
             slots[_COMP[k]], neg[_COMP[k]], gap[_COMP[k]] = s
+        elif k in ("S", "T"):
+            s = _number_slot(v, shape)
+            if s is None or s[1] or s[2]:
+                return None  # 'B010', a sign, an expression: the interpreter reads it
+            st[k == "T"] = s[0]
     if all(s < 0 for s in slots[:3]):
         return None
-    return slots, neg, gap, agg.meta_brace
+    return slots, neg, gap, agg.meta_brace, st
 
 
 def _analyse(shape: _Shape) -> None:
@@ -166,6 +172,7 @@ def _analyse(shape: _Shape) -> None:
         spl=kw == "SPL",
         ph=shape.ph,
         names=[shape.phidx[p] for p in shape.names],
+        st=np.array([r[0][4] for r in rows], dtype=np.int64),
     )
     shape.kind = "hot"
 
@@ -230,14 +237,27 @@ class _HotRows:
                     s = start + ph[j] + shift[j]
                     spans[:, 2 * c] = s - plan.gap[r, c]
                     spans[:, 2 * c + 1] = s + lens[j]
+            config = np.full((n, 2), -1, np.int16)
+            for c in range(2):
+                j = int(plan.st[r, c])
+                if j >= 0:
+                    config[:, c] = _config_column(cols[j], n)
             b = plan.brace[r]
             col = b + 1 + shift[brace_slots[r]]
             self.parts.append(dict(
                 key=key0 + line0 * 4 + r, pose=pose, written=written, spans=spans,
                 file=np.full(n, fi, np.int32), line=(line0 + 1).astype(np.int32), col=col.astype(np.int32),
                 motion=np.full(n, plan.motion[r], np.int8), chain=np.full(n, plan.chain[r]),
-                spl=np.full(n, plan.spl),
+                spl=np.full(n, plan.spl), config=config,
             ))
+
+
+def _config_column(strings, n: int) -> np.ndarray:
+    """S or T numbers as written → int16, -1 where not a whole number in 0…32767."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        v = np.array(strings, dtype=np.float64).reshape(n)
+        ok = np.isfinite(v) & (v == np.round(v)) & (v >= 0) & (v <= 32767)
+    return np.where(ok, v, -1).astype(np.int16)
 
 
 class _Accel:
@@ -300,7 +320,7 @@ def _generalise(shape: _Shape):
                 neg[r, c] = False
                 gap[r, c] = 0
     g = _Plan(slots=plan.slots, neg=neg, gap=gap, brace=brace, motion=plan.motion, chain=plan.chain,
-              spl=plan.spl, ph=ph, names=plan.names)
+              spl=plan.spl, ph=ph, names=plan.names, st=plan.st)
     g.free = sorted(free)
     return "".join(out), g
 

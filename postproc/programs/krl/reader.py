@@ -53,7 +53,7 @@ class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors,
         self.unknown_frames: dict = {}  # reason key → [path, line, col, message, count, code]
         self.hot = _HotRows()
         self.cold = {k: [] for k in ("key", "pose", "written", "spans", "file", "line", "col", "motion",
-                                     "frame", "emit", "chain")}
+                                     "frame", "emit", "chain", "config")}
         self.timeline: list = []  # (key, frame index, unknown reason key)
         self.globals: dict[str, _Var] = {}
         self.module: dict[str, _Var] = {}

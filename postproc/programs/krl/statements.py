@@ -108,8 +108,9 @@ class Statements:
             return
         self.add_row(self.kbase + 3, [np.nan] * 6, [True] * 6, [-1] * 6, self.fi, 0, 0, 0, -1, False, True)
 
-    def add_row(self, key, pose, written, spans, fi, line, col, motion, frame, emit, chain):
+    def add_row(self, key, pose, written, spans, fi, line, col, motion, frame, emit, chain, config=(-1, -1)):
         c = self.cold
+        c["config"].append(config)
         c["key"].append(key)
         c["pose"].append(pose)
         c["written"].append(written)
@@ -165,7 +166,7 @@ class Statements:
             f, why = self.frame_for(st, extra)
             pose, spans, written = agg.pose(self.path, self.text)
             emit = any(written[:3])
-            self.add_row(key, pose, written, spans, self.fi, agg.line, agg.col, motion, f, emit, chain)
+            self.add_row(key, pose, written, spans, self.fi, agg.line, agg.col, motion, f, emit, chain, agg.config())
             if emit:
                 self.count_unknown(f, why)
             return
@@ -194,13 +195,13 @@ class Statements:
                 pose, _, _ = agg.pose(*self.where(agg.file))
                 if len(aggs) == 1:
                     self.add_row(key, pose, [True] * 6, [-1] * 6, agg.file, agg.line, agg.col, motion, f, False,
-                                 chain)
+                                 chain, agg.config())
                 continue
             self.targets_of[id(agg)] = (f, self.ln)
             pose, spans, _ = agg.pose(*self.where(agg.file))
             emit = any(s >= 0 for s in spans) and agg.file >= 0
             self.add_row(key, pose, [True] * 6, spans, agg.file, agg.line, agg.col, motion, f, emit,
-                         chain and len(aggs) == 1)
+                         chain and len(aggs) == 1, agg.config())
             if emit:
                 self.count_unknown(f, why)
         if len(aggs) != 1:

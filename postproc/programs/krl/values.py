@@ -135,6 +135,26 @@ class _Agg:
                                     "P103")
         return pose, spans, written
 
+    def config(self):
+        """(S, T) as written (own or merged fields): integers, 'B010' / 'H2' literals; -1 when
+        absent or not a whole number in 0…32767."""
+        out = []
+        for k in ("S", "T"):
+            v = self.get(k)
+            x = -1
+            if isinstance(v, _Num):
+                if np.isfinite(v.value) and v.value == int(v.value) and 0 <= v.value <= 32767:
+                    x = int(v.value)
+            elif isinstance(v, str) and len(v) >= 3 and v[0] == "'" and v[-1] == "'":
+                digits, base = v[2:-1], (2 if v[1] in "Bb" else 16)
+                try:
+                    x = int(digits, base) if digits else -1
+                except ValueError:
+                    x = -1
+                x = x if 0 <= x <= 32767 else -1
+            out.append(x)
+        return out
+
     def frame6(self):
         """The 6 numbers of a fully written frame, or None."""
         out = []
