@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from lark import Token, Tree
 
-from .values import _Agg, _Unknown, _Var
+from .values import _Agg, _Derived, _Unknown, _Var
 
 
 class Scopes:
@@ -49,6 +49,25 @@ class Scopes:
         pass
 
     s_enum_decl = s_signal_decl = s_ext_decl = s_struc_decl
+
+    def position_source(self, expr, own: str = ""):
+        """The first position variable other than ``own`` (one with a Cartesian value, or
+        derived itself) that the expression reads, as written; None when it reads none."""
+        stack = [expr]
+        while stack:
+            node = stack.pop()
+            if not hasattr(node, "data"):
+                continue
+            if node.data == "name":
+                n = node.children[0]
+                var = self.lookup(str(n))
+                if var is not None and not var.array and var.name != own and (
+                        (isinstance(var.value, _Agg) and var.value.kind() == "cart")
+                        or isinstance(var.value, _Derived)):
+                    return str(n)
+                continue
+            stack.extend(reversed([c for c in node.children if c is not None]))
+        return None
 
     def fdat_of(self, expr):
         if expr.data == "name":

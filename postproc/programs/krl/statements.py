@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...diagnostics import PostprocError
-from .values import _AXIS_TYPES, _Agg, _KIND_OF, _MOTION, _POS_TYPES, _RUNTIME_POS, _STANDARD_AXIS, _Unknown, _first_pos
+from .values import _AXIS_TYPES, _Agg, _KIND_OF, _MOTION, _POS_TYPES, _RUNTIME_POS, _STANDARD_AXIS, _Derived, _Unknown, _first_pos
 
 
 class Statements:
@@ -39,6 +39,8 @@ class Statements:
                 if isinstance(var.value, _Agg):
                     agg.base = var.value
                 var.value = agg
+            elif (source := self.position_source(rhs, name)) is not None:
+                var.value = _Derived(source, (self.ln, 1))
             else:
                 var.value = self.value(rhs)
                 if not isinstance(var.value, _Unknown) and var.type in _POS_TYPES | _AXIS_TYPES:
@@ -53,7 +55,9 @@ class Statements:
                 return
             var = self.lookup(name)
             if var is not None and not var.array and isinstance(var.value, _Agg):
-                var.value = _Unknown(f"{name} is modified component-wise at line {self.ln}", (self.ln, 1))
+                source = self.position_source(rhs, name)
+                var.value = _Derived(source, (self.ln, 1)) if source is not None else \
+                    _Unknown(f"{name} is modified component-wise at line {self.ln}", (self.ln, 1))
             return
         if lhs.data == "index" and lhs.children[0].data == "name":
             var = self.lookup(name)
@@ -260,6 +264,11 @@ class Statements:
             if v.kind() == "axis":
                 return None
             return [v]
+        if isinstance(v, _Derived):
+            self.warn(self.path, self.ln, self.col(pos), "P214",
+                      f"target {label} is {v.why}: at run time it moves with {v.source} (and carries "
+                      f"{v.source}'s correction when {v.source} is compensated), not with its own; left as written")
+            return None
         why = v.why if isinstance(v, _Unknown) else "it has no value here"
         self.warn(self.path, self.ln, self.col(pos), "P211", f"target {label} not statically known ({why}): "
                   "left as written")

@@ -48,6 +48,17 @@ class _Unknown:
         self.where = where  # (line, col) in the file being read
 
 
+class _Derived(_Unknown):
+    """A position assigned from another position (``P2 = P1``, ``P2.Z = P1.Z + 150``): at run
+    time it moves with ``source`` (and with its correction, when ``source`` is compensated)."""
+
+    __slots__ = ("source",)
+
+    def __init__(self, source: str, where: tuple[int, int]):
+        super().__init__(f"derived from {source} at line {where[0]}", where)
+        self.source = source
+
+
 @dataclass
 class _Num:
     value: float
