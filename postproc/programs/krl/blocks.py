@@ -53,9 +53,12 @@ class Blocks:
                                 self.path, line, col, "P101")
         for line, col in self.folds:
             self.warn(self.path, line, col, "P105", ";FOLD without ;ENDFOLD")
-        if self.role == "module" and self.fi == 0 and not self.has_def:
-            what = "a data list (DEFDAT) with no DEF" if self.has_dat else "no DEF"
-            raise PostprocError(f"{what}: expected a KRL module with DEF name( ) … END", self.path, 1, 1, "P104")
+        if self.role == "module" and self.fi == 0 and not self.has_def and not (self.has_dat and self.code_in_set):
+            if self.has_dat:  # alone: no motion uses its points, so none is a target
+                raise PostprocError("a data list (DEFDAT) with no DEF: its points are targets only through the "
+                                    "motions that use them; give the modules (.src) that use it in the same run",
+                                    self.path, 1, 1, "P104")
+            raise PostprocError("no DEF: expected a KRL module with DEF name( ) … END", self.path, 1, 1, "P104")
 
     def open_block(self, kind, node, detail=""):
         self.blocks.append((kind, self.ln, self.col(_first_pos(node) or 0), detail))
@@ -92,8 +95,8 @@ class Blocks:
         self.fdat = None
         # the first DEF starts at $NULLFRAME; a later one (a local subroutine) inherits the
         # frames its callers had, when they all agree
-        if self.defs_seen == 0:
-            st = _START
+        if self.defs_seen == 0 and str(name).upper() not in self.call_states:
+            st = _START  # a module's main DEF, not called from a module read before
         else:
             calls = self.call_states.get(str(name).upper(), [])
             if not calls:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import gc
+from pathlib import PurePath
 from bisect import bisect_left
 
 import numpy as np
@@ -21,8 +22,11 @@ from .values import Values, _Num, _Var
 
 
 def read(files: list[str], texts: list[str], config: list[str] | None = None, accelerate: bool = True) -> Program:
-    """Parse a KRL module: ``files[0]`` the .src (or any module), ``files[1]`` its .dat when
-    present, ``config`` the texts of $config.dat files (BASE_DATA / TOOL_DATA / globals).
+    """Parse a KRL module or a set of modules: ``files[0]`` the main .src, then any .dat /
+    .src / .sub / ``$config.dat`` of the same cell (a .src and a .dat of one stem are one
+    module; ``DECL GLOBAL`` and ``$config.dat`` declarations are seen by every module; calls
+    are followed into the DEFs read). ``config`` the texts of $config.dat files not among
+    ``files`` (BASE_DATA / TOOL_DATA / globals; read-only).
     ``accelerate=False`` reads every line through the interpreter (no vectorised fast path:
     same result, slower; for tests).
 
@@ -35,6 +39,18 @@ def read(files: list[str], texts: list[str], config: list[str] | None = None, ac
     finally:
         if enabled:
             gc.enable()
+
+
+def _stem(path: str) -> str:
+    return PurePath(str(path).replace("\\", "/")).stem.upper()
+
+
+def _kind(path: str) -> str:
+    """'config' ($config.dat), 'dat' (a data list) or 'src' (.src, .sub, anything else)."""
+    name = PurePath(str(path).replace("\\", "/")).name.lower()
+    if name == "$config.dat":
+        return "config"
+    return "dat" if name.endswith(".dat") else "src"
 
 
 class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors, Assembly, Calls):
@@ -56,7 +72,8 @@ class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors,
                                      "frame", "emit", "chain", "config")}
         self.timeline: list = []  # (key, frame index, unknown reason key)
         self.globals: dict[str, _Var] = {}
-        self.module: dict[str, _Var] = {}
+        self.module: dict[str, _Var] = {}  # the scope of the module being read
+        self.modules: dict[str, dict] = {}  # module name (file stem) → its scope (.src + .dat)
         self.local: dict[str, _Var] | None = None
         self.targets_of: dict[int, tuple] = {}  # id(_Agg) → (frame, line) of its first use
         self.call_states: dict[str, list] = {}
@@ -64,9 +81,14 @@ class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors,
     def run(self) -> Program:
         for k, text in enumerate(self.config):
             self.scan(-1 - k, text, "$config.dat" if len(self.config) == 1 else f"$config.dat[{k}]", role="config")
-        order = list(range(1, len(self.files))) + [0]
+        kinds = [_kind(f) for f in self.files]
+        # $config.dat first, then the data lists, then the code (in the order given): every
+        # global is declared before a module uses it
+        order = [fi for k in ("config", "dat", "src") for fi in range(len(self.files)) if kinds[fi] == k]
+        self.code_in_set = "src" in kinds[1:]
         for rank, fi in enumerate(order):
-            self.scan(fi, self.texts[fi], self.files[fi], role="module", rank=rank)
+            role = "config" if kinds[fi] == "config" else "module"
+            self.scan(fi, self.texts[fi], self.files[fi], role=role, rank=rank)
         targets = self.assemble()
         stamps, newlines = {}, []
         for fi, text in enumerate(self.texts):
@@ -101,6 +123,7 @@ class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors,
         return sh
 
     def scan(self, fi: int, text: str, path: str, role: str, rank: int = 0) -> None:
+        self.module = self.modules.setdefault(_stem(path), {}) if role == "module" else {}
         self.fi, self.path, self.text, self.role = fi, path, text, role
         self.key0 = rank << 40
         self.blocks: list = []  # (kind, line, col, detail)
@@ -123,14 +146,14 @@ class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors,
         data = text.encode("latin-1", "replace") if not text.isascii() else text.encode("ascii")
         raw = np.frombuffer(data, np.uint8)
         nl = np.flatnonzero(raw == 10)
-        if role == "module":  # the dominant line ending, for the rewriter
+        if fi >= 0:  # the dominant line ending, for the rewriter
             crlf = int(np.count_nonzero(raw[nl[nl > 0] - 1] == 13))
             self.newline[fi] = "\r\n" if crlf and 2 * crlf >= len(nl) else "\n"
         self.starts = np.concatenate([[0], nl + 1]).astype(np.int64)
         nlines = len(self.starts) - (1 if text.endswith("\n") else 0)
         hot_lines = {}  # shape → (lines, starts, numbers) read by the interpreter loop
         first_part = len(self.hot.parts)
-        if role == "module" and fi == 0 and self.accelerate and nlines > 4096:
+        if role == "module" and self.accelerate and nlines > 4096:
             self.scan_accelerated(text, nlines, hot_lines)
         else:
             self.scan_lines(range(nlines), hot_lines)

@@ -16,12 +16,12 @@ class Scopes:
                 return scope[u]
         return None
 
-    def declare(self, name, type_, array, value=None, elems=None):
+    def declare(self, name, type_, array, value=None, elems=None, glob=False):
         u = str(name).upper()
         if self.role == "effect" and value is None and self.local is not None and u in self.local:
             return self.local[u]  # DECL of a parameter bound at the call: keeps its value
         var = _Var(u, type_, array, value, {} if array else None)
-        if self.role == "config":
+        if self.role == "config" or (glob and self.local is None):  # $config.dat, DECL GLOBAL in a data list
             self.globals[u] = var
         elif self.local is not None:
             self.local[u] = var
@@ -31,6 +31,7 @@ class Scopes:
 
     def s_decl(self, node):
         typ = None
+        glob = any(isinstance(c, Token) and c.type == "GLOBAL" for c in node.children)
         for c in node.children:
             if isinstance(c, Tree) and c.data == "type":
                 typ = c.children[0].upper()
@@ -41,9 +42,7 @@ class Scopes:
                 val = self.value(init) if init is not None else None
                 if isinstance(val, _Agg) and val.type is None and typ:
                     val.type = typ
-                self.declare(name, typ, dims is not None, None if dims is not None else val)
-            elif isinstance(c, Token):
-                pass
+                self.declare(name, typ, dims is not None, None if dims is not None else val, glob=glob)
 
     def s_struc_decl(self, node):
         pass

@@ -223,7 +223,10 @@ class Statements:
                 self.warn(self.path, self.ln, self.col(pos), "P211",
                           f"target {name} is a run-time position: left as written")
                 return None
-            raise PostprocError(f"undeclared target name '{name}'", self.path, self.ln, self.col(pos), "P102")
+            self.warn(self.path, self.ln, self.col(pos), "P215",
+                      f"target {name} is not declared in the files read (a global of a data list or "
+                      "$config.dat not given?): left as written")
+            return None
         if var.type in _AXIS_TYPES:
             return None
         if var.type and var.type not in _POS_TYPES:
