@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
-from lark import Token
+from lark import Token, Tree
 
 from ...diagnostics import PostprocError
 from .fast_path import _Shape
@@ -144,9 +144,15 @@ class Blocks:
 
     def s_for_head(self, node):
         self.open_block("FOR", node)
+        var = next(c for c in node.children if isinstance(c, Token) and c.type == "NAME")
+        exprs = [c for c in node.children if isinstance(c, Tree)]
+        step = self.int_of(exprs[2]) if len(exprs) > 2 else 1
+        self.loops.append((str(var).upper(), self.int_of(exprs[0]), self.int_of(exprs[1]), step))
 
     def s_endfor(self, node):
         self.close_block({"FOR"}, node, "ENDFOR")
+        if self.loops:
+            self.loops.pop()
 
     def s_while_head(self, node):
         self.open_block("WHILE", node)

@@ -77,6 +77,7 @@ class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors,
         self.local: dict[str, _Var] | None = None
         self.targets_of: dict[int, tuple] = {}  # id(_Agg) → (frame, line) of its first use
         self.call_states: dict[str, list] = {}
+        self.strucs: dict[str, dict] = {}  # STRUC type → member → member type (upper case)
 
     def run(self) -> Program:
         for k, text in enumerate(self.config):
@@ -124,6 +125,7 @@ class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors,
 
     def scan(self, fi: int, text: str, path: str, role: str, rank: int = 0) -> None:
         self.module = self.modules.setdefault(_stem(path), {}) if role == "module" else {}
+        self.loops: list = []  # enclosing FORs: (variable, first, last, step), None where not constant
         self.fi, self.path, self.text, self.role = fi, path, text, role
         self.key0 = rank << 40
         self.blocks: list = []  # (kind, line, col, detail)

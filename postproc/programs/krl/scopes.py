@@ -45,9 +45,21 @@ class Scopes:
                 self.declare(name, typ, dims is not None, None if dims is not None else val, glob=glob)
 
     def s_struc_decl(self, node):
+        """``STRUC name type field, field, type field``: the member types (upper case)."""
+        fields_ = [c for c in node.children if isinstance(c, Tree) and c.data == "struc_field"]
+        name = next(c for c in node.children if isinstance(c, Token) and c.type == "NAME")
+        members, typ = {}, ""
+        for f in fields_:
+            names = [c for c in f.children if isinstance(c, Token) and c.type == "NAME"]
+            if len(names) == 2:
+                typ = names[0].upper()
+            members[names[-1].upper()] = typ
+        self.strucs[str(name).upper()] = members
+
+    def s_enum_decl(self, node):
         pass
 
-    s_enum_decl = s_signal_decl = s_ext_decl = s_struc_decl
+    s_signal_decl = s_ext_decl = s_enum_decl
 
     def position_source(self, expr, own: str = ""):
         """The first position variable other than ``own`` (one with a Cartesian value, or

@@ -180,6 +180,9 @@ class Statements:
         elif d == "index" and expr.children[0].data == "name":
             name = expr.children[0].children[0]
             aggs = self.named_value(name, self.index_key(expr), expr, indexed=True)
+        elif d == "member" and _root_name(expr) is not None and expr.children[0].data in ("name", "index"):
+            name = _root_name(expr)
+            aggs = self.member_value(expr)
         else:
             self.warn(self.path, self.ln, self.col(_first_pos(expr)), "P211",
                       "target is computed at run time (function call or expression): left as written")
@@ -210,6 +213,73 @@ class Statements:
                 self.count_unknown(f, why)
         if len(aggs) != 1:
             self.barrier()
+
+    def member_value(self, expr):
+        """The aggregates a STRUC member target (``gs[i].fCNC``, ``gPoint.fCNC``) stands for:
+        one element for a literal index, every element in range for the variable of an
+        enclosing FOR with constant bounds; None (warned) otherwise."""
+        base, field = expr.children[0], str(expr.children[1]).upper()
+        pos = _first_pos(expr)
+        name = str(_root_name(expr))
+        var = self.lookup(name)
+        written = f"{name}{'[…]' if base.data == 'index' else ''}.{expr.children[1]}"
+        if var is None:
+            self.warn(self.path, self.ln, self.col(pos), "P215",
+                      f"target {written}: {name} is not declared in the files read (a global of a data list "
+                      "or $config.dat not given?): left as written")
+            return None
+        if var.type in _POS_TYPES | _AXIS_TYPES or (var.array != (base.data == "index")):
+            self.warn(self.path, self.ln, self.col(pos), "P211", f"target {written} is not a STRUC member: "
+                      "left as written")
+            return None
+        ftype = self.strucs.get(var.type, {}).get(field, "")
+        if ftype in _AXIS_TYPES:
+            return None
+        if base.data == "name":
+            values = [var.value]
+        else:
+            keys = self.loop_keys(base)
+            if isinstance(keys, str):
+                self.warn(self.path, self.ln, self.col(pos), "P211", f"target {written}: {keys}: left as written")
+                return None
+            values = [var.elems.get(k) for k in keys]
+            if any(v is None for v in values):
+                missing = next(k for k, v in zip(keys, values) if v is None)
+                self.warn(self.path, self.ln, self.col(pos), "P211", f"target {written}: {name}"
+                          f"[{', '.join(map(str, missing))}] is not initialised in the files read: left as written")
+                return None
+        out = []
+        for v in values:
+            m = v.get(field) if isinstance(v, _Agg) else None
+            if not isinstance(m, _Agg):
+                why = v.why if isinstance(v, _Unknown) else f"its {field} is not a literal aggregate"
+                self.warn(self.path, self.ln, self.col(pos), "P211",
+                          f"target {written} not statically known ({why}): left as written")
+                return None
+            if m.type is None and ftype:
+                m.type = ftype
+            if m.kind() == "axis":
+                return None
+            out.append(m)
+        return out
+
+    def loop_keys(self, index):
+        """Index tuples of ``a[i]`` for a literal index or the variable of an enclosing FOR
+        with constant bounds; a reason (str) otherwise."""
+        key = self.index_key(index)
+        if key is not None:
+            return [key]
+        args = [e for e in index.children[1:]]
+        if len(args) != 1 or args[0] is None or args[0].data != "name":
+            return "the index is not a literal or a FOR variable"
+        v = str(args[0].children[0]).upper()
+        loop = next((lp for lp in reversed(self.loops) if lp[0] == v), None)
+        if loop is None:
+            return f"the index {args[0].children[0]} is not the variable of an enclosing FOR"
+        _, lo, hi, step = loop
+        if lo is None or hi is None or step is None or step == 0:
+            return f"the FOR over {args[0].children[0]} has bounds known only at run time"
+        return [(k,) for k in range(lo, hi + (1 if step > 0 else -1), step)]
 
     def named_value(self, name, key, expr, indexed=False):
         """The aggregates a named target stands for, or None (warned) when not Cartesian/known."""
@@ -276,3 +346,10 @@ class Statements:
         self.warn(self.path, self.ln, self.col(pos), "P211", f"target {label} not statically known ({why}): "
                   "left as written")
         return None
+
+
+def _root_name(expr):
+    """The name token at the root of a member / index chain, or None."""
+    while expr.data in ("member", "index"):
+        expr = expr.children[0]
+    return expr.children[0] if expr.data == "name" else None
