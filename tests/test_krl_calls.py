@@ -131,3 +131,20 @@ def test_a_tool_that_cannot_be_resolved_leaves_its_targets_alone():
     assert "2 target" in p.diagnostics[0].message
     p = read(("t.src", src.replace("  BAS(#BASE, 2)\n", "")), config=False)  # no $config.dat at all
     assert p.targets.frame.tolist() == [-1, -1, -1] and [c for c, _ in diags(p)] == ["P203", "P203"]
+
+
+def test_calls_on_the_fast_path_equal_the_line_by_line_read():
+    lines = []
+    for i in range(6000):
+        if i == 2000:
+            lines.append("  MoveSettings(2, 1, 0.2)")
+        if i == 4000:
+            lines.append("  gripper_open()")
+        lines.append(f"  LIN {{X {i}.5,Y -{i},Z 3,A 0,B 90,C 0}}" if i % 7 else f"  LIN {{X {i},Y 2,Z 3}}")
+    src = "DEF t( )\n" + "\n".join(lines) + "\nEND\n" + MOVE_SETTINGS
+    fast, slow = read(("t.src", src)), read(("t.src", src), accelerate=False)
+    for k in ("poses", "spans", "line", "col", "frame", "config"):
+        assert np.array_equal(getattr(fast.targets, k), getattr(slow.targets, k), equal_nan=k == "poses"), k
+    assert diags(fast) == diags(slow) == [("P201", 4003)]  # (one reason per target: the base first)
+    f = fast.targets.frame
+    assert (f[:2000] == 0).all() and (f[2000:4000] == 1).all() and (f[4000:] == -1).all()
