@@ -155,7 +155,7 @@ class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors,
         nlines = len(self.starts) - (1 if text.endswith("\n") else 0)
         hot_lines = {}  # shape → (lines, starts, numbers) read by the interpreter loop
         first_part = len(self.hot.parts)
-        if role == "module" and self.accelerate and nlines > 4096:
+        if role == "module" and self.accelerate and nlines > 4096 and _kind(path) == "src":  # (data lists: no motions)
             self.scan_accelerated(text, nlines, hot_lines)
         else:
             self.scan_lines(range(nlines), hot_lines)
