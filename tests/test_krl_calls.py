@@ -148,3 +148,18 @@ def test_calls_on_the_fast_path_equal_the_line_by_line_read():
     assert diags(fast) == diags(slow) == [("P201", 4003)]  # (one reason per target: the base first)
     f = fast.targets.frame
     assert (f[:2000] == 0).all() and (f[2000:4000] == 1).all() and (f[4000:] == -1).all()
+
+
+def test_a_callee_that_moves_leaves_the_current_position_unknown():
+    src = ("DEF t( )\n  LIN {X 1,Y 2,Z 3,A 0,B 90,C 0}\n  settle()\n  LIN {Z 40}\n  park()\n  LIN {Z 50}\nEND\n"
+           "DEF settle( )\n  $VEL.CP = 0.1\nEND\n"
+           "DEF park( )\n  go()\nEND\n"
+           "DEF go( )\n  LIN {X 100,Y 200,Z 300,A 0,B 90,C 0}\nEND\n")
+    for accelerate in (True, False):
+        p = read(("t.src", src), accelerate=accelerate)
+        poses = p.targets.poses
+        # settle() does not move: {Z 40} takes X, Y from line 2; after park() (which moves in
+        # go()) the position is the callee's: {Z 50} cannot take them from line 4
+        np.testing.assert_allclose(poses[1, :3], [1, 2, 40])
+        assert np.isnan(poses[2, :2]).all() and poses[2, 2] == 50
+        np.testing.assert_allclose(poses[3, :3], [100, 200, 300])

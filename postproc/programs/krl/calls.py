@@ -99,12 +99,17 @@ class Calls:
         key = (name, tuple(sorted(bound.items())), id(st), id(self.fdat))
         hit = self._def_memo.get(key)
         if hit is not None and hit[0] is st and hit[1] is self.fdat:
-            new, fdat = hit[2], hit[3]
+            new, fdat, moved = hit[2], hit[3], hit[4]
         else:
             fdat0 = self.fdat
-            new, fdat = self.run_callee(callee, bound, st)
-            self._def_memo[key] = (st, fdat0, new, fdat)
+            new, fdat, moved = self.run_callee(callee, bound, st)
+            self._def_memo[key] = (st, fdat0, new, fdat, moved)
         self.fdat = fdat
+        if moved:  # the robot moved in the callee: the current position is not the caller's last target
+            if self.role == "effect":
+                self._moved = True
+            else:
+                self.barrier()
 
         def located(value, entry):
             if value is entry or not isinstance(value, _Unknown):
@@ -139,9 +144,10 @@ class Calls:
         return name in _FRAME_VARIABLES or name in self.local
 
     def run_callee(self, callee: _Def, bound: dict, entry: _FrameState):
-        """(frame state, FDAT_ACT) after running the callee's frame statements from ``entry``."""
+        """(frame state, FDAT_ACT, moves) after running the callee's frame statements from
+        ``entry``; ``moves``: the callee (or one it calls) has a motion statement."""
         keep = ("fi", "path", "text", "role", "starts", "ln", "kbase", "la", "lt", "sh", "_nums", "_cum",
-                "local", "state", "blocks", "folds", "in_def", "diagnostics", "block_open")
+                "local", "state", "blocks", "folds", "in_def", "diagnostics", "block_open", "_moved")
         saved = {k: getattr(self, k, None) for k in keep}
         stack = getattr(self, "_call_stack", ())
         try:
@@ -153,6 +159,7 @@ class Calls:
             for p in callee.params:
                 self.local.setdefault(p, _Var(p, "", False, _Unknown(f"parameter {p} is a run-time value")))
             self.state, self.blocks, self.folds, self.in_def = entry, [], [], True
+            moved, self._moved = False, False
             self.diagnostics, self.block_open = [], {}
             starts = [0] + [m.end() for m in re.finditer("\n", text)]
             for i in range(callee.first, min(callee.last, len(starts))):
@@ -160,15 +167,19 @@ class Calls:
                 b = starts[i + 1] - 1 if i + 1 < len(starts) else len(text)
                 line = text[a:b]
                 sh = self.shape(SHAPE_RE.sub(_PLACEHOLDER, line))
+                if sh.kind == "hot":
+                    moved = True
                 if sh.kind not in ("stmt",) or sh.tree is None:
                     continue
                 stmt = next((c for c in sh.tree.children if hasattr(c, "data")), None)
+                if stmt is not None and stmt.data in ("move", "circ"):
+                    moved = True
                 if stmt is None or stmt.data not in EFFECT_STATEMENTS:
                     continue
                 if stmt.data == "assign" and not self.frame_write(stmt):
                     continue  # other variables: the callee's own pass reads them
                 self.interpret(i, a, line, sh)
-            return self.state, self.fdat
+            return self.state, self.fdat, moved or self._moved
         finally:
             self._call_stack = stack
             self._call_depth -= 1
