@@ -3,11 +3,13 @@
 ``$config.dat``; compensated together and written together (one atomic write of every
 file, the journal of ``rewrite.write_atomic``), the output tree mirroring the input's.
 
-Reading: each module is read with the cell's ``$config.dat`` (BASE_DATA, TOOL_DATA). The
-reader does not resolve globals across modules yet (the KRL package will): a target whose
-point lives in another module is left as written with the reader's located warning, never
-compensated in a guessed frame. A data list without a DEF (a PUBLIC points list) is fine
-in a cell: it is written as it is (no target of its own is known to be in any frame).
+Reading: every file of the cell in one reader call (``programs.krl.read`` takes a set of
+modules): ``$config.dat`` and PUBLIC data lists first, so that ``DECL GLOBAL`` points and
+BASE_DATA/TOOL_DATA resolve across modules; each point is compensated in the frame of its
+uses. A ``$config.dat`` inside the cell is one of its files (its global points can be
+compensated and it is written with the others); one given from outside (``--config``) is
+read only. A target whose point is declared in no file read is left as written with the
+reader's located warning (P215), never compensated in a guessed frame.
 """
 from __future__ import annotations
 
@@ -15,9 +17,10 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .compensate import Report, compensate_program, load_program, write_outputs
+from .compensate import Report, compensate_program, read_text, write_outputs
 from .compensator import Compensator
 from .diagnostics import PostprocError
+from .programs import read_program
 
 __all__ = ["Cell", "find_cell", "compensate_cell", "is_config", "CONFIG_NAME"]
 
@@ -110,26 +113,6 @@ def find_cell(paths: list[str | Path], config: list[str | Path] | None = None) -
     return cell
 
 
-def _merge(reports: list[Report]) -> Report:
-    """One report of the whole cell (counts summed, correction figures over every target)."""
-    out = Report(model=reports[0].model, model_sha256=reports[0].model_sha256, iterations=reports[0].iterations)
-    total = 0.0
-    for r in reports:
-        out.targets += r.targets
-        out.compensated += r.compensated
-        out.left += r.left
-        for code, n in r.left_codes.items():
-            out.left_codes[code] = out.left_codes.get(code, 0) + n
-        out.max_correction_mm = max(out.max_correction_mm, r.max_correction_mm)
-        total += r.mean_correction_mm * r.compensated
-        out.outside_envelope += r.outside_envelope
-        out.warnings += r.warnings
-        out.outputs.update(r.outputs)
-        out.changed += r.changed
-    out.mean_correction_mm = total / out.compensated if out.compensated else 0.0
-    return out
-
-
 def compensate_cell(cell: Cell, out_dir: str | Path, model: Compensator, **options) -> Report:
     """Compensate every module of ``cell`` (``options`` as for ``compensate_program``) and
     write all its files below ``out_dir`` at their paths relative to ``cell.root``, all or
@@ -141,17 +124,13 @@ def compensate_cell(cell: Cell, out_dir: str | Path, model: Compensator, **optio
     if out_dir.exists() and not out_dir.is_dir():
         raise PostprocError("is not a directory: a cell is written to a directory (-o OUTDIR)", str(out_dir), 0, 0,
                             "P110")
-    config = [str(c) for c in cell.config] or None
-    reports = []
-    for files in cell.modules:
-        program = load_program(files[0], config)
-        reports.append(compensate_program(program, model, **options))
-    report = _merge(reports) if reports else Report(model=model.name, model_sha256=model.sha256)
-    outputs: list[tuple[Path, str | bytes]] = []
-    for name, text in report.outputs.items():
-        outputs.append((out_dir / Path(name).resolve().relative_to(cell.root), text))
-    for path in cell.data_lists + [c for c in cell.config if cell.inside(c)]:
-        outputs.append((out_dir / path.resolve().relative_to(cell.root), path.read_bytes()))
-    if outputs:
-        write_outputs(outputs)
+    files = cell.files
+    outside = [read_text(c) for c in cell.config if not cell.inside(c)] or None
+    if not files:
+        return Report(model=model.name, model_sha256=model.sha256)
+    program = read_program([str(f) for f in files], [read_text(f) for f in files], "krl", config=outside)
+    report = compensate_program(program, model, **options)
+    outputs: list[tuple[Path, str | bytes]] = [(out_dir / Path(name).resolve().relative_to(cell.root), text)
+                                               for name, text in report.outputs.items()]
+    write_outputs(outputs)
     return report

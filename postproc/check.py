@@ -55,7 +55,7 @@ CODES = {
     "P202": "one set of numbers used as targets in two frames (compensate refuses it)",
     "P212": "target position not fully known (left as it is by compensate)",
     "P213": "target orientation not known (the model's nominal attitude is assumed)",
-    "P214": "partial aggregate refused (compensate --no-fill-partial; filled in by default)",
+    "P216": "partial aggregate refused (compensate --no-fill-partial; filled in by default)",
     "P301": "target outside the model's training envelope",
     "P302": "target beyond the nominal robot's reach (model metadata 'reach')",
     "P303": "the model's correction exceeds max_correction",
@@ -220,7 +220,7 @@ def check_file(
 def _data_list_findings(path: Path) -> list[Diagnostic]:
     """A data list without a DEF ($config.dat, a PUBLIC points list): not a program, but its
     syntax is checked (read as the configuration of an empty module)."""
-    from .compensate import _read
+    from .compensate import read_text as _read
     from .programs import read_program
 
     try:

@@ -20,7 +20,7 @@ from collections import Counter
 
 from . import frames
 from .compensator import Compensator, load_model
-from .diagnostics import Diagnostic, PostprocError
+from .diagnostics import LEFT_AS_WRITTEN, Diagnostic, PostprocError
 from .findings import (
     DEFAULT_MAX_CORRECTION_MM,
     Commands,
@@ -118,7 +118,9 @@ def _decode(data: bytes, path: str) -> str:
     return data.decode("latin-1")
 
 
-def _read(path: Path) -> str:
+def read_text(path: str | Path) -> str:
+    """A program file's text (latin-1: every byte round-trips); P107 when it cannot be read."""
+    path = Path(path)
     try:
         data = path.read_bytes()
     except FileNotFoundError:
@@ -168,7 +170,7 @@ def _config_texts(config: str | Path | list | None) -> list[str] | None:
     if config is None:
         return None
     paths = config if isinstance(config, list | tuple) else [config]
-    return [_read(Path(p)) for p in paths]
+    return [read_text(Path(p)) for p in paths]
 
 
 def load_program(path: str | Path, config: str | Path | None = None, dialect: str | None = None) -> Program:
@@ -184,10 +186,10 @@ def load_program(path: str | Path, config: str | Path | None = None, dialect: st
             raise PostprocError(str(exc), str(path), 0, 0, "P108") from None
     dat = companion_dat(path) if dialect == "krl" else None
     check_memory([path] + ([dat] if dat is not None else []))
-    files, texts = [str(path)], [_read(path)]
+    files, texts = [str(path)], [read_text(path)]
     if dat is not None:
         files.append(str(dat))
-        texts.append(_read(dat))
+        texts.append(read_text(dat))
     return read_program(files, texts, dialect, config=_config_texts(config))
 
 
@@ -197,7 +199,8 @@ def load_program(path: str | Path, config: str | Path | None = None, dialect: st
 def _left_codes(program: Program, selection: Selection) -> Counter:
     """Why each target not compensated was left as written: its code, counted. Rows of the
     program's Targets are P201 (frame not known) or P212 (position not known); the reader's
-    P210/P211 targets never became rows and count one each."""
+    targets that never became rows (``diagnostics.LEFT_AS_WRITTEN``: P210, P211, P214, P215)
+    count one each."""
     t = program.targets
     left = np.ones(len(t), bool)
     left[selection.rows] = False
@@ -212,7 +215,7 @@ def _left_codes(program: Program, selection: Selection) -> Counter:
     if left.sum() > unknown_frame + by_rule:
         codes["P212"] = int(left.sum()) - unknown_frame - by_rule
     for d in program.diagnostics:
-        if d.code in ("P210", "P211"):
+        if d.code in LEFT_AS_WRITTEN:
             codes[d.code] += 1
     return codes
 

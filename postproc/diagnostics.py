@@ -13,6 +13,15 @@ EXIT_OK = 0
 EXIT_FINDINGS = 1  # check found problems / verify exceeded --max-mean
 EXIT_ERROR = 2  # bad input, usage error, internal error: nothing was written
 
+# Reader warnings whose target never became a row of Targets: each one is a Cartesian
+# target left as written (compensate counts them and exits 1; one place for the rule).
+LEFT_AS_WRITTEN = {
+    "P210": "a _REL motion: its absolute target is known only at run time",
+    "P211": "a target computed at run time (or an element the reader cannot enumerate)",
+    "P214": "a point derived from another at run time (P2 = P1; P2.Z = …): it carries the other's correction",
+    "P215": "a target name declared in none of the files read (a global whose data list was not given)",
+}
+
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
 
 

@@ -9,7 +9,7 @@ One function per code family, in the order compensate applies them:
   or robot), :func:`shared_rule` P202 (one set of numbers in two frames) — each lifted by
   ``force``;
 * :func:`frame_rule` P103 (a frame that is not finite);
-* :func:`known_rule` P212 (position not known), P213 (orientation not known), P214
+* :func:`known_rule` P212 (position not known), P213 (orientation not known), P216
   (a partial aggregate, refused only with ``fill_partial=False``);
 * :func:`finite_rule` P103 (not finite, or beyond float32);
 * :func:`reach_rule` P302 (beyond the model's reach), P309 (no IK, with ``reachable``);
@@ -53,7 +53,7 @@ class Settings:
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM
     robot: str | None = None  # the robot the program is for (P310)
     force: bool = False  # lifts P401, P304, P310, P202
-    fill_partial: bool = True  # False: a partial aggregate is refused (P214), not filled in
+    fill_partial: bool = True  # False: a partial aggregate is refused (P216), not filled in
     reachable: Callable[[np.ndarray], np.ndarray] | None = None  # robot-base poses → bool mask (P309)
 
     def __post_init__(self):
@@ -217,7 +217,7 @@ def frame_rule(program: Program, use: np.ndarray) -> list[Diagnostic]:
 def known_rule(program: Program, model: Compensator, settings: Settings, poses: np.ndarray,
                use: np.ndarray) -> list[Diagnostic]:
     """P212 position not known (left as written), P213 orientation not known (the model's
-    nominal attitude assumed; an error without one), P214 a partial aggregate under
+    nominal attitude assumed; an error without one), P216 a partial aggregate under
     ``fill_partial=False``. Narrows ``use`` and fills ``poses`` in place."""
     no_position = use & np.isnan(poses[:, :3]).any(axis=1)
     out = collect(program, np.flatnonzero(no_position), "P212",
@@ -238,7 +238,7 @@ def known_rule(program: Program, model: Compensator, settings: Settings, poses: 
     if not settings.fill_partial:
         rows = np.flatnonzero(use)
         partial = rows[missing_xyz(program, rows).any(axis=1)]
-        out += collect(program, partial, "P214", "partial aggregate: the controller takes its missing X/Y/Z from the "
+        out += collect(program, partial, "P216", "partial aggregate: the controller takes its missing X/Y/Z from the "
                        "previous commanded (compensated) position, i.e. another target's correction; write the target "
                        "in full, or compensate without --no-fill-partial to have them written in", "error")
     return out

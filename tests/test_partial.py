@@ -44,7 +44,7 @@ def test_no_fill_partial_refuses_with_the_target_located(tmp_path, affine, capsy
     src.write_text(SRC)
     out = tmp_path / "o.src"
     assert main(["compensate", str(src), "-o", str(out), "--model", str(affine(gain=GAIN)), "--no-fill-partial"]) == 2
-    assert capsys.readouterr().err.startswith(f"{src}:3:7: P214 partial aggregate")
+    assert capsys.readouterr().err.startswith(f"{src}:3:7: P216 partial aggregate")
     assert not out.exists()
 
 

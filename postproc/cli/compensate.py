@@ -46,7 +46,7 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--settings", metavar="TOML", help="pyproject.toml or postproc.toml to read (default: searched "
                    "upwards from the current directory); options override its [tool.postproc] values")
     p.add_argument("--no-fill-partial", dest="fill_partial", action="store_false",
-                   help="refuse (P214) partial aggregates like LIN {Z 1250} instead of writing into them the X/Y/Z "
+                   help="refuse (P216) partial aggregates like LIN {Z 1250} instead of writing into them the X/Y/Z "
                    "their correction needs (the controller takes missing components from the previous compensated "
                    "command)")
     p.add_argument("--force", action="store_true",

@@ -1,0 +1,191 @@
+"""Following calls: what a called subroutine does to $BASE / $TOOL (they are global system
+variables, so a frame set in a callee holds after the call, as on the controller).
+
+A call site runs the callee's frame statements (assignments, ``BAS(…)``, FDAT_ACT, nested
+calls; declarations) in a sandbox from the caller's frame state, with the parameters bound
+that are constants at the call site (``MoveSettings(2, 4, 100, 500)`` → ``nTool`` = 4).
+The callee may be a DEF of the same module or the main / GLOBAL DEF of another module read
+in the same call. A callee that is not available, a recursion or a depth beyond
+``MAX_DEPTH`` make the frame after the call unknown (P201 base / P203 tool, at the call's
+line); a frame the callee sets from a run-time value is unknown the same way.
+"""
+from __future__ import annotations
+
+import re
+from bisect import bisect_right
+from dataclasses import dataclass
+
+from .frames import _FrameState
+from .syntax import _PLACEHOLDER, SHAPE_RE
+from .values import _first_pos, _Unknown, _Var
+
+# KUKA system subroutines known not to touch $BASE / $TOOL (BAS is handled by its #command)
+HARMLESS = frozenset({"SET_CD_PARAMS"})
+MAX_DEPTH = 8
+# the statements a callee runs in the sandbox (everything else cannot change a frame)
+EFFECT_STATEMENTS = frozenset({"assign", "call", "bare_call", "decl"})
+
+_FRAME_VARIABLES = frozenset({"$BASE", "$TOOL", "$ROBROOT", "FDAT_ACT", "BASE_DATA", "TOOL_DATA"})
+_DEF = re.compile(r"^[ \t]*(GLOBAL[ \t]+)?DEF(?:FCT[ \t]+[\w$\[\] ]+?)?[ \t]+([\w$]+)[ \t]*\(([^)\n]*)\)",
+                  re.I | re.M)
+_END = re.compile(r"^[ \t]*END(?:FCT)?(?![\w$])", re.I | re.M)
+
+
+@dataclass
+class _Def:
+    name: str
+    fi: int  # file index of the module
+    first: int  # 0-based line index of the first body line
+    last: int  # 0-based line index of END (exclusive end of the body)
+    params: list  # upper-case parameter names, in order
+    visible: bool  # callable from other modules (the module's first DEF, or GLOBAL)
+
+
+def _index(fi: int, text: str) -> list:
+    starts = [0] + [m.end() for m in re.finditer("\n", text)]
+    ends = [m.start() for m in _END.finditer(text)]
+    out = []
+    for k, m in enumerate(_DEF.finditer(text)):
+        at = bisect_right(ends, m.end())
+        if at >= len(ends):
+            continue  # no END: the reader reports it
+        first = bisect_right(starts, m.start())  # 1-based line of the header = 0-based next line
+        last = bisect_right(starts, ends[at]) - 1
+        params = [p.split(":")[0].split("[")[0].strip().upper() for p in m.group(3).split(",") if p.strip()]
+        out.append(_Def(m.group(2).upper(), fi, first, last, params, k == 0 or bool(m.group(1))))
+    return out
+
+
+class Calls:
+    """Following calls (methods of the Reader)."""
+
+    def defs(self, fi: int) -> dict:
+        """name → _Def callable from module file ``fi`` (built on first use)."""
+        if getattr(self, "_defs", None) is None:
+            self._defs = [_index(k, t) for k, t in enumerate(self.texts)]
+            self._def_memo = {}
+            self._call_depth = 0
+        out = {}
+        for k, ds in enumerate(self._defs):
+            if k != fi:
+                for d in ds:
+                    if d.visible:
+                        out.setdefault(d.name, d)
+        for d in self._defs[fi] if fi >= 0 else ():
+            out[d.name] = d  # the module's own DEFs first
+        return out
+
+    def after_call(self, name: str, args: list, node) -> None:
+        """The frame state after ``name(args)`` at the current line (``name`` as written)."""
+        written, name = str(name), str(name).upper()
+        if name in HARMLESS:
+            return
+        st = self.state
+        callee = self.defs(self.fi).get(name)
+        where = (self.ln, self.col(_first(node)))
+        if callee is None:
+            why = f"{written}() called at line {self.ln} is not in the files read"
+            self.set_state(_FrameState(_Unknown(why, where), "", _Unknown(why, where), "", st.robroot))
+            return
+        if self._call_depth >= MAX_DEPTH or name in getattr(self, "_call_stack", ()):
+            why = f"{written}() called at line {self.ln} recurses"
+            self.set_state(_FrameState(_Unknown(why, where), "", _Unknown(why, where), "", st.robroot))
+            return
+        bound = {}
+        for p, a in zip(callee.params, args):
+            v = self.constant(a) if a is not None else None
+            if v is not None:
+                bound[p] = v
+        key = (name, tuple(sorted(bound.items())), id(st), id(self.fdat))
+        hit = self._def_memo.get(key)
+        if hit is not None and hit[0] is st and hit[1] is self.fdat:
+            new, fdat, moved = hit[2], hit[3], hit[4]
+        else:
+            fdat0 = self.fdat
+            new, fdat, moved = self.run_callee(callee, bound, st)
+            self._def_memo[key] = (st, fdat0, new, fdat, moved)
+        self.fdat = fdat
+        if moved:  # the robot moved in the callee: the current position is not the caller's last target
+            if self.role == "effect":
+                self._moved = True
+            else:
+                self.barrier()
+
+        def located(value, entry):
+            if value is entry or not isinstance(value, _Unknown):
+                return value
+            return _Unknown(f"{value.why} in {written}() called at line {self.ln}", where)
+
+        new = _FrameState(located(new.base, st.base), new.base_label, located(new.tool, st.tool), new.tool_label,
+                          located(new.robroot, st.robroot))
+        if new.base is not st.base or new.tool is not st.tool or new.robroot is not st.robroot:
+            self.set_state(new)
+
+    def constant(self, expr):
+        """A call argument that is a constant at the call site (number), or None."""
+        v = self.literal_number(expr) if expr.data in ("number", "signed") else None
+        if v is not None:
+            return v.value
+        if expr.data == "name":
+            var = self.lookup(expr.children[0])
+            if var is not None and not var.array and isinstance(var.value, (int, float)) \
+                    and not isinstance(var.value, bool):
+                return float(var.value)
+        return None
+
+    def frame_write(self, stmt) -> bool:
+        """Does this assignment (in a callee) write a frame, FDAT_ACT or a callee's local?"""
+        root = stmt.children[0]
+        while root.data in ("member", "index"):
+            root = root.children[0]
+        if root.data != "name":
+            return False
+        name = root.children[0].upper()
+        return name in _FRAME_VARIABLES or name in self.local
+
+    def run_callee(self, callee: _Def, bound: dict, entry: _FrameState):
+        """(frame state, FDAT_ACT, moves) after running the callee's frame statements from
+        ``entry``; ``moves``: the callee (or one it calls) has a motion statement."""
+        keep = ("fi", "path", "text", "role", "starts", "ln", "kbase", "la", "lt", "sh", "_nums", "_cum",
+                "local", "state", "blocks", "folds", "in_def", "diagnostics", "block_open", "_moved")
+        saved = {k: getattr(self, k, None) for k in keep}
+        stack = getattr(self, "_call_stack", ())
+        try:
+            self._call_stack = stack + (callee.name,)
+            self._call_depth += 1
+            text = self.texts[callee.fi]
+            self.fi, self.path, self.text, self.role = callee.fi, self.files[callee.fi], text, "effect"
+            self.local = {p: _Var(p, "", False, v) for p, v in bound.items()}
+            for p in callee.params:
+                self.local.setdefault(p, _Var(p, "", False, _Unknown(f"parameter {p} is a run-time value")))
+            self.state, self.blocks, self.folds, self.in_def = entry, [], [], True
+            moved, self._moved = False, False
+            self.diagnostics, self.block_open = [], {}
+            starts = [0] + [m.end() for m in re.finditer("\n", text)]
+            for i in range(callee.first, min(callee.last, len(starts))):
+                a = starts[i]
+                b = starts[i + 1] - 1 if i + 1 < len(starts) else len(text)
+                line = text[a:b]
+                sh = self.shape(SHAPE_RE.sub(_PLACEHOLDER, line))
+                if sh.kind == "hot":
+                    moved = True
+                if sh.kind not in ("stmt",) or sh.tree is None:
+                    continue
+                stmt = next((c for c in sh.tree.children if hasattr(c, "data")), None)
+                if stmt is not None and stmt.data in ("move", "circ"):
+                    moved = True
+                if stmt is None or stmt.data not in EFFECT_STATEMENTS:
+                    continue
+                if stmt.data == "assign" and not self.frame_write(stmt):
+                    continue  # other variables: the callee's own pass reads them
+                self.interpret(i, a, line, sh)
+            return self.state, self.fdat, moved or self._moved
+        finally:
+            self._call_stack = stack
+            self._call_depth -= 1
+            for k, v in saved.items():
+                setattr(self, k, v)
+
+
+def _first(node):
+    return _first_pos(node) or 0

@@ -1,0 +1,134 @@
+"""The types of a read program: ``Program`` (texts + targets) and ``Targets`` (columns),
+with the ``Frame`` each target is programmed in. Re-exported by ``postproc.programs``."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..diagnostics import Diagnostic
+
+__all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "STAMP_PREFIX", "MOTIONS"]
+
+# The one line postproc adds to a file it compensated (after the dialect's comment marker).
+STAMP_PREFIX = "postproc: compensated with model"
+
+# Motion kinds, stored per target as an index into this tuple.
+MOTIONS = ("LIN", "PTP", "CIRC-aux", "CIRC-end", "SLIN", "SPTP", "SCIRC-aux", "SCIRC-end", "SPL", "row")
+
+
+@dataclass(frozen=True)
+class Frame:
+    """The frame a target was programmed in.
+
+    ``base`` maps that frame to the robot base frame (4×4: INV_POS($ROBROOT):$BASE);
+    ``tool`` is the active $TOOL as X,Y,Z,A,B,C (None when unknown); ``label`` says where
+    they came from, e.g. ``BASE_DATA[3] / TOOL_DATA[1]``.
+    """
+
+    base: np.ndarray
+    tool: np.ndarray | None = None
+    label: str = ""
+
+
+@dataclass
+class Targets:
+    """Columns, one row per Cartesian target, in program order.
+
+    poses      [N, 6] float64  X,Y,Z,A,B,C in the target's own frame; NaN = a component
+                               the program leaves out and that could not be filled
+    spans      [N, 3, 2] int64 (start, end) of the X, Y, Z number tokens in
+                               ``Program.texts[file]``; -1 where the component is absent
+    file       [N] int32       index into Program.files of the text the numbers stand in
+    line, col  [N] int32       1-based location of the target's aggregate (for messages)
+    frame      [N] int32       index into Program.frames; -1 = left as written: the base
+                               (P201) or the tool (P203: $TOOL set but not resolvable, e.g.
+                               TOOL_DATA[6] not known, or unknown after a call) is not known
+    motion     [N] int8        index into MOTIONS
+    config     [N, 2] int16    (S, T) the target states (integers, 'B010' / 'H2' literals,
+                               inline or in the POS/E6POS variable's value); -1 where it
+                               does not state it (then a PTP takes the configuration nearest
+                               the current axes, LIN/CIRC keep the current one)
+    joints     [N, 6] float64  the controller's joint angles (deg) where the program gives
+                               them (a pose list's q1..q6), NaN elsewhere (None: none given)
+    abc_spans  [N, 3, 2] int64 (start, end) of the A, B, C tokens, -1 where absent (None: the
+                               reader does not locate them; ``compensate --orientation`` needs them)
+
+    A frame's ``tool`` of None means the program never sets $TOOL (the model's tool is
+    assumed); a $TOOL that is set but not known makes the target's frame -1.
+    """
+
+    poses: np.ndarray
+    spans: np.ndarray
+    file: np.ndarray
+    line: np.ndarray
+    col: np.ndarray
+    frame: np.ndarray
+    motion: np.ndarray
+    config: np.ndarray | None = None  # None: no target states S/T (filled with -1)
+    joints: np.ndarray | None = None
+    abc_spans: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.config is None:
+            self.config = np.full((len(self.poses), 2), -1, np.int16)
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+
+class TargetsBuilder:
+    """Collects targets row by row (plain lists: cheap to append) and builds the columns."""
+
+    def __init__(self) -> None:
+        self.poses: list = []  # each a sequence of 6 floats
+        self.spans: list = []  # each a sequence of 6 ints (x0, x1, y0, y1, z0, z1)
+        self.file: list[int] = []
+        self.line: list[int] = []
+        self.col: list[int] = []
+        self.frame: list[int] = []
+        self.motion: list[int] = []
+
+    def add(self, pose, spans, file: int, line: int, col: int, frame: int, motion: int) -> None:
+        self.poses.append(pose)
+        self.spans.append(spans)
+        self.file.append(file)
+        self.line.append(line)
+        self.col.append(col)
+        self.frame.append(frame)
+        self.motion.append(motion)
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    def build(self) -> Targets:
+        n = len(self.poses)
+        return Targets(
+            poses=np.array(self.poses, dtype=np.float64).reshape(n, 6),
+            spans=np.array(self.spans, dtype=np.int64).reshape(n, 3, 2),
+            file=np.array(self.file, dtype=np.int32),
+            line=np.array(self.line, dtype=np.int32),
+            col=np.array(self.col, dtype=np.int32),
+            frame=np.array(self.frame, dtype=np.int32),
+            motion=np.array(self.motion, dtype=np.int8),
+        )
+
+
+@dataclass
+class Program:
+    """A parsed program: its files (paths or ``<stdin>``), their texts, targets in order."""
+
+    files: list[str]
+    texts: list[str]
+    targets: Targets
+    frames: list[Frame] = field(default_factory=list)
+    diagnostics: list[Diagnostic] = field(default_factory=list)
+    dialect: str = ""
+    stamps: dict[int, str] = field(default_factory=dict)  # file index → stamp line found in it
+    newlines: list[str] = field(default_factory=list)  # dominant line ending per file
+    comment: str = ";"  # the dialect's comment marker, for the stamp line
+    config: list[str] | None = None  # the $config.dat texts it was read with (to read it again)
+    from_text: bool = False  # made by read_program: its texts, read again, give it again
+    # some targets are variables (declared or assigned aggregates), whose numbers other
+    # statements may read too (e.g. as a frame); False: every target is an inline aggregate
+    named_targets: bool = True
