@@ -8,11 +8,28 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   ``compensate`` passes the previous target's compensated command (the first target's
   previous pose is the target itself: nothing is known before it); models without it are
   plain pose → error maps;
+* optional input ``joints``: float32 [N, 6] deg, the controller's joint angles at each
+  target (from its S/T, or a measurement's q1..q6); a row of NaN = unknown. The model uses
+  them as the *configuration*: it solves the nominal IK of ``pose`` on the branch those
+  angles are on (shoulder / elbow / wrist read from them) and evaluates its identified arm
+  there; NaN rows take the branch the model identified from its training data. So the fixed
+  point below stays right: the caller passes the joints of the *target* P once, and every
+  iteration's command c (a few mm from P) is solved on that branch — q(c), not q(P).
+  ``Compensator`` feeds NaN when the caller has none;
+* optional input ``tool``: float32 [N, 6] (X, Y, Z mm, A, B, C deg of the TCP on the flange),
+  NaN = the model's own tool (the card's ``tool``); for physical models that compute the error
+  at any TCP. (Declared here so that callers can pass it; the shipped training does not
+  export it yet.)
 * output ``error``: float32 [N, 3] mm, E = P_target − P_actual; normalisation lives inside
   the graph;
-* optional output ``joints``: float32 [N, 6] deg, the controller's joint angles (nominal IK)
-  the model computed for ``pose``: with ``envelope.joints`` in the card, ``compensate`` warns
-  for targets whose joints lie outside the trained ranges (a pose-box can hide a wrist flip);
+* optional output ``ik_joints``: float32 [N, 6] deg, the controller's joint angles (nominal IK,
+  on the branch of ``joints`` where given) the model computed for ``pose``, wrapped to
+  [−180, 180): with ``envelope.joints`` in the card, ``compensate`` warns for targets whose
+  joints lie outside the trained ranges (a pose-box can hide a wrist flip); the model itself
+  leaves out its learned parts that do not extrapolate (gear-ripple orders, residual networks)
+  outside those ranges and keeps the physical ones. (Models written before the ``joints``
+  input have this output named ``joints``: still read. ONNX cannot name an input and an
+  output alike.)
 * ``metadata_props`` (values JSON-encoded where structured): ``postproc_contract`` "1",
   ``name``, ``robot``, ``tool`` {"name", "frame"}, ``envelope`` {"box": [x0,x1,y0,y1,z0,z1],
   "attitude": [A,B,C], "range": deg, optional "joints": [[lo, hi] × 6] deg}, ``reach`` {"center": [x,y,z], "radius_min",
@@ -40,7 +57,10 @@ CONTRACT_VERSION = "1"
 INPUT_POSE = "pose"
 INPUT_PREVIOUS = "previous_pose"
 OUTPUT_ERROR = "error"
-OUTPUT_JOINTS = "joints"
+INPUT_JOINTS = "joints"
+INPUT_TOOL = "tool"
+OUTPUT_JOINTS = "ik_joints"
+LEGACY_OUTPUT_JOINTS = "joints"  # (the output's name before the ``joints`` input existed)
 # (8192 rows: the intermediates of the hybrid graph stay in cache, 11 % faster than 65536; measured)
 PREDICT_BATCH = 8192
 # Rows per chunk of ``command_chunks``: the unit compensate overlaps model runs and rewriting by.
@@ -103,7 +123,10 @@ class Compensator:
     metadata: dict = field(default_factory=dict)
     sha256: str = ""
     wants_previous: bool = False
-    has_joints: bool = False  # the graph also outputs ``joints``
+    has_joints: bool = False  # the graph also outputs the IK's joint angles
+    joints_output: str = OUTPUT_JOINTS  # that output's name (older models: LEGACY_OUTPUT_JOINTS)
+    wants_joints: bool = False  # the graph takes the controller's ``joints`` (configuration)
+    wants_tool: bool = False  # the graph takes the TCP on the flange (``tool``)
 
     @property
     def name(self) -> str:
@@ -149,15 +172,26 @@ class Compensator:
             r = np.linalg.norm(positions - np.asarray(reach["center"], float), axis=1)
         return (r > float(reach["radius_max"])) | (r < float(reach.get("radius_min", 0.0)))
 
-    def predict(self, poses: np.ndarray, previous: np.ndarray | None = None, joints: bool = False):
-        """Ê for poses [N, 6] (robot base frame) → [N, 3] mm (float64). With ``joints``: (Ê, the
-        model's joint angles [N, 6] deg, or None for a model without that output). Batched: one
-        onnxruntime call per PREDICT_BATCH poses (a whole CAM program in one call would make
-        the runtime hold every intermediate layer for every target at once)."""
+    def predict(self, poses: np.ndarray, previous: np.ndarray | None = None, joints=None,
+                tool: np.ndarray | None = None, with_joints: bool = False):
+        """Ê for poses [N, 6] (robot base frame) → [N, 3] mm (float64). ``joints`` [N, 6] deg:
+        the controller's joint angles at each pose (its configuration; NaN rows unknown), fed
+        to a model with that input, ignored by others; ``tool`` [N, 6]: the TCP on the flange
+        (likewise). With ``with_joints``: (Ê, the model's joint angles [N, 6] deg, or None for a
+        model without that output); ``joints=True`` / ``False`` is read as ``with_joints`` (the
+        older call). Batched: one onnxruntime call per PREDICT_BATCH poses (a whole CAM program
+        in one call would make the runtime hold every intermediate layer for every target)."""
+        if isinstance(joints, bool):
+            joints, with_joints = None, joints
         poses = np.ascontiguousarray(poses, dtype=np.float32).reshape(-1, 6)
         if self.wants_previous:
             previous = poses if previous is None else np.ascontiguousarray(previous, dtype=np.float32).reshape(-1, 6)
-        names = [OUTPUT_ERROR, OUTPUT_JOINTS] if joints and self.has_joints else [OUTPUT_ERROR]
+        extra = {}
+        for name, wanted, value in ((INPUT_JOINTS, self.wants_joints, joints), (INPUT_TOOL, self.wants_tool, tool)):
+            if wanted:
+                extra[name] = (np.full(poses.shape, np.nan, np.float32) if value is None
+                               else np.ascontiguousarray(np.broadcast_to(np.asarray(value, np.float32), poses.shape)))
+        names = [OUTPUT_ERROR, self.joints_output] if with_joints and self.has_joints else [OUTPUT_ERROR]
         results = [np.empty((len(poses), 3)), np.empty((len(poses), 6))][:len(names)]
 
         def run(at: int) -> None:
@@ -165,6 +199,8 @@ class Compensator:
             feeds = {INPUT_POSE: poses[batch]}
             if self.wants_previous:
                 feeds[INPUT_PREVIOUS] = previous[batch]
+            for name, value in extra.items():
+                feeds[name] = value[batch]
             try:
                 outs = self.session.run(names, feeds)
             except Exception as exc:  # onnxruntime's own types: a graph that does not run on [N, 6]
@@ -187,43 +223,56 @@ class Compensator:
 
             with ThreadPoolExecutor(max_workers=min(os.cpu_count() or 1, 8)) as pool:
                 list(pool.map(run, starts))
-        if not joints:
+        if not with_joints:
             return results[0]
         return results[0], (results[1] if len(results) > 1 else None)
 
-    def command(self, poses: np.ndarray, iterations: int | None = None, joints: bool = False):
+    def command(self, poses: np.ndarray, iterations: int | None = None, joints=None, tool=None,
+                with_joints: bool = False):
         """Commanded positions [N, 3] so that the robot lands on ``poses[:, :3]``: c = P + Ê(c).
-        With ``joints``: (commands, the targets' joint angles [N, 6] deg or None; see ``predict``).
-        The rows are in program order: for a model with ``previous_pose`` each target comes from
-        the previous row's command."""
+        ``joints`` [N, 6] deg: the controller's joint angles at the *targets* (their
+        configuration; every iteration's command is solved on that branch by the model, see
+        the contract); ``tool`` [N, 6]: the TCP on the flange. With ``with_joints``: (commands,
+        the targets' joint angles [N, 6] deg or None; see ``predict``). The rows are in program
+        order: for a model with ``previous_pose`` each target comes from the previous row's
+        command."""
+        if isinstance(joints, bool):
+            joints, with_joints = None, joints
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         out = np.empty((len(poses), 3))
-        q = np.empty((len(poses), 6)) if joints and self.has_joints else None
-        for start, commands, q_part in self.command_chunks(poses, iterations, joints=joints):
+        q = np.empty((len(poses), 6)) if with_joints and self.has_joints else None
+        for start, commands, q_part in self.command_chunks(poses, iterations, joints, tool, with_joints):
             out[start:start + len(commands)] = commands
             if q is not None:
                 q[start:start + len(commands)] = q_part
-        return (out, q) if joints else out
+        return (out, q) if with_joints else out
 
-    def command_chunks(self, poses: np.ndarray, iterations: int | None = None,
-                       joints: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+    def command_chunks(self, poses: np.ndarray, iterations: int | None = None, joints=None, tool=None,
+                       with_joints: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         """``command`` chunk by chunk (COMMAND_CHUNK rows) in row order: yields (first row,
-        commands [n, 3], the targets' joint angles [n, 6] deg if ``joints`` and the model has
-        them, else None), the same numbers as one ``command`` call (each chunk takes its first
-        row's previous pose, per iteration, from the chunk before), so a caller can use the
-        first rows while the model runs on the next ones."""
+        commands [n, 3], the targets' joint angles [n, 6] deg if ``with_joints`` and the model
+        has them, else None), the same numbers as one ``command`` call (each chunk takes its
+        first row's previous pose, per iteration, from the chunk before), so a caller can use
+        the first rows while the model runs on the next ones. ``joints`` / ``tool``: as
+        ``command`` (``joints=True`` / ``False``: the older ``with_joints``)."""
+        if isinstance(joints, bool):
+            joints, with_joints = None, joints
         iterations = self.default_iterations if iterations is None else iterations
         if not 1 <= iterations <= MAX_ITERATIONS:
             raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code="P308")
-        return self._chunks(np.asarray(poses, dtype=float).reshape(-1, 6), iterations, joints)
+        poses = np.asarray(poses, dtype=float).reshape(-1, 6)
+        rows = [None if v is None else np.broadcast_to(np.asarray(v, float), poses.shape) for v in (joints, tool)]
+        return self._chunks(poses, iterations, with_joints, *rows)
 
-    def _chunks(self, poses: np.ndarray, iterations: int,
-                joints: bool) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+    def _chunks(self, poses: np.ndarray, iterations: int, with_joints: bool, joints: np.ndarray | None,
+                tool: np.ndarray | None) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         chunk = COMMAND_CHUNK  # (read at call time: tests make it small)
         # the last row of the chunk before, after each iteration k (k = 0: the target itself)
         before: list[np.ndarray] | None = None
         for start in range(0, len(poses), chunk):
             part = poses[start:start + chunk]
+            given = {"joints": None if joints is None else joints[start:start + chunk],
+                     "tool": None if tool is None else tool[start:start + chunk]}
             trial = part.copy()
             last = [trial[-1].copy()]
             q = None
@@ -234,10 +283,10 @@ class Compensator:
                     # (the first target's is itself: nothing is known before it)
                     head = trial[:1] if before is None else before[k][None]
                     prev = np.vstack([head, trial[:-1]])
-                if k == 0 and joints:  # the first run is at the targets themselves: their joint angles
-                    error, q = self.predict(trial, prev, joints=True)
+                if k == 0 and with_joints:  # the first run is at the targets themselves: their joint angles
+                    error, q = self.predict(trial, prev, with_joints=True, **given)
                 else:
-                    error = self.predict(trial, prev)
+                    error = self.predict(trial, prev, **given)
                 trial[:, :3] = part[:, :3] + error
                 last.append(trial[-1].copy())
             before = last
@@ -268,22 +317,24 @@ def load_model(path: str | Path | None = None) -> Compensator:
     problems = []
     if INPUT_POSE not in inputs:
         problems.append(f"no input '{INPUT_POSE}' (has {sorted(inputs)})")
-    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS}
+    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL}
     if extra:
         problems.append(f"unexpected inputs {sorted(extra)}")
     if OUTPUT_ERROR not in outputs:
         problems.append(f"no output '{OUTPUT_ERROR}' (has {sorted(outputs)})")
-    for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6)):
+    joints_output = OUTPUT_JOINTS if OUTPUT_JOINTS in outputs or INPUT_JOINTS in inputs else LEGACY_OUTPUT_JOINTS
+    for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6), (INPUT_JOINTS, 6), (INPUT_TOOL, 6)):
         if name in inputs and (len(inputs[name].shape) != 2 or inputs[name].shape[1] not in (expected, None, "6")
                                or isinstance(inputs[name].shape[0], int)):
             problems.append(f"input '{name}' has shape {inputs[name].shape}, expected [N, {expected}]")
     if OUTPUT_ERROR in outputs and (len(outputs[OUTPUT_ERROR].shape) != 2 or outputs[OUTPUT_ERROR].shape[1] not in (3, None)):
         problems.append(f"output '{OUTPUT_ERROR}' has shape {outputs[OUTPUT_ERROR].shape}, expected [N, 3]")
-    if OUTPUT_JOINTS in outputs and (len(outputs[OUTPUT_JOINTS].shape) != 2
-                                     or outputs[OUTPUT_JOINTS].shape[1] not in (6, None)):
-        problems.append(f"output '{OUTPUT_JOINTS}' has shape {outputs[OUTPUT_JOINTS].shape}, expected [N, 6]")
+    if joints_output in outputs and (len(outputs[joints_output].shape) != 2
+                                     or outputs[joints_output].shape[1] not in (6, None)):
+        problems.append(f"output '{joints_output}' has shape {outputs[joints_output].shape}, expected [N, 6]")
     for node in (*inputs.values(), *outputs.values()):
-        if node.name in (INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, OUTPUT_JOINTS) and node.type != "tensor(float)":
+        if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, OUTPUT_ERROR,
+                         joints_output) and node.type != "tensor(float)":
             problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
     if problems:
         raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path), code="P306")
@@ -297,7 +348,10 @@ def load_model(path: str | Path | None = None) -> Compensator:
         metadata=meta,
         sha256=hashlib.sha256(data).hexdigest(),
         wants_previous=INPUT_PREVIOUS in inputs,
-        has_joints=OUTPUT_JOINTS in outputs,
+        has_joints=joints_output in outputs,
+        joints_output=joints_output,
+        wants_joints=INPUT_JOINTS in inputs,
+        wants_tool=INPUT_TOOL in inputs,
     )
 
 

@@ -220,16 +220,34 @@ class KukaIK(torch.nn.Module):
         self.a1, self.d1, self.l2, self.l3 = float(g.a1), float(g.d1), float(g.l2), float(g.l3)
         self.al2, self.al3 = float(g.al2), float(g.al3)
 
-    def forward(self, pose: torch.Tensor) -> torch.Tensor:
-        shoulder, elbow, flip = self.branch
+    def branch_of(self, pose: torch.Tensor, q_in: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Per-row branch signs (shoulder, elbow, flip) [N] of joint angles ``q_in`` [N, 6] rad
+        at ``pose``; rows with a NaN take this module's branch. Read from the angles the
+        closed form gives on each branch: A1 = φ (shoulder +) or φ + π, A3 = α3 − α2 ∓ γ0
+        (elbow), sin A5 of the flip's sign."""
         s = self.s
+        c = self._wrist_centre(pose)[0]
+        phi = _atan2(c[:, 1], c[:, 0])
+        return _branch_signs(self.branch, q_in, [
+            torch.cos(phi - s[0] * q_in[:, 0]),
+            torch.sin(self.al3 - self.al2 - s[2] * q_in[:, 2]),
+            torch.sin(s[4] * q_in[:, 4])])
+
+    def _wrist_centre(self, pose: torch.Tensor):
         r_tcp, p_tcp = pose_matrices(pose)
         r_all = mc(r_tcp, self.inv_tool[:3, :3] @ self.flange0[:3, :3].T)
         p_fl = p_tcp + mv(r_tcp, self.inv_tool[:3, 3])
-        c = p_fl - mv(r_all, self.flange0[:3, 3] - self.c0) - self.p1
+        return p_fl - mv(r_all, self.flange0[:3, 3] - self.c0) - self.p1, r_all
+
+    def forward(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
+        """q [N, 6] rad on this module's branch, or per row on the branch of ``q_in`` [N, 6] rad
+        (NaN rows: this module's branch)."""
+        shoulder, elbow, flip = self.branch if q_in is None else self.branch_of(pose, q_in)
+        s = self.s
+        c, r_all = self._wrist_centre(pose)
         phi = _atan2(c[:, 1], c[:, 0])
         r_xy = torch.sqrt(c[:, 0] ** 2 + c[:, 1] ** 2)
-        th1 = phi if shoulder > 0 else phi + math.pi
+        th1 = phi + (1.0 - shoulder) * (math.pi / 2)
         u = shoulder * r_xy - self.a1
         w = c[:, 2] - self.d1
         kappa = (u * u + w * w - self.l2**2 - self.l3**2) / (2 * self.l2 * self.l3)
@@ -294,8 +312,21 @@ class UrIK(torch.nn.Module):
         self.register_buffer("end", _t(end))  # TCP in the A6 frame (parallel to the base at q = 0)
         self.register_buffer("inv_end", _t(frames.inverse(end)))
 
-    def forward(self, pose: torch.Tensor) -> torch.Tensor:
-        shoulder, wrist, elbow = self.branch
+    def branch_of(self, pose: torch.Tensor, q_in: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Per-row branch signs (shoulder, wrist, elbow) [N] of joint angles ``q_in`` [N, 6] rad
+        at ``pose``; rows with a NaN take this module's branch. From the closed form: ψ − t1 =
+        lateral (shoulder +, cos ≥ 0) or π − lateral; sin t5 and sin t3 carry the wrist and
+        elbow signs."""
+        r_tcp, p_tcp = pose_matrices(pose)
+        p6 = p_tcp + mv(r_tcp, self.inv_end[:3, 3])
+        psi = _atan2(p6[:, 1], p6[:, 0])
+        t = q_in * self.s
+        return _branch_signs(self.branch, q_in, [torch.cos(psi - t[:, 0]), torch.sin(t[:, 4]), torch.sin(t[:, 2])])
+
+    def forward(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
+        """q [N, 6] rad on this module's branch, or per row on the branch of ``q_in`` [N, 6] rad
+        (NaN rows: this module's branch)."""
+        shoulder, wrist, elbow = self.branch if q_in is None else self.branch_of(pose, q_in)
         r_tcp, p_tcp = pose_matrices(pose)
         # the A6 frame: origin on the A6 axis, rotation R6 = Rz(t1)·Ry(t2+t3+t4)·Rz(t5)·Ry(t6)
         # with t_j = s_j·q_j (every joint frame parallel to the base at q = 0)
@@ -306,7 +337,7 @@ class UrIK(torch.nn.Module):
         rho = torch.sqrt(p6[:, 0] ** 2 + p6[:, 1] ** 2)
         psi = _atan2(p6[:, 1], p6[:, 0])
         lateral = torch.asin(torch.clamp(self.y4 / rho, -1.0, 1.0).float()).to(rho.dtype)
-        t1 = psi - lateral if shoulder > 0 else psi - math.pi + lateral
+        t1 = psi - shoulder * lateral - (1.0 - shoulder) * (math.pi / 2)
         c1, s1 = torch.cos(t1), torch.sin(t1)
         # t5: the A6 axis (R6·e_y) is ŷ1 turned by t5 about the A5 axis: ŷ1·(R6·e_y) = cos t5
         t5 = wrist * _acos(torch.clamp(-s1 * r6[:, 0, 1] + c1 * r6[:, 1, 1], -1.0, 1.0))
@@ -332,6 +363,13 @@ class UrIK(torch.nn.Module):
     @staticmethod
     def branches() -> list[tuple[float, float, float]]:
         return [(sh, wr, el) for sh in (1.0, -1.0) for wr in (1.0, -1.0) for el in (1.0, -1.0)]
+
+
+def _branch_signs(default, q_in: torch.Tensor, indicators: list[torch.Tensor]) -> tuple[torch.Tensor, ...]:
+    """±1 [N] per indicator (its sign; 0 counts as +), ``default`` where ``q_in`` has a NaN."""
+    known = ~torch.isnan(q_in).any(dim=1)
+    return tuple(torch.where(known & ~torch.isnan(v), torch.where(v < 0, -torch.ones_like(v), torch.ones_like(v)),
+                             torch.full_like(v, float(d))) for v, d in zip(indicators, default))
 
 
 def make_ik(description: RobotDescription, family: str | None = None, branch=(1.0, 1.0, 1.0)) -> torch.nn.Module:

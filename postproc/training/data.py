@@ -103,10 +103,13 @@ def parse_measurements(data: bytes, path: str = "<data>") -> Measurements:
     table, line_numbers = parse_rows(lines, first, header, index, path)
     if not len(table):
         raise PostprocError("measurement file has a header but no data rows", path, code="P500")
-    _check_duplicates(table[:, :6], line_numbers, path)
+    joints = _joint_columns(lines, first, header, path)
+    # the same pose in another arm configuration (joint angles a degree or more apart) is
+    # another measurement, not a repeat
+    key = table[:, :6] if joints is None else np.c_[table[:, :6], np.round(joints)]
+    _check_duplicates(key, line_numbers, path)
     holdout = table[:, 9] != 0 if table.shape[1] > 9 else None
-    return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout,
-                        _joint_columns(lines, first, header, path))
+    return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout, joints)
 
 
 def _joint_columns(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:
@@ -190,7 +193,8 @@ def _check_duplicates(poses: np.ndarray, lines: np.ndarray, path: str) -> None:
     if len(dup):
         i = dup[0]
         raise PostprocError(
-            f"duplicate pose: same x,y,z,a,b,c as line {lines[first[inverse[i]]]} "
+            f"duplicate pose: same x,y,z,a,b,c{'' if poses.shape[1] == 6 else ' and joint angles'} as line "
+            f"{lines[first[inverse[i]]]} "
             f"({len(dup)} duplicate row(s) in all; average repeated measurements into one row)",
             path,
             int(lines[i]),

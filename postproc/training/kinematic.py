@@ -39,7 +39,7 @@ import torch
 from ..diagnostics import PostprocError
 from ..robot import RobotDescription
 from .arm import Arm, axis_rotations, choose_branch, make_ik, mv, small_rotation
-from .features import motion_signs
+from .features import inside_ranges, motion_signs
 
 __all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS"]
 
@@ -49,6 +49,12 @@ DEFAULT_GROUPS = GROUPS
 PRIOR_RAD, PRIOR_MM = 1e-3, 1.0
 # a pose whose IK does not bring the nominal arm back onto it (mm) is out of reach
 REACH_TOLERANCE_MM = 0.01
+# rows whose joint angles put the nominal arm farther than this from the row's pose (mm) are
+# not this robot's angles for that pose (a planner's numerical IK leaves < 1 mm on IPA)
+JOINTS_TOLERANCE_MM = 5.0
+# at most this share of the rows is dropped (named in a warning) as out of reach / off; more
+# is refused (P508): the robot description or the data is wrong
+DROP_AT_MOST = 0.01
 # joint steps below this (rad) count as no motion: float32 IK noise is ~1e-7 rad
 SIGN_DEADBAND = 2e-6
 
@@ -179,16 +185,17 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
 
 
 def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, pose: torch.Tensor,
-                   previous: torch.Tensor) -> torch.Tensor:
+                   previous: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
     """Approach signs [N, 6] for q = IK(pose) reached from ``previous`` [N, 6]. A row whose
     previous pose is the pose itself (compensate's first target: nothing known before it) is
-    taken as reached from HOME, where robot programs start.
+    taken as reached from HOME, where robot programs start. ``q_in`` (the controller's angles
+    at ``pose``, NaN rows unknown): the previous pose is solved on the same branch.
 
     Hard signs, as the simulator's backlash: a ramp over the lost motion (a joint turning back
     by less than it takes it up in part) is more physical, but measured worse on the simulator
     (0.23 vs 0.10 mm max on robot seed 3: a 0.003° step of A1 got a third of its sign)."""
     same = (previous == pose).all(dim=1, keepdim=True)
-    q_prev = torch.where(same, home_q.expand_as(q), ik(previous))
+    q_prev = torch.where(same, home_q.expand_as(q), ik(previous) if q_in is None else ik(previous, q_in))
     return motion_signs(q, q_prev, eps=SIGN_DEADBAND)
 
 
@@ -223,13 +230,23 @@ class KinematicErrorModule(torch.nn.Module):
         self.register_buffer("end", chain["end"])
         self.register_buffer("base", chain["base"])
 
-    def parts(self, pose: torch.Tensor, previous: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(Ê [N, 3], q [N, 6], signs [N, 6]) for float64 poses."""
-        q = self.ik(pose)
+    def joints_of(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
+        """q [N, 6] rad the controller turns to for float64 ``pose``: the nominal IK on the
+        identified branch, or per row on the branch of ``q_in`` [N, 6] rad (the controller's
+        angles at or near that pose; NaN rows: the identified branch)."""
+        return self.ik(pose) if q_in is None else self.ik(pose, q_in)
+
+    def parts(self, pose: torch.Tensor, previous: torch.Tensor | None = None, q_in: torch.Tensor | None = None,
+              ranges: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(Ê [N, 3], q [N, 6], signs [N, 6], learned [N]) for float64 poses (``q_in``: see
+        ``joints_of``); with joint ``ranges`` [6, 2] rad the ripple terms are left out where q
+        is outside them (learned = 0 there, else 1)."""
+        q = self.joints_of(pose, q_in)
         signs = torch.zeros_like(q)
         if self.use_previous and previous is not None:
-            signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous)
-        return self.error_at(q, signs, pose[:, :3]), q, signs
+            signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous, q_in)
+        learned = torch.ones_like(q[:, 0]) if ranges is None else inside_ranges(q, ranges)
+        return self.error_at(q, signs, pose[:, :3], None if ranges is None else learned), q, signs, learned
 
     def torques(self, q: torch.Tensor) -> torch.Tensor:
         """The gravity torques [N, 6] the model uses: of its own chain at q, without the base
@@ -237,13 +254,20 @@ class KinematicErrorModule(torch.nn.Module):
         rot, org, _ = self.arm.frames(q, placements=self.placements, end=self.end)
         return self.arm.gravity_torques(rot, org)
 
-    def error_at(self, q: torch.Tensor, signs: torch.Tensor, position: torch.Tensor) -> torch.Tensor:
-        """Ê [N, 3] for commanded positions [N, 3] whose IK is q [N, 6], reached with ``signs``."""
+    def error_at(self, q: torch.Tensor, signs: torch.Tensor, position: torch.Tensor,
+                 learned: torch.Tensor | None = None) -> torch.Tensor:
+        """Ê [N, 3] for commanded positions [N, 3] whose IK is q [N, 6], reached with ``signs``;
+        ``learned`` [N] (1 keep, 0 drop) scales the gear-ripple terms, which do not extrapolate
+        outside the trained joint ranges (the physical groups do)."""
         p = self.layout.unpack(self.theta)
         p["zero"] = torch.zeros_like(p["zero"])  # (folded into the placements)
         rot, org, tcp = self.arm.frames(q, placements=self.placements, end=self.end)
         tau = self.arm.gravity_torques(rot, org) - self.tau_mean
         dq = joint_error(p, q, signs, tau, self.ripple_joint, self.ripple_order)
+        if learned is not None and len(self.ripple_joint):
+            p["ripple"] = torch.zeros_like(p["ripple"])
+            physical = joint_error(p, q, signs, tau, self.ripple_joint, self.ripple_order)
+            dq = physical + learned[:, None] * (dq - physical)
         omega = torch.stack([mv(rot[:, j], self.arm.axes[j]) for j in range(6)], dim=1)
         sens = torch.linalg.cross(omega, tcp[:, None, :] - org)  # [N, 6, 3]
         actual = tcp + (sens * dq[..., None]).sum(dim=1)
@@ -305,21 +329,33 @@ class KinematicModel:
         groups = tuple(g for g in self.groups if g != "backlash" or previous is not None)
         self.use_previous_ = previous is not None  # the approach signs: backlash, and the residual nets' inputs
         with torch.no_grad():
-            q = self.ik_(torch.as_tensor(poses))
+            pose_t = torch.as_tensor(poses)
+            q_in = None if q_deg is None else torch.as_tensor(np.radians(np.asarray(q_deg, dtype=np.float64)))
+            # the controller's own angles when the data has them (the arm went there), else the IK
+            q = self.ik_(pose_t) if q_in is None else q_in
             rot, org, tcp = self.arm_.frames(q)
             tau = self.arm_.gravity_torques(rot, org)
-            miss = torch.linalg.norm(tcp - torch.as_tensor(poses[:, :3]), dim=1).numpy()
-            if np.any(miss > REACH_TOLERANCE_MM):
-                bad = np.flatnonzero(miss > REACH_TOLERANCE_MM)
+            miss = torch.linalg.norm(tcp - pose_t[:, :3], dim=1).numpy()
+            # the nominal arm at q must land on the pose: else out of reach (IK) or the joint
+            # angles are of another pose, robot or unit
+            tolerance = REACH_TOLERANCE_MM if q_in is None else JOINTS_TOLERANCE_MM
+            bad = np.flatnonzero(~(miss <= tolerance))
+            self.dropped_ = bad
+            if len(bad) > max(DROP_AT_MOST * len(poses), 0):
+                what = "out of reach of" if q_in is None else "not where the joint angles q1..q6 put"
                 raise PostprocError(
-                    f"{len(bad)} of {len(poses)} poses are out of reach of the nominal {self.description.name} "
+                    f"{len(bad)} of {len(poses)} poses are {what} the nominal {self.description.name} "
                     f"(IK {self.ik_.family} branch {list(self.ik_.branch)}; first: row {bad[0] + 1}, "
-                    f"{np.round(poses[bad[0]], 3).tolist()}): is this the robot of the data (--robot)?",
-                    self.description.path, code="P508")
+                    f"{np.round(poses[bad[0]], 3).tolist()}, {miss[bad[0]]:.3g} mm away): is this the robot "
+                    f"of the data (--robot)?", self.description.path, code="P508")
             s = torch.zeros_like(q)
             if previous is not None:
                 prev = torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
-                s = approach_signs(self.ik_, self.arm_.home_q, q, torch.as_tensor(poses), prev)
+                s = approach_signs(self.ik_, self.arm_.home_q, q, pose_t, prev, q_in)
+            if len(bad):  # (a few singular / unreachable rows: left out, named by the caller)
+                keep = torch.as_tensor(~np.isin(np.arange(len(poses)), bad))
+                q, s, tau, tcp, pose_t = q[keep], s[keep], tau[keep], tcp[keep], pose_t[keep]
+                poses, errors = poses[keep.numpy()], errors[keep.numpy()]
         measured = tcp - torch.as_tensor(errors)
         fixed = list(self.ripple) if isinstance(self.ripple, list) else []
         layout = Layout(groups, fixed)
@@ -352,7 +388,7 @@ class KinematicModel:
         self.module_ = KinematicErrorModule(self.arm_, self.ik_, layout, theta, self.use_previous_,
                                             tau.mean(dim=0).numpy())
         with torch.no_grad():
-            fitted = self.module_.error_at(q, s, torch.as_tensor(poses[:, :3])).numpy()
+            fitted = self.module_.error_at(q, s, pose_t[:, :3]).numpy()
         self.train_q_, self.train_signs_ = q.numpy(), s.numpy()
         self.train_residual_ = errors - fitted
         self.n_train_ = len(poses)
