@@ -77,12 +77,40 @@ def stats(v: np.ndarray) -> tuple[float, float, float]:
     return float(n.mean()), float(np.quantile(n, 0.95)), float(n.max())
 
 
+def table(data: dict, trained: str, held: np.ndarray, model: HybridModel, compensator) -> None:
+    print(f"{'series':<10}{'rows':>7}   {'uncompensated mean / p95 / max':>32}   {'compensated (ONNX, joints)':>30}"
+          f"   {'at q':>6}   target")
+    for name in ["C"] + [n for n in "BDA" if n != trained]:
+        m = data[name]
+        rows = held if name == trained else np.arange(len(m))
+        prev = previous_poses(m.poses)[rows]
+        predicted = compensator.predict(m.poses[rows], prev, joints=m.joints[rows])
+        at_q = model.predict_at_joints(m.poses[rows], m.joints[rows])
+        e = m.errors[rows]
+        residuals = [e - p for p in (predicted, at_q)]  # = (P − Ê) − measured
+        if name != trained:  # another set-up: its own rigid fit to the predicted positions
+            residuals = [(m.poses[rows, :3] - p) - refit(m.poses[rows, :3] - p, m.measured[rows])
+                         for p in (predicted, at_q)]
+        before, after, at = stats(e), stats(residuals[0]), stats(residuals[1])
+        label = f"{name}{' held' if name == trained else ''}"
+        target = TARGETS.get(name)
+        verdict = ""
+        if target is not None and name != trained:
+            ok = after[0] <= target and after[1] <= before[1]
+            verdict = f"≤ {target:.2f}, p95 ≤ uncomp.: {'met' if ok else 'NOT met'}"
+        print(f"{label:<10}{len(rows):>7}   {before[0]:8.3f} / {before[1]:7.3f} / {before[2]:7.3f}     "
+              f"{after[0]:8.3f} / {after[1]:7.3f} / {after[2]:7.3f}   {at[0]:6.3f}   {verdict}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", default=os.environ.get("POSTPROC_IPA_DATA", DEFAULT_DATA))
     ap.add_argument("--train", default="C", choices=sorted(SERIES))
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=None, help="keep the CSVs and the model in this folder")
+    ap.add_argument("--variants", default="default,physical",
+                    help="default: the hybrid as `postproc train` fits it (gear-ripple orders searched); "
+                         "physical: the same without ripple orders (geometry, compliance, backlash only)")
     args = ap.parse_args()
     import torch
 
@@ -96,36 +124,15 @@ def main() -> None:
     train = data[args.train]
     fit_rows, held = split_indices(len(train), 0.2, args.seed)
     previous = previous_poses(train.poses)
-    t1 = time.perf_counter()
-    model = HybridModel(load_description(ROOT / "models/ur10.toml"), seed=args.seed).fit(
-        train.poses[fit_rows], train.errors[fit_rows], previous[fit_rows], train.joints[fit_rows])
-    print(f"trained on {args.train} ({len(fit_rows)} rows): {model.label}; {model.structure}; "
-          f"{time.perf_counter() - t1:.1f} s; dropped rows {list(model.dropped_)}")
-    onnx_path = model.export_onnx(out / f"trained_on_{args.train}.onnx", name=f"ipa-{args.train}")
-    compensator = load_model(onnx_path)
-
-    print(f"\n{'series':<10}{'rows':>7}   {'uncompensated mean / p95 / max':>32}   {'compensated (ONNX, joints)':>30}"
-          f"   {'at q':>6}   target")
-    for name in ["C"] + [n for n in "BDA" if n != args.train]:
-        m = data[name]
-        rows = held if name == args.train else np.arange(len(m))
-        prev = previous_poses(m.poses)[rows]
-        predicted = compensator.predict(m.poses[rows], prev, joints=m.joints[rows])
-        at_q = model.predict_at_joints(m.poses[rows], m.joints[rows])
-        e = m.errors[rows]
-        residuals = [e - p for p in (predicted, at_q)]  # = (P − Ê) − measured
-        if name != args.train:  # another set-up: its own rigid fit to the predicted positions
-            residuals = [(m.poses[rows, :3] - p) - refit(m.poses[rows, :3] - p, m.measured[rows])
-                         for p in (predicted, at_q)]
-        before, after, at = stats(e), stats(residuals[0]), stats(residuals[1])
-        label = f"{name}{' held' if name == args.train else ''}"
-        target = TARGETS.get(name)
-        verdict = ""
-        if target is not None and name != args.train:
-            ok = after[0] <= target and after[1] <= before[1]
-            verdict = f"≤ {target:.2f}, p95 ≤ uncomp.: {'met' if ok else 'NOT met'}"
-        print(f"{label:<10}{len(rows):>7}   {before[0]:8.3f} / {before[1]:7.3f} / {before[2]:7.3f}     "
-              f"{after[0]:8.3f} / {after[1]:7.3f} / {after[2]:7.3f}   {at[0]:6.3f}   {verdict}")
+    settings = {"default": {}, "physical": {"kinematic": {"ripple": []}}}
+    for variant in [v for v in args.variants.split(",") if v]:
+        t1 = time.perf_counter()
+        model = HybridModel(load_description(ROOT / "models/ur10.toml"), seed=args.seed, **settings[variant]).fit(
+            train.poses[fit_rows], train.errors[fit_rows], previous[fit_rows], train.joints[fit_rows])
+        print(f"\n[{variant}] trained on {args.train} ({len(fit_rows)} rows): {model.label}; {model.structure}; "
+              f"{time.perf_counter() - t1:.1f} s; dropped rows {list(model.dropped_)}")
+        compensator = load_model(model.export_onnx(out / f"{variant}_on_{args.train}.onnx", name=f"ipa-{args.train}"))
+        table(data, args.train, held, model, compensator)
     print(f"total {time.perf_counter() - t0:.1f} s (one thread); files in {out}")
 
 

@@ -162,3 +162,34 @@ def test_a_few_unreachable_rows_are_dropped_and_named():
     assert list(model.dropped_) == [17]
     keep = np.arange(len(poses)) != 17
     assert np.abs(model.predict(poses[keep]) - errors[keep]).max() < 0.02
+
+
+def test_ur_ik_at_the_wrist_singularity_keeps_the_given_a6():
+    """A5 at 0° or 180° (the UR10's HOME): only A4 ± A6 is defined; with the controller's angles
+    the IK returns them (A6 kept, A4 the rest), and the nominal arm lands on the pose."""
+    arm = Arm(UR10)
+    q = torch.tensor([[-90.0, -90, 0, -90, 0, 0], [-90.0, -90, 0, -90, 0, 30], [10, -80, 40, -60, 180, 20],
+                      [10, -80, 40, -60, 0.003, 20]], dtype=torch.float64) * np.pi / 180
+    poses = torch.as_tensor(fk_poses(arm, q))
+    with torch.no_grad():
+        got = make_ik(UR10)(poses, q)
+        miss = torch.linalg.norm(arm.tcp(got) - poses[:, :3], dim=1)
+    assert miss.max() < 1e-3
+    assert torch.allclose(got, q, atol=1e-5)
+
+
+def test_measurements_in_metres_are_refused_and_outliers_named():
+    from postproc.diagnostics import PostprocError
+    from postproc.training.data import check_errors
+
+    rng = np.random.default_rng(0)
+    positions = rng.uniform(500, 2000, (50, 3))
+    lines = np.arange(50) + 2
+    with pytest.raises(PostprocError, match="metres") as err:
+        check_errors(positions, positions / 1000.0, lines, "m.csv")
+    assert err.value.code == "P509"
+    measured = positions - rng.normal(0, 0.5, (50, 3))
+    assert check_errors(positions, measured, lines) == []
+    measured[7] += 40.0
+    (warning,) = check_errors(positions, measured, lines)
+    assert "line(s) 9" in warning

@@ -26,7 +26,7 @@ from ..robot import RobotDescription
 from .features import wrapped_step
 from .network import rotation_matrices
 
-__all__ = ["Arm", "axis_rotations", "mc", "mv", "turn_columns", "turn_rows", "small_rotation", "pose_matrices", "KukaIK", "UrIK", "make_ik", "choose_branch",
+__all__ = ["coupling_pairs", "Arm", "axis_rotations", "mc", "mv", "turn_columns", "turn_rows", "small_rotation", "pose_matrices", "KukaIK", "UrIK", "make_ik", "choose_branch",
            "GRAVITY"]
 
 GRAVITY = 9.81  # m/s², along −Z of the robot base frame (as Pinocchio's default)
@@ -197,6 +197,27 @@ class Arm:
         omega = torch.stack([mv(rotations[:, j], self.axes[j]) for j in range(len(self.axes))], 1)
         return -(omega * torque).sum(-1)
 
+    def torque_terms(self, rotations: torch.Tensor, origins: torch.Tensor) -> torch.Tensor:
+        """[N, J + J(J+1)/2]: the gravity torques of :meth:`gravity_torques`, then each link's
+        own share of them, τ_ji for i ≥ j (pairs in ``coupling_pairs`` order): the regressors
+        of a compliance whose link masses and lever arms are not known (only their directions)."""
+        total = self.gravity_torques(rotations, origins)
+        j_idx, i_idx = coupling_pairs(len(self.axes))
+        coms = origins + torch.stack([mv(rotations[:, j], self.coms[j]) for j in range(len(self.coms))], 1)
+        weights = self.masses.clone()
+        weights[-1] = weights[-1] + self.payload_mass
+        lever = (coms[:, i_idx] - origins[:, j_idx]) * MM * weights[i_idx][:, None]  # [N, P, 3]
+        force = torch.tensor([0.0, 0.0, -GRAVITY], dtype=lever.dtype)
+        torque = torch.linalg.cross(lever, force.expand_as(lever))
+        omega = torch.stack([mv(rotations[:, j], self.axes[j]) for j in range(len(self.axes))], 1)[:, j_idx]
+        return torch.cat([total, -(omega * torque).sum(-1)], dim=1)
+
+
+def coupling_pairs(n: int = 6) -> tuple[list[int], list[int]]:
+    """(joint j, link i) pairs with i ≥ j: which link's weight turns which joint."""
+    pairs = [(j, i) for j in range(n) for i in range(j, n)]
+    return [j for j, _ in pairs], [i for _, i in pairs]
+
 
 # --------------------------------------------------------------------------- IK
 
@@ -339,15 +360,29 @@ class UrIK(torch.nn.Module):
         lateral = torch.asin(torch.clamp(self.y4 / rho, -1.0, 1.0).float()).to(rho.dtype)
         t1 = psi - shoulder * lateral - (1.0 - shoulder) * (math.pi / 2)
         c1, s1 = torch.cos(t1), torch.sin(t1)
-        # t5: the A6 axis (R6·e_y) is ŷ1 turned by t5 about the A5 axis: ŷ1·(R6·e_y) = cos t5
-        t5 = wrist * _acos(torch.clamp(-s1 * r6[:, 0, 1] + c1 * r6[:, 1, 1], -1.0, 1.0))
+        # t5: the A6 axis a6 = R6·e_y is ŷ1 turned by t5 about the A5 axis: cos t5 = ŷ1·a6 and
+        # |sin t5| = |ŷ1 × a6| (both in float64: an acos near 1 in float32 loses the small angles)
+        a6 = r6[:, :, 1]
+        cos5 = -s1 * a6[:, 0] + c1 * a6[:, 1]
+        abs_sin5 = torch.sqrt(a6[:, 2] ** 2 + (c1 * a6[:, 0] + s1 * a6[:, 1]) ** 2)
+        t5 = wrist * _atan2(abs_sin5, cos5)
         # R' = Rz(−t1)·R6 = Ry(a)·Rz(t5)·Ry(t6): row 1 = sin t5·(cos t6, ·, sin t6),
         # column 1 = (−cos a·sin t5, ·, sin a·sin t5), a = t2 + t3 + t4
         rp = turn_rows(r6, 2, t1)
-        sin5 = torch.sin(t5)
-        sin5 = torch.where(torch.abs(sin5) < 1e-10, torch.ones_like(sin5), sin5)  # wrist singular: any t6
-        t6 = _atan2(rp[:, 1, 2] / sin5, rp[:, 1, 0] / sin5)
-        t234 = _atan2(rp[:, 2, 1] / sin5, -rp[:, 0, 1] / sin5)
+        sin5 = wrist * abs_sin5
+        # (t1 comes from float32 atan2: sin t5 carries ~1e-7 of noise, which the ratios below
+        # divide by; within 1e-4 rad of the singularity the sum a ± t6 is the better-known one)
+        singular = abs_sin5 < 1e-4
+        safe5 = torch.where(singular, torch.ones_like(sin5), sin5)
+        t6 = _atan2(rp[:, 1, 2] / safe5, rp[:, 1, 0] / safe5)
+        t234 = _atan2(rp[:, 2, 1] / safe5, -rp[:, 0, 1] / safe5)
+        # wrist singular (A5 at 0 or 180°): only a ± t6 is defined, R' = Ry(a + t6) or Ry(a − t6)·Rz(π);
+        # A6 keeps the controller's angle where given (else the ratio's) and a takes the rest
+        keep6 = t6 if q_in is None else torch.where(torch.isnan(q_in[:, 5]), t6, q_in[:, 5] * self.s[5])
+        up = cos5 > 0
+        total = torch.where(up, _atan2(rp[:, 0, 2], rp[:, 0, 0]), _atan2(rp[:, 0, 2], -rp[:, 0, 0]))
+        t6 = torch.where(singular, keep6, t6)
+        t234 = torch.where(singular, torch.where(up, total - keep6, total + keep6), t234)
         # A5's origin p5 = p6 − z5·Rz(t1)·Ry(a)·e_z; in the arm plane (along Rz(t1)·e_x and −Z,
         # from A2) the links A2 → A3 → A4 are the planar arm u = a2·c2 + a3·c23, w = a2·s2 + a3·s23
         c234, s234 = torch.cos(t234), torch.sin(t234)
