@@ -371,8 +371,9 @@ class UrIK(torch.nn.Module):
         rp = turn_rows(r6, 2, t1)
         sin5 = wrist * abs_sin5
         # (t1 comes from float32 atan2: sin t5 carries ~1e-7 of noise, which the ratios below
-        # divide by; within 1e-4 rad of the singularity the sum a ± t6 is the better-known one)
-        singular = abs_sin5 < 1e-4
+        # divide by; within 1e-3 rad of the singularity the sum a ± t6 is the better-known one, and
+        # the sign of t5 is a guess: the other sign with the same sum is as good to 1e-3 rad)
+        singular = abs_sin5 < 1e-3
         safe5 = torch.where(singular, torch.ones_like(sin5), sin5)
         t6 = _atan2(rp[:, 1, 2] / safe5, rp[:, 1, 0] / safe5)
         t234 = _atan2(rp[:, 2, 1] / safe5, -rp[:, 0, 1] / safe5)
