@@ -193,3 +193,21 @@ def test_measurements_in_metres_are_refused_and_outliers_named():
     measured[7] += 40.0
     (warning,) = check_errors(positions, measured, lines)
     assert "line(s) 9" in warning
+
+
+def test_identified_parameters_are_in_the_model_card(tmp_path):
+    """The ONNX file keeps the identified parameters (the card's identified.parameters), so a
+    later re-calibration can start from them."""
+    truth = true_arm(KR500, seed=9)
+    poses, q = reachable(KR500, make_ik(KR500).branch, 150, seed=10)
+    with torch.no_grad():
+        errors = truth.error_at(torch.as_tensor(q), torch.zeros_like(torch.as_tensor(q)),
+                                torch.as_tensor(poses[:, :3])).numpy()
+    model = HybridModel(KR500, residual="none", kinematic={"ripple": [], "groups": ("placement", "zero", "tool")})
+    model.fit(poses, errors, None, np.degrees(q))
+    card = load_model(model.export_onnx(tmp_path / "p.onnx", identified=model.describe())).metadata
+    stored = card["identified"]["parameters"]
+    assert set(stored) == {"placement", "tool", "zero"}
+    p = model.kinematic_.parameters()
+    assert np.allclose(stored["placement"], p["placement"].ravel()) and np.allclose(stored["tool"], p["tool"])
+    assert np.abs(p["placement"]).max() > 1e-4  # (something was identified)

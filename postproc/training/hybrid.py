@@ -294,6 +294,11 @@ class HybridModel:
             "ik_family": km.ik_.family,
             "residual_nets": len(self.nets_),
             "residual_check": getattr(self, "residual_check_", None),
+            # the identified parameters of the physical groups (rad, mm, rad/Nm; each flattened
+            # as Layout.unpack reads it; the ripple amplitudes are not stored): what a
+            # re-calibration (--update, not built yet) would start from
+            "parameters": {name: [float(v) for v in np.ravel(p[name])]
+                           for name in km.layout_.sizes if name != "ripple" and km.layout_.sizes[name]},
         }
 
     def export_onnx(self, path: str | Path, **metadata) -> Path:
