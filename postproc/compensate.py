@@ -413,7 +413,7 @@ class _CommandStream:
         if computed is not None:  # (commands and joints of every row, from the caller)
             chunks = iter([(0, computed.commanded, computed.joints)])
         else:  # checks ``iterations`` here, not on the thread
-            chunks = model.command_chunks(poses, iterations, joints=wanted, q_deg=selection.joints, tool=selection.tool,
+            chunks = model.command_chunks(poses, iterations, joints=selection.joints, tool=selection.tool, with_joints=wanted,
                                           orientation=orientation)
         self._thread = threading.Thread(target=self._run, args=(chunks, poses, max_correction_mm),
                                         name="postproc-model", daemon=True)

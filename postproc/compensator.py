@@ -8,16 +8,28 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   ``compensate`` passes the previous target's compensated command (the first target's
   previous pose is the target itself: nothing is known before it); models without it are
   plain pose → error maps;
-* optional input ``joints``: float32 [N, 6] deg, the controller's joint angles at each target
-  (``compensate`` computes them from the targets' S/T with the nominal IK, see
-  postproc.configuration): a model with it evaluates its arm there, not at its own IK's branch;
-* optional input ``tool``: float32 [N, 6], the TCP on the flange (X,Y,Z,A,B,C, the program's
-  ``$TOOL``) of each target: a model with it compensates programs with any tool;
+* optional input ``joints``: float32 [N, 6] deg, the controller's joint angles at each
+  target (from its S/T, or a measurement's q1..q6); a row of NaN = unknown. The model uses
+  them as the *configuration*: it solves the nominal IK of ``pose`` on the branch those
+  angles are on (shoulder / elbow / wrist read from them) and evaluates its identified arm
+  there; NaN rows take the branch the model identified from its training data. So the fixed
+  point below stays right: the caller passes the joints of the *target* P once, and every
+  iteration's command c (a few mm from P) is solved on that branch — q(c), not q(P).
+  ``Compensator`` feeds NaN when the caller has none;
+* optional input ``tool``: float32 [N, 6] (X, Y, Z mm, A, B, C deg of the TCP on the flange),
+  NaN = the model's own tool (the card's ``tool``); for physical models that compute the error
+  at any TCP. (Declared here so that callers can pass it; the shipped training does not
+  export it yet.)
 * output ``error``: float32 [N, 3] mm, E = P_target − P_actual; normalisation lives inside
   the graph;
-* optional output ``joints``: float32 [N, 6] deg, the controller's joint angles (nominal IK)
-  the model computed for ``pose``: with ``envelope.joints`` in the card, ``compensate`` warns
-  for targets whose joints lie outside the trained ranges (a pose-box can hide a wrist flip);
+* optional output ``ik_joints``: float32 [N, 6] deg, the controller's joint angles (nominal IK,
+  on the branch of ``joints`` where given) the model computed for ``pose``, wrapped to
+  [−180, 180): with ``envelope.joints`` in the card, ``compensate`` warns for targets whose
+  joints lie outside the trained ranges (a pose-box can hide a wrist flip); the model itself
+  leaves out its learned parts that do not extrapolate (gear-ripple orders, residual networks)
+  outside those ranges and keeps the physical ones. (Models written before the ``joints``
+  input have this output named ``joints``: still read. ONNX cannot name an input and an
+  output alike.)
 * optional output ``rotation_error``: float32 [N, 3] deg, the orientation error as a rotation
   vector of nominal → actual in the base frame (``compensate --orientation``);
 * ``metadata_props`` (values JSON-encoded where structured): ``postproc_contract`` "1",
@@ -46,11 +58,12 @@ from .resources import model_path
 CONTRACT_VERSION = "1"
 INPUT_POSE = "pose"
 INPUT_PREVIOUS = "previous_pose"
+OUTPUT_ERROR = "error"
 INPUT_JOINTS = "joints"
 INPUT_TOOL = "tool"
+OUTPUT_JOINTS = "ik_joints"
+LEGACY_OUTPUT_JOINTS = "joints"  # (the output's name before the ``joints`` input existed)
 OUTPUT_ROTATION = "rotation_error"
-OUTPUT_ERROR = "error"
-OUTPUT_JOINTS = "joints"
 # (8192 rows: the intermediates of the hybrid graph stay in cache, 11 % faster than 65536; measured)
 PREDICT_BATCH = 8192
 # Rows per chunk of ``command_chunks``: the unit compensate overlaps model runs and rewriting by.
@@ -113,9 +126,10 @@ class Compensator:
     metadata: dict = field(default_factory=dict)
     sha256: str = ""
     wants_previous: bool = False
-    has_joints: bool = False  # the graph also outputs ``joints``
-    wants_joints: bool = False  # the graph takes the controller's joint angles (input ``joints``)
-    wants_tool: bool = False  # the graph takes each target's TCP on the flange (input ``tool``)
+    has_joints: bool = False  # the graph also outputs the IK's joint angles
+    joints_output: str = OUTPUT_JOINTS  # that output's name (older models: LEGACY_OUTPUT_JOINTS)
+    wants_joints: bool = False  # the graph takes the controller's ``joints`` (configuration)
+    wants_tool: bool = False  # the graph takes the TCP on the flange (``tool``)
     has_rotation: bool = False  # the graph also outputs ``rotation_error``
 
     @property
@@ -162,19 +176,27 @@ class Compensator:
             r = np.linalg.norm(positions - np.asarray(reach["center"], float), axis=1)
         return (r > float(reach["radius_max"])) | (r < float(reach.get("radius_min", 0.0)))
 
-    def predict(self, poses: np.ndarray, previous: np.ndarray | None = None, joints: bool = False,
-                q: np.ndarray | None = None, tool: np.ndarray | None = None, rotation: bool = False):
-        """Ê for poses [N, 6] (robot base frame) → [N, 3] mm (float64). With ``joints``: (Ê, the
-        model's joint angles [N, 6] deg, or None for a model without that output). ``q`` [N, 6]
-        deg and ``tool`` [N, 6] feed the inputs ``joints`` and ``tool`` (required when the model
-        has them). With ``rotation``: Ê and the rotation error [N, 3] deg last. Batched: one
-        onnxruntime call per PREDICT_BATCH poses (a whole CAM program in one call would make
-        the runtime hold every intermediate layer for every target at once)."""
+    def predict(self, poses: np.ndarray, previous: np.ndarray | None = None, joints=None,
+                tool: np.ndarray | None = None, with_joints: bool = False, rotation: bool = False):
+        """Ê for poses [N, 6] (robot base frame) → [N, 3] mm (float64). ``joints`` [N, 6] deg:
+        the controller's joint angles at each pose (its configuration; NaN rows unknown), fed
+        to a model with that input, ignored by others; ``tool`` [N, 6]: the TCP on the flange
+        (likewise). With ``with_joints``: (Ê, the model's joint angles [N, 6] deg, or None for a
+        model without that output); ``joints=True`` / ``False`` is read as ``with_joints`` (the
+        older call). Batched: one onnxruntime call per PREDICT_BATCH poses (a whole CAM program
+        in one call would make the runtime hold every intermediate layer for every target).
+        With ``rotation``: the rotation error [N, 3] deg is returned last."""
+        if isinstance(joints, bool):
+            joints, with_joints = None, joints
         poses = np.ascontiguousarray(poses, dtype=np.float32).reshape(-1, 6)
         if self.wants_previous:
             previous = poses if previous is None else np.ascontiguousarray(previous, dtype=np.float32).reshape(-1, 6)
-        extra = _extra_inputs(self, len(poses), q, tool)
-        names = [OUTPUT_ERROR, OUTPUT_JOINTS] if joints and self.has_joints else [OUTPUT_ERROR]
+        extra = {}
+        for name, wanted, value in ((INPUT_JOINTS, self.wants_joints, joints), (INPUT_TOOL, self.wants_tool, tool)):
+            if wanted:
+                extra[name] = (np.full(poses.shape, np.nan, np.float32) if value is None
+                               else np.ascontiguousarray(np.broadcast_to(np.asarray(value, np.float32), poses.shape)))
+        names = [OUTPUT_ERROR, self.joints_output] if with_joints and self.has_joints else [OUTPUT_ERROR]
         results = [np.empty((len(poses), 3)), np.empty((len(poses), 6))][:len(names)]
         if rotation:
             if not self.has_rotation:
@@ -212,40 +234,45 @@ class Compensator:
             with ThreadPoolExecutor(max_workers=min(os.cpu_count() or 1, 8)) as pool:
                 list(pool.map(run, starts))
         out = [results[0]]
-        if joints:
+        if with_joints:
             out.append(results[1] if self.has_joints else None)
         if rotation:
             out.append(results[-1])
         return out[0] if len(out) == 1 else tuple(out)
 
-    def command(self, poses: np.ndarray, iterations: int | None = None, joints: bool = False,
-                q: np.ndarray | None = None, tool: np.ndarray | None = None):
+    def command(self, poses: np.ndarray, iterations: int | None = None, joints=None, tool=None,
+                with_joints: bool = False):
         """Commanded positions [N, 3] so that the robot lands on ``poses[:, :3]``: c = P + Ê(c).
-        With ``joints``: (commands, the targets' joint angles [N, 6] deg or None; see ``predict``).
-        The rows are in program order: for a model with ``previous_pose`` each target comes from
-        the previous row's command."""
+        ``joints`` [N, 6] deg: the controller's joint angles at the *targets* (their
+        configuration; every iteration's command is solved on that branch by the model, see
+        the contract); ``tool`` [N, 6]: the TCP on the flange. With ``with_joints``: (commands,
+        the targets' joint angles [N, 6] deg or None; see ``predict``). The rows are in program
+        order: for a model with ``previous_pose`` each target comes from the previous row's
+        command."""
+        if isinstance(joints, bool):
+            joints, with_joints = None, joints
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         out = np.empty((len(poses), 3))
-        q_out = np.empty((len(poses), 6)) if joints and self.has_joints else None
-        for start, commands, q_part in self.command_chunks(poses, iterations, joints=joints, q_deg=q, tool=tool):
+        q = np.empty((len(poses), 6)) if with_joints and self.has_joints else None
+        for start, commands, q_part in self.command_chunks(poses, iterations, joints, tool, with_joints):
             out[start:start + len(commands)] = commands
-            if q_out is not None:
-                q_out[start:start + len(commands)] = q_part
-        return (out, q_out) if joints else out
+            if q is not None:
+                q[start:start + len(commands)] = q_part
+        return (out, q) if with_joints else out
 
-    def command_chunks(self, poses: np.ndarray, iterations: int | None = None, joints: bool = False,
-                       q_deg: np.ndarray | None = None, tool: np.ndarray | None = None,
+    def command_chunks(self, poses: np.ndarray, iterations: int | None = None, joints=None, tool=None,
+                       with_joints: bool = False,
                        orientation: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         """``command`` chunk by chunk (COMMAND_CHUNK rows) in row order: yields (first row,
-        commands [n, 3], the targets' joint angles [n, 6] deg if ``joints`` and the model has
-        them, else None), the same numbers as one ``command`` call (each chunk takes its first
-        row's previous pose, per iteration, from the chunk before), so a caller can use the
-        first rows while the model runs on the next ones. ``q_deg`` and ``tool`` [N, 6] are the
-        targets' joint angles and TCPs for a model with those inputs; each iteration passes the
-        target's own joint angles (a command differs from its target by the error, ~1 mm: its
-        joint angles by ~0.05°, which changes a sub-mm error by ~1e-3 mm). With ``orientation``
+        commands [n, 3], the targets' joint angles [n, 6] deg if ``with_joints`` and the model
+        has them, else None), the same numbers as one ``command`` call (each chunk takes its
+        first row's previous pose, per iteration, from the chunk before), so a caller can use
+        the first rows while the model runs on the next ones. ``joints`` / ``tool``: as
+        ``command`` (``joints=True`` / ``False``: the older ``with_joints``). With ``orientation``
         the commands are full poses [n, 6]: the fixed point on the orientation too, R_c =
         exp(−r̂(c))·R_P with r̂ the model's ``rotation_error`` (the A,B,C triple nearest P's)."""
+        if isinstance(joints, bool):
+            joints, with_joints = None, joints
         if orientation and not self.has_rotation:
             raise PostprocError(f"the model has no output '{OUTPUT_ROTATION}': it cannot correct orientation "
                                 "(train it on data with a_meas,b_meas,c_meas)", str(self.path), code="P306")
@@ -253,18 +280,17 @@ class Compensator:
         if not 1 <= iterations <= MAX_ITERATIONS:
             raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code="P308")
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
-        _extra_inputs(self, len(poses), q_deg, tool)  # (checked here, not on the caller's thread)
-        return self._chunks(poses, iterations, joints, q_deg, tool, orientation)
+        rows = [None if v is None else np.broadcast_to(np.asarray(v, float), poses.shape) for v in (joints, tool)]
+        return self._chunks(poses, iterations, with_joints, *rows, orientation)
 
-    def _chunks(self, poses: np.ndarray, iterations: int, joints: bool, q_deg: np.ndarray | None = None,
-                tool: np.ndarray | None = None,
-                orientation: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+    def _chunks(self, poses: np.ndarray, iterations: int, with_joints: bool, joints: np.ndarray | None,
+                tool: np.ndarray | None, orientation: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         chunk = COMMAND_CHUNK  # (read at call time: tests make it small)
         # the last row of the chunk before, after each iteration k (k = 0: the target itself)
         before: list[np.ndarray] | None = None
         for start in range(0, len(poses), chunk):
             part = poses[start:start + chunk]
-            given = {"q": None if q_deg is None else q_deg[start:start + chunk],
+            given = {"joints": None if joints is None else joints[start:start + chunk],
                      "tool": None if tool is None else tool[start:start + chunk]}
             trial = part.copy()
             last = [trial[-1].copy()]
@@ -277,11 +303,12 @@ class Compensator:
                     head = trial[:1] if before is None else before[k][None]
                     prev = np.vstack([head, trial[:-1]])
                 rotation = None
-                if k == 0 and joints:  # the first run is at the targets themselves: their joint angles
-                    error, q, *rotation = self.predict(trial, prev, joints=True, rotation=orientation, **given)
+                if k == 0 and with_joints:  # the first run is at the targets themselves: their joint angles
+                    error, q, *rotation = self.predict(trial, prev, with_joints=True, rotation=orientation, **given)
+                elif orientation:
+                    error, *rotation = self.predict(trial, prev, rotation=True, **given)
                 else:
-                    error, *rotation = self.predict(trial, prev, rotation=orientation, **given) if orientation \
-                        else (self.predict(trial, prev, **given),)
+                    error = self.predict(trial, prev, **given)
                 trial[:, :3] = part[:, :3] + error
                 if orientation:
                     trial[:, 3:6] = _corrected_attitude(part[:, 3:6], rotation[0])
@@ -307,21 +334,6 @@ def _corrected_attitude(abc: np.ndarray, rotation_error_deg: np.ndarray) -> np.n
     alt = np.stack([new[:, 0] + 180.0, 180.0 - new[:, 1], new[:, 2] + 180.0], axis=1)
     near = [abc + (t - abc + 180.0) % 360.0 - 180.0 for t in (new, alt)]
     return np.where((np.abs(near[1] - abc).max(axis=1) < np.abs(near[0] - abc).max(axis=1))[:, None], near[1], near[0])
-
-
-def _extra_inputs(model: Compensator, n: int, q: np.ndarray | None, tool: np.ndarray | None) -> dict:
-    """The feeds of the optional inputs ``joints`` / ``tool`` the model has (float32 [n, 6])."""
-    feeds = {}
-    for name, wanted, value in ((INPUT_JOINTS, model.wants_joints, q), (INPUT_TOOL, model.wants_tool, tool)):
-        if not wanted:
-            continue
-        if value is None:
-            raise PostprocError(f"the model needs input '{name}' [N, 6] and none was given", str(model.path), code="P306")
-        value = np.ascontiguousarray(value, dtype=np.float32)
-        if value.shape != (n, 6):
-            raise PostprocError(f"input '{name}' has shape {value.shape}, expected ({n}, 6)", str(model.path), code="P306")
-        feeds[name] = value
-    return feeds
 
 
 def load_model(path: str | Path | None = None) -> Compensator:
@@ -353,21 +365,22 @@ def load_model(path: str | Path | None = None) -> Compensator:
         problems.append(f"unexpected inputs {sorted(extra)}")
     if OUTPUT_ERROR not in outputs:
         problems.append(f"no output '{OUTPUT_ERROR}' (has {sorted(outputs)})")
+    joints_output = OUTPUT_JOINTS if OUTPUT_JOINTS in outputs or INPUT_JOINTS in inputs else LEGACY_OUTPUT_JOINTS
     for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6), (INPUT_JOINTS, 6), (INPUT_TOOL, 6)):
         if name in inputs and (len(inputs[name].shape) != 2 or inputs[name].shape[1] not in (expected, None, "6")
                                or isinstance(inputs[name].shape[0], int)):
             problems.append(f"input '{name}' has shape {inputs[name].shape}, expected [N, {expected}]")
     if OUTPUT_ERROR in outputs and (len(outputs[OUTPUT_ERROR].shape) != 2 or outputs[OUTPUT_ERROR].shape[1] not in (3, None)):
         problems.append(f"output '{OUTPUT_ERROR}' has shape {outputs[OUTPUT_ERROR].shape}, expected [N, 3]")
-    if OUTPUT_JOINTS in outputs and (len(outputs[OUTPUT_JOINTS].shape) != 2
-                                     or outputs[OUTPUT_JOINTS].shape[1] not in (6, None)):
-        problems.append(f"output '{OUTPUT_JOINTS}' has shape {outputs[OUTPUT_JOINTS].shape}, expected [N, 6]")
+    if joints_output in outputs and (len(outputs[joints_output].shape) != 2
+                                     or outputs[joints_output].shape[1] not in (6, None)):
+        problems.append(f"output '{joints_output}' has shape {outputs[joints_output].shape}, expected [N, 6]")
     if OUTPUT_ROTATION in outputs and (len(outputs[OUTPUT_ROTATION].shape) != 2
                                        or outputs[OUTPUT_ROTATION].shape[1] not in (3, None)):
         problems.append(f"output '{OUTPUT_ROTATION}' has shape {outputs[OUTPUT_ROTATION].shape}, expected [N, 3]")
     for node in (*inputs.values(), *outputs.values()):
-        if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, OUTPUT_ERROR, OUTPUT_JOINTS,
-                         OUTPUT_ROTATION) and node.type != "tensor(float)":
+        if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, OUTPUT_ERROR,
+                         joints_output, OUTPUT_ROTATION) and node.type != "tensor(float)":
             problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
     if problems:
         raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path), code="P306")
@@ -381,7 +394,8 @@ def load_model(path: str | Path | None = None) -> Compensator:
         metadata=meta,
         sha256=hashlib.sha256(data).hexdigest(),
         wants_previous=INPUT_PREVIOUS in inputs,
-        has_joints=OUTPUT_JOINTS in outputs,
+        has_joints=joints_output in outputs,
+        joints_output=joints_output,
         wants_joints=INPUT_JOINTS in inputs,
         wants_tool=INPUT_TOOL in inputs,
         has_rotation=OUTPUT_ROTATION in outputs,

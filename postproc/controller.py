@@ -60,7 +60,7 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
         first = robot if np.array_equal(tools[0], default_tool) else Robot(description.replace(tool=tools[0]))
         start, _ = first.ik(sel[:1], robot.home_q)
         if model.has_joints and np.isfinite(start).all():  # the branch of the model's own IK
-            _, own = model.predict(sel[:1], joints=True, q=start, tool=tools[:1] if model.wants_tool else None)
+            _, own = model.predict(sel[:1], joints=start, tool=tools[:1] if model.wants_tool else None, with_joints=True)
             start = own if own is not None and np.isfinite(own).all() else start
         q, ok = configuration.target_joints(robot, t, rows, sel, tools,
                                             start[0] if np.isfinite(start).all() else None)

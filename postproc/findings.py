@@ -364,5 +364,5 @@ def run_model(model: Compensator, selection: Selection, iterations: int | None) 
     wanted = model.has_joints and envelope is not None and envelope.joints is not None
     if not len(selection.rows):
         return Commands(selection, np.zeros((0, 3)), np.zeros((0, 6)) if wanted else None)
-    commanded, joints = model.command(selection.poses, iterations, joints=True, q=selection.joints, tool=selection.tool)
+    commanded, joints = model.command(selection.poses, iterations, joints=selection.joints, tool=selection.tool, with_joints=True)
     return Commands(selection, commanded, joints if wanted else None)

@@ -165,8 +165,17 @@ def test_ripple_search_finds_the_gear_order(kr500):
 def test_poses_out_of_reach_are_refused(kr500):
     from postproc.diagnostics import PostprocError
 
-    far = latin_hypercube(20, seed=0)
+    far = latin_hypercube(40, seed=0)
     far[:, 0] += 5000.0
     with pytest.raises(PostprocError, match="out of reach") as err:
-        KinematicModel(kr500).fit(far, np.zeros((20, 3)))
+        KinematicModel(kr500).fit(far, np.zeros((40, 3)))
     assert err.value.code == "P508"
+
+
+def test_fewer_coordinates_than_parameters_are_refused(kr500):
+    """A 2-row file would give a model worse than none: refused (P505), naming the rows needed."""
+    from postproc.diagnostics import PostprocError
+
+    with pytest.raises(PostprocError, match="at least 26 poses") as err:
+        KinematicModel(kr500, ripple=[]).fit(latin_hypercube(2, seed=0), np.zeros((2, 3)))
+    assert err.value.code == "P505"

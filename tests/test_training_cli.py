@@ -131,3 +131,22 @@ def test_bad_search_on_too_few_points(tmp_path, capsys, csv_text):
     head = "\n".join(csv_text.splitlines()[:12]) + "\n"  # 11 rows: no candidate network fits
     err = _bad(tmp_path, capsys, head, "--search")
     assert "bad.csv" in err and "P505" in err and "too few for any candidate" in err
+
+
+def test_ur10_data_without_its_robot_is_refused_and_with_it_identified(tmp_path, capsys):
+    """The IPA excerpt (a UR10) with the default KR500 description: refused (P508, the joint
+    angles do not put that arm on the poses); with --robot models/ur10.toml: trained on the real
+    joint angles, the identifiability (rank, unseparated groups) reported, a 'joints' input."""
+    data = tmp_path / "ipa.csv"
+    assert main(["import", "ipa", "samples/ipa/series_c_excerpt.csv", "-o", str(data), "--register",
+                 "--val-fraction", "0.2", "-q"]) == 0
+    out = tmp_path / "m.onnx"
+    assert main(["train", str(data), "-o", str(out), "--method", "kinematic"]) == 2
+    err = capsys.readouterr().err
+    assert "P508" in err and "q1..q6" in err and "--robot" in err and not out.exists()
+    assert main(["train", str(data), "-o", str(out), "--method", "kinematic", "--robot", "models/ur10.toml"]) == 0
+    printed = capsys.readouterr().out
+    assert "identify  rank " in printed and "cannot separate" in printed
+    comp = load_model(out)
+    assert comp.wants_joints and comp.metadata["identified"]["identifiability"]["rank"] > 20
+    assert comp.metadata["accuracy"]["val_mean_mm"] < 0.5 * comp.metadata["accuracy"]["val_uncompensated_mean_mm"]

@@ -112,7 +112,7 @@ def run(args) -> int:
     import numpy as np
 
     from ..diagnostics import PostprocError
-    from ..training.data import check_size, envelope_of, read_measurements, split_indices
+    from ..training.data import check_errors, check_size, envelope_of, read_measurements, split_indices
     from . import show_progress
     from .train_hybrid import HYBRID_METHODS, run_hybrid
 
@@ -144,6 +144,7 @@ def run(args) -> int:
             "the validation figures are optimistic; use the import's --split-seed and a smaller --val-fraction"
         )
     errors = poses[:, :3] - measured
+    notes += check_errors(poses[:, :3], measured, data.lines, args.data)
 
     progress = show_progress(args)
     if args.method in HYBRID_METHODS:

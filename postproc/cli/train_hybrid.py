@@ -80,13 +80,21 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     rows = (lambda a, r: None if a is None else a[r])  # noqa: E731
     model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows))
 
+    if len(model.dropped_):
+        lines = data.lines[train_rows][model.dropped_]
+        notes.append(f"warning: {len(lines)} training row(s) left out, out of reach of the nominal {description.name} "
+                     f"or singular (or their q1..q6 not of that pose): line(s) "
+                     f"{', '.join(str(int(n)) for n in lines[:10])}{' ...' if len(lines) > 10 else ''}")
+    ident = model.kinematic_.identifiability() if model.kinematic_.layout_.n else None
     share = model.kinematic_.branch_share_
     if share == share and share < 0.99:  # (NaN: no joint angles to compare with)
         notes.append(f"warning: {100 * (1 - share):.1f} % of the training rows were reached on another IK branch "
                      f"than {list(model.kinematic_.ik_.branch)}: the model assumes that one everywhere")
-    accuracy = accuracy_card(errors[val_rows], model.predict(poses[val_rows], rows(previous, val_rows)),
+    accuracy = accuracy_card(errors[val_rows], model.predict(poses[val_rows], rows(previous, val_rows),
+                                                             rows(q_deg, val_rows)),
                              model.train_stats_["mean"], len(train_rows))
     found = model.describe()
+    found["identifiability"] = ident
     metadata = {
         "name": args.name or Path(args.output).stem,
         "data_sha256": data.sha256,
@@ -103,6 +111,11 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         order = "backlash from the visiting order" if model.uses_previous else "no visiting order"
         print(f"model     {args.output}  ({model.label}; {model.structure}; {order}; "
               f"{model.fit_seconds_['total']:.1f} s)")
+        if ident:
+            apart = "; ".join("+".join(g) for g in ident["unseparated"][:6]) or "none"
+            apart += " ..." if len(ident["unseparated"]) > 6 else ""
+            print(f"identify  rank {ident['rank']} of {ident['parameters']} parameters; groups the data cannot "
+                  f"separate (settled by the prior): {apart}")
         if found["ripple"]:
             print(f"ripple    joint:order {' '.join(f'A{j}:{n}' for j, n in found['ripple'])}")
         print(f"data      {args.data}: {len(train_rows)} training rows, {len(val_rows)} validation rows")

@@ -26,7 +26,7 @@ from ..robot import RobotDescription
 from .features import wrapped_step
 from .network import rotation_matrices
 
-__all__ = ["Arm", "axis_rotations", "mc", "mv", "turn_columns", "turn_rows", "small_rotation", "pose_matrices", "KukaIK", "UrIK", "make_ik", "choose_branch",
+__all__ = ["coupling_pairs", "Arm", "axis_rotations", "mc", "mv", "turn_columns", "turn_rows", "small_rotation", "pose_matrices", "KukaIK", "UrIK", "make_ik", "choose_branch",
            "GRAVITY"]
 
 GRAVITY = 9.81  # m/s², along −Z of the robot base frame (as Pinocchio's default)
@@ -197,6 +197,27 @@ class Arm:
         omega = torch.stack([mv(rotations[:, j], self.axes[j]) for j in range(len(self.axes))], 1)
         return -(omega * torque).sum(-1)
 
+    def torque_terms(self, rotations: torch.Tensor, origins: torch.Tensor) -> torch.Tensor:
+        """[N, J + J(J+1)/2]: the gravity torques of :meth:`gravity_torques`, then each link's
+        own share of them, τ_ji for i ≥ j (pairs in ``coupling_pairs`` order): the regressors
+        of a compliance whose link masses and lever arms are not known (only their directions)."""
+        total = self.gravity_torques(rotations, origins)
+        j_idx, i_idx = coupling_pairs(len(self.axes))
+        coms = origins + torch.stack([mv(rotations[:, j], self.coms[j]) for j in range(len(self.coms))], 1)
+        weights = self.masses.clone()
+        weights[-1] = weights[-1] + self.payload_mass
+        lever = (coms[:, i_idx] - origins[:, j_idx]) * MM * weights[i_idx][:, None]  # [N, P, 3]
+        force = torch.tensor([0.0, 0.0, -GRAVITY], dtype=lever.dtype)
+        torque = torch.linalg.cross(lever, force.expand_as(lever))
+        omega = torch.stack([mv(rotations[:, j], self.axes[j]) for j in range(len(self.axes))], 1)[:, j_idx]
+        return torch.cat([total, -(omega * torque).sum(-1)], dim=1)
+
+
+def coupling_pairs(n: int = 6) -> tuple[list[int], list[int]]:
+    """(joint j, link i) pairs with i ≥ j: which link's weight turns which joint."""
+    pairs = [(j, i) for j in range(n) for i in range(j, n)]
+    return [j for j, _ in pairs], [i for _, i in pairs]
+
 
 # --------------------------------------------------------------------------- IK
 
@@ -220,16 +241,34 @@ class KukaIK(torch.nn.Module):
         self.a1, self.d1, self.l2, self.l3 = float(g.a1), float(g.d1), float(g.l2), float(g.l3)
         self.al2, self.al3 = float(g.al2), float(g.al3)
 
-    def forward(self, pose: torch.Tensor) -> torch.Tensor:
-        shoulder, elbow, flip = self.branch
+    def branch_of(self, pose: torch.Tensor, q_in: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Per-row branch signs (shoulder, elbow, flip) [N] of joint angles ``q_in`` [N, 6] rad
+        at ``pose``; rows with a NaN take this module's branch. Read from the angles the
+        closed form gives on each branch: A1 = φ (shoulder +) or φ + π, A3 = α3 − α2 ∓ γ0
+        (elbow), sin A5 of the flip's sign."""
         s = self.s
+        c = self._wrist_centre(pose)[0]
+        phi = _atan2(c[:, 1], c[:, 0])
+        return _branch_signs(self.branch, q_in, [
+            torch.cos(phi - s[0] * q_in[:, 0]),
+            torch.sin(self.al3 - self.al2 - s[2] * q_in[:, 2]),
+            torch.sin(s[4] * q_in[:, 4])])
+
+    def _wrist_centre(self, pose: torch.Tensor):
         r_tcp, p_tcp = pose_matrices(pose)
         r_all = mc(r_tcp, self.inv_tool[:3, :3] @ self.flange0[:3, :3].T)
         p_fl = p_tcp + mv(r_tcp, self.inv_tool[:3, 3])
-        c = p_fl - mv(r_all, self.flange0[:3, 3] - self.c0) - self.p1
+        return p_fl - mv(r_all, self.flange0[:3, 3] - self.c0) - self.p1, r_all
+
+    def forward(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
+        """q [N, 6] rad on this module's branch, or per row on the branch of ``q_in`` [N, 6] rad
+        (NaN rows: this module's branch)."""
+        shoulder, elbow, flip = self.branch if q_in is None else self.branch_of(pose, q_in)
+        s = self.s
+        c, r_all = self._wrist_centre(pose)
         phi = _atan2(c[:, 1], c[:, 0])
         r_xy = torch.sqrt(c[:, 0] ** 2 + c[:, 1] ** 2)
-        th1 = phi if shoulder > 0 else phi + math.pi
+        th1 = phi + (1.0 - shoulder) * (math.pi / 2)
         u = shoulder * r_xy - self.a1
         w = c[:, 2] - self.d1
         kappa = (u * u + w * w - self.l2**2 - self.l3**2) / (2 * self.l2 * self.l3)
@@ -294,8 +333,21 @@ class UrIK(torch.nn.Module):
         self.register_buffer("end", _t(end))  # TCP in the A6 frame (parallel to the base at q = 0)
         self.register_buffer("inv_end", _t(frames.inverse(end)))
 
-    def forward(self, pose: torch.Tensor) -> torch.Tensor:
-        shoulder, wrist, elbow = self.branch
+    def branch_of(self, pose: torch.Tensor, q_in: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Per-row branch signs (shoulder, wrist, elbow) [N] of joint angles ``q_in`` [N, 6] rad
+        at ``pose``; rows with a NaN take this module's branch. From the closed form: ψ − t1 =
+        lateral (shoulder +, cos ≥ 0) or π − lateral; sin t5 and sin t3 carry the wrist and
+        elbow signs."""
+        r_tcp, p_tcp = pose_matrices(pose)
+        p6 = p_tcp + mv(r_tcp, self.inv_end[:3, 3])
+        psi = _atan2(p6[:, 1], p6[:, 0])
+        t = q_in * self.s
+        return _branch_signs(self.branch, q_in, [torch.cos(psi - t[:, 0]), torch.sin(t[:, 4]), torch.sin(t[:, 2])])
+
+    def forward(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
+        """q [N, 6] rad on this module's branch, or per row on the branch of ``q_in`` [N, 6] rad
+        (NaN rows: this module's branch)."""
+        shoulder, wrist, elbow = self.branch if q_in is None else self.branch_of(pose, q_in)
         r_tcp, p_tcp = pose_matrices(pose)
         # the A6 frame: origin on the A6 axis, rotation R6 = Rz(t1)·Ry(t2+t3+t4)·Rz(t5)·Ry(t6)
         # with t_j = s_j·q_j (every joint frame parallel to the base at q = 0)
@@ -306,17 +358,32 @@ class UrIK(torch.nn.Module):
         rho = torch.sqrt(p6[:, 0] ** 2 + p6[:, 1] ** 2)
         psi = _atan2(p6[:, 1], p6[:, 0])
         lateral = torch.asin(torch.clamp(self.y4 / rho, -1.0, 1.0).float()).to(rho.dtype)
-        t1 = psi - lateral if shoulder > 0 else psi - math.pi + lateral
+        t1 = psi - shoulder * lateral - (1.0 - shoulder) * (math.pi / 2)
         c1, s1 = torch.cos(t1), torch.sin(t1)
-        # t5: the A6 axis (R6·e_y) is ŷ1 turned by t5 about the A5 axis: ŷ1·(R6·e_y) = cos t5
-        t5 = wrist * _acos(torch.clamp(-s1 * r6[:, 0, 1] + c1 * r6[:, 1, 1], -1.0, 1.0))
+        # t5: the A6 axis a6 = R6·e_y is ŷ1 turned by t5 about the A5 axis: cos t5 = ŷ1·a6 and
+        # |sin t5| = |ŷ1 × a6| (both in float64: an acos near 1 in float32 loses the small angles)
+        a6 = r6[:, :, 1]
+        cos5 = -s1 * a6[:, 0] + c1 * a6[:, 1]
+        abs_sin5 = torch.sqrt(a6[:, 2] ** 2 + (c1 * a6[:, 0] + s1 * a6[:, 1]) ** 2)
+        t5 = wrist * _atan2(abs_sin5, cos5)
         # R' = Rz(−t1)·R6 = Ry(a)·Rz(t5)·Ry(t6): row 1 = sin t5·(cos t6, ·, sin t6),
         # column 1 = (−cos a·sin t5, ·, sin a·sin t5), a = t2 + t3 + t4
         rp = turn_rows(r6, 2, t1)
-        sin5 = torch.sin(t5)
-        sin5 = torch.where(torch.abs(sin5) < 1e-10, torch.ones_like(sin5), sin5)  # wrist singular: any t6
-        t6 = _atan2(rp[:, 1, 2] / sin5, rp[:, 1, 0] / sin5)
-        t234 = _atan2(rp[:, 2, 1] / sin5, -rp[:, 0, 1] / sin5)
+        sin5 = wrist * abs_sin5
+        # (t1 comes from float32 atan2: sin t5 carries ~1e-7 of noise, which the ratios below
+        # divide by; within 1e-3 rad of the singularity the sum a ± t6 is the better-known one, and
+        # the sign of t5 is a guess: the other sign with the same sum is as good to 1e-3 rad)
+        singular = abs_sin5 < 1e-3
+        safe5 = torch.where(singular, torch.ones_like(sin5), sin5)
+        t6 = _atan2(rp[:, 1, 2] / safe5, rp[:, 1, 0] / safe5)
+        t234 = _atan2(rp[:, 2, 1] / safe5, -rp[:, 0, 1] / safe5)
+        # wrist singular (A5 at 0 or 180°): only a ± t6 is defined, R' = Ry(a + t6) or Ry(a − t6)·Rz(π);
+        # A6 keeps the controller's angle where given (else the ratio's) and a takes the rest
+        keep6 = t6 if q_in is None else torch.where(torch.isnan(q_in[:, 5]), t6, q_in[:, 5] * self.s[5])
+        up = cos5 > 0
+        total = torch.where(up, _atan2(rp[:, 0, 2], rp[:, 0, 0]), _atan2(rp[:, 0, 2], -rp[:, 0, 0]))
+        t6 = torch.where(singular, keep6, t6)
+        t234 = torch.where(singular, torch.where(up, total - keep6, total + keep6), t234)
         # A5's origin p5 = p6 − z5·Rz(t1)·Ry(a)·e_z; in the arm plane (along Rz(t1)·e_x and −Z,
         # from A2) the links A2 → A3 → A4 are the planar arm u = a2·c2 + a3·c23, w = a2·s2 + a3·s23
         c234, s234 = torch.cos(t234), torch.sin(t234)
@@ -332,6 +399,13 @@ class UrIK(torch.nn.Module):
     @staticmethod
     def branches() -> list[tuple[float, float, float]]:
         return [(sh, wr, el) for sh in (1.0, -1.0) for wr in (1.0, -1.0) for el in (1.0, -1.0)]
+
+
+def _branch_signs(default, q_in: torch.Tensor, indicators: list[torch.Tensor]) -> tuple[torch.Tensor, ...]:
+    """±1 [N] per indicator (its sign; 0 counts as +), ``default`` where ``q_in`` has a NaN."""
+    known = ~torch.isnan(q_in).any(dim=1)
+    return tuple(torch.where(known & ~torch.isnan(v), torch.where(v < 0, -torch.ones_like(v), torch.ones_like(v)),
+                             torch.full_like(v, float(d))) for v, d in zip(indicators, default))
 
 
 def make_ik(description: RobotDescription, family: str | None = None, branch=(1.0, 1.0, 1.0)) -> torch.nn.Module:

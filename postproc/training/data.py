@@ -10,7 +10,8 @@ metadata (``# frame: tracker`` = measured columns still in the tracker's frame).
 
 Codes: P500 unreadable/empty, P501 missing or misnamed column, P502 a value that is not a
 finite number, P503 wrong number of fields, P504 duplicate pose, P505 too few points for the
-network, P506 a split that leaves a side empty.
+network, P506 a split that leaves a side empty, P509 errors no robot makes (another frame or
+unit: ``check_errors``).
 
 numpy only: no torch here, so bad data is reported before torch is even loaded.
 """
@@ -30,6 +31,7 @@ __all__ = [
     "COLUMNS",
     "Measurements",
     "read_measurements",
+    "check_errors",
     "parse_measurements",
     "parse_rows",
     "split_indices",
@@ -104,11 +106,14 @@ def parse_measurements(data: bytes, path: str = "<data>", repeats: bool = False)
     table, line_numbers = parse_rows(lines, first, header, index, path)
     if not len(table):
         raise PostprocError("measurement file has a header but no data rows", path, code="P500")
+    joints = _joint_columns(lines, first, header, path)
+    # the same pose in another arm configuration (joint angles a degree or more apart) is
+    # another measurement, not a repeat
+    key = table[:, :6] if joints is None else np.c_[table[:, :6], np.round(joints)]
     if not repeats:
-        _check_duplicates(table[:, :6], line_numbers, path)
+        _check_duplicates(key, line_numbers, path)
     holdout = table[:, 9] != 0 if table.shape[1] > 9 else None
-    return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout,
-                        _joint_columns(lines, first, header, path))
+    return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout, joints)
 
 
 def _joint_columns(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:
@@ -192,7 +197,8 @@ def _check_duplicates(poses: np.ndarray, lines: np.ndarray, path: str) -> None:
     if len(dup):
         i = dup[0]
         raise PostprocError(
-            f"duplicate pose: same x,y,z,a,b,c as line {lines[first[inverse[i]]]} "
+            f"duplicate pose: same x,y,z,a,b,c{'' if poses.shape[1] == 6 else ' and joint angles'} as line "
+            f"{lines[first[inverse[i]]]} "
             f"({len(dup)} duplicate row(s) in all; average repeated measurements into one row)",
             path,
             int(lines[i]),
@@ -233,6 +239,35 @@ def check_size(n_train: int, n_weights: int, structure: str, path: str = "") -> 
             path,
             code="P505",
         )
+
+
+# uncompensated errors with a median above this (mm) are not a robot's positioning error: the
+# measured points are in another frame (not registered) or another unit (metres)
+FRAME_ERROR_MM = 50.0
+
+
+def check_errors(positions: np.ndarray, measured: np.ndarray, lines: np.ndarray, path: str = "") -> list[str]:
+    """Refuse (P509) errors E = positions − measured [N, 3] that no robot makes — median |E| above FRAME_ERROR_MM:
+    another frame or unit; return warnings naming the rows (file lines) whose |E| is far
+    above the others' (more than 10 × the median + 5 mm): a mis-measured point or a
+    wrong row."""
+    errors = positions - measured
+    size = np.linalg.norm(errors, axis=1)
+    median = float(np.median(size)) if len(size) else 0.0
+    if median > FRAME_ERROR_MM:
+        i = int(np.argmax(size))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = float(np.median(np.linalg.norm(positions, axis=1) / np.linalg.norm(measured, axis=1)))
+        unit = f" (commanded / measured distances from the origin: {ratio:.4g}, metres?)" if 300 < ratio < 3000 else ""
+        raise PostprocError(f"uncompensated errors of {median:.4g} mm (median; line {lines[i]}: {size[i]:.4g} mm): "
+                            f"the measured points are in another frame or unit{unit}: register them (--register, "
+                            f"'# frame: tracker') or convert to mm", path, int(lines[i]), 1, "P509")
+    far = np.flatnonzero(size > 10.0 * median + 5.0)
+    if not len(far):
+        return []
+    shown = ", ".join(str(int(lines[i])) for i in far[:10]) + (" ..." if len(far) > 10 else "")
+    return [f"warning: {len(far)} row(s) with an error far above the others' (median {median:.3f} mm): "
+            f"line(s) {shown}"]
 
 
 def wrap_deg(angles: np.ndarray) -> np.ndarray:

@@ -17,7 +17,7 @@ import onnx
 import torch
 
 from .. import rewrite
-from ..compensator import INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, OUTPUT_JOINTS, contract_metadata
+from ..compensator import INPUT_JOINTS, INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, OUTPUT_JOINTS, contract_metadata
 from ..diagnostics import PostprocError
 
 __all__ = ["export_onnx", "onnx_bytes", "write_atomic", "OPSET"]
@@ -25,10 +25,13 @@ __all__ = ["export_onnx", "onnx_bytes", "write_atomic", "OPSET"]
 OPSET = 17
 
 
-def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False, joints: bool = False) -> bytes:
-    """The serialised ONNX model of ``module`` (pose [N, 6] [, previous_pose [N, 6]] → error
-    [N, 3] [, joints [N, 6] deg]) with metadata."""
+def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False, joints: bool = False,
+               joints_input: bool = False) -> bytes:
+    """The serialised ONNX model of ``module`` (pose [N, 6] [, previous_pose [N, 6]] [, joints
+    [N, 6] deg] → error [N, 3] [, joints [N, 6] deg]) with metadata."""
     inputs = [INPUT_POSE, INPUT_PREVIOUS] if previous else [INPUT_POSE]
+    if joints_input:
+        inputs.append(INPUT_JOINTS)
     outputs = [OUTPUT_ERROR, OUTPUT_JOINTS] if joints else [OUTPUT_ERROR]
     example = tuple(torch.tensor([[2000.0, 0.0, 900.0, 0.0, 90.0, 0.0]] * 2, dtype=torch.float32) for _ in inputs)
     buffer = io.BytesIO()

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import torch
 
-__all__ = ["previous_poses", "motion_signs", "wrapped_step", "joint_features"]
+__all__ = ["previous_poses", "motion_signs", "wrapped_step", "wrap_angles", "inside_ranges", "joint_features"]
 
 
 def previous_poses(poses: np.ndarray, first: np.ndarray | None = None) -> np.ndarray:
@@ -27,6 +27,17 @@ def previous_poses(poses: np.ndarray, first: np.ndarray | None = None) -> np.nda
 def wrapped_step(q: torch.Tensor, q_previous: torch.Tensor) -> torch.Tensor:
     """q − q_previous wrapped to (−π, π]: the IK does not unwrap turns."""
     return torch.remainder(q - q_previous + math.pi, 2 * math.pi) - math.pi
+
+
+def wrap_angles(q: torch.Tensor) -> torch.Tensor:
+    """Angles (rad) wrapped to [−π, π): the IK does not unwrap turns, nor do the joint ranges."""
+    return torch.remainder(q + math.pi, 2 * math.pi) - math.pi
+
+
+def inside_ranges(q: torch.Tensor, ranges: torch.Tensor) -> torch.Tensor:
+    """1.0 / 0.0 [N]: every joint angle of q [N, 6] rad (wrapped) within ``ranges`` [6, 2] rad."""
+    w = wrap_angles(q)
+    return ((w >= ranges[:, 0]) & (w <= ranges[:, 1])).all(dim=1).to(q.dtype)
 
 
 def motion_signs(q: torch.Tensor, q_previous: torch.Tensor, fill: bool = False, eps: float = 1e-9) -> torch.Tensor:

@@ -23,10 +23,11 @@ import torch
 
 from ..progress import stages
 from ..robot import RobotDescription
+from ..compensator import JOINT_MARGIN
 from .data import envelope_of
 from .estimator import _one_thread, residual_stats
 from .export import onnx_bytes, write_atomic
-from .features import joint_features, previous_poses
+from .features import inside_ranges, joint_features, previous_poses, wrap_angles
 from .kinematic import KinematicErrorModule, KinematicModel
 
 __all__ = ["HybridModel", "HybridModule", "ResidualNet"]
@@ -57,43 +58,57 @@ class ResidualNet(torch.nn.Module):
 
 
 class HybridModule(torch.nn.Module):
-    """pose [N, 6] (+ previous_pose [N, 6]) → Ê [N, 3]: identified arm + mean of the residual nets."""
+    """pose [N, 6] (+ previous_pose [N, 6]) (+ the controller's joints [N, 6] rad) → Ê [N, 3]:
+    identified arm + mean of the residual nets.
 
-    def __init__(self, kinematic: KinematicErrorModule, nets: list[ResidualNet]):
+    ``joint_range`` [6, 2] rad (wrapped, already widened by the envelope's margin): outside it
+    the learned parts that do not extrapolate — gear-ripple orders and residual networks —
+    are left out, the physical groups (geometry, compliance, backlash) stay."""
+
+    def __init__(self, kinematic: KinematicErrorModule, nets: list[ResidualNet], joint_range: np.ndarray | None = None):
         super().__init__()
         self.kinematic = kinematic
         self.nets = torch.nn.ModuleList(nets)
+        rng = np.array([[-4.0, 4.0]] * 6) if joint_range is None else np.asarray(joint_range, dtype=np.float64)
+        self.register_buffer("joint_range", torch.as_tensor(rng))
 
     @property
     def uses_previous(self) -> bool:
         return self.kinematic.use_previous
 
-    def error_and_joints(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None
-                         ) -> tuple[torch.Tensor, torch.Tensor]:
-        """(Ê [N, 3], the controller's joint angles q [N, 6] rad) in the dtype of ``pose``."""
+    def error_and_joints(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
+                         q_in: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """(Ê [N, 3], the controller's joint angles q [N, 6] rad) in the dtype of ``pose``;
+        ``q_in`` [N, 6] rad picks each row's IK branch (NaN rows: the identified branch)."""
         dtype = pose.dtype
+        pose = pose.to(torch.float64)
         prev = previous_pose.to(torch.float64) if previous_pose is not None else None
-        error, q, signs = self.kinematic.parts(pose.to(torch.float64), prev)
+        q_in = q_in.to(torch.float64) if q_in is not None else None
+        error, q, signs, learned = self.kinematic.parts(pose, prev, q_in, self.joint_range)
         if len(self.nets):
             features = joint_features(q, signs if self.uses_previous else None)
-            error = error + torch.stack([net(features) for net in self.nets]).mean(dim=0)
+            error = error + learned[:, None] * torch.stack([net(features) for net in self.nets]).mean(dim=0)
         return error.to(dtype), q.to(dtype)
 
-    def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None) -> torch.Tensor:
-        return self.error_and_joints(pose, previous_pose)[0]
+    def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
+                q_in: torch.Tensor | None = None) -> torch.Tensor:
+        return self.error_and_joints(pose, previous_pose, q_in)[0]
 
 
 class _WithJoints(torch.nn.Module):
-    """The exported graph: ``error`` and ``joints`` (deg), so that compensate can check the
-    joint ranges of the envelope with onnxruntime alone."""
+    """The exported graph: inputs ``pose`` [, ``previous_pose``], ``joints`` (deg, NaN rows:
+    unknown); outputs ``error`` and ``joints`` (deg, wrapped to [−180, 180)), so that
+    compensate can check the joint ranges of the envelope with onnxruntime alone."""
 
     def __init__(self, module: HybridModule):
         super().__init__()
         self.module = module
 
-    def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None):
-        error, q = self.module.error_and_joints(pose, previous_pose)
-        return error, q * (180.0 / math.pi)  # (torch.rad2deg has no ONNX export)
+    def forward(self, pose: torch.Tensor, *rest: torch.Tensor):
+        previous_pose = rest[0] if self.module.uses_previous else None
+        joints = rest[-1] * (math.pi / 180.0)  # (torch.deg2rad has no ONNX export)
+        error, q = self.module.error_and_joints(pose, previous_pose, joints)
+        return error, wrap_angles(q) * (180.0 / math.pi)
 
 
 def _train_net(x: np.ndarray, y: np.ndarray, hidden: tuple[int, ...], epochs: int, seed: int) -> ResidualNet:
@@ -172,13 +187,22 @@ class HybridModel:
             stage(names[1])
             self.nets_ = self._fit_residual(self.kinematic_.train_residual_)
             t2 = time.perf_counter()
-        self.module_ = HybridModule(self.kinematic_.module_, self.nets_).eval()
-        self.envelope_ = envelope_of(poses)
-        q = np.degrees(self.kinematic_.train_q_)  # (the nominal IK of the training poses)
+        # rows the identification left out (unreachable / singular, ≤ 1 %): the caller names them
+        self.dropped_ = self.kinematic_.dropped_
+        keep = ~np.isin(np.arange(len(poses)), self.dropped_)
+        poses, errors = poses[keep], errors[keep]
+        previous = None if previous is None else np.asarray(previous, dtype=np.float64).reshape(-1, 6)[keep]
+        q_deg = None if q_deg is None else np.asarray(q_deg, dtype=np.float64).reshape(-1, 6)[keep]
+        q = np.degrees(wrap_angles(torch.as_tensor(self.kinematic_.train_q_)).numpy())  # the trained joints
         self.joint_range_ = [[round(float(a), 3), round(float(b), 3)] for a, b in zip(q.min(0), q.max(0))]
+        lo, hi = np.array(self.joint_range_).T
+        margin = JOINT_MARGIN * (hi - lo) + 0.5  # (compensate's P301 rule: the same widened ranges)
+        self.module_ = HybridModule(self.kinematic_.module_, self.nets_,
+                                    np.radians(np.c_[lo - margin, hi + margin])).eval()
+        self.envelope_ = envelope_of(poses)
         self.n_train_ = len(poses)
         self.fit_seconds_ = {"kinematic": t1 - t0, "residual": t2 - t1, "total": t2 - t0}
-        self.train_stats_ = residual_stats(errors - self.predict(poses, previous))
+        self.train_stats_ = residual_stats(errors - self.predict(poses, previous, q_deg))
         return self
 
     def _fit_residual(self, residual: np.ndarray) -> list[ResidualNet]:
@@ -213,13 +237,33 @@ class HybridModel:
         self._check_fitted()
         return self.module_.uses_previous
 
-    def predict(self, poses: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
-        """Ê [N, 3] mm for poses [N, 6] and the poses visited before them (None: unknown)."""
+    def predict(self, poses: np.ndarray, previous: np.ndarray | None = None,
+                joints: np.ndarray | None = None) -> np.ndarray:
+        """Ê [N, 3] mm for poses [N, 6], the poses visited before them (None: unknown) and the
+        controller's joint angles [N, 6] deg (None / NaN rows: unknown), which pick each row's
+        IK branch (as the exported graph's ``joints`` input)."""
         self._check_fitted()
         pose = torch.as_tensor(np.asarray(poses, dtype=np.float64).reshape(-1, 6))
         prev = None if previous is None else torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
+        q_in = None if joints is None else torch.as_tensor(np.radians(np.asarray(joints, dtype=np.float64).reshape(-1, 6)))
         with torch.no_grad():
-            return self.module_(pose, prev).numpy()
+            return self.module_(pose, prev, q_in).numpy()
+
+    def predict_at_joints(self, poses: np.ndarray, joints: np.ndarray) -> np.ndarray:
+        """Ê [N, 3] with the identified arm evaluated at exactly these joint angles [N, 6] deg
+        (no IK, no visiting order): P − FK_identified(q), the classical calibration's figure
+        when the data's poses and angles disagree slightly (a planner's numerical IK)."""
+        self._check_fitted()
+        pose = torch.as_tensor(np.asarray(poses, dtype=np.float64).reshape(-1, 6))
+        q = torch.as_tensor(np.radians(np.asarray(joints, dtype=np.float64).reshape(-1, 6)))
+        m = self.module_
+        with torch.no_grad():
+            learned = inside_ranges(q, m.joint_range)
+            error = m.kinematic.error_at(q, torch.zeros_like(q), pose[:, :3], learned)
+            if len(m.nets):
+                features = joint_features(q, torch.zeros_like(q) if m.uses_previous else None)
+                error = error + learned[:, None] * torch.stack([net(features) for net in m.nets]).mean(dim=0)
+            return error.numpy()
 
     def fixed_point_iterations(self, poses: np.ndarray, tol_mm: float = 2e-3, most: int = 8) -> int:
         """The fewest iterations k of c = P + Ê(c) (each target coming from its predecessor's
@@ -250,6 +294,11 @@ class HybridModel:
             "ik_family": km.ik_.family,
             "residual_nets": len(self.nets_),
             "residual_check": getattr(self, "residual_check_", None),
+            # the identified parameters of the physical groups (rad, mm, rad/Nm; each flattened
+            # as Layout.unpack reads it; the ripple amplitudes are not stored): what a
+            # re-calibration (--update, not built yet) would start from
+            "parameters": {name: [float(v) for v in np.ravel(p[name])]
+                           for name in km.layout_.sizes if name != "ripple" and km.layout_.sizes[name]},
         }
 
     def export_onnx(self, path: str | Path, **metadata) -> Path:
@@ -260,7 +309,8 @@ class HybridModel:
         envelope["joints"] = self.joint_range_
         meta = {"method": self.label, "structure": self.structure, "envelope": envelope, "iterations": 2}
         meta.update(metadata)
-        return write_atomic(path, onnx_bytes(_WithJoints(self.module_), meta, self.uses_previous, joints=True))
+        return write_atomic(path, onnx_bytes(_WithJoints(self.module_), meta, self.uses_previous, joints=True,
+                                             joints_input=True))
 
     @property
     def structure(self) -> str:

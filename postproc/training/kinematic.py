@@ -38,17 +38,28 @@ import torch
 
 from ..diagnostics import PostprocError
 from ..robot import RobotDescription
-from .arm import Arm, axis_rotations, choose_branch, make_ik, mv, small_rotation
-from .features import motion_signs
+from .arm import Arm, axis_rotations, choose_branch, coupling_pairs, make_ik, mv, small_rotation
+from .features import inside_ranges, motion_signs
 
 __all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS"]
 
-GROUPS = ("placement", "base", "tool", "zero", "compliance", "backlash")
+GROUPS = ("placement", "base", "tool", "zero", "compliance", "coupling", "backlash")
 DEFAULT_GROUPS = GROUPS
+# compliance with unknown link masses / lever arms: joint j deflects by Σ_i k_ji·τ_ji over the
+# links i ≥ j it carries (21 pairs), τ_ji the gravity torque of link i alone about joint j
+COUPLING_J, COUPLING_I = coupling_pairs(6)
+N_COUPLING = len(COUPLING_J)
+COUPLING_ONEHOT = torch.nn.functional.one_hot(torch.tensor(COUPLING_J), 6).to(torch.float64)  # [21, 6]
 # the prior's unit sizes: 1 mrad (0.057°) for angles, 1 mm for offsets
 PRIOR_RAD, PRIOR_MM = 1e-3, 1.0
 # a pose whose IK does not bring the nominal arm back onto it (mm) is out of reach
 REACH_TOLERANCE_MM = 0.01
+# rows whose joint angles put the nominal arm farther than this from the row's pose (mm) are
+# not this robot's angles for that pose (a planner's numerical IK leaves < 1 mm on IPA)
+JOINTS_TOLERANCE_MM = 5.0
+# at most this share of the rows is dropped (named in a warning) as out of reach / off; more
+# is refused (P508): the robot description or the data is wrong
+DROP_AT_MOST = 0.01
 # joint steps below this (rad) count as no motion: float32 IK noise is ~1e-7 rad
 SIGN_DEADBAND = 2e-6
 
@@ -62,7 +73,7 @@ class Layout:
 
     @property
     def sizes(self) -> dict[str, int]:
-        size = {"placement": 36, "base": 6, "tool": 3, "zero": 6, "compliance": 6, "backlash": 6}
+        size = {"placement": 36, "base": 6, "tool": 3, "zero": 6, "compliance": 6, "coupling": N_COUPLING, "backlash": 6}
         out = {g: size[g] for g in GROUPS if g in self.groups}
         out["ripple"] = 2 * len(self.ripple)
         return out
@@ -92,6 +103,7 @@ class Layout:
             "tool": get("tool", (3,)),
             "zero": get("zero", (6,)),
             "compliance": get("compliance", (6,)),
+            "coupling": get("coupling", (N_COUPLING,)),
             "backlash": get("backlash", (6,)),
             "ripple": theta[s["ripple"]].reshape(-1, 2),
         }
@@ -116,10 +128,17 @@ def identified_chain(arm: Arm, p: dict[str, torch.Tensor]) -> dict[str, torch.Te
     return {"placements": placements, "end": end, "base": base}
 
 
+def static_deflection(p: dict[str, torch.Tensor], tau: torch.Tensor) -> torch.Tensor:
+    """δq [..., 6] rad of the compliance groups for torque terms ``tau`` [..., 6 + 21]."""
+    dq = p["compliance"] * tau[..., :6]
+    return dq + (p["coupling"] * tau[..., 6:]) @ COUPLING_ONEHOT.to(tau.dtype)
+
+
 def joint_error(p: dict[str, torch.Tensor], q: torch.Tensor, signs: torch.Tensor, tau: torch.Tensor,
                 ripple_joint: torch.Tensor, ripple_order: torch.Tensor) -> torch.Tensor:
-    """δq [N, 6] rad: zero offsets + compliance·τ − backlash·s + Σ ripple."""
-    dq = p["zero"] + p["compliance"] * tau - p["backlash"] * signs
+    """δq [N, 6] rad: zero offsets + compliance·τ + Σ_i coupling_ji·τ_ji − backlash·s + Σ ripple
+    (``tau`` [N, 6 + 21]: ``Arm.torque_terms``)."""
+    dq = p["zero"] + static_deflection(p, tau) - p["backlash"] * signs
     if len(ripple_joint):
         phase = q[:, ripple_joint] * ripple_order  # [N, R]
         terms = torch.sin(phase) * p["ripple"][:, 0] + torch.cos(phase) * p["ripple"][:, 1]
@@ -166,7 +185,9 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
     if "zero" in layout.groups:
         cols["zero"] = sens
     if "compliance" in layout.groups:
-        cols["compliance"] = sens * tau[:, None, :]
+        cols["compliance"] = sens * tau[:, None, :6]
+    if "coupling" in layout.groups:
+        cols["coupling"] = sens[:, :, COUPLING_J] * tau[:, None, 6:]
     if "backlash" in layout.groups:
         cols["backlash"] = -sens * signs[:, None, :]
     if len(layout.ripple):
@@ -179,16 +200,17 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
 
 
 def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, pose: torch.Tensor,
-                   previous: torch.Tensor) -> torch.Tensor:
+                   previous: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
     """Approach signs [N, 6] for q = IK(pose) reached from ``previous`` [N, 6]. A row whose
     previous pose is the pose itself (compensate's first target: nothing known before it) is
-    taken as reached from HOME, where robot programs start.
+    taken as reached from HOME, where robot programs start. ``q_in`` (the controller's angles
+    at ``pose``, NaN rows unknown): the previous pose is solved on the same branch.
 
     Hard signs, as the simulator's backlash: a ramp over the lost motion (a joint turning back
     by less than it takes it up in part) is more physical, but measured worse on the simulator
     (0.23 vs 0.10 mm max on robot seed 3: a 0.003° step of A1 got a third of its sign)."""
     same = (previous == pose).all(dim=1, keepdim=True)
-    q_prev = torch.where(same, home_q.expand_as(q), ik(previous))
+    q_prev = torch.where(same, home_q.expand_as(q), ik(previous) if q_in is None else ik(previous, q_in))
     return motion_signs(q, q_prev, eps=SIGN_DEADBAND)
 
 
@@ -212,38 +234,56 @@ class KinematicErrorModule(torch.nn.Module):
         self.register_buffer("ripple_order", torch.tensor([float(n) for _, n in layout.ripple], dtype=torch.float64))
         # the compliance term's mean over the data goes into the zero offsets: what is left to
         # first order is its variation, ~10x smaller (and the neglected second order 100x)
-        self.register_buffer("tau_mean", torch.as_tensor(np.zeros(6) if tau_mean is None else tau_mean, dtype=torch.float64))
+        self.register_buffer("tau_mean", torch.as_tensor(np.zeros(6 + N_COUPLING) if tau_mean is None else tau_mean,
+                                                         dtype=torch.float64))
         with torch.no_grad():
             p = layout.unpack(self.theta)
             chain = identified_chain(arm, p)
-            turn = axis_rotations(arm.axes, (p["zero"] + p["compliance"] * self.tau_mean)[None, :])[0]  # [6, 3, 3]
+            turn = axis_rotations(arm.axes, (p["zero"] + static_deflection(p, self.tau_mean))[None, :])[0]  # [6, 3, 3]
             folded = chain["placements"].clone()
             folded[:, :3, :3] = folded[:, :3, :3] @ turn  # R(axis_j, z_j) commutes with the joint's turn
         self.register_buffer("placements", folded)
         self.register_buffer("end", chain["end"])
         self.register_buffer("base", chain["base"])
 
-    def parts(self, pose: torch.Tensor, previous: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(Ê [N, 3], q [N, 6], signs [N, 6]) for float64 poses."""
-        q = self.ik(pose)
+    def joints_of(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
+        """q [N, 6] rad the controller turns to for float64 ``pose``: the nominal IK on the
+        identified branch, or per row on the branch of ``q_in`` [N, 6] rad (the controller's
+        angles at or near that pose; NaN rows: the identified branch)."""
+        return self.ik(pose) if q_in is None else self.ik(pose, q_in)
+
+    def parts(self, pose: torch.Tensor, previous: torch.Tensor | None = None, q_in: torch.Tensor | None = None,
+              ranges: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(Ê [N, 3], q [N, 6], signs [N, 6], learned [N]) for float64 poses (``q_in``: see
+        ``joints_of``); with joint ``ranges`` [6, 2] rad the ripple terms are left out where q
+        is outside them (learned = 0 there, else 1)."""
+        q = self.joints_of(pose, q_in)
         signs = torch.zeros_like(q)
         if self.use_previous and previous is not None:
-            signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous)
-        return self.error_at(q, signs, pose[:, :3]), q, signs
+            signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous, q_in)
+        learned = torch.ones_like(q[:, 0]) if ranges is None else inside_ranges(q, ranges)
+        return self.error_at(q, signs, pose[:, :3], None if ranges is None else learned), q, signs, learned
 
     def torques(self, q: torch.Tensor) -> torch.Tensor:
         """The gravity torques [N, 6] the model uses: of its own chain at q, without the base
         (gravity acts in the robot's frame, not in the registered one)."""
         rot, org, _ = self.arm.frames(q, placements=self.placements, end=self.end)
-        return self.arm.gravity_torques(rot, org)
+        return self.arm.torque_terms(rot, org)
 
-    def error_at(self, q: torch.Tensor, signs: torch.Tensor, position: torch.Tensor) -> torch.Tensor:
-        """Ê [N, 3] for commanded positions [N, 3] whose IK is q [N, 6], reached with ``signs``."""
+    def error_at(self, q: torch.Tensor, signs: torch.Tensor, position: torch.Tensor,
+                 learned: torch.Tensor | None = None) -> torch.Tensor:
+        """Ê [N, 3] for commanded positions [N, 3] whose IK is q [N, 6], reached with ``signs``;
+        ``learned`` [N] (1 keep, 0 drop) scales the gear-ripple terms, which do not extrapolate
+        outside the trained joint ranges (the physical groups do)."""
         p = self.layout.unpack(self.theta)
         p["zero"] = torch.zeros_like(p["zero"])  # (folded into the placements)
         rot, org, tcp = self.arm.frames(q, placements=self.placements, end=self.end)
-        tau = self.arm.gravity_torques(rot, org) - self.tau_mean
+        tau = self.arm.torque_terms(rot, org) - self.tau_mean
         dq = joint_error(p, q, signs, tau, self.ripple_joint, self.ripple_order)
+        if learned is not None and len(self.ripple_joint):
+            p["ripple"] = torch.zeros_like(p["ripple"])
+            physical = joint_error(p, q, signs, tau, self.ripple_joint, self.ripple_order)
+            dq = physical + learned[:, None] * (dq - physical)
         omega = torch.stack([mv(rot[:, j], self.arm.axes[j]) for j in range(6)], dim=1)
         sens = torch.linalg.cross(omega, tcp[:, None, :] - org)  # [N, 6, 3]
         actual = tcp + (sens * dq[..., None]).sum(dim=1)
@@ -303,23 +343,41 @@ class KinematicModel:
         self.arm_ = Arm(self.description)
         self._choose_ik(poses, q_deg)
         groups = tuple(g for g in self.groups if g != "backlash" or previous is not None)
+        n_par = Layout(groups, list(self.ripple) if isinstance(self.ripple, list) else []).n
+        if 3 * len(poses) < n_par:
+            raise PostprocError(
+                f"{len(poses)} training rows give {3 * len(poses)} measured coordinates, fewer than the {n_par} "
+                f"parameters of {', '.join(groups)}: a model fitted on them would be worse than none; measure "
+                f"at least {-(-n_par // 3)} poses", code="P505")
         self.use_previous_ = previous is not None  # the approach signs: backlash, and the residual nets' inputs
         with torch.no_grad():
-            q = self.ik_(torch.as_tensor(poses))
+            pose_t = torch.as_tensor(poses)
+            q_in = None if q_deg is None else torch.as_tensor(np.radians(np.asarray(q_deg, dtype=np.float64)))
+            # the controller's own angles when the data has them (the arm went there), else the IK
+            q = self.ik_(pose_t) if q_in is None else q_in
             rot, org, tcp = self.arm_.frames(q)
-            tau = self.arm_.gravity_torques(rot, org)
-            miss = torch.linalg.norm(tcp - torch.as_tensor(poses[:, :3]), dim=1).numpy()
-            if np.any(miss > REACH_TOLERANCE_MM):
-                bad = np.flatnonzero(miss > REACH_TOLERANCE_MM)
+            tau = self.arm_.torque_terms(rot, org)
+            miss = torch.linalg.norm(tcp - pose_t[:, :3], dim=1).numpy()
+            # the nominal arm at q must land on the pose: else out of reach (IK) or the joint
+            # angles are of another pose, robot or unit
+            tolerance = REACH_TOLERANCE_MM if q_in is None else JOINTS_TOLERANCE_MM
+            bad = np.flatnonzero(~(miss <= tolerance))
+            self.dropped_ = bad
+            if len(bad) > max(DROP_AT_MOST * len(poses), 0):
+                what = "out of reach of" if q_in is None else "not where the joint angles q1..q6 put"
                 raise PostprocError(
-                    f"{len(bad)} of {len(poses)} poses are out of reach of the nominal {self.description.name} "
+                    f"{len(bad)} of {len(poses)} poses are {what} the nominal {self.description.name} "
                     f"(IK {self.ik_.family} branch {list(self.ik_.branch)}; first: row {bad[0] + 1}, "
-                    f"{np.round(poses[bad[0]], 3).tolist()}): is this the robot of the data (--robot)?",
-                    self.description.path, code="P508")
+                    f"{np.round(poses[bad[0]], 3).tolist()}, {miss[bad[0]]:.3g} mm away): is this the robot "
+                    f"of the data (--robot)?", self.description.path, code="P508")
             s = torch.zeros_like(q)
             if previous is not None:
                 prev = torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
-                s = approach_signs(self.ik_, self.arm_.home_q, q, torch.as_tensor(poses), prev)
+                s = approach_signs(self.ik_, self.arm_.home_q, q, pose_t, prev, q_in)
+            if len(bad):  # (a few singular / unreachable rows: left out, named by the caller)
+                keep = torch.as_tensor(~np.isin(np.arange(len(poses)), bad))
+                q, s, tau, tcp, pose_t = q[keep], s[keep], tau[keep], tcp[keep], pose_t[keep]
+                poses, errors = poses[keep.numpy()], errors[keep.numpy()]
         measured = tcp - torch.as_tensor(errors)
         fixed = list(self.ripple) if isinstance(self.ripple, list) else []
         layout = Layout(groups, fixed)
@@ -342,7 +400,7 @@ class KinematicModel:
                 theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
         # the torques of the identified chain (what the exported module computes, one forward
         # kinematics for everything), refitted twice: they depend on θ only weakly
-        for _ in range(2 if layout.n and "compliance" in groups else 0):
+        for _ in range(2 if layout.n and ("compliance" in groups or "coupling" in groups) else 0):
             module = KinematicErrorModule(self.arm_, self.ik_, layout, theta, self.use_previous_, tau.mean(dim=0).numpy())
             with torch.no_grad():
                 tau = module.torques(q)
@@ -352,7 +410,7 @@ class KinematicModel:
         self.module_ = KinematicErrorModule(self.arm_, self.ik_, layout, theta, self.use_previous_,
                                             tau.mean(dim=0).numpy())
         with torch.no_grad():
-            fitted = self.module_.error_at(q, s, torch.as_tensor(poses[:, :3])).numpy()
+            fitted = self.module_.error_at(q, s, pose_t[:, :3]).numpy()
         self.train_q_, self.train_signs_ = q.numpy(), s.numpy()
         self.train_residual_ = errors - fitted
         self.n_train_ = len(poses)
@@ -361,10 +419,11 @@ class KinematicModel:
     def _prior_scales(self, layout: Layout, tau: torch.Tensor) -> np.ndarray:
         """A typical size of every parameter (rad, mm, rad/Nm): the prior's unit."""
         tau_max = torch.abs(tau).amax(dim=0).numpy()
-        compliance = np.where(tau_max > 1e-9, PRIOR_RAD / np.maximum(tau_max, 1e-9), PRIOR_RAD)
+        scales = np.where(tau_max > 1e-9, PRIOR_RAD / np.maximum(tau_max, 1e-9), PRIOR_RAD)
+        compliance, coupling = scales[:6], scales[6:]
         unit = {"placement": np.tile(np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], 6),
                 "base": np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], "tool": np.full(3, PRIOR_MM),
-                "zero": np.full(6, PRIOR_RAD), "compliance": compliance, "backlash": np.full(6, PRIOR_RAD),
+                "zero": np.full(6, PRIOR_RAD), "compliance": compliance, "coupling": coupling, "backlash": np.full(6, PRIOR_RAD),
                 "ripple": np.full(2 * len(layout.ripple), PRIOR_RAD)}
         return np.concatenate([unit[name] for name in layout.sizes])
 
@@ -437,6 +496,29 @@ class KinematicModel:
             if gain[k] > threshold:
                 picks.append(((j, int(orders[k])), float(gain[k])))
         return sorted(picks, key=lambda pick: -pick[1])
+
+    def identifiability(self, tolerance: float = 1e-6) -> dict:
+        """What the data can tell apart: the numerical rank of the fit's Jacobian (columns scaled
+        by each parameter's typical size, singular values below ``tolerance`` × the largest
+        count as zero) and, for each direction it cannot see, the groups that share it (e.g. a
+        zero offset and a placement turned about that joint's axis: one effect, two groups);
+        the weak prior settles those, the data does not."""
+        _, jac, _ = self._state
+        layout = self.layout_
+        sigma = self._prior_scales(layout, torch.as_tensor(np.ones((1, 6 + N_COUPLING))))
+        scaled = jac * sigma
+        _, sv, vt = np.linalg.svd(scaled, full_matrices=False)
+        rank = int((sv > tolerance * sv[0]).sum()) if len(sv) else 0
+        owner = np.concatenate([[name] * k for name, k in layout.sizes.items() if k])
+        together = []
+        for v in vt[rank:]:
+            share = {}
+            for name, w in zip(owner, v * v):
+                share[name] = share.get(name, 0.0) + float(w)
+            groups = tuple(sorted(g for g, w in share.items() if w > 0.05))
+            if groups not in together:
+                together.append(groups)
+        return {"parameters": int(layout.n), "rank": rank, "unseparated": [list(g) for g in together]}
 
     # ------------------------------------------------------------------ using it
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
