@@ -34,6 +34,7 @@ def add_parser(sub, common, formatter) -> None:
                    "(its 'robot' metadata), unless --force")
     p.add_argument("--settings", metavar="TOML", help="pyproject.toml or postproc.toml to read (default: searched "
                    "upwards from the current directory); options override its [tool.postproc] values")
+    p.add_argument("--in-place", action="store_true", help="allow -o to be the input itself (overwrite it)")
     p.add_argument("--force", action="store_true",
                    help="compensate an already compensated program / another tool's or robot's program")
     p.set_defaults(run=run)
@@ -43,6 +44,9 @@ def run(args) -> int:
     from ..compensate import DEFAULT_MAX_CORRECTION_MM, compensate_file, compensate_program, load_program
     from ..config import load_config
 
+    from ..outputs import check_program_outputs
+
+    check_program_outputs(args.input, args.output, in_place=args.in_place)
     cfg = load_config(args.settings)  # [tool.postproc]: the options given here win
     args.model = args.model or cfg.model
     args.config = args.config or (list(cfg.config) if cfg.config else None)

@@ -43,10 +43,11 @@ def run(args) -> int:
     from ..diagnostics import PostprocError
     from ..planning import read_pose_csv
     from ..progress import stages
-    from ..rewrite import write_atomic
+    from ..outputs import check_outputs, write as write_atomic
     from ..simulator import CODE_REACH, SimulatedRobot
     from . import show_progress
 
+    check_outputs([args.output], [args.plan, args.robot or "-"])
     with stages(["read plan", "draw robot", "controller IK", "simulate and measure", "write"], "measure",
                 show_progress(args)) as stage:
         stage("read plan")

@@ -49,10 +49,11 @@ def run(args) -> int:
     from ..planning import DEFAULT_ATTITUDE, DEFAULT_BOX, DEFAULT_RANGE, krl_measurement_program, latin_hypercube, \
         plan_csv_text, round_poses
     from ..progress import stages
-    from ..rewrite import write_atomic
+    from ..outputs import check_outputs, write as write_atomic
     from ..robot import Robot, load_description
     from . import show_progress
 
+    check_outputs([args.output, args.krl or "-"], [args.robot or "-"])
     description = load_description(args.robot)
     ws = description.workspace
     box = args.box if args.box is not None else ws.get("box", DEFAULT_BOX)

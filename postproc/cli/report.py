@@ -47,13 +47,9 @@ def add_parser(sub, common, formatter) -> None:
 def run(args) -> int:
     from ..compensator import load_model
     from ..config import load_config
-    from ..diagnostics import PostprocError
     from ..report import read_report_data, write_report
 
-    try:
-        import matplotlib  # noqa: F401  (only to fail early with a clear message)
-    except ImportError:
-        raise PostprocError("postproc report needs matplotlib: pip install 'postproc[report]'") from None
+    import matplotlib  # noqa: F401  (only to fail early: postproc.cli names the extra to install)
     model = load_model(args.model or load_config().model)
     data = read_report_data(args.measured, model, args.after)
     files = write_report(data, args.output, args.title)
