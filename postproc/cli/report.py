@@ -61,6 +61,10 @@ def run(args) -> int:
         print(f"postproc report: {len(data)} poses, mean |E| {before['mean']:.3f} mm → {after['mean']:.3f} mm "
               f"({data.after_kind}); max {before['max']:.3f} → {after['max']:.3f} mm; wrote {files['markdown']}",
               file=sys.stderr)
+        if data.trained_on:
+            from ..report import TRAINED_ON
+
+            print(f"postproc report: warning: {TRAINED_ON}", file=sys.stderr)
         if data.outside_envelope:
             print(f"postproc report: {data.outside_envelope} poses are outside the model's envelope", file=sys.stderr)
         if args.verbose:
