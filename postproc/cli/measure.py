@@ -72,5 +72,7 @@ def run(args) -> int:
         e = np.linalg.norm(poses[:, :3] - measured, axis=1)
         which = "default" if sim.is_default else "drawn"
         print(f"postproc: {args.output}: {len(poses)} poses measured on {sim.robot.name} (robot seed {sim.seed}, "
-              f"{which}), noise seed {args.seed}; error mean {e.mean():.3f} max {e.max():.3f} mm", file=sys.stderr)
+              f"{which}), noise seed {args.seed}; measured vs commanded (the rows' x,y,z): mean {e.mean():.3f} "
+              f"max {e.max():.3f} mm (of a compensated plan: the commands moved on purpose; its error against "
+              "the original targets is `postproc report before.csv --after after.csv`)", file=sys.stderr)
     return 0

@@ -47,7 +47,7 @@ def run(args) -> int:
 
     from ..diagnostics import PostprocError
     from ..planning import DEFAULT_ATTITUDE, DEFAULT_BOX, DEFAULT_RANGE, krl_measurement_program, latin_hypercube, \
-        plan_csv_text, round_poses
+        plan_csv_chunks, reachable, round_poses
     from ..progress import stages
     from ..outputs import check_outputs, write as write_atomic
     from ..robot import Robot, load_description
@@ -66,7 +66,7 @@ def run(args) -> int:
         poses = round_poses(latin_hypercube(args.poses, box, attitude, range_deg, args.seed))
         robot = Robot(description)
         stage("reach check (IK)")
-        _, ok = robot.ik(poses)
+        ok = reachable(robot, poses)
         if not ok.all():
             bad = np.flatnonzero(~ok)
             raise PostprocError(
@@ -74,7 +74,7 @@ def run(args) -> int:
                 f"(first: pose {bad[0] + 1} = {poses[bad[0]].tolist()}); shrink --box or --range, or move the box",
                 description.path, code="P335")
         stage("write")
-        outputs = [(Path(args.output), plan_csv_text(poses))]
+        outputs = [(Path(args.output), plan_csv_chunks(poses))]
         if args.krl is not None:
             src = Path(args.krl)
             comment = (f"Latin hypercube seed {args.seed}, box {list(map(float, box))}, "
