@@ -47,8 +47,8 @@ def check_outputs(outputs: Iterable[str | Path], inputs: Iterable[str | Path] = 
     seen: list[Path] = []
     for path in paths:
         if any(_same(path, other) for other in seen):
-            raise PostprocError(f"two outputs would both be written to {path}: give {option} a name with the "
-                                "program's suffix", str(path), code=CODE)
+            raise PostprocError(f"two files of the program would both be written to {path}: give {option} a name "
+                                "with the program's suffix", str(path), code=CODE)
         seen.append(path)
         if path.is_dir():
             raise PostprocError(f"is a directory: give {option} a file name",

@@ -79,7 +79,7 @@ def test_the_dat_beside_is_part_of_the_rule(tmp_path):
     src, dat = tmp_path / "weld.src", tmp_path / "weld.dat"
     src.write_text("DEF weld()\nEND\n")
     dat.write_text("DEFDAT weld\nENDDAT\n")
-    with pytest.raises(PostprocError, match="two outputs would both be written"):
+    with pytest.raises(PostprocError, match="two files of the program would both be written"):
         check_program_outputs(src, tmp_path / "out.dat")  # the .src and the .dat onto out.dat
     with pytest.raises(PostprocError, match="is the input"):  # the output's .dat is the input's
         check_program_outputs(src, tmp_path / "sub" / ".." / "weld.src")
