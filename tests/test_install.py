@@ -22,8 +22,15 @@ def run(cmd, cwd, **kw):
     return done
 
 
-def test_a_built_wheel_installs_outside_the_checkout_and_compensates(tmp_path):
+@pytest.fixture
+def scratch(tmp_path):
+    yield tmp_path
+    shutil.rmtree(tmp_path / "venv", ignore_errors=True)  # ~0.3 GB: not left in the temp dir
+
+
+def test_a_built_wheel_installs_outside_the_checkout_and_compensates(scratch):
     pytest.importorskip("build", reason="python -m build is in the test extra: pip install -e '.[test]'")
+    tmp_path = scratch
     source = tmp_path / "source"  # what a clone holds: tracked files only
     listed = run(["git", "ls-files", "-z", "--cached"], REPO).stdout
     for name in filter(None, listed.split("\0")):
