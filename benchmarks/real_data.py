@@ -220,6 +220,11 @@ def main() -> None:
     ap.add_argument("--val-fraction", type=float, default=0.2)
     ap.add_argument("--only", default="", help="comma-separated predictor names (default all)")
     args = ap.parse_args()
+    data_file = Path(args.data) / args.file
+    if not data_file.is_file():  # the data set is not shipped: say where to get it, no traceback
+        sys.exit(f"real_data.py: {data_file} not found. This benchmark needs the IPA robot-accuracy data set "
+                 "(Landgraf et al. 2021, MIT; not shipped, samples/ipa/ holds a 150-row excerpt): download it and "
+                 "give its folder with --data DIR or $POSTPROC_IPA_DATA.")
     import torch
 
     torch.set_num_threads(1)

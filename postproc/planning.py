@@ -49,6 +49,10 @@ DEFAULT_RANGE = 10.0
 POSE_COLUMNS = ("x", "y", "z", "a", "b", "c")
 # digits written for mm and degrees: the plan CSV and the KRL program hold the same numbers
 MM_DECIMALS, DEG_DECIMALS = 3, 4
+# a plan is drawn whole (a Latin hypercube is one permutation per dimension: 48 bytes a pose),
+# then checked and written CHUNK rows at a time; MAX_POSES keeps it to about 1 GB
+MAX_POSES = 10_000_000
+CHUNK = 65_536
 
 
 def latin_hypercube(
@@ -66,6 +70,9 @@ def latin_hypercube(
     attitude = np.asarray(attitude, float)
     if n < 1:
         raise PostprocError(f"a plan needs at least 1 pose, got {n}", code="P512")
+    if n > MAX_POSES:
+        raise PostprocError(f"a plan holds at most {MAX_POSES:,} poses (about 1 GB of memory), got {n:,}: "
+                            "split it into several plans with different --seed", code="P512")
     if box.shape != (6,) or np.any(box[1::2] < box[0::2]):
         raise PostprocError(f"box must be X0 X1 Y0 Y1 Z0 Z1 with X0 <= X1 etc., got {box.tolist()}", code="P512")
     if attitude.shape != (3,) or not range_deg >= 0:
@@ -85,14 +92,29 @@ def round_poses(poses: np.ndarray) -> np.ndarray:
 def plan_csv_text(poses: np.ndarray, config: np.ndarray | None = None) -> str:
     """The plan as CSV text: header ``x,y,z,a,b,c`` (``,s,t`` with ``config`` [N, 2]), one
     pose per row, in visiting order."""
-    buf = io.StringIO()
+    return "".join(plan_csv_chunks(poses, config))
+
+
+def plan_csv_chunks(poses: np.ndarray, config: np.ndarray | None = None, chunk: int = CHUNK):
+    """:func:`plan_csv_text` in pieces of ``chunk`` rows (for a writer that streams them)."""
     fmt = [f"%.{MM_DECIMALS}f"] * 3 + [f"%.{DEG_DECIMALS}f"] * 3
-    table, header = round_poses(poses), list(POSE_COLUMNS)
+    header = list(POSE_COLUMNS)
     if config is not None:
-        table = np.hstack([table, np.asarray(config, float).reshape(-1, 2)])
+        config = np.asarray(config, float).reshape(-1, 2)
         fmt, header = fmt + ["%d", "%d"], header + ["s", "t"]
-    np.savetxt(buf, table, fmt=fmt, delimiter=",", header=",".join(header), comments="")
-    return buf.getvalue()
+    yield ",".join(header) + "\n"
+    for start in range(0, len(poses), chunk):
+        buf = io.StringIO()
+        table = round_poses(poses[start:start + chunk])
+        if config is not None:
+            table = np.hstack([table, config[start:start + chunk]])
+        np.savetxt(buf, table, fmt=fmt, delimiter=",")
+        yield buf.getvalue()
+
+
+def reachable(robot, poses: np.ndarray, chunk: int = CHUNK) -> np.ndarray:
+    """``robot.ik``'s reachable mask, ``chunk`` rows at a time (bounded memory)."""
+    return np.concatenate([robot.ik(poses[i:i + chunk])[1] for i in range(0, len(poses), chunk)])
 
 
 def write_plan_csv(path: str | Path, poses: np.ndarray, config: np.ndarray | None = None) -> None:

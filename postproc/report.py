@@ -11,7 +11,8 @@ in the first — it is the measured residual P − P_after.
 :func:`write_report` writes, into one folder: ``report.md`` (Table 2, the model card, the
 figures), ``summary.json`` (the same numbers), ``series.csv`` and ``histogram.csv`` (every
 number each plot shows, so that a reader or a test can check the plots) and three PNGs.
-matplotlib is imported only in :func:`write_plots`, with the Agg canvas (no display).
+matplotlib is imported only in :func:`make_figures` / :func:`write_plots`, with the Agg canvas
+(no display).
 """
 from __future__ import annotations
 
@@ -34,10 +35,13 @@ __all__ = [
     "histogram",
     "write_series",
     "write_plots",
+    "make_figures",
     "write_report",
     "FIGURES",
 ]
 
+TRAINED_ON = ("these rows trained the model (the file's sha256 is the model card's data_sha256): \"after\" is "
+              "how well it fits its own training data, not its accuracy on new poses; report on rows it has not seen")
 AFTER_COLUMNS = ("x_after", "y_after", "z_after")
 FIGURES = {
     "histogram": "error_histogram.png",
@@ -45,6 +49,7 @@ FIGURES = {
     "predicted": "predicted_vs_measured.png",
 }
 BINS = 30
+MIN_WIDTH_PX = 1200  # every figure, at write_plots' default dpi
 MAX_ARROWS = 400  # more arrows than this hide each other in a 3-D quiver
 
 
@@ -61,6 +66,20 @@ class ReportData:
     source_sha256: str = ""
     model_card: dict = field(default_factory=dict)  # the model's metadata + file, sha256
     outside_envelope: int = 0
+
+    @property
+    def trained_on(self) -> bool:
+        """These rows are the model's own training data (the file's sha256 is the model card's
+        ``data_sha256``): "after" then says how well it fits them, not how it does on new poses."""
+        return bool(self.model_card) and self.model_card.get("data_sha256") == self.source_sha256
+
+    @property
+    def data_label(self) -> str:
+        """On which data, for titles: the file, and whether the model was trained on it."""
+        name = Path(self.source).name or "stdin"
+        model = self.model_card.get("name", "") if self.model_card else ""
+        text = f"{len(self)} poses of {name}" + (f", model {model}" if model else "")
+        return text + (" (its own training data)" if self.trained_on else "")
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -217,41 +236,60 @@ def _vector_scale(data: ReportData) -> float:
     return max(span, 1.0) * 0.08 / largest
 
 
-def write_plots(data: ReportData, folder: Path, dpi: int = 90) -> dict[str, Path]:
-    """The three figures as PNGs (matplotlib, Agg canvas: no display needed)."""
+DPI = 150
+
+
+def write_plots(data: ReportData, folder: Path, dpi: int = DPI) -> dict[str, Path]:
+    """The figures of :func:`make_figures` as PNGs (Agg canvas: no display needed)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
 
-    after_label = "after, |E − Ê| (first order)" if data.after_kind == "first-order" else "after, measured"
     written: dict[str, Path] = {}
-
-    def save(fig: Figure, key: str) -> None:
+    for key, fig in make_figures(data).items():
         FigureCanvasAgg(fig)
         path = folder / FIGURES[key]
         fig.savefig(path, dpi=dpi, metadata={"Software": None})  # no version string: same data, same bytes
         written[key] = path
+    return written
+
+
+def make_figures(data: ReportData) -> dict:
+    """The three figures (matplotlib Figures, by FIGURES key), at least ``MIN_WIDTH_PX`` wide
+    at ``DPI``: axes labelled with units, a colour bar where colour carries a value, titles
+    that say what is plotted and on which data."""
+    from matplotlib import cm, colors
+    from matplotlib.figure import Figure
+
+    after_label = "after, |E − Ê| (first order)" if data.after_kind == "first-order" else "after, measured"
+    made: dict[str, Figure] = {}
+
+    def save(fig: Figure, key: str) -> None:
+        made[key] = fig
 
     # 1. histogram of error norms, before and after, on common bins
     edges, before, after = histogram(data)
-    fig = Figure(figsize=(6.4, 3.6), layout="constrained")
+    fig = Figure(figsize=(8.4, 4.8), layout="constrained")
     ax = fig.add_subplot()
     width = edges[1] - edges[0]
     ax.bar(edges[:-1], before, width=width, align="edge", alpha=0.55, label="before, |E|", color="tab:red")
     ax.bar(edges[:-1], after, width=width, align="edge", alpha=0.55, label=after_label, color="tab:blue")
     for norms, color in ((data.before_norm, "tab:red"), (data.after_norm, "tab:blue")):
         ax.axvline(norms.mean(), color=color, linestyle="--", linewidth=1)
-    ax.set_xlabel("positioning error norm (mm); dashed: mean")
-    ax.set_ylabel("poses")
-    ax.set_title(f"Error norms at {len(data)} poses")
+    ax.set_xlabel("positioning error norm |E| (mm); dashed lines: means")
+    ax.set_ylabel("number of poses")
+    ax.set_title(f"Positioning error before and after compensation\n{data.data_label}", fontsize=10)
     ax.legend(loc="upper right", framealpha=0.9)
     save(fig, "histogram")
 
     # 2. error vectors over the box, before and after, same magnification
     scale = _vector_scale(data)
-    fig = Figure(figsize=(9.0, 4.2), layout="constrained")
+    fig = Figure(figsize=(12.0, 5.6), layout="constrained")
+    fig.suptitle(f"Error vectors at the commanded positions (arrows magnified ×{scale:.0f}), {data.data_label}",
+                 fontsize=10)
     top = float(data.before_norm.max())
+    norm = colors.Normalize(0.0, max(top, 1e-9))
     rows = vector_rows(len(data))
     p = data.poses[rows, :3]
+    axes = []
     for k, (vectors, norms, label) in enumerate(((data.error, data.before_norm, "before, E"),
                                                  (data.after, data.after_norm, after_label))):
         ax = fig.add_subplot(1, 2, k + 1, projection="3d")
@@ -259,28 +297,33 @@ def write_plots(data: ReportData, folder: Path, dpi: int = 90) -> dict[str, Path
         ax.quiver(p[:, 0], p[:, 1], p[:, 2], *(vectors[rows] * scale).T, colors=_colormap(norms[rows] / max(top, 1e-9)),
                   linewidth=0.8, arrow_length_ratio=0.25)
         drawn = "" if len(rows) == len(data) else f", {len(rows)} of {len(data)} drawn"
-        ax.set_title(f"{label}\nmean {norms.mean():.3f} mm, arrows ×{scale:.0f}{drawn}", fontsize=9)
-        ax.set_xlabel("X mm", fontsize=8)
-        ax.set_ylabel("Y mm", fontsize=8)
-        ax.set_zlabel("Z mm", fontsize=8)
+        ax.set_title(f"{label}: mean {norms.mean():.3f} mm{drawn}", fontsize=9)
+        ax.set_xlabel("X (mm)", fontsize=8)
+        ax.set_ylabel("Y (mm)", fontsize=8)
+        ax.set_zlabel("Z (mm)", fontsize=8, labelpad=6)
+        ax.set_box_aspect(None, zoom=0.82)  # room for the Z label inside the axes' box
         ax.tick_params(labelsize=7)
+        axes.append(ax)
+    bar = fig.colorbar(cm.ScalarMappable(norm=norm, cmap="viridis"), ax=axes, shrink=0.7, pad=0.02)
+    bar.set_label("error norm |E| (mm), one scale for both", fontsize=8)
     save(fig, "vectors")
 
     # 3. predicted vs measured error per axis (only with a model)
     if data.predicted is not None:
-        fig = Figure(figsize=(9.0, 3.3), layout="constrained")
+        fig = Figure(figsize=(12.0, 4.4), layout="constrained")
+        fig.suptitle(f"Error predicted by the model against error measured, per axis; {data.data_label}", fontsize=10)
         for k, axis in enumerate("XYZ"):
             ax = fig.add_subplot(1, 3, k + 1)
             measured, predicted = data.error[:, k], data.predicted[:, k]
             lo, hi = min(measured.min(), predicted.min()), max(measured.max(), predicted.max())
             ax.plot([lo, hi], [lo, hi], color="grey", linewidth=1)
             ax.scatter(measured, predicted, s=6, alpha=0.7)
-            ax.set_title(f"{axis}: R² {_r2(measured, predicted):.3f}", fontsize=9)
+            ax.set_title(f"{axis}: R² {_r2(measured, predicted):.3f} (grey: predicted = measured)", fontsize=9)
             ax.set_xlabel(f"measured E{axis.lower()} (mm)", fontsize=8)
             ax.set_ylabel(f"predicted Ê{axis.lower()} (mm)", fontsize=8)
             ax.set_aspect("equal", adjustable="datalim")
         save(fig, "predicted")
-    return written
+    return made
 
 
 def _colormap(values: np.ndarray) -> np.ndarray:
@@ -313,6 +356,7 @@ def summary(data: ReportData) -> dict:
         "table2_mm": {"before": before, "after": after},
         "mean_reduction": 1.0 - after["mean"] / before["mean"] if before["mean"] else math.nan,
         "outside_envelope": data.outside_envelope,
+        "trained_on_these_rows": data.trained_on,
         "vector_scale": _vector_scale(data),
         "vector_rows": vector_rows(len(data)).tolist(),
         "model": data.model_card,
@@ -340,6 +384,8 @@ def write_markdown(data: ReportData, numbers: dict, figures: dict[str, Path], pa
     if data.after_kind == "first-order":
         lines.append("\"After\" is E − Ê at the measured poses: what compensation leaves to first order, "
                      "not a measurement of the compensated robot.")
+    if data.trained_on:
+        lines.append(f"**{TRAINED_ON}**")
     if data.outside_envelope:
         lines.append(f"**{data.outside_envelope} of {len(data)} poses lie outside the model's training envelope.**")
     lines += [""]

@@ -20,23 +20,29 @@ from .diagnostics import PostprocError
 __all__ = ["format_like", "format_many", "apply_edits", "splice", "check_disjoint", "insert_stamp", "stamp_line", "write_atomic", "recover"]
 
 MIN_DECIMALS = 3
+# at most 1 nm: the model's correction is float32 (~1e-7 of a mm-size value) and a KRL REAL
+# is 32-bit, so digits past this would be float noise, not the number's meaning
+MAX_DECIMALS = 6
 # KRL allows blanks between a sign and its number ('X - 5'): the reader's span covers both
 _TOKEN = re.compile(r"([+-]?)([ \t]*)(\d*)(?:\.(\d*))?(?:([eE])([+-]?)(\d+))?\Z")
 
 
 def format_like(token: str, value: float) -> str:
-    """``value`` written in the style of ``token`` (e.g. '1900.' → '1900.347', '.5' → '.512')."""
+    """``value`` written in the style of ``token`` (e.g. '1900.' → '1900.347', '.5' → '.512'),
+    with MIN_DECIMALS to MAX_DECIMALS decimals (a token's longer tail is cut to 1 nm)."""
     m = _TOKEN.match(token)
     if m is None or not (m.group(3) or m.group(4)):
         raise ValueError(f"not a number token: {token!r}")
     sign, gap, whole, frac, e, esign, edigits = m.groups()
-    decimals = max(MIN_DECIMALS, len(frac or ""))
+    decimals = min(max(MIN_DECIMALS, len(frac or "")), MAX_DECIMALS)
     if e:
         exponent = int(esign + edigits) if esign != "+" else int(edigits)
         # keep the exponent; add as many mantissa decimals as it takes to stay at µm resolution.
         # Decimal scales exactly: 10.0**exponent overflows or underflows for tokens like '0e400'
         mantissa = Decimal(value).scaleb(-exponent)
         digits = max(len(frac or ""), MIN_DECIMALS + exponent, 0)
+        if digits > MAX_DECIMALS + exponent:  # a tail beyond 1 nm: cut, keeping a written '.'
+            digits = max(MAX_DECIMALS + exponent, MIN_DECIMALS + exponent, 1 if frac else 0)
         body = f"{abs(mantissa):.{digits}f}"
         exp_text = e + (esign if esign else "") + str(abs(exponent)).zfill(len(edigits))
         if exponent < 0 and esign != "-":
@@ -60,7 +66,7 @@ _ALL_PLAIN = re.compile(r"(?:-?\d+\.\d+\n)*-?\d+\.\d+")
 
 def _format_plain(values: np.ndarray, decimals: np.ndarray) -> list[str]:
     """'%.{d}f' per value, one format string per distinct decimal count; never '-0.000'."""
-    decimals = np.maximum(decimals, MIN_DECIMALS)
+    decimals = np.clip(decimals, MIN_DECIMALS, MAX_DECIMALS)
     # values that round to zero are written as zero: no '-0.000'
     values = np.where(np.abs(values) < 0.5 * 10.0 ** -decimals, 0.0, values)
     kinds = np.unique(decimals)
@@ -141,7 +147,8 @@ def insert_stamp(text: str, stamp: str, newline: str, after_headers: str | None 
 
 def write_atomic(outputs: Sequence[tuple[Path, str | bytes]]) -> None:
     """Write all files or none: each to a temp file in its directory, then rename them all.
-    Texts are written as latin-1 (a program's bytes, as read); bytes as they are.
+    Texts are written as latin-1 (a program's bytes, as read); bytes as they are; an iterable of
+    str or bytes pieces is written piece by piece (a long output streamed, not joined first).
 
     If a rename fails, files already renamed are put back as they were. Two renames cannot
     be one atomic step, so for a module (.src + .dat) a journal naming the renames is
@@ -161,7 +168,8 @@ def write_atomic(outputs: Sequence[tuple[Path, str | bytes]]) -> None:
             fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
             temps.append((Path(tmp), path))
             with os.fdopen(fd, "wb") as fh:
-                fh.write(text.encode("latin-1") if isinstance(text, str) else text)
+                for piece in [text] if isinstance(text, (str, bytes)) else text:  # or an iterable of pieces
+                    fh.write(piece.encode("latin-1") if isinstance(piece, str) else piece)
                 fh.flush()
                 os.fsync(fh.fileno())
             if path.exists():

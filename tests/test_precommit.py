@@ -1,9 +1,11 @@
 """The pre-commit hooks, run by pre-commit itself on a temporary cell repository.
 
 pre-commit builds a virtualenv and `pip install`s the hook repository, as it does for any
-user: this checkout's working tree (tracked and untracked, not ignored files) is copied into
-a temporary git repository that serves as the hook repository. The install takes 15–25 s on
-this machine (pip resolves from the configured indexes / find-links), hence `slow`.
+user: this checkout's tracked files (`git ls-files --cached`, as a clone of the commit would
+hold them, in their working-tree state) are copied into a temporary git repository that
+serves as the hook repository — never untracked files such as the README's `.venv/` (1.8 GB).
+The install takes 15–25 s on this machine (pip resolves from the configured indexes /
+find-links), hence `slow`.
 """
 import os
 import re
@@ -50,17 +52,33 @@ def run(cmd, cwd, env):
     return subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=240)
 
 
+def hook_files(env) -> list[str]:
+    """The checkout's tracked files that exist (a deletion not yet committed is left out)."""
+    listed = run(["git", "ls-files", "-z", "--cached"], REPO, env)
+    assert listed.returncode == 0, listed.stderr
+    return [name for name in filter(None, listed.stdout.split("\0")) if (REPO / name).is_file()]
+
+
+def test_the_hook_repository_holds_tracked_files_only(tmp_path):
+    """An untracked file (e.g. the README's .venv/, 1.8 GB) never reaches the hook repository."""
+    names = hook_files(_env(tmp_path))
+    assert "setup.cfg" in names and ".pre-commit-hooks.yaml" in names
+    assert not any(n.startswith((".venv/", "out/")) or "/__pycache__/" in n for n in names)
+    size = sum((REPO / n).stat().st_size for n in names)
+    assert size < 50e6, f"the hook repository would hold {size / 1e6:.0f} MB"
+    ignored = run(["git", "check-ignore", "-q", ".venv/bin/python"], REPO, _env(tmp_path))
+    assert ignored.returncode == 0, ".venv/ must be in .gitignore"
+
+
 @pytest.fixture(scope="module")
 def cell(tmp_path_factory):
     """(cell repository, env): hook repo from this checkout, pre-commit installed in the cell."""
-    env = _env(tmp_path_factory.mktemp("pre-commit-home"))
+    home = tmp_path_factory.mktemp("pre-commit-home")
+    env = _env(home)
     hook = tmp_path_factory.mktemp("hook-repo")
-    listed = run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], REPO, env)
-    assert listed.returncode == 0, listed.stderr
-    for name in filter(None, listed.stdout.split("\0")):
-        if (REPO / name).is_file():
-            (hook / name).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(REPO / name, hook / name)
+    for name in hook_files(env):
+        (hook / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(REPO / name, hook / name)
     for cmd in (["git", "init", "-q"], ["git", "add", "-A"], ["git", "commit", "-qm", "hook"]):
         assert run(cmd, hook, env).returncode == 0
     rev = run(["git", "rev-parse", "HEAD"], hook, env).stdout.strip()
@@ -75,7 +93,8 @@ def cell(tmp_path_factory):
     for cmd in (["git", "init", "-q"], [PRE_COMMIT, "install"]):
         done = run(cmd, repo, env)
         assert done.returncode == 0, done.stdout + done.stderr
-    return repo, env
+    yield repo, env
+    shutil.rmtree(home, ignore_errors=True)  # the hook's virtualenv (~0.3 GB): not left in the temp dir
 
 
 def commit(repo, env, message):

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
+from postproc.compensator import load_model
 from postproc.diagnostics import PostprocError
 
 pytest.importorskip("matplotlib")
@@ -102,8 +103,50 @@ def test_report_numbers_plots_and_model_card(affine, tmp_path, capsys):
         assert f"]({name})" in md
         assert (out / name).stat().st_size > 10_000
         pixels = png_pixels(out / name)
-        assert pixels.shape[0] > 250 and pixels.shape[1] > 500
+        assert pixels.shape[0] > 500 and pixels.shape[1] >= 1200  # readable at a glance
         assert pixels[..., :3].std() > 0.05  # not a blank canvas
+    assert summary["trained_on_these_rows"] is False and "trained the model" not in md
+
+
+def test_figures_say_what_on_which_data_with_units_and_a_colour_bar(affine, tmp_path):
+    from postproc.report import DPI, MIN_WIDTH_PX, make_figures, read_report_data
+
+    poses, error, _ = measurement(n=60)
+    csv = write_csv(tmp_path / "cell7.csv", poses, poses[:, :3] - error)
+    model = affine(offset=OFFSET, gain=GAIN, centre=CENTRE, name="cell7-test")
+    figures = make_figures(read_report_data(csv, load_model(model)))
+    assert set(figures) == {"histogram", "vectors", "predicted"}
+    for key, fig in figures.items():
+        assert fig.get_figwidth() * DPI >= MIN_WIDTH_PX, key
+        titles = [fig._suptitle.get_text() if fig._suptitle else ""] + [ax.get_title() for ax in fig.axes]
+        assert any("60 poses of cell7.csv, model cell7-test" in t for t in titles), (key, titles)
+        for ax in fig.axes:
+            labels = [ax.get_xlabel(), ax.get_ylabel()] + ([ax.get_zlabel()] if hasattr(ax, "get_zlabel") else [])
+            assert all("(mm)" in label or label.startswith("number of") for label in labels if label), (key, labels)
+            assert any(labels), key
+    bars = [ax for ax in figures["vectors"].axes if ax.get_ylabel().startswith("error norm |E| (mm)")]
+    assert len(bars) == 1  # the arrows' colours have a scale
+    assert bars[0].get_ylim() == pytest.approx((0.0, np.linalg.norm(error, axis=1).max()), abs=1e-3)
+
+
+def test_a_report_on_the_models_own_training_rows_says_so(tmp_path, capsys):
+    """The model card's data_sha256 is the file's: "after" is a fit, not an accuracy."""
+    import hashlib
+
+    from model_factory import affine_model
+
+    poses, error, _ = measurement(n=40)
+    csv = write_csv(tmp_path / "train.csv", poses, poses[:, :3] - error)
+    sha = hashlib.sha256(csv.read_bytes()).hexdigest()
+    model = affine_model(tmp_path / "m.onnx", offset=OFFSET, gain=GAIN, centre=CENTRE, data_sha256=sha)
+    assert main(["report", str(csv), "--model", str(model), "-o", str(tmp_path / "r")]) == 0
+    err = capsys.readouterr().err
+    assert "warning: these rows trained the model" in err
+    assert json.loads((tmp_path / "r" / "summary.json").read_text())["trained_on_these_rows"] is True
+    assert "**these rows trained the model" in (tmp_path / "r" / "report.md").read_text()
+    other = write_csv(tmp_path / "new.csv", poses[:20], poses[:20, :3] - error[:20])  # other bytes: not flagged
+    assert main(["report", str(other), "--model", str(model), "-o", str(tmp_path / "r2")]) == 0
+    assert "trained the model" not in capsys.readouterr().err
 
 
 def test_measured_after_columns_replace_the_first_order_residual(affine, tmp_path):

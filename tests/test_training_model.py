@@ -116,10 +116,13 @@ def test_float64_internal_export(fitted, data, tmp_path):
     assert np.max(np.abs(comp.predict(p32) - fitted.predict(p32))) <= 1e-6
 
 
-def test_export_into_a_missing_folder_writes_nothing(fitted, tmp_path):
-    with pytest.raises(PostprocError):
-        fitted.export_onnx(tmp_path / "absent" / "m.onnx")
-    assert list(tmp_path.iterdir()) == []
+def test_export_creates_a_missing_folder_and_refuses_a_directory(fitted, tmp_path):
+    # one output rule (postproc.outputs) for every subcommand: missing folders are created
+    assert fitted.export_onnx(tmp_path / "absent" / "m.onnx").stat().st_size > 1000
+    (tmp_path / "dir.onnx").mkdir()
+    with pytest.raises(PostprocError) as info:
+        fitted.export_onnx(tmp_path / "dir.onnx")
+    assert info.value.code == "P110" and list((tmp_path / "dir.onnx").iterdir()) == []
 
 
 def test_fixed_point_iterations_of_a_smooth_model(fitted, data):

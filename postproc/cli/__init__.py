@@ -71,16 +71,54 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("postproc: interrupted", file=sys.stderr)
         return EXIT_ERROR
+    except ModuleNotFoundError as exc:
+        hint = missing_extra(exc, args.command)
+        if hint is None:  # not an optional part: a bug, reported as one below
+            return _internal_error(exc, args)
+        print(f"postproc {args.command}: {hint}", file=sys.stderr)
+        return EXIT_ERROR
     except BrokenPipeError:
         # the reader of stdout went away (e.g. `| head`): not our error
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return EXIT_ERROR
     except Exception as exc:  # last resort: never a bare traceback for users
-        if getattr(args, "verbose", False):
-            raise
-        print(f"postproc: internal error: {type(exc).__name__}: {exc} (run with -v for details)", file=sys.stderr)
-        return EXIT_ERROR
+        return _internal_error(exc, args)
+
+
+def _internal_error(exc: Exception, args) -> int:
+    if getattr(args, "verbose", False):
+        raise exc
+    print(f"postproc: internal error: {type(exc).__name__}: {exc} (run with -v for details)", file=sys.stderr)
+    return EXIT_ERROR
+
+
+# optional dependencies: the module a subcommand imports -> the extra that installs it
+EXTRA_OF_MODULE = {"pinocchio": "sim", "torch": "train", "onnx": "train", "matplotlib": "report"}
+# modules in more than one extra: the subcommand says which one
+EXTRA_OF_COMMAND = {"plan": "sim", "measure": "sim", "verify": "sim", "train": "train", "import": "train",
+                    "report": "report"}
+OPTIONAL_MODULES = set(EXTRA_OF_MODULE) | {"scipy", "tqdm"}
+
+
+def install_command(extra: str) -> str:
+    """The command that installs ``extra`` (postproc is on no package index: from its checkout)."""
+    pip = f"pip install -e '.[{extra}]'"
+    if extra in ("train", "all"):  # the CPU build first, or the extra pulls a multi-GB CUDA one
+        pip = f"pip install torch==2.13.0 && {pip}"
+    return pip
+
+
+def missing_extra(exc: ModuleNotFoundError, command: str | None) -> str | None:
+    """What to install when an optional dependency is missing, or None (not an optional one: a bug)."""
+    root = (exc.name or "").split(".")[0]
+    if root not in OPTIONAL_MODULES:
+        return None
+    extra = EXTRA_OF_MODULE.get(root) or EXTRA_OF_COMMAND.get(command or "")
+    if extra is None:
+        return None
+    return (f"needs the '{extra}' extra (module '{root}' is not installed); in the postproc checkout run: "
+            f"{install_command(extra)}")
 
 
 def use_color(stream=sys.stderr) -> bool:

@@ -49,6 +49,7 @@ def add_parser(sub, common, formatter) -> None:
                    help="refuse (P216) partial aggregates like LIN {Z 1250} instead of writing into them the X/Y/Z "
                    "their correction needs (the controller takes missing components from the previous compensated "
                    "command)")
+    p.add_argument("--in-place", action="store_true", help="allow -o to be the input itself (overwrite it)")
     p.add_argument("--force", action="store_true",
                    help="compensate an already compensated program / another tool's or robot's program")
     p.set_defaults(run=run)
@@ -60,7 +61,12 @@ def run(args) -> int:
     from ..compensate import DEFAULT_MAX_CORRECTION_MM, compensate_file, compensate_program, load_program
     from ..config import load_config
     from ..diagnostics import EXIT_FINDINGS, EXIT_OK
+    from ..outputs import check_program_outputs
 
+    inputs = args.input
+    cell = len(inputs) > 1 or Path(inputs[0]).is_dir()
+    if not cell:  # (a cell's output directory is checked by compensate_cell)
+        check_program_outputs(inputs[0], args.output, in_place=args.in_place)
     cfg = load_config(args.settings)  # [tool.postproc]: the options given here win
     args.model = args.model or cfg.model
     args.config = args.config or (list(cfg.config) if cfg.config else None)
@@ -74,8 +80,6 @@ def run(args) -> int:
         orientation=args.orientation,
         fill_partial=args.fill_partial,
     )
-    inputs = args.input
-    cell = len(inputs) > 1 or Path(inputs[0]).is_dir()
     if cell:
         from ..cell import compensate_cell, find_cell
         from ..compensator import load_model

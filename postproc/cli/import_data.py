@@ -63,13 +63,11 @@ def run(args) -> int:
 
     import numpy as np
 
-    from ..diagnostics import PostprocError
-
-    try:
-        import scipy.spatial  # noqa: F401  (angle conversions)
-    except ImportError:
-        raise PostprocError("postproc import needs scipy: pip install 'postproc[train]'") from None
+    import scipy.spatial  # noqa: F401  (angle conversions; missing: postproc.cli names the extra to install)
     from ..datasets import read_ipa, write_measurements
+    from ..outputs import check_outputs
+
+    check_outputs([args.output], [args.src])
     from ..registration import register_measurements
     from ..training.data import split_indices  # numpy only; the same draw as `train`
 

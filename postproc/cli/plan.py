@@ -61,12 +61,13 @@ def run(args) -> int:
 
     from ..diagnostics import PostprocError
     from ..planning import DEFAULT_ATTITUDE, DEFAULT_BOX, DEFAULT_RANGE, krl_measurement_program, latin_hypercube, \
-        parse_tool, plan_configurations, plan_csv_text, round_poses
+        parse_tool, plan_configurations, plan_csv_chunks, reachable, round_poses
     from ..progress import stages
-    from ..rewrite import write_atomic
+    from ..outputs import check_outputs, write as write_atomic
     from ..robot import Robot, load_description
     from . import show_progress
 
+    check_outputs([args.output, args.krl or "-"], [args.robot or "-"])
     description = load_description(args.robot)
     if args.tool is not None:
         description = description.replace(tool=parse_tool(args.tool), tool_name=f"$TOOL {args.tool}")
@@ -89,7 +90,7 @@ def run(args) -> int:
         if args.wrist is not None:
             config, ok = plan_configurations(robot, poses, args.wrist)
         else:
-            _, ok = robot.ik(poses)
+            ok = reachable(robot, poses)
         if not ok.all():
             bad = np.flatnonzero(~ok)
             raise PostprocError(
@@ -97,7 +98,7 @@ def run(args) -> int:
                 f"(first: pose {bad[0] + 1} = {poses[bad[0]].tolist()}); shrink --box or --range, or move the box",
                 description.path, code="P335")
         stage("write")
-        outputs = [(Path(args.output), plan_csv_text(poses, config))]
+        outputs = [(Path(args.output), plan_csv_chunks(poses, config))]
         if args.krl is not None:
             src = Path(args.krl)
             comment = (f"Latin hypercube seed {args.seed}, box {list(map(float, box))}, "

@@ -51,13 +51,9 @@ def add_parser(sub, common, formatter) -> None:
 def run(args) -> int:
     from ..compensator import load_model
     from ..config import load_config
-    from ..diagnostics import PostprocError
     from ..report import read_report_data, write_report
 
-    try:
-        import matplotlib  # noqa: F401  (only to fail early with a clear message)
-    except ImportError:
-        raise PostprocError("postproc report needs matplotlib: pip install 'postproc[report]'") from None
+    import matplotlib  # noqa: F401  (only to fail early: postproc.cli names the extra to install)
     if args.iso9283:  # the model only for the certificate's card: never a default that may be another robot's
         from .iso9283 import run_report
 
@@ -73,6 +69,10 @@ def run(args) -> int:
         print(f"postproc report: {len(data)} poses, mean |E| {before['mean']:.3f} mm → {after['mean']:.3f} mm "
               f"({data.after_kind}); max {before['max']:.3f} → {after['max']:.3f} mm; wrote {files['markdown']}",
               file=sys.stderr)
+        if data.trained_on:
+            from ..report import TRAINED_ON
+
+            print(f"postproc report: warning: {TRAINED_ON}", file=sys.stderr)
         if data.outside_envelope:
             print(f"postproc report: {data.outside_envelope} poses are outside the model's envelope", file=sys.stderr)
         if args.verbose:

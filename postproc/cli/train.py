@@ -112,10 +112,12 @@ def run(args) -> int:
     import numpy as np
 
     from ..diagnostics import PostprocError
+    from ..outputs import check_outputs
     from ..training.data import check_errors, check_size, envelope_of, read_measurements, split_indices
     from . import show_progress
     from .train_hybrid import HYBRID_METHODS, run_hybrid
 
+    check_outputs([args.output], [args.data, args.robot or "-"])  # before the fit, not after it
     data = read_measurements(args.data)
     train_rows, val_rows = split_indices(len(data), args.val_fraction, args.split_seed)
     # a robot description is read before the long part, so that a typo fails fast

@@ -93,6 +93,12 @@ def read(files: list[str], texts: list[str]) -> Program:
                 raise PostprocError(f"header has no column {', '.join(missing)} (needs x,y,z[,a,b,c])",
                                     path, lineno, lead + 1, "P104")
             columns = {c: names.index(c) for c in _ALL if c in names}
+            attitude = [c for c in COLUMNS[3:] if c in columns]
+            if attitude and len(attitude) < 3:  # one warning here, not one per row and A,B dropped
+                absent = [c for c in COLUMNS[3:] if c not in columns]
+                raise PostprocError(f"header has {','.join(attitude)} but no {','.join(absent)}: an attitude needs all "
+                                    "of a,b,c (add the missing column; or drop a,b,c for the model's nominal attitude)",
+                                    path, lineno, lead + 1, "P104")
             width = len(fields)
             if any(c in columns for c in _OPTIONAL):
                 extras = []

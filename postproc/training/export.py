@@ -16,9 +16,8 @@ from pathlib import Path
 import onnx
 import torch
 
-from .. import rewrite
+from .. import outputs
 from ..compensator import INPUT_JOINTS, INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, OUTPUT_JOINTS, contract_metadata
-from ..diagnostics import PostprocError
 
 __all__ = ["export_onnx", "onnx_bytes", "write_atomic", "OPSET"]
 
@@ -60,12 +59,9 @@ def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False, 
 
 
 def write_atomic(path: str | Path, data: bytes) -> Path:
-    """Write bytes to ``path`` atomically (rewrite.write_atomic) into a folder that must exist."""
+    """Write bytes to ``path`` atomically; missing folders are created (postproc.outputs: one rule)."""
     path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise PostprocError(f"output folder does not exist: {folder}", str(path), code="P500")
-    rewrite.write_atomic([(path, data)])
+    outputs.write([(path, data)])
     return path
 
 
