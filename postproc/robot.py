@@ -445,10 +445,12 @@ class Robot:
         q[~ok] = np.nan
         return q, ok
 
-    def ik_branches(self, poses: np.ndarray, reference_q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def ik_branches(self, poses: np.ndarray, reference_q: np.ndarray | None = None,
+                    check: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Every closed-form branch: joint angles [8, N, 6] (deg; each joint on the 360° turn
         nearest ``reference_q`` within its limits, default HOME) and a mask [8, N] of the
-        branches that reach the pose within the limits (FK checked: 1e-6 mm, 1e-9 rad).
+        branches that reach the pose within the limits (FK checked: 1e-6 mm, 1e-9 rad; with
+        ``check`` False the caller checks the branches it uses with :meth:`reaches`).
         Which branch is which: :meth:`status_turn` of the angles."""
         poses = np.atleast_2d(np.asarray(poses, float))
         ref = self.home_q if reference_q is None else np.asarray(reference_q, float)
@@ -460,16 +462,21 @@ class Robot:
         ok_all &= in_limits
         q_all[~ok_all] = np.nan
         flat = ok_all.ravel()
-        if flat.any():  # a closed form is exact; the check guards the reachability masks themselves
-            target = t_tcp[np.nonzero(ok_all)[1]]  # (the row of each reaching branch, in flat order)
-            back = self.fk_matrix(q_all.reshape(-1, 6)[flat])
-            bad = np.linalg.norm(back[:, :3, 3] - target[:, :3, 3], axis=1) > 1e-6
-            bad |= np.abs(back[:, :3, :3] - target[:, :3, :3]).max(axis=(1, 2)) > 1e-9
-            if bad.any():
+        if check and flat.any():  # a closed form is exact; the check guards the reachability masks themselves
+            bad = ~self.reaches(q_all.reshape(-1, 6)[flat], t_tcp[np.nonzero(ok_all)[1]])
+            if bad.any():  # (the row of each reaching branch, in flat order)
                 idx = np.flatnonzero(flat)[bad]
                 ok_all.ravel()[idx] = False
                 q_all.reshape(-1, 6)[idx] = np.nan
         return q_all, ok_all
+
+    def reaches(self, q_deg: np.ndarray, t_tcp: np.ndarray) -> np.ndarray:
+        """The FK check of IK solutions: [M] bool, joint angles [M, 6] (deg) whose TCP is the
+        transform [M, 4, 4] within 1e-6 mm and 1e-9 (rotation matrix entries)."""
+        back = self.fk_matrix(q_deg)
+        bad = np.linalg.norm(back[:, :3, 3] - t_tcp[:, :3, 3], axis=1) > 1e-6
+        bad |= np.abs(back[:, :3, :3] - t_tcp[:, :3, :3]).max(axis=(1, 2)) > 1e-9
+        return ~bad
 
     def nearest_turn(self, q_deg: np.ndarray, ref_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Add the multiple of 360° that brings each joint nearest to the reference within its
