@@ -67,7 +67,9 @@ def _status_table(robot: Robot, poses: np.ndarray, check: bool) -> tuple[np.ndar
     n = len(poses)
     q_all, ok_all = robot.ik_branches(poses, np.zeros(6), check=check)
     b, i = np.nonzero(ok_all)
-    status, _ = robot.status_turn(q_all[b, i])  # (only the branches that reach: ~half of them)
+    shoulder = None if check else robot.shoulder_status(poses)
+    # (only the branches that reach: ~half of them; S bit 0 from the shoulder branch where it decides)
+    status, _ = robot.status_turn(q_all[b, i], None if shoulder is None else shoulder[b, i])
     table = np.full((8, n, 6), np.nan)
     ok = np.zeros((8, n), bool)
     table[status, i] = q_all[b, i]
@@ -178,21 +180,42 @@ def stated_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.
 
 def _choose(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, turn: np.ndarray,
             ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(q [n, 6], found [n], the branch picked [n]) of each row's candidate nearest ``ref``."""
+    """(q [n, 6], found [n], the branch picked [n]) of each row's candidate nearest ``ref``: a
+    row with a stated S has the one candidate of its branch, the others 8 (one per branch)."""
     n = table.shape[1]
+    ref = np.broadcast_to(ref, (n, 6))
+    q = np.full((n, 6), np.nan)
+    found = np.zeros(n, bool)
+    best = np.where(status >= 0, status, 0)
+    for stated in (True, False):  # (two vectorised groups, not a loop over targets)
+        rows = np.flatnonzero((status >= 0) == stated)
+        if not len(rows):
+            continue
+        if stated:
+            cand, cost = _candidates(robot, table[status[rows], rows][None], ok[status[rows], rows][None],
+                                     turn[rows], ref[rows])
+            pick = np.zeros(len(rows), int)
+        else:
+            cand, cost = _candidates(robot, table[:, rows], ok[:, rows], turn[rows], ref[rows])
+            pick = np.argmin(cost, axis=0)
+            best[rows] = pick
+        at = np.arange(len(rows))
+        found[rows] = np.isfinite(cost[pick, at])
+        q[rows] = np.where(found[rows][:, None], cand[pick, at], np.nan)
+    return q, found, best
+
+
+def _candidates(robot: Robot, table: np.ndarray, ok: np.ndarray, turn: np.ndarray,
+                ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Candidates [B, n, 6] of the branches [B, n, 6] on the turn T states (else the turn nearest
+    ``ref``) and their squared distance to ``ref`` [B, n] (inf where none)."""
     near, in_limits = robot.nearest_turn(table, ref)
-    signed = _turn_for_sign(robot, table, np.broadcast_to(turn, (8, n)))
+    signed = _turn_for_sign(robot, table, np.broadcast_to(turn, table.shape[:2]))
     cand = np.where((turn >= 0)[None, :, None], signed, near)
     good = ok & in_limits & np.isfinite(cand).all(axis=-1)
-    good &= (status < 0)[None] | (np.arange(8)[:, None] == status[None])
     with np.errstate(invalid="ignore"):
         cost = np.where(good, ((cand - ref) ** 2).sum(axis=-1), np.inf)
-    best = np.argmin(cost, axis=0)
-    rows = np.arange(n)
-    q = cand[best, rows]
-    found = np.isfinite(cost[best, rows])
-    q[~found] = np.nan
-    return q, found, best
+    return cand, cost
 
 
 def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.ndarray,

@@ -81,3 +81,36 @@ def test_picked_branches_that_fail_their_check_are_replaced_as_the_full_check_wo
     for got, want in ((fast, ref), (fast_stated, ref_stated)):
         np.testing.assert_array_equal(got[0], want[0])
         np.testing.assert_array_equal(got[1], want[1])
+
+
+def _stated_one_by_one(robot, poses, s, t, tools):
+    """stated_joints written plainly: per target, over the branches its S allows, the candidate
+    on the turn its T states (else nearest HOME) nearest HOME."""
+    table, ok = cf.branch_table(robot, poses, tools)
+    home = robot.home_q
+    q, found = np.full((len(poses), 6), np.nan), np.zeros(len(poses), bool)
+    for i in range(len(poses)):
+        best = np.inf
+        for b in (range(8) if s[i] < 0 else [s[i]]):
+            if not ok[b, i]:
+                continue
+            if t[i] >= 0:
+                cand = cf._turn_for_sign(robot, table[b, i][None], np.array([t[i]]))[0]
+                inside = np.isfinite(cand).all()
+            else:
+                cand, inside = robot.nearest_turn(table[b, i][None], home[None])
+                cand, inside = cand[0], bool(inside[0]) and np.isfinite(cand).all()
+            cost = ((cand - home) ** 2).sum()
+            if inside and cost < best:
+                best, q[i], found[i] = cost, cand, True
+    return q, found
+
+
+def test_stated_joints_equals_a_target_by_target_reference(arm):
+    poses, s, t, _, tools, _ = _program(arm, 300, 11)
+    s[::3] = cf.UNSTATED  # both groups: S stated (one branch) and not (nearest HOME of all 8)
+    got = cf.stated_joints(arm, poses, s, t, tools=tools)
+    want = _stated_one_by_one(arm, poses, s, t, tools)
+    assert want[1].mean() > 0.5
+    np.testing.assert_array_equal(got[1], want[1])
+    np.testing.assert_array_equal(got[0], want[0])
