@@ -1,5 +1,6 @@
 """Speed of the arm-configuration step (postproc.configuration): the joint angles the controller
-uses, for N targets of a LIN path (one S/T stated, the rest keep the configuration) and for N
+uses, for N targets of a LIN path (one S/T stated, the rest keep the configuration; also with every
+branch FK-checked up front, the way before the lazy check, and the ratio of the two) and for N
 targets that each state S/T, on the nominal KR500-sim; and the uncompensated error of the
 default simulated robot in the HOME branch, the flipped wrist and another tool.
 
