@@ -93,6 +93,9 @@ def main() -> None:
 
     print(f"{args.targets}-target {'KRL' if krl else 'pose-list'} program, {args.runs} runs each, "
           f"model {Path(args.model).name}, {py}")
+    if os.environ.get("PYTHONDONTWRITEBYTECODE") and not (REPO / "postproc" / "__pycache__").is_dir():
+        print("note: PYTHONDONTWRITEBYTECODE is set and postproc has no .pyc: each run compiles its modules "
+              "(~0.07 s here; `python -m compileall -q postproc` first for a user's figure)")
     print(f"{'':48} {'median':>8} {'min':>8} {'max':>8}  (s, wall from process start)")
     medians = {}
     for label, cmd, *env in rows:
