@@ -5,8 +5,9 @@
 Each figure is the wall time of a fresh process (median, min and max of --runs) with this
 interpreter (sys.executable; a pyenv/conda shim in front of it adds its own start-up):
 
-* floor: `python -c pass` and `python -c "import numpy, onnxruntime"` (what any caller pays);
-* filter: `python -m postproc compensate - -o - -q` with the program on stdin;
+* floor: `python -c pass`, `python -c "import numpy, onnxruntime"` and with lark (what any caller pays);
+* filter: `python -m postproc compensate - -o - -q` with the program on stdin, without and with
+  the session cache (postproc/session.py), and its ratio to the import floor with lark;
 * script: the `postproc` console script, same arguments;
 * API: `import postproc; m = postproc.load_model(); postproc.compensate_text(text, m)`;
 * warm API: per-call time of compensate_text with the model already loaded (CAM posts that
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import os
 import re
 import statistics
 import subprocess
@@ -32,11 +34,11 @@ sys.path.insert(0, str(REPO / "samples" / "cam_hook"))
 from fake_cam_post import post  # noqa: E402
 
 
-def wall(cmd: list[str], stdin: bytes, runs: int) -> tuple[float, float, float]:
+def wall(cmd: list[str], stdin: bytes, runs: int, env: dict | None = None) -> tuple[float, float, float]:
     times = []
     for _ in range(runs):
         start = time.perf_counter()
-        done = subprocess.run(cmd, input=stdin, capture_output=True)
+        done = subprocess.run(cmd, input=stdin, capture_output=True, env=env)
         times.append(time.perf_counter() - start)
         if done.returncode != 0:
             raise SystemExit(f"{' '.join(cmd)} failed:\n{done.stderr.decode(errors='replace')}")
@@ -53,6 +55,11 @@ def import_costs(cmd: list[str], stdin: bytes, top: int = 10) -> list[tuple[str,
             name = m.group(3).split(".")[0] if not m.group(3).startswith("postproc") else m.group(3)
             costs[name] = max(costs.get(name, 0.0), int(m.group(1)) / 1000)
     return sorted(costs.items(), key=lambda kv: -kv[1])[:top]
+
+
+FLOOR = "floor: import numpy, onnxruntime, lark"
+FILTER = "filter: python -m postproc compensate - -o -"
+FILTER_UNCACHED = "filter, no session cache (POSTPROC_CACHE_DIR='')"
 
 
 def main() -> None:
@@ -74,8 +81,11 @@ def main() -> None:
     rows = [
         ("floor: python -c pass", [py, "-c", "pass"]),
         ("floor: import numpy, onnxruntime", [py, "-c", "import numpy, onnxruntime"]),
-        ("filter: python -m postproc compensate - -o -", filter_cmd),
+        (FLOOR, [py, "-c", "import numpy, onnxruntime, lark"]),
+        (FILTER_UNCACHED, filter_cmd, {**os.environ, "POSTPROC_CACHE_DIR": ""}),
+        (FILTER, filter_cmd),
     ]
+    subprocess.run(filter_cmd, input=data, capture_output=True)  # the first use writes the session cache
     script = Path(py).parent / "postproc"
     if script.is_file():
         rows.append(("script: postproc compensate - -o -", [str(script), *filter_cmd[3:]]))
@@ -83,10 +93,18 @@ def main() -> None:
 
     print(f"{args.targets}-target {'KRL' if krl else 'pose-list'} program, {args.runs} runs each, "
           f"model {Path(args.model).name}, {py}")
+    if os.environ.get("PYTHONDONTWRITEBYTECODE") and not (REPO / "postproc" / "__pycache__").is_dir():
+        print("note: PYTHONDONTWRITEBYTECODE is set and postproc has no .pyc: each run compiles its modules "
+              "(~0.07 s here; `python -m compileall -q postproc` first for a user's figure)")
     print(f"{'':48} {'median':>8} {'min':>8} {'max':>8}  (s, wall from process start)")
-    for label, cmd in rows:
-        med, lo, hi = wall(cmd, data, args.runs)
+    medians = {}
+    for label, cmd, *env in rows:
+        med, lo, hi = wall(cmd, data, args.runs, *env)
+        medians[label] = med
         print(f"{label:48} {med:8.3f} {lo:8.3f} {hi:8.3f}")
+    print(f"ratio filter / import floor (numpy, onnxruntime, lark), medians of this run: "
+          f"{medians[FILTER] / medians[FLOOR]:.2f}× (goal ≤ 1.3×; without the session cache "
+          f"{medians[FILTER_UNCACHED] / medians[FLOOR]:.2f}×)")
 
     sys.path.insert(0, str(REPO))
     import postproc

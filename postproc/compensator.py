@@ -342,17 +342,14 @@ def load_model(path: str | Path | None = None) -> Compensator:
     if not path.is_file():
         raise PostprocError("model not found", str(path), code="P307")
     try:
-        import onnxruntime as ort
+        import onnxruntime  # noqa: F401  (installed?)
     except ImportError as exc:  # pragma: no cover - install problem
         raise PostprocError(f"onnxruntime is not installed: {exc}") from exc
     data = path.read_bytes()
-    options = ort.SessionOptions()
-    options.log_severity_level = 3
-    # small graphs: thread start-up costs more than it saves on a 2-core machine
-    options.intra_op_num_threads = 1
-    options.inter_op_num_threads = 1
+    from .session import inference_session
+
     try:
-        session = ort.InferenceSession(data, options, providers=["CPUExecutionProvider"])
+        session = inference_session(data)  # (the graph optimised once per model: session.py)
     except Exception as exc:  # onnxruntime raises its own exception types
         raise PostprocError(f"not an ONNX model: {str(exc).splitlines()[0][:200]}", str(path), code="P306") from exc
     inputs = {i.name: i for i in session.get_inputs()}

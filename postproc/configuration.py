@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import frames
 from .robot import Robot
 
 __all__ = ["UNSTATED", "branch_table", "stated_joints", "controller_joints", "status_turn_of"]
@@ -55,28 +56,82 @@ def _wrap(deg: np.ndarray) -> np.ndarray:
 
 def branch_table(robot: Robot, poses: np.ndarray, tools: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Joint angles of each branch indexed by its status: [8 (S), N, 6] deg (one turn within the
-    limits, NaN where that branch does not reach the pose) and the mask [8, N]. ``tools``
-    [N, 6]: each pose's TCP on the flange (default the robot's tool)."""
-    poses = np.atleast_2d(np.asarray(poses, float))
+    limits, NaN where that branch does not reach the pose) and the mask [8, N], every branch
+    FK-checked. ``tools`` [N, 6]: each pose's TCP on the flange (default the robot's tool)."""
+    branches = _Branches(robot, poses, tools, check_all=True)
+    return branches.table, branches.ok
+
+
+def _status_table(robot: Robot, poses: np.ndarray, check: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(table [8, N, 6], mask [8, N], rows where two branches have one status [N])."""
     n = len(poses)
-    if tools is not None:
-        tools = np.asarray(tools, float).reshape(n, 6)
-        table = np.full((8, n, 6), np.nan)
-        ok = np.zeros((8, n), bool)
-        distinct, which = np.unique(tools, axis=0, return_inverse=True)
-        for k, tool in enumerate(distinct):  # over the few tools of a program
-            rows = np.flatnonzero(which.ravel() == k)
-            arm = robot if np.array_equal(tool, robot.tool) else Robot(robot.description.replace(tool=tool))
-            table[:, rows], ok[:, rows] = branch_table(arm, poses[rows])
-        return table, ok
-    q_all, ok_all = robot.ik_branches(poses, np.zeros(6))
+    q_all, ok_all = robot.ik_branches(poses, np.zeros(6), check=check)
     b, i = np.nonzero(ok_all)
-    status, _ = robot.status_turn(q_all[b, i])  # (only the branches that reach: ~half of them)
+    shoulder = None if check else robot.shoulder_status(poses)
+    # (only the branches that reach: ~half of them; S bit 0 from the shoulder branch where it decides)
+    status, _ = robot.status_turn(q_all[b, i], None if shoulder is None else shoulder[b, i])
     table = np.full((8, n, 6), np.nan)
     ok = np.zeros((8, n), bool)
     table[status, i] = q_all[b, i]
     ok[status, i] = True
-    return table, ok
+    return table, ok, ok.sum(axis=0) < ok_all.sum(axis=0)
+
+
+class _Branches:
+    """The branch table of a program's poses with the FK check done lazily: the closed form is
+    exact and the check (:meth:`Robot.reaches`) only guards the reachability masks, so only the
+    entries the rules pick are checked (:meth:`confirm`, ~1 of the ~4 reaching branches of a
+    target); a row with an entry that fails is solved again with every branch checked, and the
+    rules run again. What the rules pick never fails its check, and they pick the same entries
+    as on the fully checked table (an unchecked entry that is never picked changes no minimum),
+    so the results are those of the fully checked table. Rows where two branches share a status
+    are checked at once (the check decides which one stays)."""
+
+    def __init__(self, robot: Robot, poses: np.ndarray, tools: np.ndarray | None, check_all: bool = False):
+        self.poses = np.atleast_2d(np.asarray(poses, float))
+        n = len(self.poses)
+        if tools is None:
+            self.arms, self.which = [robot], np.zeros(n, int)
+        else:
+            distinct, which = np.unique(np.asarray(tools, float).reshape(n, 6), axis=0, return_inverse=True)
+            self.which = which.ravel()
+            self.arms = [robot if np.array_equal(tool, robot.tool) else Robot(robot.description.replace(tool=tool))
+                         for tool in distinct]  # (the few tools of a program)
+        self.table = np.full((8, n, 6), np.nan)
+        self.ok = np.zeros((8, n), bool)
+        self.confirmed = np.full((8, n), check_all)
+        for k, arm in enumerate(self.arms):
+            rows = np.flatnonzero(self.which == k)
+            self.table[:, rows], self.ok[:, rows], collide = _status_table(arm, self.poses[rows], check_all)
+            if collide.any() and not check_all:
+                self._check_rows(rows[collide])
+
+    def _check_rows(self, rows: np.ndarray) -> None:
+        for k, arm in enumerate(self.arms):
+            r = rows[self.which[rows] == k]
+            if len(r):
+                self.table[:, r], self.ok[:, r], _ = _status_table(arm, self.poses[r], True)
+        self.confirmed[:, rows] = True
+
+    def confirm(self, branch: np.ndarray, rows: np.ndarray) -> bool:
+        """FK-check the picked entries (branch[i], rows[i]) not checked yet; True if one failed
+        (its row is then solved again with every branch checked: run the rules again)."""
+        branch, rows = (np.asarray(v, int).ravel() for v in np.broadcast_arrays(branch, rows))
+        pick = self.ok[branch, rows] & ~self.confirmed[branch, rows]
+        branch, rows = branch[pick], rows[pick]
+        if not len(rows):
+            return False
+        self.confirmed[branch, rows] = True
+        bad = []
+        for k, arm in enumerate(self.arms):
+            m = self.which[rows] == k
+            if m.any():
+                good = arm.reaches(self.table[branch[m], rows[m]], frames.frame_to_matrix(self.poses[rows[m]]))
+                bad.append(rows[m][~good])
+        bad = np.unique(np.concatenate(bad))
+        if len(bad):
+            self._check_rows(bad)
+        return bool(len(bad))
 
 
 def _turn_for_sign(robot: Robot, q: np.ndarray, turn: np.ndarray) -> np.ndarray:
@@ -115,26 +170,52 @@ def stated_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.
     poses = np.atleast_2d(np.asarray(poses, float))
     n = len(poses)
     ref = np.broadcast_to(robot.home_q if reference is None else np.asarray(reference, float), (n, 6))
-    table, ok = branch_table(robot, poses, tools)
-    return _choose(robot, table, ok, np.asarray(status).reshape(n), np.asarray(turn).reshape(n), ref)
+    branches = _Branches(robot, poses, tools)
+    status, turn = np.asarray(status).reshape(n), np.asarray(turn).reshape(n)
+    while True:
+        q, found, best = _choose(robot, branches.table, branches.ok, status, turn, ref)
+        if not branches.confirm(best, np.arange(n)):
+            return q, found
 
 
 def _choose(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, turn: np.ndarray,
-            ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(q [n, 6], found [n], the branch picked [n]) of each row's candidate nearest ``ref``: a
+    row with a stated S has the one candidate of its branch, the others 8 (one per branch)."""
     n = table.shape[1]
+    ref = np.broadcast_to(ref, (n, 6))
+    q = np.full((n, 6), np.nan)
+    found = np.zeros(n, bool)
+    best = np.where(status >= 0, status, 0)
+    for stated in (True, False):  # (two vectorised groups, not a loop over targets)
+        rows = np.flatnonzero((status >= 0) == stated)
+        if not len(rows):
+            continue
+        if stated:
+            cand, cost = _candidates(robot, table[status[rows], rows][None], ok[status[rows], rows][None],
+                                     turn[rows], ref[rows])
+            pick = np.zeros(len(rows), int)
+        else:
+            cand, cost = _candidates(robot, table[:, rows], ok[:, rows], turn[rows], ref[rows])
+            pick = np.argmin(cost, axis=0)
+            best[rows] = pick
+        at = np.arange(len(rows))
+        found[rows] = np.isfinite(cost[pick, at])
+        q[rows] = np.where(found[rows][:, None], cand[pick, at], np.nan)
+    return q, found, best
+
+
+def _candidates(robot: Robot, table: np.ndarray, ok: np.ndarray, turn: np.ndarray,
+                ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Candidates [B, n, 6] of the branches [B, n, 6] on the turn T states (else the turn nearest
+    ``ref``) and their squared distance to ``ref`` [B, n] (inf where none)."""
     near, in_limits = robot.nearest_turn(table, ref)
-    signed = _turn_for_sign(robot, table, np.broadcast_to(turn, (8, n)))
+    signed = _turn_for_sign(robot, table, np.broadcast_to(turn, table.shape[:2]))
     cand = np.where((turn >= 0)[None, :, None], signed, near)
     good = ok & in_limits & np.isfinite(cand).all(axis=-1)
-    good &= (status < 0)[None] | (np.arange(8)[:, None] == status[None])
     with np.errstate(invalid="ignore"):
         cost = np.where(good, ((cand - ref) ** 2).sum(axis=-1), np.inf)
-    best = np.argmin(cost, axis=0)
-    rows = np.arange(n)
-    q = cand[best, rows]
-    found = np.isfinite(cost[best, rows])
-    q[~found] = np.nan
-    return q, found
+    return cand, cost
 
 
 def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.ndarray,
@@ -156,29 +237,43 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
     start = np.asarray(robot.home_q if initial_q is None else initial_q, float).reshape(6)
     if n == 0:
         return np.zeros((0, 6)), np.zeros(0, bool)
-    table, ok = branch_table(robot, poses, tools)
+    branches = _Branches(robot, poses, tools)
+    alone = np.zeros(n, bool) if independent is None else np.asarray(independent, bool).reshape(n)
+    while True:
+        q, found, picks = _rules(robot, branches.table, branches.ok, status, turn, ptp, start, alone)
+        if not any([branches.confirm(b, r) for b, r in picks]):  # (every pick checked)
+            return q, found
+
+
+def _rules(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, turn: np.ndarray, ptp: np.ndarray,
+           start: np.ndarray, alone: np.ndarray) -> tuple[np.ndarray, np.ndarray, list]:
+    """The controller's rules on a branch table: (q, found, the (branch, rows) entries picked)."""
+    n = len(status)
+    picks = []
     start_s = int(status_turn_of(robot, start[None])[0][0])
     # the branch each target is on: stated, else the previous target's (the first: the start's)
     branch = np.where(status >= 0, status, UNSTATED)
     free_ptp = (status < 0) & ptp
     free_ptp[0] = status[0] < 0  # the first target: nearest the start position, whatever its motion
-    alone = np.zeros(n, bool) if independent is None else np.asarray(independent, bool).reshape(n)
     free_ptp &= ~alone
     q_alone = ok_alone = None
     if alone.any():
-        q_alone, ok_alone = _choose(robot, table[:, alone], ok[:, alone], status[alone], turn[alone],
-                                    np.broadcast_to(start, (int(alone.sum()), 6)))
+        q_alone, ok_alone, best = _choose(robot, table[:, alone], ok[:, alone], status[alone], turn[alone],
+                                          np.broadcast_to(start, (int(alone.sum()), 6)))
+        picks.append((best, np.flatnonzero(alone)))
         branch[alone] = np.where(ok_alone, status_turn_of(robot, q_alone)[0], branch[alone])
     q = found = None
     for _ in range(MAX_PASSES):
         filled = _forward_fill(branch, start_s)
+        picks.append((filled, np.arange(n)))
         q, found = _continue_turns(robot, table, ok, filled, turn, start)
         if not free_ptp.any():
             break
         # PTP without S: the solution nearest the previous target's joint angles, any branch
         previous = np.vstack([start[None], _forward_fill_rows(q)[:-1]])
-        q_ptp, ok_ptp = _choose(robot, table[:, free_ptp], ok[:, free_ptp], np.full(int(free_ptp.sum()), UNSTATED),
-                                turn[free_ptp], previous[free_ptp])
+        q_ptp, ok_ptp, best = _choose(robot, table[:, free_ptp], ok[:, free_ptp],
+                                      np.full(int(free_ptp.sum()), UNSTATED), turn[free_ptp], previous[free_ptp])
+        picks.append((best, np.flatnonzero(free_ptp)))
         chosen = np.where(ok_ptp, status_turn_of(robot, q_ptp)[0], UNSTATED)
         new = branch.copy()
         new[free_ptp] = chosen
@@ -187,7 +282,7 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
         branch = new
     if alone.any():
         q[alone], found[alone] = q_alone, ok_alone
-    return q, found
+    return q, found, picks
 
 
 def _forward_fill(values: np.ndarray, first: int) -> np.ndarray:

@@ -445,10 +445,12 @@ class Robot:
         q[~ok] = np.nan
         return q, ok
 
-    def ik_branches(self, poses: np.ndarray, reference_q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def ik_branches(self, poses: np.ndarray, reference_q: np.ndarray | None = None,
+                    check: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Every closed-form branch: joint angles [8, N, 6] (deg; each joint on the 360° turn
         nearest ``reference_q`` within its limits, default HOME) and a mask [8, N] of the
-        branches that reach the pose within the limits (FK checked: 1e-6 mm, 1e-9 rad).
+        branches that reach the pose within the limits (FK checked: 1e-6 mm, 1e-9 rad; with
+        ``check`` False the caller checks the branches it uses with :meth:`reaches`).
         Which branch is which: :meth:`status_turn` of the angles."""
         poses = np.atleast_2d(np.asarray(poses, float))
         ref = self.home_q if reference_q is None else np.asarray(reference_q, float)
@@ -460,16 +462,21 @@ class Robot:
         ok_all &= in_limits
         q_all[~ok_all] = np.nan
         flat = ok_all.ravel()
-        if flat.any():  # a closed form is exact; the check guards the reachability masks themselves
-            target = t_tcp[np.nonzero(ok_all)[1]]  # (the row of each reaching branch, in flat order)
-            back = self.fk_matrix(q_all.reshape(-1, 6)[flat])
-            bad = np.linalg.norm(back[:, :3, 3] - target[:, :3, 3], axis=1) > 1e-6
-            bad |= np.abs(back[:, :3, :3] - target[:, :3, :3]).max(axis=(1, 2)) > 1e-9
-            if bad.any():
+        if check and flat.any():  # a closed form is exact; the check guards the reachability masks themselves
+            bad = ~self.reaches(q_all.reshape(-1, 6)[flat], t_tcp[np.nonzero(ok_all)[1]])
+            if bad.any():  # (the row of each reaching branch, in flat order)
                 idx = np.flatnonzero(flat)[bad]
                 ok_all.ravel()[idx] = False
                 q_all.reshape(-1, 6)[idx] = np.nan
         return q_all, ok_all
+
+    def reaches(self, q_deg: np.ndarray, t_tcp: np.ndarray) -> np.ndarray:
+        """The FK check of IK solutions: [M] bool, joint angles [M, 6] (deg) whose TCP is the
+        transform [M, 4, 4] within 1e-6 mm and 1e-9 (rotation matrix entries)."""
+        back = self.fk_matrix(q_deg)
+        bad = np.linalg.norm(back[:, :3, 3] - t_tcp[:, :3, 3], axis=1) > 1e-6
+        bad |= np.abs(back[:, :3, :3] - t_tcp[:, :3, :3]).max(axis=(1, 2)) > 1e-9
+        return ~bad
 
     def nearest_turn(self, q_deg: np.ndarray, ref_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Add the multiple of 360° that brings each joint nearest to the reference within its
@@ -483,7 +490,19 @@ class Robot:
             inside = (q >= lo - 1e-9) & (q <= hi + 1e-9)
         return q, inside.all(axis=-1)
 
-    def status_turn(self, q_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def shoulder_status(self, poses: np.ndarray) -> np.ndarray | None:
+        """S bit 0 of each of :meth:`ik_branches`' branches [8, N] (int8) where the branch's
+        shoulder decides it (a KUKA-type arm whose wrist centre is more than 1e-3 mm off the A1
+        axis: the first 4 branches in front, the last 4 behind), −1 where :meth:`status_turn`
+        must compute it; None for an arm without this shortcut (UR-type)."""
+        if self.family != "kuka":
+            return None
+        poses = np.atleast_2d(np.asarray(poses, float))
+        known = self._solver.wrist_radius(frames.frame_to_matrix(poses)) > 1e-3
+        side = np.repeat(np.array([0, 1], np.int8), 4)[:, None]
+        return np.where(known[None, :], side, np.int8(-1))
+
+    def status_turn(self, q_deg: np.ndarray, behind: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """KUKA Status and Turn [N] ints of joint angles [N, 6]: S bit 0 = wrist point behind
         the A1 axis (overhead), bit 1 = A3 at or beyond the stretched-arm angle, bit 2 = A5 ≤ 0
         (A5 taken in (−180°, 180°]); T bit i = A(i+1) < 0. The wrist point is the wrist centre (A5's origin) of a KUKA-type
@@ -493,12 +512,19 @@ class Robot:
         shape = q.shape[:-1]
         q = q.reshape(-1, 6)
         g = self._solver
-        centre = self._wrist_in_a1(np.radians(q), g.wrist_index)
+        if behind is None:
+            back = self._wrist_in_a1(np.radians(q), g.wrist_index)[:, 0] < 0
+        else:  # bit 0 given where known (shoulder_status), computed where −1
+            behind = np.asarray(behind).reshape(-1)
+            back = behind == 1
+            todo = np.flatnonzero(behind < 0)
+            if len(todo):
+                back[todo] = self._wrist_in_a1(np.radians(q[todo]), g.wrist_index)[:, 0] < 0
         stretched = math.degrees(g.s[2] * g.stretched)  # A3 with the forearm in line with the upper arm
         from_stretched = (q[:, 2] - stretched + 180.0) % 360.0 - 180.0
         beyond = from_stretched >= 0 if g.s[2] > 0 else from_stretched <= 0
         flipped = (q[:, 4] + 180.0) % 360.0 - 180.0 <= 0  # (a UR wrist turns ±360°: the branch, not the turn)
-        status = (centre[:, 0] < 0).astype(int) | (beyond.astype(int) << 1) | (flipped.astype(int) << 2)
+        status = back.astype(int) | (beyond.astype(int) << 1) | (flipped.astype(int) << 2)
         turn = ((q < 0).astype(int) << np.arange(6)).sum(axis=1)
         return status.reshape(shape), turn.reshape(shape)
 
@@ -563,6 +589,12 @@ class _IkGeometry:
 
     family = "kuka"
     wrist_index = 4  # the wrist point of S bit 0: A5's origin (the wrist centre)
+
+    def wrist_radius(self, t_tcp: np.ndarray) -> np.ndarray:
+        """[N] distance (mm) of the wrist centre of TCP transforms [N, 4, 4] from the A1 axis."""
+        t_fl = t_tcp @ self.inv_tool
+        c = t_fl[:, :3, 3] - t_fl[:, :3, :3] @ self.flange0[:3, :3].T @ (self.flange0[:3, 3] - self.c0) - self.p1
+        return np.hypot(c[:, 0], c[:, 1])
 
     @property
     def stretched(self) -> float:

@@ -55,6 +55,9 @@ def cell(tmp_path, affine):
     from postproc.programs.krl import parser
 
     parser()  # built (and its lark cache written) before any OS call is made to fail
+    from postproc.compensator import load_model
+
+    load_model(model)  # the model's session cache written (postproc.session) before any OS call is made to fail
     return argv, out, old
 
 

@@ -1,0 +1,98 @@
+"""ONNX Runtime sessions that start fast: each model's graph is optimised once and kept.
+
+Creating a session spends most of its time optimising the graph (constant folding, fusions);
+the result depends only on the model's bytes, the onnxruntime version and the session options.
+On first use ORT writes the optimised graph (``SessionOptions.optimized_model_filepath``) into
+the user cache dir under a name keyed by all three; later sessions load that file with graph
+optimisation off, which gives the same outputs bit for bit (tests/test_session.py). A cache
+file is used only with the sha256 of its own bytes recorded beside it (written after it, both
+by rename): a partial, foreign or changed file is never loaded, it is made again.
+
+The cache dir: ``$POSTPROC_CACHE_DIR`` (empty: no cache), else ``$XDG_CACHE_HOME/postproc``,
+else ``~/.cache/postproc``. A cache that cannot be written costs only the speed.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from pathlib import Path
+
+__all__ = ["cache_dir", "inference_session"]
+
+_THREADS = 1  # small graphs: thread start-up costs more than it saves on a 2-core machine
+
+
+def cache_dir() -> Path | None:
+    """Where optimised graphs are kept (None: no cache)."""
+    env = os.environ.get("POSTPROC_CACHE_DIR")
+    if env is not None:
+        return Path(env) if env else None
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "postproc"
+
+
+def _options(ort, optimise: bool):
+    options = ort.SessionOptions()
+    options.log_severity_level = 3
+    options.intra_op_num_threads = _THREADS
+    options.inter_op_num_threads = _THREADS
+    if not optimise:
+        options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_DISABLE_ALL
+    return options
+
+
+def _key(ort, data: bytes) -> str:
+    h = hashlib.sha256(data)
+    h.update(f"\0onnxruntime {ort.__version__}\0threads {_THREADS}\0level all\0cpu".encode())
+    return h.hexdigest()
+
+
+def inference_session(data: bytes):
+    """An ``onnxruntime.InferenceSession`` (CPU) of the model ``data``; raises what ORT raises
+    for a model it cannot load."""
+    import onnxruntime as ort
+
+    folder = cache_dir()
+    if folder is None:
+        return ort.InferenceSession(data, _options(ort, True), providers=["CPUExecutionProvider"])
+    key = _key(ort, data)
+    cached, digest = folder / f"{key}.onnx", folder / f"{key}.sha256"
+    try:
+        optimised = cached.read_bytes()
+        if hashlib.sha256(optimised).hexdigest() == digest.read_text().strip():
+            return ort.InferenceSession(optimised, _options(ort, False), providers=["CPUExecutionProvider"])
+    except (OSError, ValueError):
+        pass  # not there yet, or unreadable: made again below
+    except Exception:  # noqa: BLE001 - onnxruntime's own exception types: a cache ORT refuses is made again
+        pass
+    options = _options(ort, True)
+    tmp = None
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{key}.", suffix=".onnx", dir=folder)
+        os.close(fd)
+        options.optimized_model_filepath = tmp
+    except OSError:
+        tmp = None
+    try:
+        session = ort.InferenceSession(data, options, providers=["CPUExecutionProvider"])
+        if tmp is not None:
+            _keep(Path(tmp), cached, digest)
+    finally:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
+    return session
+
+
+def _keep(written: Path, cached: Path, digest: Path) -> None:
+    """The optimised graph ORT wrote into the cache, its sha256 beside it (each by rename)."""
+    try:
+        text = hashlib.sha256(written.read_bytes()).hexdigest()
+        os.replace(written, cached)
+        fd, tmp = tempfile.mkstemp(prefix=f".{digest.stem}.", suffix=".sha256", dir=digest.parent)
+        with os.fdopen(fd, "w") as f:
+            f.write(text + "\n")
+        os.replace(tmp, digest)
+    except OSError:
+        pass
