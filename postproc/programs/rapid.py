@@ -104,6 +104,15 @@ def quaternion_matrix(q: np.ndarray) -> np.ndarray:
     return r
 
 
+def _scaled(q: np.ndarray) -> np.ndarray | None:
+    """A quaternion as written, scaled to length 1 (no overflow for 1e308), None for zero."""
+    big = np.abs(q).max()
+    if not big > 0:
+        return None
+    q = q / big
+    return q / np.linalg.norm(q)
+
+
 def _pose_matrix(xyz, q) -> np.ndarray:
     t = np.eye(4)
     t[:3, :3] = quaternion_matrix(q)
@@ -419,8 +428,8 @@ class _Reader:
             if not np.isfinite(n[0]):
                 raise PostprocError(f"{what}: '{st.text[n[1]:n[2]]}' is not a finite number", st.path,
                                     *line_col(st.text, n[1]), "P103")
-        q = np.array([n[0] for n in nums[3:]])
-        if np.linalg.norm(q) < 1e-9:
+        q = _scaled(np.array([n[0] for n in nums[3:]]))
+        if q is None:
             raise PostprocError(f"{what}: quaternion [0,0,0,0] is no orientation", st.path,
                                 *line_col(st.text, nums[3][1]), "P103")
         conf = [self.number(st, c, tokens) for c in v[1][2][1]]
@@ -474,8 +483,8 @@ class _Reader:
         nums = [self.number(st, c, tokens) for c in v[1][0][1] + v[1][1][1]]
         if any(n is None or not np.isfinite(n[0]) for n in nums):
             return None
-        q = np.array([n[0] for n in nums[3:]])
-        if np.linalg.norm(q) < 1e-9:
+        q = _scaled(np.array([n[0] for n in nums[3:]]))
+        if q is None:
             return None
         return _pose_matrix([n[0] for n in nums[:3]], q)
 
