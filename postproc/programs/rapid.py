@@ -241,6 +241,16 @@ class _State:
     assigned: set = field(default_factory=set)
     moves: list = field(default_factory=list)  # (call shape data, tokens, unit start)
     code: str = ""  # the text with comments and strings blanked
+    _newlines: np.ndarray | None = None
+
+    def locate(self, offsets):
+        """1-based (line, col) arrays of character offsets (one pass over the text, then bisection)."""
+        if self._newlines is None:
+            self._newlines = np.flatnonzero(np.frombuffer(self.text.encode("latin-1", "replace"), np.uint8) == 10)
+        offsets = np.asarray(offsets, np.int64)
+        before = np.searchsorted(self._newlines, offsets, "left")
+        starts = np.where(before > 0, self._newlines[np.maximum(before - 1, 0)] + 1, 0)
+        return before + 1, offsets - starts + 1
 
 
 class _Reader:
@@ -373,10 +383,10 @@ class _Reader:
                 depth.pop()
                 continue
             if kind in ("decl", "call", "assign"):
-                tokens = [(m.start(), m.end(), m.group()) for m in TOKEN_RE.finditer(self.code, start, end)]
+                tokens = list(TOKEN_RE.finditer(self.code, start, end))  # match objects: m[0] text, m.start()
                 if kind == "decl":
                     storage, type_, name_ord, array, value = shape.data
-                    s, _, name = tokens[name_ord]
+                    s, name = tokens[name_ord].start(), tokens[name_ord][0]
                     key = name.lower()
                     decl = _Decl(type_, storage, name, fi, array, value, tokens, s)
                     if key in st.decls:
@@ -384,7 +394,7 @@ class _Reader:
                     else:
                         st.decls[key] = decl
                 elif kind == "assign":
-                    st.assigned.add(tokens[shape.data][2].lower())
+                    st.assigned.add(tokens[shape.data][0].lower())
                 elif collect_moves:
                     st.moves.append((shape.data, tokens, start))
         if depth:
@@ -400,7 +410,8 @@ class _Reader:
         """(value, span start, span end) of a ("num", …) value; None if it is not one."""
         if v[0] != "num":
             return None
-        s, e, txt = tokens[v[1]]
+        m = tokens[v[1]]
+        s, e, txt = m.start(), m.end(), m[0]
         span_start = s
         if len(v) > 3:  # a unary sign belongs to the token that is rewritten
             j = s
@@ -413,7 +424,6 @@ class _Reader:
 
     def robtarget(self, st, v, tokens, what):
         """[[x,y,z],[q1..q4],[cf…],[eax…]] → (xyz, spans, quat, conf, offset of x) or None + P211."""
-        s, _, _ = tokens[v[2]] if v[0] == "agg" and v[2] >= 0 else (0, 0, "")
         if v[0] != "agg" or len(v[1]) != 4 or any(p[0] != "agg" for p in v[1][:3]) or \
                 len(v[1][0][1]) != 3 or len(v[1][1][1]) != 4 or len(v[1][2][1]) != 4:
             self.warn(st, self.at(v, tokens), "P211", f"{what} is not a robtarget [[x,y,z],[q1,q2,q3,q4],"
@@ -443,10 +453,11 @@ class _Reader:
             k = v[1]
         if v[0] == "expr":
             k = v[1]
-        return tokens[k][0] if 0 <= k < len(tokens) else (tokens[0][0] if tokens else 0)
+        return tokens[k].start() if 0 <= k < len(tokens) else (tokens[0].start() if tokens else 0)
 
     def warn(self, st, offset, code, message):
-        self.diagnostics.append(Diagnostic(st.path, *line_col(st.text, offset), code, message))
+        line, col = st.locate([offset])
+        self.diagnostics.append(Diagnostic(st.path, int(line[0]), int(col[0]), code, message))
 
     # -------------------------------------------------------------- frames
 
@@ -504,7 +515,7 @@ class _Reader:
         robhold, ufprog = v[1][0], v[1][1]
 
         def boolean(x):
-            return decl.tokens[x[1]][2].upper() if x[0] == "ref" and x[2] == () else "?"
+            return decl.tokens[x[1]][0].upper() if x[0] == "ref" and x[2] == () else "?"
 
         if boolean(robhold) != "FALSE":
             return f"work object {name} is held by the robot (robhold {boolean(robhold)}): a stationary-tool program"
@@ -529,7 +540,7 @@ class _Reader:
         if v[0] != "agg" or len(v[1]) < 2:
             return None
         robhold = v[1][0]
-        if not (robhold[0] == "ref" and robhold[2] == () and decl.tokens[robhold[1]][2].upper() == "TRUE"):
+        if not (robhold[0] == "ref" and robhold[2] == () and decl.tokens[robhold[1]][0].upper() == "TRUE"):
             return None
         t = self.pose_of(st, v[1][1], decl.tokens)
         if t is None:
@@ -553,8 +564,7 @@ class _Reader:
 
     def add_row(self, st, rt, frame, motion):
         xyz, spans, q, conf, x_at = rt
-        line, col = line_col(st.text, x_at)
-        self.rows.append((st.file, x_at, xyz, q, conf, spans, line, col, frame, _MOTION[motion]))
+        self.rows.append((st.file, x_at, xyz, q, conf, spans, frame, _MOTION[motion]))
 
     def motions(self, st: _State, states):
         for (instr, positional, options, first), tokens, start in st.moves:
@@ -563,20 +573,20 @@ class _Reader:
                 continue
             if len(positional) < len(kinds):
                 continue
-            instr_name = tokens[first][2] if first >= 0 else instr
+            instr_name = tokens[first][0] if first >= 0 else instr
             wobj = options.get("wobj")
             wobj_name = None
             frame, why = None, None
             if wobj is not None:
                 wv = wobj[0]
                 if wv is not None and wv[0] == "ref" and wv[2] == ():
-                    wobj_name = tokens[wv[1]][2]
+                    wobj_name = tokens[wv[1]][0]
                 else:
                     frame, why = -1, "the \\WObj argument is not a work object's name"
             tool_name = None
             for v in positional[len(kinds):]:
                 if v[0] == "ref" and v[2] == ():
-                    nm = tokens[v[1]][2]
+                    nm = tokens[v[1]][0]
                     if nm.lower() == "tool0" or isinstance(self.data_named(nm, "tooldata", states), tuple):
                         tool_name = nm
                         break
@@ -597,7 +607,7 @@ class _Reader:
             return
         if v[0] == "call":
             name = v[1]
-            label = "Offs" if name == "offs" else ("RelTool" if name == "reltool" else tokens[v[2]][2])
+            label = "Offs" if name == "offs" else ("RelTool" if name == "reltool" else tokens[v[2]][0])
             extra = (": not compensated itself (it moves with the numbers of the robtarget it is computed from)"
                      if name in _RUNTIME_FUNCS else ": left as written")
             self.warn(st, where, "P211", f"target {label}(…) of {instr} is computed at run time{extra}")
@@ -605,7 +615,7 @@ class _Reader:
         if v[0] != "ref":
             self.warn(st, where, "P211", f"target of {instr} is an expression, not known statically: left as written")
             return
-        name = tokens[v[1]][2]
+        name = tokens[v[1]][0]
         self.referenced.add(name.lower())
         d = self.data_named(name, "robtarget", states)
         if d is None:
@@ -635,7 +645,7 @@ class _Reader:
         elements = self.elements(decl, keys, where, st, tokens)
         if elements is None:
             return
-        line = line_col(st.text, where)[0]
+        line = int(st.locate([where])[0][0])
         for key, ev in elements:
             uses = decl.uses
             seen = uses.get(key)
@@ -674,7 +684,7 @@ class _Reader:
         walk(decl.value, ())
         if keys is None:  # an index computed at run time: every element may be meant
             return flat
-        want = tuple(int(float(tokens[k][2])) for k in keys)
+        want = tuple(int(float(tokens[k][0])) for k in keys)
         hit = [(k, v) for k, v in flat if k == want]
         if not hit:
             self.warn(st, where, "P211", f"{decl.name}{{{','.join(map(str, want))}}} is outside the array: left as written")
@@ -694,6 +704,7 @@ class _Reader:
         for fi, (path, text) in enumerate(zip(self.files, self.texts)):
             st = self.module(fi, path, text, True)
             mine.append(st)
+        self.states = mine
         for st in mine:
             scope = [st] + states
             self.motions(st, scope)
@@ -705,16 +716,22 @@ class _Reader:
         return self.build()
 
     def build(self) -> RapidProgram:
-        rows = sorted(self.rows, key=lambda r: (r[0], r[1]))
+        rows = sorted(self.rows, key=lambda r: (r[0], r[1]))  # text order
         n = len(rows)
         if n:
-            file, _, xyz, q, conf, spans, line, col, frame, motion = zip(*rows)
+            file, at, xyz, q, conf, spans, frame, motion = zip(*rows)
+            file, at = np.array(file, np.int32), np.array(at, np.int64)
+            line, col = np.zeros(n, np.int64), np.zeros(n, np.int64)
+            for st in self.states:
+                here = file == st.file
+                if here.any():
+                    line[here], col[here] = st.locate(at[here])
             xyz = np.array(xyz, float)
             abc = abc_from_rotation(quaternion_matrix(np.array(q, float)))
             targets = Targets(poses=np.concatenate([xyz, abc], axis=1),
                               spans=np.array(spans, np.int64).reshape(n, 3, 2),
-                              file=np.array(file, np.int32), line=np.array(line, np.int32),
-                              col=np.array(col, np.int32), frame=np.array(frame, np.int32),
+                              file=file, line=line.astype(np.int32),
+                              col=col.astype(np.int32), frame=np.array(frame, np.int32),
                               motion=np.array(motion, np.int8))
             confdata = np.array(conf, float).reshape(n, 4)
         else:
