@@ -44,6 +44,12 @@ TOKEN_RE = re.compile(r"[A-Za-z_]\w*|" + _NUM, re.ASCII)
 _NUM_RE = re.compile(_NUM, re.ASCII)
 _NAME_DIGITS = re.compile(r"(?<=[A-Za-z_])\d+(?!\w)", re.ASCII)
 _BLANKS = re.compile(r"\s+")
+_WHITE = re.compile(r"\s+")
+# an inline robtarget of plain numbers: x, y, z, q1..q4, cf1, cf4, cf6, cfx (a sign may stand
+# before each, as in the grammar: blanks between); its extax aggregate follows
+_SNUM = r"\s*([-+]?\s*" + _NUM + r")\s*"
+_RT_RE = re.compile(r"\[\s*\[" + ",".join([_SNUM] * 3) + r"\]\s*,\s*\[" + ",".join([_SNUM] * 4) + r"\]\s*,\s*\["
+                    + ",".join([_SNUM] * 4) + r"\]\s*,\s*\[", re.ASCII)
 # strings, comments, and a quote that opens no string on its line
 _HIDE = re.compile(r'"[^"\n]*"|!.*|"')
 _BLOCK_WORDS = {"MODULE", "ENDMODULE", "PROC", "ENDPROC", "FUNC", "ENDFUNC", "TRAP", "ENDTRAP", "LOCAL",
@@ -228,7 +234,7 @@ class _Decl:
     tokens: list  # the unit's tokens: (start, end, text)
     pos: int  # offset of the declared name
     used: int = -1  # -1: never moved to; -3: moved to in a frame not known; 0: moved to
-    uses: dict = field(default_factory=dict)  # element index tuple → (frame, line) of its first use
+    uses: dict = field(default_factory=dict)  # element index tuple → (frame, offset) of its first use
 
 
 @dataclass
@@ -263,6 +269,8 @@ class _Reader:
         self.frame_keys: dict = {}
         self.rows: list = []  # (file, offset, pose3, quat4, conf4, spans6, line, col, frame, motion)
         self.referenced: set[str] = set()  # names motions move to
+        self.exact: dict[str, _Shape] = {}
+        self.fast_rows: list = []  # (file, _RT_RE match, frame, motion)
 
     # -------------------------------------------------------------- text → units
 
@@ -315,9 +323,15 @@ class _Reader:
             lead = pending + len(code[pending:]) - len(code[pending:].lstrip())
             raise PostprocError("statement not ended by ';'", path, *line_col(text, lead), "P101")
 
-    def shape_of(self, path, text, start, end) -> _Shape:
+    def shape_of(self, path, text, start, end):
+        """(shape, exact key) of the unit at [start, end): the exact key keeps the names as
+        written (numbers → 0), the shape key also drops the digits ending names."""
         unit = self.code[start:end]
-        key = _BLANKS.sub(" ", _NAME_DIGITS.sub("0", _NUM_RE.sub("0", unit))).strip()
+        exact = _BLANKS.sub(" ", _NUM_RE.sub("0", unit)).strip()
+        shape = self.exact.get(exact)
+        if shape is not None:
+            return shape, exact
+        key = _NAME_DIGITS.sub("0", exact)
         shape = self.shapes.get(key)
         if shape is None:
             try:
@@ -326,7 +340,9 @@ class _Reader:
                 self.syntax_error(path, text, start, unit)
             ordinal_at = {m.start(): k for k, m in enumerate(TOKEN_RE.finditer(key))}
             shape = self.shapes[key] = _analyse(tree, ordinal_at)
-        return shape
+        if len(self.exact) < 100_000:
+            self.exact[exact] = shape
+        return shape, exact
 
     def syntax_error(self, path, text, start, unit):
         """Parse the unit as written to locate the error; raise P101 there."""
@@ -355,7 +371,7 @@ class _Reader:
         seen_module = False
         for start, end in self.units(path, text):
             st.code = self.code
-            shape = self.shape_of(path, text, start, end)
+            shape, exact = self.shape_of(path, text, start, end)
             kind = shape.kind
             if kind == "module_head":
                 if depth:
@@ -382,7 +398,10 @@ class _Reader:
                     raise PostprocError("end of a routine that was not opened", path, *line_col(text, start), "P102")
                 depth.pop()
                 continue
-            if kind in ("decl", "call", "assign"):
+            if kind == "call":
+                if collect_moves and shape.data[0] in MOTION_OF:
+                    st.moves.append((shape.data, exact, start, end))
+            elif kind in ("decl", "assign"):
                 tokens = list(TOKEN_RE.finditer(self.code, start, end))  # match objects: m[0] text, m.start()
                 if kind == "decl":
                     storage, type_, name_ord, array, value = shape.data
@@ -393,10 +412,8 @@ class _Reader:
                         st.decls[key] = None  # routine-local and module data of one name: which is meant is not known
                     else:
                         st.decls[key] = decl
-                elif kind == "assign":
+                else:
                     st.assigned.add(tokens[shape.data][0].lower())
-                elif collect_moves:
-                    st.moves.append((shape.data, tokens, start))
         if depth:
             raise PostprocError("MODULE without ENDMODULE" if depth == ["MODULE"] else "routine not closed at the end",
                                 path, *line_col(text, len(text)), "P102")
@@ -567,33 +584,56 @@ class _Reader:
         self.rows.append((st.file, x_at, xyz, q, conf, spans, frame, _MOTION[motion]))
 
     def motions(self, st: _State, states):
-        for (instr, positional, options, first), tokens, start in st.moves:
-            kinds = MOTION_OF.get(instr)
-            if kinds is None:
+        """Every motion of the module, in text order. A motion whose exact key (its text with
+        numbers → 0) was seen before with only inline robtargets, all read without a
+        finding, takes its numbers from one regex pass over the file (``_RT_RE``)."""
+        rt = list(_RT_RE.finditer(st.code))
+        rt_starts = np.array([m.start() for m in rt], np.int64)
+        fast: dict[str, tuple] = {}
+        for data, exact, start, end in st.moves:
+            known = fast.get(exact)
+            lo = int(np.searchsorted(rt_starts, start))
+            hi = int(np.searchsorted(rt_starts, end))
+            if known is not None and hi - lo == len(known[1]):
+                frame, kinds = known
+                for m, kind in zip(rt[lo:hi], kinds):
+                    self.fast_rows.append((st.file, m, frame, _MOTION[kind]))
                 continue
-            if len(positional) < len(kinds):
-                continue
-            instr_name = tokens[first][0] if first >= 0 else instr
-            wobj = options.get("wobj")
-            wobj_name = None
-            frame, why = None, None
-            if wobj is not None:
-                wv = wobj[0]
-                if wv is not None and wv[0] == "ref" and wv[2] == ():
-                    wobj_name = tokens[wv[1]][0]
-                else:
-                    frame, why = -1, "the \\WObj argument is not a work object's name"
-            tool_name = None
-            for v in positional[len(kinds):]:
-                if v[0] == "ref" and v[2] == ():
-                    nm = tokens[v[1]][0]
-                    if nm.lower() == "tool0" or isinstance(self.data_named(nm, "tooldata", states), tuple):
-                        tool_name = nm
-                        break
-            if frame is None:
-                frame, why = self.frame_index(wobj_name, tool_name, states)
-            for v, kind in zip(positional, kinds):
-                self.target(st, states, v, tokens, frame, why, kind, instr_name)
+            rows, notes = len(self.rows), len(self.diagnostics)
+            tokens = list(TOKEN_RE.finditer(st.code, start, end))
+            made = self.motion(st, states, data, tokens)
+            if made is not None and len(self.rows) - rows == len(made[1]) == hi - lo and \
+                    len(self.diagnostics) == notes and all(v[0] == "agg" for v in data[1][:len(made[1])]):
+                fast[exact] = made
+
+    def motion(self, st, states, data, tokens):
+        """Targets of one motion → rows; (frame, motion kinds) of the motion."""
+        instr, positional, options, first = data
+        kinds = MOTION_OF.get(instr)
+        if kinds is None or len(positional) < len(kinds):
+            return None
+        instr_name = tokens[first][0] if first >= 0 else instr
+        wobj = options.get("wobj")
+        wobj_name = None
+        frame, why = None, None
+        if wobj is not None:
+            wv = wobj[0]
+            if wv is not None and wv[0] == "ref" and wv[2] == ():
+                wobj_name = tokens[wv[1]][0]
+            else:
+                frame, why = -1, "the \\WObj argument is not a work object's name"
+        tool_name = None
+        for v in positional[len(kinds):]:
+            if v[0] == "ref" and v[2] == ():
+                nm = tokens[v[1]][0]
+                if nm.lower() == "tool0" or isinstance(self.data_named(nm, "tooldata", states), tuple):
+                    tool_name = nm
+                    break
+        if frame is None:
+            frame, why = self.frame_index(wobj_name, tool_name, states)
+        for v, kind in zip(positional, kinds):
+            self.target(st, states, v, tokens, frame, why, kind, instr_name)
+        return (frame, kinds) if frame >= 0 else None
 
     def target(self, st, states, v, tokens, frame, why, kind, instr):
         where = self.at(v, tokens)
@@ -638,14 +678,13 @@ class _Reader:
             if decl.uses:
                 first = next(iter(decl.uses.values()))
                 self.warn(st, where, "P202", f"{name} is moved to here in a frame not known statically, at line "
-                          f"{first[1]} in a known one: compensated for the first")
+                          f"{int(st.locate([first[1]])[0][0])} in a known one: compensated for the first")
             elif decl.used == -1:
                 decl.used = -3  # moved to in an unknown frame first: never compensated
             return
         elements = self.elements(decl, keys, where, st, tokens)
         if elements is None:
             return
-        line = int(st.locate([where])[0][0])
         for key, ev in elements:
             uses = decl.uses
             seen = uses.get(key)
@@ -653,11 +692,11 @@ class _Reader:
             if seen is not None:
                 if seen[0] != frame:
                     self.warn(st, where, "P202", f"{label} is used in another frame than at its first use "
-                              f"(line {seen[1]}): compensated for the first")
+                              f"(line {int(st.locate([seen[1]])[0][0])}): compensated for the first")
                 continue
             if decl.used == -3:
                 break
-            uses[key] = (frame, line)
+            uses[key] = (frame, where)
             rt = self.robtarget(st, ev, decl.tokens, f"robtarget {label}")
             if rt is not None:
                 self.add_row(st, rt, frame, kind)
@@ -715,30 +754,55 @@ class _Reader:
                               "module: left as written")
         return self.build()
 
-    def build(self) -> RapidProgram:
-        rows = sorted(self.rows, key=lambda r: (r[0], r[1]))  # text order
-        n = len(rows)
+    def columns(self):
+        """The rows of both paths as arrays: file, offset of X, xyz, quaternion, conf, spans, frame, motion."""
+        n = len(self.rows)
         if n:
-            file, at, xyz, q, conf, spans, frame, motion = zip(*rows)
-            file, at = np.array(file, np.int32), np.array(at, np.int64)
-            line, col = np.zeros(n, np.int64), np.zeros(n, np.int64)
-            for st in self.states:
-                here = file == st.file
-                if here.any():
-                    line[here], col[here] = st.locate(at[here])
-            xyz = np.array(xyz, float)
-            abc = abc_from_rotation(quaternion_matrix(np.array(q, float)))
-            targets = Targets(poses=np.concatenate([xyz, abc], axis=1),
-                              spans=np.array(spans, np.int64).reshape(n, 3, 2),
-                              file=file, line=line.astype(np.int32),
-                              col=col.astype(np.int32), frame=np.array(frame, np.int32),
-                              motion=np.array(motion, np.int8))
-            confdata = np.array(conf, float).reshape(n, 4)
+            file, at, xyz, q, conf, spans, frame, motion = zip(*self.rows)
+            cols = [np.array(file, np.int32), np.array(at, np.int64), np.array(xyz, float).reshape(n, 3),
+                    np.array(q, float).reshape(n, 4), np.array(conf, float).reshape(n, 4),
+                    np.array(spans, np.int64).reshape(n, 3, 2), np.array(frame, np.int32), np.array(motion, np.int8)]
         else:
-            targets = Targets(poses=np.zeros((0, 6)), spans=np.zeros((0, 3, 2), np.int64), file=np.zeros(0, np.int32),
-                              line=np.zeros(0, np.int32), col=np.zeros(0, np.int32), frame=np.zeros(0, np.int32),
-                              motion=np.zeros(0, np.int8))
-            confdata = np.zeros((0, 4))
+            cols = [np.zeros(0, np.int32), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 4)), np.zeros((0, 4)),
+                    np.zeros((0, 3, 2), np.int64), np.zeros(0, np.int32), np.zeros(0, np.int8)]
+        m = len(self.fast_rows)
+        if m:
+            file, match, frame, motion = zip(*self.fast_rows)
+            text = _WHITE.sub("", ",".join(",".join(x.groups()) for x in match))
+            values = np.array(text.split(","), dtype=float).reshape(m, 11)
+            spans = np.array([x.regs[1:4] for x in match], np.int64)
+            fast = [np.array(file, np.int32), spans[:, 0, 0].copy(), values[:, :3], values[:, 3:7], values[:, 7:],
+                    spans, np.array(frame, np.int32), np.array(motion, np.int8)]
+            cols = [np.concatenate([a, b]) for a, b in zip(cols, fast)]
+        order = np.lexsort((cols[1], cols[0]))  # text order
+        return [c[order] for c in cols]
+
+    def build(self) -> RapidProgram:
+        file, at, xyz, q, conf, spans, frame, motion = self.columns()
+        n = len(file)
+        line, col = np.zeros(n, np.int64), np.zeros(n, np.int64)
+        for st in self.states:
+            here = file == st.file
+            if here.any():
+                line[here], col[here] = st.locate(at[here])
+        bad = ~np.isfinite(np.concatenate([xyz, q], axis=1)).all(axis=1)
+        if bad.any():
+            r = int(np.flatnonzero(bad)[0])
+            raise PostprocError("a robtarget's position or orientation is not a finite number", self.files[file[r]],
+                                int(line[r]), int(col[r]), "P103")
+        with np.errstate(invalid="ignore", over="ignore"):
+            big = np.abs(q).max(axis=1)
+        if not (big > 0).all():
+            r = int(np.flatnonzero(~(big > 0))[0])
+            raise PostprocError("a robtarget's quaternion [0,0,0,0] is no orientation", self.files[file[r]],
+                                int(line[r]), int(col[r]), "P103")
+        if n:
+            abc = abc_from_rotation(quaternion_matrix(q / big[:, None]))
+        else:
+            abc = np.zeros((0, 3))
+        targets = Targets(poses=np.concatenate([xyz, abc], axis=1), spans=spans, file=file,
+                          line=line.astype(np.int32), col=col.astype(np.int32), frame=frame, motion=motion)
+        confdata = conf
         stamps = {}
         for fi, text in enumerate(self.texts):
             m = re.search(r"^[ \t]*!.*" + re.escape(STAMP_PREFIX) + r".*$", text, re.M)
