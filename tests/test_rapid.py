@@ -279,3 +279,18 @@ def test_round_trip_zero_offset_and_affine(models, case):
             error = OFFSET + (GAIN @ (base - CENTRE) if kind == "affine" else 0)
             assert np.allclose(got[k], xyz + r.T @ error, atol=6e-4), (k, kind)
         assert np.array_equal(p_in.targets.poses[:, 3:], p_out.targets.poses[:, 3:])
+
+
+def test_repeated_motions_read_alike_and_a_bad_number_later_is_located():
+    # the second and later motions of one exact shape take the reader's fast path
+    lines = [f"MoveL [[{i}.5,- {i},{2 * i}],[0,0,1,0],[0,{i % 2},0,1],{EAX}],v100,z1,tool0;" for i in range(1, 6)]
+    p = read(module(*lines))
+    assert p.targets.poses[:, :3].tolist() == [[i + 0.5, -i, 2 * i] for i in range(1, 6)]
+    assert p.confdata[:, 1].tolist() == [1, 0, 1, 0, 1]
+    assert p.targets.line.tolist() == [3, 4, 5, 6, 7] and set(p.targets.col.tolist()) == {9}
+    s, e = p.targets.spans[3, 1]
+    assert p.texts[0][s:e] == "- 4"  # sign and blank: one token for the rewriter
+    lines[3] = lines[3].replace("4.5", "4e999")
+    with pytest.raises(PostprocError) as exc:
+        read(module(*lines))
+    assert (exc.value.line, exc.value.col, exc.value.code) == (6, 9, "P103")
