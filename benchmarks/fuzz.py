@@ -1,8 +1,10 @@
 """Mutation fuzzing of `postproc compensate` on the sample corpus.
 
     python benchmarks/fuzz.py [--mutants 10000] [--seed 0] [--subprocess 50] [--timeout 10] [--keep DIR]
+                              [--dialect krl|poses|rapid]
 
-Takes every sample program (samples/krl/*: a .src with its .dat; samples/poses/*), applies
+Takes every sample program (samples/krl/*: a .src with its .dat; samples/poses/*;
+samples/rapid/*: ABB RAPID modules), or those of one --dialect, applies
 random byte, token and line mutations (delete, duplicate, swap, insert garbage or a
 keyword, replace a number by an edge case, truncate, change line endings) and compensates
 each mutant with a constant-offset model. Every mutant must end in one of two ways:
@@ -56,6 +58,11 @@ KEYWORDS = [
     "XP1", "P[3]", "IF", "ENDIF", "FOR", "ENDFOR", "CA 90", "\n", "\r\n", "\r", "\t", " ", "  ",
     "x", "y", "z", "a", "b", "c", "name", "#", "//", "nan", "inf", "-", "+", ".", "e", "E5",
     "; postproc: compensated with model",
+    # ABB RAPID
+    "MODULE m", "ENDMODULE", "PROC main()", "ENDPROC", "MoveL", "MoveJ", "MoveC", "MoveAbsJ", "Offs(p10,0,0,5)",
+    "RelTool(", "robtarget", "CONST", "PERS", "VAR", "tooldata", "wobjdata", "\\WObj:=", "wobj0", "tool0",
+    ":=", "!", "[[", "]]", "9E+09", "{", "}", "[1,0,0,0]", "[0,0,0,0]", "TRUE", "FALSE", "v100", "fine", "z10",
+    "! postproc: compensated with model",
 ]
 NUMBERS = ["nan", "inf", "-inf", "1e999", "-1e999", "1e-400", "0e400", "1.5E+03", "-0.000", ".5", "5.", "+5",
            "1e308", "123456789012345678901234567890", "0.0000001", "-", ".", "1e", "1.2.3", "2000", "-2000",
@@ -90,6 +97,9 @@ def corpus(root: Path = REPO / "samples") -> list[Sample]:
         samples.append(Sample(paths[0].name, {p.name: p.read_bytes() for p in paths}, dict(config)))
     for path in sorted((root / "poses").glob("*")):
         if path.suffix.lower() in (".csv", ".txt"):
+            samples.append(Sample(path.name, {path.name: path.read_bytes()}))
+    for path in sorted((root / "rapid").glob("*")) if (root / "rapid").is_dir() else []:
+        if path.suffix.lower() in (".mod", ".prg", ".sys", ".modx"):
             samples.append(Sample(path.name, {path.name: path.read_bytes()}))
     return samples
 
@@ -472,8 +482,13 @@ def main() -> None:
     parser.add_argument("--subprocess", type=int, default=50, help="how many mutants also run as a real process")
     parser.add_argument("--timeout", type=float, default=10.0, help="seconds per mutant before it counts as a hang")
     parser.add_argument("--keep", type=Path, help="save crashing / wrong / hanging mutants here")
+    parser.add_argument("--dialect", help="only the samples of this dialect (krl, poses, rapid)")
     args = parser.parse_args()
     samples = corpus()
+    if args.dialect:
+        from postproc.programs import dialect_of
+
+        samples = [s for s in samples if dialect_of(s.name) == args.dialect]
     start = time.perf_counter()
     counts, codes, bad = fuzz(args.mutants, args.seed, args.subprocess, args.timeout, args.keep, samples)
     wall = time.perf_counter() - start

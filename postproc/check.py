@@ -73,7 +73,7 @@ CODES = {
 
 # "path:line:col" of a stamp; the name may hold spaces, the hash is the last word
 _STAMP = re.compile(
-    r"^[ \t]*(?:;|#|//)[ \t]*" + re.escape(STAMP_PREFIX) + r"[ \t]+(?P<name>.*?)[ \t]+(?P<sha>[0-9a-fA-F]{6,64})[ \t]*\r?$",
+    r"^[ \t]*(?:;|#|//|!)[ \t]*" + re.escape(STAMP_PREFIX) + r"[ \t]+(?P<name>.*?)[ \t]+(?P<sha>[0-9a-fA-F]{6,64})[ \t]*\r?$",
     re.M,
 )
 

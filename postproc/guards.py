@@ -89,7 +89,7 @@ def check_numbers(program: Program, owners: np.ndarray, tokens: list[str], value
                             "P190")
 
 
-_INSERTED = re.compile(r"[ \t]*,?[ \t]*([XYZxyz])[ \t]*(\S+?)[ \t]*,?[ \t]*\Z")
+_INSERTED = re.compile(r"[ \t]*,?[ \t]*([XYZxyz])[ \t]*([+-]?[ \t]*[^\s,]+?)[ \t]*,?[ \t]*\Z")  # ('- 0.5': a sign may stand apart)
 
 
 def check_inserted(program: Program, owners: np.ndarray, pieces: list[str], axes: np.ndarray,

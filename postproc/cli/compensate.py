@@ -34,7 +34,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--model", metavar="M", help="ONNX compensator (default: the shipped models/default.onnx)")
     p.add_argument("--config", metavar="CONFIG_DAT", help="$config.dat with BASE_DATA / TOOL_DATA (for a cell "
                    "directory, default: its System/$config.dat)")
-    p.add_argument("--dialect", choices=["krl", "poses"], help="program type for stdin (default: detected)")
+    p.add_argument("--dialect", choices=["krl", "poses", "rapid"],
+                   help="program type for stdin (default: detected; RAPID must be named)")
     p.add_argument("--iterations", type=int, metavar="K", help="fixed-point iterations c ← P + Ê(c) (default: the model's)")
     p.add_argument("--max-correction", type=float, metavar="MM", default=None,
                    help="refuse corrections larger than this (default 5 mm)")

@@ -16,22 +16,26 @@ __all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "read_program", "dia
 
 KRL_SUFFIXES = {".src", ".dat", ".sub"}
 POSE_SUFFIXES = {".csv", ".txt", ".pose", ".poses", ".xyz"}
+RAPID_SUFFIXES = {".mod", ".prg", ".sys", ".modx"}
 
 
 def dialect_of(path: str | Path) -> str:
-    """'krl' for .src/.dat/.sub, 'poses' for .csv/.txt/.pose(s)/.xyz; ValueError otherwise."""
+    """'krl' for .src/.dat/.sub, 'poses' for .csv/.txt/.pose(s)/.xyz, 'rapid' for
+    .mod/.modx/.prg/.sys; ValueError otherwise."""
     suffix = Path(str(path)).suffix.lower()
     if suffix in KRL_SUFFIXES:
         return "krl"
     if suffix in POSE_SUFFIXES:
         return "poses"
-    raise ValueError(f"unknown program type {suffix!r} (expected .src/.dat or .csv/.txt)")
+    if suffix in RAPID_SUFFIXES:
+        return "rapid"
+    raise ValueError(f"unknown program type {suffix!r} (expected .src/.dat, .csv/.txt or .mod/.prg/.sys)")
 
 
 def read_program(files: list[str], texts: list[str], dialect: str, config: list[str] | None = None) -> Program:
     """Parse a program made of ``files`` (for KRL: the .src first, then its .dat if any)
     with contents ``texts``. ``config`` optionally holds ``$config.dat`` text(s) that give
-    BASE_DATA / TOOL_DATA. Raises PostprocError (with file:line:col) on bad input."""
+    BASE_DATA / TOOL_DATA (for RAPID: other modules' tooldata / wobjdata). Raises PostprocError (with file:line:col) on bad input."""
     if dialect == "krl":
         from . import krl
 
@@ -43,6 +47,13 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
         from . import poses
 
         program = poses.read(files, texts)
+        program.from_text = True
+        return program
+    if dialect == "rapid":
+        from . import rapid
+
+        program = rapid.read(files, texts, config=config)
+        program.config = list(config) if config else None
         program.from_text = True
         return program
     raise ValueError(f"unknown dialect {dialect!r}")

@@ -1,0 +1,72 @@
+"""Read speed of the ABB RAPID (and other non-KRL) readers on generated 100k-target programs.
+
+    python benchmarks/dialect_read_speed.py [--targets 100000] [--dialect rapid]
+
+Per program style: the time of ``postproc.programs.read_program`` (best of --repeat), the
+targets per second, and the number of targets read (which must be --targets).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+EAX = "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]"
+WOBJ = 'TASK PERS wobjdata wCam:=[FALSE,TRUE,"",[[1900,-100,600],[0.9961947,0,0,0.0871557]],[[0,0,0],[1,0,0,0]]];'
+TOOL = "TASK PERS tooldata tCut:=[TRUE,[[0,0,150],[1,0,0,0]],[5,[0,0,50],[1,0,0,0],0,0,0]];"
+
+
+def _points(n: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return rng.uniform([-200, -300, 0], [200, 300, 400], size=(n, 3))
+
+
+def rapid_inline(n: int) -> str:
+    """CAM / offline-programming style: one inline robtarget per MoveL."""
+    out = ["MODULE cam_big", "  " + TOOL, "  " + WOBJ, "  PROC main()"]
+    out += [f"    MoveL [[{x:.3f},{y:.3f},{z:.3f}],[0,0,1,0],[0,0,0,0],{EAX}],v100,z1,tCut\\WObj:=wCam;"
+            for x, y, z in _points(n)]
+    return "\n".join(out + ["  ENDPROC", "ENDMODULE", ""])
+
+
+def rapid_declared(n: int) -> str:
+    """RobotStudio style: CONST robtarget declarations, then MoveL to each name."""
+    pts = _points(n)
+    out = ["MODULE big", "  " + TOOL, "  " + WOBJ]
+    out += [f"  CONST robtarget p{i}:=[[{x:.3f},{y:.3f},{z:.3f}],[0,0.7071068,0.7071068,0],[0,-1,0,0],{EAX}];"
+            for i, (x, y, z) in enumerate(pts)]
+    out += ["  PROC main()"] + [f"    MoveL p{i},v100,z1,tCut\\WObj:=wCam;" for i in range(n)]
+    return "\n".join(out + ["  ENDPROC", "ENDMODULE", ""])
+
+
+STYLES = {"rapid": [("inline MoveL", rapid_inline, "cam.mod"), ("declared robtargets", rapid_declared, "big.mod")]}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--targets", type=int, default=100_000)
+    parser.add_argument("--dialect", choices=sorted(STYLES), action="append")
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    from postproc.programs import read_program
+
+    for dialect in args.dialect or sorted(STYLES):
+        for style, make, name in STYLES[dialect]:
+            text = make(args.targets)
+            best, count = float("inf"), 0
+            for _ in range(args.repeat):
+                start = time.perf_counter()
+                program = read_program([name], [text], dialect)
+                best = min(best, time.perf_counter() - start)
+                count = len(program.targets)
+            print(f"{dialect:6s} {style:22s} {count:>8,} targets  {len(text) / 1e6:6.1f} MB  {best:6.2f} s  "
+                  f"{count / best:>9,.0f} targets/s")
+
+
+if __name__ == "__main__":
+    main()

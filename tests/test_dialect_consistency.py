@@ -1,0 +1,91 @@
+"""The same poses written as KRL, ABB RAPID and a pose CSV get the same corrections from the
+same model (an affine one: the correction varies over space), to the written precision.
+
+Each program holds the poses in its own way: KRL and RAPID in a frame turned 90° about Z
+and shifted ($BASE / a work object's user frame), the CSV in the robot base. The corrected
+numbers of each are taken back into the robot base and compared."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from postproc import frames
+from postproc.compensate import compensate_text, parse_program_text
+from postproc.compensator import load_model
+
+BASE = np.array([1800.0, -300.0, 600.0, 90.0, 0.0, 0.0])  # X,Y,Z,A,B,C of the frame
+LOCAL = np.array([[100.0, 50.0, 320.5, 0.0, 90.0, 0.0],
+                  [250.25, -120.0, 400.0, 10.0, 80.0, -5.0],
+                  [-80.0, 300.0, 250.0, -30.0, 85.0, 20.0],
+                  [400.0, 0.0, 500.0, 45.0, 70.0, 0.0]])
+GAIN = np.array([[2e-3, 0, 0], [0, -1e-3, 5e-4], [0, 0, 3e-3]])
+WRITTEN = 5e-4  # numbers are written to 3 decimals
+
+
+def _quat(abc):
+    q = Rotation.from_euler("ZYX", abc, degrees=True).as_quat()
+    return [q[3], q[0], q[1], q[2]]
+
+
+def krl():
+    lines = ["DEF cons( )", "$BASE = {X %.3f,Y %.3f,Z %.3f,A %.3f,B %.3f,C %.3f}" % tuple(BASE),
+             "$TOOL = {X 0.000,Y 0.000,Z 200.000,A 0.000,B 0.000,C 0.000}"]
+    lines += ["LIN {X %.3f,Y %.3f,Z %.3f,A %.3f,B %.3f,C %.3f}" % tuple(p) for p in LOCAL]
+    return "\n".join(lines + ["END", ""]), "cons.src"
+
+
+def rapid():
+    bq = ",".join(f"{v:.12f}" for v in _quat(BASE[3:]))
+    lines = ["MODULE cons", "PERS tooldata t1:=[TRUE,[[0,0,200],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];",
+             f"PERS wobjdata w1:=[FALSE,TRUE,\"\",[[{BASE[0]:.3f},{BASE[1]:.3f},{BASE[2]:.3f}],[{bq}]],"
+             "[[0,0,0],[1,0,0,0]]];", "PROC main()"]
+    for p in LOCAL:
+        q = ",".join(f"{v:.12f}" for v in _quat(p[3:]))
+        lines.append(f"MoveL [[{p[0]:.3f},{p[1]:.3f},{p[2]:.3f}],[{q}],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],"
+                     "v100,z1,t1\\WObj:=w1;")
+    return "\n".join(lines + ["ENDPROC", "ENDMODULE", ""]), "cons.mod"
+
+
+def csv():
+    t = frames.frame_to_matrix(BASE) @ frames.frame_to_matrix(LOCAL)
+    base = frames.matrix_to_frame(t)
+    rows = [",".join(f"{v:.6f}" for v in p) for p in base]
+    return "x,y,z,a,b,c\n" + "\n".join(rows) + "\n", "cons.csv"
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    from model_factory import affine_model
+
+    path = affine_model(tmp_path_factory.mktemp("cons") / "affine.onnx", offset=(0.3, -0.2, 0.1), gain=GAIN,
+                        reach=None, tool={"name": "any"})
+    return load_model(path)
+
+
+def _in_base(text, name):
+    p = parse_program_text(text, name)
+    t = p.targets
+    out = np.empty((len(t), 3))
+    for f in np.unique(t.frame):
+        rows = t.frame == f
+        out[rows] = frames.transform_points(p.frames[f].base, t.poses[rows, :3])
+    return out, p
+
+
+def test_same_poses_same_corrections_in_every_dialect(model):
+    results = {}
+    for make in (krl, rapid, csv):
+        text, name = make()
+        before, program = _in_base(text, name)
+        assert len(program.targets) == len(LOCAL), name
+        assert np.allclose(before, frames.transform_points(frames.frame_to_matrix(BASE), LOCAL[:, :3]), atol=1e-6)
+        out, report = compensate_text(text, model, name=name)
+        assert report.compensated == len(LOCAL)
+        after, _ = _in_base(out, name)
+        results[name] = after - before
+    reference = results["cons.csv"]
+    # the correction varies from target to target: the test can tell a wrong frame or point
+    assert np.ptp(reference, axis=0).max() > 0.1
+    for name, correction in results.items():
+        assert np.allclose(correction, reference, atol=2 * WRITTEN), name
