@@ -647,6 +647,25 @@ class _IkGeometry:
         return q_all, np.stack(valid)
 
 
+def ur_geometry(description) -> tuple[np.ndarray, np.ndarray]:
+    """The joint origins [6, 6] and axis signs [6] of a UR-type description (the one check of
+    the geometry the closed-form UR IK needs, numpy here and torch in training/arm.py); P333
+    for another geometry."""
+    o = np.array([j.origin for j in description.joints])
+    axes = np.array([j.axis for j in description.joints])
+    want = [2, 1, 1, 1, 2, 1]
+    ok = np.allclose(o[:, 3:], 0.0) and all(abs(abs(axes[j, want[j]]) - 1.0) < 1e-12 for j in range(6))
+    ok = ok and np.allclose(axes[1], axes[2]) and np.allclose(axes[1], axes[3])
+    ok = ok and np.allclose(o[1, :2], 0.0) and np.allclose(o[2:4, 1:], 0.0) and np.allclose(o[4, [0, 2]], 0.0)
+    ok = ok and np.allclose(o[5, :2], 0.0) and np.allclose(o[0, :2], 0.0)
+    if not ok:
+        raise PostprocError(
+            "the UR-type IK needs joint origins without rotation, axes A1 ±Z, A2 = A3 = A4 ±Y, A5 ±Z, A6 ±Y, "
+            "A2 above A1, A3 and A4 along X from it, A5 beside A4 (Y), A6 below/above A5 (Z)",
+            description.path, description.locate("joint", None, 0), 1, CODE_GEOMETRY)
+    return o, np.array([axes[j, want[j]] for j in range(6)])
+
+
 class _UrIkGeometry:
     """Closed-form IK of a Universal-Robots-type arm (as ``models/ur10.toml``; the numpy twin of
     training.arm.UrIK, all 8 branches): A1 about ±Z; A2 = A3 = A4 about ±Y; A5 about ±Z; A6
@@ -658,19 +677,7 @@ class _UrIkGeometry:
 
     def __init__(self, robot: Robot):
         d = robot.description
-        o = np.array([j.origin for j in d.joints])
-        axes = np.array([j.axis for j in d.joints])
-        want = [2, 1, 1, 1, 2, 1]
-        ok = np.allclose(o[:, 3:], 0.0) and all(abs(abs(axes[j, want[j]]) - 1.0) < 1e-12 for j in range(6))
-        ok = ok and np.allclose(axes[1], axes[2]) and np.allclose(axes[1], axes[3])
-        ok = ok and np.allclose(o[1, :2], 0.0) and np.allclose(o[2:4, 1:], 0.0) and np.allclose(o[4, [0, 2]], 0.0)
-        ok = ok and np.allclose(o[5, :2], 0.0) and np.allclose(o[0, :2], 0.0)
-        if not ok:
-            raise PostprocError(
-                "the UR-type IK needs joint origins without rotation, axes A1 ±Z, A2 = A3 = A4 ±Y, A5 ±Z, A6 ±Y, "
-                "A2 above A1, A3 and A4 along X from it, A5 beside A4 (Y), A6 below/above A5 (Z)",
-                d.path, d.locate("joint", None, 0), 1, CODE_GEOMETRY)
-        self.s = np.array([axes[j, want[j]] for j in range(6)])
+        o, self.s = ur_geometry(d)
         self.z0 = float(o[0, 2] + o[1, 2])
         self.a2, self.a3 = float(o[2, 0]), float(o[3, 0])
         self.y4 = float(o[4, 1])  # A4 → A5 along the shoulder axis

@@ -22,7 +22,7 @@ import torch
 
 from .. import frames
 from ..diagnostics import PostprocError
-from ..robot import RobotDescription
+from ..robot import RobotDescription, ur_geometry
 from .features import wrapped_step
 from .network import rotation_matrices
 
@@ -308,20 +308,8 @@ class UrIK(torch.nn.Module):
 
     def __init__(self, description: RobotDescription, branch: tuple[float, float, float] = (1.0, 1.0, 1.0)):
         super().__init__()
-        o = np.array([j.origin for j in description.joints])
-        axes = np.array([j.axis for j in description.joints])
-        want = [2, 1, 1, 1, 2, 1]
-        ok = np.allclose(o[:, 3:], 0.0) and all(abs(abs(axes[j, want[j]]) - 1.0) < 1e-12 for j in range(6))
-        ok = ok and np.allclose(axes[1], axes[2]) and np.allclose(axes[1], axes[3])
-        ok = ok and np.allclose(o[1, :2], 0.0) and np.allclose(o[2:4, 1:], 0.0) and np.allclose(o[4, [0, 2]], 0.0)
-        ok = ok and np.allclose(o[5, :2], 0.0) and np.allclose(o[0, :2], 0.0)
-        if not ok:
-            raise PostprocError(
-                "the UR-type IK needs joint origins without rotation, axes A1 ±Z, A2 = A3 = A4 ±Y, A5 ±Z, A6 ±Y, "
-                "A2 above A1, A3 and A4 along X from it, A5 beside A4 (Y), A6 below/above A5 (Z)",
-                description.path, description.locate("joint", None, 0), 1, "P333")
+        o, s = ur_geometry(description)
         self.branch = tuple(float(b) for b in branch)
-        s = np.array([axes[j, want[j]] for j in range(6)])
         self.register_buffer("s", _t(s))
         # the chain at q = 0 in the base frame: A2 at height z2, upper arm and forearm along X,
         # the wrist offsets along Y (y5 = A4 → A5) and Z (z6 = A5 → A6), then the flange
