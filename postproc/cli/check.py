@@ -116,6 +116,10 @@ def run(args) -> int:
                                 **options)
     written = []
     if args.fresh:
+        if not cfg.fresh and not args.quiet:
+            print(f"postproc check: no fresh pairs configured ({cfg.path or 'no postproc.toml / pyproject.toml'}): "
+                  "no compensated outputs to compare (add fresh = [{ source = \"src/*.src\", output = \"out/*.src\" }] "
+                  "under [tool.postproc])", file=sys.stderr)
         fresh, written = check_fresh(cfg, model, fix=args.fix, ignore=ignore)
         findings += fresh
 
