@@ -289,7 +289,8 @@ class AsyncStatements:
         self.async_frames(node.children[-1], "INTERRUPT")
 
     def s_trigger(self, node):
-        action = next(c for c in node.children if isinstance(c, Tree) and c.data in ("assign", "call", "bare_call"))
+        action = next(c for c in node.children if isinstance(c, Tree) and c.data in ("assign", "call", "bare_call",
+                                                                                     "brake"))
         self.async_frames(action, "TRIGGER")
 
     def async_frames(self, action, what):
@@ -303,6 +304,8 @@ class AsyncStatements:
             name = str(root.children[0]).upper() if root.data == "name" else ""
             changed = [name] if name in self._FRAMES else []
             label = name
+        elif action.data == "brake":
+            return
         else:
             self.after_call(action.children[0], [a for a in action.children[1].children]
                             if action.data == "call" else [], action)
