@@ -20,7 +20,8 @@ from .syntax import _PLACEHOLDER, SHAPE_RE
 from .values import _first_pos, _Unknown, _Var
 
 # KUKA system subroutines known not to touch $BASE / $TOOL (BAS is handled by its #command)
-HARMLESS = frozenset({"SET_CD_PARAMS"})
+# KRL system statements written as calls (PULSE, CWRITE…): they cannot set a frame
+HARMLESS = frozenset({"SET_CD_PARAMS", "PULSE", "CWRITE", "CREAD", "SWRITE", "SREAD", "CAST_TO", "CAST_FROM"})
 MAX_DEPTH = 8
 # the statements a callee runs in the sandbox (everything else cannot change a frame)
 EFFECT_STATEMENTS = frozenset({"assign", "call", "bare_call", "decl"})

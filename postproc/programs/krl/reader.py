@@ -16,7 +16,7 @@ from .calls import Calls
 from .fast_path import FastPath, _HotRows, _Shape, _analyse, _name_paths
 from .frames import Frames, _START
 from .scopes import Scopes
-from .statements import Statements
+from .statements import AsyncStatements, Statements
 from .syntax import SHAPE_RE, SyntaxErrors, _BLANK, _PLACEHOLDER
 from .values import Values, _Num, _Var
 
@@ -53,7 +53,7 @@ def _kind(path: str) -> str:
     return "dat" if name.endswith(".dat") else "src"
 
 
-class Reader(FastPath, Blocks, Statements, Frames, Scopes, Values, SyntaxErrors, Assembly, Calls):
+class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Values, SyntaxErrors, Assembly, Calls):
     """The KRL reader: one module per concept, each contributing its methods."""
 
     def __init__(self, files, texts, config, accelerate: bool = True):

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+from lark import Tree
 
 from ...diagnostics import PostprocError
 from .values import _AXIS_TYPES, _Agg, _KIND_OF, _MOTION, _POS_TYPES, _RUNTIME_POS, _STANDARD_AXIS, _Derived, _Unknown, _first_pos
@@ -353,3 +354,50 @@ def _root_name(expr):
     while expr.data in ("member", "index"):
         expr = expr.children[0]
     return expr.children[0] if expr.data == "name" else None
+
+
+class AsyncStatements:
+    """INTERRUPT DECL … DO, TRIGGER … DO and IMPORT: statements whose effect is not at their
+    line. (methods of the Reader)"""
+
+    _FRAMES = ("$BASE", "$TOOL", "$ROBROOT")
+
+    def s_interrupt_decl(self, node):
+        self.async_frames(node.children[-1], "INTERRUPT")
+
+    def s_trigger(self, node):
+        action = next(c for c in node.children if isinstance(c, Tree) and c.data in ("assign", "call", "bare_call",
+                                                                                     "brake"))
+        self.async_frames(action, "TRIGGER")
+
+    def async_frames(self, action, what):
+        """A handler that may set $BASE/$TOOL/$ROBROOT runs at a time the reader cannot know:
+        each frame it may set is unknown from its declaration on (P201/P203 at the targets)."""
+        st, where = self.state, (self.ln, self.col(_first_pos(action)))
+        if action.data == "assign":
+            root = action.children[0]
+            while root.data in ("member", "index"):
+                root = root.children[0]
+            name = str(root.children[0]).upper() if root.data == "name" else ""
+            changed = [name] if name in self._FRAMES else []
+            label = name
+        elif action.data == "brake":
+            return
+        else:
+            self.after_call(action.children[0], [a for a in action.children[1].children]
+                            if action.data == "call" else [], action)
+            new, self.state = self.state, st
+            changed = [w for w, a, b in zip(self._FRAMES, (st.base, st.tool, st.robroot),
+                                            (new.base, new.tool, new.robroot)) if a is not b]
+            label = f"{action.children[0]}()"
+        new = st
+        for which in changed:
+            why = f"{which} may be set by the {what} handler {label} declared at line {self.ln}"
+            new = self.replace_state(new, which, _Unknown(why, where), "")
+        if new is not st:
+            self.set_state(new)
+
+    def s_import_decl(self, node):
+        typ = node.children[1].children[0].upper()
+        dims = any(isinstance(c, Tree) and c.data == "dims" for c in node.children)
+        self.declare(node.children[2], typ, dims, _Unknown(f"{node.children[2]} is imported (IMPORT … IS)"))

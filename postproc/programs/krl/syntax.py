@@ -60,7 +60,7 @@ _SHOWN = {
     "NUMBER": "a number", "NAME": "a name", "STRING": "a string", "$END": "end of line",
     "ENUM": "a #value", "APPROX": "C_PTP/C_DIS/C_VEL/C_ORI/C_SPL", "MOVE": "a motion",
     "COMP_OP": "a comparison", "ADD_OP": "'+' or '-'", "BITS": "a bit literal",
-    "VALUE": "a value ({…}, a name or a number)",
+    "VALUE": "a value ({…}, a name or a number)", "IMPORT_PATH": "a path /R1/MODULE..NAME",
 }
 
 
