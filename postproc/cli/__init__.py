@@ -27,6 +27,7 @@ SUBCOMMANDS = [
     "train",
     "import_data",
     "report",
+    "fleet",
 ]
 
 
