@@ -21,9 +21,13 @@ a subprocess, so a robot whose training crashes (a torch abort, out of memory, a
 alone; the threads of the engine only wait on it. When a library training API exists
 (issue 16.2) this adapter is the one place to switch to it.
 
-Measured here (2 cores shared, load ~1.7-2): Dask ``LocalCluster(processes=False)`` start
-≈0.3-0.5 s, per-task overhead ≈1 ms (no-op tasks); Ray was not measured (no time left
-before the deadline, see the report). A rerun skips robots whose inputs (sha256 of the data,
+Measured here (2 cores shared by six developers, load 2.2-3.1; benchmarks/fleet_engines.py, 200 no-op
+tasks after 10 warm-up ones): Ray ``ray.init(num_cpus=2)`` import+start 4.4-7.5 s, 1.0-3.3 ms
+per task; Dask ``LocalCluster(processes=False)`` import+start 0.4-0.9 s, 2.0-2.7 ms per task;
+``pip install "dask[distributed]"`` 6 s, ``pip install ray`` 32 s. A robot's job takes seconds
+(subprocess start, training, report), so the per-task cost of either is noise; Dask starts
+faster, installs faster and is the one picked (threads: the work runs in the subprocesses).
+A rerun skips robots whose inputs (sha256 of the data,
 robot description, method/arguments, previous model) did not change: ``fleet-state.json``
 beside the outputs.
 """

@@ -74,3 +74,12 @@ def test_fleet_table_formats_escape_their_cells():
     assert "a\\|b" in fleet_table(r, "md")
     assert "&lt;bad&gt;" in fleet_table(r, "html")
     assert fleet_table(r, "csv").splitlines()[1].startswith("a|b,")
+
+
+def test_moved_parameters_against_the_previous_card():
+    from postproc.fleet import moved_parameters
+
+    new = {"identified": {"offset_mm": [1.0, 2.0], "backlash_deg": 0.1, "ripple": [[1, 2]]}}
+    old = {"identified": {"offset_mm": [1.0, 2.0], "backlash_deg": 0.2, "ripple": [[1, 2]]}}
+    assert moved_parameters(new, old) == ["backlash_deg"]
+    assert moved_parameters(new, None) == []
