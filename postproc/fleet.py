@@ -179,8 +179,10 @@ def _held_out(job: RobotJob, path: Path) -> Path:
             frac, seed = (value, seed) if opt == "--val-fraction" else (frac, value)
     _, val = split_indices(len(m), frac, seed)
     lines = job.data.read_text(encoding="utf-8").splitlines()
-    header = next(line for line in lines if line.strip() and not line.startswith("#"))
-    path.write_text("\n".join([header, *(lines[int(m.lines[i]) - 1] for i in val)]) + "\n", encoding="utf-8")
+    head = next(i for i, line in enumerate(lines) if line.strip() and not line.startswith("#"))
+    # the '# key: value' lines and the header as they are, then the held-out rows
+    path.write_text("\n".join([*lines[:head + 1], *(lines[int(m.lines[i]) - 1] for i in val)]) + "\n",
+                    encoding="utf-8")
     return path
 
 
