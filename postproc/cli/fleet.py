@@ -6,6 +6,16 @@ from pathlib import Path
 
 FORMATS = ("md", "csv", "html")
 
+EXAMPLES = """\
+Exit codes: 0 every robot done, 1 a robot failed (its row says why; the others finish),
+2 bad fleet file (P610 at its line).
+
+Examples:
+  postproc fleet fleet.toml -o fleet-out                      # local cluster, all cores
+  postproc fleet fleet.toml -o fleet-out --format html --force
+  postproc fleet fleet.toml -o fleet-out --scheduler tcp://10.0.0.5:8786
+"""
+
 
 def add_parser(sub, common, formatter) -> None:
     p = sub.add_parser(
@@ -15,8 +25,7 @@ def add_parser(sub, common, formatter) -> None:
         help="train and report a fleet of robots (one task per robot; Dask)",
         description="Run `postproc train` and `postproc report` for every [[robot]] of a fleet file, in parallel "
         "(local Dask cluster by default), and write the fleet table. Robots whose inputs did not change are skipped.",
-        epilog="Exit codes: 0 every robot done, 1 a robot failed (its row says why; the others finish), "
-        "2 bad fleet file.",
+        epilog=EXAMPLES,
     )
     p.add_argument("fleet", metavar="FLEET.toml", help="fleet file ([defaults], [[robot]] name/data/robot/previous)")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="folder of the outputs (one folder per robot)")
