@@ -6,6 +6,12 @@
 Prints: Dask start-up and per-task overhead (no-op tasks), the sequential wall times
 (`postproc train` alone 16 times in a row; train+report through the adapter), the fleet's wall
 time, the ratio, and the overhead per robot; `uptime` beside each (the machine is shared).
+
+Measured 2026-12-01 on the shared 2-core machine (1-min load in brackets):
+  run 1: train x16 in a row 79.7 s (2.9); train+report x16 in a row 109.0 s (3.1); fleet 146.1 s (4.6):
+         0.75x — the other developers' jobs held the cores.
+  run 2: train x16 in a row 53.9 s (2.1); train+report x16 in a row 88.4 s (1.7); fleet 60.2 s (2.1):
+         1.47x against the same work in a row (goal 1.6x not reached), overhead ~1.0 s per robot.
 """
 import argparse
 import os
