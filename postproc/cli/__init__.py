@@ -27,6 +27,7 @@ SUBCOMMANDS = [
     "train",
     "import_data",
     "report",
+    "fleet",
 ]
 
 
@@ -94,7 +95,8 @@ def _internal_error(exc: Exception, args) -> int:
 
 
 # optional dependencies: the module a subcommand imports -> the extra that installs it
-EXTRA_OF_MODULE = {"pinocchio": "sim", "torch": "train", "onnx": "train", "matplotlib": "report"}
+EXTRA_OF_MODULE = {"pinocchio": "sim", "torch": "train", "onnx": "train", "matplotlib": "report", "dask": "fleet",
+                   "distributed": "fleet"}
 # modules in more than one extra: the subcommand says which one
 EXTRA_OF_COMMAND = {"plan": "sim", "measure": "sim", "verify": "sim", "train": "train", "import": "train",
                     "report": "report"}

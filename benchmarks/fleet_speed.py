@@ -1,0 +1,85 @@
+"""postproc fleet on 2 cores: 16 simulated robots (plan + measure --robot-seed S, 200 rows,
+--method kinematic) on the local Dask cluster against the same work one robot after another.
+
+    OMP_NUM_THREADS=1 python benchmarks/fleet_speed.py [--robots 16] [--rows 200]
+
+Prints: Dask start-up and per-task overhead (no-op tasks), the sequential wall times
+(`postproc train` alone 16 times in a row; train+report through the adapter), the fleet's wall
+time, the ratio, and the overhead per robot; `uptime` beside each (the machine is shared).
+
+Measured 2026-12-01 on the shared 2-core machine (1-min load in brackets):
+  run 1: train x16 in a row 79.7 s (2.9); train+report x16 in a row 109.0 s (3.1); fleet 146.1 s (4.6):
+         0.75x — the other developers' jobs held the cores.
+  run 2: train x16 in a row 53.9 s (2.1); train+report x16 in a row 88.4 s (1.7); fleet 60.2 s (2.1):
+         1.47x against the same work in a row (goal 1.6x not reached), overhead ~1.0 s per robot.
+"""
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from postproc.cli import main
+from postproc.fleet import RobotJob, _run_cli, run_fleet, train_robot
+
+
+def load() -> str:
+    return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip().split("load average:")[-1].strip()
+
+
+def engine_overhead(n=200):
+    from dask.distributed import Client, LocalCluster
+
+    t0 = time.perf_counter()
+    cluster = LocalCluster(n_workers=1, threads_per_worker=os.cpu_count(), processes=False, dashboard_address=None)
+    client = Client(cluster)
+    start = time.perf_counter() - t0
+    client.gather(client.map(lambda i: i, range(10), pure=False))
+    t0 = time.perf_counter()
+    client.gather(client.map(lambda i: i, range(n), pure=False))
+    per_task = (time.perf_counter() - t0) / n
+    client.close()
+    cluster.close()
+    return start, per_task
+
+
+def main_(argv=None):
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--robots", type=int, default=16)
+    ap.add_argument("--rows", type=int, default=200)
+    a = ap.parse_args(argv)
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    d = Path(tempfile.mkdtemp(prefix="fleet-bench-"))
+    main(["plan", "-n", str(a.rows), "--seed", "1", "-o", str(d / "plan.csv"), "-q"])
+    jobs = []
+    for s in range(1, a.robots + 1):
+        main(["measure", str(d / "plan.csv"), "--robot-seed", str(s), "-o", str(d / f"r{s}.csv"), "-q"])
+        jobs.append(RobotJob(f"r{s}", d / f"r{s}.csv", method="kinematic", args=["--val-fraction", "0.2"]))
+    start, per_task = engine_overhead()
+    print(f"dask LocalCluster start {start:.2f} s, per no-op task {per_task * 1e3:.2f} ms  (load {load()})")
+    (d / "seq-train").mkdir()
+    t0 = time.perf_counter()
+    for j in jobs:
+        code, err = _run_cli(j.train_argv(d / "seq-train" / f"{j.name}.onnx"))
+        assert code == 0, err
+    seq_train = time.perf_counter() - t0
+    print(f"postproc train x{a.robots} in a row: {seq_train:.1f} s  (load {load()})")
+    t0 = time.perf_counter()
+    for j in jobs:
+        assert train_robot(j, d / "seq")["ok"]
+    seq = time.perf_counter() - t0
+    print(f"adapter (train + report) x{a.robots} in a row: {seq:.1f} s  (load {load()})")
+    t0 = time.perf_counter()
+    results = run_fleet(jobs, d / "fleet")
+    wall = time.perf_counter() - t0
+    assert all(r["ok"] for r in results)
+    cores = os.cpu_count()
+    print(f"fleet on dask ({cores} threads): {wall:.1f} s  (load {load()})")
+    print(f"ratio vs adapter in a row {seq / wall:.2f}x, vs train alone in a row {seq_train / wall:.2f}x")
+    print(f"overhead per robot (wall - sequential/{cores}) / robots: {(wall - seq / cores) / a.robots:.2f} s")
+
+
+if __name__ == "__main__":
+    sys.exit(main_())

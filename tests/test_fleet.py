@@ -1,0 +1,91 @@
+"""postproc fleet: simulated robots (plan + measure --robot-seed) trained as Dask tasks on a
+local in-process cluster; one robot with bad data fails alone; reruns skip unchanged robots;
+a bad fleet file is refused at its line."""
+import json
+
+import pytest
+
+from postproc.cli import main
+from postproc.diagnostics import PostprocError
+
+pytest.importorskip("dask.distributed")
+pytest.importorskip("pinocchio")
+pytest.importorskip("torch")
+
+from postproc.fleet import fleet_table, load_fleet  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def cell(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fleet")
+    assert main(["plan", "-n", "200", "--seed", "1", "-o", str(d / "plan.csv"), "-q"]) == 0
+    for s in (1, 2):
+        assert main(["measure", str(d / "plan.csv"), "--robot-seed", str(s), "-o", str(d / f"r{s}.csv"), "-q"]) == 0
+    lines = (d / "r1.csv").read_text().splitlines()
+    # bad data: a row with a non-number in x_meas (found by the header: measure writes more columns)
+    header = next(i for i, line in enumerate(lines) if line.startswith("x,"))
+    at = lines[header].split(",").index("x_meas")
+    fields = lines[header + 4].split(",")
+    fields[at] = "oops"
+    bad = lines[:header + 4] + [",".join(fields)] + lines[header + 5:]
+    (d / "bad.csv").write_text("\n".join(bad) + "\n")
+    (d / "fleet.toml").write_text(
+        '[defaults]\nmethod = "kinematic"\nargs = ["--val-fraction", "0.2"]\n\n'
+        + "".join(f'[[robot]]\nname = "r{s}"\ndata = "r{s}.csv"\n\n' for s in (1, 2))
+        + '[[robot]]\nname = "bad"\ndata = "bad.csv"\n')
+    return d
+
+
+def test_fleet_trains_each_robot_and_the_bad_one_fails_alone(cell, capsys):
+    out = cell / "out"
+    assert main(["fleet", str(cell / "fleet.toml"), "-o", str(out), "--format", "csv"]) == 1
+    rows = {line.split(",")[0]: line.split(",") for line in (out / "fleet.csv").read_text().splitlines()[1:]}
+    assert set(rows) == {"r1", "r2", "bad"}
+    for s in ("r1", "r2"):
+        card = json.loads((out / s / "model-card.json").read_text())
+        unc, comp = float(rows[s][2]), float(rows[s][4])
+        assert rows[s][1] == "200"
+        assert unc == pytest.approx(card["accuracy"]["val_uncompensated_mean_mm"], abs=1e-3)
+        assert comp < 0.5 * unc  # each robot's own model compensates its own error
+        assert (out / s / "report" / "report.md").is_file()
+        held = [ln for ln in (out / s / "held-out.csv").read_text().splitlines()[1:] if not ln.startswith("#")]
+        assert len(held) == card["accuracy"]["n_val"] == 40
+        assert rows[s][-1] == ""
+    assert "P50" in rows["bad"][-1] and rows["bad"][4] == ""
+    # the robots differ (different --robot-seed): their uncompensated errors are not the same
+    assert rows["r1"][2] != rows["r2"][2]
+    # rerun: the good robots are skipped, the bad one is tried again; fix it and it passes
+    capsys.readouterr()
+    (cell / "bad.csv").write_text((cell / "r2.csv").read_text())
+    assert main(["fleet", str(cell / "fleet.toml"), "-o", str(out)]) == 0
+    table = capsys.readouterr().out
+    assert table.count("(unchanged)") == 2 and "| bad |" in table
+
+
+def test_bad_fleet_file_is_refused_at_its_line(tmp_path):
+    f = tmp_path / "fleet.toml"
+    f.write_text('[[robot]]\nname = "a"\ndata = "a.csv"\n\n[[robot]]\nname = "b"\n')
+    with pytest.raises(PostprocError) as exc:
+        load_fleet(f)
+    assert exc.value.code == "P610" and exc.value.line == 5 and "'data'" in str(exc.value)
+    f.write_text('[[robot]]\nname = "a"\ndata = a.csv\n')
+    with pytest.raises(PostprocError) as exc:
+        load_fleet(f)
+    assert exc.value.line == 3
+    assert main(["fleet", str(f), "-o", str(tmp_path / "o")]) == 2
+
+
+def test_fleet_table_formats_escape_their_cells():
+    r = [{"name": "a|b", "ok": False, "error": "x.csv:3:1: P501 <bad>", "warnings": []}]
+    assert "a\\|b" in fleet_table(r, "md")
+    assert "&lt;bad&gt;" in fleet_table(r, "html")
+    assert fleet_table(r, "csv").splitlines()[1].startswith("a|b,")
+
+
+def test_moved_parameters_against_the_previous_card():
+    from postproc.fleet import moved_parameters
+
+    new = {"identified": {"offset_mm": [1.0, 2.0], "backlash_deg": 0.1, "ripple": [[1, 2]]}}
+    old = {"identified": {"offset_mm": [1.0, 2.0], "backlash_deg": 0.2, "ripple": [[1, 2]]}}
+    assert moved_parameters(new, old) == ["backlash_deg"]
+    assert moved_parameters(new, None) == []
