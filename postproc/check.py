@@ -133,12 +133,19 @@ def _stamp_findings(program: Program, model: Compensator, selection) -> list[Dia
                                   f"compensated with {what} {s.sha}, not the configured {model.name} "
                                   f"{model.sha256[:12]}", "error"))
     if first and len(program.files) > 1:
-        # one compensation stamps every file of a module with the same line
-        # (a file without a target compensate would change is not stamped: it did not change)
+        # one compensation stamps every file of a module (its .src/.sub and .dat: one stem in
+        # one folder) with the same line (a file without a target compensate would change is
+        # not stamped: it did not change); the modules of a cell are compared each on its own
         changes = set(program.targets.file[selection.rows].tolist())
-        keys = {i: (first[i].name, first[i].sha) if i in first else None for i in range(len(program.files))
-                if i in first or i in changes}
-        if len(set(keys.values())) > 1:
+        modules: dict[tuple[str, str], list[int]] = {}
+        for i, name in enumerate(program.files):
+            path = Path(name)
+            modules.setdefault((str(path.parent), path.stem.casefold()), []).append(i)
+        for members in modules.values():
+            keys = {i: (first[i].name, first[i].sha) if i in first else None for i in members
+                    if i in first or i in changes}
+            if len(set(keys.values())) <= 1:
+                continue
             for i, key in keys.items():
                 others = [program.files[j] for j, k in keys.items() if k != key]
                 where = (first[i].line, first[i].col) if i in first else (1, 1)
@@ -256,13 +263,36 @@ def check_files(
     if config is None and configs:
         config = [str(c) for c in configs]
     out: list[Diagnostic] = []
-    for path in program_paths(files):
+    owners = program_paths(files)
+    krl = [p for p in owners if p.suffix.lower() in KRL]
+    if len(krl) > 1:  # a cell: read as one, as compensate does (globals, calls across modules)
+        out += [d for d in _cell_findings(krl, model, config, **options) if d.code not in ignored]
+        owners = [p for p in owners if p.suffix.lower() not in KRL]
+    for path in owners:
         if path.suffix.lower() == ".dat" and (is_config(path) or _data_list(path)):
             found = _data_list_findings(path)
         else:
             found = check_file(path, model, config=config, **options)
         out += [d for d in found if d.code not in ignored]
     return sorted(out, key=lambda d: (d.path, d.line, d.col, d.code))
+
+
+def _cell_findings(owners: list[Path], model: Compensator, config, **options) -> list[Diagnostic]:
+    """The findings of KRL modules and data lists checked as one cell (``cell.find_cell``:
+    each module with its .dat, one reader call, ``$config.dat`` among them or ``config``)."""
+    from .cell import find_cell
+    from .compensate import companion_dat, read_text
+    from .programs import read_program
+
+    paths = list(owners) + [d for d in (companion_dat(p) for p in owners if p.suffix.lower() != ".dat") if d]
+    try:
+        cell = find_cell(paths, config)
+        files = cell.files
+        outside = [read_text(c) for c in cell.config if not cell.inside(c)] or None
+        program = read_program([str(f) for f in files], [read_text(f) for f in files], "krl", config=outside)
+    except PostprocError as exc:
+        return [exc.diagnostic()]
+    return check_program(program, model, **options)
 
 
 def _data_list(path: Path) -> bool:

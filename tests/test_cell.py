@@ -116,3 +116,25 @@ def test_a_global_point_declared_in_no_file_of_the_cell_is_left_as_written(tmp_p
     assert "user.src:2:7: P215" in err and "left as written: P215" in err
     lines = (out / "user.src").read_text().splitlines()
     assert lines[2] == "  LIN XGP1" and "X 2010.0," not in lines[3]  # (after the stamp line)
+
+
+def test_check_reads_a_cell_as_compensate_does(tmp_path, affine, capsys, monkeypatch):
+    # a callee in another module sets the frames, a global point lives in a PUBLIC data list:
+    # check sees both (one reader call, like compensate), so only the call to code not given
+    # is a finding, and compensate leaves exactly that target
+    cell = tmp_path / "cell"
+    cell.mkdir()
+    shutil.copy(KRL / "config" / "$config.dat", cell / "$config.dat")
+    (cell / "settings.src").write_text("GLOBAL DEF MoveSettings(nBase:IN, nTool:IN)\n  DECL INT nBase, nTool\n"
+                                       "  BAS(#BASE, nBase)\n  BAS(#TOOL, nTool)\nEND\n")
+    (cell / "points.dat").write_text(POINTS)
+    (cell / "job.src").write_text("DEF job()\n  MoveSettings(0, 1)\n  LIN XGP1\n  LIN {Z 905.0}\n  Unknown_Sub()\n"
+                                  "  LIN {X 2010.0,Y 0.0,Z 905.0,A 0.0,B 90.0,C 0.0}\nEND\n")
+    monkeypatch.chdir(cell)
+    model = str(affine(gain=GAIN, tool=TOOL))
+    assert main(["check", ".", "--model", model]) == 0
+    out = capsys.readouterr().out
+    found = [line.split(" ")[:2] for line in out.splitlines()]
+    assert len(found) == 1 and found[0][0].endswith("job.src:5:3:") and found[0][1] == "P201", out
+    assert run(cell, "-o", tmp_path / "out", "--model", model) == 1
+    assert "2 of 3 compensated, 1 left as written: P201 ×1" in capsys.readouterr().err
