@@ -331,7 +331,7 @@ def _finish(program: Program, model: Compensator, selection: Selection, outputs:
     # by another target), which no single edit shows. Inline aggregates belong to one motion,
     # and each of their tokens was checked when written; so were a pose list's. A Program built
     # by hand has no text to read it from.
-    if program.from_text and program.dialect == "krl" and program.named_targets:
+    if program.from_text and program.dialect in ("krl", "rapid") and program.named_targets:
         check_round_trip(program, outputs, rows, new_xyz, filled=missing_xyz(program, rows))
     stamp = stamp_line(program.comment, STAMP_PREFIX, model.name, model.sha256)
     after = "&" if program.dialect == "krl" else None
