@@ -207,7 +207,10 @@ def _left_codes(program: Program, selection: Selection) -> Counter:
     codes: Counter = Counter()
     unknown_frame = int((left & (t.frame < 0)).sum())
     if unknown_frame:
-        codes["P201"] = unknown_frame
+        # frame -1: the base (P201) or the tool (P203) is not known; the reader's located
+        # warnings say which for each statement, the count names the codes it warned with
+        said = {d.code for d in program.diagnostics} & {"P201", "P203"}
+        codes["/".join(sorted(said)) if said else "P201"] = unknown_frame
     by_rule = 0
     for code, rows in selection.left.items():
         codes[code] += len(rows)

@@ -1,8 +1,6 @@
 """The one output-path rule (postproc.outputs), through every subcommand that writes a file:
 checked before the work, P110, exit 2, nothing written; -o equal to the input refused."""
 import os
-import subprocess
-import sys
 
 import pytest
 

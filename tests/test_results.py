@@ -56,6 +56,14 @@ def test_targets_left_as_written_are_exit_1_with_the_output_written(tmp_path, af
     assert code == 2 and "P201" in err and not out.exists()
 
 
+def test_a_tool_not_known_is_counted_by_its_code(tmp_path, affine, cli):
+    src = tmp_path / "a.src"
+    src.write_text(SRC.replace("BAS(#BASE, 3)", "BAS(#TOOL, 6)"))
+    code, _, err = cli(src, "-o", tmp_path / "out.src", "--model", affine(offset=(0.1, 0, 0), gain=GAIN))
+    assert code == 1 and "a.src:4:1: P203" in err, err
+    assert "2 of 4 compensated, 2 left as written: P203 ×2;" in err
+
+
 def test_nothing_compensated_writes_the_input_unchanged_and_unstamped(tmp_path, affine, cli):
     # weld_cell without its $config.dat: every target's BASE_DATA is unknown
     src = REPO / "samples/krl/weld_cell.src"

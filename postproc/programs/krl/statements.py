@@ -4,7 +4,6 @@ from __future__ import annotations
 import numpy as np
 from lark import Tree
 
-from ...diagnostics import PostprocError
 from .values import _AXIS_TYPES, _Agg, _KIND_OF, _MOTION, _POS_TYPES, _RUNTIME_POS, _STANDARD_AXIS, _Derived, _Unknown, _first_pos
 
 
