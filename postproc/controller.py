@@ -15,7 +15,10 @@ from .compensator import Compensator
 from .diagnostics import Diagnostic, PostprocError
 from .programs import Program
 
-__all__ = ["model_description", "controller_inputs"]
+__all__ = ["model_description", "controller_inputs", "configuration_mismatch", "JOINT_TOLERANCE_DEG"]
+
+# A target's stated configuration (S/T) is the model's when the joint angles agree to this.
+JOINT_TOLERANCE_DEG = 1.0
 
 
 def model_description(model: Compensator):
@@ -30,6 +33,61 @@ def model_description(model: Compensator):
         if model.robot and description.name.casefold() == model.robot.casefold():
             return description
     return None
+
+
+def _tools(program: Program, model: Compensator, description, rows: np.ndarray) -> np.ndarray:
+    """Each target's TCP on the flange [len(rows), 6]: the program's $TOOL where known, else
+    the model's (its card), else the description's."""
+    card_tool = model.tool.get("frame") if model.tool else None
+    default_tool = np.asarray(card_tool if card_tool is not None else description.tool, float)
+    tools = np.tile(default_tool, (len(rows), 1))
+    t = program.targets
+    for f in np.unique(t.frame[rows]):
+        if program.frames[f].tool is not None:
+            tools[t.frame[rows] == f] = program.frames[f].tool
+    return tools
+
+
+def configuration_mismatch(program: Program, model: Compensator, rows: np.ndarray, sel: np.ndarray,
+                           collect) -> tuple[np.ndarray, list[Diagnostic]]:
+    """For a model *without* the ``joints`` input: a mask of the targets whose stated S/T put
+    the arm in other joint angles than those the model evaluates (its own IK's, output
+    ``ik_joints``/``joints``; without that output the nominal IK nearest HOME, the branch the
+    training plans take), to be left as written, and their P313 warnings. Without a robot
+    description for the model's robot every target that states S/T is left (it cannot be
+    checked). Targets that state no S/T keep the model's branch."""
+    from . import configuration
+    from .robot import Robot
+
+    config = program.targets.config
+    stated = (config[rows] >= 0).any(axis=1) if config is not None else np.zeros(len(rows), bool)
+    if not stated.any():
+        return np.zeros(len(rows), bool), []
+    description = model_description(model)
+    if description is None:
+        return stated, collect(program, rows[stated], "P313", "the target states S/T and postproc has no robot "
+                               f"description for the model's robot {model.robot or '(none named)'} to check that the "
+                               "model evaluates that arm configuration: left as it is")
+    at = np.flatnonzero(stated)
+    poses, tools = sel[at], _tools(program, model, description, rows[at])
+    status, turn = (np.asarray(config[rows[at], k], int) for k in (0, 1))
+    wanted = np.full((len(at), 6), np.nan)
+    mine = np.full((len(at), 6), np.nan)
+    for tool in np.unique(tools, axis=0):
+        here = (tools == tool).all(axis=1)
+        robot = Robot(description.replace(tool=tool))
+        wanted[here], _ = configuration.stated_joints(robot, poses[here], status[here], turn[here])
+        if not model.has_joints:
+            mine[here], _ = robot.ik(poses[here], robot.home_q)
+    if model.has_joints:
+        _, mine = model.predict(poses, with_joints=True)
+    with np.errstate(invalid="ignore"):
+        differ = ~(np.abs(wanted - mine) <= JOINT_TOLERANCE_DEG).all(axis=1)
+    bad = np.zeros(len(rows), bool)
+    bad[at[differ]] = True
+    return bad, collect(program, rows[bad], "P313", "the target's S/T put the arm in another configuration than "
+                        "the one this model evaluates (a model without the 'joints' input knows one branch): "
+                        "left as it is")
 
 
 def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, sel: np.ndarray,
@@ -48,11 +106,8 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
                             f"{model.robot or '(none named)'}", str(model.path), 0, 0, "P311")
     card_tool = model.tool.get("frame") if model.tool else None
     default_tool = np.asarray(card_tool if card_tool is not None else description.tool, float)
-    tools = np.tile(default_tool, (len(rows), 1))
+    tools = _tools(program, model, description, rows)
     t = program.targets
-    for f in np.unique(t.frame[rows]):
-        if program.frames[f].tool is not None:
-            tools[t.frame[rows] == f] = program.frames[f].tool
     warnings: list[Diagnostic] = []
     q = None
     if model.wants_joints and len(rows):

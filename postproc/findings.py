@@ -315,9 +315,25 @@ def select_with_findings(program: Program, model: Compensator, settings: Setting
     out += reach_rule(program, model, settings, selection)
     if model.wants_joints or model.wants_tool:
         selection, found = configuration_rule(program, model, selection)
-        out += found
+    else:
+        selection, found = stated_configuration_rule(program, model, selection)
+    out += found
     out += envelope_rule(program, model, selection)
     return selection, out
+
+
+def stated_configuration_rule(program: Program, model: Compensator,
+                              selection: Selection) -> tuple[Selection, list[Diagnostic]]:
+    """P313 (a warning): for a model without the ``joints`` input, a target whose stated S/T
+    is another arm configuration than the one the model evaluates is left as written."""
+    from .controller import configuration_mismatch
+
+    bad, found = configuration_mismatch(program, model, selection.rows, selection.poses, collect)
+    if not bad.any():
+        return selection, found
+    left = dict(selection.left)
+    left["P313"] = selection.rows[bad]
+    return Selection(selection.rows[~bad], selection.poses[~bad], None, None, left), found
 
 
 def configuration_rule(program: Program, model: Compensator, selection: Selection) -> tuple[Selection, list[Diagnostic]]:

@@ -276,7 +276,7 @@ def test_cli_robot_option_uses_the_nominal_ik(affine, tmp_path, capsys):
 
 SRC = ("&ACCESS RVP\r\n&REL 1\r\nDEF weld( )\r\n$BASE = $NULLFRAME\r\n$TOOL = {X 0.0,Y 0.0,Z 200.0,A 0.0,B 0.0,C 0.0}\r\n"
        "PTP XP1\r\nLIN XP2 C_DIS\r\nLIN {X 2100.0,Y 50.0,Z 950.0,A 0.0,B 90.0,C 0.0}\r\nEND\r\n")
-E6 = ",A 0.0,B 90.0,C 0.0,S 2,T 35,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}"
+E6 = ",A 0.0,B 90.0,C 0.0,S 2,T 2,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}"
 DAT = ("&ACCESS RVP\r\n&REL 1\r\nDEFDAT weld\r\nDECL E6POS XP1={X 2000.0,Y 0.0,Z 900.0" + E6 + "\r\n"
        "DECL E6POS XP2={X 2050.0,Y -100.0,Z 900.0" + E6 + "\r\nENDDAT\r\n")
 krl = pytest.mark.skipif(not __import__("importlib").util.find_spec("postproc.programs.krl"),

@@ -34,7 +34,7 @@ def module(n_inline: int, n_vars: int, seed: int = 0) -> tuple[str, str]:
     xyz = np.round(rng.uniform([1800, -400, 700], [2200, 400, 1100], (n_inline + n_vars, 3)), 3)
     body = "".join(f"LIN {{X {x:.3f},Y {y:.3f},Z {z:.3f},A 0.0,B 90.0,C 0.0}} C_DIS\r\n" for x, y, z in xyz[:n_inline])
     body += "".join(f"LIN XP{i}\r\n" for i in range(n_vars))
-    decls = "".join(f"DECL E6POS XP{i}={{X {x:.3f},Y {y:.3f},Z {z:.3f},A 0.0,B 90.0,C 0.0,S 6,T 50}}\r\n"
+    decls = "".join(f"DECL E6POS XP{i}={{X {x:.3f},Y {y:.3f},Z {z:.3f},A 0.0,B 90.0,C 0.0}}\r\n"
                     for i, (x, y, z) in enumerate(xyz[n_inline:]))
     return SRC.replace("{body}", body), DAT.replace("{decls}", decls)
 

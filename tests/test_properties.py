@@ -138,7 +138,9 @@ def cart(draw, m: Module, canonical: bool, written=(True, True, True), orientati
     if orientation if orientation is not None else draw(st.booleans()):
         comps += [(c, angle(draw), "lit") for c in "ABC"]
     if extra and draw(st.booleans()):
-        comps += [("S", draw(st.sampled_from(["2", "6", "'B010'"])), "lit"), ("T", "35", "lit")]
+        # (no S/T here: random poses would state configurations a model without the 'joints'
+        # input does not evaluate, left as written with P313 — tests/test_configuration_compensate.py)
+        comps += [("E1", draw(st.sampled_from(["0.0", "-15.5", "1E2"])), "lit")]
     return comps
 
 
