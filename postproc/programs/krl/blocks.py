@@ -75,15 +75,13 @@ class Blocks:
         pass
 
     def s_def_head(self, node):
-        names = [c for c in node.children if isinstance(c, Token) and c.type == "NAME"]
-        name = names[0]
-        self.begin_def(name, node)
+        self.begin_def(node)
 
     def s_fct_head(self, node):
-        names = [c for c in node.children if isinstance(c, Token) and c.type == "NAME"]
-        self.begin_def(names[0], node, kind="DEFFCT")
+        self.begin_def(node, kind="DEFFCT")
 
-    def begin_def(self, name, node, kind="DEF"):
+    def begin_def(self, node, kind="DEF"):
+        name = next(c for c in node.children if isinstance(c, Token) and c.type == "NAME")
         if self.blocks:
             self.err(f"{kind} inside {self.blocks[-1][0]} (line {self.blocks[-1][1]}): missing "
                      f"{'END' if self.blocks[-1][0] == 'DEF' else 'end of block'}", _first_pos(node))
