@@ -216,8 +216,6 @@ class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Valu
                 stmt = c
         if stmt is None:
             return
-        if sh.kind == "hot":
-            return
         handler = getattr(self, "s_" + stmt.data, None)
         if handler is not None:
             handler(stmt)
