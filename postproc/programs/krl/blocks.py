@@ -53,7 +53,7 @@ class Blocks:
                                 self.path, line, col, "P101")
         for line, col in self.folds:
             self.warn(self.path, line, col, "P105", ";FOLD without ;ENDFOLD")
-        if self.role == "module" and self.fi == 0 and not self.has_def and not (self.has_dat and self.code_in_set):
+        if self.role == "module" and self.fi == 0 and self.defs_seen == 0 and not (self.has_dat and self.code_in_set):
             if self.has_dat:  # alone: no motion uses its points, so none is a target
                 raise PostprocError("a data list (DEFDAT) with no DEF: its points are targets only through the "
                                     "motions that use them; give the modules (.src) that use it in the same run",
@@ -75,21 +75,18 @@ class Blocks:
         pass
 
     def s_def_head(self, node):
-        names = [c for c in node.children if isinstance(c, Token) and c.type == "NAME"]
-        name = names[0]
-        self.begin_def(name, node)
+        self.begin_def(node)
 
     def s_fct_head(self, node):
-        names = [c for c in node.children if isinstance(c, Token) and c.type == "NAME"]
-        self.begin_def(names[0], node, kind="DEFFCT")
+        self.begin_def(node, kind="DEFFCT")
 
-    def begin_def(self, name, node, kind="DEF"):
+    def begin_def(self, node, kind="DEF"):
+        name = next(c for c in node.children if isinstance(c, Token) and c.type == "NAME")
         if self.blocks:
             self.err(f"{kind} inside {self.blocks[-1][0]} (line {self.blocks[-1][1]}): missing "
                      f"{'END' if self.blocks[-1][0] == 'DEF' else 'end of block'}", _first_pos(node))
         self.open_block(kind, node, str(name))
         self.block_open["DEF"] = self.ln
-        self.has_def = True
         self.in_def = True
         self.local = {}
         self.fdat = None

@@ -131,36 +131,27 @@ class Frames:
         return _Unknown(f"{name}[{', '.join(map(str, key))}] is not set in the data given", (self.ln, 1))
 
     def fdat_tool(self, f):
-        if not isinstance(f, _Agg):
-            return _Unknown("FDAT is a run-time value", (self.ln, 1)), ""
-        n = f.get("TOOL_NO")
-        ipo = f.get("IPO_FRAME")
-        if isinstance(ipo, str) and ipo.upper() == "#TCP":
-            return _Unknown("external TCP (IPO_FRAME #TCP) is not supported", (self.ln, 1)), ""
-        if not isinstance(n, _Num):
-            return _Unknown("FDAT without TOOL_NO", (self.ln, 1)), ""
-        if not np.isfinite(n.value) or n.value != int(n.value):  # (int(inf) raises)
-            return _Unknown("FDAT with a TOOL_NO that is not a whole number", (self.ln, 1)), ""
-        k = int(n.value)
-        if k == 0:
-            return _I4, "$NULLFRAME"
-        return self.data_frame("TOOL_DATA", (k,)), f"TOOL_DATA[{k}]"
+        return self.fdat_frame(f, "TOOL", "FDAT is a run-time value")
 
     def fdat_base(self, f):
+        return self.fdat_frame(f, "BASE", "FDAT_ACT is not known here")
+
+    def fdat_frame(self, f, which, unknown):
+        """The frame FDAT's TOOL_NO / BASE_NO selects (``which`` is "TOOL" or "BASE") and its label."""
         if not isinstance(f, _Agg):
-            return _Unknown("FDAT_ACT is not known here", (self.ln, 1)), ""
-        n = f.get("BASE_NO")
+            return _Unknown(unknown, (self.ln, 1)), ""
+        n = f.get(f"{which}_NO")
         ipo = f.get("IPO_FRAME")
         if isinstance(ipo, str) and ipo.upper() == "#TCP":
             return _Unknown("external TCP (IPO_FRAME #TCP) is not supported", (self.ln, 1)), ""
         if not isinstance(n, _Num):
-            return _Unknown("FDAT without BASE_NO", (self.ln, 1)), ""
+            return _Unknown(f"FDAT without {which}_NO", (self.ln, 1)), ""
         if not np.isfinite(n.value) or n.value != int(n.value):  # (int(inf) raises)
-            return _Unknown("FDAT with a BASE_NO that is not a whole number", (self.ln, 1)), ""
+            return _Unknown(f"FDAT with a {which}_NO that is not a whole number", (self.ln, 1)), ""
         k = int(n.value)
         if k == 0:
             return _I4, "$NULLFRAME"
-        return self.data_frame("BASE_DATA", (k,)), f"BASE_DATA[{k}]"
+        return self.data_frame(f"{which}_DATA", (k,)), f"{which}_DATA[{k}]"
 
     def replace_state(self, st, which, value, label):
         if which == "$BASE":

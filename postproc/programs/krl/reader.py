@@ -135,7 +135,6 @@ class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Valu
         self.saved_state = None
         self.fdat = None
         self.in_def = False
-        self.has_def = False
         self.has_dat = False
         self.kbase = self.key0
         self.def_lines: list = []  # (first, last) 1-based lines of DEF/DEFFCT bodies
@@ -216,8 +215,6 @@ class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Valu
             if hasattr(c, "data"):
                 stmt = c
         if stmt is None:
-            return
-        if sh.kind == "hot":
             return
         handler = getattr(self, "s_" + stmt.data, None)
         if handler is not None:
