@@ -20,7 +20,7 @@ from pathlib import Path
 from .compensate import Report, compensate_program, read_text, write_outputs
 from .compensator import Compensator
 from .diagnostics import PostprocError
-from .programs import read_program
+from .programs import Program, read_program
 
 __all__ = ["Cell", "find_cell", "compensate_cell", "is_config", "CONFIG_NAME"]
 
@@ -50,6 +50,13 @@ class Cell:
 
     def inside(self, path: Path) -> bool:
         return path.resolve().is_relative_to(self.root.resolve())
+
+    def read(self) -> Program:
+        """Every file of the cell as one Program, in one reader call; a ``$config.dat`` from
+        outside the cell is read as configuration only."""
+        files = self.files
+        outside = [read_text(c) for c in self.config if not self.inside(c)] or None
+        return read_program([str(f) for f in files], [read_text(f) for f in files], "krl", config=outside)
 
 
 def _found_config(root: Path) -> list[Path]:
@@ -124,11 +131,9 @@ def compensate_cell(cell: Cell, out_dir: str | Path, model: Compensator, **optio
     if out_dir.exists() and not out_dir.is_dir():
         raise PostprocError("is not a directory: a cell is written to a directory (-o OUTDIR)", str(out_dir), 0, 0,
                             "P110")
-    files = cell.files
-    outside = [read_text(c) for c in cell.config if not cell.inside(c)] or None
-    if not files:
+    if not cell.files:
         return Report(model=model.name, model_sha256=model.sha256)
-    program = read_program([str(f) for f in files], [read_text(f) for f in files], "krl", config=outside)
+    program = cell.read()
     report = compensate_program(program, model, **options)
     outputs: list[tuple[Path, str | bytes]] = [(out_dir / Path(name).resolve().relative_to(cell.root), text)
                                                for name, text in report.outputs.items()]

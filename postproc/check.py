@@ -281,15 +281,11 @@ def _cell_findings(owners: list[Path], model: Compensator, config, **options) ->
     """The findings of KRL modules and data lists checked as one cell (``cell.find_cell``:
     each module with its .dat, one reader call, ``$config.dat`` among them or ``config``)."""
     from .cell import find_cell
-    from .compensate import companion_dat, read_text
-    from .programs import read_program
+    from .compensate import companion_dat
 
     paths = list(owners) + [d for d in (companion_dat(p) for p in owners if p.suffix.lower() != ".dat") if d]
     try:
-        cell = find_cell(paths, config)
-        files = cell.files
-        outside = [read_text(c) for c in cell.config if not cell.inside(c)] or None
-        program = read_program([str(f) for f in files], [read_text(f) for f in files], "krl", config=outside)
+        program = find_cell(paths, config).read()
     except PostprocError as exc:
         return [exc.diagnostic()]
     return check_program(program, model, **options)
