@@ -59,6 +59,11 @@ class Cell:
         return read_program([str(f) for f in files], [read_text(f) for f in files], "krl", config=outside)
 
 
+def krl_files(directory: Path) -> list[Path]:
+    """The KRL files (.src, .sub, .dat) below ``directory``, sorted."""
+    return sorted(q for q in directory.rglob("*") if q.suffix.lower() in KRL and q.is_file())
+
+
 def _found_config(root: Path) -> list[Path]:
     """``root/System/$config.dat``, else the shallowest ``System/$config.dat`` below ``root``
     (``KRC/`` → ``KRC/R1/System/$config.dat``); several at one depth: refused (P112)."""
@@ -82,14 +87,14 @@ def find_cell(paths: list[str | Path], config: list[str | Path] | None = None) -
     for p in map(Path, paths):
         if p.is_dir():
             dirs.append(p)
-            files += sorted(q for q in p.rglob("*") if q.suffix.lower() in KRL and q.is_file())
+            files += krl_files(p)
         elif p.is_file():
             files.append(p)
         else:
             raise PostprocError("no such file or directory", str(p), 0, 0, "P107")
     if not files:
         raise PostprocError("no KRL files (.src, .sub, .dat) here", str(paths[0]) if paths else "", 0, 0, "P107")
-    parents = [d for d in dirs] + [f.parent for f in files if not any(f.resolve().is_relative_to(d.resolve()) for d in dirs)]
+    parents = list(dirs) + [f.parent for f in files if not any(f.resolve().is_relative_to(d.resolve()) for d in dirs)]
     root = Path(os.path.commonpath([str(p.resolve()) for p in parents]))
     given = [Path(c) for c in config] if config else []
     found = [f for f in files if is_config(f)]

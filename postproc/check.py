@@ -253,12 +253,12 @@ def check_files(
     KRL files, a ``$config.dat`` among them is the configuration of the others (unless
     ``config`` is given), a data list without a DEF is checked for syntax only; findings
     sorted by path, line, column."""
-    from .cell import KRL, is_config
+    from .cell import KRL, is_config, krl_files
 
     ignored = set(ignore)
     files: list[Path] = []
     for p in map(Path, paths):
-        files += sorted(q for q in p.rglob("*") if q.suffix.lower() in KRL and q.is_file()) if p.is_dir() else [p]
+        files += krl_files(p) if p.is_dir() else [p]
     configs = [f for f in files if is_config(f)]
     if config is None and configs:
         config = [str(c) for c in configs]
