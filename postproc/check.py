@@ -336,7 +336,7 @@ def check_fresh(
         return [], []
     ignored = set(ignore)
     models: dict[Path | None, Compensator] = {None: model}
-    findings: list[Diagnostic] = []
+    found: list[Diagnostic] = []
     written: list[Path] = []
     for pair in cfg.fresh:
         if pair.model not in models:
@@ -353,8 +353,8 @@ def check_fresh(
                 )
             except PostprocError as exc:
                 d = exc.diagnostic()
-                findings.append(Diagnostic(_shown(Path(d.path)) if d.path else shown_src, d.line, d.col, d.code,
-                                           f"{d.message} (while compensating it for {shown_out})", "error"))
+                found.append(Diagnostic(_shown(Path(d.path)) if d.path else shown_src, d.line, d.col, d.code,
+                                        f"{d.message} (while compensating it for {shown_out})", "error"))
                 continue
             targets = output_paths(program, output)
             stale: list[Diagnostic] = []
@@ -375,8 +375,8 @@ def check_fresh(
                 write_atomic([(t, report.outputs[f]) for t, f in zip(targets, program.files)])
                 written += targets
             else:
-                findings += stale
-        findings += [Diagnostic(_shown(p), 0, 0, "P407", f"no source matches '{pair.source}' for this output",
-                                "warning") for p in pair.orphans()]
-    findings = [d for d in findings if d.code not in ignored]
-    return sorted(findings, key=lambda d: (d.path, d.line, d.col, d.code)), written
+                found += stale
+        found += [Diagnostic(_shown(p), 0, 0, "P407", f"no source matches '{pair.source}' for this output",
+                             "warning") for p in pair.orphans()]
+    found = [d for d in found if d.code not in ignored]
+    return sorted(found, key=lambda d: (d.path, d.line, d.col, d.code)), written
