@@ -20,7 +20,7 @@ from pathlib import Path
 from .compensate import Report, compensate_program, read_text, write_outputs
 from .compensator import Compensator
 from .diagnostics import PostprocError
-from .programs import read_program
+from .programs import Program, read_program
 
 __all__ = ["Cell", "find_cell", "compensate_cell", "is_config", "CONFIG_NAME"]
 
@@ -51,6 +51,18 @@ class Cell:
     def inside(self, path: Path) -> bool:
         return path.resolve().is_relative_to(self.root.resolve())
 
+    def read(self) -> Program:
+        """Every file of the cell as one Program, in one reader call; a ``$config.dat`` from
+        outside the cell is read as configuration only."""
+        files = self.files
+        outside = [read_text(c) for c in self.config if not self.inside(c)] or None
+        return read_program([str(f) for f in files], [read_text(f) for f in files], "krl", config=outside)
+
+
+def krl_files(directory: Path) -> list[Path]:
+    """The KRL files (.src, .sub, .dat) below ``directory``, sorted."""
+    return sorted(q for q in directory.rglob("*") if q.suffix.lower() in KRL and q.is_file())
+
 
 def _found_config(root: Path) -> list[Path]:
     """``root/System/$config.dat``, else the shallowest ``System/$config.dat`` below ``root``
@@ -75,14 +87,14 @@ def find_cell(paths: list[str | Path], config: list[str | Path] | None = None) -
     for p in map(Path, paths):
         if p.is_dir():
             dirs.append(p)
-            files += sorted(q for q in p.rglob("*") if q.suffix.lower() in KRL and q.is_file())
+            files += krl_files(p)
         elif p.is_file():
             files.append(p)
         else:
             raise PostprocError("no such file or directory", str(p), 0, 0, "P107")
     if not files:
         raise PostprocError("no KRL files (.src, .sub, .dat) here", str(paths[0]) if paths else "", 0, 0, "P107")
-    parents = [d for d in dirs] + [f.parent for f in files if not any(f.resolve().is_relative_to(d.resolve()) for d in dirs)]
+    parents = list(dirs) + [f.parent for f in files if not any(f.resolve().is_relative_to(d.resolve()) for d in dirs)]
     root = Path(os.path.commonpath([str(p.resolve()) for p in parents]))
     given = [Path(c) for c in config] if config else []
     found = [f for f in files if is_config(f)]
@@ -124,11 +136,9 @@ def compensate_cell(cell: Cell, out_dir: str | Path, model: Compensator, **optio
     if out_dir.exists() and not out_dir.is_dir():
         raise PostprocError("is not a directory: a cell is written to a directory (-o OUTDIR)", str(out_dir), 0, 0,
                             "P110")
-    files = cell.files
-    outside = [read_text(c) for c in cell.config if not cell.inside(c)] or None
-    if not files:
+    if not cell.files:
         return Report(model=model.name, model_sha256=model.sha256)
-    program = read_program([str(f) for f in files], [read_text(f) for f in files], "krl", config=outside)
+    program = cell.read()
     report = compensate_program(program, model, **options)
     outputs: list[tuple[Path, str | bytes]] = [(out_dir / Path(name).resolve().relative_to(cell.root), text)
                                                for name, text in report.outputs.items()]

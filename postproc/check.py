@@ -253,12 +253,12 @@ def check_files(
     KRL files, a ``$config.dat`` among them is the configuration of the others (unless
     ``config`` is given), a data list without a DEF is checked for syntax only; findings
     sorted by path, line, column."""
-    from .cell import KRL, is_config
+    from .cell import KRL, is_config, krl_files
 
     ignored = set(ignore)
     files: list[Path] = []
     for p in map(Path, paths):
-        files += sorted(q for q in p.rglob("*") if q.suffix.lower() in KRL and q.is_file()) if p.is_dir() else [p]
+        files += krl_files(p) if p.is_dir() else [p]
     configs = [f for f in files if is_config(f)]
     if config is None and configs:
         config = [str(c) for c in configs]
@@ -281,15 +281,11 @@ def _cell_findings(owners: list[Path], model: Compensator, config, **options) ->
     """The findings of KRL modules and data lists checked as one cell (``cell.find_cell``:
     each module with its .dat, one reader call, ``$config.dat`` among them or ``config``)."""
     from .cell import find_cell
-    from .compensate import companion_dat, read_text
-    from .programs import read_program
+    from .compensate import companion_dat
 
     paths = list(owners) + [d for d in (companion_dat(p) for p in owners if p.suffix.lower() != ".dat") if d]
     try:
-        cell = find_cell(paths, config)
-        files = cell.files
-        outside = [read_text(c) for c in cell.config if not cell.inside(c)] or None
-        program = read_program([str(f) for f in files], [read_text(f) for f in files], "krl", config=outside)
+        program = find_cell(paths, config).read()
     except PostprocError as exc:
         return [exc.diagnostic()]
     return check_program(program, model, **options)
@@ -340,7 +336,7 @@ def check_fresh(
         return [], []
     ignored = set(ignore)
     models: dict[Path | None, Compensator] = {None: model}
-    findings: list[Diagnostic] = []
+    found: list[Diagnostic] = []
     written: list[Path] = []
     for pair in cfg.fresh:
         if pair.model not in models:
@@ -357,8 +353,8 @@ def check_fresh(
                 )
             except PostprocError as exc:
                 d = exc.diagnostic()
-                findings.append(Diagnostic(_shown(Path(d.path)) if d.path else shown_src, d.line, d.col, d.code,
-                                           f"{d.message} (while compensating it for {shown_out})", "error"))
+                found.append(Diagnostic(_shown(Path(d.path)) if d.path else shown_src, d.line, d.col, d.code,
+                                        f"{d.message} (while compensating it for {shown_out})", "error"))
                 continue
             targets = output_paths(program, output)
             stale: list[Diagnostic] = []
@@ -379,8 +375,8 @@ def check_fresh(
                 write_atomic([(t, report.outputs[f]) for t, f in zip(targets, program.files)])
                 written += targets
             else:
-                findings += stale
-        findings += [Diagnostic(_shown(p), 0, 0, "P407", f"no source matches '{pair.source}' for this output",
-                                "warning") for p in pair.orphans()]
-    findings = [d for d in findings if d.code not in ignored]
-    return sorted(findings, key=lambda d: (d.path, d.line, d.col, d.code)), written
+                found += stale
+        found += [Diagnostic(_shown(p), 0, 0, "P407", f"no source matches '{pair.source}' for this output",
+                             "warning") for p in pair.orphans()]
+    found = [d for d in found if d.code not in ignored]
+    return sorted(found, key=lambda d: (d.path, d.line, d.col, d.code)), written

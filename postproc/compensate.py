@@ -36,8 +36,9 @@ from .findings import (
     where,
 )
 from .guards import ROUNDING_MM, check_inserted, check_memory, check_numbers, check_round_trip
+from .outputs import write as write_checked
 from .programs import STAMP_PREFIX, Program, dialect_of, read_program
-from .rewrite import check_disjoint, format_like, format_many, insert_stamp, splice, stamp_line, write_atomic
+from .rewrite import check_disjoint, format_like, format_many, insert_stamp, splice, stamp_line
 
 __all__ = [
     "Report",
@@ -675,8 +676,8 @@ def compensate_file(
 
 
 def write_outputs(outputs: list[tuple[Path, str]]) -> None:
-    """:func:`write_atomic`, refusing what it cannot do right (two files of a module onto one
-    path, e.g. ``-o x.dat`` for a .src; a directory) and reporting OS errors as P110."""
+    """:func:`postproc.outputs.write` (OS errors as P110), refusing first what it cannot do right
+    (two files of a module onto one path, e.g. ``-o x.dat`` for a .src; a directory)."""
     seen: dict[Path, Path] = {}
     for path, _ in outputs:
         key = path.resolve()
@@ -689,8 +690,4 @@ def write_outputs(outputs: list[tuple[Path, str]]) -> None:
         if parent is not None and not parent.is_dir():
             raise PostprocError(f"cannot write: {parent} is not a directory", str(path), 0, 0, "P110")
         seen[key] = path
-    try:
-        write_atomic(outputs)
-    except OSError as exc:
-        where = exc.filename2 or exc.filename or outputs[0][0]
-        raise PostprocError(f"cannot write: {exc.strerror or exc}", str(where), 0, 0, "P110") from None
+    write_checked(outputs)

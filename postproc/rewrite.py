@@ -42,7 +42,7 @@ def format_like(token: str, value: float) -> str:
         mantissa = Decimal(value).scaleb(-exponent)
         digits = max(len(frac or ""), MIN_DECIMALS + exponent, 0)
         if digits > MAX_DECIMALS + exponent:  # a tail beyond 1 nm: cut, keeping a written '.'
-            digits = max(MAX_DECIMALS + exponent, MIN_DECIMALS + exponent, 1 if frac else 0)
+            digits = max(MAX_DECIMALS + exponent, 1 if frac else 0)
         body = f"{abs(mantissa):.{digits}f}"
         exp_text = e + (esign if esign else "") + str(abs(exponent)).zfill(len(edigits))
         if exponent < 0 and esign != "-":
