@@ -321,19 +321,10 @@ def _corrected_attitude(abc: np.ndarray, rotation_error_deg: np.ndarray) -> np.n
     """A,B,C [N, 3] of exp(−r)·R(abc) (r: rotation vectors [N, 3] deg, nominal → actual in the
     base frame), on the triple and turns nearest ``abc``: the robot turned by r lands on abc."""
     from . import frames
+    from .simulator import nearest_triple, small_transform
 
-    r = np.radians(np.asarray(rotation_error_deg, float))
-    angle = np.linalg.norm(r, axis=1)
-    axis = r / np.where(angle > 0, angle, 1.0)[:, None]
-    k = np.zeros((len(r), 3, 3))
-    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
-    k = k - k.swapaxes(1, 2)
-    s, c = np.sin(-angle)[:, None, None], np.cos(-angle)[:, None, None]
-    undo = np.eye(3) + s * k + (1 - c) * (k @ k)  # Rodrigues: exp(−r)
-    new = frames.abc_from_rotation(undo @ frames.rotation_from_abc(abc))
-    alt = np.stack([new[:, 0] + 180.0, 180.0 - new[:, 1], new[:, 2] + 180.0], axis=1)
-    near = [abc + (t - abc + 180.0) % 360.0 - 180.0 for t in (new, alt)]
-    return np.where((np.abs(near[1] - abc).max(axis=1) < np.abs(near[0] - abc).max(axis=1))[:, None], near[1], near[0])
+    undo = small_transform(np.radians(-np.asarray(rotation_error_deg, float)), np.zeros(3))[:, :3, :3]  # exp(−r)
+    return nearest_triple(frames.abc_from_rotation(undo @ frames.rotation_from_abc(abc)), abc)
 
 
 def load_model(path: str | Path | None = None) -> Compensator:

@@ -62,9 +62,7 @@ def inference_session(data: bytes):
         optimised = cached.read_bytes()
         if hashlib.sha256(optimised).hexdigest() == digest.read_text().strip():
             return ort.InferenceSession(optimised, _options(ort, False), providers=["CPUExecutionProvider"])
-    except (OSError, ValueError):
-        pass  # not there yet, or unreadable: made again below
-    except Exception:  # noqa: BLE001 - onnxruntime's own exception types: a cache ORT refuses is made again
+    except Exception:  # noqa: BLE001 - not there yet, unreadable, or a cache ORT refuses (its own types): made again below
         pass
     options = _options(ort, True)
     tmp = None

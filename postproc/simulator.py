@@ -188,7 +188,7 @@ def rotation_angle_deg(abc_a: np.ndarray, abc_b: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
-def _nearest_triple(abc: np.ndarray, ref: np.ndarray) -> np.ndarray:
+def nearest_triple(abc: np.ndarray, ref: np.ndarray) -> np.ndarray:
     """Of the two A,B,C triples of each rotation, (A, B, C) and (A+180, 180−B, C+180), the one
     nearest ``ref`` [N, 3], each angle on the turn nearest the reference's (the probe reads
     angles as the program writes them: B = 93° stays 93°, not 87° with A and C turned)."""
@@ -464,7 +464,7 @@ class SimulatedRobot:
         xyz = actual[:, :3, 3] + rng.normal(0.0, 1.0, (len(actual), 3)) * sigma
         if not orientation:
             return xyz
-        abc = _nearest_triple(frames.matrix_to_frame(actual)[:, 3:], np.atleast_2d(commanded_poses)[:, 3:6])
+        abc = nearest_triple(frames.matrix_to_frame(actual)[:, 3:], np.atleast_2d(commanded_poses)[:, 3:6])
         if self.spec.orientation_noise_deg > 0:
             abc = abc + rng.normal(0.0, self.spec.orientation_noise_deg, abc.shape)
         return np.hstack([xyz, abc])

@@ -17,6 +17,16 @@ DEFAULT_ENVELOPE = {"box": [1700, 2300, -600, 600, 500, 1300], "attitude": [0, 9
 DEFAULT_REACH = {"center": [500, 0, 1045], "radius_min": 300, "radius_max": 2700}
 
 
+def _save(model, meta: dict, path) -> Path:
+    """Add the contract metadata, check and write the model; its path."""
+    for k, v in meta.items():
+        model.metadata_props.add(key=k, value=v)
+    onnx.checker.check_model(model)
+    path = Path(path)
+    onnx.save(model, path)
+    return path
+
+
 def affine_model(
     path: Path,
     offset=(0.0, 0.0, 0.0),
@@ -64,12 +74,7 @@ def affine_model(
         method=method,
         **extra_meta,
     )
-    for k, v in meta.items():
-        model.metadata_props.add(key=k, value=v)
-    onnx.checker.check_model(model)
-    path = Path(path)
-    onnx.save(model, path)
-    return path
+    return _save(model, meta, path)
 
 
 def joint_model(path: Path, gain: np.ndarray, tool_gain: np.ndarray | None = None, rotation_gain: np.ndarray | None = None,
@@ -114,9 +119,4 @@ def joint_model(path: Path, gain: np.ndarray, tool_gain: np.ndarray | None = Non
     meta = contract_metadata(name=name, robot=robot, tool=tool or {"name": "spindle", "frame": [300, 0, 75, 0, 0, 0]},
                              envelope=extra_meta.pop("envelope", None), reach=DEFAULT_REACH,
                              method="joint-test", **extra_meta)
-    for k, v in meta.items():
-        model.metadata_props.add(key=k, value=v)
-    onnx.checker.check_model(model)
-    path = Path(path)
-    onnx.save(model, path)
-    return path
+    return _save(model, meta, path)
