@@ -93,17 +93,26 @@ class ReportData:
         return np.linalg.norm(self.after, axis=1)
 
 
-def _after_columns(data: bytes, lines: np.ndarray, path: str) -> np.ndarray | None:
-    """``x_after,y_after,z_after`` of the rows at file ``lines``, if the header names them."""
+def _optional_columns(data: bytes, path: str, columns: tuple[str, ...]) -> tuple[list[str], list[int]] | None:
+    """The lines of a measurement CSV and the header index of each of ``columns``; None if the
+    header names none of them, P501 if it names only some."""
     text = data.removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
     header_at = next(i for i, raw in enumerate(text) if raw.strip() and not raw.lstrip().startswith("#"))
     header = [h.strip().lower() for h in text[header_at].split(",")]
-    present = [c in header for c in AFTER_COLUMNS]
+    present = [c in header for c in columns]
     if not any(present):
         return None
     if not all(present):
-        raise PostprocError(f"give all of {','.join(AFTER_COLUMNS)} or none", path, header_at + 1, 1, "P501")
-    index = [header.index(c) for c in AFTER_COLUMNS]
+        raise PostprocError(f"give all of {','.join(columns)} or none", path, header_at + 1, 1, "P501")
+    return text, [header.index(c) for c in columns]
+
+
+def _after_columns(data: bytes, lines: np.ndarray, path: str) -> np.ndarray | None:
+    """``x_after,y_after,z_after`` of the rows at file ``lines``, if the header names them."""
+    found = _optional_columns(data, path, AFTER_COLUMNS)
+    if found is None:
+        return None
+    text, index = found
     out = np.empty((len(lines), 3))
     for row, line in enumerate(lines.tolist()):
         fields = text[line - 1].split(",")
