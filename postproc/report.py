@@ -175,10 +175,11 @@ def read_report_data(path: str | Path, model: Compensator | None = None, after: 
     path = Path(path)
     data, m = _read(path)
     error = m.poses[:, :3] - m.measured
-    if after is not None and _after_columns(data, m.lines, str(path)) is not None:
+    columns = _after_columns(data, m.lines, str(path))
+    if after is not None and columns is not None:
         raise PostprocError("give the positions after compensation once: x_after.. columns or --after, not both",
                             str(path), code="P501")
-    reached = _reached_after(Path(after), m.poses) if after is not None else _after_columns(data, m.lines, str(path))
+    reached = _reached_after(Path(after), m.poses) if after is not None else columns
     # rows in visiting order: a model that takes previous_pose sees each row's predecessor
     previous = np.vstack([m.poses[:1], m.poses[:-1]]) if model is not None and model.wants_previous else None
     predicted = model.predict(m.poses, previous) if model is not None else None
