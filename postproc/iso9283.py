@@ -356,7 +356,7 @@ def read_iso_result(path: str | Path, after: str | Path | None = None,
 
         after = Path(after)
         after_data, am = _read(after)
-        reached = _reached_after(after, m.poses)
+        reached = _reached_after(after, m.poses, am)  # am: read once, above
         abc = _orientation_columns(after_data, am.lines, str(after))
         result.after = pose_figures(m.poses, reached, labels, abc)
         result.deviation_after = reached - m.poses[:, :3]

@@ -146,11 +146,13 @@ AFTER_POSITION_MM = 10.0
 AFTER_ATTITUDE_DEG = 0.01
 
 
-def _reached_after(path: Path, targets: np.ndarray) -> np.ndarray:
-    """Positions reached in a measurement of the compensated program (``--after``), row by row."""
+def _reached_after(path: Path, targets: np.ndarray, m=None) -> np.ndarray:
+    """Positions reached in a measurement of the compensated program (``--after``), row by row;
+    ``m``: that file's measurements if the caller has read them already."""
     from .training.data import wrap_deg
 
-    _, m = _read(path, repeats=True)  # row by row against the targets: a pose may repeat (ISO 9283 cycles)
+    if m is None:
+        _, m = _read(path, repeats=True)  # row by row against the targets: a pose may repeat (ISO 9283 cycles)
     if len(m) != len(targets):
         raise PostprocError(f"{len(m)} rows, the measurement before compensation has {len(targets)}: measure the "
                             "compensated program in the same order", str(path), code="P503")
