@@ -35,6 +35,7 @@ from ..diagnostics import Diagnostic, PostprocError, line_col
 from ..frames import abc_from_rotation
 from ..resources import grammar_path
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
+from .poses import _newline  # a file's newline: \r\n if at least half its line ends are
 
 __all__ = ["read", "parser", "RapidProgram", "quaternion_matrix", "TOKEN_RE", "MOTION_OF"]
 
@@ -812,11 +813,6 @@ class _Reader:
             files=list(self.files), texts=list(self.texts), targets=targets, frames=self.frames,
             diagnostics=self.diagnostics, dialect="rapid", stamps=stamps,
             newlines=[_newline(t) for t in self.texts], comment="!", named_targets=True, confdata=confdata)
-
-
-def _newline(text: str) -> str:
-    crlf = text.count("\r\n")
-    return "\r\n" if crlf and crlf >= text.count("\n") - crlf else "\n"
 
 
 def read(files: list[str], texts: list[str], config: list[str] | None = None) -> RapidProgram:
