@@ -467,10 +467,6 @@ class _Reader:
 
     def at(self, v, tokens):
         k = v[2] if v[0] in ("agg", "call") else v[1]
-        if v[0] == "num" or v[0] == "ref":
-            k = v[1]
-        if v[0] == "expr":
-            k = v[1]
         return tokens[k].start() if 0 <= k < len(tokens) else (tokens[0].start() if tokens else 0)
 
     def warn(self, st, offset, code, message):
@@ -803,7 +799,6 @@ class _Reader:
             abc = np.zeros((0, 3))
         targets = Targets(poses=np.concatenate([xyz, abc], axis=1), spans=spans, file=file,
                           line=line.astype(np.int32), col=col.astype(np.int32), frame=frame, motion=motion)
-        confdata = conf
         stamps = {}
         for fi, text in enumerate(self.texts):
             m = re.search(r"^[ \t]*!.*" + re.escape(STAMP_PREFIX) + r".*$", text, re.M)
@@ -812,7 +807,7 @@ class _Reader:
         return RapidProgram(
             files=list(self.files), texts=list(self.texts), targets=targets, frames=self.frames,
             diagnostics=self.diagnostics, dialect="rapid", stamps=stamps,
-            newlines=[_newline(t) for t in self.texts], comment="!", named_targets=True, confdata=confdata)
+            newlines=[_newline(t) for t in self.texts], comment="!", named_targets=True, confdata=conf)
 
 
 def read(files: list[str], texts: list[str], config: list[str] | None = None) -> RapidProgram:
