@@ -1,4 +1,4 @@
-"""What the benchmarks share: running the CLI as a user would, and a KRL program of poses."""
+"""What the benchmarks share: running the CLI as a user would, the machine's load, and a KRL program of poses."""
 from __future__ import annotations
 
 import subprocess
@@ -20,6 +20,11 @@ def cli(*args: str, nice: bool = False, env: dict | None = None) -> tuple[str, f
     if run.returncode not in (0, 1):
         raise SystemExit(f"postproc {' '.join(args)} failed ({run.returncode}):\n{run.stderr}")
     return run.stdout, time.perf_counter() - t0
+
+
+def load() -> str:
+    """The machine's load averages, as `uptime` prints them (the machine is shared)."""
+    return subprocess.run(["uptime"], capture_output=True, text=True).stdout.split("load average:")[-1].strip()
 
 
 def krl_program(name: str, poses: np.ndarray) -> str:

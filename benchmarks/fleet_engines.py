@@ -3,14 +3,11 @@
     python benchmarks/fleet_engines.py       # Ray is measured only when installed (pip install ray)
 """
 import importlib.util
-import subprocess
 import time
 
+from _common import load
+
 N = 200
-
-
-def load() -> str:
-    return subprocess.run(["uptime"], capture_output=True, text=True).stdout.split("load average:")[-1].strip()
 
 
 def noop(i):

@@ -15,7 +15,6 @@ Measured 2026-12-01 on the shared 2-core machine (1-min load in brackets):
 """
 import argparse
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -24,9 +23,7 @@ from pathlib import Path
 from postproc.cli import main
 from postproc.fleet import RobotJob, _run_cli, run_fleet, train_robot
 
-
-def load() -> str:
-    return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip().split("load average:")[-1].strip()
+from _common import load  # benchmarks/ is on sys.path when a benchmark runs as a script
 
 
 def engine_overhead(n=200):

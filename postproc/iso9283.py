@@ -304,15 +304,12 @@ class IsoResult:
 
 def _orientation_columns(data: bytes, lines: np.ndarray, path: str) -> np.ndarray | None:
     """``a_meas,b_meas,c_meas`` at the rows of file ``lines``, if the header names all three."""
-    text = data.removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
-    header_at = next(i for i, raw in enumerate(text) if raw.strip() and not raw.lstrip().startswith("#"))
-    header = [h.strip().lower() for h in text[header_at].split(",")]
-    present = [c in header for c in ORIENTATION_COLUMNS]
-    if not any(present):
+    from .report import _optional_columns  # the one reader of optional column groups (x_after.. too)
+
+    found = _optional_columns(data, path, ORIENTATION_COLUMNS)
+    if found is None:
         return None
-    if not all(present):
-        raise PostprocError(f"give all of {','.join(ORIENTATION_COLUMNS)} or none", path, header_at + 1, 1, "P501")
-    index = [header.index(c) for c in ORIENTATION_COLUMNS]
+    text, index = found
     rows = [text[line - 1].split(",") for line in lines.tolist()]
     try:
         out = np.array([[float(r[i]) for i in index] for r in rows])
@@ -359,7 +356,7 @@ def read_iso_result(path: str | Path, after: str | Path | None = None,
 
         after = Path(after)
         after_data, am = _read(after)
-        reached = _reached_after(after, m.poses)
+        reached = _reached_after(after, m.poses, am)  # am: read once, above
         abc = _orientation_columns(after_data, am.lines, str(after))
         result.after = pose_figures(m.poses, reached, labels, abc)
         result.deviation_after = reached - m.poses[:, :3]

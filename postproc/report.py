@@ -93,17 +93,26 @@ class ReportData:
         return np.linalg.norm(self.after, axis=1)
 
 
-def _after_columns(data: bytes, lines: np.ndarray, path: str) -> np.ndarray | None:
-    """``x_after,y_after,z_after`` of the rows at file ``lines``, if the header names them."""
+def _optional_columns(data: bytes, path: str, columns: tuple[str, ...]) -> tuple[list[str], list[int]] | None:
+    """The lines of a measurement CSV and the header index of each of ``columns``; None if the
+    header names none of them, P501 if it names only some."""
     text = data.removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
     header_at = next(i for i, raw in enumerate(text) if raw.strip() and not raw.lstrip().startswith("#"))
     header = [h.strip().lower() for h in text[header_at].split(",")]
-    present = [c in header for c in AFTER_COLUMNS]
+    present = [c in header for c in columns]
     if not any(present):
         return None
     if not all(present):
-        raise PostprocError(f"give all of {','.join(AFTER_COLUMNS)} or none", path, header_at + 1, 1, "P501")
-    index = [header.index(c) for c in AFTER_COLUMNS]
+        raise PostprocError(f"give all of {','.join(columns)} or none", path, header_at + 1, 1, "P501")
+    return text, [header.index(c) for c in columns]
+
+
+def _after_columns(data: bytes, lines: np.ndarray, path: str) -> np.ndarray | None:
+    """``x_after,y_after,z_after`` of the rows at file ``lines``, if the header names them."""
+    found = _optional_columns(data, path, AFTER_COLUMNS)
+    if found is None:
+        return None
+    text, index = found
     out = np.empty((len(lines), 3))
     for row, line in enumerate(lines.tolist()):
         fields = text[line - 1].split(",")
@@ -137,11 +146,13 @@ AFTER_POSITION_MM = 10.0
 AFTER_ATTITUDE_DEG = 0.01
 
 
-def _reached_after(path: Path, targets: np.ndarray) -> np.ndarray:
-    """Positions reached in a measurement of the compensated program (``--after``), row by row."""
+def _reached_after(path: Path, targets: np.ndarray, m=None) -> np.ndarray:
+    """Positions reached in a measurement of the compensated program (``--after``), row by row;
+    ``m``: that file's measurements if the caller has read them already."""
     from .training.data import wrap_deg
 
-    _, m = _read(path, repeats=True)  # row by row against the targets: a pose may repeat (ISO 9283 cycles)
+    if m is None:
+        _, m = _read(path, repeats=True)  # row by row against the targets: a pose may repeat (ISO 9283 cycles)
     if len(m) != len(targets):
         raise PostprocError(f"{len(m)} rows, the measurement before compensation has {len(targets)}: measure the "
                             "compensated program in the same order", str(path), code="P503")
@@ -166,10 +177,11 @@ def read_report_data(path: str | Path, model: Compensator | None = None, after: 
     path = Path(path)
     data, m = _read(path)
     error = m.poses[:, :3] - m.measured
-    if after is not None and _after_columns(data, m.lines, str(path)) is not None:
+    columns = _after_columns(data, m.lines, str(path))
+    if after is not None and columns is not None:
         raise PostprocError("give the positions after compensation once: x_after.. columns or --after, not both",
                             str(path), code="P501")
-    reached = _reached_after(Path(after), m.poses) if after is not None else _after_columns(data, m.lines, str(path))
+    reached = _reached_after(Path(after), m.poses) if after is not None else columns
     # rows in visiting order: a model that takes previous_pose sees each row's predecessor
     previous = np.vstack([m.poses[:1], m.poses[:-1]]) if model is not None and model.wants_previous else None
     predicted = model.predict(m.poses, previous) if model is not None else None

@@ -35,6 +35,7 @@ from ..diagnostics import Diagnostic, PostprocError, line_col
 from ..frames import abc_from_rotation
 from ..resources import grammar_path
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
+from .poses import _newline  # a file's newline: \r\n if at least half its line ends are
 
 __all__ = ["read", "parser", "RapidProgram", "quaternion_matrix", "TOKEN_RE", "MOTION_OF"]
 
@@ -466,10 +467,6 @@ class _Reader:
 
     def at(self, v, tokens):
         k = v[2] if v[0] in ("agg", "call") else v[1]
-        if v[0] == "num" or v[0] == "ref":
-            k = v[1]
-        if v[0] == "expr":
-            k = v[1]
         return tokens[k].start() if 0 <= k < len(tokens) else (tokens[0].start() if tokens else 0)
 
     def warn(self, st, offset, code, message):
@@ -802,7 +799,6 @@ class _Reader:
             abc = np.zeros((0, 3))
         targets = Targets(poses=np.concatenate([xyz, abc], axis=1), spans=spans, file=file,
                           line=line.astype(np.int32), col=col.astype(np.int32), frame=frame, motion=motion)
-        confdata = conf
         stamps = {}
         for fi, text in enumerate(self.texts):
             m = re.search(r"^[ \t]*!.*" + re.escape(STAMP_PREFIX) + r".*$", text, re.M)
@@ -811,12 +807,7 @@ class _Reader:
         return RapidProgram(
             files=list(self.files), texts=list(self.texts), targets=targets, frames=self.frames,
             diagnostics=self.diagnostics, dialect="rapid", stamps=stamps,
-            newlines=[_newline(t) for t in self.texts], comment="!", named_targets=True, confdata=confdata)
-
-
-def _newline(text: str) -> str:
-    crlf = text.count("\r\n")
-    return "\r\n" if crlf and crlf >= text.count("\n") - crlf else "\n"
+            newlines=[_newline(t) for t in self.texts], comment="!", named_targets=True, confdata=conf)
 
 
 def read(files: list[str], texts: list[str], config: list[str] | None = None) -> RapidProgram:
