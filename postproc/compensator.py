@@ -16,10 +16,14 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   point below stays right: the caller passes the joints of the *target* P once, and every
   iteration's command c (a few mm from P) is solved on that branch — q(c), not q(P).
   ``Compensator`` feeds NaN when the caller has none;
-* optional input ``tool``: float32 [N, 6] (X, Y, Z mm, A, B, C deg of the TCP on the flange),
-  NaN = the model's own tool (the card's ``tool``); for physical models that compute the error
-  at any TCP. (Declared here so that callers can pass it; the shipped training does not
-  export it yet.)
+* optional input ``tool``: float32 [N, 6] (X, Y, Z mm, A, B, C deg of the TCP on the flange:
+  the program's $TOOL at each target), a row with a NaN = the model's own tool (the card's
+  ``tool.frame``); for physical models that compute the error at any TCP: the graph solves the
+  nominal IK of the flange pose that puts that TCP at ``pose`` (P·T⁻¹·T₀ for the
+  description's IK) and evaluates the identified arm with that TCP on its identified flange
+  (the identified tool offset a shift fixed to the flange, the mount's rotation where the data
+  separated it). ``train``'s hybrid and kinematic models have it; pose-only models do not
+  (P304 for another $TOOL);
 * output ``error``: float32 [N, 3] mm, E = P_target − P_actual; normalisation lives inside
   the graph;
 * optional output ``ik_joints``: float32 [N, 6] deg, the controller's joint angles (nominal IK,
@@ -33,7 +37,10 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
 * optional output ``rotation_error``: float32 [N, 3] deg, the orientation error as a rotation
   vector of nominal → actual in the base frame (``compensate --orientation``);
 * ``metadata_props`` (values JSON-encoded where structured): ``postproc_contract`` "1",
-  ``name``, ``robot``, ``tool`` {"name", "frame"}, ``envelope`` {"box": [x0,x1,y0,y1,z0,z1],
+  ``name``, ``robot``, ``tool`` {"name", "frame", optional "measured": [[X,Y,Z,A,B,C], ...]
+  the TCPs of the data, "unseparated": [[x,y,z], ...] unit directions (flange frame) of the
+  mount rotation the data cannot tell from a shift (P319 where a TCP's lever arm makes them
+  matter), "valid": the tools the model is valid for, in words}, ``envelope`` {"box": [x0,x1,y0,y1,z0,z1],
   "attitude": [A,B,C], "range": deg, optional "joints": [[lo, hi] × 6] deg}, ``reach`` {"center": [x,y,z], "radius_min",
   "radius_max"} (TCP distance from the shoulder), ``data_sha256``, ``method``,
   ``structure``, ``accuracy`` {"val_mean_mm", "val_max_mm", ...}, ``iterations``.

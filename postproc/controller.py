@@ -15,10 +15,30 @@ from .compensator import Compensator
 from .diagnostics import Diagnostic, PostprocError
 from .programs import Program
 
-__all__ = ["model_description", "controller_inputs", "configuration_mismatch", "JOINT_TOLERANCE_DEG"]
+__all__ = ["model_description", "controller_inputs", "configuration_mismatch", "unseparated_mount_mm",
+           "JOINT_TOLERANCE_DEG", "MOUNT_ROTATION_DEG", "TOOL_WARNING_MM"]
 
 # A target's stated configuration (S/T) is the model's when the joint angles agree to this.
 JOINT_TOLERANCE_DEG = 1.0
+# P319: the tool mount's rotation (with the A6 mastering about its axis) assumed at most, where
+# the model's data could not separate it (card ``tool.unseparated``), and the extra error at
+# another TCP from it that is worth a warning
+MOUNT_ROTATION_DEG = 0.1
+TOOL_WARNING_MM = 0.1
+
+
+def unseparated_mount_mm(model: Compensator, tools: np.ndarray) -> np.ndarray:
+    """[n] mm: what the part of the tool mount's rotation the model's data could not separate
+    (card ``tool.unseparated``, unit directions in the flange frame) may add at each TCP
+    ``tools`` [n, 6], for a rotation of MOUNT_ROTATION_DEG: θ·max |u × (t − t₀)| over unit u
+    in their span (t₀ the model's own TCP). Zero for models that do not say (no tool input)."""
+    card = model.tool or {}
+    apart = np.asarray(card.get("unseparated", []), float).reshape(-1, 3)
+    if not len(apart) or card.get("frame") is None or not len(tools):
+        return np.zeros(len(tools))
+    lever = np.asarray(tools, float)[:, :3] - np.asarray(card["frame"], float)[:3]
+    turned = np.cross(apart[None, :, :], lever[:, None, :])  # [n, k, 3]
+    return np.radians(MOUNT_ROTATION_DEG) * np.linalg.norm(turned, ord=2, axis=(1, 2))  # largest singular value
 
 
 def model_description(model: Compensator):
@@ -95,8 +115,10 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
     """The model's ``joints`` / ``tool`` inputs for targets ``rows`` at base poses ``sel``:
     (rows kept, their poses, joint angles [n, 6] deg or None, TCPs [n, 6] or None, warnings).
     Targets whose configuration has no joint angles on the nominal arm (P309) are left as
-    written. The tool is the program's $TOOL where known, else the model's (its card).
-    ``collect`` makes the located warnings (findings.collect)."""
+    written. The tool is the program's $TOOL where known, else the model's (its card); where
+    its lever arm is so far from the measured TCPs' that the mount rotation the model could not
+    separate may add TOOL_WARNING_MM or more, a P319 warning says how much (the target is
+    compensated). ``collect`` makes the located warnings (findings.collect)."""
     from . import configuration
     from .robot import Robot
 
@@ -123,4 +145,12 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
             warnings += collect(program, rows[~ok], "P309", "no joint angles for this target in its arm configuration "
                                 "(S/T, or the one its motion keeps) on the nominal robot: left as it is")
             rows, sel, q, tools = rows[ok], sel[ok], q[ok], tools[ok]
+    if model.wants_tool:
+        extra = unseparated_mount_mm(model, tools)
+        far = np.flatnonzero(extra >= TOOL_WARNING_MM)
+        warnings += collect(program, rows[far], "P319", lambda i: (
+            f"the $TOOL {[round(float(v), 3) for v in tools[far[i]]]} has another lever arm than the tools the model "
+            f"was measured with ({len(model.tool.get('measured', []))}): the tool mount's rotation they could not "
+            f"separate may add up to {extra[far[i]]:.2f} mm here (at {MOUNT_ROTATION_DEG}°); measure with this tool, "
+            "or with two or three tools"))
     return rows, sel, q, (tools if model.wants_tool else None), warnings

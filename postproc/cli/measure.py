@@ -12,7 +12,9 @@ Output header: x,y,z,a,b,c,x_meas,y_meas,z_meas,a_meas,b_meas,c_meas,q1..q6 (com
 pose, measured TCP pose (a 6-DOF probe), the controller's joint angles; mm/deg, robot base
 frame), rows in visiting order: what `postproc train` reads. A plan with s,t columns is run in
 those configurations (s,t copied to the output); with --tool the output starts with
-`# tool: X,Y,Z,A,B,C`.
+`# tool: X,Y,Z,A,B,C`. With --tool given two or more times the plan is measured in as many
+consecutive parts, one tool each (the tool changed between them), and each row names its TCP
+in columns tool_x..tool_c: data that separate the tool mount's rotation (`postproc train`).
 """
 
 
@@ -34,8 +36,9 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--robot-seed", type=int, metavar="S",
                    help="draw another robot (default: the file's calibrated one)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="measurement noise seed (default 0)")
-    p.add_argument("--tool", metavar="X,Y,Z,A,B,C",
-                   help="the TCP on the flange measured (default the description's [tool])")
+    p.add_argument("--tool", metavar="X,Y,Z,A,B,C", action="append",
+                   help="the TCP on the flange measured (default the description's [tool]); give it two or three "
+                   "times to measure the plan in as many parts, one per tool")
     p.set_defaults(run=run)
 
 
@@ -50,6 +53,7 @@ def run(args) -> int:
     from ..progress import stages
     from ..outputs import check_outputs, write as write_atomic
     from ..simulator import CODE_REACH, SimulatedRobot
+    from ..training.data import TOOL_COLUMNS
     from . import show_progress
 
     check_outputs([args.output], [args.plan, args.robot or "-"])
@@ -58,10 +62,13 @@ def run(args) -> int:
         stage("read plan")
         poses, lines = read_pose_csv(args.plan)
         config = read_plan_config(args.plan)
-        tool = None if args.tool is None else parse_tool(args.tool)
+        given = [parse_tool(t) for t in args.tool or []]
         stage("draw robot")
         sim = SimulatedRobot.from_file(args.robot, args.robot_seed)
-        tools = None if tool is None else np.tile(tool, (len(poses), 1))
+        tools = None
+        if given:  # consecutive parts of the plan, one tool each
+            part = np.arange(len(poses)) * len(given) // len(poses)
+            tools = np.asarray(given)[part]
         stage("controller IK")
         ok = sim.reachable_in(poses, config, tools)
         if not ok.all():
@@ -73,12 +80,15 @@ def run(args) -> int:
         q = sim.joint_angles(poses, config, tools)
         measured = sim.measure(poses, rng_seed=args.seed, orientation=True, q_deg=q, tools=tools)
         buf = io.StringIO()
-        if tool is not None:
-            buf.write("# tool: " + ",".join(f"{v:g}" for v in tool) + "\n")
+        if len(given) == 1:
+            buf.write("# tool: " + ",".join(f"{v:g}" for v in given[0]) + "\n")
         columns = "x,y,z,a,b,c,x_meas,y_meas,z_meas,a_meas,b_meas,c_meas,q1,q2,q3,q4,q5,q6"
         table, fmt = np.hstack([poses, measured, q]), ["%.10g"] * 6 + ["%.4f"] * 3 + ["%.5f"] * 3 + ["%.6f"] * 6
         if config is not None:
             table, fmt, columns = np.hstack([table, config]), fmt + ["%d", "%d"], columns + ",s,t"
+        if len(given) > 1:
+            table, fmt = np.hstack([table, tools]), fmt + ["%.10g"] * 6
+            columns += "," + ",".join(TOOL_COLUMNS)
         np.savetxt(buf, table, fmt=fmt, delimiter=",", header=columns, comments="")
         measured = measured[:, :3]
         stage("write")

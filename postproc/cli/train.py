@@ -77,6 +77,9 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--name", help="model name for the metadata (default: the output file's stem)")
     p.add_argument("--robot", metavar="NAME|FILE.toml", help="robot name, or its description file (adds reach and tool; "
                    "hybrid/kinematic: the nominal description to identify, default models/kr500.toml)")
+    p.add_argument("--tool", metavar="X,Y,Z,A,B,C",
+                   help="the TCP on the flange the data were measured with (default: the CSV's '# tool:' line or "
+                   "tool_x..tool_c columns, else the robot description's tool)")
     p.add_argument("--pose-only", action="store_true",
                    help="hybrid/kinematic: ignore the visiting order (no backlash; the model takes the pose only)")
     p.add_argument(
@@ -113,12 +116,15 @@ def run(args) -> int:
 
     from ..diagnostics import PostprocError
     from ..outputs import check_outputs
-    from ..training.data import check_errors, check_size, envelope_of, read_measurements, split_indices
+    from ..training.data import check_errors, check_size, envelope_of, measured_tools, read_measurements, split_indices
     from . import show_progress
     from .train_hybrid import HYBRID_METHODS, run_hybrid
 
     check_outputs([args.output], [args.data, args.robot or "-"])  # before the fit, not after it
     data = read_measurements(args.data)
+    from ..planning import parse_tool
+
+    tools = measured_tools(data, None if args.tool is None else parse_tool(args.tool))
     train_rows, val_rows = split_indices(len(data), args.val_fraction, args.split_seed)
     # a robot description is read before the long part, so that a typo fails fast
     # (hybrid methods read it themselves: it is the model, and may be an arm postproc.robot cannot solve)
@@ -150,7 +156,14 @@ def run(args) -> int:
 
     progress = show_progress(args)
     if args.method in HYBRID_METHODS:
-        return run_hybrid(args, data, errors, train_rows, val_rows, notes, progress)
+        return run_hybrid(args, data, errors, train_rows, val_rows, notes, progress, tools)
+    if tools is not None:  # a pose → error map learns one TCP's error
+        if len(np.unique(tools, axis=0)) > 1:
+            raise PostprocError(f"--method {args.method} learns the error of one tool, the data have "
+                                f"{len(np.unique(tools, axis=0))}: train --method hybrid (a physical model)",
+                                args.data, code="P320")
+        robot_meta["tool"] = {"name": f"$TOOL {','.join(f'{v:g}' for v in tools[0])}",
+                              "frame": [round(float(v), 6) for v in tools[0]]}
     hidden = args.hidden or (20, 10, 5)
     args.epochs = args.epochs or 500
     if args.search:

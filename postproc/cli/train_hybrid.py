@@ -56,9 +56,10 @@ def arm_metadata(description) -> dict:
 
 
 def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows: np.ndarray, notes: list[str],
-               progress: bool) -> int:
+               progress: bool, tools: np.ndarray | None = None) -> int:
     """Fit, export and report a hybrid-family model; ``errors`` [N, 3] = E of ``data``'s rows
-    (after any registration)."""
+    (after any registration); ``tools`` [N, 6] the TCP each row was measured with (None: the
+    description's)."""
     from ..training import accuracy_card
     from ..training.features import previous_poses
     from ..training.hybrid import HybridModel
@@ -78,7 +79,8 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         **SETTINGS[args.method],
     )
     rows = (lambda a, r: None if a is None else a[r])  # noqa: E731
-    model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows))
+    model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows),
+              rows(tools, train_rows))
 
     if len(model.dropped_):
         lines = data.lines[train_rows][model.dropped_]
@@ -91,7 +93,7 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         notes.append(f"warning: {100 * (1 - share):.1f} % of the training rows were reached on another IK branch "
                      f"than {list(model.kinematic_.ik_.branch)}: the model assumes that one everywhere")
     accuracy = accuracy_card(errors[val_rows], model.predict(poses[val_rows], rows(previous, val_rows),
-                                                             rows(q_deg, val_rows)),
+                                                             rows(q_deg, val_rows), rows(tools, val_rows)),
                              model.train_stats_["mean"], len(train_rows))
     found = model.describe()
     found["identifiability"] = ident
@@ -103,6 +105,10 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         "identified": found,
     }
     metadata.update(arm_metadata(description))
+    if tools is not None or model.kinematic_.layout_.n:
+        own = model.description_.tool
+        same = np.allclose(own, description.tool)
+        metadata["tool"] = model.tool_card(description.tool_name if same else f"$TOOL {','.join(f'{v:g}' for v in own)}")
     model.export_onnx(args.output, **metadata)
 
     if not args.quiet:
@@ -116,6 +122,9 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
             apart += " ..." if len(ident["unseparated"]) > 6 else ""
             print(f"identify  rank {ident['rank']} of {ident['parameters']} parameters; groups the data cannot "
                   f"separate (settled by the prior): {apart}")
+        tool = metadata["tool"]
+        if "unseparated" in tool:
+            print(f"tools     measured {len(tool['measured'])}: valid for {tool['valid']}")
         if found["ripple"]:
             print(f"ripple    joint:order {' '.join(f'A{j}:{n}' for j, n in found['ripple'])}")
         print(f"data      {args.data}: {len(train_rows)} training rows, {len(val_rows)} validation rows")

@@ -26,7 +26,7 @@ from ..robot import RobotDescription, ur_geometry
 from .features import wrapped_step
 from .network import rotation_matrices
 
-__all__ = ["coupling_pairs", "Arm", "axis_rotations", "mc", "mv", "turn_columns", "turn_rows", "small_rotation", "pose_matrices", "KukaIK", "UrIK", "make_ik", "choose_branch",
+__all__ = ["coupling_pairs", "Arm", "axis_rotations", "mc", "mv", "turn_columns", "turn_rows", "small_rotation", "pose_matrices", "at_tool", "KukaIK", "UrIK", "make_ik", "choose_branch",
            "GRAVITY"]
 
 GRAVITY = 9.81  # m/s², along −Z of the robot base frame (as Pinocchio's default)
@@ -112,9 +112,29 @@ def small_rotation(rotvec: torch.Tensor) -> torch.Tensor:
     return torch.eye(3, dtype=rotvec.dtype) + a * k + b * (k @ k)
 
 
-def pose_matrices(pose: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Poses [N, 6] (mm, KUKA A,B,C deg) → rotations [N, 3, 3] and positions [N, 3]."""
+def pose_matrices(pose) -> tuple[torch.Tensor, torch.Tensor]:
+    """Poses [N, 6] (mm, KUKA A,B,C deg) → rotations [N, 3, 3] and positions [N, 3]; a pair
+    (rotations, positions) passes through (``at_tool``'s result: the IK takes either)."""
+    if isinstance(pose, tuple):
+        return pose
     return rotation_matrices(pose[:, 3:6]), pose[:, 0:3]
+
+
+def _bmm(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """[N, 3, 3] @ [N, 3, 3] as broadcast products (no batched MatMul of tiny matrices)."""
+    return (a[..., :, :, None] * b[..., None, :, :]).sum(-2)
+
+
+def at_tool(pose: torch.Tensor, tool: torch.Tensor, tool0: torch.Tensor):
+    """The pose of TCP ``tool0`` [6] on the flange that puts the TCP ``tool`` [N, 6] at ``pose``
+    [N, 6]: the same flange pose, P·T⁻¹·T₀, as (rotations [N, 3, 3], positions [N, 3]) for the
+    IK of a description whose tool is T₀. Rows of ``tool`` with a NaN are T₀ (pose unchanged)."""
+    tool = torch.where(torch.isnan(tool), tool0.expand_as(tool), tool)
+    r_p, p_p = pose_matrices(pose)
+    r_t = rotation_matrices(tool[:, 3:6])
+    r_0 = rotation_matrices(tool0[None, 3:6])[0]
+    back = _bmm(r_p, r_t.transpose(1, 2))  # R_P·R_Tᵀ: the flange's rotation
+    return mc(back, r_0), p_p + mv(back, tool0[:3] - tool[:, :3])
 
 
 def _atan2(y: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
@@ -140,6 +160,7 @@ class Arm:
         self.flange = _t(frames.frame_to_matrix(d.flange))
         self.tool = _t(frames.frame_to_matrix(d.tool))
         self.end = self.flange @ self.tool
+        self.tool0 = _t(d.tool)  # the description's TCP on the flange, X,Y,Z,A,B,C
         self.masses = _t([j.mass for j in d.joints])
         self.coms = _t(np.array([j.com for j in d.joints]))
         payload_com = frames.frame_to_matrix(d.flange) @ np.r_[d.payload_com, 1.0]
@@ -150,7 +171,8 @@ class Arm:
     def frames(self, q: torch.Tensor, placements: torch.Tensor | None = None, end: torch.Tensor | None = None,
                base: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Joint rotations [N, J, 3, 3], joint origins [N, J, 3] and TCP positions [N, 3] (mm)
-        at q [N, J] rad, for the nominal chain or one with other ``placements`` / ``end`` / ``base``."""
+        at q [N, J] rad, for the nominal chain or one with other ``placements`` / ``end`` (a
+        [4, 4] transform, or per-row TCP positions [N, 3] in the last joint's frame) / ``base``."""
         placements = self.placements if placements is None else placements
         end = self.end if end is None else end
         n = q.shape[0]
@@ -170,7 +192,8 @@ class Arm:
             r = turn_columns(r, self.axes[j], q[:, j])
             rs.append(r)
             ps.append(p)
-        tcp = p + mv(r, end[:3, 3])
+        # ``end`` [4, 4], or each row's TCP position in the last joint's frame [N, 3] (tools)
+        tcp = p + mv(r, end if end.shape[-1] == 3 else end[:3, 3])
         return torch.stack(rs, dim=1), torch.stack(ps, dim=1), tcp
 
     def tcp(self, q: torch.Tensor, **chain) -> torch.Tensor:

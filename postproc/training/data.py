@@ -6,7 +6,10 @@ visiting order. E = P_target − P_measured. Column names are matched case-insen
 in any order; extra columns (a point id, a timestamp) are ignored, except ``holdout`` (1 = a
 row that an earlier registration did not see, see ``postproc import``); blank lines and lines
 starting with ``#`` are skipped, and ``# key: value`` lines before the header are kept as
-metadata (``# frame: tracker`` = measured columns still in the tracker's frame).
+metadata (``# frame: tracker`` = measured columns still in the tracker's frame; ``# tool:
+X,Y,Z,A,B,C`` = the TCP on the flange every row was measured with). Columns ``tool_x, tool_y,
+tool_z, tool_a, tool_b, tool_c`` give each row's TCP instead (data of several tools, which
+lets the identification separate the tool mount's rotation): ``measured_tools``.
 
 Codes: P500 unreadable/empty, P501 missing or misnamed column, P502 a value that is not a
 finite number, P503 wrong number of fields, P504 duplicate pose, P505 too few points for the
@@ -31,6 +34,8 @@ __all__ = [
     "COLUMNS",
     "Measurements",
     "read_measurements",
+    "measured_tools",
+    "TOOL_COLUMNS",
     "check_errors",
     "parse_measurements",
     "parse_rows",
@@ -45,6 +50,7 @@ __all__ = [
 POSE_COLUMNS = ("x", "y", "z", "a", "b", "c")
 MEAS_COLUMNS = ("x_meas", "y_meas", "z_meas")
 COLUMNS = POSE_COLUMNS + MEAS_COLUMNS
+TOOL_COLUMNS = ("tool_x", "tool_y", "tool_z", "tool_a", "tool_b", "tool_c")
 
 
 @dataclass
@@ -59,6 +65,7 @@ class Measurements:
     meta: dict = field(default_factory=dict)  # '# key: value' lines before the header
     holdout: np.ndarray | None = None  # [N] bool from a 'holdout' column, if any
     joints: np.ndarray | None = None  # [N, 6] deg from 'q1'..'q6' (the controller's angles), if all there
+    tools: np.ndarray | None = None  # [N, 6] from 'tool_x'..'tool_c' (each row's TCP on the flange), if there
 
     @property
     def errors(self) -> np.ndarray:
@@ -107,13 +114,47 @@ def parse_measurements(data: bytes, path: str = "<data>", repeats: bool = False)
     if not len(table):
         raise PostprocError("measurement file has a header but no data rows", path, code="P500")
     joints = _joint_columns(lines, first, header, path)
-    # the same pose in another arm configuration (joint angles a degree or more apart) is
-    # another measurement, not a repeat
+    tools = None
+    if set(TOOL_COLUMNS) & set(header):  # the TCP of each row: all six, finite numbers (P501/P502)
+        missing = [n for n in TOOL_COLUMNS if n not in header]
+        if missing:
+            raise PostprocError(f"missing column(s) {', '.join(missing)}: a row's tool is {','.join(TOOL_COLUMNS)}",
+                                path, first + 1, 1, "P501")
+        tools = parse_rows(lines, first, header, [header.index(n) for n in TOOL_COLUMNS], path)[0]
+    # the same pose in another arm configuration (joint angles a degree or more apart) or
+    # with another tool is another measurement, not a repeat
     key = table[:, :6] if joints is None else np.c_[table[:, :6], np.round(joints)]
+    key = key if tools is None else np.c_[key, tools]
     if not repeats:
         _check_duplicates(key, line_numbers, path)
     holdout = table[:, 9] != 0 if table.shape[1] > 9 else None
-    return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout, joints)
+    return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout, joints,
+                        tools)
+
+
+def measured_tools(data: Measurements, tool: np.ndarray | None = None) -> np.ndarray | None:
+    """Each row's TCP on the flange [N, 6]: the ``tool_x..tool_c`` columns, else the ``# tool:``
+    line, else ``tool`` (``train --tool``), else None (the robot description's tool). Two
+    sources that disagree are refused (P320): the product does not pick one."""
+    from ..planning import parse_tool
+
+    sources = []
+    if data.tools is not None:
+        sources.append(("the columns tool_x..tool_c", data.tools))
+    if "tool" in data.meta:
+        try:
+            sources.append(("the '# tool:' line", np.tile(parse_tool(data.meta["tool"]), (len(data), 1))))
+        except PostprocError as exc:
+            raise PostprocError(f"'# tool: {data.meta['tool']}': {exc.message}", data.path, code="P320") from None
+    if tool is not None:
+        sources.append(("--tool", np.tile(np.asarray(tool, float), (len(data), 1))))
+    for (name, rows), (other, rows2) in zip(sources, sources[1:]):
+        differ = np.flatnonzero(np.abs(rows - rows2).max(axis=1) > 1e-6)
+        if len(differ):
+            i = differ[0]
+            raise PostprocError(f"{other} says the tool is {rows2[i].tolist()}, {name} {rows[i].tolist()}: which "
+                                "TCP were the data measured with?", data.path, int(data.lines[i]), 1, "P320")
+    return sources[0][1] if sources else None
 
 
 def _joint_columns(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:

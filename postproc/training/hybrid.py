@@ -28,7 +28,7 @@ from .data import envelope_of
 from .estimator import _one_thread, residual_stats
 from .export import onnx_bytes, write_atomic
 from .features import inside_ranges, joint_features, previous_poses, wrap_angles
-from .kinematic import KinematicErrorModule, KinematicModel
+from .kinematic import KinematicErrorModule, KinematicModel, unseparated_mount
 
 __all__ = ["HybridModel", "HybridModule", "ResidualNet"]
 
@@ -77,37 +77,43 @@ class HybridModule(torch.nn.Module):
         return self.kinematic.use_previous
 
     def error_and_joints(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
-                         q_in: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+                         q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None
+                         ) -> tuple[torch.Tensor, torch.Tensor]:
         """(Ê [N, 3], the controller's joint angles q [N, 6] rad) in the dtype of ``pose``;
-        ``q_in`` [N, 6] rad picks each row's IK branch (NaN rows: the identified branch)."""
+        ``q_in`` [N, 6] rad picks each row's IK branch (NaN rows: the identified branch);
+        ``tool`` [N, 6] each row's TCP on the flange (NaN rows: the model's own)."""
         dtype = pose.dtype
         pose = pose.to(torch.float64)
         prev = previous_pose.to(torch.float64) if previous_pose is not None else None
         q_in = q_in.to(torch.float64) if q_in is not None else None
-        error, q, signs, learned = self.kinematic.parts(pose, prev, q_in, self.joint_range)
+        tool = tool.to(torch.float64) if tool is not None else None
+        error, q, signs, learned = self.kinematic.parts(pose, prev, q_in, self.joint_range, tool)
         if len(self.nets):
             features = joint_features(q, signs if self.uses_previous else None)
             error = error + learned[:, None] * torch.stack([net(features) for net in self.nets]).mean(dim=0)
         return error.to(dtype), q.to(dtype)
 
     def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
-                q_in: torch.Tensor | None = None) -> torch.Tensor:
-        return self.error_and_joints(pose, previous_pose, q_in)[0]
+                q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None) -> torch.Tensor:
+        return self.error_and_joints(pose, previous_pose, q_in, tool)[0]
 
 
 class _WithJoints(torch.nn.Module):
     """The exported graph: inputs ``pose`` [, ``previous_pose``], ``joints`` (deg, NaN rows:
-    unknown); outputs ``error`` and ``joints`` (deg, wrapped to [−180, 180)), so that
-    compensate can check the joint ranges of the envelope with onnxruntime alone."""
+    unknown) [, ``tool`` (NaN rows: the model's own)]; outputs ``error`` and ``joints`` (deg,
+    wrapped to [−180, 180)), so that compensate can check the joint ranges of the envelope
+    with onnxruntime alone."""
 
-    def __init__(self, module: HybridModule):
+    def __init__(self, module: HybridModule, tool: bool = False):
         super().__init__()
         self.module = module
+        self.tool = tool
 
     def forward(self, pose: torch.Tensor, *rest: torch.Tensor):
         previous_pose = rest[0] if self.module.uses_previous else None
-        joints = rest[-1] * (math.pi / 180.0)  # (torch.deg2rad has no ONNX export)
-        error, q = self.module.error_and_joints(pose, previous_pose, joints)
+        tool = rest[-1] if self.tool else None
+        joints = rest[-2 if self.tool else -1] * (math.pi / 180.0)  # (torch.deg2rad has no ONNX export)
+        error, q = self.module.error_and_joints(pose, previous_pose, joints, tool)
         return error, wrap_angles(q) * (180.0 / math.pi)
 
 
@@ -170,19 +176,24 @@ class HybridModel:
         return f"{kin} (hybrid: residual MLPs tried, not kept)" if self.residual == "auto" else kin
 
     def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
-            q_deg: np.ndarray | None = None) -> "HybridModel":
+            q_deg: np.ndarray | None = None, tools: np.ndarray | None = None) -> "HybridModel":
         """Fit to commanded poses [N, 6], errors E = P − P_measured [N, 3], the pose visited before
-        each row [N, 6] (None: visiting order unknown, no backlash) and the controller's joint
-        angles [N, 6] if the data has them."""
+        each row [N, 6] (None: visiting order unknown, no backlash), the controller's joint
+        angles [N, 6] if the data has them and the TCP on the flange each row was measured with
+        [N, 6] (None: the description's tool). The first row's tool becomes the model's own
+        (``description_``: the description with that tool; the card's ``tool``)."""
         if self.residual not in ("auto", "always", "none"):
             raise ValueError(f"residual must be auto, always or none, not {self.residual!r}")
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
         names = ["kinematic identification", "residual networks"]
+        tools = None if tools is None else np.asarray(tools, dtype=np.float64).reshape(-1, 6)
+        self.description_ = self.description if tools is None else self.description.replace(tool=tools[0])
         with _one_thread(), stages(names, "hybrid", self.progress) as stage:
             t0 = time.perf_counter()
             stage(names[0])
-            self.kinematic_ = KinematicModel(self.description, **self.kinematic).fit(poses, errors, previous, q_deg)
+            self.kinematic_ = KinematicModel(self.description_, **self.kinematic).fit(poses, errors, previous, q_deg,
+                                                                                     tools)
             t1 = time.perf_counter()
             stage(names[1])
             self.nets_ = self._fit_residual(self.kinematic_.train_residual_)
@@ -193,6 +204,7 @@ class HybridModel:
         poses, errors = poses[keep], errors[keep]
         previous = None if previous is None else np.asarray(previous, dtype=np.float64).reshape(-1, 6)[keep]
         q_deg = None if q_deg is None else np.asarray(q_deg, dtype=np.float64).reshape(-1, 6)[keep]
+        tools = None if tools is None else tools[keep]
         q = np.degrees(wrap_angles(torch.as_tensor(self.kinematic_.train_q_)).numpy())  # the trained joints
         self.joint_range_ = [[round(float(a), 3), round(float(b), 3)] for a, b in zip(q.min(0), q.max(0))]
         lo, hi = np.array(self.joint_range_).T
@@ -202,7 +214,7 @@ class HybridModel:
         self.envelope_ = envelope_of(poses)
         self.n_train_ = len(poses)
         self.fit_seconds_ = {"kinematic": t1 - t0, "residual": t2 - t1, "total": t2 - t0}
-        self.train_stats_ = residual_stats(errors - self.predict(poses, previous, q_deg))
+        self.train_stats_ = residual_stats(errors - self.predict(poses, previous, q_deg, tools))
         return self
 
     def _fit_residual(self, residual: np.ndarray) -> list[ResidualNet]:
@@ -238,16 +250,18 @@ class HybridModel:
         return self.module_.uses_previous
 
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None,
-                joints: np.ndarray | None = None) -> np.ndarray:
-        """Ê [N, 3] mm for poses [N, 6], the poses visited before them (None: unknown) and the
+                joints: np.ndarray | None = None, tools: np.ndarray | None = None) -> np.ndarray:
+        """Ê [N, 3] mm for poses [N, 6], the poses visited before them (None: unknown), the
         controller's joint angles [N, 6] deg (None / NaN rows: unknown), which pick each row's
-        IK branch (as the exported graph's ``joints`` input)."""
+        IK branch (as the exported graph's ``joints`` input), and each row's TCP on the flange
+        [N, 6] (None / NaN rows: the model's own; the graph's ``tool`` input)."""
         self._check_fitted()
         pose = torch.as_tensor(np.asarray(poses, dtype=np.float64).reshape(-1, 6))
         prev = None if previous is None else torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
         q_in = None if joints is None else torch.as_tensor(np.radians(np.asarray(joints, dtype=np.float64).reshape(-1, 6)))
+        tool = None if tools is None else torch.as_tensor(np.asarray(tools, dtype=np.float64).reshape(-1, 6))
         with torch.no_grad():
-            return self.module_(pose, prev, q_in).numpy()
+            return self.module_(pose, prev, q_in, tool).numpy()
 
     def predict_at_joints(self, poses: np.ndarray, joints: np.ndarray) -> np.ndarray:
         """Ê [N, 3] with the identified arm evaluated at exactly these joint angles [N, 6] deg
@@ -301,6 +315,34 @@ class HybridModel:
                            for name in km.layout_.sizes if name != "ripple" and km.layout_.sizes[name]},
         }
 
+    def tool_card(self, name: str) -> dict:
+        """The model card's ``tool``: the model's own TCP (``frame``, the one NaN rows of the
+        ``tool`` input take), the TCPs of the data (``measured``) and what they identify of the
+        tool mount: ``unseparated`` = the directions (flange frame) of its rotation the data
+        cannot tell from a shift (compensate warns, P319, where another TCP's lever arm makes
+        them matter); ``valid`` says it in words."""
+        self._check_fitted()
+        own = [round(float(v), 6) for v in self.description_.tool]
+        card = {"name": name, "frame": own}
+        km = self.kinematic_
+        measured = km.tools_ if km.tools_ is not None else np.asarray([own])
+        card["measured"] = [[round(float(v), 6) for v in t] for t in measured]
+        if not km.layout_.n:
+            card["valid"] = "the measured tool only (networks on the joint angles: no physical model to carry a tool)"
+            return card
+        apart = unseparated_mount(measured[:, :3])
+        card["unseparated"] = [[round(float(v), 6) for v in u] for u in apart]
+        if len(apart) == 3:
+            card["valid"] = ("any tool; measured with one tool: its offset is carried to other tools as a shift fixed "
+                             "to the flange, the mount's rotation is not separated (calibrate with two or three "
+                             "tools for tool independence)")
+        elif len(apart):
+            card["valid"] = ("any tool; the mount's rotation is identified except about the line through the "
+                             "measured TCPs (a third tool off that line separates it)")
+        else:
+            card["valid"] = "any tool; the tool mount's rotation is identified (three or more TCPs not on a line)"
+        return card
+
     def export_onnx(self, path: str | Path, **metadata) -> Path:
         """Write the fitted model as one contract ONNX file (atomically). method, structure,
         envelope (+ joint ranges) and iterations default to this model's."""
@@ -309,8 +351,11 @@ class HybridModel:
         envelope["joints"] = self.joint_range_
         meta = {"method": self.label, "structure": self.structure, "envelope": envelope, "iterations": 2}
         meta.update(metadata)
-        return write_atomic(path, onnx_bytes(_WithJoints(self.module_), meta, self.uses_previous, joints=True,
-                                             joints_input=True))
+        # the tool input where the error is the identified arm's (a physical model); the residual
+        # networks alone (dnn-joints) learned one TCP's error and keep P304 for the others
+        tool = bool(self.kinematic_.layout_.n)
+        return write_atomic(path, onnx_bytes(_WithJoints(self.module_, tool), meta, self.uses_previous, joints=True,
+                                             joints_input=True, tool_input=tool))
 
     @property
     def structure(self) -> str:

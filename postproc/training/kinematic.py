@@ -12,7 +12,12 @@ offset and a placement turned about its own joint axis are one parameter):
 
 * ``placement``: each joint frame off by a small rigid motion (rotation vector, offset; 6
   per joint) — link lengths, axis directions, mastering;
-* ``base`` (6) and ``tool`` (TCP offset, 3): the measured frames;
+* ``base`` (6) and ``tool`` (TCP offset, 3): the measured frames; the tool offset is a shift
+  fixed to the flange, carried to any other TCP as it is;
+* ``mount`` (3, only with data of two or more tools, ``tools``): the tool mount's rotation on
+  the flange, Rot(ω)·t for each row's TCP t — what moves tools with other lever arms
+  differently. One tool cannot tell it from the shift (ω × t is a constant there); two tools
+  leave the rotation about the line between their TCPs, three not on a line none;
 * ``zero``: joint zero offsets (6);
 * ``compliance``: δq_j = c_j·τ_j(q), τ the gravity torques of the arm (masses in the robot
   description) — joint stiffness;
@@ -36,14 +41,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from .. import frames
 from ..diagnostics import PostprocError
 from ..robot import RobotDescription
-from .arm import Arm, axis_rotations, choose_branch, coupling_pairs, make_ik, mv, small_rotation
+from .arm import Arm, at_tool, axis_rotations, choose_branch, coupling_pairs, make_ik, mv, small_rotation
 from .features import inside_ranges, motion_signs
 
-__all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS"]
+__all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS", "unseparated_mount"]
 
-GROUPS = ("placement", "base", "tool", "zero", "compliance", "coupling", "backlash")
+GROUPS = ("placement", "base", "tool", "mount", "zero", "compliance", "coupling", "backlash")
 DEFAULT_GROUPS = GROUPS
 # compliance with unknown link masses / lever arms: joint j deflects by Σ_i k_ji·τ_ji over the
 # links i ≥ j it carries (21 pairs), τ_ji the gravity torque of link i alone about joint j
@@ -73,7 +79,7 @@ class Layout:
 
     @property
     def sizes(self) -> dict[str, int]:
-        size = {"placement": 36, "base": 6, "tool": 3, "zero": 6, "compliance": 6, "coupling": N_COUPLING, "backlash": 6}
+        size = {"placement": 36, "base": 6, "tool": 3, "mount": 3, "zero": 6, "compliance": 6, "coupling": N_COUPLING, "backlash": 6}
         out = {g: size[g] for g in GROUPS if g in self.groups}
         out["ripple"] = 2 * len(self.ripple)
         return out
@@ -101,12 +107,29 @@ class Layout:
             "placement": get("placement", (6, 6)),
             "base": get("base", (6,)),
             "tool": get("tool", (3,)),
+            "mount": get("mount", (3,)),
             "zero": get("zero", (6,)),
             "compliance": get("compliance", (6,)),
             "coupling": get("coupling", (N_COUPLING,)),
             "backlash": get("backlash", (6,)),
             "ripple": theta[s["ripple"]].reshape(-1, 2),
         }
+
+
+def unseparated_mount(tcps: np.ndarray) -> np.ndarray:
+    """The directions [k, 3] (unit, flange frame; k = 0…3) of the tool mount's rotation that data
+    measured with TCP positions ``tcps`` [T, 3] on the flange cannot tell from a shift of the
+    tool: a rotation ω moves TCP t by ω × t, so only ω × (t_i − t_0) is seen. One tool: all
+    three; tools on a line: the rotation about that line; three not on a line: none. (The
+    rotation about the A6 axis is the A6 zero offset's too: the same for every tool.)"""
+    tcps = np.unique(np.round(np.asarray(tcps, dtype=np.float64).reshape(-1, 3), 6), axis=0)
+    d = tcps[1:] - tcps[0]
+    if not len(d):
+        return np.eye(3)
+    skew = np.concatenate([np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]]) for x, y, z in d])  # [3(T−1), 3]
+    _, sv, vt = np.linalg.svd(skew)
+    sv = np.r_[sv, np.zeros(3 - len(sv))]
+    return vt[sv <= 1e-3 * max(float(np.abs(d).max()), 1.0)]
 
 
 def _rigid(rotvec: torch.Tensor, offset: torch.Tensor) -> torch.Tensor:
@@ -118,12 +141,24 @@ def _rigid(rotvec: torch.Tensor, offset: torch.Tensor) -> torch.Tensor:
     return torch.cat([top, bottom], dim=-2)
 
 
-def identified_chain(arm: Arm, p: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
-    """The identified arm's placements, end (TCP) and base as tensors (differentiable in p)."""
+def identified_end(arm: Arm, p: dict[str, torch.Tensor], tcp: torch.Tensor) -> torch.Tensor:
+    """The identified TCP positions in the last joint's frame for TCP positions ``tcp`` [..., 3]
+    on the flange: flange · (Rot(mount)·t + the tool shift), the shift fixed to the flange
+    (``tool`` is stored in the description tool's axes)."""
+    shift = arm.tool[:3, :3] @ p["tool"]
+    on_flange = mv(small_rotation(p["mount"]), tcp) + shift
+    return arm.flange[:3, 3] + mv(arm.flange[:3, :3], on_flange)
+
+
+def identified_chain(arm: Arm, p: dict[str, torch.Tensor], tools: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
+    """The identified arm's placements, end (TCP) and base as tensors (differentiable in p);
+    with ``tools`` [N, 3] (each row's TCP position on the flange) the end is per row [N, 3]."""
     placements = arm.placements @ _rigid(p["placement"][:, :3], p["placement"][:, 3:])
-    end = arm.end + torch.cat(
-        [torch.cat([torch.zeros(3, 3, dtype=arm.end.dtype), (arm.end[:3, :3] @ p["tool"])[:, None]], 1),
-         torch.zeros(1, 4, dtype=arm.end.dtype)], 0)
+    if tools is None:
+        end = torch.cat([torch.cat([arm.end[:3, :3], identified_end(arm, p, arm.tool[:3, 3])[:, None]], 1),
+                         arm.end[3:]], 0)
+    else:
+        end = identified_end(arm, p, tools)
     base = _rigid(p["base"][:3], p["base"][3:])
     return {"placements": placements, "end": end, "base": base}
 
@@ -148,7 +183,7 @@ def joint_error(p: dict[str, torch.Tensor], q: torch.Tensor, signs: torch.Tensor
 
 
 def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, signs: torch.Tensor,
-             tau: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+             tau: torch.Tensor, tools: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """TCP positions [N, 3] of the identified arm, their Jacobian [N, 3, P] w.r.t. θ and the
     sensitivity to each joint angle [N, 3, 6], from one forward pass (geometric Jacobian).
 
@@ -156,11 +191,12 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
     ∂tcp/∂q_j = ω_j × (tcp − p_j); the joint-space groups are that column times their
     regressor (1, τ_j, −s_j, sin/cos n·q_j). A placement's small rotation turns the rest of the
     chain about the placement's own axes, its offset shifts it along them; the base turns and
-    shifts everything; the tool offset moves along the TCP frame's axes. (For the rotation
+    shifts everything; the tool offset moves along the TCP frame's axes, the mount's rotation
+    turns each row's TCP (``tools`` [N, 3] on the flange; None: the description's). (For the rotation
     vectors this is the derivative at 0 applied at θ: |θ| ~ 1e-3 makes the difference ~1e-3
     relative, which costs Levenberg–Marquardt an iteration, not accuracy.)"""
     p = layout.unpack(theta)
-    chain = identified_chain(arm, p)
+    chain = identified_chain(arm, p, tools)
     ripple_joint = torch.tensor([j for j, _ in layout.ripple], dtype=torch.long)
     ripple_order = torch.tensor([float(n) for _, n in layout.ripple], dtype=torch.float64)
     dq = joint_error(p, q, signs, tau, ripple_joint, ripple_order)
@@ -182,6 +218,11 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
         cols["base"] = torch.cat([turn.transpose(1, 2), eye.expand(n, 3, 3)], dim=2)
     if "tool" in layout.groups:
         cols["tool"] = rot[:, -1] @ arm.end[:3, :3]
+    if "mount" in layout.groups:
+        t = arm.tool[:3, 3].expand(n, 3) if tools is None else tools
+        eye = torch.eye(3, dtype=q.dtype)
+        turn = torch.linalg.cross(eye[None].expand(n, 3, 3), t[:, None, :].expand(n, 3, 3))  # e_k × t, rows k
+        cols["mount"] = rot[:, -1] @ arm.flange[:3, :3] @ turn.transpose(1, 2)
     if "zero" in layout.groups:
         cols["zero"] = sens
     if "compliance" in layout.groups:
@@ -200,16 +241,18 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
 
 
 def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, pose: torch.Tensor,
-                   previous: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
+                   previous: torch.Tensor, q_in: torch.Tensor | None = None, at=None) -> torch.Tensor:
     """Approach signs [N, 6] for q = IK(pose) reached from ``previous`` [N, 6]. A row whose
     previous pose is the pose itself (compensate's first target: nothing known before it) is
     taken as reached from HOME, where robot programs start. ``q_in`` (the controller's angles
-    at ``pose``, NaN rows unknown): the previous pose is solved on the same branch.
+    at ``pose``, NaN rows unknown): the previous pose is solved on the same branch. ``at``: the
+    row's tool (``arm.at_tool`` bound to it), the previous pose taken onto the IK's tool with it.
 
     Hard signs, as the simulator's backlash: a ramp over the lost motion (a joint turning back
     by less than it takes it up in part) is more physical, but measured worse on the simulator
     (0.23 vs 0.10 mm max on robot seed 3: a 0.003° step of A1 got a third of its sign)."""
     same = (previous == pose).all(dim=1, keepdim=True)
+    previous = previous if at is None else at(previous)
     q_prev = torch.where(same, home_q.expand_as(q), ik(previous) if q_in is None else ik(previous, q_in))
     return motion_signs(q, q_prev, eps=SIGN_DEADBAND)
 
@@ -244,6 +287,7 @@ class KinematicErrorModule(torch.nn.Module):
             folded[:, :3, :3] = folded[:, :3, :3] @ turn  # R(axis_j, z_j) commutes with the joint's turn
         self.register_buffer("placements", folded)
         self.register_buffer("end", chain["end"])
+        self.register_buffer("tool0", torch.as_tensor(np.asarray(arm.description.tool, dtype=np.float64)))
         self.register_buffer("base", chain["base"])
 
     def joints_of(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
@@ -253,16 +297,26 @@ class KinematicErrorModule(torch.nn.Module):
         return self.ik(pose) if q_in is None else self.ik(pose, q_in)
 
     def parts(self, pose: torch.Tensor, previous: torch.Tensor | None = None, q_in: torch.Tensor | None = None,
-              ranges: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+              ranges: torch.Tensor | None = None, tool: torch.Tensor | None = None
+              ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """(Ê [N, 3], q [N, 6], signs [N, 6], learned [N]) for float64 poses (``q_in``: see
         ``joints_of``); with joint ``ranges`` [6, 2] rad the ripple terms are left out where q
-        is outside them (learned = 0 there, else 1)."""
-        q = self.joints_of(pose, q_in)
+        is outside them (learned = 0 there, else 1). ``tool`` [N, 6]: each row's TCP on the
+        flange (NaN rows: the model's own, ``tool0``): the IK solves the flange pose that puts
+        that TCP at ``pose`` and the error is the identified arm's at that TCP."""
+        at = None if tool is None else (lambda p: at_tool(p, tool, self.tool0))  # noqa: E731
+        q = self.joints_of(pose if at is None else at(pose), q_in)
         signs = torch.zeros_like(q)
         if self.use_previous and previous is not None:
-            signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous, q_in)
+            signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous, q_in, at)
         learned = torch.ones_like(q[:, 0]) if ranges is None else inside_ranges(q, ranges)
-        return self.error_at(q, signs, pose[:, :3], None if ranges is None else learned), q, signs, learned
+        return self.error_at(q, signs, pose[:, :3], None if ranges is None else learned, tool), q, signs, learned
+
+    def tool_end(self, tool: torch.Tensor) -> torch.Tensor:
+        """The identified TCP positions [N, 3] in the last joint's frame for the TCPs ``tool``
+        [N, 6] on the flange (NaN rows: ``tool0``)."""
+        t = torch.where(torch.isnan(tool[:, :3]), self.tool0[:3].expand(tool.shape[0], 3), tool[:, :3])
+        return identified_end(self.arm, self.layout.unpack(self.theta), t)
 
     def torques(self, q: torch.Tensor) -> torch.Tensor:
         """The gravity torques [N, 6] the model uses: of its own chain at q, without the base
@@ -271,13 +325,15 @@ class KinematicErrorModule(torch.nn.Module):
         return self.arm.torque_terms(rot, org)
 
     def error_at(self, q: torch.Tensor, signs: torch.Tensor, position: torch.Tensor,
-                 learned: torch.Tensor | None = None) -> torch.Tensor:
+                 learned: torch.Tensor | None = None, tool: torch.Tensor | None = None) -> torch.Tensor:
         """Ê [N, 3] for commanded positions [N, 3] whose IK is q [N, 6], reached with ``signs``;
         ``learned`` [N] (1 keep, 0 drop) scales the gear-ripple terms, which do not extrapolate
-        outside the trained joint ranges (the physical groups do)."""
+        outside the trained joint ranges (the physical groups do); ``tool`` [N, 6]: each row's TCP
+        on the flange (None: ``tool0``)."""
         p = self.layout.unpack(self.theta)
         p["zero"] = torch.zeros_like(p["zero"])  # (folded into the placements)
-        rot, org, tcp = self.arm.frames(q, placements=self.placements, end=self.end)
+        end = self.end if tool is None else self.tool_end(tool)
+        rot, org, tcp = self.arm.frames(q, placements=self.placements, end=end)
         tau = self.arm.torque_terms(rot, org) - self.tau_mean
         dq = joint_error(p, q, signs, tau, self.ripple_joint, self.ripple_order)
         if learned is not None and len(self.ripple_joint):
@@ -333,16 +389,31 @@ class KinematicModel:
             self.ik_, self.branch_share_ = choose_branch(self.description, poses, q_deg, self.family)
 
     def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
-            q_deg: np.ndarray | None = None) -> "KinematicModel":
+            q_deg: np.ndarray | None = None, tools: np.ndarray | None = None) -> "KinematicModel":
         """Fit to commanded poses [N, 6], errors E = P − P_measured [N, 3] and (optionally) the
         pose visited before each row [N, 6] (``features.previous_poses`` of the rows in their
         visiting order; the row itself = came from HOME); ``q_deg`` [N, 6] are the controller's
-        joint angles if the data has them (they pick the IK branch)."""
+        joint angles if the data has them (they pick the IK branch); ``tools`` [N, 6] each row's
+        TCP on the flange (None: the description's tool; the description's tool is the model's
+        own, NaN in the ``tool`` input). The mount's rotation is identified only from two or more
+        TCP positions."""
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
         self.arm_ = Arm(self.description)
-        self._choose_ik(poses, q_deg)
-        groups = tuple(g for g in self.groups if g != "backlash" or previous is not None)
+        if tools is not None and np.allclose(tools, self.description.tool):
+            tools = None
+        tools_t = None if tools is None else torch.as_tensor(np.asarray(tools, dtype=np.float64).reshape(-1, 6))
+        at = None if tools_t is None else (lambda p: at_tool(p, tools_t, self.arm_.tool0))  # noqa: E731
+        ik_poses = poses
+        if at is not None:  # the IK's pose: the description's TCP on the row's flange pose
+            with torch.no_grad():
+                rot, pos = at(torch.as_tensor(poses))
+            ik_poses = np.c_[pos.numpy(), frames.abc_from_rotation(rot.numpy())]
+        self.tools_ = None if tools is None else np.unique(np.round(tools, 6), axis=0)
+        self._choose_ik(ik_poses, q_deg)
+        several = self.tools_ is not None and len(np.unique(np.round(self.tools_[:, :3]), axis=0)) > 1
+        groups = tuple(g for g in self.groups
+                       if (g != "backlash" or previous is not None) and (g != "mount" or several))
         n_par = Layout(groups, list(self.ripple) if isinstance(self.ripple, list) else []).n
         if 3 * len(poses) < n_par:
             raise PostprocError(
@@ -354,8 +425,9 @@ class KinematicModel:
             pose_t = torch.as_tensor(poses)
             q_in = None if q_deg is None else torch.as_tensor(np.radians(np.asarray(q_deg, dtype=np.float64)))
             # the controller's own angles when the data has them (the arm went there), else the IK
-            q = self.ik_(pose_t) if q_in is None else q_in
-            rot, org, tcp = self.arm_.frames(q)
+            q = self.ik_(pose_t if at is None else at(pose_t)) if q_in is None else q_in
+            ends = None if tools_t is None else self.arm_.flange[:3, 3] + mv(self.arm_.flange[:3, :3], tools_t[:, :3])
+            rot, org, tcp = self.arm_.frames(q, end=ends)
             tau = self.arm_.torque_terms(rot, org)
             miss = torch.linalg.norm(tcp - pose_t[:, :3], dim=1).numpy()
             # the nominal arm at q must land on the pose: else out of reach (IK) or the joint
@@ -373,11 +445,14 @@ class KinematicModel:
             s = torch.zeros_like(q)
             if previous is not None:
                 prev = torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
-                s = approach_signs(self.ik_, self.arm_.home_q, q, pose_t, prev, q_in)
+                s = approach_signs(self.ik_, self.arm_.home_q, q, pose_t, prev, q_in, at)
             if len(bad):  # (a few singular / unreachable rows: left out, named by the caller)
                 keep = torch.as_tensor(~np.isin(np.arange(len(poses)), bad))
                 q, s, tau, tcp, pose_t = q[keep], s[keep], tau[keep], tcp[keep], pose_t[keep]
                 poses, errors = poses[keep.numpy()], errors[keep.numpy()]
+                tools_t = None if tools_t is None else tools_t[keep]
+        # each row's TCP position on the flange, for the fit's identified ends (None: the description's)
+        self._tool_rows = None if tools_t is None else tools_t[:, :3]
         measured = tcp - torch.as_tensor(errors)
         fixed = list(self.ripple) if isinstance(self.ripple, list) else []
         layout = Layout(groups, fixed)
@@ -410,7 +485,7 @@ class KinematicModel:
         self.module_ = KinematicErrorModule(self.arm_, self.ik_, layout, theta, self.use_previous_,
                                             tau.mean(dim=0).numpy())
         with torch.no_grad():
-            fitted = self.module_.error_at(q, s, pose_t[:, :3]).numpy()
+            fitted = self.module_.error_at(q, s, pose_t[:, :3], tool=tools_t).numpy()
         self.train_q_, self.train_signs_ = q.numpy(), s.numpy()
         self.train_residual_ = errors - fitted
         self.n_train_ = len(poses)
@@ -423,6 +498,7 @@ class KinematicModel:
         compliance, coupling = scales[:6], scales[6:]
         unit = {"placement": np.tile(np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], 6),
                 "base": np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], "tool": np.full(3, PRIOR_MM),
+                "mount": np.full(3, PRIOR_RAD),
                 "zero": np.full(6, PRIOR_RAD), "compliance": compliance, "coupling": coupling, "backlash": np.full(6, PRIOR_RAD),
                 "ripple": np.full(2 * len(layout.ripple), PRIOR_RAD)}
         return np.concatenate([unit[name] for name in layout.sizes])
@@ -440,7 +516,7 @@ class KinematicModel:
         w2 = self.prior / sigma**2  # the prior's curvature per parameter
 
         def evaluate(t: np.ndarray):
-            tcp, jac, sens = jacobian(arm, layout, torch.as_tensor(t), q, s, tau)
+            tcp, jac, sens = jacobian(arm, layout, torch.as_tensor(t), q, s, tau, self._tool_rows)
             r = (tcp.numpy() - target).reshape(-1)
             return r, jac.numpy().reshape(len(r), -1), sens.numpy(), float(r @ r + (w2 * t * t).sum())
 
