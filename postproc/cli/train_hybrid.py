@@ -66,6 +66,12 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     from .train import print_figures
 
     description = _description(args.robot)
+    if args.method == "dnn-joints" and tools is not None and len(np.unique(tools, axis=0)) > 1:
+        from ..diagnostics import PostprocError
+
+        raise PostprocError(f"--method dnn-joints learns the error of one tool, the data have "
+                            f"{len(np.unique(tools, axis=0))}: train --method hybrid (a physical model)",
+                            args.data, code="P320")
     poses = data.poses
     # rows in visiting order (the first came from HOME): the approach direction of each joint
     previous = None if args.pose_only else previous_poses(poses)
