@@ -119,3 +119,22 @@ def test_a_one_tool_model_takes_any_tool_and_warns_p319_where_the_lever_arm_chan
         report = compensate_program(parse_program_text(_krl(targets, tool), "part.src"), onnx_model)
         assert report.compensated == len(targets)
         assert ("P319" in report.codes) == warned, report.warnings[:2]
+
+
+def test_the_ik_pose_of_another_tool_is_the_same_flange_pose_with_the_description_tool():
+    import torch
+
+    from postproc import frames
+    from postproc.training.arm import at_tool
+
+    rng = np.random.default_rng(0)
+    poses = np.c_[rng.uniform(-1000, 1000, (6, 3)), rng.uniform(-180, 180, (6, 3))]
+    tools = np.c_[rng.uniform(-200, 200, (6, 3)), rng.uniform(-180, 180, (6, 3))]
+    tools[2] = np.nan  # the model's own tool
+    tool0 = np.array([300.0, 0.0, 75.0, 10.0, 20.0, 30.0])
+    rot, pos = at_tool(torch.as_tensor(poses), torch.as_tensor(tools), torch.as_tensor(tool0))
+    used = np.where(np.isnan(tools), tool0, tools)
+    want = frames.compose(frames.frame_to_matrix(poses), frames.inverse(frames.frame_to_matrix(used)),
+                          frames.frame_to_matrix(tool0))
+    np.testing.assert_allclose(rot.numpy(), want[:, :3, :3], atol=1e-12)
+    np.testing.assert_allclose(pos.numpy(), want[:, :3, 3], atol=1e-9)

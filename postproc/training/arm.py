@@ -120,9 +120,7 @@ def pose_matrices(pose) -> tuple[torch.Tensor, torch.Tensor]:
     return rotation_matrices(pose[:, 3:6]), pose[:, 0:3]
 
 
-def _bmm(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """[N, 3, 3] @ [N, 3, 3] as broadcast products (no batched MatMul of tiny matrices)."""
-    return (a[..., :, :, None] * b[..., None, :, :]).sum(-2)
+_AXES = torch.eye(3, dtype=torch.float64)
 
 
 def at_tool(pose: torch.Tensor, tool: torch.Tensor, tool0: torch.Tensor):
@@ -131,9 +129,11 @@ def at_tool(pose: torch.Tensor, tool: torch.Tensor, tool0: torch.Tensor):
     IK of a description whose tool is T₀. Rows of ``tool`` with a NaN are T₀ (pose unchanged)."""
     tool = torch.where(torch.isnan(tool), tool0.expand_as(tool), tool)
     r_p, p_p = pose_matrices(pose)
-    r_t = rotation_matrices(tool[:, 3:6])
     r_0 = rotation_matrices(tool0[None, 3:6])[0]
-    back = _bmm(r_p, r_t.transpose(1, 2))  # R_P·R_Tᵀ: the flange's rotation
+    # R_P·R_Tᵀ = R_P·Rx(−C)·Ry(−B)·Rz(−A): three turns about coordinate axes (column mixes)
+    back = r_p
+    for k, angle in ((0, tool[:, 5]), (1, tool[:, 4]), (2, tool[:, 3])):
+        back = turn_columns(back, _AXES[k], angle * (-math.pi / 180.0))
     return mc(back, r_0), p_p + mv(back, tool0[:3] - tool[:, :3])
 
 
