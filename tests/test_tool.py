@@ -138,3 +138,12 @@ def test_the_ik_pose_of_another_tool_is_the_same_flange_pose_with_the_descriptio
                           frames.frame_to_matrix(tool0))
     np.testing.assert_allclose(rot.numpy(), want[:, :3, :3], atol=1e-12)
     np.testing.assert_allclose(pos.numpy(), want[:, :3, 3], atol=1e-9)
+
+
+def test_train_refuses_a_tool_option_that_contradicts_the_data_before_fitting(tmp_path, capsys):
+    from postproc.cli import main
+
+    data = tmp_path / "m.csv"
+    data.write_bytes(_csv("# tool: 180,30,160,0,0,0\n"))
+    assert main(["train", str(data), "-o", str(tmp_path / "m.onnx"), "--tool", "450,0,75,0,0,0"]) == 2
+    assert "P320" in capsys.readouterr().err and not (tmp_path / "m.onnx").exists()
