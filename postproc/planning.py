@@ -89,25 +89,54 @@ def round_poses(poses: np.ndarray) -> np.ndarray:
     return np.concatenate([np.round(poses[:, :3], MM_DECIMALS), np.round(poses[:, 3:6], DEG_DECIMALS)], axis=1) + 0.0
 
 
-def plan_csv_text(poses: np.ndarray, config: np.ndarray | None = None) -> str:
-    """The plan as CSV text: header ``x,y,z,a,b,c`` (``,s,t`` with ``config`` [N, 2]), one
-    pose per row, in visiting order."""
-    return "".join(plan_csv_chunks(poses, config))
+def plan_csv_text(poses: np.ndarray, config: np.ndarray | None = None, tools: np.ndarray | None = None) -> str:
+    """The plan as CSV text: header ``x,y,z,a,b,c`` (``,s,t`` with ``config`` [N, 2];
+    ``,tool_x,…,tool_c`` with ``tools`` [N, 6], each row's TCP), one pose per row, in visiting order."""
+    return "".join(plan_csv_chunks(poses, config, tools=tools))
 
 
-def plan_csv_chunks(poses: np.ndarray, config: np.ndarray | None = None, chunk: int = CHUNK):
+def tool_parts(n: int, tools) -> np.ndarray:
+    """Each of ``n`` rows' TCP [n, 6] when a plan is measured in consecutive parts of equal
+    size (±1), one per tool of ``tools`` [k, 6], the tool changed between them."""
+    tools = np.asarray(tools, float).reshape(-1, 6)
+    return tools[np.arange(n) * len(tools) // max(n, 1)]
+
+
+def read_plan_tools(path: str | Path) -> np.ndarray | None:
+    """The ``tool_x..tool_c`` columns [N, 6] of a plan (each row's TCP), None without them."""
+    from .training.data import TOOL_COLUMNS
+
+    lines = Path(path).read_bytes().removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
+    first = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
+    if first is None:
+        return None
+    header = [h.strip().lower() for h in lines[first].split(",")]
+    if not set(TOOL_COLUMNS) <= set(header):
+        return None
+    return parse_rows(lines, first, header, [header.index(c) for c in TOOL_COLUMNS], str(path))[0]
+
+
+def plan_csv_chunks(poses: np.ndarray, config: np.ndarray | None = None, chunk: int = CHUNK,
+                    tools: np.ndarray | None = None):
     """:func:`plan_csv_text` in pieces of ``chunk`` rows (for a writer that streams them)."""
+    from .training.data import TOOL_COLUMNS
+
     fmt = [f"%.{MM_DECIMALS}f"] * 3 + [f"%.{DEG_DECIMALS}f"] * 3
     header = list(POSE_COLUMNS)
     if config is not None:
         config = np.asarray(config, float).reshape(-1, 2)
         fmt, header = fmt + ["%d", "%d"], header + ["s", "t"]
+    if tools is not None:
+        tools = np.asarray(tools, float).reshape(-1, 6)
+        fmt, header = fmt + ["%.10g"] * 6, header + list(TOOL_COLUMNS)
     yield ",".join(header) + "\n"
     for start in range(0, len(poses), chunk):
         buf = io.StringIO()
         table = round_poses(poses[start:start + chunk])
         if config is not None:
             table = np.hstack([table, config[start:start + chunk]])
+        if tools is not None:
+            table = np.hstack([table, tools[start:start + chunk]])
         np.savetxt(buf, table, fmt=fmt, delimiter=",")
         yield buf.getvalue()
 
@@ -267,6 +296,7 @@ def krl_measurement_program(
     done_in: int = 1,
     comment: str = "",
     config: np.ndarray | None = None,
+    tools: np.ndarray | None = None,
 ) -> str:
     """A runnable KRL module (one .src, targets inline) that measures ``poses`` in order:
     HOME, PTP above the first pose, then for each pose LIN to it, settle ``wait_s``, raise
@@ -274,19 +304,29 @@ def krl_measurement_program(
 
     ``robot`` (a :class:`postproc.robot.Robot`) gives HOME, the tool and the S/T of the
     approach PTP. Targets are in the robot base frame ($BASE = $NULLFRAME). With ``config``
-    [N, 2] (S, T per pose) each pose is reached PTP with its S and T (E6POS components)."""
+    [N, 2] (S, T per pose) each pose is reached PTP with its S and T (E6POS components). With
+    ``tools`` [N, 6] (each pose's TCP, in consecutive parts: ``tool_parts``) every part after the
+    first starts at HOME with a HALT to mount its tool, then sets its $TOOL."""
     if not comment.isascii():  # controllers read .src as ANSI: keep the program plain ASCII
         comment = comment.encode("ascii", "replace").decode()
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,23}", name):
         raise PostprocError(f"'{name}' is not a KRL module name (letters, digits, _; at most 24; not starting "
                             "with a digit): name the .src file like one", code="P512")
     poses = round_poses(np.atleast_2d(poses))
-    above = poses[[0, -1]].copy()
-    above[:, 2] += approach_mm
-    q, ok = robot.ik(above)
-    if not ok.all():
-        raise PostprocError(f"the approach {approach_mm:g} mm above the first/last pose is out of reach", code="P335")
-    status, turn = robot.status_turn(q)
+    starts = [0]
+    if tools is not None:
+        tools = np.asarray(tools, float).reshape(len(poses), 6)
+        starts += (np.flatnonzero((np.diff(tools, axis=0) != 0).any(axis=1)) + 1).tolist()
+    parts = []  # (first, end, the arm with that part's tool, approach above its first and last pose, their S, T)
+    for first, end in zip(starts, starts[1:] + [len(poses)]):
+        arm = robot if tools is None or np.array_equal(tools[first], robot.tool) else \
+            type(robot)(robot.description.replace(tool=tools[first]))
+        above = poses[[first, end - 1]].copy()
+        above[:, 2] += approach_mm
+        q, ok = arm.ik(above)
+        if not ok.all():
+            raise PostprocError(f"the approach {approach_mm:g} mm above the first/last pose is out of reach", code="P335")
+        parts.append((first, end, arm, above, *arm.status_turn(q)))
     home = ",".join(f"A{i + 1} {v:.4f}" for i, v in enumerate(robot.home_q))
     nl = "\n"
     head = [
@@ -295,26 +335,32 @@ def krl_measurement_program(
         f"&COMMENT postproc measurement program, {len(poses)} poses",
         f"DEF {name}( )",
         f"; postproc measurement program: {len(poses)} poses in visiting order{', ' + comment if comment else ''}",
-        f"; robot {robot.name}, tool {robot.tool_name}; targets in the robot base frame",
+        f"; robot {robot.name}, tool {robot.tool_name if len(parts) == 1 else f'in {len(parts)} parts, one each'}; "
+        "targets in the robot base frame",
         f"; at each pose: LIN, settle {wait_s:g} s, $OUT[{trigger_out}]=TRUE asks the tracker to measure,",
         f"; $IN[{done_in}]=TRUE says it has; a measurement row is written per pose in this order",
         "BAS(#INITMOV, 0)",
         "$BASE = $NULLFRAME",
-        f"$TOOL = {_krl_frame(robot.tool)}",
+        f"$TOOL = {_krl_frame(parts[0][2].tool)}",
         "$VEL.CP = 0.2",
         "$ACC.CP = 1.0",
         "$APO.CDIS = 0.0",
         f"$OUT[{trigger_out}] = FALSE",
         f"PTP {{{home}}}",
-        f"PTP {_krl_pos(above[0], int(status[0]), int(turn[0]))}",
     ]
     if config is None:
-        body = [f"LIN {_krl_pos(p)}{nl}MEASURE_HERE( )" for p in poses]
+        moves = [f"LIN {_krl_pos(p)}{nl}MEASURE_HERE( )" for p in poses]
     else:
         config = np.asarray(config, int).reshape(len(poses), 2)
-        body = [f"PTP {_krl_pos(p, int(st[0]), int(st[1]))}{nl}MEASURE_HERE( )" for p, st in zip(poses, config)]
+        moves = [f"PTP {_krl_pos(p, int(st[0]), int(st[1]))}{nl}MEASURE_HERE( )" for p, st in zip(poses, config)]
+    body = []
+    for k, (first, end, arm, above, status, turn) in enumerate(parts):
+        if k:
+            body += [f"PTP {{{home}}}", f"; part {k + 1} of {len(parts)}: mount the tool {_krl_frame(arm.tool)}, "
+                     "then continue", "HALT", f"$TOOL = {_krl_frame(arm.tool)}"]
+        body += [f"PTP {_krl_pos(above[0], int(status[0]), int(turn[0]))}", *moves[first:end],
+                 f"LIN {_krl_pos(above[1])}"]
     tail = [
-        f"LIN {_krl_pos(above[1])}",
         f"PTP {{{home}}}",
         "END",
         "",

@@ -147,3 +147,35 @@ def test_train_refuses_a_tool_option_that_contradicts_the_data_before_fitting(tm
     data.write_bytes(_csv("# tool: 180,30,160,0,0,0\n"))
     assert main(["train", str(data), "-o", str(tmp_path / "m.onnx"), "--tool", "450,0,75,0,0,0"]) == 2
     assert "P320" in capsys.readouterr().err and not (tmp_path / "m.onnx").exists()
+
+
+def test_plan_and_measure_with_three_tools_give_a_krl_program_and_data_with_each_rows_tool(tmp_path):
+    from postproc.cli import main
+    from postproc.compensate import load_program
+    from postproc.planning import read_plan_tools
+    from postproc.training.data import read_measurements
+
+    tools = [SimulatedRobot().robot.tool, LONGER, SIDEWAYS]
+    args = sum((["--tool", ",".join(f"{v:g}" for v in t)] for t in tools), [])
+    plan, src, measured = tmp_path / "plan.csv", tmp_path / "m3.src", tmp_path / "m.csv"
+    assert main(["plan", "-n", "30", "--seed", "2", "-o", str(plan), "--krl", str(src), "-q", *args]) == 0
+    rows = read_plan_tools(plan)
+    np.testing.assert_array_equal(rows, np.repeat(tools, 10, axis=0))  # three parts in visiting order
+    # the KRL program sets each part's $TOOL (after HOME and a HALT to change it): read back, the
+    # measured targets carry the plan's tools
+    program = load_program(src)
+    text = src.read_text()
+    assert text.count("HALT") == 2
+    t = program.targets
+    from postproc.planning import read_pose_csv
+
+    planned = read_pose_csv(plan)[0]
+    at_pose = np.abs(t.poses[:, None, :3] - planned[None, :, :3]).max(axis=2) < 1e-6  # [targets, plan rows]
+    measuring = np.flatnonzero(at_pose.any(axis=1))  # (not the approach and retreat moves)
+    assert len(measuring) == len(planned)
+    np.testing.assert_allclose([program.frames[f].tool for f in t.frame[measuring]], rows)
+    assert main(["measure", str(plan), "-o", str(measured), "-q"]) == 0
+    data = read_measurements(measured)
+    np.testing.assert_array_equal(measured_tools(data), rows)
+    # the plan's tools and --tool together: which one? refused
+    assert main(["measure", str(plan), "-o", str(tmp_path / "x.csv"), "-q", "--tool", "1,2,3,0,0,0"]) == 2

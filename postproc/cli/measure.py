@@ -14,7 +14,8 @@ frame), rows in visiting order: what `postproc train` reads. A plan with s,t col
 those configurations (s,t copied to the output); with --tool the output starts with
 `# tool: X,Y,Z,A,B,C`. With --tool given two or more times the plan is measured in as many
 consecutive parts, one tool each (the tool changed between them), and each row names its TCP
-in columns tool_x..tool_c: data that separate the tool mount's rotation (`postproc train`).
+in columns tool_x..tool_c: data that separate the tool mount's rotation (`postproc train`);
+a plan with tool_x..tool_c columns (`postproc plan --tool A --tool B`) is measured with them.
 """
 
 
@@ -49,7 +50,7 @@ def run(args) -> int:
     import numpy as np
 
     from ..diagnostics import PostprocError
-    from ..planning import parse_tool, read_plan_config, read_pose_csv
+    from ..planning import parse_tool, read_plan_config, read_plan_tools, read_pose_csv, tool_parts
     from ..progress import stages
     from ..outputs import check_outputs, write as write_atomic
     from ..simulator import CODE_REACH, SimulatedRobot
@@ -65,10 +66,13 @@ def run(args) -> int:
         given = [parse_tool(t) for t in args.tool or []]
         stage("draw robot")
         sim = SimulatedRobot.from_file(args.robot, args.robot_seed)
-        tools = None
+        tools = read_plan_tools(args.plan)
+        if tools is not None and given:
+            raise PostprocError("the plan names each row's tool (tool_x..tool_c): --tool would contradict it",
+                                args.plan, code="P320")
         if given:  # consecutive parts of the plan, one tool each
-            part = np.arange(len(poses)) * len(given) // len(poses)
-            tools = np.asarray(given)[part]
+            tools = tool_parts(len(poses), given)
+        several = tools is not None and len(np.unique(tools, axis=0)) > 1
         stage("controller IK")
         ok = sim.reachable_in(poses, config, tools)
         if not ok.all():
@@ -80,13 +84,13 @@ def run(args) -> int:
         q = sim.joint_angles(poses, config, tools)
         measured = sim.measure(poses, rng_seed=args.seed, orientation=True, q_deg=q, tools=tools)
         buf = io.StringIO()
-        if len(given) == 1:
-            buf.write("# tool: " + ",".join(f"{v:g}" for v in given[0]) + "\n")
+        if tools is not None and not several:
+            buf.write("# tool: " + ",".join(f"{v:g}" for v in tools[0]) + "\n")
         columns = "x,y,z,a,b,c,x_meas,y_meas,z_meas,a_meas,b_meas,c_meas,q1,q2,q3,q4,q5,q6"
         table, fmt = np.hstack([poses, measured, q]), ["%.10g"] * 6 + ["%.4f"] * 3 + ["%.5f"] * 3 + ["%.6f"] * 6
         if config is not None:
             table, fmt, columns = np.hstack([table, config]), fmt + ["%d", "%d"], columns + ",s,t"
-        if len(given) > 1:
+        if several:
             table, fmt = np.hstack([table, tools]), fmt + ["%.10g"] * 6
             columns += "," + ",".join(TOOL_COLUMNS)
         np.savetxt(buf, table, fmt=fmt, delimiter=",", header=columns, comments="")

@@ -9,6 +9,8 @@ EXAMPLES = """examples:
   postproc plan -n 2000 --robot cell7.toml -o plan.csv        (box/attitude from its [workspace])
   postproc plan --iso9283 -o iso.csv --krl iso.src             (ISO 9283 pose test, 30 cycles)
   postproc plan --iso9283 --cube 2000 0 900 400 --cycles 10 -o iso.csv
+  postproc plan -n 600 -o plan.csv --krl m.src --tool 300,0,75,0,0,0 --tool 450,0,75,0,0,0 --tool 300,0,200,0,0,0
+                                                               (three tools: the plan in three parts)
 
 The plan is the visiting order: `postproc measure plan.csv -o measured.csv` simulates it,
 the KRL program drives a real robot through it (LIN, settle, $OUT[1] to the tracker, wait
@@ -40,8 +42,11 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--wrist", choices=("home", "both"),
                    help="state each pose's configuration (s,t columns; KRL: PTP with S/T): 'home' = the branch "
                    "nearest HOME, 'both' = every other pose in the flipped-wrist configuration")
-    p.add_argument("--tool", metavar="X,Y,Z,A,B,C", help="the TCP on the flange the plan is measured with "
-                   "(default the description's [tool]): $TOOL of the KRL program and the reach check")
+    p.add_argument("--tool", metavar="X,Y,Z,A,B,C", action="append",
+                   help="the TCP on the flange the plan is measured with (default the description's [tool]): $TOOL "
+                   "of the KRL program and the reach check; two or three times: the plan in as many consecutive "
+                   "parts, one tool each (columns tool_x..tool_c; KRL: HOME and HALT to change the tool between "
+                   "them), data that separate the tool mount's rotation (README: Any tool)")
     p.add_argument("--wait", type=float, default=1.0, metavar="S",
                    help="settling time before each measurement (default 1 s)")
     iso = p.add_argument_group("ISO 9283 pose test (instead of the Latin hypercube)")
@@ -61,7 +66,7 @@ def run(args) -> int:
 
     from ..diagnostics import PostprocError
     from ..planning import DEFAULT_ATTITUDE, DEFAULT_BOX, DEFAULT_RANGE, krl_measurement_program, latin_hypercube, \
-        parse_tool, plan_configurations, plan_csv_chunks, reachable, round_poses
+        parse_tool, plan_configurations, plan_csv_chunks, reachable, round_poses, tool_parts
     from ..progress import stages
     from ..outputs import check_outputs, write as write_atomic
     from ..robot import Robot, load_description
@@ -69,8 +74,9 @@ def run(args) -> int:
 
     check_outputs([args.output, args.krl or "-"], [args.robot or "-"])
     description = load_description(args.robot)
-    if args.tool is not None:
-        description = description.replace(tool=parse_tool(args.tool), tool_name=f"$TOOL {args.tool}")
+    tools = [parse_tool(t) for t in args.tool or []]
+    if tools:
+        description = description.replace(tool=tools[0], tool_name=f"$TOOL {args.tool[0]}")
     ws = description.workspace
     box = args.box if args.box is not None else ws.get("box", DEFAULT_BOX)
     attitude = args.attitude if args.attitude is not None else ws.get("attitude", DEFAULT_ATTITUDE)
@@ -80,31 +86,39 @@ def run(args) -> int:
     if args.iso9283:
         from .iso9283 import run_plan
 
+        if len(tools) > 1:
+            raise PostprocError("the ISO 9283 pose test is measured with one tool: give --tool once", code="P512")
         return run_plan(args, description, box, attitude)
     with stages(["sample", "reach check (IK)", "write"], "plan", show_progress(args)) as stage:
         stage("sample")
         poses = round_poses(latin_hypercube(args.poses, box, attitude, range_deg, args.seed))
         robot = Robot(description)
         stage("reach check (IK)")
-        config = None
-        if args.wrist is not None:
-            config, ok = plan_configurations(robot, poses, args.wrist)
-        else:
-            ok = reachable(robot, poses)
+        rows = tool_parts(len(poses), tools) if len(tools) > 1 else None
+        config = None if args.wrist is None else np.zeros((len(poses), 2), np.int64)
+        ok = np.zeros(len(poses), bool)
+        for k, tool in enumerate(tools if rows is not None else [robot.tool]):  # each part with its own tool
+            part = np.arange(len(poses)) if rows is None else np.flatnonzero((rows == tool).all(axis=1))
+            arm = robot if k == 0 else Robot(description.replace(tool=tool))
+            if args.wrist is not None:
+                config[part], ok[part] = plan_configurations(arm, poses[part], args.wrist)
+            else:
+                ok[part] = reachable(arm, poses[part])
         if not ok.all():
             bad = np.flatnonzero(~ok)
             raise PostprocError(
-                f"{len(bad)} of {len(poses)} poses are out of reach of {robot.name} with tool {robot.tool_name} "
+                f"{len(bad)} of {len(poses)} poses are out of reach of {robot.name} with tool "
+                f"{robot.tool_name if rows is None else rows[bad[0]].tolist()} "
                 f"(first: pose {bad[0] + 1} = {poses[bad[0]].tolist()}); shrink --box or --range, or move the box",
                 description.path, code="P335")
         stage("write")
-        outputs = [(Path(args.output), plan_csv_chunks(poses, config))]
+        outputs = [(Path(args.output), plan_csv_chunks(poses, config, tools=rows))]
         if args.krl is not None:
             src = Path(args.krl)
             comment = (f"Latin hypercube seed {args.seed}, box {list(map(float, box))}, "
                        f"attitude {list(map(float, attitude))} +- {range_deg:g} deg")
             outputs.append((src, krl_measurement_program(poses, src.stem, robot, wait_s=args.wait, comment=comment,
-                                                                  config=config)))
+                                                                  config=config, tools=rows)))
         write_atomic(outputs)
     if not args.quiet:
         written = " + ".join(str(p) for p, _ in outputs)
