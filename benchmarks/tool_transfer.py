@@ -7,6 +7,9 @@ one with the description's tool and one with OTHER_TOOL, compensated and run on 
 robot (`verify`, tracker noise included). Prints the mean error before / after, the ratio
 other / training tool (the issue's goal: ≤ 1.5) and the P319 warnings of the other tool.
 
+Then the cost of the ``tool`` input: the same fitted model exported with and without it,
+``Compensator.predict`` over 100,000 poses (best of 3, one thread), and their ratio.
+
     python benchmarks/tool_transfer.py [N_POSES]
 """
 from __future__ import annotations
@@ -72,5 +75,41 @@ def main(n: int = 400) -> None:
             print(f"{label:<34} {b0:7.3f} -> {a0:6.3f}  {b1:6.3f} -> {a1:6.3f} {a1 / a0:6.2f} {warned:5d}")
 
 
+def speed(n: int = 100_000) -> None:
+    import time
+
+    from postproc.training.export import onnx_bytes
+    from postproc.training.features import previous_poses
+    from postproc.training.hybrid import HybridModel, _WithJoints
+
+    sim = SimulatedRobot()
+    robot = sim.robot
+    poses = latin_hypercube(300, seed=5)
+    model = HybridModel(robot.description, residual="none").fit(
+        poses, poses[:, :3] - sim.measure(poses, rng_seed=0), previous_poses(poses))
+    meta = {"name": "speed", "robot": robot.name, "method": model.label, "structure": model.structure,
+            "envelope": model.envelope_, "iterations": 2}
+    targets = latin_hypercube(n, seed=1)
+    tools = np.tile(robot.tool, (n, 1))
+    best = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for with_tool in (False, True):
+            path = Path(tmp) / f"{with_tool}.onnx"
+            path.write_bytes(onnx_bytes(_WithJoints(model.module_, with_tool), meta, True, joints=True,
+                                        joints_input=True, tool_input=with_tool))
+            compensator = load_model(path)
+            feed = {"tool": tools} if with_tool else {}
+            compensator.predict(targets[:1000], **{k: v[:1000] for k, v in feed.items()})
+            times = []
+            for _ in range(3):
+                start = time.perf_counter()
+                compensator.predict(targets, **feed)
+                times.append(time.perf_counter() - start)
+            best[with_tool] = min(times)
+    print(f"predict {n} poses: without the tool input {best[False]:.3f} s, with it {best[True]:.3f} s, "
+          f"ratio {best[True] / best[False]:.2f}")
+
+
 if __name__ == "__main__":
     main(*(int(a) for a in sys.argv[1:]))
+    speed()
