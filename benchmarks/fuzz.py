@@ -1,10 +1,10 @@
 """Mutation fuzzing of `postproc compensate` on the sample corpus.
 
     python benchmarks/fuzz.py [--mutants 10000] [--seed 0] [--subprocess 50] [--timeout 10] [--keep DIR]
-                              [--dialect krl|poses|rapid]
+                              [--dialect krl|poses|rapid|urscript]
 
 Takes every sample program (samples/krl/*: a .src with its .dat; samples/poses/*;
-samples/rapid/*: ABB RAPID modules), or those of one --dialect, applies
+samples/rapid/*: ABB RAPID modules; samples/urscript/*: URScript), or those of one --dialect, applies
 random byte, token and line mutations (delete, duplicate, swap, insert garbage or a
 keyword, replace a number by an edge case, truncate, change line endings) and compensates
 each mutant with a constant-offset model. Every mutant must end in one of two ways:
@@ -63,6 +63,10 @@ KEYWORDS = [
     "RelTool(", "robtarget", "CONST", "PERS", "VAR", "tooldata", "wobjdata", "\\WObj:=", "wobj0", "tool0",
     ":=", "!", "[[", "]]", "9E+09", "{", "}", "[1,0,0,0]", "[0,0,0,0]", "TRUE", "FALSE", "v100", "fine", "z10",
     "! postproc: compensated with model",
+    # URScript
+    "def prog():", "end", "movel(", "movej(", "movep(", "movec(", "p[", "p[0.1,0.2,0.3,0,3.14,0]", "pose_trans(",
+    "set_tcp(", "global ", "local ", "wp1", "wp1 = ", "if True:", "elif", "else:", "while False:", "thread t():",
+    "a=1.2", "v=0.25", "[0,0,0,0,0,0]", "$ 1 \"x\"", "# postproc: compensated with model",
 ]
 NUMBERS = ["nan", "inf", "-inf", "1e999", "-1e999", "1e-400", "0e400", "1.5E+03", "-0.000", ".5", "5.", "+5",
            "1e308", "123456789012345678901234567890", "0.0000001", "-", ".", "1e", "1.2.3", "2000", "-2000",
@@ -100,6 +104,9 @@ def corpus(root: Path = REPO / "samples") -> list[Sample]:
             samples.append(Sample(path.name, {path.name: path.read_bytes()}))
     for path in sorted((root / "rapid").glob("*")) if (root / "rapid").is_dir() else []:
         if path.suffix.lower() in (".mod", ".prg", ".sys", ".modx"):
+            samples.append(Sample(path.name, {path.name: path.read_bytes()}))
+    for path in sorted((root / "urscript").glob("*")) if (root / "urscript").is_dir() else []:
+        if path.suffix.lower() == ".script":
             samples.append(Sample(path.name, {path.name: path.read_bytes()}))
     return samples
 
@@ -342,8 +349,8 @@ def check_output(files: list[str], texts: list[str], outputs: list[str], model, 
     for f in np.unique(a.frame[moved]):
         rows = moved & (a.frame == f)
         expected[rows] = frames.rotate_vectors(frames.inverse(before.frames[f].base), np.asarray(offset, float))
-    old = np.where(present, _values(texts, a), a.poses[:, :3])  # filled in: the value the target took
-    new = _values(stripped, b)
+    old = np.where(present, _values(texts, a, before.unit), a.poses[:, :3])  # filled in: the value the target took
+    new = _values(stripped, b, before.unit)
     tol = 0.0005 + 1e-9 * np.abs(old) + 1e-9
     bad = (present | filled) & ~(np.abs(new - old - expected) <= tol)
     if bad.any():
@@ -353,13 +360,14 @@ def check_output(files: list[str], texts: list[str], outputs: list[str], model, 
     return None
 
 
-def _values(texts: list[str], t) -> np.ndarray:
-    """The numbers as written at the X/Y/Z spans (NaN where absent)."""
+def _values(texts: list[str], t, unit: float = 1.0) -> np.ndarray:
+    """The numbers as written at the X/Y/Z spans (NaN where absent), in mm (``unit``: mm per
+    unit written, Program.unit)."""
     out = np.full((len(t), 3), np.nan)
     for r, k in zip(*np.nonzero(t.spans[:, :, 0] >= 0)):
         s, e = t.spans[r, k]
         out[r, k] = float(texts[t.file[r]][s:e].replace(" ", "").replace("\t", ""))  # '- 5': KRL allows it
-    return out
+    return out * unit
 
 
 class Fuzzer:
@@ -482,7 +490,7 @@ def main() -> None:
     parser.add_argument("--subprocess", type=int, default=50, help="how many mutants also run as a real process")
     parser.add_argument("--timeout", type=float, default=10.0, help="seconds per mutant before it counts as a hang")
     parser.add_argument("--keep", type=Path, help="save crashing / wrong / hanging mutants here")
-    parser.add_argument("--dialect", help="only the samples of this dialect (krl, poses, rapid)")
+    parser.add_argument("--dialect", help="only the samples of this dialect (krl, poses, rapid, urscript)")
     args = parser.parse_args()
     samples = corpus()
     if args.dialect:

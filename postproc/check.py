@@ -58,6 +58,7 @@ CODES = {
     "P213": "target orientation not known (the model's nominal attitude is assumed)",
     "P214": "a point derived from another at run time: it carries the other's correction (left as it is)",
     "P215": "a target name declared in none of the files read (left as it is)",
+    "P217": "a URScript pose variable that other statements read too (left as it is)",
     "P216": "partial aggregate refused (compensate --no-fill-partial; filled in by default)",
     "P301": "target outside the model's training envelope",
     "P302": "target beyond the nominal robot's reach (model metadata 'reach')",

@@ -17,11 +17,12 @@ __all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "read_program", "dia
 KRL_SUFFIXES = {".src", ".dat", ".sub"}
 POSE_SUFFIXES = {".csv", ".txt", ".pose", ".poses", ".xyz"}
 RAPID_SUFFIXES = {".mod", ".prg", ".sys", ".modx"}
+URSCRIPT_SUFFIXES = {".script"}
 
 
 def dialect_of(path: str | Path) -> str:
     """'krl' for .src/.dat/.sub, 'poses' for .csv/.txt/.pose(s)/.xyz, 'rapid' for
-    .mod/.modx/.prg/.sys; ValueError otherwise."""
+    .mod/.modx/.prg/.sys, 'urscript' for .script; ValueError otherwise."""
     suffix = Path(str(path)).suffix.lower()
     if suffix in KRL_SUFFIXES:
         return "krl"
@@ -29,7 +30,9 @@ def dialect_of(path: str | Path) -> str:
         return "poses"
     if suffix in RAPID_SUFFIXES:
         return "rapid"
-    raise ValueError(f"unknown program type {suffix!r} (expected .src/.dat, .csv/.txt or .mod/.prg/.sys)")
+    if suffix in URSCRIPT_SUFFIXES:
+        return "urscript"
+    raise ValueError(f"unknown program type {suffix!r} (expected .src/.dat, .csv/.txt, .mod/.prg/.sys or .script)")
 
 
 def read_program(files: list[str], texts: list[str], dialect: str, config: list[str] | None = None) -> Program:
@@ -54,6 +57,12 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
 
         program = rapid.read(files, texts, config=config)
         program.config = list(config) if config else None
+        program.from_text = True
+        return program
+    if dialect == "urscript":
+        from . import urscript
+
+        program = urscript.read(files, texts)
         program.from_text = True
         return program
     raise ValueError(f"unknown dialect {dialect!r}")

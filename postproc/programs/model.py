@@ -132,3 +132,6 @@ class Program:
     # some targets are variables (declared or assigned aggregates), whose numbers other
     # statements may read too (e.g. as a frame); False: every target is an inline aggregate
     named_targets: bool = True
+    # mm per unit of the X/Y/Z numbers as written (URScript: metres, 1000): poses are held in mm,
+    # the rewrite writes and the guards read the tokens in the file's own unit
+    unit: float = 1.0
