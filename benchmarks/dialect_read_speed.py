@@ -1,6 +1,6 @@
-"""Read speed of the ABB RAPID (and other non-KRL) readers on generated 100k-target programs.
+"""Read speed of the ABB RAPID, URScript (and other non-KRL) readers on generated 100k-target programs.
 
-    python benchmarks/dialect_read_speed.py [--targets 100000] [--dialect rapid]
+    python benchmarks/dialect_read_speed.py [--targets 100000] [--dialect rapid|urscript]
 
 Per program style: the time of ``postproc.programs.read_program`` (best of --repeat), the
 targets per second, and the number of targets read (which must be --targets).
@@ -44,7 +44,26 @@ def rapid_declared(n: int) -> str:
     return "\n".join(out + ["  ENDPROC", "ENDMODULE", ""])
 
 
-STYLES = {"rapid": [("inline MoveL", rapid_inline, "cam.mod"), ("declared robtargets", rapid_declared, "big.mod")]}
+def ur_inline(n: int) -> str:
+    """URScript as a CAM post writes it: one inline pose per movel (metres, rotation vector)."""
+    out = ["def cam_big():", "  set_tcp(p[0.0, 0.0, 0.150, 0.0, 0.0, 0.0])"]
+    out += [f"  movel(p[{x / 1000:.6f}, {y / 1000:.6f}, {z / 1000:.6f}, 3.141593, 0.0, 0.0], a=1.2, v=0.25, r=0.001)"
+            for x, y, z in _points(n)]
+    return "\n".join(out + ["end", ""])
+
+
+def ur_declared(n: int) -> str:
+    """Polyscope style: global pose variables, then a movel to each name."""
+    pts = _points(n)
+    out = ["def big():", "  set_tcp(p[0.0, 0.0, 0.150, 0.0, 0.0, 0.0])"]
+    out += [f"  global wp{i} = p[{x / 1000:.9f}, {y / 1000:.9f}, {z / 1000:.9f}, 2.221441469, -2.221441469, 0.0]"
+            for i, (x, y, z) in enumerate(pts)]
+    out += [f"  movel(wp{i}, a=1.2, v=0.25)" for i in range(n)]
+    return "\n".join(out + ["end", ""])
+
+
+STYLES = {"rapid": [("inline MoveL", rapid_inline, "cam.mod"), ("declared robtargets", rapid_declared, "big.mod")],
+          "urscript": [("inline movel", ur_inline, "cam.script"), ("global pose variables", ur_declared, "big.script")]}
 
 
 def main() -> None:

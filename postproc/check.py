@@ -51,6 +51,7 @@ __all__ = [
 
 # The codes this module reports besides the readers' own (README "pre-commit" lists them all).
 CODES = {
+    "P117": "a URScript pose p[…] without six components",
     "P103": "target position is not a finite number",
     "P202": "one set of numbers used as targets in two frames (compensate refuses it)",
     "P203": "the target's $TOOL is not known (left as it is by compensate)",

@@ -1,9 +1,10 @@
-"""The same poses written as KRL, ABB RAPID and a pose CSV get the same corrections from the
-same model (an affine one: the correction varies over space), to the written precision.
+"""The same poses written as KRL, ABB RAPID, URScript and a pose CSV get the same corrections
+from the same model (an affine one: the correction varies over space), to the written precision.
 
 Each program holds the poses in its own way: KRL and RAPID in a frame turned 90° about Z
-and shifted ($BASE / a work object's user frame), the CSV in the robot base. The corrected
-numbers of each are taken back into the robot base and compared."""
+and shifted ($BASE / a work object's user frame), URScript and the CSV in the robot base
+(URScript in metres, orientation as a rotation vector in radians). The corrected numbers of
+each are taken back into the robot base and compared."""
 from __future__ import annotations
 
 import numpy as np
@@ -47,6 +48,15 @@ def rapid():
     return "\n".join(lines + ["ENDPROC", "ENDMODULE", ""]), "cons.mod"
 
 
+def urscript():
+    t = frames.frame_to_matrix(BASE) @ frames.frame_to_matrix(LOCAL)
+    lines = ["def cons():", "  set_tcp(p[0, 0, 0.2, 0, 0, 0])"]
+    for m in t:
+        rv = Rotation.from_matrix(m[:3, :3]).as_rotvec()
+        lines.append("  movel(p[%.9f, %.9f, %.9f, %.12f, %.12f, %.12f], a=1.2, v=0.25)" % (*(m[:3, 3] / 1000), *rv))
+    return "\n".join(lines + ["end", ""]), "cons.script"
+
+
 def csv():
     t = frames.frame_to_matrix(BASE) @ frames.frame_to_matrix(LOCAL)
     base = frames.matrix_to_frame(t)
@@ -75,7 +85,7 @@ def _in_base(text, name):
 
 def test_same_poses_same_corrections_in_every_dialect(model):
     results = {}
-    for make in (krl, rapid, csv):
+    for make in (krl, rapid, urscript, csv):
         text, name = make()
         before, program = _in_base(text, name)
         assert len(program.targets) == len(LOCAL), name

@@ -286,9 +286,9 @@ class _Reader:
             kind = shape.kind
             tokens = None
             if shape.names or kind in ("assign", "call"):
-                tokens = [(m.group(), m.start()) for m in TOKEN_RE.finditer(code, start, end)]
+                tokens = list(TOKEN_RE.finditer(code, start, end))  # match objects: m[0] text, m.start()
                 for k in shape.names:
-                    read_by.setdefault(tokens[k][0], tokens[k][1])
+                    read_by.setdefault(tokens[k][0], tokens[k].start())
             if kind in ("def_head", "thread_head", "block_head"):
                 stack.append((kind, start))
                 continue
@@ -307,7 +307,7 @@ class _Reader:
                      stack[0][1] if stack else start)
             if kind == "assign":
                 scope, name_ord, indexed, value = shape.data
-                name, at = tokens[name_ord]
+                name, at = tokens[name_ord][0], tokens[name_ord].start()
                 assigns.setdefault(name, []).append(_Assign(scope, value, tokens, at, start))
             elif kind == "call":
                 fname, positional, _ = shape.data
@@ -330,7 +330,7 @@ class _Reader:
         for k, element in enumerate(value[1]):
             if element[0] != "num":
                 return None
-            token, at = tokens[element[1]]
+            token, at = tokens[element[1]][0], tokens[element[1]].start()
             s = at
             if element[2]:  # a signed number: the span takes its sign (and the blanks after it)
                 s = at - 1
@@ -339,7 +339,7 @@ class _Reader:
                 token = self.code[s] + token
             numbers.append(float(token))
             if k < 3:
-                spans.append((s, at + len(tokens[element[1]][0])))
+                spans.append((s, tokens[element[1]].end()))
         return numbers, spans
 
     def tool(self, value, tokens, assigns):
@@ -360,11 +360,9 @@ class _Reader:
 
     def tool_at(self, offset, straight, block, events):
         """(tool, why not known) of a motion at ``offset`` after the first ``events`` set_tcp."""
-        tcp = self.tcp
+        tcp, crooked, uniform = self.tcp, self.crooked, self.uniform
         if not tcp:
             return None, None
-        crooked = [e for e in tcp if not e[1]]
-        uniform = all(e[2] is not None and e[2] == tcp[0][2] for e in tcp) and tcp[0][1]
         if straight and not crooked:
             if events == 0:
                 return None, None
@@ -382,13 +380,16 @@ class _Reader:
 
     def build(self, motions, assigns, read_by, tcp) -> Program:
         self.tcp = tcp
+        self.crooked = [e for e in tcp if not e[1]]  # set_tcp off the straight line
+        # every set_tcp sets one pose of numbers, the first on the straight line
+        self.uniform = bool(tcp) and all(e[2] is not None and e[2] == tcp[0][2] for e in tcp) and tcp[0][1]
         frames: list[Frame] = []
         frame_keys: dict = {}
         rows = []  # (offset of p, numbers, spans, frame, motion)
         done: dict[str, tuple] = {}  # pose variable → (frame, offset) of its first use
         skipped: set[str] = set()  # pose variables left as written (warned once)
         for offset, kind, value, tokens, straight, block, events in motions:
-            where = tokens[value[-1]][1] if value[-1] >= 0 else offset
+            where = tokens[value[-1]].start() if value[-1] >= 0 else offset
             if value[0] == "list":
                 continue  # joint space
             if value[0] == "call" and value[1] in _JOINT_FUNCS:
@@ -429,10 +430,10 @@ class _Reader:
                 value, tokens, label = a.value, a.tokens, f"pose variable {name}"
             if len(value[1]) != 6:
                 raise PostprocError(f"a {label} p[…] has {len(value[1])} components, not x, y, z, rx, ry, rz",
-                                    self.path, *line_col(self.text, tokens[value[2]][1]), "P117")
+                                    self.path, *line_col(self.text, tokens[value[2]].start()), "P117")
             got = self.pose_numbers(value, tokens)
             if got is None:
-                self.warn(tokens[value[2]][1], "P211", f"a {label} with a component computed at run time: left as "
+                self.warn(tokens[value[2]].start(), "P211", f"a {label} with a component computed at run time: left as "
                           "written")
                 continue
             tool, why = self.tool_at(offset, straight, block, events)
@@ -455,7 +456,7 @@ class _Reader:
                 done[name] = (frame, offset)
             if frame < 0:
                 self.warn(where, "P203", f"tool not statically known ({why}): target left as written")
-            rows.append((tokens[value[2]][1], got[0], got[1], frame, _MOTION[kind]))
+            rows.append((tokens[value[2]].start(), got[0], got[1], frame, _MOTION[kind]))
         rows.sort(key=lambda r: r[0])
         n = len(rows)
         if n:
