@@ -1,10 +1,10 @@
 """Mutation fuzzing of `postproc compensate` on the sample corpus.
 
     python benchmarks/fuzz.py [--mutants 10000] [--seed 0] [--subprocess 50] [--timeout 10] [--keep DIR]
-                              [--dialect krl|poses|rapid|urscript]
+                              [--dialect krl|poses|rapid|urscript|fanuc]
 
 Takes every sample program (samples/krl/*: a .src with its .dat; samples/poses/*;
-samples/rapid/*: ABB RAPID modules; samples/urscript/*: URScript), or those of one --dialect, applies
+samples/rapid/*: ABB RAPID modules; samples/urscript/*: URScript; samples/fanuc/*.ls with the frame file beside them), or those of one --dialect, applies
 random byte, token and line mutations (delete, duplicate, swap, insert garbage or a
 keyword, replace a number by an edge case, truncate, change line endings) and compensates
 each mutant with a constant-offset model. Every mutant must end in one of two ways:
@@ -67,6 +67,10 @@ KEYWORDS = [
     "def prog():", "end", "movel(", "movej(", "movep(", "movec(", "p[", "p[0.1,0.2,0.3,0,3.14,0]", "pose_trans(",
     "set_tcp(", "global ", "local ", "wp1", "wp1 = ", "if True:", "elif", "else:", "while False:", "thread t():",
     "a=1.2", "v=0.25", "[0,0,0,0,0,0]", "$ 1 \"x\"", "# postproc: compensated with model",
+    # Fanuc LS
+    "/PROG", "/ATTR", "/MN", "/POS", "/END", "P[1]", "PR[1]", "J ", "L ", "C ", ":", "GP1:", "GP2:", "UF : 1",
+    "UT : 2", "UF : F", "CONFIG : 'N U T, 0, 0, 0'", "X =", "W =", "J1=", "mm", "deg", "Offset,PR[1]", "INC",
+    "};", "   5:  ! postproc: compensated with model x 0123456789ab ;", "[uframe.1]", "[utool.1]", "xyzwpr = ",
 ]
 NUMBERS = ["nan", "inf", "-inf", "1e999", "-1e999", "1e-400", "0e400", "1.5E+03", "-0.000", ".5", "5.", "+5",
            "1e308", "123456789012345678901234567890", "0.0000001", "-", ".", "1e", "1.2.3", "2000", "-2000",
@@ -108,6 +112,11 @@ def corpus(root: Path = REPO / "samples") -> list[Sample]:
     for path in sorted((root / "urscript").glob("*")) if (root / "urscript").is_dir() else []:
         if path.suffix.lower() == ".script":
             samples.append(Sample(path.name, {path.name: path.read_bytes()}))
+    fanuc = root / "fanuc"
+    frames = {p.name: p.read_bytes() for p in sorted(fanuc.glob("*.toml"))} if fanuc.is_dir() else {}
+    for path in sorted(fanuc.glob("*")) if fanuc.is_dir() else []:
+        if path.suffix.lower() == ".ls":  # with the frame file (UF/UT), given as --config (= --frames)
+            samples.append(Sample(path.name, {path.name: path.read_bytes()}, dict(frames)))
     return samples
 
 
@@ -251,6 +260,9 @@ def _run_subprocess(argv: list[str], timeout: float) -> tuple[int | str, str]:
 
 def _strip_stamp(text: str, stamp: str) -> str | None:
     """The text without the one stamp line postproc added (None if it is not there)."""
+    ls = re.search(r"^ *\d+:  " + re.escape(stamp) + r" ;\r?\n", text, re.M)  # Fanuc LS: a remark at the end of /MN
+    if ls:
+        return text[:ls.start()] + text[ls.end():]
     for newline in ("\r\n", "\n"):
         if stamp + newline in text:
             return text.replace(stamp + newline, "", 1)
@@ -490,7 +502,7 @@ def main() -> None:
     parser.add_argument("--subprocess", type=int, default=50, help="how many mutants also run as a real process")
     parser.add_argument("--timeout", type=float, default=10.0, help="seconds per mutant before it counts as a hang")
     parser.add_argument("--keep", type=Path, help="save crashing / wrong / hanging mutants here")
-    parser.add_argument("--dialect", help="only the samples of this dialect (krl, poses, rapid, urscript)")
+    parser.add_argument("--dialect", help="only the samples of this dialect (krl, poses, rapid, urscript, fanuc)")
     args = parser.parse_args()
     samples = corpus()
     if args.dialect:

@@ -79,7 +79,9 @@ CODES = {
 
 # "path:line:col" of a stamp; the name may hold spaces, the hash is the last word
 _STAMP = re.compile(
-    r"^[ \t]*(?:;|#|//|!)[ \t]*" + re.escape(STAMP_PREFIX) + r"[ \t]+(?P<name>.*?)[ \t]+(?P<sha>[0-9a-fA-F]{6,64})[ \t]*\r?$",
+    # (Fanuc LS: a numbered remark '  7:  ! postproc: … ;')
+    r"^[ \t]*(?:\d+:[ \t]*)?(?:;|#|//|!)[ \t]*" + re.escape(STAMP_PREFIX) + r"[ \t]+(?P<name>.*?)[ \t]+"
+    r"(?P<sha>[0-9a-fA-F]{6,64})[ \t]*;?[ \t]*\r?$",
     re.M,
 )
 
