@@ -205,3 +205,14 @@ def test_stamp_is_a_numbered_remark_and_check_sees_it(models, frames_file):
     assert again.stamps
     twice = out.replace("/POS", "   4:  ! postproc: compensated with model other 0123456789ab ;\n/POS")
     assert "P403" in {d.code for d in check_program(read(twice), models["offset"])}  # two stamps
+
+
+def test_config_is_not_guessed_for_a_model_that_takes_joint_angles(tmp_path, frames_file):
+    from model_factory import joint_model
+
+    model = load_model(joint_model(tmp_path / "j.onnx", np.diag([0.5, 0.4, 0.3]) @ np.eye(3, 6), tool={"name": "any"}))
+    no_config = pos(2, 1500, 0, 900, uf=0).replace("CONFIG : 'N U T, 0, 0, 0',", "")
+    text = program(["L P[1] 100mm/sec FINE", "L P[2] 100mm/sec FINE"], [pos(1, 1500, 100, 900, uf=0), no_config])
+    out, report = compensate_text(text, model, name="t.ls", config=frames_file)
+    assert report.left_codes == {"P309": 1} and report.compensated == 1
+    assert "X =  1500.000  mm,\tY =   100.000" in out  # P[1] (CONFIG 'N U T, 0, 0, 0') as written

@@ -16,8 +16,10 @@ Semantics (tests/test_fanuc.py shows each on a small program):
   base) and ``UT : t`` (tool frame) from the frame file given with ``--frames`` (TOML:
   ``[uframe.1] xyzwpr = [x, y, z, w, p, r]``, ``[utool.1] …``); a frame the file does not
   give leaves the target as written (P201 user frame, P203 tool);
-* ``CONFIG : '…'`` is kept as written (:attr:`FanucProgram.configs`); joint representations
-  (``J1 = … deg``) are not targets;
+* ``CONFIG : '…'`` is kept as written (:attr:`FanucProgram.configs`), not translated to
+  joint angles: a model that takes joint angles leaves the targets that state one as
+  written (P309, ``Program.unmapped_configuration``); joint representations (``J1 = … deg``)
+  are not targets;
 * ``PR[…]`` position registers and motions with ``Offset``/``Tool_Offset``/``INC``/``VOFFSET``
   are computed at run time (P211); a ``P[n]`` other instructions read too (``PR[1]=P[2]``)
   is left as written (P217); a ``P[n]`` no ``/POS`` record gives (P215).
@@ -32,7 +34,7 @@ import numpy as np
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
-from ..diagnostics import Diagnostic, PostprocError, line_col
+from ..diagnostics import Diagnostic, PostprocError
 from ..frames import frame_to_matrix
 from ..resources import grammar_path
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
@@ -51,7 +53,14 @@ _P_REF = re.compile(r"(?<![A-Za-z_\]])P\[\s*(\d+)")
 _RECORD = re.compile(r"P\[[^\]\n]*\]\s*\{.*?\}\s*;", re.S)
 _MOTION = {m: i for i, m in enumerate(MOTIONS)}
 _KIND = {"J": "PTP", "L": "LIN", "C": "CIRC-aux", "A": "CIRC-end"}
+_NUM_RE = re.compile(_NUM, re.ASCII)
+_STRINGS = re.compile(r"'[^'\n]*'|\"[^\"\n]*\"")
+_BLANKS = re.compile(r"\s+")
 _STAMP = re.compile(r"^[ \t]*\d+:[ \t]*!.*" + re.escape(STAMP_PREFIX) + r".*$", re.M)
+
+
+def _empty(m: re.Match) -> str:
+    return m.group()[0] * 2  # a string emptied: '' or ""
 
 
 @dataclass
@@ -136,6 +145,21 @@ def _analyse(tree, ordinal_at) -> dict | None:
     return None
 
 
+def _problem(gp1: dict | None) -> tuple[str, str] | None:
+    """(axis or '', what is wrong) with a Cartesian GP1's components and units, None if right."""
+    if gp1 is None or "X" not in gp1:
+        return None
+    missing = [a for a in "XYZWPR" if a not in gp1]
+    if missing:
+        return "", f"lacks {', '.join(missing)}"
+    for axis in "XYZWPR":
+        unit = gp1["units"].get(axis)
+        want = "mm" if axis in "XYZ" else "deg"
+        if unit != want:
+            return axis, f"{axis} in {unit or 'no unit'}, expected {want}"
+    return None
+
+
 # ---------------------------------------------------------------------------- reading
 
 
@@ -144,13 +168,22 @@ class _Reader:
         self.path, self.text = path, text
         self.frames_text = frames_text
         self.diagnostics: list[Diagnostic] = []
+        self._starts: np.ndarray | None = None
         self.shapes: dict[str, dict | None] = {}
 
     def warn(self, at: int, code: str, message: str) -> None:
-        self.diagnostics.append(Diagnostic(self.path, *line_col(self.text, at), code, message))
+        self.diagnostics.append(Diagnostic(self.path, *self.line_col(at), code, message))
+
+    def line_col(self, at: int) -> tuple[int, int]:
+        """1-based (line, column) of an offset (the line starts found once: many warnings stay cheap)."""
+        if self._starts is None:
+            self._starts = np.concatenate([[0], np.flatnonzero(np.frombuffer(
+                self.text.encode("latin-1", "replace"), np.uint8) == 10) + 1])
+        k = int(np.searchsorted(self._starts, at, "right")) - 1
+        return k + 1, at - int(self._starts[k]) + 1
 
     def error(self, at: int, message: str, code: str = "P101"):
-        return PostprocError(message, self.path, *line_col(self.text, at), code)
+        return PostprocError(message, self.path, *self.line_col(at), code)
 
     def sections(self) -> dict[str, tuple[int, int]]:
         text = self.text
@@ -227,21 +260,21 @@ class _Reader:
                 raise self.error(at + len(gap) - len(gap.lstrip()), "/POS holds only records P[n]{ … };")
             at = m.end()
             record = m.group()
-            key = TOKEN_RE.sub(lambda t: "0" if t.group()[0] not in "'\"" else t.group()[0] * 2, record)
-            key = re.sub(r"\s+", " ", key)
+            key = _BLANKS.sub(" ", _NUM_RE.sub("0", _STRINGS.sub(_empty, record)))
             if key not in self.shapes:
                 try:
                     tree = parser().parse(key)
                 except UnexpectedInput:
                     self.syntax_error(m.start(), record)
                 ordinal_at = {t.start(): k for k, t in enumerate(TOKEN_RE.finditer(key))}
-                self.shapes[key] = (_analyse(tree, ordinal_at), ordinal_at[key.index("[") + 1])
-            gp1, n_ord = self.shapes[key]
+                gp1 = _analyse(tree, ordinal_at)
+                self.shapes[key] = (gp1, ordinal_at[key.index("[") + 1], _problem(gp1))
+            gp1, n_ord, problem = self.shapes[key]
             tokens = list(TOKEN_RE.finditer(text, m.start(), m.end()))
             n = int(float(tokens[n_ord][0]))
             if n in out:
                 raise self.error(m.start(), f"P[{n}] twice in /POS")
-            out[n] = (m.start(), gp1, tokens)
+            out[n] = (m.start(), gp1, tokens, problem)
         gap = text[at:end]
         if gap.strip():
             raise self.error(at + len(gap) - len(gap.lstrip()), "/POS holds only records P[n]{ … }; (one not closed?)")
@@ -302,28 +335,22 @@ class _Reader:
                 continue
             if n in reads:
                 self.warn(at, "P217", f"P[{n}] is also read by the instruction at line "
-                          f"{line_col(self.text, reads[n])[0]}: compensating it would change that too; left as written")
+                          f"{self.line_col(reads[n])[0]}: compensating it would change that too; left as written")
                 skipped.add(n)
                 continue
             chosen.setdefault(n, (kind, at))
         rows = []
         configs = []
         for n, (kind, at) in sorted(chosen.items(), key=lambda kv: records[kv[0]][0]):
-            start, gp1, tokens = records[n]
+            start, gp1, tokens, problem = records[n]
             if gp1 is None:
                 self.warn(start, "P211", f"P[{n}] has no group GP1: left as written")
                 continue
             if "X" not in gp1:
                 continue  # joint representation: not a Cartesian target
-            missing = [a for a in "XYZWPR" if a not in gp1]
-            if missing:
-                raise self.error(start, f"P[{n}] lacks {', '.join(missing)}", "P118")
-            for axis in "XYZWPR":
-                unit = gp1["units"].get(axis)
-                want = "mm" if axis in "XYZ" else "deg"
-                if unit != want:
-                    raise self.error(tokens[gp1[axis][0]].start(), f"P[{n}] {axis} in {unit or 'no unit'}, expected "
-                                     f"{want}", "P118")
+            if problem is not None:
+                axis, message = problem
+                raise self.error(tokens[gp1[axis][0]].start() if axis else start, f"P[{n}] {message}", "P118")
             values, spans = [], []
             for axis in "XYZWPR":
                 v, s, e = self.number(tokens, *gp1[axis])
@@ -377,7 +404,8 @@ class _Reader:
             stamps[0] = m.group().strip()
         return FanucProgram(files=[self.path], texts=[self.text], targets=targets, frames=frames,
                             diagnostics=self.diagnostics, dialect="fanuc", stamps=stamps,
-                            newlines=[_newline(self.text)], comment="!", named_targets=True, configs=configs)
+                            newlines=[_newline(self.text)], comment="!", named_targets=True, configs=configs,
+                            unmapped_configuration=np.array([bool(c.strip()) for c in configs], bool))
 
 
 def insert_stamp(text: str, stamp: str, newline: str) -> str:

@@ -191,12 +191,21 @@ class _Reader:
     def __init__(self, path: str, text: str):
         self.path, self.text = path, text
         self.diagnostics: list[Diagnostic] = []
+        self._starts: np.ndarray | None = None
         self.shapes: dict[str, _Shape] = {}
         self.exact: dict[str, _Shape] = {}
         self.code = ""
 
     def warn(self, at: int, code: str, message: str) -> None:
-        self.diagnostics.append(Diagnostic(self.path, *line_col(self.text, at), code, message))
+        self.diagnostics.append(Diagnostic(self.path, *self.line_col(at), code, message))
+
+    def line_col(self, at: int) -> tuple[int, int]:
+        """1-based (line, column) of an offset (the line starts found once: many warnings stay cheap)."""
+        if self._starts is None:
+            self._starts = np.concatenate([[0], np.flatnonzero(np.frombuffer(
+                self.text.encode("latin-1", "replace"), np.uint8) == 10) + 1])
+        k = int(np.searchsorted(self._starts, at, "right")) - 1
+        return k + 1, at - int(self._starts[k]) + 1
 
     def units(self):
         """Yield (start, end) of each logical line; fill ``self.code``."""
@@ -267,9 +276,9 @@ class _Reader:
                 found = repr(unit[pos])
             else:
                 found = "end of line"
-            raise PostprocError(f"syntax error: unexpected {found}", self.path, *line_col(self.text, start + pos),
+            raise PostprocError(f"syntax error: unexpected {found}", self.path, *self.line_col(start + pos),
                                 "P101") from None
-        raise PostprocError("syntax error", self.path, *line_col(self.text, start), "P101")
+        raise PostprocError("syntax error", self.path, *self.line_col(start), "P101")
 
     # -------------------------------------------------------------- the pass over the script
 
@@ -294,12 +303,12 @@ class _Reader:
                 continue
             if kind == "block_again":
                 if not stack or stack[-1][0] != "block_head":
-                    raise PostprocError("elif/else without its if", self.path, *line_col(self.text, start), "P101")
+                    raise PostprocError("elif/else without its if", self.path, *self.line_col(start), "P101")
                 continue
             if kind == "block_end":
                 if not stack:
                     raise PostprocError("end without a def, thread, if or while to close", self.path,
-                                        *line_col(self.text, start), "P101")
+                                        *self.line_col(start), "P101")
                 stack.pop()
                 continue
             straight = not stack or (len(stack) == 1 and stack[0][0] == "def_head")
@@ -321,7 +330,7 @@ class _Reader:
         if stack:
             kind, at = stack[-1]
             raise PostprocError(f"{'def' if kind == 'def_head' else 'thread' if kind == 'thread_head' else 'block'} "
-                                "not closed by 'end'", self.path, *line_col(self.text, at), "P101")
+                                "not closed by 'end'", self.path, *self.line_col(at), "P101")
         return self.build(motions, assigns, read_by, tcp)
 
     def pose_numbers(self, value, tokens):
@@ -368,14 +377,14 @@ class _Reader:
                 return None, None
             last = tcp[events - 1]
             if last[2] is None:
-                return False, f"the TCP set at line {line_col(self.text, last[0])[0]} is not a pose of numbers"
+                return False, f"the TCP set at line {self.line_col(last[0])[0]} is not a pose of numbers"
             return last[2], None
         if uniform and tcp[0][0] < (block if not straight else offset):
             return tcp[0][2], None
-        why = next((f"the TCP set at line {line_col(self.text, e[0])[0]} is not a pose of numbers"
+        why = next((f"the TCP set at line {self.line_col(e[0])[0]} is not a pose of numbers"
                     for e in tcp if e[2] is None), None)
         return False, why or (f"set_tcp is called in a block, a thread or a function (line "
-                              f"{line_col(self.text, (crooked or tcp)[0][0])[0]}) or with another pose before "
+                              f"{self.line_col((crooked or tcp)[0][0])[0]}) or with another pose before "
                               "this target")
 
     def build(self, motions, assigns, read_by, tcp) -> Program:
@@ -411,26 +420,26 @@ class _Reader:
                     continue
                 if len(seen) > 1:
                     self.warn(where, "P211", f"{name} is assigned {len(seen)} times (lines "
-                              f"{', '.join(str(line_col(self.text, a.at)[0]) for a in seen[:3])}): its value here is "
+                              f"{', '.join(str(self.line_col(a.at)[0]) for a in seen[:3])}): its value here is "
                               "known at run time only; left as written")
                     continue
                 a = seen[0]
                 if a.value[0] == "list":
                     continue  # joint space
                 if a.value[0] != "pose":
-                    self.warn(where, "P211", f"{name} is computed at run time (line {line_col(self.text, a.at)[0]}): "
+                    self.warn(where, "P211", f"{name} is computed at run time (line {self.line_col(a.at)[0]}): "
                               "left as written")
                     continue
                 if name in read_by:
                     self.warn(a.at, "P217", f"pose variable {name} is also read by the statement at line "
-                              f"{line_col(self.text, read_by[name])[0]}: compensating it would change that too; "
+                              f"{self.line_col(read_by[name])[0]}: compensating it would change that too; "
                               "left as written")
                     skipped.add(name)
                     continue
                 value, tokens, label = a.value, a.tokens, f"pose variable {name}"
             if len(value[1]) != 6:
                 raise PostprocError(f"a {label} p[…] has {len(value[1])} components, not x, y, z, rx, ry, rz",
-                                    self.path, *line_col(self.text, tokens[value[2]].start()), "P117")
+                                    self.path, *self.line_col(tokens[value[2]].start()), "P117")
             got = self.pose_numbers(value, tokens)
             if got is None:
                 self.warn(tokens[value[2]].start(), "P211", f"a {label} with a component computed at run time: left as "
@@ -451,7 +460,7 @@ class _Reader:
                 if first is not None:
                     if first[0] != frame:
                         self.warn(where, "P202", f"{name} is moved to here with another tool than at line "
-                                  f"{line_col(self.text, first[1])[0]}: compensated for the first")
+                                  f"{self.line_col(first[1])[0]}: compensated for the first")
                     continue
                 done[name] = (frame, offset)
             if frame < 0:
