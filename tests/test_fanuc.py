@@ -94,10 +94,10 @@ def test_frames_per_position_and_unknown_frames():
 def test_run_time_and_shared_positions_are_left_as_written():
     p = read(program(["L P[1] 100mm/sec FINE", "L PR[4] 100mm/sec FINE", "L P[2] 100mm/sec FINE INC",
                       "PR[1]=P[3]", "L P[3] 100mm/sec FINE", "L P[9] 100mm/sec FINE",
-                      "! L P[1] in a remark", "L P[4] 100mm/sec FINE Tool_Offset,PR[2]"],
+                      "! L P[1] in a remark", "L P[4] 100mm/sec FINE Tool_Offset,PR[2]", "L P[R[2]] 100mm/sec FINE"],
                      [pos(k, k, 2, 3) for k in (1, 2, 3, 4)]))
-    assert p.targets.line.tolist() == [15]  # P[1] only (records from line 15 on, six lines each)
-    assert codes(p) == ["P211", "P211", "P217", "P215", "P211"]
+    assert p.targets.line.tolist() == [16]  # P[1] only (records from line 16 on, six lines each)
+    assert codes(p) == ["P211", "P211", "P217", "P215", "P211", "P211"]
 
 
 def test_joint_representation_and_other_groups_are_untouched():

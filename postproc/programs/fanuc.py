@@ -20,7 +20,7 @@ Semantics (tests/test_fanuc.py shows each on a small program):
   joint angles: a model that takes joint angles leaves the targets that state one as
   written (P309, ``Program.unmapped_configuration``); joint representations (``J1 = … deg``)
   are not targets;
-* ``PR[…]`` position registers and motions with ``Offset``/``Tool_Offset``/``INC``/``VOFFSET``
+* ``PR[…]`` position registers, indirect positions (``P[R[1]]``) and motions with ``Offset``/``Tool_Offset``/``INC``/``VOFFSET``
   are computed at run time (P211); a ``P[n]`` other instructions read too (``PR[1]=P[2]``)
   is left as written (P217); a ``P[n]`` no ``/POS`` record gives (P215).
 """
@@ -47,7 +47,8 @@ _NUM = r"(?<![\w.])(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])"
 TOKEN_RE = re.compile(r"'[^'\n]*'|\"[^\"\n]*\"|" + _NUM, re.ASCII)
 _SECTION = re.compile(r"^/(PROG|ATTR|APPL|MN|POS|END)\b[^\n]*", re.M)
 _MN_LINE = re.compile(r"[ \t]*(\d*)[ \t]*:(.*)")
-_MOTION_RE = re.compile(r"\s*([JLCA])?\s*(@?)\s*(PR|P)\[\s*(\d+)\s*(?::[^\]]*)?\]")
+# a motion line: letter, position (P or PR) and its index: a number, or an indirect one (P[R[1]])
+_MOTION_RE = re.compile(r"\s*([JLCA])?\s*(@?)\s*(PR|P)\[\s*(\d+|[A-Za-z]+\[[^\]]*\])\s*(?::[^\]]*)?\]")
 _MODIFIER = re.compile(r"\b(Offset|Tool_Offset|INC|VOFFSET|VTOOL_OFFSET)\b", re.I)
 _P_REF = re.compile(r"(?<![A-Za-z_\]])P\[\s*(\d+)")
 _RECORD = re.compile(r"P\[[^\]\n]*\]\s*\{.*?\}\s*;", re.S)
@@ -235,7 +236,8 @@ class _Reader:
                         letter = mm.group(1)
                         kind = _KIND[letter] if letter else "CIRC-end"
                         modifier = _MODIFIER.search(body, mm.end())
-                        motions.append((at + mm.start(3), kind, mm.group(3), int(mm.group(4)),
+                        index = mm.group(4)
+                        motions.append((at + mm.start(3), kind, mm.group(3), int(index) if index.isdigit() else index,
                                         modifier.group(1) if modifier else None))
                         rest = body[mm.end():]
                         rest_at = at + mm.end()
@@ -318,6 +320,9 @@ class _Reader:
         chosen: dict[int, tuple] = {}  # n → (kind of its first motion, offset)
         skipped: set[int] = set()
         for at, kind, register, n, modifier in motions:
+            if isinstance(n, str):
+                self.warn(at, "P211", f"target {register}[{n}] is indexed at run time: left as written")
+                continue
             if register == "PR":
                 self.warn(at, "P211", f"target PR[{n}] is a position register, known at run time: left as written")
                 continue
