@@ -118,6 +118,13 @@ def test_bad_input_is_located(text, line, col, code):
     assert (exc.value.line, exc.value.col, exc.value.code) == (line, col, code), str(exc.value)
 
 
+def test_a_function_parameter_is_a_run_time_target_even_if_a_global_has_its_name():
+    p = read(script("global wp = p[0.1,0.2,0.3,0,3.1416,0]", "def go(wp, speed):", "  movel(wp, v=speed)", "end",
+                    "go(p[0.2,0.2,0.3,0,3.1416,0], 0.1)", "movel(wp)"))
+    assert p.targets.line.tolist() == [2] and codes(p) == ["P211"]
+    assert "parameter" in p.diagnostics[0].message and p.diagnostics[0].line == 4
+
+
 def test_blocks_comments_strings_and_continued_lines():
     text = script("# movel(p[9,9,9,0,0,0]) in a comment", 'textmsg("movel(p[9,9,9,0,0,0]) # not code")',
                   "$ 3 \"MoveL\" \"breakAfter\"", "thread t():", "  sleep(1)", "end", "movel(p[0.1,", "      0.2, 0.3,",

@@ -23,7 +23,7 @@ Semantics (tests/test_urscript.py shows each on a small script):
   tool (the installation's TCP);
 * ``pose_trans(…)``, ``pose_add(…)``, ``get_…()`` and other targets computed at run time,
   pose variables assigned more than once or from an expression, poses of expressions
-  (``d2r(90)``) are left as written (P211); a pose variable that other statements read too
+  (``d2r(90)``), a parameter of the enclosing ``def`` are left as written (P211); a pose variable that other statements read too
   (``pose_trans(wp1, …)``, ``set_tcp(wp1)``, ``x = wp1``) is left as written (P217); a pose
   variable assigned nowhere in the script (P215);
 * joint-space moves (``movej([q1, …, q6])``, or a variable holding a list) are not targets.
@@ -142,7 +142,8 @@ def _analyse(tree, ordinal_at) -> _Shape:
 
     kind = tree.data
     if kind in ("def_head", "thread_head"):
-        return _Shape(kind, first(tree))
+        params = [ordinal_at[t.start_pos] for t in tree.children[2:] if isinstance(t, Token) and t.type == "NAME"]
+        return _Shape(kind, tuple(params), ())
     if kind in ("block_head", "block_again"):
         return _Shape(kind, None, tuple(names(tree)))
     if kind == "block_end":
@@ -288,18 +289,21 @@ class _Reader:
         read_by: dict[str, int] = {}  # pose variable name → offset of a statement that reads it (not a motion)
         motions = []  # (offset, kind, value, tokens, straight, block start, tcp events so far)
         tcp = []  # set_tcp events: (offset, straight, tool X,Y,Z,A,B,C or None = not known)
+        params: list[set[str]] = []  # the parameter names of the open defs
         code = None
         for start, end in self.units():
             code = self.code
             shape = self.shape_of(start, end)
             kind = shape.kind
             tokens = None
-            if shape.names or kind in ("assign", "call"):
+            if shape.names or kind in ("assign", "call", "def_head"):
                 tokens = list(TOKEN_RE.finditer(code, start, end))  # match objects: m[0] text, m.start()
                 for k in shape.names:
                     read_by.setdefault(tokens[k][0], tokens[k].start())
             if kind in ("def_head", "thread_head", "block_head"):
                 stack.append((kind, start))
+                if kind == "def_head":  # its parameters: what a motion to one of them moves to is known at run time
+                    params.append({tokens[k][0] for k in shape.data})
                 continue
             if kind == "block_again":
                 if not stack or stack[-1][0] != "block_head":
@@ -309,7 +313,8 @@ class _Reader:
                 if not stack:
                     raise PostprocError("end without a def, thread, if or while to close", self.path,
                                         *self.line_col(start), "P101")
-                stack.pop()
+                if stack.pop()[0] == "def_head":
+                    params.pop()
                 continue
             straight = not stack or (len(stack) == 1 and stack[0][0] == "def_head")
             block = (stack[1][1] if stack and stack[0][0] == "def_head" and len(stack) > 1 else
@@ -323,6 +328,8 @@ class _Reader:
                 kinds = MOTION_OF.get(fname)
                 if kinds is not None:
                     for value, motion in zip(positional, kinds):
+                        if value[0] == "ref" and any(tokens[value[1]][0] in p for p in params):
+                            value = ("param", value[1])
                         motions.append((start, motion, value, tokens, straight, block, len(tcp)))
                 elif fname == "set_tcp":
                     tool = self.tool(positional[0], tokens, assigns) if positional else None
@@ -405,6 +412,10 @@ class _Reader:
                 continue  # joint space
             if value[0] == "call":
                 self.warn(where, "P211", f"target {value[1]}(…) is computed at run time: left as written")
+                continue
+            if value[0] == "param":
+                self.warn(where, "P211", f"target {tokens[value[1]][0]} is a parameter of the function: its value is "
+                          "known at run time only; left as written")
                 continue
             if value[0] == "expr":
                 self.warn(where, "P211", "target is an expression, not known statically: left as written")
