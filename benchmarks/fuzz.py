@@ -1,10 +1,10 @@
 """Mutation fuzzing of `postproc compensate` on the sample corpus.
 
     python benchmarks/fuzz.py [--mutants 10000] [--seed 0] [--subprocess 50] [--timeout 10] [--keep DIR]
-                              [--dialect krl|poses|rapid]
+                              [--dialect krl|poses|rapid|urscript|fanuc]
 
 Takes every sample program (samples/krl/*: a .src with its .dat; samples/poses/*;
-samples/rapid/*: ABB RAPID modules), or those of one --dialect, applies
+samples/rapid/*: ABB RAPID modules; samples/urscript/*: URScript; samples/fanuc/*.ls with the frame file beside them), or those of one --dialect, applies
 random byte, token and line mutations (delete, duplicate, swap, insert garbage or a
 keyword, replace a number by an edge case, truncate, change line endings) and compensates
 each mutant with a constant-offset model. Every mutant must end in one of two ways:
@@ -63,6 +63,14 @@ KEYWORDS = [
     "RelTool(", "robtarget", "CONST", "PERS", "VAR", "tooldata", "wobjdata", "\\WObj:=", "wobj0", "tool0",
     ":=", "!", "[[", "]]", "9E+09", "{", "}", "[1,0,0,0]", "[0,0,0,0]", "TRUE", "FALSE", "v100", "fine", "z10",
     "! postproc: compensated with model",
+    # URScript
+    "def prog():", "end", "movel(", "movej(", "movep(", "movec(", "p[", "p[0.1,0.2,0.3,0,3.14,0]", "pose_trans(",
+    "set_tcp(", "global ", "local ", "wp1", "wp1 = ", "if True:", "elif", "else:", "while False:", "thread t():",
+    "a=1.2", "v=0.25", "[0,0,0,0,0,0]", "$ 1 \"x\"", "# postproc: compensated with model",
+    # Fanuc LS
+    "/PROG", "/ATTR", "/MN", "/POS", "/END", "P[1]", "PR[1]", "J ", "L ", "C ", ":", "GP1:", "GP2:", "UF : 1",
+    "UT : 2", "UF : F", "CONFIG : 'N U T, 0, 0, 0'", "X =", "W =", "J1=", "mm", "deg", "Offset,PR[1]", "INC",
+    "};", "   5:  ! postproc: compensated with model x 0123456789ab ;", "[uframe.1]", "[utool.1]", "xyzwpr = ",
 ]
 NUMBERS = ["nan", "inf", "-inf", "1e999", "-1e999", "1e-400", "0e400", "1.5E+03", "-0.000", ".5", "5.", "+5",
            "1e308", "123456789012345678901234567890", "0.0000001", "-", ".", "1e", "1.2.3", "2000", "-2000",
@@ -101,6 +109,14 @@ def corpus(root: Path = REPO / "samples") -> list[Sample]:
     for path in sorted((root / "rapid").glob("*")) if (root / "rapid").is_dir() else []:
         if path.suffix.lower() in (".mod", ".prg", ".sys", ".modx"):
             samples.append(Sample(path.name, {path.name: path.read_bytes()}))
+    for path in sorted((root / "urscript").glob("*")) if (root / "urscript").is_dir() else []:
+        if path.suffix.lower() == ".script":
+            samples.append(Sample(path.name, {path.name: path.read_bytes()}))
+    fanuc = root / "fanuc"
+    frames = {p.name: p.read_bytes() for p in sorted(fanuc.glob("*.toml"))} if fanuc.is_dir() else {}
+    for path in sorted(fanuc.glob("*")) if fanuc.is_dir() else []:
+        if path.suffix.lower() == ".ls":  # with the frame file (UF/UT), given as --config (= --frames)
+            samples.append(Sample(path.name, {path.name: path.read_bytes()}, dict(frames)))
     return samples
 
 
@@ -244,6 +260,9 @@ def _run_subprocess(argv: list[str], timeout: float) -> tuple[int | str, str]:
 
 def _strip_stamp(text: str, stamp: str) -> str | None:
     """The text without the one stamp line postproc added (None if it is not there)."""
+    ls = re.search(r"^ *\d+:  " + re.escape(stamp) + r" ;\r?\n", text, re.M)  # Fanuc LS: a remark at the end of /MN
+    if ls:
+        return text[:ls.start()] + text[ls.end():]
     for newline in ("\r\n", "\n"):
         if stamp + newline in text:
             return text.replace(stamp + newline, "", 1)
@@ -342,8 +361,8 @@ def check_output(files: list[str], texts: list[str], outputs: list[str], model, 
     for f in np.unique(a.frame[moved]):
         rows = moved & (a.frame == f)
         expected[rows] = frames.rotate_vectors(frames.inverse(before.frames[f].base), np.asarray(offset, float))
-    old = np.where(present, _values(texts, a), a.poses[:, :3])  # filled in: the value the target took
-    new = _values(stripped, b)
+    old = np.where(present, _values(texts, a, before.unit), a.poses[:, :3])  # filled in: the value the target took
+    new = _values(stripped, b, before.unit)
     tol = 0.0005 + 1e-9 * np.abs(old) + 1e-9
     bad = (present | filled) & ~(np.abs(new - old - expected) <= tol)
     if bad.any():
@@ -353,13 +372,14 @@ def check_output(files: list[str], texts: list[str], outputs: list[str], model, 
     return None
 
 
-def _values(texts: list[str], t) -> np.ndarray:
-    """The numbers as written at the X/Y/Z spans (NaN where absent)."""
+def _values(texts: list[str], t, unit: float = 1.0) -> np.ndarray:
+    """The numbers as written at the X/Y/Z spans (NaN where absent), in mm (``unit``: mm per
+    unit written, Program.unit)."""
     out = np.full((len(t), 3), np.nan)
     for r, k in zip(*np.nonzero(t.spans[:, :, 0] >= 0)):
         s, e = t.spans[r, k]
         out[r, k] = float(texts[t.file[r]][s:e].replace(" ", "").replace("\t", ""))  # '- 5': KRL allows it
-    return out
+    return out * unit
 
 
 class Fuzzer:
@@ -482,7 +502,7 @@ def main() -> None:
     parser.add_argument("--subprocess", type=int, default=50, help="how many mutants also run as a real process")
     parser.add_argument("--timeout", type=float, default=10.0, help="seconds per mutant before it counts as a hang")
     parser.add_argument("--keep", type=Path, help="save crashing / wrong / hanging mutants here")
-    parser.add_argument("--dialect", help="only the samples of this dialect (krl, poses, rapid)")
+    parser.add_argument("--dialect", help="only the samples of this dialect (krl, poses, rapid, urscript, fanuc)")
     args = parser.parse_args()
     samples = corpus()
     if args.dialect:

@@ -51,6 +51,8 @@ __all__ = [
 
 # The codes this module reports besides the readers' own (README "pre-commit" lists them all).
 CODES = {
+    "P117": "a URScript pose p[…] without six components",
+    "P118": "a Fanuc LS position without X…R in mm/deg, or a malformed frame file (--frames)",
     "P103": "target position is not a finite number",
     "P202": "one set of numbers used as targets in two frames (compensate refuses it)",
     "P203": "the target's $TOOL is not known (left as it is by compensate)",
@@ -58,6 +60,7 @@ CODES = {
     "P213": "target orientation not known (the model's nominal attitude is assumed)",
     "P214": "a point derived from another at run time: it carries the other's correction (left as it is)",
     "P215": "a target name declared in none of the files read (left as it is)",
+    "P217": "a URScript pose variable or LS P[n] that other statements read too (left as it is)",
     "P216": "partial aggregate refused (compensate --no-fill-partial; filled in by default)",
     "P301": "target outside the model's training envelope",
     "P302": "target beyond the nominal robot's reach (model metadata 'reach')",
@@ -78,7 +81,9 @@ CODES = {
 
 # "path:line:col" of a stamp; the name may hold spaces, the hash is the last word
 _STAMP = re.compile(
-    r"^[ \t]*(?:;|#|//|!)[ \t]*" + re.escape(STAMP_PREFIX) + r"[ \t]+(?P<name>.*?)[ \t]+(?P<sha>[0-9a-fA-F]{6,64})[ \t]*\r?$",
+    # (Fanuc LS: a numbered remark '  7:  ! postproc: … ;')
+    r"^[ \t]*(?:\d+:[ \t]*)?(?:;|#|//|!)[ \t]*" + re.escape(STAMP_PREFIX) + r"[ \t]+(?P<name>.*?)[ \t]+"
+    r"(?P<sha>[0-9a-fA-F]{6,64})[ \t]*;?[ \t]*\r?$",
     re.M,
 )
 

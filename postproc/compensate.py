@@ -335,7 +335,7 @@ def _finish(program: Program, model: Compensator, selection: Selection, outputs:
     # by another target), which no single edit shows. Inline aggregates belong to one motion,
     # and each of their tokens was checked when written; so were a pose list's. A Program built
     # by hand has no text to read it from.
-    if program.from_text and program.dialect in ("krl", "rapid") and program.named_targets:
+    if program.from_text and program.dialect in ("krl", "rapid", "urscript", "fanuc") and program.named_targets:
         check_round_trip(program, outputs, rows, new_xyz, filled=missing_xyz(program, rows))
     stamp = stamp_line(program.comment, STAMP_PREFIX, model.name, model.sha256)
     after = "&" if program.dialect == "krl" else None
@@ -343,7 +343,12 @@ def _finish(program: Program, model: Compensator, selection: Selection, outputs:
     out = list(outputs)
     for index in changed:
         newline = program.newlines[index] if index < len(program.newlines) else "\n"
-        out[index] = insert_stamp(out[index], stamp, newline, after_headers=after)
+        if program.dialect == "fanuc":  # a remark line at the end of /MN
+            from .programs.fanuc import insert_stamp as insert_ls_stamp
+
+            out[index] = insert_ls_stamp(out[index], stamp, newline)
+        else:
+            out[index] = insert_stamp(out[index], stamp, newline, after_headers=after)
     return out
 
 
@@ -518,7 +523,7 @@ def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, str
         if not new.any():  # (the common case: no partial aggregate in the chunk)
             tokens = [text[a:b] for a, b in zip(s, e)]
             check_numbers(program, owners[chunk], tokens, read[chunk], 0.0, "is not the {} read for the target")
-            replacements = format_many(tokens, values)
+            replacements = format_many(tokens, values, program.unit)
             check_numbers(program, owners[chunk], replacements, values, ROUNDING_MM,
                           "does not read back as the corrected {}")
         else:
@@ -527,7 +532,7 @@ def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, str
             tokens = [text[s[i]:e[i]] for i in numbers.tolist()]
             check_numbers(program, owners[chunk][numbers], tokens, read[chunk][numbers], 0.0,
                           "is not the {} read for the target")
-            formatted = format_many(tokens, values[numbers])
+            formatted = format_many(tokens, values[numbers], program.unit)
             check_numbers(program, owners[chunk][numbers], formatted, values[numbers], ROUNDING_MM,
                           "does not read back as the corrected {}")
             pieces = inserts.text(piece[chunk][added], values[added])

@@ -132,6 +132,12 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
     t = program.targets
     warnings: list[Diagnostic] = []
     q = None
+    unmapped = program.unmapped_configuration
+    if model.wants_joints and unmapped is not None and unmapped[rows].any():
+        keep = ~unmapped[rows]
+        warnings += collect(program, rows[~keep], "P309", "the target states its arm configuration in a form postproc "
+                            "does not translate to joint angles (Fanuc CONFIG): left as it is")
+        rows, sel, tools = rows[keep], sel[keep], tools[keep]
     if model.wants_joints and len(rows):
         robot = Robot(description.replace(tool=default_tool))
         first = robot if np.array_equal(tools[0], default_tool) else Robot(description.replace(tool=tools[0]))

@@ -81,7 +81,10 @@ def check_numbers(program: Program, owners: np.ndarray, tokens: list[str], value
     the tokens belong to (for the message); ``what`` says what a mismatch means, with a
     ``{}`` for the value."""
     tolerance = rounding + 1e-9 * np.maximum(1.0, np.abs(values))
-    bad = np.flatnonzero(~(np.abs(_floats(tokens) - values) <= tolerance))
+    read = _floats(tokens)
+    if program.unit != 1.0:  # tokens in the file's unit (URScript: metres), values in mm
+        read = read * program.unit
+    bad = np.flatnonzero(~(np.abs(read - values) <= tolerance))
     if len(bad):
         i = int(bad[0])
         raise PostprocError(f"refusing to write: the number {tokens[i]!r} {what.format(float(values[i]))} "

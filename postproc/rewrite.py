@@ -6,6 +6,7 @@ three decimals, i.e. µm resolution), exponent form.
 """
 from __future__ import annotations
 
+import math
 import os
 import re
 import tempfile
@@ -17,7 +18,7 @@ import numpy as np
 
 from .diagnostics import PostprocError
 
-__all__ = ["format_like", "format_many", "apply_edits", "splice", "check_disjoint", "insert_stamp", "stamp_line", "write_atomic", "recover"]
+__all__ = ["decimal_range", "format_like", "format_many", "apply_edits", "splice", "check_disjoint", "insert_stamp", "stamp_line", "write_atomic", "recover"]
 
 MIN_DECIMALS = 3
 # at most 1 nm: the model's correction is float32 (~1e-7 of a mm-size value) and a KRL REAL
@@ -27,22 +28,33 @@ MAX_DECIMALS = 6
 _TOKEN = re.compile(r"([+-]?)([ \t]*)(\d*)(?:\.(\d*))?(?:([eE])([+-]?)(\d+))?\Z")
 
 
-def format_like(token: str, value: float) -> str:
-    """``value`` written in the style of ``token`` (e.g. '1900.' → '1900.347', '.5' → '.512'),
-    with MIN_DECIMALS to MAX_DECIMALS decimals (a token's longer tail is cut to 1 nm)."""
+def decimal_range(unit: float = 1.0) -> tuple[int, int]:
+    """(fewest, most) decimals of a number written in units of ``unit`` mm (1000: metres):
+    µm resolution at least, 1 nm at most, whatever the unit."""
+    shift = int(round(math.log10(unit)))
+    return MIN_DECIMALS + shift, MAX_DECIMALS + shift
+
+
+def format_like(token: str, value: float, unit: float = 1.0) -> str:
+    """``value`` (mm) written in the style of ``token`` (e.g. '1900.' → '1900.347', '.5' → '.512'),
+    in units of ``unit`` mm, with MIN_DECIMALS to MAX_DECIMALS decimals at unit 1 (a token's
+    longer tail is cut to 1 nm)."""
     m = _TOKEN.match(token)
     if m is None or not (m.group(3) or m.group(4)):
         raise ValueError(f"not a number token: {token!r}")
+    fewest, most = decimal_range(unit)
+    if unit != 1.0:
+        value = value / unit
     sign, gap, whole, frac, e, esign, edigits = m.groups()
-    decimals = min(max(MIN_DECIMALS, len(frac or "")), MAX_DECIMALS)
+    decimals = min(max(fewest, len(frac or "")), most)
     if e:
         exponent = int(esign + edigits) if esign != "+" else int(edigits)
         # keep the exponent; add as many mantissa decimals as it takes to stay at µm resolution.
         # Decimal scales exactly: 10.0**exponent overflows or underflows for tokens like '0e400'
         mantissa = Decimal(value).scaleb(-exponent)
-        digits = max(len(frac or ""), MIN_DECIMALS + exponent, 0)
-        if digits > MAX_DECIMALS + exponent:  # a tail beyond 1 nm: cut, keeping a written '.'
-            digits = max(MAX_DECIMALS + exponent, 1 if frac else 0)
+        digits = max(len(frac or ""), fewest + exponent, 0)
+        if digits > most + exponent:  # a tail beyond 1 nm: cut, keeping a written '.'
+            digits = max(most + exponent, 1 if frac else 0)
         body = f"{abs(mantissa):.{digits}f}"
         exp_text = e + (esign if esign else "") + str(abs(exponent)).zfill(len(edigits))
         if exponent < 0 and esign != "-":
@@ -64,9 +76,9 @@ _PLAIN = re.compile(r"-?\d+\.\d+\Z")
 _ALL_PLAIN = re.compile(r"(?:-?\d+\.\d+\n)*-?\d+\.\d+")
 
 
-def _format_plain(values: np.ndarray, decimals: np.ndarray) -> list[str]:
+def _format_plain(values: np.ndarray, decimals: np.ndarray, unit: float = 1.0) -> list[str]:
     """'%.{d}f' per value, one format string per distinct decimal count; never '-0.000'."""
-    decimals = np.clip(decimals, MIN_DECIMALS, MAX_DECIMALS)
+    decimals = np.clip(decimals, *decimal_range(unit))
     # values that round to zero are written as zero: no '-0.000'
     values = np.where(np.abs(values) < 0.5 * 10.0 ** -decimals, 0.0, values)
     kinds = np.unique(decimals)
@@ -82,22 +94,23 @@ def _format_plain(values: np.ndarray, decimals: np.ndarray) -> list[str]:
     return out
 
 
-def format_many(tokens: Sequence[str], values: np.ndarray) -> list[str]:
-    """``format_like`` over many tokens. The common CAM case (every token plain, like
-    '-12.5' or '880.000') is checked with one regex over all tokens and formatted in bulk."""
+def format_many(tokens: Sequence[str], values: np.ndarray, unit: float = 1.0) -> list[str]:
+    """``format_like`` over many tokens (``values`` in mm, written in units of ``unit`` mm).
+    The common CAM case (every token plain, like '-12.5' or '880.000') is checked with one
+    regex over all tokens and formatted in bulk."""
     values = np.asarray(values, dtype=np.float64)
     if not len(tokens):
         return []
     if _ALL_PLAIN.fullmatch("\n".join(tokens)):
         chars = np.array(tokens)
         decimals = np.char.str_len(chars) - np.char.find(chars, ".") - 1
-        return _format_plain(values, decimals)
+        return _format_plain(values / unit, decimals, unit)
     # a mix: the plain tokens in bulk all the same, the others one by one
     plain = [i for i, token in enumerate(tokens) if _PLAIN.match(token)]
-    out = [format_like(token, value) if not _PLAIN.match(token) else "" for token, value in zip(tokens, values.tolist())]
+    out = [format_like(token, value, unit) if not _PLAIN.match(token) else "" for token, value in zip(tokens, values.tolist())]
     if plain:
         decimals = np.array([len(tokens[i]) - tokens[i].index(".") - 1 for i in plain])
-        for i, text in zip(plain, _format_plain(values[plain], decimals)):
+        for i, text in zip(plain, _format_plain(values[plain] / unit, decimals, unit)):
             out[i] = text
     return out
 

@@ -1,9 +1,12 @@
-"""The same poses written as KRL, ABB RAPID and a pose CSV get the same corrections from the
-same model (an affine one: the correction varies over space), to the written precision.
+"""The same poses written as KRL, ABB RAPID, URScript, Fanuc LS and a pose CSV get the same
+corrections from the same model (an affine one: the correction varies over space), to the
+written precision.
 
-Each program holds the poses in its own way: KRL and RAPID in a frame turned 90° about Z
-and shifted ($BASE / a work object's user frame), the CSV in the robot base. The corrected
-numbers of each are taken back into the robot base and compared."""
+Each program holds the poses in its own way: KRL, RAPID and LS in a frame turned 90° about Z
+and shifted ($BASE / a work object's user frame / a user frame UF of the frame file),
+URScript and the CSV in the robot base
+(URScript in metres, orientation as a rotation vector in radians). The corrected numbers of
+each are taken back into the robot base and compared."""
 from __future__ import annotations
 
 import numpy as np
@@ -47,6 +50,29 @@ def rapid():
     return "\n".join(lines + ["ENDPROC", "ENDMODULE", ""]), "cons.mod"
 
 
+def urscript():
+    t = frames.frame_to_matrix(BASE) @ frames.frame_to_matrix(LOCAL)
+    lines = ["def cons():", "  set_tcp(p[0, 0, 0.2, 0, 0, 0])"]
+    for m in t:
+        rv = Rotation.from_matrix(m[:3, :3]).as_rotvec()
+        lines.append("  movel(p[%.9f, %.9f, %.9f, %.12f, %.12f, %.12f], a=1.2, v=0.25)" % (*(m[:3, 3] / 1000), *rv))
+    return "\n".join(lines + ["end", ""]), "cons.script"
+
+
+FANUC_FRAMES = ("[uframe.3]\nxyzwpr = [%.3f, %.3f, %.3f, %.3f, %.3f, %.3f]\n"
+                % (*BASE[:3], BASE[5], BASE[4], BASE[3]) + "[utool.2]\nxyzwpr = [0, 0, 200, 0, 0, 0]\n")
+
+
+def fanuc():
+    mn = [f"{k:4d}:L P[{k}] 100mm/sec FINE    ;" for k in range(1, len(LOCAL) + 1)]
+    pos = []
+    for k, p in enumerate(LOCAL, start=1):
+        pos.append(f"P[{k}]{{\n   GP1:\n\tUF : 3, UT : 2,\t\tCONFIG : 'N U T, 0, 0, 0',\n"
+                   f"\tX = {p[0]:9.3f}  mm,\tY = {p[1]:9.3f}  mm,\tZ = {p[2]:9.3f}  mm,\n"
+                   f"\tW = {p[5]:9.3f} deg,\tP = {p[4]:9.3f} deg,\tR = {p[3]:9.3f} deg\n}};")
+    return "\n".join(["/PROG  CONS", "/ATTR", "/MN", *mn, "/POS", *pos, "/END", ""]), "cons.ls"
+
+
 def csv():
     t = frames.frame_to_matrix(BASE) @ frames.frame_to_matrix(LOCAL)
     base = frames.matrix_to_frame(t)
@@ -63,8 +89,8 @@ def model(tmp_path_factory):
     return load_model(path)
 
 
-def _in_base(text, name):
-    p = parse_program_text(text, name)
+def _in_base(text, name, config=None):
+    p = parse_program_text(text, name, config_texts=[config.read_text()] if config else None)
     t = p.targets
     out = np.empty((len(t), 3))
     for f in np.unique(t.frame):
@@ -73,16 +99,20 @@ def _in_base(text, name):
     return out, p
 
 
-def test_same_poses_same_corrections_in_every_dialect(model):
+def test_same_poses_same_corrections_in_every_dialect(model, tmp_path):
     results = {}
-    for make in (krl, rapid, csv):
+    for make in (krl, rapid, urscript, fanuc, csv):
         text, name = make()
-        before, program = _in_base(text, name)
+        config = None
+        if make is fanuc:  # the user and tool frames in the frame file (--frames)
+            config = tmp_path / "frames.toml"
+            config.write_text(FANUC_FRAMES)
+        before, program = _in_base(text, name, config)
         assert len(program.targets) == len(LOCAL), name
         assert np.allclose(before, frames.transform_points(frames.frame_to_matrix(BASE), LOCAL[:, :3]), atol=1e-6)
-        out, report = compensate_text(text, model, name=name)
+        out, report = compensate_text(text, model, name=name, config=config)
         assert report.compensated == len(LOCAL)
-        after, _ = _in_base(out, name)
+        after, _ = _in_base(out, name, config)
         results[name] = after - before
     reference = results["cons.csv"]
     # the correction varies from target to target: the test can tell a wrong frame or point

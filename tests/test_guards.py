@@ -320,8 +320,8 @@ def test_formatter_bug_is_refused(run, affine, monkeypatch):
 
     real = postproc.compensate.format_many
 
-    def off_by_two_microns(tokens, values):
-        return real(tokens, values + np.where(np.arange(len(values)) == 4, 0.002, 0.0))
+    def off_by_two_microns(tokens, values, unit=1.0):
+        return real(tokens, values + np.where(np.arange(len(values)) == 4, 0.002, 0.0), unit)
 
     monkeypatch.setattr(postproc.compensate, "format_many", off_by_two_microns)
     refused(run(GOOD, affine(offset=(0.1, 0, 0))), run, "P190", run.src(), 3, 1,

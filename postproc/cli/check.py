@@ -34,7 +34,8 @@ def add_parser(sub, common, formatter) -> None:
                    "cell: a .dat is checked with its .src, a $config.dat among them configures the others, a data list "
                    "without DEF is checked for syntax")
     p.add_argument("--model", metavar="M", help="the configured ONNX model (default: settings, else models/default.onnx)")
-    p.add_argument("--config", metavar="CONFIG_DAT", action="append", help="$config.dat with BASE_DATA / TOOL_DATA (repeatable)")
+    p.add_argument("--config", "--frames", metavar="CONFIG_DAT", action="append",
+                   help="$config.dat with BASE_DATA / TOOL_DATA (repeatable); for a Fanuc .ls: the frame file (TOML, UF/UT)")
     p.add_argument("--settings", metavar="TOML", help="pyproject.toml or postproc.toml to read (default: searched upwards)")
     p.add_argument("--fresh", action="store_true", help="check the configured source → output pairs")
     p.add_argument("--fix", action="store_true", help="with --fresh: rewrite stale or missing outputs")

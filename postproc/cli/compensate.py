@@ -32,9 +32,9 @@ def add_parser(sub, common, formatter) -> None:
                    help="where to write (its .dat goes beside it); - for stdout; for a cell a directory (OUTDIR), "
                    "the input's tree mirrored below it")
     p.add_argument("--model", metavar="M", help="ONNX compensator (default: the shipped models/default.onnx)")
-    p.add_argument("--config", metavar="CONFIG_DAT", help="$config.dat with BASE_DATA / TOOL_DATA (for a cell "
-                   "directory, default: its System/$config.dat)")
-    p.add_argument("--dialect", choices=["krl", "poses", "rapid"],
+    p.add_argument("--config", "--frames", metavar="CONFIG_DAT", help="$config.dat with BASE_DATA / TOOL_DATA (for a cell "
+                   "directory, default: its System/$config.dat); for a Fanuc .ls: the frame file (TOML, UF/UT)")
+    p.add_argument("--dialect", choices=["krl", "poses", "rapid", "urscript", "fanuc"],
                    help="program type for stdin (default: detected; RAPID must be named)")
     p.add_argument("--iterations", type=int, metavar="K", help="fixed-point iterations c ← P + Ê(c) (default: the model's)")
     p.add_argument("--max-correction", type=float, metavar="MM", default=None,

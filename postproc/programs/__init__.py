@@ -17,11 +17,13 @@ __all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "read_program", "dia
 KRL_SUFFIXES = {".src", ".dat", ".sub"}
 POSE_SUFFIXES = {".csv", ".txt", ".pose", ".poses", ".xyz"}
 RAPID_SUFFIXES = {".mod", ".prg", ".sys", ".modx"}
+URSCRIPT_SUFFIXES = {".script"}
+FANUC_SUFFIXES = {".ls"}
 
 
 def dialect_of(path: str | Path) -> str:
     """'krl' for .src/.dat/.sub, 'poses' for .csv/.txt/.pose(s)/.xyz, 'rapid' for
-    .mod/.modx/.prg/.sys; ValueError otherwise."""
+    .mod/.modx/.prg/.sys, 'urscript' for .script, 'fanuc' for .ls; ValueError otherwise."""
     suffix = Path(str(path)).suffix.lower()
     if suffix in KRL_SUFFIXES:
         return "krl"
@@ -29,13 +31,17 @@ def dialect_of(path: str | Path) -> str:
         return "poses"
     if suffix in RAPID_SUFFIXES:
         return "rapid"
-    raise ValueError(f"unknown program type {suffix!r} (expected .src/.dat, .csv/.txt or .mod/.prg/.sys)")
+    if suffix in URSCRIPT_SUFFIXES:
+        return "urscript"
+    if suffix in FANUC_SUFFIXES:
+        return "fanuc"
+    raise ValueError(f"unknown program type {suffix!r} (expected .src/.dat, .csv/.txt, .mod/.prg/.sys, .script or .ls)")
 
 
 def read_program(files: list[str], texts: list[str], dialect: str, config: list[str] | None = None) -> Program:
     """Parse a program made of ``files`` (for KRL: the .src first, then its .dat if any)
     with contents ``texts``. ``config`` optionally holds ``$config.dat`` text(s) that give
-    BASE_DATA / TOOL_DATA (for RAPID: other modules' tooldata / wobjdata). Raises PostprocError (with file:line:col) on bad input."""
+    BASE_DATA / TOOL_DATA (for RAPID: other modules' tooldata / wobjdata; for Fanuc LS: the frame file, TOML, of --frames). Raises PostprocError (with file:line:col) on bad input."""
     if dialect == "krl":
         from . import krl
 
@@ -53,6 +59,19 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
         from . import rapid
 
         program = rapid.read(files, texts, config=config)
+        program.config = list(config) if config else None
+        program.from_text = True
+        return program
+    if dialect == "urscript":
+        from . import urscript
+
+        program = urscript.read(files, texts)
+        program.from_text = True
+        return program
+    if dialect == "fanuc":
+        from . import fanuc
+
+        program = fanuc.read(files, texts, frames=config)
         program.config = list(config) if config else None
         program.from_text = True
         return program

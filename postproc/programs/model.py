@@ -132,3 +132,9 @@ class Program:
     # some targets are variables (declared or assigned aggregates), whose numbers other
     # statements may read too (e.g. as a frame); False: every target is an inline aggregate
     named_targets: bool = True
+    # mm per unit of the X/Y/Z numbers as written (URScript: metres, 1000): poses are held in mm,
+    # the rewrite writes and the guards read the tokens in the file's own unit
+    unit: float = 1.0
+    # [N] bool: the target states an arm configuration in a form postproc does not translate to
+    # joint angles (Fanuc CONFIG): a model that takes joint angles leaves it as written (P309)
+    unmapped_configuration: np.ndarray | None = None
