@@ -11,7 +11,10 @@ OPTIMIZERS = ("lm", "lbfgs", "adam", "momentum", "gd")
 EXAMPLES = """\
 Data: a CSV with the header x,y,z,a,b,c,x_meas,y_meas,z_meas (mm, deg, robot base frame):
 the commanded TCP pose and the measured TCP position, one row per visited pose. The model
-learns E = P_target − P_measured. `--val-fraction` of the rows (drawn with --split-seed)
+learns E = P_target − P_measured. Optional columns: a_meas,b_meas,c_meas (a 6-DOF probe's
+TCP orientation: hybrid/kinematic then fit the orientation error too and the model outputs
+rotation_error, for compensate --orientation), q1..q6 (the controller's joint angles) or,
+without them, s,t (KUKA Status/Turn: the joint angles of that configuration). `--val-fraction` of the rows (drawn with --split-seed)
 are held out and only scored on.
 
 Methods: hybrid (the default: the robot's kinematics, compliance, backlash and gear ripple
@@ -113,7 +116,8 @@ def run(args) -> int:
 
     from ..diagnostics import PostprocError
     from ..outputs import check_outputs
-    from ..training.data import check_errors, check_size, envelope_of, read_measurements, split_indices
+    from ..training.data import (check_errors, check_rotation_errors, check_size, envelope_of, read_measurements,
+                                 split_indices)
     from . import show_progress
     from .train_hybrid import HYBRID_METHODS, run_hybrid
 
@@ -131,8 +135,12 @@ def run(args) -> int:
 
         mask = np.zeros(len(data), dtype=bool)
         mask[train_rows] = True
-        measured, _, rms = register_measurements(poses[:, :3], measured, mask)
+        measured, transform, rms = register_measurements(poses[:, :3], measured, mask)
         notes.append(f"registered tracker → base on {len(train_rows)} training rows (rms {rms:.3f} mm)")
+        if data.orientation is not None:  # the probe's orientation turns with the tracker frame
+            from ..frames import abc_from_rotation, rotation_from_abc
+
+            data.orientation = abc_from_rotation(transform[:3, :3] @ rotation_from_abc(data.orientation))
     elif frame != "base":
         raise PostprocError(
             f"measured columns are in the {frame}'s frame ('# frame: {frame}'): train with --register",
@@ -147,10 +155,16 @@ def run(args) -> int:
         )
     errors = poses[:, :3] - measured
     notes += check_errors(poses[:, :3], measured, data.lines, args.data)
+    rotation_errors = data.rotation_errors
+    if rotation_errors is not None:
+        check_rotation_errors(rotation_errors, data.lines, args.data)
+        if args.method not in ("hybrid", "kinematic"):
+            notes.append(f"warning: --method {args.method} fits the position only: a_meas,b_meas,c_meas not used "
+                         "(the model has no rotation_error output; compensate --orientation refuses it)")
 
     progress = show_progress(args)
     if args.method in HYBRID_METHODS:
-        return run_hybrid(args, data, errors, train_rows, val_rows, notes, progress)
+        return run_hybrid(args, data, errors, train_rows, val_rows, notes, progress, rotation_errors)
     hidden = args.hidden or (20, 10, 5)
     args.epochs = args.epochs or 500
     if args.search:

@@ -55,10 +55,44 @@ def arm_metadata(description) -> dict:
     return {"robot": description.name, "reach": reach, "tool": tool}
 
 
+def stated_joints_of(description, data, notes: list[str]) -> tuple[np.ndarray | None, np.ndarray]:
+    """The rows' joint angles [N, 6] deg: the data's q1..q6, or from its s,t columns the nominal
+    IK on the stated branch (``configuration.stated_joints``); and a mask of the rows to keep.
+    Rows whose S/T has no IK (the pose out of reach on that branch) are left out with a warning
+    (P514) naming their lines; None without either."""
+    keep = np.ones(len(data), bool)
+    if data.joints is not None or data.status_turn is None:
+        return data.joints, keep
+    from ..configuration import stated_joints
+    from ..diagnostics import PostprocError
+    from ..robot import Robot
+
+    try:
+        robot = Robot(description)
+    except Exception as exc:  # an arm postproc.robot cannot solve in closed form
+        raise PostprocError(f"s,t columns: the nominal IK of {description.name} is not available ({exc}); give "
+                            "q1..q6 instead", _path_of(data), code="P514") from None
+    q, found = stated_joints(robot, data.poses, data.status_turn[:, 0], data.status_turn[:, 1])
+    if not found.any():
+        raise PostprocError(f"no row's S/T has an IK solution on the nominal {description.name}: is this the robot "
+                            "of the data (--robot)?", _path_of(data), int(data.lines[0]), 1, "P514")
+    if not found.all():
+        lines = data.lines[~found]
+        notes.append(f"{_path_of(data)}:{int(lines[0])}:1: P514 warning: {len(lines)} row(s) left out, their S/T has no "
+                     f"IK solution on the nominal {description.name}: line(s) "
+                     f"{', '.join(str(int(n)) for n in lines[:10])}{' ...' if len(lines) > 10 else ''}")
+    return q, found
+
+
+def _path_of(data) -> str:
+    return data.path or "<data>"
+
+
 def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows: np.ndarray, notes: list[str],
-               progress: bool) -> int:
+               progress: bool, rotation_errors: np.ndarray | None = None) -> int:
     """Fit, export and report a hybrid-family model; ``errors`` [N, 3] = E of ``data``'s rows
-    (after any registration)."""
+    (after any registration), ``rotation_errors`` [N, 3] deg their orientation errors (None:
+    no a_meas,b_meas,c_meas: the model then has no ``rotation_error`` output)."""
     from ..training import accuracy_card
     from ..training.features import previous_poses
     from ..training.hybrid import HybridModel
@@ -68,7 +102,9 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     poses = data.poses
     # rows in visiting order (the first came from HOME): the approach direction of each joint
     previous = None if args.pose_only else previous_poses(poses)
-    q_deg = data.joints
+    q_deg, stated = stated_joints_of(description, data, notes)
+    if not stated.all():  # (the visiting order stays the file's: previous poses computed above)
+        train_rows, val_rows = train_rows[stated[train_rows]], val_rows[stated[val_rows]]
     model = HybridModel(
         description,
         hidden=args.hidden or DEFAULT_HIDDEN[args.method],
@@ -78,7 +114,8 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         **SETTINGS[args.method],
     )
     rows = (lambda a, r: None if a is None else a[r])  # noqa: E731
-    model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows))
+    model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows),
+              rows(rotation_errors, train_rows))
 
     if len(model.dropped_):
         lines = data.lines[train_rows][model.dropped_]
@@ -93,6 +130,13 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     accuracy = accuracy_card(errors[val_rows], model.predict(poses[val_rows], rows(previous, val_rows),
                                                              rows(q_deg, val_rows)),
                              model.train_stats_["mean"], len(train_rows))
+    if model.orientation and len(val_rows):
+        from ..stats import table2
+
+        before = np.linalg.norm(rotation_errors[val_rows], axis=1)
+        after = np.linalg.norm(rotation_errors[val_rows] - model.predict_rotation(
+            poses[val_rows], rows(previous, val_rows), rows(q_deg, val_rows)), axis=1)
+        accuracy["val_rotation_deg"] = {"uncompensated": table2(before), "residual": table2(after)}
     found = model.describe()
     found["identifiability"] = ident
     metadata = {
@@ -120,5 +164,10 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
             print(f"ripple    joint:order {' '.join(f'A{j}:{n}' for j, n in found['ripple'])}")
         print(f"data      {args.data}: {len(train_rows)} training rows, {len(val_rows)} validation rows")
         print_figures(accuracy, model.train_stats_)
+        if "val_rotation_deg" in accuracy:
+            r = accuracy["val_rotation_deg"]
+            print(f"{'angle deg (validation)':<26} {'mean':>7} {'max':>7} {'std':>7}")
+            for label, key in (("uncompensated", "uncompensated"), ("residual", "residual")):
+                print(f"{label:<26} {r[key]['mean']:7.4f} {r[key]['max']:7.4f} {r[key]['std']:7.4f}")
         print(f"postproc train: wrote {args.output}", file=sys.stderr)
     return 0
