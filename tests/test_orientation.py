@@ -110,7 +110,7 @@ def test_orientation_in_radians_is_refused_with_its_line(simulated, capsys):
 
 
 def test_status_turn_columns_become_the_stated_joint_angles(tmp_path, capsys):
-    from postproc.cli.train_hybrid import stated_joints_of
+    from postproc.configuration import measurement_joints
     from postproc.robot import load_description
 
     assert _cli("plan", "-n", 40, "--seed", 2, "--wrist", "both", "-o", tmp_path / "plan.csv", "-q") == 0
@@ -126,8 +126,7 @@ def test_status_turn_columns_become_the_stated_joint_angles(tmp_path, capsys):
     (tmp_path / "st.csv").write_text("\n".join(rows) + "\n")
     data = read_measurements(tmp_path / "st.csv")
     assert data.joints is None and data.status_turn.shape == (40, 2)
-    notes = []
-    q, keep = stated_joints_of(load_description(), data, notes)
+    q, keep, notes = measurement_joints(load_description(), data)
     assert keep.sum() == 39 and not keep[4]
     wrapped = (q[keep] - full.joints[keep] + 180.0) % 360.0 - 180.0
     assert np.abs(wrapped).max() < 1e-3  # the joint angles the simulated controller used

@@ -55,39 +55,6 @@ def arm_metadata(description) -> dict:
     return {"robot": description.name, "reach": reach, "tool": tool}
 
 
-def stated_joints_of(description, data, notes: list[str]) -> tuple[np.ndarray | None, np.ndarray]:
-    """The rows' joint angles [N, 6] deg: the data's q1..q6, or from its s,t columns the nominal
-    IK on the stated branch (``configuration.stated_joints``); and a mask of the rows to keep.
-    Rows whose S/T has no IK (the pose out of reach on that branch) are left out with a warning
-    (P514) naming their lines; None without either."""
-    keep = np.ones(len(data), bool)
-    if data.joints is not None or data.status_turn is None:
-        return data.joints, keep
-    from ..configuration import stated_joints
-    from ..diagnostics import PostprocError
-    from ..robot import Robot
-
-    try:
-        robot = Robot(description)
-    except Exception as exc:  # an arm postproc.robot cannot solve in closed form
-        raise PostprocError(f"s,t columns: the nominal IK of {description.name} is not available ({exc}); give "
-                            "q1..q6 instead", _path_of(data), code="P514") from None
-    q, found = stated_joints(robot, data.poses, data.status_turn[:, 0], data.status_turn[:, 1])
-    if not found.any():
-        raise PostprocError(f"no row's S/T has an IK solution on the nominal {description.name}: is this the robot "
-                            "of the data (--robot)?", _path_of(data), int(data.lines[0]), 1, "P514")
-    if not found.all():
-        lines = data.lines[~found]
-        notes.append(f"{_path_of(data)}:{int(lines[0])}:1: P514 warning: {len(lines)} row(s) left out, their S/T has no "
-                     f"IK solution on the nominal {description.name}: line(s) "
-                     f"{', '.join(str(int(n)) for n in lines[:10])}{' ...' if len(lines) > 10 else ''}")
-    return q, found
-
-
-def _path_of(data) -> str:
-    return data.path or "<data>"
-
-
 def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows: np.ndarray, notes: list[str],
                progress: bool, rotation_errors: np.ndarray | None = None) -> int:
     """Fit, export and report a hybrid-family model; ``errors`` [N, 3] = E of ``data``'s rows
@@ -102,7 +69,10 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     poses = data.poses
     # rows in visiting order (the first came from HOME): the approach direction of each joint
     previous = None if args.pose_only else previous_poses(poses)
-    q_deg, stated = stated_joints_of(description, data, notes)
+    from ..configuration import measurement_joints
+
+    q_deg, stated, warnings = measurement_joints(description, data)
+    notes += warnings
     if not stated.all():  # (the visiting order stays the file's: previous poses computed above)
         train_rows, val_rows = train_rows[stated[train_rows]], val_rows[stated[val_rows]]
     model = HybridModel(
