@@ -88,8 +88,8 @@ def real_part(data_dir: str, work: Path) -> dict:
         _, seconds = cli("train", str(src), "-o", str(model_file), "--robot", str(ROOT / "models/ur10.toml"),
                          "--val-fraction", "0.2", "--split-seed", "0", "-q")
         model = load_model(model_file)
-        error, *turned = model.predict(data.poses[held], previous[held], joints=data.joints[held],
-                                       rotation=model.has_rotation)
+        out_ = model.predict(data.poses[held], previous[held], joints=data.joints[held], rotation=model.has_rotation)
+        error, *turned = out_ if model.has_rotation else (out_,)
         row = {"position_mm": figures(data.errors[held] - error), "train_s": seconds}
         print(line(f"{label}: |E − Ê|", row["position_mm"], f"mm  (train {seconds:.0f} s)"))
         if turned:

@@ -164,7 +164,8 @@ def run(args) -> int:
 
     progress = show_progress(args)
     if args.method in HYBRID_METHODS:
-        return run_hybrid(args, data, errors, train_rows, val_rows, notes, progress, rotation_errors)
+        fitted = rotation_errors if args.method in ("hybrid", "kinematic") else None
+        return run_hybrid(args, data, errors, train_rows, val_rows, notes, progress, fitted)
     hidden = args.hidden or (20, 10, 5)
     args.epochs = args.epochs or 500
     if args.search:

@@ -399,7 +399,9 @@ class KinematicModel:
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
         self.arm_ = Arm(self.description)
         self._choose_ik(poses, q_deg)
-        self.orientation_ = rotation_errors is not None
+        # (no physical groups, e.g. dnn-joints' networks alone: nothing that could carry an orientation)
+        self.orientation_ = rotation_errors is not None and any(g != "tool_rotation" for g in self.groups)
+        rotation_errors = rotation_errors if self.orientation_ else None
         groups = tuple(g for g in self.groups if (g != "backlash" or previous is not None)
                        and (g != "tool_rotation" or self.orientation_))
         n_par = Layout(groups, list(self.ripple) if isinstance(self.ripple, list) else []).n
