@@ -136,3 +136,21 @@ def test_status_turn_columns_become_the_stated_joint_angles(tmp_path, capsys):
     assert _cli("train", tmp_path / "st.csv", "-o", tmp_path / "st.onnx", "--method", "kinematic",
                 "--val-fraction", 0) == 0
     assert ":6:1: P514" in capsys.readouterr().err
+
+
+def test_measurement_columns_are_checked_where_they_are_wrong():
+    from postproc.diagnostics import PostprocError
+    from postproc.training.data import parse_measurements
+
+    head = "x,y,z,a,b,c,x_meas,y_meas,z_meas"
+    row = "2000,0,900,0,90,0,2000.1,0,900"
+    with pytest.raises(PostprocError) as partial:
+        parse_measurements(f"{head},a_meas,b_meas\n{row},0.1,90\n".encode(), "m.csv")
+    assert str(partial.value).startswith("m.csv:1:1: P501")
+    with pytest.raises(PostprocError) as status:
+        parse_measurements(f"{head},s,t\n{row},2,10\n{row.replace('2000,', '2010,', 1)},2.5,10\n".encode(), "m.csv")
+    assert str(status.value).startswith("m.csv:3:") and "P502" in str(status.value) and "'s'" in str(status.value)
+    m = parse_measurements(f"{head},a_meas,b_meas,c_meas,s,t\n{row},0.1,90,0,2,10\n".encode(), "m.csv")
+    assert m.status_turn.tolist() == [[2, 10]]
+    # the orientation error is the rotation vector commanded → measured (here 0.1° about the base Z)
+    np.testing.assert_allclose(m.rotation_errors, [[0.0, 0.0, 0.1]], atol=1e-9)
