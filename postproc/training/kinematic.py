@@ -203,7 +203,7 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
         cols["tool_rotation"] = (zero3, tcp_rot)
     sens_rot = omega.transpose(1, 2)  # [N, 3, 6]
     for name, joint_cols in _joint_columns(layout, q, signs, tau, ripple_joint, ripple_order).items():
-        cols[name] = (joint_cols(sens), joint_cols(sens_rot))
+        cols[name] = (joint_cols(sens), joint_cols(sens_rot) if rotation else None)  # (position only: not built)
     names = [name for name in layout.sizes if layout.sizes[name]]
     jac = torch.cat([cols[name][0] for name in names], dim=2)
     if not rotation:
