@@ -154,3 +154,18 @@ def test_measurement_columns_are_checked_where_they_are_wrong():
     assert m.status_turn.tolist() == [[2, 10]]
     # the orientation error is the rotation vector commanded → measured (here 0.1° about the base Z)
     np.testing.assert_allclose(m.rotation_errors, [[0.0, 0.0, 0.1]], atol=1e-9)
+
+
+def test_ipa_import_with_registration_writes_the_tcp_orientation(tmp_path):
+    from postproc.resources import sample_path
+
+    src = sample_path("ipa/series_c_excerpt.csv")
+    assert _cli("import", "ipa", src, "-o", tmp_path / "base.csv", "--register", "-q") == 0
+    data = read_measurements(tmp_path / "base.csv")
+    assert "probe_rotation" in data.meta and data.orientation is not None
+    angle = np.linalg.norm(data.rotation_errors, axis=1)
+    # the probe's own axes are turned ~180° on the flange: taken out, the UR10's orientation error is left
+    assert 0.01 < angle.mean() < 0.2 and angle.max() < 0.5
+    # without --register the tracker's frame is kept and no orientation is written
+    assert _cli("import", "ipa", src, "-o", tmp_path / "tracker.csv", "-q") == 0
+    assert read_measurements(tmp_path / "tracker.csv").orientation is None
