@@ -12,7 +12,11 @@ Everything goes through the CLI (one process per command, 1 thread), as a user r
   orientation") and on it without the a_meas..c_meas columns ("position only"). On the held-out
   rows, the ONNX model run by `Compensator.predict` (pose, previous row's pose, the row's
   q1..q6): |E| and |E − Ê| (mm), the angle of the orientation error before |r| and after
-  |r − r̂| (deg): mean, p95, max.
+  |r − r̂| (deg): mean, p95, max. Then the orientation model on Series B, D, A (transfer; each
+  imported with `--register --val-fraction 0`: its own tracker registration and probe
+  rotation, nothing else fitted on it): |r| before, and after its probe rotation is fitted
+  again to the predicted orientations exp(r̂)·R_goal instead of R_goal (as the positions'
+  rigid fit in cross_series.py), the angle of what is left.
 * sim: robot seed S (default 101, an evaluation robot), `plan -n 1900 --seed 0`, `measure`
   (a 6-DOF probe: a_meas..c_meas), `train --val-fraction 0` with and without the orientation
   columns; 100 held-out targets (`plan -n 100 --seed 1000`) compensated with `--orientation`
@@ -46,6 +50,8 @@ from postproc.training.features import previous_poses  # noqa: E402
 
 DEFAULT_DATA = "/work/shared/datasets/ipa-robot-accuracy"
 SERIES_C = "Series_C/measurements_random_poses.csv"
+OTHERS = {"B": "Series_B/measurements_joint_configurations.csv", "D": "Series_D/measurements_iso_cubes.csv",
+          "A": "Series_A/measurements_grid.csv"}
 ORIENTATION = {"a_meas", "b_meas", "c_meas"}
 
 
@@ -96,6 +102,31 @@ def real_part(data_dir: str, work: Path) -> dict:
             row["orientation_deg"] = figures(rotation[held] - turned[0])
             print(line(f"{label}: |r − r̂|", row["orientation_deg"], "deg"))
         out[label] = row
+        if turned:
+            out["transfer"] = transfer(model, data_dir, work)
+    return out
+
+
+def transfer(model, data_dir: str, work: Path) -> dict:
+    """The orientation model on the other series, each with its own registration and probe rotation."""
+    from scipy.spatial.transform import Rotation
+
+    from postproc.frames import rotation_from_abc, rotation_vector
+
+    out = {}
+    for name, path in OTHERS.items():
+        csv = work / f"{name}.csv"
+        cli("import", "ipa", str(Path(data_dir) / path), "-o", str(csv), "--register", "--val-fraction", "0", "-q")
+        m = read_measurements(csv)
+        _, turned = model.predict(m.poses, previous_poses(m.poses), joints=m.joints, rotation=True)
+        goal, measured = rotation_from_abc(m.poses[:, 3:]), rotation_from_abc(m.orientation)
+        predicted = Rotation.from_rotvec(np.radians(turned)).as_matrix() @ goal
+        u, _, vt = np.linalg.svd((np.swapaxes(predicted, 1, 2) @ measured).mean(axis=0))
+        probe = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt  # measured ≈ predicted · probe
+        left = np.degrees(rotation_vector(measured @ probe.T @ np.swapaxes(predicted, 1, 2)))
+        out[name] = {"rows": len(m), "before_deg": figures(m.rotation_errors), "after_deg": figures(left)}
+        print(line(f"Series {name} ({len(m)} rows): |r| own probe fit", out[name]["before_deg"], "deg"))
+        print(line(f"Series {name}: |r − r̂| probe refitted to r̂", out[name]["after_deg"], "deg"))
     return out
 
 
