@@ -35,7 +35,11 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   input have this output named ``joints``: still read. ONNX cannot name an input and an
   output alike.)
 * optional output ``rotation_error``: float32 [N, 3] deg, the orientation error as a rotation
-  vector of nominal → actual in the base frame (``compensate --orientation``);
+  vector r of nominal → actual in the base frame (R_actual = exp(r)·R_pose; ``compensate
+  --orientation``). ``train``'s hybrid/kinematic graphs have it only when the orientation was
+  identified from measured orientations (``a_meas,b_meas,c_meas``; the card's
+  ``identified.orientation.fitted``): a model without it cannot be used with ``--orientation``
+  (P306), a model never outputs an orientation error that no data stood behind;
 * ``metadata_props`` (values JSON-encoded where structured): ``postproc_contract`` "1",
   ``name``, ``robot``, ``tool`` {"name", "frame", optional "measured": [[X,Y,Z,A,B,C], ...]
   the TCPs of the data, "unseparated": [[x,y,z], ...] unit directions (flange frame) of the

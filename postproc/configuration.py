@@ -39,7 +39,7 @@ import numpy as np
 from . import frames
 from .robot import Robot
 
-__all__ = ["UNSTATED", "branch_table", "stated_joints", "controller_joints", "status_turn_of"]
+__all__ = ["UNSTATED", "branch_table", "stated_joints", "controller_joints", "status_turn_of", "measurement_joints"]
 
 UNSTATED = -1  # S or T not written for a target
 # A joint this close to 0° fits either sign of T (the turn of the written angle is kept): a
@@ -381,3 +381,32 @@ def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, to
         own = np.isfinite(given[rows]).all(axis=1)
         q[own], ok[own] = given[rows][own], True
     return q, ok
+
+
+def measurement_joints(description, data) -> tuple[np.ndarray | None, np.ndarray, list[str]]:
+    """The joint angles [N, 6] deg of a measurement file's rows (``training.data.Measurements``):
+    its q1..q6, or from its s,t columns the nominal IK on the stated branch (``stated_joints``);
+    None without either. Also a mask of the rows to keep and warnings: rows whose S/T has no
+    solution on the nominal arm (out of reach on that branch) are left out, named by their
+    lines (P514); none solvable, or an arm without the closed-form IK, is refused (P514)."""
+    from .diagnostics import PostprocError
+
+    keep = np.ones(len(data), bool)
+    if data.joints is not None or data.status_turn is None:
+        return data.joints, keep, []
+    path = data.path or "<data>"
+    try:
+        robot = Robot(description)
+    except Exception as exc:  # an arm postproc.robot cannot solve in closed form
+        raise PostprocError(f"s,t columns: no nominal IK of {description.name} ({exc}); give q1..q6 instead",
+                            path, code="P514") from None
+    q, found = stated_joints(robot, data.poses, data.status_turn[:, 0], data.status_turn[:, 1])
+    if not found.any():
+        raise PostprocError(f"no row's S/T has an IK solution on the nominal {description.name}: is this the robot "
+                            "of the data (--robot)?", path, int(data.lines[0]), 1, "P514")
+    if found.all():
+        return q, found, []
+    lines = data.lines[~found]
+    return q, found, [f"{path}:{int(lines[0])}:1: P514 warning: {len(lines)} row(s) left out, their S/T has no IK "
+                      f"solution on the nominal {description.name}: line(s) "
+                      f"{', '.join(str(int(n)) for n in lines[:10])}{' ...' if len(lines) > 10 else ''}"]

@@ -16,6 +16,13 @@ precede the header; ``# frame: tracker`` says the measured columns are still in 
 tracker's frame (``train --register`` maps them into the base frame), ``# frame: base`` (or
 no frame line) says they are in the robot base frame already.
 
+The measured orientation is that of the probe's own axes, which sit on the flange at an
+unknown fixed rotation: ``probe_orientation`` takes it out (the chordal mean of
+R_goalᵀ·R_measured over the registration's rows, after the tracker → base rotation), so that
+``import --register`` can write the TCP's measured A,B,C as ``a_meas,b_meas,c_meas`` in the
+base frame. (That mean also takes the robot's mean orientation error in the TCP frame: a tool
+rotation, which a calibration re-identifies anyway.)
+
 Codes (as in training/data.py): P500 unreadable or empty, P501 not the expected columns,
 P502 a value that is not a finite number, P503 wrong number of fields.
 """
@@ -39,6 +46,7 @@ __all__ = [
     "rpy_to_abc",
     "write_measurements",
     "read_metadata",
+    "probe_orientation",
 ]
 
 MEASUREMENT_COLUMNS = ("x", "y", "z", "a", "b", "c", "x_meas", "y_meas", "z_meas")
@@ -221,6 +229,26 @@ def write_measurements(
     text.write(comments)
     np.savetxt(text, table, fmt="%.12g", delimiter=",", header=",".join(names), comments="")
     write_atomic([(Path(path), text.getvalue().encode("utf-8"))])
+
+
+def probe_orientation(commanded_abc: np.ndarray, measured_rotation: np.ndarray,
+                      mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The TCP's measured orientation from a probe's, both in the base frame.
+
+    ``commanded_abc`` [N, 3] deg, ``measured_rotation`` [N, 3, 3] (the probe's axes, base
+    frame), ``mask`` [N] the rows to estimate the probe's fixed rotation on the flange from
+    (the registration's). Returns (A,B,C [N, 3] deg of R_measured·R_probeᵀ, R_probe [3, 3],
+    rms deg of the masked rows' orientation error after it)."""
+    from .frames import abc_from_rotation, rotation_from_abc, rotation_vector
+
+    goal = rotation_from_abc(commanded_abc)
+    relative = np.swapaxes(goal, 1, 2) @ measured_rotation  # R_goalᵀ·R_measured: the probe on the TCP + error
+    u, _, vt = np.linalg.svd(relative[np.asarray(mask, bool)].mean(axis=0))
+    probe = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt  # the nearest rotation to the mean
+    tcp = measured_rotation @ probe.T
+    angle = np.linalg.norm(rotation_vector(tcp @ np.swapaxes(goal, 1, 2)), axis=1)
+    rms = float(np.degrees(np.sqrt(np.mean(angle[np.asarray(mask, bool)] ** 2))))
+    return abc_from_rotation(tcp), probe, rms
 
 
 def read_metadata(path: str | os.PathLike) -> dict[str, str]:

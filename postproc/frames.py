@@ -16,6 +16,8 @@ __all__ = [
     "inverse",
     "transform_points",
     "rotate_vectors",
+    "rotation_vector",
+    "rotation_error_deg",
 ]
 
 
@@ -96,3 +98,21 @@ def rotate_vectors(t: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     """Apply only the rotation of [..., 4, 4] transforms to [..., 3] vectors (e.g. corrections)."""
     t = np.asarray(t, dtype=float)
     return (t[..., :3, :3] @ np.asarray(vectors, dtype=float)[..., None])[..., 0]
+
+
+def rotation_vector(r: np.ndarray) -> np.ndarray:
+    """[..., 3, 3] rotations → [..., 3] rotation vectors (rad; the log map, angles < 180°)."""
+    r = np.asarray(r, dtype=float)
+    v = 0.5 * np.stack([r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], axis=-1)
+    s = np.linalg.norm(v, axis=-1)
+    angle = np.arctan2(s, 0.5 * (np.trace(r, axis1=-2, axis2=-1) - 1.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 1.0)
+    return v * scale[..., None]
+
+
+def rotation_error_deg(nominal_abc: np.ndarray, actual_abc: np.ndarray) -> np.ndarray:
+    """[..., 3] the orientation error as the model contract has it: the rotation vector (deg, base
+    frame) of nominal → actual, r with R_actual = exp(r)·R_nominal, from A,B,C [..., 3] each."""
+    relative = rotation_from_abc(actual_abc) @ np.swapaxes(rotation_from_abc(nominal_abc), -1, -2)
+    return np.degrees(rotation_vector(relative))

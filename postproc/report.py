@@ -8,6 +8,11 @@ a second measurement CSV of the compensated program (``postproc measure`` of the
 ``postproc compensate``, or the real cell's tracker), or ``x_after,y_after,z_after`` columns
 in the first — it is the measured residual P − P_after.
 
+Where the data has the measured orientation (``a_meas,b_meas,c_meas``) the report gives the
+orientation error too (deg, the angle of commanded → measured): before, and after as the
+model's first-order residual |r − r̂| (a model with ``rotation_error``) or as measured in the
+``--after`` file (its a_meas..c_meas against the targets' A,B,C).
+
 :func:`write_report` writes, into one folder: ``report.md`` (Table 2, the model card, the
 figures), ``summary.json`` (the same numbers), ``series.csv`` and ``histogram.csv`` (every
 number each plot shows, so that a reader or a test can check the plots) and three PNGs.
@@ -66,6 +71,8 @@ class ReportData:
     source_sha256: str = ""
     model_card: dict = field(default_factory=dict)  # the model's metadata + file, sha256
     outside_envelope: int = 0
+    rotation_before: np.ndarray | None = None  # [N, 3] deg, commanded → measured (a_meas..c_meas)
+    rotation_after: np.ndarray | None = None  # [N, 3] deg, r − r̂ (first order) or target → measured after
 
     @property
     def trained_on(self) -> bool:
@@ -141,15 +148,17 @@ def _read(path: Path, repeats: bool = False):
 
 
 # Rows of a re-measurement of the compensated program belong to the target rows if only X/Y/Z
-# moved, and by no more than a correction can be (compensate's bound is 5 mm by default).
+# moved, by no more than a correction can be (compensate's bound is 5 mm by default), and A/B/C
+# by no more than ``compensate --orientation`` turns them (a robot's orientation error: < 1°).
 AFTER_POSITION_MM = 10.0
-AFTER_ATTITUDE_DEG = 0.01
+AFTER_ATTITUDE_DEG = 1.0
 
 
 def _reached_after(path: Path, targets: np.ndarray, m=None) -> np.ndarray:
     """Positions reached in a measurement of the compensated program (``--after``), row by row;
-    ``m``: that file's measurements if the caller has read them already."""
-    from .training.data import wrap_deg
+    ``m``: that file's measurements if the caller has read them already. (Its measured
+    orientation, if any: ``_after_rotation``.)"""
+    from .frames import rotation_error_deg
 
     if m is None:
         _, m = _read(path, repeats=True)  # row by row against the targets: a pose may repeat (ISO 9283 cycles)
@@ -157,12 +166,12 @@ def _reached_after(path: Path, targets: np.ndarray, m=None) -> np.ndarray:
         raise PostprocError(f"{len(m)} rows, the measurement before compensation has {len(targets)}: measure the "
                             "compensated program in the same order", str(path), code="P503")
     moved = np.linalg.norm(m.poses[:, :3] - targets[:, :3], axis=1)
-    turned = np.abs(wrap_deg(m.poses[:, 3:] - targets[:, 3:])).max(axis=1)
+    turned = np.linalg.norm(rotation_error_deg(targets[:, 3:], m.poses[:, 3:]), axis=1)  # (near B = ±90° A and C alone swing)
     bad = np.flatnonzero((moved > AFTER_POSITION_MM) | (turned > AFTER_ATTITUDE_DEG))
     if len(bad):
         raise PostprocError(f"row does not belong to row {bad[0] + 1} before compensation (commanded pose "
-                            f"{moved[bad[0]]:.3f} mm / {turned[bad[0]]:.3f}° away; only X/Y/Z change, by a "
-                            "correction): not the same program in the same order", str(path),
+                            f"{moved[bad[0]]:.3f} mm / {turned[bad[0]]:.3f}° away; only a correction changes "
+                            "them): not the same program in the same order", str(path),
                             int(m.lines[bad[0]]), 1, "P503")
     return m.measured
 
@@ -181,9 +190,11 @@ def read_report_data(path: str | Path, model: Compensator | None = None, after: 
     if after is not None and columns is not None:
         raise PostprocError("give the positions after compensation once: x_after.. columns or --after, not both",
                             str(path), code="P501")
-    reached = _reached_after(Path(after), m.poses) if after is not None else columns
+    after_m = _read(Path(after), repeats=True)[1] if after is not None else None
+    reached = _reached_after(Path(after), m.poses, after_m) if after is not None else columns
+    rotation_before, rotation_after = _rotations(m, model, after_m, previous_of(m, model))
     # rows in visiting order: a model that takes previous_pose sees each row's predecessor
-    previous = np.vstack([m.poses[:1], m.poses[:-1]]) if model is not None and model.wants_previous else None
+    previous = previous_of(m, model)
     predicted = model.predict(m.poses, previous) if model is not None else None
     if predicted is not None and not np.isfinite(predicted).all():
         raise PostprocError("the model returns NaN or inf on these poses", str(model.path), code="P305")
@@ -205,7 +216,30 @@ def read_report_data(path: str | Path, model: Compensator | None = None, after: 
         source_sha256=hashlib.sha256(data).hexdigest(),
         model_card=model_card(model) if model is not None else {},
         outside_envelope=int(envelope.outside(m.poses).sum()) if envelope is not None else 0,
+        rotation_before=rotation_before,
+        rotation_after=rotation_after,
     )
+
+
+def previous_of(m, model: Compensator | None) -> np.ndarray | None:
+    """The pose before each row (rows in visiting order) for a model that takes ``previous_pose``."""
+    return np.vstack([m.poses[:1], m.poses[:-1]]) if model is not None and model.wants_previous else None
+
+
+def _rotations(m, model: Compensator | None, after_m, previous) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Orientation errors [N, 3] deg before and after, where the data has them: before from the
+    rows' a_meas..c_meas; after measured (``after_m``'s a_meas..c_meas against the targets' A,B,C)
+    or the first-order residual r − r̂ of a model with ``rotation_error``; None where not known."""
+    from .frames import rotation_error_deg
+
+    before = m.rotation_errors
+    if after_m is not None:
+        if after_m.orientation is None:
+            return before, None
+        return before, rotation_error_deg(m.poses[:, 3:6], after_m.orientation)
+    if before is None or model is None or not model.has_rotation:
+        return before, None
+    return before, before - model.predict(m.poses, previous, rotation=True)[-1]
 
 
 def histogram(data: ReportData, bins: int = BINS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -368,6 +402,9 @@ def summary(data: ReportData) -> dict:
         "table2_mm": {"before": before, "after": after},
         "mean_reduction": 1.0 - after["mean"] / before["mean"] if before["mean"] else math.nan,
         "outside_envelope": data.outside_envelope,
+        "orientation_deg": None if data.rotation_before is None else {
+            "before": table2(np.linalg.norm(data.rotation_before, axis=1)),
+            "after": None if data.rotation_after is None else table2(np.linalg.norm(data.rotation_after, axis=1))},
         "trained_on_these_rows": data.trained_on,
         "vector_scale": _vector_scale(data),
         "vector_rows": vector_rows(len(data)).tolist(),
@@ -393,6 +430,15 @@ def write_markdown(data: ReportData, numbers: dict, figures: dict[str, Path], pa
         "",
         f"Mean error reduced by {100 * numbers['mean_reduction']:.1f} %. Std with ddof 1.",
     ]
+    angles = numbers.get("orientation_deg")
+    if angles is not None:
+        lines += ["", "| orientation error (deg, angle) | max | min | mean | std |", "|---|---:|---:|---:|---:|"]
+        for label, row in (("before", angles["before"]), (after_label, angles["after"])):
+            if row is None:
+                lines.append(f"| {label} | not known: the model has no rotation_error output / the after data no "
+                             "a_meas,b_meas,c_meas | | | |")
+            else:
+                lines.append(f"| {label} | {row['max']:.4f} | {row['min']:.4f} | {row['mean']:.4f} | {row['std']:.4f} |")
     if data.after_kind == "first-order":
         lines.append("\"After\" is E − Ê at the measured poses: what compensation leaves to first order, "
                      "not a measurement of the compensated robot.")

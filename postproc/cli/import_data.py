@@ -14,7 +14,10 @@ angles in degrees, °C), rows in the file's order, after `# key: value` lines. T
 `# frame: tracker`, says that x_meas..z_meas are still in the tracker's frame: train with
 `postproc train --register`, which fits the tracker → base transform on the training split
 only. `--register` here fits it on the rows outside `--val-fraction` (drawn with
-`--split-seed`), writes `# frame: base` and a `holdout` column (1 = not used for the fit).
+`--split-seed`), writes `# frame: base` and a `holdout` column (1 = not used for the fit);
+with the data's measured orientation it also writes `a_meas,b_meas,c_meas`: the TCP's
+orientation in the base frame, the probe's fixed rotation on the flange estimated on the same
+rows (`# probe_rotation`), so that `train` fits the orientation error too.
 
 Examples:
   postproc import ipa Series_C/measurements_random_poses.csv -o measured.csv
@@ -88,6 +91,14 @@ def run(args) -> int:
             f"val fraction {args.val_fraction}), rms {rms:.3f} mm",
             "tracker_to_base": " ".join(f"{v:.9g}" for v in transform[:3].ravel()),
         }
+        if series.measured_rotation is not None:
+            from ..datasets import probe_orientation
+
+            abc, probe, rms_deg = probe_orientation(series.commanded[:, 3:], transform[:3, :3] @ series.measured_rotation,
+                                                    ~held)
+            extra = {**dict(zip(("a_meas", "b_meas", "c_meas"), abc.T)), **extra}
+            metadata["probe_rotation"] = (" ".join(f"{v:.9g}" for v in probe.ravel())
+                                          + f" (probe axes on the TCP, fitted on the same rows; rms {rms_deg:.4f} deg after)")
         extra["holdout"] = held.astype(float)
         summary = f"; registration fitted on {int((~held).sum())} rows, rms {rms:.3f} mm"
     metadata["source"] = f"{os.path.basename(args.src)} (IPA robot-accuracy format, {len(series)} rows)"

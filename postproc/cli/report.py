@@ -69,6 +69,12 @@ def run(args) -> int:
         print(f"postproc report: {len(data)} poses, mean |E| {before['mean']:.3f} mm → {after['mean']:.3f} mm "
               f"({data.after_kind}); max {before['max']:.3f} → {after['max']:.3f} mm; wrote {files['markdown']}",
               file=sys.stderr)
+        angles = numbers["orientation_deg"]
+        if angles is not None:
+            b, a = angles["before"], angles["after"]
+            after_text = (f"{a['mean']:.4f}° (max {b['max']:.4f} → {a['max']:.4f}°)" if a is not None else
+                          "not known (the model has no rotation_error output / the after data no a_meas,b_meas,c_meas)")
+            print(f"postproc report: orientation error mean {b['mean']:.4f}° → {after_text}", file=sys.stderr)
         if data.trained_on:
             from ..report import TRAINED_ON
 

@@ -11,7 +11,10 @@ OPTIMIZERS = ("lm", "lbfgs", "adam", "momentum", "gd")
 EXAMPLES = """\
 Data: a CSV with the header x,y,z,a,b,c,x_meas,y_meas,z_meas (mm, deg, robot base frame):
 the commanded TCP pose and the measured TCP position, one row per visited pose. The model
-learns E = P_target − P_measured. `--val-fraction` of the rows (drawn with --split-seed)
+learns E = P_target − P_measured. Optional columns: a_meas,b_meas,c_meas (a 6-DOF probe's
+TCP orientation: hybrid/kinematic then fit the orientation error too and the model outputs
+rotation_error, for compensate --orientation), q1..q6 (the controller's joint angles) or,
+without them, s,t (KUKA Status/Turn: the joint angles of that configuration). `--val-fraction` of the rows (drawn with --split-seed)
 are held out and only scored on.
 
 Methods: hybrid (the default: the robot's kinematics, compliance, backlash and gear ripple
@@ -116,7 +119,8 @@ def run(args) -> int:
 
     from ..diagnostics import PostprocError
     from ..outputs import check_outputs
-    from ..training.data import check_errors, check_size, envelope_of, measured_tools, read_measurements, split_indices
+    from ..training.data import (check_errors, check_rotation_errors, check_size, envelope_of, measured_tools,
+                                 read_measurements, split_indices)
     from . import show_progress
     from .train_hybrid import HYBRID_METHODS, run_hybrid
 
@@ -137,8 +141,12 @@ def run(args) -> int:
 
         mask = np.zeros(len(data), dtype=bool)
         mask[train_rows] = True
-        measured, _, rms = register_measurements(poses[:, :3], measured, mask)
+        measured, transform, rms = register_measurements(poses[:, :3], measured, mask)
         notes.append(f"registered tracker → base on {len(train_rows)} training rows (rms {rms:.3f} mm)")
+        if data.orientation is not None:  # the probe's orientation turns with the tracker frame
+            from ..frames import abc_from_rotation, rotation_from_abc
+
+            data.orientation = abc_from_rotation(transform[:3, :3] @ rotation_from_abc(data.orientation))
     elif frame != "base":
         raise PostprocError(
             f"measured columns are in the {frame}'s frame ('# frame: {frame}'): train with --register",
@@ -153,10 +161,21 @@ def run(args) -> int:
         )
     errors = poses[:, :3] - measured
     notes += check_errors(poses[:, :3], measured, data.lines, args.data)
+    rotation_errors = data.rotation_errors
+    if rotation_errors is not None:
+        check_rotation_errors(rotation_errors, data.lines, args.data)
+        if args.method not in ("hybrid", "kinematic"):
+            notes.append(f"warning: --method {args.method} fits the position only: a_meas,b_meas,c_meas not used "
+                         "(the model has no rotation_error output; compensate --orientation refuses it)")
 
     progress = show_progress(args)
     if args.method in HYBRID_METHODS:
-        return run_hybrid(args, data, errors, train_rows, val_rows, notes, progress, tools)
+        fitted = rotation_errors if args.method in ("hybrid", "kinematic") else None
+        if fitted is not None and tools is not None and len(np.unique(tools, axis=0)) > 1:
+            notes.append("warning: the orientation is fitted from data of one tool: with several tools "
+                         "(tool_x..tool_c) a_meas,b_meas,c_meas are not used (no rotation_error output)")
+            fitted = None
+        return run_hybrid(args, data, errors, train_rows, val_rows, notes, progress, tools, fitted)
     if tools is not None:  # a pose → error map learns one TCP's error
         if len(np.unique(tools, axis=0)) > 1:
             raise PostprocError(f"--method {args.method} learns the error of one tool, the data have "

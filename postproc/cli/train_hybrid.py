@@ -56,10 +56,11 @@ def arm_metadata(description) -> dict:
 
 
 def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows: np.ndarray, notes: list[str],
-               progress: bool, tools: np.ndarray | None = None) -> int:
+               progress: bool, tools: np.ndarray | None = None, rotation_errors: np.ndarray | None = None) -> int:
     """Fit, export and report a hybrid-family model; ``errors`` [N, 3] = E of ``data``'s rows
     (after any registration); ``tools`` [N, 6] the TCP each row was measured with (None: the
-    description's)."""
+    description's); ``rotation_errors`` [N, 3] deg their orientation errors (None: no
+    a_meas,b_meas,c_meas: the model then has no ``rotation_error`` output)."""
     from ..training import accuracy_card
     from ..training.features import previous_poses
     from ..training.hybrid import HybridModel
@@ -75,7 +76,12 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     poses = data.poses
     # rows in visiting order (the first came from HOME): the approach direction of each joint
     previous = None if args.pose_only else previous_poses(poses)
-    q_deg = data.joints
+    from ..configuration import measurement_joints
+
+    q_deg, stated, warnings = measurement_joints(description, data)
+    notes += warnings
+    if not stated.all():  # (the visiting order stays the file's: previous poses computed above)
+        train_rows, val_rows = train_rows[stated[train_rows]], val_rows[stated[val_rows]]
     model = HybridModel(
         description,
         hidden=args.hidden or DEFAULT_HIDDEN[args.method],
@@ -86,7 +92,7 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     )
     rows = (lambda a, r: None if a is None else a[r])  # noqa: E731
     model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows),
-              rows(tools, train_rows))
+              rows(tools, train_rows), rows(rotation_errors, train_rows))
 
     if len(model.dropped_):
         lines = data.lines[train_rows][model.dropped_]
@@ -101,6 +107,13 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     accuracy = accuracy_card(errors[val_rows], model.predict(poses[val_rows], rows(previous, val_rows),
                                                              rows(q_deg, val_rows), rows(tools, val_rows)),
                              model.train_stats_["mean"], len(train_rows))
+    if model.orientation and len(val_rows):
+        from ..stats import table2
+
+        before = np.linalg.norm(rotation_errors[val_rows], axis=1)
+        after = np.linalg.norm(rotation_errors[val_rows] - model.predict_rotation(
+            poses[val_rows], rows(previous, val_rows), rows(q_deg, val_rows)), axis=1)
+        accuracy["val_rotation_deg"] = {"uncompensated": table2(before), "residual": table2(after)}
     found = model.describe()
     found["identifiability"] = ident
     metadata = {
@@ -135,5 +148,10 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
             print(f"ripple    joint:order {' '.join(f'A{j}:{n}' for j, n in found['ripple'])}")
         print(f"data      {args.data}: {len(train_rows)} training rows, {len(val_rows)} validation rows")
         print_figures(accuracy, model.train_stats_)
+        if "val_rotation_deg" in accuracy:
+            r = accuracy["val_rotation_deg"]
+            print(f"{'angle deg (validation)':<26} {'mean':>7} {'max':>7} {'std':>7}")
+            for label, key in (("uncompensated", "uncompensated"), ("residual", "residual")):
+                print(f"{label:<26} {r[key]['mean']:7.4f} {r[key]['max']:7.4f} {r[key]['std']:7.4f}")
         print(f"postproc train: wrote {args.output}", file=sys.stderr)
     return 0

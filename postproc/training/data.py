@@ -14,7 +14,12 @@ lets the identification separate the tool mount's rotation): ``measured_tools``.
 Codes: P500 unreadable/empty, P501 missing or misnamed column, P502 a value that is not a
 finite number, P503 wrong number of fields, P504 duplicate pose, P505 too few points for the
 network, P506 a split that leaves a side empty, P509 errors no robot makes (another frame or
-unit: ``check_errors``).
+unit: ``check_errors``), P515 orientation errors no robot makes (``check_rotation_errors``).
+
+Optional columns: ``a_meas,b_meas,c_meas`` (deg, KUKA A,B,C: a 6-DOF probe's measured TCP
+orientation, same frame as x_meas..z_meas; all three or none, P501), ``q1..q6`` (deg, the
+controller's joint angles), ``s,t`` (KUKA Status/Turn integers, used when q1..q6 are absent:
+``postproc.configuration`` turns them into joint angles).
 
 numpy only: no torch here, so bad data is reported before torch is even loaded.
 """
@@ -37,6 +42,7 @@ __all__ = [
     "measured_tools",
     "TOOL_COLUMNS",
     "check_errors",
+    "check_rotation_errors",
     "parse_measurements",
     "parse_rows",
     "split_indices",
@@ -51,6 +57,8 @@ POSE_COLUMNS = ("x", "y", "z", "a", "b", "c")
 MEAS_COLUMNS = ("x_meas", "y_meas", "z_meas")
 COLUMNS = POSE_COLUMNS + MEAS_COLUMNS
 TOOL_COLUMNS = ("tool_x", "tool_y", "tool_z", "tool_a", "tool_b", "tool_c")
+ORIENTATION_COLUMNS = ("a_meas", "b_meas", "c_meas")
+STATUS_TURN_COLUMNS = ("s", "t")
 
 
 @dataclass
@@ -66,11 +74,23 @@ class Measurements:
     holdout: np.ndarray | None = None  # [N] bool from a 'holdout' column, if any
     joints: np.ndarray | None = None  # [N, 6] deg from 'q1'..'q6' (the controller's angles), if all there
     tools: np.ndarray | None = None  # [N, 6] from 'tool_x'..'tool_c' (each row's TCP on the flange), if there
+    orientation: np.ndarray | None = None  # [N, 3] measured A,B,C (deg) from 'a_meas'..'c_meas', if there
+    status_turn: np.ndarray | None = None  # [N, 2] int S, T from 's','t' (only without q1..q6)
 
     @property
     def errors(self) -> np.ndarray:
         """E = P_target − P_measured, [N, 3] mm."""
         return self.poses[:, :3] - self.measured
+
+    @property
+    def rotation_errors(self) -> np.ndarray | None:
+        """The orientation error [N, 3] deg (rotation vector commanded → measured, the measured
+        columns' frame), None without a_meas,b_meas,c_meas."""
+        if self.orientation is None:
+            return None
+        from ..frames import rotation_error_deg
+
+        return rotation_error_deg(self.poses[:, 3:6], self.orientation)
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -121,6 +141,8 @@ def parse_measurements(data: bytes, path: str = "<data>", repeats: bool = False)
             raise PostprocError(f"missing column(s) {', '.join(missing)}: a row's tool is {','.join(TOOL_COLUMNS)}",
                                 path, first + 1, 1, "P501")
         tools = parse_rows(lines, first, header, [header.index(n) for n in TOOL_COLUMNS], path)[0]
+    orientation = _orientation_columns(lines, first, header, path)
+    status_turn = _status_turn_columns(lines, first, header, path) if joints is None else None
     # the same pose in another arm configuration (joint angles a degree or more apart) or
     # with another tool is another measurement, not a repeat
     key = table[:, :6] if joints is None else np.c_[table[:, :6], np.round(joints)]
@@ -129,7 +151,7 @@ def parse_measurements(data: bytes, path: str = "<data>", repeats: bool = False)
         _check_duplicates(key, line_numbers, path)
     holdout = table[:, 9] != 0 if table.shape[1] > 9 else None
     return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout, joints,
-                        tools)
+                        tools, orientation, status_turn)
 
 
 def measured_tools(data: Measurements, tool: np.ndarray | None = None) -> np.ndarray | None:
@@ -155,6 +177,36 @@ def measured_tools(data: Measurements, tool: np.ndarray | None = None) -> np.nda
             raise PostprocError(f"{other} says the tool is {rows2[i].tolist()}, {name} {rows[i].tolist()}: which "
                                 "TCP were the data measured with?", data.path, int(data.lines[i]), 1, "P320")
     return sources[0][1] if sources else None
+
+
+def _orientation_columns(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:
+    """The measured orientation [N, 3] (deg) from ``a_meas,b_meas,c_meas``: all three or none
+    (P501); each a finite number (P502): it is fitted, not an extra."""
+    present = [name in header for name in ORIENTATION_COLUMNS]
+    if not any(present):
+        return None
+    if not all(present):
+        raise PostprocError(f"give all of {','.join(ORIENTATION_COLUMNS)} or none", path, first + 1, 1, "P501")
+    return parse_rows(lines, first, header, [header.index(n) for n in ORIENTATION_COLUMNS], path)[0]
+
+
+def _status_turn_columns(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:
+    """KUKA Status and Turn [N, 2] (ints) from ``s,t``: both or none (P501); each a whole
+    number 0..63 (P502)."""
+    present = [name in header for name in STATUS_TURN_COLUMNS]
+    if not any(present):
+        return None
+    if not all(present):
+        raise PostprocError("give both s and t (KUKA Status and Turn) or neither", path, first + 1, 1, "P501")
+    index = [header.index(n) for n in STATUS_TURN_COLUMNS]
+    values, numbers = parse_rows(lines, first, header, index, path)
+    bad = np.flatnonzero(((values != np.round(values)) | (values < 0) | (values > 63)).any(axis=1))
+    if len(bad):
+        k = int(np.argmax((values[bad[0]] != np.round(values[bad[0]])) | (values[bad[0]] < 0) | (values[bad[0]] > 63)))
+        raw = lines[int(numbers[bad[0]]) - 1]
+        raise PostprocError(f"column '{STATUS_TURN_COLUMNS[k]}': {values[bad[0], k]:g} is not a Status/Turn "
+                            "(a whole number 0..63)", path, int(numbers[bad[0]]), _field_starts(raw)[index[k]] + 1, "P502")
+    return values.astype(np.int64)
 
 
 def _joint_columns(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:
@@ -309,6 +361,25 @@ def check_errors(positions: np.ndarray, measured: np.ndarray, lines: np.ndarray,
     shown = ", ".join(str(int(lines[i])) for i in far[:10]) + (" ..." if len(far) > 10 else "")
     return [f"warning: {len(far)} row(s) with an error far above the others' (median {median:.3f} mm): "
             f"line(s) {shown}"]
+
+
+# measured orientations further than this (deg, median angle) from the commanded ones are not a
+# robot's orientation error: another frame (a tracker's, unregistered), the probe's own axes
+# (its mounting not taken out) or radians
+ROTATION_ERROR_DEG = 5.0
+
+
+def check_rotation_errors(rotation_errors: np.ndarray, lines: np.ndarray, path: str = "") -> None:
+    """Refuse (P515) orientation errors [N, 3] deg (rotation vectors) that no robot makes: a
+    median angle above ROTATION_ERROR_DEG."""
+    angle = np.linalg.norm(rotation_errors, axis=1)
+    median = float(np.median(angle)) if len(angle) else 0.0
+    if median > ROTATION_ERROR_DEG:
+        i = int(np.argmax(angle))
+        raise PostprocError(f"measured orientations a_meas,b_meas,c_meas are {median:.3g}° from the commanded ones "
+                            f"(median; line {lines[i]}: {angle[i]:.3g}°): not a robot's orientation error but another "
+                            "frame, the probe's own axes or radians: give the TCP's A,B,C in the frame of x_meas..z_meas "
+                            "(in degrees), or drop the columns", path, int(lines[i]), 1, "P515")
 
 
 def wrap_deg(angles: np.ndarray) -> np.ndarray:

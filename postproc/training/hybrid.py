@@ -76,22 +76,29 @@ class HybridModule(torch.nn.Module):
     def uses_previous(self) -> bool:
         return self.kinematic.use_previous
 
+    @property
+    def orientation(self) -> bool:
+        """The identified arm's orientation part was fitted on measured orientations."""
+        return self.kinematic.orientation
+
     def error_and_joints(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
-                         q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None
-                         ) -> tuple[torch.Tensor, torch.Tensor]:
+                         q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None,
+                         rotation: bool = False) -> tuple[torch.Tensor, ...]:
         """(Ê [N, 3], the controller's joint angles q [N, 6] rad) in the dtype of ``pose``;
         ``q_in`` [N, 6] rad picks each row's IK branch (NaN rows: the identified branch);
-        ``tool`` [N, 6] each row's TCP on the flange (NaN rows: the model's own)."""
+        ``tool`` [N, 6] each row's TCP on the flange (NaN rows: the model's own). With
+        ``rotation``: + r̂ [N, 3] rad, the identified arm's orientation error (the residual nets
+        are of the position only)."""
         dtype = pose.dtype
         pose = pose.to(torch.float64)
         prev = previous_pose.to(torch.float64) if previous_pose is not None else None
         q_in = q_in.to(torch.float64) if q_in is not None else None
         tool = tool.to(torch.float64) if tool is not None else None
-        error, q, signs, learned = self.kinematic.parts(pose, prev, q_in, self.joint_range, tool)
+        error, q, signs, learned, *turned = self.kinematic.parts(pose, prev, q_in, self.joint_range, tool, rotation)
         if len(self.nets):
             features = joint_features(q, signs if self.uses_previous else None)
             error = error + learned[:, None] * torch.stack([net(features) for net in self.nets]).mean(dim=0)
-        return error.to(dtype), q.to(dtype)
+        return (error.to(dtype), q.to(dtype), *(t.to(dtype) for t in turned))
 
     def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
                 q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None) -> torch.Tensor:
@@ -102,7 +109,8 @@ class _WithJoints(torch.nn.Module):
     """The exported graph: inputs ``pose`` [, ``previous_pose``], ``joints`` (deg, NaN rows:
     unknown) [, ``tool`` (NaN rows: the model's own)]; outputs ``error`` and ``joints`` (deg,
     wrapped to [−180, 180)), so that compensate can check the joint ranges of the envelope
-    with onnxruntime alone."""
+    with onnxruntime alone, and, when the orientation was identified from measured
+    orientations, ``rotation_error`` (deg)."""
 
     def __init__(self, module: HybridModule, tool: bool = False):
         super().__init__()
@@ -113,8 +121,8 @@ class _WithJoints(torch.nn.Module):
         previous_pose = rest[0] if self.module.uses_previous else None
         tool = rest[-1] if self.tool else None
         joints = rest[-2 if self.tool else -1] * (math.pi / 180.0)  # (torch.deg2rad has no ONNX export)
-        error, q = self.module.error_and_joints(pose, previous_pose, joints, tool)
-        return error, wrap_angles(q) * (180.0 / math.pi)
+        error, q, *turned = self.module.error_and_joints(pose, previous_pose, joints, tool, self.module.orientation)
+        return (error, wrap_angles(q) * (180.0 / math.pi), *(t * (180.0 / math.pi) for t in turned))
 
 
 def _train_net(x: np.ndarray, y: np.ndarray, hidden: tuple[int, ...], epochs: int, seed: int) -> ResidualNet:
@@ -176,12 +184,15 @@ class HybridModel:
         return f"{kin} (hybrid: residual MLPs tried, not kept)" if self.residual == "auto" else kin
 
     def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
-            q_deg: np.ndarray | None = None, tools: np.ndarray | None = None) -> "HybridModel":
+            q_deg: np.ndarray | None = None, tools: np.ndarray | None = None,
+            rotation_errors: np.ndarray | None = None) -> "HybridModel":
         """Fit to commanded poses [N, 6], errors E = P − P_measured [N, 3], the pose visited before
         each row [N, 6] (None: visiting order unknown, no backlash), the controller's joint
-        angles [N, 6] if the data has them and the TCP on the flange each row was measured with
-        [N, 6] (None: the description's tool). The first row's tool becomes the model's own
-        (``description_``: the description with that tool; the card's ``tool``)."""
+        angles [N, 6] if the data has them, the TCP on the flange each row was measured with
+        [N, 6] (None: the description's tool) and the measured orientation errors [N, 3] deg if
+        it has those (``KinematicModel.fit``: then the graph outputs ``rotation_error``; one tool
+        only). The first row's tool becomes the model's own (``description_``: the description
+        with that tool; the card's ``tool``)."""
         if self.residual not in ("auto", "always", "none"):
             raise ValueError(f"residual must be auto, always or none, not {self.residual!r}")
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
@@ -193,7 +204,7 @@ class HybridModel:
             t0 = time.perf_counter()
             stage(names[0])
             self.kinematic_ = KinematicModel(self.description_, **self.kinematic).fit(poses, errors, previous, q_deg,
-                                                                                     tools)
+                                                                                     tools, rotation_errors)
             t1 = time.perf_counter()
             stage(names[1])
             self.nets_ = self._fit_residual(self.kinematic_.train_residual_)
@@ -215,6 +226,10 @@ class HybridModel:
         self.n_train_ = len(poses)
         self.fit_seconds_ = {"kinematic": t1 - t0, "residual": t2 - t1, "total": t2 - t0}
         self.train_stats_ = residual_stats(errors - self.predict(poses, previous, q_deg, tools))
+        self.train_rotation_stats_ = None
+        if self.orientation:
+            rotation_errors = np.asarray(rotation_errors, dtype=np.float64).reshape(-1, 3)[keep]
+            self.train_rotation_stats_ = residual_stats(rotation_errors - self.predict_rotation(poses, previous, q_deg))
         return self
 
     def _fit_residual(self, residual: np.ndarray) -> list[ResidualNet]:
@@ -263,6 +278,26 @@ class HybridModel:
         with torch.no_grad():
             return self.module_(pose, prev, q_in, tool).numpy()
 
+    @property
+    def orientation(self) -> bool:
+        """The orientation error was identified from measured orientations (the graph outputs
+        ``rotation_error``); without them the model claims nothing about orientation."""
+        self._check_fitted()
+        return self.module_.orientation
+
+    def predict_rotation(self, poses: np.ndarray, previous: np.ndarray | None = None,
+                         joints: np.ndarray | None = None) -> np.ndarray:
+        """r̂ [N, 3] deg, the orientation error (rotation vector commanded → actual, base frame),
+        as the exported ``rotation_error``; arguments as :meth:`predict`."""
+        self._check_fitted()
+        if not self.orientation:
+            raise ValueError("the model was fitted without measured orientations: no rotation error")
+        pose = torch.as_tensor(np.asarray(poses, dtype=np.float64).reshape(-1, 6))
+        prev = None if previous is None else torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
+        q_in = None if joints is None else torch.as_tensor(np.radians(np.asarray(joints, dtype=np.float64).reshape(-1, 6)))
+        with torch.no_grad():
+            return np.degrees(self.module_.error_and_joints(pose, prev, q_in, rotation=True)[2].numpy())
+
     def predict_at_joints(self, poses: np.ndarray, joints: np.ndarray) -> np.ndarray:
         """Ê [N, 3] with the identified arm evaluated at exactly these joint angles [N, 6] deg
         (no IK, no visiting order): P − FK_identified(q), the classical calibration's figure
@@ -308,6 +343,11 @@ class HybridModel:
             "ik_family": km.ik_.family,
             "residual_nets": len(self.nets_),
             "residual_check": getattr(self, "residual_check_", None),
+            # what the orientation part rests on: measured orientations (and the lever, mm/rad, that
+            # weighed them against the positions) or nothing (then no rotation_error output)
+            "orientation": ({"fitted": True, "lever_mm_per_rad": round(km.lever_, 3),
+                             "train_residual_deg": self.train_rotation_stats_} if km.orientation_
+                            else {"fitted": False}),
             # the identified parameters of the physical groups (rad, mm, rad/Nm; each flattened
             # as Layout.unpack reads it; the ripple amplitudes are not stored): what a
             # re-calibration (--update, not built yet) would start from
@@ -355,13 +395,15 @@ class HybridModel:
         # networks alone (dnn-joints) learned one TCP's error and keep P304 for the others
         tool = bool(self.kinematic_.layout_.n)
         return write_atomic(path, onnx_bytes(_WithJoints(self.module_, tool), meta, self.uses_previous, joints=True,
-                                             joints_input=True, tool_input=tool))
+                                             joints_input=True, tool_input=tool, rotation=self.orientation))
 
     @property
     def structure(self) -> str:
         km = self.kinematic_
         parts = [f"{km.layout_.n} kinematic parameters ({', '.join(km.layout_.groups)}, "
                  f"{len(km.layout_.ripple)} ripple orders)", f"IK {km.ik_.family} branch {list(km.ik_.branch)}"]
+        if km.orientation_:
+            parts.append(f"orientation fitted with the position (lever {km.lever_:.0f} mm/rad; output rotation_error)")
         if self.nets_:
             n_in = 18 if self.uses_previous else 12
             inputs = "sin/cos q, approach signs" if self.uses_previous else "sin/cos q"

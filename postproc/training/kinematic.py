@@ -44,12 +44,13 @@ import torch
 from .. import frames
 from ..diagnostics import PostprocError
 from ..robot import RobotDescription
-from .arm import Arm, at_tool, axis_rotations, choose_branch, coupling_pairs, make_ik, mv, small_rotation
+from .arm import Arm, at_tool, axis_rotations, choose_branch, coupling_pairs, make_ik, mc, mv, small_rotation
 from .features import inside_ranges, motion_signs
+from .network import rotation_matrices
 
 __all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS", "unseparated_mount"]
 
-GROUPS = ("placement", "base", "tool", "mount", "zero", "compliance", "coupling", "backlash")
+GROUPS = ("placement", "base", "tool", "mount", "tool_rotation", "zero", "compliance", "coupling", "backlash")
 DEFAULT_GROUPS = GROUPS
 # compliance with unknown link masses / lever arms: joint j deflects by Σ_i k_ji·τ_ji over the
 # links i ≥ j it carries (21 pairs), τ_ji the gravity torque of link i alone about joint j
@@ -68,6 +69,12 @@ JOINTS_TOLERANCE_MM = 5.0
 DROP_AT_MOST = 0.01
 # joint steps below this (rad) count as no motion: float32 IK noise is ~1e-7 rad
 SIGN_DEADBAND = 2e-6
+# orientation residuals (rad) enter the least squares times a lever (mm/rad): first this one
+# (1 mrad weighs as 1 mm: a 1 m lever), then the ratio of the rms position residual to the rms
+# orientation residual of that fit (each kind weighed by what it leaves unexplained: noise
+# and unmodelled error), within LEVER_RANGE
+LEVER_MM = 1000.0
+LEVER_RANGE = (10.0, 10000.0)
 
 
 @dataclass
@@ -79,7 +86,7 @@ class Layout:
 
     @property
     def sizes(self) -> dict[str, int]:
-        size = {"placement": 36, "base": 6, "tool": 3, "mount": 3, "zero": 6, "compliance": 6, "coupling": N_COUPLING, "backlash": 6}
+        size = {"placement": 36, "base": 6, "tool": 3, "mount": 3, "tool_rotation": 3, "zero": 6, "compliance": 6, "coupling": N_COUPLING, "backlash": 6}
         out = {g: size[g] for g in GROUPS if g in self.groups}
         out["ripple"] = 2 * len(self.ripple)
         return out
@@ -108,6 +115,7 @@ class Layout:
             "base": get("base", (6,)),
             "tool": get("tool", (3,)),
             "mount": get("mount", (3,)),
+            "tool_rotation": get("tool_rotation", (3,)),
             "zero": get("zero", (6,)),
             "compliance": get("compliance", (6,)),
             "coupling": get("coupling", (N_COUPLING,)),
@@ -157,7 +165,9 @@ def identified_chain(arm: Arm, p: dict[str, torch.Tensor], tools: torch.Tensor |
     if tools is None:
         end = torch.cat([torch.cat([arm.end[:3, :3], identified_end(arm, p, arm.tool[:3, 3])[:, None]], 1),
                          arm.end[3:]], 0)
-    else:
+        if "tool_rotation" in p:  # the TCP frame turned about its own axes (moves no TCP: orientation data only)
+            end = end @ _rigid(p["tool_rotation"], torch.zeros(3, dtype=end.dtype))
+    else:  # (per-row TCP positions: position only, no orientation is fitted with several tools)
         end = identified_end(arm, p, tools)
     base = _rigid(p["base"][:3], p["base"][3:])
     return {"placements": placements, "end": end, "base": base}
@@ -183,18 +193,21 @@ def joint_error(p: dict[str, torch.Tensor], q: torch.Tensor, signs: torch.Tensor
 
 
 def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, signs: torch.Tensor,
-             tau: torch.Tensor, tools: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+             tau: torch.Tensor, tools: torch.Tensor | None = None, rotation: bool = False) -> tuple[torch.Tensor, ...]:
     """TCP positions [N, 3] of the identified arm, their Jacobian [N, 3, P] w.r.t. θ and the
     sensitivity to each joint angle [N, 3, 6], from one forward pass (geometric Jacobian).
+    With ``rotation`` also the TCP's rotation [N, 3, 3] and the same two for its orientation
+    (angular velocity in the base frame, rad per unit of θ / of q_j): [N, 3, P], [N, 3, 6].
 
     A joint angle turns everything after it about its axis ω_j through its origin p_j:
-    ∂tcp/∂q_j = ω_j × (tcp − p_j); the joint-space groups are that column times their
-    regressor (1, τ_j, −s_j, sin/cos n·q_j). A placement's small rotation turns the rest of the
-    chain about the placement's own axes, its offset shifts it along them; the base turns and
-    shifts everything; the tool offset moves along the TCP frame's axes, the mount's rotation
-    turns each row's TCP (``tools`` [N, 3] on the flange; None: the description's). (For the rotation
-    vectors this is the derivative at 0 applied at θ: |θ| ~ 1e-3 makes the difference ~1e-3
-    relative, which costs Levenberg–Marquardt an iteration, not accuracy.)"""
+    ∂tcp/∂q_j = ω_j × (tcp − p_j) (and turns the TCP frame by ω_j); the joint-space groups are
+    that column times their regressor (1, τ_j, −s_j, sin/cos n·q_j). A placement's small
+    rotation turns the rest of the chain about the placement's own axes, its offset shifts it
+    along them; the base turns and shifts everything; the tool offset moves along the TCP
+    frame's axes, the mount's rotation turns each row's TCP (``tools`` [N, 3] on the flange;
+    None: the description's; position only), the tool rotation turns the TCP frame about its
+    axes. (For the rotation vectors this is the derivative at 0 applied at θ: |θ| ~ 1e-3 makes
+    the difference ~1e-3 relative, which costs Levenberg–Marquardt an iteration, not accuracy.)"""
     p = layout.unpack(theta)
     chain = identified_chain(arm, p, tools)
     ripple_joint = torch.tensor([j for j, _ in layout.ripple], dtype=torch.long)
@@ -205,39 +218,66 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
     omega = mv(rot, arm.axes)  # [N, 6, 3]
     lever = tcp[:, None, :] - org  # [N, 6, 3]
     sens = torch.linalg.cross(omega, lever).transpose(1, 2)  # [N, 3, 6]
-    cols: dict[str, torch.Tensor] = {}
+    eye = torch.eye(3, dtype=q.dtype)
+    tcp_rot = rot[:, -1] @ chain["end"][:3, :3] if tools is None else None  # [N, 3, 3] (per-row ends: positions)
+    zero3 = torch.zeros(n, 3, 3, dtype=q.dtype)
+    cols: dict[str, tuple[torch.Tensor, torch.Tensor]] = {}  # group → (position columns, rotation columns)
     if "placement" in layout.groups:
         before = torch.cat([chain["base"][:3, :3].expand(n, 1, 3, 3), rot[:, :-1]], dim=1)  # frame before joint j
         axes = before @ arm.placements[:, :3, :3]  # [N, 6, 3, 3]: the placement's own axes (columns)
         turn = torch.linalg.cross(axes.transpose(2, 3), lever[:, :, None, :].expand(n, 6, 3, 3))  # [N, 6, k, 3]
         shift = axes.transpose(2, 3)  # [N, 6, k, 3]
-        cols["placement"] = torch.cat([turn, shift], dim=2).permute(0, 3, 1, 2).reshape(n, 3, 36)
+        cols["placement"] = (torch.cat([turn, shift], dim=2).permute(0, 3, 1, 2).reshape(n, 3, 36),
+                             torch.cat([shift, torch.zeros_like(shift)], dim=2).permute(0, 3, 1, 2).reshape(n, 3, 36))
     if "base" in layout.groups:
-        eye = torch.eye(3, dtype=q.dtype)
         turn = torch.linalg.cross(eye[None].expand(n, 3, 3), (tcp - chain["base"][:3, 3])[:, None, :].expand(n, 3, 3))
-        cols["base"] = torch.cat([turn.transpose(1, 2), eye.expand(n, 3, 3)], dim=2)
+        cols["base"] = (torch.cat([turn.transpose(1, 2), eye.expand(n, 3, 3)], dim=2),
+                        torch.cat([eye.expand(n, 3, 3), zero3], dim=2))
     if "tool" in layout.groups:
-        cols["tool"] = rot[:, -1] @ arm.end[:3, :3]
+        cols["tool"] = (rot[:, -1] @ arm.end[:3, :3], zero3)
     if "mount" in layout.groups:
         t = arm.tool[:3, 3].expand(n, 3) if tools is None else tools
-        eye = torch.eye(3, dtype=q.dtype)
         turn = torch.linalg.cross(eye[None].expand(n, 3, 3), t[:, None, :].expand(n, 3, 3))  # e_k × t, rows k
-        cols["mount"] = rot[:, -1] @ arm.flange[:3, :3] @ turn.transpose(1, 2)
+        cols["mount"] = (rot[:, -1] @ arm.flange[:3, :3] @ turn.transpose(1, 2), zero3)
+    if "tool_rotation" in layout.groups:
+        cols["tool_rotation"] = (zero3, tcp_rot)
+    sens_rot = omega.transpose(1, 2)  # [N, 3, 6]
+    for name, joint_cols in _joint_columns(layout, q, signs, tau, ripple_joint, ripple_order).items():
+        cols[name] = (joint_cols(sens), joint_cols(sens_rot) if rotation else None)  # (position only: not built)
+    names = [name for name in layout.sizes if layout.sizes[name]]
+    jac = torch.cat([cols[name][0] for name in names], dim=2)
+    if not rotation:
+        return tcp, jac, sens
+    return tcp, jac, sens, tcp_rot, torch.cat([cols[name][1] for name in names], dim=2), sens_rot
+
+
+def _joint_columns(layout: Layout, q: torch.Tensor, signs: torch.Tensor, tau: torch.Tensor,
+                   ripple_joint: torch.Tensor, ripple_order: torch.Tensor) -> dict:
+    """The joint-space groups' columns as functions of a sensitivity to the joint angles
+    [N, 3, 6] (of the position or of the orientation): that times each regressor."""
+    out = {}
     if "zero" in layout.groups:
-        cols["zero"] = sens
+        out["zero"] = lambda s: s
     if "compliance" in layout.groups:
-        cols["compliance"] = sens * tau[:, None, :6]
+        out["compliance"] = lambda s: s * tau[:, None, :6]
     if "coupling" in layout.groups:
-        cols["coupling"] = sens[:, :, COUPLING_J] * tau[:, None, 6:]
+        out["coupling"] = lambda s: s[:, :, COUPLING_J] * tau[:, None, 6:]
     if "backlash" in layout.groups:
-        cols["backlash"] = -sens * signs[:, None, :]
+        out["backlash"] = lambda s: -s * signs[:, None, :]
     if len(layout.ripple):
         phase = q[:, ripple_joint] * ripple_order
-        sj = sens[:, :, ripple_joint]  # [N, 3, R]
-        cols["ripple"] = torch.stack([sj * torch.sin(phase)[:, None, :], sj * torch.cos(phase)[:, None, :]],
-                                     dim=-1).reshape(n, 3, -1)
-    jac = torch.cat([cols[name] for name in layout.sizes if layout.sizes[name]], dim=2)
-    return tcp, jac, sens
+        out["ripple"] = lambda s: torch.stack([s[:, :, ripple_joint] * torch.sin(phase)[:, None, :],
+                                               s[:, :, ripple_joint] * torch.cos(phase)[:, None, :]],
+                                              dim=-1).reshape(len(q), 3, -1)
+    return out
+
+
+def rotation_log(m: torch.Tensor) -> torch.Tensor:
+    """[N, 3, 3] rotations within a few degrees of I → rotation vectors [N, 3] rad: the
+    antisymmetric part's axial vector v = sin θ·axis scaled by asin|v|/|v| ≈ 1 + |v|²/6 (exact to
+    1e-8 relative at 1°; no acos: ONNX-friendly, smooth at 0)."""
+    v = 0.5 * torch.stack([m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]], dim=1)
+    return v * (1.0 + (v * v).sum(1, keepdim=True) / 6.0)
 
 
 def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, pose: torch.Tensor,
@@ -272,6 +312,7 @@ class KinematicErrorModule(torch.nn.Module):
                  tau_mean: np.ndarray | None = None):
         super().__init__()
         self.arm, self.ik, self.layout, self.use_previous = arm, ik, layout, use_previous
+        self.orientation = False  # the orientation part was identified from measured orientations
         self.register_buffer("theta", torch.as_tensor(np.asarray(theta, dtype=np.float64)))
         self.register_buffer("ripple_joint", torch.tensor([j for j, _ in layout.ripple], dtype=torch.long))
         self.register_buffer("ripple_order", torch.tensor([float(n) for _, n in layout.ripple], dtype=torch.float64))
@@ -297,20 +338,25 @@ class KinematicErrorModule(torch.nn.Module):
         return self.ik(pose) if q_in is None else self.ik(pose, q_in)
 
     def parts(self, pose: torch.Tensor, previous: torch.Tensor | None = None, q_in: torch.Tensor | None = None,
-              ranges: torch.Tensor | None = None, tool: torch.Tensor | None = None
-              ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+              ranges: torch.Tensor | None = None, tool: torch.Tensor | None = None, rotation: bool = False
+              ) -> tuple[torch.Tensor, ...]:
         """(Ê [N, 3], q [N, 6], signs [N, 6], learned [N]) for float64 poses (``q_in``: see
         ``joints_of``); with joint ``ranges`` [6, 2] rad the ripple terms are left out where q
         is outside them (learned = 0 there, else 1). ``tool`` [N, 6]: each row's TCP on the
         flange (NaN rows: the model's own, ``tool0``): the IK solves the flange pose that puts
-        that TCP at ``pose`` and the error is the identified arm's at that TCP."""
+        that TCP at ``pose`` and the error is the identified arm's at that TCP. With
+        ``rotation``: + r̂ [N, 3] rad (``error_at``)."""
         at = None if tool is None else (lambda p: at_tool(p, tool, self.tool0))  # noqa: E731
         q = self.joints_of(pose if at is None else at(pose), q_in)
         signs = torch.zeros_like(q)
         if self.use_previous and previous is not None:
             signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous, q_in, at)
         learned = torch.ones_like(q[:, 0]) if ranges is None else inside_ranges(q, ranges)
-        return self.error_at(q, signs, pose[:, :3], None if ranges is None else learned, tool), q, signs, learned
+        mask = None if ranges is None else learned
+        if rotation:
+            error, turned = self.error_at(q, signs, pose[:, :3], mask, tool, rotation_matrices(pose[:, 3:6]))
+            return error, q, signs, learned, turned
+        return self.error_at(q, signs, pose[:, :3], mask, tool), q, signs, learned
 
     def tool_end(self, tool: torch.Tensor) -> torch.Tensor:
         """The identified TCP positions [N, 3] in the last joint's frame for the TCPs ``tool``
@@ -325,11 +371,15 @@ class KinematicErrorModule(torch.nn.Module):
         return self.arm.torque_terms(rot, org)
 
     def error_at(self, q: torch.Tensor, signs: torch.Tensor, position: torch.Tensor,
-                 learned: torch.Tensor | None = None, tool: torch.Tensor | None = None) -> torch.Tensor:
+                 learned: torch.Tensor | None = None, tool: torch.Tensor | None = None,
+                 attitude: torch.Tensor | None = None):
         """Ê [N, 3] for commanded positions [N, 3] whose IK is q [N, 6], reached with ``signs``;
         ``learned`` [N] (1 keep, 0 drop) scales the gear-ripple terms, which do not extrapolate
         outside the trained joint ranges (the physical groups do); ``tool`` [N, 6]: each row's TCP
-        on the flange (None: ``tool0``)."""
+        on the flange (None: ``tool0``). With the commanded ``attitude`` [N, 3, 3]: (Ê, r̂ [N, 3]
+        rad), r̂ the orientation error as the rotation vector of commanded → actual in the base
+        frame (the same first order: the identified chain's TCP rotation at q turned by
+        Σ ω_j·δq_j; another tool's TCP frame carries the identified turn of the model's own)."""
         p = self.layout.unpack(self.theta)
         p["zero"] = torch.zeros_like(p["zero"])  # (folded into the placements)
         end = self.end if tool is None else self.tool_end(tool)
@@ -343,7 +393,16 @@ class KinematicErrorModule(torch.nn.Module):
         omega = torch.stack([mv(rot[:, j], self.arm.axes[j]) for j in range(6)], dim=1)
         sens = torch.linalg.cross(omega, tcp[:, None, :] - org)  # [N, 6, 3]
         actual = tcp + (sens * dq[..., None]).sum(dim=1)
-        return position - mv(self.base[:3, :3][None], actual) - self.base[:3, 3]
+        error = position - mv(self.base[:3, :3][None], actual) - self.base[:3, 3]
+        if attitude is None:
+            return error
+        if tool is None:
+            reached = mc(rot[:, -1], self.end[:3, :3])  # the TCP's rotation at q (identified chain, no base)
+        else:  # each row's TCP frame on the flange, turned as the model's own: R_end·R_tool0ᵀ·R_tool
+            abc = torch.where(torch.isnan(tool[:, 3:6]), self.tool0[3:6].expand(tool.shape[0], 3), tool[:, 3:6])
+            reached = rot[:, -1] @ (self.end[:3, :3] @ self.arm.tool[:3, :3].T) @ rotation_matrices(abc)
+        turned = rotation_log(self.base[:3, :3] @ reached @ attitude.transpose(1, 2))
+        return error, turned + mv(self.base[:3, :3][None], (omega * dq[..., None]).sum(dim=1))
 
     def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None) -> torch.Tensor:
         dtype = pose.dtype
@@ -389,14 +448,19 @@ class KinematicModel:
             self.ik_, self.branch_share_ = choose_branch(self.description, poses, q_deg, self.family)
 
     def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
-            q_deg: np.ndarray | None = None, tools: np.ndarray | None = None) -> "KinematicModel":
+            q_deg: np.ndarray | None = None, tools: np.ndarray | None = None,
+            rotation_errors: np.ndarray | None = None) -> "KinematicModel":
         """Fit to commanded poses [N, 6], errors E = P − P_measured [N, 3] and (optionally) the
         pose visited before each row [N, 6] (``features.previous_poses`` of the rows in their
         visiting order; the row itself = came from HOME); ``q_deg`` [N, 6] are the controller's
         joint angles if the data has them (they pick the IK branch); ``tools`` [N, 6] each row's
         TCP on the flange (None: the description's tool; the description's tool is the model's
         own, NaN in the ``tool`` input). The mount's rotation is identified only from two or more
-        TCP positions."""
+        TCP positions. ``rotation_errors`` [N, 3] deg (a 6-DOF probe: the rotation vector of
+        commanded → measured orientation, base frame, ``frames.rotation_error_deg``): the
+        orientation is fitted too, in the same least squares (see ``lever_``), with the tool's
+        rotation as three more parameters — with one tool only (data of several tools: position
+        only, ``orientation_`` False)."""
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
         self.arm_ = Arm(self.description)
@@ -412,14 +476,21 @@ class KinematicModel:
         self.tools_ = None if tools is None else np.unique(np.round(tools, 6), axis=0)
         self._choose_ik(ik_poses, q_deg)
         several = self.tools_ is not None and len(np.unique(np.round(self.tools_[:, :3]), axis=0)) > 1
+        # (no physical groups, e.g. dnn-joints' networks alone: nothing that could carry an orientation;
+        # per-row tools: the identified ends are positions only)
+        self.orientation_ = (rotation_errors is not None and tools_t is None
+                             and any(g != "tool_rotation" for g in self.groups))
+        rotation_errors = rotation_errors if self.orientation_ else None
         groups = tuple(g for g in self.groups
-                       if (g != "backlash" or previous is not None) and (g != "mount" or several))
+                       if (g != "backlash" or previous is not None) and (g != "mount" or several)
+                       and (g != "tool_rotation" or self.orientation_))
         n_par = Layout(groups, list(self.ripple) if isinstance(self.ripple, list) else []).n
-        if 3 * len(poses) < n_par:
+        per_row = 6 if self.orientation_ else 3
+        if per_row * len(poses) < n_par:
             raise PostprocError(
-                f"{len(poses)} training rows give {3 * len(poses)} measured coordinates, fewer than the {n_par} "
+                f"{len(poses)} training rows give {per_row * len(poses)} measured coordinates, fewer than the {n_par} "
                 f"parameters of {', '.join(groups)}: a model fitted on them would be worse than none; measure "
-                f"at least {-(-n_par // 3)} poses", code="P505")
+                f"at least {-(-n_par // per_row)} poses", code="P505")
         self.use_previous_ = previous is not None  # the approach signs: backlash, and the residual nets' inputs
         with torch.no_grad():
             pose_t = torch.as_tensor(poses)
@@ -429,6 +500,7 @@ class KinematicModel:
             ends = None if tools_t is None else self.arm_.flange[:3, 3] + mv(self.arm_.flange[:3, :3], tools_t[:, :3])
             rot, org, tcp = self.arm_.frames(q, end=ends)
             tau = self.arm_.torque_terms(rot, org)
+            nominal_rot = mc(rot[:, -1], self.arm_.end[:3, :3])  # the nominal TCP's rotation at q
             miss = torch.linalg.norm(tcp - pose_t[:, :3], dim=1).numpy()
             # the nominal arm at q must land on the pose: else out of reach (IK) or the joint
             # angles are of another pose, robot or unit
@@ -448,17 +520,33 @@ class KinematicModel:
                 s = approach_signs(self.ik_, self.arm_.home_q, q, pose_t, prev, q_in, at)
             if len(bad):  # (a few singular / unreachable rows: left out, named by the caller)
                 keep = torch.as_tensor(~np.isin(np.arange(len(poses)), bad))
-                q, s, tau, tcp, pose_t = q[keep], s[keep], tau[keep], tcp[keep], pose_t[keep]
+                q, s, tau, tcp, pose_t, nominal_rot = q[keep], s[keep], tau[keep], tcp[keep], pose_t[keep], nominal_rot[keep]
                 poses, errors = poses[keep.numpy()], errors[keep.numpy()]
                 tools_t = None if tools_t is None else tools_t[keep]
+                if self.orientation_:
+                    rotation_errors = np.asarray(rotation_errors, dtype=np.float64).reshape(-1, 3)[keep.numpy()]
         # each row's TCP position on the flange, for the fit's identified ends (None: the description's)
         self._tool_rows = None if tools_t is None else tools_t[:, :3]
         measured = tcp - torch.as_tensor(errors)
+        self.lever_ = None
+        if self.orientation_:
+            # the measured orientation, as the measured position: the nominal TCP at q moved by the error
+            turn = torch.as_tensor(np.radians(np.asarray(rotation_errors, dtype=np.float64).reshape(-1, 3)))
+            measured = (measured, small_rotation(turn) @ nominal_rot)
+            self.lever_ = LEVER_MM
         fixed = list(self.ripple) if isinstance(self.ripple, list) else []
         layout = Layout(groups, fixed)
         theta = np.zeros(layout.n)
         if layout.n:
             theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
+            if self.orientation_:
+                # weigh position and orientation by what each leaves unexplained (one step of
+                # variance-component estimation): lever = rms position / rms orientation residual
+                r = self._state[0].reshape(-1, 2, 3)
+                rms_mm = float(np.sqrt(np.mean(r[:, 0] ** 2)))
+                rms_rad = float(np.sqrt(np.mean(r[:, 1] ** 2))) / self.lever_
+                self.lever_ = float(np.clip(rms_mm / max(rms_rad, 1e-12), LEVER_RANGE[0], LEVER_RANGE[1]))
+                theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
         self.ripple_search_ = []
         if self.ripple == "search":
             while len(layout.ripple) < self.max_ripple:
@@ -484,10 +572,16 @@ class KinematicModel:
         self.theta_ = theta
         self.module_ = KinematicErrorModule(self.arm_, self.ik_, layout, theta, self.use_previous_,
                                             tau.mean(dim=0).numpy())
+        self.module_.orientation = self.orientation_
         with torch.no_grad():
-            fitted = self.module_.error_at(q, s, pose_t[:, :3], tool=tools_t).numpy()
+            if self.orientation_:
+                fitted, turned = self.module_.error_at(q, s, pose_t[:, :3], attitude=nominal_rot)
+            else:
+                fitted = self.module_.error_at(q, s, pose_t[:, :3], tool=tools_t)
         self.train_q_, self.train_signs_ = q.numpy(), s.numpy()
-        self.train_residual_ = errors - fitted
+        self.train_residual_ = errors - fitted.numpy()
+        self.train_rotation_residual_ = (np.asarray(rotation_errors).reshape(-1, 3) - np.degrees(turned.numpy())
+                                         if self.orientation_ else None)
         self.n_train_ = len(poses)
         return self
 
@@ -498,26 +592,33 @@ class KinematicModel:
         compliance, coupling = scales[:6], scales[6:]
         unit = {"placement": np.tile(np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], 6),
                 "base": np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], "tool": np.full(3, PRIOR_MM),
-                "mount": np.full(3, PRIOR_RAD),
+                "mount": np.full(3, PRIOR_RAD), "tool_rotation": np.full(3, PRIOR_RAD),
                 "zero": np.full(6, PRIOR_RAD), "compliance": compliance, "coupling": coupling, "backlash": np.full(6, PRIOR_RAD),
                 "ripple": np.full(2 * len(layout.ripple), PRIOR_RAD)}
         return np.concatenate([unit[name] for name in layout.sizes])
 
     def _levenberg_marquardt(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
                              iterations: int) -> np.ndarray:
-        """min ‖FK_id − measured‖² + prior·Σ(θ/σ)² by Levenberg–Marquardt with the geometric
+        """min ‖FK_id − measured‖² (+ ‖lever·log(R_id·R_measuredᵀ)‖² with orientation: ``measured``
+        a (positions, rotations) pair) + prior·Σ(θ/σ)² by Levenberg–Marquardt with the geometric
         Jacobian (:func:`jacobian`). The weak prior (``self.prior``, mm² per σ², σ a typical
         size of each parameter) decides only what the data do not: directions no measurement
         sees (a zero offset and a placement turned about its own axis; A6's angle when the TCP
         sits on the A6 axis) stay near zero instead of wandering off."""
         arm = self.arm_
-        target = measured.numpy()
         sigma = self._prior_scales(layout, tau)
         w2 = self.prior / sigma**2  # the prior's curvature per parameter
 
         def evaluate(t: np.ndarray):
-            tcp, jac, sens = jacobian(arm, layout, torch.as_tensor(t), q, s, tau, self._tool_rows)
-            r = (tcp.numpy() - target).reshape(-1)
+            if isinstance(measured, tuple):  # position and orientation: 6 rows per point, rad × lever
+                tcp, jac, sens, rot, jac_r, sens_r = jacobian(arm, layout, torch.as_tensor(t), q, s, tau, rotation=True)
+                lever = self.lever_
+                r = torch.cat([tcp - measured[0], lever * rotation_log(rot @ measured[1].transpose(1, 2))], dim=1)
+                jac, sens = torch.cat([jac, lever * jac_r], dim=1), torch.cat([sens, lever * sens_r], dim=1)
+                r = r.numpy().reshape(-1)
+            else:
+                tcp, jac, sens = jacobian(arm, layout, torch.as_tensor(t), q, s, tau, self._tool_rows)
+                r = (tcp - measured).numpy().reshape(-1)
             return r, jac.numpy().reshape(len(r), -1), sens.numpy(), float(r @ r + (w2 * t * t).sum())
 
         r, jac, sens, cost = evaluate(theta)

@@ -1,0 +1,171 @@
+"""Orientation end to end on the simulated robot, and the measurement CSV's s,t columns.
+
+plan → measure (a 6-DOF probe: a_meas,b_meas,c_meas) → train (the hybrid default fits the
+orientation with the position) → compensate --orientation → the simulated robot reaches the
+targets' orientation (and position). A model trained without orientation data has no
+``rotation_error`` output, says so in its card, and --orientation refuses it (P306).
+"""
+import json
+import os
+
+import numpy as np
+import pytest
+
+from postproc.cli import main
+from postproc.compensator import load_model
+from postproc.planning import read_pose_csv
+from postproc.simulator import SimulatedRobot
+from postproc.training.data import read_measurements
+
+
+def _cli(*args) -> int:
+    return main([str(a) for a in args])
+
+
+def _without(text: str, names: set[str]) -> str:
+    """The CSV text with the columns ``names`` removed."""
+    lines = text.splitlines()
+    keep = [i for i, h in enumerate(lines[0].split(",")) if h not in names]
+    return "\n".join(",".join(f for i, f in enumerate(line.split(",")) if i in keep) for line in lines) + "\n"
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    """300 poses measured on the default simulated robot, a model trained on them by the
+    default ``postproc train`` and a separate 120-pose test plan."""
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    d = tmp_path_factory.mktemp("orientation")
+    assert _cli("plan", "-n", 300, "--seed", 1, "-o", d / "plan.csv", "-q") == 0
+    assert _cli("measure", d / "plan.csv", "-o", d / "measured.csv", "-q") == 0
+    assert _cli("train", d / "measured.csv", "-o", d / "m.onnx", "--val-fraction", 0.1, "-q") == 0
+    assert _cli("plan", "-n", 120, "--seed", 7, "-o", d / "test.csv", "-q") == 0
+    return d
+
+
+def test_orientation_compensation_reaches_the_simulated_targets(simulated):
+    d = simulated
+    model = load_model(d / "m.onnx")
+    assert model.has_rotation
+    card = model.metadata["identified"]["orientation"]
+    assert card["fitted"] and card["lever_mm_per_rad"] > 0
+    assert _cli("compensate", d / "test.csv", "-o", d / "test_o.csv", "--model", d / "m.onnx", "--orientation",
+                "-q") in (0, 1)
+    assert _cli("compensate", d / "test.csv", "-o", d / "test_p.csv", "--model", d / "m.onnx", "-q") in (0, 1)
+    targets, _ = read_pose_csv(d / "test.csv")
+    with_orientation, _ = read_pose_csv(d / "test_o.csv")
+    position_only, _ = read_pose_csv(d / "test_p.csv")
+    assert not np.allclose(with_orientation[:, 3:], targets[:, 3:])  # A,B,C were rewritten
+    np.testing.assert_array_equal(position_only[:, 3:], targets[:, 3:])  # ...only with --orientation
+    sim = SimulatedRobot()
+    got = sim.verify(targets, with_orientation, rng_seed=1)
+    ref = sim.verify(targets, position_only, rng_seed=1)
+    before, after = got["orientation_before"], got["orientation_after"]
+    assert before["mean"] > 0.2  # the robot's orientation error, uncompensated (deg)
+    assert after["mean"] < 0.05 * before["mean"] and after["max"] < 0.2 * before["mean"]
+    # the position is compensated as well as without --orientation
+    assert got["after"]["mean"] < 0.15 * got["before"]["mean"]
+    assert got["after"]["mean"] <= 1.1 * ref["after"]["mean"] + 0.005
+    assert ref["orientation_after"]["mean"] > 0.8 * before["mean"]  # (position-only leaves the orientation)
+
+
+def test_report_gives_the_orientation_error_before_and_after(simulated, capsys):
+    d = simulated
+    assert _cli("measure", d / "test.csv", "-o", d / "before.csv", "-q") == 0
+    assert _cli("report", d / "before.csv", "--model", d / "m.onnx", "-o", d / "report") == 0
+    numbers = json.loads((d / "report" / "summary.json").read_text())["orientation_deg"]
+    assert numbers["before"]["mean"] > 0.2 and numbers["after"]["mean"] < 0.05 * numbers["before"]["mean"]
+    assert "orientation error mean" in capsys.readouterr().err
+    assert "orientation error (deg" in (d / "report" / "report.md").read_text()
+
+
+def test_without_orientation_data_the_model_has_no_rotation_output(simulated, capsys):
+    d = simulated
+    (d / "position.csv").write_text(_without((d / "measured.csv").read_text(), {"a_meas", "b_meas", "c_meas"}))
+    assert _cli("train", d / "position.csv", "-o", d / "p.onnx", "--method", "kinematic", "-q") == 0
+    model = load_model(d / "p.onnx")
+    assert not model.has_rotation
+    assert model.metadata["identified"]["orientation"] == {"fitted": False}
+    capsys.readouterr()
+    assert _cli("compensate", d / "test.csv", "-o", d / "no.csv", "--model", d / "p.onnx", "--orientation") == 2
+    assert f"{d / 'p.onnx'}: P306" in capsys.readouterr().err
+    assert not (d / "no.csv").exists()
+
+
+def test_orientation_in_radians_is_refused_with_its_line(simulated, capsys):
+    d = simulated
+    lines = (d / "measured.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    cols = [header.index(n) for n in ("a_meas", "b_meas", "c_meas")]
+    out = [lines[0]]
+    for line in lines[1:]:
+        f = line.split(",")
+        for i in cols:
+            f[i] = f"{np.radians(float(f[i])):.8f}"
+        out.append(",".join(f))
+    (d / "radians.csv").write_text("\n".join(out) + "\n")
+    assert _cli("train", d / "radians.csv", "-o", d / "r.onnx", "--method", "kinematic") == 2
+    err = capsys.readouterr().err
+    assert f"{d / 'radians.csv'}:" in err and "P515" in err
+    assert not (d / "r.onnx").exists()
+
+
+def test_status_turn_columns_become_the_stated_joint_angles(tmp_path, capsys):
+    from postproc.configuration import measurement_joints
+    from postproc.robot import load_description
+
+    assert _cli("plan", "-n", 40, "--seed", 2, "--wrist", "both", "-o", tmp_path / "plan.csv", "-q") == 0
+    assert _cli("measure", tmp_path / "plan.csv", "-o", tmp_path / "m.csv", "-q") == 0
+    full = read_measurements(tmp_path / "m.csv")
+    text = _without((tmp_path / "m.csv").read_text(), {f"q{i}" for i in range(1, 7)})
+    rows = text.splitlines()
+    header = rows[0].split(",")
+    s_col = header.index("s")
+    fields = rows[5].split(",")  # file line 6: the overhead area (S bit 0), out of reach for this pose
+    fields[s_col] = str(int(fields[s_col]) ^ 1)
+    rows[5] = ",".join(fields)
+    (tmp_path / "st.csv").write_text("\n".join(rows) + "\n")
+    data = read_measurements(tmp_path / "st.csv")
+    assert data.joints is None and data.status_turn.shape == (40, 2)
+    q, keep, notes = measurement_joints(load_description(), data)
+    assert keep.sum() == 39 and not keep[4]
+    wrapped = (q[keep] - full.joints[keep] + 180.0) % 360.0 - 180.0
+    assert np.abs(wrapped).max() < 1e-3  # the joint angles the simulated controller used
+    assert {int(np.sign(v)) for v in full.joints[:, 4]} == {-1, 1}  # (both wrist configurations)
+    assert len(notes) == 1 and f"{tmp_path / 'st.csv'}:6:1: P514" in notes[0]
+    # and train takes them (the warning names the row)
+    assert _cli("train", tmp_path / "st.csv", "-o", tmp_path / "st.onnx", "--method", "kinematic",
+                "--val-fraction", 0) == 0
+    assert ":6:1: P514" in capsys.readouterr().err
+
+
+def test_measurement_columns_are_checked_where_they_are_wrong():
+    from postproc.diagnostics import PostprocError
+    from postproc.training.data import parse_measurements
+
+    head = "x,y,z,a,b,c,x_meas,y_meas,z_meas"
+    row = "2000,0,900,0,90,0,2000.1,0,900"
+    with pytest.raises(PostprocError) as partial:
+        parse_measurements(f"{head},a_meas,b_meas\n{row},0.1,90\n".encode(), "m.csv")
+    assert str(partial.value).startswith("m.csv:1:1: P501")
+    with pytest.raises(PostprocError) as status:
+        parse_measurements(f"{head},s,t\n{row},2,10\n{row.replace('2000,', '2010,', 1)},2.5,10\n".encode(), "m.csv")
+    assert str(status.value).startswith("m.csv:3:") and "P502" in str(status.value) and "'s'" in str(status.value)
+    m = parse_measurements(f"{head},a_meas,b_meas,c_meas,s,t\n{row},0.1,90,0,2,10\n".encode(), "m.csv")
+    assert m.status_turn.tolist() == [[2, 10]]
+    # the orientation error is the rotation vector commanded → measured (here 0.1° about the base Z)
+    np.testing.assert_allclose(m.rotation_errors, [[0.0, 0.0, 0.1]], atol=1e-9)
+
+
+def test_ipa_import_with_registration_writes_the_tcp_orientation(tmp_path):
+    from postproc.resources import sample_path
+
+    src = sample_path("ipa/series_c_excerpt.csv")
+    assert _cli("import", "ipa", src, "-o", tmp_path / "base.csv", "--register", "-q") == 0
+    data = read_measurements(tmp_path / "base.csv")
+    assert "probe_rotation" in data.meta and data.orientation is not None
+    angle = np.linalg.norm(data.rotation_errors, axis=1)
+    # the probe's own axes are turned ~180° on the flange: taken out, the UR10's orientation error is left
+    assert 0.01 < angle.mean() < 0.2 and angle.max() < 0.5
+    # without --register the tracker's frame is kept and no orientation is written
+    assert _cli("import", "ipa", src, "-o", tmp_path / "tracker.csv", "-q") == 0
+    assert read_measurements(tmp_path / "tracker.csv").orientation is None
