@@ -17,7 +17,8 @@ import onnx
 import torch
 
 from .. import outputs
-from ..compensator import INPUT_JOINTS, INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, OUTPUT_JOINTS, contract_metadata
+from ..compensator import (INPUT_APPROACH, INPUT_JOINTS, INPUT_POSE, INPUT_PREVIOUS, OUTPUT_ERROR, OUTPUT_JOINTS,
+                           contract_metadata)
 
 __all__ = ["export_onnx", "onnx_bytes", "write_atomic", "OPSET"]
 
@@ -25,12 +26,14 @@ OPSET = 17
 
 
 def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False, joints: bool = False,
-               joints_input: bool = False) -> bytes:
+               joints_input: bool = False, approach_input: bool = False) -> bytes:
     """The serialised ONNX model of ``module`` (pose [N, 6] [, previous_pose [N, 6]] [, joints
-    [N, 6] deg] → error [N, 3] [, joints [N, 6] deg]) with metadata."""
+    [N, 6] deg] [, approach [N, 6]] → error [N, 3] [, joints [N, 6] deg]) with metadata."""
     inputs = [INPUT_POSE, INPUT_PREVIOUS] if previous else [INPUT_POSE]
     if joints_input:
         inputs.append(INPUT_JOINTS)
+    if approach_input:
+        inputs.append(INPUT_APPROACH)
     outputs = [OUTPUT_ERROR, OUTPUT_JOINTS] if joints else [OUTPUT_ERROR]
     example = tuple(torch.tensor([[2000.0, 0.0, 900.0, 0.0, 90.0, 0.0]] * 2, dtype=torch.float32) for _ in inputs)
     buffer = io.BytesIO()

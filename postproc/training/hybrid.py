@@ -77,14 +77,17 @@ class HybridModule(torch.nn.Module):
         return self.kinematic.use_previous
 
     def error_and_joints(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
-                         q_in: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+                         q_in: torch.Tensor | None = None,
+                         approach: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """(Ê [N, 3], the controller's joint angles q [N, 6] rad) in the dtype of ``pose``;
-        ``q_in`` [N, 6] rad picks each row's IK branch (NaN rows: the identified branch)."""
+        ``q_in`` [N, 6] rad picks each row's IK branch (NaN rows: the identified branch);
+        ``approach`` [N, 6] fixes the approach signs (NaN: from ``previous_pose``)."""
         dtype = pose.dtype
         pose = pose.to(torch.float64)
         prev = previous_pose.to(torch.float64) if previous_pose is not None else None
         q_in = q_in.to(torch.float64) if q_in is not None else None
-        error, q, signs, learned = self.kinematic.parts(pose, prev, q_in, self.joint_range)
+        approach = approach.to(torch.float64) if approach is not None else None
+        error, q, signs, learned = self.kinematic.parts(pose, prev, q_in, self.joint_range, approach)
         if len(self.nets):
             features = joint_features(q, signs if self.uses_previous else None)
             error = error + learned[:, None] * torch.stack([net(features) for net in self.nets]).mean(dim=0)
@@ -97,8 +100,10 @@ class HybridModule(torch.nn.Module):
 
 class _WithJoints(torch.nn.Module):
     """The exported graph: inputs ``pose`` [, ``previous_pose``], ``joints`` (deg, NaN rows:
-    unknown); outputs ``error`` and ``joints`` (deg, wrapped to [−180, 180)), so that
-    compensate can check the joint ranges of the envelope with onnxruntime alone."""
+    unknown) [, ``approach`` (with ``previous_pose``: the approach signs compensate settles,
+    NaN = from ``previous_pose``)]; outputs ``error`` and ``joints`` (deg, wrapped to
+    [−180, 180)), so that compensate can check the joint ranges of the envelope with
+    onnxruntime alone."""
 
     def __init__(self, module: HybridModule):
         super().__init__()
@@ -106,8 +111,9 @@ class _WithJoints(torch.nn.Module):
 
     def forward(self, pose: torch.Tensor, *rest: torch.Tensor):
         previous_pose = rest[0] if self.module.uses_previous else None
-        joints = rest[-1] * (math.pi / 180.0)  # (torch.deg2rad has no ONNX export)
-        error, q = self.module.error_and_joints(pose, previous_pose, joints)
+        approach = rest[2] if self.module.uses_previous else None
+        joints = rest[1 if self.module.uses_previous else 0] * (math.pi / 180.0)  # (torch.deg2rad has no ONNX export)
+        error, q = self.module.error_and_joints(pose, previous_pose, joints, approach)
         return error, wrap_angles(q) * (180.0 / math.pi)
 
 
@@ -310,7 +316,7 @@ class HybridModel:
         meta = {"method": self.label, "structure": self.structure, "envelope": envelope, "iterations": 2}
         meta.update(metadata)
         return write_atomic(path, onnx_bytes(_WithJoints(self.module_), meta, self.uses_previous, joints=True,
-                                             joints_input=True))
+                                             joints_input=True, approach_input=self.uses_previous))
 
     @property
     def structure(self) -> str:
