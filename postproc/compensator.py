@@ -563,16 +563,24 @@ class _Settle:
         unsure_slot = np.take_along_axis(unsure, slots[rep], axis=1).reshape(b, h, m)
         # a joint is in doubt where the candidates take it to either side or too little to tell
         doubt = (side.max(axis=1) != side.min(axis=1)) | unsure_slot.any(axis=1)  # [b, m]
-        # each candidate's worst case over both sides of the joints in doubt
-        sides = np.where(doubt[:, None, None, :], combos[None, None], side[:, :, None, :]).reshape(-1, m)
-        rep2 = np.repeat(np.arange(b * h), s)
-        approach = np.full((b * h * s, 6), np.nan)
-        np.put_along_axis(approach, slots[rep][rep2], sides, axis=1)
-        out = self._landing(cand[rep2], prev[rep2], approach, _rows(sub, rep2), qp[rep2], sp[rep2])
-        worst = np.linalg.norm(target[rep2, :3] - cand[rep2, :3] + out[0], axis=1).reshape(b, h, s).max(axis=2)
-        worst = np.maximum(worst, error)
         agrees = (error <= SETTLE_TOLERANCE_MM) & ~unsure.any(axis=1).reshape(b, h)
-        pick = np.where(agrees.any(axis=1), np.argmin(np.where(agrees, worst, np.inf), axis=1), np.argmin(worst, axis=1))
+        settled = agrees.any(axis=1)
+        # where one agrees: the one nearest the plain fixed point's command
+        near = np.linalg.norm(cand[:, :3] - trial[bad][rep][:, :3], axis=1).reshape(b, h)
+        pick = np.argmin(np.where(agrees, near, np.inf), axis=1)
+        worst = np.where(agrees, error, np.inf)
+        # where none does: each candidate's worst case over both sides of the joints in doubt
+        lost = np.flatnonzero(~settled)
+        if len(lost):
+            at = (lost[:, None] * h + np.arange(h)).ravel()  # their candidates
+            rep2 = np.repeat(at, s)
+            sides = np.where(doubt[lost][:, None, None, :], combos[None, None], side[lost][:, :, None, :]).reshape(-1, m)
+            approach = np.full((len(rep2), 6), np.nan)
+            np.put_along_axis(approach, slots[rep][rep2], sides, axis=1)
+            out = self._landing(cand[rep2], prev[rep2], approach, _rows(sub, rep2), qp[rep2], sp[rep2])
+            w = np.linalg.norm(target[rep2, :3] - cand[rep2, :3] + out[0], axis=1).reshape(len(lost), h, s).max(axis=2)
+            worst[lost] = np.maximum(w, error[lost])
+            pick[lost] = np.argmin(worst[lost], axis=1)
         chosen = np.arange(b) * h + pick
         trial[bad] = cand[chosen]
         q[bad] = q_cand[chosen]
