@@ -277,7 +277,8 @@ class HybridModel:
         the converged ones (``most`` iterations). Each iteration is a model run over the program:
         the model card's ``iterations`` is this, not a safe-looking larger number. (A joint whose
         step to a target is smaller than the correction's change can flip its approach sign from
-        one iteration to the next: such rare targets never settle, whatever k.)"""
+        one iteration to the next: such rare targets never settle, whatever k; compensate settles
+        them on their approach after the k iterations: compensator's module text.)"""
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         trial = poses.copy()
         history = []
