@@ -11,8 +11,9 @@ Everything goes through the CLI, as a user runs it (one process per command, 1 t
   each method; 100 held-out targets (`postproc plan -n 100 --seed 1000`, a separate Latin
   hypercube) written as a KRL program (LIN lines, in plan order), `postproc compensate`d with
   the model and run through `postproc verify --robot-seed S --json` (from HOME, in program
-  order, tracker noise + repeatability). Targets: mean ≤ 0.10 mm, max ≤ 0.30 mm.
-* few: the same with a 200-pose plan (`plan -n 200 --seed 0`). Target: mean ≤ 0.15 mm.
+  order, tracker noise + repeatability; mean, p95 and max of the 100 targets). Targets: mean ≤
+  0.10 mm, max ≤ 0.15 mm (issue 18; was 0.30).
+* few: the same with a 200-pose plan (`plan -n 200 --seed 0`). Targets: mean ≤ 0.15 mm, max ≤ 0.20 mm.
 * real: IPA Series C (UR10 + laser tracker, $POSTPROC_IPA_DATA, default
   /work/shared/datasets/ipa-robot-accuracy): `postproc import ipa`, then `postproc train
   --register --val-fraction 0.2 --split-seed 0` (registration on the 80 % training split only);
@@ -82,8 +83,8 @@ def sim_part(label: str, n_train: int, methods: list[str], seeds: list[int], wor
     results: dict = {"n_train": n_train, "seeds": seeds, "rows": []}
     print(f"\n== {label}: {n_train} training points (plan -n {n_train} --seed 0), 100 held-out targets "
           f"(plan -n 100 --seed 1000), robots {seeds}", flush=True)
-    print(f"{'method':<13} {'seed':>4}  {'before mean':>11} {'max':>6}  {'after mean':>10} {'max':>6}  {'train s':>7}",
-          flush=True)
+    print(f"{'method':<13} {'seed':>4}  {'before mean':>11} {'max':>6}  {'after mean':>10} {'p95':>6} {'max':>6}  "
+          f"{'train s':>7}", flush=True)
     for seed in seeds:
         data = work / f"measured_{n_train}_{seed}.csv"
         cli("measure", str(plan), "-o", str(data), "--robot-seed", str(seed), "--seed", "0", "-q")
@@ -103,18 +104,19 @@ def sim_part(label: str, n_train: int, methods: list[str], seeds: list[int], wor
             b, a = report["before"], report["after"]
             row = {"method": method, "seed": seed, "before": b, "after": a, "train_s": seconds}
             results["rows"].append(row)
-            print(f"{method:<13} {seed:>4}  {b['mean']:11.3f} {b['max']:6.3f}  {a['mean']:10.4f} {a['max']:6.3f}  "
-                  f"{seconds:7.1f}", flush=True)
+            print(f"{method:<13} {seed:>4}  {b['mean']:11.3f} {b['max']:6.3f}  {a['mean']:10.4f} {a['p95']:6.3f} "
+                  f"{a['max']:6.3f}  {seconds:7.1f}", flush=True)
     print(f"\n{label} summary over robots {seeds} (mm; mean of the per-robot figures, worst max):")
-    print(f"{'method':<13} {'after mean':>10} {'worst mean':>10} {'worst max':>9}  {'train s':>7}")
+    print(f"{'method':<13} {'after mean':>10} {'worst mean':>10} {'worst p95':>9} {'worst max':>9}  {'train s':>7}")
     before = [r["before"] for r in results["rows"] if r["method"] == methods[0]]
     print(f"{'uncompensated':<13} {np.mean([b['mean'] for b in before]):10.4f} "
-          f"{max(b['mean'] for b in before):10.4f} {max(b['max'] for b in before):9.3f}")
+          f"{max(b['mean'] for b in before):10.4f} {max(b['p95'] for b in before):9.3f} "
+          f"{max(b['max'] for b in before):9.3f}")
     for method in methods:
         rows = [r for r in results["rows"] if r["method"] == method]
         print(f"{method:<13} {np.mean([r['after']['mean'] for r in rows]):10.4f} "
-              f"{max(r['after']['mean'] for r in rows):10.4f} {max(r['after']['max'] for r in rows):9.3f}  "
-              f"{np.mean([r['train_s'] for r in rows]):7.1f}")
+              f"{max(r['after']['mean'] for r in rows):10.4f} {max(r['after']['p95'] for r in rows):9.3f} "
+              f"{max(r['after']['max'] for r in rows):9.3f}  {np.mean([r['train_s'] for r in rows]):7.1f}")
     return results
 
 

@@ -70,6 +70,7 @@ CODES = {
     "P309": "no inverse-kinematics solution for this target (--robot FILE.toml)",
     "P313": "the target's S/T is another arm configuration than the model evaluates (left as it is)",
     "P319": "the target's $TOOL is far from the measured tools: the unseparated mount rotation may add error",
+    "P321": "a joint barely moving at the target stays in its backlash dead band (compensate -v; a note)",
     "P310": "the model was trained on another robot than the configured one",
     "P402": "compensated with a model other than the configured one",
     "P403": "compensated twice",

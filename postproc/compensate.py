@@ -19,7 +19,7 @@ import numpy as np
 from collections import Counter
 
 from . import frames
-from .compensator import Compensator, load_model
+from .compensator import Compensator, Inside, load_model
 from .diagnostics import LEFT_AS_WRITTEN, Diagnostic, PostprocError
 from .findings import (
     DEFAULT_MAX_CORRECTION_MM,
@@ -27,6 +27,7 @@ from .findings import (
     Selection,
     Settings,
     command_findings,
+    dead_band_notes,
     missing_xyz,
     outside_envelope,
     robot_base_poses,
@@ -75,6 +76,7 @@ class Report:
     mean_correction_mm: float = 0.0
     outside_envelope: int = 0
     warnings: list[Diagnostic] = field(default_factory=list)
+    notes: list[Diagnostic] = field(default_factory=list)  # P321 (printed with -v)
     outputs: dict[str, str] = field(default_factory=dict)
     changed: list[str] = field(default_factory=list)
 
@@ -102,6 +104,8 @@ class Report:
                    f"{self.mean_correction_mm:.3f} mm, {self.iterations} iteration{'s' if self.iterations != 1 else ''}")
         if self.warnings:
             details += f", {len(self.warnings)} warning{'s' if len(self.warnings) != 1 else ''}"
+        if self.notes:
+            details += f", {len(self.notes)} in a joint's backlash dead band (P321, -v)"
         if not self.changed:
             details += "; nothing changed: the output is the input as it was, unstamped"
         return f"{head}; {details}"
@@ -284,7 +288,7 @@ def compensate_program(
     stream = _CommandStream(model, selection, report.iterations, program, max_correction_mm, orientation=orientation)
     outputs = _rewrite(program, selection, stream)
     commanded, new_xyz, joints = stream.result()
-    commands = Commands(selection, commanded, joints)
+    commands = Commands(selection, commanded, joints, Inside.join(stream.inside))
     after = command_findings(program, commands, model, settings)
     _raise_first(after, strict)
     assert outputs is not None  # _Unsafe is raised only for what output_rule refuses
@@ -301,6 +305,7 @@ def compensate_program(
     report.mean_correction_mm = float(size.mean()) if len(size) else 0.0
     report.outside_envelope = _outside(model, commands)
     report.warnings = warnings
+    report.notes = dead_band_notes(program, commands)
     report.changed = [program.files[i] for i in sorted(set(program.targets.file[selection.rows].tolist()))]
     report.outputs = dict(zip(program.files, outputs))
     return report
@@ -411,6 +416,7 @@ class _CommandStream:
         wanted = model.has_joints and envelope is not None and envelope.joints is not None
         self.joints = np.full((len(poses), 6), np.nan) if wanted else None
         self.ready = 0  # rows [0, ready) are filled
+        self.inside: list = []  # each chunk's Inside (models that settle the approach)
         self.unsafe = False
         self._error: BaseException | None = None
         self._cancel = False
@@ -431,7 +437,9 @@ class _CommandStream:
     def _run(self, chunks: Iterator[tuple[int, np.ndarray, np.ndarray | None]], poses: np.ndarray,
              bound: float) -> None:
         try:
-            for start, commands, q in chunks:
+            for chunk in chunks:
+                start, commands, q = chunk
+                self.inside.append(getattr(chunk, "inside", None))
                 if self._cancel:
                     return
                 end = start + len(commands)

@@ -24,6 +24,10 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   (the identified tool offset a shift fixed to the flange, the mount's rotation where the data
   separated it). ``train``'s hybrid and kinematic models have it; pose-only models do not
   (P304 for another $TOOL);
+* optional input ``approach``: float32 [N, 6], only beside ``previous_pose``: the approach
+  sign each joint takes the target with (+1, −1; 0 = the middle of its lost motion) that the
+  model assumes in place of the one it computes from ``previous_pose``; NaN = from
+  ``previous_pose``. ``Compensator`` feeds NaN, except where it settles the approach (below);
 * output ``error``: float32 [N, 3] mm, E = P_target − P_actual; normalisation lives inside
   the graph;
 * optional output ``ik_joints``: float32 [N, 6] deg, the controller's joint angles (nominal IK,
@@ -51,6 +55,20 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
 
 The command sent for target P is c = P + Ê(c), solved by fixed-point iteration from
 c₀ = P (one iteration = the method's c = P + Ê(P)).
+
+Settling the approach (models with ``approach`` and ``ik_joints``): where a joint barely moves
+between two targets, the correction itself can reverse its motion, so the side of its lost
+motion the model assumed is not the side the robot takes (and the iteration may flip between
+the two). After the iterations, one more run at the commands checks each target: its command
+must be the fixed point under the approach signs its own joint motion (from the previous
+target's command) produces; a joint that does not move keeps the sign of its last motion
+(as the robot's gear does: the simulator's rule). A target that is not is solved again under
+each hypothesis of the approach signs of its joints that move least (at most SETTLE_JOINTS;
+2^k sign sets and the middle of the lost motion), batched; the command whose joint motion
+agrees with its hypothesis is kept (the smallest worst case over both sides if several do),
+and if none agrees the one with the smallest worst case over both sides (the joint then sits
+in its dead band: ``Settled.inside``, reported by compensate as P321). Targets after a changed
+one are checked again, in program order across chunks.
 """
 from __future__ import annotations
 
@@ -75,6 +93,21 @@ INPUT_TOOL = "tool"
 OUTPUT_JOINTS = "ik_joints"
 LEGACY_OUTPUT_JOINTS = "joints"  # (the output's name before the ``joints`` input existed)
 OUTPUT_ROTATION = "rotation_error"
+INPUT_APPROACH = "approach"
+# a command further than this from c = P + Ê(c) under its own joint motion is not settled (mm):
+# the plain iteration leaves ~1e-6 mm where the approach signs hold still
+SETTLE_TOLERANCE_MM = 1e-3
+# joints whose approach sign is hypothesised per unsettled target (2^k + 1 candidates)
+SETTLE_JOINTS = 3
+# passes over the targets after a changed command (a run of neighbours that all barely move)
+SETTLE_PASSES = 32
+# a joint step below this (deg) is no motion: the model's own dead band (training.kinematic's
+# SIGN_DEADBAND, 2e-6 rad) in the float32 degrees of ``ik_joints``
+STILL_DEG = 1.2e-4
+# ... and a step below this (deg) is the same command: float32 joint angles of one pose differ
+# by ~1e-5° between rows of a batch (SIMD tails); a joint between the two has moved too little
+# for the model to tell which way (both sides are taken into account)
+SAME_DEG = 3e-5
 # (8192 rows: the intermediates of the hybrid graph stay in cache, 11 % faster than 65536; measured)
 PREDICT_BATCH = 8192
 # Rows per chunk of ``command_chunks``: the unit compensate overlaps model runs and rewriting by.
@@ -142,6 +175,14 @@ class Compensator:
     wants_joints: bool = False  # the graph takes the controller's ``joints`` (configuration)
     wants_tool: bool = False  # the graph takes the TCP on the flange (``tool``)
     has_rotation: bool = False  # the graph also outputs ``rotation_error``
+    wants_approach: bool = False  # the graph takes fixed approach signs (``approach``)
+    settle: bool = True  # settle the commands on their approach where the model can (False: the plain fixed point)
+
+    @property
+    def settles(self) -> bool:
+        """Commands are settled on their approach signs (see the module text): the graph takes
+        ``approach`` beside ``previous_pose`` and outputs the joint angles."""
+        return self.settle and self.wants_approach and self.wants_previous and self.has_joints
 
     @property
     def name(self) -> str:
@@ -188,7 +229,8 @@ class Compensator:
         return (r > float(reach["radius_max"])) | (r < float(reach.get("radius_min", 0.0)))
 
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None, joints=None,
-                tool: np.ndarray | None = None, with_joints: bool = False, rotation: bool = False):
+                tool: np.ndarray | None = None, with_joints: bool = False, rotation: bool = False,
+                approach: np.ndarray | None = None):
         """Ê for poses [N, 6] (robot base frame) → [N, 3] mm (float64). ``joints`` [N, 6] deg:
         the controller's joint angles at each pose (its configuration; NaN rows unknown), fed
         to a model with that input, ignored by others; ``tool`` [N, 6]: the TCP on the flange
@@ -196,14 +238,16 @@ class Compensator:
         model without that output); ``joints=True`` / ``False`` is read as ``with_joints`` (the
         older call). Batched: one onnxruntime call per PREDICT_BATCH poses (a whole CAM program
         in one call would make the runtime hold every intermediate layer for every target).
-        With ``rotation``: the rotation error [N, 3] deg is returned last."""
+        With ``rotation``: the rotation error [N, 3] deg is returned last. ``approach`` [N, 6]:
+        approach signs to assume (NaN: from ``previous``), for a model with that input."""
         if isinstance(joints, bool):
             joints, with_joints = None, joints
         poses = np.ascontiguousarray(poses, dtype=np.float32).reshape(-1, 6)
         if self.wants_previous:
             previous = poses if previous is None else np.ascontiguousarray(previous, dtype=np.float32).reshape(-1, 6)
         extra = {}
-        for name, wanted, value in ((INPUT_JOINTS, self.wants_joints, joints), (INPUT_TOOL, self.wants_tool, tool)):
+        for name, wanted, value in ((INPUT_JOINTS, self.wants_joints, joints), (INPUT_TOOL, self.wants_tool, tool),
+                                    (INPUT_APPROACH, self.wants_approach, approach)):
             if wanted:
                 extra[name] = (np.full(poses.shape, np.nan, np.float32) if value is None
                                else np.ascontiguousarray(np.broadcast_to(np.asarray(value, np.float32), poses.shape)))
@@ -299,6 +343,7 @@ class Compensator:
         chunk = COMMAND_CHUNK  # (read at call time: tests make it small)
         # the last row of the chunk before, after each iteration k (k = 0: the target itself)
         before: list[np.ndarray] | None = None
+        settle = _Settle(self, iterations, orientation) if self.settles else None
         for start in range(0, len(poses), chunk):
             part = poses[start:start + chunk]
             given = {"joints": None if joints is None else joints[start:start + chunk],
@@ -314,7 +359,7 @@ class Compensator:
                     head = trial[:1] if before is None else before[k][None]
                     prev = np.vstack([head, trial[:-1]])
                 rotation = None
-                if k == 0 and with_joints:  # the first run is at the targets themselves: their joint angles
+                if k == 0 and (with_joints or settle):  # the first run is at the targets themselves: their joint angles
                     error, q, *rotation = self.predict(trial, prev, with_joints=True, rotation=orientation, **given)
                 elif orientation:
                     error, *rotation = self.predict(trial, prev, rotation=True, **given)
@@ -325,7 +370,238 @@ class Compensator:
                     trial[:, 3:6] = _corrected_attitude(part[:, 3:6], rotation[0])
                 last.append(trial[-1].copy())
             before = last
-            yield start, (trial if orientation else trial[:, :3]), q
+            inside = None
+            if settle is not None:
+                inside = settle.chunk(start, part, trial, q, given)
+            yield CommandChunk(start, (trial if orientation else trial[:, :3]), q if with_joints else None,
+                               inside=inside)
+
+
+@dataclass
+class Inside:
+    """Targets whose command no approach hypothesis makes self-consistent: a joint barely
+    moving there sits in its backlash dead band whatever is sent. ``rows`` [k] (program rows),
+    ``joints`` [k, 6] bool (the joints in their dead band), ``worst_mm`` [k] (the smallest
+    worst-case error over both sides of those joints, the command sent), ``error_mm`` [k] (the
+    model's error with the side the command's own motion takes)."""
+
+    rows: np.ndarray
+    joints: np.ndarray
+    worst_mm: np.ndarray
+    error_mm: np.ndarray
+
+    @staticmethod
+    def join(parts: list["Inside | None"]) -> "Inside":
+        parts = [p for p in parts if p is not None]
+        if not parts:
+            return Inside(np.zeros(0, int), np.zeros((0, 6), bool), np.zeros(0), np.zeros(0))
+        return Inside(*(np.concatenate([getattr(p, f) for p in parts]) for f in ("rows", "joints", "worst_mm", "error_mm")))
+
+
+class CommandChunk(tuple):
+    """(first row, commands, joint angles or None), as ``command_chunks`` yields it; ``inside``:
+    the chunk's :class:`Inside` targets (None for models that do not settle the approach)."""
+
+    inside: Inside | None
+
+    def __new__(cls, start: int, commands: np.ndarray, q: np.ndarray | None, inside: Inside | None = None):
+        self = super().__new__(cls, (start, commands, q))
+        self.inside = inside
+        return self
+
+
+def _wrap_deg(a: np.ndarray) -> np.ndarray:
+    return (a + 180.0) % 360.0 - 180.0
+
+
+class _Settle:
+    """The approach settling of ``command_chunks`` (module text), chunk after chunk in program
+    order: keeps the last target's command, joint angles and approach signs for the next."""
+
+    def __init__(self, model: "Compensator", iterations: int, orientation: bool):
+        self.model, self.iterations, self.orientation = model, iterations, orientation
+        self.head: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (command [6], q [6], signs [6])
+
+    # -- the joint motion of a chunk's commands: signs, and what the model must be told
+    def _prev_q_signs(self, q: np.ndarray, signs: np.ndarray | None = None):
+        """Joint angles [n, 6] and sides [n, 6] of each row's previous command (row 0: the chunk
+        before's; the program's first target: itself, unknown side)."""
+        if self.head is None:
+            return np.vstack([q[:1], q[:-1]]), (None if signs is None else np.vstack([np.full((1, 6), np.nan), signs[:-1]]))
+        return (np.vstack([self.head[1][None], q[:-1]]),
+                None if signs is None else np.vstack([self.head[2][None], signs[:-1]]))
+
+    def _motion(self, q: np.ndarray):
+        """(step [n, 6] deg from the previous command, sides [n, 6] (the side each joint is on:
+        its last motion's, NaN where unknown), keep [n, 6] (the ``approach`` of a joint that does
+        not move: it keeps its side; NaN where it moves), unsure [n, 6] (a motion too small for
+        the model's float32 joint angles to tell its direction))."""
+        n = len(q)
+        q_prev, _ = self._prev_q_signs(q)
+        s_head = np.full(6, np.nan) if self.head is None else self.head[2]
+        step = _wrap_deg(q - q_prev)
+        raw = np.where(np.abs(step) <= SAME_DEG, 0.0, np.where(np.abs(step) > STILL_DEG, np.sign(step), np.nan))
+        unsure = np.isnan(raw)
+        if self.head is None:
+            raw[0], unsure[0] = np.nan, False  # (from HOME: the model's own rule)
+        idx = np.where(raw != 0, np.arange(n)[:, None], -1)
+        last = np.maximum.accumulate(idx, axis=0)
+        signs = np.where(last >= 0, np.take_along_axis(raw, np.maximum(last, 0), axis=0), s_head)
+        keep = np.where(raw == 0, signs, np.nan)
+        return step, signs, keep, unsure
+
+    def _run(self, c: np.ndarray, prev: np.ndarray | None, approach: np.ndarray, given: dict, with_joints: bool):
+        """Ê [m, 3] (and q [m, 6]; the rotation error with ``orientation``) at commands ``c``;
+        ``prev`` None: each row comes from itself (the program's first target)."""
+        prev = c if prev is None else prev
+        out = self.model.predict(c, prev, with_joints=with_joints, rotation=self.orientation,
+                                 approach=approach, **given)
+        return out if isinstance(out, tuple) else (out,)
+
+    def _landing(self, c, prev, approach, given, q_prev, side_prev):
+        """(Ê, q, rotation or None, unsure [m, 6]) at commands ``c`` with the sides their own
+        motion takes (``approach`` where not NaN): a joint that does not move from ``q_prev``
+        keeps ``side_prev``."""
+        out = self._run(c, prev, approach, given, True)
+        e, q, rot = out[0], out[1], (out[2] if self.orientation else None)
+        step = _wrap_deg(q - q_prev)
+        still = (np.abs(step) <= SAME_DEG) & np.isnan(approach) & ~np.isnan(side_prev)
+        rows = np.flatnonzero(still.any(axis=1))
+        if len(rows):
+            again = self._run(c[rows], prev[rows], np.where(still[rows], side_prev[rows], approach[rows]),
+                              _rows(given, rows), False)
+            e[rows] = again[0]
+            if self.orientation:
+                rot[rows] = again[1]
+        unsure = (np.abs(step) > SAME_DEG) & (np.abs(step) <= STILL_DEG)
+        return e, q, rot, unsure
+
+    def chunk(self, start: int, part: np.ndarray, trial: np.ndarray, q_target: np.ndarray, given: dict) -> Inside:
+        """Settle ``trial`` (the chunk's commands [n, 6], changed in place) on the approach."""
+        n = len(part)
+        q = np.full((n, 6), np.nan)
+        inside = np.zeros(n, bool)
+        dead = np.zeros((n, 6), bool)
+        worst = np.zeros(n)
+        error = np.zeros(n)
+        check = np.arange(n)
+        keep = np.full((n, 6), np.nan)
+        for _ in range(SETTLE_PASSES):
+            if not len(check):
+                break
+            # each command's error with the sides its own joint motion gives
+            prev_c = np.vstack([trial[:1] if self.head is None else self.head[0][None], trial[:-1]])
+            first = check == 0 if self.head is None else np.zeros(len(check), bool)
+            prev_rows = np.where(first[:, None], trial[check], prev_c[check])
+            out = self._run(trial[check], prev_rows, np.full((len(check), 6), np.nan), _rows(given, check), True)
+            q[check] = out[1]
+            step, signs, keep, unsure = self._motion(q)
+            e, rot = out[0], (out[2] if self.orientation else None)
+            still = ~np.isnan(keep[check]).all(axis=1)
+            if still.any():  # a joint that does not move keeps its side (the model alone: the middle)
+                again = self._run(trial[check[still]], prev_rows[still], keep[check[still]],
+                                  _rows(given, check[still]), False)
+                e[still] = again[0]
+                if self.orientation:
+                    rot[still] = again[1]
+            off = np.linalg.norm(part[check, :3] + e - trial[check, :3], axis=1) > SETTLE_TOLERANCE_MM
+            if self.orientation:
+                off |= np.abs(_wrap_deg(_corrected_attitude(part[check, 3:6], rot) - trial[check, 3:6])).max(axis=1) > 1e-6
+            off |= unsure[check].any(axis=1)
+            off &= ~first  # (the first target comes from HOME, far away: no doubt)
+            inside[check] = False
+            bad = check[off]
+            if not len(bad):
+                break
+            old = trial[bad].copy()
+            q_prev, side_prev = self._prev_q_signs(q, signs)
+            none, joints, w, err = self._hypotheses(bad, part, trial, q, q_target, step, q_prev[bad], side_prev[bad],
+                                                    prev_rows[off], given)
+            inside[bad[none]], dead[bad[none]], worst[bad[none]], error[bad[none]] = True, joints[none], w[none], err[none]
+            # the next pass: the targets after a changed command, and where a still joint's side changed
+            changed = bad[np.abs(trial[bad] - old).max(axis=1) > 0]
+            keep_after = self._motion(q)[2]
+            again = np.zeros(n, bool)
+            after = changed + 1
+            again[after[after < n]] = True
+            again |= ~((keep_after == keep) | (np.isnan(keep_after) & np.isnan(keep))).all(axis=1)
+            check = np.flatnonzero(again)
+        signs = self._motion(q)[1]
+        self.head = (trial[-1].copy(), q[-1].copy(), signs[-1].copy())
+        rows = np.flatnonzero(inside)
+        return Inside(start + rows, dead[rows], worst[rows], error[rows])
+
+    def _hypotheses(self, bad, part, trial, q, q_target, step, q_prev, side_prev, prev_rows, given):
+        """Solve targets ``bad`` again under each approach hypothesis of their SETTLE_JOINTS
+        joints that move least (against what the correction turns them by); write the chosen
+        commands and their joint angles into ``trial`` / ``q``. Returns per row: no hypothesis
+        agrees [b], the joints in doubt [b, 6], the chosen command's worst case over both sides
+        of them [b] mm and its error with the side its own motion takes [b] mm."""
+        m = SETTLE_JOINTS
+        turn = np.abs(_wrap_deg(q[bad] - q_target[bad])) + 1e-4
+        slots = np.argsort(np.abs(step[bad]) / turn, axis=1, kind="stable")[:, :m]  # [b, m]
+        combos = np.array(np.meshgrid(*[[-1.0, 1.0]] * m, indexing="ij")).reshape(m, -1).T  # [2^m, m]
+        # + the middle of the lost motion, + every joint on the side it is on (no joint moves:
+        # a target written twice), started from the previous command
+        hyps = np.vstack([combos, np.zeros((1, m)), np.full((1, m), np.nan)])
+        b, h, s = len(bad), len(hyps), len(combos)
+        rep = np.repeat(np.arange(b), h)
+        fixed = np.full((b * h, 6), np.nan)
+        np.put_along_axis(fixed, slots[rep], np.tile(hyps, (b, 1)), axis=1)
+        target, prev, sub = part[bad][rep], prev_rows[rep], _rows(given, bad[rep])
+        qp, sp = q_prev[rep], side_prev[rep]
+        cand, q_c = trial[bad][rep].copy(), q[bad][rep]
+        stay = np.arange(b) * h + h - 1
+        fixed[stay] = side_prev
+        cand[stay], q_c[stay] = prev_rows, q_prev
+        for _ in range(self.iterations + 1):  # the fixed point under each hypothesis
+            # (a joint that barely moves is held on its side: a target written twice ends on its twin)
+            still = np.isnan(fixed) & (np.abs(_wrap_deg(q_c - qp)) <= STILL_DEG) & ~np.isnan(sp)
+            out = self._run(cand, prev, np.where(still, sp, fixed), sub, True)
+            q_c = out[1]
+            cand[:, :3] = target[:, :3] + out[0]
+            if self.orientation:
+                cand[:, 3:6] = _corrected_attitude(target[:, 3:6], out[2])
+        # (no joint moves: exactly the previous command, the float32 model leaves ~1e-4 mm)
+        twin = stay[np.abs(cand[stay] - prev[stay]).max(axis=1) <= SETTLE_TOLERANCE_MM]
+        cand[twin] = prev[twin]
+        # where each candidate lands with the sides its own motion takes
+        real, q_cand, _, unsure = self._landing(cand, prev, np.full((b * h, 6), np.nan), sub, qp, sp)
+        error = np.linalg.norm(target[:, :3] - cand[:, :3] + real, axis=1).reshape(b, h)
+        moved = _wrap_deg(q_cand - qp)
+        side = np.where(np.abs(moved) <= SAME_DEG, np.nan_to_num(sp), np.sign(moved))
+        side = np.take_along_axis(side, slots[rep], axis=1).reshape(b, h, m)
+        unsure_slot = np.take_along_axis(unsure, slots[rep], axis=1).reshape(b, h, m)
+        # a joint is in doubt where the candidates take it to either side or too little to tell
+        doubt = (side.max(axis=1) != side.min(axis=1)) | unsure_slot.any(axis=1)  # [b, m]
+        agrees = (error <= SETTLE_TOLERANCE_MM) & ~unsure.any(axis=1).reshape(b, h)
+        settled = agrees.any(axis=1)
+        # where one agrees: the one nearest the plain fixed point's command
+        near = np.linalg.norm(cand[:, :3] - trial[bad][rep][:, :3], axis=1).reshape(b, h)
+        pick = np.argmin(np.where(agrees, near, np.inf), axis=1)
+        worst = np.where(agrees, error, np.inf)
+        # where none does: each candidate's worst case over both sides of the joints in doubt
+        lost = np.flatnonzero(~settled)
+        if len(lost):
+            at = (lost[:, None] * h + np.arange(h)).ravel()  # their candidates
+            rep2 = np.repeat(at, s)
+            sides = np.where(doubt[lost][:, None, None, :], combos[None, None], side[lost][:, :, None, :]).reshape(-1, m)
+            approach = np.full((len(rep2), 6), np.nan)
+            np.put_along_axis(approach, slots[rep][rep2], sides, axis=1)
+            out = self._landing(cand[rep2], prev[rep2], approach, _rows(sub, rep2), qp[rep2], sp[rep2])
+            w = np.linalg.norm(target[rep2, :3] - cand[rep2, :3] + out[0], axis=1).reshape(len(lost), h, s).max(axis=2)
+            worst[lost] = np.maximum(w, error[lost])
+            pick[lost] = np.argmin(worst[lost], axis=1)
+        chosen = np.arange(b) * h + pick
+        trial[bad] = cand[chosen]
+        q[bad] = q_cand[chosen]
+        joints = np.zeros((b, 6), bool)
+        np.put_along_axis(joints, slots, doubt, axis=1)
+        return ~agrees.any(axis=1), joints, worst[np.arange(b), pick], error[np.arange(b), pick]
+
+
+def _rows(given: dict, rows: np.ndarray) -> dict:
+    return {k: None if v is None else v[rows] for k, v in given.items()}
 
 
 def _corrected_attitude(abc: np.ndarray, rotation_error_deg: np.ndarray) -> np.ndarray:
@@ -359,13 +635,16 @@ def load_model(path: str | Path | None = None) -> Compensator:
     problems = []
     if INPUT_POSE not in inputs:
         problems.append(f"no input '{INPUT_POSE}' (has {sorted(inputs)})")
-    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL}
+    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, INPUT_APPROACH}
     if extra:
         problems.append(f"unexpected inputs {sorted(extra)}")
     if OUTPUT_ERROR not in outputs:
         problems.append(f"no output '{OUTPUT_ERROR}' (has {sorted(outputs)})")
     joints_output = OUTPUT_JOINTS if OUTPUT_JOINTS in outputs or INPUT_JOINTS in inputs else LEGACY_OUTPUT_JOINTS
-    for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6), (INPUT_JOINTS, 6), (INPUT_TOOL, 6)):
+    if INPUT_APPROACH in inputs and INPUT_PREVIOUS not in inputs:
+        problems.append(f"input '{INPUT_APPROACH}' without '{INPUT_PREVIOUS}'")
+    for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6), (INPUT_JOINTS, 6), (INPUT_TOOL, 6),
+                           (INPUT_APPROACH, 6)):
         if name in inputs and (len(inputs[name].shape) != 2 or inputs[name].shape[1] not in (expected, None, "6")
                                or isinstance(inputs[name].shape[0], int)):
             problems.append(f"input '{name}' has shape {inputs[name].shape}, expected [N, {expected}]")
@@ -378,7 +657,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
                                        or outputs[OUTPUT_ROTATION].shape[1] not in (3, None)):
         problems.append(f"output '{OUTPUT_ROTATION}' has shape {outputs[OUTPUT_ROTATION].shape}, expected [N, 3]")
     for node in (*inputs.values(), *outputs.values()):
-        if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, OUTPUT_ERROR,
+        if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, INPUT_APPROACH, OUTPUT_ERROR,
                          joints_output, OUTPUT_ROTATION) and node.type != "tensor(float)":
             problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
     if problems:
@@ -398,6 +677,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
         wants_joints=INPUT_JOINTS in inputs,
         wants_tool=INPUT_TOOL in inputs,
         has_rotation=OUTPUT_ROTATION in outputs,
+        wants_approach=INPUT_APPROACH in inputs,
     )
 
 

@@ -30,12 +30,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import frames
-from .compensator import Compensator
+from .compensator import Compensator, Inside
 from .diagnostics import Diagnostic, PostprocError
 from .programs import Program
 
 __all__ = [
-    "Settings", "Selection", "Commands", "select", "findings", "static_findings", "command_findings",
+    "Settings", "Selection", "Commands", "select", "findings", "static_findings", "command_findings", "dead_band_notes",
     "robot_base_poses", "tool_mismatch", "robot_mismatch", "collect", "MAX_LISTED", "DEFAULT_MAX_CORRECTION_MM",
 ]
 
@@ -84,6 +84,7 @@ class Commands:
     selection: Selection
     commanded: np.ndarray
     joints: np.ndarray | None = None
+    inside: Inside | None = None  # targets whose joints stay in their backlash dead band (P321)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -358,6 +359,24 @@ def select(program: Program, model: Compensator, settings: Settings = Settings()
 def static_findings(program: Program, model: Compensator, settings: Settings) -> list[Diagnostic]:
     """Every finding that needs no model output."""
     return select_with_findings(program, model, settings)[1]
+
+
+def dead_band_notes(program: Program, commands: Commands) -> list[Diagnostic]:
+    """P321 notes (``-v``): targets where a joint barely moves and no command makes its motion
+    agree with the side of its lost motion assumed (Compensator's approach settling): the
+    joint stays in its dead band; the command sent has the smallest worst case over both sides."""
+    inside = commands.inside
+    if inside is None or not len(inside.rows):
+        return []
+    rows = commands.selection.rows[inside.rows]
+    out = []
+    for row, joints, worst, error in zip(rows.tolist(), inside.joints, inside.worst_mm.tolist(), inside.error_mm.tolist()):
+        names = ", ".join(f"A{j + 1}" for j in np.flatnonzero(joints)) or "a joint"
+        out.append(Diagnostic(*where(program, row), "P321",
+                              f"{names} barely moves here and stays in its backlash dead band: no command makes its "
+                              f"motion agree with the side assumed; sent the one with the smallest worst case over "
+                              f"both sides, {worst:.3f} mm (with the side its motion takes: {error:.3f} mm)", "note"))
+    return out
 
 
 def command_findings(program: Program, commands: Commands, model: Compensator, settings: Settings) -> list[Diagnostic]:

@@ -423,10 +423,12 @@ def write_markdown(data: ReportData, numbers: dict, figures: dict[str, Path], pa
         + (f", model `{data.model_card.get('name', '')}` (sha256 `{str(data.model_card.get('sha256', ''))[:12]}`)"
            if data.model_card else "") + ".",
         "",
-        "| positioning error (mm) | max | min | mean | std |",
-        "|---|---:|---:|---:|---:|",
-        f"| before, \\|E\\| | {before['max']:.3f} | {before['min']:.3f} | {before['mean']:.3f} | {before['std']:.3f} |",
-        f"| {after_label} | {after['max']:.3f} | {after['min']:.3f} | {after['mean']:.3f} | {after['std']:.3f} |",
+        "| positioning error (mm) | max | min | mean | std | p95 |",
+        "|---|---:|---:|---:|---:|---:|",
+        f"| before, \\|E\\| | {before['max']:.3f} | {before['min']:.3f} | {before['mean']:.3f} | {before['std']:.3f} "
+        f"| {before['p95']:.3f} |",
+        f"| {after_label} | {after['max']:.3f} | {after['min']:.3f} | {after['mean']:.3f} | {after['std']:.3f} "
+        f"| {after['p95']:.3f} |",
         "",
         f"Mean error reduced by {100 * numbers['mean_reduction']:.1f} %. Std with ddof 1.",
     ]

@@ -204,6 +204,9 @@ def test_commands_in_chunks_equal_the_whole_program_fixed_point(monkeypatch):
 
     model = load_model()
     assert model.wants_previous
+    # (the plain fixed point: a model with an ``approach`` input then settles a few targets on
+    # their approach, chunk by chunk too: tests/test_approach.py)
+    model.settle = False
     poses = _cam_path(300)
     trial = poses.copy()
     for _ in range(model.default_iterations):  # the fixed point written out, whole program at once

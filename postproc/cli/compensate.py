@@ -102,7 +102,7 @@ def run(args) -> int:
     else:
         report = compensate_file(inputs[0], args.output, args.model, config=args.config, **kwargs)
     if not args.quiet:
-        for w in report.warnings:
+        for w in report.warnings + (report.notes if args.verbose else []):
             print(w.format(), file=sys.stderr)
         print(f"postproc: {report.summary()}", file=sys.stderr)
     # like `ruff --fix` with findings left: the output is written, but not everything was done

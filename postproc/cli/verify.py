@@ -150,17 +150,18 @@ def run(args) -> int:
         which = "default robot" if sim.is_default else "drawn robot"
         print(f"Positioning error (mm) of {len(p_orig)} targets on {sim.robot.name}, seed {sim.seed} ({which})"
               f"{'' if figures['noise'] else ', no noise'}")
-        print(f"{'':12s}{'max':>9s}{'min':>9s}{'mean':>9s}{'std':>9s}")
+        print(f"{'':12s}{'max':>9s}{'min':>9s}{'mean':>9s}{'std':>9s}{'p95':>9s}")
         for label in ("before", "after"):
             s = result[label]
-            print(f"{label:12s}{s['max']:9.3f}{s['min']:9.3f}{s['mean']:9.3f}{s['std']:9.3f}")
+            print(f"{label:12s}{s['max']:9.3f}{s['min']:9.3f}{s['mean']:9.3f}{s['std']:9.3f}{s['p95']:9.3f}")
         print("Orientation error (deg)")
         for label in ("before", "after"):
             s = result["orientation_" + label]
-            print(f"{label:12s}{s['max']:9.4f}{s['min']:9.4f}{s['mean']:9.4f}{s['std']:9.4f}")
+            print(f"{label:12s}{s['max']:9.4f}{s['min']:9.4f}{s['mean']:9.4f}{s['std']:9.4f}{s['p95']:9.4f}")
     if not args.quiet:
         gate = "" if args.max_mean is None else (f"; FAILED: mean {result['after']['mean']:.3f} > {args.max_mean:g} mm"
                                                  if failed else f"; mean within {args.max_mean:g} mm")
-        print(f"postproc: verify: mean error {result['before']['mean']:.3f} → {result['after']['mean']:.3f} mm{gate}",
-              file=sys.stderr)
+        a = result["after"]
+        print(f"postproc: verify: mean error {result['before']['mean']:.3f} → {a['mean']:.3f} mm "
+              f"(after: p95 {a['p95']:.3f}, max {a['max']:.3f} mm){gate}", file=sys.stderr)
     return EXIT_FINDINGS if failed else 0

@@ -83,18 +83,21 @@ class HybridModule(torch.nn.Module):
 
     def error_and_joints(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
                          q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None,
-                         rotation: bool = False) -> tuple[torch.Tensor, ...]:
+                         rotation: bool = False, approach: torch.Tensor | None = None) -> tuple[torch.Tensor, ...]:
         """(Ê [N, 3], the controller's joint angles q [N, 6] rad) in the dtype of ``pose``;
         ``q_in`` [N, 6] rad picks each row's IK branch (NaN rows: the identified branch);
         ``tool`` [N, 6] each row's TCP on the flange (NaN rows: the model's own). With
         ``rotation``: + r̂ [N, 3] rad, the identified arm's orientation error (the residual nets
-        are of the position only)."""
+        are of the position only). ``approach`` [N, 6] fixes the approach signs (NaN: from
+        ``previous_pose``)."""
         dtype = pose.dtype
         pose = pose.to(torch.float64)
         prev = previous_pose.to(torch.float64) if previous_pose is not None else None
         q_in = q_in.to(torch.float64) if q_in is not None else None
         tool = tool.to(torch.float64) if tool is not None else None
-        error, q, signs, learned, *turned = self.kinematic.parts(pose, prev, q_in, self.joint_range, tool, rotation)
+        approach = approach.to(torch.float64) if approach is not None else None
+        error, q, signs, learned, *turned = self.kinematic.parts(pose, prev, q_in, self.joint_range, tool, rotation,
+                                                                 approach)
         if len(self.nets):
             features = joint_features(q, signs if self.uses_previous else None)
             error = error + learned[:, None] * torch.stack([net(features) for net in self.nets]).mean(dim=0)
@@ -107,10 +110,11 @@ class HybridModule(torch.nn.Module):
 
 class _WithJoints(torch.nn.Module):
     """The exported graph: inputs ``pose`` [, ``previous_pose``], ``joints`` (deg, NaN rows:
-    unknown) [, ``tool`` (NaN rows: the model's own)]; outputs ``error`` and ``joints`` (deg,
-    wrapped to [−180, 180)), so that compensate can check the joint ranges of the envelope
-    with onnxruntime alone, and, when the orientation was identified from measured
-    orientations, ``rotation_error`` (deg)."""
+    unknown) [, ``approach`` (with ``previous_pose``: the approach signs compensate settles,
+    NaN = from ``previous_pose``)] [, ``tool`` (NaN rows: the model's own)]; outputs ``error``
+    and ``joints`` (deg, wrapped to [−180, 180)), so that compensate can check the joint ranges
+    of the envelope with onnxruntime alone, and, when the orientation was identified from
+    measured orientations, ``rotation_error`` (deg)."""
 
     def __init__(self, module: HybridModule, tool: bool = False):
         super().__init__()
@@ -118,10 +122,13 @@ class _WithJoints(torch.nn.Module):
         self.tool = tool
 
     def forward(self, pose: torch.Tensor, *rest: torch.Tensor):
-        previous_pose = rest[0] if self.module.uses_previous else None
-        tool = rest[-1] if self.tool else None
-        joints = rest[-2 if self.tool else -1] * (math.pi / 180.0)  # (torch.deg2rad has no ONNX export)
-        error, q, *turned = self.module.error_and_joints(pose, previous_pose, joints, tool, self.module.orientation)
+        rest = list(rest)  # (previous_pose,) joints, (approach,) (tool,): onnx_bytes' order
+        previous_pose = rest.pop(0) if self.module.uses_previous else None
+        joints = rest.pop(0) * (math.pi / 180.0)  # (torch.deg2rad has no ONNX export)
+        approach = rest.pop(0) if self.module.uses_previous else None
+        tool = rest.pop(0) if self.tool else None
+        error, q, *turned = self.module.error_and_joints(pose, previous_pose, joints, tool, self.module.orientation,
+                                                         approach)
         return (error, wrap_angles(q) * (180.0 / math.pi), *(t * (180.0 / math.pi) for t in turned))
 
 
@@ -320,7 +327,8 @@ class HybridModel:
         the converged ones (``most`` iterations). Each iteration is a model run over the program:
         the model card's ``iterations`` is this, not a safe-looking larger number. (A joint whose
         step to a target is smaller than the correction's change can flip its approach sign from
-        one iteration to the next: such rare targets never settle, whatever k.)"""
+        one iteration to the next: such rare targets never settle, whatever k; compensate settles
+        them on their approach after the k iterations: compensator's module text.)"""
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         trial = poses.copy()
         history = []
@@ -395,7 +403,8 @@ class HybridModel:
         # networks alone (dnn-joints) learned one TCP's error and keep P304 for the others
         tool = bool(self.kinematic_.layout_.n)
         return write_atomic(path, onnx_bytes(_WithJoints(self.module_, tool), meta, self.uses_previous, joints=True,
-                                             joints_input=True, tool_input=tool, rotation=self.orientation))
+                                             joints_input=True, approach_input=self.uses_previous, tool_input=tool,
+                                             rotation=self.orientation))
 
     @property
     def structure(self) -> str:

@@ -284,7 +284,8 @@ def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, p
                    previous: torch.Tensor, q_in: torch.Tensor | None = None, at=None) -> torch.Tensor:
     """Approach signs [N, 6] for q = IK(pose) reached from ``previous`` [N, 6]. A row whose
     previous pose is the pose itself (compensate's first target: nothing known before it) is
-    taken as reached from HOME, where robot programs start. ``q_in`` (the controller's angles
+    taken as reached from HOME, where robot programs start (a joint HOME leaves as it is: +1,
+    the side the simulator starts every joint on). ``q_in`` (the controller's angles
     at ``pose``, NaN rows unknown): the previous pose is solved on the same branch. ``at``: the
     row's tool (``arm.at_tool`` bound to it), the previous pose taken onto the IK's tool with it.
 
@@ -294,7 +295,10 @@ def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, p
     same = (previous == pose).all(dim=1, keepdim=True)
     previous = previous if at is None else at(previous)
     q_prev = torch.where(same, home_q.expand_as(q), ik(previous) if q_in is None else ik(previous, q_in))
-    return motion_signs(q, q_prev, eps=SIGN_DEADBAND)
+    signs = motion_signs(q, q_prev, eps=SIGN_DEADBAND)
+    # a joint that has not moved since HOME is on the side the robot starts it on (the
+    # simulator's start sign, +1), not in the middle
+    return torch.where(same & (signs == 0), torch.ones_like(signs), signs)
 
 
 class KinematicErrorModule(torch.nn.Module):
@@ -338,19 +342,23 @@ class KinematicErrorModule(torch.nn.Module):
         return self.ik(pose) if q_in is None else self.ik(pose, q_in)
 
     def parts(self, pose: torch.Tensor, previous: torch.Tensor | None = None, q_in: torch.Tensor | None = None,
-              ranges: torch.Tensor | None = None, tool: torch.Tensor | None = None, rotation: bool = False
-              ) -> tuple[torch.Tensor, ...]:
+              ranges: torch.Tensor | None = None, tool: torch.Tensor | None = None, rotation: bool = False,
+              approach: torch.Tensor | None = None) -> tuple[torch.Tensor, ...]:
         """(Ê [N, 3], q [N, 6], signs [N, 6], learned [N]) for float64 poses (``q_in``: see
         ``joints_of``); with joint ``ranges`` [6, 2] rad the ripple terms are left out where q
         is outside them (learned = 0 there, else 1). ``tool`` [N, 6]: each row's TCP on the
         flange (NaN rows: the model's own, ``tool0``): the IK solves the flange pose that puts
         that TCP at ``pose`` and the error is the identified arm's at that TCP. With
-        ``rotation``: + r̂ [N, 3] rad (``error_at``)."""
+        ``rotation``: + r̂ [N, 3] rad (``error_at``). ``approach`` [N, 6]: the approach sign of
+        each joint to assume (+1, −1, 0 = the middle of the lost motion) in place of the one
+        from ``previous``; NaN = from ``previous`` (the contract's ``approach`` input)."""
         at = None if tool is None else (lambda p: at_tool(p, tool, self.tool0))  # noqa: E731
         q = self.joints_of(pose if at is None else at(pose), q_in)
         signs = torch.zeros_like(q)
         if self.use_previous and previous is not None:
             signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous, q_in, at)
+        if self.use_previous and approach is not None:
+            signs = torch.where(torch.isnan(approach), signs, approach)
         learned = torch.ones_like(q[:, 0]) if ranges is None else inside_ranges(q, ranges)
         mask = None if ranges is None else learned
         if rotation:
