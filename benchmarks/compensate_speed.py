@@ -54,7 +54,7 @@ def make_pose_csv(path: Path, n: int, seed: int = 0) -> None:
     """The targets of :func:`make_cam_program` as a pose CSV (header ``x,y,z,a,b,c``)."""
     krl = path.with_name(path.stem + "-poses.src")
     make_cam_program(krl, n, seed)
-    rows = re.findall(r"\{X (\S+),Y (\S+),Z (\S+),A (\S+),B (\S+),C (\S+)\}", krl.read_text())
+    rows = re.findall(r"LIN \{X (\S+),Y (\S+),Z (\S+),A (\S+),B (\S+),C (\S+)\}", krl.read_text())
     krl.unlink()
     path.write_text("x,y,z,a,b,c\n" + "\n".join(",".join(r) for r in rows) + "\n")
 
