@@ -473,7 +473,13 @@ class KinematicModel:
         r, jac, sens = self._state
         n_rows, n_par = jac.shape
         norms = np.linalg.norm(jac, axis=0)
-        basis, _ = np.linalg.qr(jac[:, norms > 1e-12] / norms[norms > 1e-12])
+        scaled = jac[:, norms > 1e-12] / norms[norms > 1e-12]
+        # an orthonormal basis of what the parameters explain, basis = scaled·V·Λ^-½ from the
+        # eigenvectors of scaledᵀ·scaled (directions the data do not see, λ ≤ 1e-12·λ_max,
+        # left out), applied as basisᵀx = Λ^-½·Vᵀ·(scaledᵀx): never formed
+        lam, vec = np.linalg.eigh(scaled.T @ scaled)
+        seen = lam > 1e-12 * lam.max(initial=0.0)
+        to_basis = (vec[:, seen] / np.sqrt(lam[seen])).T  # [k, p]
         sigma2 = float(r @ r) / max(n_rows - n_par, 1)
         orders = np.arange(1, self.max_order + 1)
         threshold = 2.0 * math.log(len(self.ripple_joints) * len(orders) / 0.01)
@@ -484,16 +490,16 @@ class KinematicModel:
         # The candidate columns c = sens[:, :, j] ⊗ regress (rows i·3 + axis) are never formed:
         # their Gram entries and the part the parameters already in explain (basisᵀc) are sums
         # over the N rows, 3× smaller than the 3N × 2K columns (and one product, not two).
-        basis3 = basis.reshape(len(qn), 3, -1)  # [N, 3, p]
+        scaled3 = scaled.reshape(len(qn), 3, -1)  # [N, 3, p]
         r3 = r.reshape(len(qn), 3)
-        basis_r = basis.T @ r  # [p]
+        basis_r = to_basis @ (scaled.T @ r)  # [k]
         for j in self.ripple_joints:  # six joints; all orders at once
             phase = qn[:, j, None] * orders  # [N, K]
             sin, cos = np.sin(phase), np.cos(phase)
             regress = np.concatenate([sin, cos], axis=1)  # [N, 2K]
             sj = sens[:, :, j]  # [N, 3]
             s2 = (sj * sj).sum(1)[:, None]
-            explained = np.einsum("iap,ia->ip", basis3, sj).T @ regress  # basisᵀc [p, 2K]
+            explained = to_basis @ (np.einsum("iap,ia->ip", scaled3, sj).T @ regress)  # basisᵀc [k, 2K]
             es, ec = explained[:, :k_max], explained[:, k_max:]
             # the Gram entries of c − basis·basisᵀc: what the parameters already in cannot explain
             g11 = (s2 * sin * sin).sum(0) - (es * es).sum(0)
