@@ -6,7 +6,10 @@ and Turn, integers; empty = not stated) give the arm configuration and ``q1..q6`
 angles (deg) the controller uses, passed to the model as they are. Other columns, comment lines
 (``#``, ``;``, ``//``) and blank lines are kept as they are. The syntax of a record is
 ``grammars/poses.lark``; each distinct line shape (numbers abstracted) is parsed once and
-reused, so a million rows cost one regex pass, not a million parses.
+reused. Lines of the frequent shapes made of numbers and separators only are then read a chunk
+at a time (one regex over the chunk, numbers converted by numpy: ``_Rows.chunk``); every other
+line, and a whole chunk holding a value that needs a message, goes through the line-by-line
+path (``_Rows.line``), so both give the same targets and the same errors.
 """
 from __future__ import annotations
 
