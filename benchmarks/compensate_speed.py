@@ -1,12 +1,15 @@
 """Speed of `postproc compensate` on a generated CAM program.
 
-    python benchmarks/compensate_speed.py [--targets 1000000] [--model models/default.onnx] [--memory]
+    python benchmarks/compensate_speed.py [--targets 1000000] [--model models/default.onnx] [--memory] [--poses]
 
 Prints targets/s and peak memory of the CLI on a program of N `LIN {X …,Y …,Z …,A …,B …,C …}
 C_VEL` lines, the time of a plain Python pass that reads the file, rewrites the same X/Y/Z
 numbers by regex and writes it (the floor any rewriter must pay), their ratio, and the
 wall time of a 100-line program end to end (process start included).
 Goals (issue 2): ≥ 100,000 targets/s, ≤ 3× the regex pass, peak ≤ 2 GB, 100 lines ≤ 0.5 s.
+
+With --poses it also compensates the same poses as a pose CSV (``x,y,z,a,b,c`` rows) and
+times the regex pass on that CSV (issue 13: pose lists at KRL speed).
 
 With --memory it also runs the CLI on 1/10 and 1/3 of the program and fits its peak RSS
 (each process measured on its own, os.wait4) as a + b·size: b is the peak RSS per MB of
@@ -47,7 +50,26 @@ def make_cam_program(path: Path, n: int, seed: int = 0) -> None:
     path.write_text(head + body + "\nEND\n")
 
 
+def make_pose_csv(path: Path, n: int, seed: int = 0) -> None:
+    """The targets of :func:`make_cam_program` as a pose CSV (header ``x,y,z,a,b,c``)."""
+    krl = path.with_name(path.stem + "-poses.src")
+    make_cam_program(krl, n, seed)
+    rows = re.findall(r"LIN \{X (\S+),Y (\S+),Z (\S+),A (\S+),B (\S+),C (\S+)\}", krl.read_text())
+    krl.unlink()
+    path.write_text("x,y,z,a,b,c\n" + "\n".join(",".join(r) for r in rows) + "\n")
+
+
 REGEX_NUMBER = re.compile(r"([XYZ] )(-?\d+\.\d+)")
+REGEX_ROW = re.compile(r"^(-?\d+\.\d+),(-?\d+\.\d+),(-?\d+\.\d+)", re.M)
+
+
+def regex_pass_csv(src: Path, dst: Path) -> float:
+    """The regex pass on a pose CSV: read, add 0.1 to the x,y,z of every row, write."""
+    start = time.perf_counter()
+    text = src.read_text()
+    out = REGEX_ROW.sub(lambda m: ",".join(f"{float(v) + 0.1:.3f}" for v in m.groups()), text)
+    dst.write_text(out)
+    return time.perf_counter() - start
 
 
 def regex_pass(src: Path, dst: Path) -> float:
@@ -115,6 +137,7 @@ def main() -> None:
     parser.add_argument("--targets", type=int, default=1_000_000)
     parser.add_argument("--model", default=str(REPO / "models" / "default.onnx"))
     parser.add_argument("--memory", action="store_true", help="also: peak RSS against input size (3 more runs)")
+    parser.add_argument("--poses", action="store_true", help="also: the same targets as a pose CSV")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -126,6 +149,14 @@ def main() -> None:
         wall, peak = run_cli(["compensate", str(big), "-o", str(tmp / "out.src"), "--model", args.model, "-q"])
         small_walls = [run_cli(["compensate", str(small), "-o", str(tmp / "s.src"), "--model", args.model, "-q"])[0]
                        for _ in range(5)]
+        if args.poses:
+            big.unlink()
+            csv = tmp / "bench.csv"
+            make_pose_csv(csv, args.targets)
+            csv_regex_s = min(regex_pass_csv(csv, tmp / "regex.csv") for _ in range(2))
+            csv_wall, csv_peak = run_cli(["compensate", str(csv), "-o", str(tmp / "out.csv"), "--model", args.model,
+                                          "-q"])
+            csv_mb = csv.stat().st_size / 1e6
 
     rate = args.targets / wall
     print(f"program: {args.targets:,} LIN targets, {size_mb:.1f} MB; cores: {os.cpu_count()}")
@@ -134,6 +165,10 @@ def main() -> None:
     print(f"regex pass (read, rewrite X/Y/Z, write): {regex_s:.2f} s; ratio {wall / regex_s:.2f}x (goal <= 3x)")
     print(f"100-target program end to end: median {np.median(small_walls):.3f} s, "
           f"best {min(small_walls):.3f} s (goal <= 0.5 s)")
+    if args.poses:
+        print(f"pose CSV ({csv_mb:.1f} MB): postproc compensate {csv_wall:.2f} s, peak RSS {csv_peak:,.0f} MB "
+              f"({csv_peak / csv_mb:.1f}x the input); regex pass {csv_regex_s:.2f} s; ratio {csv_wall / csv_regex_s:.2f}x "
+              f"(KRL above: {wall / regex_s:.2f}x)")
     if args.memory:
         memory(args.targets, args.model)
 

@@ -451,7 +451,7 @@ class _CommandStream:
                 # back into each target's own frame: only the rotation of its base applies to a shift
                 local = np.empty_like(correction)
                 frame_of = self._frame_of[start:end]
-                for f in np.unique(frame_of):
+                for f in frames.frames_used(frame_of):
                     here = frame_of == f
                     local[here] = frames.rotate_vectors(frames.inverse(self._bases[f]), correction[here])
                 self.commanded[start:end] = commands

@@ -76,13 +76,13 @@ def configuration_mismatch(program: Program, model: Compensator, rows: np.ndarra
     training plans take), to be left as written, and their P313 warnings. Without a robot
     description for the model's robot every target that states S/T is left (it cannot be
     checked). Targets that state no S/T keep the model's branch."""
-    from . import configuration
-    from .robot import Robot
-
     config = program.targets.config
     stated = (config[rows] >= 0).any(axis=1) if config is not None else np.zeros(len(rows), bool)
     if not stated.any():
         return np.zeros(len(rows), bool), []
+    from . import configuration  # (only here: a program without S/T does not pay their import)
+    from .robot import Robot
+
     description = model_description(model)
     if description is None:
         return stated, collect(program, rows[stated], "P313", "the target states S/T and postproc has no robot "

@@ -96,7 +96,7 @@ def robot_base_poses(program: Program) -> tuple[np.ndarray, np.ndarray]:
     t = program.targets
     out = np.full((len(t), 6), np.nan)
     resolved = t.frame >= 0
-    for f in np.unique(t.frame[resolved]):
+    for f in frames.frames_used(t.frame[resolved]):
         rows = np.flatnonzero(t.frame == f)
         base = program.frames[f].base
         out[rows, :3] = frames.transform_points(base, t.poses[rows, :3])

@@ -18,7 +18,15 @@ __all__ = [
     "rotate_vectors",
     "rotation_vector",
     "rotation_error_deg",
+    "frames_used",
 ]
+
+
+def frames_used(frame: np.ndarray) -> np.ndarray:
+    """The distinct frame indices ≥ 0 in ``frame`` (targets' ``Targets.frame``), ascending:
+    ``np.unique`` without its import of numpy.ma (8 ms of a 100-target CLI run)."""
+    frame = np.asarray(frame, dtype=np.int64)
+    return np.flatnonzero(np.bincount(frame[frame >= 0]))
 
 
 def rotation_from_abc(abc: np.ndarray) -> np.ndarray:

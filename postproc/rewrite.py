@@ -81,7 +81,7 @@ def _format_plain(values: np.ndarray, decimals: np.ndarray, unit: float = 1.0) -
     decimals = np.clip(decimals, *decimal_range(unit))
     # values that round to zero are written as zero: no '-0.000'
     values = np.where(np.abs(values) < 0.5 * 10.0 ** -decimals, 0.0, values)
-    kinds = np.unique(decimals)
+    kinds = np.flatnonzero(np.bincount(decimals))  # (np.unique: it imports numpy.ma, 8 ms of a short run)
     if len(kinds) == 1:
         fmt = f"%.{int(kinds[0])}f"
         return [fmt % v for v in values.tolist()]

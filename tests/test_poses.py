@@ -68,3 +68,43 @@ def test_shipped_samples_parse():
     assert len(read(csv, "drill_plate.csv").targets) == 48
     txt = (REPO / "samples/poses/sweep.txt").read_bytes().decode("latin-1")
     assert len(read(txt, "sweep.txt").targets) == 20
+
+
+def _read_both(text):
+    """The vectorised reader and the line-by-line one on ``text``: the same targets or the same error."""
+    from postproc.programs import poses
+
+    out = []
+    for fast in (True, False):
+        try:
+            p = poses.read(["big.csv"], [text], fast=fast)
+        except PostprocError as exc:
+            out.append(str(exc))
+            continue
+        t = p.targets
+        out.append([t.poses.tobytes(), t.spans.tolist(), t.abc_spans.tolist(), t.line.tolist(), t.col.tolist(),
+                    t.config.tolist(), None if t.joints is None else t.joints.tobytes(), p.stamps])
+    return out
+
+
+@pytest.mark.parametrize("header,odd", [
+    ("x,y,z,a,b,c,s,t", None),  # config columns, rows of one shape, interleaved other shapes
+    ("x,y,z,a,b,c", "1,2-3,3,4,5,6"),  # a run of number characters that is not one number: P103 where line by line
+    ("x,y,z,a,b,c", "1,2,3,4,5,1e999"),  # not finite
+    ("x,y,z,a,b,c,s,t", "1,2,3,4,5,6,1.5,2"),  # S not an integer
+])
+def test_vectorised_reader_equals_line_by_line(header, odd):
+    rng = np.random.default_rng(3)
+    rows = rng.uniform(-999, 999, (6000, 6))
+    lines = [header] + [",".join(f"{v:.{k % 4}f}" for k, v in enumerate(r)) + (",1,63" if ",s" in header else "")
+                        for r in rows]
+    lines[4000:4000] = ["# a comment", "  1,2,3,4,5,6" + (",0,0" if ",s" in header else ""), "",
+                        "1;2;3;4;5;6" + (";1;2" if ",s" in header else ""), "1.e5,+.5,-3.,4e-2,5,6" + (",0,0" if ",s" in header else "")]
+    if odd:
+        lines[5000] = odd
+    text = "\r\n".join(lines) + "\r\n"
+    fast, exact = _read_both(text)
+    assert fast == exact
+    assert isinstance(exact, str) == (odd is not None)
+    if odd is None:
+        assert len(np.frombuffer(fast[0]).reshape(-1, 6)) == 6003  # the 6000 rows and 3 of the 5 lines inserted

@@ -6,20 +6,24 @@ and Turn, integers; empty = not stated) give the arm configuration and ``q1..q6`
 angles (deg) the controller uses, passed to the model as they are. Other columns, comment lines
 (``#``, ``;``, ``//``) and blank lines are kept as they are. The syntax of a record is
 ``grammars/poses.lark``; each distinct line shape (numbers abstracted) is parsed once and
-reused, so a million rows cost one regex pass, not a million parses.
+reused. Lines of the frequent shapes made of numbers and separators only are then read a chunk
+at a time (one regex over the chunk, numbers converted by numpy: ``_Rows.chunk``); every other
+line, and a whole chunk holding a value that needs a message, goes through the line-by-line
+path (``_Rows.line``), so both give the same targets and the same errors.
 """
 from __future__ import annotations
 
 import functools
 import math
 import re
+from operator import itemgetter
 
 import numpy as np
 from lark import Lark, UnexpectedInput
 
 from ..diagnostics import PostprocError
 from ..resources import grammar_path
-from . import MOTIONS, STAMP_PREFIX, Frame, Program, TargetsBuilder
+from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 
 COLUMNS = ("x", "y", "z", "a", "b", "c")
 CONFIG = ("s", "t")
@@ -28,6 +32,10 @@ _OPTIONAL = CONFIG + JOINTS
 _ALL = COLUMNS + _OPTIONAL
 _COMMENT = re.compile(r"[ \t]*(#|;|//)")
 _ROW_MOTION = MOTIONS.index("row")
+_FAST_MIN_CHARS = 1 << 16  # smaller texts: line by line only
+_FAST_LEARN = 256  # lines read line by line first, to learn the shapes
+_FAST_CHUNK = 1 << 17  # characters per vectorised chunk
+_FAST_MAX = 8  # shapes in the regex
 
 
 @functools.lru_cache(maxsize=1)
@@ -58,33 +66,42 @@ def _newline(text: str) -> str:
     return "\r\n" if crlf and crlf >= text.count("\n") - crlf else "\n"
 
 
-def read(files: list[str], texts: list[str]) -> Program:
-    """Read a pose program (one file). Raises PostprocError with file:line:col on bad input."""
-    path, text = files[0], texts[0]
-    number = _number_re()
-    builder = TargetsBuilder()
-    stamps: dict[int, str] = {}
-    columns: dict[str, int] | None = None  # column name → field index
-    width = 0
-    shapes: dict[str, tuple] = {}  # line shape → ordinal of each x..c among the line's numbers
-    offset = 0
-    abc_spans: list = []  # where each row's A, B, C numbers stand
-    extras: list | None = None  # s, t, q1..q6 of each row when the header names any of them
-    # lines end at "\n" only, as diagnostics.line_col counts them: str.splitlines would also
-    # split at \x0b, \x0c, \x1c-\x1e and \x85 (NEL), which latin-1 text can hold
-    for lineno, raw in enumerate(text.split("\n"), start=1):
-        raw = raw + "\n" if offset + len(raw) < len(text) else raw
-        start = offset
-        offset += len(raw)
+class _Rows:
+    """The rows of one pose file, read line by line (``line``: the exact path, the one
+    definition of a record) or a chunk of lines at once (``chunk``: lines whose shape the exact
+    path accepted, numbers and separators only, read vectorised)."""
+
+    def __init__(self, path: str, text: str):
+        self.path, self.text = path, text
+        self.number = _number_re()
+        self.stamps: dict[int, str] = {}
+        self.columns: dict[str, int] | None = None  # column name → field index
+        self.width = 0
+        self.shapes: dict[str, tuple] = {}  # line shape → ordinal of each x..c among the line's numbers
+        self.counts: dict[str, int] = {}  # lines read per shape
+        self.extras = False  # the header names s, t or q1..q6
+        # exact rows (lists), then vectorised parts (arrays), merged by line number at the end
+        self.pose: list = []
+        self.spans: list = []
+        self.abc: list = []
+        self.extra: list = []
+        self.lineno: list = []
+        self.col: list = []
+        self.parts: list = []
+
+    def line(self, lineno: int, raw: str, start: int) -> None:
+        """One line (its newline included or not) starting at offset ``start``."""
+        path, number = self.path, self.number
         line = raw.rstrip("\r\n")
         body = line.strip()
         if not body:
-            continue
+            return
         if _COMMENT.match(line):
             if STAMP_PREFIX in line:
-                stamps[0] = body
-            continue
+                self.stamps[0] = body
+            return
         lead = len(line) - len(line.lstrip())
+        columns = self.columns
         if columns is None and any(ch.isalpha() for ch in number.sub("", body)):
             fields = _fields(body, path, lineno, lead)
             names = [str(tok).lower() if kind == "word" else "" for kind, tok in fields]
@@ -92,29 +109,28 @@ def read(files: list[str], texts: list[str]) -> Program:
             if missing:
                 raise PostprocError(f"header has no column {', '.join(missing)} (needs x,y,z[,a,b,c])",
                                     path, lineno, lead + 1, "P104")
-            columns = {c: names.index(c) for c in _ALL if c in names}
+            columns = self.columns = {c: names.index(c) for c in _ALL if c in names}
             attitude = [c for c in COLUMNS[3:] if c in columns]
             if attitude and len(attitude) < 3:  # one warning here, not one per row and A,B dropped
                 absent = [c for c in COLUMNS[3:] if c not in columns]
                 raise PostprocError(f"header has {','.join(attitude)} but no {','.join(absent)}: an attitude needs all "
                                     "of a,b,c (add the missing column; or drop a,b,c for the model's nominal attitude)",
                                     path, lineno, lead + 1, "P104")
-            width = len(fields)
-            if any(c in columns for c in _OPTIONAL):
-                extras = []
-            continue
+            self.width = len(fields)
+            self.extras = any(c in columns for c in _OPTIONAL)
+            return
         shape = number.sub("0", body)
-        ordinals = shapes.get(shape)
+        ordinals = self.shapes.get(shape)
         if ordinals is None:
             fields = _fields(body, path, lineno, lead)
             if columns is None:  # headerless: x y z [a b c] by position
                 if len(fields) not in (3, 6) and len(fields) < 6:
                     raise PostprocError(f"expected 3 or 6 numbers (x y z [a b c]), found {len(fields)} fields",
                                         path, lineno, lead + 1, "P104")
-                columns = {c: i for i, c in enumerate(COLUMNS[: 6 if len(fields) >= 6 else 3])}
-                width = len(fields)
-            if len(fields) != width:
-                raise PostprocError(f"expected {width} fields as in the header, found {len(fields)}",
+                columns = self.columns = {c: i for i, c in enumerate(COLUMNS[: 6 if len(fields) >= 6 else 3])}
+                self.width = len(fields)
+            if len(fields) != self.width:
+                raise PostprocError(f"expected {self.width} fields as in the header, found {len(fields)}",
                                     path, lineno, lead + 1, "P104")
             # which regex match (of all number-looking runs in the line, words included) each
             # numeric field is; lines of the same shape have the same runs in the same places
@@ -127,12 +143,13 @@ def read(files: list[str], texts: list[str]) -> Program:
                     raise PostprocError(f"column {name} is not a number: '{tok}'" if tok is not None
                                         else f"column {name} is empty", path, lineno, lead + max(where, 0) + 1, "P103")
             ordinals = tuple(ordinal_of.get(columns[c], -1) if c in columns else -1 for c in _ALL)
-            shapes[shape] = ordinals
+            self.shapes[shape] = ordinals
+        self.counts[shape] = self.counts.get(shape, 0) + 1
         matches = list(number.finditer(line))
         pose = [math.nan] * 6
         spans = [-1] * 6
         abc = [-1] * 6
-        if extras is not None:
+        if self.extras:
             extra = [math.nan] * len(_OPTIONAL)
             for k, ordinal in enumerate(ordinals[6:]):
                 if ordinal >= 0:
@@ -142,7 +159,7 @@ def read(files: list[str], texts: list[str]) -> Program:
                         raise PostprocError(f"{_OPTIONAL[k]} must be {'an integer 0…63' if k < 2 else 'finite'}: "
                                             f"{m.group()}", path, lineno, m.start() + 1, "P103")
                     extra[k] = value
-            extras.append(extra)
+            self.extra.append(extra)
         for k, ordinal in enumerate(ordinals[:6]):
             if ordinal < 0:
                 continue
@@ -155,18 +172,211 @@ def read(files: list[str], texts: list[str]) -> Program:
                 spans[2 * k], spans[2 * k + 1] = start + m.start(), start + m.end()
             else:
                 abc[2 * k - 6], abc[2 * k - 5] = start + m.start(), start + m.end()
-        abc_spans.append(abc)
-        builder.add(pose, spans, 0, lineno, lead + 1, 0, _ROW_MOTION)
-    if columns is None:
+        self.pose.append(pose)
+        self.spans.append(spans)
+        self.abc.append(abc)
+        self.lineno.append(lineno)
+        self.col.append(lead + 1)
+
+    def lines(self, first: int, last: int, starts: np.ndarray) -> None:
+        """Lines ``first`` … ``last - 1`` (0-based) by the exact path."""
+        text = self.text
+        for i in range(first, last):
+            a = int(starts[i])
+            b = int(starts[i + 1]) if i + 1 < len(starts) else len(text)
+            self.line(i + 1, text[a:b], a)
+
+    def fast_shapes(self) -> list[tuple[str, tuple]]:
+        """The shapes read so far that a regex reads exactly: numbers and separators only, a
+        separator between any two numbers, not a comment; the most frequent first."""
+        out = []
+        for shape in sorted(self.counts, key=self.counts.get, reverse=True):
+            pieces = shape.split("0")
+            if (shape[0] in ";/#" or any(set(p) - set(" \t,;") for p in pieces)
+                    or any(not p for p in pieces[1:-1])):
+                continue
+            out.append((shape, self.shapes[shape]))
+        return out[:_FAST_MAX]
+
+    def chunk(self, first: int, last: int, starts: np.ndarray, fast: "_FastShapes") -> None:
+        """Lines ``first`` … ``last - 1`` with one regex; lines of other shapes, and the whole
+        chunk when a value needs a message, by the exact path."""
+        text = self.text
+        a = int(starts[first])
+        b = int(starts[last]) if last < len(starts) else len(text)
+        rows = fast.regex.findall(text[a:b])
+        n = last - first
+        if len(rows) < n:  # (never: one match per line)
+            self.lines(first, last, starts)
+            return
+        del rows[n:]
+        cols = list(zip(*rows))
+        del rows
+        line0 = np.arange(first, last, dtype=np.int64)
+        parts, hot = [], np.zeros(n, bool)
+        for (shape, ordinals), g, ph in zip(fast.shapes, fast.first, fast.ph):
+            m = np.fromiter(map(bool, cols[g]), bool, n)
+            if not m.any():
+                continue
+            hot |= m
+            sel = np.flatnonzero(m)
+            part = self._vectorised(ordinals, ph, [cols[g + q] for q in range(len(ph))], sel, line0[sel], starts)
+            if part is None:  # a value the exact path has a message for
+                self.lines(first, last, starts)
+                return
+            parts.append(part)
+            self.counts[shape] += len(sel)
+        self.parts.extend(parts)
+        for k in np.flatnonzero(~hot).tolist():
+            i = first + k
+            self.line(i + 1, cols[-1][k], int(starts[i]))
+
+    def _vectorised(self, ordinals: tuple, ph: list, groups: list, sel: np.ndarray, line0: np.ndarray,
+                    starts: np.ndarray) -> dict | None:
+        n = len(sel)
+        if len(sel) < len(groups[0]):
+            pick = itemgetter(*sel.tolist()) if n > 1 else (lambda c, k=int(sel[0]): (c[k],))
+            groups = [pick(c) for c in groups]
+        need = sorted({o for o in ordinals if o >= 0})
+        try:  # (the same strings float() takes: a run of number characters that is not one number fails)
+            values = {j: np.array(groups[j], dtype=np.float64) for j in need}
+        except ValueError:
+            return None
+        if not all(np.isfinite(v).all() for v in values.values()):
+            return None
+        start = starts[line0]
+        # offset of number j in its line: ph[j] + Σ_{i<j} (len_i − 1)
+        last = max(o for o in ordinals[:6] if o >= 0)
+        shift = np.zeros(n, np.int64)
+        offsets, lens = {}, {}
+        for j in range(last + 1):
+            offsets[j] = start + ph[j] + shift
+            lens[j] = np.fromiter(map(len, groups[j]), np.int64, n)
+            shift = shift + lens[j] - 1
+        pose = np.full((n, 6), np.nan)
+        spans = np.full((n, 6), -1, np.int64)
+        abc = np.full((n, 6), -1, np.int64)
+        for k, o in enumerate(ordinals[:6]):
+            if o < 0:
+                continue
+            pose[:, k] = values[o]
+            end = offsets[o] + lens[o]
+            target = spans if k < 3 else abc
+            target[:, 2 * (k % 3)] = offsets[o]
+            target[:, 2 * (k % 3) + 1] = end
+        extra = None
+        if self.extras:
+            extra = np.full((n, len(_OPTIONAL)), np.nan)
+            for k, o in enumerate(ordinals[6:]):
+                if o < 0:
+                    continue
+                v = values[o]
+                if k < 2 and not ((v == np.floor(v)) & (v >= 0) & (v < 64)).all():
+                    return None
+                extra[:, k] = v
+        return dict(pose=pose, spans=spans, abc=abc, extra=extra, lineno=line0 + 1, col=np.ones(n, np.int64))
+
+    def targets(self) -> Targets:
+        n = len(self.pose)
+        pose = np.array(self.pose, dtype=np.float64).reshape(n, 6)
+        spans = np.array(self.spans, dtype=np.int64).reshape(n, 6)
+        abc = np.array(self.abc, dtype=np.int64).reshape(n, 6)
+        lineno = np.array(self.lineno, dtype=np.int64)
+        col = np.array(self.col, dtype=np.int64)
+        extra = np.array(self.extra, float).reshape(n, len(_OPTIONAL)) if self.extras else None
+        if self.parts:  # merge by line number (each line holds one row at most)
+            parts = self.parts
+            lines = np.concatenate([lineno] + [p["lineno"] for p in parts])
+            order = None if (np.diff(lines) > 0).all() else np.argsort(lines, kind="stable")
+
+            def merged(first, key):
+                column = np.concatenate([first] + [p[key] for p in parts])
+                return column if order is None else column[order]
+
+            pose, spans, abc, lineno, col = (merged(first, key) for first, key in (
+                (pose, "pose"), (spans, "spans"), (abc, "abc"), (lineno, "lineno"), (col, "col")))
+            if extra is not None:
+                extra = merged(extra, "extra")
+            n = len(pose)
+        targets = Targets(poses=pose, spans=spans.reshape(n, 3, 2), file=np.zeros(n, np.int32),
+                          line=lineno.astype(np.int32), col=col.astype(np.int32), frame=np.zeros(n, np.int32),
+                          motion=np.full(n, _ROW_MOTION, np.int8))
+        targets.abc_spans = abc.reshape(n, 3, 2)
+        if extra is not None:
+            if any(c in self.columns for c in CONFIG):
+                targets.config = np.where(np.isnan(extra[:, :2]), -1, extra[:, :2]).astype(np.int16)
+            if any(c in self.columns for c in JOINTS):
+                targets.joints = extra[:, 2:]
+        return targets
+
+
+class _FastShapes:
+    """One regex over the frequent fast shapes (numbers as groups, in order); any other line
+    falls into the last group."""
+
+    def __init__(self, shapes: list[tuple[str, tuple]]):
+        self.shapes = shapes
+        self.first, self.ph, parts, g = [], [], [], 0
+        # the numbers read: any run of number characters (one that is not a number, e.g.
+        # '1-2', fails the conversion, and its chunk goes line by line); the others: a number
+        strict = "(" + re.sub(r"\((?!\?)", "(?:", _number_re().pattern) + ")"  # one group per number
+        for shape, ordinals in shapes:
+            self.first.append(g)
+            self.ph.append([i for i, ch in enumerate(shape) if ch == "0"])
+            pieces = shape.split("0")
+            used = set(ordinals)
+            parts.append(re.escape(pieces[0]) + "".join(("([-+.0-9eE]+)" if j in used else strict) + re.escape(p)
+                                                         for j, p in enumerate(pieces[1:])) + "\\r?")
+            g += len(pieces) - 1
+        self.regex = re.compile("^(?:" + "|".join(parts) + r"|([^\n]*))$", re.M)
+        assert self.regex.groups == g + 1
+
+
+def _line_starts(text: str) -> np.ndarray | None:
+    """Offset of each line (lines end at "\n" only); None for a text that is not latin-1."""
+    try:
+        data = text.encode("latin-1")
+    except UnicodeEncodeError:
+        return None
+    return np.concatenate([[0], np.flatnonzero(np.frombuffer(data, np.uint8) == 10) + 1]).astype(np.int64)
+
+
+def read(files: list[str], texts: list[str], fast: bool = True) -> Program:
+    """Read a pose program (one file). Raises PostprocError with file:line:col on bad input.
+
+    ``fast``: lines of a shape seen before are read a chunk at a time (the same targets and
+    the same errors as the line-by-line path, which reads everything else)."""
+    path, text = files[0], texts[0]
+    rows = _Rows(path, text)
+    # lines end at "\n" only, as diagnostics.line_col counts them: str.splitlines would also
+    # split at \x0b, \x0c, \x1c-\x1e and \x85 (NEL), which latin-1 text can hold
+    starts = _line_starts(text) if fast and len(text) > _FAST_MIN_CHARS else None
+    if starts is None:
+        offset = 0
+        for lineno, raw in enumerate(text.split("\n"), start=1):
+            raw = raw + "\n" if offset + len(raw) < len(text) else raw
+            rows.line(lineno, raw, offset)
+            offset += len(raw)
+    else:
+        nlines = len(starts)
+        i = min(_FAST_LEARN, nlines)
+        rows.lines(0, i, starts)
+        fast_shapes, regex = None, None
+        while i < nlines:
+            shapes = rows.fast_shapes() if rows.columns is not None else []
+            if [s for s, _ in shapes] != fast_shapes:
+                fast_shapes, regex = [s for s, _ in shapes], _FastShapes(shapes) if shapes else None
+            j = int(np.searchsorted(starts, starts[i] + _FAST_CHUNK, "left"))
+            j = min(max(j, i + 1), nlines)
+            if regex is None:
+                rows.lines(i, j, starts)
+            else:
+                rows.chunk(i, j, starts, regex)
+            i = j
+    if rows.columns is None:
         raise PostprocError("no poses in this file (empty, or comments only)", path, 1, 1, "P105")
-    targets = builder.build()
-    targets.abc_spans = np.array(abc_spans, dtype=np.int64).reshape(len(targets), 3, 2)
-    if extras is not None:
-        table = np.array(extras, float).reshape(len(targets), len(_OPTIONAL))
-        if any(c in columns for c in CONFIG):
-            targets.config = np.where(np.isnan(table[:, :2]), -1, table[:, :2]).astype(np.int16)
-        if any(c in columns for c in JOINTS):
-            targets.joints = table[:, 2:]
+    targets = rows.targets()
+    stamps = rows.stamps
     return Program(
         files=list(files[:1]),
         texts=list(texts[:1]),

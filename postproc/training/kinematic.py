@@ -658,21 +658,41 @@ class KinematicModel:
         r, jac, sens = self._state
         n_rows, n_par = jac.shape
         norms = np.linalg.norm(jac, axis=0)
-        basis, _ = np.linalg.qr(jac[:, norms > 1e-12] / norms[norms > 1e-12])
+        scaled = jac[:, norms > 1e-12] / norms[norms > 1e-12]
+        # an orthonormal basis of what the parameters explain, basis = scaled·V·Λ^-½ from the
+        # eigenvectors of scaledᵀ·scaled (directions the data do not see, λ ≤ 1e-12·λ_max,
+        # left out), applied as basisᵀx = Λ^-½·Vᵀ·(scaledᵀx): never formed
+        lam, vec = np.linalg.eigh(scaled.T @ scaled)
+        seen = lam > 1e-12 * lam.max(initial=0.0)
+        to_basis = (vec[:, seen] / np.sqrt(lam[seen])).T  # [k, p]
         sigma2 = float(r @ r) / max(n_rows - n_par, 1)
         orders = np.arange(1, self.max_order + 1)
         threshold = 2.0 * math.log(len(self.ripple_joints) * len(orders) / 0.01)
         taken = set(layout.ripple)
         picks = []
         qn = q.numpy()
+        k_max = len(orders)
+        # The candidate columns c = sens[:, :, j] ⊗ regress (rows i·3 + axis) are never formed:
+        # their Gram entries and the part the parameters already in explain (basisᵀc) are sums
+        # over the N rows, 3× (6×) smaller than the 3N × 2K columns (and one product, not two).
+        per_row = sens.shape[1]  # 3 coordinates a point (6 with orientation: lever·rad rows)
+        scaled3 = scaled.reshape(len(qn), per_row, -1)  # [N, 3|6, p]
+        r3 = r.reshape(len(qn), per_row)
+        basis_r = to_basis @ (scaled.T @ r)  # [k]
         for j in self.ripple_joints:  # six joints; all orders at once
             phase = qn[:, j, None] * orders  # [N, K]
-            regress = np.concatenate([np.sin(phase), np.cos(phase)], axis=1)  # [N, 2K]
-            c = (sens[:, :, j, None] * regress[:, None, :]).reshape(n_rows, -1)  # [3N, 2K]
-            c = c - basis @ (basis.T @ c)  # what the parameters already in cannot explain
-            cs, cc = c[:, : len(orders)], c[:, len(orders):]
-            g11, g22, g12 = (cs * cs).sum(0), (cc * cc).sum(0), (cs * cc).sum(0)
-            b1, b2 = cs.T @ r, cc.T @ r
+            sin, cos = np.sin(phase), np.cos(phase)
+            regress = np.concatenate([sin, cos], axis=1)  # [N, 2K]
+            sj = sens[:, :, j]  # [N, 3]
+            s2 = (sj * sj).sum(1)[:, None]
+            explained = to_basis @ (np.einsum("iap,ia->ip", scaled3, sj).T @ regress)  # basisᵀc [k, 2K]
+            es, ec = explained[:, :k_max], explained[:, k_max:]
+            # the Gram entries of c − basis·basisᵀc: what the parameters already in cannot explain
+            g11 = (s2 * sin * sin).sum(0) - (es * es).sum(0)
+            g22 = (s2 * cos * cos).sum(0) - (ec * ec).sum(0)
+            g12 = (s2 * sin * cos).sum(0) - (es * ec).sum(0)
+            b = regress.T @ (sj * r3).sum(1) - explained.T @ basis_r  # (c − basis·basisᵀc)ᵀr
+            b1, b2 = b[:k_max], b[k_max:]
             det = g11 * g22 - g12**2
             ok = det > 1e-9 * g11 * g22
             gain = np.where(ok, (g22 * b1**2 - 2 * g12 * b1 * b2 + g11 * b2**2) / np.where(ok, det, 1.0), 0.0) / sigma2
