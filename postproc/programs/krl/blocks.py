@@ -6,7 +6,7 @@ from lark import Token, Tree
 
 from ...diagnostics import PostprocError
 from .fast_path import _Shape
-from .frames import _FrameState, _START
+from .frames import _FrameState
 from .values import _Unknown, _first_pos
 
 
@@ -93,11 +93,11 @@ class Blocks:
         # the first DEF starts at $NULLFRAME; a later one (a local subroutine) inherits the
         # frames its callers had, when they all agree
         if self.defs_seen == 0 and str(name).upper() not in self.call_states:
-            st = _START  # a module's main DEF, not called from a module read before
+            st = self.start_state()  # a module's main DEF, not called from a module read before
         else:
             calls = self.call_states.get(str(name).upper(), [])
             if not calls:
-                st = _START
+                st = self.start_state()
             elif all(c.same(calls[0]) for c in calls[1:]):
                 st = calls[0]
             else:

@@ -9,7 +9,7 @@ import numpy as np
 from lark import Token, Tree
 
 from ...diagnostics import Diagnostic, PostprocError
-from ..model import Frame, Program, STAMP_PREFIX
+from ..model import ActiveFrames, Frame, Program, STAMP_PREFIX
 from .assemble import Assembly
 from .blocks import Blocks
 from .calls import Calls
@@ -21,12 +21,15 @@ from .syntax import SHAPE_RE, SyntaxErrors, _BLANK, _PLACEHOLDER
 from .values import Values, _Num, _Var
 
 
-def read(files: list[str], texts: list[str], config: list[str] | None = None, accelerate: bool = True) -> Program:
+def read(files: list[str], texts: list[str], config: list[str] | None = None, accelerate: bool = True,
+         active: ActiveFrames | None = None) -> Program:
     """Parse a KRL module or a set of modules: ``files[0]`` the main .src, then any .dat /
     .src / .sub / ``$config.dat`` of the same cell (a .src and a .dat of one stem are one
     module; ``DECL GLOBAL`` and ``$config.dat`` declarations are seen by every module; calls
     are followed into the DEFs read). ``config`` the texts of $config.dat files not among
     ``files`` (BASE_DATA / TOOL_DATA / globals; read-only).
+    ``active``: the $BASE / $TOOL its user states for targets before the program sets them
+    (none stated: such targets are left as written, P220/P221).
     ``accelerate=False`` reads every line through the interpreter (no vectorised fast path:
     same result, slower; for tests).
 
@@ -35,7 +38,7 @@ def read(files: list[str], texts: list[str], config: list[str] | None = None, ac
     enabled = gc.isenabled()
     gc.disable()  # millions of small objects, no cycles: the collector only costs time here
     try:
-        return Reader(list(files), list(texts), list(config or []), accelerate=accelerate).run()
+        return Reader(list(files), list(texts), list(config or []), accelerate=accelerate, active=active).run()
     finally:
         if enabled:
             gc.enable()
@@ -56,11 +59,12 @@ def _kind(path: str) -> str:
 class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Values, SyntaxErrors, Assembly, Calls):
     """The KRL reader: one module per concept, each contributing its methods."""
 
-    def __init__(self, files, texts, config, accelerate: bool = True):
+    def __init__(self, files, texts, config, accelerate: bool = True, active: ActiveFrames | None = None):
         if len(files) != len(texts):
             raise ValueError("files and texts differ in length")
         self.files, self.texts, self.config = files, texts, config
         self.accelerate = accelerate
+        self.active = active
         self.shapes: dict[str, _Shape] = {}
         self.diagnostics: list[Diagnostic] = []
         self.frames: list[Frame] = []
@@ -104,7 +108,9 @@ class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Valu
                     stamps[fi] = line.strip()
                     break
                 at = text.find(STAMP_PREFIX, b)
-        for path, line, col, msg, count, code in self.unknown_frames.values():
+        for path, line, col, msg, count, code, first in self.unknown_frames.values():
+            if first:
+                _, line, col, path = first
             if count:
                 self.diagnostics.append(Diagnostic(path, line, col, code,
                                                    f"{msg}: {count} target(s) left as written"))
@@ -131,7 +137,7 @@ class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Valu
         self.blocks: list = []  # (kind, line, col, detail)
         self.folds: list = []
         self.defs_seen = 0
-        self.state = _START
+        self.state = self.start_state() if role == "module" else _START
         self.saved_state = None
         self.fdat = None
         self.in_def = False

@@ -172,7 +172,7 @@ class Statements:
             emit = any(written[:3])
             self.add_row(key, pose, written, spans, self.fi, agg.line, agg.col, motion, f, emit, chain, agg.config())
             if emit:
-                self.count_unknown(f, why)
+                self.count_unknown(f, why, at=(key, agg.line, agg.col, self.path))
             return
         if d == "name":
             name = expr.children[0]
@@ -210,7 +210,7 @@ class Statements:
             self.add_row(key, pose, [True] * 6, spans, agg.file, agg.line, agg.col, motion, f, emit,
                          chain and len(aggs) == 1, agg.config())
             if emit:
-                self.count_unknown(f, why)
+                self.count_unknown(f, why, at=(key, self.ln, self.col(_first_pos(expr)), self.path))
         if len(aggs) != 1:
             self.barrier()
 
