@@ -182,7 +182,8 @@ def load_program(path: str | Path, config: str | Path | None = None, dialect: st
     ``-`` reads standard input. ``config`` is a ``$config.dat`` for BASE_DATA / TOOL_DATA;
     ``active`` the $BASE/$TOOL stated for a KRL program that does not set them."""
     if str(path) == "-":
-        return parse_program_text(_decode(sys.stdin.buffer.read(), STDIN), STDIN, dialect, None, _config_texts(config))
+        return parse_program_text(_decode(sys.stdin.buffer.read(), STDIN), STDIN, dialect, None, _config_texts(config),
+                                  active)
     path = Path(path)
     if dialect is None:
         try:

@@ -71,7 +71,7 @@ class Frames:
         if active is not None and active.base is not None:
             base, base_label = self.stated_frame(active.base, "base")
         if active is not None and active.tool == "model":
-            tool, tool_label = None, "the model's tool"
+            tool, tool_label = None, ""  # (Frame.tool None: the model's)
         elif active is not None and active.tool is not None:
             tool, tool_label = self.stated_frame(active.tool, "tool")
             tool = tuple(float(x) for x in matrix_to_frame(tool))
