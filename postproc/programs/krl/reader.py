@@ -65,6 +65,7 @@ class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Valu
         self.files, self.texts, self.config = files, texts, config
         self.accelerate = accelerate
         self.active = active
+        self.ln = 0  # (the line being read; 0 before any)
         self.shapes: dict[str, _Shape] = {}
         self.diagnostics: list[Diagnostic] = []
         self.frames: list[Frame] = []

@@ -1,0 +1,164 @@
+"""Never silently wrong on real KRL: frames a program never sets (P220/P221) and how a user
+states them (--base/--tool, settings), malformed numbers located at read time."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from postproc.cli import main
+from postproc.compensate import compensate_text
+from postproc.diagnostics import PostprocError
+from postproc.frames import frame_to_matrix
+from postproc.programs import ActiveFrames, krl
+
+SAMPLES = Path(__file__).resolve().parent.parent / "samples" / "krl"
+CONFIG = (SAMPLES / "config" / "$config.dat").read_bytes().decode("latin-1")
+GAIN = np.diag([1e-3, 2e-3, -1e-3])  # a correction that varies over space
+
+# a CAM-style program with the INI fold and no $BASE / $TOOL
+CAM = ("DEF cam( )\n"                                            # 1
+       ";FOLD INI\n"                                             # 2
+       "  BAS (#INITMOV,0 )\n"                                   # 3
+       ";ENDFOLD (INI)\n"                                        # 4
+       "  $VEL.CP = 0.2\n"                                       # 5
+       "  LIN {X 2000.0,Y 0.0,Z 900.0,A 0.0,B 90.0,C 0.0}\n"     # 6
+       "  LIN {X 2050.0,Y 20.0,Z 910.0,A 0.0,B 90.0,C 0.0}\n"    # 7
+       "END\n")
+
+
+def codes(p):
+    return [(d.code, d.line, d.col) for d in p.diagnostics]
+
+
+@pytest.mark.parametrize("accelerate", [True, False])
+def test_a_program_that_sets_neither_frame_leaves_its_targets_located(accelerate):
+    p = krl.read(["cam.src"], [CAM], accelerate=accelerate)
+    assert (p.targets.frame == -1).all() and p.frames == []
+    # BAS(#INITMOV, 0) sets motion parameters, not $BASE/$TOOL: the first target is the place
+    (d,) = p.diagnostics
+    assert (d.code, d.line, d.col) == ("P220", 6, 7)
+    assert "neither $BASE nor $TOOL" in d.message and "2 target(s) left as written" in d.message
+
+
+def test_base_set_but_tool_not_is_p221_at_the_first_target_and_vice_versa():
+    src = CAM.replace("  $VEL.CP = 0.2\n", "  $BASE = {X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}\n")
+    p = krl.read(["cam.src"], [src])
+    assert codes(p) == [("P221", 6, 7)] and (p.targets.frame == -1).all()
+    src = CAM.replace("  $VEL.CP = 0.2\n", "  $TOOL = {X 300.0,Y 0.0,Z 75.0,A 0.0,B 0.0,C 0.0}\n")
+    p = krl.read(["cam.src"], [src])
+    assert codes(p) == [("P220", 6, 7)] and "$BASE is not set" in p.diagnostics[0].message
+
+
+def test_only_the_targets_before_the_frames_are_set_are_left():
+    # a large program (fast path) whose first targets come before $TOOL is set
+    body = "".join(f"  LIN {{X {2000 + k}.0,Y 0.0,Z 900.0,A 0.0,B 90.0,C 0.0}}\n" for k in range(3000))
+    src = ("DEF big( )\n  BAS(#BASE, 0)\n" + body + "  BAS(#TOOL, 1)\n" + body + "END\n")
+    for accelerate in (True, False):
+        p = krl.read(["big.src"], [src], config=[CONFIG], accelerate=accelerate)
+        t = p.targets
+        assert (t.frame[:3000] == -1).all() and (t.frame[3000:] == 0).all()
+        assert codes(p) == [("P221", 3, 7)] and "3000 target(s)" in p.diagnostics[0].message
+        np.testing.assert_allclose(p.frames[0].tool, [300, 0, 75, 0, 0, 0])
+
+
+def test_stated_frames_resolve_from_config_data_or_numbers():
+    p = krl.read(["cam.src"], [CAM], config=[CONFIG], active=ActiveFrames(base=2, tool=1))
+    assert p.diagnostics == [] and (p.targets.frame == 0).all()
+    (f,) = p.frames
+    np.testing.assert_allclose(f.base, frame_to_matrix(np.array([1780, 150, 700, 90, 0, 0.0])), atol=1e-12)
+    np.testing.assert_allclose(f.tool, [300, 0, 75, 0, 0, 0])
+    assert f.label == "BASE_DATA[2] / TOOL_DATA[1]"
+    p = krl.read(["cam.src"], [CAM], active=ActiveFrames.of(base="10,20,30,0,0,90", tool="model"))
+    (f,) = p.frames
+    assert p.diagnostics == [] and f.tool is None  # the model's tool, stated
+    np.testing.assert_allclose(f.base, frame_to_matrix(np.array([10, 20, 30, 0, 0, 90.0])), atol=1e-12)
+    # what the program sets still wins from its line on
+    src = CAM.replace("  $VEL.CP = 0.2\n", "  BAS(#BASE, 1)\n")
+    p = krl.read(["cam.src"], [src], config=[CONFIG], active=ActiveFrames(base=2, tool=1))
+    np.testing.assert_allclose(p.frames[0].base[:3, 3], [1850, -300, 650])
+
+
+def test_a_stated_frame_that_cannot_be_resolved_is_refused():
+    with pytest.raises(PostprocError) as e:
+        krl.read(["cam.src"], [CAM], active=ActiveFrames(base=0, tool=6))  # no $config.dat
+    assert e.value.code == "P222" and "--tool 6" in e.value.message and "$config.dat" in e.value.message
+    with pytest.raises(PostprocError) as e:
+        krl.read(["cam.src"], [CAM], config=[CONFIG], active=ActiveFrames(base=9, tool=1))  # not set in it
+    assert e.value.code == "P222" and "BASE_DATA[9]" in e.value.message
+    for bad in ("1,2,3", "x", "-1", "1,2,3,4,5,inf"):
+        with pytest.raises(ValueError):
+            ActiveFrames.of(base=bad)
+    with pytest.raises(ValueError):
+        ActiveFrames.of(base="model")  # only a tool can be the model's
+
+
+def test_compensate_exits_1_unless_the_frames_are_stated(tmp_path, affine, capsys):
+    src = tmp_path / "cam.src"
+    src.write_text(CAM)
+    model = str(affine(gain=GAIN))
+    out = tmp_path / "out.src"
+    assert main(["compensate", str(src), "-o", str(out), "--model", model]) == 1
+    err = capsys.readouterr().err
+    assert f"{src}:6:7: P220 neither $BASE nor $TOOL" in err and "0 of 2 compensated, 2 left as written: P220 ×2" in err
+    assert out.read_text() == CAM  # written, unchanged, unstamped
+    assert main(["compensate", str(src), "-o", str(out), "--model", model, "--base", "0", "--tool", "model"]) == 0
+    assert "2 of 2 compensated" in capsys.readouterr().err and out.read_text() != CAM
+    # check says the same, and takes the same options
+    assert main(["check", str(src), "--model", model]) == 0  # (a warning: clean unless --strict)
+    assert f"{src}:6:7: P220" in capsys.readouterr().out
+    assert main(["check", str(src), "--model", model, "--strict"]) == 1
+    capsys.readouterr()
+    assert main(["check", str(src), "--model", model, "--base", "0", "--tool", "model", "--strict"]) == 0
+    # a bad value is refused before any work
+    assert main(["compensate", str(src), "-o", str(tmp_path / "x.src"), "--model", model, "--base", "1,2"]) == 2
+    assert "P222" in capsys.readouterr().err and not (tmp_path / "x.src").exists()
+
+
+def test_settings_state_the_frames_and_the_command_line_wins(tmp_path, affine, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "cam.src").write_text(CAM)
+    (tmp_path / "config").mkdir()
+    (tmp_path / "config" / "$config.dat").write_text(CONFIG)
+    model = str(affine(gain=GAIN, tool={"name": "spindle", "frame": [300, 0, 75, 0, 0, 0]}))
+    (tmp_path / "postproc.toml").write_text(f'model = "{model}"\nconfig = "config/$config.dat"\nbase = 0\ntool = 1\n')
+    assert main(["compensate", "cam.src", "-o", "a.src"]) == 0
+    # the command line's --tool wins over the settings' (a tool that is not the model's: P304)
+    assert main(["compensate", "cam.src", "-o", "b.src", "--tool", "2"]) == 2
+    assert "P304" in capsys.readouterr().err
+    (tmp_path / "postproc.toml").write_text('base = "1,2"\n')
+    assert main(["compensate", "cam.src", "-o", "c.src", "--model", model]) == 2
+    assert "P610" in capsys.readouterr().err
+
+
+def test_the_stated_frames_hold_when_the_output_is_read_again(affine):
+    # the last checks read the new text again (P191): with the same stated frames
+    out, report = compensate_text(CAM, str(affine(gain=GAIN)), name="cam.src",
+                                  active=ActiveFrames(base=0, tool="model"))
+    assert report.complete and report.compensated == 2 and out != CAM
+
+
+def test_other_dialects_refuse_stated_frames():
+    from postproc.programs import read_program
+
+    with pytest.raises(PostprocError) as e:
+        read_program(["p.csv"], ["x,y,z\n1,2,3\n"], "poses", active=ActiveFrames(base=0))
+    assert e.value.code == "P222"
+
+
+@pytest.mark.parametrize("number", ["1.5E+3.0", "1e+5.0", "20e+00.5"])
+@pytest.mark.parametrize("accelerate", [True, False])
+def test_a_malformed_exponent_is_a_located_syntax_error(number, accelerate):
+    # the tail of 1.5E+3.0 is a number token (3.0): it used to be read as Z 3.0
+    lines = ["DEF t( )", "  BAS(#BASE, 0)"] + ["  LIN {X 2000.0,Y 0.0,Z 900.0}"] * 5000
+    lines[3000] = f"  LIN {{X 2000.0,Y 0.0,Z {number}}}"
+    with pytest.raises(PostprocError) as e:
+        krl.read(["t.src"], ["\n".join(lines + ["END", ""])], accelerate=accelerate)
+    assert (e.value.code, e.value.line, e.value.col) == ("P101", 3001, 25)
+    assert f"malformed number '{number}'" in e.value.message
+    # in a .dat declaration too; in a comment it is text
+    with pytest.raises(PostprocError) as e:
+        krl.read(["t.src", "t.dat"], ["DEF t( )\nEND\n", f"DEFDAT t\nDECL E6POS XP1={{X {number},Y 0}}\nENDDAT\n"])
+    assert (e.value.line, e.value.col) == (2, 19)
+    krl.read(["t.src"], [f"DEF t( )\n  ; Z {number}\n  X1E = X1E+3\nEND\n"])
