@@ -23,8 +23,12 @@ from .values import _first_pos, _Unknown, _Var
 # KRL system statements written as calls (PULSE, CWRITE…): they cannot set a frame
 HARMLESS = frozenset({"SET_CD_PARAMS", "PULSE", "CWRITE", "CREAD", "SWRITE", "SREAD", "CAST_TO", "CAST_FROM"})
 MAX_DEPTH = 8
-# the statements a callee runs in the sandbox (everything else cannot change a frame)
+# the statements a callee runs in the sandbox (everything else cannot change a frame), and the
+# block statements whose control flow decides which of them hold after it (flow.py)
 EFFECT_STATEMENTS = frozenset({"assign", "call", "bare_call", "decl"})
+FLOW_STATEMENTS = frozenset({"if_head", "else_", "endif", "switch_head", "case", "default", "endswitch",
+                             "for_head", "endfor", "while_head", "endwhile", "loop_head", "endloop",
+                             "repeat_head", "until", "exit_"})
 
 _FRAME_VARIABLES = frozenset({"$BASE", "$TOOL", "$ROBROOT", "FDAT_ACT", "BASE_DATA", "TOOL_DATA"})
 _DEF = re.compile(r"^[ \t]*(GLOBAL[ \t]+)?DEF(?:FCT[ \t]+[\w$\[\] ]+?)?[ \t]+([\w$]+)[ \t]*\(([^)\n]*)\)",
@@ -107,6 +111,7 @@ class Calls:
             self._def_memo[key] = (st, fdat0, new, fdat, moved)
         self.fdat = fdat
         if moved:  # the robot moved in the callee: the current position is not the caller's last target
+            self.moves += 1
             if self.role == "effect":
                 self._moved = True
             else:
@@ -147,23 +152,61 @@ class Calls:
     def run_callee(self, callee: _Def, bound: dict, entry: _FrameState):
         """(frame state, FDAT_ACT, moves) after running the callee's frame statements from
         ``entry``; ``moves``: the callee (or one it calls) has a motion statement."""
-        keep = ("fi", "path", "text", "role", "starts", "ln", "kbase", "la", "lt", "sh", "_nums", "_cum",
-                "local", "state", "blocks", "folds", "in_def", "diagnostics", "block_open", "_moved")
-        saved = {k: getattr(self, k, None) for k in keep}
+        local = {p: _Var(p, "", False, v) for p, v in bound.items()}
+        for p in callee.params:
+            local.setdefault(p, _Var(p, "", False, _Unknown(f"parameter {p} is a run-time value")))
         stack = getattr(self, "_call_stack", ())
         try:
             self._call_stack = stack + (callee.name,)
             self._call_depth += 1
-            text = self.texts[callee.fi]
-            self.fi, self.path, self.text, self.role = callee.fi, self.files[callee.fi], text, "effect"
-            self.local = {p: _Var(p, "", False, v) for p, v in bound.items()}
-            for p in callee.params:
-                self.local.setdefault(p, _Var(p, "", False, _Unknown(f"parameter {p} is a run-time value")))
+            return self.sandbox(callee.fi, callee.first, callee.last, local, entry)
+        finally:
+            self._call_stack = stack
+            self._call_depth -= 1
+
+    def run_body(self, first: int, last: int, entry: _FrameState):
+        """(frame state, moves) after one run of a loop body (0-based lines ``first`` to
+        ``last`` exclusive of the current file) from ``entry``: nothing it writes stays (its
+        variables are copies; FDAT_ACT is restored); an element of BASE_DATA / TOOL_DATA it
+        assigns is unknown from the loop on (the next iteration sees the new value)."""
+        self.defs(self.fi)  # (the sandbox's bookkeeping)
+        local = {k: _Var(v.name, v.type, v.array, v.value, dict(v.elems) if v.elems is not None else None)
+                 for k, v in (self.local or {}).items()}
+        data = {n: v for n in ("BASE_DATA", "TOOL_DATA") if (v := self.lookup(n)) is not None and v.elems is not None}
+        before = {n: dict(v.elems) for n, v in data.items()}
+        fdat = self.fdat
+        try:
+            self._call_depth += 1
+            state, _, moved = self.sandbox(self.fi, first, last, local, entry)
+        finally:
+            self._call_depth -= 1
+            self.fdat = fdat
+            for n, v in data.items():
+                changed = [k for k, x in v.elems.items() if before[n].get(k) is not x]
+                v.elems = before[n]
+                for k in changed:
+                    v.elems[k] = _Unknown(f"{n}[{', '.join(map(str, k))}] is assigned in the loop at line {self.ln}")
+        return state, moved
+
+    def sandbox(self, fi: int, first: int, last: int, local: dict, entry: _FrameState):
+        """Run the frame statements (and the control flow around them) of lines ``first`` to
+        ``last`` of file ``fi`` from ``entry`` with ``local`` as the local variables: (frame
+        state, FDAT_ACT, moves); the reader's own state is as before afterwards."""
+        keep = ("fi", "path", "text", "role", "starts", "ln", "kbase", "la", "lt", "sh", "_nums", "_cum",
+                "local", "state", "blocks", "folds", "in_def", "diagnostics", "block_open", "_moved", "flow",
+                "loops", "moves")
+        saved = {k: getattr(self, k, None) for k in keep}
+        try:
+            text = self.texts[fi]
+            self.fi, self.path, self.text, self.role = fi, self.files[fi], text, "effect"
+            self.local = local
             self.state, self.blocks, self.folds, self.in_def = entry, [], [], True
+            self.flow, self.loops, self.moves = [], [], 0
             moved, self._moved = False, False
             self.diagnostics, self.block_open = [], {}
             starts = [0] + [m.end() for m in re.finditer("\n", text)]
-            for i in range(callee.first, min(callee.last, len(starts))):
+            self.starts = starts
+            for i in range(first, min(last, len(starts))):
                 a = starts[i]
                 b = starts[i + 1] - 1 if i + 1 < len(starts) else len(text)
                 line = text[a:b]
@@ -175,15 +218,13 @@ class Calls:
                 stmt = next((c for c in sh.tree.children if hasattr(c, "data")), None)
                 if stmt is not None and stmt.data in ("move", "circ"):
                     moved = True
-                if stmt is None or stmt.data not in EFFECT_STATEMENTS:
+                if stmt is None or (stmt.data not in EFFECT_STATEMENTS and stmt.data not in FLOW_STATEMENTS):
                     continue
                 if stmt.data == "assign" and not self.frame_write(stmt):
                     continue  # other variables: the callee's own pass reads them
                 self.interpret(i, a, line, sh)
             return self.state, self.fdat, moved or self._moved
         finally:
-            self._call_stack = stack
-            self._call_depth -= 1
             for k, v in saved.items():
                 setattr(self, k, v)
 

@@ -14,6 +14,7 @@ from .assemble import Assembly
 from .blocks import Blocks
 from .calls import Calls
 from .fast_path import FastPath, _HotRows, _Shape, _analyse, _name_paths
+from .flow import Flow
 from .frames import Frames, _START
 from .scopes import Scopes
 from .statements import AsyncStatements, Statements
@@ -56,7 +57,8 @@ def _kind(path: str) -> str:
     return "dat" if name.endswith(".dat") else "src"
 
 
-class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Values, SyntaxErrors, Assembly, Calls):
+class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes, Values, SyntaxErrors, Assembly,
+             Calls):
     """The KRL reader: one module per concept, each contributing its methods."""
 
     def __init__(self, files, texts, config, accelerate: bool = True, active: ActiveFrames | None = None):
@@ -136,6 +138,8 @@ class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Valu
         self.fi, self.path, self.text, self.role = fi, path, text, role
         self.key0 = rank << 40
         self.blocks: list = []  # (kind, line, col, detail)
+        self.flow: list = []  # open IF / SWITCH / loops (flow.py)
+        self.moves = 0  # calls that moved so far (flow.py: did a branch move?)
         self.folds: list = []
         self.defs_seen = 0
         self.state = self.start_state() if role == "module" else _START
