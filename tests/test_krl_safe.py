@@ -162,3 +162,94 @@ def test_a_malformed_exponent_is_a_located_syntax_error(number, accelerate):
         krl.read(["t.src", "t.dat"], ["DEF t( )\nEND\n", f"DEFDAT t\nDECL E6POS XP1={{X {number},Y 0}}\nENDDAT\n"])
     assert (e.value.line, e.value.col) == (2, 19)
     krl.read(["t.src"], [f"DEF t( )\n  ; Z {number}\n  X1E = X1E+3\nEND\n"])
+
+
+# ---------------------------------------------------------------- control flow
+
+STATED = ActiveFrames(base=0, tool="model")
+P = "LIN {X 1,Y 2,Z 3,A 0,B 90,C 0}"
+B10 = "$BASE = {X 10,Y 0,Z 0,A 0,B 0,C 0}"
+
+
+def flow(*lines, accelerate=True, **kw):
+    src = "DEF t( )\n  DECL INT i, n\n" + "".join(f"  {x}\n" for x in lines) + "END\n"
+    return krl.read(["t.src"], [src], active=STATED, accelerate=accelerate, **kw)
+
+
+def bases(p):
+    return [None if f < 0 else float(p.frames[f].base[0, 3]) for f in p.targets.frame]
+
+
+def test_if_branches_start_from_the_entry_and_merge_at_endif():
+    p = flow("IF $IN[1] THEN", B10, P, "ELSE", P, "ENDIF", P)  # lines 3..9
+    assert bases(p) == [10.0, 0.0, None]  # the ELSE branch runs in the entry's base
+    assert codes(p) == [("P201", 8, 1)] and "IF at line 3" in p.diagnostics[0].message
+    # without ELSE the path through no branch keeps the entry's base
+    assert bases(flow("IF $IN[1] THEN", B10, "ENDIF", P)) == [None]
+    # every path agrees: known
+    assert bases(flow("IF $IN[1] THEN", B10, "ELSE", B10, "ENDIF", P)) == [10.0]
+    assert bases(flow("IF $IN[1] THEN", "$OUT[1] = TRUE", "ENDIF", P)) == [0.0]
+
+
+def test_switch_merges_its_cases_and_the_path_through_none():
+    cases = ["SWITCH n", "CASE 1", B10, "CASE 2", B10]
+    assert bases(flow(*cases, "ENDSWITCH", P)) == [None]  # no DEFAULT: the entry's base too
+    assert bases(flow(*cases, "DEFAULT", B10, "ENDSWITCH", P)) == [10.0]
+    p = flow(*cases, "DEFAULT", "BAS(#TOOL, 0)", "ENDSWITCH", P)
+    assert bases(p) == [None] and "SWITCH at line 3" in p.diagnostics[0].message
+
+
+def test_a_call_in_a_branch_and_a_branch_in_a_callee():
+    src = ("DEF t( )\n  IF $IN[1] THEN\n    setb()\n  ENDIF\n  " + P + "\n  setc()\n  " + P + "\nEND\n"
+           "DEF setb( )\n  " + B10 + "\nEND\n"
+           "DEF setc( )\n  IF $IN[2] THEN\n    " + B10 + "\n  ELSE\n    BAS(#BASE, 0)\n  ENDIF\nEND\n")
+    p = krl.read(["t.src"], [src], active=STATED)
+    assert bases(p) == [None, None]
+    assert [d.code for d in p.diagnostics] == ["P201", "P201"]
+    assert "in setc() called at line 6" in p.diagnostics[1].message
+
+
+@pytest.mark.parametrize("accelerate", [True, False])
+def test_a_loop_body_that_changes_the_base(accelerate):
+    # FOR with constant bounds runs ≥ 1 time: after it the body's base; inside, the first
+    # target runs in the entry's base once and in the body's afterwards
+    p = flow("FOR i = 1 TO 3", P, B10, P, "ENDFOR", P, accelerate=accelerate)
+    assert bases(p) == [None, 10.0, 10.0] and codes(p) == [("P201", 3, 1)]
+    assert "FOR at line 3" in p.diagnostics[0].message
+    # a WHILE may run 0 times; an EXIT leaves with the base in force there
+    assert bases(flow("WHILE $IN[1]", B10, "ENDWHILE", P)) == [None]
+    assert bases(flow("LOOP", B10, "IF $IN[1] THEN", "EXIT", "ENDIF", "BAS(#BASE, 0)", "ENDLOOP", P)) == [None]
+    assert bases(flow("REPEAT", B10, "UNTIL $IN[1]", P)) == [10.0]
+    # a body that does not touch the frames changes nothing
+    assert bases(flow("FOR i = 1 TO n", P, "$VEL.CP = 0.1", "ENDFOR", P)) == [0.0, 0.0]
+
+
+def test_loop_data_assigned_in_the_body_is_unknown_for_the_next_iteration():
+    p = flow("FOR i = 1 TO 3", "BAS(#BASE, 1)", P, "BASE_DATA[1] = {X 20,Y 0,Z 0,A 0,B 0,C 0}", "ENDFOR",
+             "BAS(#BASE, 1)", P, config=[CONFIG])
+    assert bases(p) == [None, 20.0]
+
+
+@pytest.mark.parametrize("accelerate", [True, False])
+def test_the_current_position_after_control_flow_is_unknown(accelerate):
+    body = ["LIN {X %d,Y 2,Z 3,A 0,B 90,C 0}" % (100 + k) for k in range(5000)]  # (fast path)
+    p = flow("IF $IN[1] THEN", *body, "ELSE", "LIN {Z 5}", "ENDIF", "LIN {Z 6}", P, "LIN {Z 7}",
+             accelerate=accelerate)
+    t = p.targets
+    assert np.isnan(t.poses[5000, :2]).all() and np.isnan(t.poses[5001, :2]).all()
+    np.testing.assert_allclose(t.poses[5003, :3], [1, 2, 7])
+    # a loop body that moves: its first partial target does not know where the last iteration ended
+    p = flow(P, "FOR i = 1 TO 3", "LIN {Z 8}", "LIN {X 5,Y 5,Z 5,A 0,B 90,C 0}", "ENDFOR", "LIN {Z 9}")
+    assert np.isnan(p.targets.poses[1, :2]).all() and np.isnan(p.targets.poses[3, :2]).all()
+    # branches without motions keep it
+    p = flow(P, "IF $IN[1] THEN", "$OUT[2] = TRUE", "ENDIF", "WHILE $IN[3]", "WAIT SEC 0.1", "ENDWHILE", "LIN {Z 8}")
+    np.testing.assert_allclose(p.targets.poses[1, :3], [1, 2, 8])
+
+
+def test_compensate_leaves_the_unknown_position_located(tmp_path, affine, capsys):
+    src = tmp_path / "b.src"
+    src.write_text("DEF b( )\n  " + B10 + "\n  $TOOL = {X 0,Y 0,Z 200,A 0,B 0,C 0}\n  IF $IN[1] THEN\n    " + P + "\n  ENDIF\n"
+                   "  LIN {Z 5}\nEND\n")
+    assert main(["compensate", str(src), "-o", str(tmp_path / "o.src"), "--model", str(affine(gain=GAIN))]) == 1
+    err = capsys.readouterr().err
+    assert f"{src}:7:7: P212" in err and "1 of 2 compensated" in err
