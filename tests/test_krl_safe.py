@@ -253,3 +253,68 @@ def test_compensate_leaves_the_unknown_position_located(tmp_path, affine, capsys
     assert main(["compensate", str(src), "-o", str(tmp_path / "o.src"), "--model", str(affine(gain=GAIN))]) == 1
     err = capsys.readouterr().err
     assert f"{src}:7:7: P212" in err and "1 of 2 compensated" in err
+
+
+# ---------------------------------------------------------------- functions and handlers
+
+
+def test_a_function_in_an_expression_is_followed_like_a_call():
+    src = ("DEF t( )\n  DECL INT n\n  " + P + "\n  n = SetB(3) + ABS(-2)\n  " + P + "\n"
+           "  WAIT FOR Ready()\n  " + P + "\nEND\n"
+           "DEFFCT INT SetB(k:IN)\n  INT k\n  " + B10 + "\n  RETURN k\nENDFCT\n")
+    p = krl.read(["t.src"], [src], active=STATED)
+    assert bases(p) == [0.0, 10.0, None]  # ABS is KRL's own; Ready() is not in the files read
+    assert codes(p) == [("P201", 6, 12)] and "Ready() called at line 6" in p.diagnostics[0].message
+    # in a callee too, and in a loop's condition
+    src = ("DEF t( )\n  helper()\n  " + P + "\nEND\nDEF helper( )\n  IF SetB(1) > 0 THEN\n  ENDIF\nEND\n"
+           "DEFFCT INT SetB(k:IN)\n  INT k\n  " + B10 + "\n  RETURN k\nENDFCT\n")
+    assert bases(krl.read(["t.src"], [src], active=STATED)) == [10.0]
+
+
+HANDLED = ("DEF t( )\n"                                                                  # 1
+           "  INTERRUPT DECL 5 WHEN $IN[5] DO $BASE = {X 0,Y 0,Z 0,A 0,B 0,C 0}\n"       # 2
+           "  INTERRUPT DECL 6 WHEN $IN[6] DO catch()\n"                                 # 3
+           "  " + B10 + "\n"                                                              # 4
+           "  LIN XP1\n"                                                                  # 5
+           "  INTERRUPT ON\n"                                                             # 6
+           "  " + B10 + "\n"                                                              # 7
+           "  " + P + "\n"                                                                # 8: may be in the handler's base
+           "  LIN XP1\n"                                                                  # 9: may be assigned by catch()
+           "  LIN XP2\n"                                                                  # 10
+           "  INTERRUPT OFF 5\n"                                                          # 11
+           "  " + P + "\n"                                                                # 12: it may have run
+           "  " + B10 + "\n"                                                              # 13
+           "  " + P + "\n"                                                                # 14
+           "  LIN XP1\n"                                                                  # 15: 6 still on
+           "  INTERRUPT OFF 6\n"                                                          # 16
+           "  LIN XP2\n"                                                                  # 17
+           "END\n"
+           "DEF catch( )\n  DECL E6POS XLOC\n  XLOC = $POS_INT\n  XP1 = $POS_INT\n  BRAKE\nEND\n")
+DAT = ("DEFDAT t\n  DECL E6POS XP1={X 1,Y 2,Z 3,A 0,B 90,C 0}\n  DECL E6POS XP2={X 4,Y 5,Z 6,A 0,B 90,C 0}\n"
+       "ENDDAT\n")
+
+
+def test_an_interrupt_switched_on_leaves_what_its_handler_sets_unknown_until_off():
+    p = krl.read(["t.src", "t.dat"], [HANDLED, DAT], active=STATED)
+    t = p.targets
+    # XP1 at 5 (before ON), the aggregate at 8, XP2 at 10, the aggregates at 12 and 14, XP2 at 17
+    assert list(zip(t.line.tolist(), t.file.tolist())) == [(2, 1), (8, 0), (3, 1), (12, 0), (14, 0)]
+    assert bases(p) == [10.0, None, None, None, 10.0]
+    found = codes(p)
+    assert ("P223", 9, 7) in found and ("P223", 15, 7) in found  # XP1 while catch() is on
+    assert ("P201", 2, 35) in found  # the base: at the handler's declaration
+    assert "INTERRUPT handler declared at line 3" in next(d.message for d in p.diagnostics if d.code == "P223")
+    # an interrupt declared but never switched on never runs
+    quiet = HANDLED.replace("  INTERRUPT ON\n", "  ; no ON\n")
+    p = krl.read(["t.src", "t.dat"], [quiet, DAT], active=STATED)
+    assert -1 not in p.targets.frame.tolist() and not p.diagnostics
+
+
+def test_p223_counts_as_left_as_written(tmp_path, affine, capsys):
+    (tmp_path / "t.src").write_text(HANDLED.replace("  INTERRUPT DECL 5 WHEN $IN[5] DO $BASE = {X 0,Y 0,Z 0,A 0,B 0,C 0}\n",
+                                                    "  ;\n"))
+    (tmp_path / "t.dat").write_text(DAT)
+    code = main(["compensate", str(tmp_path / "t.src"), "-o", str(tmp_path / "o.src"), "--model", str(affine(gain=GAIN)),
+                 "--tool", "model"])
+    err = capsys.readouterr().err
+    assert code == 1 and "P223 ×2" in err and f"{tmp_path / 't.src'}:9:7: P223" in err

@@ -22,6 +22,17 @@ from .values import _first_pos, _Unknown, _Var
 # KUKA system subroutines known not to touch $BASE / $TOOL (BAS is handled by its #command)
 # KRL system statements written as calls (PULSE, CWRITE…): they cannot set a frame
 HARMLESS = frozenset({"SET_CD_PARAMS", "PULSE", "CWRITE", "CREAD", "SWRITE", "SREAD", "CAST_TO", "CAST_FROM"})
+# KRL's built-in functions (and KUKA system functions) called in expressions: they set no
+# frame; any other function is followed like a called DEF (not read: frames unknown after it)
+BUILTIN_FUNCTIONS = frozenset({
+    "ABS", "SQRT", "SIN", "COS", "TAN", "ACOS", "ASIN", "ATAN2", "INV_POS", "FORWARD", "INVERSE", "VARSTATE",
+    "STRLEN", "STRDECLLEN", "STRCLEAR", "STRCOPY", "STRCOMP", "STRFIND", "STRADD", "SBASE", "STOOL", "STOOL2",
+    "SIPO_MODE", "SLOAD", "SACC_JOINT", "SVEL_JOINT", "SACC_CP", "SVEL_CP", "SORI_TYP", "SCIRC_TYP", "SAPO",
+    "SAPO_PTP", "SJERK", "SPATH", "SGEAR_JERK", "SSTEP", "SCIRC_MODE", "STECH", "STECHPAR", "SVEL_TECH",
+    "SACC_TECH", "SIPO", "EB_TEST", "EO_TEST", "IS_KEY_PRESSED", "GET_SIG_INF", "GETCYCDEF", "SET_KRLMSG",
+    "SET_KRLDLG", "EXISTS_KRLMSG", "EXISTS_KRLDLG", "CLEAR_KRLMSG", "MBX_REC", "DELETE_BACKWARD_BUFFER",
+    "GET_SYSTEM_DATA", "CAST_TO", "CAST_FROM", "CREAD", "CWRITE", "SREAD", "SWRITE",
+})
 MAX_DEPTH = 8
 # the statements a callee runs in the sandbox (everything else cannot change a frame), and the
 # block statements whose control flow decides which of them hold after it (flow.py)
@@ -127,6 +138,14 @@ class Calls:
         if new.base is not st.base or new.tool is not st.tool or new.robroot is not st.robroot:
             self.set_state(new)
 
+    def expression_calls(self, stmt) -> None:
+        """Functions called inside the statement's expressions (``n = GetBase()``, ``IF Ok() THEN``),
+        in the order written: what they do to $BASE/$TOOL holds after them, as for a call."""
+        for node in stmt.iter_subtrees_topdown():
+            if node.data != "fcall" or str(node.children[0]).upper() in BUILTIN_FUNCTIONS:
+                continue
+            self.after_call(node.children[0], [a for a in node.children[1].children], node)
+
     def constant(self, expr):
         """A call argument that is a constant at the call site (number), or None."""
         v = self.literal_number(expr) if expr.data in ("number", "signed") else None
@@ -219,6 +238,10 @@ class Calls:
                 if stmt is not None and stmt.data in ("move", "circ"):
                     moved = True
                 if stmt is None or (stmt.data not in EFFECT_STATEMENTS and stmt.data not in FLOW_STATEMENTS):
+                    if stmt is not None and sh.fcalls and stmt.data not in ("interrupt_decl", "trigger"):
+                        # (WAIT FOR Ok(), a motion to F(): the function runs)
+                        self.ln, self.la, self.lt, self.sh, self._nums = i + 1, a, line, sh, None
+                        self.expression_calls(self.concrete(sh.tree) if sh.names else sh.tree)
                     continue
                 if stmt.data == "assign" and not self.frame_write(stmt):
                     continue  # other variables: the callee's own pass reads them

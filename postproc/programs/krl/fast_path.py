@@ -18,7 +18,7 @@ class _Shape:
     """What the parse of one line shape says. ``kind``: 'blank', 'hot' (a motion whose
     targets are literal Cartesian aggregates: read vectorised) or 'stmt'."""
 
-    __slots__ = ("text", "kind", "tree", "ph", "phidx", "names", "name_paths", "plan", "fold", "error")
+    __slots__ = ("text", "kind", "tree", "ph", "phidx", "names", "name_paths", "plan", "fold", "error", "fcalls")
 
     def __init__(self, text):
         self.text = text
@@ -32,6 +32,7 @@ class _Shape:
         self.plan = None
         self.fold = 0
         self.error = None
+        self.fcalls = False  # the statement calls a function in an expression (calls.expression_calls)
 
 
 @dataclass
@@ -126,6 +127,7 @@ def _analyse(shape: _Shape) -> None:
             shape.error = MalformedNumber(bad)
             return
     shape.tree = tree
+    shape.fcalls = next(tree.find_data("fcall"), None) is not None
     stmt = None
     comment = None
     for c in tree.children:

@@ -317,6 +317,9 @@ class Frames:
         but not resolvable, e.g. TOOL_DATA[6] not in the data given) is not known, or when
         the program does not set them and its user did not state them (P220 base or both,
         P221 tool); a tool None is the model's tool, stated with ``--tool model``."""
+        for frames, _ in self.active_interrupts.values():  # a handler switched on may set them at any time
+            for which, unknown in frames.items():
+                st = self.replace_state(st, which, unknown, "")
         why, code = (st.base, "P201") if isinstance(st.base, _Unknown) else (
             (st.robroot, "P201") if isinstance(st.robroot, _Unknown) else (
                 (st.tool, "P203") if isinstance(st.tool, _Unknown) and st.tool.why else (None, "")))

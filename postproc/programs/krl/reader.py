@@ -139,6 +139,8 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
         self.key0 = rank << 40
         self.blocks: list = []  # (kind, line, col, detail)
         self.flow: list = []  # open IF / SWITCH / loops (flow.py)
+        self.interrupts: dict = {}  # number → (frames, points) a handler read may set (AsyncStatements)
+        self.active_interrupts: dict = {}  # those switched on (INTERRUPT ON … OFF)
         self.moves = 0  # calls that moved so far (flow.py: did a branch move?)
         self.folds: list = []
         self.defs_seen = 0
@@ -227,6 +229,9 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
                 stmt = c
         if stmt is None:
             return
+        if sh.fcalls and stmt.data not in ("interrupt_decl", "trigger"):  # (handlers: AsyncStatements)
+            # functions run before the statement takes effect; one may set a frame
+            self.expression_calls(stmt)
         handler = getattr(self, "s_" + stmt.data, None)
         if handler is not None:
             handler(stmt)
