@@ -22,7 +22,8 @@ class Frame:
     """The frame a target was programmed in.
 
     ``base`` maps that frame to the robot base frame (4×4: INV_POS($ROBROOT):$BASE);
-    ``tool`` is the active $TOOL as X,Y,Z,A,B,C (None when unknown); ``label`` says where
+    ``tool`` is the active $TOOL as X,Y,Z,A,B,C (None: the model's own tool, stated with
+    ``ActiveFrames(tool="model")``); ``label`` says where
     they came from, e.g. ``BASE_DATA[3] / TOOL_DATA[1]``.
     """
 
@@ -113,7 +114,8 @@ class Targets:
     line, col  [N] int32       1-based location of the target's aggregate (for messages)
     frame      [N] int32       index into Program.frames; -1 = left as written: the base
                                (P201) or the tool (P203: $TOOL set but not resolvable, e.g.
-                               TOOL_DATA[6] not known, or unknown after a call) is not known
+                               TOOL_DATA[6] not known, or unknown after a call) is not known,
+                               or not set and not stated (P220/P221)
     motion     [N] int8        index into MOTIONS
     config     [N, 2] int16    (S, T) the target states (integers, 'B010' / 'H2' literals,
                                inline or in the POS/E6POS variable's value); -1 where it
@@ -124,8 +126,9 @@ class Targets:
     abc_spans  [N, 3, 2] int64 (start, end) of the A, B, C tokens, -1 where absent (None: the
                                reader does not locate them; ``compensate --orientation`` needs them)
 
-    A frame's ``tool`` of None means the program never sets $TOOL (the model's tool is
-    assumed); a $TOOL that is set but not known makes the target's frame -1.
+    A frame's ``tool`` of None means the model's tool, stated by the user (``--tool model``);
+    a $TOOL (or $BASE) that is not set and not stated (P221/P220) or set but not known makes
+    the target's frame -1.
     """
 
     poses: np.ndarray
