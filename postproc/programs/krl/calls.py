@@ -41,6 +41,11 @@ FLOW_STATEMENTS = frozenset({"if_head", "else_", "endif", "switch_head", "case",
                              "for_head", "endfor", "while_head", "endwhile", "loop_head", "endloop",
                              "repeat_head", "until", "exit_"})
 
+# a line that runs nothing in a sandbox: a motion to a literal aggregate (no function call in
+# it), a comment, a blank line; the others (_LIVE, one empty match at each line start)
+_INERT = r"[ \t]*(?:(?:S?(?:LIN|PTP|CIRC)|SPL)[ \t]*\{[^()\n;]*(?:;[^\n]*)?|;[^\n]*)?\r?$"
+_INERT_MOTION = re.compile(r"^[ \t]*(?:S?(?:LIN|PTP|CIRC)|SPL)[ \t]*\{", re.I | re.M)
+_LIVE = re.compile(r"^(?!" + _INERT + r")", re.I | re.M)
 _FRAME_VARIABLES = frozenset({"$BASE", "$TOOL", "$ROBROOT", "FDAT_ACT", "BASE_DATA", "TOOL_DATA"})
 _DEF = re.compile(r"^[ \t]*(GLOBAL[ \t]+)?DEF(?:FCT[ \t]+[\w$\[\] ]+?)?[ \t]+([\w$]+)[ \t]*\(([^)\n]*)\)",
                   re.I | re.M)
@@ -80,7 +85,7 @@ class Calls:
         if getattr(self, "_defs", None) is None:
             self._defs = [_index(k, t) for k, t in enumerate(self.texts)]
             self._def_memo = {}
-            self._call_depth = 0
+            self._call_depth = getattr(self, "_call_depth", 0)
         out = {}
         for k, ds in enumerate(self._defs):
             if k != fi:
@@ -188,17 +193,17 @@ class Calls:
         ``last`` exclusive of the current file) from ``entry``: nothing it writes stays (its
         variables are copies; FDAT_ACT is restored); an element of BASE_DATA / TOOL_DATA it
         assigns is unknown from the loop on (the next iteration sees the new value)."""
-        self.defs(self.fi)  # (the sandbox's bookkeeping)
         local = {k: _Var(v.name, v.type, v.array, v.value, dict(v.elems) if v.elems is not None else None)
                  for k, v in (self.local or {}).items()}
         data = {n: v for n in ("BASE_DATA", "TOOL_DATA") if (v := self.lookup(n)) is not None and v.elems is not None}
         before = {n: dict(v.elems) for n, v in data.items()}
         fdat = self.fdat
+        depth = getattr(self, "_call_depth", 0)
         try:
-            self._call_depth += 1
+            self._call_depth = depth + 1
             state, _, moved = self.sandbox(self.fi, first, last, local, entry)
         finally:
-            self._call_depth -= 1
+            self._call_depth = depth
             self.fdat = fdat
             for n, v in data.items():
                 changed = [k for k, x in v.elems.items() if before[n].get(k) is not x]
@@ -221,13 +226,20 @@ class Calls:
             self.local = local
             self.state, self.blocks, self.folds, self.in_def = entry, [], [], True
             self.flow, self.loops, self.moves = [], [], 0
-            moved, self._moved = False, False
+            self._moved = False
             self.diagnostics, self.block_open = [], {}
-            starts = [0] + [m.end() for m in re.finditer("\n", text)]
+            same = fi == saved["fi"] and saved["role"] == "module"  # (the file being read: its line starts)
+            starts = saved["starts"] if same else [0] + [m.end() for m in re.finditer("\n", text)]
             self.starts = starts
-            for i in range(first, min(last, len(starts))):
-                a = starts[i]
-                b = starts[i + 1] - 1 if i + 1 < len(starts) else len(text)
+            n = len(starts)
+            lo = int(starts[first]) if first < n else len(text)
+            hi = int(starts[last]) if last < n else len(text)
+            # literal motions, comments and blank lines do nothing here but move: skipped in C
+            moved = _INERT_MOTION.search(text, lo, hi) is not None
+            for live in _LIVE.finditer(text, lo, hi):
+                i = bisect_right(starts, live.start()) - 1
+                a = int(starts[i])
+                b = int(starts[i + 1]) - 1 if i + 1 < n else len(text)
                 line = text[a:b]
                 sh = self.shape(SHAPE_RE.sub(_PLACEHOLDER, line))
                 if sh.kind == "hot":
