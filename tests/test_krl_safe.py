@@ -318,3 +318,13 @@ def test_p223_counts_as_left_as_written(tmp_path, affine, capsys):
                  "--tool", "model"])
     err = capsys.readouterr().err
     assert code == 1 and "P223 ×2" in err and f"{tmp_path / 't.src'}:9:7: P223" in err
+
+
+def test_the_public_api_states_frames_too(affine):
+    import postproc
+
+    with pytest.raises(AttributeError):
+        postproc.no_such_name  # noqa: B018
+    out, report = postproc.compensate_text(CAM, str(affine(gain=GAIN)), name="cam.src",
+                                           active=postproc.ActiveFrames.of(base="0", tool="model"))
+    assert report.complete and out != CAM

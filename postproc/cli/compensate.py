@@ -57,17 +57,19 @@ def add_parser(sub, common, formatter) -> None:
     p.set_defaults(run=run)
 
 
-def add_frame_arguments(p) -> None:
-    """``--base`` / ``--tool`` (compensate and check): the frames a KRL program runs in where it
-    does not set them itself (``programs.ActiveFrames``)."""
+def add_frame_arguments(p, settings: bool = True) -> None:
+    """``--base`` / ``--tool`` (compensate, check, verify): the frames a KRL program runs in where
+    it does not set them itself (``programs.ActiveFrames``); ``settings``: their default is the
+    settings' ``base`` / ``tool``."""
+    default = "; default: settings '{}'" if settings else ""
     p.add_argument("--base", metavar="N|X,Y,Z,A,B,C",
                    help="the $BASE active where a KRL program has not set it: BASE_DATA[N] of $config.dat (0 = "
-                   "$NULLFRAME) or the frame itself (mm, deg); default: settings 'base'. Without it such targets are "
-                   "left as written (P220)")
+                   "$NULLFRAME) or the frame itself (mm, deg)" + default.format("base") + ". Without it such targets "
+                   "are left as written (P220)")
     p.add_argument("--tool", metavar="N|X,Y,Z,A,B,C|model",
                    help="the $TOOL active where a KRL program has not set it: TOOL_DATA[N] of $config.dat, the frame "
-                   "itself, or 'model' (the model's own tool); default: settings 'tool'. Without it such targets are "
-                   "left as written (P221)")
+                   "itself, or 'model' (the model's own tool)" + default.format("tool") + ". Without it such targets "
+                   "are left as written (P221)")
 
 
 def run(args) -> int:
