@@ -328,3 +328,25 @@ def test_the_public_api_states_frames_too(affine):
     out, report = postproc.compensate_text(CAM, str(affine(gain=GAIN)), name="cam.src",
                                            active=postproc.ActiveFrames.of(base="0", tool="model"))
     assert report.complete and out != CAM
+
+
+def test_verify_runs_the_program_in_the_stated_frames(tmp_path, capsys):
+    pytest.importorskip("pinocchio")
+    src, out = tmp_path / "cam.src", tmp_path / "out.src"
+    src.write_text(CAM)
+    stated = ["--base", "0", "--tool", "300,0,75,0,0,0"]  # the shipped model's spindle, written out
+    assert main(["compensate", str(src), "-o", str(out), *stated]) == 0
+    assert main(["verify", str(src), str(out), "--no-noise"]) == 2  # no frame known: nothing to verify
+    assert "P601" in capsys.readouterr().err
+    assert main(["verify", str(src), str(out), "--no-noise", "--json", *stated]) == 0
+
+
+def test_a_label_a_goto_jumps_to_merges_the_frames_of_the_jumps():
+    p = flow(P, "M1:", P, B10, P, "IF $IN[1] THEN", "GOTO M2", "ENDIF", "IF $IN[2] THEN", "GOTO M1", "ENDIF",
+             "BAS(#BASE, 0)", "M2:", P, "M3:", P)
+    # M1: the jump back comes with base 10; M2: the jump from base 10 and the fall-through from 0;
+    # a label no GOTO names changes nothing
+    assert bases(p) == [0.0, None, 10.0, None, None]
+    assert [(c, line) for c, line, _ in codes(p)] == [("P201", 4), ("P201", 15)]
+    assert "GOTO M1 jumps to line 4" in p.diagnostics[0].message
+    assert bases(flow(P, "GOTO M1", "M1:", P)) == [0.0, 0.0]

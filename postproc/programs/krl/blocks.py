@@ -89,6 +89,7 @@ class Blocks:
         self.block_open["DEF"] = self.ln
         self.in_def = True
         self.local = {}
+        self.gotos = {}
         self.fdat = None
         # the first DEF starts at $NULLFRAME; a later one (a local subroutine) inherits the
         # frames its callers had, when they all agree

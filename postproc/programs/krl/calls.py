@@ -39,7 +39,7 @@ MAX_DEPTH = 8
 EFFECT_STATEMENTS = frozenset({"assign", "call", "bare_call", "decl"})
 FLOW_STATEMENTS = frozenset({"if_head", "else_", "endif", "switch_head", "case", "default", "endswitch",
                              "for_head", "endfor", "while_head", "endwhile", "loop_head", "endloop",
-                             "repeat_head", "until", "exit_"})
+                             "repeat_head", "until", "exit_", "goto", "label"})
 
 # a line that runs nothing in a sandbox: a motion to a literal aggregate (no function call in
 # it), a comment, a blank line; the others (_LIVE, one empty match at each line start)
@@ -218,14 +218,14 @@ class Calls:
         state, FDAT_ACT, moves); the reader's own state is as before afterwards."""
         keep = ("fi", "path", "text", "role", "starts", "ln", "kbase", "la", "lt", "sh", "_nums", "_cum",
                 "local", "state", "blocks", "folds", "in_def", "diagnostics", "block_open", "_moved", "flow",
-                "loops", "moves")
+                "loops", "moves", "gotos")
         saved = {k: getattr(self, k, None) for k in keep}
         try:
             text = self.texts[fi]
             self.fi, self.path, self.text, self.role = fi, self.files[fi], text, "effect"
             self.local = local
             self.state, self.blocks, self.folds, self.in_def = entry, [], [], True
-            self.flow, self.loops, self.moves = [], [], 0
+            self.flow, self.loops, self.moves, self.gotos = [], [], 0, {}
             self._moved = False
             self.diagnostics, self.block_open = [], {}
             same = fi == saved["fi"] and saved["role"] == "module"  # (the file being read: its line starts)

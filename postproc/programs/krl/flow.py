@@ -12,6 +12,8 @@ a SWITCH, and runs a loop's body 0, 1 or more times. So:
   one iteration leaves; a frame that the body changes is unknown at the body's start (the
   second iteration starts where the first ended) and after the loop unless every way out
   agrees (no iteration when the bounds allow it, the body's end, each EXIT);
+* a label a GOTO jumps to merges the jumps' frames (those before it as recorded, those after
+  it from one run of the lines between) with the fall-through's;
 * the current position (where a partial aggregate such as ``LIN {Z 5}`` takes its missing
   components from) is unknown at the start of a branch after another branch that moves, after
   a branch construct any of whose branches moves, and at the start of and after a loop whose
@@ -156,6 +158,27 @@ class Flow:
         self._adopt(merge_states(ways, why, (self.ln, 1)))
         if fl.moved or self._moved_since(fl.mark):
             self.barrier()
+
+    # GOTO
+    def s_goto(self, node):
+        self.gotos.setdefault(str(node.children[-1]).upper(), []).append(self.state)
+
+    def s_label(self, node):
+        """A label some GOTO of the file jumps to: the frames of the jumps (those before it as
+        recorded, those after it from one run of the lines between) merged with the fall-through;
+        the current position unknown."""
+        name = str(node.children[0])
+        jumps = list(self.gotos.get(name.upper(), []))
+        later = [m for m in re.finditer(r"^[ \t]*GOTO[ \t]+" + re.escape(name) + r"(?![\w$])", self.text, re.I | re.M)
+                 if m.start() > self.la]
+        if not jumps and not later:
+            return
+        for m in later:  # a jump back: the frames after one pass from here to it
+            end = bisect_right(self.starts, m.start()) - 1
+            jumps.append(self.run_body(self.ln, end, self.state)[0])
+        why = f"a GOTO {name} jumps to line {self.ln} with others"
+        self._adopt(merge_states([self.state] + jumps, why, (self.ln, 1)))
+        self.barrier()
 
     def _loop_end(self):
         """0-based index of the line that closes the loop opened on the current line (None: none)."""

@@ -142,6 +142,7 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
         self.interrupts: dict = {}  # number → (frames, points) a handler read may set (AsyncStatements)
         self.active_interrupts: dict = {}  # those switched on (INTERRUPT ON … OFF)
         self.moves = 0  # calls that moved so far (flow.py: did a branch move?)
+        self.gotos: dict = {}  # label → frame states of the GOTOs to it read so far (flow.py)
         self.folds: list = []
         self.defs_seen = 0
         self.state = self.start_state() if role == "module" else _START
