@@ -44,6 +44,7 @@ FLOW_STATEMENTS = frozenset({"if_head", "else_", "endif", "switch_head", "case",
 # a line that runs nothing in a sandbox: a motion to a literal aggregate (no function call in
 # it), a comment, a blank line; the others (_LIVE, one empty match at each line start)
 _INERT = r"[ \t]*(?:(?:S?(?:LIN|PTP|CIRC)|SPL)[ \t]*\{[^()\n;]*(?:;[^\n]*)?|;[^\n]*)?\r?$"
+_LOOP_CLOSE = frozenset({"endfor", "endwhile", "endloop", "until"})
 _INERT_MOTION = re.compile(r"^[ \t]*(?:S?(?:LIN|PTP|CIRC)|SPL)[ \t]*\{", re.I | re.M)
 _LIVE = re.compile(r"^(?!" + _INERT + r")", re.I | re.M)
 _FRAME_VARIABLES = frozenset({"$BASE", "$TOOL", "$ROBROOT", "FDAT_ACT", "BASE_DATA", "TOOL_DATA"})
@@ -188,9 +189,10 @@ class Calls:
             self._call_stack = stack
             self._call_depth -= 1
 
-    def run_body(self, first: int, last: int, entry: _FrameState):
-        """(frame state, moves) after one run of a loop body (0-based lines ``first`` to
-        ``last`` exclusive of the current file) from ``entry``: nothing it writes stays (its
+    def run_body(self, first: int, last: int | None, entry: _FrameState):
+        """(frame state, moves, end) after one run of a loop body (0-based lines ``first`` to
+        ``last`` exclusive of the current file; ``last`` None: up to the statement that closes
+        the loop, whose line is ``end``, None when there is none) from ``entry``: nothing it writes stays (its
         variables are copies; FDAT_ACT is restored); an element of BASE_DATA / TOOL_DATA it
         assigns is unknown from the loop on (the next iteration sees the new value)."""
         local = {k: _Var(v.name, v.type, v.array, v.value, dict(v.elems) if v.elems is not None else None)
@@ -202,6 +204,7 @@ class Calls:
         try:
             self._call_depth = depth + 1
             state, _, moved = self.sandbox(self.fi, first, last, local, entry)
+            end = self._closed_at
         finally:
             self._call_depth = depth
             self.fdat = fdat
@@ -210,16 +213,19 @@ class Calls:
                 v.elems = before[n]
                 for k in changed:
                     v.elems[k] = _Unknown(f"{n}[{', '.join(map(str, k))}] is assigned in the loop at line {self.ln}")
-        return state, moved
+        return state, moved, end
 
-    def sandbox(self, fi: int, first: int, last: int, local: dict, entry: _FrameState):
+    def sandbox(self, fi: int, first: int, last: int | None, local: dict, entry: _FrameState):
         """Run the frame statements (and the control flow around them) of lines ``first`` to
         ``last`` of file ``fi`` from ``entry`` with ``local`` as the local variables: (frame
-        state, FDAT_ACT, moves); the reader's own state is as before afterwards."""
+        state, FDAT_ACT, moves); the reader's own state is as before afterwards. ``last``
+        None: up to a loop's end that no block of these lines opened (its line in
+        ``self._closed_at``, None if none)."""
         keep = ("fi", "path", "text", "role", "starts", "ln", "kbase", "la", "lt", "sh", "_nums", "_cum",
                 "local", "state", "blocks", "folds", "in_def", "diagnostics", "block_open", "_moved", "flow",
-                "loops", "moves", "gotos")
+                "loops", "moves", "gotos", "_closed_at")
         saved = {k: getattr(self, k, None) for k in keep}
+        saved["_closed_at"] = None
         try:
             text = self.texts[fi]
             self.fi, self.path, self.text, self.role = fi, self.files[fi], text, "effect"
@@ -232,10 +238,11 @@ class Calls:
             starts = saved["starts"] if same else [0] + [m.end() for m in re.finditer("\n", text)]
             self.starts = starts
             n = len(starts)
+            self._closed_at = None
             lo = int(starts[first]) if first < n else len(text)
-            hi = int(starts[last]) if last < n else len(text)
+            hi = int(starts[last]) if last is not None and last < n else len(text)
             # literal motions, comments and blank lines do nothing here but move: skipped in C
-            moved = _INERT_MOTION.search(text, lo, hi) is not None
+            moved = False
             for live in _LIVE.finditer(text, lo, hi):
                 i = bisect_right(starts, live.start()) - 1
                 a = int(starts[i])
@@ -249,6 +256,9 @@ class Calls:
                 stmt = next((c for c in sh.tree.children if hasattr(c, "data")), None)
                 if stmt is not None and stmt.data in ("move", "circ"):
                     moved = True
+                if last is None and stmt is not None and stmt.data in _LOOP_CLOSE and not self.blocks:
+                    saved["_closed_at"] = i  # (the loop's own end: kept after the restore below)
+                    break
                 if stmt is None or (stmt.data not in EFFECT_STATEMENTS and stmt.data not in FLOW_STATEMENTS):
                     if stmt is not None and sh.fcalls and stmt.data not in ("interrupt_decl", "trigger"):
                         # (WAIT FOR Ok(), a motion to F(): the function runs)
@@ -258,6 +268,9 @@ class Calls:
                 if stmt.data == "assign" and not self.frame_write(stmt):
                     continue  # other variables: the callee's own pass reads them
                 self.interpret(i, a, line, sh)
+            if saved["_closed_at"] is not None:  # (a loop's body: up to its end)
+                hi = int(starts[saved["_closed_at"]])
+            moved = moved or _INERT_MOTION.search(text, lo, hi) is not None
             return self.state, self.fdat, moved or self._moved
         finally:
             for k, v in saved.items():

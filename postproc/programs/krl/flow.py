@@ -32,8 +32,6 @@ from .values import _Unknown
 
 # a motion statement at the start of a line (comments start with ';' and never match)
 _MOTION = re.compile(r"^[ \t]*(?:S?(?:PTP|LIN|CIRC)(?:_REL)?|SPL|SPLINE)(?![\w$])", re.I | re.M)
-# the loop statements that open and close a body (for the body's extent)
-_LOOPS = re.compile(r"^[ \t]*(?:(FOR|WHILE|LOOP|REPEAT)|(ENDFOR|ENDWHILE|ENDLOOP|UNTIL))(?![\w$])", re.I | re.M)
 
 
 @dataclass
@@ -133,10 +131,9 @@ class Flow:
         entry = self.state
         fl = _Flow(kind, self.ln, entry, self._mark(), whole=runs_once or kind in ("LOOP", "REPEAT"))
         self.flow.append(fl)
-        end = self._loop_end()
+        after, moved, end = self.run_body(self.ln, None, entry)
         if end is None:
             return  # no matching end: the block check reports it
-        after, moved = self.run_body(self.ln, end, entry)
         fl.moved = moved
         why = f"the body of the {kind} at line {fl.line} changes it between iterations"
         self._adopt(merge_states([entry, after], why, (self.ln, 1)))
@@ -179,15 +176,3 @@ class Flow:
         why = f"a GOTO {name} jumps to line {self.ln} with others"
         self._adopt(merge_states([self.state] + jumps, why, (self.ln, 1)))
         self.barrier()
-
-    def _loop_end(self):
-        """0-based index of the line that closes the loop opened on the current line (None: none)."""
-        depth = 0
-        for m in _LOOPS.finditer(self.text, self.la):
-            if m.group(1):
-                depth += 1
-            else:
-                depth -= 1
-                if depth == 0:
-                    return bisect_right(self.starts, m.start()) - 1
-        return None
