@@ -350,3 +350,11 @@ def test_a_label_a_goto_jumps_to_merges_the_frames_of_the_jumps():
     assert [(c, line) for c, line, _ in codes(p)] == [("P201", 4), ("P201", 15)]
     assert "GOTO M1 jumps to line 4" in p.diagnostics[0].message
     assert bases(flow(P, "GOTO M1", "M1:", P)) == [0.0, 0.0]
+
+
+def test_a_frame_variable_an_interrupt_handler_assigns_is_unknown_while_it_is_on():
+    src = ("DEF t( )\n  DECL FRAME XB\n  XB = {X 10,Y 0,Z 0,A 0,B 0,C 0}\n"
+           "  INTERRUPT DECL 7 WHEN $IN[7] DO XB = $POS_INT\n  $BASE = XB\n  " + P + "\n"
+           "  INTERRUPT ON 7\n  $BASE = XB\n  " + P + "\nEND\n")
+    p = krl.read(["t.src"], [src], active=STATED)
+    assert bases(p) == [10.0, None] and codes(p) == [("P201", 8, 1)]

@@ -113,6 +113,9 @@ class Frames:
                 if isinstance(t, tuple):
                     return frame_to_matrix(np.array(t)), self.state.tool_label
                 return _Unknown("$TOOL is not known here", (self.ln, 1)), ""
+            for _, points in self.active_interrupts.values():  # a handler switched on may assign it
+                if n in points:
+                    return _Unknown(points[n], (self.ln, 1)), ""
             var = self.lookup(n)
             if var is not None and not var.array and isinstance(var.value, _Agg):
                 six = var.value.frame6()
