@@ -1,6 +1,6 @@
 """Speed of the KRL reader on a generated CAM program (default 1,000,000 LIN lines).
 
-    python benchmarks/krl_read_speed.py [--lines N] [--crlf] [--named N]
+    python benchmarks/krl_read_speed.py [--lines N] [--crlf] [--named N] [--in-for]
 
 Prints lines/s of ``postproc.programs.krl.read``, its peak memory (tracemalloc, measured in
 a second run because tracing slows Python down) and, for comparison, the time of a plain
@@ -68,6 +68,9 @@ def main() -> None:
     ap.add_argument("--lines", type=int, default=1_000_000)
     ap.add_argument("--crlf", action="store_true")
     ap.add_argument("--no-memory", action="store_true", help="skip the (slow) tracemalloc run")
+    ap.add_argument("--in-for", action="store_true",
+                    help="also time the same program with its motions inside a FOR loop (the reader runs the "
+                    "body's frame statements once more to learn what an iteration changes)")
     ap.add_argument("--named", type=int, default=0, metavar="N",
                     help="also time a teach-pendant style module of N named points (.src + .dat)")
     args = ap.parse_args()
@@ -88,6 +91,12 @@ def main() -> None:
     plain_pass(text)
     dp = time.perf_counter() - t0
     print(f"plain regex rewrite pass: {dp:.2f} s (read / plain = {dt / dp:.2f})")
+    if args.in_for:
+        looped = text.replace("$APO.CVEL = 90", "$APO.CVEL = 90\nFOR i = 1 TO 3", 1).replace("\nEND", "\nENDFOR\nEND")
+        t0 = time.perf_counter()
+        krl.read(["cam_big.src"], [looped])
+        dl = time.perf_counter() - t0
+        print(f"the same inside FOR … ENDFOR: {dl:.2f} s (in a loop / plain = {dl / dt:.2f})")
     if args.named:
         src, dat = named_program(args.named)
         t0 = time.perf_counter()

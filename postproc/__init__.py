@@ -7,7 +7,7 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-__all__ = ["compensate_text", "compensate_file", "load_model", "PostprocError", "__version__"]
+__all__ = ["compensate_text", "compensate_file", "load_model", "PostprocError", "ActiveFrames", "__version__"]
 
 
 def __getattr__(name: str):
@@ -20,6 +20,10 @@ def __getattr__(name: str):
         from .compensator import load_model
 
         return load_model
+    if name == "ActiveFrames":  # compensate_text(..., active=ActiveFrames.of(base=0, tool="model"))
+        from .programs.model import ActiveFrames
+
+        return ActiveFrames
     if name == "PostprocError":
         from .diagnostics import PostprocError
 

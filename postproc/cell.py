@@ -20,7 +20,7 @@ from pathlib import Path
 from .compensate import Report, compensate_program, read_text, write_outputs
 from .compensator import Compensator
 from .diagnostics import PostprocError
-from .programs import Program, read_program
+from .programs import ActiveFrames, Program, read_program
 
 __all__ = ["Cell", "find_cell", "compensate_cell", "is_config", "CONFIG_NAME"]
 
@@ -43,6 +43,7 @@ class Cell:
     modules: list[list[Path]] = field(default_factory=list)
     data_lists: list[Path] = field(default_factory=list)
     config: list[Path] = field(default_factory=list)
+    active: ActiveFrames | None = None  # the $BASE/$TOOL stated where its programs do not set them
 
     @property
     def files(self) -> list[Path]:
@@ -56,7 +57,8 @@ class Cell:
         outside the cell is read as configuration only."""
         files = self.files
         outside = [read_text(c) for c in self.config if not self.inside(c)] or None
-        return read_program([str(f) for f in files], [read_text(f) for f in files], "krl", config=outside)
+        return read_program([str(f) for f in files], [read_text(f) for f in files], "krl", config=outside,
+                            active=self.active)
 
 
 def krl_files(directory: Path) -> list[Path]:
@@ -78,7 +80,8 @@ def _found_config(root: Path) -> list[Path]:
     return shallowest
 
 
-def find_cell(paths: list[str | Path], config: list[str | Path] | None = None) -> Cell:
+def find_cell(paths: list[str | Path], config: list[str | Path] | None = None,
+              active: ActiveFrames | None = None) -> Cell:
     """The cell made of these files and directories (searched recursively for .src, .sub
     and .dat). ``config`` None: a ``$config.dat`` given among the files, else the one in
     the directory's ``System/`` (see :func:`_found_config`)."""
@@ -100,7 +103,7 @@ def find_cell(paths: list[str | Path], config: list[str | Path] | None = None) -
     found = [f for f in files if is_config(f)]
     if not given:
         given = found or [c for d in dirs for c in _found_config(d)][:1]
-    cell = Cell(root=root, config=given)
+    cell = Cell(root=root, config=given, active=active)
     unique = list(dict.fromkeys(f.resolve() for f in files))
     by_stem: dict[tuple[Path, str], Path] = {}
     for f in unique:

@@ -62,6 +62,10 @@ CODES = {
     "P215": "a target name declared in none of the files read (left as it is)",
     "P217": "a URScript pose variable or LS P[n] that other statements read too (left as it is)",
     "P216": "partial aggregate refused (compensate --no-fill-partial; filled in by default)",
+    "P220": "$BASE (or $BASE and $TOOL) not set before the target and not stated with --base (left as it is)",
+    "P221": "$TOOL not set before the target and not stated with --tool (left as it is)",
+    "P222": "--base / --tool that cannot be resolved or is malformed (refused)",
+    "P223": "a point an INTERRUPT handler switched on may assign (left as it is)",
     "P301": "target outside the model's training envelope",
     "P302": "target beyond the nominal robot's reach (model metadata 'reach')",
     "P303": "the model's correction exceeds max_correction",
@@ -225,11 +229,13 @@ def check_file(
     model: Compensator,
     *,
     config: str | Path | list | None = None,
+    active=None,
     **options,
 ) -> list[Diagnostic]:
-    """Read and check one program (a .src reads its .dat too); a syntax error is a finding."""
+    """Read and check one program (a .src reads its .dat too); a syntax error is a finding.
+    ``active``: the $BASE/$TOOL stated where a KRL program does not set them (``ActiveFrames``)."""
     try:
-        program = load_program(path, config)
+        program = load_program(path, config, active=active)
     except PostprocError as exc:
         return [exc.diagnostic()]
     return check_program(program, model, **options)
@@ -255,6 +261,7 @@ def check_files(
     *,
     config: str | Path | list | None = None,
     ignore: Iterable[str] = (),
+    active=None,
     **options,
 ) -> list[Diagnostic]:
     """Check the programs these files belong to, as one cell: directories are searched for
@@ -274,18 +281,18 @@ def check_files(
     owners = program_paths(files)
     krl = [p for p in owners if p.suffix.lower() in KRL]
     if len(krl) > 1:  # a cell: read as one, as compensate does (globals, calls across modules)
-        out += [d for d in _cell_findings(krl, model, config, **options) if d.code not in ignored]
+        out += [d for d in _cell_findings(krl, model, config, active, **options) if d.code not in ignored]
         owners = [p for p in owners if p.suffix.lower() not in KRL]
     for path in owners:
         if path.suffix.lower() == ".dat" and (is_config(path) or _data_list(path)):
             found = _data_list_findings(path)
         else:
-            found = check_file(path, model, config=config, **options)
+            found = check_file(path, model, config=config, active=active, **options)
         out += [d for d in found if d.code not in ignored]
     return sorted(out, key=lambda d: (d.path, d.line, d.col, d.code))
 
 
-def _cell_findings(owners: list[Path], model: Compensator, config, **options) -> list[Diagnostic]:
+def _cell_findings(owners: list[Path], model: Compensator, config, active=None, **options) -> list[Diagnostic]:
     """The findings of KRL modules and data lists checked as one cell (``cell.find_cell``:
     each module with its .dat, one reader call, ``$config.dat`` among them or ``config``)."""
     from .cell import find_cell
@@ -293,7 +300,7 @@ def _cell_findings(owners: list[Path], model: Compensator, config, **options) ->
 
     paths = list(owners) + [d for d in (companion_dat(p) for p in owners if p.suffix.lower() != ".dat") if d]
     try:
-        program = find_cell(paths, config).read()
+        program = find_cell(paths, config, active).read()
     except PostprocError as exc:
         return [exc.diagnostic()]
     return check_program(program, model, **options)
@@ -354,7 +361,7 @@ def check_fresh(
         for source, output in pair.matches():
             shown_src, shown_out = _shown(source), _shown(output)
             try:
-                program = load_program(source, list(config) if config else None)
+                program = load_program(source, list(config) if config else None, active=cfg.active)
                 report = compensate_program(
                     program, pair_model, iterations=cfg.iterations, strict=cfg.strict, robot=cfg.robot,
                     max_correction_mm=cfg.max_correction_mm or DEFAULT_MAX_CORRECTION_MM,

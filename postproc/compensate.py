@@ -38,7 +38,7 @@ from .findings import (
 )
 from .guards import ROUNDING_MM, check_inserted, check_memory, check_numbers, check_round_trip
 from .outputs import write as write_checked
-from .programs import STAMP_PREFIX, Program, dialect_of, read_program
+from .programs import STAMP_PREFIX, ActiveFrames, Program, dialect_of, read_program
 from .rewrite import check_disjoint, format_like, format_many, insert_stamp, splice, stamp_line
 
 __all__ = [
@@ -161,14 +161,16 @@ def parse_program_text(
     dialect: str | None = None,
     dat_text: str | None = None,
     config_texts: list[str] | None = None,
+    active: ActiveFrames | None = None,
 ) -> Program:
-    """Parse a program given as text (a .src with optional .dat text, or a pose list)."""
+    """Parse a program given as text (a .src with optional .dat text, or a pose list);
+    ``active``: the $BASE/$TOOL stated for a KRL program that does not set them."""
     dialect = dialect or (dialect_of(name) if name != STDIN and Path(name).suffix else sniff_dialect(text))
     files, texts = [name], [text]
     if dat_text is not None:
         files.append(str(Path(name).with_suffix(".dat")) if name != STDIN else "<stdin.dat>")
         texts.append(dat_text)
-    return read_program(files, texts, dialect, config=config_texts)
+    return read_program(files, texts, dialect, config=config_texts, active=active)
 
 
 def _config_texts(config: str | Path | list | None) -> list[str] | None:
@@ -178,11 +180,14 @@ def _config_texts(config: str | Path | list | None) -> list[str] | None:
     return [read_text(Path(p)) for p in paths]
 
 
-def load_program(path: str | Path, config: str | Path | None = None, dialect: str | None = None) -> Program:
+def load_program(path: str | Path, config: str | Path | None = None, dialect: str | None = None,
+                 active: ActiveFrames | None = None) -> Program:
     """Read a program from disk: a .src with its .dat companion, a lone .dat, or a pose list.
-    ``-`` reads standard input. ``config`` is a ``$config.dat`` for BASE_DATA / TOOL_DATA."""
+    ``-`` reads standard input. ``config`` is a ``$config.dat`` for BASE_DATA / TOOL_DATA;
+    ``active`` the $BASE/$TOOL stated for a KRL program that does not set them."""
     if str(path) == "-":
-        return parse_program_text(_decode(sys.stdin.buffer.read(), STDIN), STDIN, dialect, None, _config_texts(config))
+        return parse_program_text(_decode(sys.stdin.buffer.read(), STDIN), STDIN, dialect, None, _config_texts(config),
+                                  active)
     path = Path(path)
     if dialect is None:
         try:
@@ -195,7 +200,7 @@ def load_program(path: str | Path, config: str | Path | None = None, dialect: st
     if dat is not None:
         files.append(str(dat))
         texts.append(read_text(dat))
-    return read_program(files, texts, dialect, config=_config_texts(config))
+    return read_program(files, texts, dialect, config=_config_texts(config), active=active)
 
 
 # --------------------------------------------------------------------------- compensating
@@ -212,9 +217,9 @@ def _left_codes(program: Program, selection: Selection) -> Counter:
     codes: Counter = Counter()
     unknown_frame = int((left & (t.frame < 0)).sum())
     if unknown_frame:
-        # frame -1: the base (P201) or the tool (P203) is not known; the reader's located
+        # frame -1: the base (P201) or the tool (P203) is not known, or not set (P220/P221); the reader's located
         # warnings say which for each statement, the count names the codes it warned with
-        said = {d.code for d in program.diagnostics} & {"P201", "P203"}
+        said = {d.code for d in program.diagnostics} & {"P201", "P203", "P220", "P221"}
         codes["/".join(sorted(said)) if said else "P201"] = unknown_frame
     by_rule = 0
     for code, rows in selection.left.items():
@@ -627,6 +632,7 @@ def compensate_text(
     dialect: str | None = None,
     dat_text: str | None = None,
     config: str | Path | list | None = None,
+    active: ActiveFrames | None = None,
     iterations: int | None = None,
     strict: bool = False,
     force: bool = False,
@@ -639,9 +645,11 @@ def compensate_text(
 
     For a KRL module pass its .dat as ``dat_text``: the new .dat is
     ``report.outputs[<name>.dat]``. ``model`` is a loaded Compensator (reuse one for many
-    calls), a path, or None for the shipped default model.
+    calls), a path, or None for the shipped default model. ``active``: the $BASE/$TOOL in
+    force where a KRL program does not set them (``ActiveFrames``; else such targets are
+    left as written, P220/P221).
     """
-    program = parse_program_text(text, name, dialect, dat_text, _config_texts(config))
+    program = parse_program_text(text, name, dialect, dat_text, _config_texts(config), active)
     report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
                                 max_correction_mm=max_correction_mm, robot=robot, fill_partial=fill_partial,
                                 orientation=orientation)
@@ -662,6 +670,7 @@ def compensate_file(
     model: Compensator | str | Path | None = None,
     *,
     config: str | Path | None = None,
+    active: ActiveFrames | None = None,
     iterations: int | None = None,
     strict: bool = False,
     force: bool = False,
@@ -672,7 +681,7 @@ def compensate_file(
 ) -> Report:
     """Compensate a program file (with its .dat) into ``out`` (its .dat beside it).
     Nothing is written unless everything succeeded; the files are replaced atomically."""
-    program = load_program(path, config)
+    program = load_program(path, config, active=active)
     report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
                                 max_correction_mm=max_correction_mm, robot=robot, fill_partial=fill_partial,
                                 orientation=orientation)

@@ -27,11 +27,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .diagnostics import PostprocError
+from .programs.model import ActiveFrames
 
 __all__ = ["Config", "FreshPair", "find_config", "load_config", "CONFIG_NAME"]
 
 CONFIG_NAME = "postproc.toml"
-KEYS = ("model", "config", "strict", "max_correction", "iterations", "ignore", "fresh", "robot")
+KEYS = ("model", "config", "strict", "max_correction", "iterations", "ignore", "fresh", "robot", "base", "tool")
 PAIR_KEYS = ("source", "output", "model", "config")
 # a wildcard of a pair pattern; `**/` (any number of directories, also none) comes first
 _WILDCARD = re.compile(r"\*\*/|\*\*|\*|\?")
@@ -79,6 +80,7 @@ class Config:
     max_correction_mm: float | None = None
     iterations: int | None = None
     robot: str | None = None  # the robot the programs are for: models trained on another are refused
+    active: ActiveFrames | None = None  # base / tool: the $BASE/$TOOL where a KRL program does not set them
     ignore: tuple[str, ...] = ()
     fresh: list[FreshPair] = field(default_factory=list)
 
@@ -159,6 +161,11 @@ def parse_config(table: dict, path: Path) -> Config:
         if not isinstance(table["robot"], str) or not table["robot"].strip():
             raise _error("expected the robot's name, as in the model card (e.g. \"KR500-sim\")", path, "robot")
         cfg.robot = table["robot"].strip()
+    if "base" in table or "tool" in table:
+        try:
+            cfg.active = ActiveFrames.of(base=table.get("base"), tool=table.get("tool"))
+        except ValueError as exc:
+            raise _error(str(exc), path, "base" if str(exc).startswith("base") else "tool") from None
     if "ignore" in table:
         value = table["ignore"]
         if not isinstance(value, list) or not all(isinstance(v, str) and re.fullmatch(r"P\d{3}", v) for v in value):

@@ -21,6 +21,7 @@ LEFT_AS_WRITTEN = {
     "P214": "a point derived from another at run time (P2 = P1; P2.Z = …): it carries the other's correction",
     "P215": "a target name declared in none of the files read (a global whose data list was not given)",
     "P217": "a pose variable (URScript) or P[n] (Fanuc LS) that other statements read too: compensating it would change them",
+    "P223": "a point an INTERRUPT handler switched on may assign (INTERRUPT DECL … DO P = … / a DEF that assigns it)",
 }
 
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")

@@ -125,7 +125,7 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
     written, with their ``new_xyz``."""
     a = program.targets
     try:
-        again = read_program(program.files, texts, program.dialect, config=program.config)
+        again = read_program(program.files, texts, program.dialect, config=program.config, active=program.active)
     except PostprocError as exc:
         raise PostprocError(f"refusing to write: the compensated text does not read again ({exc.message})",
                             exc.path, exc.line, exc.col, "P191") from None

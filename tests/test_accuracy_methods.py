@@ -16,6 +16,7 @@ from postproc.training.features import previous_poses
 from postproc.training.synthetic import synthetic_measurements, to_csv
 
 from conftest import REPO
+from postproc.programs import ActiveFrames
 
 ROBOT_SEED = 7  # a drawn robot (not the evaluation seeds 101-105 of benchmarks/accuracy.py)
 
@@ -62,7 +63,8 @@ def test_default_model_learns_backlash_from_the_visiting_order(hybrid_model):
 @pytest.mark.slow
 def test_compensated_program_lands_on_target(hybrid_model, sim):
     targets = latin_hypercube(40, seed=1000)
-    text, report = compensate_text(krl(targets), hybrid_model)
+    # the rows are in the robot base frame with the model's tool: stated, as a user would
+    text, report = compensate_text(krl(targets), hybrid_model, active=ActiveFrames(base=0, tool="model"))
     assert report.compensated == 40
     commands = parse_program_text(text, "held.src").targets.poses
     result = sim.verify(targets, commands, rng_seed=0)

@@ -31,8 +31,8 @@ def backup(tmp_path):
     return r1
 
 
-def run(*args):
-    return main(["compensate", *map(str, args)])
+def run(*args):  # (made-up programs that set no $BASE/$TOOL: stated, as a user would)
+    return main(["compensate", *map(str, args), "--base", "0", "--tool", "model"])
 
 
 def test_a_backup_directory_is_compensated_into_a_mirrored_tree(backup, tmp_path, affine, capsys):

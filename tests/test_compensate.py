@@ -9,6 +9,7 @@ import pytest
 from postproc.cli import main
 from postproc.compensate import compensate_program, compensate_text, robot_base_poses
 from postproc.compensator import load_model
+from postproc.programs import ActiveFrames
 from postproc.diagnostics import PostprocError
 from postproc.programs import STAMP_PREFIX
 
@@ -229,10 +230,11 @@ def test_rewrite_overlapping_the_model_writes_what_one_pass_writes(monkeypatch):
     poses = _cam_path(500, seed=1)
     text = "DEF cam()\n" + "".join(
         "LIN {X %.3f,Y %.3f,Z %.3f,A %.3f,B %.3f,C %.3f} C_VEL\n" % tuple(p) for p in poses) + "END\n"
-    whole, report = compensate_text(text, name="cam.src")
+    stated = ActiveFrames(base=0, tool="model")  # (a made-up CAM program that sets neither)
+    whole, report = compensate_text(text, name="cam.src", active=stated)
     monkeypatch.setattr(compensator, "COMMAND_CHUNK", 16)  # 32 model chunks
     monkeypatch.setattr(compensate, "EDIT_CHUNK", 50)  # 30 rewrite chunks waiting on them
-    chunked, again = compensate_text(text, name="cam.src")
+    chunked, again = compensate_text(text, name="cam.src", active=stated)
     assert chunked == whole and again.max_correction_mm == report.max_correction_mm
     assert report.compensated == 500 and whole != text
 

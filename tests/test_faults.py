@@ -51,7 +51,8 @@ def cell(tmp_path, affine):
     for name, data in old.items():
         (out / name).write_bytes(data)
     model = affine(offset=(0.1, 0.2, -0.1), tool={"name": "any"})
-    argv = ["compensate", str(tmp_path / "cell.src"), "-o", str(out / "cell.src"), "--model", str(model)]
+    argv = ["compensate", str(tmp_path / "cell.src"), "-o", str(out / "cell.src"), "--base", "0", "--tool", "model",
+            "--model", str(model)]  # (made-up programs that set no $BASE/$TOOL: stated, as a user would)
     from postproc.programs.krl import parser
 
     parser()  # built (and its lark cache written) before any OS call is made to fail
@@ -169,7 +170,7 @@ def test_sigkill_during_the_write_never_leaves_a_mix_or_a_truncated_file(tmp_pat
     out.mkdir()
     model = affine(offset=(0.1, 0.2, -0.1), tool={"name": "any"})
     cmd = [sys.executable, "-m", "postproc", "compensate", str(tmp_path / "cell.src"), "-o", str(out / "cell.src"),
-           "--model", str(model), "-q"]
+           "--base", "0", "--tool", "model", "--model", str(model), "-q"]
     # the old pair: this program compensated with another model; the new pair: a clean run
     other = affine(offset=(-0.1, 0.0, 0.1), tool={"name": "any"})
     assert main(cmd[3:-3] + ["--model", str(other), "-q"]) == 0

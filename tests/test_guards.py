@@ -278,7 +278,8 @@ def krl_run(tmp_path, capsys, src, dat, model, *options, output="cell.src"):
     (tmp_path / "cell.dat").write_text(dat, newline="")
     out = tmp_path / "out"
     out.mkdir(exist_ok=True)
-    code = main(["compensate", str(tmp_path / "cell.src"), "-o", str(out / output), "--model", str(model), *options])
+    code = main(["compensate", str(tmp_path / "cell.src"), "-o", str(out / output), "--model", str(model), *options,
+                 "--base", "0", "--tool", "model"])  # (made-up programs that set no $BASE/$TOOL: stated, as a user would)
     return code, capsys.readouterr().err, sorted(p.name for p in out.iterdir())
 
 

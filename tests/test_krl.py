@@ -10,7 +10,12 @@ import numpy as np
 import pytest
 
 from postproc.diagnostics import PostprocError
-from postproc.programs import MOTIONS, STAMP_PREFIX, krl
+from postproc.programs import ActiveFrames, MOTIONS, STAMP_PREFIX, krl
+
+# These programs are about other semantics than the active frames: they state them as the
+# user would (--base 0 --tool model), the assumption the reader made silently before P220/P221.
+STATED = ActiveFrames(base=0, tool="model")
+
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples" / "krl"
 
@@ -19,12 +24,13 @@ def text_of(path: Path) -> str:
     return path.read_bytes().decode("latin-1")
 
 
-def read(src: str, dat: str | None = None, config: list[str] | None = None, accelerate: bool = True):
+def read(src: str, dat: str | None = None, config: list[str] | None = None, accelerate: bool = True,
+         active=STATED):
     files, texts = ["t.src"], [src]
     if dat is not None:
         files.append("t.dat")
         texts.append(dat)
-    return krl.read(files, texts, config=config, accelerate=accelerate)
+    return krl.read(files, texts, config=config, accelerate=accelerate, active=active)
 
 
 def module(*lines: str) -> str:
@@ -158,8 +164,8 @@ def test_edge_mixed_endings_tabs_odd_numbers():
 
 
 def test_edge_relative_moves_warn_and_break_the_chain():
-    path = SAMPLES / "edge" / "rel_moves.src"
-    p = krl.read([str(path)], [text_of(path)])
+    path = SAMPLES / "edge" / "rel_moves.src"  # (sets $BASE, not $TOOL: stated)
+    p = krl.read([str(path)], [text_of(path)], active=STATED)
     assert len(p.targets) == 2
     assert codes(p) == ["P210"] * 5
     assert [d.line for d in p.diagnostics] == [5, 6, 7, 8, 9]

@@ -7,7 +7,12 @@ from pathlib import Path
 import numpy as np
 
 from postproc.frames import frame_to_matrix
-from postproc.programs import krl
+from postproc.programs import ActiveFrames, krl
+
+# These programs are about other semantics than the active frames: they state them as the
+# user would (--base 0 --tool model), the assumption the reader made silently before P220/P221.
+STATED = ActiveFrames(base=0, tool="model")
+
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples" / "krl"
 CONFIG = (SAMPLES / "config" / "$config.dat").read_bytes().decode("latin-1")
@@ -23,9 +28,10 @@ END
 """
 
 
-def read(*modules: tuple[str, str], config=True, accelerate=True):
+def read(*modules: tuple[str, str], config=True, accelerate=True, active=STATED):
     files, texts = zip(*modules)
-    return krl.read(list(files), list(texts), config=[CONFIG] if config else None, accelerate=accelerate)
+    return krl.read(list(files), list(texts), config=[CONFIG] if config else None, accelerate=accelerate,
+                    active=active)
 
 
 def diags(p):

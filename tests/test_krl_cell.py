@@ -9,7 +9,12 @@ import pytest
 
 from postproc.diagnostics import PostprocError
 from postproc.frames import frame_to_matrix
-from postproc.programs import krl
+from postproc.programs import ActiveFrames, krl
+
+# These programs are about other semantics than the active frames: they state them as the
+# user would (--base 0 --tool model), the assumption the reader made silently before P220/P221.
+STATED = ActiveFrames(base=0, tool="model")
+
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples" / "krl"
 CONFIG = (SAMPLES / "config" / "$config.dat").read_bytes().decode("latin-1")
@@ -38,7 +43,7 @@ def cell(*names):
     texts = {"main.src": MAIN, "main.dat": MAIN_DAT, "xPoints.dat": POINTS, "$config.dat": CONFIG_WITH_POINT,
              "place.src": PLACE}
     files = [f"R1/Program/{n}" if n != "$config.dat" else "R1/System/$config.dat" for n in names]
-    return krl.read(files, [texts[n] for n in names])
+    return krl.read(files, [texts[n] for n in names], active=STATED)
 
 
 def test_a_cell_resolves_globals_across_data_lists_and_config():

@@ -4,7 +4,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from postproc.programs import krl
+from postproc.programs import ActiveFrames, krl
+
+# These programs are about other semantics than the active frames: they state them as the
+# user would (--base 0 --tool model), the assumption the reader made silently before P220/P221.
+STATED = ActiveFrames(base=0, tool="model")
 
 
 def read(src, dat=None, accelerate=True):
@@ -12,7 +16,7 @@ def read(src, dat=None, accelerate=True):
     if dat is not None:
         files.append("t.dat")
         texts.append(dat)
-    return krl.read(files, texts, accelerate=accelerate)
+    return krl.read(files, texts, accelerate=accelerate, active=STATED)
 
 
 SRC = ("DEF t( )\n"

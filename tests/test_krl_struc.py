@@ -5,7 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from postproc.programs import krl
+from postproc.programs import ActiveFrames, krl
+
+# converter output that sets $BASE but not $TOOL: the tool is stated as the user would
+# (--tool model), the assumption the reader made silently before P221
+STATED = ActiveFrames(tool="model")
 
 N = 40
 DAT = ("DEFDAT mill PUBLIC\n"
@@ -23,7 +27,7 @@ def src(loop: str, body: str = "    LIN gsMill_TOP1[counter].fCNC C_DIS\n") -> s
 
 @pytest.mark.parametrize("accelerate", [True, False])
 def test_struc_array_elements_behind_a_constant_for_are_targets(accelerate):
-    p = krl.read(["mill.src", "mill.dat"], [src(f"FOR counter = 1 TO {N}"), DAT], accelerate=accelerate)
+    p = krl.read(["mill.src", "mill.dat"], [src(f"FOR counter = 1 TO {N}"), DAT], accelerate=accelerate, active=STATED)
     t = p.targets
     assert len(t) == N + 1 and p.diagnostics == []
     np.testing.assert_allclose(t.poses[:N, :3], [[100 + i + 0.5, -i - 0.25, 300 + 2 * i] for i in range(1, N + 1)])
@@ -35,7 +39,7 @@ def test_struc_array_elements_behind_a_constant_for_are_targets(accelerate):
 
 
 def test_a_part_of_the_array_and_a_step():
-    p = krl.read(["mill.src", "mill.dat"], [src("FOR counter = 10 TO 2 STEP -4"), DAT])
+    p = krl.read(["mill.src", "mill.dat"], [src("FOR counter = 10 TO 2 STEP -4"), DAT], active=STATED)
     assert p.targets.poses[:-1, 0].tolist() == [110.5, 106.5, 102.5] and p.diagnostics == []
 
 
@@ -45,7 +49,7 @@ def test_a_part_of_the_array_and_a_step():
     ("FOR n = 1 TO 3", "not the variable of an enclosing FOR"),
 ])
 def test_struc_arrays_that_cannot_be_enumerated_are_left_alone(loop, why):
-    p = krl.read(["mill.src", "mill.dat"], [src(loop), DAT])
+    p = krl.read(["mill.src", "mill.dat"], [src(loop), DAT], active=STATED)
     assert len(p.targets) == 1  # only the inline LIN after the loop
     assert [(d.code, d.line) for d in p.diagnostics] == [("P211", 5)] and why in p.diagnostics[0].message
 
@@ -53,7 +57,7 @@ def test_struc_arrays_that_cannot_be_enumerated_are_left_alone(loop, why):
 def test_a_struc_member_of_axis_type_is_not_a_target():
     body = "    PTP gsMill_TOP1[counter].aJoints\n"
     dat = DAT.replace("grFeedrate 0.1}", "grFeedrate 0.1,aJoints {A1 0,A2 -90,A3 90,A4 0,A5 0,A6 0}}")
-    p = krl.read(["mill.src", "mill.dat"], [src("FOR counter = 1 TO 3", body), dat])
+    p = krl.read(["mill.src", "mill.dat"], [src("FOR counter = 1 TO 3", body), dat], active=STATED)
     assert len(p.targets) == 1 and p.diagnostics == []
 
 

@@ -66,7 +66,7 @@ def test_handlers_make_frames_unknown():
 
 
 def test_brake_handler_keeps_frames():
-    text = ("DEF brk( )\n  $BASE = {X 1800.0,Y 0.0,Z 600.0,A 0.0,B 0.0,C 0.0}\n"
+    text = ("DEF brk( )\n  $BASE = {X 1800.0,Y 0.0,Z 600.0,A 0.0,B 0.0,C 0.0}\n  $TOOL = {X 0.0,Y 0.0,Z 200.0,A 0.0,B 0.0,C 0.0}\n"
             "  INTERRUPT DECL 6 WHEN $IN[6] DO BRAKE F\n  INTERRUPT ON 6\n"
             "  LIN {X 100.0,Y 200.0,Z 300.0,A 0.0,B 90.0,C 0.0}\nEND\n")
     p = krl.read(["brk.src"], [text])

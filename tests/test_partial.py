@@ -11,6 +11,10 @@ from postproc.compensator import load_model
 from postproc.findings import robot_base_poses
 
 from conftest import REPO
+from postproc.programs import ActiveFrames
+
+# made-up programs that set no $BASE/$TOOL: stated, as a user would (--base 0 --tool model)
+STATED = ActiveFrames(base=0, tool="model")
 
 GAIN = np.array([[2e-3, 0, 0], [0, -1e-3, 5e-4], [0, 0, 3e-3]])
 SRC = """DEF p()
@@ -24,7 +28,7 @@ END
 
 def test_missing_components_are_written_in_the_aggregates_style(affine):
     model = load_model(affine(offset=(0.3, -0.2, 0.1), gain=GAIN))
-    out, report = compensate_text(SRC, model, name="p.src")
+    out, report = compensate_text(SRC, model, name="p.src", active=STATED)
     assert report.complete and report.compensated == 4
     lines = out.splitlines()[3:6]  # (after the stamp, DEF and the full target)
     assert re.fullmatch(r"  LIN \{x [\d.]+,y -?[\d.]+,z [\d.]+\}", lines[0])  # names in lower case, ',' as written
@@ -32,9 +36,9 @@ def test_missing_components_are_written_in_the_aggregates_style(affine):
     assert re.fullmatch(r"  LIN \{X [\d.]+\d{2}, Y [\d.-]+, Z [\d.]+\}", lines[2])  # ', ', 3 decimals
     # each target is commanded at P + Ê: the numbers read back are the model's commands for
     # the targets as the controller takes them (missing components from the previous target)
-    written = parse_program_text(SRC, "p.src")
+    written = parse_program_text(SRC, "p.src", active=STATED)
     poses, _ = robot_base_poses(written)
-    again, _ = robot_base_poses(parse_program_text(out, "p.src"))
+    again, _ = robot_base_poses(parse_program_text(out, "p.src", active=STATED))
     assert np.allclose(again[:, :3], model.command(poses), atol=6e-4)
     assert np.array_equal(np.isnan(again[:, 3:]), np.isnan(poses[:, 3:]))  # orientation not filled in
 
@@ -43,7 +47,8 @@ def test_no_fill_partial_refuses_with_the_target_located(tmp_path, affine, capsy
     src = tmp_path / "p.src"
     src.write_text(SRC)
     out = tmp_path / "o.src"
-    assert main(["compensate", str(src), "-o", str(out), "--model", str(affine(gain=GAIN)), "--no-fill-partial"]) == 2
+    assert main(["compensate", str(src), "-o", str(out), "--model", str(affine(gain=GAIN)), "--no-fill-partial",
+                 "--base", "0", "--tool", "model"]) == 2
     assert capsys.readouterr().err.startswith(f"{src}:3:7: P216 partial aggregate")
     assert not out.exists()
 
@@ -64,7 +69,7 @@ def test_weld_cell_partial_target_lands_as_if_written_in_full(tmp_path):
     attitude = np.array([0.0, 90.0, 0.0])
     errors = {}
     for name, text in (("partial", partial), ("full", full)):
-        new, report = compensate_text(text, model, name="w.src", dat_text=dat, config=config)
+        new, report = compensate_text(text, model, name="w.src", dat_text=dat, config=config, active=STATED)
         assert report.complete
         for label, src in (("original", text), ("compensated", new)):
             (tmp_path / f"{label}.src").write_text(src, "latin-1")
@@ -82,12 +87,12 @@ def test_the_last_checks_accept_the_inserted_components_and_catch_a_wrong_one(af
     dat = "DEFDAT m\n  DECL E6POS XP1={X 2000.0,Y 0.0,Z 900.0,A 0.0,B 90.0,C 0.0}\nENDDAT\n"
     src = "DEF m()\n  LIN XP1\n  LIN {Z 950.0}\nEND\n"
     model = load_model(affine(offset=(0.3, -0.2, 0.1), gain=GAIN))
-    out, report = compensate_text(src, model, name="m.src", dat_text=dat)
-    assert report.complete and parse_program_text(out, "m.src", dat_text=report.outputs["m.dat"]).named_targets
+    out, report = compensate_text(src, model, name="m.src", dat_text=dat, active=STATED)
+    assert report.complete and parse_program_text(out, "m.src", dat_text=report.outputs["m.dat"], active=STATED).named_targets
     assert re.search(r"LIN \{X 2000\.\d{3},Y -?0\.\d{3},Z 950\.\d{3}\}", out)
     import postproc.compensate as compensate
 
     monkeypatch.setattr(compensate, "format_like", lambda token, value: format(value + 0.01, ".3f"))
     with pytest.raises(compensate.PostprocError) as info:
-        compensate_text(src, model, name="m.src", dat_text=dat)
+        compensate_text(src, model, name="m.src", dat_text=dat, active=STATED)
     assert (info.value.code, info.value.line) == ("P190", 3)

@@ -29,10 +29,14 @@ from scipy.spatial.transform import Rotation
 
 from postproc.compensate import compensate_text, parse_program_text
 from postproc.compensator import load_model
-from postproc.programs import STAMP_PREFIX
+from postproc.programs import STAMP_PREFIX, ActiveFrames
 
 OFFSET = np.array([0.3, -0.2, 0.1])
 SETTINGS = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+# the generator starts in $NULLFRAME with any tool (the model has no tool frame): stated, as a user
+# would (--base 0 --tool model); the reader assumed it silently before P220/P221
+STATED = ActiveFrames(base=0, tool="model")
 
 
 @pytest.fixture(scope="module")
@@ -351,13 +355,13 @@ def filled_rows(program) -> np.ndarray:
 def test_zero_model_reproduces_the_module_byte_for_byte(models, module):
     src_parts, dat_parts, targets = module
     src, dat = render(src_parts), render(dat_parts)
-    out, report = compensate_text(src, models["zero"], name="prog.src", dat_text=dat)
+    out, report = compensate_text(src, models["zero"], name="prog.src", dat_text=dat, active=STATED)
     out_src = without_stamp(out, models["zero"], "prog.src" in report.changed)
     out_dat = without_stamp(report.outputs["prog.dat"], models["zero"], "prog.dat" in report.changed)
-    before = parse_program_text(src, "prog.src", dat_text=dat)
+    before = parse_program_text(src, "prog.src", dat_text=dat, active=STATED)
     if filled_rows(before).any():  # partial aggregates get their X/Y/Z written in: nothing else changes
         assert aggregates_without_xyz(out_src) == aggregates_without_xyz(src)
-        after = parse_program_text(out_src, "prog.src", dat_text=out_dat)
+        after = parse_program_text(out_src, "prog.src", dat_text=out_dat, active=STATED)
         assert (after.targets.spans[filled_rows(before), :, 0] >= 0).all()
         assert np.allclose(after.targets.poses[:, :3], before.targets.poses[:, :3], atol=5e-4, equal_nan=True)
     else:
@@ -375,13 +379,13 @@ def test_zero_model_reproduces_the_module_byte_for_byte(models, module):
 def test_offset_model_moves_exactly_the_target_numbers_by_the_offset_in_their_base(models, module):
     src_parts, dat_parts, targets = module
     src, dat = render(src_parts), render(dat_parts)
-    out, report = compensate_text(src, models["offset"], name="prog.src", dat_text=dat)
-    before = parse_program_text(src, "prog.src", dat_text=dat)
+    out, report = compensate_text(src, models["offset"], name="prog.src", dat_text=dat, active=STATED)
+    before = parse_program_text(src, "prog.src", dat_text=dat, active=STATED)
     texts = (without_stamp(out, models["offset"], "prog.src" in report.changed),
              without_stamp(report.outputs["prog.dat"], models["offset"], "prog.dat" in report.changed))
     if filled_rows(before).any():
         # partial aggregates get X/Y/Z written in: each target, read again, moved by its delta
-        after = parse_program_text(*texts[:1], "prog.src", dat_text=texts[1])
+        after = parse_program_text(*texts[:1], "prog.src", dat_text=texts[1], active=STATED)
         known = [g["delta"] is not None for g in targets]
         moved = after.targets.poses[known, :3] - before.targets.poses[known, :3]
         assert np.allclose(moved, [g["delta"] for g in targets if g["delta"] is not None], atol=5e-4 + 1e-9)
@@ -405,18 +409,18 @@ def test_offset_model_moves_exactly_the_target_numbers_by_the_offset_in_their_ba
 def test_output_reads_as_the_same_targets_in_the_same_frames(models, module):
     src_parts, dat_parts, targets = module
     src, dat = render(src_parts), render(dat_parts)
-    before = parse_program_text(src, "prog.src", dat_text=dat)
+    before = parse_program_text(src, "prog.src", dat_text=dat, active=STATED)
     # the reader agrees with the generator on what the targets are and where
     t = before.targets
     assert len(t) == len(targets)
     assert [(int(f), int(n)) for f, n in zip(t.file, t.line)] == [(g["file"], g["line"]) for g in targets]
     known = ~np.isnan(t.poses[:, :3]).any(axis=1)
     assert known.tolist() == [g["delta"] is not None for g in targets]
-    out, report = compensate_text(src, models["offset"], name="prog.src", dat_text=dat)
+    out, report = compensate_text(src, models["offset"], name="prog.src", dat_text=dat, active=STATED)
     stripped = [without_stamp(out, models["offset"], "prog.src" in report.changed),
                 without_stamp(report.outputs["prog.dat"], models["offset"], "prog.dat" in report.changed)]
-    after = parse_program_text(stripped[0], "prog.src", dat_text=stripped[1])
-    again = parse_program_text(out, "prog.src", dat_text=report.outputs["prog.dat"])
+    after = parse_program_text(stripped[0], "prog.src", dat_text=stripped[1], active=STATED)
+    again = parse_program_text(out, "prog.src", dat_text=report.outputs["prog.dat"], active=STATED)
     assert bool(again.stamps) == bool(report.changed) and len(again.targets) == len(t)
     u = after.targets
     for column in ("file", "line", "motion"):

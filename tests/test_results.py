@@ -10,6 +10,10 @@ from postproc.compensate import compensate_text
 from postproc.programs import STAMP_PREFIX
 
 from conftest import REPO
+from postproc.programs import ActiveFrames
+
+# made-up programs that set no $BASE/$TOOL: stated, as a user would (--base 0 --tool model)
+STATED = ActiveFrames(base=0, tool="model")
 
 GAIN = np.diag([1e-3, 2e-3, -1e-3])  # a correction that varies over space
 # 2 targets in a base the reader knows, then 2 after a BAS call whose BASE_DATA is unknown
@@ -26,7 +30,7 @@ END
 @pytest.fixture
 def cli(tmp_path, capsys):
     def go(*args):
-        code = main(["compensate", *map(str, args)])
+        code = main(["compensate", *map(str, args), "--base", "0", "--tool", "model"])  # (made-up programs that set no $BASE/$TOOL: stated, as a user would)
         captured = capsys.readouterr()
         return code, captured.out, captured.err
     return go
@@ -80,7 +84,7 @@ def test_a_cam_filter_still_gets_its_program_on_stdout(tmp_path, affine, capfdbi
     import sys
 
     monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(SRC.encode())))
-    code = main(["compensate", "-", "-o", "-", "--model", str(affine(gain=GAIN))])
+    code = main(["compensate", "-", "-o", "-", "--model", str(affine(gain=GAIN)), "--base", "0", "--tool", "model"])
     out = capfdbinary.readouterr().out
     assert code == 1 and out.count(STAMP_PREFIX.encode()) == 1 and b"LIN {X 10.0,Y 0.0" in out
 
@@ -89,7 +93,7 @@ def test_only_files_that_changed_are_stamped(tmp_path, affine):
     # the .dat holds only an axis position: nothing in it is compensated, so no stamp
     dat = "DEFDAT m\n  DECL E6AXIS XHOME={A1 0,A2 -90,A3 90,A4 0,A5 0,A6 0}\nENDDAT\n"
     src = "DEF m()\n  PTP XHOME\n  LIN {X 2000.0,Y 0.0,Z 900.0,A 0.0,B 90.0,C 0.0}\nEND\n"
-    text, report = compensate_text(src, affine(gain=GAIN), name="m.src", dat_text=dat)
+    text, report = compensate_text(src, affine(gain=GAIN), name="m.src", dat_text=dat, active=STATED)
     assert report.changed == ["m.src"] and report.complete and report.codes == []
     assert report.outputs["m.dat"] == dat and STAMP_PREFIX in text
     # and check accepts the pair (the unstamped .dat is no P404)
@@ -97,11 +101,11 @@ def test_only_files_that_changed_are_stamped(tmp_path, affine):
     from postproc.compensate import parse_program_text
     from postproc.compensator import load_model
 
-    program = parse_program_text(text, "m.src", dat_text=dat)
+    program = parse_program_text(text, "m.src", dat_text=dat, active=STATED)
     assert [d.code for d in check_program(program, load_model(affine(gain=GAIN)))] == []
 
 
 def test_report_counts_and_codes(affine):
-    _, report = compensate_text(SRC, affine(gain=GAIN), name="a.src")
+    _, report = compensate_text(SRC, affine(gain=GAIN), name="a.src", active=STATED)
     assert (report.targets, report.compensated, report.left, report.left_codes) == (4, 2, 2, {"P201": 2})
     assert report.codes == ["P201"] and not report.complete

@@ -140,7 +140,7 @@ def test_verify_reads_krl_with_frames(capsys):
 
 def test_verify_runs_a_program_with_its_own_tool(tmp_path, capsys):
     src = tmp_path / "p.src"
-    src.write_text("DEF p( )\n$TOOL = {X 10, Y 0, Z 250, A 0, B 0, C 0}\n"
+    src.write_text("DEF p( )\n$BASE = $NULLFRAME\n$TOOL = {X 10, Y 0, Z 250, A 0, B 0, C 0}\n"
                    "LIN {X 2000, Y 0, Z 900, A 0, B 90, C 0}\nLIN {X 2050, Y 100, Z 950, A 0, B 90, C 0}\nEND\n")
     assert main(["verify", str(src), str(src), "--json", "--no-noise"]) == 0
     figures = json.loads(capsys.readouterr().out)

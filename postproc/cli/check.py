@@ -12,7 +12,7 @@ EXAMPLES = """examples:
   postproc check weld.src --robot models/kr500.toml   the model is for this robot? its IK reaches? (postproc[sim])
 
 settings: [tool.postproc] in pyproject.toml or postproc.toml, found from the current directory
-upwards (model, config, robot, strict, max_correction, iterations, ignore, fresh); options
+upwards (model, config, robot, base, tool, strict, max_correction, iterations, ignore, fresh); options
 override them.
 output: one `path:line:col: CODE message` line per finding on stdout.
 exit: 0 clean (warnings only, unless --strict), 1 findings, 2 usage or internal error.
@@ -20,6 +20,8 @@ exit: 0 clean (warnings only, unless --strict), 1 findings, 2 usage or internal 
 
 
 def add_parser(sub, common, formatter) -> None:
+    from .compensate import add_frame_arguments
+
     p = sub.add_parser(
         "check",
         parents=[common],
@@ -43,6 +45,7 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--ignore", metavar="CODES", default="", help="comma-separated codes not to report, e.g. P301,P213")
     p.add_argument("--max-correction", type=float, metavar="MM", help="corrections above this are findings (default 5 mm)")
     p.add_argument("--iterations", type=int, metavar="K", help="fixed-point iterations (default: the model's)")
+    add_frame_arguments(p)
     p.add_argument("--robot", metavar="NAME|FILE.toml",
                    help="the robot the programs are for (default: settings 'robot'): a model trained on another is "
                    "a finding; with a description file also the nominal robot's IK reachability (needs Pinocchio)")
@@ -82,6 +85,7 @@ def run(args) -> int:
     from ..compensator import load_model
     from ..config import load_config
     from ..diagnostics import EXIT_ERROR, EXIT_FINDINGS, EXIT_OK
+    from ..programs import ActiveFrames
     from . import use_color
 
     if not args.files and not args.fresh:
@@ -101,6 +105,7 @@ def run(args) -> int:
         cfg.max_correction_mm = args.max_correction
     if args.iterations is not None:
         cfg.iterations = args.iterations
+    cfg.active = ActiveFrames.stated(args.base, args.tool, cfg.active)  # (--fresh compensates with them too)
     ignore = set(cfg.ignore) | {c.strip().upper() for c in args.ignore.split(",") if c.strip()}
     model = load_model(cfg.model)
     if args.verbose:
@@ -114,7 +119,7 @@ def run(args) -> int:
     findings = []
     if args.files:
         findings += check_files(args.files, model, config=list(cfg.config) if cfg.config else None, ignore=ignore,
-                                **options)
+                                active=cfg.active, **options)
     written = []
     if args.fresh:
         if not cfg.fresh and not args.quiet:

@@ -34,6 +34,7 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--model", metavar="M", help="ONNX compensator (default: the shipped models/default.onnx)")
     p.add_argument("--config", "--frames", metavar="CONFIG_DAT", help="$config.dat with BASE_DATA / TOOL_DATA (for a cell "
                    "directory, default: its System/$config.dat); for a Fanuc .ls: the frame file (TOML, UF/UT)")
+    add_frame_arguments(p)
     p.add_argument("--dialect", choices=["krl", "poses", "rapid", "urscript", "fanuc"],
                    help="program type for stdin (default: detected; RAPID must be named)")
     p.add_argument("--iterations", type=int, metavar="K", help="fixed-point iterations c ← P + Ê(c) (default: the model's)")
@@ -56,6 +57,21 @@ def add_parser(sub, common, formatter) -> None:
     p.set_defaults(run=run)
 
 
+def add_frame_arguments(p, settings: bool = True) -> None:
+    """``--base`` / ``--tool`` (compensate, check, verify): the frames a KRL program runs in where
+    it does not set them itself (``programs.ActiveFrames``); ``settings``: their default is the
+    settings' ``base`` / ``tool``."""
+    default = "; default: settings '{}'" if settings else ""
+    p.add_argument("--base", metavar="N|X,Y,Z,A,B,C",
+                   help="the $BASE active where a KRL program has not set it: BASE_DATA[N] of $config.dat (0 = "
+                   "$NULLFRAME) or the frame itself (mm, deg)" + default.format("base") + ". Without it such targets "
+                   "are left as written (P220)")
+    p.add_argument("--tool", metavar="N|X,Y,Z,A,B,C|model",
+                   help="the $TOOL active where a KRL program has not set it: TOOL_DATA[N] of $config.dat, the frame "
+                   "itself, or 'model' (the model's own tool)" + default.format("tool") + ". Without it such targets "
+                   "are left as written (P221)")
+
+
 def run(args) -> int:
     from pathlib import Path
 
@@ -63,6 +79,7 @@ def run(args) -> int:
     from ..config import load_config
     from ..diagnostics import EXIT_FINDINGS, EXIT_OK
     from ..outputs import check_program_outputs
+    from ..programs import ActiveFrames
 
     inputs = args.input
     cell = len(inputs) > 1 or Path(inputs[0]).is_dir()
@@ -71,6 +88,7 @@ def run(args) -> int:
     cfg = load_config(args.settings)  # [tool.postproc]: the options given here win
     args.model = args.model or cfg.model
     args.config = args.config or (list(cfg.config) if cfg.config else None)
+    active = ActiveFrames.stated(args.base, args.tool, cfg.active)
     max_correction = args.max_correction if args.max_correction is not None else cfg.max_correction_mm
     kwargs = dict(
         iterations=args.iterations if args.iterations is not None else cfg.iterations,
@@ -86,11 +104,11 @@ def run(args) -> int:
         from ..compensator import load_model
 
         config = [args.config] if isinstance(args.config, str) else args.config
-        report = compensate_cell(find_cell(inputs, config), args.output, load_model(args.model), **kwargs)
+        report = compensate_cell(find_cell(inputs, config, active), args.output, load_model(args.model), **kwargs)
     elif inputs[0] == "-":
         from ..compensator import load_model
 
-        program = load_program("-", args.config, args.dialect)
+        program = load_program("-", args.config, args.dialect, active=active)
         report = compensate_program(program, load_model(args.model), **kwargs)
         if args.output != "-":
             from ..compensate import write_outputs
@@ -100,7 +118,7 @@ def run(args) -> int:
             sys.stdout.buffer.write(report.outputs[program.files[0]].encode("latin-1"))
             sys.stdout.buffer.flush()
     else:
-        report = compensate_file(inputs[0], args.output, args.model, config=args.config, **kwargs)
+        report = compensate_file(inputs[0], args.output, args.model, config=args.config, active=active, **kwargs)
     if not args.quiet:
         for w in report.warnings + (report.notes if args.verbose else []):
             print(w.format(), file=sys.stderr)

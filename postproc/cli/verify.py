@@ -16,6 +16,8 @@ tracker's noise and the robot's repeatability (--no-noise: the exact positions).
 
 
 def add_parser(sub, common, formatter) -> None:
+    from .compensate import add_frame_arguments
+
     p = sub.add_parser(
         "verify",
         parents=[common],
@@ -32,6 +34,7 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--robot-seed", type=int, metavar="S",
                    help="draw another robot (default: the file's calibrated one)")
     p.add_argument("--config", metavar="CONFIG_DAT", help="$config.dat with BASE_DATA / TOOL_DATA")
+    add_frame_arguments(p, settings=False)
     p.add_argument("--seed", type=int, default=0, metavar="S", help="measurement noise seed (default 0)")
     p.add_argument("--no-noise", action="store_true", help="exact positions: no tracker noise, no repeatability")
     p.add_argument("--json", action="store_true", help="print the figures as JSON on stdout")
@@ -92,8 +95,11 @@ def run(args) -> int:
     from ..diagnostics import EXIT_FINDINGS, PostprocError
     from ..simulator import CODE_REACH, SimulatedRobot
 
-    original = load_program(args.original, args.config)
-    compensated = load_program(args.compensated, args.config)
+    from ..programs import ActiveFrames
+
+    active = ActiveFrames.stated(args.base, args.tool)  # (as the program was compensated)
+    original = load_program(args.original, args.config, active=active)
+    compensated = load_program(args.compensated, args.config, active=active)
     p_orig, ok_orig = robot_base_poses(original)
     p_comp, ok_comp = robot_base_poses(compensated)
     if len(p_orig) != len(p_comp):
@@ -106,7 +112,7 @@ def run(args) -> int:
     keep = ok_orig & ok_comp
     if not keep.all():
         notes.append(f"{int((~keep).sum())} target(s) skipped: their frame is not known statically "
-                     f"(run with --config $config.dat?)")
+                     f"(run with --config $config.dat, --base / --tool?)")
     if not keep.any():
         raise PostprocError("no target with a known frame to verify", args.original, code="P601")
     attitude = np.asarray(sim.description.workspace.get("attitude", (0.0, 90.0, 0.0)), float)

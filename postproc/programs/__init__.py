@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .model import MOTIONS, STAMP_PREFIX, Frame, Program, Targets, TargetsBuilder
+from .model import MOTIONS, STAMP_PREFIX, ActiveFrames, Frame, Program, Targets, TargetsBuilder
 
-__all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "read_program", "dialect_of", "STAMP_PREFIX", "MOTIONS"]
+__all__ = ["ActiveFrames", "Frame", "Targets", "TargetsBuilder", "Program", "read_program", "dialect_of", "STAMP_PREFIX", "MOTIONS"]
 
 KRL_SUFFIXES = {".src", ".dat", ".sub"}
 POSE_SUFFIXES = {".csv", ".txt", ".pose", ".poses", ".xyz"}
@@ -38,17 +38,27 @@ def dialect_of(path: str | Path) -> str:
     raise ValueError(f"unknown program type {suffix!r} (expected .src/.dat, .csv/.txt, .mod/.prg/.sys, .script or .ls)")
 
 
-def read_program(files: list[str], texts: list[str], dialect: str, config: list[str] | None = None) -> Program:
+def read_program(files: list[str], texts: list[str], dialect: str, config: list[str] | None = None,
+                 active: ActiveFrames | None = None) -> Program:
     """Parse a program made of ``files`` (for KRL: the .src first, then its .dat if any)
     with contents ``texts``. ``config`` optionally holds ``$config.dat`` text(s) that give
-    BASE_DATA / TOOL_DATA (for RAPID: other modules' tooldata / wobjdata; for Fanuc LS: the frame file, TOML, of --frames). Raises PostprocError (with file:line:col) on bad input."""
+    BASE_DATA / TOOL_DATA (for RAPID: other modules' tooldata / wobjdata; for Fanuc LS: the frame
+    file, TOML, of --frames). ``active``: the $BASE / $TOOL in force where a KRL program has not
+    set them (the other dialects name theirs at every target and refuse it, P222). Raises
+    PostprocError (with file:line:col) on bad input."""
     if dialect == "krl":
         from . import krl
 
-        program = krl.read(files, texts, config=config)
+        program = krl.read(files, texts, config=config, active=active)
         program.config = list(config) if config else None
+        program.active = active
         program.from_text = True
         return program
+    if active is not None:
+        from ..diagnostics import PostprocError
+
+        raise PostprocError(f"--base / --tool state the frames of KRL programs; a {dialect} program names its "
+                            "own at every target", files[0] if files else "", 0, 0, "P222")
     if dialect == "poses":
         from . import poses
 

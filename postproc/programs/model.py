@@ -8,7 +8,7 @@ import numpy as np
 
 from ..diagnostics import Diagnostic
 
-__all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "STAMP_PREFIX", "MOTIONS"]
+__all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "ActiveFrames", "STAMP_PREFIX", "MOTIONS"]
 
 # The one line postproc adds to a file it compensated (after the dialect's comment marker).
 STAMP_PREFIX = "postproc: compensated with model"
@@ -22,13 +22,84 @@ class Frame:
     """The frame a target was programmed in.
 
     ``base`` maps that frame to the robot base frame (4×4: INV_POS($ROBROOT):$BASE);
-    ``tool`` is the active $TOOL as X,Y,Z,A,B,C (None when unknown); ``label`` says where
+    ``tool`` is the active $TOOL as X,Y,Z,A,B,C (None: the model's own tool, stated with
+    ``ActiveFrames(tool="model")``); ``label`` says where
     they came from, e.g. ``BASE_DATA[3] / TOOL_DATA[1]``.
     """
 
     base: np.ndarray
     tool: np.ndarray | None = None
     label: str = ""
+
+
+@dataclass(frozen=True)
+class ActiveFrames:
+    """The $BASE / $TOOL active when a program starts, as its user states them (``compensate
+    --base/--tool``, the settings' ``base`` / ``tool``), for programs that do not set them
+    before their targets. Each is None (not stated: such targets are left as written), an int
+    n (``BASE_DATA[n]`` / ``TOOL_DATA[n]`` of ``$config.dat``; 0 = ``$NULLFRAME``), or six
+    floats X,Y,Z,A,B,C; the tool may also be ``"model"``: the model's own tool (its card)."""
+
+    base: int | tuple | None = None
+    tool: int | tuple | str | None = None
+
+    @staticmethod
+    def parse(value, which: str):
+        """``"N"``, ``"X,Y,Z,A,B,C"`` (or an int / a list of six numbers from TOML), ``"model"``
+        (tool only) → the value kept; ValueError with the reason otherwise."""
+        if value is None:
+            return None
+        if isinstance(value, bool):
+            raise ValueError(f"{which}: expected N or X,Y,Z,A,B,C, not {value!r}")
+        if isinstance(value, int):
+            items = [value]
+        elif isinstance(value, (list, tuple)):
+            items = list(value)
+        elif isinstance(value, str):
+            if which == "tool" and value.strip().lower() == "model":
+                return "model"
+            items = [v.strip() for v in value.split(",")]
+        else:
+            raise ValueError(f"{which}: expected N or X,Y,Z,A,B,C, not {value!r}")
+        if len(items) == 1:
+            try:
+                n = int(str(items[0]))
+            except ValueError:
+                n = -1
+            if n < 0:
+                raise ValueError(f"{which}: expected a {which.upper()}_DATA number ≥ 0 or X,Y,Z,A,B,C, not {value!r}")
+            return n
+        if len(items) != 6:
+            raise ValueError(f"{which}: expected six numbers X,Y,Z,A,B,C (mm, deg), got {len(items)}")
+        try:
+            six = tuple(float(v) for v in items)
+        except (TypeError, ValueError):
+            raise ValueError(f"{which}: expected six numbers X,Y,Z,A,B,C (mm, deg), not {value!r}") from None
+        if not all(np.isfinite(six)):
+            raise ValueError(f"{which}: X,Y,Z,A,B,C must be finite numbers")
+        return six
+
+    @classmethod
+    def of(cls, base=None, tool=None) -> "ActiveFrames | None":
+        """From user values (strings, ints, lists; None = not stated); None when neither is."""
+        if base is None and tool is None:
+            return None
+        return cls(base=cls.parse(base, "base"), tool=cls.parse(tool, "tool"))
+
+    @classmethod
+    def stated(cls, base=None, tool=None, settings: "ActiveFrames | None" = None) -> "ActiveFrames | None":
+        """The command line's ``--base`` / ``--tool`` over the settings' (each on its own);
+        a value that is not N / X,Y,Z,A,B,C is refused: PostprocError P222."""
+        from ..diagnostics import PostprocError
+
+        try:
+            given = cls.of(base=base, tool=tool)
+        except ValueError as exc:
+            raise PostprocError(str(exc), "--" + str(exc).split(":")[0], 0, 0, "P222") from None
+        if settings is None or given is None:
+            return given or settings
+        return cls(base=given.base if given.base is not None else settings.base,
+                   tool=given.tool if given.tool is not None else settings.tool)
 
 
 @dataclass
@@ -43,7 +114,8 @@ class Targets:
     line, col  [N] int32       1-based location of the target's aggregate (for messages)
     frame      [N] int32       index into Program.frames; -1 = left as written: the base
                                (P201) or the tool (P203: $TOOL set but not resolvable, e.g.
-                               TOOL_DATA[6] not known, or unknown after a call) is not known
+                               TOOL_DATA[6] not known, or unknown after a call) is not known,
+                               or not set and not stated (P220/P221)
     motion     [N] int8        index into MOTIONS
     config     [N, 2] int16    (S, T) the target states (integers, 'B010' / 'H2' literals,
                                inline or in the POS/E6POS variable's value); -1 where it
@@ -54,8 +126,9 @@ class Targets:
     abc_spans  [N, 3, 2] int64 (start, end) of the A, B, C tokens, -1 where absent (None: the
                                reader does not locate them; ``compensate --orientation`` needs them)
 
-    A frame's ``tool`` of None means the program never sets $TOOL (the model's tool is
-    assumed); a $TOOL that is set but not known makes the target's frame -1.
+    A frame's ``tool`` of None means the model's tool, stated by the user (``--tool model``);
+    a $TOOL (or $BASE) that is not set and not stated (P221/P220) or set but not known makes
+    the target's frame -1.
     """
 
     poses: np.ndarray
@@ -128,6 +201,7 @@ class Program:
     newlines: list[str] = field(default_factory=list)  # dominant line ending per file
     comment: str = ";"  # the dialect's comment marker, for the stamp line
     config: list[str] | None = None  # the $config.dat texts it was read with (to read it again)
+    active: ActiveFrames | None = None  # the $BASE/$TOOL stated for it (to read it again)
     from_text: bool = False  # made by read_program: its texts, read again, give it again
     # some targets are variables (declared or assigned aggregates), whose numbers other
     # statements may read too (e.g. as a frame); False: every target is an inline aggregate

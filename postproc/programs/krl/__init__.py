@@ -17,14 +17,18 @@ Semantics (tests/test_krl.py shows each on a small program):
   aggregate a position variable was given: its .dat declaration or an assignment);
   axis targets, frames, comments and strings are never targets;
 * the frame of a target is INV_POS($ROBROOT):$BASE (and the left operands of ``:``),
-  tracked in textual order through each DEF; unresolvable → frame -1 + warning P201;
+  tracked through each DEF, branches and loops merged (``flow``); unresolvable → frame -1
+  + warning P201 (P203 the tool); not set before the target and not stated by the user
+  (``ActiveFrames``: ``--base`` / ``--tool``) → -1 + P220 / P221;
 * a partial inline aggregate takes its missing components from the preceding Cartesian
-  motion target (same DEF, same frame), NaN where none is known.
+  motion target (same DEF, same frame), NaN where none is known (also after control flow
+  that moves).
 
 Modules (one concept each; the ``Reader`` class in ``reader`` combines their methods):
 ``syntax`` (parser, number token, syntax-error wording), ``values`` (numbers, aggregates,
 variables), ``scopes`` (declarations, lookup), ``frames`` ($BASE/$TOOL/$ROBROOT), ``blocks``
-(block structure, folds), ``statements`` (assignments, calls, motions), ``fast_path`` (shape
+(block structure, folds), ``flow`` (branches and loops), ``calls`` (callees, functions,
+the sandbox), ``statements`` (assignments, calls, motions), ``fast_path`` (shape
 cache, accelerated regex), ``assemble`` (rows → Targets), ``reader`` (the loop).
 """
 from __future__ import annotations

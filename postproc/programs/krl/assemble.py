@@ -4,7 +4,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..model import Targets
-from .frames import _START
 
 
 def _empty_targets() -> Targets:
@@ -40,10 +39,12 @@ class Assembly:
             p["frame"] = f.astype(np.int32)
             p["emit"] = np.ones(m, bool)
             if (f < 0).any():
-                for r, cnt in zip(*np.unique(at[f < 0], return_counts=True)):
+                left = np.flatnonzero(f < 0)
+                for r, first, cnt in zip(*np.unique(at[left], return_index=True, return_counts=True)):
                     reason = self.timeline[r][2] if r >= 0 else None
-                    if reason in self.unknown_frames:
-                        self.unknown_frames[reason][4] += int(cnt)
+                    i = left[first]
+                    self.count_unknown(-1, reason, int(cnt), (int(p["key"][i]), int(p["line"][i]), int(p["col"][i]),
+                                                                  self.files[int(p["file"][i])]))
         if n:
             parts.append(dict(
                 key=np.array(c["key"], np.int64), pose=np.array(c["pose"], float).reshape(n, 6),
@@ -100,4 +101,4 @@ class Assembly:
         )
 
     def start_frame(self) -> int:
-        return self.frame_index(_START)[0]
+        return self.frame_index(self.start_state())[0]

@@ -6,7 +6,7 @@ from lark import Token, Tree
 
 from ...diagnostics import PostprocError
 from .fast_path import _Shape
-from .frames import _FrameState, _START
+from .frames import _FrameState
 from .values import _Unknown, _first_pos
 
 
@@ -89,15 +89,16 @@ class Blocks:
         self.block_open["DEF"] = self.ln
         self.in_def = True
         self.local = {}
+        self.gotos = {}
         self.fdat = None
         # the first DEF starts at $NULLFRAME; a later one (a local subroutine) inherits the
         # frames its callers had, when they all agree
         if self.defs_seen == 0 and str(name).upper() not in self.call_states:
-            st = _START  # a module's main DEF, not called from a module read before
+            st = self.start_state()  # a module's main DEF, not called from a module read before
         else:
             calls = self.call_states.get(str(name).upper(), [])
             if not calls:
-                st = _START
+                st = self.start_state()
             elif all(c.same(calls[0]) for c in calls[1:]):
                 st = calls[0]
             else:
@@ -131,55 +132,77 @@ class Blocks:
 
     def s_if_head(self, node):
         self.open_block("IF", node)
+        self.flow_open("IF")
 
     def s_else_(self, node):
         if not self.blocks or self.blocks[-1][0] != "IF":
             self.err("ELSE without IF", _first_pos(node))
+        self.flow_branch()
 
     def s_endif(self, node):
         self.close_block({"IF"}, node, "ENDIF")
+        self.flow_close()
 
     def s_for_head(self, node):
         self.open_block("FOR", node)
         var = next(c for c in node.children if isinstance(c, Token) and c.type == "NAME")
         exprs = [c for c in node.children if isinstance(c, Tree)]
         step = self.int_of(exprs[2]) if len(exprs) > 2 else 1
-        self.loops.append((str(var).upper(), self.int_of(exprs[0]), self.int_of(exprs[1]), step))
+        lo, hi = self.int_of(exprs[0]), self.int_of(exprs[1])
+        self.loops.append((str(var).upper(), lo, hi, step))
+        once = None not in (lo, hi, step) and ((step > 0 and lo <= hi) or (step < 0 and lo >= hi))
+        self.loop_open("FOR", runs_once=once)
 
     def s_endfor(self, node):
         self.close_block({"FOR"}, node, "ENDFOR")
         if self.loops:
             self.loops.pop()
+        self.loop_close()
 
     def s_while_head(self, node):
         self.open_block("WHILE", node)
+        self.loop_open("WHILE")
 
     def s_endwhile(self, node):
         self.close_block({"WHILE"}, node, "ENDWHILE")
+        self.loop_close()
 
     def s_loop_head(self, node):
         self.open_block("LOOP", node)
+        self.loop_open("LOOP")
 
     def s_endloop(self, node):
         self.close_block({"LOOP"}, node, "ENDLOOP")
+        self.loop_close()
 
     def s_repeat_head(self, node):
         self.open_block("REPEAT", node)
+        self.loop_open("REPEAT")
 
     def s_until(self, node):
         self.close_block({"REPEAT"}, node, "UNTIL")
+        self.loop_close()
+
+    def s_exit_(self, node):
+        self.loop_exit()
 
     def s_switch_head(self, node):
         self.open_block("SWITCH", node)
+        self.flow_open("SWITCH")
 
     def s_case(self, node):
         if not self.blocks or self.blocks[-1][0] != "SWITCH":
             self.err("CASE outside SWITCH", _first_pos(node))
+        self.flow_branch()
 
-    s_default = s_case
+    def s_default(self, node):
+        if not self.blocks or self.blocks[-1][0] != "SWITCH":
+            self.err("CASE outside SWITCH", _first_pos(node))
+        self.flow_branch(default=True)
 
     def s_endswitch(self, node):
         self.close_block({"SWITCH"}, node, "ENDSWITCH")
+        self.flow_close()
 
     def s_spline_head(self, node):
         self.open_block("SPLINE", node)

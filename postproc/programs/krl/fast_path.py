@@ -10,7 +10,7 @@ from lark.exceptions import UnexpectedInput
 
 from ...diagnostics import PostprocError, line_col
 from ..model import STAMP_PREFIX
-from .syntax import SHAPE_RE, _FOLD, _NUM, parser
+from .syntax import SHAPE_RE, _FOLD, _MALFORMED, _NUM, MalformedNumber, parser
 from .values import _AXIS_KEYS, _COMP, _KIND_OF, _MOTION, _mark_brace
 
 
@@ -18,7 +18,7 @@ class _Shape:
     """What the parse of one line shape says. ``kind``: 'blank', 'hot' (a motion whose
     targets are literal Cartesian aggregates: read vectorised) or 'stmt'."""
 
-    __slots__ = ("text", "kind", "tree", "ph", "phidx", "names", "name_paths", "plan", "fold", "error")
+    __slots__ = ("text", "kind", "tree", "ph", "phidx", "names", "name_paths", "plan", "fold", "error", "fcalls")
 
     def __init__(self, text):
         self.text = text
@@ -32,6 +32,7 @@ class _Shape:
         self.plan = None
         self.fold = 0
         self.error = None
+        self.fcalls = False  # the statement calls a function in an expression (calls.expression_calls)
 
 
 @dataclass
@@ -118,7 +119,15 @@ def _analyse(shape: _Shape) -> None:
         shape.kind = "error"
         shape.error = exc
         return
+    if _MALFORMED.search(text) is not None:  # (rare: only then the tree's numbers are looked at)
+        numbers = {t.start_pos for t in tree.scan_values(lambda v: isinstance(v, Token) and v.type == "NUMBER")}
+        bad = next((m.start() for m in _MALFORMED.finditer(text) if m.start() in numbers), None)
+        if bad is not None:  # a number in the code, not in a comment or a string
+            shape.kind = "error"
+            shape.error = MalformedNumber(bad)
+            return
     shape.tree = tree
+    shape.fcalls = next(tree.find_data("fcall"), None) is not None
     stmt = None
     comment = None
     for c in tree.children:

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 from lark import Tree
 
+from ...diagnostics import PostprocError
 from ...frames import compose, frame_to_matrix, inverse, matrix_to_frame
 from ..model import Frame
 from .values import XYZABC, _Agg, _COMP, _Num, _Unknown
@@ -33,11 +34,63 @@ class _FrameState:
 _I4 = np.eye(4)
 
 
-_START = _FrameState(_I4, "$NULLFRAME", None, "", _I4)
+class _NotSet(_Unknown):
+    """$BASE / $TOOL that the program does not set before a target and its user did not
+    state (``--base`` / ``--tool``): the controller uses whatever is active, so the target's
+    frame is not known (P220 base, P221 tool; ``why`` is the whole message)."""
+
+    __slots__ = ("code",)
+
+    def __init__(self, why: str, code: str):
+        super().__init__(why)
+        self.code = code
+
+
+_BASE_NOT_SET = _NotSet("$BASE is not set before this target (the controller uses whatever base is active): "
+                        "set it in the program or state it with --base N|X,Y,Z,A,B,C", "P220")
+_TOOL_NOT_SET = _NotSet("$TOOL is not set before this target (the controller uses whatever tool is active): "
+                        "set it in the program or state it with --tool N|X,Y,Z,A,B,C|model", "P221")
+_NEITHER_SET = _NotSet("neither $BASE nor $TOOL is set before this target (the controller uses whatever is "
+                       "active): set them in the program or state them with --base and --tool", "P220")
+# a program's start when nothing is stated: neither frame known (``Frames.start_state``)
+_START = _FrameState(_BASE_NOT_SET, "", _TOOL_NOT_SET, "", _I4)
 
 
 class Frames:
     """$BASE / $TOOL / $ROBROOT tracking: frame expressions, BAS(…), FDAT, WITH lists, frame indices. (methods of the Reader)"""
+
+    def start_state(self) -> _FrameState:
+        """The frames at the start of a program: those its user stated (``ActiveFrames``),
+        else not set (P220/P221 at the targets that need them). ``BAS(#INITMOV, 0)`` (the INI
+        fold) initialises motion parameters, not $BASE/$TOOL, so it does not change this."""
+        st = getattr(self, "_start", None)
+        if st is not None:
+            return st
+        active = self.active
+        base, base_label, tool, tool_label = _BASE_NOT_SET, "", _TOOL_NOT_SET, ""
+        if active is not None and active.base is not None:
+            base, base_label = self.stated_frame(active.base, "base")
+        if active is not None and active.tool == "model":
+            tool, tool_label = None, ""  # (Frame.tool None: the model's)
+        elif active is not None and active.tool is not None:
+            tool, tool_label = self.stated_frame(active.tool, "tool")
+            tool = tuple(float(x) for x in matrix_to_frame(tool))
+        self._start = st = _FrameState(base, base_label, tool, tool_label, _I4)
+        return st
+
+    def stated_frame(self, value, which):
+        """A stated --base / --tool (``ActiveFrames``) → (4×4, label); P222 when it names a
+        BASE_DATA / TOOL_DATA element not in the data given."""
+        if isinstance(value, tuple):
+            return frame_to_matrix(np.array(value, float)), f"--{which} {','.join(f'{v:g}' for v in value)}"
+        if value == 0:
+            return _I4, "$NULLFRAME"
+        data = f"{which.upper()}_DATA"
+        m = self.data_frame(data, (value,))
+        if isinstance(m, _Unknown):
+            raise PostprocError(f"--{which} {value}: {m.why}; give $config.dat with --config, or the frame as "
+                                "X,Y,Z,A,B,C", f"--{which}", 0, 0, "P222")
+        return m, f"{data}[{value}]"
 
     def frame_of(self, expr):
         """A frame expression → (4x4, label) or (_Unknown, label)."""
@@ -60,6 +113,9 @@ class Frames:
                 if isinstance(t, tuple):
                     return frame_to_matrix(np.array(t)), self.state.tool_label
                 return _Unknown("$TOOL is not known here", (self.ln, 1)), ""
+            for _, points in self.active_interrupts.values():  # a handler switched on may assign it
+                if n in points:
+                    return _Unknown(points[n], (self.ln, 1)), ""
             var = self.lookup(n)
             if var is not None and not var.array and isinstance(var.value, _Agg):
                 six = var.value.frame6()
@@ -261,17 +317,26 @@ class Frames:
         """(index into Program.frames or -1, reason key for P201/P203).
 
         A target is left as written (-1) when its base (P201) or its tool (P203: $TOOL set
-        but not resolvable, e.g. TOOL_DATA[6] not in the data given) is not known; a tool
-        never set in the program (None) is not a reason."""
+        but not resolvable, e.g. TOOL_DATA[6] not in the data given) is not known, or when
+        the program does not set them and its user did not state them (P220 base or both,
+        P221 tool); a tool None is the model's tool, stated with ``--tool model``."""
+        for frames, _ in self.active_interrupts.values():  # a handler switched on may set them at any time
+            for which, unknown in frames.items():
+                st = self.replace_state(st, which, unknown, "")
         why, code = (st.base, "P201") if isinstance(st.base, _Unknown) else (
             (st.robroot, "P201") if isinstance(st.robroot, _Unknown) else (
                 (st.tool, "P203") if isinstance(st.tool, _Unknown) and st.tool.why else (None, "")))
+        if why is st.base and why is _BASE_NOT_SET and st.tool is _TOOL_NOT_SET:
+            why = _NEITHER_SET
         if why is not None:
+            code = getattr(why, "code", code)
             key = (self.path, code, why.why)
             if key not in self.unknown_frames:
                 what = "frame" if code == "P201" else "tool"
-                self.unknown_frames[key] = [self.path, why.where[0] or self.ln, why.where[1] or 1,
-                                            f"{what} not statically known ({why.why})", 0, code]
+                msg = why.why if isinstance(why, _NotSet) else f"{what} not statically known ({why.why})"
+                # (a frame not set is located at its first target: ``count_unknown``)
+                self.unknown_frames[key] = [self.path, why.where[0] or self.ln, why.where[1] or 1, msg, 0, code,
+                                            None if isinstance(why, _NotSet) else ()]
             return -1, key
         base = compose(inverse(st.robroot), st.base) if st.robroot is not _I4 else st.base
         tool = st.tool if isinstance(st.tool, tuple) else None
@@ -284,9 +349,16 @@ class Frames:
             self.frames.append(Frame(base=base.copy(), tool=None if tool is None else np.array(tool), label=label))
         return ix, None
 
-    def count_unknown(self, f, why):
+    def count_unknown(self, f, why, n=1, at=None):
+        """``n`` more targets left for reason ``why``; ``at`` (key, line, col, path) of the first
+        of them, where a frame not set (P220/P221) is reported (default: the current line)."""
         if f < 0 and why in self.unknown_frames:
-            self.unknown_frames[why][4] += 1
+            entry = self.unknown_frames[why]
+            entry[4] += n
+            if entry[6] != ():
+                at = at or (self.kbase, self.ln, 1, self.path)
+                if entry[6] is None or at[0] < entry[6][0]:
+                    entry[6] = at
 
     def frame_for(self, st, lefts):
         if lefts:

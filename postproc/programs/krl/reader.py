@@ -9,11 +9,12 @@ import numpy as np
 from lark import Token, Tree
 
 from ...diagnostics import Diagnostic, PostprocError
-from ..model import Frame, Program, STAMP_PREFIX
+from ..model import ActiveFrames, Frame, Program, STAMP_PREFIX
 from .assemble import Assembly
 from .blocks import Blocks
 from .calls import Calls
 from .fast_path import FastPath, _HotRows, _Shape, _analyse, _name_paths
+from .flow import Flow
 from .frames import Frames, _START
 from .scopes import Scopes
 from .statements import AsyncStatements, Statements
@@ -21,12 +22,15 @@ from .syntax import SHAPE_RE, SyntaxErrors, _BLANK, _PLACEHOLDER
 from .values import Values, _Num, _Var
 
 
-def read(files: list[str], texts: list[str], config: list[str] | None = None, accelerate: bool = True) -> Program:
+def read(files: list[str], texts: list[str], config: list[str] | None = None, accelerate: bool = True,
+         active: ActiveFrames | None = None) -> Program:
     """Parse a KRL module or a set of modules: ``files[0]`` the main .src, then any .dat /
     .src / .sub / ``$config.dat`` of the same cell (a .src and a .dat of one stem are one
     module; ``DECL GLOBAL`` and ``$config.dat`` declarations are seen by every module; calls
     are followed into the DEFs read). ``config`` the texts of $config.dat files not among
     ``files`` (BASE_DATA / TOOL_DATA / globals; read-only).
+    ``active``: the $BASE / $TOOL its user states for targets before the program sets them
+    (none stated: such targets are left as written, P220/P221).
     ``accelerate=False`` reads every line through the interpreter (no vectorised fast path:
     same result, slower; for tests).
 
@@ -35,7 +39,7 @@ def read(files: list[str], texts: list[str], config: list[str] | None = None, ac
     enabled = gc.isenabled()
     gc.disable()  # millions of small objects, no cycles: the collector only costs time here
     try:
-        return Reader(list(files), list(texts), list(config or []), accelerate=accelerate).run()
+        return Reader(list(files), list(texts), list(config or []), accelerate=accelerate, active=active).run()
     finally:
         if enabled:
             gc.enable()
@@ -53,14 +57,17 @@ def _kind(path: str) -> str:
     return "dat" if name.endswith(".dat") else "src"
 
 
-class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Values, SyntaxErrors, Assembly, Calls):
+class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes, Values, SyntaxErrors, Assembly,
+             Calls):
     """The KRL reader: one module per concept, each contributing its methods."""
 
-    def __init__(self, files, texts, config, accelerate: bool = True):
+    def __init__(self, files, texts, config, accelerate: bool = True, active: ActiveFrames | None = None):
         if len(files) != len(texts):
             raise ValueError("files and texts differ in length")
         self.files, self.texts, self.config = files, texts, config
         self.accelerate = accelerate
+        self.active = active
+        self.ln = 0  # (the line being read; 0 before any)
         self.shapes: dict[str, _Shape] = {}
         self.diagnostics: list[Diagnostic] = []
         self.frames: list[Frame] = []
@@ -104,7 +111,9 @@ class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Valu
                     stamps[fi] = line.strip()
                     break
                 at = text.find(STAMP_PREFIX, b)
-        for path, line, col, msg, count, code in self.unknown_frames.values():
+        for path, line, col, msg, count, code, first in self.unknown_frames.values():
+            if first:
+                _, line, col, path = first
             if count:
                 self.diagnostics.append(Diagnostic(path, line, col, code,
                                                    f"{msg}: {count} target(s) left as written"))
@@ -129,9 +138,14 @@ class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Valu
         self.fi, self.path, self.text, self.role = fi, path, text, role
         self.key0 = rank << 40
         self.blocks: list = []  # (kind, line, col, detail)
+        self.flow: list = []  # open IF / SWITCH / loops (flow.py)
+        self.interrupts: dict = {}  # number → (frames, points) a handler read may set (AsyncStatements)
+        self.active_interrupts: dict = {}  # those switched on (INTERRUPT ON … OFF)
+        self.moves = 0  # calls that moved so far (flow.py: did a branch move?)
+        self.gotos: dict = {}  # label → frame states of the GOTOs to it read so far (flow.py)
         self.folds: list = []
         self.defs_seen = 0
-        self.state = _START
+        self.state = self.start_state() if role == "module" else _START
         self.saved_state = None
         self.fdat = None
         self.in_def = False
@@ -216,6 +230,9 @@ class Reader(FastPath, Blocks, Statements, AsyncStatements, Frames, Scopes, Valu
                 stmt = c
         if stmt is None:
             return
+        if sh.fcalls and stmt.data not in ("interrupt_decl", "trigger"):  # (handlers: AsyncStatements)
+            # functions run before the statement takes effect; one may set a frame
+            self.expression_calls(stmt)
         handler = getattr(self, "s_" + stmt.data, None)
         if handler is not None:
             handler(stmt)

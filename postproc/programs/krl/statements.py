@@ -1,10 +1,17 @@
 """One handler per statement that matters to targets: assignments, calls, motions."""
 from __future__ import annotations
 
+import re
+
 import numpy as np
-from lark import Tree
+from lark import Token, Tree
 
 from .values import _AXIS_TYPES, _Agg, _KIND_OF, _MOTION, _POS_TYPES, _RUNTIME_POS, _STANDARD_AXIS, _Derived, _Unknown, _first_pos
+
+
+# a handler DEF's own declarations and its assignments (handler_points)
+_DECL_NAMES = re.compile(r"^[ \t]*(?:DECL[ \t]+)?(?:INT|REAL|BOOL|CHAR|FRAME|POS|E6POS|AXIS|E6AXIS)[ \t]+(.*)", re.I)
+_ASSIGNED = re.compile(r"^[ \t]*([A-Za-z_$][\w$]*)[ \t]*(?:\[[^\]]*\][ \t]*)?(?:\.[ \t]*[\w$]+[ \t]*)?=(?!=)")
 
 
 class Statements:
@@ -172,7 +179,7 @@ class Statements:
             emit = any(written[:3])
             self.add_row(key, pose, written, spans, self.fi, agg.line, agg.col, motion, f, emit, chain, agg.config())
             if emit:
-                self.count_unknown(f, why)
+                self.count_unknown(f, why, at=(key, agg.line, agg.col, self.path))
             return
         if d == "name":
             name = expr.children[0]
@@ -210,7 +217,7 @@ class Statements:
             self.add_row(key, pose, [True] * 6, spans, agg.file, agg.line, agg.col, motion, f, emit,
                          chain and len(aggs) == 1, agg.config())
             if emit:
-                self.count_unknown(f, why)
+                self.count_unknown(f, why, at=(key, self.ln, self.col(_first_pos(expr)), self.path))
         if len(aggs) != 1:
             self.barrier()
 
@@ -221,6 +228,8 @@ class Statements:
         base, field = expr.children[0], str(expr.children[1]).upper()
         pos = _first_pos(expr)
         name = str(_root_name(expr))
+        if self.active_interrupts and self.async_point(name, pos):
+            return None
         var = self.lookup(name)
         written = f"{name}{'[…]' if base.data == 'index' else ''}.{expr.children[1]}"
         if var is None:
@@ -286,6 +295,8 @@ class Statements:
         u = str(name).upper()
         var = self.lookup(u)
         pos = _first_pos(expr)
+        if self.active_interrupts and self.async_point(name, pos):
+            return None
         if var is None:
             if _STANDARD_AXIS.match(u):
                 return None
@@ -362,16 +373,100 @@ class AsyncStatements:
     _FRAMES = ("$BASE", "$TOOL", "$ROBROOT")
 
     def s_interrupt_decl(self, node):
-        self.async_frames(node.children[-1], "INTERRUPT")
+        """A handler whose code is read and that sets frames or points is recorded: while it is
+        switched on (INTERRUPT ON … OFF) it may run before any target, so those frames are
+        unknown at every target and those points are no targets (P223); after OFF they are
+        unknown until set again. A handler calling code not read: its frames unknown from the
+        declaration until the program sets them again (it is not known to set any)."""
+        action = node.children[-1]
+        number = next((c for c in node.children if isinstance(c, Tree)), None)
+        n = self.int_of(number) if number is not None else None
+        if action.data in ("call", "bare_call") and str(action.children[0]).upper() not in self.defs(self.fi):
+            self.async_frames(action, "INTERRUPT")  # (code not read)
+            return
+        before = self.state
+        frames = self.async_frames(action, "INTERRUPT", apply=False)
+        points = self.handler_points(action)
+        self.state = before
+        if frames or points:
+            self.interrupts[n] = (frames, points)
+
+    def s_interrupt_ctl(self, node):
+        """INTERRUPT ON / OFF [n] (no number: all); ENABLE / DISABLE change nothing here (a
+        disabled interrupt runs when enabled again)."""
+        words = {str(c).upper() for c in node.children if isinstance(c, Token)}
+        number = next((c for c in node.children if isinstance(c, Tree)), None)
+        n = self.int_of(number) if number is not None else None
+        if "ON" in words:
+            keys = list(self.interrupts) if number is None or n is None else [k for k in (n, None)
+                                                                               if k in self.interrupts]
+            for k in keys:
+                self.active_interrupts[k] = self.interrupts[k]
+            if keys:
+                self.set_state(self.state)  # (the targets from here on see the handlers switched on)
+        elif "OFF" in words:
+            # (OFF of a run-time number: which one is not known, all stay on)
+            keys = list(self.active_interrupts) if number is None else ([n] if n in self.active_interrupts else [])
+            st = self.state
+            for k in keys:
+                frames, points = self.active_interrupts.pop(k)
+                # it may have run: what it sets stays unknown until the program sets it again
+                for which, unknown in frames.items():
+                    st = self.replace_state(st, which, unknown, "")
+                for name, why in points.items():
+                    var = self.lookup(name)
+                    if var is not None and not var.array:
+                        var.value = _Unknown(why, (self.ln, 1))
+            if keys:
+                self.set_state(st)
+
+    def handler_points(self, action) -> dict:
+        """The position variables a handler assigns (itself, or the DEF it calls: its
+        assignments to names that are not its own), name → why."""
+        why = f"may be assigned by the INTERRUPT handler declared at line {self.ln}"
+        if action.data == "assign":
+            root = action.children[0]
+            while root.data in ("member", "index"):
+                root = root.children[0]
+            name = str(root.children[0]).upper() if root.data == "name" else ""
+            return {name: f"{name} {why}"} if name and not name.startswith("$") else {}
+        callee = self.defs(self.fi).get(str(action.children[0]).upper())
+        if callee is None:
+            return {}
+        text = self.texts[callee.fi]
+        lines = text.split("\n")[callee.first:callee.last]
+        own = {p for p in callee.params}
+        out = {}
+        for line in lines:
+            m = _DECL_NAMES.match(line)
+            if m:
+                own |= {w.upper() for w in re.findall(r"[\w$]+", m.group(1))}
+                continue
+            m = _ASSIGNED.match(line)
+            if m and m.group(1).upper() not in own and not m.group(1).startswith("$"):
+                name = m.group(1).upper()
+                out[name] = f"{name} {why} ({callee.name}())"
+        return out
+
+    def async_point(self, name, pos) -> bool:
+        """A target named ``name`` that a handler switched on may assign: P223, left as written."""
+        u = str(name).upper()
+        for _, points in self.active_interrupts.values():
+            if u in points:
+                self.warn(self.path, self.ln, self.col(pos), "P223",
+                          f"target {name} is not known here ({points[u]}, switched on): left as written")
+                return True
+        return False
 
     def s_trigger(self, node):
         action = next(c for c in node.children if isinstance(c, Tree) and c.data in ("assign", "call", "bare_call",
                                                                                      "brake"))
         self.async_frames(action, "TRIGGER")
 
-    def async_frames(self, action, what):
+    def async_frames(self, action, what, apply=True):
         """A handler that may set $BASE/$TOOL/$ROBROOT runs at a time the reader cannot know:
-        each frame it may set is unknown from its declaration on (P201/P203 at the targets)."""
+        each frame it may set is unknown from its declaration on (P201/P203 at the targets).
+        Returns frame → its unknown value; ``apply=False``: the state is left as it was."""
         st, where = self.state, (self.ln, self.col(_first_pos(action)))
         if action.data == "assign":
             root = action.children[0]
@@ -381,7 +476,7 @@ class AsyncStatements:
             changed = [name] if name in self._FRAMES else []
             label = name
         elif action.data == "brake":
-            return
+            return {}
         else:
             self.after_call(action.children[0], [a for a in action.children[1].children]
                             if action.data == "call" else [], action)
@@ -389,12 +484,16 @@ class AsyncStatements:
             changed = [w for w, a, b in zip(self._FRAMES, (st.base, st.tool, st.robroot),
                                             (new.base, new.tool, new.robroot)) if a is not b]
             label = f"{action.children[0]}()"
-        new = st
+        new, out = st, {}
         for which in changed:
             why = f"{which} may be set by the {what} handler {label} declared at line {self.ln}"
-            new = self.replace_state(new, which, _Unknown(why, where), "")
-        if new is not st:
+            out[which] = _Unknown(why, where)
+            new = self.replace_state(new, which, out[which], "")
+        if not apply:
+            self.state = st
+        elif new is not st:
             self.set_state(new)
+        return out
 
     def s_import_decl(self, node):
         typ = node.children[1].children[0].upper()

@@ -31,6 +31,22 @@ SHAPE_RE = re.compile(r"(?<![\w$.])(" + _NUM + r")(?![\w.])|" + _NAME_DIGITS)
 _PLACEHOLDER = "0"
 
 
+# A shape where a number's mantissa and exponent sign stand before a placeholder: the line
+# held an exponent that is not a whole number (``1.5E+3.0``): no number token matches it
+# whole, but its tail does (``3.0``), so the line reads as another number unless refused.
+_MALFORMED = re.compile(r"(?<![\w$.])(?:\d+\.?\d*|\.\d+)[eE][-+]" + _PLACEHOLDER + r"(?![\w$])")
+# what a malformed number looks like in the line, for the message
+_BAD_NUMBER = re.compile(r"[-+]?[\d.](?:[\w.]|(?<=[eE])[-+])*")
+
+
+class MalformedNumber(Exception):
+    """A shape with a malformed number at ``pos`` (its start in the shape)."""
+
+    def __init__(self, pos: int):
+        super().__init__(pos)
+        self.pos = pos
+
+
 _BLANK = re.compile(r"\s*")
 
 
@@ -73,6 +89,10 @@ class SyntaxErrors:
 
     def syntax_error(self, exc):
         shape = self.sh.text
+        if isinstance(exc, MalformedNumber):
+            bad = _BAD_NUMBER.match(self.lt, self.abs_pos(exc.pos) - self.la)
+            raise PostprocError(f"syntax error: malformed number '{bad.group()}'", self.path, self.ln,
+                                self.col(exc.pos), "P101")
         if isinstance(exc, UnexpectedToken) and exc.token.type != "$END":
             pos = exc.token.start_pos
             found = self.text[self.abs_pos(pos): self.abs_pos(exc.token.end_pos)] \
@@ -81,7 +101,7 @@ class SyntaxErrors:
         elif isinstance(exc, UnexpectedCharacters):
             pos = exc.pos_in_stream
             rest = self.lt[self.abs_pos(pos) - self.la:]
-            bad = re.match(r"[-+]?[\d.][\w.]*(?:[eE][-+]?\w*)?", rest)
+            bad = _BAD_NUMBER.match(rest)
             if bad:
                 raise PostprocError(f"syntax error: malformed number '{bad.group()}'", self.path, self.ln,
                                     self.col(pos), "P101")
