@@ -15,7 +15,7 @@ from postproc import frames
 from postproc.compensate import compensate_text, parse_program_text
 from postproc.compensator import load_model
 from postproc.diagnostics import PostprocError
-from postproc.programs import MOTIONS, dialect_of
+from postproc.programs import MOTIONS, ActiveFrames, dialect_of
 from postproc.resources import sample_path
 from postproc.rewrite import format_many
 
@@ -28,8 +28,12 @@ def script(*lines):
     return "\n".join(["def prog():", *[f"  {line}" for line in lines], "end", ""])
 
 
-def read(text):
-    return parse_program_text(text, "u.script")
+# the scripts below mostly set no TCP: the installation's, stated as the model's own (else P221)
+MODEL_TCP = ActiveFrames(tool="model")
+
+
+def read(text, active=MODEL_TCP):
+    return parse_program_text(text, "u.script", active=active)
 
 
 def codes(program):
@@ -67,10 +71,32 @@ def test_formatting_in_metres_keeps_style_at_micrometre_resolution():
 
 def test_tool_follows_set_tcp_in_text_order_on_the_straight_line():
     p = read(script("movel(p[0.1,0,0.3,0,3.1416,0])", "set_tcp(p[0,0,0.1,0,0,0])", "movel(p[0.2,0,0.3,0,3.1416,0])",
-                    "tcp2 = p[0,0.05,0.2,0,0,0]", "set_tcp(tcp2)", "movel(p[0.3,0,0.3,0,3.1416,0])"))
+                    "tcp2 = p[0,0.05,0.2,0,0,0]", "set_tcp(tcp2)", "movel(p[0.3,0,0.3,0,3.1416,0])"), active=None)
+    # before any set_tcp: the installation's TCP, which the script does not say: left as written
+    assert p.targets.frame[0] == -1 and codes(p) == ["P221"]
+    assert [d.line for d in p.diagnostics] == [2]
+    tools = [p.frames[f].tool for f in p.targets.frame[1:]]
+    assert tools[0] == pytest.approx((0, 0, 100, 0, 0, 0)) and tools[1] == pytest.approx((0, 50, 200, 0, 0, 0))
+
+
+@pytest.mark.parametrize("stated, expected", [("model", None), ("0,0,150,0,0,0", (0, 0, 150, 0, 0, 0))])
+def test_the_tcp_before_the_first_set_tcp_may_be_stated(stated, expected):
+    from postproc.programs import read_program
+
+    text = script("movel(p[0.1,0,0.3,0,3.1416,0])", "movel(p[0.2,0,0.3,0,3.1416,0])", "set_tcp(p[0,0,0.1,0,0,0])",
+                  "movel(p[0.3,0,0.3,0,3.1416,0])")
+    p = read(text, active=None)
+    assert p.targets.frame.tolist()[:2] == [-1, -1] and codes(p) == ["P221"]
+    assert "and 1 more target" in p.diagnostics[0].message
+    p = read_program(["u.script"], [text], "urscript", active=ActiveFrames(tool=ActiveFrames.parse(stated, "tool")))
+    assert codes(p) == [] and (p.targets.frame >= 0).all()
     tools = [p.frames[f].tool for f in p.targets.frame]
-    assert tools[0] is None  # before any set_tcp: the installation's TCP (the model's tool)
-    assert tools[1] == pytest.approx((0, 0, 100, 0, 0, 0)) and tools[2] == pytest.approx((0, 50, 200, 0, 0, 0))
+    assert (tools[0] is None) if expected is None else tools[0] == pytest.approx(expected)
+    assert tools[2] == pytest.approx((0, 0, 100, 0, 0, 0))
+    for bad in (ActiveFrames(tool=1), ActiveFrames(base=0)):  # TOOL_DATA[n] / a base: not URScript's
+        with pytest.raises(PostprocError) as err:
+            read_program(["u.script"], [text], "urscript", active=bad)
+        assert err.value.code == "P222"
 
 
 @pytest.mark.parametrize("lines", [
@@ -179,11 +205,12 @@ def _strip_stamp(text):
 @given(ur_script())
 def test_round_trip_zero_offset_and_affine(models, case):
     text, targets = case
-    out, _ = compensate_text(text, models["zero"], name="gen.script")
+    out, _ = compensate_text(text, models["zero"], name="gen.script", active=MODEL_TCP)
     assert _strip_stamp(out) == text
     pat = re.compile(r"-?\d*\.?\d+(?:[eE][-+]?\d+)?")
     for kind in ("offset", "affine"):
-        out, report = compensate_text(text, models[kind], name="gen.script", iterations=1, max_correction_mm=50)
+        out, report = compensate_text(text, models[kind], name="gen.script", active=MODEL_TCP, iterations=1,
+                                         max_correction_mm=50)
         assert report.compensated == len(targets)
         after = _strip_stamp(out)
         assert pat.sub("#", after) == pat.sub("#", text)  # every byte but numbers unchanged
@@ -196,7 +223,7 @@ def test_round_trip_zero_offset_and_affine(models, case):
 
 def test_constant_offset_is_the_change_in_metres_and_the_stamp_is_a_comment(models):
     text = script("set_tcp(p[0,0,0.1,0,0,0])", "movel(p[0.5000, -0.2500, 0.3000, 0, 3.1416, 0], a=1.2, v=0.25)")
-    out, report = compensate_text(text, models["offset"], name="u.script")
+    out, report = compensate_text(text, models["offset"], name="u.script", active=MODEL_TCP)
     assert report.compensated == 1
     assert out.splitlines()[0].startswith("# postproc: compensated with model")
     assert "movel(p[0.500300, -0.250200, 0.300100, 0, 3.1416, 0], a=1.2, v=0.25)" in out
@@ -213,7 +240,7 @@ def test_check_reports_warnings_and_a_second_compensation(models, tmp_path):
     text = script("movel(p[0.5000, -0.2500, 0.3000, 0, 3.1416, 0])", "movel(pose_trans(p[0,0,0,0,0,0], p[0,0,0.1,0,0,0]))")
     found = check_program(read(text), models["offset"])
     assert sorted(d.code for d in found) == ["P211", "P301"]  # (outside the test model's box)
-    out, _ = compensate_text(text, models["offset"], name="u.script")
+    out, _ = compensate_text(text, models["offset"], name="u.script", active=MODEL_TCP)
     twice = "# postproc: compensated with model other 0123456789ab\n" + out
     assert {"P402", "P403"} <= {d.code for d in check_program(read(twice), models["offset"])}
     hooks = yaml.safe_load(sample_path("..").joinpath(".pre-commit-hooks.yaml").read_text())

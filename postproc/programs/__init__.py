@@ -44,13 +44,21 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
     with contents ``texts``. ``config`` optionally holds ``$config.dat`` text(s) that give
     BASE_DATA / TOOL_DATA (for RAPID: other modules' tooldata / wobjdata; for Fanuc LS: the frame
     file, TOML, of --frames). ``active``: the $BASE / $TOOL in force where a KRL program has not
-    set them (the other dialects name theirs at every target and refuse it, P222). Raises
+    set them, and the TCP of a URScript program before its first set_tcp (``tool`` only; the
+    other dialects name theirs at every target and refuse it, P222). Raises
     PostprocError (with file:line:col) on bad input."""
     if dialect == "krl":
         from . import krl
 
         program = krl.read(files, texts, config=config, active=active)
         program.config = list(config) if config else None
+        program.active = active
+        program.from_text = True
+        return program
+    if dialect == "urscript":
+        from . import urscript
+
+        program = urscript.read(files, texts, active=active)
         program.active = active
         program.from_text = True
         return program
@@ -70,12 +78,6 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
 
         program = rapid.read(files, texts, config=config)
         program.config = list(config) if config else None
-        program.from_text = True
-        return program
-    if dialect == "urscript":
-        from . import urscript
-
-        program = urscript.read(files, texts)
         program.from_text = True
         return program
     if dialect == "fanuc":

@@ -19,8 +19,9 @@ Semantics (tests/test_urscript.py shows each on a small script):
   known for a target on the straight line of the program (top level, or directly in the
   outermost ``def``) from the ``set_tcp`` before it; inside a block, a thread or another
   ``def`` only when every ``set_tcp`` of the script sets one and the same pose, before that
-  block. Otherwise the target is left as written (P203); no ``set_tcp`` at all: the model's
-  tool (the installation's TCP);
+  block. Otherwise the target is left as written (P203); before the first ``set_tcp`` (or with
+  none) the robot uses the installation's TCP, which the script does not say: left as written
+  (one P221) unless the user states it (``--tool X,Y,Z,A,B,C`` or ``--tool model``);
 * ``pose_trans(…)``, ``pose_add(…)``, ``get_…()`` and other targets computed at run time,
   pose variables assigned more than once or from an expression, poses of expressions
   (``d2r(90)``), a parameter of the enclosing ``def`` are left as written (P211); a pose variable that other statements read too
@@ -189,8 +190,9 @@ class _Assign:
 
 
 class _Reader:
-    def __init__(self, path: str, text: str):
+    def __init__(self, path: str, text: str, active=None):
         self.path, self.text = path, text
+        self.active = active  # ActiveFrames: the TCP stated for targets before the first set_tcp
         self.diagnostics: list[Diagnostic] = []
         self._starts: np.ndarray | None = None
         self.shapes: dict[str, _Shape] = {}
@@ -375,13 +377,15 @@ class _Reader:
         return tuple(float(x) for x in np.concatenate([v[:3] * UNIT_MM, abc]))
 
     def tool_at(self, offset, straight, block, events):
-        """(tool, why not known) of a motion at ``offset`` after the first ``events`` set_tcp."""
+        """(tool, why not known) of a motion at ``offset`` after the first ``events`` set_tcp;
+        (``_NOT_SET``, None) before any set_tcp: the installation's TCP, which the script does not
+        say (the user may state it: ``ActiveFrames.tool``, X,Y,Z,A,B,C or "model")."""
         tcp, crooked, uniform = self.tcp, self.crooked, self.uniform
         if not tcp:
-            return None, None
+            return self.stated_tool()
         if straight and not crooked:
             if events == 0:
-                return None, None
+                return self.stated_tool()
             last = tcp[events - 1]
             if last[2] is None:
                 return False, f"the TCP set at line {self.line_col(last[0])[0]} is not a pose of numbers"
@@ -394,6 +398,19 @@ class _Reader:
                               f"{self.line_col((crooked or tcp)[0][0])[0]}) or with another pose before "
                               "this target")
 
+    def stated_tool(self):
+        """The TCP in force before the script's first set_tcp: the one its user stated
+        (``--tool X,Y,Z,A,B,C`` or ``model``), else not known (``_NOT_SET``: P221)."""
+        tool = None if self.active is None else self.active.tool
+        if tool is None:
+            return _NOT_SET, None
+        if tool == "model":
+            return None, None
+        if not isinstance(tool, tuple):  # TOOL_DATA[n] is KUKA's: a script has no such table
+            raise PostprocError(f"--tool {tool}: a URScript TCP is stated as X,Y,Z,A,B,C (mm, deg) or 'model'",
+                                self.path, 0, 0, "P222")
+        return tuple(float(v) for v in tool), None
+
     def build(self, motions, assigns, read_by, tcp) -> Program:
         self.tcp = tcp
         self.crooked = [e for e in tcp if not e[1]]  # set_tcp off the straight line
@@ -404,6 +421,7 @@ class _Reader:
         rows = []  # (offset of p, numbers, spans, frame, motion)
         done: dict[str, tuple] = {}  # pose variable → (frame, offset) of its first use
         skipped: set[str] = set()  # pose variables left as written (warned once)
+        not_set: list[int] = []  # targets before any set_tcp, no TCP stated: left as written (one P221)
         for offset, kind, value, tokens, straight, block, events in motions:
             where = tokens[value[-1]].start() if value[-1] >= 0 else offset
             if value[0] == "list":
@@ -457,7 +475,10 @@ class _Reader:
                           "written")
                 continue
             tool, why = self.tool_at(offset, straight, block, events)
-            if tool is False:
+            if tool is _NOT_SET:
+                not_set.append(where)
+                frame = -1
+            elif tool is False:
                 frame = -1
             else:
                 key = tool
@@ -474,9 +495,14 @@ class _Reader:
                                   f"{self.line_col(first[1])[0]}: compensated for the first")
                     continue
                 done[name] = (frame, offset)
-            if frame < 0:
+            if frame < 0 and tool is not _NOT_SET:
                 self.warn(where, "P203", f"tool not statically known ({why}): target left as written")
             rows.append((tokens[value[2]].start(), got[0], got[1], frame, _MOTION[kind]))
+        if not_set:
+            more = f" (and {len(not_set) - 1} more targets before a set_tcp)" if len(not_set) > 1 else ""
+            self.warn(not_set[0], "P221", "the TCP is not set by the script before this target (the robot uses the "
+                      "installation's TCP, which the script does not say): left as written" + more + "; set it with "
+                      "set_tcp(p[…]) or state it with --tool X,Y,Z,A,B,C (mm, deg) or --tool model")
         rows.sort(key=lambda r: r[0])
         n = len(rows)
         if n:
@@ -510,9 +536,17 @@ class _Reader:
                        newlines=[_newline(self.text)], comment="#", named_targets=bool(done), unit=UNIT_MM)
 
 
-def read(files: list[str], texts: list[str]) -> Program:
-    """Read a URScript program (one file). Raises PostprocError (P101, P117, P103 with
-    path:line:col) on bad input."""
+_NOT_SET = object()  # the TCP before the first set_tcp, not stated by the user
+
+
+def read(files: list[str], texts: list[str], active=None) -> Program:
+    """Read a URScript program (one file). ``active`` (``ActiveFrames``): the TCP its user states
+    for targets before the script's first set_tcp (only ``tool``: the base is the robot's;
+    without it those targets are left as written, P221). Raises PostprocError (P101, P117,
+    P103, P222 with path:line:col) on bad input."""
     if len(files) != 1:
         raise PostprocError("a URScript program is one .script file", files[0] if files else "<none>", 0, 0, "P108")
-    return _Reader(files[0], texts[0]).read()
+    if active is not None and active.base is not None:
+        raise PostprocError("--base: a URScript pose is in the robot's base frame (no base to state)", files[0], 0, 0,
+                            "P222")
+    return _Reader(files[0], texts[0], active).read()
