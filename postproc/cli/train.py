@@ -29,6 +29,7 @@ Examples:
   postproc train measured.csv -o m.onnx --method gpso --seed 1
   postproc train ipa.csv --register --robot models/ur10.toml -o ur10.onnx --val-fraction 0.2
   postproc train measured.csv -o m.onnx --search        # pick the hidden layers first (minutes)
+  postproc train new30.csv -o new.onnx --update old.onnx --robot models/ur10.toml  # re-calibrate
 """
 
 
@@ -79,6 +80,9 @@ def add_parser(sub, common, formatter) -> None:
                    "hybrid/kinematic: the nominal description to identify, default models/kr500.toml)")
     p.add_argument("--pose-only", action="store_true",
                    help="hybrid/kinematic: ignore the visiting order (no backlash; the model takes the pose only)")
+    p.add_argument("--update", metavar="OLD.onnx",
+                   help="re-calibrate: re-fit OLD's base, joint zero offsets and tool on these rows (30 are enough), "
+                        "with OLD's values as prior; everything else is OLD's; prints what moved")
     p.add_argument(
         "--register",
         action="store_true",
@@ -117,7 +121,10 @@ def run(args) -> int:
     from . import show_progress
     from .train_hybrid import HYBRID_METHODS, run_hybrid
 
-    check_outputs([args.output], [args.data, args.robot or "-"])  # before the fit, not after it
+    check_outputs([args.output], [args.data, args.robot or "-", args.update or "-"])  # before the fit, not after it
+    if args.update and args.method not in HYBRID_METHODS:
+        raise PostprocError(f"--update re-fits an identified model: --method {args.method} identifies none "
+                            f"(use hybrid or kinematic, or leave --method out)", args.update, code="P317")
     data = read_measurements(args.data)
     train_rows, val_rows = split_indices(len(data), args.val_fraction, args.split_seed)
     # a robot description is read before the long part, so that a typo fails fast

@@ -69,23 +69,32 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     # rows in visiting order (the first came from HOME): the approach direction of each joint
     previous = None if args.pose_only else previous_poses(poses)
     q_deg = data.joints
-    model = HybridModel(
-        description,
-        hidden=args.hidden or DEFAULT_HIDDEN[args.method],
-        epochs=args.epochs or DEFAULT_EPOCHS,
-        seed=args.seed,
-        progress=progress,
-        **SETTINGS[args.method],
-    )
     rows = (lambda a, r: None if a is None else a[r])  # noqa: E731
-    model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows))
+    update = None
+    if getattr(args, "update", None):
+        from ..training.update import read_old_model, update_model
+
+        old = read_old_model(args.update, description)
+        update = update_model(old, description, poses[train_rows], errors[train_rows],
+                              rows(previous_poses(poses), train_rows), rows(q_deg, train_rows))
+        model = update.model
+    else:
+        model = HybridModel(
+            description,
+            hidden=args.hidden or DEFAULT_HIDDEN[args.method],
+            epochs=args.epochs or DEFAULT_EPOCHS,
+            seed=args.seed,
+            progress=progress,
+            **SETTINGS[args.method],
+        )
+        model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows))
 
     if len(model.dropped_):
         lines = data.lines[train_rows][model.dropped_]
         notes.append(f"warning: {len(lines)} training row(s) left out, out of reach of the nominal {description.name} "
                      f"or singular (or their q1..q6 not of that pose): line(s) "
                      f"{', '.join(str(int(n)) for n in lines[:10])}{' ...' if len(lines) > 10 else ''}")
-    ident = model.kinematic_.identifiability() if model.kinematic_.layout_.n else None
+    ident = model.kinematic_.identifiability() if model.kinematic_.layout_.n and update is None else None
     share = model.kinematic_.branch_share_
     if share == share and share < 0.99:  # (NaN: no joint angles to compare with)
         notes.append(f"warning: {100 * (1 - share):.1f} % of the training rows were reached on another IK branch "
@@ -102,6 +111,8 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         "iterations": max(2, model.fixed_point_iterations(poses[train_rows])),
         "identified": found,
     }
+    if update is not None:
+        metadata["update"] = update.card()
     metadata.update(arm_metadata(description))
     model.export_onnx(args.output, **metadata)
 
@@ -109,8 +120,10 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         for note in notes:
             print(note, file=sys.stderr)
         order = "backlash from the visiting order" if model.uses_previous else "no visiting order"
-        print(f"model     {args.output}  ({model.label}; {model.structure}; {order}; "
-              f"{model.fit_seconds_['total']:.1f} s)")
+        took = f"; {model.fit_seconds_['total']:.1f} s" if hasattr(model, "fit_seconds_") else ""
+        print(f"model     {args.output}  ({model.label}; {model.structure}; {order}{took})")
+        if update is not None:
+            print_update(update)
         if ident:
             apart = "; ".join("+".join(g) for g in ident["unseparated"][:6]) or "none"
             apart += " ..." if len(ident["unseparated"]) > 6 else ""
@@ -122,3 +135,15 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         print_figures(accuracy, model.train_stats_)
         print(f"postproc train: wrote {args.output}", file=sys.stderr)
     return 0
+
+
+def print_update(update) -> None:
+    """What ``--update`` re-fitted and which parameters moved (stdout)."""
+    card = update.card()
+    moved = update.moved
+    print(f"update    from {update.old.path} ({card['from']}): {update.rows} rows; re-fitted {', '.join(card['groups'])} "
+          f"({len(update.parameters)} parameters), everything else kept; {len(moved)} moved "
+          f"(|change| > {card['moved_at_sigmas']:g} std)")
+    for p in moved:
+        print(f"moved     {p['name']:<9} old {p['old']:+11.5f}  new {p['new']:+11.5f}  change {p['change']:+10.5f} "
+              f"± {p['std']:.5f} {p['unit']}")

@@ -350,34 +350,7 @@ class KinematicModel:
                 f"parameters of {', '.join(groups)}: a model fitted on them would be worse than none; measure "
                 f"at least {-(-n_par // 3)} poses", code="P505")
         self.use_previous_ = previous is not None  # the approach signs: backlash, and the residual nets' inputs
-        with torch.no_grad():
-            pose_t = torch.as_tensor(poses)
-            q_in = None if q_deg is None else torch.as_tensor(np.radians(np.asarray(q_deg, dtype=np.float64)))
-            # the controller's own angles when the data has them (the arm went there), else the IK
-            q = self.ik_(pose_t) if q_in is None else q_in
-            rot, org, tcp = self.arm_.frames(q)
-            tau = self.arm_.torque_terms(rot, org)
-            miss = torch.linalg.norm(tcp - pose_t[:, :3], dim=1).numpy()
-            # the nominal arm at q must land on the pose: else out of reach (IK) or the joint
-            # angles are of another pose, robot or unit
-            tolerance = REACH_TOLERANCE_MM if q_in is None else JOINTS_TOLERANCE_MM
-            bad = np.flatnonzero(~(miss <= tolerance))
-            self.dropped_ = bad
-            if len(bad) > max(DROP_AT_MOST * len(poses), 0):
-                what = "out of reach of" if q_in is None else "not where the joint angles q1..q6 put"
-                raise PostprocError(
-                    f"{len(bad)} of {len(poses)} poses are {what} the nominal {self.description.name} "
-                    f"(IK {self.ik_.family} branch {list(self.ik_.branch)}; first: row {bad[0] + 1}, "
-                    f"{np.round(poses[bad[0]], 3).tolist()}, {miss[bad[0]]:.3g} mm away): is this the robot "
-                    f"of the data (--robot)?", self.description.path, code="P508")
-            s = torch.zeros_like(q)
-            if previous is not None:
-                prev = torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
-                s = approach_signs(self.ik_, self.arm_.home_q, q, pose_t, prev, q_in)
-            if len(bad):  # (a few singular / unreachable rows: left out, named by the caller)
-                keep = torch.as_tensor(~np.isin(np.arange(len(poses)), bad))
-                q, s, tau, tcp, pose_t = q[keep], s[keep], tau[keep], tcp[keep], pose_t[keep]
-                poses, errors = poses[keep.numpy()], errors[keep.numpy()]
+        q, s, tau, tcp, pose_t, poses, errors = self._prepare(poses, errors, previous, q_deg)
         measured = tcp - torch.as_tensor(errors)
         fixed = list(self.ripple) if isinstance(self.ripple, list) else []
         layout = Layout(groups, fixed)
@@ -416,6 +389,77 @@ class KinematicModel:
         self.n_train_ = len(poses)
         return self
 
+    def refit(self, layout: Layout, theta: np.ndarray, tau_mean: np.ndarray, ik: torch.nn.Module,
+              use_previous: bool, free: np.ndarray, weights: np.ndarray, poses: np.ndarray, errors: np.ndarray,
+              previous: np.ndarray | None = None, q_deg: np.ndarray | None = None) -> "KinematicModel":
+        """Re-calibration: an identified model (``layout``, ``theta``, ``tau_mean``, its IK branch
+        ``ik``, whether it takes the visiting order) re-fitted on new rows, moving only the
+        parameters ``free`` (bool [P]) under the prior Σ w_i(θ_i − θ_i,old)² (``weights`` [P],
+        mm² per unit²); every other parameter, the ripple orders and the torques' mean keep
+        their old values. The rows as :meth:`fit` takes them; without ``previous`` a model that
+        takes the visiting order sees every row as reached from HOME."""
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
+        errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
+        self.arm_, self.ik_, self.branch_share_ = Arm(self.description), ik, math.nan
+        self.use_previous_ = use_previous
+        if use_previous and previous is None:
+            previous = poses  # (the row itself: came from HOME)
+        q, s, _, tcp, pose_t, poses, errors = self._prepare(poses, errors, previous if use_previous else None, q_deg)
+        measured = tcp - torch.as_tensor(errors)
+        old = np.asarray(theta, dtype=np.float64)
+        theta = old.copy()
+        tau_mean = np.asarray(tau_mean, dtype=np.float64)
+        self.ripple_search_ = []
+        for _ in range(2):  # the torques of the identified chain depend on θ only weakly
+            with torch.no_grad():
+                tau = KinematicErrorModule(self.arm_, ik, layout, theta, use_previous, tau_mean).torques(q)
+            theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations, anchor=old,
+                                              weights=weights, free=free)
+        self.layout_, self.theta_ = layout, theta
+        self.module_ = KinematicErrorModule(self.arm_, ik, layout, theta, use_previous, tau_mean)
+        with torch.no_grad():
+            fitted = self.module_.error_at(q, s, pose_t[:, :3]).numpy()
+        self.train_q_, self.train_signs_ = q.numpy(), s.numpy()
+        self.train_residual_ = errors - fitted
+        self.n_train_ = len(poses)
+        return self
+
+    def _prepare(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None,
+                 q_deg: np.ndarray | None):
+        """The rows as the fit sees them: joint angles q (the data's, else the IK of ``self.ik_``),
+        approach signs, nominal gravity torque terms, nominal TCP, poses and errors, with the
+        few rows out of reach (or whose q1..q6 are not of their pose) left out (``dropped_``;
+        more than ``DROP_AT_MOST`` of them: P508)."""
+        with torch.no_grad():
+            pose_t = torch.as_tensor(poses)
+            q_in = None if q_deg is None else torch.as_tensor(np.radians(np.asarray(q_deg, dtype=np.float64)))
+            # the controller's own angles when the data has them (the arm went there), else the IK
+            q = self.ik_(pose_t) if q_in is None else q_in
+            rot, org, tcp = self.arm_.frames(q)
+            tau = self.arm_.torque_terms(rot, org)
+            miss = torch.linalg.norm(tcp - pose_t[:, :3], dim=1).numpy()
+            # the nominal arm at q must land on the pose: else out of reach (IK) or the joint
+            # angles are of another pose, robot or unit
+            tolerance = REACH_TOLERANCE_MM if q_in is None else JOINTS_TOLERANCE_MM
+            bad = np.flatnonzero(~(miss <= tolerance))
+            self.dropped_ = bad
+            if len(bad) > max(DROP_AT_MOST * len(poses), 0):
+                what = "out of reach of" if q_in is None else "not where the joint angles q1..q6 put"
+                raise PostprocError(
+                    f"{len(bad)} of {len(poses)} poses are {what} the nominal {self.description.name} "
+                    f"(IK {self.ik_.family} branch {list(self.ik_.branch)}; first: row {bad[0] + 1}, "
+                    f"{np.round(poses[bad[0]], 3).tolist()}, {miss[bad[0]]:.3g} mm away): is this the robot "
+                    f"of the data (--robot)?", self.description.path, code="P508")
+            s = torch.zeros_like(q)
+            if previous is not None:
+                prev = torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
+                s = approach_signs(self.ik_, self.arm_.home_q, q, pose_t, prev, q_in)
+            if len(bad):  # (a few singular / unreachable rows: left out, named by the caller)
+                keep = torch.as_tensor(~np.isin(np.arange(len(poses)), bad))
+                q, s, tau, tcp, pose_t = q[keep], s[keep], tau[keep], tcp[keep], pose_t[keep]
+                poses, errors = poses[keep.numpy()], errors[keep.numpy()]
+        return q, s, tau, tcp, pose_t, poses, errors
+
     def _prior_scales(self, layout: Layout, tau: torch.Tensor) -> np.ndarray:
         """A typical size of every parameter (rad, mm, rad/Nm): the prior's unit."""
         tau_max = torch.abs(tau).amax(dim=0).numpy()
@@ -428,30 +472,38 @@ class KinematicModel:
         return np.concatenate([unit[name] for name in layout.sizes])
 
     def _levenberg_marquardt(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
-                             iterations: int) -> np.ndarray:
-        """min ‖FK_id − measured‖² + prior·Σ(θ/σ)² by Levenberg–Marquardt with the geometric
-        Jacobian (:func:`jacobian`). The weak prior (``self.prior``, mm² per σ², σ a typical
-        size of each parameter) decides only what the data do not: directions no measurement
-        sees (a zero offset and a placement turned about its own axis; A6's angle when the TCP
-        sits on the A6 axis) stay near zero instead of wandering off."""
+                             iterations: int, anchor: np.ndarray | None = None, weights: np.ndarray | None = None,
+                             free: np.ndarray | None = None) -> np.ndarray:
+        """min ‖FK_id − measured‖² + Σ w_i(θ_i − θ⁰_i)² by Levenberg–Marquardt with the geometric
+        Jacobian (:func:`jacobian`). By default the weak prior (``self.prior``, mm² per σ², σ a
+        typical size of each parameter, θ⁰ = 0) decides only what the data do not: directions no
+        measurement sees (a zero offset and a placement turned about its own axis; A6's angle
+        when the TCP sits on the A6 axis) stay near zero instead of wandering off. A re-fit
+        (:meth:`refit`) passes its own ``anchor`` θ⁰ and ``weights`` w and moves only the
+        parameters ``free`` (bool [P]); the others keep their values."""
         arm = self.arm_
         target = measured.numpy()
-        sigma = self._prior_scales(layout, tau)
-        w2 = self.prior / sigma**2  # the prior's curvature per parameter
+        w2 = self.prior / self._prior_scales(layout, tau) ** 2 if weights is None else np.asarray(weights, float)
+        anchor = np.zeros(len(theta)) if anchor is None else np.asarray(anchor, float)
+        free = np.ones(len(theta), bool) if free is None else np.asarray(free, bool)
+        w2f = w2[free]
 
         def evaluate(t: np.ndarray):
             tcp, jac, sens = jacobian(arm, layout, torch.as_tensor(t), q, s, tau)
             r = (tcp.numpy() - target).reshape(-1)
-            return r, jac.numpy().reshape(len(r), -1), sens.numpy(), float(r @ r + (w2 * t * t).sum())
+            d = (t - anchor)[free]
+            return r, jac.numpy().reshape(len(r), -1), sens.numpy(), float(r @ r + (w2f * d * d).sum())
 
         r, jac, sens, cost = evaluate(theta)
         mu = 1e-3
         for _ in range(iterations):
-            jtj = jac.T @ jac + np.diag(w2)
-            grad = jac.T @ r + w2 * theta
+            jf = jac[:, free]
+            jtj = jf.T @ jf + np.diag(w2f)
+            grad = jf.T @ r + w2f * (theta - anchor)[free]
             diag = np.maximum(np.diag(jtj), 1e-30)
             while True:
-                trial = theta - np.linalg.solve(jtj + mu * np.diag(diag), grad)
+                trial = theta.copy()
+                trial[free] -= np.linalg.solve(jtj + mu * np.diag(diag), grad)
                 out = evaluate(trial)
                 if out[3] <= cost or mu > 1e8:
                     break
