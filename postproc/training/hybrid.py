@@ -37,6 +37,14 @@ __all__ = ["HybridModel", "HybridModule", "ResidualNet"]
 KEEP_GAIN = 0.03
 
 
+def learned_ranges(joint_range) -> np.ndarray:
+    """[6, 2] rad: the trained joint ranges [6][2] deg widened as compensate's P301 rule widens
+    them; the graph's learned parts (ripple orders, residual nets) hold inside them only."""
+    lo, hi = np.asarray(joint_range, dtype=np.float64).T
+    margin = JOINT_MARGIN * (hi - lo) + 0.5
+    return np.radians(np.c_[lo - margin, hi + margin])
+
+
 class ResidualNet(torch.nn.Module):
     """Joint features (sin, cos of q [+ approach signs]) → residual error [N, 3] mm:
     standardise, tanh MLP, unscale."""
@@ -205,10 +213,7 @@ class HybridModel:
         previous = None if previous is None else np.asarray(previous, dtype=np.float64).reshape(-1, 6)[keep]
         q_deg = None if q_deg is None else np.asarray(q_deg, dtype=np.float64).reshape(-1, 6)[keep]
         self.joint_range_ = joint_range
-        lo, hi = np.array(self.joint_range_).T
-        margin = JOINT_MARGIN * (hi - lo) + 0.5  # (compensate's P301 rule: the same widened ranges)
-        self.module_ = HybridModule(self.kinematic_.module_, self.nets_,
-                                    np.radians(np.c_[lo - margin, hi + margin])).eval()
+        self.module_ = HybridModule(self.kinematic_.module_, self.nets_, learned_ranges(joint_range)).eval()
         self.envelope_ = envelope_of(poses) if envelope is None else envelope
         self.n_train_ = len(poses)
         self.train_stats_ = residual_stats(errors - self.predict(poses, previous, q_deg))

@@ -135,20 +135,24 @@ def static_deflection(p: dict[str, torch.Tensor], tau: torch.Tensor) -> torch.Te
 
 
 def joint_error(p: dict[str, torch.Tensor], q: torch.Tensor, signs: torch.Tensor, tau: torch.Tensor,
-                ripple_joint: torch.Tensor, ripple_order: torch.Tensor) -> torch.Tensor:
+                ripple_joint: torch.Tensor, ripple_order: torch.Tensor,
+                ripple_rows: torch.Tensor | None = None) -> torch.Tensor:
     """δq [N, 6] rad: zero offsets + compliance·τ + Σ_i coupling_ji·τ_ji − backlash·s + Σ ripple
-    (``tau`` [N, 6 + 21]: ``Arm.torque_terms``)."""
+    (``tau`` [N, 6 + 21]: ``Arm.torque_terms``; ``ripple_rows`` [N] 1/0: the rows that have the
+    ripple terms, default all)."""
     dq = p["zero"] + static_deflection(p, tau) - p["backlash"] * signs
     if len(ripple_joint):
         phase = q[:, ripple_joint] * ripple_order  # [N, R]
         terms = torch.sin(phase) * p["ripple"][:, 0] + torch.cos(phase) * p["ripple"][:, 1]
+        if ripple_rows is not None:
+            terms = terms * ripple_rows[:, None]
         onehot = torch.nn.functional.one_hot(ripple_joint, 6).to(q.dtype)  # [R, 6]
         dq = dq + terms @ onehot
     return dq
 
 
 def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, signs: torch.Tensor,
-             tau: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+             tau: torch.Tensor, ripple_rows: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """TCP positions [N, 3] of the identified arm, their Jacobian [N, 3, P] w.r.t. θ and the
     sensitivity to each joint angle [N, 3, 6], from one forward pass (geometric Jacobian).
 
@@ -158,12 +162,14 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
     chain about the placement's own axes, its offset shifts it along them; the base turns and
     shifts everything; the tool offset moves along the TCP frame's axes. (For the rotation
     vectors this is the derivative at 0 applied at θ: |θ| ~ 1e-3 makes the difference ~1e-3
-    relative, which costs Levenberg–Marquardt an iteration, not accuracy.)"""
+    relative, which costs Levenberg–Marquardt an iteration, not accuracy.) ``ripple_rows`` [N]
+    1/0: the rows with the ripple terms (a re-fit: the graph leaves them out of the trained
+    joint ranges), default all."""
     p = layout.unpack(theta)
     chain = identified_chain(arm, p)
     ripple_joint = torch.tensor([j for j, _ in layout.ripple], dtype=torch.long)
     ripple_order = torch.tensor([float(n) for _, n in layout.ripple], dtype=torch.float64)
-    dq = joint_error(p, q, signs, tau, ripple_joint, ripple_order)
+    dq = joint_error(p, q, signs, tau, ripple_joint, ripple_order, ripple_rows)
     rot, org, tcp = arm.frames(q + dq, **chain)
     n = q.shape[0]
     omega = mv(rot, arm.axes)  # [N, 6, 3]
@@ -192,7 +198,7 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
         cols["backlash"] = -sens * signs[:, None, :]
     if len(layout.ripple):
         phase = q[:, ripple_joint] * ripple_order
-        sj = sens[:, :, ripple_joint]  # [N, 3, R]
+        sj = sens[:, :, ripple_joint] * (1.0 if ripple_rows is None else ripple_rows[:, None, None])  # [N, 3, R]
         cols["ripple"] = torch.stack([sj * torch.sin(phase)[:, None, :], sj * torch.cos(phase)[:, None, :]],
                                      dim=-1).reshape(n, 3, -1)
     jac = torch.cat([cols[name] for name in layout.sizes if layout.sizes[name]], dim=2)
@@ -391,13 +397,16 @@ class KinematicModel:
 
     def refit(self, layout: Layout, theta: np.ndarray, tau_mean: np.ndarray, ik: torch.nn.Module,
               use_previous: bool, free: np.ndarray, weights: np.ndarray, poses: np.ndarray, errors: np.ndarray,
-              previous: np.ndarray | None = None, q_deg: np.ndarray | None = None) -> "KinematicModel":
+              previous: np.ndarray | None = None, q_deg: np.ndarray | None = None,
+              ranges: np.ndarray | None = None) -> "KinematicModel":
         """Re-calibration: an identified model (``layout``, ``theta``, ``tau_mean``, its IK branch
         ``ik``, whether it takes the visiting order) re-fitted on new rows, moving only the
         parameters ``free`` (bool [P]) under the prior Σ w_i(θ_i − θ_i,old)² (``weights`` [P],
         mm² per unit²); every other parameter, the ripple orders and the torques' mean keep
         their old values. The rows as :meth:`fit` takes them; without ``previous`` a model that
-        takes the visiting order sees every row as reached from HOME."""
+        takes the visiting order sees every row as reached from HOME. ``ranges`` [6, 2] rad: the
+        model's trained joint ranges, outside which its graph leaves the ripple terms out: the
+        re-fit does the same, so that it fits the model the graph evaluates."""
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
         self.arm_, self.ik_, self.branch_share_ = Arm(self.description), ik, math.nan
@@ -406,6 +415,7 @@ class KinematicModel:
             previous = poses  # (the row itself: came from HOME)
         q, s, _, tcp, pose_t, poses, errors = self._prepare(poses, errors, previous if use_previous else None, q_deg)
         measured = tcp - torch.as_tensor(errors)
+        rows = None if ranges is None else inside_ranges(q, torch.as_tensor(np.asarray(ranges, dtype=np.float64)))
         old = np.asarray(theta, dtype=np.float64)
         theta = old.copy()
         tau_mean = np.asarray(tau_mean, dtype=np.float64)
@@ -414,11 +424,11 @@ class KinematicModel:
             with torch.no_grad():
                 tau = KinematicErrorModule(self.arm_, ik, layout, theta, use_previous, tau_mean).torques(q)
             theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations, anchor=old,
-                                              weights=weights, free=free)
+                                              weights=weights, free=free, ripple_rows=rows)
         self.layout_, self.theta_ = layout, theta
         self.module_ = KinematicErrorModule(self.arm_, ik, layout, theta, use_previous, tau_mean)
         with torch.no_grad():
-            fitted = self.module_.error_at(q, s, pose_t[:, :3]).numpy()
+            fitted = self.module_.error_at(q, s, pose_t[:, :3], rows).numpy()
         self.train_q_, self.train_signs_ = q.numpy(), s.numpy()
         self.train_residual_ = errors - fitted
         self.n_train_ = len(poses)
@@ -473,14 +483,15 @@ class KinematicModel:
 
     def _levenberg_marquardt(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
                              iterations: int, anchor: np.ndarray | None = None, weights: np.ndarray | None = None,
-                             free: np.ndarray | None = None) -> np.ndarray:
+                             free: np.ndarray | None = None, ripple_rows: torch.Tensor | None = None) -> np.ndarray:
         """min ‖FK_id − measured‖² + Σ w_i(θ_i − θ⁰_i)² by Levenberg–Marquardt with the geometric
         Jacobian (:func:`jacobian`). By default the weak prior (``self.prior``, mm² per σ², σ a
         typical size of each parameter, θ⁰ = 0) decides only what the data do not: directions no
         measurement sees (a zero offset and a placement turned about its own axis; A6's angle
         when the TCP sits on the A6 axis) stay near zero instead of wandering off. A re-fit
         (:meth:`refit`) passes its own ``anchor`` θ⁰ and ``weights`` w and moves only the
-        parameters ``free`` (bool [P]); the others keep their values."""
+        parameters ``free`` (bool [P]); the others keep their values, and its ``ripple_rows``
+        (see :func:`jacobian`)."""
         arm = self.arm_
         target = measured.numpy()
         w2 = self.prior / self._prior_scales(layout, tau) ** 2 if weights is None else np.asarray(weights, float)
@@ -489,7 +500,7 @@ class KinematicModel:
         w2f = w2[free]
 
         def evaluate(t: np.ndarray):
-            tcp, jac, sens = jacobian(arm, layout, torch.as_tensor(t), q, s, tau)
+            tcp, jac, sens = jacobian(arm, layout, torch.as_tensor(t), q, s, tau, ripple_rows)
             r = (tcp.numpy() - target).reshape(-1)
             d = (t - anchor)[free]
             return r, jac.numpy().reshape(len(r), -1), sens.numpy(), float(r @ r + (w2f * d * d).sum())

@@ -42,7 +42,7 @@ import torch
 from ..diagnostics import PostprocError
 from ..robot import RobotDescription
 from .arm import make_ik
-from .hybrid import HybridModel, ResidualNet
+from .hybrid import HybridModel, ResidualNet, learned_ranges
 from .kinematic import GROUPS, KinematicModel, Layout
 
 __all__ = ["UPDATE_GROUPS", "DRIFT", "OldModel", "Update", "read_old_model", "update_model"]
@@ -198,6 +198,24 @@ def _prior(old: OldModel, groups: tuple[str, ...]) -> tuple[np.ndarray, np.ndarr
     return free, old.residual_std_mm**2 / spread**2
 
 
+def _net_part(old: OldModel, description: RobotDescription, poses: np.ndarray, previous: np.ndarray | None,
+              q_deg: np.ndarray | None) -> np.ndarray:
+    """[N, 3] mm: what OLD's residual networks add at these rows (0 outside its joint ranges)."""
+    from .arm import Arm
+    from .hybrid import HybridModule
+    from .kinematic import KinematicErrorModule
+
+    kinematic = KinematicErrorModule(Arm(description), old.ik, old.layout, old.theta, old.use_previous, old.tau_mean)
+    pose = torch.as_tensor(poses)
+    prev = None if previous is None else torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
+    q_in = None if q_deg is None else torch.as_tensor(np.radians(np.asarray(q_deg, dtype=np.float64).reshape(-1, 6)))
+    ranges = learned_ranges(old.joint_range)
+    with torch.no_grad():
+        full = HybridModule(kinematic, old.nets, ranges)(pose, prev, q_in)
+        alone = HybridModule(kinematic, [], ranges)(pose, prev, q_in)
+    return (full - alone).numpy()
+
+
 def update_model(old: OldModel, description: RobotDescription, poses: np.ndarray, errors: np.ndarray,
                  previous: np.ndarray | None = None, q_deg: np.ndarray | None = None,
                  groups: tuple[str, ...] = UPDATE_GROUPS) -> Update:
@@ -211,9 +229,14 @@ def update_model(old: OldModel, description: RobotDescription, poses: np.ndarray
         raise PostprocError(f"{len(poses)} rows give {3 * len(poses)} measured coordinates, fewer than the "
                             f"{int(free.sum())} parameters --update re-fits: measure at least {-(-int(free.sum()) // 3)} "
                             f"poses (30 recommended)", code="P505")
+    errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
+    target = errors
+    if old.nets:  # the identification is re-fitted to what OLD's residual networks leave
+        came_from = poses if previous is None else previous  # (unknown: from HOME, as the re-fit takes it)
+        target = errors - _net_part(old, description, poses, came_from if old.use_previous else None, q_deg)
     km = KinematicModel(description, groups=old.layout.groups, ripple=list(old.layout.ripple))
-    km.refit(old.layout, old.theta, old.tau_mean, old.ik, old.use_previous, free, weights, poses, errors, previous,
-             q_deg)
+    km.refit(old.layout, old.theta, old.tau_mean, old.ik, old.use_previous, free, weights, poses, target, previous,
+             q_deg, learned_ranges(old.joint_range))
     model = HybridModel.refitted(description, km, old.nets, old.hidden, old.joint_range, old.envelope, poses, errors,
                                  previous if old.use_previous else None, q_deg)
     # the posterior of the re-fitted parameters: σ²(JᵀJ + W)⁻¹ at the solution
