@@ -176,3 +176,12 @@ def test_update_refuses_an_older_card(kr500, old, tmp_path):
     with pytest.raises(PostprocError) as info:
         read_old_model(older, kr500)
     assert info.value.code == "P317" and "older than --update" in str(info.value)
+
+
+def test_update_refuses_too_few_rows_at_the_data(old, kr500, tmp_path, capsys):
+    path, _ = old
+    data = _csv(tmp_path / "four.csv", *_campaign(SimulatedRobot(kr500, seed=3), 4, 7))
+    out = tmp_path / "new.onnx"
+    assert main(["train", str(data), "-o", str(out), "--update", str(path), "--val-fraction", "0"]) == 2
+    err = capsys.readouterr().err
+    assert f"{data}:" in err and "P505" in err and "at least 5" in err and not out.exists()

@@ -82,7 +82,8 @@ def add_parser(sub, common, formatter) -> None:
                    help="hybrid/kinematic: ignore the visiting order (no backlash; the model takes the pose only)")
     p.add_argument("--update", metavar="OLD.onnx",
                    help="re-calibrate: re-fit OLD's base, joint zero offsets and tool on these rows (30 are enough), "
-                        "with OLD's values as prior; everything else is OLD's; prints what moved")
+                        "with OLD's values as prior; everything else is OLD's (its structure: --hidden, --epochs, "
+                        "--pose-only do not apply); prints what moved")
     p.add_argument(
         "--register",
         action="store_true",

@@ -59,6 +59,7 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
                progress: bool) -> int:
     """Fit, export and report a hybrid-family model; ``errors`` [N, 3] = E of ``data``'s rows
     (after any registration)."""
+    from ..diagnostics import PostprocError
     from ..training import accuracy_card
     from ..training.features import previous_poses
     from ..training.hybrid import HybridModel
@@ -75,8 +76,12 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         from ..training.update import read_old_model, update_model
 
         old = read_old_model(args.update, description)
-        update = update_model(old, description, poses[train_rows], errors[train_rows],
-                              rows(previous_poses(poses), train_rows), rows(q_deg, train_rows))
+        try:
+            update = update_model(old, description, poses[train_rows], errors[train_rows],
+                                  rows(previous_poses(poses), train_rows), rows(q_deg, train_rows))
+        except PostprocError as exc:
+            exc.path = exc.path or args.data  # too few rows: say which file
+            raise
         model = update.model
     else:
         model = HybridModel(

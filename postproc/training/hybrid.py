@@ -349,7 +349,7 @@ class HybridModel:
             "parameters": {name: [float(v) for v in np.ravel(p[name])] for name in groups},
             "ripple_amplitudes": [[float(a), float(b)] for a, b in p["ripple"]],
             "tau_mean": [float(v) for v in km.module_.tau_mean],
-            "parameter_std": {name: [float(v) for v in std[name]] for name in groups},
+            "parameter_std": {name: [float(v) if v == v else None for v in std[name]] for name in groups},  # None: unknown
             "residual_std_mm": float(residual_std),
         }
 
