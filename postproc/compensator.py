@@ -40,6 +40,7 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   (hybrid/kinematic models) ``identified`` {"parameters": {group: [...]} (rad, mm, rad/Nm, as
   ``training.kinematic.Layout`` orders them), "ripple" [[joint, order]], "ripple_amplitudes"
   [[sin, cos]], "tau_mean" [27], "parameter_std" {group: [...]}, "residual_std_mm",
+  "nominal_sha256" (the robot description it is relative to: ``kinematic.nominal_digest``),
   "ik_family", "ik_branch", "residual_nets", ...}: what ``train --update`` re-fits from (the
   residual networks it reads back from the graph's initializers ``module.nets.K.*``); a model
   written by ``--update`` adds ``update`` {"from", "from_sha256", "rows", "groups",

@@ -185,3 +185,14 @@ def test_update_refuses_too_few_rows_at_the_data(old, kr500, tmp_path, capsys):
     assert main(["train", str(data), "-o", str(out), "--update", str(path), "--val-fraction", "0"]) == 2
     err = capsys.readouterr().err
     assert f"{data}:" in err and "P505" in err and "at least 5" in err and not out.exists()
+
+
+def test_update_refuses_the_same_name_with_another_geometry(old, kr500):
+    from postproc.diagnostics import PostprocError
+
+    path, _ = old
+    other = kr500.replace(tool=kr500.tool + np.array([0.0, 0.0, 50.0, 0.0, 0.0, 0.0]))
+    with pytest.raises(PostprocError) as info:
+        read_old_model(path, other)
+    assert info.value.code == "P318" and "not the one the model was identified on" in str(info.value)
+    assert read_old_model(path, kr500.replace(text="# another comment\n" + kr500.text)).layout.n  # text alone: same

@@ -28,7 +28,7 @@ from .data import envelope_of
 from .estimator import _one_thread, residual_stats
 from .export import onnx_bytes, write_atomic
 from .features import inside_ranges, joint_features, previous_poses, wrap_angles
-from .kinematic import KinematicErrorModule, KinematicModel
+from .kinematic import KinematicErrorModule, KinematicModel, nominal_digest
 
 __all__ = ["HybridModel", "HybridModule", "ResidualNet"]
 
@@ -351,6 +351,7 @@ class HybridModel:
             "tau_mean": [float(v) for v in km.module_.tau_mean],
             "parameter_std": {name: [float(v) if v == v else None for v in std[name]] for name in groups},  # None: unknown
             "residual_std_mm": float(residual_std),
+            "nominal_sha256": nominal_digest(self.description),
         }
 
     def export_onnx(self, path: str | Path, **metadata) -> Path:

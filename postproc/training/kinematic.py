@@ -41,7 +41,7 @@ from ..robot import RobotDescription
 from .arm import Arm, axis_rotations, choose_branch, coupling_pairs, make_ik, mv, small_rotation
 from .features import inside_ranges, motion_signs
 
-__all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS"]
+__all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS", "nominal_digest"]
 
 GROUPS = ("placement", "base", "tool", "zero", "compliance", "coupling", "backlash")
 DEFAULT_GROUPS = GROUPS
@@ -62,6 +62,19 @@ JOINTS_TOLERANCE_MM = 5.0
 DROP_AT_MOST = 0.01
 # joint steps below this (rad) count as no motion: float32 IK noise is ~1e-7 rad
 SIGN_DEADBAND = 2e-6
+
+
+def nominal_digest(description: RobotDescription) -> str:
+    """sha256 of what identified parameters are relative to: the nominal chain (joint frames,
+    axes, link masses and centres of mass), flange, tool, payload and HOME (for the approach
+    from HOME); not the name, limits or comments. A re-fit refuses another digest (P318)."""
+    import hashlib
+
+    numbers = [np.r_[j.origin, j.axis, j.mass, j.com] for j in description.joints]
+    numbers += [description.flange, description.tool, np.r_[description.payload_mass, description.payload_com],
+                description.home_q]
+    text = ";".join(",".join(f"{float(v):.9g}" for v in np.ravel(a)) for a in numbers)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 @dataclass

@@ -43,7 +43,7 @@ from ..diagnostics import PostprocError
 from ..robot import RobotDescription
 from .arm import make_ik
 from .hybrid import HybridModel, ResidualNet, learned_ranges
-from .kinematic import GROUPS, KinematicModel, Layout
+from .kinematic import GROUPS, KinematicModel, Layout, nominal_digest
 
 __all__ = ["UPDATE_GROUPS", "DRIFT", "OldModel", "Update", "read_old_model", "update_model"]
 
@@ -144,7 +144,8 @@ def read_old_model(path: str | Path, description: RobotDescription) -> OldModel:
         raise _refuse(f"--update re-fits an identified model, but this model's card stores no identified parameters "
                       f"(method: {method}): train the new data without --update, or update a hybrid/kinematic model",
                       path)
-    missing = [k for k in ("ripple_amplitudes", "tau_mean", "ik_family", "ik_branch", "ripple") if k not in found]
+    missing = [k for k in ("ripple_amplitudes", "tau_mean", "ik_family", "ik_branch", "ripple", "nominal_sha256")
+               if k not in found]
     if missing:
         raise _refuse(f"--update: this model's card is older than --update (no {', '.join(missing)} under "
                       f"'identified'): re-train it once with this version, then update it", path)
@@ -152,6 +153,10 @@ def read_old_model(path: str | Path, description: RobotDescription) -> OldModel:
         raise _refuse(f"--update: the model is of robot {card.get('robot')!r}, the description given is "
                       f"{description.name!r} ({description.path}): give the old model's description with --robot",
                       path, "P318")
+    if found["nominal_sha256"] != nominal_digest(description):
+        raise _refuse(f"--update: the description {description.path} is not the one the model was identified on "
+                      f"(same name {description.name!r}, other nominal chain, flange, tool, masses or HOME): give "
+                      f"that description with --robot", path, "P318")
     groups = tuple(g for g in GROUPS if g in params)
     ripple = [(int(j) - 1, int(n)) for j, n in found["ripple"]]
     layout = Layout(groups, ripple)
