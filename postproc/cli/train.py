@@ -81,7 +81,7 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--pose-only", action="store_true",
                    help="hybrid/kinematic: ignore the visiting order (no backlash; the model takes the pose only)")
     p.add_argument("--update", metavar="OLD.onnx",
-                   help="re-calibrate: re-fit OLD's base, joint zero offsets and tool on these rows (30 are enough), "
+                   help="re-calibrate: re-fit OLD's base, joint zero offsets and tool on these rows (from as few as 30), "
                         "with OLD's values as prior; everything else is OLD's (its structure: --hidden, --epochs, "
                         "--pose-only do not apply); prints what moved")
     p.add_argument(
