@@ -507,27 +507,39 @@ class KinematicModel:
         (see :func:`jacobian`)."""
         arm = self.arm_
         target = measured.numpy()
-        w2 = self.prior / self._prior_scales(layout, tau) ** 2 if weights is None else np.asarray(weights, float)
-        anchor = np.zeros(len(theta)) if anchor is None else np.asarray(anchor, float)
-        free = np.ones(len(theta), bool) if free is None else np.asarray(free, bool)
+        if weights is None:  # the fit's own prior: every parameter free, toward 0
+            w2 = self.prior / self._prior_scales(layout, tau) ** 2
+            free, anchor = slice(None), None
+        else:
+            w2 = np.asarray(weights, float)
+            free, anchor = np.asarray(free, bool), np.asarray(anchor, float)
+        # (the fit's path computes exactly what it did before re-fits existed: the ripple search
+        # picks orders at a threshold, and a 1e-12 change of the sums flips a pick on IPA C)
         w2f = w2[free]
+
+        def away(t: np.ndarray) -> np.ndarray:  # θ − θ⁰ of the free parameters
+            return t if anchor is None else (t - anchor)[free]
 
         def evaluate(t: np.ndarray):
             tcp, jac, sens = jacobian(arm, layout, torch.as_tensor(t), q, s, tau, ripple_rows)
             r = (tcp.numpy() - target).reshape(-1)
-            d = (t - anchor)[free]
+            d = away(t)
             return r, jac.numpy().reshape(len(r), -1), sens.numpy(), float(r @ r + (w2f * d * d).sum())
 
         r, jac, sens, cost = evaluate(theta)
         mu = 1e-3
         for _ in range(iterations):
-            jf = jac[:, free]
+            jf = jac if anchor is None else jac[:, free]
             jtj = jf.T @ jf + np.diag(w2f)
-            grad = jf.T @ r + w2f * (theta - anchor)[free]
+            grad = jf.T @ r + w2f * away(theta)
             diag = np.maximum(np.diag(jtj), 1e-30)
             while True:
-                trial = theta.copy()
-                trial[free] -= np.linalg.solve(jtj + mu * np.diag(diag), grad)
+                step = np.linalg.solve(jtj + mu * np.diag(diag), grad)
+                if anchor is None:
+                    trial = theta - step
+                else:
+                    trial = theta.copy()
+                    trial[free] -= step
                 out = evaluate(trial)
                 if out[3] <= cost or mu > 1e8:
                     break
