@@ -82,6 +82,9 @@ CODES = {
     "P405": "compensated output is stale: re-compensating its source gives other bytes",
     "P406": "compensated output is missing",
     "P407": "compensated output has no source",
+    # train's own (check never reports them; listed so that every code has its one line here)
+    "P317": "train --update: the old model has no identification to re-fit (a DNN/gpso model, an older card)",
+    "P318": "train --update: the old model is of another robot description than --robot",
 }
 
 # "path:line:col" of a stamp; the name may hold spaces, the hash is the last word

@@ -51,7 +51,16 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   matter), "valid": the tools the model is valid for, in words}, ``envelope`` {"box": [x0,x1,y0,y1,z0,z1],
   "attitude": [A,B,C], "range": deg, optional "joints": [[lo, hi] × 6] deg}, ``reach`` {"center": [x,y,z], "radius_min",
   "radius_max"} (TCP distance from the shoulder), ``data_sha256``, ``method``,
-  ``structure``, ``accuracy`` {"val_mean_mm", "val_max_mm", ...}, ``iterations``.
+  ``structure``, ``accuracy`` {"val_mean_mm", "val_max_mm", ...}, ``iterations``; optional
+  (hybrid/kinematic models) ``identified`` {"parameters": {group: [...]} (rad, mm, rad/Nm, as
+  ``training.kinematic.Layout`` orders them), "ripple" [[joint, order]], "ripple_amplitudes"
+  [[sin, cos]], "tau_mean" [27], "parameter_std" {group: [...]}, "residual_std_mm",
+  "nominal_sha256" (the robot description it is relative to: ``kinematic.nominal_digest``),
+  "ik_family", "ik_branch", "residual_nets", ...}: what ``train --update`` re-fits from (the
+  residual networks it reads back from the graph's initializers ``module.nets.K.*``); a model
+  written by ``--update`` adds ``update`` {"from", "from_sha256", "rows", "groups",
+  "moved_at_sigmas", "parameters": [{"group", "name", "unit", "old", "new", "change", "std",
+  "moved"}]}; optional ``transfer`` (benchmarks/cross_series.py: figures on other series).
 
 The command sent for target P is c = P + Ê(c), solved by fixed-point iteration from
 c₀ = P (one iteration = the method's c = P + Ê(P)).

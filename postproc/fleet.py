@@ -10,7 +10,7 @@ The fleet file (TOML)::
     [[robot]]
     name = "cell1"                   # required, unique; the output folder's name
     data = "cell1.csv"               # required: the measurement CSV
-    previous = "old/cell1.onnx"      # optional: the robot's previous model
+    previous = "old/cell1.onnx"      # optional: the robot's previous model: train --update it
 
 Paths are relative to the fleet file. A bad file is refused with P610 at its line.
 
@@ -67,7 +67,7 @@ class RobotJob:
             argv += ["--method", self.method]
         if self.robot:
             argv += ["--robot", str(self.robot)]
-        if self.previous and _train_knows("--update"):
+        if self.previous:  # re-calibration: OLD's base, zero offsets and tool re-fitted, the rest kept
             argv += ["--update", str(self.previous)]
         return argv + list(self.args)
 
@@ -86,17 +86,6 @@ def _file_sha(path: Path) -> str:
     except OSError:
         return "missing"
 
-
-_KNOWN: dict[str, bool] = {}
-
-
-def _train_knows(option: str) -> bool:
-    if option not in _KNOWN:
-        from .cli import build_parser
-
-        sub = next(a for a in build_parser()._actions if a.dest == "command")
-        _KNOWN[option] = option in sub.choices["train"]._option_string_actions
-    return _KNOWN[option]
 
 
 def _line_of(text: str, needle: str, nth: int = 0) -> int:
@@ -187,9 +176,14 @@ def _held_out(job: RobotJob, path: Path) -> Path:
 
 
 def moved_parameters(card: dict, previous: dict | None) -> list[str]:
-    """Identified parameters whose value differs from the previous model's card."""
+    """The parameters that moved since the previous model: those ``train --update`` found moved
+    (its card's ``update`` entry), else the identified entries whose value differs from the
+    previous card's."""
     if not previous:
         return []
+    update = card.get("update")
+    if isinstance(update, dict) and isinstance(update.get("parameters"), list):
+        return [p["name"] for p in update["parameters"] if isinstance(p, dict) and p.get("moved")]
     new, old = card.get("identified") or {}, previous.get("identified") or {}
     return sorted(k for k in new if k in old and new[k] != old[k])
 

@@ -89,3 +89,25 @@ def test_moved_parameters_against_the_previous_card():
     old = {"identified": {"offset_mm": [1.0, 2.0], "backlash_deg": 0.2, "ripple": [[1, 2]]}}
     assert moved_parameters(new, old) == ["backlash_deg"]
     assert moved_parameters(new, None) == []
+
+
+def test_fleet_previous_model_is_updated(cell, capsys):
+    """A robot with a ``previous`` model is re-calibrated from it (train --update): its card
+    says so and the fleet table lists what moved; a previous model with nothing identified
+    fails that robot alone (P317)."""
+    out = cell / "upd"
+    assert main(["train", str(cell / "r1.csv"), "-o", str(cell / "old1.onnx"), "--method", "kinematic", "-q"]) == 0
+    assert main(["train", str(cell / "r1.csv"), "-o", str(cell / "dnn.onnx"), "--method", "plain", "--epochs", "5",
+                 "--hidden", "4", "-q"]) == 0
+    (cell / "update.toml").write_text(
+        '[defaults]\nmethod = "kinematic"\nargs = ["--val-fraction", "0.2"]\n\n'
+        '[[robot]]\nname = "r1"\ndata = "r1.csv"\nprevious = "old1.onnx"\n\n'
+        '[[robot]]\nname = "r2"\ndata = "r2.csv"\nprevious = "dnn.onnx"\n')
+    assert main(["fleet", str(cell / "update.toml"), "-o", str(out), "--format", "csv"]) == 1
+    rows = {line.split(",")[0]: line for line in (out / "fleet.csv").read_text().splitlines()[1:]}
+    card = json.loads((out / "r1" / "model-card.json").read_text())
+    assert card["update"]["rows"] == 160 and card["update"]["groups"] == ["base", "zero", "tool"]
+    moved = [p["name"] for p in card["update"]["parameters"] if p["moved"]]
+    assert moved == []  # the same robot measured again: nothing moved
+    assert rows["r1"].split(",")[-1] == ""
+    assert "P317" in rows["r2"]

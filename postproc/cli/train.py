@@ -32,6 +32,7 @@ Examples:
   postproc train measured.csv -o m.onnx --method gpso --seed 1
   postproc train ipa.csv --register --robot models/ur10.toml -o ur10.onnx --val-fraction 0.2
   postproc train measured.csv -o m.onnx --search        # pick the hidden layers first (minutes)
+  postproc train new30.csv -o new.onnx --update old.onnx --robot models/ur10.toml  # re-calibrate
 """
 
 
@@ -85,6 +86,10 @@ def add_parser(sub, common, formatter) -> None:
                    "tool_x..tool_c columns, else the robot description's tool)")
     p.add_argument("--pose-only", action="store_true",
                    help="hybrid/kinematic: ignore the visiting order (no backlash; the model takes the pose only)")
+    p.add_argument("--update", metavar="OLD.onnx",
+                   help="re-calibrate: re-fit OLD's base, joint zero offsets and tool on these rows (from as few as 30), "
+                        "with OLD's values as prior; everything else is OLD's (its structure: --hidden, --epochs, "
+                        "--pose-only do not apply); prints what moved")
     p.add_argument(
         "--register",
         action="store_true",
@@ -124,7 +129,10 @@ def run(args) -> int:
     from . import show_progress
     from .train_hybrid import HYBRID_METHODS, run_hybrid
 
-    check_outputs([args.output], [args.data, args.robot or "-"])  # before the fit, not after it
+    check_outputs([args.output], [args.data, args.robot or "-", args.update or "-"])  # before the fit, not after it
+    if args.update and args.method not in HYBRID_METHODS:
+        raise PostprocError(f"--update re-fits an identified model: --method {args.method} identifies none "
+                            f"(use hybrid or kinematic, or leave --method out)", args.update, code="P317")
     data = read_measurements(args.data)
     from ..planning import parse_tool
 

@@ -61,6 +61,7 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     (after any registration); ``tools`` [N, 6] the TCP each row was measured with (None: the
     description's); ``rotation_errors`` [N, 3] deg their orientation errors (None: no
     a_meas,b_meas,c_meas: the model then has no ``rotation_error`` output)."""
+    from ..diagnostics import PostprocError
     from ..training import accuracy_card
     from ..training.features import previous_poses
     from ..training.hybrid import HybridModel
@@ -68,8 +69,6 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
 
     description = _description(args.robot)
     if args.method == "dnn-joints" and tools is not None and len(np.unique(tools, axis=0)) > 1:
-        from ..diagnostics import PostprocError
-
         raise PostprocError(f"--method dnn-joints learns the error of one tool, the data have "
                             f"{len(np.unique(tools, axis=0))}: train --method hybrid (a physical model)",
                             args.data, code="P320")
@@ -82,24 +81,44 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     notes += warnings
     if not stated.all():  # (the visiting order stays the file's: previous poses computed above)
         train_rows, val_rows = train_rows[stated[train_rows]], val_rows[stated[val_rows]]
-    model = HybridModel(
-        description,
-        hidden=args.hidden or DEFAULT_HIDDEN[args.method],
-        epochs=args.epochs or DEFAULT_EPOCHS,
-        seed=args.seed,
-        progress=progress,
-        **SETTINGS[args.method],
-    )
     rows = (lambda a, r: None if a is None else a[r])  # noqa: E731
-    model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows),
-              rows(tools, train_rows), rows(rotation_errors, train_rows))
+    update = None
+    if getattr(args, "update", None):
+        from ..training.update import read_old_model, update_model
+
+        if tools is not None and not np.allclose(tools, description.tool):
+            raise PostprocError("--update re-fits a model at the tool it was measured with; these rows name "
+                                "other tools (# tool: / tool_x..tool_c / --tool): train a new model", args.data,
+                                code="P317")
+        old = read_old_model(args.update, description)
+        try:
+            update = update_model(old, description, poses[train_rows], errors[train_rows],
+                                  rows(previous_poses(poses), train_rows), rows(q_deg, train_rows))
+        except PostprocError as exc:
+            exc.path = exc.path or args.data  # too few rows: say which file
+            raise
+        model = update.model
+        if rotation_errors is not None:
+            notes.append("warning: --update re-fits the position only: a_meas,b_meas,c_meas not used (the "
+                         "updated model has no rotation_error output)")
+    else:
+        model = HybridModel(
+            description,
+            hidden=args.hidden or DEFAULT_HIDDEN[args.method],
+            epochs=args.epochs or DEFAULT_EPOCHS,
+            seed=args.seed,
+            progress=progress,
+            **SETTINGS[args.method],
+        )
+        model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows),
+                  rows(tools, train_rows), rows(rotation_errors, train_rows))
 
     if len(model.dropped_):
         lines = data.lines[train_rows][model.dropped_]
         notes.append(f"warning: {len(lines)} training row(s) left out, out of reach of the nominal {description.name} "
                      f"or singular (or their q1..q6 not of that pose): line(s) "
                      f"{', '.join(str(int(n)) for n in lines[:10])}{' ...' if len(lines) > 10 else ''}")
-    ident = model.kinematic_.identifiability() if model.kinematic_.layout_.n else None
+    ident = model.kinematic_.identifiability() if model.kinematic_.layout_.n and update is None else None
     share = model.kinematic_.branch_share_
     if share == share and share < 0.99:  # (NaN: no joint angles to compare with)
         notes.append(f"warning: {100 * (1 - share):.1f} % of the training rows were reached on another IK branch "
@@ -123,6 +142,8 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         "iterations": max(2, model.fixed_point_iterations(poses[train_rows])),
         "identified": found,
     }
+    if update is not None:
+        metadata["update"] = update.card()
     metadata.update(arm_metadata(description))
     if tools is not None or model.kinematic_.layout_.n:
         own = model.description_.tool
@@ -134,8 +155,10 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         for note in notes:
             print(note, file=sys.stderr)
         order = "backlash from the visiting order" if model.uses_previous else "no visiting order"
-        print(f"model     {args.output}  ({model.label}; {model.structure}; {order}; "
-              f"{model.fit_seconds_['total']:.1f} s)")
+        took = f"; {model.fit_seconds_['total']:.1f} s" if hasattr(model, "fit_seconds_") else ""
+        print(f"model     {args.output}  ({model.label}; {model.structure}; {order}{took})")
+        if update is not None:
+            print_update(update)
         if ident:
             apart = "; ".join("+".join(g) for g in ident["unseparated"][:6]) or "none"
             apart += " ..." if len(ident["unseparated"]) > 6 else ""
@@ -155,3 +178,15 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
                 print(f"{label:<26} {r[key]['mean']:7.4f} {r[key]['max']:7.4f} {r[key]['std']:7.4f}")
         print(f"postproc train: wrote {args.output}", file=sys.stderr)
     return 0
+
+
+def print_update(update) -> None:
+    """What ``--update`` re-fitted and which parameters moved (stdout)."""
+    card = update.card()
+    moved = update.moved
+    print(f"update    from {update.old.path} ({card['from']}): {update.rows} rows; re-fitted {', '.join(card['groups'])} "
+          f"({len(update.parameters)} parameters), everything else kept; {len(moved)} moved "
+          f"(|change| > {card['moved_at_sigmas']:g} std)")
+    for p in moved:
+        print(f"moved     {p['name']:<9} old {p['old']:+11.5f}  new {p['new']:+11.5f}  change {p['change']:+10.5f} "
+              f"± {p['std']:.5f} {p['unit']}")

@@ -28,13 +28,21 @@ from .data import envelope_of
 from .estimator import _one_thread, residual_stats
 from .export import onnx_bytes, write_atomic
 from .features import inside_ranges, joint_features, previous_poses, wrap_angles
-from .kinematic import KinematicErrorModule, KinematicModel, unseparated_mount
+from .kinematic import KinematicErrorModule, KinematicModel, nominal_digest, unseparated_mount
 
 __all__ = ["HybridModel", "HybridModule", "ResidualNet"]
 
 # the residual network is kept only if it lowers the mean residual on rows it did not see by
 # at least this fraction (else it would mostly learn the measurement noise)
 KEEP_GAIN = 0.03
+
+
+def learned_ranges(joint_range) -> np.ndarray:
+    """[6, 2] rad: the trained joint ranges [6][2] deg widened as compensate's P301 rule widens
+    them; the graph's learned parts (ripple orders, residual nets) hold inside them only."""
+    lo, hi = np.asarray(joint_range, dtype=np.float64).T
+    margin = JOINT_MARGIN * (hi - lo) + 0.5
+    return np.radians(np.c_[lo - margin, hi + margin])
 
 
 class ResidualNet(torch.nn.Module):
@@ -216,6 +224,19 @@ class HybridModel:
             stage(names[1])
             self.nets_ = self._fit_residual(self.kinematic_.train_residual_)
             t2 = time.perf_counter()
+        q = np.degrees(wrap_angles(torch.as_tensor(self.kinematic_.train_q_)).numpy())  # the trained joints
+        joint_range = [[round(float(a), 3), round(float(b), 3)] for a, b in zip(q.min(0), q.max(0))]
+        self._finish(poses, errors, previous, q_deg, joint_range, tools=tools, rotation_errors=rotation_errors)
+        self.fit_seconds_ = {"kinematic": t1 - t0, "residual": t2 - t1, "total": t2 - t0}
+        return self
+
+    def _finish(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None, q_deg: np.ndarray | None,
+                joint_range: list, envelope: dict | None = None, tools: np.ndarray | None = None,
+                rotation_errors: np.ndarray | None = None) -> None:
+        """The graph from ``kinematic_`` and ``nets_``, with the trained ``joint_range`` [6][2]
+        deg (the learned parts' validity) and the position ``envelope`` (default: of the rows);
+        the training figures on the rows the identification kept (each row's ``tools``, and
+        the orientation's where it was fitted)."""
         # rows the identification left out (unreachable / singular, ≤ 1 %): the caller names them
         self.dropped_ = self.kinematic_.dropped_
         keep = ~np.isin(np.arange(len(poses)), self.dropped_)
@@ -223,21 +244,30 @@ class HybridModel:
         previous = None if previous is None else np.asarray(previous, dtype=np.float64).reshape(-1, 6)[keep]
         q_deg = None if q_deg is None else np.asarray(q_deg, dtype=np.float64).reshape(-1, 6)[keep]
         tools = None if tools is None else tools[keep]
-        q = np.degrees(wrap_angles(torch.as_tensor(self.kinematic_.train_q_)).numpy())  # the trained joints
-        self.joint_range_ = [[round(float(a), 3), round(float(b), 3)] for a, b in zip(q.min(0), q.max(0))]
-        lo, hi = np.array(self.joint_range_).T
-        margin = JOINT_MARGIN * (hi - lo) + 0.5  # (compensate's P301 rule: the same widened ranges)
-        self.module_ = HybridModule(self.kinematic_.module_, self.nets_,
-                                    np.radians(np.c_[lo - margin, hi + margin])).eval()
-        self.envelope_ = envelope_of(poses)
+        self.joint_range_ = joint_range
+        self.module_ = HybridModule(self.kinematic_.module_, self.nets_, learned_ranges(joint_range)).eval()
+        self.envelope_ = envelope_of(poses) if envelope is None else envelope
         self.n_train_ = len(poses)
-        self.fit_seconds_ = {"kinematic": t1 - t0, "residual": t2 - t1, "total": t2 - t0}
         self.train_stats_ = residual_stats(errors - self.predict(poses, previous, q_deg, tools))
         self.train_rotation_stats_ = None
         if self.orientation:
             rotation_errors = np.asarray(rotation_errors, dtype=np.float64).reshape(-1, 3)[keep]
             self.train_rotation_stats_ = residual_stats(rotation_errors - self.predict_rotation(poses, previous, q_deg))
-        return self
+
+    @classmethod
+    def refitted(cls, description: RobotDescription, kinematic: KinematicModel, nets: list[ResidualNet],
+                 hidden: tuple[int, ...], joint_range: list, envelope: dict, poses: np.ndarray, errors: np.ndarray,
+                 previous: np.ndarray | None = None, q_deg: np.ndarray | None = None) -> "HybridModel":
+        """A model made of a re-fitted identification (:meth:`KinematicModel.refit`) and an older
+        model's residual networks, joint ranges and envelope (training/update.py); the training
+        figures on the re-fit's rows."""
+        model = cls(description, residual="always" if nets else "none", hidden=hidden)
+        model.kinematic_, model.nets_ = kinematic, list(nets)
+        model.description_ = kinematic.description  # (the old model's, its tool included)
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
+        errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
+        model._finish(poses, errors, previous, q_deg, joint_range, envelope)
+        return model
 
     def _fit_residual(self, residual: np.ndarray) -> list[ResidualNet]:
         if self.residual == "none" or self.ensemble < 1:
@@ -356,11 +386,37 @@ class HybridModel:
             "orientation": ({"fitted": True, "lever_mm_per_rad": round(km.lever_, 3),
                              "train_residual_deg": self.train_rotation_stats_} if km.orientation_
                             else {"fitted": False}),
-            # the identified parameters of the physical groups (rad, mm, rad/Nm; each flattened
-            # as Layout.unpack reads it; the ripple amplitudes are not stored): what a
-            # re-calibration (--update, not built yet) would start from
-            "parameters": {name: [float(v) for v in np.ravel(p[name])]
-                           for name in km.layout_.sizes if name != "ripple" and km.layout_.sizes[name]},
+            # the identified parameters (rad, mm, rad/Nm; each group flattened as Layout.unpack
+            # reads it, the ripple amplitudes [R][sin, cos] in the order of "ripple"), the
+            # torques' mean the graph linearises about and each parameter's std with the fit's
+            # residual std per coordinate: what a re-calibration (train --update) starts from
+            **self.identified_parameters(),
+        }
+
+    def identified_parameters(self) -> dict:
+        """The identification as the model card stores it for ``train --update``
+        (training/update.py reads it back): parameters, ripple amplitudes, tau_mean,
+        parameter_std and residual_std_mm (from the parameter covariance at the solution)."""
+        km = self.kinematic_
+        if not km.layout_.n:
+            return {}
+        from .uncertainty import parameter_covariance
+
+        p, sizes = km.parameters(), km.layout_.sizes
+        # (a re-calibration sets its own: OLD's std, the posterior std of what it re-fitted)
+        std, residual_std = getattr(self, "identification_std_", (None, None))
+        if std is None:
+            cov = parameter_covariance(km)
+            std, residual_std = cov.std, math.sqrt(cov.sigma2)
+        std = dict(zip(sizes, np.split(np.asarray(std, dtype=np.float64), np.cumsum(list(sizes.values()))[:-1])))
+        groups = [name for name in sizes if name != "ripple" and sizes[name]]
+        return {
+            "parameters": {name: [float(v) for v in np.ravel(p[name])] for name in groups},
+            "ripple_amplitudes": [[float(a), float(b)] for a, b in p["ripple"]],
+            "tau_mean": [float(v) for v in km.module_.tau_mean],
+            "parameter_std": {name: [float(v) if v == v else None for v in std[name]] for name in groups},  # None: unknown
+            "residual_std_mm": float(residual_std),
+            "nominal_sha256": nominal_digest(self.description),
         }
 
     def tool_card(self, name: str) -> dict:

@@ -48,7 +48,8 @@ from .arm import Arm, at_tool, axis_rotations, choose_branch, coupling_pairs, ma
 from .features import inside_ranges, motion_signs
 from .network import rotation_matrices
 
-__all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS", "unseparated_mount"]
+__all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS", "unseparated_mount",
+           "nominal_digest"]
 
 GROUPS = ("placement", "base", "tool", "mount", "tool_rotation", "zero", "compliance", "coupling", "backlash")
 DEFAULT_GROUPS = GROUPS
@@ -75,6 +76,19 @@ SIGN_DEADBAND = 2e-6
 # and unmodelled error), within LEVER_RANGE
 LEVER_MM = 1000.0
 LEVER_RANGE = (10.0, 10000.0)
+
+
+def nominal_digest(description: RobotDescription) -> str:
+    """sha256 of what identified parameters are relative to: the nominal chain (joint frames,
+    axes, link masses and centres of mass), flange, tool, payload and HOME (for the approach
+    from HOME); not the name, limits or comments. A re-fit refuses another digest (P318)."""
+    import hashlib
+
+    numbers = [np.r_[j.origin, j.axis, j.mass, j.com] for j in description.joints]
+    numbers += [description.flange, description.tool, np.r_[description.payload_mass, description.payload_com],
+                description.home_q]
+    text = ";".join(",".join(f"{float(v):.9g}" for v in np.ravel(a)) for a in numbers)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 @dataclass
@@ -180,20 +194,25 @@ def static_deflection(p: dict[str, torch.Tensor], tau: torch.Tensor) -> torch.Te
 
 
 def joint_error(p: dict[str, torch.Tensor], q: torch.Tensor, signs: torch.Tensor, tau: torch.Tensor,
-                ripple_joint: torch.Tensor, ripple_order: torch.Tensor) -> torch.Tensor:
+                ripple_joint: torch.Tensor, ripple_order: torch.Tensor,
+                ripple_rows: torch.Tensor | None = None) -> torch.Tensor:
     """δq [N, 6] rad: zero offsets + compliance·τ + Σ_i coupling_ji·τ_ji − backlash·s + Σ ripple
-    (``tau`` [N, 6 + 21]: ``Arm.torque_terms``)."""
+    (``tau`` [N, 6 + 21]: ``Arm.torque_terms``; ``ripple_rows`` [N] 1/0: the rows that have the
+    ripple terms, default all)."""
     dq = p["zero"] + static_deflection(p, tau) - p["backlash"] * signs
     if len(ripple_joint):
         phase = q[:, ripple_joint] * ripple_order  # [N, R]
         terms = torch.sin(phase) * p["ripple"][:, 0] + torch.cos(phase) * p["ripple"][:, 1]
+        if ripple_rows is not None:
+            terms = terms * ripple_rows[:, None]
         onehot = torch.nn.functional.one_hot(ripple_joint, 6).to(q.dtype)  # [R, 6]
         dq = dq + terms @ onehot
     return dq
 
 
 def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, signs: torch.Tensor,
-             tau: torch.Tensor, tools: torch.Tensor | None = None, rotation: bool = False) -> tuple[torch.Tensor, ...]:
+             tau: torch.Tensor, tools: torch.Tensor | None = None, rotation: bool = False,
+             ripple_rows: torch.Tensor | None = None) -> tuple[torch.Tensor, ...]:
     """TCP positions [N, 3] of the identified arm, their Jacobian [N, 3, P] w.r.t. θ and the
     sensitivity to each joint angle [N, 3, 6], from one forward pass (geometric Jacobian).
     With ``rotation`` also the TCP's rotation [N, 3, 3] and the same two for its orientation
@@ -207,12 +226,14 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
     frame's axes, the mount's rotation turns each row's TCP (``tools`` [N, 3] on the flange;
     None: the description's; position only), the tool rotation turns the TCP frame about its
     axes. (For the rotation vectors this is the derivative at 0 applied at θ: |θ| ~ 1e-3 makes
-    the difference ~1e-3 relative, which costs Levenberg–Marquardt an iteration, not accuracy.)"""
+    the difference ~1e-3 relative, which costs Levenberg–Marquardt an iteration, not accuracy.) ``ripple_rows`` [N]
+    1/0: the rows with the ripple terms (a re-fit: the graph leaves them out of the trained
+    joint ranges), default all."""
     p = layout.unpack(theta)
     chain = identified_chain(arm, p, tools)
     ripple_joint = torch.tensor([j for j, _ in layout.ripple], dtype=torch.long)
     ripple_order = torch.tensor([float(n) for _, n in layout.ripple], dtype=torch.float64)
-    dq = joint_error(p, q, signs, tau, ripple_joint, ripple_order)
+    dq = joint_error(p, q, signs, tau, ripple_joint, ripple_order, ripple_rows)
     rot, org, tcp = arm.frames(q + dq, **chain)
     n = q.shape[0]
     omega = mv(rot, arm.axes)  # [N, 6, 3]
@@ -242,7 +263,7 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
     if "tool_rotation" in layout.groups:
         cols["tool_rotation"] = (zero3, tcp_rot)
     sens_rot = omega.transpose(1, 2)  # [N, 3, 6]
-    for name, joint_cols in _joint_columns(layout, q, signs, tau, ripple_joint, ripple_order).items():
+    for name, joint_cols in _joint_columns(layout, q, signs, tau, ripple_joint, ripple_order, ripple_rows).items():
         cols[name] = (joint_cols(sens), joint_cols(sens_rot) if rotation else None)  # (position only: not built)
     names = [name for name in layout.sizes if layout.sizes[name]]
     jac = torch.cat([cols[name][0] for name in names], dim=2)
@@ -252,7 +273,8 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
 
 
 def _joint_columns(layout: Layout, q: torch.Tensor, signs: torch.Tensor, tau: torch.Tensor,
-                   ripple_joint: torch.Tensor, ripple_order: torch.Tensor) -> dict:
+                   ripple_joint: torch.Tensor, ripple_order: torch.Tensor,
+                   ripple_rows: torch.Tensor | None = None) -> dict:
     """The joint-space groups' columns as functions of a sensitivity to the joint angles
     [N, 3, 6] (of the position or of the orientation): that times each regressor."""
     out = {}
@@ -266,8 +288,9 @@ def _joint_columns(layout: Layout, q: torch.Tensor, signs: torch.Tensor, tau: to
         out["backlash"] = lambda s: -s * signs[:, None, :]
     if len(layout.ripple):
         phase = q[:, ripple_joint] * ripple_order
-        out["ripple"] = lambda s: torch.stack([s[:, :, ripple_joint] * torch.sin(phase)[:, None, :],
-                                               s[:, :, ripple_joint] * torch.cos(phase)[:, None, :]],
+        rows = 1.0 if ripple_rows is None else ripple_rows[:, None, None]
+        out["ripple"] = lambda s: torch.stack([s[:, :, ripple_joint] * rows * torch.sin(phase)[:, None, :],
+                                               s[:, :, ripple_joint] * rows * torch.cos(phase)[:, None, :]],
                                               dim=-1).reshape(len(q), 3, -1)
     return out
 
@@ -500,39 +523,12 @@ class KinematicModel:
                 f"parameters of {', '.join(groups)}: a model fitted on them would be worse than none; measure "
                 f"at least {-(-n_par // per_row)} poses", code="P505")
         self.use_previous_ = previous is not None  # the approach signs: backlash, and the residual nets' inputs
-        with torch.no_grad():
-            pose_t = torch.as_tensor(poses)
-            q_in = None if q_deg is None else torch.as_tensor(np.radians(np.asarray(q_deg, dtype=np.float64)))
-            # the controller's own angles when the data has them (the arm went there), else the IK
-            q = self.ik_(pose_t if at is None else at(pose_t)) if q_in is None else q_in
-            ends = None if tools_t is None else self.arm_.flange[:3, 3] + mv(self.arm_.flange[:3, :3], tools_t[:, :3])
-            rot, org, tcp = self.arm_.frames(q, end=ends)
-            tau = self.arm_.torque_terms(rot, org)
-            nominal_rot = mc(rot[:, -1], self.arm_.end[:3, :3])  # the nominal TCP's rotation at q
-            miss = torch.linalg.norm(tcp - pose_t[:, :3], dim=1).numpy()
-            # the nominal arm at q must land on the pose: else out of reach (IK) or the joint
-            # angles are of another pose, robot or unit
-            tolerance = REACH_TOLERANCE_MM if q_in is None else JOINTS_TOLERANCE_MM
-            bad = np.flatnonzero(~(miss <= tolerance))
-            self.dropped_ = bad
-            if len(bad) > max(DROP_AT_MOST * len(poses), 0):
-                what = "out of reach of" if q_in is None else "not where the joint angles q1..q6 put"
-                raise PostprocError(
-                    f"{len(bad)} of {len(poses)} poses are {what} the nominal {self.description.name} "
-                    f"(IK {self.ik_.family} branch {list(self.ik_.branch)}; first: row {bad[0] + 1}, "
-                    f"{np.round(poses[bad[0]], 3).tolist()}, {miss[bad[0]]:.3g} mm away): is this the robot "
-                    f"of the data (--robot)?", self.description.path, code="P508")
-            s = torch.zeros_like(q)
-            if previous is not None:
-                prev = torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
-                s = approach_signs(self.ik_, self.arm_.home_q, q, pose_t, prev, q_in, at)
-            if len(bad):  # (a few singular / unreachable rows: left out, named by the caller)
-                keep = torch.as_tensor(~np.isin(np.arange(len(poses)), bad))
-                q, s, tau, tcp, pose_t, nominal_rot = q[keep], s[keep], tau[keep], tcp[keep], pose_t[keep], nominal_rot[keep]
-                poses, errors = poses[keep.numpy()], errors[keep.numpy()]
-                tools_t = None if tools_t is None else tools_t[keep]
-                if self.orientation_:
-                    rotation_errors = np.asarray(rotation_errors, dtype=np.float64).reshape(-1, 3)[keep.numpy()]
+        q, s, tau, tcp, pose_t, poses, errors, nominal_rot, keep = self._prepare(poses, errors, previous, q_deg,
+                                                                                tools_t, at)
+        if not keep.all():  # (a few singular / unreachable rows: left out, named by the caller)
+            tools_t = None if tools_t is None else tools_t[torch.as_tensor(keep)]
+            if self.orientation_:
+                rotation_errors = np.asarray(rotation_errors, dtype=np.float64).reshape(-1, 3)[keep]
         # each row's TCP position on the flange, for the fit's identified ends (None: the description's)
         self._tool_rows = None if tools_t is None else tools_t[:, :3]
         measured = tcp - torch.as_tensor(errors)
@@ -593,6 +589,89 @@ class KinematicModel:
         self.n_train_ = len(poses)
         return self
 
+    def refit(self, layout: Layout, theta: np.ndarray, tau_mean: np.ndarray, ik: torch.nn.Module,
+              use_previous: bool, free: np.ndarray, weights: np.ndarray, poses: np.ndarray, errors: np.ndarray,
+              previous: np.ndarray | None = None, q_deg: np.ndarray | None = None,
+              ranges: np.ndarray | None = None) -> "KinematicModel":
+        """Re-calibration: an identified model (``layout``, ``theta``, ``tau_mean``, its IK branch
+        ``ik``, whether it takes the visiting order) re-fitted on new rows, moving only the
+        parameters ``free`` (bool [P]) under the prior Σ w_i(θ_i − θ_i,old)² (``weights`` [P],
+        mm² per unit²); every other parameter, the ripple orders and the torques' mean keep
+        their old values. The rows as :meth:`fit` takes them; without ``previous`` a model that
+        takes the visiting order sees every row as reached from HOME. ``ranges`` [6, 2] rad: the
+        model's trained joint ranges, outside which its graph leaves the ripple terms out: the
+        re-fit does the same, so that it fits the model the graph evaluates."""
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
+        errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
+        self.arm_, self.ik_, self.branch_share_ = Arm(self.description), ik, math.nan
+        self.use_previous_ = use_previous
+        if use_previous and previous is None:
+            previous = poses  # (the row itself: came from HOME)
+        q, s, _, tcp, pose_t, poses, errors, _, _ = self._prepare(poses, errors, previous if use_previous else None,
+                                                                  q_deg)
+        # (position only, at the model's own tool)
+        self._tool_rows, self.tools_, self.orientation_, self.lever_ = None, None, False, None
+        measured = tcp - torch.as_tensor(errors)
+        rows = None if ranges is None else inside_ranges(q, torch.as_tensor(np.asarray(ranges, dtype=np.float64)))
+        old = np.asarray(theta, dtype=np.float64)
+        theta = old.copy()
+        tau_mean = np.asarray(tau_mean, dtype=np.float64)
+        self.ripple_search_ = []
+        for _ in range(2):  # the torques of the identified chain depend on θ only weakly
+            with torch.no_grad():
+                tau = KinematicErrorModule(self.arm_, ik, layout, theta, use_previous, tau_mean).torques(q)
+            theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations, anchor=old,
+                                              weights=weights, free=free, ripple_rows=rows)
+        self.layout_, self.theta_ = layout, theta
+        self.module_ = KinematicErrorModule(self.arm_, ik, layout, theta, use_previous, tau_mean)
+        with torch.no_grad():
+            fitted = self.module_.error_at(q, s, pose_t[:, :3], rows).numpy()
+        self.train_q_, self.train_signs_ = q.numpy(), s.numpy()
+        self.train_residual_ = errors - fitted
+        self.n_train_ = len(poses)
+        return self
+
+    def _prepare(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None,
+                 q_deg: np.ndarray | None, tools_t: torch.Tensor | None = None, at=None):
+        """The rows as the fit sees them: joint angles q (the data's, else the IK of ``self.ik_``
+        of each row's pose, ``at`` taking it onto the IK's tool for rows of other tools
+        ``tools_t``), approach signs, nominal gravity torque terms, nominal TCP (at each row's
+        tool) and its rotation, poses and errors, with the few rows out of reach (or whose
+        q1..q6 are not of their pose) left out (``dropped_``; more than ``DROP_AT_MOST`` of
+        them: P508); ``keep`` bool [N] says which rows stay."""
+        with torch.no_grad():
+            pose_t = torch.as_tensor(poses)
+            q_in = None if q_deg is None else torch.as_tensor(np.radians(np.asarray(q_deg, dtype=np.float64)))
+            # the controller's own angles when the data has them (the arm went there), else the IK
+            q = self.ik_(pose_t if at is None else at(pose_t)) if q_in is None else q_in
+            ends = None if tools_t is None else self.arm_.flange[:3, 3] + mv(self.arm_.flange[:3, :3], tools_t[:, :3])
+            rot, org, tcp = self.arm_.frames(q, end=ends)
+            tau = self.arm_.torque_terms(rot, org)
+            nominal_rot = mc(rot[:, -1], self.arm_.end[:3, :3])  # the nominal TCP's rotation at q
+            miss = torch.linalg.norm(tcp - pose_t[:, :3], dim=1).numpy()
+            # the nominal arm at q must land on the pose: else out of reach (IK) or the joint
+            # angles are of another pose, robot or unit
+            tolerance = REACH_TOLERANCE_MM if q_in is None else JOINTS_TOLERANCE_MM
+            bad = np.flatnonzero(~(miss <= tolerance))
+            self.dropped_ = bad
+            if len(bad) > max(DROP_AT_MOST * len(poses), 0):
+                what = "out of reach of" if q_in is None else "not where the joint angles q1..q6 put"
+                raise PostprocError(
+                    f"{len(bad)} of {len(poses)} poses are {what} the nominal {self.description.name} "
+                    f"(IK {self.ik_.family} branch {list(self.ik_.branch)}; first: row {bad[0] + 1}, "
+                    f"{np.round(poses[bad[0]], 3).tolist()}, {miss[bad[0]]:.3g} mm away): is this the robot "
+                    f"of the data (--robot)?", self.description.path, code="P508")
+            s = torch.zeros_like(q)
+            if previous is not None:
+                prev = torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
+                s = approach_signs(self.ik_, self.arm_.home_q, q, pose_t, prev, q_in, at)
+            keep = ~np.isin(np.arange(len(poses)), bad)
+            if len(bad):
+                kt = torch.as_tensor(keep)
+                q, s, tau, tcp, pose_t, nominal_rot = q[kt], s[kt], tau[kt], tcp[kt], pose_t[kt], nominal_rot[kt]
+                poses, errors = poses[keep], errors[keep]
+        return q, s, tau, tcp, pose_t, poses, errors, nominal_rot, keep
+
     def _prior_scales(self, layout: Layout, tau: torch.Tensor) -> np.ndarray:
         """A typical size of every parameter (rad, mm, rad/Nm): the prior's unit."""
         tau_max = torch.abs(tau).amax(dim=0).numpy()
@@ -606,37 +685,58 @@ class KinematicModel:
         return np.concatenate([unit[name] for name in layout.sizes])
 
     def _levenberg_marquardt(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
-                             iterations: int) -> np.ndarray:
+                             iterations: int, anchor: np.ndarray | None = None, weights: np.ndarray | None = None,
+                             free: np.ndarray | None = None, ripple_rows: torch.Tensor | None = None) -> np.ndarray:
         """min ‖FK_id − measured‖² (+ ‖lever·log(R_id·R_measuredᵀ)‖² with orientation: ``measured``
-        a (positions, rotations) pair) + prior·Σ(θ/σ)² by Levenberg–Marquardt with the geometric
-        Jacobian (:func:`jacobian`). The weak prior (``self.prior``, mm² per σ², σ a typical
-        size of each parameter) decides only what the data do not: directions no measurement
-        sees (a zero offset and a placement turned about its own axis; A6's angle when the TCP
-        sits on the A6 axis) stay near zero instead of wandering off."""
+        a (positions, rotations) pair) + Σ w_i(θ_i − θ⁰_i)² by Levenberg–Marquardt with the
+        geometric Jacobian (:func:`jacobian`). By default the weak prior (``self.prior``, mm² per
+        σ², σ a typical size of each parameter, θ⁰ = 0) decides only what the data do not:
+        directions no measurement sees (a zero offset and a placement turned about its own axis;
+        A6's angle when the TCP sits on the A6 axis) stay near zero instead of wandering off. A
+        re-fit (:meth:`refit`) passes its own ``anchor`` θ⁰ and ``weights`` w and moves only the
+        parameters ``free`` (bool [P]); the others keep their values, and its ``ripple_rows``
+        (see :func:`jacobian`)."""
         arm = self.arm_
-        sigma = self._prior_scales(layout, tau)
-        w2 = self.prior / sigma**2  # the prior's curvature per parameter
+        if weights is None:  # the fit's own prior: every parameter free, toward 0
+            w2 = self.prior / self._prior_scales(layout, tau) ** 2
+            free, anchor = slice(None), None
+        else:
+            w2 = np.asarray(weights, float)
+            free, anchor = np.asarray(free, bool), np.asarray(anchor, float)
+        w2f = w2[free]
+
+        def away(t: np.ndarray) -> np.ndarray:  # θ − θ⁰ of the free parameters
+            return t if anchor is None else (t - anchor)[free]
 
         def evaluate(t: np.ndarray):
             if isinstance(measured, tuple):  # position and orientation: 6 rows per point, rad × lever
-                tcp, jac, sens, rot, jac_r, sens_r = jacobian(arm, layout, torch.as_tensor(t), q, s, tau, rotation=True)
+                tcp, jac, sens, rot, jac_r, sens_r = jacobian(arm, layout, torch.as_tensor(t), q, s, tau, rotation=True,
+                                                              ripple_rows=ripple_rows)
                 lever = self.lever_
                 r = torch.cat([tcp - measured[0], lever * rotation_log(rot @ measured[1].transpose(1, 2))], dim=1)
                 jac, sens = torch.cat([jac, lever * jac_r], dim=1), torch.cat([sens, lever * sens_r], dim=1)
                 r = r.numpy().reshape(-1)
             else:
-                tcp, jac, sens = jacobian(arm, layout, torch.as_tensor(t), q, s, tau, self._tool_rows)
+                tcp, jac, sens = jacobian(arm, layout, torch.as_tensor(t), q, s, tau, self._tool_rows,
+                                          ripple_rows=ripple_rows)
                 r = (tcp - measured).numpy().reshape(-1)
-            return r, jac.numpy().reshape(len(r), -1), sens.numpy(), float(r @ r + (w2 * t * t).sum())
+            d = away(t)
+            return r, jac.numpy().reshape(len(r), -1), sens.numpy(), float(r @ r + (w2f * d * d).sum())
 
         r, jac, sens, cost = evaluate(theta)
         mu = 1e-3
         for _ in range(iterations):
-            jtj = jac.T @ jac + np.diag(w2)
-            grad = jac.T @ r + w2 * theta
+            jf = jac if anchor is None else jac[:, free]
+            jtj = jf.T @ jf + np.diag(w2f)
+            grad = jf.T @ r + w2f * away(theta)
             diag = np.maximum(np.diag(jtj), 1e-30)
             while True:
-                trial = theta - np.linalg.solve(jtj + mu * np.diag(diag), grad)
+                step = np.linalg.solve(jtj + mu * np.diag(diag), grad)
+                if anchor is None:
+                    trial = theta - step
+                else:
+                    trial = theta.copy()
+                    trial[free] -= step
                 out = evaluate(trial)
                 if out[3] <= cost or mu > 1e8:
                     break

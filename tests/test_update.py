@@ -1,0 +1,198 @@
+"""Re-calibration (``train --update``, postproc.training.update) on simulated campaigns.
+
+A simulated robot is measured (300 rows) and identified; then the same robot is re-mastered
+(A2, A3, A5 zero offsets) and the tracker set up again (the base moves by a small rigid
+motion), and 30 rows of it are measured. The update must recover it: held-out error close to
+a full re-train on 300 rows and far below the old model's, and report as moved the
+parameters that changed, not the others.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from postproc.cli import main
+from postproc.compensator import load_model
+from postproc.planning import latin_hypercube
+from postproc.robot import Chain, load_description
+from postproc.simulator import SimulatedRobot, small_transform
+from postproc.training.features import previous_poses
+from postproc.training.hybrid import HybridModel
+from postproc.training.update import read_old_model, update_model
+
+from conftest import REPO
+
+HEADER = "x,y,z,a,b,c,x_meas,y_meas,z_meas"
+ZERO_CHANGE_DEG = np.array([0.0, 0.04, -0.03, 0.0, 0.05, 0.0])  # re-mastered A2, A3, A5
+BASE_TURN_RAD = np.array([0.0002, -0.0003, 0.0])
+BASE_SHIFT_MM = np.array([0.8, -0.5, 0.3])
+SETTINGS = {"residual": "none", "kinematic": {"max_ripple": 6}}
+
+
+def _campaign(sim: SimulatedRobot, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    poses = latin_hypercube(n, seed=seed)
+    return poses, poses[:, :3] - sim.measure(poses, rng_seed=seed)
+
+
+def _changed(sim: SimulatedRobot) -> SimulatedRobot:
+    """The same robot after re-mastering and a new tracker set-up."""
+    sim.zero_offsets_deg = sim.zero_offsets_deg + ZERO_CHANGE_DEG / sim.scale
+    c = sim.chain
+    sim.chain = Chain(c.placements, c.axes, c.end, small_transform(BASE_TURN_RAD, BASE_SHIFT_MM) @ c.base)
+    return sim
+
+
+def _csv(path, poses, errors):
+    rows = [",".join(f"{v:.5f}" for v in (*p, *(p[:3] - e))) for p, e in zip(poses, errors)]
+    path.write_text("\n".join([HEADER, *rows]) + "\n", encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def kr500():
+    return load_description()
+
+
+@pytest.fixture(scope="module")
+def old(kr500, tmp_path_factory):
+    """(path, fitted model) of the first campaign: 300 rows, with a residual network."""
+    from postproc.cli.train_hybrid import arm_metadata
+
+    poses, errors = _campaign(SimulatedRobot(kr500, seed=3), 300, 1)
+    model = HybridModel(kr500, residual="always", ensemble=1, epochs=40, kinematic={"max_ripple": 6}).fit(
+        poses, errors, previous_poses(poses))
+    path = tmp_path_factory.mktemp("update") / "old.onnx"
+    model.export_onnx(path, identified=model.describe(), **arm_metadata(kr500))
+    return path, model
+
+
+def _mean(errors, predicted):
+    return float(np.linalg.norm(errors - predicted, axis=1).mean())
+
+
+def test_update_recovers_remastering_and_a_new_tracker_from_30_rows(kr500, old):
+    path, model = old
+    sim = _changed(SimulatedRobot(kr500, seed=3))
+    poses, errors = _campaign(sim, 30, 7)
+    held, held_errors = _campaign(sim, 300, 8)
+    update = update_model(read_old_model(path, kr500), kr500, poses, errors, previous_poses(poses))
+    prev = previous_poses(held)
+    full_poses, full_errors = _campaign(sim, 300, 9)
+    full = HybridModel(kr500, **SETTINGS).fit(full_poses, full_errors, previous_poses(full_poses))
+    before, after = _mean(held_errors, model.predict(held, prev)), _mean(held_errors, update.model.predict(held, prev))
+    retrained = _mean(held_errors, full.predict(held, prev))
+    assert after < 0.15 * before  # the old model is far off the changed robot
+    assert after < 1.5 * retrained  # 30 rows do about what 300 do
+    # what moved is what changed: A2, A3, A5 and the base's position and tilt
+    moved = {p["name"]: p for p in update.moved}
+    assert {"zero.A2", "zero.A3", "zero.A5", "base.x", "base.y", "base.z"} <= set(moved)
+    assert not {"zero.A4", "zero.A6", "tool.x", "tool.y", "tool.z"} & set(moved)
+    for j in (1, 2, 4):
+        p = moved[f"zero.A{j + 1}"]
+        assert p["unit"] == "deg" and abs(p["change"] - ZERO_CHANGE_DEG[j]) < max(3 * p["std"], 0.003)
+    assert abs(moved["base.x"]["change"] - BASE_SHIFT_MM[0]) < 0.15
+    # everything but the re-fitted groups is the old model's, the networks included
+    km_old, km_new = model.kinematic_, update.model.kinematic_
+    fixed = np.ones(km_old.layout_.n, bool)
+    for group, where in km_old.layout_.slices().items():
+        fixed[where] = group not in ("base", "zero", "tool")
+    assert km_new.layout_.ripple == km_old.layout_.ripple
+    assert np.array_equal(km_new.theta_[fixed], km_old.theta_[fixed])
+    assert len(update.model.nets_) == 1
+    for name, value in model.nets_[0].state_dict().items():
+        assert np.allclose(update.model.nets_[0].state_dict()[name].numpy(), value.numpy(), rtol=1e-6, atol=1e-7)
+
+
+def test_update_on_an_unchanged_robot_moves_nothing(kr500, old):
+    path, model = old
+    sim = SimulatedRobot(kr500, seed=3)
+    poses, errors = _campaign(sim, 30, 11)
+    update = update_model(read_old_model(path, kr500), kr500, poses, errors, previous_poses(poses))
+    assert update.moved == []
+    held, held_errors = _campaign(sim, 200, 12)
+    prev = previous_poses(held)
+    assert _mean(held_errors, update.model.predict(held, prev)) < 1.2 * _mean(held_errors, model.predict(held, prev))
+
+
+def test_train_update_cli_writes_the_moved_parameters(kr500, old, tmp_path, capsys):
+    path, _ = old
+    poses, errors = _campaign(_changed(SimulatedRobot(kr500, seed=3)), 30, 7)
+    data = _csv(tmp_path / "new.csv", poses, errors)
+    out = tmp_path / "new.onnx"
+    assert main(["train", str(data), "-o", str(out), "--update", str(path), "--val-fraction", "0"]) == 0
+    printed = capsys.readouterr().out
+    card = load_model(out).metadata
+    update = card["update"]
+    assert update["rows"] == 30 and update["from_sha256"] and update["groups"] == ["base", "zero", "tool"]
+    moved = [p["name"] for p in update["parameters"] if p["moved"]]
+    assert "zero.A2" in moved and "zero.A4" not in moved
+    for name in moved:
+        assert f"moved     {name}" in printed
+    assert "zero.A4" not in printed.split("update    ")[1]
+    # the new card can be updated again (the chain of campaigns)
+    again = tmp_path / "again.onnx"
+    assert main(["train", str(data), "-o", str(again), "--update", str(out), "--val-fraction", "0", "-q"]) == 0
+    assert json.loads(json.dumps(load_model(again).metadata["update"]))["from"] == "new"
+
+
+def test_update_refuses_a_model_without_identification(affine, kr500, tmp_path, capsys):
+    poses, errors = _campaign(SimulatedRobot(kr500, seed=3), 30, 7)
+    data = _csv(tmp_path / "new.csv", poses, errors)
+    dnn = affine(gain=np.eye(3) * 1e-3)
+    out = tmp_path / "new.onnx"
+    assert main(["train", str(data), "-o", str(out), "--update", str(dnn)]) == 2
+    err = capsys.readouterr().err
+    assert f"{dnn}:" in err and "P317" in err and "no identified parameters" in err and not out.exists()
+    assert main(["train", str(data), "-o", str(out), "--update", str(dnn), "--method", "gpso"]) == 2
+    assert "P317" in capsys.readouterr().err and not out.exists()
+
+
+def test_update_refuses_another_robot(old, tmp_path, capsys):
+    path, _ = old
+    ur10 = REPO / "models" / "ur10.toml"
+    data = _csv(tmp_path / "new.csv", *_campaign(SimulatedRobot(load_description(), seed=3), 30, 7))
+    out = tmp_path / "new.onnx"
+    assert main(["train", str(data), "-o", str(out), "--update", str(path), "--robot", str(ur10)]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}:" in err and "P318" in err and not out.exists()
+
+
+def test_update_refuses_an_older_card(kr500, old, tmp_path):
+    import onnx
+
+    path, _ = old
+    model = onnx.load(path)
+    for prop in model.metadata_props:
+        if prop.key == "identified":
+            card = json.loads(prop.value)
+            del card["ripple_amplitudes"]
+            prop.value = json.dumps(card)
+    older = tmp_path / "older.onnx"
+    onnx.save(model, older)
+    from postproc.diagnostics import PostprocError
+
+    with pytest.raises(PostprocError) as info:
+        read_old_model(older, kr500)
+    assert info.value.code == "P317" and "older than --update" in str(info.value)
+
+
+def test_update_refuses_too_few_rows_at_the_data(old, kr500, tmp_path, capsys):
+    path, _ = old
+    data = _csv(tmp_path / "four.csv", *_campaign(SimulatedRobot(kr500, seed=3), 4, 7))
+    out = tmp_path / "new.onnx"
+    assert main(["train", str(data), "-o", str(out), "--update", str(path), "--val-fraction", "0"]) == 2
+    err = capsys.readouterr().err
+    assert f"{data}:" in err and "P505" in err and "at least 5" in err and not out.exists()
+
+
+def test_update_refuses_the_same_name_with_another_geometry(old, kr500):
+    from postproc.diagnostics import PostprocError
+
+    path, _ = old
+    other = kr500.replace(tool=kr500.tool + np.array([0.0, 0.0, 50.0, 0.0, 0.0, 0.0]))
+    with pytest.raises(PostprocError) as info:
+        read_old_model(path, other)
+    assert info.value.code == "P318" and "not the one the model was identified on" in str(info.value)
+    assert read_old_model(path, kr500.replace(text="# another comment\n" + kr500.text)).layout.n  # text alone: same
