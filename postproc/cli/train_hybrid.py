@@ -61,7 +61,7 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     (after any registration); ``tools`` [N, 6] the TCP each row was measured with (None: the
     description's)."""
     from ..training import accuracy_card
-    from ..training.features import previous_poses
+    from ..training.features import previous_joints, previous_poses
     from ..training.hybrid import HybridModel
     from .train import print_figures
 
@@ -76,6 +76,8 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     # rows in visiting order (the first came from HOME): the approach direction of each joint
     previous = None if args.pose_only else previous_poses(poses)
     q_deg = data.joints
+    # where the arm really stood before each row (its configuration may differ from the row's)
+    q_previous = None if previous is None else previous_joints(q_deg)
     model = HybridModel(
         description,
         hidden=args.hidden or DEFAULT_HIDDEN[args.method],
@@ -86,7 +88,7 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     )
     rows = (lambda a, r: None if a is None else a[r])  # noqa: E731
     model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows),
-              rows(tools, train_rows))
+              rows(tools, train_rows), rows(q_previous, train_rows))
 
     if len(model.dropped_):
         lines = data.lines[train_rows][model.dropped_]

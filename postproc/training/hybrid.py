@@ -176,11 +176,13 @@ class HybridModel:
         return f"{kin} (hybrid: residual MLPs tried, not kept)" if self.residual == "auto" else kin
 
     def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
-            q_deg: np.ndarray | None = None, tools: np.ndarray | None = None) -> "HybridModel":
+            q_deg: np.ndarray | None = None, tools: np.ndarray | None = None,
+            previous_q_deg: np.ndarray | None = None) -> "HybridModel":
         """Fit to commanded poses [N, 6], errors E = P − P_measured [N, 3], the pose visited before
         each row [N, 6] (None: visiting order unknown, no backlash), the controller's joint
         angles [N, 6] if the data has them and the TCP on the flange each row was measured with
-        [N, 6] (None: the description's tool). The first row's tool becomes the model's own
+        [N, 6] (None: the description's tool); ``previous_q_deg``: the joint angles of the row
+        visited before (see ``KinematicModel.fit``). The first row's tool becomes the model's own
         (``description_``: the description with that tool; the card's ``tool``)."""
         if self.residual not in ("auto", "always", "none"):
             raise ValueError(f"residual must be auto, always or none, not {self.residual!r}")
@@ -193,7 +195,7 @@ class HybridModel:
             t0 = time.perf_counter()
             stage(names[0])
             self.kinematic_ = KinematicModel(self.description_, **self.kinematic).fit(poses, errors, previous, q_deg,
-                                                                                     tools)
+                                                                                     tools, previous_q_deg)
             t1 = time.perf_counter()
             stage(names[1])
             self.nets_ = self._fit_residual(self.kinematic_.train_residual_)

@@ -241,12 +241,16 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
 
 
 def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, pose: torch.Tensor,
-                   previous: torch.Tensor, q_in: torch.Tensor | None = None, at=None) -> torch.Tensor:
+                   previous: torch.Tensor, q_in: torch.Tensor | None = None, at=None,
+                   q_previous: torch.Tensor | None = None) -> torch.Tensor:
     """Approach signs [N, 6] for q = IK(pose) reached from ``previous`` [N, 6]. A row whose
     previous pose is the pose itself (compensate's first target: nothing known before it) is
     taken as reached from HOME, where robot programs start. ``q_in`` (the controller's angles
     at ``pose``, NaN rows unknown): the previous pose is solved on the same branch. ``at``: the
     row's tool (``arm.at_tool`` bound to it), the previous pose taken onto the IK's tool with it.
+    ``q_previous`` (rad, training data only: the angles the arm really stood at before each
+    row, NaN rows unknown) replaces that IK where known: the previous row may be in another
+    configuration (a flipped wrist), which solving it on the row's branch would miss.
 
     Hard signs, as the simulator's backlash: a ramp over the lost motion (a joint turning back
     by less than it takes it up in part) is more physical, but measured worse on the simulator
@@ -254,7 +258,15 @@ def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, p
     same = (previous == pose).all(dim=1, keepdim=True)
     previous = previous if at is None else at(previous)
     q_prev = torch.where(same, home_q.expand_as(q), ik(previous) if q_in is None else ik(previous, q_in))
-    return motion_signs(q, q_prev, eps=SIGN_DEADBAND)
+    signs = motion_signs(q, q_prev, eps=SIGN_DEADBAND)
+    if q_previous is None:
+        return signs
+    # the data's angles are the joints' own (not wrapped: a wrist flip turns A4 and A6 by
+    # about 180°, either way), so the step between them is the motion itself
+    step = q - q_previous
+    known = ~(same | torch.isnan(q_previous).any(dim=1, keepdim=True))
+    return torch.where(known, torch.where(torch.abs(step) > SIGN_DEADBAND, torch.sign(step), torch.zeros_like(step)),
+                       signs)
 
 
 class KinematicErrorModule(torch.nn.Module):
@@ -389,11 +401,14 @@ class KinematicModel:
             self.ik_, self.branch_share_ = choose_branch(self.description, poses, q_deg, self.family)
 
     def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
-            q_deg: np.ndarray | None = None, tools: np.ndarray | None = None) -> "KinematicModel":
+            q_deg: np.ndarray | None = None, tools: np.ndarray | None = None,
+            previous_q_deg: np.ndarray | None = None) -> "KinematicModel":
         """Fit to commanded poses [N, 6], errors E = P − P_measured [N, 3] and (optionally) the
         pose visited before each row [N, 6] (``features.previous_poses`` of the rows in their
         visiting order; the row itself = came from HOME); ``q_deg`` [N, 6] are the controller's
-        joint angles if the data has them (they pick the IK branch); ``tools`` [N, 6] each row's
+        joint angles if the data has them (they pick the IK branch), ``previous_q_deg`` [N, 6]
+        those of the row visited before (``features.previous_joints``; NaN rows: the previous
+        pose solved on the row's branch); ``tools`` [N, 6] each row's
         TCP on the flange (None: the description's tool; the description's tool is the model's
         own, NaN in the ``tool`` input). The mount's rotation is identified only from two or more
         TCP positions."""
@@ -445,7 +460,9 @@ class KinematicModel:
             s = torch.zeros_like(q)
             if previous is not None:
                 prev = torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
-                s = approach_signs(self.ik_, self.arm_.home_q, q, pose_t, prev, q_in, at)
+                q_prev = (None if previous_q_deg is None
+                          else torch.as_tensor(np.radians(np.asarray(previous_q_deg, dtype=np.float64).reshape(-1, 6))))
+                s = approach_signs(self.ik_, self.arm_.home_q, q, pose_t, prev, q_in, at, q_prev)
             if len(bad):  # (a few singular / unreachable rows: left out, named by the caller)
                 keep = torch.as_tensor(~np.isin(np.arange(len(poses)), bad))
                 q, s, tau, tcp, pose_t = q[keep], s[keep], tau[keep], tcp[keep], pose_t[keep]
