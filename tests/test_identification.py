@@ -152,9 +152,10 @@ def test_recovers_backlash_from_the_visiting_order(kr500):
 
 
 def test_backlash_signs_follow_the_data_joints_across_a_wrist_flip(kr500):
-    """A plan with ``--wrist both`` flips the wrist every other row: the previous row is in the
-    other configuration (A4, A6 about 180° away, A5 mirrored), so the approach directions
-    come from the data's joint angles of that row, not from its pose solved on this row's branch."""
+    """A plan with ``--wrist both`` flips the wrist every other pair of rows: at every second
+    row the previous row is in the other configuration (A4, A6 about 180° away, A5 mirrored), so
+    the approach directions come from the data's joint angles of that row, not from its pose
+    solved on this row's branch."""
     from postproc.planning import plan_configurations
     from postproc.simulator import approach_signs
 
@@ -163,11 +164,16 @@ def test_backlash_signs_follow_the_data_joints_across_a_wrist_flip(kr500):
     config, ok = plan_configurations(sim.robot, train, "both")
     train, config = train[ok], config[ok]
     q = sim.joint_angles(train, config)
-    assert (np.diff(np.sign(q[:, 4])) != 0).mean() > 0.9  # (the wrist does flip row by row)
+    assert (np.diff(np.sign(q[:, 4])) != 0).mean() > 0.45  # (the wrist does flip at every second row)
     errors = train[:, :3] - sim.actual_positions(train, q_deg=q)
     km = KinematicModel(kr500, ripple=[]).fit(train, errors, previous_poses(train), q, None, previous_joints(q))
     assert (km.train_signs_ == approach_signs(q, sim.robot.home_q)).all()
     assert np.linalg.norm(km.train_residual_, axis=1).max() < 2e-3
+    # and a program in one configuration is predicted as well: the plan also steps within each
+    # configuration, so A5's approach direction is not the configuration (its backlash would be
+    # one with its zero offset: a mirrored A5 turns the offset's sign as a flipped approach does)
+    held = latin_hypercube(100, seed=2)
+    assert np.abs(km.predict(held, previous_poses(held)) - sim.true_error(held)).max() < 2e-3
 
 
 def test_ripple_search_finds_the_gear_order(kr500):
