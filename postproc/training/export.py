@@ -17,8 +17,8 @@ import onnx
 import torch
 
 from .. import outputs
-from ..compensator import (INPUT_JOINTS, INPUT_POSE, INPUT_PREVIOUS, INPUT_TOOL, OUTPUT_ERROR, OUTPUT_JOINTS,
-                           contract_metadata)
+from ..compensator import (INPUT_JOINTS, INPUT_POSE, INPUT_PREVIOUS, INPUT_PREVIOUS_JOINTS, INPUT_TOOL, OUTPUT_ERROR,
+                           OUTPUT_JOINTS, contract_metadata)
 
 __all__ = ["export_onnx", "onnx_bytes", "write_atomic", "OPSET"]
 
@@ -26,14 +26,17 @@ OPSET = 17
 
 
 def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False, joints: bool = False,
-               joints_input: bool = False, tool_input: bool = False) -> bytes:
+               joints_input: bool = False, tool_input: bool = False, previous_joints_input: bool = False) -> bytes:
     """The serialised ONNX model of ``module`` (pose [N, 6] [, previous_pose [N, 6]] [, joints
-    [N, 6] deg] [, tool [N, 6]] → error [N, 3] [, joints [N, 6] deg]) with metadata."""
+    [N, 6] deg] [, tool [N, 6]] [, previous_joints [N, 6] deg] → error [N, 3] [, joints [N, 6]
+    deg]) with metadata."""
     inputs = [INPUT_POSE, INPUT_PREVIOUS] if previous else [INPUT_POSE]
     if joints_input:
         inputs.append(INPUT_JOINTS)
     if tool_input:
         inputs.append(INPUT_TOOL)
+    if previous_joints_input:
+        inputs.append(INPUT_PREVIOUS_JOINTS)
     outputs = [OUTPUT_ERROR, OUTPUT_JOINTS] if joints else [OUTPUT_ERROR]
     example = tuple(torch.tensor([[2000.0, 0.0, 900.0, 0.0, 90.0, 0.0]] * 2, dtype=torch.float32) for _ in inputs)
     buffer = io.BytesIO()

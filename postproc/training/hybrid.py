@@ -77,17 +77,19 @@ class HybridModule(torch.nn.Module):
         return self.kinematic.use_previous
 
     def error_and_joints(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
-                         q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None
-                         ) -> tuple[torch.Tensor, torch.Tensor]:
+                         q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None,
+                         q_previous: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """(Ê [N, 3], the controller's joint angles q [N, 6] rad) in the dtype of ``pose``;
         ``q_in`` [N, 6] rad picks each row's IK branch (NaN rows: the identified branch);
-        ``tool`` [N, 6] each row's TCP on the flange (NaN rows: the model's own)."""
+        ``tool`` [N, 6] each row's TCP on the flange (NaN rows: the model's own); ``q_previous``
+        [N, 6] rad the controller's angles at the target before (NaN rows: unknown)."""
         dtype = pose.dtype
         pose = pose.to(torch.float64)
         prev = previous_pose.to(torch.float64) if previous_pose is not None else None
         q_in = q_in.to(torch.float64) if q_in is not None else None
         tool = tool.to(torch.float64) if tool is not None else None
-        error, q, signs, learned = self.kinematic.parts(pose, prev, q_in, self.joint_range, tool)
+        q_previous = q_previous.to(torch.float64) if q_previous is not None else None
+        error, q, signs, learned = self.kinematic.parts(pose, prev, q_in, self.joint_range, tool, q_previous)
         if len(self.nets):
             features = joint_features(q, signs if self.uses_previous else None)
             error = error + learned[:, None] * torch.stack([net(features) for net in self.nets]).mean(dim=0)
@@ -100,20 +102,25 @@ class HybridModule(torch.nn.Module):
 
 class _WithJoints(torch.nn.Module):
     """The exported graph: inputs ``pose`` [, ``previous_pose``], ``joints`` (deg, NaN rows:
-    unknown) [, ``tool`` (NaN rows: the model's own)]; outputs ``error`` and ``joints`` (deg,
-    wrapped to [−180, 180)), so that compensate can check the joint ranges of the envelope
-    with onnxruntime alone."""
+    unknown) [, ``tool`` (NaN rows: the model's own)] [, ``previous_joints`` (deg, NaN rows:
+    unknown; with ``previous_pose``)]; outputs ``error`` and ``joints`` (deg, wrapped to
+    [−180, 180)), so that compensate can check the joint ranges of the envelope with
+    onnxruntime alone."""
 
-    def __init__(self, module: HybridModule, tool: bool = False):
+    def __init__(self, module: HybridModule, tool: bool = False, previous_joints: bool = False):
         super().__init__()
         self.module = module
         self.tool = tool
+        self.previous_joints = previous_joints and module.uses_previous
 
     def forward(self, pose: torch.Tensor, *rest: torch.Tensor):
-        previous_pose = rest[0] if self.module.uses_previous else None
-        tool = rest[-1] if self.tool else None
-        joints = rest[-2 if self.tool else -1] * (math.pi / 180.0)  # (torch.deg2rad has no ONNX export)
-        error, q = self.module.error_and_joints(pose, previous_pose, joints, tool)
+        rest = list(rest)
+        previous_pose = rest.pop(0) if self.module.uses_previous else None
+        to_rad = math.pi / 180.0  # (torch.deg2rad has no ONNX export)
+        joints = rest.pop(0) * to_rad
+        tool = rest.pop(0) if self.tool else None
+        q_previous = rest.pop(0) * to_rad if self.previous_joints else None
+        error, q = self.module.error_and_joints(pose, previous_pose, joints, tool, q_previous)
         return error, wrap_angles(q) * (180.0 / math.pi)
 
 
@@ -356,8 +363,11 @@ class HybridModel:
         # the tool input where the error is the identified arm's (a physical model); the residual
         # networks alone (dnn-joints) learned one TCP's error and keep P304 for the others
         tool = bool(self.kinematic_.layout_.n)
-        return write_atomic(path, onnx_bytes(_WithJoints(self.module_, tool), meta, self.uses_previous, joints=True,
-                                             joints_input=True, tool_input=tool))
+        # with backlash: the controller's angles at the target before (a turn or configuration
+        # change between targets is a motion their poses alone do not show)
+        graph = _WithJoints(self.module_, tool, previous_joints=True)
+        return write_atomic(path, onnx_bytes(graph, meta, self.uses_previous, joints=True, joints_input=True,
+                                             tool_input=tool, previous_joints_input=graph.previous_joints))
 
     @property
     def structure(self) -> str:

@@ -45,7 +45,7 @@ from .. import frames
 from ..diagnostics import PostprocError
 from ..robot import RobotDescription
 from .arm import Arm, at_tool, axis_rotations, choose_branch, coupling_pairs, make_ik, mv, small_rotation
-from .features import inside_ranges, motion_signs
+from .features import inside_ranges, motion_signs, wrapped_step
 
 __all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS", "unseparated_mount"]
 
@@ -248,9 +248,10 @@ def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, p
     taken as reached from HOME, where robot programs start. ``q_in`` (the controller's angles
     at ``pose``, NaN rows unknown): the previous pose is solved on the same branch. ``at``: the
     row's tool (``arm.at_tool`` bound to it), the previous pose taken onto the IK's tool with it.
-    ``q_previous`` (rad, training data only: the angles the arm really stood at before each
-    row, NaN rows unknown) replaces that IK where known: the previous row may be in another
-    configuration (a flipped wrist), which solving it on the row's branch would miss.
+    ``q_previous`` (rad: the angles the arm really stood at before each row, the data's
+    previous row or the graph's ``previous_joints``, NaN rows unknown) replaces that IK where
+    known, with ``q_in``: the previous row may be in another configuration (a flipped wrist) or
+    turn (A4 from 179° to −179° turns 358°), which solving it on the row's branch would miss.
 
     Hard signs, as the simulator's backlash: a ramp over the lost motion (a joint turning back
     by less than it takes it up in part) is more physical, but measured worse on the simulator
@@ -261,10 +262,13 @@ def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, p
     signs = motion_signs(q, q_prev, eps=SIGN_DEADBAND)
     if q_previous is None:
         return signs
-    # the data's angles are the joints' own (not wrapped: a wrist flip turns A4 and A6 by
-    # about 180°, either way), so the step between them is the motion itself
-    step = q - q_previous
-    known = ~(same | torch.isnan(q_previous).any(dim=1, keepdim=True))
+    # the controller's angles are the joints' own (not wrapped: a wrist flip turns A4 and A6 by
+    # about 180°, either way; a turn's change nearly 360°), so the step between them is the
+    # motion itself; q (this row's IK, wrapped) is q_in up to the correction's few mm
+    if q_in is None:
+        return signs
+    step = wrapped_step(q, q_in) + (q_in - q_previous)
+    known = ~(same | torch.isnan(q_previous).any(dim=1, keepdim=True) | torch.isnan(q_in).any(dim=1, keepdim=True))
     return torch.where(known, torch.where(torch.abs(step) > SIGN_DEADBAND, torch.sign(step), torch.zeros_like(step)),
                        signs)
 
@@ -309,18 +313,19 @@ class KinematicErrorModule(torch.nn.Module):
         return self.ik(pose) if q_in is None else self.ik(pose, q_in)
 
     def parts(self, pose: torch.Tensor, previous: torch.Tensor | None = None, q_in: torch.Tensor | None = None,
-              ranges: torch.Tensor | None = None, tool: torch.Tensor | None = None
-              ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+              ranges: torch.Tensor | None = None, tool: torch.Tensor | None = None,
+              q_previous: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """(Ê [N, 3], q [N, 6], signs [N, 6], learned [N]) for float64 poses (``q_in``: see
         ``joints_of``); with joint ``ranges`` [6, 2] rad the ripple terms are left out where q
         is outside them (learned = 0 there, else 1). ``tool`` [N, 6]: each row's TCP on the
         flange (NaN rows: the model's own, ``tool0``): the IK solves the flange pose that puts
-        that TCP at ``pose`` and the error is the identified arm's at that TCP."""
+        that TCP at ``pose`` and the error is the identified arm's at that TCP. ``q_previous``
+        [N, 6] rad: the controller's angles at the target before (see ``approach_signs``)."""
         at = None if tool is None else (lambda p: at_tool(p, tool, self.tool0))  # noqa: E731
         q = self.joints_of(pose if at is None else at(pose), q_in)
         signs = torch.zeros_like(q)
         if self.use_previous and previous is not None:
-            signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous, q_in, at)
+            signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous, q_in, at, q_previous)
         learned = torch.ones_like(q[:, 0]) if ranges is None else inside_ranges(q, ranges)
         return self.error_at(q, signs, pose[:, :3], None if ranges is None else learned, tool), q, signs, learned
 
