@@ -264,6 +264,15 @@ def _rules(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, 
                                           np.broadcast_to(start, (int(alone.sum()), 6)))
         picks.append((best, np.flatnonzero(alone)))
         branch[alone] = np.where(ok_alone, status_turn_of(robot, q_alone)[0], branch[alone])
+    if free_ptp.any():
+        # a first guess for the free PTP targets: each one's solution nearest the start. (The
+        # start's own branch forward-filled was a chain the passes undid one target at a time:
+        # HOME's A5 = 0 counts as the flipped wrist.)
+        q_guess, ok_guess, best = _choose(robot, table[:, free_ptp], ok[:, free_ptp],
+                                          np.full(int(free_ptp.sum()), UNSTATED), turn[free_ptp],
+                                          np.broadcast_to(start, (int(free_ptp.sum()), 6)))
+        picks.append((best, np.flatnonzero(free_ptp)))
+        branch[free_ptp] = np.where(ok_guess, status_turn_of(robot, q_guess)[0], UNSTATED)
     q = found = None
     for _ in range(n + 1):
         filled = _forward_fill(branch, start_s)
