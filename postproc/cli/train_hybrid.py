@@ -101,7 +101,8 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         notes.append(f"warning: {100 * (1 - share):.1f} % of the training rows were reached on another IK branch "
                      f"than {list(model.kinematic_.ik_.branch)}: the model assumes that one everywhere")
     accuracy = accuracy_card(errors[val_rows], model.predict(poses[val_rows], rows(previous, val_rows),
-                                                             rows(q_deg, val_rows), rows(tools, val_rows)),
+                                                             rows(q_deg, val_rows), rows(tools, val_rows),
+                                                             rows(q_previous, val_rows)),
                              model.train_stats_["mean"], len(train_rows))
     found = model.describe()
     found["identifiability"] = ident

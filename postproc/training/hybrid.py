@@ -96,8 +96,9 @@ class HybridModule(torch.nn.Module):
         return error.to(dtype), q.to(dtype)
 
     def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
-                q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None) -> torch.Tensor:
-        return self.error_and_joints(pose, previous_pose, q_in, tool)[0]
+                q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None,
+                q_previous: torch.Tensor | None = None) -> torch.Tensor:
+        return self.error_and_joints(pose, previous_pose, q_in, tool, q_previous)[0]
 
 
 class _WithJoints(torch.nn.Module):
@@ -214,6 +215,8 @@ class HybridModel:
         previous = None if previous is None else np.asarray(previous, dtype=np.float64).reshape(-1, 6)[keep]
         q_deg = None if q_deg is None else np.asarray(q_deg, dtype=np.float64).reshape(-1, 6)[keep]
         tools = None if tools is None else tools[keep]
+        if previous_q_deg is not None:
+            previous_q_deg = np.asarray(previous_q_deg, dtype=np.float64).reshape(-1, 6)[keep]
         q = np.degrees(wrap_angles(torch.as_tensor(self.kinematic_.train_q_)).numpy())  # the trained joints
         self.joint_range_ = [[round(float(a), 3), round(float(b), 3)] for a, b in zip(q.min(0), q.max(0))]
         lo, hi = np.array(self.joint_range_).T
@@ -223,7 +226,7 @@ class HybridModel:
         self.envelope_ = envelope_of(poses)
         self.n_train_ = len(poses)
         self.fit_seconds_ = {"kinematic": t1 - t0, "residual": t2 - t1, "total": t2 - t0}
-        self.train_stats_ = residual_stats(errors - self.predict(poses, previous, q_deg, tools))
+        self.train_stats_ = residual_stats(errors - self.predict(poses, previous, q_deg, tools, previous_q_deg))
         return self
 
     def _fit_residual(self, residual: np.ndarray) -> list[ResidualNet]:
@@ -259,18 +262,22 @@ class HybridModel:
         return self.module_.uses_previous
 
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None,
-                joints: np.ndarray | None = None, tools: np.ndarray | None = None) -> np.ndarray:
+                joints: np.ndarray | None = None, tools: np.ndarray | None = None,
+                previous_joints: np.ndarray | None = None) -> np.ndarray:
         """Ê [N, 3] mm for poses [N, 6], the poses visited before them (None: unknown), the
         controller's joint angles [N, 6] deg (None / NaN rows: unknown), which pick each row's
         IK branch (as the exported graph's ``joints`` input), and each row's TCP on the flange
-        [N, 6] (None / NaN rows: the model's own; the graph's ``tool`` input)."""
+        [N, 6] (None / NaN rows: the model's own; the graph's ``tool`` input), the joint angles
+        [N, 6] deg at the poses visited before (None / NaN rows: unknown; ``previous_joints``)."""
         self._check_fitted()
         pose = torch.as_tensor(np.asarray(poses, dtype=np.float64).reshape(-1, 6))
         prev = None if previous is None else torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
         q_in = None if joints is None else torch.as_tensor(np.radians(np.asarray(joints, dtype=np.float64).reshape(-1, 6)))
         tool = None if tools is None else torch.as_tensor(np.asarray(tools, dtype=np.float64).reshape(-1, 6))
+        q_prev = (None if previous_joints is None
+                  else torch.as_tensor(np.radians(np.asarray(previous_joints, dtype=np.float64).reshape(-1, 6))))
         with torch.no_grad():
-            return self.module_(pose, prev, q_in, tool).numpy()
+            return self.module_(pose, prev, q_in, tool, q_prev).numpy()
 
     def predict_at_joints(self, poses: np.ndarray, joints: np.ndarray) -> np.ndarray:
         """Ê [N, 3] with the identified arm evaluated at exactly these joint angles [N, 6] deg
