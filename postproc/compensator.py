@@ -28,6 +28,12 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   sign each joint takes the target with (+1, −1; 0 = the middle of its lost motion) that the
   model assumes in place of the one it computes from ``previous_pose``; NaN = from
   ``previous_pose``. ``Compensator`` feeds NaN, except where it settles the approach (below);
+* optional input ``previous_joints``: float32 [N, 6] deg (models with ``previous_pose`` and
+  ``joints``), the controller's joint angles at the target before each one (the previous
+  row's ``joints``; NaN rows unknown: the graph solves ``previous_pose`` on this target's
+  branch): a change of configuration or turn between two targets (A4 from 179° to −179°
+  turns 358°, not 2°) decides the approach direction, which the poses alone do not show.
+  ``Compensator.command`` feeds the previous row's ``joints`` (the first row's: NaN);
 * output ``error``: float32 [N, 3] mm, E = P_target − P_actual; normalisation lives inside
   the graph;
 * optional output ``ik_joints``: float32 [N, 6] deg, the controller's joint angles (nominal IK,
@@ -99,6 +105,7 @@ INPUT_PREVIOUS = "previous_pose"
 OUTPUT_ERROR = "error"
 INPUT_JOINTS = "joints"
 INPUT_TOOL = "tool"
+INPUT_PREVIOUS_JOINTS = "previous_joints"
 OUTPUT_JOINTS = "ik_joints"
 LEGACY_OUTPUT_JOINTS = "joints"  # (the output's name before the ``joints`` input existed)
 OUTPUT_ROTATION = "rotation_error"
@@ -183,6 +190,7 @@ class Compensator:
     joints_output: str = OUTPUT_JOINTS  # that output's name (older models: LEGACY_OUTPUT_JOINTS)
     wants_joints: bool = False  # the graph takes the controller's ``joints`` (configuration)
     wants_tool: bool = False  # the graph takes the TCP on the flange (``tool``)
+    wants_previous_joints: bool = False  # the graph takes the previous target's ``joints``
     has_rotation: bool = False  # the graph also outputs ``rotation_error``
     wants_approach: bool = False  # the graph takes fixed approach signs (``approach``)
     settle: bool = True  # settle the commands on their approach where the model can (False: the plain fixed point)
@@ -239,7 +247,7 @@ class Compensator:
 
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None, joints=None,
                 tool: np.ndarray | None = None, with_joints: bool = False, rotation: bool = False,
-                approach: np.ndarray | None = None):
+                approach: np.ndarray | None = None, previous_joints: np.ndarray | None = None):
         """Ê for poses [N, 6] (robot base frame) → [N, 3] mm (float64). ``joints`` [N, 6] deg:
         the controller's joint angles at each pose (its configuration; NaN rows unknown), fed
         to a model with that input, ignored by others; ``tool`` [N, 6]: the TCP on the flange
@@ -248,7 +256,9 @@ class Compensator:
         older call). Batched: one onnxruntime call per PREDICT_BATCH poses (a whole CAM program
         in one call would make the runtime hold every intermediate layer for every target).
         With ``rotation``: the rotation error [N, 3] deg is returned last. ``approach`` [N, 6]:
-        approach signs to assume (NaN: from ``previous``), for a model with that input."""
+        approach signs to assume (NaN: from ``previous``), for a model with that input;
+        ``previous_joints`` [N, 6] deg: the joint angles at the target before each pose (NaN
+        rows unknown)."""
         if isinstance(joints, bool):
             joints, with_joints = None, joints
         poses = np.ascontiguousarray(poses, dtype=np.float32).reshape(-1, 6)
@@ -256,7 +266,8 @@ class Compensator:
             previous = poses if previous is None else np.ascontiguousarray(previous, dtype=np.float32).reshape(-1, 6)
         extra = {}
         for name, wanted, value in ((INPUT_JOINTS, self.wants_joints, joints), (INPUT_TOOL, self.wants_tool, tool),
-                                    (INPUT_APPROACH, self.wants_approach, approach)):
+                                    (INPUT_APPROACH, self.wants_approach, approach),
+                                    (INPUT_PREVIOUS_JOINTS, self.wants_previous_joints, previous_joints)):
             if wanted:
                 extra[name] = (np.full(poses.shape, np.nan, np.float32) if value is None
                                else np.ascontiguousarray(np.broadcast_to(np.asarray(value, np.float32), poses.shape)))
@@ -357,6 +368,10 @@ class Compensator:
             part = poses[start:start + chunk]
             given = {"joints": None if joints is None else joints[start:start + chunk],
                      "tool": None if tool is None else tool[start:start + chunk]}
+            if self.wants_previous_joints and joints is not None:
+                # the controller's angles at the target before each one (the first's: unknown)
+                head = np.full((1, 6), np.nan) if start == 0 else joints[start - 1:start]
+                given["previous_joints"] = np.vstack([head, given["joints"][:-1]])
             trial = part.copy()
             last = [trial[-1].copy()]
             q = None
@@ -644,7 +659,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
     problems = []
     if INPUT_POSE not in inputs:
         problems.append(f"no input '{INPUT_POSE}' (has {sorted(inputs)})")
-    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, INPUT_APPROACH}
+    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, INPUT_APPROACH, INPUT_PREVIOUS_JOINTS}
     if extra:
         problems.append(f"unexpected inputs {sorted(extra)}")
     if OUTPUT_ERROR not in outputs:
@@ -653,7 +668,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
     if INPUT_APPROACH in inputs and INPUT_PREVIOUS not in inputs:
         problems.append(f"input '{INPUT_APPROACH}' without '{INPUT_PREVIOUS}'")
     for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6), (INPUT_JOINTS, 6), (INPUT_TOOL, 6),
-                           (INPUT_APPROACH, 6)):
+                           (INPUT_APPROACH, 6), (INPUT_PREVIOUS_JOINTS, 6)):
         if name in inputs and (len(inputs[name].shape) != 2 or inputs[name].shape[1] not in (expected, None, "6")
                                or isinstance(inputs[name].shape[0], int)):
             problems.append(f"input '{name}' has shape {inputs[name].shape}, expected [N, {expected}]")
@@ -666,7 +681,8 @@ def load_model(path: str | Path | None = None) -> Compensator:
                                        or outputs[OUTPUT_ROTATION].shape[1] not in (3, None)):
         problems.append(f"output '{OUTPUT_ROTATION}' has shape {outputs[OUTPUT_ROTATION].shape}, expected [N, 3]")
     for node in (*inputs.values(), *outputs.values()):
-        if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, INPUT_APPROACH, OUTPUT_ERROR,
+        if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, INPUT_APPROACH, INPUT_PREVIOUS_JOINTS,
+                         OUTPUT_ERROR,
                          joints_output, OUTPUT_ROTATION) and node.type != "tensor(float)":
             problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
     if problems:
@@ -685,6 +701,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
         joints_output=joints_output,
         wants_joints=INPUT_JOINTS in inputs,
         wants_tool=INPUT_TOOL in inputs,
+        wants_previous_joints=INPUT_PREVIOUS_JOINTS in inputs,
         has_rotation=OUTPUT_ROTATION in outputs,
         wants_approach=INPUT_APPROACH in inputs,
     )

@@ -46,8 +46,10 @@ UNSTATED = -1  # S or T not written for a target
 # pose written with 3 decimals moves its joint angles by ~1e-3°, and a compensated command
 # (S and T left as written) by ~0.1° (a target taught at A6 −0.01° is commanded at +0.01°).
 SIGN_TOLERANCE_DEG = 0.5
-# passes over the program for PTP targets that switch branch (each pass settles at least one switch)
-MAX_PASSES = 20
+# passes over the program for PTP targets that switch branch: each pass settles at least the
+# next target in program order, so a program of n targets needs at most n + 1; usually a few
+# (a chain of choices that each depend on the one before — a wrist flip early in a long PTP
+# program — settles one target per pass: 20 passes, the old cap, left such targets wrong)
 
 
 def _wrap(deg: np.ndarray) -> np.ndarray:
@@ -262,8 +264,17 @@ def _rules(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, 
                                           np.broadcast_to(start, (int(alone.sum()), 6)))
         picks.append((best, np.flatnonzero(alone)))
         branch[alone] = np.where(ok_alone, status_turn_of(robot, q_alone)[0], branch[alone])
+    if free_ptp.any():
+        # a first guess for the free PTP targets: each one's solution nearest the start. (The
+        # start's own branch forward-filled was a chain the passes undid one target at a time:
+        # HOME's A5 = 0 counts as the flipped wrist.)
+        q_guess, ok_guess, best = _choose(robot, table[:, free_ptp], ok[:, free_ptp],
+                                          np.full(int(free_ptp.sum()), UNSTATED), turn[free_ptp],
+                                          np.broadcast_to(start, (int(free_ptp.sum()), 6)))
+        picks.append((best, np.flatnonzero(free_ptp)))
+        branch[free_ptp] = np.where(ok_guess, status_turn_of(robot, q_guess)[0], UNSTATED)
     q = found = None
-    for _ in range(MAX_PASSES):
+    for _ in range(n + 1):
         filled = _forward_fill(branch, start_s)
         picks.append((filled, np.arange(n)))
         q, found = _continue_turns(robot, table, ok, filled, turn, start)

@@ -7,7 +7,7 @@ as CSV (header ``x,y,z,a,b,c``) and, for the robot, as a runnable KRL program th
 LIN to each pose, lets it settle and hands over to the tracker.
 
 A plan may state each pose's arm configuration (``plan_configurations``: the branch the
-controller takes from HOME, or every other pose in the flipped-wrist configuration): the CSV
+controller takes from HOME, or half the poses, in pairs, in the flipped-wrist configuration): the CSV
 then has ``s,t`` columns and the KRL program moves PTP to each pose with its S and T (a LIN
 cannot change the configuration). A plan may be for another tool than the description's
 (``$TOOL`` in the program, the reach check with that TCP).
@@ -153,16 +153,19 @@ def write_plan_csv(path: str | Path, poses: np.ndarray, config: np.ndarray | Non
     write_atomic([(Path(path), plan_csv_text(poses, config))])
 
 
-# how a plan chooses each pose's configuration: the controller's from HOME, or every other
-# pose in the flipped-wrist configuration (both wrist configurations in one data set)
+# how a plan chooses each pose's configuration: the controller's from HOME, or half the poses
+# (in pairs) in the flipped-wrist configuration (both wrist configurations in one data set)
 WRIST_CHOICES = ("home", "both")
 
 
 def plan_configurations(robot, poses: np.ndarray, wrist: str = "home") -> tuple[np.ndarray, np.ndarray]:
     """S/T [N, 2] for each pose of a plan and a mask of the poses reachable so: ``wrist``
-    "home" = the branch nearest HOME (the controller's own choice), "both" = every other pose
-    (odd rows) in the flipped-wrist configuration of that (S bit 2 toggled; the pose keeps the
-    HOME branch where the flipped one is out of reach or limits)."""
+    "home" = the branch nearest HOME (the controller's own choice), "both" = half the poses in
+    the flipped-wrist configuration of that (S bit 2 toggled; the pose keeps the HOME branch
+    where the flipped one is out of reach or limits): rows 2, 3 of every four, so each
+    configuration is approached from the other and from itself alike. (Alternating row by
+    row would tie A5's approach direction to the configuration, and A5's backlash to its
+    zero offset: a mirrored A5 turns the offset's sign as a reversed approach does.)"""
     from . import configuration
 
     if wrist not in WRIST_CHOICES:
@@ -170,9 +173,7 @@ def plan_configurations(robot, poses: np.ndarray, wrist: str = "home") -> tuple[
     q, ok = robot.ik(poses)
     status, turn = configuration.status_turn_of(robot, q)
     if wrist == "both":
-        odd = np.zeros(len(poses), bool)
-        odd[1::2] = True
-        odd &= ok
+        odd = (np.arange(len(poses)) // 2 % 2 == 1) & ok
         flipped, found = configuration.stated_joints(robot, poses[odd], status[odd] ^ 4,
                                                      np.full(int(odd.sum()), configuration.UNSTATED))
         rows = np.flatnonzero(odd)[found]

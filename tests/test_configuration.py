@@ -109,3 +109,23 @@ def test_configuration_does_not_import_pinocchio_or_torch():
             "print('pinocchio' in sys.modules, 'torch' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["False", "False"]
+
+
+def test_a_long_ptp_chain_from_home_takes_each_solution_nearest_the_previous_one():
+    """PTP without S from HOME over 120 targets, as verify runs a program: every target's
+    angles are the solution nearest the previous target's (what it would pick on its own from
+    there), however long the chain of choices that depend on each other."""
+    from postproc.planning import latin_hypercube
+
+    robot = Robot()
+    poses = latin_hypercube(120, seed=11)
+    poses = poses[robot.ik(poses)[1]]
+    n = len(poses)
+    unstated = np.full(n, cf.UNSTATED)
+    q, ok = cf.controller_joints(robot, poses, unstated, unstated, np.ones(n, bool), robot.home_q)
+    assert ok.all()
+    previous = np.vstack([robot.home_q, q[:-1]])
+    one = np.full(1, cf.UNSTATED)
+    alone = np.vstack([cf.controller_joints(robot, poses[i:i + 1], one, one, np.ones(1, bool), previous[i])[0]
+                       for i in range(n)])
+    np.testing.assert_allclose(q, alone, atol=1e-6)

@@ -6,9 +6,14 @@ The model is trained here by ``postproc train`` (the hybrid default, which takes
 controller's joint angles and the TCP: contract inputs ``joints`` and ``tool``) on data measured
 with two tools (``postproc measure --tool A --tool B``: the plan in two parts), the
 description's and one 150 mm longer along the A6 axis: one tool cannot separate the tool
-mount's rotation from a shift of the TCP (the model would carry it as a shift: 1.6x the
+mount's rotation from a shift of the TCP (the model would carry it as a shift: 6.6x the
 training tool's residual at OTHER_TOOL on this robot), two can except about the line
 between their TCPs.
+
+Every case is compensated to about a twentieth of its error (0.731 -> 0.035 mm for the training
+configuration), as on data of one configuration: the approach directions come from the data's
+joint angles of the row before (the plan changes the wrist between rows) and the program's
+previous target's joints (``previous_joints``: A4 and A6 cross ±180° between flipped targets).
 """
 import os
 
@@ -99,7 +104,7 @@ def _accuracy(sim, model, cases_wanted):
         report = compensate_program(program, model)
         assert report.compensated == len(targets), (label, report.warnings[:3])
         before, after[label] = _verified(sim, program, report, tool)
-        assert after[label] < 0.5 * before, (label, before, after[label])
+        assert after[label] < 0.1 * before, (label, before, after[label])
     return after
 
 

@@ -17,7 +17,7 @@ import torch
 from postproc.planning import latin_hypercube
 from postproc.robot import Robot, load_description, parse_description
 from postproc.training.arm import Arm, KukaIK, UrIK, choose_branch
-from postproc.training.features import motion_signs, previous_poses
+from postproc.training.features import motion_signs, previous_joints, previous_poses
 from postproc.training.kinematic import KinematicModel
 
 from conftest import REPO
@@ -149,6 +149,31 @@ def test_recovers_backlash_from_the_visiting_order(kr500):
     # without the order the same errors are noise to a pose-only model
     pose_only = KinematicModel(kr500, ripple=[]).fit(train, errors)
     assert np.linalg.norm(pose_only.predict(held) - sim.true_error(held), axis=1).mean() > 0.1
+
+
+def test_backlash_signs_follow_the_data_joints_across_a_wrist_flip(kr500):
+    """A plan with ``--wrist both`` flips the wrist every other pair of rows: at every second
+    row the previous row is in the other configuration (A4, A6 about 180° away, A5 mirrored), so
+    the approach directions come from the data's joint angles of that row, not from its pose
+    solved on this row's branch."""
+    from postproc.planning import plan_configurations
+    from postproc.simulator import approach_signs
+
+    sim = _sim_with(kr500, "backlash_deg = [0.015, 0.012, 0.012, 0.02, 0.02, 0.02]\nbacklash_spread = 0.2\n")
+    train = latin_hypercube(300, seed=1)
+    config, ok = plan_configurations(sim.robot, train, "both")
+    train, config = train[ok], config[ok]
+    q = sim.joint_angles(train, config)
+    assert (np.diff(np.sign(q[:, 4])) != 0).mean() > 0.45  # (the wrist does flip at every second row)
+    errors = train[:, :3] - sim.actual_positions(train, q_deg=q)
+    km = KinematicModel(kr500, ripple=[]).fit(train, errors, previous_poses(train), q, None, previous_joints(q))
+    assert (km.train_signs_ == approach_signs(q, sim.robot.home_q)).all()
+    assert np.linalg.norm(km.train_residual_, axis=1).max() < 2e-3
+    # and a program in one configuration is predicted as well: the plan also steps within each
+    # configuration, so A5's approach direction is not the configuration (its backlash would be
+    # one with its zero offset: a mirrored A5 turns the offset's sign as a flipped approach does)
+    held = latin_hypercube(100, seed=2)
+    assert np.abs(km.predict(held, previous_poses(held)) - sim.true_error(held)).max() < 2e-3
 
 
 def test_ripple_search_finds_the_gear_order(kr500):

@@ -41,7 +41,7 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--krl", metavar="SRC", help="also write a KRL measurement program (.src, module named after it)")
     p.add_argument("--wrist", choices=("home", "both"),
                    help="state each pose's configuration (s,t columns; KRL: PTP with S/T): 'home' = the branch "
-                   "nearest HOME, 'both' = every other pose in the flipped-wrist configuration")
+                   "nearest HOME, 'both' = half the poses (rows 2, 3 of every four) in the flipped-wrist configuration")
     p.add_argument("--tool", metavar="X,Y,Z,A,B,C", action="append",
                    help="the TCP on the flange the plan is measured with (default the description's [tool]): $TOOL "
                    "of the KRL program and the reach check; two or three times: the plan in as many consecutive "

@@ -63,7 +63,7 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     a_meas,b_meas,c_meas: the model then has no ``rotation_error`` output)."""
     from ..diagnostics import PostprocError
     from ..training import accuracy_card
-    from ..training.features import previous_poses
+    from ..training.features import previous_joints, previous_poses
     from ..training.hybrid import HybridModel
     from .train import print_figures
 
@@ -81,6 +81,8 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
     notes += warnings
     if not stated.all():  # (the visiting order stays the file's: previous poses computed above)
         train_rows, val_rows = train_rows[stated[train_rows]], val_rows[stated[val_rows]]
+    # where the arm really stood before each row (its configuration may differ from the row's)
+    q_previous = None if previous is None else previous_joints(q_deg)
     rows = (lambda a, r: None if a is None else a[r])  # noqa: E731
     update = None
     if getattr(args, "update", None):
@@ -111,7 +113,7 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
             **SETTINGS[args.method],
         )
         model.fit(poses[train_rows], errors[train_rows], rows(previous, train_rows), rows(q_deg, train_rows),
-                  rows(tools, train_rows), rows(rotation_errors, train_rows))
+                  rows(tools, train_rows), rows(rotation_errors, train_rows), rows(q_previous, train_rows))
 
     if len(model.dropped_):
         lines = data.lines[train_rows][model.dropped_]
@@ -124,7 +126,8 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         notes.append(f"warning: {100 * (1 - share):.1f} % of the training rows were reached on another IK branch "
                      f"than {list(model.kinematic_.ik_.branch)}: the model assumes that one everywhere")
     accuracy = accuracy_card(errors[val_rows], model.predict(poses[val_rows], rows(previous, val_rows),
-                                                             rows(q_deg, val_rows), rows(tools, val_rows)),
+                                                             rows(q_deg, val_rows), rows(tools, val_rows),
+                                                             rows(q_previous, val_rows)),
                              model.train_stats_["mean"], len(train_rows))
     if model.orientation and len(val_rows):
         from ..stats import table2

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import torch
 
-__all__ = ["previous_poses", "motion_signs", "wrapped_step", "wrap_angles", "inside_ranges", "joint_features"]
+__all__ = ["previous_poses", "previous_joints", "motion_signs", "wrapped_step", "wrap_angles", "inside_ranges", "joint_features"]
 
 
 def previous_poses(poses: np.ndarray, first: np.ndarray | None = None) -> np.ndarray:
@@ -22,6 +22,17 @@ def previous_poses(poses: np.ndarray, first: np.ndarray | None = None) -> np.nda
     poses = np.asarray(poses, dtype=float).reshape(-1, 6)
     head = poses[:1] if first is None else np.asarray(first, dtype=float).reshape(1, 6)
     return np.vstack([head, poses[:-1]]) if len(poses) else poses.copy()
+
+
+def previous_joints(q_deg: np.ndarray | None) -> np.ndarray | None:
+    """[N, 6] the joint angles (deg) the arm stood at before each row (rows in visiting order,
+    ``q_deg`` the data's q1..q6); the first row's is unknown (NaN: it came from HOME). Where
+    consecutive rows are in different configurations (a plan with ``--wrist both``) these, not
+    the previous pose solved on the row's own branch, give the joints' true approach directions."""
+    if q_deg is None:
+        return None
+    q_deg = np.asarray(q_deg, dtype=float).reshape(-1, 6)
+    return np.vstack([np.full((min(len(q_deg), 1), 6), np.nan), q_deg[:-1]])
 
 
 def wrapped_step(q: torch.Tensor, q_previous: torch.Tensor) -> torch.Tensor:

@@ -91,52 +91,60 @@ class HybridModule(torch.nn.Module):
 
     def error_and_joints(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
                          q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None,
-                         rotation: bool = False, approach: torch.Tensor | None = None) -> tuple[torch.Tensor, ...]:
+                         rotation: bool = False, approach: torch.Tensor | None = None,
+                         q_previous: torch.Tensor | None = None) -> tuple[torch.Tensor, ...]:
         """(Ê [N, 3], the controller's joint angles q [N, 6] rad) in the dtype of ``pose``;
         ``q_in`` [N, 6] rad picks each row's IK branch (NaN rows: the identified branch);
         ``tool`` [N, 6] each row's TCP on the flange (NaN rows: the model's own). With
         ``rotation``: + r̂ [N, 3] rad, the identified arm's orientation error (the residual nets
         are of the position only). ``approach`` [N, 6] fixes the approach signs (NaN: from
-        ``previous_pose``)."""
+        ``previous_pose``); ``q_previous`` [N, 6] rad the controller's angles at the target
+        before (NaN rows: unknown)."""
         dtype = pose.dtype
         pose = pose.to(torch.float64)
         prev = previous_pose.to(torch.float64) if previous_pose is not None else None
         q_in = q_in.to(torch.float64) if q_in is not None else None
         tool = tool.to(torch.float64) if tool is not None else None
         approach = approach.to(torch.float64) if approach is not None else None
+        q_previous = q_previous.to(torch.float64) if q_previous is not None else None
         error, q, signs, learned, *turned = self.kinematic.parts(pose, prev, q_in, self.joint_range, tool, rotation,
-                                                                 approach)
+                                                                 approach, q_previous)
         if len(self.nets):
             features = joint_features(q, signs if self.uses_previous else None)
             error = error + learned[:, None] * torch.stack([net(features) for net in self.nets]).mean(dim=0)
         return (error.to(dtype), q.to(dtype), *(t.to(dtype) for t in turned))
 
     def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
-                q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None) -> torch.Tensor:
-        return self.error_and_joints(pose, previous_pose, q_in, tool)[0]
+                q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None,
+                q_previous: torch.Tensor | None = None) -> torch.Tensor:
+        return self.error_and_joints(pose, previous_pose, q_in, tool, q_previous=q_previous)[0]
 
 
 class _WithJoints(torch.nn.Module):
     """The exported graph: inputs ``pose`` [, ``previous_pose``], ``joints`` (deg, NaN rows:
     unknown) [, ``approach`` (with ``previous_pose``: the approach signs compensate settles,
-    NaN = from ``previous_pose``)] [, ``tool`` (NaN rows: the model's own)]; outputs ``error``
-    and ``joints`` (deg, wrapped to [−180, 180)), so that compensate can check the joint ranges
-    of the envelope with onnxruntime alone, and, when the orientation was identified from
-    measured orientations, ``rotation_error`` (deg)."""
+    NaN = from ``previous_pose``)] [, ``tool`` (NaN rows: the model's own)] [,
+    ``previous_joints`` (deg, NaN rows: unknown; with ``previous_pose``)]; outputs ``error`` and
+    ``joints`` (deg, wrapped to [−180, 180)), so that compensate can check the joint ranges of
+    the envelope with onnxruntime alone, and, when the orientation was identified from measured
+    orientations, ``rotation_error`` (deg)."""
 
-    def __init__(self, module: HybridModule, tool: bool = False):
+    def __init__(self, module: HybridModule, tool: bool = False, previous_joints: bool = False):
         super().__init__()
         self.module = module
         self.tool = tool
+        self.previous_joints = previous_joints and module.uses_previous
 
     def forward(self, pose: torch.Tensor, *rest: torch.Tensor):
-        rest = list(rest)  # (previous_pose,) joints, (approach,) (tool,): onnx_bytes' order
+        rest = list(rest)  # (previous_pose,) joints, (approach,) (tool,) (previous_joints,): onnx_bytes' order
         previous_pose = rest.pop(0) if self.module.uses_previous else None
-        joints = rest.pop(0) * (math.pi / 180.0)  # (torch.deg2rad has no ONNX export)
+        to_rad = math.pi / 180.0  # (torch.deg2rad has no ONNX export)
+        joints = rest.pop(0) * to_rad
         approach = rest.pop(0) if self.module.uses_previous else None
         tool = rest.pop(0) if self.tool else None
+        q_previous = rest.pop(0) * to_rad if self.previous_joints else None
         error, q, *turned = self.module.error_and_joints(pose, previous_pose, joints, tool, self.module.orientation,
-                                                         approach)
+                                                         approach, q_previous)
         return (error, wrap_angles(q) * (180.0 / math.pi), *(t * (180.0 / math.pi) for t in turned))
 
 
@@ -200,14 +208,15 @@ class HybridModel:
 
     def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
             q_deg: np.ndarray | None = None, tools: np.ndarray | None = None,
-            rotation_errors: np.ndarray | None = None) -> "HybridModel":
+            rotation_errors: np.ndarray | None = None, previous_q_deg: np.ndarray | None = None) -> "HybridModel":
         """Fit to commanded poses [N, 6], errors E = P − P_measured [N, 3], the pose visited before
         each row [N, 6] (None: visiting order unknown, no backlash), the controller's joint
         angles [N, 6] if the data has them, the TCP on the flange each row was measured with
         [N, 6] (None: the description's tool) and the measured orientation errors [N, 3] deg if
         it has those (``KinematicModel.fit``: then the graph outputs ``rotation_error``; one tool
-        only). The first row's tool becomes the model's own (``description_``: the description
-        with that tool; the card's ``tool``)."""
+        only); ``previous_q_deg``: the joint angles of the row visited before (see
+        ``KinematicModel.fit``). The first row's tool becomes the model's own (``description_``:
+        the description with that tool; the card's ``tool``)."""
         if self.residual not in ("auto", "always", "none"):
             raise ValueError(f"residual must be auto, always or none, not {self.residual!r}")
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
@@ -219,7 +228,8 @@ class HybridModel:
             t0 = time.perf_counter()
             stage(names[0])
             self.kinematic_ = KinematicModel(self.description_, **self.kinematic).fit(poses, errors, previous, q_deg,
-                                                                                     tools, rotation_errors)
+                                                                                     tools, rotation_errors,
+                                                                                     previous_q_deg)
             t1 = time.perf_counter()
             stage(names[1])
             self.nets_ = self._fit_residual(self.kinematic_.train_residual_)
@@ -244,11 +254,13 @@ class HybridModel:
         previous = None if previous is None else np.asarray(previous, dtype=np.float64).reshape(-1, 6)[keep]
         q_deg = None if q_deg is None else np.asarray(q_deg, dtype=np.float64).reshape(-1, 6)[keep]
         tools = None if tools is None else tools[keep]
+        if previous_q_deg is not None:
+            previous_q_deg = np.asarray(previous_q_deg, dtype=np.float64).reshape(-1, 6)[keep]
         self.joint_range_ = joint_range
         self.module_ = HybridModule(self.kinematic_.module_, self.nets_, learned_ranges(joint_range)).eval()
         self.envelope_ = envelope_of(poses) if envelope is None else envelope
         self.n_train_ = len(poses)
-        self.train_stats_ = residual_stats(errors - self.predict(poses, previous, q_deg, tools))
+        self.train_stats_ = residual_stats(errors - self.predict(poses, previous, q_deg, tools, previous_q_deg))
         self.train_rotation_stats_ = None
         if self.orientation:
             rotation_errors = np.asarray(rotation_errors, dtype=np.float64).reshape(-1, 3)[keep]
@@ -302,18 +314,22 @@ class HybridModel:
         return self.module_.uses_previous
 
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None,
-                joints: np.ndarray | None = None, tools: np.ndarray | None = None) -> np.ndarray:
+                joints: np.ndarray | None = None, tools: np.ndarray | None = None,
+                previous_joints: np.ndarray | None = None) -> np.ndarray:
         """Ê [N, 3] mm for poses [N, 6], the poses visited before them (None: unknown), the
         controller's joint angles [N, 6] deg (None / NaN rows: unknown), which pick each row's
         IK branch (as the exported graph's ``joints`` input), and each row's TCP on the flange
-        [N, 6] (None / NaN rows: the model's own; the graph's ``tool`` input)."""
+        [N, 6] (None / NaN rows: the model's own; the graph's ``tool`` input), the joint angles
+        [N, 6] deg at the poses visited before (None / NaN rows: unknown; ``previous_joints``)."""
         self._check_fitted()
         pose = torch.as_tensor(np.asarray(poses, dtype=np.float64).reshape(-1, 6))
         prev = None if previous is None else torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
         q_in = None if joints is None else torch.as_tensor(np.radians(np.asarray(joints, dtype=np.float64).reshape(-1, 6)))
         tool = None if tools is None else torch.as_tensor(np.asarray(tools, dtype=np.float64).reshape(-1, 6))
+        q_prev = (None if previous_joints is None
+                  else torch.as_tensor(np.radians(np.asarray(previous_joints, dtype=np.float64).reshape(-1, 6))))
         with torch.no_grad():
-            return self.module_(pose, prev, q_in, tool).numpy()
+            return self.module_(pose, prev, q_in, tool, q_prev).numpy()
 
     @property
     def orientation(self) -> bool:
@@ -458,9 +474,12 @@ class HybridModel:
         # the tool input where the error is the identified arm's (a physical model); the residual
         # networks alone (dnn-joints) learned one TCP's error and keep P304 for the others
         tool = bool(self.kinematic_.layout_.n)
-        return write_atomic(path, onnx_bytes(_WithJoints(self.module_, tool), meta, self.uses_previous, joints=True,
-                                             joints_input=True, approach_input=self.uses_previous, tool_input=tool,
-                                             rotation=self.orientation))
+        # with backlash: the controller's angles at the target before (a turn or configuration
+        # change between targets is a motion their poses alone do not show)
+        graph = _WithJoints(self.module_, tool, previous_joints=True)
+        return write_atomic(path, onnx_bytes(graph, meta, self.uses_previous, joints=True, joints_input=True,
+                                             approach_input=self.uses_previous, tool_input=tool,
+                                             previous_joints_input=graph.previous_joints, rotation=self.orientation))
 
     @property
     def structure(self) -> str:

@@ -45,7 +45,7 @@ from .. import frames
 from ..diagnostics import PostprocError
 from ..robot import RobotDescription
 from .arm import Arm, at_tool, axis_rotations, choose_branch, coupling_pairs, make_ik, mc, mv, small_rotation
-from .features import inside_ranges, motion_signs
+from .features import inside_ranges, motion_signs, wrapped_step
 from .network import rotation_matrices
 
 __all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS", "unseparated_mount",
@@ -304,13 +304,18 @@ def rotation_log(m: torch.Tensor) -> torch.Tensor:
 
 
 def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, pose: torch.Tensor,
-                   previous: torch.Tensor, q_in: torch.Tensor | None = None, at=None) -> torch.Tensor:
+                   previous: torch.Tensor, q_in: torch.Tensor | None = None, at=None,
+                   q_previous: torch.Tensor | None = None) -> torch.Tensor:
     """Approach signs [N, 6] for q = IK(pose) reached from ``previous`` [N, 6]. A row whose
     previous pose is the pose itself (compensate's first target: nothing known before it) is
     taken as reached from HOME, where robot programs start (a joint HOME leaves as it is: +1,
     the side the simulator starts every joint on). ``q_in`` (the controller's angles
     at ``pose``, NaN rows unknown): the previous pose is solved on the same branch. ``at``: the
     row's tool (``arm.at_tool`` bound to it), the previous pose taken onto the IK's tool with it.
+    ``q_previous`` (rad: the angles the arm really stood at before each row, the data's
+    previous row or the graph's ``previous_joints``, NaN rows unknown) replaces that IK where
+    known, with ``q_in``: the previous row may be in another configuration (a flipped wrist) or
+    turn (A4 from 179° to −179° turns 358°), which solving it on the row's branch would miss.
 
     Hard signs, as the simulator's backlash: a ramp over the lost motion (a joint turning back
     by less than it takes it up in part) is more physical, but measured worse on the simulator
@@ -321,7 +326,12 @@ def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, p
     signs = motion_signs(q, q_prev, eps=SIGN_DEADBAND)
     # a joint that has not moved since HOME is on the side the robot starts it on (the
     # simulator's start sign, +1), not in the middle
-    return torch.where(same & (signs == 0), torch.ones_like(signs), signs)
+    signs = torch.where(same & (signs == 0), torch.ones_like(signs), signs)
+    if q_previous is None or q_in is None:
+        return signs
+    # the controller's angles are the joints' own (not wrapped: a wrist flip turns A4 and A6 by
+    # about 180°, either way; a turn's change nearly 360°), so the step between them is the
+    # motion itself; q (this row's IK, wrapped) is q_in up to the correction's few mm
 
 
 class KinematicErrorModule(torch.nn.Module):
@@ -366,7 +376,8 @@ class KinematicErrorModule(torch.nn.Module):
 
     def parts(self, pose: torch.Tensor, previous: torch.Tensor | None = None, q_in: torch.Tensor | None = None,
               ranges: torch.Tensor | None = None, tool: torch.Tensor | None = None, rotation: bool = False,
-              approach: torch.Tensor | None = None) -> tuple[torch.Tensor, ...]:
+              approach: torch.Tensor | None = None, q_previous: torch.Tensor | None = None
+              ) -> tuple[torch.Tensor, ...]:
         """(Ê [N, 3], q [N, 6], signs [N, 6], learned [N]) for float64 poses (``q_in``: see
         ``joints_of``); with joint ``ranges`` [6, 2] rad the ripple terms are left out where q
         is outside them (learned = 0 there, else 1). ``tool`` [N, 6]: each row's TCP on the
@@ -374,12 +385,14 @@ class KinematicErrorModule(torch.nn.Module):
         that TCP at ``pose`` and the error is the identified arm's at that TCP. With
         ``rotation``: + r̂ [N, 3] rad (``error_at``). ``approach`` [N, 6]: the approach sign of
         each joint to assume (+1, −1, 0 = the middle of the lost motion) in place of the one
-        from ``previous``; NaN = from ``previous`` (the contract's ``approach`` input)."""
+        from ``previous``; NaN = from ``previous`` (the contract's ``approach`` input).
+        ``q_previous`` [N, 6] rad: the controller's angles at the target before (see
+        ``approach_signs``)."""
         at = None if tool is None else (lambda p: at_tool(p, tool, self.tool0))  # noqa: E731
         q = self.joints_of(pose if at is None else at(pose), q_in)
         signs = torch.zeros_like(q)
         if self.use_previous and previous is not None:
-            signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous, q_in, at)
+            signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous, q_in, at, q_previous)
         if self.use_previous and approach is not None:
             signs = torch.where(torch.isnan(approach), signs, approach)
         learned = torch.ones_like(q[:, 0]) if ranges is None else inside_ranges(q, ranges)
@@ -480,11 +493,13 @@ class KinematicModel:
 
     def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
             q_deg: np.ndarray | None = None, tools: np.ndarray | None = None,
-            rotation_errors: np.ndarray | None = None) -> "KinematicModel":
+            rotation_errors: np.ndarray | None = None, previous_q_deg: np.ndarray | None = None) -> "KinematicModel":
         """Fit to commanded poses [N, 6], errors E = P − P_measured [N, 3] and (optionally) the
         pose visited before each row [N, 6] (``features.previous_poses`` of the rows in their
         visiting order; the row itself = came from HOME); ``q_deg`` [N, 6] are the controller's
-        joint angles if the data has them (they pick the IK branch); ``tools`` [N, 6] each row's
+        joint angles if the data has them (they pick the IK branch), ``previous_q_deg`` [N, 6]
+        those of the row visited before (``features.previous_joints``; NaN rows: the previous
+        pose solved on the row's branch); ``tools`` [N, 6] each row's
         TCP on the flange (None: the description's tool; the description's tool is the model's
         own, NaN in the ``tool`` input). The mount's rotation is identified only from two or more
         TCP positions. ``rotation_errors`` [N, 3] deg (a 6-DOF probe: the rotation vector of
@@ -524,7 +539,7 @@ class KinematicModel:
                 f"at least {-(-n_par // per_row)} poses", code="P505")
         self.use_previous_ = previous is not None  # the approach signs: backlash, and the residual nets' inputs
         q, s, tau, tcp, pose_t, poses, errors, nominal_rot, keep = self._prepare(poses, errors, previous, q_deg,
-                                                                                tools_t, at)
+                                                                                tools_t, at, previous_q_deg)
         if not keep.all():  # (a few singular / unreachable rows: left out, named by the caller)
             tools_t = None if tools_t is None else tools_t[torch.as_tensor(keep)]
             if self.orientation_:
@@ -632,13 +647,15 @@ class KinematicModel:
         return self
 
     def _prepare(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None,
-                 q_deg: np.ndarray | None, tools_t: torch.Tensor | None = None, at=None):
+                 q_deg: np.ndarray | None, tools_t: torch.Tensor | None = None, at=None,
+                 previous_q_deg: np.ndarray | None = None):
         """The rows as the fit sees them: joint angles q (the data's, else the IK of ``self.ik_``
         of each row's pose, ``at`` taking it onto the IK's tool for rows of other tools
         ``tools_t``), approach signs, nominal gravity torque terms, nominal TCP (at each row's
         tool) and its rotation, poses and errors, with the few rows out of reach (or whose
         q1..q6 are not of their pose) left out (``dropped_``; more than ``DROP_AT_MOST`` of
-        them: P508); ``keep`` bool [N] says which rows stay."""
+        them: P508); ``keep`` bool [N] says which rows stay. ``previous_q_deg``: the joint angles
+        of the row visited before (``approach_signs``' ``q_previous``)."""
         with torch.no_grad():
             pose_t = torch.as_tensor(poses)
             q_in = None if q_deg is None else torch.as_tensor(np.radians(np.asarray(q_deg, dtype=np.float64)))
@@ -664,7 +681,9 @@ class KinematicModel:
             s = torch.zeros_like(q)
             if previous is not None:
                 prev = torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
-                s = approach_signs(self.ik_, self.arm_.home_q, q, pose_t, prev, q_in, at)
+                q_prev = (None if previous_q_deg is None
+                          else torch.as_tensor(np.radians(np.asarray(previous_q_deg, dtype=np.float64).reshape(-1, 6))))
+                s = approach_signs(self.ik_, self.arm_.home_q, q, pose_t, prev, q_in, at, q_prev)
             keep = ~np.isin(np.arange(len(poses)), bad)
             if len(bad):
                 kt = torch.as_tensor(keep)
