@@ -166,7 +166,7 @@ def test_backlash_signs_follow_the_data_joints_across_a_wrist_flip(kr500):
     q = sim.joint_angles(train, config)
     assert (np.diff(np.sign(q[:, 4])) != 0).mean() > 0.45  # (the wrist does flip at every second row)
     errors = train[:, :3] - sim.actual_positions(train, q_deg=q)
-    km = KinematicModel(kr500, ripple=[]).fit(train, errors, previous_poses(train), q, None, previous_joints(q))
+    km = KinematicModel(kr500, ripple=[]).fit(train, errors, previous_poses(train), q, None, previous_q_deg=previous_joints(q))
     assert (km.train_signs_ == approach_signs(q, sim.robot.home_q)).all()
     assert np.linalg.norm(km.train_residual_, axis=1).max() < 2e-3
     # and a program in one configuration is predicted as well: the plan also steps within each

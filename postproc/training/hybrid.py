@@ -236,13 +236,14 @@ class HybridModel:
             t2 = time.perf_counter()
         q = np.degrees(wrap_angles(torch.as_tensor(self.kinematic_.train_q_)).numpy())  # the trained joints
         joint_range = [[round(float(a), 3), round(float(b), 3)] for a, b in zip(q.min(0), q.max(0))]
-        self._finish(poses, errors, previous, q_deg, joint_range, tools=tools, rotation_errors=rotation_errors)
+        self._finish(poses, errors, previous, q_deg, joint_range, tools=tools, rotation_errors=rotation_errors,
+                     previous_q_deg=previous_q_deg)
         self.fit_seconds_ = {"kinematic": t1 - t0, "residual": t2 - t1, "total": t2 - t0}
         return self
 
     def _finish(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None, q_deg: np.ndarray | None,
                 joint_range: list, envelope: dict | None = None, tools: np.ndarray | None = None,
-                rotation_errors: np.ndarray | None = None) -> None:
+                rotation_errors: np.ndarray | None = None, previous_q_deg: np.ndarray | None = None) -> None:
         """The graph from ``kinematic_`` and ``nets_``, with the trained ``joint_range`` [6][2]
         deg (the learned parts' validity) and the position ``envelope`` (default: of the rows);
         the training figures on the rows the identification kept (each row's ``tools``, and

@@ -332,6 +332,10 @@ def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, p
     # the controller's angles are the joints' own (not wrapped: a wrist flip turns A4 and A6 by
     # about 180°, either way; a turn's change nearly 360°), so the step between them is the
     # motion itself; q (this row's IK, wrapped) is q_in up to the correction's few mm
+    step = wrapped_step(q, q_in) + (q_in - q_previous)
+    known = ~(same | torch.isnan(q_previous).any(dim=1, keepdim=True) | torch.isnan(q_in).any(dim=1, keepdim=True))
+    return torch.where(known, torch.where(torch.abs(step) > SIGN_DEADBAND, torch.sign(step), torch.zeros_like(step)),
+                       signs)
 
 
 class KinematicErrorModule(torch.nn.Module):
