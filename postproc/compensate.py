@@ -20,7 +20,10 @@ from collections import Counter
 
 from . import frames
 from .compensator import Compensator, load_model
-from .diagnostics import LEFT_AS_WRITTEN, Diagnostic, PostprocError
+from .diagnostics import (
+    P105, P106, P107, P108, P109, P110, P201, P202, P203, P212, P306, P312, Diagnostic, LEFT_AS_WRITTEN,
+    PostprocError,
+)
 from .findings import (
     DEFAULT_MAX_CORRECTION_MM,
     Commands,
@@ -112,9 +115,9 @@ class Report:
 
 def _decode(data: bytes, path: str) -> str:
     if not data.strip():
-        raise PostprocError("empty file", path, 1, 1, "P105")
+        raise PostprocError("empty file", path, 1, 1, P105)
     if b"\x00" in data[:65536]:
-        raise PostprocError("binary file (NUL bytes), not a robot program", path, 1, 1, "P106")
+        raise PostprocError("binary file (NUL bytes), not a robot program", path, 1, 1, P106)
     # latin-1 maps every byte to one character: whatever the file's encoding, bytes round-trip
     return data.decode("latin-1")
 
@@ -125,9 +128,9 @@ def read_text(path: str | Path) -> str:
     try:
         data = path.read_bytes()
     except FileNotFoundError:
-        raise PostprocError("no such file", str(path), 0, 0, "P107") from None
+        raise PostprocError("no such file", str(path), 0, 0, P107) from None
     except OSError as exc:
-        raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, "P107") from None
+        raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, P107) from None
     return _decode(data, str(path))
 
 
@@ -184,7 +187,7 @@ def load_program(path: str | Path, config: str | Path | None = None, dialect: st
         try:
             dialect = dialect_of(path)
         except ValueError as exc:
-            raise PostprocError(str(exc), str(path), 0, 0, "P108") from None
+            raise PostprocError(str(exc), str(path), 0, 0, P108) from None
     dat = companion_dat(path) if dialect == "krl" else None
     check_memory([path] + ([dat] if dat is not None else []))
     files, texts = [str(path)], [read_text(path)]
@@ -210,14 +213,14 @@ def _left_codes(program: Program, selection: Selection) -> Counter:
     if unknown_frame:
         # frame -1: the base (P201) or the tool (P203) is not known; the reader's located
         # warnings say which for each statement, the count names the codes it warned with
-        said = {d.code for d in program.diagnostics} & {"P201", "P203"}
-        codes["/".join(sorted(said)) if said else "P201"] = unknown_frame
+        said = {d.code for d in program.diagnostics} & {P201, P203}
+        codes["/".join(sorted(said)) if said else P201] = unknown_frame
     by_rule = 0
     for code, rows in selection.left.items():
         codes[code] += len(rows)
         by_rule += len(rows)
     if left.sum() > unknown_frame + by_rule:
-        codes["P212"] = int(left.sum()) - unknown_frame - by_rule
+        codes[P212] = int(left.sum()) - unknown_frame - by_rule
     for d in program.diagnostics:
         if d.code in LEFT_AS_WRITTEN:
             codes[d.code] += 1
@@ -271,7 +274,7 @@ def compensate_program(
     settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot, force=force,
                         fill_partial=fill_partial)
     selection, found = select_with_findings(program, model, settings)
-    warnings = [d for d in program.diagnostics if d.code != "P202" or force] + found
+    warnings = [d for d in program.diagnostics if d.code != P202 or force] + found
     _raise_first(found, False)
     _raise_first(warnings, strict)
     if orientation:
@@ -354,15 +357,15 @@ def _orientation_check(program: Program, model: Compensator, rows: np.ndarray) -
     if not model.has_rotation:
         raise PostprocError("the model has no output 'rotation_error': it cannot correct orientation (train it on "
                             "data with a_meas,b_meas,c_meas); compensate without --orientation", str(model.path),
-                            0, 0, "P306")
+                            0, 0, P306)
     spans = program.targets.abc_spans
     if spans is None:
         raise PostprocError(f"--orientation: the {program.dialect} reader does not locate A/B/C numbers yet",
-                            program.files[0], 1, 1, "P312")
+                            program.files[0], 1, 1, P312)
     missing = rows[(spans[rows, :, 0] < 0).any(axis=1)]
     if len(missing):
         raise PostprocError("--orientation: this target does not write all of A, B, C", *where(program, int(missing[0])),
-                            "P312")
+                            P312)
 
 
 def _local_attitude(abc_base: np.ndarray, bases: list, frame_of: np.ndarray, written: np.ndarray) -> np.ndarray:
@@ -666,7 +669,7 @@ def compensate_file(
     if str(out) == "-":
         if len(program.files) > 1:
             raise PostprocError("a program with a .dat cannot be written to standard output; give -o FILE",
-                                program.files[0], 0, 0, "P109")
+                                program.files[0], 0, 0, P109)
         sys.stdout.buffer.write(report.outputs[program.files[0]].encode("latin-1"))
         sys.stdout.buffer.flush()
         return report
@@ -683,11 +686,11 @@ def write_outputs(outputs: list[tuple[Path, str]]) -> None:
         key = path.resolve()
         if key in seen:
             raise PostprocError(f"two files of the program would both be written to {path}: give -o a name "
-                                "with the program's suffix", str(path), 0, 0, "P110")
+                                "with the program's suffix", str(path), 0, 0, P110)
         if path.is_dir():
-            raise PostprocError("is a directory: give -o a file name", str(path), 0, 0, "P110")
+            raise PostprocError("is a directory: give -o a file name", str(path), 0, 0, P110)
         parent = next((p for p in path.parents if p.exists()), None)
         if parent is not None and not parent.is_dir():
-            raise PostprocError(f"cannot write: {parent} is not a directory", str(path), 0, 0, "P110")
+            raise PostprocError(f"cannot write: {parent} is not a directory", str(path), 0, 0, P110)
         seen[key] = path
     write_checked(outputs)

@@ -52,7 +52,7 @@ from typing import Iterator
 
 import numpy as np
 
-from .diagnostics import PostprocError
+from .diagnostics import P306, P307, P308, PostprocError
 from .resources import model_path
 
 CONTRACT_VERSION = "1"
@@ -200,7 +200,7 @@ class Compensator:
         results = [np.empty((len(poses), 3)), np.empty((len(poses), 6))][:len(names)]
         if rotation:
             if not self.has_rotation:
-                raise PostprocError(f"the model has no output '{OUTPUT_ROTATION}'", str(self.path), code="P306")
+                raise PostprocError(f"the model has no output '{OUTPUT_ROTATION}'", str(self.path), code=P306)
             names.append(OUTPUT_ROTATION)
             results.append(np.empty((len(poses), 3)))
 
@@ -215,12 +215,12 @@ class Compensator:
                 outs = self.session.run(names, feeds)
             except Exception as exc:  # onnxruntime's own types: a graph that does not run on [N, 6]
                 raise PostprocError(f"the model failed on {len(poses)} poses: {str(exc).splitlines()[0][:200]}",
-                                    str(self.path), code="P306") from None
+                                    str(self.path), code=P306) from None
             for name, out, result in zip(names, outs, results):
                 out = np.asarray(out)
                 if out.shape != (len(feeds[INPUT_POSE]), result.shape[1]):
                     raise PostprocError(f"model returned shape {out.shape}, expected ({len(feeds[INPUT_POSE])}, "
-                                        f"{result.shape[1]}) (output '{name}')", str(self.path), code="P306")
+                                        f"{result.shape[1]}) (output '{name}')", str(self.path), code=P306)
                 result[batch] = out
 
         starts = range(0, len(poses), PREDICT_BATCH)
@@ -275,10 +275,10 @@ class Compensator:
             joints, with_joints = None, joints
         if orientation and not self.has_rotation:
             raise PostprocError(f"the model has no output '{OUTPUT_ROTATION}': it cannot correct orientation "
-                                "(train it on data with a_meas,b_meas,c_meas)", str(self.path), code="P306")
+                                "(train it on data with a_meas,b_meas,c_meas)", str(self.path), code=P306)
         iterations = self.default_iterations if iterations is None else iterations
         if not 1 <= iterations <= MAX_ITERATIONS:
-            raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code="P308")
+            raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code=P308)
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         rows = [None if v is None else np.broadcast_to(np.asarray(v, float), poses.shape) for v in (joints, tool)]
         return self._chunks(poses, iterations, with_joints, *rows, orientation)
@@ -331,7 +331,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
     """Load and check an ONNX compensator (default: the shipped ``models/default.onnx``)."""
     path = Path(path) if path is not None else model_path()
     if not path.is_file():
-        raise PostprocError("model not found", str(path), code="P307")
+        raise PostprocError("model not found", str(path), code=P307)
     try:
         import onnxruntime  # noqa: F401  (installed?)
     except ImportError as exc:  # pragma: no cover - install problem
@@ -342,7 +342,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
     try:
         session = inference_session(data)  # (the graph optimised once per model: session.py)
     except Exception as exc:  # onnxruntime raises its own exception types
-        raise PostprocError(f"not an ONNX model: {str(exc).splitlines()[0][:200]}", str(path), code="P306") from exc
+        raise PostprocError(f"not an ONNX model: {str(exc).splitlines()[0][:200]}", str(path), code=P306) from exc
     inputs = {i.name: i for i in session.get_inputs()}
     outputs = {o.name: o for o in session.get_outputs()}
     problems = []
@@ -371,11 +371,11 @@ def load_model(path: str | Path | None = None) -> Compensator:
                          joints_output, OUTPUT_ROTATION) and node.type != "tensor(float)":
             problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
     if problems:
-        raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path), code="P306")
+        raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path), code=P306)
     meta = {k: _json_or_text(v) for k, v in session.get_modelmeta().custom_metadata_map.items()}
     problem = _metadata_problem(meta)
     if problem:
-        raise PostprocError(f"model card (metadata_props) is malformed: {problem}", str(path), code="P306")
+        raise PostprocError(f"model card (metadata_props) is malformed: {problem}", str(path), code=P306)
     return Compensator(
         path=path,
         session=session,

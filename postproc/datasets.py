@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .diagnostics import PostprocError
-from .rewrite import write_atomic
+from .diagnostics import P500, P501, P502, P503, PostprocError
+from .atomic import write_atomic
 
 __all__ = [
     "MEASUREMENT_COLUMNS",
@@ -114,7 +114,7 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
 
     raw_lines = text.lstrip("\ufeff").splitlines()
     if not raw_lines or not raw_lines[0].strip():
-        raise PostprocError("empty file: expected an IPA header line", path, 1, 1, "P500")
+        raise PostprocError("empty file: expected an IPA header line", path, 1, 1, P500)
     header = [h.strip() for h in raw_lines[0].split(";")]
     if len(header) == 1:
         raise PostprocError(
@@ -122,13 +122,13 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
             path,
             1,
             1,
-            "P501",
+            P501,
         )
     where = {name: i for i, name in enumerate(header)}
     required = IPA_GOAL + IPA_JOINTS + IPA_MEASURED
     missing = [name for name in required if name not in where]
     if missing:
-        raise PostprocError(f"missing IPA column(s): {', '.join(missing)}", path, 1, 1, "P501")
+        raise PostprocError(f"missing IPA column(s): {', '.join(missing)}", path, 1, 1, P501)
     optional = [name for name in IPA_MEASURED_ROTATION + (IPA_TEMPERATURE,) if name in where]
     has_rotation = all(name in where for name in IPA_MEASURED_ROTATION)
     wanted = list(required) + optional
@@ -136,7 +136,7 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
 
     numbered = [(i, line) for i, line in enumerate(raw_lines[1:], start=2) if line.strip()]
     if not numbered:
-        raise PostprocError("no data rows after the header", path, 1, 1, "P500")
+        raise PostprocError("no data rows after the header", path, 1, 1, P500)
     line_no = np.array([i for i, _ in numbered])
     fields = [line.split(";") for _, line in numbered]
     counts = np.fromiter(map(len, fields), dtype=int, count=len(fields))
@@ -148,7 +148,7 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
             path,
             int(line_no[k]),
             1,
-            "P503",
+            P503,
         )
     # fast path: one vectorised conversion; the slow search below only locates a bad cell
     cells = np.char.replace(np.char.strip(np.array(fields, dtype=str)[:, columns]), ",", ".")
@@ -165,7 +165,7 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
             path,
             int(line_no[r]),
             _column_offset(numbered[r][1], int(columns[c])),
-            "P502",
+            P502,
         )
     col = {name: values[:, i] for i, name in enumerate(wanted)}
     goal = np.stack([col[name] for name in IPA_GOAL], axis=1)
@@ -192,11 +192,11 @@ def read_ipa(path: str | os.PathLike, branch: str = "nearest") -> IpaSeries:
     try:
         text = Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise PostprocError("no such file", str(path), 0, 0, "P500") from None
+        raise PostprocError("no such file", str(path), 0, 0, P500) from None
     except UnicodeDecodeError as exc:
-        raise PostprocError(f"not UTF-8 text ({exc.reason} at byte {exc.start})", str(path), 0, 0, "P500") from None
+        raise PostprocError(f"not UTF-8 text ({exc.reason} at byte {exc.start})", str(path), 0, 0, P500) from None
     except OSError as exc:
-        raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, "P500") from None
+        raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, P500) from None
     return parse_ipa(text, str(path), branch)
 
 

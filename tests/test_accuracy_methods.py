@@ -15,7 +15,7 @@ from postproc.simulator import SimulatedRobot
 from postproc.training.features import previous_poses
 from postproc.training.synthetic import synthetic_measurements, to_csv
 
-from conftest import REPO
+from helpers import REPO
 
 ROBOT_SEED = 7  # a drawn robot (not the evaluation seeds 101-105 of benchmarks/accuracy.py)
 

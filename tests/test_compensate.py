@@ -12,7 +12,7 @@ from postproc.compensator import load_model
 from postproc.diagnostics import PostprocError
 from postproc.programs import STAMP_PREFIX
 
-from conftest import REPO, program_in_base
+from helpers import REPO, program_in_base
 
 CSV = "# part\r\nname,x,y,z,a,b,c,feed\r\nP1,1950.1,12.5,880,0,90,0,100\r\nP2,2001.250,-12.5,900.,2,88,1,120\r\n"
 

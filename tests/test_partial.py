@@ -10,7 +10,7 @@ from postproc.compensate import compensate_text, load_program, parse_program_tex
 from postproc.compensator import load_model
 from postproc.findings import robot_base_poses
 
-from conftest import REPO
+from helpers import REPO
 
 GAIN = np.array([[2e-3, 0, 0], [0, -1e-3, 5e-4], [0, 0, 3e-3]])
 SRC = """DEF p()

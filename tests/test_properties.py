@@ -37,7 +37,7 @@ SETTINGS = settings(max_examples=120, deadline=None, suppress_health_check=[Heal
 
 @pytest.fixture(scope="module")
 def models(tmp_path_factory):
-    from model_factory import affine_model
+    from postproc.testing.models import affine_model
 
     folder = tmp_path_factory.mktemp("models")
     # no reach (targets anywhere), no tool frame (any $TOOL); the envelope gives the nominal

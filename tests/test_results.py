@@ -9,7 +9,7 @@ from postproc.cli import main
 from postproc.compensate import compensate_text
 from postproc.programs import STAMP_PREFIX
 
-from conftest import REPO
+from helpers import REPO
 
 GAIN = np.diag([1e-3, 2e-3, -1e-3])  # a correction that varies over space
 # 2 targets in a base the reader knows, then 2 after a BAS call whose BASE_DATA is unknown

@@ -9,6 +9,7 @@ EXAMPLES = """examples:
   postproc check part.csv --model models/cell7.onnx --strict --ignore P301
   postproc check --fresh                         outputs of [tool.postproc] fresh pairs up to date?
   postproc check --fresh --fix                   ... and re-compensate the stale ones
+  postproc check --list-codes                    every diagnostic code, its severity and meaning
   postproc check weld.src --robot models/kr500.toml   the model is for this robot? its IK reaches? (postproc[sim])
 
 settings: [tool.postproc] in pyproject.toml or postproc.toml, found from the current directory
@@ -42,6 +43,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--ignore", metavar="CODES", default="", help="comma-separated codes not to report, e.g. P301,P213")
     p.add_argument("--max-correction", type=float, metavar="MM", help="corrections above this are findings (default 5 mm)")
     p.add_argument("--iterations", type=int, metavar="K", help="fixed-point iterations (default: the model's)")
+    p.add_argument("--list-codes", action="store_true", help="print every diagnostic code (code, severity, meaning) and exit")
+    p.add_argument("--markdown", action="store_true", help="with --list-codes: as a Markdown table (the README's)")
     p.add_argument("--robot", metavar="NAME|FILE.toml",
                    help="the robot the programs are for (default: settings 'robot'): a model trained on another is "
                    "a finding; with a description file also the nominal robot's IK reachability (needs Pinocchio)")
@@ -80,9 +83,12 @@ def run(args) -> int:
     from ..compensate import DEFAULT_MAX_CORRECTION_MM
     from ..compensator import load_model
     from ..config import load_config
-    from ..diagnostics import EXIT_ERROR, EXIT_FINDINGS, EXIT_OK
+    from ..diagnostics import EXIT_ERROR, EXIT_FINDINGS, EXIT_OK, codes_table
     from . import use_color
 
+    if args.list_codes:
+        sys.stdout.write(codes_table(markdown=args.markdown))
+        return EXIT_OK
     if not args.files and not args.fresh:
         print("postproc check: give programs to check, or --fresh (see postproc check --help)", file=sys.stderr)
         return EXIT_ERROR

@@ -45,11 +45,11 @@ def run(args) -> int:
 
     import numpy as np
 
-    from ..diagnostics import PostprocError
+    from ..diagnostics import P335, PostprocError
     from ..planning import parse_tool, read_plan_config, read_pose_csv
     from ..progress import stages
-    from ..outputs import check_outputs, write as write_atomic
-    from ..simulator import CODE_REACH, SimulatedRobot
+    from ..outputs import check_outputs, write
+    from ..simulator import SimulatedRobot
     from . import show_progress
 
     check_outputs([args.output], [args.plan, args.robot or "-"])
@@ -68,7 +68,7 @@ def run(args) -> int:
             bad = np.flatnonzero(~ok)
             raise PostprocError(f"pose out of reach of {sim.robot.name}: {poses[bad[0]].tolist()}"
                                 + (f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""),
-                                args.plan, int(lines[bad[0]]), 1, CODE_REACH)
+                                args.plan, int(lines[bad[0]]), 1, P335)
         stage("simulate and measure")
         q = sim.joint_angles(poses, config, tools)
         measured = sim.measure(poses, rng_seed=args.seed, orientation=True, q_deg=q, tools=tools)
@@ -82,7 +82,7 @@ def run(args) -> int:
         np.savetxt(buf, table, fmt=fmt, delimiter=",", header=columns, comments="")
         measured = measured[:, :3]
         stage("write")
-        write_atomic([(Path(args.output), buf.getvalue())])
+        write([(Path(args.output), buf.getvalue())])
     if not args.quiet:
         e = np.linalg.norm(poses[:, :3] - measured, axis=1)
         which = "default" if sim.is_default else "drawn"

@@ -44,7 +44,7 @@ def _fill(poses, program, attitude, name: str):
     orientation before any is known takes the working attitude. Returns (poses, notes)."""
     import numpy as np
 
-    from ..diagnostics import PostprocError
+    from ..diagnostics import P213, PostprocError
 
     notes = []
     out = poses.copy()
@@ -57,7 +57,7 @@ def _fill(poses, program, attitude, name: str):
             r = int(np.flatnonzero(lead[:, :3].any(axis=1))[0])
             t = program.targets
             raise PostprocError(f"{name}: target has no X/Y/Z and no earlier target to take them from",
-                                program.files[t.file[r]], int(t.line[r]), int(t.col[r]), "P213")
+                                program.files[t.file[r]], int(t.line[r]), int(t.col[r]), P213)
         filled = np.take_along_axis(out, np.maximum(last, 0), axis=0)
         filled[:, 3:][lead[:, 3:]] = np.broadcast_to(attitude, (len(out), 3))[lead[:, 3:]]
         if lead[:, 3:].any():
@@ -89,8 +89,8 @@ def run(args) -> int:
     import numpy as np
 
     from ..compensate import load_program, robot_base_poses
-    from ..diagnostics import EXIT_FINDINGS, PostprocError
-    from ..simulator import CODE_REACH, SimulatedRobot
+    from ..diagnostics import EXIT_FINDINGS, P335, P601, PostprocError
+    from ..simulator import SimulatedRobot
 
     original = load_program(args.original, args.config)
     compensated = load_program(args.compensated, args.config)
@@ -98,9 +98,9 @@ def run(args) -> int:
     p_comp, ok_comp = robot_base_poses(compensated)
     if len(p_orig) != len(p_comp):
         raise PostprocError(f"ORIGINAL has {len(p_orig)} targets, COMPENSATED has {len(p_comp)}: they must be the "
-                            "same program with changed numbers", args.compensated, code="P601")
+                            "same program with changed numbers", args.compensated, code=P601)
     if len(p_orig) == 0:
-        raise PostprocError("no Cartesian targets in this program", args.original, code="P601")
+        raise PostprocError("no Cartesian targets in this program", args.original, code=P601)
     sim = SimulatedRobot.from_file(args.robot, args.robot_seed)
     notes = []
     keep = ok_orig & ok_comp
@@ -108,7 +108,7 @@ def run(args) -> int:
         notes.append(f"{int((~keep).sum())} target(s) skipped: their frame is not known statically "
                      f"(run with --config $config.dat?)")
     if not keep.any():
-        raise PostprocError("no target with a known frame to verify", args.original, code="P601")
+        raise PostprocError("no target with a known frame to verify", args.original, code=P601)
     attitude = np.asarray(sim.description.workspace.get("attitude", (0.0, 90.0, 0.0)), float)
     p_orig, n1 = _fill(p_orig[keep], original, attitude, "ORIGINAL")
     p_comp, n2 = _fill(p_comp[keep], compensated, attitude, "COMPENSATED")
@@ -122,7 +122,7 @@ def run(args) -> int:
             more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
             raise PostprocError(f"{label} target out of reach of {sim.robot.name}: "
                                 f"{np.round(poses[bad[0]], 3).tolist()}{more}",
-                                program.files[t.file[r]], int(t.line[r]), int(t.col[r]), CODE_REACH)
+                                program.files[t.file[r]], int(t.line[r]), int(t.col[r]), P335)
     options = execution(original, rows, sim)
     result = sim.verify(p_orig, p_comp, rng_seed=args.seed, noise=not args.no_noise, **options)
     failed = args.max_mean is not None and result["after"]["mean"] > args.max_mean

@@ -17,7 +17,7 @@ import re
 import numpy as np
 from lark import Lark, UnexpectedInput
 
-from ..diagnostics import PostprocError
+from ..diagnostics import P101, P103, P104, P105, PostprocError
 from ..resources import grammar_path
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, TargetsBuilder
 
@@ -49,7 +49,7 @@ def _fields(line: str, path: str, lineno: int, offset: int) -> list:
     except UnexpectedInput as exc:
         col = offset + exc.column if exc.column and exc.column > 0 else offset + 1
         raise PostprocError(f"cannot read this record: unexpected {line[exc.pos_in_stream:exc.pos_in_stream + 10]!r}",
-                            path, lineno, col, "P101") from None
+                            path, lineno, col, P101) from None
     return [(None, None) if f is None else (f.data, f.children[0]) for f in tree.children]
 
 
@@ -91,14 +91,14 @@ def read(files: list[str], texts: list[str]) -> Program:
             missing = [c for c in COLUMNS[:3] if c not in names]
             if missing:
                 raise PostprocError(f"header has no column {', '.join(missing)} (needs x,y,z[,a,b,c])",
-                                    path, lineno, lead + 1, "P104")
+                                    path, lineno, lead + 1, P104)
             columns = {c: names.index(c) for c in _ALL if c in names}
             attitude = [c for c in COLUMNS[3:] if c in columns]
             if attitude and len(attitude) < 3:  # one warning here, not one per row and A,B dropped
                 absent = [c for c in COLUMNS[3:] if c not in columns]
                 raise PostprocError(f"header has {','.join(attitude)} but no {','.join(absent)}: an attitude needs all "
                                     "of a,b,c (add the missing column; or drop a,b,c for the model's nominal attitude)",
-                                    path, lineno, lead + 1, "P104")
+                                    path, lineno, lead + 1, P104)
             width = len(fields)
             if any(c in columns for c in _OPTIONAL):
                 extras = []
@@ -110,12 +110,12 @@ def read(files: list[str], texts: list[str]) -> Program:
             if columns is None:  # headerless: x y z [a b c] by position
                 if len(fields) not in (3, 6) and len(fields) < 6:
                     raise PostprocError(f"expected 3 or 6 numbers (x y z [a b c]), found {len(fields)} fields",
-                                        path, lineno, lead + 1, "P104")
+                                        path, lineno, lead + 1, P104)
                 columns = {c: i for i, c in enumerate(COLUMNS[: 6 if len(fields) >= 6 else 3])}
                 width = len(fields)
             if len(fields) != width:
                 raise PostprocError(f"expected {width} fields as in the header, found {len(fields)}",
-                                    path, lineno, lead + 1, "P104")
+                                    path, lineno, lead + 1, P104)
             # which regex match (of all number-looking runs in the line, words included) each
             # numeric field is; lines of the same shape have the same runs in the same places
             run_at = {m.start(): k for k, m in enumerate(number.finditer(body))}
@@ -125,7 +125,7 @@ def read(files: list[str], texts: list[str]) -> Program:
                     kind, tok = fields[index]
                     where = body.find(str(tok)) if tok is not None else 0
                     raise PostprocError(f"column {name} is not a number: '{tok}'" if tok is not None
-                                        else f"column {name} is empty", path, lineno, lead + max(where, 0) + 1, "P103")
+                                        else f"column {name} is empty", path, lineno, lead + max(where, 0) + 1, P103)
             ordinals = tuple(ordinal_of.get(columns[c], -1) if c in columns else -1 for c in _ALL)
             shapes[shape] = ordinals
         matches = list(number.finditer(line))
@@ -140,7 +140,7 @@ def read(files: list[str], texts: list[str]) -> Program:
                     value = float(m.group())
                     if not math.isfinite(value) or (k < 2 and not (value == int(value) and 0 <= value < 64)):
                         raise PostprocError(f"{_OPTIONAL[k]} must be {'an integer 0…63' if k < 2 else 'finite'}: "
-                                            f"{m.group()}", path, lineno, m.start() + 1, "P103")
+                                            f"{m.group()}", path, lineno, m.start() + 1, P103)
                     extra[k] = value
             extras.append(extra)
         for k, ordinal in enumerate(ordinals[:6]):
@@ -149,7 +149,7 @@ def read(files: list[str], texts: list[str]) -> Program:
             m = matches[ordinal]
             value = float(m.group())
             if not math.isfinite(value):
-                raise PostprocError(f"{COLUMNS[k]} is not finite: {m.group()}", path, lineno, m.start() + 1, "P103")
+                raise PostprocError(f"{COLUMNS[k]} is not finite: {m.group()}", path, lineno, m.start() + 1, P103)
             pose[k] = value
             if k < 3:
                 spans[2 * k], spans[2 * k + 1] = start + m.start(), start + m.end()
@@ -158,7 +158,7 @@ def read(files: list[str], texts: list[str]) -> Program:
         abc_spans.append(abc)
         builder.add(pose, spans, 0, lineno, lead + 1, 0, _ROW_MOTION)
     if columns is None:
-        raise PostprocError("no poses in this file (empty, or comments only)", path, 1, 1, "P105")
+        raise PostprocError("no poses in this file (empty, or comments only)", path, 1, 1, P105)
     targets = builder.build()
     targets.abc_spans = np.array(abc_spans, dtype=np.int64).reshape(len(targets), 3, 2)
     if extras is not None:

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 from lark import Tree
 
+from ...diagnostics import P201, P203
 from ...frames import compose, frame_to_matrix, inverse, matrix_to_frame
 from ..model import Frame
 from .values import XYZABC, _Agg, _COMP, _Num, _Unknown
@@ -263,13 +264,13 @@ class Frames:
         A target is left as written (-1) when its base (P201) or its tool (P203: $TOOL set
         but not resolvable, e.g. TOOL_DATA[6] not in the data given) is not known; a tool
         never set in the program (None) is not a reason."""
-        why, code = (st.base, "P201") if isinstance(st.base, _Unknown) else (
-            (st.robroot, "P201") if isinstance(st.robroot, _Unknown) else (
-                (st.tool, "P203") if isinstance(st.tool, _Unknown) and st.tool.why else (None, "")))
+        why, code = (st.base, P201) if isinstance(st.base, _Unknown) else (
+            (st.robroot, P201) if isinstance(st.robroot, _Unknown) else (
+                (st.tool, P203) if isinstance(st.tool, _Unknown) and st.tool.why else (None, "")))
         if why is not None:
             key = (self.path, code, why.why)
             if key not in self.unknown_frames:
-                what = "frame" if code == "P201" else "tool"
+                what = "frame" if code == P201 else "tool"
                 self.unknown_frames[key] = [self.path, why.where[0] or self.ln, why.where[1] or 1,
                                             f"{what} not statically known ({why.why})", 0, code]
             return -1, key
