@@ -13,6 +13,8 @@ import sys
 import time
 from pathlib import Path
 
+from _common import record
+
 from postproc.testing.fuzz import corpus, fuzz
 
 
@@ -41,6 +43,11 @@ def main() -> None:
     print(f"crashes: {counts['crash']}  wrong outputs: {counts['wrong']}  hangs: {counts['hang']}  "
           f"reader/formatter bugs caught by the last check (P190): {counts['caught']}")
     print("error codes: " + ", ".join(f"{c} {n}" for c, n in sorted(codes.items())))
+    name = "fuzz" + (f"-{args.dialect}" if args.dialect else "")
+    record(name, {"mutants": args.mutants, "seed": args.seed, "subprocess": counts["subprocess"],
+                    "outputs": counts["output"], "errors": counts["error"], "crashes": counts["crash"],
+                    "wrong": counts["wrong"], "hangs": counts["hang"], "caught": counts["caught"],
+                    "wall_s": round(wall, 1), "codes": dict(sorted(codes.items()))})
     for where, outcome in bad[:20]:
         print(f"  {outcome.kind}: {where}: {outcome.detail}")
     if bad:

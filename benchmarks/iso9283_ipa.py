@@ -38,8 +38,7 @@ SERIES_D = "Series_D/measurements_iso_cubes.csv"
 def first_order_after(base_csv: Path, model_path: str, out: Path) -> str:
     """Write the first-order 'after' file; '' or why not (poses outside the model's envelope)."""
     from postproc.compensator import load_model
-    from postproc.datasets import write_measurements
-    from postproc.training.data import parse_measurements
+    from postproc.measurements import parse_measurements, write_measurements
 
     m = parse_measurements(base_csv.read_bytes(), str(base_csv), repeats=True)
     model = load_model(model_path)

@@ -34,7 +34,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 from _common import cli, krl_program  # noqa: E402
 from postproc.training import ErrorModel  # noqa: E402
-from postproc.training.data import read_measurements, split_indices  # noqa: E402
+from postproc.measurements import read_measurements  # noqa: E402
+from postproc.training.data import split_indices  # noqa: E402
 
 PAPER = {  # Hu, Hua & Tian, Table 2 (mm): max, min, mean, std
     "uncompensated": (1.529, 0.124, 0.754, 0.340),

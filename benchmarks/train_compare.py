@@ -17,7 +17,8 @@ import numpy as np
 import torch
 
 from postproc.training import ErrorModel  # noqa: E402
-from postproc.training.data import read_measurements, split_indices  # noqa: E402
+from postproc.measurements import read_measurements  # noqa: E402
+from postproc.training.data import split_indices  # noqa: E402
 from postproc.training.synthetic import synthetic_measurements  # noqa: E402
 
 

@@ -9,19 +9,18 @@ MIT licence) come as ';'-separated files with a decimal comma and one header row
 * ``measurement_x/y/z`` (mm) of the probe's TCP and ``measurement_rx/ry/rz`` (deg, intrinsic
   X-Y-Z) in the *tracker's* frame; ``measurement_temperature`` (°C); optional ``_std`` columns.
 
-postproc's measurement CSV (read by ``postproc train``) has the header
+postproc's measurement CSV (:mod:`postproc.measurements`; read by ``postproc train``) has the header
 ``x,y,z,a,b,c,x_meas,y_meas,z_meas`` (mm, KUKA A,B,C deg) followed by optional extra columns;
 here ``q1..q6`` (joint angles, deg) and ``temperature``. Metadata lines ``# key: value`` may
 precede the header; ``# frame: tracker`` says the measured columns are still in the
 tracker's frame (``train --register`` maps them into the base frame), ``# frame: base`` (or
 no frame line) says they are in the robot base frame already.
 
-Codes (as in training/data.py): P500 unreadable or empty, P501 not the expected columns,
+Codes (as in postproc.measurements): P500 unreadable or empty, P501 not the expected columns,
 P502 a value that is not a finite number, P503 wrong number of fields.
 """
 from __future__ import annotations
 
-import io
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,19 +28,13 @@ from pathlib import Path
 import numpy as np
 
 from .diagnostics import P500, P501, P502, P503, PostprocError
-from .atomic import write_atomic
 
 __all__ = [
-    "MEASUREMENT_COLUMNS",
     "IpaSeries",
     "read_ipa",
     "parse_ipa",
     "rpy_to_abc",
-    "write_measurements",
-    "read_metadata",
 ]
-
-MEASUREMENT_COLUMNS = ("x", "y", "z", "a", "b", "c", "x_meas", "y_meas", "z_meas")
 
 IPA_GOAL = ("Goal x", "Goal y", "Goal z", "Goal roll", "Goal pitch", "Goal yaw")
 IPA_JOINTS = (
@@ -198,42 +191,3 @@ def read_ipa(path: str | os.PathLike, branch: str = "nearest") -> IpaSeries:
     except OSError as exc:
         raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, P500) from None
     return parse_ipa(text, str(path), branch)
-
-
-def write_measurements(
-    path: str | os.PathLike,
-    commanded: np.ndarray,
-    measured: np.ndarray,
-    extra: dict[str, np.ndarray] | None = None,
-    metadata: dict[str, str] | None = None,
-) -> None:
-    """Write a measurement CSV atomically: ``# key: value`` lines, header, one row per pose.
-
-    ``commanded`` [N, 6] (mm, KUKA deg), ``measured`` [N, 3] (mm), ``extra`` columns [N]
-    after the nine standard ones. Numbers are written with 12 significant digits, enough to
-    keep every digit of the source data.
-    """
-    extra = extra or {}
-    names = list(MEASUREMENT_COLUMNS) + list(extra)
-    table = np.column_stack([commanded, measured] + [np.asarray(v, dtype=float) for v in extra.values()])
-    comments = "".join(f"# {key}: {value}\n" for key, value in (metadata or {}).items())
-    text = io.StringIO()
-    text.write(comments)
-    np.savetxt(text, table, fmt="%.12g", delimiter=",", header=",".join(names), comments="")
-    write_atomic([(Path(path), text.getvalue().encode("utf-8"))])
-
-
-def read_metadata(path: str | os.PathLike) -> dict[str, str]:
-    """The ``# key: value`` lines at the top of a measurement CSV (keys lower-cased).
-
-    ``read_metadata(p).get("frame", "base")`` is the frame of the measured columns.
-    """
-    meta: dict[str, str] = {}
-    with open(path, encoding="utf-8") as f:
-        for line in f:
-            if not line.startswith("#"):
-                break
-            key, sep, value = line[1:].partition(":")
-            if sep:
-                meta[key.strip().lower()] = value.strip()
-    return meta

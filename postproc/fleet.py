@@ -169,7 +169,8 @@ def _run_cli(argv: list[str]) -> tuple[int, str]:
 
 def _held_out(job: RobotJob, path: Path) -> Path:
     """The held-out rows of the robot's data (the split `postproc train` draws) as a CSV."""
-    from .training.data import read_measurements, split_indices
+    from .measurements import read_measurements
+    from .training.data import split_indices
 
     m = read_measurements(job.data)
     frac, seed = 0.05, 0

@@ -322,7 +322,7 @@ def _orientation_columns(data: bytes, lines: np.ndarray, path: str) -> np.ndarra
 
 
 def _read(path: Path):
-    from .training.data import parse_measurements
+    from .measurements import parse_measurements
 
     try:
         data = path.read_bytes()

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .diagnostics import P335, P500, P501, P503, P512, PostprocError
-from .training.data import parse_rows
+from .measurements import parse_rows
 
 __all__ = [
     "DEFAULT_BOX",

@@ -131,7 +131,7 @@ def model_card(model: Compensator) -> dict:
 
 
 def _read(path: Path, repeats: bool = False):
-    from .training.data import parse_measurements  # numpy only; the one reader of this format
+    from .measurements import parse_measurements  # numpy only; the one reader of this format
 
     try:
         data = path.read_bytes()

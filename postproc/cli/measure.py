@@ -40,12 +40,12 @@ def add_parser(sub, common, formatter) -> None:
 
 
 def run(args) -> int:
-    import io
     from pathlib import Path
 
     import numpy as np
 
     from ..diagnostics import P335, PostprocError
+    from ..measurements import measurement_csv
     from ..planning import parse_tool, read_plan_config, read_pose_csv
     from ..progress import stages
     from ..outputs import check_outputs, write
@@ -72,17 +72,17 @@ def run(args) -> int:
         stage("simulate and measure")
         q = sim.joint_angles(poses, config, tools)
         measured = sim.measure(poses, rng_seed=args.seed, orientation=True, q_deg=q, tools=tools)
-        buf = io.StringIO()
-        if tool is not None:
-            buf.write("# tool: " + ",".join(f"{v:g}" for v in tool) + "\n")
-        columns = "x,y,z,a,b,c,x_meas,y_meas,z_meas,a_meas,b_meas,c_meas,q1,q2,q3,q4,q5,q6"
-        table, fmt = np.hstack([poses, measured, q]), ["%.10g"] * 6 + ["%.4f"] * 3 + ["%.5f"] * 3 + ["%.6f"] * 6
+        extra = {name: measured[:, 3 + k] for k, name in enumerate(("a_meas", "b_meas", "c_meas"))}
+        extra |= {f"q{k + 1}": q[:, k] for k in range(6)}
+        fmt = ["%.10g"] * 6 + ["%.4f"] * 3 + ["%.5f"] * 3 + ["%.6f"] * 6
         if config is not None:
-            table, fmt, columns = np.hstack([table, config]), fmt + ["%d", "%d"], columns + ",s,t"
-        np.savetxt(buf, table, fmt=fmt, delimiter=",", header=columns, comments="")
+            extra |= {"s": config[:, 0], "t": config[:, 1]}
+            fmt += ["%d", "%d"]
+        metadata = None if tool is None else {"tool": ",".join(f"{v:g}" for v in tool)}
+        text = measurement_csv(poses, measured[:, :3], extra, metadata, fmt)
         measured = measured[:, :3]
         stage("write")
-        write([(Path(args.output), buf.getvalue())])
+        write([(Path(args.output), text)])
     if not args.quiet:
         e = np.linalg.norm(poses[:, :3] - measured, axis=1)
         which = "default" if sim.is_default else "drawn"
