@@ -34,7 +34,7 @@ from .findings import DEFAULT_MAX_CORRECTION_MM, Settings, findings, run_model, 
 from .compensator import Compensator, load_model
 from .config import Config
 from .diagnostics import P202, P401, P402, P403, P404, P405, P406, P407, Diagnostic, PostprocError, line_col
-from .programs import STAMP_PREFIX, Program
+from .programs import STAMP_PREFIX, Program, companion_dat
 from .atomic import write_atomic
 
 __all__ = [
@@ -255,7 +255,6 @@ def _cell_findings(owners: list[Path], model: Compensator, config, **options) ->
     """The findings of KRL modules and data lists checked as one cell (``cell.find_cell``:
     each module with its .dat, one reader call, ``$config.dat`` among them or ``config``)."""
     from .cell import find_cell
-    from .compensate import companion_dat
 
     paths = list(owners) + [d for d in (companion_dat(p) for p in owners if p.suffix.lower() != ".dat") if d]
     try:

@@ -21,7 +21,7 @@ from collections import Counter
 from . import frames
 from .compensator import Compensator, load_model
 from .diagnostics import (
-    P105, P106, P107, P108, P109, P110, P201, P202, P203, P212, P306, P312, Diagnostic, LEFT_AS_WRITTEN,
+    P105, P106, P107, P108, P109, P201, P202, P203, P212, P306, P312, Diagnostic, LEFT_AS_WRITTEN,
     PostprocError,
 )
 from .findings import (
@@ -39,8 +39,8 @@ from .findings import (
     where,
 )
 from .guards import ROUNDING_MM, check_inserted, check_memory, check_numbers, check_round_trip
-from .outputs import write as write_checked
-from .programs import STAMP_PREFIX, Program, dialect_of, read_program
+from .outputs import check_outputs, write
+from .programs import STAMP_PREFIX, Program, companion_dat, dialect_of, read_program
 from .rewrite import check_disjoint, format_like, format_many, insert_stamp, splice, stamp_line
 
 __all__ = [
@@ -132,20 +132,6 @@ def read_text(path: str | Path) -> str:
     except OSError as exc:
         raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, P107) from None
     return _decode(data, str(path))
-
-
-def companion_dat(src: Path) -> Path | None:
-    """The .dat beside a .src (same stem, any case), if there is one."""
-    if src.suffix.lower() != ".src" or not src.parent.is_dir():
-        return None
-    for candidate in (src.with_suffix(".dat"), src.with_suffix(".DAT")):
-        if candidate.is_file():
-            return candidate
-    stem = src.stem.lower()
-    for candidate in src.parent.iterdir():
-        if candidate.suffix.lower() == ".dat" and candidate.stem.lower() == stem:
-            return candidate
-    return None
 
 
 def sniff_dialect(text: str) -> str:
@@ -679,18 +665,8 @@ def compensate_file(
 
 
 def write_outputs(outputs: list[tuple[Path, str]]) -> None:
-    """:func:`postproc.outputs.write` (OS errors as P110), refusing first what it cannot do right
-    (two files of a module onto one path, e.g. ``-o x.dat`` for a .src; a directory)."""
-    seen: dict[Path, Path] = {}
-    for path, _ in outputs:
-        key = path.resolve()
-        if key in seen:
-            raise PostprocError(f"two files of the program would both be written to {path}: give -o a name "
-                                "with the program's suffix", str(path), 0, 0, P110)
-        if path.is_dir():
-            raise PostprocError("is a directory: give -o a file name", str(path), 0, 0, P110)
-        parent = next((p for p in path.parents if p.exists()), None)
-        if parent is not None and not parent.is_dir():
-            raise PostprocError(f"cannot write: {parent} is not a directory", str(path), 0, 0, P110)
-        seen[key] = path
-    write_checked(outputs)
+    """:func:`postproc.outputs.write` (OS errors as P110) after the one output rule,
+    :func:`postproc.outputs.check_outputs` (two files of a module onto one path, e.g. ``-o x.dat``
+    for a .src; a directory; a folder that cannot be written)."""
+    check_outputs([path for path, _ in outputs])
+    write(outputs)

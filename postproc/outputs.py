@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Iterable, Sequence
 
 from .diagnostics import P110, PostprocError
-
+from .programs import companion_dat
 
 
 def _same(a: Path, b: Path) -> bool:
@@ -70,8 +70,6 @@ def check_outputs(outputs: Iterable[str | Path], inputs: Iterable[str | Path] = 
 def check_program_outputs(program: str | Path, output: str | Path, *, in_place: bool = False) -> list[Path]:
     """:func:`check_outputs` for ``compensate``: a .src and its .dat in, the two out (the .dat
     beside ``output``, with the input .dat's suffix)."""
-    from .compensate import companion_dat
-
     dat = companion_dat(Path(program)) if str(program) != "-" else None
     outputs = [Path(output)] if str(output) != "-" else []
     if dat is not None and outputs:

@@ -4,7 +4,6 @@ is in it."""
 import io
 import re
 import tokenize
-from pathlib import Path
 
 from helpers import REPO
 
