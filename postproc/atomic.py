@@ -31,18 +31,7 @@ def write_atomic(outputs: Sequence[tuple[Path, str | bytes]]) -> None:
     backups: dict[Path, Path] = {}
     try:
         for path, text in outputs:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-            temps.append((Path(tmp), path))
-            with os.fdopen(fd, "wb") as fh:
-                for piece in [text] if isinstance(text, (str, bytes)) else text:  # or an iterable of pieces
-                    fh.write(piece.encode("latin-1") if isinstance(piece, str) else piece)
-                fh.flush()
-                os.fsync(fh.fileno())
-            if path.exists():
-                os.chmod(tmp, path.stat().st_mode & 0o777)
-            else:
-                os.chmod(tmp, 0o666 & ~_umask())
+            temps.append((_write_temp(path, text), path))
         # the old versions, kept (hard links: no copy) until every rename has succeeded; all
         # made before the first rename, so that the renames follow each other closely
         for _, path in temps:
@@ -57,6 +46,32 @@ def write_atomic(outputs: Sequence[tuple[Path, str | bytes]]) -> None:
         for tmp in [t for t, _ in temps] + list(backups.values()):
             tmp.unlink(missing_ok=True)
         raise
+    _rename_all(temps, backups, journal)
+
+
+def _write_temp(path: Path, text) -> Path:
+    """``text`` (str, bytes or an iterable of pieces) in a new temp file beside ``path``, synced,
+    with ``path``'s permissions (or the umask's for a new file); its path."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            for piece in [text] if isinstance(text, (str, bytes)) else text:  # or an iterable of pieces
+                fh.write(piece.encode("latin-1") if isinstance(piece, str) else piece)
+            fh.flush()
+            os.fsync(fh.fileno())
+        if path.exists():
+            os.chmod(tmp, path.stat().st_mode & 0o777)
+        else:
+            os.chmod(tmp, 0o666 & ~_umask())
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return Path(tmp)
+
+
+def _rename_all(temps: list[tuple[Path, Path]], backups: dict[Path, Path], journal: Path | None) -> None:
+    """The renames temp → target; if one fails, the files already renamed are put back."""
     renamed: list[Path] = []
     try:
         for tmp, path in temps:
