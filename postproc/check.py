@@ -292,6 +292,25 @@ def _first_difference(expected: str, actual: str) -> int:
     return int(np.argmax(a != b))
 
 
+def _stale(program: Program, report, targets: list[Path], shown_src: str, model: Compensator) -> list[Diagnostic]:
+    """P406 for each output of ``program`` missing, P405 for each whose bytes are not the new
+    texts of ``report`` (at the first differing byte)."""
+    stale: list[Diagnostic] = []
+    for target, name in zip(targets, program.files):
+        expected = report.outputs[name]
+        if not target.is_file():
+            stale.append(Diagnostic(shown_src, 0, 0, P406, f"no compensated output {_shown(target)}", "error"))
+            continue
+        actual = target.read_bytes().decode("latin-1")
+        if actual != expected:
+            line, col = line_col(actual, _first_difference(expected, actual))
+            stale.append(Diagnostic(
+                _shown(target), line, col, P405,
+                f"stale: compensating {_shown(Path(name))} with {model.name} "
+                f"{model.sha256[:12]} gives other bytes from here on (`postproc check --fresh --fix` rewrites it)", "error"))
+    return stale
+
+
 def check_fresh(
     cfg: Config,
     model: Compensator,
@@ -330,20 +349,7 @@ def check_fresh(
                                         f"{d.message} (while compensating it for {shown_out})", "error"))
                 continue
             targets = output_paths(program, output)
-            stale: list[Diagnostic] = []
-            for target, name in zip(targets, program.files):
-                expected = report.outputs[name]
-                if not target.is_file():
-                    stale.append(Diagnostic(shown_src, 0, 0, P406,
-                                            f"no compensated output {_shown(target)}", "error"))
-                    continue
-                actual = target.read_bytes().decode("latin-1")
-                if actual != expected:
-                    line, col = line_col(actual, _first_difference(expected, actual))
-                    stale.append(Diagnostic(
-                        _shown(target), line, col, P405,
-                        f"stale: compensating {_shown(Path(name))} with {pair_model.name} "
-                        f"{pair_model.sha256[:12]} gives other bytes from here on (`postproc check --fresh --fix` rewrites it)", "error"))
+            stale = _stale(program, report, targets, shown_src, pair_model)
             if stale and fix:
                 write_atomic([(t, report.outputs[f]) for t, f in zip(targets, program.files)])
                 written += targets

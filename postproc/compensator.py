@@ -327,6 +327,36 @@ def _corrected_attitude(abc: np.ndarray, rotation_error_deg: np.ndarray) -> np.n
     return nearest_triple(frames.abc_from_rotation(undo @ frames.rotation_from_abc(abc)), abc)
 
 
+def _interface_problems(inputs: dict, outputs: dict, joints_output: str) -> list[str]:
+    """What makes a session's inputs and outputs (name → node) not the contract's: names,
+    shapes ([N, k] with a free batch size), float32."""
+    problems = []
+    if INPUT_POSE not in inputs:
+        problems.append(f"no input '{INPUT_POSE}' (has {sorted(inputs)})")
+    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL}
+    if extra:
+        problems.append(f"unexpected inputs {sorted(extra)}")
+    if OUTPUT_ERROR not in outputs:
+        problems.append(f"no output '{OUTPUT_ERROR}' (has {sorted(outputs)})")
+    for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6), (INPUT_JOINTS, 6), (INPUT_TOOL, 6)):
+        if name in inputs and (len(inputs[name].shape) != 2 or inputs[name].shape[1] not in (expected, None, "6")
+                               or isinstance(inputs[name].shape[0], int)):
+            problems.append(f"input '{name}' has shape {inputs[name].shape}, expected [N, {expected}]")
+    if OUTPUT_ERROR in outputs and (len(outputs[OUTPUT_ERROR].shape) != 2 or outputs[OUTPUT_ERROR].shape[1] not in (3, None)):
+        problems.append(f"output '{OUTPUT_ERROR}' has shape {outputs[OUTPUT_ERROR].shape}, expected [N, 3]")
+    if joints_output in outputs and (len(outputs[joints_output].shape) != 2
+                                     or outputs[joints_output].shape[1] not in (6, None)):
+        problems.append(f"output '{joints_output}' has shape {outputs[joints_output].shape}, expected [N, 6]")
+    if OUTPUT_ROTATION in outputs and (len(outputs[OUTPUT_ROTATION].shape) != 2
+                                       or outputs[OUTPUT_ROTATION].shape[1] not in (3, None)):
+        problems.append(f"output '{OUTPUT_ROTATION}' has shape {outputs[OUTPUT_ROTATION].shape}, expected [N, 3]")
+    for node in (*inputs.values(), *outputs.values()):
+        if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, OUTPUT_ERROR,
+                         joints_output, OUTPUT_ROTATION) and node.type != "tensor(float)":
+            problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
+    return problems
+
+
 def load_model(path: str | Path | None = None) -> Compensator:
     """Load and check an ONNX compensator (default: the shipped ``models/default.onnx``)."""
     path = Path(path) if path is not None else model_path()
@@ -345,31 +375,8 @@ def load_model(path: str | Path | None = None) -> Compensator:
         raise PostprocError(f"not an ONNX model: {str(exc).splitlines()[0][:200]}", str(path), code=P306) from exc
     inputs = {i.name: i for i in session.get_inputs()}
     outputs = {o.name: o for o in session.get_outputs()}
-    problems = []
-    if INPUT_POSE not in inputs:
-        problems.append(f"no input '{INPUT_POSE}' (has {sorted(inputs)})")
-    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL}
-    if extra:
-        problems.append(f"unexpected inputs {sorted(extra)}")
-    if OUTPUT_ERROR not in outputs:
-        problems.append(f"no output '{OUTPUT_ERROR}' (has {sorted(outputs)})")
     joints_output = OUTPUT_JOINTS if OUTPUT_JOINTS in outputs or INPUT_JOINTS in inputs else LEGACY_OUTPUT_JOINTS
-    for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6), (INPUT_JOINTS, 6), (INPUT_TOOL, 6)):
-        if name in inputs and (len(inputs[name].shape) != 2 or inputs[name].shape[1] not in (expected, None, "6")
-                               or isinstance(inputs[name].shape[0], int)):
-            problems.append(f"input '{name}' has shape {inputs[name].shape}, expected [N, {expected}]")
-    if OUTPUT_ERROR in outputs and (len(outputs[OUTPUT_ERROR].shape) != 2 or outputs[OUTPUT_ERROR].shape[1] not in (3, None)):
-        problems.append(f"output '{OUTPUT_ERROR}' has shape {outputs[OUTPUT_ERROR].shape}, expected [N, 3]")
-    if joints_output in outputs and (len(outputs[joints_output].shape) != 2
-                                     or outputs[joints_output].shape[1] not in (6, None)):
-        problems.append(f"output '{joints_output}' has shape {outputs[joints_output].shape}, expected [N, 6]")
-    if OUTPUT_ROTATION in outputs and (len(outputs[OUTPUT_ROTATION].shape) != 2
-                                       or outputs[OUTPUT_ROTATION].shape[1] not in (3, None)):
-        problems.append(f"output '{OUTPUT_ROTATION}' has shape {outputs[OUTPUT_ROTATION].shape}, expected [N, 3]")
-    for node in (*inputs.values(), *outputs.values()):
-        if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, OUTPUT_ERROR,
-                         joints_output, OUTPUT_ROTATION) and node.type != "tensor(float)":
-            problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
+    problems = _interface_problems(inputs, outputs, joints_output)
     if problems:
         raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path), code=P306)
     meta = {k: _json_or_text(v) for k, v in session.get_modelmeta().custom_metadata_map.items()}
