@@ -112,6 +112,28 @@ def _refuse(program: Program, rows: np.ndarray, message: str) -> PostprocError:
     return PostprocError(f"refusing to write: {message}", *where, P191)
 
 
+def _check_frames(program: Program, again: Program) -> None:
+    """P191 unless every target of ``again`` (the program read again) is in the same base and
+    tool as before (matrices compared, frame indices may differ)."""
+    a, b = program.targets, again.targets
+    known = a.frame >= 0
+    differ = np.flatnonzero(known != (b.frame >= 0))
+    if len(differ):
+        raise _refuse(program, differ, "the frame of this target is not statically known in the compensated text")
+    width = int(b.frame.max(initial=0)) + 1  # (one code per pair of frame indices: a 1-D unique is fast)
+    codes = np.unique(a.frame[known].astype(np.int64) * width + b.frame[known])
+    for i, j in zip((codes // width).tolist(), (codes % width).tolist()):
+        before, after = program.frames[i], again.frames[j]
+        same_tool = (before.tool is None) == (after.tool is None) and (
+            before.tool is None or np.allclose(before.tool, after.tool, rtol=0.0, atol=1e-9, equal_nan=True))
+        if not (same_tool and np.allclose(before.base, after.base, rtol=0.0, atol=1e-9, equal_nan=True)):
+            moved = after.base[:3, 3] - before.base[:3, 3] if same_tool else np.subtract(after.tool, before.tool)[:3]
+            raise _refuse(program, np.flatnonzero((a.frame == i) & (b.frame == j)),
+                          f"compensating moves the {'base' if same_tool else 'tool'} of this target ({before.label}, "
+                          f"by {float(np.linalg.norm(moved)):.3f} mm): a position that is compensated as a motion "
+                          "target is also used as a frame")
+
+
 def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_xyz: np.ndarray,
                      filled: np.ndarray | None = None) -> None:
     """Read ``texts`` (the program's files with the corrected numbers, before the stamp)
@@ -135,23 +157,7 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
         differ = np.flatnonzero(getattr(a, column) != getattr(b, column))
         if len(differ):
             raise _refuse(program, differ, f"the compensated text reads as other targets ({column} differs)")
-    # frames: the same base for every target (matrices compared, indices may differ)
-    known = a.frame >= 0
-    differ = np.flatnonzero(known != (b.frame >= 0))
-    if len(differ):
-        raise _refuse(program, differ, "the frame of this target is not statically known in the compensated text")
-    width = int(b.frame.max(initial=0)) + 1  # (one code per pair of frame indices: a 1-D unique is fast)
-    codes = np.unique(a.frame[known].astype(np.int64) * width + b.frame[known])
-    for i, j in zip((codes // width).tolist(), (codes % width).tolist()):
-        before, after = program.frames[i], again.frames[j]
-        same_tool = (before.tool is None) == (after.tool is None) and (
-            before.tool is None or np.allclose(before.tool, after.tool, rtol=0.0, atol=1e-9, equal_nan=True))
-        if not (same_tool and np.allclose(before.base, after.base, rtol=0.0, atol=1e-9, equal_nan=True)):
-            moved = after.base[:3, 3] - before.base[:3, 3] if same_tool else np.subtract(after.tool, before.tool)[:3]
-            raise _refuse(program, np.flatnonzero((a.frame == i) & (b.frame == j)),
-                          f"compensating moves the {'base' if same_tool else 'tool'} of this target ({before.label}, "
-                          f"by {float(np.linalg.norm(moved)):.3f} mm): a position that is compensated as a motion "
-                          "target is also used as a frame")
+    _check_frames(program, again)
     # values: the corrected X/Y/Z where compensated and written, everything else as it was
     expected = a.poses.copy()
     expected[rows, :3] = new_xyz

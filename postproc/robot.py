@@ -147,18 +147,17 @@ def load_description(path: str | Path | None = None) -> RobotDescription:
     return parse_description(text, str(path))
 
 
-def parse_description(text: str, path: str = "<robot>") -> RobotDescription:
-    """Parse the text of a robot description (see :func:`load_description`)."""
+def _toml(text: str, path: str) -> dict:
     try:
-        doc = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         m = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
         line, col = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
         raise PostprocError(f"not valid TOML: {str(exc).split(' (at line')[0]}", path, line, col, P330) from None
 
-    def fail_at(table: str, key: str | None = None, index: int = 0, code: str = P332):
-        return lambda message: PostprocError(message, path, _locate(text, table, key, index) or 1, 1, code)
 
+def _check_tables(doc: dict, fail_at) -> None:
+    """P331 for a table the schema does not know, or of the wrong kind."""
     for table, body in doc.items():
         if table not in _SCHEMA:
             known = ", ".join(f"[{t}]" for t in _SCHEMA)
@@ -167,6 +166,30 @@ def parse_description(text: str, path: str = "<robot>") -> RobotDescription:
             raise fail_at(table, code=P331)("joints are an array of tables: write [[joint]]")
         if table != "joint" and not isinstance(body, dict):
             raise fail_at(table, code=P331)(f"[{table}] must be a table")
+
+
+def _joint_spec(j: dict, fail) -> JointSpec:
+    """One checked [[joint]] table → JointSpec; ``fail(key)`` makes the error at that key."""
+    norm = float(np.linalg.norm(j["axis"]))
+    if norm < 1e-9:
+        raise fail("axis")(f"joint {j['name']}: axis must not be zero")
+    if not j["limits"][0] < j["limits"][1]:
+        raise fail("limits")(f"joint {j['name']}: limits must be [lower, upper] with lower < upper")
+    mass = j.get("mass", 0.0)
+    if mass < 0:
+        raise fail("mass")(f"joint {j['name']}: mass must not be negative")
+    return JointSpec(j["name"], j["origin"], j["axis"] / norm, j["limits"], mass, j.get("com", np.zeros(3)),
+                     j.get("inertia"))
+
+
+def parse_description(text: str, path: str = "<robot>") -> RobotDescription:
+    """Parse the text of a robot description (see :func:`load_description`)."""
+    doc = _toml(text, path)
+
+    def fail_at(table: str, key: str | None = None, index: int = 0, code: str = P332):
+        return lambda message: PostprocError(message, path, _locate(text, table, key, index) or 1, 1, code)
+
+    _check_tables(doc, fail_at)
 
     def section(table: str, body: dict, index: int = 0) -> dict:
         out = {}
@@ -187,17 +210,7 @@ def parse_description(text: str, path: str = "<robot>") -> RobotDescription:
     robot = section("robot", doc["robot"])
     joints = []
     for i, body in enumerate(doc.get("joint", [])):
-        j = section("joint", body, i)
-        norm = float(np.linalg.norm(j["axis"]))
-        if norm < 1e-9:
-            raise fail_at("joint", "axis", i)(f"joint {j['name']}: axis must not be zero")
-        if not j["limits"][0] < j["limits"][1]:
-            raise fail_at("joint", "limits", i)(f"joint {j['name']}: limits must be [lower, upper] with lower < upper")
-        mass = j.get("mass", 0.0)
-        if mass < 0:
-            raise fail_at("joint", "mass", i)(f"joint {j['name']}: mass must not be negative")
-        joints.append(JointSpec(j["name"], j["origin"], j["axis"] / norm, j["limits"], mass,
-                                j.get("com", np.zeros(3)), j.get("inertia")))
+        joints.append(_joint_spec(section("joint", body, i), lambda key: fail_at("joint", key, i)))
     if len(joints) != 6:
         raise PostprocError(f"a robot needs 6 [[joint]] tables, this one has {len(joints)}", path, 1, 1, P333)
     flange = section("flange", doc["flange"])
