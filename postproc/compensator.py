@@ -188,14 +188,8 @@ class Compensator:
         With ``rotation``: the rotation error [N, 3] deg is returned last."""
         if isinstance(joints, bool):
             joints, with_joints = None, joints
-        poses = np.ascontiguousarray(poses, dtype=np.float32).reshape(-1, 6)
-        if self.wants_previous:
-            previous = poses if previous is None else np.ascontiguousarray(previous, dtype=np.float32).reshape(-1, 6)
-        extra = {}
-        for name, wanted, value in ((INPUT_JOINTS, self.wants_joints, joints), (INPUT_TOOL, self.wants_tool, tool)):
-            if wanted:
-                extra[name] = (np.full(poses.shape, np.nan, np.float32) if value is None
-                               else np.ascontiguousarray(np.broadcast_to(np.asarray(value, np.float32), poses.shape)))
+        inputs = self._inputs(poses, previous, joints, tool)
+        poses = inputs[INPUT_POSE]
         names = [OUTPUT_ERROR, self.joints_output] if with_joints and self.has_joints else [OUTPUT_ERROR]
         results = [np.empty((len(poses), 3)), np.empty((len(poses), 6))][:len(names)]
         if rotation:
@@ -206,11 +200,7 @@ class Compensator:
 
         def run(at: int) -> None:
             batch = slice(at, at + PREDICT_BATCH)
-            feeds = {INPUT_POSE: poses[batch]}
-            if self.wants_previous:
-                feeds[INPUT_PREVIOUS] = previous[batch]
-            for name, value in extra.items():
-                feeds[name] = value[batch]
+            feeds = {name: value[batch] for name, value in inputs.items()}
             try:
                 outs = self.session.run(names, feeds)
             except Exception as exc:  # onnxruntime's own types: a graph that does not run on [N, 6]
@@ -239,6 +229,20 @@ class Compensator:
         if rotation:
             out.append(results[-1])
         return out[0] if len(out) == 1 else tuple(out)
+
+    def _inputs(self, poses, previous, joints, tool) -> dict[str, np.ndarray]:
+        """The model's inputs, float32 [N, 6] each: ``pose``; ``previous_pose`` (the pose itself
+        where not given), ``joints`` and ``tool`` (NaN where not given) for a model that takes them."""
+        poses = np.ascontiguousarray(poses, dtype=np.float32).reshape(-1, 6)
+        inputs = {INPUT_POSE: poses}
+        if self.wants_previous:
+            inputs[INPUT_PREVIOUS] = (poses if previous is None
+                                      else np.ascontiguousarray(previous, dtype=np.float32).reshape(-1, 6))
+        for name, wanted, value in ((INPUT_JOINTS, self.wants_joints, joints), (INPUT_TOOL, self.wants_tool, tool)):
+            if wanted:
+                inputs[name] = (np.full(poses.shape, np.nan, np.float32) if value is None
+                                else np.ascontiguousarray(np.broadcast_to(np.asarray(value, np.float32), poses.shape)))
+        return inputs
 
     def command(self, poses: np.ndarray, iterations: int | None = None, joints=None, tool=None,
                 with_joints: bool = False):
