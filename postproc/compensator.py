@@ -131,6 +131,9 @@ class Compensator:
     wants_joints: bool = False  # the graph takes the controller's ``joints`` (configuration)
     wants_tool: bool = False  # the graph takes the TCP on the flange (``tool``)
     has_rotation: bool = False  # the graph also outputs ``rotation_error``
+    # tuning, per instance (tests make them small on their own model, nothing process-wide)
+    predict_batch: int = PREDICT_BATCH  # rows per onnxruntime call of ``predict``
+    command_chunk: int = COMMAND_CHUNK  # rows per chunk of ``command_chunks``
 
     @property
     def name(self) -> str:
@@ -183,7 +186,7 @@ class Compensator:
         to a model with that input, ignored by others; ``tool`` [N, 6]: the TCP on the flange
         (likewise). With ``with_joints``: (Ê, the model's joint angles [N, 6] deg, or None for a
         model without that output); ``joints=True`` / ``False`` is read as ``with_joints`` (the
-        older call). Batched: one onnxruntime call per PREDICT_BATCH poses (a whole CAM program
+        older call). Batched: one onnxruntime call per ``predict_batch`` poses (a whole CAM program
         in one call would make the runtime hold every intermediate layer for every target).
         With ``rotation``: the rotation error [N, 3] deg is returned last."""
         if isinstance(joints, bool):
@@ -199,7 +202,7 @@ class Compensator:
             results.append(np.empty((len(poses), 3)))
 
         def run(at: int) -> None:
-            batch = slice(at, at + PREDICT_BATCH)
+            batch = slice(at, at + self.predict_batch)
             feeds = {name: value[batch] for name, value in inputs.items()}
             try:
                 outs = self.session.run(names, feeds)
@@ -213,7 +216,7 @@ class Compensator:
                                         f"{result.shape[1]}) (output '{name}')", str(self.path), code=P306)
                 result[batch] = out
 
-        starts = range(0, len(poses), PREDICT_BATCH)
+        starts = range(0, len(poses), self.predict_batch)
         if len(starts) == 1:
             run(0)
         elif len(starts) > 1:
@@ -267,7 +270,7 @@ class Compensator:
     def command_chunks(self, poses: np.ndarray, iterations: int | None = None, joints=None, tool=None,
                        with_joints: bool = False,
                        orientation: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
-        """``command`` chunk by chunk (COMMAND_CHUNK rows) in row order: yields (first row,
+        """``command`` chunk by chunk (``command_chunk`` rows) in row order: yields (first row,
         commands [n, 3], the targets' joint angles [n, 6] deg if ``with_joints`` and the model
         has them, else None), the same numbers as one ``command`` call (each chunk takes its
         first row's previous pose, per iteration, from the chunk before), so a caller can use
@@ -289,7 +292,7 @@ class Compensator:
 
     def _chunks(self, poses: np.ndarray, iterations: int, with_joints: bool, joints: np.ndarray | None,
                 tool: np.ndarray | None, orientation: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
-        chunk = COMMAND_CHUNK  # (read at call time: tests make it small)
+        chunk = self.command_chunk
         # the last row of the chunk before, after each iteration k (k = 0: the target itself)
         before: list[np.ndarray] | None = None
         for start in range(0, len(poses), chunk):
