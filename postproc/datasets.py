@@ -101,10 +101,10 @@ def _column_offset(line: str, index: int) -> int:
     return sum(len(f) + 1 for f in line.split(";")[:index]) + 1
 
 
-def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSeries:
-    """Parse the text of an IPA measurement file (see the module docstring)."""
-    from scipy.spatial.transform import Rotation
-
+def _ipa_table(text: str, path: str) -> tuple[np.ndarray, list[str], bool, np.ndarray]:
+    """The IPA file's numbers: [N, len(wanted)] floats of the ``wanted`` columns (the required
+    ones, then the optional ones present), whether the measured rotation is there, and each
+    row's 1-based line; PostprocError (P500-P503) at the first bad place."""
     raw_lines = text.lstrip("\ufeff").splitlines()
     if not raw_lines or not raw_lines[0].strip():
         raise PostprocError("empty file: expected an IPA header line", path, 1, 1, P500)
@@ -160,6 +160,14 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
             _column_offset(numbered[r][1], int(columns[c])),
             P502,
         )
+    return values, wanted, has_rotation, line_no
+
+
+def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSeries:
+    """Parse the text of an IPA measurement file (see the module docstring)."""
+    from scipy.spatial.transform import Rotation
+
+    values, wanted, has_rotation, line_no = _ipa_table(text, path)
     col = {name: values[:, i] for i, name in enumerate(wanted)}
     goal = np.stack([col[name] for name in IPA_GOAL], axis=1)
     commanded = np.concatenate([goal[:, :3] * 1000.0, rpy_to_abc(goal[:, 3:], branch)], axis=1)
