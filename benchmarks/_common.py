@@ -1,6 +1,7 @@
 """What the benchmarks share: running the CLI as a user would, the machine's load, and a KRL program of poses."""
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
@@ -32,3 +33,23 @@ def krl_program(name: str, poses: np.ndarray) -> str:
     lines = [f"DEF {name}( )"] + ["  LIN {" + ",".join(f"{k} {v:.4f}" for k, v in zip("XYZABC", p)) + "}"
                                   for p in poses]
     return "\n".join(lines + ["END", ""])
+
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def record(name: str, figures: dict, argv: list[str] | None = None) -> Path:
+    """Write a benchmark's figures to ``benchmarks/results/NAME.json`` (with the command and
+    the machine's load): the README's figures are taken from there (``benchmarks/figures.py``),
+    never copied by hand."""
+    import json
+    import platform
+    from datetime import datetime, timezone
+
+    RESULTS.mkdir(exist_ok=True)
+    path = RESULTS / f"{name}.json"
+    command = "python benchmarks/" + " ".join([Path(sys.argv[0]).name] + list(sys.argv[1:] if argv is None else argv))
+    entry = {"command": command, "when": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%MZ"), "load": load(),
+             "cores": os.cpu_count(), "python": platform.python_version(), "figures": figures}
+    path.write_text(json.dumps(entry, indent=1, sort_keys=False) + "\n")
+    return path

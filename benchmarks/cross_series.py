@@ -52,13 +52,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-
 from postproc.cli.train_hybrid import arm_metadata  # noqa: E402
 from postproc.compensator import load_model  # noqa: E402
 from postproc.registration import register_measurements  # noqa: E402
 from postproc.robot import load_description  # noqa: E402
-from postproc.training.data import read_measurements, split_indices  # noqa: E402
+from postproc.measurements import read_measurements  # noqa: E402
+from postproc.training.data import split_indices  # noqa: E402
 from postproc.training.features import previous_poses  # noqa: E402
 from postproc.training.hybrid import HybridModel  # noqa: E402
 

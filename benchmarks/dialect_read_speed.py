@@ -8,13 +8,9 @@ targets per second, and the number of targets read (which must be --targets).
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 EAX = "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]"
 WOBJ = 'TASK PERS wobjdata wCam:=[FALSE,TRUE,"",[[1900,-100,600],[0.9961947,0,0,0.0871557]],[[0,0,0],[1,0,0,0]]];'

@@ -24,15 +24,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-from benchmarks._common import cli  # noqa: E402
+from _common import cli  # noqa: E402
 
 DEFAULT_DATA = "/work/shared/datasets/ipa-robot-accuracy"
 SERIES_D = "Series_D/measurements_iso_cubes.csv"
@@ -41,8 +38,7 @@ SERIES_D = "Series_D/measurements_iso_cubes.csv"
 def first_order_after(base_csv: Path, model_path: str, out: Path) -> str:
     """Write the first-order 'after' file; '' or why not (poses outside the model's envelope)."""
     from postproc.compensator import load_model
-    from postproc.datasets import write_measurements
-    from postproc.training.data import parse_measurements
+    from postproc.measurements import parse_measurements, write_measurements
 
     m = parse_measurements(base_csv.read_bytes(), str(base_csv), repeats=True)
     model = load_model(model_path)

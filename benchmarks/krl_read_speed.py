@@ -10,14 +10,10 @@ from __future__ import annotations
 
 import argparse
 import re
-import sys
 import time
 import tracemalloc
-from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 
 def cam_program(lines: int, crlf: bool, seed: int = 0) -> str:

@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -40,12 +39,11 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
 from _common import cli  # noqa: E402
 from postproc.compensator import load_model  # noqa: E402
 from postproc.planning import read_pose_csv  # noqa: E402
-from postproc.training.data import read_measurements  # noqa: E402
+from postproc.measurements import read_measurements  # noqa: E402
 from postproc.training.features import previous_poses  # noqa: E402
 
 DEFAULT_DATA = "/work/shared/datasets/ipa-robot-accuracy"

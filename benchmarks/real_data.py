@@ -43,8 +43,6 @@ from scipy.linalg import cho_factor, cho_solve  # noqa: E402
 from scipy.optimize import least_squares, minimize  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
 from postproc.datasets import read_ipa  # noqa: E402
 from postproc.frames import rotation_from_abc  # noqa: E402
 from postproc.registration import register_measurements  # noqa: E402

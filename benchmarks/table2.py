@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -33,11 +32,10 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-
 from _common import cli, krl_program  # noqa: E402
 from postproc.training import ErrorModel  # noqa: E402
-from postproc.training.data import read_measurements, split_indices  # noqa: E402
+from postproc.measurements import read_measurements  # noqa: E402
+from postproc.training.data import split_indices  # noqa: E402
 
 PAPER = {  # Hu, Hua & Tian, Table 2 (mm): max, min, mean, std
     "uncompensated": (1.529, 0.124, 0.754, 0.340),

@@ -11,17 +11,14 @@ the synthetic error field (postproc.training.synthetic, 2000 poses). Single thre
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
 from postproc.training import ErrorModel  # noqa: E402
-from postproc.training.data import read_measurements, split_indices  # noqa: E402
+from postproc.measurements import read_measurements  # noqa: E402
+from postproc.training.data import split_indices  # noqa: E402
 from postproc.training.synthetic import synthetic_measurements  # noqa: E402
 
 

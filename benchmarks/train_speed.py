@@ -31,7 +31,6 @@ def make_data(folder: Path) -> tuple[Path, str]:
     try:
         import postproc.simulator  # noqa: F401
     except ImportError:
-        sys.path.insert(0, str(ROOT))
         from postproc.training.synthetic import synthetic_measurements, to_csv
 
         data.write_text(to_csv(*synthetic_measurements(2000)))

@@ -1,7 +1,7 @@
 """A robot cell as one unit: a set of KRL files or a controller backup directory
 (``KRC/R1/``) → its modules (.src/.sub with their .dat), its data lists without a DEF, its
 ``$config.dat``; compensated together and written together (one atomic write of every
-file, the journal of ``rewrite.write_atomic``), the output tree mirroring the input's.
+file, the journal of ``atomic.write_atomic``), the output tree mirroring the input's.
 
 Reading: every file of the cell in one reader call (``programs.krl.read`` takes a set of
 modules): ``$config.dat`` and PUBLIC data lists first, so that ``DECL GLOBAL`` points and
@@ -19,7 +19,7 @@ from pathlib import Path
 
 from .compensate import Report, compensate_program, read_text, write_outputs
 from .compensator import Compensator
-from .diagnostics import PostprocError
+from .diagnostics import P107, P110, P112, PostprocError
 from .programs import ActiveFrames, Program, read_program
 
 __all__ = ["Cell", "find_cell", "compensate_cell", "is_config", "CONFIG_NAME"]
@@ -76,7 +76,7 @@ def _found_config(root: Path) -> list[Path]:
     shallowest = [p for p in found if len(p.relative_to(root).parts) == depth]
     if len(shallowest) > 1:
         raise PostprocError(f"several $config.dat in this cell ({', '.join(str(p) for p in shallowest)}): give "
-                            "--config", str(root), 0, 0, "P112")
+                            "--config", str(root), 0, 0, P112)
     return shallowest
 
 
@@ -94,9 +94,9 @@ def find_cell(paths: list[str | Path], config: list[str | Path] | None = None,
         elif p.is_file():
             files.append(p)
         else:
-            raise PostprocError("no such file or directory", str(p), 0, 0, "P107")
+            raise PostprocError("no such file or directory", str(p), 0, 0, P107)
     if not files:
-        raise PostprocError("no KRL files (.src, .sub, .dat) here", str(paths[0]) if paths else "", 0, 0, "P107")
+        raise PostprocError("no KRL files (.src, .sub, .dat) here", str(paths[0]) if paths else "", 0, 0, P107)
     parents = list(dirs) + [f.parent for f in files if not any(f.resolve().is_relative_to(d.resolve()) for d in dirs)]
     root = Path(os.path.commonpath([str(p.resolve()) for p in parents]))
     given = [Path(c) for c in config] if config else []
@@ -135,10 +135,10 @@ def compensate_cell(cell: Cell, out_dir: str | Path, model: Compensator, **optio
     out_dir = Path(out_dir)
     if out_dir.resolve() == cell.root.resolve() or cell.root.resolve().is_relative_to(out_dir.resolve()):
         raise PostprocError("-o is the cell's own directory: give another directory, the cell's files stay as "
-                            "they are", str(out_dir), 0, 0, "P110")
+                            "they are", str(out_dir), 0, 0, P110)
     if out_dir.exists() and not out_dir.is_dir():
         raise PostprocError("is not a directory: a cell is written to a directory (-o OUTDIR)", str(out_dir), 0, 0,
-                            "P110")
+                            P110)
     if not cell.files:
         return Report(model=model.name, model_sha256=model.sha256)
     program = cell.read()

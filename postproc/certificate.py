@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .diagnostics import PostprocError
+from .diagnostics import P107, PostprocError
 from .iso9283 import IsoResult, iso_summary
 from .stats import table2
 
@@ -242,7 +242,7 @@ def write_certificate(result: IsoResult, folder: str | Path, model=None, date: s
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise PostprocError(f"cannot create the report folder: {exc.strerror}", str(folder), code="P107") from None
+        raise PostprocError(f"cannot create the report folder: {exc.strerror}", str(folder), code=P107) from None
     card = model_card(model) if model is not None else {}
     numbers = iso_summary(result)
     (folder / "iso9283.json").write_text(json.dumps(numbers, indent=1) + "\n", encoding="utf-8")

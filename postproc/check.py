@@ -33,12 +33,11 @@ from .compensate import compensate_program, load_program, output_paths, rewrite_
 from .findings import DEFAULT_MAX_CORRECTION_MM, Settings, findings, run_model, select
 from .compensator import Compensator, load_model
 from .config import Config
-from .diagnostics import Diagnostic, PostprocError, line_col
-from .programs import STAMP_PREFIX, Program
-from .rewrite import write_atomic
+from .diagnostics import P202, P401, P402, P403, P404, P405, P406, P407, Diagnostic, PostprocError, line_col
+from .programs import STAMP_PREFIX, Program, companion_dat
+from .atomic import write_atomic
 
 __all__ = [
-    "CODES",
     "Stamp",
     "find_stamps",
     "check_program",
@@ -48,44 +47,6 @@ __all__ = [
     "program_paths",
     "failed",
 ]
-
-# The codes this module reports besides the readers' own (README "pre-commit" lists them all).
-CODES = {
-    "P117": "a URScript pose p[…] without six components",
-    "P118": "a Fanuc LS position without X…R in mm/deg, or a malformed frame file (--frames)",
-    "P103": "target position is not a finite number",
-    "P202": "one set of numbers used as targets in two frames (compensate refuses it)",
-    "P203": "the target's $TOOL is not known (left as it is by compensate)",
-    "P212": "target position not fully known (left as it is by compensate)",
-    "P213": "target orientation not known (the model's nominal attitude is assumed)",
-    "P214": "a point derived from another at run time: it carries the other's correction (left as it is)",
-    "P215": "a target name declared in none of the files read (left as it is)",
-    "P217": "a URScript pose variable or LS P[n] that other statements read too (left as it is)",
-    "P216": "partial aggregate refused (compensate --no-fill-partial; filled in by default)",
-    "P220": "$BASE (or $BASE and $TOOL) not set before the target and not stated with --base (left as it is)",
-    "P221": "$TOOL not set before the target and not stated with --tool (left as it is)",
-    "P222": "--base / --tool that cannot be resolved or is malformed (refused)",
-    "P223": "a point an INTERRUPT handler switched on may assign (left as it is)",
-    "P301": "target outside the model's training envelope",
-    "P302": "target beyond the nominal robot's reach (model metadata 'reach')",
-    "P303": "the model's correction exceeds max_correction",
-    "P304": "the program's $TOOL is not the model's tool",
-    "P305": "the model returns NaN or inf at this target",
-    "P309": "no inverse-kinematics solution for this target (--robot FILE.toml)",
-    "P313": "the target's S/T is another arm configuration than the model evaluates (left as it is)",
-    "P319": "the target's $TOOL is far from the measured tools: the unseparated mount rotation may add error",
-    "P321": "a joint barely moving at the target stays in its backlash dead band (compensate -v; a note)",
-    "P310": "the model was trained on another robot than the configured one",
-    "P402": "compensated with a model other than the configured one",
-    "P403": "compensated twice",
-    "P404": "the .src and .dat do not come from one compensation",
-    "P405": "compensated output is stale: re-compensating its source gives other bytes",
-    "P406": "compensated output is missing",
-    "P407": "compensated output has no source",
-    # train's own (check never reports them; listed so that every code has its one line here)
-    "P317": "train --update: the old model has no identification to re-fit (a DNN/gpso model, an older card)",
-    "P318": "train --update: the old model is of another robot description than --robot",
-}
 
 # "path:line:col" of a stamp; the name may hold spaces, the hash is the last word
 _STAMP = re.compile(
@@ -137,14 +98,14 @@ def _stamp_findings(program: Program, model: Compensator, selection) -> list[Dia
         path = program.files[s.file]
         if s.file in first:
             f = first[s.file]
-            out.append(Diagnostic(path, s.line, s.col, "P403",
+            out.append(Diagnostic(path, s.line, s.col, P403,
                                   f"compensated twice: a second stamp (the first is on line {f.line}, "
                                   f"model {f.name} {f.sha})", "error"))
             continue
         first[s.file] = s
         if not s.same_model(model):
             what = ("another version of model " + s.name) if s.name == model.name else f"model {s.name}"
-            out.append(Diagnostic(path, s.line, s.col, "P402",
+            out.append(Diagnostic(path, s.line, s.col, P402,
                                   f"compensated with {what} {s.sha}, not the configured {model.name} "
                                   f"{model.sha256[:12]}", "error"))
     if first and len(program.files) > 1:
@@ -165,7 +126,7 @@ def _stamp_findings(program: Program, model: Compensator, selection) -> list[Dia
                 others = [program.files[j] for j, k in keys.items() if k != key]
                 where = (first[i].line, first[i].col) if i in first else (1, 1)
                 state = f"stamped {key[0]} {key[1]}" if key else "not stamped"
-                out.append(Diagnostic(program.files[i], *where, "P404",
+                out.append(Diagnostic(program.files[i], *where, P404,
                                       f"{state}, unlike {', '.join(others)}: the files of this module do not "
                                       "come from one compensation", "error"))
     return out
@@ -194,8 +155,8 @@ def check_program(
     selection = select(program, model, settings)
     commands = run_model(model, selection, iterations)
     # a stamp is the stamp rules' business here (P402-P404), not "already compensated"
-    out = [d for d in program.diagnostics if d.code != "P202"]
-    out += [d for d in findings(program, commands, model, settings) if d.code != "P401"]
+    out = [d for d in program.diagnostics if d.code != P202]
+    out += [d for d in findings(program, commands, model, settings) if d.code != P401]
     out += _stamp_findings(program, model, selection)
     if not failed(out):
         try:
@@ -299,7 +260,6 @@ def _cell_findings(owners: list[Path], model: Compensator, config, active=None, 
     """The findings of KRL modules and data lists checked as one cell (``cell.find_cell``:
     each module with its .dat, one reader call, ``$config.dat`` among them or ``config``)."""
     from .cell import find_cell
-    from .compensate import companion_dat
 
     paths = list(owners) + [d for d in (companion_dat(p) for p in owners if p.suffix.lower() != ".dat") if d]
     try:
@@ -335,6 +295,25 @@ def _first_difference(expected: str, actual: str) -> int:
         return n
     a, b = np.frombuffer(expected[:n].encode("latin-1"), np.uint8), np.frombuffer(actual[:n].encode("latin-1"), np.uint8)
     return int(np.argmax(a != b))
+
+
+def _stale(program: Program, report, targets: list[Path], shown_src: str, model: Compensator) -> list[Diagnostic]:
+    """P406 for each output of ``program`` missing, P405 for each whose bytes are not the new
+    texts of ``report`` (at the first differing byte)."""
+    stale: list[Diagnostic] = []
+    for target, name in zip(targets, program.files):
+        expected = report.outputs[name]
+        if not target.is_file():
+            stale.append(Diagnostic(shown_src, 0, 0, P406, f"no compensated output {_shown(target)}", "error"))
+            continue
+        actual = target.read_bytes().decode("latin-1")
+        if actual != expected:
+            line, col = line_col(actual, _first_difference(expected, actual))
+            stale.append(Diagnostic(
+                _shown(target), line, col, P405,
+                f"stale: compensating {_shown(Path(name))} with {model.name} "
+                f"{model.sha256[:12]} gives other bytes from here on (`postproc check --fresh --fix` rewrites it)", "error"))
+    return stale
 
 
 def check_fresh(
@@ -375,26 +354,13 @@ def check_fresh(
                                         f"{d.message} (while compensating it for {shown_out})", "error"))
                 continue
             targets = output_paths(program, output)
-            stale: list[Diagnostic] = []
-            for target, name in zip(targets, program.files):
-                expected = report.outputs[name]
-                if not target.is_file():
-                    stale.append(Diagnostic(shown_src, 0, 0, "P406",
-                                            f"no compensated output {_shown(target)}", "error"))
-                    continue
-                actual = target.read_bytes().decode("latin-1")
-                if actual != expected:
-                    line, col = line_col(actual, _first_difference(expected, actual))
-                    stale.append(Diagnostic(
-                        _shown(target), line, col, "P405",
-                        f"stale: compensating {_shown(Path(name))} with {pair_model.name} "
-                        f"{pair_model.sha256[:12]} gives other bytes from here on (`postproc check --fresh --fix` rewrites it)", "error"))
+            stale = _stale(program, report, targets, shown_src, pair_model)
             if stale and fix:
                 write_atomic([(t, report.outputs[f]) for t, f in zip(targets, program.files)])
                 written += targets
             else:
                 found += stale
-        found += [Diagnostic(_shown(p), 0, 0, "P407", f"no source matches '{pair.source}' for this output",
+        found += [Diagnostic(_shown(p), 0, 0, P407, f"no source matches '{pair.source}' for this output",
                              "warning") for p in pair.orphans()]
     found = [d for d in found if d.code not in ignored]
     return sorted(found, key=lambda d: (d.path, d.line, d.col, d.code)), written

@@ -20,7 +20,10 @@ from collections import Counter
 
 from . import frames
 from .compensator import Compensator, Inside, load_model
-from .diagnostics import LEFT_AS_WRITTEN, Diagnostic, PostprocError
+from .diagnostics import (
+    P105, P106, P107, P108, P109, P201, P202, P203, P212, P220, P221, P306, P312, Diagnostic, LEFT_AS_WRITTEN,
+    PostprocError,
+)
 from .findings import (
     DEFAULT_MAX_CORRECTION_MM,
     Commands,
@@ -37,8 +40,8 @@ from .findings import (
     where,
 )
 from .guards import ROUNDING_MM, check_inserted, check_memory, check_numbers, check_round_trip
-from .outputs import write as write_checked
-from .programs import STAMP_PREFIX, ActiveFrames, Program, dialect_of, read_program
+from .outputs import check_outputs, write
+from .programs import STAMP_PREFIX, ActiveFrames, Program, companion_dat, dialect_of, read_program
 from .rewrite import check_disjoint, format_like, format_many, insert_stamp, splice, stamp_line
 
 __all__ = [
@@ -116,9 +119,9 @@ class Report:
 
 def _decode(data: bytes, path: str) -> str:
     if not data.strip():
-        raise PostprocError("empty file", path, 1, 1, "P105")
+        raise PostprocError("empty file", path, 1, 1, P105)
     if b"\x00" in data[:65536]:
-        raise PostprocError("binary file (NUL bytes), not a robot program", path, 1, 1, "P106")
+        raise PostprocError("binary file (NUL bytes), not a robot program", path, 1, 1, P106)
     # latin-1 maps every byte to one character: whatever the file's encoding, bytes round-trip
     return data.decode("latin-1")
 
@@ -129,24 +132,10 @@ def read_text(path: str | Path) -> str:
     try:
         data = path.read_bytes()
     except FileNotFoundError:
-        raise PostprocError("no such file", str(path), 0, 0, "P107") from None
+        raise PostprocError("no such file", str(path), 0, 0, P107) from None
     except OSError as exc:
-        raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, "P107") from None
+        raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, P107) from None
     return _decode(data, str(path))
-
-
-def companion_dat(src: Path) -> Path | None:
-    """The .dat beside a .src (same stem, any case), if there is one."""
-    if src.suffix.lower() != ".src" or not src.parent.is_dir():
-        return None
-    for candidate in (src.with_suffix(".dat"), src.with_suffix(".DAT")):
-        if candidate.is_file():
-            return candidate
-    stem = src.stem.lower()
-    for candidate in src.parent.iterdir():
-        if candidate.suffix.lower() == ".dat" and candidate.stem.lower() == stem:
-            return candidate
-    return None
 
 
 def sniff_dialect(text: str) -> str:
@@ -193,7 +182,7 @@ def load_program(path: str | Path, config: str | Path | None = None, dialect: st
         try:
             dialect = dialect_of(path)
         except ValueError as exc:
-            raise PostprocError(str(exc), str(path), 0, 0, "P108") from None
+            raise PostprocError(str(exc), str(path), 0, 0, P108) from None
     dat = companion_dat(path) if dialect == "krl" else None
     check_memory([path] + ([dat] if dat is not None else []))
     files, texts = [str(path)], [read_text(path)]
@@ -209,7 +198,7 @@ def load_program(path: str | Path, config: str | Path | None = None, dialect: st
 def _left_codes(program: Program, selection: Selection) -> Counter:
     """Why each target not compensated was left as written: its code, counted. Rows of the
     program's Targets are P201 (frame not known) or P212 (position not known); the reader's
-    targets that never became rows (``diagnostics.LEFT_AS_WRITTEN``: P210, P211, P214, P215)
+    targets that never became rows (``diagnostics.LEFT_AS_WRITTEN``: P210, P211, P214, P215, P217, P223)
     count one each."""
     t = program.targets
     left = np.ones(len(t), bool)
@@ -219,14 +208,14 @@ def _left_codes(program: Program, selection: Selection) -> Counter:
     if unknown_frame:
         # frame -1: the base (P201) or the tool (P203) is not known, or not set (P220/P221); the reader's located
         # warnings say which for each statement, the count names the codes it warned with
-        said = {d.code for d in program.diagnostics} & {"P201", "P203", "P220", "P221"}
-        codes["/".join(sorted(said)) if said else "P201"] = unknown_frame
+        said = {d.code for d in program.diagnostics} & {P201, P203, P220, P221}
+        codes["/".join(sorted(said)) if said else P201] = unknown_frame
     by_rule = 0
     for code, rows in selection.left.items():
         codes[code] += len(rows)
         by_rule += len(rows)
     if left.sum() > unknown_frame + by_rule:
-        codes["P212"] = int(left.sum()) - unknown_frame - by_rule
+        codes[P212] = int(left.sum()) - unknown_frame - by_rule
     for d in program.diagnostics:
         if d.code in LEFT_AS_WRITTEN:
             codes[d.code] += 1
@@ -280,7 +269,7 @@ def compensate_program(
     settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot, force=force,
                         fill_partial=fill_partial)
     selection, found = select_with_findings(program, model, settings)
-    warnings = [d for d in program.diagnostics if d.code != "P202" or force] + found
+    warnings = [d for d in program.diagnostics if d.code != P202 or force] + found
     _raise_first(found, False)
     _raise_first(warnings, strict)
     if orientation:
@@ -369,15 +358,15 @@ def _orientation_check(program: Program, model: Compensator, rows: np.ndarray) -
     if not model.has_rotation:
         raise PostprocError("the model has no output 'rotation_error': it cannot correct orientation (train it on "
                             "data with a_meas,b_meas,c_meas); compensate without --orientation", str(model.path),
-                            0, 0, "P306")
+                            0, 0, P306)
     spans = program.targets.abc_spans
     if spans is None:
         raise PostprocError(f"--orientation: the {program.dialect} reader does not locate A/B/C numbers yet",
-                            program.files[0], 1, 1, "P312")
+                            program.files[0], 1, 1, P312)
     missing = rows[(spans[rows, :, 0] < 0).any(axis=1)]
     if len(missing):
         raise PostprocError("--orientation: this target does not write all of A, B, C", *where(program, int(missing[0])),
-                            "P312")
+                            P312)
 
 
 def _local_attitude(abc_base: np.ndarray, bases: list, frame_of: np.ndarray, written: np.ndarray) -> np.ndarray:
@@ -688,7 +677,7 @@ def compensate_file(
     if str(out) == "-":
         if len(program.files) > 1:
             raise PostprocError("a program with a .dat cannot be written to standard output; give -o FILE",
-                                program.files[0], 0, 0, "P109")
+                                program.files[0], 0, 0, P109)
         sys.stdout.buffer.write(report.outputs[program.files[0]].encode("latin-1"))
         sys.stdout.buffer.flush()
         return report
@@ -698,18 +687,8 @@ def compensate_file(
 
 
 def write_outputs(outputs: list[tuple[Path, str]]) -> None:
-    """:func:`postproc.outputs.write` (OS errors as P110), refusing first what it cannot do right
-    (two files of a module onto one path, e.g. ``-o x.dat`` for a .src; a directory)."""
-    seen: dict[Path, Path] = {}
-    for path, _ in outputs:
-        key = path.resolve()
-        if key in seen:
-            raise PostprocError(f"two files of the program would both be written to {path}: give -o a name "
-                                "with the program's suffix", str(path), 0, 0, "P110")
-        if path.is_dir():
-            raise PostprocError("is a directory: give -o a file name", str(path), 0, 0, "P110")
-        parent = next((p for p in path.parents if p.exists()), None)
-        if parent is not None and not parent.is_dir():
-            raise PostprocError(f"cannot write: {parent} is not a directory", str(path), 0, 0, "P110")
-        seen[key] = path
-    write_checked(outputs)
+    """:func:`postproc.outputs.write` (OS errors as P110) after the one output rule,
+    :func:`postproc.outputs.check_outputs` (two files of a module onto one path, e.g. ``-o x.dat``
+    for a .src; a directory; a folder that cannot be written)."""
+    check_outputs([path for path, _ in outputs])
+    write(outputs)

@@ -96,7 +96,7 @@ from typing import Iterator
 
 import numpy as np
 
-from .diagnostics import PostprocError
+from .diagnostics import P306, P307, P308, PostprocError
 from .resources import model_path
 
 CONTRACT_VERSION = "1"
@@ -200,6 +200,9 @@ class Compensator:
         """Commands are settled on their approach signs (see the module text): the graph takes
         ``approach`` beside ``previous_pose`` and outputs the joint angles."""
         return self.settle and self.wants_approach and self.wants_previous and self.has_joints
+    # tuning, per instance (tests make them small on their own model, nothing process-wide)
+    predict_batch: int = PREDICT_BATCH  # rows per onnxruntime call of ``predict``
+    command_chunk: int = COMMAND_CHUNK  # rows per chunk of ``command_chunks``
 
     @property
     def name(self) -> str:
@@ -253,7 +256,7 @@ class Compensator:
         to a model with that input, ignored by others; ``tool`` [N, 6]: the TCP on the flange
         (likewise). With ``with_joints``: (Ê, the model's joint angles [N, 6] deg, or None for a
         model without that output); ``joints=True`` / ``False`` is read as ``with_joints`` (the
-        older call). Batched: one onnxruntime call per PREDICT_BATCH poses (a whole CAM program
+        older call). Batched: one onnxruntime call per ``predict_batch`` poses (a whole CAM program
         in one call would make the runtime hold every intermediate layer for every target).
         With ``rotation``: the rotation error [N, 3] deg is returned last. ``approach`` [N, 6]:
         approach signs to assume (NaN: from ``previous``), for a model with that input;
@@ -261,44 +264,32 @@ class Compensator:
         rows unknown)."""
         if isinstance(joints, bool):
             joints, with_joints = None, joints
-        poses = np.ascontiguousarray(poses, dtype=np.float32).reshape(-1, 6)
-        if self.wants_previous:
-            previous = poses if previous is None else np.ascontiguousarray(previous, dtype=np.float32).reshape(-1, 6)
-        extra = {}
-        for name, wanted, value in ((INPUT_JOINTS, self.wants_joints, joints), (INPUT_TOOL, self.wants_tool, tool),
-                                    (INPUT_APPROACH, self.wants_approach, approach),
-                                    (INPUT_PREVIOUS_JOINTS, self.wants_previous_joints, previous_joints)):
-            if wanted:
-                extra[name] = (np.full(poses.shape, np.nan, np.float32) if value is None
-                               else np.ascontiguousarray(np.broadcast_to(np.asarray(value, np.float32), poses.shape)))
+        inputs = self._inputs(poses, previous, joints, tool, approach, previous_joints)
+        poses = inputs[INPUT_POSE]
         names = [OUTPUT_ERROR, self.joints_output] if with_joints and self.has_joints else [OUTPUT_ERROR]
         results = [np.empty((len(poses), 3)), np.empty((len(poses), 6))][:len(names)]
         if rotation:
             if not self.has_rotation:
-                raise PostprocError(f"the model has no output '{OUTPUT_ROTATION}'", str(self.path), code="P306")
+                raise PostprocError(f"the model has no output '{OUTPUT_ROTATION}'", str(self.path), code=P306)
             names.append(OUTPUT_ROTATION)
             results.append(np.empty((len(poses), 3)))
 
         def run(at: int) -> None:
-            batch = slice(at, at + PREDICT_BATCH)
-            feeds = {INPUT_POSE: poses[batch]}
-            if self.wants_previous:
-                feeds[INPUT_PREVIOUS] = previous[batch]
-            for name, value in extra.items():
-                feeds[name] = value[batch]
+            batch = slice(at, at + self.predict_batch)
+            feeds = {name: value[batch] for name, value in inputs.items()}
             try:
                 outs = self.session.run(names, feeds)
             except Exception as exc:  # onnxruntime's own types: a graph that does not run on [N, 6]
                 raise PostprocError(f"the model failed on {len(poses)} poses: {str(exc).splitlines()[0][:200]}",
-                                    str(self.path), code="P306") from None
+                                    str(self.path), code=P306) from None
             for name, out, result in zip(names, outs, results):
                 out = np.asarray(out)
                 if out.shape != (len(feeds[INPUT_POSE]), result.shape[1]):
                     raise PostprocError(f"model returned shape {out.shape}, expected ({len(feeds[INPUT_POSE])}, "
-                                        f"{result.shape[1]}) (output '{name}')", str(self.path), code="P306")
+                                        f"{result.shape[1]}) (output '{name}')", str(self.path), code=P306)
                 result[batch] = out
 
-        starts = range(0, len(poses), PREDICT_BATCH)
+        starts = range(0, len(poses), self.predict_batch)
         if len(starts) == 1:
             run(0)
         elif len(starts) > 1:
@@ -314,6 +305,23 @@ class Compensator:
         if rotation:
             out.append(results[-1])
         return out[0] if len(out) == 1 else tuple(out)
+
+    def _inputs(self, poses, previous, joints, tool, approach=None, previous_joints=None) -> dict[str, np.ndarray]:
+        """The model's inputs, float32 [N, 6] each: ``pose``; ``previous_pose`` (the pose itself
+        where not given), ``joints``, ``tool``, ``approach`` and ``previous_joints`` (NaN where
+        not given) for a model that takes them."""
+        poses = np.ascontiguousarray(poses, dtype=np.float32).reshape(-1, 6)
+        inputs = {INPUT_POSE: poses}
+        if self.wants_previous:
+            inputs[INPUT_PREVIOUS] = (poses if previous is None
+                                      else np.ascontiguousarray(previous, dtype=np.float32).reshape(-1, 6))
+        for name, wanted, value in ((INPUT_JOINTS, self.wants_joints, joints), (INPUT_TOOL, self.wants_tool, tool),
+                                    (INPUT_APPROACH, self.wants_approach, approach),
+                                    (INPUT_PREVIOUS_JOINTS, self.wants_previous_joints, previous_joints)):
+            if wanted:
+                inputs[name] = (np.full(poses.shape, np.nan, np.float32) if value is None
+                                else np.ascontiguousarray(np.broadcast_to(np.asarray(value, np.float32), poses.shape)))
+        return inputs
 
     def command(self, poses: np.ndarray, iterations: int | None = None, joints=None, tool=None,
                 with_joints: bool = False):
@@ -338,7 +346,7 @@ class Compensator:
     def command_chunks(self, poses: np.ndarray, iterations: int | None = None, joints=None, tool=None,
                        with_joints: bool = False,
                        orientation: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
-        """``command`` chunk by chunk (COMMAND_CHUNK rows) in row order: yields (first row,
+        """``command`` chunk by chunk (``command_chunk`` rows) in row order: yields (first row,
         commands [n, 3], the targets' joint angles [n, 6] deg if ``with_joints`` and the model
         has them, else None), the same numbers as one ``command`` call (each chunk takes its
         first row's previous pose, per iteration, from the chunk before), so a caller can use
@@ -350,17 +358,17 @@ class Compensator:
             joints, with_joints = None, joints
         if orientation and not self.has_rotation:
             raise PostprocError(f"the model has no output '{OUTPUT_ROTATION}': it cannot correct orientation "
-                                "(train it on data with a_meas,b_meas,c_meas)", str(self.path), code="P306")
+                                "(train it on data with a_meas,b_meas,c_meas)", str(self.path), code=P306)
         iterations = self.default_iterations if iterations is None else iterations
         if not 1 <= iterations <= MAX_ITERATIONS:
-            raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code="P308")
+            raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code=P308)
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         rows = [None if v is None else np.broadcast_to(np.asarray(v, float), poses.shape) for v in (joints, tool)]
         return self._chunks(poses, iterations, with_joints, *rows, orientation)
 
     def _chunks(self, poses: np.ndarray, iterations: int, with_joints: bool, joints: np.ndarray | None,
                 tool: np.ndarray | None, orientation: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
-        chunk = COMMAND_CHUNK  # (read at call time: tests make it small)
+        chunk = self.command_chunk
         # the last row of the chunk before, after each iteration k (k = 0: the target itself)
         before: list[np.ndarray] | None = None
         settle = _Settle(self, iterations, orientation) if self.settles else None
@@ -638,24 +646,9 @@ def _corrected_attitude(abc: np.ndarray, rotation_error_deg: np.ndarray) -> np.n
     return nearest_triple(frames.abc_from_rotation(undo @ frames.rotation_from_abc(abc)), abc)
 
 
-def load_model(path: str | Path | None = None) -> Compensator:
-    """Load and check an ONNX compensator (default: the shipped ``models/default.onnx``)."""
-    path = Path(path) if path is not None else model_path()
-    if not path.is_file():
-        raise PostprocError("model not found", str(path), code="P307")
-    try:
-        import onnxruntime  # noqa: F401  (installed?)
-    except ImportError as exc:  # pragma: no cover - install problem
-        raise PostprocError(f"onnxruntime is not installed: {exc}") from exc
-    data = path.read_bytes()
-    from .session import inference_session
-
-    try:
-        session = inference_session(data)  # (the graph optimised once per model: session.py)
-    except Exception as exc:  # onnxruntime raises its own exception types
-        raise PostprocError(f"not an ONNX model: {str(exc).splitlines()[0][:200]}", str(path), code="P306") from exc
-    inputs = {i.name: i for i in session.get_inputs()}
-    outputs = {o.name: o for o in session.get_outputs()}
+def _interface_problems(inputs: dict, outputs: dict, joints_output: str) -> list[str]:
+    """What makes a session's inputs and outputs (name → node) not the contract's: names,
+    shapes ([N, k] with a free batch size), float32."""
     problems = []
     if INPUT_POSE not in inputs:
         problems.append(f"no input '{INPUT_POSE}' (has {sorted(inputs)})")
@@ -664,7 +657,6 @@ def load_model(path: str | Path | None = None) -> Compensator:
         problems.append(f"unexpected inputs {sorted(extra)}")
     if OUTPUT_ERROR not in outputs:
         problems.append(f"no output '{OUTPUT_ERROR}' (has {sorted(outputs)})")
-    joints_output = OUTPUT_JOINTS if OUTPUT_JOINTS in outputs or INPUT_JOINTS in inputs else LEGACY_OUTPUT_JOINTS
     if INPUT_APPROACH in inputs and INPUT_PREVIOUS not in inputs:
         problems.append(f"input '{INPUT_APPROACH}' without '{INPUT_PREVIOUS}'")
     for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6), (INPUT_JOINTS, 6), (INPUT_TOOL, 6),
@@ -685,12 +677,35 @@ def load_model(path: str | Path | None = None) -> Compensator:
                          OUTPUT_ERROR,
                          joints_output, OUTPUT_ROTATION) and node.type != "tensor(float)":
             problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
+    return problems
+
+
+def load_model(path: str | Path | None = None) -> Compensator:
+    """Load and check an ONNX compensator (default: the shipped ``models/default.onnx``)."""
+    path = Path(path) if path is not None else model_path()
+    if not path.is_file():
+        raise PostprocError("model not found", str(path), code=P307)
+    try:
+        import onnxruntime  # noqa: F401  (installed?)
+    except ImportError as exc:  # pragma: no cover - install problem
+        raise PostprocError(f"onnxruntime is not installed: {exc}") from exc
+    data = path.read_bytes()
+    from .session import inference_session
+
+    try:
+        session = inference_session(data)  # (the graph optimised once per model: session.py)
+    except Exception as exc:  # onnxruntime raises its own exception types
+        raise PostprocError(f"not an ONNX model: {str(exc).splitlines()[0][:200]}", str(path), code=P306) from exc
+    inputs = {i.name: i for i in session.get_inputs()}
+    outputs = {o.name: o for o in session.get_outputs()}
+    joints_output = OUTPUT_JOINTS if OUTPUT_JOINTS in outputs or INPUT_JOINTS in inputs else LEGACY_OUTPUT_JOINTS
+    problems = _interface_problems(inputs, outputs, joints_output)
     if problems:
-        raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path), code="P306")
+        raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path), code=P306)
     meta = {k: _json_or_text(v) for k, v in session.get_modelmeta().custom_metadata_map.items()}
     problem = _metadata_problem(meta)
     if problem:
-        raise PostprocError(f"model card (metadata_props) is malformed: {problem}", str(path), code="P306")
+        raise PostprocError(f"model card (metadata_props) is malformed: {problem}", str(path), code=P306)
     return Compensator(
         path=path,
         session=session,

@@ -26,7 +26,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .diagnostics import PostprocError
+from .diagnostics import P610, PostprocError
 from .programs.model import ActiveFrames
 
 __all__ = ["Config", "FreshPair", "find_config", "load_config", "CONFIG_NAME"]
@@ -105,7 +105,7 @@ def _substitute(pattern: str, groups: tuple[str, ...]) -> str:
 
 
 def _error(message: str, path: Path, key: str = "") -> PostprocError:
-    return PostprocError(message + (f" (key '{key}')" if key else ""), str(path), 0, 0, "P610")
+    return PostprocError(message + (f" (key '{key}')" if key else ""), str(path), 0, 0, P610)
 
 
 def _unknown(keys, allowed, path: Path, where: str) -> None:
@@ -202,15 +202,15 @@ def _read_toml(path: Path) -> dict:
         with path.open("rb") as fh:
             return tomllib.load(fh)
     except FileNotFoundError:
-        raise PostprocError("no such file", str(path), 0, 0, "P610") from None
+        raise PostprocError("no such file", str(path), 0, 0, P610) from None
     except OSError as exc:
-        raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, "P610") from None
+        raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, P610) from None
     except tomllib.TOMLDecodeError as exc:
         # tomllib puts "(at line L, column C)" in its message; keep it as the location
         m = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
         line, col = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
         message = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(exc))
-        raise PostprocError(f"not valid TOML: {message}", str(path), line, col, "P610") from None
+        raise PostprocError(f"not valid TOML: {message}", str(path), line, col, P610) from None
 
 
 def _table(path: Path) -> dict | None:
@@ -243,7 +243,7 @@ def load_config(path: str | Path | None = None, start: str | Path | None = None)
         return Config()
     table = _table(found)
     if table is None:
-        raise PostprocError("no [tool.postproc] table in this file", str(found), 0, 0, "P610")
+        raise PostprocError("no [tool.postproc] table in this file", str(found), 0, 0, P610)
     if not isinstance(table, dict):
-        raise PostprocError("[tool.postproc] must be a table", str(found), 0, 0, "P610")
+        raise PostprocError("[tool.postproc] must be a table", str(found), 0, 0, P610)
     return parse_config(table, found)

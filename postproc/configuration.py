@@ -163,16 +163,19 @@ def status_turn_of(robot: Robot, q_deg: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def stated_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.ndarray,
-                  reference: np.ndarray | None = None, tools: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  reference: np.ndarray | None = None, tools: np.ndarray | None = None,
+                  check_all: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The joint angles [N, 6] (deg) of the branch each target's S and T state, and a mask of
     the targets that have one. Poses [N, 6] in the robot base frame (TCP with the robot's
     tool); S, T [N] ints. Joints whose T is UNSTATED take the turn nearest ``reference``
     ([6] or [N, 6], default HOME); a target whose S is UNSTATED takes the branch nearest it.
-    ``tools`` [N, 6]: each target's TCP on the flange (default the robot's tool)."""
+    ``tools`` [N, 6]: each target's TCP on the flange (default the robot's tool). ``check_all``:
+    FK-check every branch up front instead of only those the rules pick (same result, slower:
+    the reference for tests and benchmarks)."""
     poses = np.atleast_2d(np.asarray(poses, float))
     n = len(poses)
     ref = np.broadcast_to(robot.home_q if reference is None else np.asarray(reference, float), (n, 6))
-    branches = _Branches(robot, poses, tools)
+    branches = _Branches(robot, poses, tools, check_all)
     status, turn = np.asarray(status).reshape(n), np.asarray(turn).reshape(n)
     while True:
         q, found, best = _choose(robot, branches.table, branches.ok, status, turn, ref)
@@ -223,14 +226,15 @@ def _candidates(robot: Robot, table: np.ndarray, ok: np.ndarray, turn: np.ndarra
 def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.ndarray,
                       ptp: np.ndarray, initial_q: np.ndarray | None = None,
                       tools: np.ndarray | None = None,
-                      independent: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                      independent: np.ndarray | None = None, check_all: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The joint angles [N, 6] (deg) the controller uses for targets in program order, and a mask
     of the targets that have them: stated S/T where given, else the controller's rules (module
     docstring). ``ptp`` [N] bool marks PTP motions (PTP, SPTP; the rest keep the configuration);
     ``initial_q`` [6] the axis position before the first target (default HOME); ``tools`` [N, 6]
     each target's TCP on the flange (default the robot's tool); ``independent`` [N] bool: rows
     solved on their own, nearest ``initial_q`` whatever came before (a pose list's rows: each
-    pose reached as ``measure`` reaches it, the branch nearest HOME)."""
+    pose reached as ``measure`` reaches it, the branch nearest HOME). ``check_all`` as in
+    :func:`stated_joints`."""
     poses = np.atleast_2d(np.asarray(poses, float))
     n = len(poses)
     status = np.asarray(status, int).reshape(n)
@@ -239,7 +243,7 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
     start = np.asarray(robot.home_q if initial_q is None else initial_q, float).reshape(6)
     if n == 0:
         return np.zeros((0, 6)), np.zeros(0, bool)
-    branches = _Branches(robot, poses, tools)
+    branches = _Branches(robot, poses, tools, check_all)
     alone = np.zeros(n, bool) if independent is None else np.asarray(independent, bool).reshape(n)
     while True:
         q, found, picks = _rules(robot, branches.table, branches.ok, status, turn, ptp, start, alone)
@@ -395,7 +399,7 @@ def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, to
 
 
 def measurement_joints(description, data) -> tuple[np.ndarray | None, np.ndarray, list[str]]:
-    """The joint angles [N, 6] deg of a measurement file's rows (``training.data.Measurements``):
+    """The joint angles [N, 6] deg of a measurement file's rows (``measurements.Measurements``):
     its q1..q6, or from its s,t columns the nominal IK on the stated branch (``stated_joints``);
     None without either. Also a mask of the rows to keep and warnings: rows whose S/T has no
     solution on the nominal arm (out of reach on that branch) are left out, named by their

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .compensator import Compensator
-from .diagnostics import Diagnostic, PostprocError
+from .diagnostics import P309, P311, P313, P319, Diagnostic, PostprocError
 from .programs import Program
 
 __all__ = ["model_description", "controller_inputs", "configuration_mismatch", "unseparated_mount_mm",
@@ -85,7 +85,7 @@ def configuration_mismatch(program: Program, model: Compensator, rows: np.ndarra
 
     description = model_description(model)
     if description is None:
-        return stated, collect(program, rows[stated], "P313", "the target states S/T and postproc has no robot "
+        return stated, collect(program, rows[stated], P313, "the target states S/T and postproc has no robot "
                                f"description for the model's robot {model.robot or '(none named)'} to check that the "
                                "model evaluates that arm configuration: left as it is")
     at = np.flatnonzero(stated)
@@ -105,7 +105,7 @@ def configuration_mismatch(program: Program, model: Compensator, rows: np.ndarra
         differ = ~(np.abs(wanted - mine) <= JOINT_TOLERANCE_DEG).all(axis=1)
     bad = np.zeros(len(rows), bool)
     bad[at[differ]] = True
-    return bad, collect(program, rows[bad], "P313", "the target's S/T put the arm in another configuration than "
+    return bad, collect(program, rows[bad], P313, "the target's S/T put the arm in another configuration than "
                         "the one this model evaluates (a model without the 'joints' input knows one branch): "
                         "left as it is")
 
@@ -125,7 +125,7 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
     description = model_description(model)
     if description is None:
         raise PostprocError(f"the model takes joint angles and postproc has no robot description for its robot "
-                            f"{model.robot or '(none named)'}", str(model.path), 0, 0, "P311")
+                            f"{model.robot or '(none named)'}", str(model.path), 0, 0, P311)
     card_tool = model.tool.get("frame") if model.tool else None
     default_tool = np.asarray(card_tool if card_tool is not None else description.tool, float)
     tools = _tools(program, model, description, rows)
@@ -135,7 +135,7 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
     unmapped = program.unmapped_configuration
     if model.wants_joints and unmapped is not None and unmapped[rows].any():
         keep = ~unmapped[rows]
-        warnings += collect(program, rows[~keep], "P309", "the target states its arm configuration in a form postproc "
+        warnings += collect(program, rows[~keep], P309, "the target states its arm configuration in a form postproc "
                             "does not translate to joint angles (Fanuc CONFIG): left as it is")
         rows, sel, tools = rows[keep], sel[keep], tools[keep]
     if model.wants_joints and len(rows):
@@ -148,13 +148,13 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
         q, ok = configuration.target_joints(robot, t, rows, sel, tools,
                                             start[0] if np.isfinite(start).all() else None)
         if not ok.all():
-            warnings += collect(program, rows[~ok], "P309", "no joint angles for this target in its arm configuration "
+            warnings += collect(program, rows[~ok], P309, "no joint angles for this target in its arm configuration "
                                 "(S/T, or the one its motion keeps) on the nominal robot: left as it is")
             rows, sel, q, tools = rows[ok], sel[ok], q[ok], tools[ok]
     if model.wants_tool:
         extra = unseparated_mount_mm(model, tools)
         far = np.flatnonzero(extra >= TOOL_WARNING_MM)
-        warnings += collect(program, rows[far], "P319", lambda i: (
+        warnings += collect(program, rows[far], P319, lambda i: (
             f"the $TOOL {[round(float(v), 3) for v in tools[far[i]]]} has another lever arm than the tools the model "
             f"was measured with ({len(model.tool.get('measured', []))}): the tool mount's rotation they could not "
             f"separate may add up to {extra[far[i]]:.2f} mm here (at {MOUNT_ROTATION_DEG}°); measure with this tool, "

@@ -9,7 +9,7 @@ MIT licence) come as ';'-separated files with a decimal comma and one header row
 * ``measurement_x/y/z`` (mm) of the probe's TCP and ``measurement_rx/ry/rz`` (deg, intrinsic
   X-Y-Z) in the *tracker's* frame; ``measurement_temperature`` (°C); optional ``_std`` columns.
 
-postproc's measurement CSV (read by ``postproc train``) has the header
+postproc's measurement CSV (:mod:`postproc.measurements`; read by ``postproc train``) has the header
 ``x,y,z,a,b,c,x_meas,y_meas,z_meas`` (mm, KUKA A,B,C deg) followed by optional extra columns;
 here ``q1..q6`` (joint angles, deg) and ``temperature``. Metadata lines ``# key: value`` may
 precede the header; ``# frame: tracker`` says the measured columns are still in the
@@ -23,33 +23,26 @@ R_goalᵀ·R_measured over the registration's rows, after the tracker → base r
 base frame. (That mean also takes the robot's mean orientation error in the TCP frame: a tool
 rotation, which a calibration re-identifies anyway.)
 
-Codes (as in training/data.py): P500 unreadable or empty, P501 not the expected columns,
+Codes (as in postproc.measurements): P500 unreadable or empty, P501 not the expected columns,
 P502 a value that is not a finite number, P503 wrong number of fields.
 """
 from __future__ import annotations
 
-import io
 import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from .diagnostics import PostprocError
-from .rewrite import write_atomic
+from .diagnostics import P500, P501, P502, P503, PostprocError
 
 __all__ = [
-    "MEASUREMENT_COLUMNS",
     "IpaSeries",
     "read_ipa",
     "parse_ipa",
     "rpy_to_abc",
-    "write_measurements",
-    "read_metadata",
     "probe_orientation",
 ]
-
-MEASUREMENT_COLUMNS = ("x", "y", "z", "a", "b", "c", "x_meas", "y_meas", "z_meas")
 
 IPA_GOAL = ("Goal x", "Goal y", "Goal z", "Goal roll", "Goal pitch", "Goal yaw")
 IPA_JOINTS = (
@@ -116,13 +109,13 @@ def _column_offset(line: str, index: int) -> int:
     return sum(len(f) + 1 for f in line.split(";")[:index]) + 1
 
 
-def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSeries:
-    """Parse the text of an IPA measurement file (see the module docstring)."""
-    from scipy.spatial.transform import Rotation
-
+def _ipa_table(text: str, path: str) -> tuple[np.ndarray, list[str], bool, np.ndarray]:
+    """The IPA file's numbers: [N, len(wanted)] floats of the ``wanted`` columns (the required
+    ones, then the optional ones present), whether the measured rotation is there, and each
+    row's 1-based line; PostprocError (P500-P503) at the first bad place."""
     raw_lines = text.lstrip("\ufeff").splitlines()
     if not raw_lines or not raw_lines[0].strip():
-        raise PostprocError("empty file: expected an IPA header line", path, 1, 1, "P500")
+        raise PostprocError("empty file: expected an IPA header line", path, 1, 1, P500)
     header = [h.strip() for h in raw_lines[0].split(";")]
     if len(header) == 1:
         raise PostprocError(
@@ -130,13 +123,13 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
             path,
             1,
             1,
-            "P501",
+            P501,
         )
     where = {name: i for i, name in enumerate(header)}
     required = IPA_GOAL + IPA_JOINTS + IPA_MEASURED
     missing = [name for name in required if name not in where]
     if missing:
-        raise PostprocError(f"missing IPA column(s): {', '.join(missing)}", path, 1, 1, "P501")
+        raise PostprocError(f"missing IPA column(s): {', '.join(missing)}", path, 1, 1, P501)
     optional = [name for name in IPA_MEASURED_ROTATION + (IPA_TEMPERATURE,) if name in where]
     has_rotation = all(name in where for name in IPA_MEASURED_ROTATION)
     wanted = list(required) + optional
@@ -144,7 +137,7 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
 
     numbered = [(i, line) for i, line in enumerate(raw_lines[1:], start=2) if line.strip()]
     if not numbered:
-        raise PostprocError("no data rows after the header", path, 1, 1, "P500")
+        raise PostprocError("no data rows after the header", path, 1, 1, P500)
     line_no = np.array([i for i, _ in numbered])
     fields = [line.split(";") for _, line in numbered]
     counts = np.fromiter(map(len, fields), dtype=int, count=len(fields))
@@ -156,7 +149,7 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
             path,
             int(line_no[k]),
             1,
-            "P503",
+            P503,
         )
     # fast path: one vectorised conversion; the slow search below only locates a bad cell
     cells = np.char.replace(np.char.strip(np.array(fields, dtype=str)[:, columns]), ",", ".")
@@ -173,8 +166,16 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
             path,
             int(line_no[r]),
             _column_offset(numbered[r][1], int(columns[c])),
-            "P502",
+            P502,
         )
+    return values, wanted, has_rotation, line_no
+
+
+def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSeries:
+    """Parse the text of an IPA measurement file (see the module docstring)."""
+    from scipy.spatial.transform import Rotation
+
+    values, wanted, has_rotation, line_no = _ipa_table(text, path)
     col = {name: values[:, i] for i, name in enumerate(wanted)}
     goal = np.stack([col[name] for name in IPA_GOAL], axis=1)
     commanded = np.concatenate([goal[:, :3] * 1000.0, rpy_to_abc(goal[:, 3:], branch)], axis=1)
@@ -200,35 +201,12 @@ def read_ipa(path: str | os.PathLike, branch: str = "nearest") -> IpaSeries:
     try:
         text = Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise PostprocError("no such file", str(path), 0, 0, "P500") from None
+        raise PostprocError("no such file", str(path), 0, 0, P500) from None
     except UnicodeDecodeError as exc:
-        raise PostprocError(f"not UTF-8 text ({exc.reason} at byte {exc.start})", str(path), 0, 0, "P500") from None
+        raise PostprocError(f"not UTF-8 text ({exc.reason} at byte {exc.start})", str(path), 0, 0, P500) from None
     except OSError as exc:
-        raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, "P500") from None
+        raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, P500) from None
     return parse_ipa(text, str(path), branch)
-
-
-def write_measurements(
-    path: str | os.PathLike,
-    commanded: np.ndarray,
-    measured: np.ndarray,
-    extra: dict[str, np.ndarray] | None = None,
-    metadata: dict[str, str] | None = None,
-) -> None:
-    """Write a measurement CSV atomically: ``# key: value`` lines, header, one row per pose.
-
-    ``commanded`` [N, 6] (mm, KUKA deg), ``measured`` [N, 3] (mm), ``extra`` columns [N]
-    after the nine standard ones. Numbers are written with 12 significant digits, enough to
-    keep every digit of the source data.
-    """
-    extra = extra or {}
-    names = list(MEASUREMENT_COLUMNS) + list(extra)
-    table = np.column_stack([commanded, measured] + [np.asarray(v, dtype=float) for v in extra.values()])
-    comments = "".join(f"# {key}: {value}\n" for key, value in (metadata or {}).items())
-    text = io.StringIO()
-    text.write(comments)
-    np.savetxt(text, table, fmt="%.12g", delimiter=",", header=",".join(names), comments="")
-    write_atomic([(Path(path), text.getvalue().encode("utf-8"))])
 
 
 def probe_orientation(commanded_abc: np.ndarray, measured_rotation: np.ndarray,
@@ -249,19 +227,3 @@ def probe_orientation(commanded_abc: np.ndarray, measured_rotation: np.ndarray,
     angle = np.linalg.norm(rotation_vector(tcp @ np.swapaxes(goal, 1, 2)), axis=1)
     rms = float(np.degrees(np.sqrt(np.mean(angle[np.asarray(mask, bool)] ** 2))))
     return abc_from_rotation(tcp), probe, rms
-
-
-def read_metadata(path: str | os.PathLike) -> dict[str, str]:
-    """The ``# key: value`` lines at the top of a measurement CSV (keys lower-cased).
-
-    ``read_metadata(p).get("frame", "base")`` is the frame of the measured columns.
-    """
-    meta: dict[str, str] = {}
-    with open(path, encoding="utf-8") as f:
-        for line in f:
-            if not line.startswith("#"):
-                break
-            key, sep, value = line[1:].partition(":")
-            if sep:
-                meta[key.strip().lower()] = value.strip()
-    return meta

@@ -13,16 +13,139 @@ EXIT_OK = 0
 EXIT_FINDINGS = 1  # check found problems / verify exceeded --max-mean
 EXIT_ERROR = 2  # bad input, usage error, internal error: nothing was written
 
+
+
+@dataclass(frozen=True)
+class Code:
+    """One diagnostic code of the registry: its usual severity and a one-line meaning."""
+
+    code: str
+    severity: str  # "error" | "warning" | "note": what it usually is (some are errors with --strict, see the meaning)
+    meaning: str
+
+
+# The registry: every code postproc reports, in order (README "Diagnostic codes" is generated
+# from it: `postproc check --list-codes --markdown`). Modules use the names (`code=P101`);
+# adding a code is one line here.
+CODES: dict[str, Code] = {}
+
+
+def _code(code: str, severity: str, meaning: str) -> str:
+    assert code not in CODES and severity in ("error", "warning", "note"), code
+    CODES[code] = Code(code, severity, meaning)
+    return code
+
+
+# P1xx: syntax and structure of an input, reading and writing files
+P101 = _code("P101", "error", "syntax error")
+P102 = _code("P102", "error", "structure error: a block, module or routine not opened or not closed where it must be")
+P103 = _code("P103", "error", "a target (or its frame) that is not a finite number, or beyond float32")
+P104 = _code("P104", "error", "not a program of this kind: no DEF / MODULE, a header without x,y,z, a wrong number of fields")
+P105 = _code("P105", "error", "an empty program or pose list; ;FOLD without ;ENDFOLD (or the reverse) is a warning")
+P106 = _code("P106", "error", "a binary file (NUL bytes), not a robot program")
+P107 = _code("P107", "error", "no such file or directory, or one that cannot be read or created")
+P108 = _code("P108", "error", "a file whose dialect is not known from its suffix")
+P109 = _code("P109", "error", "a program with a .dat cannot be written to standard output")
+P110 = _code("P110", "error", "an output that cannot be written, or -o that is the input (--in-place allows it)")
+P111 = _code("P111", "error", "a program too large for this machine's memory")
+P112 = _code("P112", "error", "several $config.dat in one cell: give --config")
+P117 = _code("P117", "error", "a URScript pose p[…] that has not six components (x, y, z, rx, ry, rz)")
+P118 = _code("P118", "error", "Fanuc LS: a malformed frame file (--frames), a Cartesian position without X, Y, Z, W, P, R "
+             "or with other units than mm/deg")
+P190 = _code("P190", "error", "last check before writing: a span or new number that does not read back (a postproc bug)")
+P191 = _code("P191", "error", "last check before writing: the new text does not read again as the same program (a postproc bug)")
+# P2xx: frames and targets not statically known (the target is left as written)
+P201 = _code("P201", "warning", "the target's base (frame) is not statically known: left as written")
+P202 = _code("P202", "error", "one set of numbers used as targets in two frames (compensate refuses it unless --force)")
+P203 = _code("P203", "warning", "the target's $TOOL is not known: left as written")
+P210 = _code("P210", "warning", "a _REL motion: its absolute target is known only at run time")
+P211 = _code("P211", "warning", "a target computed at run time (or an element the reader cannot enumerate)")
+P212 = _code("P212", "warning", "target position not fully known: left as written")
+P213 = _code("P213", "warning", "target orientation not known (the model's nominal attitude is assumed)")
+P214 = _code("P214", "warning", "a point derived from another at run time (P2 = P1; P2.Z = …): it carries the other's correction")
+P215 = _code("P215", "warning", "a target name declared in none of the files read (a global whose data list was not given)")
+P216 = _code("P216", "error", "partial aggregate refused (compensate --no-fill-partial; filled in by default)")
+P217 = _code("P217", "warning", "a pose variable (URScript) or P[n] (Fanuc LS) that other statements read too: "
+             "compensating it would change them, left as written")
+P220 = _code("P220", "warning", "$BASE (or both $BASE and $TOOL) not set before the target and not stated with --base: "
+             "left as written")
+P221 = _code("P221", "warning", "$TOOL not set before the target and not stated with --tool: left as written")
+P222 = _code("P222", "error", "--base / --tool not N, X,Y,Z,A,B,C (or model for the tool), naming a BASE_DATA[n] / "
+             "TOOL_DATA[n] not in the $config.dat given, or given for a pose list / RAPID program")
+P223 = _code("P223", "warning", "a point an INTERRUPT handler switched on may assign (INTERRUPT DECL … DO P = … / a DEF "
+             "that assigns it): left as written")
+# P3xx: the model, its envelope and the robot
+P301 = _code("P301", "warning", "target outside the model's training envelope (error with --strict)")
+P302 = _code("P302", "error", "target beyond the nominal robot's reach (model metadata 'reach')")
+P303 = _code("P303", "error", "the model's correction exceeds max_correction")
+P304 = _code("P304", "error", "the program's $TOOL is not the model's tool")
+P305 = _code("P305", "error", "the model returns NaN or inf at this target")
+P306 = _code("P306", "error", "an ONNX file that is not a compensator (inputs, outputs, model card), or lacks an output asked for")
+P307 = _code("P307", "error", "no such model")
+P308 = _code("P308", "error", "--iterations outside 1…100, or --max-correction not a positive number")
+P309 = _code("P309", "error", "no inverse-kinematics solution for this target (a warning, left as written, for models with a joints input)")
+P310 = _code("P310", "error", "the model was trained on another robot than the configured one")
+P311 = _code("P311", "error", "a model with a joints input for a robot postproc has no description of")
+P312 = _code("P312", "error", "--orientation where the program's A/B/C numbers are not located")
+P313 = _code("P313", "warning", "the target's S/T is another arm configuration than the model evaluates: left as written")
+P317 = _code("P317", "error", "train --update: the old model has no identification to re-fit (a DNN/gpso model, an "
+             "older card), --method is not hybrid/kinematic, or the new rows name other tools")
+P318 = _code("P318", "error", "train --update: the old model is of another robot description than --robot (name or "
+             "nominal geometry)")
+P319 = _code("P319", "warning", "the target's $TOOL is far from the TCPs the model was measured with: the tool mount's "
+             "rotation they could not separate may add ≥ 0.1 mm there (compensated; error with --strict)")
+P320 = _code("P320", "error", "the data's tool sources disagree (--tool, # tool:, tool_x..tool_c), a malformed # tool: "
+             "line, several tools for a pose-only method, or measure --tool for a plan that names its tools")
+P321 = _code("P321", "note", "(compensate -v, models with an approach input) a joint barely moving at the target stays "
+             "in its backlash dead band: compensated with the command of the smallest worst case over both sides")
+P330 = _code("P330", "error", "a robot description that cannot be read or is not TOML")
+P331 = _code("P331", "error", "a robot description with an unknown or misplaced table or key")
+P332 = _code("P332", "error", "a robot description with a bad value")
+P333 = _code("P333", "error", "a robot geometry the closed-form inverse kinematics does not cover")
+P335 = _code("P335", "error", "poses out of the robot's reach (plan, simulator, ISO 9283 cube)")
+# P4xx: stamps and compensated outputs
+P401 = _code("P401", "error", "already compensated (a stamp line): compensate refuses unless --force")
+P402 = _code("P402", "error", "compensated with a model other than the configured one")
+P403 = _code("P403", "error", "compensated twice")
+P404 = _code("P404", "error", "the .src and .dat do not come from one compensation")
+P405 = _code("P405", "error", "compensated output is stale: re-compensating its source gives other bytes")
+P406 = _code("P406", "error", "compensated output is missing")
+P407 = _code("P407", "warning", "compensated output has no source")
+# P5xx: data (measurement and pose CSV files, registration, plans)
+P500 = _code("P500", "error", "a data file that cannot be read, is empty or has no rows")
+P501 = _code("P501", "error", "a data file's columns: missing, misnamed, repeated, or given twice")
+P502 = _code("P502", "error", "a data value that is not a finite number")
+P503 = _code("P503", "error", "a data row of the wrong width, or rows that do not match the program or the earlier measurement")
+P504 = _code("P504", "error", "a duplicate pose in the measurements (average repeated measurements into one row)")
+P505 = _code("P505", "error", "too few measured points for the model's parameters")
+P506 = _code("P506", "error", "--val-fraction leaves no training or validation rows")
+P507 = _code("P507", "error", "measured columns in the tracker's frame: train with --register")
+P508 = _code("P508", "error", "the robot description does not fit the data (or a name where a description file is needed)")
+P509 = _code("P509", "error", "uncompensated errors too large: the measured points are in another frame or unit")
+P510 = _code("P510", "error", "a registration the points do not determine (too few, collinear, rank < 2)")
+P511 = _code("P511", "error", "registration inputs that are not matching [N, 3] arrays of finite points")
+P512 = _code("P512", "error", "a bad plan or test parameter (box, count, wrist, tool, module name, cycles)")
+P513 = _code("P513", "error", "measurements not in the robot base frame where they must be")
+P514 = _code("P514", "warning", "a measurement CSV's s,t (no q1..q6) without an IK solution: those rows left out "
+             "(refused when no row has one or the arm has no closed-form IK)")
+P515 = _code("P515", "error", "a_meas,b_meas,c_meas more than 5° (median) from the commanded orientation: another "
+             "frame, the probe's own axes or radians")
+# P6xx: a command's own inputs
+P601 = _code("P601", "error", "verify's original and compensated programs are not one program")
+P610 = _code("P610", "error", "bad settings (unknown key, bad value, bad TOML)")
+
 # Reader warnings whose target never became a row of Targets: each one is a Cartesian
 # target left as written (compensate counts them and exits 1; one place for the rule).
-LEFT_AS_WRITTEN = {
-    "P210": "a _REL motion: its absolute target is known only at run time",
-    "P211": "a target computed at run time (or an element the reader cannot enumerate)",
-    "P214": "a point derived from another at run time (P2 = P1; P2.Z = …): it carries the other's correction",
-    "P215": "a target name declared in none of the files read (a global whose data list was not given)",
-    "P217": "a pose variable (URScript) or P[n] (Fanuc LS) that other statements read too: compensating it would change them",
-    "P223": "a point an INTERRUPT handler switched on may assign (INTERRUPT DECL … DO P = … / a DEF that assigns it)",
-}
+LEFT_AS_WRITTEN = frozenset({P210, P211, P214, P215, P217, P223})
+
+
+def codes_table(markdown: bool = False) -> str:
+    """The registry as text: ``CODE severity meaning`` lines, or a Markdown table (the README's)."""
+    if not markdown:
+        return "".join(f"{c.code} {c.severity:<7} {c.meaning}\n" for c in CODES.values())
+    rows = "".join(f"| {c.code} | {c.severity} | {c.meaning} |\n" for c in CODES.values())
+    return "| code | severity | meaning |\n|---|---|---|\n" + rows
+
 
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
 

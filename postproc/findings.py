@@ -31,7 +31,10 @@ import numpy as np
 
 from . import frames
 from .compensator import Compensator, Inside
-from .diagnostics import Diagnostic, PostprocError
+from .diagnostics import (
+    P103, P202, P212, P213, P216, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P401, Diagnostic,
+    PostprocError,
+)
 from .programs import Program
 
 __all__ = [
@@ -60,7 +63,7 @@ class Settings:
         bound = self.max_correction_mm
         if not (isinstance(bound, int | float) and 0 < bound < math.inf):
             # NaN would switch the bound off silently: every comparison with it is False
-            raise PostprocError(f"--max-correction must be a positive number of mm, not {bound}", code="P308")
+            raise PostprocError(f"--max-correction must be a positive number of mm, not {bound}", code=P308)
 
 
 @dataclass
@@ -176,7 +179,7 @@ def stamp_rule(program: Program, settings: Settings) -> list[Diagnostic]:
     if not program.stamps or settings.force:
         return []
     index, stamp = next(iter(program.stamps.items()))
-    return [Diagnostic(program.files[index], 1, 1, "P401", f"already compensated ({stamp.lstrip(';# ')}); "
+    return [Diagnostic(program.files[index], 1, 1, P401, f"already compensated ({stamp.lstrip(';# ')}); "
                        "use --force to compensate again", "error")]
 
 
@@ -187,10 +190,10 @@ def fit_rule(program: Program, model: Compensator, settings: Settings) -> list[D
     out = []
     mismatch = None if model.wants_tool else tool_mismatch(program, model)  # (a model with a tool input: any)
     if mismatch:
-        out.append(Diagnostic(program.files[0], 1, 1, "P304", mismatch + "; use --force to compensate anyway", "error"))
+        out.append(Diagnostic(program.files[0], 1, 1, P304, mismatch + "; use --force to compensate anyway", "error"))
     mismatch = robot_mismatch(settings.robot, model)
     if mismatch:
-        out.append(Diagnostic(str(model.path), 0, 0, "P310", mismatch + "; use --force to compensate anyway", "error"))
+        out.append(Diagnostic(str(model.path), 0, 0, P310, mismatch + "; use --force to compensate anyway", "error"))
     return out
 
 
@@ -199,9 +202,9 @@ def shared_rule(program: Program, settings: Settings) -> list[Diagnostic]:
     is wrong for one of the uses (in a base turned by 180°, twice the error uncompensated)."""
     if settings.force:
         return []
-    return [Diagnostic(d.path, d.line, d.col, "P202", d.message.replace(": compensated for the first", "")
+    return [Diagnostic(d.path, d.line, d.col, P202, d.message.replace(": compensated for the first", "")
                        + ": no one correction is right for both; give each use its own position, or --force to "
-                       "compensate for the first", "error") for d in program.diagnostics if d.code == "P202"]
+                       "compensate for the first", "error") for d in program.diagnostics if d.code == P202]
 
 
 def frame_rule(program: Program, use: np.ndarray) -> list[Diagnostic]:
@@ -211,7 +214,7 @@ def frame_rule(program: Program, use: np.ndarray) -> list[Diagnostic]:
     broken = [i for i, f in enumerate(program.frames) if not np.isfinite(f.base).all()]
     rows = np.flatnonzero(np.isin(t.frame, broken)) if broken else np.zeros(0, int)
     use[rows] = False
-    return collect(program, rows, "P103", lambda i: f"the frame of this target ({program.frames[t.frame[rows[i]]].label}) "
+    return collect(program, rows, P103, lambda i: f"the frame of this target ({program.frames[t.frame[rows[i]]].label}) "
                    "is not a finite number", "error")
 
 
@@ -221,7 +224,7 @@ def known_rule(program: Program, model: Compensator, settings: Settings, poses: 
     nominal attitude assumed; an error without one), P216 a partial aggregate under
     ``fill_partial=False``. Narrows ``use`` and fills ``poses`` in place."""
     no_position = use & np.isnan(poses[:, :3]).any(axis=1)
-    out = collect(program, np.flatnonzero(no_position), "P212",
+    out = collect(program, np.flatnonzero(no_position), P212,
                   "position not fully known (a partial aggregate where the current position is not known: no "
                   "preceding target, or after a relative motion, a call or a branch / loop that moves): left as it is")
     use &= ~no_position
@@ -230,17 +233,17 @@ def known_rule(program: Program, model: Compensator, settings: Settings, poses: 
         nominal = model.nominal_attitude
         rows = np.flatnonzero(no_attitude)
         if nominal is None:
-            out += collect(program, rows, "P213", "target has no orientation and the model records no nominal "
+            out += collect(program, rows, P213, "target has no orientation and the model records no nominal "
                            "attitude", "error")
             use &= ~no_attitude
         else:
             poses[no_attitude, 3:6] = nominal
-            out += collect(program, rows, "P213",
+            out += collect(program, rows, P213,
                            f"orientation not known: the model's nominal attitude {list(map(float, nominal))} is assumed")
     if not settings.fill_partial:
         rows = np.flatnonzero(use)
         partial = rows[missing_xyz(program, rows).any(axis=1)]
-        out += collect(program, partial, "P216", "partial aggregate: the controller takes its missing X/Y/Z from the "
+        out += collect(program, partial, P216, "partial aggregate: the controller takes its missing X/Y/Z from the "
                        "previous commanded (compensated) position, i.e. another target's correction; write the target "
                        "in full, or compensate without --no-fill-partial to have them written in", "error")
     return out
@@ -250,7 +253,7 @@ def finite_rule(program: Program, poses: np.ndarray, use: np.ndarray) -> list[Di
     """P103: a target that is not finite or beyond the model's float32. Narrows ``use``."""
     bad = use & ~(np.abs(poses) < np.finfo(np.float32).max).all(axis=1)  # NaN, inf, beyond float32
     use &= ~bad
-    return collect(program, np.flatnonzero(bad), "P103", "target is not a finite number (or too large for the "
+    return collect(program, np.flatnonzero(bad), P103, "target is not a finite number (or too large for the "
                    "model's float32)", "error")
 
 
@@ -258,10 +261,10 @@ def reach_rule(program: Program, model: Compensator, settings: Settings, selecti
     """P302 beyond the model's reach; P309 no IK solution (``settings.reachable``)."""
     rows, sel = selection.rows, selection.poses
     far = model.beyond_reach(sel[:, :3])
-    out = collect(program, rows[far], "P302", "target beyond the robot's reach: no model can compensate there", "error")
+    out = collect(program, rows[far], P302, "target beyond the robot's reach: no model can compensate there", "error")
     if settings.reachable is not None and len(sel):
         no_ik = ~np.asarray(settings.reachable(sel), bool) & ~far
-        out += collect(program, rows[no_ik], "P309", "the nominal robot has no IK solution for this target", "error")
+        out += collect(program, rows[no_ik], P309, "the nominal robot has no IK solution for this target", "error")
     return out
 
 
@@ -272,7 +275,7 @@ def outside_envelope(model: Compensator, selection: Selection) -> np.ndarray:
 
 def envelope_rule(program: Program, model: Compensator, selection: Selection) -> list[Diagnostic]:
     """P301: outside the model's training box or attitude range (a warning)."""
-    return collect(program, selection.rows[outside_envelope(model, selection)], "P301",
+    return collect(program, selection.rows[outside_envelope(model, selection)], P301,
                    "target outside the model's training envelope")
 
 
@@ -281,11 +284,11 @@ def output_rule(program: Program, settings: Settings, commands: Commands) -> lis
     rows = commands.selection.rows
     size = np.linalg.norm(commands.commanded - commands.selection.poses[:, :3], axis=1)
     bad = ~np.isfinite(size)
-    out = collect(program, rows[bad], "P305", "the model returns NaN or inf at this target", "error")
+    out = collect(program, rows[bad], P305, "the model returns NaN or inf at this target", "error")
     bound = settings.max_correction_mm
     large = np.flatnonzero(~bad & (size > bound))
     large = large[np.argsort(-size[large], kind="stable")]
-    out += collect(program, rows[large], "P303", lambda i: f"correction of {size[large[i]]:.3f} mm exceeds the bound "
+    out += collect(program, rows[large], P303, lambda i: f"correction of {size[large[i]]:.3f} mm exceeds the bound "
                    f"of {bound} mm: the model is wrong here", "error")
     return out
 
@@ -298,7 +301,7 @@ def joints_rule(program: Program, model: Compensator, commands: Commands) -> lis
         return []
     away = np.flatnonzero(envelope.outside_joints(commands.joints) & ~outside_envelope(model, commands.selection))
     q = commands.joints
-    return collect(program, commands.selection.rows[away], "P301", lambda i: "target's joint angles outside those the "
+    return collect(program, commands.selection.rows[away], P301, lambda i: "target's joint angles outside those the "
                    f"model was trained on ({_joints_away(q[away[i]], envelope.joints)})")
 
 
@@ -334,7 +337,7 @@ def stated_configuration_rule(program: Program, model: Compensator,
     if not bad.any():
         return selection, found
     left = dict(selection.left)
-    left["P313"] = selection.rows[bad]
+    left[P313] = selection.rows[bad]
     return Selection(selection.rows[~bad], selection.poses[~bad], None, None, left), found
 
 
@@ -347,7 +350,7 @@ def configuration_rule(program: Program, model: Compensator, selection: Selectio
     left = dict(selection.left)
     dropped = np.setdiff1d(selection.rows, rows)
     if len(dropped):
-        left["P309"] = dropped
+        left[P309] = dropped
     return Selection(rows, poses, q, tool, left), found
 
 
@@ -373,7 +376,7 @@ def dead_band_notes(program: Program, commands: Commands) -> list[Diagnostic]:
     out = []
     for row, joints, worst, error in zip(rows.tolist(), inside.joints, inside.worst_mm.tolist(), inside.error_mm.tolist()):
         names = ", ".join(f"A{j + 1}" for j in np.flatnonzero(joints)) or "a joint"
-        out.append(Diagnostic(*where(program, row), "P321",
+        out.append(Diagnostic(*where(program, row), P321,
                               f"{names} barely moves here and stays in its backlash dead band: no command makes its "
                               f"motion agree with the side assumed; sent the one with the smallest worst case over "
                               f"both sides, {worst:.3f} mm (with the side its motion takes: {error:.3f} mm)", "note"))

@@ -45,7 +45,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .diagnostics import PostprocError
+from .diagnostics import P610, PostprocError
 
 STATE_FILE = "fleet-state.json"
 ROBOT_KEYS = {"name", "data", "robot", "method", "args", "previous"}
@@ -104,7 +104,7 @@ def load_fleet(path: str | Path) -> list[RobotJob]:
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
-        raise PostprocError(f"cannot read fleet file: {exc.strerror or exc}", str(path), 0, 0, "P610") from None
+        raise PostprocError(f"cannot read fleet file: {exc.strerror or exc}", str(path), 0, 0, P610) from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -113,11 +113,11 @@ def load_fleet(path: str | Path) -> list[RobotJob]:
         m = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
         line, col = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
         message = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(exc))
-        raise PostprocError(f"not valid TOML: {message}", str(path), line, col, "P610") from None
+        raise PostprocError(f"not valid TOML: {message}", str(path), line, col, P610) from None
     base = path.parent
 
     def bad(message: str, line: int) -> PostprocError:
-        return PostprocError(message, str(path), line, 1 if line else 0, "P610")
+        return PostprocError(message, str(path), line, 1 if line else 0, P610)
 
     unknown = set(data) - {"defaults", "robot"}
     if unknown:
@@ -158,7 +158,8 @@ def _run_cli(argv: list[str]) -> tuple[int, str]:
 
 def _held_out(job: RobotJob, path: Path) -> Path:
     """The held-out rows of the robot's data (the split `postproc train` draws) as a CSV."""
-    from .training.data import read_measurements, split_indices
+    from .measurements import read_measurements
+    from .training.data import split_indices
 
     m = read_measurements(job.data)
     frac, seed = 0.05, 0

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .diagnostics import PostprocError
+from .diagnostics import P111, P190, P191, PostprocError
 from .programs import Program, read_program
 
 __all__ = ["check_numbers", "check_inserted", "check_round_trip", "check_memory", "ROUNDING_MM", "MEMORY_PER_INPUT_BYTE"]
@@ -54,7 +54,7 @@ def check_memory(paths: list[Path]) -> None:
     raise PostprocError(f"too large to compensate here: {size / 1e6:,.0f} MB of program needs about "
                         f"{size * MEMORY_PER_INPUT_BYTE / 1e9:,.1f} GB of memory, {available / 1e9:,.1f} GB are "
                         f"available; split it into programs of at most {available / MEMORY_PER_INPUT_BYTE / 1e6:,.0f} MB",
-                        str(paths[0]), 0, 0, "P111")
+                        str(paths[0]), 0, 0, P111)
 
 
 def _where(program: Program, row: int) -> tuple[str, int, int]:
@@ -89,7 +89,7 @@ def check_numbers(program: Program, owners: np.ndarray, tokens: list[str], value
         i = int(bad[0])
         raise PostprocError(f"refusing to write: the number {tokens[i]!r} {what.format(float(values[i]))} "
                             "(a postproc bug: please report it with this program)", *_where(program, int(owners[i])),
-                            "P190")
+                            P190)
 
 
 _INSERTED = re.compile(r"[ \t]*,?[ \t]*([XYZxyz])[ \t]*([+-]?[ \t]*[^\s,]+?)[ \t]*,?[ \t]*\Z")  # ('- 0.5': a sign may stand apart)
@@ -105,40 +105,20 @@ def check_inserted(program: Program, owners: np.ndarray, pieces: list[str], axes
         m = _INSERTED.match(piece)
         if m is None or m.group(1).upper() != "XYZ"[k]:
             raise PostprocError(f"refusing to write: {piece!r} is not the {'XYZ'[k]} component to insert (a postproc "
-                                "bug: please report it with this program)", *_where(program, int(owners[i])), "P190")
+                                "bug: please report it with this program)", *_where(program, int(owners[i])), P190)
         numbers.append(m.group(2))
     check_numbers(program, owners, numbers, values, ROUNDING_MM, "does not read back as the corrected {} written in")
 
 
 def _refuse(program: Program, rows: np.ndarray, message: str) -> PostprocError:
     where = _where(program, int(rows[0])) if len(rows) else (program.files[0], 1, 1)
-    return PostprocError(f"refusing to write: {message}", *where, "P191")
+    return PostprocError(f"refusing to write: {message}", *where, P191)
 
 
-def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_xyz: np.ndarray,
-                     filled: np.ndarray | None = None) -> None:
-    """Read ``texts`` (the program's files with the corrected numbers, before the stamp)
-    again and refuse (P191) unless they hold the same targets (file, line, motion) in the
-    same frames, with ``new_xyz`` [len(rows), 3] at the compensated targets' written X/Y/Z
-    (to the rounding of the format) and every other written component unchanged.
-    ``filled`` [len(rows), 3]: the X/Y/Z written into partial aggregates; they must now be
-    written, with their ``new_xyz``."""
-    a = program.targets
-    try:
-        again = read_program(program.files, texts, program.dialect, config=program.config, active=program.active)
-    except PostprocError as exc:
-        raise PostprocError(f"refusing to write: the compensated text does not read again ({exc.message})",
-                            exc.path, exc.line, exc.col, "P191") from None
-    b = again.targets
-    if len(a) != len(b):
-        first_extra = np.array([min(len(a), len(b))])  # the first target one side lacks
-        raise _refuse(program if len(a) > len(b) else again, first_extra,
-                      f"the compensated text reads as {len(b)} targets, not {len(a)}")
-    for column in ("file", "line", "motion"):
-        differ = np.flatnonzero(getattr(a, column) != getattr(b, column))
-        if len(differ):
-            raise _refuse(program, differ, f"the compensated text reads as other targets ({column} differs)")
-    # frames: the same base for every target (matrices compared, indices may differ)
+def _check_frames(program: Program, again: Program) -> None:
+    """P191 unless every target of ``again`` (the program read again) is in the same base and
+    tool as before (matrices compared, frame indices may differ)."""
+    a, b = program.targets, again.targets
     known = a.frame >= 0
     differ = np.flatnonzero(known != (b.frame >= 0))
     if len(differ):
@@ -155,6 +135,32 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
                           f"compensating moves the {'base' if same_tool else 'tool'} of this target ({before.label}, "
                           f"by {float(np.linalg.norm(moved)):.3f} mm): a position that is compensated as a motion "
                           "target is also used as a frame")
+
+
+def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_xyz: np.ndarray,
+                     filled: np.ndarray | None = None) -> None:
+    """Read ``texts`` (the program's files with the corrected numbers, before the stamp)
+    again and refuse (P191) unless they hold the same targets (file, line, motion) in the
+    same frames, with ``new_xyz`` [len(rows), 3] at the compensated targets' written X/Y/Z
+    (to the rounding of the format) and every other written component unchanged.
+    ``filled`` [len(rows), 3]: the X/Y/Z written into partial aggregates; they must now be
+    written, with their ``new_xyz``."""
+    a = program.targets
+    try:
+        again = read_program(program.files, texts, program.dialect, config=program.config, active=program.active)
+    except PostprocError as exc:
+        raise PostprocError(f"refusing to write: the compensated text does not read again ({exc.message})",
+                            exc.path, exc.line, exc.col, P191) from None
+    b = again.targets
+    if len(a) != len(b):
+        first_extra = np.array([min(len(a), len(b))])  # the first target one side lacks
+        raise _refuse(program if len(a) > len(b) else again, first_extra,
+                      f"the compensated text reads as {len(b)} targets, not {len(a)}")
+    for column in ("file", "line", "motion"):
+        differ = np.flatnonzero(getattr(a, column) != getattr(b, column))
+        if len(differ):
+            raise _refuse(program, differ, f"the compensated text reads as other targets ({column} differs)")
+    _check_frames(program, again)
     # values: the corrected X/Y/Z where compensated and written, everything else as it was
     expected = a.poses.copy()
     expected[rows, :3] = new_xyz

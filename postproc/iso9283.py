@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .diagnostics import PostprocError
+from .diagnostics import P335, P500, P502, P512, P513, PostprocError
 
 __all__ = [
     "ISO_CYCLES",
@@ -104,7 +104,7 @@ def largest_cube(box, reachable=None, attitude=(0.0, 90.0, 0.0), shrink: float =
     box = np.asarray(box, float)
     if box.shape != (6,) or np.any(box[1::2] <= box[0::2]):
         raise PostprocError(f"working space must be X0 X1 Y0 Y1 Z0 Z1 with X0 < X1 etc., got {box.tolist()}",
-                            code="P512")
+                            code=P512)
     centre = tuple(float(v) for v in (box[0::2] + box[1::2]) / 2.0)
     full = float(np.min(box[1::2] - box[0::2]))
     side = full
@@ -115,7 +115,7 @@ def largest_cube(box, reachable=None, attitude=(0.0, 90.0, 0.0), shrink: float =
         side *= shrink
         if side < min_fraction * full:
             raise PostprocError(f"no test cube of at least {min_fraction:.0%} of the working space's {full:g} mm "
-                                "has all of P1..P5 within reach: give --cube or another --box", code="P335")
+                                "has all of P1..P5 within reach: give --cube or another --box", code=P335)
 
 
 def _with_attitude(points: np.ndarray, attitude) -> np.ndarray:
@@ -126,7 +126,7 @@ def pose_test_plan(cube: IsoCube, attitude=(0.0, 90.0, 0.0), cycles: int = ISO_C
     """The test's visiting order: ``cycles`` × (P1, P5, P4, P3, P2) at ``attitude``.
     Returns poses [5·cycles, 6] and their pose numbers [5·cycles] (1…5)."""
     if cycles < 1:
-        raise PostprocError(f"an ISO 9283 test needs at least 1 cycle, got {cycles}", code="P512")
+        raise PostprocError(f"an ISO 9283 test needs at least 1 cycle, got {cycles}", code=P512)
     order = np.tile(np.array(CYCLE_ORDER), cycles)
     poses = _with_attitude(cube.points()[order - 1], attitude)
     return poses, order
@@ -140,11 +140,11 @@ def iso_test(box, attitude, reachable=None, cube: IsoCube | None = None,
     if cube is None:
         cube = largest_cube(box, reachable, attitude)
     elif not cube.side > 0:
-        raise PostprocError(f"the test cube's side must be positive, got {cube.side:g}", code="P512")
+        raise PostprocError(f"the test cube's side must be positive, got {cube.side:g}", code=P512)
     elif reachable is not None:
         ok = np.asarray(reachable(_with_attitude(cube.points(), attitude)))
         if not ok.all():
-            raise PostprocError(f"P{int(np.flatnonzero(~ok)[0]) + 1} of the given cube is out of reach", code="P335")
+            raise PostprocError(f"P{int(np.flatnonzero(~ok)[0]) + 1} of the given cube is out of reach", code=P335)
     poses, numbers = pose_test_plan(cube, attitude, cycles)
     return cube, poses, numbers
 
@@ -317,22 +317,22 @@ def _orientation_columns(data: bytes, lines: np.ndarray, path: str) -> np.ndarra
         out = np.full((len(rows), 3), math.nan)
     bad = np.flatnonzero(~np.isfinite(out).all(axis=1))
     if len(bad):
-        raise PostprocError("a_meas/b_meas/c_meas is not a finite number", path, int(lines[bad[0]]), 1, "P502")
+        raise PostprocError("a_meas/b_meas/c_meas is not a finite number", path, int(lines[bad[0]]), 1, P502)
     return out
 
 
 def _read(path: Path):
-    from .training.data import parse_measurements
+    from .measurements import parse_measurements
 
     try:
         data = path.read_bytes()
     except OSError as exc:
-        raise PostprocError(f"cannot read measurement file: {exc.strerror or exc}", str(path), code="P500") from None
+        raise PostprocError(f"cannot read measurement file: {exc.strerror or exc}", str(path), code=P500) from None
     m = parse_measurements(data, str(path), repeats=True)
     frame = m.meta.get("frame", "base")
     if frame != "base":
         raise PostprocError(f"measured positions are in the {frame}'s frame, not the robot base frame: pose accuracy "
-                            "needs them in the base frame (postproc import ... --register)", str(path), 1, 1, "P513")
+                            "needs them in the base frame (postproc import ... --register)", str(path), 1, 1, P513)
     return data, m
 
 

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .diagnostics import PostprocError
-from .training.data import parse_rows
+from .diagnostics import P335, P500, P501, P503, P512, PostprocError
+from .measurements import TOOL_COLUMNS, parse_rows
 
 __all__ = [
     "DEFAULT_BOX",
@@ -69,14 +69,14 @@ def latin_hypercube(
     box = np.asarray(box, float)
     attitude = np.asarray(attitude, float)
     if n < 1:
-        raise PostprocError(f"a plan needs at least 1 pose, got {n}", code="P512")
+        raise PostprocError(f"a plan needs at least 1 pose, got {n}", code=P512)
     if n > MAX_POSES:
         raise PostprocError(f"a plan holds at most {MAX_POSES:,} poses (about 1 GB of memory), got {n:,}: "
-                            "split it into several plans with different --seed", code="P512")
+                            "split it into several plans with different --seed", code=P512)
     if box.shape != (6,) or np.any(box[1::2] < box[0::2]):
-        raise PostprocError(f"box must be X0 X1 Y0 Y1 Z0 Z1 with X0 <= X1 etc., got {box.tolist()}", code="P512")
+        raise PostprocError(f"box must be X0 X1 Y0 Y1 Z0 Z1 with X0 <= X1 etc., got {box.tolist()}", code=P512)
     if attitude.shape != (3,) or not range_deg >= 0:
-        raise PostprocError("attitude must be A B C and range a non-negative number of degrees", code="P512")
+        raise PostprocError("attitude must be A B C and range a non-negative number of degrees", code=P512)
     lo = np.concatenate([box[0::2], attitude - range_deg])
     hi = np.concatenate([box[1::2], attitude + range_deg])
     unit = qmc.LatinHypercube(d=6, seed=seed).random(n)
@@ -104,8 +104,6 @@ def tool_parts(n: int, tools) -> np.ndarray:
 
 def read_plan_tools(path: str | Path) -> np.ndarray | None:
     """The ``tool_x..tool_c`` columns [N, 6] of a plan (each row's TCP), None without them."""
-    from .training.data import TOOL_COLUMNS
-
     lines = Path(path).read_bytes().removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
     first = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
     if first is None:
@@ -119,8 +117,6 @@ def read_plan_tools(path: str | Path) -> np.ndarray | None:
 def plan_csv_chunks(poses: np.ndarray, config: np.ndarray | None = None, chunk: int = CHUNK,
                     tools: np.ndarray | None = None):
     """:func:`plan_csv_text` in pieces of ``chunk`` rows (for a writer that streams them)."""
-    from .training.data import TOOL_COLUMNS
-
     fmt = [f"%.{MM_DECIMALS}f"] * 3 + [f"%.{DEG_DECIMALS}f"] * 3
     header = list(POSE_COLUMNS)
     if config is not None:
@@ -148,7 +144,7 @@ def reachable(robot, poses: np.ndarray, chunk: int = CHUNK) -> np.ndarray:
 
 def write_plan_csv(path: str | Path, poses: np.ndarray, config: np.ndarray | None = None) -> None:
     """Write the plan CSV atomically (temp file beside it, then rename)."""
-    from .rewrite import write_atomic
+    from .atomic import write_atomic
 
     write_atomic([(Path(path), plan_csv_text(poses, config))])
 
@@ -169,7 +165,7 @@ def plan_configurations(robot, poses: np.ndarray, wrist: str = "home") -> tuple[
     from . import configuration
 
     if wrist not in WRIST_CHOICES:
-        raise PostprocError(f"--wrist must be one of {', '.join(WRIST_CHOICES)}, not {wrist!r}", code="P512")
+        raise PostprocError(f"--wrist must be one of {', '.join(WRIST_CHOICES)}, not {wrist!r}", code=P512)
     q, ok = robot.ik(poses)
     status, turn = configuration.status_turn_of(robot, q)
     if wrist == "both":
@@ -189,7 +185,7 @@ def parse_tool(text: str) -> np.ndarray:
     except ValueError:
         tool = np.zeros(0)
     if tool.shape != (6,) or not np.isfinite(tool).all():
-        raise PostprocError(f"a tool is X,Y,Z,A,B,C (six numbers, mm and deg), not {text!r}", code="P512")
+        raise PostprocError(f"a tool is X,Y,Z,A,B,C (six numbers, mm and deg), not {text!r}", code=P512)
     return tool
 
 
@@ -211,7 +207,7 @@ def read_plan_config(path: str | Path) -> np.ndarray | None:
                     out[i, k] = int(float(value))
                 except ValueError:
                     raise PostprocError(f"column {'st'[k]} is not an integer: {value!r}", str(path), i + 2, 1,
-                                        "P503") from None
+                                        P503) from None
     return out
 
 
@@ -227,7 +223,7 @@ def read_pose_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     try:
         data = path.read_bytes()
     except OSError as exc:
-        raise PostprocError(f"cannot read pose file: {exc.strerror or exc}", str(path), code="P500") from exc
+        raise PostprocError(f"cannot read pose file: {exc.strerror or exc}", str(path), code=P500) from exc
     return parse_pose_csv(data.removeprefix(b"\xef\xbb\xbf").decode("latin-1"), str(path))
 
 
@@ -244,15 +240,15 @@ def parse_pose_csv(text: str, path: str = "<poses>") -> tuple[np.ndarray, np.nda
 def _parse_pose_lines(lines: list[str], path: str) -> np.ndarray:
     first = next((i for i, raw in enumerate(lines) if raw.strip() and not raw.lstrip().startswith("#")), None)
     if first is None:
-        raise PostprocError("empty pose file (expected a header with x,y,z,a,b,c)", path, 1, 1, "P500")
+        raise PostprocError("empty pose file (expected a header with x,y,z,a,b,c)", path, 1, 1, P500)
     header = [h.strip().lower() for h in lines[first].split(",")]
     missing = [c for c in POSE_COLUMNS if c not in header]
     if missing:
         raise PostprocError(f"header lacks column(s) {', '.join(missing)} (need {','.join(POSE_COLUMNS)})",
-                            path, first + 1, 1, "P501")
+                            path, first + 1, 1, P501)
     dupes = sorted({c for c in POSE_COLUMNS if header.count(c) > 1})
     if dupes:
-        raise PostprocError(f"column(s) {', '.join(dupes)} appear more than once", path, first + 1, 1, "P501")
+        raise PostprocError(f"column(s) {', '.join(dupes)} appear more than once", path, first + 1, 1, P501)
     index = [header.index(c) for c in POSE_COLUMNS]
     body = "\n".join(lines[first + 1:])
     try:  # fast path for well-formed files (10^5 rows); the slow scan below finds the culprit
@@ -261,13 +257,13 @@ def _parse_pose_lines(lines: list[str], path: str) -> np.ndarray:
             table = np.loadtxt(io.StringIO(body), delimiter=",", comments="#", ndmin=2, dtype=float)
         if table.shape[1] == len(header) and np.isfinite(table[:, index]).all():
             if len(table) == 0:
-                raise PostprocError("pose file has a header but no rows", path, first + 1, 1, "P500")
+                raise PostprocError("pose file has a header but no rows", path, first + 1, 1, P500)
             return table[:, index].copy()
     except ValueError:
         pass
     table, _ = parse_rows(lines, first, header, index, path)
     if not len(table):
-        raise PostprocError("pose file has a header but no rows", path, first + 1, 1, "P500")
+        raise PostprocError("pose file has a header but no rows", path, first + 1, 1, P500)
     return table
 
 
@@ -312,7 +308,7 @@ def krl_measurement_program(
         comment = comment.encode("ascii", "replace").decode()
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,23}", name):
         raise PostprocError(f"'{name}' is not a KRL module name (letters, digits, _; at most 24; not starting "
-                            "with a digit): name the .src file like one", code="P512")
+                            "with a digit): name the .src file like one", code=P512)
     poses = round_poses(np.atleast_2d(poses))
     starts = [0]
     if tools is not None:
@@ -326,7 +322,7 @@ def krl_measurement_program(
         above[:, 2] += approach_mm
         q, ok = arm.ik(above)
         if not ok.all():
-            raise PostprocError(f"the approach {approach_mm:g} mm above the first/last pose is out of reach", code="P335")
+            raise PostprocError(f"the approach {approach_mm:g} mm above the first/last pose is out of reach", code=P335)
         parts.append((first, end, arm, above, *arm.status_turn(q)))
     home = ",".join(f"A{i + 1} {v:.4f}" for i, v in enumerate(robot.home_q))
     nl = "\n"
@@ -378,7 +374,7 @@ def krl_measurement_program(
 
 def write_krl_measurement_program(path: str | Path, poses: np.ndarray, robot, **options) -> None:
     """Write :func:`krl_measurement_program` to ``path`` (.src, module named after the file), atomically."""
-    from .rewrite import write_atomic
+    from .atomic import write_atomic
 
     path = Path(path)
     write_atomic([(path, krl_measurement_program(poses, path.stem, robot, **options))])

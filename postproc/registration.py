@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .diagnostics import PostprocError
+from .diagnostics import P510, P511, PostprocError
 
 __all__ = [
     "fit_rigid",
@@ -35,9 +35,9 @@ _RANK_TOLERANCE = 1e-9
 def _points(points: np.ndarray, name: str) -> np.ndarray:
     p = np.asarray(points, dtype=float)
     if p.ndim != 2 or p.shape[1] != 3:
-        raise PostprocError(f"{name} must be an [N, 3] array of points, got shape {p.shape}", code="P511")
+        raise PostprocError(f"{name} must be an [N, 3] array of points, got shape {p.shape}", code=P511)
     if not np.all(np.isfinite(p)):
-        raise PostprocError(f"{name} contains NaN or infinite coordinates", code="P511")
+        raise PostprocError(f"{name} contains NaN or infinite coordinates", code=P511)
     return p
 
 
@@ -54,18 +54,18 @@ def fit_rigid(
     dst = _points(target, "target")
     if src.shape != dst.shape:
         raise PostprocError(
-            f"source and target must correspond point by point: {len(src)} vs {len(dst)} points", code="P511"
+            f"source and target must correspond point by point: {len(src)} vs {len(dst)} points", code=P511
         )
     n = len(src)
     if n < 3:
-        raise PostprocError(f"a rigid registration needs at least 3 points, got {n}", code="P510")
+        raise PostprocError(f"a rigid registration needs at least 3 points, got {n}", code=P510)
     mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
     xs, xd = src - mu_s, dst - mu_d
     spread = np.linalg.svd(xs, compute_uv=False)
     if spread[0] == 0.0 or spread[1] <= _RANK_TOLERANCE * spread[0]:
         raise PostprocError(
             f"the {n} source points are collinear or coincident: the rotation about their line is undetermined",
-            code="P510",
+            code=P510,
         )
     cov = xd.T @ xs / n  # Σ_ds of Umeyama's eq. (38)
     u, d, vt = np.linalg.svd(cov)
@@ -73,7 +73,7 @@ def fit_rigid(
         raise PostprocError(
             "source and target do not correspond (their cross-covariance has rank < 2): "
             "the rotation is undetermined",
-            code="P510",
+            code=P510,
         )
     # the sign fix turns a best-fit reflection into the best proper rotation
     signs = np.array([1.0, 1.0, np.sign(np.linalg.det(u) * np.linalg.det(vt)) or 1.0])
@@ -122,7 +122,7 @@ def register_measurements(
     if mask.shape != (len(commanded),) or len(measured) != len(commanded):
         raise PostprocError(
             f"commanded {commanded.shape}, measured {measured.shape} and train_mask {mask.shape} must have N rows",
-            code="P511",
+            code=P511,
         )
     rotation, translation = fit_rigid(measured[mask], commanded[mask])
     in_base = apply_rigid(measured, rotation, translation)

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from .compensator import Compensator
-from .diagnostics import PostprocError
+from .diagnostics import P107, P305, P500, P501, P502, P503, PostprocError
 from .stats import table2  # max, min, mean, std (ddof 1): the method's Table 2 figures
 
 __all__ = [
@@ -110,7 +110,7 @@ def _optional_columns(data: bytes, path: str, columns: tuple[str, ...]) -> tuple
     if not any(present):
         return None
     if not all(present):
-        raise PostprocError(f"give all of {','.join(columns)} or none", path, header_at + 1, 1, "P501")
+        raise PostprocError(f"give all of {','.join(columns)} or none", path, header_at + 1, 1, P501)
     return text, [header.index(c) for c in columns]
 
 
@@ -128,7 +128,7 @@ def _after_columns(data: bytes, lines: np.ndarray, path: str) -> np.ndarray | No
         except ValueError:
             out[row] = math.nan
         if not np.isfinite(out[row]).all():
-            raise PostprocError("x_after/y_after/z_after is not a finite number", path, line, 1, "P502")
+            raise PostprocError("x_after/y_after/z_after is not a finite number", path, line, 1, P502)
     return out
 
 
@@ -138,12 +138,12 @@ def model_card(model: Compensator) -> dict:
 
 
 def _read(path: Path, repeats: bool = False):
-    from .training.data import parse_measurements  # numpy only; the one reader of this format
+    from .measurements import parse_measurements  # numpy only; the one reader of this format
 
     try:
         data = path.read_bytes()
     except OSError as exc:
-        raise PostprocError(f"cannot read measurement file: {exc.strerror or exc}", str(path), code="P500") from None
+        raise PostprocError(f"cannot read measurement file: {exc.strerror or exc}", str(path), code=P500) from None
     return data, parse_measurements(data, str(path), repeats)
 
 
@@ -164,7 +164,7 @@ def _reached_after(path: Path, targets: np.ndarray, m=None) -> np.ndarray:
         _, m = _read(path, repeats=True)  # row by row against the targets: a pose may repeat (ISO 9283 cycles)
     if len(m) != len(targets):
         raise PostprocError(f"{len(m)} rows, the measurement before compensation has {len(targets)}: measure the "
-                            "compensated program in the same order", str(path), code="P503")
+                            "compensated program in the same order", str(path), code=P503)
     moved = np.linalg.norm(m.poses[:, :3] - targets[:, :3], axis=1)
     turned = np.linalg.norm(rotation_error_deg(targets[:, 3:], m.poses[:, 3:]), axis=1)  # (near B = ±90° A and C alone swing)
     bad = np.flatnonzero((moved > AFTER_POSITION_MM) | (turned > AFTER_ATTITUDE_DEG))
@@ -172,7 +172,7 @@ def _reached_after(path: Path, targets: np.ndarray, m=None) -> np.ndarray:
         raise PostprocError(f"row does not belong to row {bad[0] + 1} before compensation (commanded pose "
                             f"{moved[bad[0]]:.3f} mm / {turned[bad[0]]:.3f}° away; only a correction changes "
                             "them): not the same program in the same order", str(path),
-                            int(m.lines[bad[0]]), 1, "P503")
+                            int(m.lines[bad[0]]), 1, P503)
     return m.measured
 
 
@@ -189,7 +189,7 @@ def read_report_data(path: str | Path, model: Compensator | None = None, after: 
     columns = _after_columns(data, m.lines, str(path))
     if after is not None and columns is not None:
         raise PostprocError("give the positions after compensation once: x_after.. columns or --after, not both",
-                            str(path), code="P501")
+                            str(path), code=P501)
     after_m = _read(Path(after), repeats=True)[1] if after is not None else None
     reached = _reached_after(Path(after), m.poses, after_m) if after is not None else columns
     rotation_before, rotation_after = _rotations(m, model, after_m, previous_of(m, model))
@@ -197,14 +197,14 @@ def read_report_data(path: str | Path, model: Compensator | None = None, after: 
     previous = previous_of(m, model)
     predicted = model.predict(m.poses, previous) if model is not None else None
     if predicted is not None and not np.isfinite(predicted).all():
-        raise PostprocError("the model returns NaN or inf on these poses", str(model.path), code="P305")
+        raise PostprocError("the model returns NaN or inf on these poses", str(model.path), code=P305)
     if reached is not None:
         after, kind = m.poses[:, :3] - reached, "measured"
     elif predicted is not None:
         after, kind = error - predicted, "first-order"
     else:
         raise PostprocError("nothing to compare: give --model (first-order residual E − Ê), --after (a measurement "
-                            "of the compensated program) or x_after,y_after,z_after columns", str(path), code="P501")
+                            "of the compensated program) or x_after,y_after,z_after columns", str(path), code=P501)
     envelope = model.envelope if model is not None else None
     return ReportData(
         poses=m.poses,
@@ -465,9 +465,9 @@ def write_report(data: ReportData, folder: str | Path, title: str = "Positioning
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise PostprocError(f"cannot create the report folder: {exc.strerror}", str(folder), code="P107") from None
+        raise PostprocError(f"cannot create the report folder: {exc.strerror}", str(folder), code=P107) from None
     if len(data) == 0:
-        raise PostprocError("no poses to report on", data.source, code="P500")
+        raise PostprocError("no poses to report on", data.source, code=P500)
     files = write_series(data, folder)
     figures = write_plots(data, folder)
     numbers = summary(data)

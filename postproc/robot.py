@@ -25,14 +25,13 @@ from pathlib import Path
 import numpy as np
 
 from . import frames
-from .diagnostics import PostprocError
+from .diagnostics import P330, P331, P332, P333, PostprocError
 from .resources import model_path
 
 __all__ = ["JointSpec", "RobotDescription", "load_description", "parse_description", "check_value", "Chain", "Robot",
            "axis_rotations"]
 
 MM = 1e-3  # mm → m
-CODE_SYNTAX, CODE_KEY, CODE_VALUE, CODE_GEOMETRY = "P330", "P331", "P332", "P333"
 
 # table → key → kind; "vec:n" = n numbers, "num" = a number, "str" = text, "int" = an integer
 _SCHEMA: dict[str, dict[str, str]] = {
@@ -83,7 +82,7 @@ class RobotDescription:
         """1-based line of ``key`` in ``[table]`` (the ``index``-th ``[[table]]``), 0 if not found."""
         return _locate(self.text, table, key, index)
 
-    def error(self, message: str, table: str, key: str | None = None, code: str = CODE_VALUE) -> PostprocError:
+    def error(self, message: str, table: str, key: str | None = None, code: str = P332) -> PostprocError:
         """A PostprocError pointing at ``key`` of ``[table]`` in the description file."""
         return PostprocError(message, self.path, self.locate(table, key), 1 if self.path else 0, code)
 
@@ -142,65 +141,78 @@ def load_description(path: str | Path | None = None) -> RobotDescription:
         text = path.read_bytes().decode("utf-8")
     except OSError as exc:
         raise PostprocError(f"cannot read robot description: {exc.strerror or exc}", str(path),
-                            code=CODE_SYNTAX) from exc
+                            code=P330) from exc
     except UnicodeDecodeError as exc:
-        raise PostprocError(f"robot description is not UTF-8 text: {exc.reason}", str(path), code=CODE_SYNTAX) from exc
+        raise PostprocError(f"robot description is not UTF-8 text: {exc.reason}", str(path), code=P330) from exc
     return parse_description(text, str(path))
+
+
+def _toml(text: str, path: str) -> dict:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        m = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
+        line, col = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
+        raise PostprocError(f"not valid TOML: {str(exc).split(' (at line')[0]}", path, line, col, P330) from None
+
+
+def _check_tables(doc: dict, fail_at) -> None:
+    """P331 for a table the schema does not know, or of the wrong kind."""
+    for table, body in doc.items():
+        if table not in _SCHEMA:
+            known = ", ".join(f"[{t}]" for t in _SCHEMA)
+            raise fail_at(table, code=P331)(f"unknown table [{table}] (known: {known})")
+        if table == "joint" and not isinstance(body, list):
+            raise fail_at(table, code=P331)("joints are an array of tables: write [[joint]]")
+        if table != "joint" and not isinstance(body, dict):
+            raise fail_at(table, code=P331)(f"[{table}] must be a table")
+
+
+def _joint_spec(j: dict, fail) -> JointSpec:
+    """One checked [[joint]] table → JointSpec; ``fail(key)`` makes the error at that key."""
+    norm = float(np.linalg.norm(j["axis"]))
+    if norm < 1e-9:
+        raise fail("axis")(f"joint {j['name']}: axis must not be zero")
+    if not j["limits"][0] < j["limits"][1]:
+        raise fail("limits")(f"joint {j['name']}: limits must be [lower, upper] with lower < upper")
+    mass = j.get("mass", 0.0)
+    if mass < 0:
+        raise fail("mass")(f"joint {j['name']}: mass must not be negative")
+    return JointSpec(j["name"], j["origin"], j["axis"] / norm, j["limits"], mass, j.get("com", np.zeros(3)),
+                     j.get("inertia"))
 
 
 def parse_description(text: str, path: str = "<robot>") -> RobotDescription:
     """Parse the text of a robot description (see :func:`load_description`)."""
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        m = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
-        line, col = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
-        raise PostprocError(f"not valid TOML: {str(exc).split(' (at line')[0]}", path, line, col, CODE_SYNTAX) from None
+    doc = _toml(text, path)
 
-    def fail_at(table: str, key: str | None = None, index: int = 0, code: str = CODE_VALUE):
+    def fail_at(table: str, key: str | None = None, index: int = 0, code: str = P332):
         return lambda message: PostprocError(message, path, _locate(text, table, key, index) or 1, 1, code)
 
-    for table, body in doc.items():
-        if table not in _SCHEMA:
-            known = ", ".join(f"[{t}]" for t in _SCHEMA)
-            raise fail_at(table, code=CODE_KEY)(f"unknown table [{table}] (known: {known})")
-        if table == "joint" and not isinstance(body, list):
-            raise fail_at(table, code=CODE_KEY)("joints are an array of tables: write [[joint]]")
-        if table != "joint" and not isinstance(body, dict):
-            raise fail_at(table, code=CODE_KEY)(f"[{table}] must be a table")
+    _check_tables(doc, fail_at)
 
     def section(table: str, body: dict, index: int = 0) -> dict:
         out = {}
         schema = _SCHEMA[table]
         for key, value in body.items():
             if key not in schema:
-                raise fail_at(table, key, index, CODE_KEY)(
+                raise fail_at(table, key, index, P331)(
                     f"unknown key '{key}' in [{table}] (known: {', '.join(schema)})")
             out[key] = check_value(schema[key], value, f"[{table}] {key}", fail_at(table, key, index))
         for key in _REQUIRED.get(table, ()):
             if key not in out:
-                raise fail_at(table, None, index, CODE_KEY)(f"[{table}] needs '{key}'")
+                raise fail_at(table, None, index, P331)(f"[{table}] needs '{key}'")
         return out
 
     for table in ("robot", "flange", "tool"):
         if table not in doc:
-            raise PostprocError(f"missing table [{table}]", path, 1, 1, CODE_KEY)
+            raise PostprocError(f"missing table [{table}]", path, 1, 1, P331)
     robot = section("robot", doc["robot"])
     joints = []
     for i, body in enumerate(doc.get("joint", [])):
-        j = section("joint", body, i)
-        norm = float(np.linalg.norm(j["axis"]))
-        if norm < 1e-9:
-            raise fail_at("joint", "axis", i)(f"joint {j['name']}: axis must not be zero")
-        if not j["limits"][0] < j["limits"][1]:
-            raise fail_at("joint", "limits", i)(f"joint {j['name']}: limits must be [lower, upper] with lower < upper")
-        mass = j.get("mass", 0.0)
-        if mass < 0:
-            raise fail_at("joint", "mass", i)(f"joint {j['name']}: mass must not be negative")
-        joints.append(JointSpec(j["name"], j["origin"], j["axis"] / norm, j["limits"], mass,
-                                j.get("com", np.zeros(3)), j.get("inertia")))
+        joints.append(_joint_spec(section("joint", body, i), lambda key: fail_at("joint", key, i)))
     if len(joints) != 6:
-        raise PostprocError(f"a robot needs 6 [[joint]] tables, this one has {len(joints)}", path, 1, 1, CODE_GEOMETRY)
+        raise PostprocError(f"a robot needs 6 [[joint]] tables, this one has {len(joints)}", path, 1, 1, P333)
     flange = section("flange", doc["flange"])
     tool = section("tool", doc["tool"])
     payload = section("payload", doc.get("payload", {}))
@@ -572,7 +584,7 @@ class _IkGeometry:
             raise PostprocError(
                 "the analytic IK needs a KUKA-type arm: joint origins without rotation, axes A1 ±Z, A2/A3/A5 ±Y, "
                 "A4/A6 ±X, all origins after A1 in the XZ plane and A4, A5, A6 on one line (spherical wrist)",
-                d.path, d.locate("joint", None, 0), 1, CODE_GEOMETRY)
+                d.path, d.locate("joint", None, 0), 1, P333)
         self.robot = robot
         self.s = np.array([axes[j, want[j]] for j in range(6)])  # axis signs
         self.p1 = o[0, :3]
@@ -662,7 +674,7 @@ def ur_geometry(description) -> tuple[np.ndarray, np.ndarray]:
         raise PostprocError(
             "the UR-type IK needs joint origins without rotation, axes A1 ±Z, A2 = A3 = A4 ±Y, A5 ±Z, A6 ±Y, "
             "A2 above A1, A3 and A4 along X from it, A5 beside A4 (Y), A6 below/above A5 (Z)",
-            description.path, description.locate("joint", None, 0), 1, CODE_GEOMETRY)
+            description.path, description.locate("joint", None, 0), 1, P333)
     return o, np.array([axes[j, want[j]] for j in range(6)])
 
 

@@ -43,13 +43,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import configuration, frames
-from .diagnostics import PostprocError
-from .robot import CODE_KEY, Chain, Robot, RobotDescription, axis_rotations, check_value, load_description
+from .diagnostics import P331, P335, PostprocError
+from .robot import Chain, Robot, RobotDescription, axis_rotations, check_value, load_description
 from .stats import table2
 
-__all__ = ["ErrorSpec", "SimulatedRobot", "table2", "approach_signs", "small_transform", "rotation_angle_deg", "CODE_REACH"]
+__all__ = ["ErrorSpec", "SimulatedRobot", "table2", "approach_signs", "small_transform", "rotation_angle_deg"]
 
-CODE_REACH = "P335"
 CALIBRATION_POSES = 2000
 CALIBRATION_SEED = 0
 
@@ -108,7 +107,7 @@ class ErrorSpec:
         for key, value in d.errors.items():
             if key not in _ERROR_KEYS:
                 known = ", ".join(_ERROR_KEYS)
-                raise d.error(f"unknown key '{key}' in [errors] (known: {known})", "errors", key, CODE_KEY)
+                raise d.error(f"unknown key '{key}' in [errors] (known: {known})", "errors", key, P331)
             values[key] = _checked(d, key, _ERROR_KEYS[key], value)
         orders = values.get("ripple_orders", ())
         amps = values.setdefault("ripple_deg", np.zeros((6, len(orders))))
@@ -333,7 +332,7 @@ class SimulatedRobot:
         q, ok = self.robot.ik(poses)
         if not ok.all():
             raise self.description.error("the [workspace] box is not reachable everywhere", "workspace", "box",
-                                         CODE_REACH)
+                                         P335)
         return poses, q, self._joint_errors(q, approach_signs(q, self.robot.home_q))
 
     # ---------------------------------------------------------------- the physics
@@ -403,7 +402,7 @@ class SimulatedRobot:
             bad = np.flatnonzero(~ok)
             raise PostprocError(
                 f"{len(bad)} of {len(poses)} poses are out of reach of {self.robot.name} "
-                f"(first: row {bad[0] + 1}, {np.round(poses[bad[0]], 3).tolist()})", code=CODE_REACH)
+                f"(first: row {bad[0] + 1}, {np.round(poses[bad[0]], 3).tolist()})", code=P335)
         return q
 
     def reachable_in(self, poses: np.ndarray, config: np.ndarray | None = None, tools: np.ndarray | None = None,

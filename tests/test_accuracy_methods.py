@@ -9,13 +9,13 @@ import pytest
 from postproc.cli import main
 from postproc.compensate import compensate_text, parse_program_text
 from postproc.compensator import load_model
-from postproc.datasets import write_measurements
+from postproc.measurements import write_measurements
 from postproc.planning import latin_hypercube
 from postproc.simulator import SimulatedRobot
 from postproc.training.features import previous_poses
 from postproc.training.synthetic import synthetic_measurements, to_csv
 
-from conftest import REPO
+from helpers import REPO
 from postproc.programs import ActiveFrames
 
 ROBOT_SEED = 7  # a drawn robot (not the evaluation seeds 101-105 of benchmarks/accuracy.py)
@@ -75,7 +75,7 @@ def test_compensated_program_lands_on_target(hybrid_model, sim):
 
 def test_onnx_graph_agrees_with_torch(measured_csv, tmp_path):
     from postproc.robot import load_description
-    from postproc.training.data import read_measurements
+    from postproc.measurements import read_measurements
     from postproc.training.hybrid import HybridModel
 
     data = read_measurements(measured_csv)

@@ -14,7 +14,7 @@ import postproc
 from postproc.cli import SUBCOMMANDS, build_parser
 from postproc.compensator import load_model
 
-from conftest import REPO
+from helpers import REPO
 
 HOOK = REPO / "samples" / "cam_hook"
 CSV = "x,y,z,a,b,c\n2000,0,900,0,90,0\n2100.5,-20.25,950,1,89,0\n"

@@ -20,7 +20,7 @@ from postproc.simulator import SimulatedRobot
 from postproc.training.features import previous_poses
 from postproc.training.hybrid import HybridModel
 
-from conftest import REPO
+from helpers import REPO
 
 BACKLASH = "backlash_deg = [0.015, 0.012, 0.012, 0.02, 0.03, 0.02]\nbacklash_spread = 0.2\n"
 
@@ -100,7 +100,7 @@ def test_settling_is_the_same_chunk_by_chunk(model, pocket, monkeypatch):
     import postproc.compensator as compensator
 
     once = list(model.command_chunks(pocket))
-    monkeypatch.setattr(compensator, "COMMAND_CHUNK", 128)
+    monkeypatch.setattr(model, "command_chunk", 128)  # (rows per chunk: the instance's)
     chunks = list(model.command_chunks(pocket))
     assert [start for start, _, _ in chunks] == list(range(0, len(pocket), 128))
     # (the same up to float32 rows computed in other batches: ~1e-4 mm)

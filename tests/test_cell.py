@@ -9,7 +9,7 @@ import pytest
 from postproc.cli import main
 from postproc.programs import STAMP_PREFIX
 
-from conftest import REPO
+from helpers import REPO
 
 KRL = REPO / "samples/krl"
 GAIN = np.diag([1e-3, 2e-3, -1e-3])

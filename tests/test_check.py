@@ -15,7 +15,7 @@ from postproc.config import load_config
 from postproc.diagnostics import PostprocError
 from postproc.programs import STAMP_PREFIX, Program, TargetsBuilder
 
-from model_factory import DEFAULT_ENVELOPE, DEFAULT_REACH
+from postproc.testing.models import DEFAULT_ENVELOPE, DEFAULT_REACH
 
 # rows 2..6: inside everything / outside the envelope box / beyond the reach sphere / inside the
 # reach sphere's hole / attitude out of the envelope's range
@@ -323,7 +323,7 @@ def test_krl_module_stamps_and_freshness(affine, tmp_path, monkeypatch):
 def test_what_else_compensate_refuses_is_a_finding(affine):
     # a frame that is not finite: compensate refuses the program (P103, one rule for both),
     # its targets are not also 'position not known' (P212)
-    from conftest import program_in_base
+    from helpers import program_in_base
 
     base = np.eye(4)
     base[0, 3] = np.nan

@@ -8,7 +8,7 @@ import pytest
 
 from postproc.cli import install_command, missing_extra
 
-from conftest import REPO
+from helpers import REPO
 
 SAMPLE = REPO / "samples" / "krl" / "cam_pocket.src"
 RUN = "import sys; sys.modules[sys.argv[1]] = None; from postproc.cli import main; sys.exit(main(sys.argv[2:]))"

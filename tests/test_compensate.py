@@ -13,7 +13,7 @@ from postproc.programs import ActiveFrames
 from postproc.diagnostics import PostprocError
 from postproc.programs import STAMP_PREFIX
 
-from conftest import REPO, program_in_base
+from helpers import REPO, program_in_base
 
 CSV = "# part\r\nname,x,y,z,a,b,c,feed\r\nP1,1950.1,12.5,880,0,90,0,100\r\nP2,2001.250,-12.5,900.,2,88,1,120\r\n"
 
@@ -175,15 +175,13 @@ def test_reader_says_when_targets_are_variables():
     assert load_program(REPO / "samples/krl/weld_cell.src", REPO / "samples/krl/config/$config.dat").named_targets
 
 
-def test_batches_run_in_parallel_give_the_one_call_result(affine, monkeypatch):
-    import postproc.compensator as compensator
-
+def test_batches_run_in_parallel_give_the_one_call_result(affine):
     gain = np.array([[2e-3, 0, 0], [0, -1e-3, 5e-4], [0, 0, 3e-3]])
     model = load_model(affine(offset=(0.3, -0.2, 0.1), gain=gain))
     rng = np.random.default_rng(3)
     poses = np.c_[rng.uniform(1800, 2200, (1000, 3)), np.zeros((1000, 3))]
     whole = model.predict(poses)
-    monkeypatch.setattr(compensator, "PREDICT_BATCH", 64)  # 16 batches on a thread pool
+    model.predict_batch = 64  # 16 batches on a thread pool
     assert np.array_equal(model.predict(poses), whole)
     expected = np.array([0.3, -0.2, 0.1]) + (poses[:, :3] - [2000, 0, 900]) @ gain.T
     assert np.allclose(whole, expected, atol=1e-4)
@@ -197,12 +195,10 @@ def _cam_path(n: int, seed: int = 0) -> np.ndarray:
                  rng.uniform(-3, 3, n), 90 + rng.uniform(-3, 3, n), rng.uniform(-3, 3, n)]
 
 
-def test_commands_in_chunks_equal_the_whole_program_fixed_point(monkeypatch):
+def test_commands_in_chunks_equal_the_whole_program_fixed_point():
     # the shipped model chains each target to its predecessor's command (backlash): a chunk
     # border must carry the last command of every iteration over, or its first target's
     # approach direction (and so its correction) would change
-    import postproc.compensator as compensator
-
     model = load_model()
     assert model.wants_previous
     # (the plain fixed point: a model with an ``approach`` input then settles a few targets on
@@ -213,8 +209,8 @@ def test_commands_in_chunks_equal_the_whole_program_fixed_point(monkeypatch):
     for _ in range(model.default_iterations):  # the fixed point written out, whole program at once
         trial[:, :3] = poses[:, :3] + model.predict(trial, np.vstack([trial[:1], trial[:-1]]))
     # 64 rows: onnxruntime's float32 atan2 gives a row ~1e-4 mm apart in a batch's SIMD tail,
-    # so chunks are a multiple of the vector width, as COMMAND_CHUNK and PREDICT_BATCH are
-    monkeypatch.setattr(compensator, "COMMAND_CHUNK", 64)
+    # so chunks are a multiple of the vector width, as the default command_chunk and predict_batch are
+    model.command_chunk = 64
     chunks = list(model.command_chunks(poses))
     assert [start for start, _, _ in chunks] == list(range(0, 300, 64))
     assert np.allclose(model.command(poses), trial[:, :3], rtol=0, atol=1e-9)
@@ -225,29 +221,27 @@ def test_commands_in_chunks_equal_the_whole_program_fixed_point(monkeypatch):
 
 def test_rewrite_overlapping_the_model_writes_what_one_pass_writes(monkeypatch):
     import postproc.compensate as compensate
-    import postproc.compensator as compensator
-
     poses = _cam_path(500, seed=1)
     text = "DEF cam()\n" + "".join(
         "LIN {X %.3f,Y %.3f,Z %.3f,A %.3f,B %.3f,C %.3f} C_VEL\n" % tuple(p) for p in poses) + "END\n"
     stated = ActiveFrames(base=0, tool="model")  # (a made-up CAM program that sets neither)
     whole, report = compensate_text(text, name="cam.src", active=stated)
-    monkeypatch.setattr(compensator, "COMMAND_CHUNK", 16)  # 32 model chunks
+    model = load_model()
+    model.command_chunk = 16  # 32 model chunks
     monkeypatch.setattr(compensate, "EDIT_CHUNK", 50)  # 30 rewrite chunks waiting on them
-    chunked, again = compensate_text(text, name="cam.src", active=stated)
+    chunked, again = compensate_text(text, model, name="cam.src", active=stated)
     assert chunked == whole and again.max_correction_mm == report.max_correction_mm
     assert report.compensated == 500 and whole != text
 
 
 def test_a_guard_failing_in_a_late_chunk_names_the_worst_target(affine, monkeypatch):
     import postproc.compensate as compensate
-    import postproc.compensator as compensator
-
     # E = 0.01·(x − 2000): 0 … 3 mm along the program, largest at its last line
     xs = np.linspace(2000, 2300, 200)
     text = "x,y,z,a,b,c\n" + "".join(f"{x:.3f},0,900,0,90,0\n" for x in xs)
     model = affine(gain=np.diag([1e-2, 0, 0]), centre=(2000.0, 0.0, 900.0))
-    monkeypatch.setattr(compensator, "COMMAND_CHUNK", 8)
+    model = load_model(model)
+    model.command_chunk = 8
     monkeypatch.setattr(compensate, "EDIT_CHUNK", 6)
     with pytest.raises(PostprocError) as info:
         compensate_text(text, model, name="p.csv", max_correction_mm=2.0)

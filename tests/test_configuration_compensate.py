@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from model_factory import joint_model
+from postproc.testing.models import joint_model
 from postproc.compensate import compensate_text
 from postproc.compensator import load_model
 from postproc.robot import Robot

@@ -9,12 +9,14 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from postproc.cli import main
-from postproc.datasets import MEASUREMENT_COLUMNS, parse_ipa, read_ipa, read_metadata, rpy_to_abc
+from postproc.datasets import parse_ipa, read_ipa, rpy_to_abc
+from postproc.measurements import COLUMNS, read_metadata
 from postproc.diagnostics import PostprocError
 from postproc.frames import rotation_from_abc
 from postproc.registration import register_measurements
 from postproc.resources import sample_path
-from postproc.training.data import parse_measurements, split_indices
+from postproc.measurements import parse_measurements
+from postproc.training.data import split_indices
 
 EXCERPT = sample_path("ipa/series_c_excerpt.csv")
 
@@ -152,7 +154,7 @@ def test_structural_errors(text):
         parse_ipa(text.replace("elbow_joint", "elbow"))
     assert (info.value.line, info.value.code) == (1, "P501") and "elbow_joint" in info.value.message
     with pytest.raises(PostprocError) as info:
-        parse_ipa(",".join(MEASUREMENT_COLUMNS) + "\n1,2,3,4,5,6,7,8,9\n")
+        parse_ipa(",".join(COLUMNS) + "\n1,2,3,4,5,6,7,8,9\n")
     assert info.value.code == "P501"
     with pytest.raises(PostprocError) as info:
         parse_ipa(lines[0] + "\n")
@@ -171,7 +173,7 @@ def test_import_writes_tracker_frame_csv(tmp_path, series, capsys):
     assert out.read_text().startswith("# frame: tracker\n")
     assert read_metadata(out)["frame"] == "tracker"
     header, table = _read_csv(out)
-    assert header == list(MEASUREMENT_COLUMNS) + ["q1", "q2", "q3", "q4", "q5", "q6", "temperature"]
+    assert header == list(COLUMNS) + ["q1", "q2", "q3", "q4", "q5", "q6", "temperature"]
     assert table.shape == (150, 16)
     assert np.allclose(table[:, :6], series.commanded, rtol=1e-11, atol=1e-9)
     assert np.array_equal(table[:, 6:9], series.measured)  # every digit of the source kept

@@ -82,7 +82,7 @@ def csv():
 
 @pytest.fixture(scope="module")
 def model(tmp_path_factory):
-    from model_factory import affine_model
+    from postproc.testing.models import affine_model
 
     path = affine_model(tmp_path_factory.mktemp("cons") / "affine.onnx", offset=(0.3, -0.2, 0.1), gain=GAIN,
                         reach=None, tool={"name": "any"})

@@ -144,7 +144,7 @@ def frames_file(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def models(tmp_path_factory):
-    from model_factory import affine_model
+    from postproc.testing.models import affine_model
 
     folder = tmp_path_factory.mktemp("ls")
     kw = dict(reach=None, tool={"name": "any"}, centre=CENTRE)
@@ -208,7 +208,7 @@ def test_stamp_is_a_numbered_remark_and_check_sees_it(models, frames_file):
 
 
 def test_config_is_not_guessed_for_a_model_that_takes_joint_angles(tmp_path, frames_file):
-    from model_factory import joint_model
+    from postproc.testing.models import joint_model
 
     model = load_model(joint_model(tmp_path / "j.onnx", np.diag([0.5, 0.4, 0.3]) @ np.eye(3, 6), tool={"name": "any"}))
     no_config = pos(2, 1500, 0, 900, uf=0).replace("CONFIG : 'N U T, 0, 0, 0',", "")

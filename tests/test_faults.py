@@ -21,9 +21,9 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.rewrite import recover
+from postproc.atomic import recover
 
-from conftest import REPO
+from helpers import REPO
 
 SRC = "&ACCESS RVP\r\nDEF cell( )\r\n$BASE = {X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}\r\n{body}END\r\n"
 DAT = "DEFDAT cell\r\n{decls}ENDDAT\r\n"

@@ -10,8 +10,8 @@ from postproc.cli import main
 from postproc.compensate import compensate_text
 from postproc.diagnostics import PostprocError
 
-from conftest import REPO
-from model_factory import affine_model
+from helpers import REPO
+from postproc.testing.models import affine_model
 
 README = (REPO / "README.md").read_text()
 

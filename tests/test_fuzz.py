@@ -1,18 +1,12 @@
 """Mutation fuzzing in the suite: a few hundred mutants of the sample corpus (the full count is
-``benchmarks/fuzz.py``). Every mutant compensates to an output that round-trips, or is refused
+``benchmarks/fuzz.py``; the engine is ``postproc.testing.fuzz``). Every mutant compensates to an output that round-trips, or is refused
 with a located message and nothing written; never a crash, a wrong output or a hang."""
-import importlib.util
-import sys
-
 import numpy as np
 import pytest
 
-from conftest import REPO
+from helpers import REPO
 
-# the benchmark is the one fuzzer; the suite runs it small
-_spec = importlib.util.spec_from_file_location("benchmark_fuzz", REPO / "benchmarks" / "fuzz.py")
-fuzz = sys.modules.setdefault("benchmark_fuzz", importlib.util.module_from_spec(_spec))
-_spec.loader.exec_module(fuzz)
+from postproc.testing import fuzz  # the one fuzzer: the benchmark runs it at full size, the suite small
 
 
 def test_corpus_holds_every_sample_program():
@@ -36,7 +30,7 @@ def test_mutants_end_in_a_clean_output_or_a_clean_error():
 
 def test_the_checker_catches_a_wrong_output(tmp_path):
     """The round-trip check is what the fuzz relies on: it must reject outputs that are off."""
-    from model_factory import affine_model
+    from postproc.testing.models import affine_model
     from postproc.compensate import compensate_text
     from postproc.compensator import load_model
 

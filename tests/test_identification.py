@@ -20,7 +20,7 @@ from postproc.training.arm import Arm, KukaIK, UrIK, choose_branch
 from postproc.training.features import motion_signs, previous_joints, previous_poses
 from postproc.training.kinematic import KinematicModel
 
-from conftest import REPO
+from helpers import REPO
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.datasets import read_ipa, write_measurements
+from postproc.datasets import read_ipa
+from postproc.measurements import write_measurements
 from postproc.diagnostics import PostprocError
 from postproc.iso9283 import (CYCLE_ORDER, IsoCube, cluster_poses, largest_cube, orientation_deviation,
                               pose_figures, read_iso_result, pose_test_plan)
@@ -165,7 +166,7 @@ def test_ipa_series_d_excerpt(tmp_path):
     """27 real rows (3 cycles of a 400 mm cube's centre and its 8 corners, commands jittered by
     ~0.1 mm between cycles): 9 poses of n = 3, row k with rows k + 9 and k + 18; AP and RP
     checked against a row-by-row computation here on the imported (base frame) file."""
-    from postproc.training.data import parse_measurements
+    from postproc.measurements import parse_measurements
 
     out = tmp_path / "d.csv"
     assert main(["import", "ipa", str(IPA_EXCERPT), "-o", str(out), "--register", "--val-fraction", "0"]) == 0

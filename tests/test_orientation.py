@@ -15,7 +15,7 @@ from postproc.cli import main
 from postproc.compensator import load_model
 from postproc.planning import read_pose_csv
 from postproc.simulator import SimulatedRobot
-from postproc.training.data import read_measurements
+from postproc.measurements import read_measurements
 
 
 def _cli(*args) -> int:
@@ -140,7 +140,7 @@ def test_status_turn_columns_become_the_stated_joint_angles(tmp_path, capsys):
 
 def test_measurement_columns_are_checked_where_they_are_wrong():
     from postproc.diagnostics import PostprocError
-    from postproc.training.data import parse_measurements
+    from postproc.measurements import parse_measurements
 
     head = "x,y,z,a,b,c,x_meas,y_meas,z_meas"
     row = "2000,0,900,0,90,0,2000.1,0,900"

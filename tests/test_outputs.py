@@ -8,7 +8,7 @@ from postproc.cli import main
 from postproc.diagnostics import PostprocError
 from postproc.outputs import check_outputs, check_program_outputs
 
-from conftest import REPO
+from helpers import REPO
 
 SAMPLE = REPO / "samples" / "krl" / "cam_pocket.src"
 IPA = REPO / "samples" / "ipa" / "series_c_excerpt.csv"
@@ -109,12 +109,12 @@ def test_train_creates_a_missing_folder_like_plan_and_compensate(tmp_path):
 
 
 def test_a_write_that_fails_is_p110_not_an_internal_error(tmp_path, monkeypatch):
-    from postproc import outputs, rewrite
+    from postproc import atomic, outputs
 
     def full(outputs):
         raise OSError(28, "No space left on device", str(tmp_path / "x.csv"))
 
-    monkeypatch.setattr(rewrite, "write_atomic", full)
+    monkeypatch.setattr(atomic, "write_atomic", full)
     with pytest.raises(PostprocError, match="No space left on device") as info:
         outputs.write([(tmp_path / "x.csv", "x")])
     assert info.value.code == "P110" and info.value.path == str(tmp_path / "x.csv")

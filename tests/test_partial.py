@@ -10,7 +10,7 @@ from postproc.compensate import compensate_text, load_program, parse_program_tex
 from postproc.compensator import load_model
 from postproc.findings import robot_base_poses
 
-from conftest import REPO
+from helpers import REPO
 from postproc.programs import ActiveFrames
 
 # made-up programs that set no $BASE/$TOOL: stated, as a user would (--base 0 --tool model)

@@ -79,7 +79,7 @@ def test_measure_writes_the_training_csv_in_visiting_order(tmp_path):
 
     np.testing.assert_allclose(Robot().fk(table[:, 12:18])[:, :3], table[:, :3], atol=1e-3)
     # the training reader takes it as it is
-    from postproc.training.data import read_measurements
+    from postproc.measurements import read_measurements
 
     assert len(read_measurements(out)) == 3
 

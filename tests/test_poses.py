@@ -5,7 +5,7 @@ import pytest
 from postproc.diagnostics import PostprocError
 from postproc.programs import read_program
 
-from conftest import REPO
+from helpers import REPO
 
 
 def read(text, name="p.csv"):

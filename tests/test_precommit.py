@@ -18,8 +18,8 @@ import pytest
 from postproc.compensate import compensate_file
 from postproc.compensator import load_model
 
-from conftest import REPO
-from model_factory import DEFAULT_REACH, affine_model
+from helpers import REPO
+from postproc.testing.models import DEFAULT_REACH, affine_model
 
 PRE_COMMIT = shutil.which("pre-commit")
 pytestmark = [

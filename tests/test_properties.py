@@ -41,7 +41,7 @@ STATED = ActiveFrames(base=0, tool="model")
 
 @pytest.fixture(scope="module")
 def models(tmp_path_factory):
-    from model_factory import affine_model
+    from postproc.testing.models import affine_model
 
     folder = tmp_path_factory.mktemp("models")
     # no reach (targets anywhere), no tool frame (any $TOOL); the envelope gives the nominal

@@ -193,7 +193,7 @@ CENTRE = np.array([2000.0, 0.0, 900.0])
 
 @pytest.fixture(scope="module")
 def models(tmp_path_factory):
-    from model_factory import affine_model
+    from postproc.testing.models import affine_model
 
     folder = tmp_path_factory.mktemp("rapid-models")
     kw = dict(reach=None, tool={"name": "any"}, centre=CENTRE)

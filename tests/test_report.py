@@ -133,7 +133,7 @@ def test_a_report_on_the_models_own_training_rows_says_so(tmp_path, capsys):
     """The model card's data_sha256 is the file's: "after" is a fit, not an accuracy."""
     import hashlib
 
-    from model_factory import affine_model
+    from postproc.testing.models import affine_model
 
     poses, error, _ = measurement(n=40)
     csv = write_csv(tmp_path / "train.csv", poses, poses[:, :3] - error)

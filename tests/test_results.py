@@ -9,7 +9,7 @@ from postproc.cli import main
 from postproc.compensate import compensate_text
 from postproc.programs import STAMP_PREFIX
 
-from conftest import REPO
+from helpers import REPO
 from postproc.programs import ActiveFrames
 
 # made-up programs that set no $BASE/$TOOL: stated, as a user would (--base 0 --tool model)

@@ -124,7 +124,7 @@ def test_error_table_keys_are_checked(tmp_path):
 
 
 def test_verify_reads_krl_with_frames(capsys):
-    from conftest import REPO
+    from helpers import REPO
 
     krl = REPO / "samples" / "krl"
     src, config = str(krl / "weld_cell.src"), str(krl / "config" / "$config.dat")

@@ -12,7 +12,8 @@ from postproc.controller import unseparated_mount_mm
 from postproc.diagnostics import PostprocError
 from postproc.planning import latin_hypercube
 from postproc.simulator import SimulatedRobot
-from postproc.training.data import TOOL_COLUMNS, measured_tools, parse_measurements
+from postproc.measurements import TOOL_COLUMNS, parse_measurements
+from postproc.training.data import measured_tools
 from postproc.training.features import previous_poses
 from postproc.training.hybrid import HybridModel
 from postproc.training.kinematic import unseparated_mount
@@ -153,7 +154,7 @@ def test_plan_and_measure_with_three_tools_give_a_krl_program_and_data_with_each
     from postproc.cli import main
     from postproc.compensate import load_program
     from postproc.planning import read_plan_tools
-    from postproc.training.data import read_measurements
+    from postproc.measurements import read_measurements
 
     tools = [SimulatedRobot().robot.tool, LONGER, SIDEWAYS]
     args = sum((["--tool", ",".join(f"{v:g}" for v in t)] for t in tools), [])

@@ -8,7 +8,7 @@ import pytest
 
 from postproc.cli import main
 from postproc.compensator import load_model
-from postproc.training.data import parse_measurements
+from postproc.measurements import parse_measurements
 from postproc.training.synthetic import synthetic_measurements, to_csv
 
 HEADER = "x,y,z,a,b,c,x_meas,y_meas,z_meas"

@@ -7,14 +7,8 @@ import numpy as np
 import pytest
 
 from postproc.diagnostics import PostprocError
-from postproc.training.data import (
-    check_size,
-    envelope_of,
-    min_points,
-    parse_measurements,
-    read_measurements,
-    split_indices,
-)
+from postproc.measurements import parse_measurements, read_measurements
+from postproc.training.data import check_size, envelope_of, min_points, split_indices
 from postproc.training.synthetic import synthetic_measurements, to_csv
 
 HEADER = "x,y,z,a,b,c,x_meas,y_meas,z_meas"

@@ -22,7 +22,7 @@ from postproc.training.features import previous_poses
 from postproc.training.hybrid import HybridModel
 from postproc.training.update import read_old_model, update_model
 
-from conftest import REPO
+from helpers import REPO
 
 HEADER = "x,y,z,a,b,c,x_meas,y_meas,z_meas"
 ZERO_CHANGE_DEG = np.array([0.0, 0.04, -0.03, 0.0, 0.05, 0.0])  # re-mastered A2, A3, A5

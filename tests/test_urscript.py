@@ -161,7 +161,7 @@ def test_blocks_comments_strings_and_continued_lines():
 
 @pytest.fixture(scope="module")
 def models(tmp_path_factory):
-    from model_factory import affine_model
+    from postproc.testing.models import affine_model
 
     folder = tmp_path_factory.mktemp("ur")
     kw = dict(reach=None, tool={"name": "any"}, centre=CENTRE)

@@ -9,6 +9,7 @@ EXAMPLES = """examples:
   postproc check part.csv --model models/cell7.onnx --strict --ignore P301
   postproc check --fresh                         outputs of [tool.postproc] fresh pairs up to date?
   postproc check --fresh --fix                   ... and re-compensate the stale ones
+  postproc check --list-codes                    every diagnostic code, its severity and meaning
   postproc check weld.src --robot models/kr500.toml   the model is for this robot? its IK reaches? (postproc[sim])
 
 settings: [tool.postproc] in pyproject.toml or postproc.toml, found from the current directory
@@ -46,6 +47,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--max-correction", type=float, metavar="MM", help="corrections above this are findings (default 5 mm)")
     p.add_argument("--iterations", type=int, metavar="K", help="fixed-point iterations (default: the model's)")
     add_frame_arguments(p)
+    p.add_argument("--list-codes", action="store_true", help="print every diagnostic code (code, severity, meaning) and exit")
+    p.add_argument("--markdown", action="store_true", help="with --list-codes: as a Markdown table (the README's)")
     p.add_argument("--robot", metavar="NAME|FILE.toml",
                    help="the robot the programs are for (default: settings 'robot'): a model trained on another is "
                    "a finding; with a description file also the nominal robot's IK reachability (needs Pinocchio)")
@@ -79,21 +82,11 @@ def _paint(line: str, severity: str, color: bool) -> str:
     return f"\033[1m{head}\033[0m{sep}{tint}{code}\033[0m {message}"
 
 
-def run(args) -> int:
-    from ..check import check_files, check_fresh, failed
-    from ..compensate import DEFAULT_MAX_CORRECTION_MM
-    from ..compensator import load_model
+def _settings(args):
+    """The settings file with the options over it: (config, codes to ignore)."""
     from ..config import load_config
-    from ..diagnostics import EXIT_ERROR, EXIT_FINDINGS, EXIT_OK
     from ..programs import ActiveFrames
-    from . import use_color
 
-    if not args.files and not args.fresh:
-        print("postproc check: give programs to check, or --fresh (see postproc check --help)", file=sys.stderr)
-        return EXIT_ERROR
-    if args.fix and not args.fresh:
-        print("postproc check: --fix works with --fresh only", file=sys.stderr)
-        return EXIT_ERROR
     cfg = load_config(args.settings)
     if args.model:
         cfg.model = args.model
@@ -107,14 +100,51 @@ def run(args) -> int:
         cfg.iterations = args.iterations
     cfg.active = ActiveFrames.stated(args.base, args.tool, cfg.active)  # (--fresh compensates with them too)
     ignore = set(cfg.ignore) | {c.strip().upper() for c in args.ignore.split(",") if c.strip()}
-    model = load_model(cfg.model)
-    if args.verbose:
-        print(f"postproc check: model {model.name} {model.sha256[:12]} ({model.path}); settings "
-              f"{cfg.path or 'none'}", file=sys.stderr)
+    return cfg, ignore
+
+
+def _options(args, cfg) -> dict:
+    """The options of check_files from the settings (and --robot: a name or a description)."""
+    from ..compensate import DEFAULT_MAX_CORRECTION_MM
+
     options = dict(iterations=cfg.iterations, max_correction_mm=cfg.max_correction_mm or DEFAULT_MAX_CORRECTION_MM)
     if args.robot:  # (into the settings too: --fresh compensates for the same robot)
         cfg.robot, options["reachable"] = _robot(args.robot)
     options["robot"] = cfg.robot
+    return options
+
+
+def _summary(findings, strict: bool) -> str:
+    if not findings:
+        return "postproc check: clean"
+    errors = sum(d.severity == "error" for d in findings)
+    warnings = len(findings) - errors
+    programs = len({d.path for d in findings})
+    return (f"postproc check: {errors} error{'s' * (errors != 1)}, {warnings} warning{'s' * (warnings != 1)} "
+            f"in {programs} file{'s' * (programs != 1)}" + (" (--strict: warnings count)" if strict and warnings else ""))
+
+
+def run(args) -> int:
+    from ..check import check_files, check_fresh, failed
+    from ..compensator import load_model
+    from ..diagnostics import EXIT_ERROR, EXIT_FINDINGS, EXIT_OK, codes_table
+    from . import use_color
+
+    if args.list_codes:
+        sys.stdout.write(codes_table(markdown=args.markdown))
+        return EXIT_OK
+    if not args.files and not args.fresh:
+        print("postproc check: give programs to check, or --fresh (see postproc check --help)", file=sys.stderr)
+        return EXIT_ERROR
+    if args.fix and not args.fresh:
+        print("postproc check: --fix works with --fresh only", file=sys.stderr)
+        return EXIT_ERROR
+    cfg, ignore = _settings(args)
+    model = load_model(cfg.model)
+    if args.verbose:
+        print(f"postproc check: model {model.name} {model.sha256[:12]} ({model.path}); settings "
+              f"{cfg.path or 'none'}", file=sys.stderr)
+    options = _options(args, cfg)
 
     findings = []
     if args.files:
@@ -137,13 +167,5 @@ def run(args) -> int:
     for path in written:
         print(f"postproc check: rewrote {path}", file=sys.stderr)
     if not args.quiet:
-        errors = sum(d.severity == "error" for d in findings)
-        warnings = len(findings) - errors
-        programs = len({d.path for d in findings})
-        if findings:
-            print(f"postproc check: {errors} error{'s' * (errors != 1)}, {warnings} warning{'s' * (warnings != 1)} "
-                  f"in {programs} file{'s' * (programs != 1)}" + (" (--strict: warnings count)" if cfg.strict and warnings else ""),
-                  file=sys.stderr)
-        else:
-            print("postproc check: clean", file=sys.stderr)
+        print(_summary(findings, cfg.strict), file=sys.stderr)
     return EXIT_FINDINGS if failed(findings, cfg.strict) else EXIT_OK

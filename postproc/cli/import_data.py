@@ -67,7 +67,8 @@ def run(args) -> int:
     import numpy as np
 
     import scipy.spatial  # noqa: F401  (angle conversions; missing: postproc.cli names the extra to install)
-    from ..datasets import read_ipa, write_measurements
+    from ..datasets import read_ipa
+    from ..measurements import write_measurements
     from ..outputs import check_outputs
 
     check_outputs([args.output], [args.src])

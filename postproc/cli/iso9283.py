@@ -9,9 +9,9 @@ import sys
 def run_plan(args, description, box, attitude) -> int:
     from pathlib import Path
 
+    from ..atomic import write_atomic
     from ..iso9283 import IsoCube, iso_plan_csv_text, iso_test
     from ..planning import krl_measurement_program, round_poses
-    from ..rewrite import write_atomic
     from ..robot import Robot
 
     robot = Robot(description)

@@ -44,17 +44,16 @@ def add_parser(sub, common, formatter) -> None:
 
 
 def run(args) -> int:
-    import io
     from pathlib import Path
 
     import numpy as np
 
-    from ..diagnostics import PostprocError
+    from ..diagnostics import P320, P335, PostprocError
+    from ..measurements import TOOL_COLUMNS, measurement_csv
     from ..planning import parse_tool, read_plan_config, read_plan_tools, read_pose_csv, tool_parts
     from ..progress import stages
-    from ..outputs import check_outputs, write as write_atomic
-    from ..simulator import CODE_REACH, SimulatedRobot
-    from ..training.data import TOOL_COLUMNS
+    from ..outputs import check_outputs, write
+    from ..simulator import SimulatedRobot
     from . import show_progress
 
     check_outputs([args.output], [args.plan, args.robot or "-"])
@@ -69,7 +68,7 @@ def run(args) -> int:
         tools = read_plan_tools(args.plan)
         if tools is not None and given:
             raise PostprocError("the plan names each row's tool (tool_x..tool_c): --tool would contradict it",
-                                args.plan, code="P320")
+                                args.plan, code=P320)
         if given:  # consecutive parts of the plan, one tool each
             tools = tool_parts(len(poses), given)
         several = tools is not None and len(np.unique(tools, axis=0)) > 1
@@ -79,24 +78,24 @@ def run(args) -> int:
             bad = np.flatnonzero(~ok)
             raise PostprocError(f"pose out of reach of {sim.robot.name}: {poses[bad[0]].tolist()}"
                                 + (f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""),
-                                args.plan, int(lines[bad[0]]), 1, CODE_REACH)
+                                args.plan, int(lines[bad[0]]), 1, P335)
         stage("simulate and measure")
         q = sim.joint_angles(poses, config, tools)
         measured = sim.measure(poses, rng_seed=args.seed, orientation=True, q_deg=q, tools=tools)
-        buf = io.StringIO()
-        if tools is not None and not several:
-            buf.write("# tool: " + ",".join(f"{v:g}" for v in tools[0]) + "\n")
-        columns = "x,y,z,a,b,c,x_meas,y_meas,z_meas,a_meas,b_meas,c_meas,q1,q2,q3,q4,q5,q6"
-        table, fmt = np.hstack([poses, measured, q]), ["%.10g"] * 6 + ["%.4f"] * 3 + ["%.5f"] * 3 + ["%.6f"] * 6
+        extra = {name: measured[:, 3 + k] for k, name in enumerate(("a_meas", "b_meas", "c_meas"))}
+        extra |= {f"q{k + 1}": q[:, k] for k in range(6)}
+        fmt = ["%.10g"] * 6 + ["%.4f"] * 3 + ["%.5f"] * 3 + ["%.6f"] * 6
         if config is not None:
-            table, fmt, columns = np.hstack([table, config]), fmt + ["%d", "%d"], columns + ",s,t"
+            extra |= {"s": config[:, 0], "t": config[:, 1]}
+            fmt += ["%d", "%d"]
         if several:
-            table, fmt = np.hstack([table, tools]), fmt + ["%.10g"] * 6
-            columns += "," + ",".join(TOOL_COLUMNS)
-        np.savetxt(buf, table, fmt=fmt, delimiter=",", header=columns, comments="")
+            extra |= {name: tools[:, k] for k, name in enumerate(TOOL_COLUMNS)}
+            fmt += ["%.10g"] * 6
+        metadata = {"tool": ",".join(f"{v:g}" for v in tools[0])} if tools is not None and not several else None
+        text = measurement_csv(poses, measured[:, :3], extra, metadata, fmt)
         measured = measured[:, :3]
         stage("write")
-        write_atomic([(Path(args.output), buf.getvalue())])
+        write([(Path(args.output), text)])
     if not args.quiet:
         e = np.linalg.norm(poses[:, :3] - measured, axis=1)
         which = "default" if sim.is_default else "drawn"

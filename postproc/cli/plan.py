@@ -64,11 +64,11 @@ def run(args) -> int:
 
     import numpy as np
 
-    from ..diagnostics import PostprocError
+    from ..diagnostics import P335, P512, PostprocError
     from ..planning import DEFAULT_ATTITUDE, DEFAULT_BOX, DEFAULT_RANGE, krl_measurement_program, latin_hypercube, \
         parse_tool, plan_configurations, plan_csv_chunks, reachable, round_poses, tool_parts
     from ..progress import stages
-    from ..outputs import check_outputs, write as write_atomic
+    from ..outputs import check_outputs, write
     from ..robot import Robot, load_description
     from . import show_progress
 
@@ -82,12 +82,12 @@ def run(args) -> int:
     attitude = args.attitude if args.attitude is not None else ws.get("attitude", DEFAULT_ATTITUDE)
     range_deg = args.range if args.range is not None else ws.get("range", DEFAULT_RANGE)
     if args.krl is not None and Path(args.krl).suffix.lower() != ".src":
-        raise PostprocError(f"--krl {args.krl}: a KRL program is a .src file", code="P512")
+        raise PostprocError(f"--krl {args.krl}: a KRL program is a .src file", code=P512)
     if args.iso9283:
         from .iso9283 import run_plan
 
         if len(tools) > 1:
-            raise PostprocError("the ISO 9283 pose test is measured with one tool: give --tool once", code="P512")
+            raise PostprocError("the ISO 9283 pose test is measured with one tool: give --tool once", code=P512)
         return run_plan(args, description, box, attitude)
     with stages(["sample", "reach check (IK)", "write"], "plan", show_progress(args)) as stage:
         stage("sample")
@@ -110,7 +110,7 @@ def run(args) -> int:
                 f"{len(bad)} of {len(poses)} poses are out of reach of {robot.name} with tool "
                 f"{robot.tool_name if rows is None else rows[bad[0]].tolist()} "
                 f"(first: pose {bad[0] + 1} = {poses[bad[0]].tolist()}); shrink --box or --range, or move the box",
-                description.path, code="P335")
+                description.path, code=P335)
         stage("write")
         outputs = [(Path(args.output), plan_csv_chunks(poses, config, tools=rows))]
         if args.krl is not None:
@@ -119,7 +119,7 @@ def run(args) -> int:
                        f"attitude {list(map(float, attitude))} +- {range_deg:g} deg")
             outputs.append((src, krl_measurement_program(poses, src.stem, robot, wait_s=args.wait, comment=comment,
                                                                   config=config, tools=rows)))
-        write_atomic(outputs)
+        write(outputs)
     if not args.quiet:
         written = " + ".join(str(p) for p, _ in outputs)
         print(f"postproc: {written}: {len(poses)} poses (LHS seed {args.seed}) in X {box[0]:g}..{box[1]:g} "

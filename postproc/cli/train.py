@@ -124,8 +124,9 @@ def run(args) -> int:
 
     from ..diagnostics import PostprocError
     from ..outputs import check_outputs
+    from ..measurements import read_measurements
     from ..training.data import (check_errors, check_rotation_errors, check_size, envelope_of, measured_tools,
-                                 read_measurements, split_indices)
+                                 split_indices)
     from . import show_progress
     from .train_hybrid import HYBRID_METHODS, run_hybrid
 

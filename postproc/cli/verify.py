@@ -47,7 +47,7 @@ def _fill(poses, program, attitude, name: str):
     orientation before any is known takes the working attitude. Returns (poses, notes)."""
     import numpy as np
 
-    from ..diagnostics import PostprocError
+    from ..diagnostics import P213, PostprocError
 
     notes = []
     out = poses.copy()
@@ -60,7 +60,7 @@ def _fill(poses, program, attitude, name: str):
             r = int(np.flatnonzero(lead[:, :3].any(axis=1))[0])
             t = program.targets
             raise PostprocError(f"{name}: target has no X/Y/Z and no earlier target to take them from",
-                                program.files[t.file[r]], int(t.line[r]), int(t.col[r]), "P213")
+                                program.files[t.file[r]], int(t.line[r]), int(t.col[r]), P213)
         filled = np.take_along_axis(out, np.maximum(last, 0), axis=0)
         filled[:, 3:][lead[:, 3:]] = np.broadcast_to(attitude, (len(out), 3))[lead[:, 3:]]
         if lead[:, 3:].any():
@@ -86,14 +86,14 @@ def execution(program, rows, sim) -> dict:
             "motions": t.motion[rows]}
 
 
-def run(args) -> int:
-    import json
-
+def _pair(args):
+    """The two programs read and matched target by target: (original, compensated, their poses of
+    the targets with a known frame, those rows, how many were skipped, notes); P601 where they are
+    not one program."""
     import numpy as np
 
     from ..compensate import load_program, robot_base_poses
-    from ..diagnostics import EXIT_FINDINGS, PostprocError
-    from ..simulator import CODE_REACH, SimulatedRobot
+    from ..diagnostics import P601, PostprocError
 
     from ..programs import ActiveFrames
 
@@ -104,37 +104,71 @@ def run(args) -> int:
     p_comp, ok_comp = robot_base_poses(compensated)
     if len(p_orig) != len(p_comp):
         raise PostprocError(f"ORIGINAL has {len(p_orig)} targets, COMPENSATED has {len(p_comp)}: they must be the "
-                            "same program with changed numbers", args.compensated, code="P601")
+                            "same program with changed numbers", args.compensated, code=P601)
     if len(p_orig) == 0:
-        raise PostprocError("no Cartesian targets in this program", args.original, code="P601")
-    sim = SimulatedRobot.from_file(args.robot, args.robot_seed)
+        raise PostprocError("no Cartesian targets in this program", args.original, code=P601)
     notes = []
     keep = ok_orig & ok_comp
     if not keep.all():
         notes.append(f"{int((~keep).sum())} target(s) skipped: their frame is not known statically "
                      f"(run with --config $config.dat, --base / --tool?)")
     if not keep.any():
-        raise PostprocError("no target with a known frame to verify", args.original, code="P601")
-    attitude = np.asarray(sim.description.workspace.get("attitude", (0.0, 90.0, 0.0)), float)
-    p_orig, n1 = _fill(p_orig[keep], original, attitude, "ORIGINAL")
-    p_comp, n2 = _fill(p_comp[keep], compensated, attitude, "COMPENSATED")
-    notes += n1 + n2
-    rows = np.flatnonzero(keep)
-    for program, poses, label in ((original, p_orig, "ORIGINAL"), (compensated, p_comp, "COMPENSATED")):
-        ok = sim.reachable_in(poses, **execution(original, rows, sim))
+        raise PostprocError("no target with a known frame to verify", args.original, code=P601)
+    return original, compensated, p_orig[keep], p_comp[keep], np.flatnonzero(keep), int((~keep).sum()), notes
+
+
+def _check_reach(sim, programs, rows, options) -> None:
+    """P335 at the first target of either program the simulated robot cannot reach."""
+    import numpy as np
+
+    from ..diagnostics import P335, PostprocError
+
+    for program, poses, label in programs:
+        ok = sim.reachable_in(poses, **options)
         if not ok.all():
             bad = np.flatnonzero(~ok)
             r, t = rows[bad[0]], program.targets
             more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
             raise PostprocError(f"{label} target out of reach of {sim.robot.name}: "
                                 f"{np.round(poses[bad[0]], 3).tolist()}{more}",
-                                program.files[t.file[r]], int(t.line[r]), int(t.col[r]), CODE_REACH)
+                                program.files[t.file[r]], int(t.line[r]), int(t.col[r]), P335)
+
+
+def _print_table(result: dict, n: int, sim, noise: bool) -> None:
+    which = "default robot" if sim.is_default else "drawn robot"
+    print(f"Positioning error (mm) of {n} targets on {sim.robot.name}, seed {sim.seed} ({which})"
+          f"{'' if noise else ', no noise'}")
+    print(f"{'':12s}{'max':>9s}{'min':>9s}{'mean':>9s}{'std':>9s}{'p95':>9s}")
+    for label in ("before", "after"):
+        s = result[label]
+        print(f"{label:12s}{s['max']:9.3f}{s['min']:9.3f}{s['mean']:9.3f}{s['std']:9.3f}{s['p95']:9.3f}")
+    print("Orientation error (deg)")
+    for label in ("before", "after"):
+        s = result["orientation_" + label]
+        print(f"{label:12s}{s['max']:9.4f}{s['min']:9.4f}{s['mean']:9.4f}{s['std']:9.4f}{s['p95']:9.4f}")
+
+
+def run(args) -> int:
+    import json
+
+    import numpy as np
+
+    from ..diagnostics import EXIT_FINDINGS
+    from ..simulator import SimulatedRobot
+
+    original, compensated, p_orig, p_comp, rows, skipped, notes = _pair(args)
+    sim = SimulatedRobot.from_file(args.robot, args.robot_seed)
+    attitude = np.asarray(sim.description.workspace.get("attitude", (0.0, 90.0, 0.0)), float)
+    p_orig, n1 = _fill(p_orig, original, attitude, "ORIGINAL")
+    p_comp, n2 = _fill(p_comp, compensated, attitude, "COMPENSATED")
+    notes += n1 + n2
     options = execution(original, rows, sim)
+    _check_reach(sim, ((original, p_orig, "ORIGINAL"), (compensated, p_comp, "COMPENSATED")), rows, options)
     result = sim.verify(p_orig, p_comp, rng_seed=args.seed, noise=not args.no_noise, **options)
     failed = args.max_mean is not None and result["after"]["mean"] > args.max_mean
     figures = {
         "targets": int(len(p_orig)),
-        "skipped": int((~keep).sum()),
+        "skipped": skipped,
         "robot": sim.robot.name,
         "robot_seed": sim.seed,
         "default_robot": sim.is_default,
@@ -153,17 +187,7 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(figures, indent=2))
     else:
-        which = "default robot" if sim.is_default else "drawn robot"
-        print(f"Positioning error (mm) of {len(p_orig)} targets on {sim.robot.name}, seed {sim.seed} ({which})"
-              f"{'' if figures['noise'] else ', no noise'}")
-        print(f"{'':12s}{'max':>9s}{'min':>9s}{'mean':>9s}{'std':>9s}{'p95':>9s}")
-        for label in ("before", "after"):
-            s = result[label]
-            print(f"{label:12s}{s['max']:9.3f}{s['min']:9.3f}{s['mean']:9.3f}{s['std']:9.3f}{s['p95']:9.3f}")
-        print("Orientation error (deg)")
-        for label in ("before", "after"):
-            s = result["orientation_" + label]
-            print(f"{label:12s}{s['max']:9.4f}{s['min']:9.4f}{s['mean']:9.4f}{s['std']:9.4f}{s['p95']:9.4f}")
+        _print_table(result, len(p_orig), sim, figures["noise"])
     if not args.quiet:
         gate = "" if args.max_mean is None else (f"; FAILED: mean {result['after']['mean']:.3f} > {args.max_mean:g} mm"
                                                  if failed else f"; mean within {args.max_mean:g} mm")

@@ -12,7 +12,8 @@ from pathlib import Path
 
 from .model import MOTIONS, STAMP_PREFIX, ActiveFrames, Frame, Program, Targets, TargetsBuilder
 
-__all__ = ["ActiveFrames", "Frame", "Targets", "TargetsBuilder", "Program", "read_program", "dialect_of", "STAMP_PREFIX", "MOTIONS"]
+__all__ = ["ActiveFrames", "Frame", "Targets", "TargetsBuilder", "Program", "read_program", "dialect_of", "STAMP_PREFIX", "MOTIONS",
+           "companion_dat"]
 
 KRL_SUFFIXES = {".src", ".dat", ".sub"}
 POSE_SUFFIXES = {".csv", ".txt", ".pose", ".poses", ".xyz"}
@@ -36,6 +37,20 @@ def dialect_of(path: str | Path) -> str:
     if suffix in FANUC_SUFFIXES:
         return "fanuc"
     raise ValueError(f"unknown program type {suffix!r} (expected .src/.dat, .csv/.txt, .mod/.prg/.sys, .script or .ls)")
+
+
+def companion_dat(src: Path) -> Path | None:
+    """The .dat beside a .src (same stem, any case), if there is one."""
+    if src.suffix.lower() != ".src" or not src.parent.is_dir():
+        return None
+    for candidate in (src.with_suffix(".dat"), src.with_suffix(".DAT")):
+        if candidate.is_file():
+            return candidate
+    stem = src.stem.lower()
+    for candidate in src.parent.iterdir():
+        if candidate.suffix.lower() == ".dat" and candidate.stem.lower() == stem:
+            return candidate
+    return None
 
 
 def read_program(files: list[str], texts: list[str], dialect: str, config: list[str] | None = None,

@@ -21,7 +21,7 @@ from operator import itemgetter
 import numpy as np
 from lark import Lark, UnexpectedInput
 
-from ..diagnostics import PostprocError
+from ..diagnostics import P101, P103, P104, P105, PostprocError
 from ..resources import grammar_path
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 
@@ -57,13 +57,95 @@ def _fields(line: str, path: str, lineno: int, offset: int) -> list:
     except UnexpectedInput as exc:
         col = offset + exc.column if exc.column and exc.column > 0 else offset + 1
         raise PostprocError(f"cannot read this record: unexpected {line[exc.pos_in_stream:exc.pos_in_stream + 10]!r}",
-                            path, lineno, col, "P101") from None
+                            path, lineno, col, P101) from None
     return [(None, None) if f is None else (f.data, f.children[0]) for f in tree.children]
 
 
 def _newline(text: str) -> str:
     crlf = text.count("\r\n")
     return "\r\n" if crlf and crlf >= text.count("\n") - crlf else "\n"
+
+
+def _header(body: str, path: str, lineno: int, lead: int) -> tuple[dict[str, int], int]:
+    """The header line: column name → field index, and the number of fields."""
+    fields = _fields(body, path, lineno, lead)
+    names = [str(tok).lower() if kind == "word" else "" for kind, tok in fields]
+    missing = [c for c in COLUMNS[:3] if c not in names]
+    if missing:
+        raise PostprocError(f"header has no column {', '.join(missing)} (needs x,y,z[,a,b,c])",
+                            path, lineno, lead + 1, P104)
+    columns = {c: names.index(c) for c in _ALL if c in names}
+    attitude = [c for c in COLUMNS[3:] if c in columns]
+    if attitude and len(attitude) < 3:  # one warning here, not one per row and A,B dropped
+        absent = [c for c in COLUMNS[3:] if c not in columns]
+        raise PostprocError(f"header has {','.join(attitude)} but no {','.join(absent)}: an attitude needs all "
+                            "of a,b,c (add the missing column; or drop a,b,c for the model's nominal attitude)",
+                            path, lineno, lead + 1, P104)
+    return columns, len(fields)
+
+
+def _shape(body: str, columns: dict[str, int] | None, width: int, path: str, lineno: int,
+           lead: int) -> tuple[tuple, dict[str, int], int]:
+    """A line shape seen for the first time, parsed: the ordinal among the line's number runs of
+    each of x..c, s, t, q1..q6 (-1: absent), and the columns and width (set by the first row of
+    a file without header: x y z [a b c] by position)."""
+    number = _number_re()
+    fields = _fields(body, path, lineno, lead)
+    if columns is None:  # headerless: x y z [a b c] by position
+        if len(fields) not in (3, 6) and len(fields) < 6:
+            raise PostprocError(f"expected 3 or 6 numbers (x y z [a b c]), found {len(fields)} fields",
+                                path, lineno, lead + 1, P104)
+        columns = {c: i for i, c in enumerate(COLUMNS[: 6 if len(fields) >= 6 else 3])}
+        width = len(fields)
+    if len(fields) != width:
+        raise PostprocError(f"expected {width} fields as in the header, found {len(fields)}",
+                            path, lineno, lead + 1, P104)
+    # which regex match (of all number-looking runs in the line, words included) each
+    # numeric field is; lines of the same shape have the same runs in the same places
+    run_at = {m.start(): k for k, m in enumerate(number.finditer(body))}
+    ordinal_of = {i: run_at[tok.start_pos] for i, (kind, tok) in enumerate(fields) if kind == "number"}
+    for name, index in columns.items():
+        if index not in ordinal_of and not (name in _OPTIONAL and fields[index][1] is None):
+            kind, tok = fields[index]
+            where = body.find(str(tok)) if tok is not None else 0
+            raise PostprocError(f"column {name} is not a number: '{tok}'" if tok is not None
+                                else f"column {name} is empty", path, lineno, lead + max(where, 0) + 1, P103)
+    return tuple(ordinal_of.get(columns[c], -1) if c in columns else -1 for c in _ALL), columns, width
+
+
+def _extras(matches: list, ordinals: tuple, path: str, lineno: int) -> list[float]:
+    """A row's s, t, q1..q6 (NaN where not stated)."""
+    extra = [math.nan] * len(_OPTIONAL)
+    for k, ordinal in enumerate(ordinals[6:]):
+        if ordinal >= 0:
+            m = matches[ordinal]
+            value = float(m.group())
+            if not math.isfinite(value) or (k < 2 and not (value == int(value) and 0 <= value < 64)):
+                raise PostprocError(f"{_OPTIONAL[k]} must be {'an integer 0…63' if k < 2 else 'finite'}: "
+                                    f"{m.group()}", path, lineno, m.start() + 1, P103)
+            extra[k] = value
+    return extra
+
+
+def _pose(matches: list, ordinals: tuple, start: int, path: str, lineno: int) -> tuple[list, list, list]:
+    """A row's X..C (NaN where absent), the spans of its X, Y, Z numbers and of its A, B, C
+    numbers (offsets in the text; -1 where absent)."""
+    pose = [math.nan] * 6
+    spans = [-1] * 6
+    abc = [-1] * 6
+    for k, ordinal in enumerate(ordinals[:6]):
+        if ordinal < 0:
+            continue
+        m = matches[ordinal]
+        value = float(m.group())
+        if not math.isfinite(value):
+            raise PostprocError(f"{COLUMNS[k]} is not finite: {m.group()}", path, lineno, m.start() + 1, P103)
+        pose[k] = value
+        if k < 3:
+            spans[2 * k], spans[2 * k + 1] = start + m.start(), start + m.end()
+        else:
+            abc[2 * k - 6], abc[2 * k - 5] = start + m.start(), start + m.end()
+    return pose, spans, abc
 
 
 class _Rows:
@@ -103,75 +185,19 @@ class _Rows:
         lead = len(line) - len(line.lstrip())
         columns = self.columns
         if columns is None and any(ch.isalpha() for ch in number.sub("", body)):
-            fields = _fields(body, path, lineno, lead)
-            names = [str(tok).lower() if kind == "word" else "" for kind, tok in fields]
-            missing = [c for c in COLUMNS[:3] if c not in names]
-            if missing:
-                raise PostprocError(f"header has no column {', '.join(missing)} (needs x,y,z[,a,b,c])",
-                                    path, lineno, lead + 1, "P104")
-            columns = self.columns = {c: names.index(c) for c in _ALL if c in names}
-            attitude = [c for c in COLUMNS[3:] if c in columns]
-            if attitude and len(attitude) < 3:  # one warning here, not one per row and A,B dropped
-                absent = [c for c in COLUMNS[3:] if c not in columns]
-                raise PostprocError(f"header has {','.join(attitude)} but no {','.join(absent)}: an attitude needs all "
-                                    "of a,b,c (add the missing column; or drop a,b,c for the model's nominal attitude)",
-                                    path, lineno, lead + 1, "P104")
-            self.width = len(fields)
-            self.extras = any(c in columns for c in _OPTIONAL)
+            self.columns, self.width = _header(body, path, lineno, lead)
+            self.extras = any(c in self.columns for c in _OPTIONAL)
             return
         shape = number.sub("0", body)
         ordinals = self.shapes.get(shape)
         if ordinals is None:
-            fields = _fields(body, path, lineno, lead)
-            if columns is None:  # headerless: x y z [a b c] by position
-                if len(fields) not in (3, 6) and len(fields) < 6:
-                    raise PostprocError(f"expected 3 or 6 numbers (x y z [a b c]), found {len(fields)} fields",
-                                        path, lineno, lead + 1, "P104")
-                columns = self.columns = {c: i for i, c in enumerate(COLUMNS[: 6 if len(fields) >= 6 else 3])}
-                self.width = len(fields)
-            if len(fields) != self.width:
-                raise PostprocError(f"expected {self.width} fields as in the header, found {len(fields)}",
-                                    path, lineno, lead + 1, "P104")
-            # which regex match (of all number-looking runs in the line, words included) each
-            # numeric field is; lines of the same shape have the same runs in the same places
-            run_at = {m.start(): k for k, m in enumerate(number.finditer(body))}
-            ordinal_of = {i: run_at[tok.start_pos] for i, (kind, tok) in enumerate(fields) if kind == "number"}
-            for name, index in columns.items():
-                if index not in ordinal_of and not (name in _OPTIONAL and fields[index][1] is None):
-                    kind, tok = fields[index]
-                    where = body.find(str(tok)) if tok is not None else 0
-                    raise PostprocError(f"column {name} is not a number: '{tok}'" if tok is not None
-                                        else f"column {name} is empty", path, lineno, lead + max(where, 0) + 1, "P103")
-            ordinals = tuple(ordinal_of.get(columns[c], -1) if c in columns else -1 for c in _ALL)
+            ordinals, self.columns, self.width = _shape(body, columns, self.width, path, lineno, lead)
             self.shapes[shape] = ordinals
         self.counts[shape] = self.counts.get(shape, 0) + 1
         matches = list(number.finditer(line))
-        pose = [math.nan] * 6
-        spans = [-1] * 6
-        abc = [-1] * 6
         if self.extras:
-            extra = [math.nan] * len(_OPTIONAL)
-            for k, ordinal in enumerate(ordinals[6:]):
-                if ordinal >= 0:
-                    m = matches[ordinal]
-                    value = float(m.group())
-                    if not math.isfinite(value) or (k < 2 and not (value == int(value) and 0 <= value < 64)):
-                        raise PostprocError(f"{_OPTIONAL[k]} must be {'an integer 0…63' if k < 2 else 'finite'}: "
-                                            f"{m.group()}", path, lineno, m.start() + 1, "P103")
-                    extra[k] = value
-            self.extra.append(extra)
-        for k, ordinal in enumerate(ordinals[:6]):
-            if ordinal < 0:
-                continue
-            m = matches[ordinal]
-            value = float(m.group())
-            if not math.isfinite(value):
-                raise PostprocError(f"{COLUMNS[k]} is not finite: {m.group()}", path, lineno, m.start() + 1, "P103")
-            pose[k] = value
-            if k < 3:
-                spans[2 * k], spans[2 * k + 1] = start + m.start(), start + m.end()
-            else:
-                abc[2 * k - 6], abc[2 * k - 5] = start + m.start(), start + m.end()
+            self.extra.append(_extras(matches, ordinals, path, lineno))
+        pose, spans, abc = _pose(matches, ordinals, start, path, lineno)
         self.pose.append(pose)
         self.spans.append(spans)
         self.abc.append(abc)
@@ -374,7 +400,7 @@ def read(files: list[str], texts: list[str], fast: bool = True) -> Program:
                 rows.chunk(i, j, starts, regex)
             i = j
     if rows.columns is None:
-        raise PostprocError("no poses in this file (empty, or comments only)", path, 1, 1, "P105")
+        raise PostprocError("no poses in this file (empty, or comments only)", path, 1, 1, P105)
     targets = rows.targets()
     stamps = rows.stamps
     return Program(

@@ -31,7 +31,7 @@ import numpy as np
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
-from ..diagnostics import Diagnostic, PostprocError, line_col
+from ..diagnostics import P101, P102, P103, P104, P201, P202, P211, Diagnostic, PostprocError, line_col
 from ..frames import abc_from_rotation
 from ..resources import grammar_path
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
@@ -290,7 +290,7 @@ class _Reader:
 
         code = _HIDE.sub(hide, text)
         if bad:
-            raise PostprocError("string not closed on its line", path, *line_col(text, bad[0]), "P101")
+            raise PostprocError("string not closed on its line", path, *line_col(text, bad[0]), P101)
         # the %%% VERSION / LANGUAGE %%% header of .prg/.mod files of older controllers
         head = re.match(r"\s*%%%[^\n]*\n(?:.*\n)*?\s*%%%[^\n]*", code)
         if head:
@@ -322,7 +322,7 @@ class _Reader:
             offset = end + 1
         if pending >= 0:
             lead = pending + len(code[pending:]) - len(code[pending:].lstrip())
-            raise PostprocError("statement not ended by ';'", path, *line_col(text, lead), "P101")
+            raise PostprocError("statement not ended by ';'", path, *line_col(text, lead), P101)
 
     def shape_of(self, path, text, start, end):
         """(shape, exact key) of the unit at [start, end): the exact key keeps the names as
@@ -361,8 +361,8 @@ class _Reader:
             else:
                 found = "end of statement"
             raise PostprocError(f"syntax error: unexpected {found}", path, *line_col(text, start + pos),
-                                "P101") from None
-        raise PostprocError("syntax error", path, *line_col(text, start + lead), "P101")
+                                P101) from None
+        raise PostprocError("syntax error", path, *line_col(text, start + lead), P101)
 
     # -------------------------------------------------------------- one module
 
@@ -376,27 +376,27 @@ class _Reader:
             kind = shape.kind
             if kind == "module_head":
                 if depth:
-                    raise PostprocError("MODULE inside a module", path, *line_col(text, start), "P102")
+                    raise PostprocError("MODULE inside a module", path, *line_col(text, start), P102)
                 depth.append("MODULE")
                 seen_module = True
                 continue
             if kind == "module_end":
                 if depth != ["MODULE"]:
                     raise PostprocError("ENDMODULE without its MODULE" if not depth else "ENDMODULE inside a routine",
-                                        path, *line_col(text, start), "P102")
+                                        path, *line_col(text, start), P102)
                 depth.pop()
                 continue
             if not depth:
-                raise PostprocError("statement outside MODULE … ENDMODULE", path, *line_col(text, start), "P102")
+                raise PostprocError("statement outside MODULE … ENDMODULE", path, *line_col(text, start), P102)
             if kind == "routine_head":
                 if len(depth) > 1:
                     raise PostprocError("routine inside a routine (ENDPROC missing?)", path,
-                                        *line_col(text, start), "P102")
+                                        *line_col(text, start), P102)
                 depth.append("ROUTINE")
                 continue
             if kind == "routine_end":
                 if len(depth) < 2:
-                    raise PostprocError("end of a routine that was not opened", path, *line_col(text, start), "P102")
+                    raise PostprocError("end of a routine that was not opened", path, *line_col(text, start), P102)
                 depth.pop()
                 continue
             if kind == "call":
@@ -417,9 +417,9 @@ class _Reader:
                     st.assigned.add(tokens[shape.data][0].lower())
         if depth:
             raise PostprocError("MODULE without ENDMODULE" if depth == ["MODULE"] else "routine not closed at the end",
-                                path, *line_col(text, len(text)), "P102")
+                                path, *line_col(text, len(text)), P102)
         if not seen_module:
-            raise PostprocError("expected a RAPID module: MODULE name … ENDMODULE", path, 1, 1, "P104")
+            raise PostprocError("expected a RAPID module: MODULE name … ENDMODULE", path, 1, 1, P104)
         return st
 
     # -------------------------------------------------------------- values
@@ -444,22 +444,22 @@ class _Reader:
         """[[x,y,z],[q1..q4],[cf…],[eax…]] → (xyz, spans, quat, conf, offset of x) or None + P211."""
         if v[0] != "agg" or len(v[1]) != 4 or any(p[0] != "agg" for p in v[1][:3]) or \
                 len(v[1][0][1]) != 3 or len(v[1][1][1]) != 4 or len(v[1][2][1]) != 4:
-            self.warn(st, self.at(v, tokens), "P211", f"{what} is not a robtarget [[x,y,z],[q1,q2,q3,q4],"
+            self.warn(st, self.at(v, tokens), P211, f"{what} is not a robtarget [[x,y,z],[q1,q2,q3,q4],"
                       "[cf1,cf4,cf6,cfx],[eax…]]: left as written")
             return None
         nums = [self.number(st, c, tokens) for c in v[1][0][1] + v[1][1][1]]
         if any(n is None for n in nums):
-            self.warn(st, self.at(v, tokens), "P211", f"{what} has a position or orientation that is not a "
+            self.warn(st, self.at(v, tokens), P211, f"{what} has a position or orientation that is not a "
                       "number here: left as written")
             return None
         for n in nums:
             if not np.isfinite(n[0]):
                 raise PostprocError(f"{what}: '{st.text[n[1]:n[2]]}' is not a finite number", st.path,
-                                    *line_col(st.text, n[1]), "P103")
+                                    *line_col(st.text, n[1]), P103)
         q = _scaled(np.array([n[0] for n in nums[3:]]))
         if q is None:
             raise PostprocError(f"{what}: quaternion [0,0,0,0] is no orientation", st.path,
-                                *line_col(st.text, nums[3][1]), "P103")
+                                *line_col(st.text, nums[3][1]), P103)
         conf = [self.number(st, c, tokens) for c in v[1][2][1]]
         conf = [c[0] if c is not None else np.nan for c in conf]
         spans = [p for n in nums[:3] for p in n[1:]]
@@ -647,34 +647,34 @@ class _Reader:
             label = "Offs" if name == "offs" else ("RelTool" if name == "reltool" else tokens[v[2]][0])
             extra = (": not compensated itself (it moves with the numbers of the robtarget it is computed from)"
                      if name in _RUNTIME_FUNCS else ": left as written")
-            self.warn(st, where, "P211", f"target {label}(…) of {instr} is computed at run time{extra}")
+            self.warn(st, where, P211, f"target {label}(…) of {instr} is computed at run time{extra}")
             return
         if v[0] != "ref":
-            self.warn(st, where, "P211", f"target of {instr} is an expression, not known statically: left as written")
+            self.warn(st, where, P211, f"target of {instr} is an expression, not known statically: left as written")
             return
         name = tokens[v[1]][0]
         self.referenced.add(name.lower())
         d = self.data_named(name, "robtarget", states)
         if d is None:
-            self.warn(st, where, "P211", f"robtarget {name} is not declared in this module: left as written")
+            self.warn(st, where, P211, f"robtarget {name} is not declared in this module: left as written")
             return
         if isinstance(d, str):
-            self.warn(st, where, "P211", f"target {name} not statically known ({d}): left as written")
+            self.warn(st, where, P211, f"target {name} not statically known ({d}): left as written")
             return
         dst, decl = d
         if dst is not st:
-            self.warn(st, where, "P211", f"robtarget {name} is declared in --config {dst.path}: left as written")
+            self.warn(st, where, P211, f"robtarget {name} is declared in --config {dst.path}: left as written")
             return
         keys = v[2]
         if decl.array != (keys != ()):
-            self.warn(st, where, "P211", f"target {name} is {'an array' if decl.array else 'not an array'}: "
+            self.warn(st, where, P211, f"target {name} is {'an array' if decl.array else 'not an array'}: "
                       "left as written")
             return
         if frame < 0:
             self.unknown(st, where, why)
             if decl.uses:
                 first = next(iter(decl.uses.values()))
-                self.warn(st, where, "P202", f"{name} is moved to here in a frame not known statically, at line "
+                self.warn(st, where, P202, f"{name} is moved to here in a frame not known statically, at line "
                           f"{int(st.locate([first[1]])[0][0])} in a known one: compensated for the first")
             elif decl.used == -1:
                 decl.used = -3  # moved to in an unknown frame first: never compensated
@@ -688,7 +688,7 @@ class _Reader:
             label = name + ("{" + ",".join(map(str, key)) + "}" if key else "")
             if seen is not None:
                 if seen[0] != frame:
-                    self.warn(st, where, "P202", f"{label} is used in another frame than at its first use "
+                    self.warn(st, where, P202, f"{label} is used in another frame than at its first use "
                               f"(line {int(st.locate([seen[1]])[0][0])}): compensated for the first")
                 continue
             if decl.used == -3:
@@ -723,12 +723,12 @@ class _Reader:
         want = tuple(int(float(tokens[k][0])) for k in keys)
         hit = [(k, v) for k, v in flat if k == want]
         if not hit:
-            self.warn(st, where, "P211", f"{decl.name}{{{','.join(map(str, want))}}} is outside the array: left as written")
+            self.warn(st, where, P211, f"{decl.name}{{{','.join(map(str, want))}}} is outside the array: left as written")
             return None
         return hit
 
     def unknown(self, st, where, why):
-        self.warn(st, where, "P201", f"frame not statically known ({why}): target left as written")
+        self.warn(st, where, P201, f"frame not statically known ({why}): target left as written")
 
     # -------------------------------------------------------------- all
 
@@ -747,7 +747,7 @@ class _Reader:
             for decl in st.decls.values():
                 if decl is not None and decl.type == "robtarget" and decl.value is not None and \
                         decl.name.lower() not in self.referenced:
-                    self.warn(st, decl.pos, "P211", f"robtarget {decl.name} is not moved to by a motion of this "
+                    self.warn(st, decl.pos, P211, f"robtarget {decl.name} is not moved to by a motion of this "
                               "module: left as written")
         return self.build()
 
@@ -786,13 +786,13 @@ class _Reader:
         if bad.any():
             r = int(np.flatnonzero(bad)[0])
             raise PostprocError("a robtarget's position or orientation is not a finite number", self.files[file[r]],
-                                int(line[r]), int(col[r]), "P103")
+                                int(line[r]), int(col[r]), P103)
         with np.errstate(invalid="ignore", over="ignore"):
             big = np.abs(q).max(axis=1)
         if not (big > 0).all():
             r = int(np.flatnonzero(~(big > 0))[0])
             raise PostprocError("a robtarget's quaternion [0,0,0,0] is no orientation", self.files[file[r]],
-                                int(line[r]), int(col[r]), "P103")
+                                int(line[r]), int(col[r]), P103)
         if n:
             abc = abc_from_rotation(quaternion_matrix(q / big[:, None]))
         else:

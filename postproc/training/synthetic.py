@@ -51,7 +51,7 @@ def synthetic_measurements(n: int, seed: int = 0, noise_mm: float = 0.02) -> tup
 
 
 def to_csv(poses: np.ndarray, measured: np.ndarray) -> str:
-    """The measurement CSV text for these rows."""
-    rows = np.hstack([poses, measured])
-    body = "\n".join(",".join(f"{v:.4f}" for v in row) for row in rows)
-    return "x,y,z,a,b,c,x_meas,y_meas,z_meas\n" + body + "\n"
+    """The measurement CSV text for these rows (4 decimals)."""
+    from ..measurements import measurement_csv
+
+    return measurement_csv(poses, measured, fmt="%.4f")

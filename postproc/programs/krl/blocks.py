@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 from lark import Token, Tree
 
-from ...diagnostics import PostprocError
+from ...diagnostics import P101, P104, P105, PostprocError
 from .fast_path import _Shape
 from .frames import _FrameState
 from .values import _Unknown, _first_pos
@@ -30,7 +30,7 @@ class Blocks:
                     ln = int(lines[np.flatnonzero(bad)[0]])
                     a = int(self.starts[ln - 1])
                     row = self.text[a:].split("\n", 1)[0]
-                    raise PostprocError(msg, self.path, ln, len(row) - len(row.lstrip()) + 1, "P101")
+                    raise PostprocError(msg, self.path, ln, len(row) - len(row.lstrip()) + 1, P101)
 
     def hot_line(self, i: int, sh: _Shape) -> None:
         if not self.in_def:
@@ -41,7 +41,7 @@ class Blocks:
     def structure_error(self, i, sh, msg):
         line = self.text[int(self.starts[i]):].split("\n", 1)[0]
         col = len(line) - len(line.lstrip()) + 1
-        raise PostprocError(msg, self.path, i + 1, col, "P101")
+        raise PostprocError(msg, self.path, i + 1, col, P101)
 
     def finish_file(self, nlines: int) -> None:
         if self.blocks:
@@ -50,15 +50,15 @@ class Blocks:
                       "WHILE": "ENDWHILE", "LOOP": "ENDLOOP", "REPEAT": "UNTIL", "SWITCH": "ENDSWITCH",
                       "SPLINE": "ENDSPLINE"}[kind]
             raise PostprocError(f"{kind}{' ' + detail if detail else ''} has no matching {closer}",
-                                self.path, line, col, "P101")
+                                self.path, line, col, P101)
         for line, col in self.folds:
-            self.warn(self.path, line, col, "P105", ";FOLD without ;ENDFOLD")
+            self.warn(self.path, line, col, P105, ";FOLD without ;ENDFOLD")
         if self.role == "module" and self.fi == 0 and self.defs_seen == 0 and not (self.has_dat and self.code_in_set):
             if self.has_dat:  # alone: no motion uses its points, so none is a target
                 raise PostprocError("a data list (DEFDAT) with no DEF: its points are targets only through the "
                                     "motions that use them; give the modules (.src) that use it in the same run",
-                                    self.path, 1, 1, "P104")
-            raise PostprocError("no DEF: expected a KRL module with DEF name( ) … END", self.path, 1, 1, "P104")
+                                    self.path, 1, 1, P104)
+            raise PostprocError("no DEF: expected a KRL module with DEF name( ) … END", self.path, 1, 1, P104)
 
     def open_block(self, kind, node, detail=""):
         self.blocks.append((kind, self.ln, self.col(_first_pos(node) or 0), detail))

@@ -8,7 +8,7 @@ import numpy as np
 from lark import Token, Tree
 from lark.exceptions import UnexpectedInput
 
-from ...diagnostics import PostprocError, line_col
+from ...diagnostics import P103, PostprocError, line_col
 from ..model import STAMP_PREFIX
 from .syntax import SHAPE_RE, _FOLD, _MALFORMED, _NUM, MalformedNumber, parser
 from .values import _AXIS_KEYS, _COMP, _KIND_OF, _MOTION, _mark_brace
@@ -226,7 +226,7 @@ class _HotRows:
                 k = int(np.flatnonzero(~np.isfinite(v))[0])
                 off = int(start[k]) + int(ph[j]) + sum(len(cols[q][k]) - 1 for q in range(j))
                 path, text = where
-                raise PostprocError(f"'{cols[j][k]}' is not a finite number", path, *line_col(text, off), "P103")
+                raise PostprocError(f"'{cols[j][k]}' is not a finite number", path, *line_col(text, off), P103)
         # offset of slot j in its line: ph[j] + Σ_{i<j} (len_i − 1)
         shift = [np.zeros(n, np.int64)]
         for j in range(need_len):

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 from lark import Tree
 
-from ...diagnostics import PostprocError
+from ...diagnostics import P201, P203, P220, P221, P222, PostprocError
 from ...frames import compose, frame_to_matrix, inverse, matrix_to_frame
 from ..model import Frame
 from .values import XYZABC, _Agg, _COMP, _Num, _Unknown
@@ -47,11 +47,11 @@ class _NotSet(_Unknown):
 
 
 _BASE_NOT_SET = _NotSet("$BASE is not set before this target (the controller uses whatever base is active): "
-                        "set it in the program or state it with --base N|X,Y,Z,A,B,C", "P220")
+                        "set it in the program or state it with --base N|X,Y,Z,A,B,C", P220)
 _TOOL_NOT_SET = _NotSet("$TOOL is not set before this target (the controller uses whatever tool is active): "
-                        "set it in the program or state it with --tool N|X,Y,Z,A,B,C|model", "P221")
+                        "set it in the program or state it with --tool N|X,Y,Z,A,B,C|model", P221)
 _NEITHER_SET = _NotSet("neither $BASE nor $TOOL is set before this target (the controller uses whatever is "
-                       "active): set them in the program or state them with --base and --tool", "P220")
+                       "active): set them in the program or state them with --base and --tool", P220)
 # a program's start when nothing is stated: neither frame known (``Frames.start_state``)
 _START = _FrameState(_BASE_NOT_SET, "", _TOOL_NOT_SET, "", _I4)
 
@@ -89,7 +89,7 @@ class Frames:
         m = self.data_frame(data, (value,))
         if isinstance(m, _Unknown):
             raise PostprocError(f"--{which} {value}: {m.why}; give $config.dat with --config, or the frame as "
-                                "X,Y,Z,A,B,C", f"--{which}", 0, 0, "P222")
+                                "X,Y,Z,A,B,C", f"--{which}", 0, 0, P222)
         return m, f"{data}[{value}]"
 
     def frame_of(self, expr):
@@ -323,16 +323,16 @@ class Frames:
         for frames, _ in self.active_interrupts.values():  # a handler switched on may set them at any time
             for which, unknown in frames.items():
                 st = self.replace_state(st, which, unknown, "")
-        why, code = (st.base, "P201") if isinstance(st.base, _Unknown) else (
-            (st.robroot, "P201") if isinstance(st.robroot, _Unknown) else (
-                (st.tool, "P203") if isinstance(st.tool, _Unknown) and st.tool.why else (None, "")))
+        why, code = (st.base, P201) if isinstance(st.base, _Unknown) else (
+            (st.robroot, P201) if isinstance(st.robroot, _Unknown) else (
+                (st.tool, P203) if isinstance(st.tool, _Unknown) and st.tool.why else (None, "")))
         if why is st.base and why is _BASE_NOT_SET and st.tool is _TOOL_NOT_SET:
             why = _NEITHER_SET
         if why is not None:
             code = getattr(why, "code", code)
             key = (self.path, code, why.why)
             if key not in self.unknown_frames:
-                what = "frame" if code == "P201" else "tool"
+                what = "frame" if code == P201 else "tool"
                 msg = why.why if isinstance(why, _NotSet) else f"{what} not statically known ({why.why})"
                 # (a frame not set is located at its first target: ``count_unknown``)
                 self.unknown_frames[key] = [self.path, why.where[0] or self.ln, why.where[1] or 1, msg, 0, code,

@@ -8,7 +8,7 @@ from bisect import bisect_left
 import numpy as np
 from lark import Token, Tree
 
-from ...diagnostics import Diagnostic, PostprocError
+from ...diagnostics import P101, P104, P105, Diagnostic, PostprocError
 from ..model import ActiveFrames, Frame, Program, STAMP_PREFIX
 from .assemble import Assembly
 from .blocks import Blocks
@@ -156,7 +156,7 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
         self.block_open = {}
         if _BLANK.fullmatch(text):
             if role == "module" and fi == 0:
-                raise PostprocError("the file is empty", path, 1, 1, "P104")
+                raise PostprocError("the file is empty", path, 1, 1, P104)
             return  # an empty .dat or $config.dat declares nothing
         data = text.encode("latin-1", "replace") if not text.isascii() else text.encode("ascii")
         raw = np.frombuffer(data, np.uint8)
@@ -220,7 +220,7 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
             elif self.folds:
                 self.folds.pop()
             else:
-                self.warn(self.path, i + 1, col, "P105", ";ENDFOLD without ;FOLD")
+                self.warn(self.path, i + 1, col, P105, ";ENDFOLD without ;FOLD")
         if sh.tree is None:
             return
         tree = self.concrete(sh.tree) if sh.names else sh.tree
@@ -285,7 +285,7 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
     def col(self, shape_pos: int) -> int:
         return self.abs_pos(shape_pos) - self.la + 1
 
-    def err(self, msg, token_or_pos, code="P101"):
+    def err(self, msg, token_or_pos, code=P101):
         pos = token_or_pos if isinstance(token_or_pos, int) else token_or_pos.start_pos
         raise PostprocError(msg, self.path, self.ln, self.col(pos), code)
 

@@ -6,6 +6,7 @@ import re
 import numpy as np
 from lark import Token, Tree
 
+from ...diagnostics import P202, P210, P211, P214, P215, P223
 from .values import _AXIS_TYPES, _Agg, _KIND_OF, _MOTION, _POS_TYPES, _RUNTIME_POS, _STANDARD_AXIS, _Derived, _Unknown, _first_pos
 
 
@@ -150,7 +151,7 @@ class Statements:
         if kw == "SPL" and not any(b[0] == "SPLINE" for b in self.blocks):
             self.err("SPL must stand inside SPLINE … ENDSPLINE", _first_pos(node))
         if kw.endswith("_REL"):
-            self.warn(self.path, self.ln, self.col(_first_pos(node)), "P210",
+            self.warn(self.path, self.ln, self.col(_first_pos(node)), P210,
                       f"relative motion {kw} left as written (its absolute target is known only at run time)")
             self.barrier()
             return
@@ -191,7 +192,7 @@ class Statements:
             name = _root_name(expr)
             aggs = self.member_value(expr)
         else:
-            self.warn(self.path, self.ln, self.col(_first_pos(expr)), "P211",
+            self.warn(self.path, self.ln, self.col(_first_pos(expr)), P211,
                       "target is computed at run time (function call or expression): left as written")
             self.barrier()
             return
@@ -203,7 +204,7 @@ class Statements:
             seen = self.targets_of.get(id(agg))
             if seen is not None:
                 if seen[0] != f:
-                    self.warn(self.path, self.ln, self.col(_first_pos(expr)), "P202",
+                    self.warn(self.path, self.ln, self.col(_first_pos(expr)), P202,
                               f"{str(name)} is used in another frame than at its first use (line {seen[1]}): "
                               "compensated for the first")
                 pose, _, _ = agg.pose(*self.where(agg.file))
@@ -233,12 +234,12 @@ class Statements:
         var = self.lookup(name)
         written = f"{name}{'[…]' if base.data == 'index' else ''}.{expr.children[1]}"
         if var is None:
-            self.warn(self.path, self.ln, self.col(pos), "P215",
+            self.warn(self.path, self.ln, self.col(pos), P215,
                       f"target {written}: {name} is not declared in the files read (a global of a data list "
                       "or $config.dat not given?): left as written")
             return None
         if var.type in _POS_TYPES | _AXIS_TYPES or (var.array != (base.data == "index")):
-            self.warn(self.path, self.ln, self.col(pos), "P211", f"target {written} is not a STRUC member: "
+            self.warn(self.path, self.ln, self.col(pos), P211, f"target {written} is not a STRUC member: "
                       "left as written")
             return None
         ftype = self.strucs.get(var.type, {}).get(field, "")
@@ -249,12 +250,12 @@ class Statements:
         else:
             keys = self.loop_keys(base)
             if isinstance(keys, str):
-                self.warn(self.path, self.ln, self.col(pos), "P211", f"target {written}: {keys}: left as written")
+                self.warn(self.path, self.ln, self.col(pos), P211, f"target {written}: {keys}: left as written")
                 return None
             values = [var.elems.get(k) for k in keys]
             if any(v is None for v in values):
                 missing = next(k for k, v in zip(keys, values) if v is None)
-                self.warn(self.path, self.ln, self.col(pos), "P211", f"target {written}: {name}"
+                self.warn(self.path, self.ln, self.col(pos), P211, f"target {written}: {name}"
                           f"[{', '.join(map(str, missing))}] is not initialised in the files read: left as written")
                 return None
         out = []
@@ -262,7 +263,7 @@ class Statements:
             m = v.get(field) if isinstance(v, _Agg) else None
             if not isinstance(m, _Agg):
                 why = v.why if isinstance(v, _Unknown) else f"its {field} is not a literal aggregate"
-                self.warn(self.path, self.ln, self.col(pos), "P211",
+                self.warn(self.path, self.ln, self.col(pos), P211,
                           f"target {written} not statically known ({why}): left as written")
                 return None
             if m.type is None and ftype:
@@ -301,10 +302,10 @@ class Statements:
             if _STANDARD_AXIS.match(u):
                 return None
             if _RUNTIME_POS.match(u) or u.startswith("$"):
-                self.warn(self.path, self.ln, self.col(pos), "P211",
+                self.warn(self.path, self.ln, self.col(pos), P211,
                           f"target {name} is a run-time position: left as written")
                 return None
-            self.warn(self.path, self.ln, self.col(pos), "P215",
+            self.warn(self.path, self.ln, self.col(pos), P215,
                       f"target {name} is not declared in the files read (a global of a data list or "
                       "$config.dat not given?): left as written")
             return None
@@ -314,14 +315,14 @@ class Statements:
             # user STRUC types or wrong types: nothing we can read as X…C
             values = [var.value] if not var.array else list(var.elems.values())
             if not any(isinstance(v, _Agg) and v.kind() == "cart" for v in values):
-                self.warn(self.path, self.ln, self.col(pos), "P211",
+                self.warn(self.path, self.ln, self.col(pos), P211,
                           f"target {name} has type {var.type}, not a position: left as written")
                 return None
         if var.array != indexed:
             if var.array:
-                self.warn(self.path, self.ln, self.col(pos), "P211", f"target {name} is a whole array")
+                self.warn(self.path, self.ln, self.col(pos), P211, f"target {name} is a whole array")
                 return None
-            self.warn(self.path, self.ln, self.col(pos), "P211", f"target {name}[…] is not an array")
+            self.warn(self.path, self.ln, self.col(pos), P211, f"target {name}[…] is not an array")
             return None
         if indexed:
             if key is None:
@@ -331,7 +332,7 @@ class Statements:
                 if isinstance(var.value, _Unknown) or unknown or not vals:
                     why = var.value.why if isinstance(var.value, _Unknown) else (
                         unknown[0].why if unknown else f"no element of {name} is initialised")
-                    self.warn(self.path, self.ln, self.col(pos), "P211",
+                    self.warn(self.path, self.ln, self.col(pos), P211,
                               f"target {name}[…] not statically known ({why}): left as written")
                     return None
                 out = []
@@ -349,12 +350,12 @@ class Statements:
                 return None
             return [v]
         if isinstance(v, _Derived):
-            self.warn(self.path, self.ln, self.col(pos), "P214",
+            self.warn(self.path, self.ln, self.col(pos), P214,
                       f"target {label} is {v.why}: at run time it moves with {v.source} (and carries "
                       f"{v.source}'s correction when {v.source} is compensated), not with its own; left as written")
             return None
         why = v.why if isinstance(v, _Unknown) else "it has no value here"
-        self.warn(self.path, self.ln, self.col(pos), "P211", f"target {label} not statically known ({why}): "
+        self.warn(self.path, self.ln, self.col(pos), P211, f"target {label} not statically known ({why}): "
                   "left as written")
         return None
 
@@ -453,7 +454,7 @@ class AsyncStatements:
         u = str(name).upper()
         for _, points in self.active_interrupts.values():
             if u in points:
-                self.warn(self.path, self.ln, self.col(pos), "P223",
+                self.warn(self.path, self.ln, self.col(pos), P223,
                           f"target {name} is not known here ({points[u]}, switched on): left as written")
                 return True
         return False

@@ -6,7 +6,7 @@ import re
 from lark import Lark
 from lark.exceptions import UnexpectedCharacters, UnexpectedToken
 
-from ...diagnostics import PostprocError
+from ...diagnostics import P101, PostprocError
 from ...resources import grammar_path
 
 
@@ -104,7 +104,7 @@ class SyntaxErrors:
             bad = _BAD_NUMBER.match(rest)
             if bad:
                 raise PostprocError(f"syntax error: malformed number '{bad.group()}'", self.path, self.ln,
-                                    self.col(pos), "P101")
+                                    self.col(pos), P101)
             found = f"'{rest[:1]}'"
         else:
             pos = len(shape.rstrip())
@@ -128,4 +128,4 @@ class SyntaxErrors:
             msg = f"expected {exp}{where}, found {found}"
         else:
             msg = f"unexpected {found}{where}"
-        raise PostprocError(f"syntax error: {msg}", self.path, self.ln, self.col(pos), "P101")
+        raise PostprocError(f"syntax error: {msg}", self.path, self.ln, self.col(pos), P101)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from lark import Token
 
-from ...diagnostics import PostprocError, line_col
+from ...diagnostics import P103, PostprocError, line_col
 from ..model import MOTIONS
 
 
@@ -133,17 +133,17 @@ class _Agg:
             if isinstance(v, _Num):
                 if not np.isfinite(v.value):
                     raise PostprocError(f"component {k} of the target is not a finite number", path,
-                                        *line_col(text, v.start), "P103")
+                                        *line_col(text, v.start), P103)
                 pose[i] = v.value
                 written[i] = True
                 if own and i < 3:
                     spans[2 * i], spans[2 * i + 1] = v.start, v.end
             elif isinstance(v, _Bad):
                 raise PostprocError(f"component {k} of a target must be a number, found '{v.text}'", path,
-                                    v.line, v.col, "P103")
+                                    v.line, v.col, P103)
             else:
                 raise PostprocError(f"component {k} of a target must be a number", path, self.line, self.col,
-                                    "P103")
+                                    P103)
         return pose, spans, written
 
     def config(self):

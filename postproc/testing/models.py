@@ -1,4 +1,4 @@
-"""Small ONNX compensators built with onnx.helper, for tests (no torch needed).
+"""Small ONNX compensators built with onnx.helper, for tests and benchmarks (no torch needed).
 
 ``affine_model(offset, gain)`` predicts E = offset + gain · (xyz − centre): zero, constant
 and position-dependent models with the full contract metadata.

@@ -1,0 +1,26 @@
+"""What the tests share besides fixtures (those are in conftest.py): the repository's root and
+hand-built programs. Tests import it as ``helpers`` (pytest puts tests/ on sys.path); the ONNX
+models the tests build are in :mod:`postproc.testing.models`."""
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent.parent
+
+
+def program_in_base(base, pose, label: str = ""):
+    """A one-target pose program built by hand: ``pose`` [6] written as its X,Y,Z in a frame
+    ``base`` (X,Y,Z,A,B,C or a 4x4 matrix, which may hold what no reader would accept)."""
+    import numpy as np
+
+    from postproc import frames
+    from postproc.programs import Frame, Program, TargetsBuilder
+
+    text = "x,y,z\n" + ",".join(f"{v:.3f}" for v in pose[:3]) + "\n"
+    spans, pos = [], text.index("\n") + 1
+    for tok in text[pos:].rstrip("\n").split(","):
+        spans += [pos, pos + len(tok)]
+        pos += len(tok) + 1
+    builder = TargetsBuilder()
+    builder.add(list(pose), spans, 0, 2, 1, 0, 0)
+    matrix = np.asarray(base, float) if np.shape(base) == (4, 4) else frames.frame_to_matrix(base)
+    return Program(["p.csv"], [text], builder.build(), [Frame(matrix, None, label)], dialect="poses",
+                   newlines=["\n"], comment="#")
