@@ -30,7 +30,8 @@ def engine_overhead(n=200):
     from dask.distributed import Client, LocalCluster
 
     t0 = time.perf_counter()
-    cluster = LocalCluster(n_workers=1, threads_per_worker=os.cpu_count(), processes=False, dashboard_address=None)
+    cluster = LocalCluster(n_workers=os.cpu_count(), threads_per_worker=1, processes=True, memory_limit=0,
+                           dashboard_address=":0")
     client = Client(cluster)
     start = time.perf_counter() - t0
     client.gather(client.map(lambda i: i, range(10), pure=False))
@@ -46,6 +47,7 @@ def main_(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--robots", type=int, default=16)
     ap.add_argument("--rows", type=int, default=200)
+    ap.add_argument("--one-worker", action="store_true", help="also the fleet on one worker process (robots in a row)")
     a = ap.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     d = Path(tempfile.mkdtemp(prefix="fleet-bench-"))
@@ -68,14 +70,21 @@ def main_(argv=None):
         assert train_robot(j, d / "seq")["ok"]
     seq = time.perf_counter() - t0
     print(f"adapter (train + report) x{a.robots} in a row: {seq:.1f} s  (load {load()})")
+    cores = os.cpu_count()
     t0 = time.perf_counter()
     results = run_fleet(jobs, d / "fleet")
     wall = time.perf_counter() - t0
     assert all(r["ok"] for r in results)
-    cores = os.cpu_count()
-    print(f"fleet on dask ({cores} threads): {wall:.1f} s  (load {load()})")
+    print(f"fleet on dask ({cores} worker processes): {wall:.1f} s  (load {load()})")
+    if a.one_worker:
+        t0 = time.perf_counter()
+        assert all(r["ok"] for r in run_fleet(jobs, d / "fleet1", workers=1))
+        one = time.perf_counter() - t0
+        print(f"fleet on dask (1 worker process): {one:.1f} s  (load {load()}); {cores} workers against 1: "
+              f"{one / wall:.2f}x")
     print(f"ratio vs adapter in a row {seq / wall:.2f}x, vs train alone in a row {seq_train / wall:.2f}x")
-    print(f"overhead per robot (wall - sequential/{cores}) / robots: {(wall - seq / cores) / a.robots:.2f} s")
+    print(f"overhead per robot (wall - sequential/{cores}) / robots: {(wall - seq / cores) / a.robots:.2f} s "
+          f"(negative: the workers import torch, matplotlib once, the subprocesses in a row once per robot)")
 
 
 if __name__ == "__main__":
