@@ -14,25 +14,32 @@ The fleet file (TOML)::
 
 Paths are relative to the fleet file. A bad file is refused with P610 at its line.
 
-Engine: Dask distributed (``LocalCluster`` in-process, threads; ``address`` for a real
-scheduler). Each robot's job is one task calling :func:`train_robot`, the one adapter to
-the training: it runs ``postproc train`` (and ``postproc report`` on the held-out rows) as
-a subprocess, so a robot whose training crashes (a torch abort, out of memory, a bug) fails
-alone; the threads of the engine only wait on it. When a library training API exists
-(issue 16.2) this adapter is the one place to switch to it.
+Engine: Dask distributed (a ``LocalCluster`` of one worker process per core, one task at a
+time each; ``address`` for a real scheduler). Each robot's job is one task calling
+:func:`train_robot`, the one adapter to the training: it runs ``postproc train`` (and
+``postproc report`` on the held-out rows). In a worker process of its own it runs them in that
+process (:func:`_run_cli`): the imports (torch alone ~2.5 s here) are paid once per worker, and
+a robot whose training crashes the process (a torch abort, out of memory) fails alone, its
+worker restarted by the nanny. Elsewhere (a worker running several tasks at a time) they run as
+subprocesses. When a library training API exists (issue 16.2) this adapter is the one place to
+switch to it. The structure search of ``train --search`` (:func:`task_map`) runs its candidates
+as tasks on the same cluster.
 
 Measured here (2 cores shared by six developers, load 2.2-3.1; benchmarks/fleet_engines.py, 200 no-op
 tasks after 10 warm-up ones): Ray ``ray.init(num_cpus=2)`` import+start 4.4-7.5 s, 1.0-3.3 ms
 per task; Dask ``LocalCluster(processes=False)`` import+start 0.4-0.9 s, 2.0-2.7 ms per task;
 ``pip install "dask[distributed]"`` 6 s, ``pip install ray`` 32 s. A robot's job takes seconds
 (subprocess start, training, report), so the per-task cost of either is noise; Dask starts
-faster, installs faster and is the one picked (threads: the work runs in the subprocesses).
+faster, installs faster and is the one picked.
+With the robots run in the worker processes, 16 simulated robots take 1.60-1.96x less wall
+time than ``postproc train`` + ``report`` 16 times in a row (benchmarks/fleet_speed.py).
 A rerun skips robots whose inputs (sha256 of the data,
 robot description, method/arguments, previous model) did not change: ``fleet-state.json``
 beside the outputs.
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import html
@@ -41,8 +48,10 @@ import json
 import os
 import subprocess
 import sys
+import threading
 import tomllib
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 from .diagnostics import P610, PostprocError
@@ -151,9 +160,98 @@ def load_fleet(path: str | Path) -> list[RobotJob]:
 
 
 def _run_cli(argv: list[str]) -> tuple[int, str]:
-    env = {**os.environ, "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", "1")}
-    proc = subprocess.run([sys.executable, "-m", "postproc", *argv], capture_output=True, text=True, env=env)
-    return proc.returncode, proc.stderr.strip()
+    """``postproc ARGV`` → (exit code, stderr). In a fleet worker process (:func:`_own_process`) it
+    runs right here: torch, pinocchio and matplotlib are imported once per worker, not once per
+    robot, and the worker process is the robot's isolation (a crash kills it, its nanny starts a
+    new one, the task fails alone). Anywhere else (a worker that runs several tasks at a time, no
+    worker) it is a subprocess."""
+    if not _own_process():
+        env = {**os.environ, "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", "1")}
+        proc = subprocess.run([sys.executable, "-m", "postproc", *argv], capture_output=True, text=True, env=env)
+        return proc.returncode, proc.stderr.strip()
+    from .cli import main
+
+    _ThreadStreams.install()
+    out, err = io.StringIO(), io.StringIO()
+    _ThreadStreams.local.streams = (out, err)
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse: a bad argument in the fleet file's args
+        code = exc.code if isinstance(exc.code, int) else 2
+    finally:
+        _ThreadStreams.local.streams = None
+    return code, err.getvalue().strip()
+
+
+def _own_process() -> bool:
+    """True in a Dask worker process of its own (started by a nanny) that runs one task at a time."""
+    try:
+        from distributed import get_worker
+
+        worker = get_worker()
+    except (ImportError, ValueError):
+        return False
+    return bool(worker.nanny) and worker.state.nthreads == 1
+
+
+@contextlib.contextmanager
+def task_map(address: str | None = None):
+    """A ``map(fn, *iterables)`` whose calls are Dask tasks (results in order): on the scheduler
+    at ``address``; else, inside a Dask worker (a fleet's robot), on that worker's own cluster,
+    the calling task seceded from its thread while it waits; else None (run in place)."""
+    if address is None:
+        try:
+            from distributed import get_worker, worker_client
+
+            get_worker()
+        except (ImportError, ValueError):
+            yield None
+            return
+        with worker_client() as client:
+            yield partial(_client_map, client)
+        return
+    from dask.distributed import Client
+
+    with Client(address) as client:
+        yield partial(_client_map, client)
+
+
+def _client_map(client, fn, *iterables):
+    for future in client.map(fn, *iterables, pure=False):
+        yield future.result()
+
+
+class _ThreadStreams:
+    """sys.stdout/sys.stderr of a worker process: each thread's own buffer while it runs a
+    robot's command (a search's candidate tasks run beside a seceded robot), else the real stream."""
+
+    local = threading.local()
+
+    def __init__(self, index: int, real):
+        self.index, self.real = index, real
+
+    @classmethod
+    def install(cls) -> None:
+        if not isinstance(sys.stdout, cls):
+            sys.stdout = cls(0, sys.stdout)
+        if not isinstance(sys.stderr, cls):
+            sys.stderr = cls(1, sys.stderr)
+
+    def _target(self):
+        streams = getattr(self.local, "streams", None)
+        return streams[self.index] if streams else self.real
+
+    def write(self, text: str) -> int:
+        return self._target().write(text)
+
+    def flush(self) -> None:
+        self._target().flush()
+
+    def isatty(self) -> bool:
+        return False
+
+    def __getattr__(self, name):  # encoding, fileno, …: the stream's the thread writes to
+        return getattr(self._target(), name)
 
 
 def _held_out(job: RobotJob, path: Path) -> Path:
@@ -228,6 +326,7 @@ def train_robot(job: RobotJob, outdir: str | Path) -> dict:
 def run_fleet(jobs: list[RobotJob], outdir: str | Path, address: str | None = None, workers: int | None = None,
               force: bool = False) -> list[dict]:
     """Every robot's :func:`train_robot` as a task on Dask; robots with unchanged inputs skipped."""
+    import dask
     from dask.distributed import Client, LocalCluster
 
     outdir = Path(outdir)
@@ -246,8 +345,11 @@ def run_fleet(jobs: list[RobotJob], outdir: str | Path, address: str | None = No
         if address:
             client = Client(address)
         else:
-            n = workers or os.cpu_count() or 1
-            client = Client(LocalCluster(n_workers=1, threads_per_worker=n, processes=False, dashboard_address=None))
+            # one process per robot at a time: each imports the training once and runs robot after
+            # robot in itself; a robot that kills its process is retried once, then fails alone
+            with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+                client = Client(LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                                             processes=True, memory_limit=0, dashboard_address=":0"))
         try:
             futures = client.map(train_robot, todo, outdir=str(outdir), pure=False)
             for job, fut in zip(todo, futures):

@@ -73,6 +73,8 @@ def add_parser(sub, common, formatter) -> None:
                    help="hidden layer widths (default 20,10,5; hybrid's residual networks 32,32)")
     p.add_argument("--optimizer", choices=OPTIMIZERS, default=None, help="backprop optimiser (default lm)")
     p.add_argument("--search", action="store_true", help="search the hidden layers first (1-6 layers of 3-16 nodes; minutes)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="--search: fit the candidates as tasks on this Dask scheduler (postproc[fleet]; in a fleet: its own)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the training's random draws (default 0)")
     p.add_argument("--split-seed", type=int, default=0, metavar="S", help="seed of the validation draw (default 0)")
     p.add_argument("--val-fraction", type=float, default=0.05, metavar="F", help="rows held out for validation (default 0.05)")
@@ -195,13 +197,15 @@ def run(args) -> int:
     hidden = args.hidden or (20, 10, 5)
     args.epochs = args.epochs or 500
     if args.search:
+        from ..fleet import task_map
         from ..training.search import format_table, search_structure
 
         try:
-            result = search_structure(
-                poses[train_rows], errors[train_rows], args.method, args.optimizer, args.epochs, args.seed,
-                progress=progress,
-            )
+            with task_map(args.scheduler) as map_fn:
+                result = search_structure(
+                    poses[train_rows], errors[train_rows], args.method, args.optimizer, args.epochs, args.seed,
+                    progress=progress, map_fn=map_fn,
+                )
         except PostprocError as exc:
             exc.path = exc.path or args.data  # too few points for every candidate: say which file
             raise

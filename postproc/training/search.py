@@ -20,7 +20,8 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from functools import partial
+from typing import Callable, Iterable
 
 import numpy as np
 
@@ -29,7 +30,7 @@ from .data import min_points, split_indices
 from .estimator import ErrorModel
 from .network import Structure
 
-__all__ = ["Candidate", "SearchResult", "candidates", "search_structure", "format_table"]
+__all__ = ["Candidate", "SearchResult", "candidates", "fit_and_score", "search_structure", "format_table"]
 
 METHOD_STRUCTURE = (20, 10, 5)
 SCREEN_OPTIMIZER, SCREEN_EPOCHS = "lbfgs", 300
@@ -71,6 +72,14 @@ def _val_mean(model: ErrorModel, poses: np.ndarray, errors: np.ndarray) -> tuple
     return float(d.mean()), float(d.max())
 
 
+def fit_and_score(hidden: tuple[int, ...], optimizer: str | None, epochs: int, seed: int, *, method: str,
+                  px: np.ndarray, ex: np.ndarray, pv: np.ndarray, ev: np.ndarray) -> tuple[float, float, float]:
+    """One candidate's fit — one task of the search: (mean, max) validation |E − Ê| mm and its seconds."""
+    t = time.perf_counter()
+    model = ErrorModel(hidden, method, optimizer, epochs, seed=seed).fit(px, ex)
+    return (*_val_mean(model, pv, ev), time.perf_counter() - t)
+
+
 def search_structure(
     poses: np.ndarray,
     errors: np.ndarray,
@@ -85,12 +94,19 @@ def search_structure(
     screen_epochs: int = SCREEN_EPOCHS,
     progress: bool = False,
     log: Callable[[str], None] | None = None,
+    map_fn: Callable[..., Iterable] | None = None,
 ) -> SearchResult:
-    """Search structures on (poses, errors); returns the winner and every candidate's scores."""
+    """Search structures on (poses, errors); returns the winner and every candidate's scores.
+
+    ``map_fn(fn, *iterables)`` runs the fits, results in order (default: the built-in ``map``,
+    one after another here; ``postproc.fleet.task_map`` gives one whose calls are tasks on a
+    cluster). Every fit is seeded, so where it runs does not change the result."""
+    map_fn = map_fn or map
     fit_rows, val_rows = split_indices(len(poses), val_fraction, seed)
     if len(val_rows) == 0:
         raise ValueError("structure search needs a validation split (val_fraction > 0)")
-    px, ex, pv, ev = poses[fit_rows], errors[fit_rows], poses[val_rows], errors[val_rows]
+    task = partial(fit_and_score, method=method, px=poses[fit_rows], ex=errors[fit_rows], pv=poses[val_rows],
+                   ev=errors[val_rows])
     pool = [Candidate(h, Structure(h).n_params) for h in (structures or candidates())]
     bar = None
     if progress:
@@ -102,11 +118,11 @@ def search_structure(
             cand.note = f"skipped: needs ≥ {min_points(cand.n_weights)} points"
             if bar is not None:
                 bar.update(1)
-            continue
-        t = time.perf_counter()
-        model = ErrorModel(cand.hidden, method, SCREEN_OPTIMIZER, screen_epochs, seed=seed).fit(px, ex)
-        cand.screen_mm = _val_mean(model, pv, ev)[0]
-        cand.seconds += time.perf_counter() - t
+    fits = [c for c in pool if not c.note]
+    runs = map_fn(task, [c.hidden for c in fits], [SCREEN_OPTIMIZER] * len(fits), [screen_epochs] * len(fits),
+                  [seed] * len(fits))
+    for cand, (mean, _, seconds) in zip(fits, runs):
+        cand.screen_mm, cand.seconds = mean, cand.seconds + seconds
         if bar is not None:
             bar.update(1)
         if log is not None:
@@ -118,17 +134,19 @@ def search_structure(
             f"{min(min_points(c.n_weights) for c in pool)} after the search's validation split)",
             code="P505",
         )
+    finalists = [(cand, k) for cand in screened[:keep] for k in range(final_seeds)]
+    runs = iter(map_fn(task, [c.hidden for c, _ in finalists], [optimizer] * len(finalists),
+                       [epochs] * len(finalists), [seed + k for _, k in finalists]))
     for cand in screened[:keep]:
-        t = time.perf_counter()
         scores = []
-        for k in range(final_seeds):
-            model = ErrorModel(cand.hidden, method, optimizer, epochs, seed=seed + k).fit(px, ex)
-            scores.append(_val_mean(model, pv, ev))
+        for _ in range(final_seeds):
+            mean, worst, seconds = next(runs)
+            scores.append((mean, worst))
+            cand.seconds += seconds
             if bar is not None:
                 bar.update(1)
         cand.final_mm = float(np.mean([m for m, _ in scores]))
         cand.final_max_mm = float(np.mean([m for _, m in scores]))
-        cand.seconds += time.perf_counter() - t
         if log is not None:
             log(f"final  {cand.label:<18} {cand.final_mm:.4f} mm")
     if bar is not None:
