@@ -217,21 +217,31 @@ def test_a_model_for_a_robot_without_description_is_refused(tmp_path, q_targets)
 
 
 def test_a_model_without_the_joints_input_leaves_targets_in_another_configuration(tmp_path, capsys):
-    # the shipped model (no 'joints' input) evaluates its own IK's branch: a target whose S/T
+    # a pose-only model (no 'joints' input) evaluates its own IK's branch: a target whose S/T
     # flips the wrist is another arm configuration, left as written with P313, never
     # compensated for the wrong joints; the same pose with the S/T of that branch is compensated
     from postproc.cli import main
     from postproc.robot import Robot, load_description
     from postproc.resources import model_path
+    from postproc.testing.models import affine_model
 
     robot = Robot(load_description(model_path("kr500.toml")))
+    model = affine_model(tmp_path / "pose_only.onnx", offset=(0.2, -0.1, 0.3), gain=np.diag([1e-3, -2e-3, 5e-4]),
+                         tool={"name": "spindle", "frame": [300, 0, 75, 0, 0, 0]})
     pose = np.array([[2000.0, 100.0, 900.0, 0.0, 90.0, 0.0]])
     q, _ = robot.ik(pose, robot.home_q)
     s, t = (int(v[0]) for v in robot.status_turn(q))
-    for status, code in ((s, 0), (s ^ 4, 1)):
+    flipped = q.copy()
+    flipped[:, 3] += 180.0
+    flipped[:, 4] *= -1.0
+    flipped[:, 5] += 180.0
+    flipped = (flipped + 180.0) % 360.0 - 180.0
+    s_flip, t_flip = (int(v[0]) for v in robot.status_turn(flipped))
+    assert s_flip != s  # the wrist bit
+    for status, turn, code in ((s, t, 0), (s_flip, t_flip, 1)):
         src = tmp_path / f"p{status}.src"
         src.write_text("DEF p()\n  $BASE = {X 0,Y 0,Z 0,A 0,B 0,C 0}\n  $TOOL = {X 300,Y 0,Z 75,A 0,B 0,C 0}\n"
-                       f"  PTP {{X 2000.0,Y 100.0,Z 900.0,A 0.0,B 90.0,C 0.0,S {status},T {t}}}\nEND\n")
-        assert main(["compensate", str(src), "-o", str(tmp_path / f"out{status}.src")]) == code
+                       f"  PTP {{X 2000.0,Y 100.0,Z 900.0,A 0.0,B 90.0,C 0.0,S {status},T {turn}}}\nEND\n")
+        assert main(["compensate", str(src), "-o", str(tmp_path / f"out{status}.src"), "--model", str(model)]) == code
         err = capsys.readouterr().err
         assert ("P313" in err) == (code == 1), err

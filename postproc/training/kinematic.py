@@ -322,17 +322,22 @@ def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, p
     (0.23 vs 0.10 mm max on robot seed 3: a 0.003° step of A1 got a third of its sign)."""
     same = (previous == pose).all(dim=1, keepdim=True)
     previous = previous if at is None else at(previous)
-    q_prev = torch.where(same, home_q.expand_as(q), ik(previous) if q_in is None else ik(previous, q_in))
+    both = q_previous is not None and q_in is not None
+    # the previous pose solved on its own target's branch where that is known, else on this one's
+    branch = q_in if not both else torch.where(torch.isnan(q_previous).any(dim=1, keepdim=True), q_in, q_previous)
+    q_prev = torch.where(same, home_q.expand_as(q), ik(previous) if branch is None else ik(previous, branch))
     signs = motion_signs(q, q_prev, eps=SIGN_DEADBAND)
     # a joint that has not moved since HOME is on the side the robot starts it on (the
     # simulator's start sign, +1), not in the middle
     signs = torch.where(same & (signs == 0), torch.ones_like(signs), signs)
-    if q_previous is None or q_in is None:
+    if not both:
         return signs
     # the controller's angles are the joints' own (not wrapped: a wrist flip turns A4 and A6 by
     # about 180°, either way; a turn's change nearly 360°), so the step between them is the
-    # motion itself; q (this row's IK, wrapped) is q_in up to the correction's few mm
-    step = wrapped_step(q, q_in) + (q_in - q_previous)
+    # motion itself; q and q_prev (the IK of this and the previous pose, wrapped) are q_in and
+    # q_previous up to the corrections' few mm: the step is from command to command, which
+    # decides a joint that barely moves (a correction of ~1 mm turns a joint by ~0.01°)
+    step = wrapped_step(q, q_in) + (q_in - q_previous) - wrapped_step(q_prev, q_previous)
     known = ~(same | torch.isnan(q_previous).any(dim=1, keepdim=True) | torch.isnan(q_in).any(dim=1, keepdim=True))
     return torch.where(known, torch.where(torch.abs(step) > SIGN_DEADBAND, torch.sign(step), torch.zeros_like(step)),
                        signs)
