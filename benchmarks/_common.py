@@ -28,10 +28,13 @@ def load() -> str:
     return subprocess.run(["uptime"], capture_output=True, text=True).stdout.split("load average:")[-1].strip()
 
 
-def krl_program(name: str, poses: np.ndarray) -> str:
-    """A module ``name`` that moves LIN through ``poses`` [N, 6] (robot base, 4 decimals)."""
-    lines = [f"DEF {name}( )"] + ["  LIN {" + ",".join(f"{k} {v:.4f}" for k, v in zip("XYZABC", p)) + "}"
-                                  for p in poses]
+def krl_program(name: str, poses: np.ndarray, tool=(300.0, 0.0, 75.0, 0.0, 0.0, 0.0)) -> str:
+    """A module ``name`` that moves LIN through ``poses`` [N, 6] (robot base, 4 decimals) with
+    ``tool`` (default: the simulated KR500's spindle, ``models/kr500.toml``) as $TOOL: it sets
+    its frames, as a program must (else its targets are left as written, P220/P221)."""
+    frame = ",".join(f"{k} {v:g}" for k, v in zip("XYZABC", tool))
+    lines = [f"DEF {name}( )", "  $BASE = {X 0,Y 0,Z 0,A 0,B 0,C 0}", f"  $TOOL = {{{frame}}}"]
+    lines += ["  LIN {" + ",".join(f"{k} {v:.4f}" for k, v in zip("XYZABC", p)) + "}" for p in poses]
     return "\n".join(lines + ["END", ""])
 
 
