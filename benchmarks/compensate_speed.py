@@ -45,7 +45,8 @@ def make_cam_program(path: Path, n: int, seed: int = 0) -> None:
     )
     head = (
         "&ACCESS RVP\n&REL 1\nDEF bench()\n;CAM post-processor output\n"
-        "$BASE={X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}\n$VEL.CP=0.2\n$APO.CVEL=80\n"
+        "$BASE={X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}\n$TOOL={X 300.0,Y 0.0,Z 75.0,A 0.0,B 0.0,C 0.0}\n"
+        "$VEL.CP=0.2\n$APO.CVEL=80\n"
     )
     path.write_text(head + body + "\nEND\n")
 

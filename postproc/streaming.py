@@ -1,0 +1,227 @@
+"""Streaming compensate: a long CAM-style KRL ``.src`` a chunk of targets at a time, in memory
+bounded by the chunk, not the program.
+
+The program must be a forward stream the reader's state at each chunk does not depend on:
+
+* a *header* (everything before the first motion) with one ``DEF``, no motion, no ``END``:
+  ``$BASE``/``$TOOL``, settings, declarations, calls of other modules: read again in front
+  of every chunk, so every chunk starts in the same reader state the whole program's body does;
+* a *body* of simple motion lines only: ``LIN``/``PTP`` with a full inline aggregate
+  ``{X …,Y …,Z …,A …,B …,C …[,S …,T …]}``, an optional approximation (``C_VEL``, …) and
+  comment; blank and comment lines between them;
+* a *tail*: the ``END`` line, blank and comment lines after it;
+* no ``.dat`` beside it (its data lists could hold points).
+
+Each chunk (``COMMAND_CHUNK`` targets: the model's batches fall on the same rows as in the
+in-memory path, so the commands are the same numbers) is read as the program
+``header + chunk + END`` and compensated by :func:`postproc.compensate.compensate_program`
+with a ``compensator.Chain``: the previous command (``previous_pose``), the approach settling
+and the controller's configuration chain carry from chunk to chunk. Its guards (P190, P191)
+run per chunk and their errors are located in the whole file. The new text goes to the
+temporary file of the atomic write as it comes: nothing is at the output name unless every
+chunk succeeded.
+
+Anything else falls back to the in-memory path (:class:`Fallback`, before anything is at the
+output name): a program of another shape, and any chunk with a finding (a warning, a target
+left as written, an error other than the guards'), so that every message, and its
+whole-program summaries ("and N more targets"), are the in-memory path's own.
+"""
+from __future__ import annotations
+
+import re
+from itertools import islice
+from pathlib import Path
+from typing import Iterator
+
+from . import compensator
+from .compensate import Report, _config_texts, _model, compensate_program, companion_dat, write_outputs
+from .diagnostics import Diagnostic, PostprocError
+from .programs import STAMP_PREFIX, ActiveFrames, read_program
+from .rewrite import insert_stamp, stamp_line
+
+__all__ = ["STREAM_BYTES", "Fallback", "compensate_stream", "streams"]
+
+# compensate_file streams a .src larger than this (the in-memory path takes ~12 bytes of memory
+# per byte of such a program: 8 MB → ~300 MB at most)
+STREAM_BYTES = 8 << 20
+# a header or tail longer than this is not a CAM program's: the in-memory path
+HEADER_BYTES = 1 << 20
+TAIL_BYTES = 1 << 16
+# the last checks, run per chunk: their errors are the stream's own
+GUARDS = ("P190", "P191")
+
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)"
+_SEP = r"[ \t]*,[ \t]*"
+_BITS = r"(?:\d+|'B[01]+')"
+_SIMPLE = (rf"[ \t]*(?:LIN|PTP)[ \t]*\{{[ \t]*X[ \t]+{_NUM}{_SEP}Y[ \t]+{_NUM}{_SEP}Z[ \t]+{_NUM}{_SEP}"
+           rf"A[ \t]+{_NUM}{_SEP}B[ \t]+{_NUM}{_SEP}C[ \t]+{_NUM}(?:{_SEP}S[ \t]+{_BITS}{_SEP}T[ \t]+{_BITS})?[ \t]*\}}"
+           r"(?:[ \t]*C_(?:VEL|DIS|PTP|ORI))?[ \t]*(?:;[^\r\n]*)?\r?")
+_BLANK = r"[ \t]*(?:;[^\r\n]*)?\r?"
+_SIMPLE_LINE = re.compile(_SIMPLE + r"\n?", re.I)
+_BLANK_LINES = re.compile(rf"^{_BLANK}\n", re.M)
+# the first line of a text that is neither a simple motion nor blank
+_OTHER_LINE = re.compile(rf"^(?!(?:{_SIMPLE}|{_BLANK})$).", re.M | re.I)
+_END_LINE = re.compile(r"[ \t]*END[ \t]*(?:;[^\r\n]*)?\r?(?:\n|\Z)", re.I)
+_HEADER_REFUSED = re.compile(r"^[ \t]*(?:END\w*|GLOBAL\b.*|DEFFCT\b.*|DEFDAT\b.*)$|"
+                             r"\b(?:S?LIN|S?PTP|S?CIRC|SPL|LIN_REL|PTP_REL|CIRC_REL)\b", re.M | re.I)
+_DEF_LINE = re.compile(r"^[ \t]*DEF\b", re.M | re.I)
+
+
+class Fallback(Exception):
+    """The program is not one the stream carries exactly: compensate it in memory."""
+
+
+def streams(path: str | Path, out: str | Path, orientation: bool = False) -> bool:
+    """Whether ``compensate_file`` streams by default: a KRL ``.src`` larger than STREAM_BYTES
+    to a file (the program's shape is checked as it is read)."""
+    if str(path) == "-" or str(out) == "-" or orientation:
+        return False
+    path = Path(path)
+    try:
+        return path.suffix.lower() == ".src" and path.stat().st_size > STREAM_BYTES
+    except OSError:
+        return False
+
+
+class _Source:
+    """The program file read a chunk at a time: ``header``, then ``chunks()`` (first line
+    number, text of the body's next ``size`` targets), then ``tail``."""
+
+    def __init__(self, fh, size: int):
+        self.fh, self.size = fh, size
+        self.line = 1  # the next line's number
+        head: list[bytes] = []
+        length = 0
+        for raw in fh:
+            if _SIMPLE_LINE.fullmatch(raw.decode("latin-1")):
+                self.first = raw.decode("latin-1")
+                break
+            head.append(raw)
+            length += len(raw)
+            if length > HEADER_BYTES:
+                raise Fallback("a long header")
+        else:
+            raise Fallback("no simple motion")
+        self.header = b"".join(head).decode("latin-1")
+        if len(_DEF_LINE.findall(self.header)) != 1 or _HEADER_REFUSED.search(self.header):
+            raise Fallback("a header with motions, blocks or several routines")
+        self.line += self.header.count("\n")
+        self.tail: str | None = None
+
+    def chunks(self) -> Iterator[tuple[int, str]]:
+        parts, targets = [self.first], 1
+        while True:
+            raw = list(islice(self.fh, self.size - targets))
+            text = b"".join(raw).decode("latin-1")
+            other = _OTHER_LINE.search(text)
+            if other is not None or not raw:  # the body ends: the tail must be END and blanks
+                if other is None:
+                    raise Fallback("no END")
+                parts.append(text[:other.start()])
+                more = self.fh.read(TAIL_BYTES + 1).decode("latin-1")
+                tail = text[other.start():] + more
+                end = _END_LINE.match(tail)
+                if len(more) > TAIL_BYTES or end is None or _OTHER_LINE.search(tail, end.end()):
+                    raise Fallback("not a CAM program's end")
+                self.tail = tail
+                body = "".join(parts)
+                if body:
+                    yield self._emit(body)
+                return
+            parts.append(text)
+            targets += len(raw) - len(_BLANK_LINES.findall(text))  # (blank and comment lines are no targets)
+            if targets >= self.size:
+                yield self._emit("".join(parts))
+                parts, targets = [], 0
+
+    def _emit(self, body: str) -> tuple[int, str]:
+        first = self.line
+        self.line += body.count("\n")
+        return first, body
+
+
+def _relocated(exc: PostprocError, header_lines: int, offset: int) -> PostprocError:
+    line = exc.line + offset if exc.line > header_lines else exc.line
+    return PostprocError(exc.message, exc.path, line, exc.col, exc.code)
+
+
+def compensate_stream(
+    path: str | Path,
+    out: str | Path,
+    model: compensator.Compensator | str | Path | None = None,
+    *,
+    config: str | Path | None = None,
+    active: ActiveFrames | None = None,
+    chunk: int | None = None,
+    **kwargs,
+) -> Report:
+    """Compensate ``path`` into ``out`` a chunk of ``chunk`` targets at a time (default
+    ``compensator.COMMAND_CHUNK``: the same numbers as the in-memory path; others may differ
+    in the float32 model's last bits); ``kwargs`` as ``compensate_program``. Raises
+    :class:`Fallback` (nothing at ``out``) for what it does not carry exactly (module text),
+    PostprocError for the errors of the last checks (located in the whole file) and of the write.
+    ``Report.outputs`` is empty: the new text is only in the file."""
+    path = Path(path)
+    if path.suffix.lower() != ".src" or companion_dat(path) is not None or kwargs.get("orientation"):
+        raise Fallback("not a lone .src")
+    size = compensator.COMMAND_CHUNK if chunk is None else chunk
+    model = _model(model)
+    configs = _config_texts(config)
+    name = str(path)
+    try:
+        fh = path.open("rb")
+    except OSError:
+        raise Fallback("cannot read") from None
+    with fh:
+        source = _Source(fh, size)
+        header = source.header
+        header_lines = header.count("\n")
+        chain = compensator.Chain()
+        total = Report(model=model.name, model_sha256=model.sha256)
+        corrections = 0.0
+
+        def part(first: int, body: str, tail: str) -> tuple[str, Report, str]:
+            offset = first - (header_lines + 1)
+            try:
+                program = read_program([name], [header + body + tail], "krl", config=configs, active=active)
+                report = compensate_program(program, model, _chain=chain, _stamp=False, **kwargs)
+            except PostprocError as exc:
+                if exc.code in GUARDS:
+                    raise _relocated(exc, header_lines, offset) from None
+                raise Fallback(exc.code) from None
+            if report.warnings or report.left or program.diagnostics or not report.compensated:
+                raise Fallback("findings")
+            text = report.outputs[name]
+            if not (text.startswith(header) and text.endswith(tail)):
+                raise Fallback("the header or tail changed")
+            report.notes = [Diagnostic(d.path, d.line + offset if d.line > header_lines else d.line, d.col, d.code,
+                                       d.message, d.severity) for d in report.notes]
+            return text[len(header):len(text) - len(tail)], report, program.comment
+
+        def pieces() -> Iterator[str]:
+            nonlocal corrections
+            newline = "\r\n" if header.endswith("\r\n") else "\n"
+            chunks = source.chunks()
+            ahead = next(chunks, None)
+            if ahead is None:
+                raise Fallback("no targets")
+            while ahead is not None:
+                current, ahead = ahead, next(chunks, None)
+                # the chunk read as a program of its own: the header, the chunk, END (the last: the tail)
+                body, report, comment = part(*current, "END" + newline if ahead is not None else source.tail)
+                if not total.targets:
+                    yield insert_stamp(header, stamp_line(comment, STAMP_PREFIX, model.name, model.sha256), newline,
+                                       after_headers="&")
+                    total.iterations = report.iterations
+                yield body
+                total.targets += report.targets
+                total.compensated += report.compensated
+                total.max_correction_mm = max(total.max_correction_mm, report.max_correction_mm)
+                corrections += report.mean_correction_mm * report.compensated
+                total.notes += report.notes
+            yield source.tail
+
+        write_outputs([(Path(out), pieces())])
+    total.mean_correction_mm = corrections / total.compensated if total.compensated else 0.0
+    total.changed = [name]
+    return total
