@@ -698,16 +698,20 @@ def compensate_file(
                   robot=robot, fill_partial=fill_partial, orientation=orientation)
     from . import streaming
 
+    refusal = None  # (a chunk's error: raised where the program is too large for the in-memory path)
     if streaming.streams(path, out, orientation) if stream is None else stream:
         model = _model(model)
         try:
             return streaming.compensate_stream(path, out, model, config=config, active=active, **kwargs)
-        except streaming.Fallback:
-            pass
-    program = load_program(path, config, active=active)
-    report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
-                                max_correction_mm=max_correction_mm, robot=robot, fill_partial=fill_partial,
-                                orientation=orientation)
+        except streaming.Fallback as fallback:
+            refusal = fallback.error
+    try:
+        program = load_program(path, config, active=active)
+    except PostprocError as exc:
+        if exc.code == "P111" and refusal is not None:
+            raise refusal from None
+        raise
+    report = compensate_program(program, _model(model), **kwargs)
     if str(out) == "-":
         if len(program.files) > 1:
             raise PostprocError("a program with a .dat cannot be written to standard output; give -o FILE",

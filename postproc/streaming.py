@@ -4,16 +4,16 @@ bounded by the chunk, not the program.
 The program must be a forward stream the reader's state at each chunk does not depend on:
 
 * a *header* (everything before the first motion) with one ``DEF``, no motion, no ``END``:
-  ``$BASE``/``$TOOL``, settings, declarations, calls of other modules: read again in front
-  of every chunk, so every chunk starts in the same reader state the whole program's body does;
+  ``$BASE``/``$TOOL``, settings, declarations: read again in front of every chunk, so every chunk starts in the same reader state the whole program's body does;
 * a *body* of simple motion lines only: ``LIN``/``PTP`` with a full inline aggregate
   ``{X …,Y …,Z …,A …,B …,C …[,S …,T …]}``, an optional approximation (``C_VEL``, …) and
   comment; blank and comment lines between them;
 * a *tail*: the ``END`` line, blank and comment lines after it;
 * no ``.dat`` beside it (its data lists could hold points).
 
-Each chunk (``COMMAND_CHUNK`` targets: the model's batches fall on the same rows as in the
-in-memory path, so the commands are the same numbers) is read as the program
+Each chunk (STREAM_TARGETS targets, COMMAND_CHUNK for a model that settles the approach: the
+model's batches fall on the same rows as in the in-memory path, so the commands are the same
+float32 numbers) is read as the program
 ``header + chunk + END`` and compensated by :func:`postproc.compensate.compensate_program`
 with a ``compensator.Chain``: the previous command (``previous_pose``), the approach settling
 and the controller's configuration chain carry from chunk to chunk. Its guards (P190, P191)
@@ -24,7 +24,9 @@ chunk succeeded.
 Anything else falls back to the in-memory path (:class:`Fallback`, before anything is at the
 output name): a program of another shape, and any chunk with a finding (a warning, a target
 left as written, an error other than the guards'), so that every message, and its
-whole-program summaries ("and N more targets"), are the in-memory path's own.
+whole-program summaries ("and N more targets"), are the in-memory path's own. (Where that path
+refuses the program as too large for memory, P111, a chunk's own error is raised instead:
+``Fallback.error``, located in the whole file.)
 """
 from __future__ import annotations
 
@@ -44,6 +46,11 @@ __all__ = ["STREAM_BYTES", "Fallback", "compensate_stream", "streams"]
 # compensate_file streams a .src larger than this (the in-memory path takes ~12 bytes of memory
 # per byte of such a program: 8 MB → ~300 MB at most)
 STREAM_BYTES = 8 << 20
+# targets per chunk where the model does not settle the approach: a multiple of the model's
+# batch (compensator.PREDICT_BATCH) that divides COMMAND_CHUNK, so each row is computed in the
+# same batch as in the in-memory path (the same float32 numbers); settling models take
+# COMMAND_CHUNK (the settling's passes over a chunk differ at other borders by ~1e-4 mm)
+STREAM_TARGETS = 2 * compensator.PREDICT_BATCH
 # a header or tail longer than this is not a CAM program's: the in-memory path
 HEADER_BYTES = 1 << 20
 TAIL_BYTES = 1 << 16
@@ -59,6 +66,8 @@ _SIMPLE = (rf"[ \t]*(?:LIN|PTP)[ \t]*\{{[ \t]*X[ \t]+{_NUM}{_SEP}Y[ \t]+{_NUM}{_
 _BLANK = r"[ \t]*(?:;[^\r\n]*)?\r?"
 _SIMPLE_LINE = re.compile(_SIMPLE + r"\n?", re.I)
 _BLANK_LINES = re.compile(rf"^{_BLANK}\n", re.M)
+_BLANK_LINE = re.compile(_BLANK + r"\n?")
+_BLANKS = re.compile(rf"(?:{_BLANK}\n)*")
 # the first line of a text that is neither a simple motion nor blank
 _OTHER_LINE = re.compile(rf"^(?!(?:{_SIMPLE}|{_BLANK})$).", re.M | re.I)
 _END_LINE = re.compile(r"[ \t]*END[ \t]*(?:;[^\r\n]*)?\r?(?:\n|\Z)", re.I)
@@ -68,7 +77,12 @@ _DEF_LINE = re.compile(r"^[ \t]*DEF\b", re.M | re.I)
 
 
 class Fallback(Exception):
-    """The program is not one the stream carries exactly: compensate it in memory."""
+    """The program is not one the stream carries exactly: compensate it in memory. ``error``:
+    the error a chunk raised (located in the whole file), if that is why."""
+
+    def __init__(self, reason: str, error: PostprocError | None = None):
+        super().__init__(reason)
+        self.error = error
 
 
 def streams(path: str | Path, out: str | Path, orientation: bool = False) -> bool:
@@ -108,36 +122,52 @@ class _Source:
         self.line += self.header.count("\n")
         self.tail: str | None = None
 
-    def chunks(self) -> Iterator[tuple[int, str]]:
+    def chunks(self) -> Iterator[tuple[int, str, bool]]:
+        """(first line number, text, last) of each chunk of the body; ``tail`` is set before the
+        last is yielded. Only the chunk in hand is held (and the lines after it up to the next
+        target, to know whether it is the last)."""
         parts, targets = [self.first], 1
         while True:
             raw = list(islice(self.fh, self.size - targets))
             text = b"".join(raw).decode("latin-1")
+            count = len(raw)
+            del raw
             other = _OTHER_LINE.search(text)
-            if other is not None or not raw:  # the body ends: the tail must be END and blanks
-                if other is None:
-                    raise Fallback("no END")
-                parts.append(text[:other.start()])
-                more = self.fh.read(TAIL_BYTES + 1).decode("latin-1")
-                tail = text[other.start():] + more
-                end = _END_LINE.match(tail)
-                if len(more) > TAIL_BYTES or end is None or _OTHER_LINE.search(tail, end.end()):
-                    raise Fallback("not a CAM program's end")
-                self.tail = tail
-                body = "".join(parts)
-                if body:
-                    yield self._emit(body)
+            if other is not None or not count:  # the body ends in these lines
+                parts.append(text[:other.start()] if other is not None else text)
+                self._tail(text[other.start():] if other is not None else "")
+                yield self._emit("".join(parts), True)
                 return
             parts.append(text)
-            targets += len(raw) - len(_BLANK_LINES.findall(text))  # (blank and comment lines are no targets)
-            if targets >= self.size:
-                yield self._emit("".join(parts))
-                parts, targets = [], 0
+            targets += count - len(_BLANK_LINES.findall(text))  # (blank and comment lines are no targets)
+            if targets < self.size:
+                continue
+            peeked = []  # the blank lines after the chunk and the line after them
+            for raw_line in self.fh:
+                peeked.append(raw_line.decode("latin-1"))
+                if not _BLANK_LINE.fullmatch(peeked[-1]):
+                    break
+            if peeked and _SIMPLE_LINE.fullmatch(peeked[-1]):
+                yield self._emit("".join(parts), False)
+                parts, targets = peeked, 1
+            else:
+                self._tail("".join(peeked))
+                yield self._emit("".join(parts), True)
+                return
 
-    def _emit(self, body: str) -> tuple[int, str]:
+    def _tail(self, start: str) -> None:
+        """The tail: ``start`` and the rest of the file, blank lines, END, blank lines."""
+        more = self.fh.read(TAIL_BYTES + 1).decode("latin-1")
+        tail = start + more
+        end = _END_LINE.match(tail, _BLANKS.match(tail).end())
+        if len(more) > TAIL_BYTES or end is None or _OTHER_LINE.search(tail, end.end()):
+            raise Fallback("not a CAM program's end")
+        self.tail = tail
+
+    def _emit(self, body: str, last: bool) -> tuple[int, str, bool]:
         first = self.line
         self.line += body.count("\n")
-        return first, body
+        return first, body, last
 
 
 def _relocated(exc: PostprocError, header_lines: int, offset: int) -> PostprocError:
@@ -156,16 +186,19 @@ def compensate_stream(
     **kwargs,
 ) -> Report:
     """Compensate ``path`` into ``out`` a chunk of ``chunk`` targets at a time (default
-    ``compensator.COMMAND_CHUNK``: the same numbers as the in-memory path; others may differ
-    in the float32 model's last bits); ``kwargs`` as ``compensate_program``. Raises
+    STREAM_TARGETS, or ``compensator.COMMAND_CHUNK`` when smaller or for a model that settles
+    the approach: the same numbers as the in-memory path; other sizes may differ in the
+    float32 model's last bits); ``kwargs`` as ``compensate_program``. Raises
     :class:`Fallback` (nothing at ``out``) for what it does not carry exactly (module text),
     PostprocError for the errors of the last checks (located in the whole file) and of the write.
     ``Report.outputs`` is empty: the new text is only in the file."""
     path = Path(path)
     if path.suffix.lower() != ".src" or companion_dat(path) is not None or kwargs.get("orientation"):
         raise Fallback("not a lone .src")
-    size = compensator.COMMAND_CHUNK if chunk is None else chunk
     model = _model(model)
+    if chunk is None:
+        chunk = compensator.COMMAND_CHUNK if model.settles else min(compensator.COMMAND_CHUNK, STREAM_TARGETS)
+    size = chunk
     configs = _config_texts(config)
     name = str(path)
     try:
@@ -188,7 +221,7 @@ def compensate_stream(
             except PostprocError as exc:
                 if exc.code in GUARDS:
                     raise _relocated(exc, header_lines, offset) from None
-                raise Fallback(exc.code) from None
+                raise Fallback(exc.code, _relocated(exc, header_lines, offset)) from None
             if report.warnings or report.left or program.diagnostics or not report.compensated:
                 raise Fallback("findings")
             text = report.outputs[name]
@@ -201,14 +234,10 @@ def compensate_stream(
         def pieces() -> Iterator[str]:
             nonlocal corrections
             newline = "\r\n" if header.endswith("\r\n") else "\n"
-            chunks = source.chunks()
-            ahead = next(chunks, None)
-            if ahead is None:
-                raise Fallback("no targets")
-            while ahead is not None:
-                current, ahead = ahead, next(chunks, None)
+            for first, text, last in source.chunks():
                 # the chunk read as a program of its own: the header, the chunk, END (the last: the tail)
-                body, report, comment = part(*current, "END" + newline if ahead is not None else source.tail)
+                body, report, comment = part(first, text, source.tail if last else "END" + newline)
+                del text
                 if not total.targets:
                     yield insert_stamp(header, stamp_line(comment, STAMP_PREFIX, model.name, model.sha256), newline,
                                        after_headers="&")

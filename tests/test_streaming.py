@@ -148,3 +148,37 @@ def test_large_programs_stream_by_default_through_the_cli(tmp_path, small_chunks
     assert main(["compensate", str(src), "-o", str(tmp_path / "mem.src"), "-q"]) == 0
     assert len(used) == 1
     assert (tmp_path / "out.src").read_bytes() == (tmp_path / "mem.src").read_bytes()
+
+
+def test_chunks_smaller_than_the_models_write_the_same_bytes(tmp_path, monkeypatch):
+    # the default model does not settle: chunks of STREAM_TARGETS, a multiple of the model's
+    # batch, each row computed in the batch the in-memory path computes it in
+    monkeypatch.setattr(compensator, "COMMAND_CHUNK", 32)
+    monkeypatch.setattr(compensator, "PREDICT_BATCH", 8)
+    monkeypatch.setattr(streaming, "STREAM_TARGETS", 8)
+    chunks = []
+    real = streaming._Source.chunks
+    monkeypatch.setattr(streaming._Source, "chunks", lambda self: (chunks.append(self.size), *real(self))[1:])
+    memory, streamed, want, got = _both(tmp_path, cam_program(70), None)
+    assert chunks == [8] and streamed.outputs == {}
+    assert got == want
+
+
+def test_a_chunks_error_stands_where_the_program_is_too_large_for_memory(tmp_path, small_chunks, monkeypatch):
+    from postproc import compensate
+
+    def too_large(paths):
+        raise PostprocError("too large", str(paths[0]), 0, 0, "P111")
+
+    far = "LIN {X 2000.0,Y 0.0,Z 3900.0,A 0.0,B 90.0,C 0.0} C_VEL"  # beyond reach: P302
+    src = tmp_path / "cam.src"
+    text = cam_program(60, extra={50: far})
+    src.write_text(text)
+    monkeypatch.setattr(compensate, "check_memory", too_large)
+    with pytest.raises(PostprocError) as err:
+        compensate_file(src, tmp_path / "out.src", stream=False)
+    assert err.value.code == "P111"
+    with pytest.raises(PostprocError) as err:
+        compensate_file(src, tmp_path / "out.src", stream=True)
+    assert err.value.code == "P302" and err.value.line == text.splitlines().index(far) + 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cam.src"]
