@@ -14,32 +14,11 @@ from __future__ import annotations
 
 import argparse
 import filecmp
-import sys
 import tempfile
 from pathlib import Path
 
-from compensate_speed import REPO, make_cam_program, regex_pass, run_cli
-
-# the in-memory path of the same CLI (compensate_file with stream=False), peak RSS reported likewise
-_IN_MEMORY = ("import atexit, sys\n"
-              "from postproc.compensate import compensate_file\n"
-              "atexit.register(lambda: sys.stderr.write('peak-kB ' + next(l.split()[1] for l in open('/proc/self/status')"
-              " if l.startswith('VmHWM')) + '\\n'))\n"
-              "compensate_file(sys.argv[1], sys.argv[2], sys.argv[3], stream=False)\n")
-
-
-def in_memory(src: Path, out: Path, model: str) -> tuple[float, float]:
-    import subprocess
-    import time
-
-    start = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-c", _IN_MEMORY, str(src), str(out), model], capture_output=True,
-                          text=True, cwd=REPO)
-    wall = time.perf_counter() - start
-    if proc.returncode != 0:
-        sys.exit(f"in-memory compensate failed: {proc.stderr}")
-    return wall, int(proc.stderr.split("peak-kB ")[-1].split()[0]) / 1024
-
+from postproc.streaming import STREAM_BYTES
+from compensate_speed import REPO, in_memory, make_cam_program, regex_pass, run_cli
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -56,7 +35,8 @@ def main() -> None:
             regex_s = regex_pass(big, tmp / "regex.src")
             (tmp / "regex.src").unlink()
             wall, peak = run_cli(["compensate", str(big), "-o", str(tmp / "out.src"), "--model", args.model, "-q"])
-            print(f"{n:>11,} targets, {size_mb:7.1f} MB: streaming compensate {wall:7.1f} s, peak RSS {peak:5,.0f} MB "
+            how = "streaming" if big.stat().st_size > STREAM_BYTES else "in-memory (below the size to stream)"
+            print(f"{n:>11,} targets, {size_mb:7.1f} MB: compensate, {how}, {wall:7.1f} s, peak RSS {peak:5,.0f} MB "
                   f"(goal <= 300); regex pass {regex_s:6.1f} s; ratio {wall / regex_s:.2f}x", flush=True)
             if args.compare and n == min(args.targets):
                 mem_wall, mem_peak = in_memory(big, tmp / "memory.src", args.model)
