@@ -11,7 +11,8 @@ Goals (issue 2): ≥ 100,000 targets/s, ≤ 3× the regex pass, peak ≤ 2 GB, 1
 With --poses it also compensates the same poses as a pose CSV (``x,y,z,a,b,c`` rows) and
 times the regex pass on that CSV (issue 13: pose lists at KRL speed).
 
-With --memory it also runs the CLI on 1/10 and 1/3 of the program and fits its peak RSS
+With --memory it also runs the in-memory path (programs above 8 MB stream by default: see
+benchmarks/compensate_memory.py) on 1/10, 1/3 and all of the program and fits its peak RSS
 (each process measured on its own, os.wait4) as a + b·size: b is the peak RSS per MB of
 input, and (MemAvailable − a) / b the largest program that fits in this machine's memory.
 """
@@ -45,7 +46,8 @@ def make_cam_program(path: Path, n: int, seed: int = 0) -> None:
     )
     head = (
         "&ACCESS RVP\n&REL 1\nDEF bench()\n;CAM post-processor output\n"
-        "$BASE={X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}\n$VEL.CP=0.2\n$APO.CVEL=80\n"
+        "$BASE={X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}\n$TOOL={X 300.0,Y 0.0,Z 75.0,A 0.0,B 0.0,C 0.0}\n"
+        "$VEL.CP=0.2\n$APO.CVEL=80\n"
     )
     path.write_text(head + body + "\nEND\n")
 
@@ -101,10 +103,30 @@ def run_cli(args: list[str]) -> tuple[float, float]:
     return wall, peak / 1024
 
 
+# the in-memory path (compensate_file with stream=False: a .src above 8 MB streams by default,
+# benchmarks/compensate_memory.py), its peak RSS reported as by _CLI
+_IN_MEMORY = ("import atexit, sys\n"
+              "from postproc.streaming import compensate_file\n"
+              "atexit.register(lambda: sys.stderr.write('peak-kB ' + next(l.split()[1] for l in open('/proc/self/status')"
+              " if l.startswith('VmHWM')) + '\\n'))\n"
+              "compensate_file(sys.argv[1], sys.argv[2], sys.argv[3], stream=False)\n")
+
+
+def in_memory(src: Path, out: Path, model: str) -> tuple[float, float]:
+    """Wall seconds and peak RSS (MB) of the in-memory path on ``src``, in a process of its own."""
+    start = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", _IN_MEMORY, str(src), str(out), model], capture_output=True,
+                          text=True, cwd=REPO)
+    wall = time.perf_counter() - start
+    if proc.returncode != 0:
+        sys.exit(f"in-memory compensate failed: {proc.stderr}")
+    return wall, int(proc.stderr.split("peak-kB ")[-1].split()[0]) / 1024
+
+
 def _memory_run(tmp: Path, n: int, model: str, peaks: list) -> float:
     src = tmp / f"mem{n}.src"
     make_cam_program(src, n)
-    wall, peak = run_cli(["compensate", str(src), "-o", str(tmp / "mem_out.src"), "--model", model, "-q"])
+    wall, peak = in_memory(src, tmp / "mem_out.src", model)
     size = src.stat().st_size / 1e6
     peaks.append(peak)
     print(f"memory: {n:>9,} targets, {size:7.1f} MB in: peak RSS {peak:7,.0f} MB "

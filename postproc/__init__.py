@@ -12,10 +12,14 @@ __all__ = ["compensate_text", "compensate_file", "load_model", "PostprocError", 
 
 def __getattr__(name: str):
     # Lazy so that `import postproc` stays cheap for CLI start-up and CAM hooks.
-    if name in ("compensate_text", "compensate_file"):
-        from . import compensate
+    if name == "compensate_text":
+        from .compensate import compensate_text
 
-        return getattr(compensate, name)
+        return compensate_text
+    if name == "compensate_file":  # (in memory, or a chunk at a time for a long CAM program)
+        from .streaming import compensate_file
+
+        return compensate_file
     if name == "load_model":
         from .compensator import load_model
 

@@ -2,7 +2,7 @@
 corrected numbers in the program's own frame → new texts (+ stamp) → atomic write.
 
 This is what the CLI (``postproc compensate``) and the CAM-hook API
-(``postproc.compensate_text`` / ``postproc.compensate_file``) call.
+(``postproc.compensate_text``; ``postproc.compensate_file`` in streaming.py) call.
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ import numpy as np
 from collections import Counter
 
 from . import frames
-from .compensator import Compensator, Inside, load_model
+from .compensator import Chain, Compensator, Inside, load_model
 from .diagnostics import (
     P105, P106, P107, P108, P109, P201, P202, P203, P212, P220, P221, P306, P312, Diagnostic, LEFT_AS_WRITTEN,
     PostprocError,
@@ -52,7 +52,6 @@ __all__ = [
     "compensate_program",
     "rewrite_program",
     "compensate_text",
-    "compensate_file",
     "DEFAULT_MAX_CORRECTION_MM",
     "write_outputs",
     "tool_mismatch",
@@ -254,6 +253,8 @@ def compensate_program(
     robot: str | None = None,
     fill_partial: bool = True,
     orientation: bool = False,
+    _chain: Chain | None = None,
+    _stamp: bool = True,
 ) -> Report:
     """Compensate every resolvable target of ``program``; the new texts are in ``Report.outputs``
     (a file in which no target was compensated is returned as it was, without a stamp). With
@@ -265,9 +266,11 @@ def compensate_program(
     partial aggregates with ``fill_partial=False``), under ``strict`` any warning, and
     whatever the last checks (guards.py) refuse. Targets left as written (frame or position
     not known) are counted in ``Report.left`` / ``Report.left_codes``.
+    (``_chain``, ``_stamp``: streaming compensate, a part of a program continuing the parts
+    before it, the texts returned unstamped.)
     """
     settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot, force=force,
-                        fill_partial=fill_partial)
+                        fill_partial=fill_partial, chain=_chain)
     selection, found = select_with_findings(program, model, settings)
     warnings = [d for d in program.diagnostics if d.code != P202 or force] + found
     _raise_first(found, False)
@@ -279,7 +282,8 @@ def compensate_program(
     # rows in program order: the model chains each target to the previous one's command (the
     # approach direction, for models that learn backlash). The model runs on a background
     # thread, chunk by chunk, while this one rewrites the numbers of the chunks already done.
-    stream = _CommandStream(model, selection, report.iterations, program, max_correction_mm, orientation=orientation)
+    stream = _CommandStream(model, selection, report.iterations, program, max_correction_mm, orientation=orientation,
+                            chain=_chain)
     outputs = _rewrite(program, selection, stream)
     commanded, new_xyz, joints = stream.result()
     commands = Commands(selection, commanded, joints, Inside.join(stream.inside))
@@ -287,7 +291,7 @@ def compensate_program(
     _raise_first(after, strict)
     assert outputs is not None  # _Unsafe is raised only for what output_rule refuses
     warnings += after
-    outputs = _finish(program, model, selection, outputs, new_xyz)
+    outputs = _finish(program, model, selection, outputs, new_xyz, stamp=_stamp)
 
     size = np.linalg.norm(commanded - selection.poses[:, :3], axis=1)
     left = _left_codes(program, selection)
@@ -327,7 +331,7 @@ def _rewrite(program: Program, selection: Selection, stream: "_CommandStream") -
 
 
 def _finish(program: Program, model: Compensator, selection: Selection, outputs: list[str],
-            new_xyz: np.ndarray) -> list[str]:
+            new_xyz: np.ndarray, stamp: bool = True) -> list[str]:
     """The round trip (guards.check_round_trip) and the stamp on each file that changed."""
     rows = selection.rows
     # KRL with position variables only: their numbers may be read elsewhere too (as a frame,
@@ -336,6 +340,8 @@ def _finish(program: Program, model: Compensator, selection: Selection, outputs:
     # by hand has no text to read it from.
     if program.from_text and program.dialect in ("krl", "rapid", "urscript", "fanuc") and program.named_targets:
         check_round_trip(program, outputs, rows, new_xyz, filled=missing_xyz(program, rows))
+    if not stamp:
+        return list(outputs)
     stamp = stamp_line(program.comment, STAMP_PREFIX, model.name, model.sha256)
     after = "&" if program.dialect == "krl" else None
     changed = set(program.targets.file[rows].tolist())
@@ -399,7 +405,8 @@ class _CommandStream:
     the rewrite of the first targets overlaps the model run on the later ones."""
 
     def __init__(self, model: Compensator, selection: Selection, iterations: int, program: Program,
-                 max_correction_mm: float, computed: Commands | None = None, orientation: bool = False):
+                 max_correction_mm: float, computed: Commands | None = None, orientation: bool = False,
+                 chain: Chain | None = None):
         poses, rows = selection.poses, selection.rows
         self.commanded = np.full((len(poses), 3), np.nan)
         # the corrected numbers in each target's frame: X,Y,Z (and A,B,C with ``orientation``)
@@ -423,7 +430,7 @@ class _CommandStream:
             chunks = iter([(0, computed.commanded, computed.joints)])
         else:  # checks ``iterations`` here, not on the thread
             chunks = model.command_chunks(poses, iterations, joints=selection.joints, tool=selection.tool, with_joints=wanted,
-                                          orientation=orientation)
+                                          orientation=orientation, chain=chain)
         self._thread = threading.Thread(target=self._run, args=(chunks, poses, max_correction_mm),
                                         name="postproc-model", daemon=True)
         self._thread.start()
@@ -651,39 +658,6 @@ def output_paths(program: Program, out: Path) -> list[Path]:
     for extra in program.files[1:]:
         paths.append(out.with_suffix(Path(extra).suffix))
     return paths
-
-
-def compensate_file(
-    path: str | Path,
-    out: str | Path,
-    model: Compensator | str | Path | None = None,
-    *,
-    config: str | Path | None = None,
-    active: ActiveFrames | None = None,
-    iterations: int | None = None,
-    strict: bool = False,
-    force: bool = False,
-    max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
-    robot: str | None = None,
-    fill_partial: bool = True,
-    orientation: bool = False,
-) -> Report:
-    """Compensate a program file (with its .dat) into ``out`` (its .dat beside it).
-    Nothing is written unless everything succeeded; the files are replaced atomically."""
-    program = load_program(path, config, active=active)
-    report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
-                                max_correction_mm=max_correction_mm, robot=robot, fill_partial=fill_partial,
-                                orientation=orientation)
-    if str(out) == "-":
-        if len(program.files) > 1:
-            raise PostprocError("a program with a .dat cannot be written to standard output; give -o FILE",
-                                program.files[0], 0, 0, P109)
-        sys.stdout.buffer.write(report.outputs[program.files[0]].encode("latin-1"))
-        sys.stdout.buffer.flush()
-        return report
-    targets = output_paths(program, Path(out))
-    write_outputs([(p, report.outputs[f]) for p, f in zip(targets, program.files)])
-    return report
 
 
 def write_outputs(outputs: list[tuple[Path, str]]) -> None:

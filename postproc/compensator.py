@@ -200,9 +200,11 @@ class Compensator:
         """Commands are settled on their approach signs (see the module text): the graph takes
         ``approach`` beside ``previous_pose`` and outputs the joint angles."""
         return self.settle and self.wants_approach and self.wants_previous and self.has_joints
-    # tuning, per instance (tests make them small on their own model, nothing process-wide)
-    predict_batch: int = PREDICT_BATCH  # rows per onnxruntime call of ``predict``
-    command_chunk: int = COMMAND_CHUNK  # rows per chunk of ``command_chunks``
+    # tuning, per instance (tests make them small on their own model); the module's values are
+    # the defaults, read when the instance is made (a test may also change them for the models
+    # a call loads itself, e.g. the CLI's)
+    predict_batch: int = field(default_factory=lambda: PREDICT_BATCH)  # rows per onnxruntime call of ``predict``
+    command_chunk: int = field(default_factory=lambda: COMMAND_CHUNK)  # rows per chunk of ``command_chunks``
 
     @property
     def name(self) -> str:
@@ -344,8 +346,8 @@ class Compensator:
         return (out, q) if with_joints else out
 
     def command_chunks(self, poses: np.ndarray, iterations: int | None = None, joints=None, tool=None,
-                       with_joints: bool = False,
-                       orientation: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+                       with_joints: bool = False, orientation: bool = False,
+                       chain: "Chain | None" = None) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         """``command`` chunk by chunk (``command_chunk`` rows) in row order: yields (first row,
         commands [n, 3], the targets' joint angles [n, 6] deg if ``with_joints`` and the model
         has them, else None), the same numbers as one ``command`` call (each chunk takes its
@@ -353,7 +355,9 @@ class Compensator:
         the first rows while the model runs on the next ones. ``joints`` / ``tool``: as
         ``command`` (``joints=True`` / ``False``: the older ``with_joints``). With ``orientation``
         the commands are full poses [n, 6]: the fixed point on the orientation too, R_c =
-        exp(−r̂(c))·R_P with r̂ the model's ``rotation_error`` (the A,B,C triple nearest P's)."""
+        exp(−r̂(c))·R_P with r̂ the model's ``rotation_error`` (the A,B,C triple nearest P's).
+        ``chain``: fed incrementally, a call for the rows after those of an earlier call with the
+        same ``chain`` continues that call (previous pose, approach settling) as one call would."""
         if isinstance(joints, bool):
             joints, with_joints = None, joints
         if orientation and not self.has_rotation:
@@ -364,14 +368,16 @@ class Compensator:
             raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code=P308)
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         rows = [None if v is None else np.broadcast_to(np.asarray(v, float), poses.shape) for v in (joints, tool)]
-        return self._chunks(poses, iterations, with_joints, *rows, orientation)
+        return self._chunks(poses, iterations, with_joints, *rows, orientation, chain)
 
     def _chunks(self, poses: np.ndarray, iterations: int, with_joints: bool, joints: np.ndarray | None,
-                tool: np.ndarray | None, orientation: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+                tool: np.ndarray | None, orientation: bool = False,
+                chain: "Chain | None" = None) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         chunk = self.command_chunk
-        # the last row of the chunk before, after each iteration k (k = 0: the target itself)
-        before: list[np.ndarray] | None = None
+        chain = Chain() if chain is None else chain
         settle = _Settle(self, iterations, orientation) if self.settles else None
+        if settle is not None:
+            settle.head = chain.settled
         for start in range(0, len(poses), chunk):
             part = poses[start:start + chunk]
             given = {"joints": None if joints is None else joints[start:start + chunk],
@@ -388,7 +394,7 @@ class Compensator:
                 if self.wants_previous:
                     # the pose commanded before each target is the previous target's *command*
                     # (the first target's is itself: nothing is known before it)
-                    head = trial[:1] if before is None else before[k][None]
+                    head = trial[:1] if chain.before is None else chain.before[k][None]
                     prev = np.vstack([head, trial[:-1]])
                 rotation = None
                 if k == 0 and (with_joints or settle):  # the first run is at the targets themselves: their joint angles
@@ -401,12 +407,29 @@ class Compensator:
                 if orientation:
                     trial[:, 3:6] = _corrected_attitude(part[:, 3:6], rotation[0])
                 last.append(trial[-1].copy())
-            before = last
+            chain.before = last
             inside = None
             if settle is not None:
                 inside = settle.chunk(start, part, trial, q, given)
+                chain.settled = settle.head
             yield CommandChunk(start, (trial if orientation else trial[:, :3]), q if with_joints else None,
                                inside=inside)
+
+
+@dataclass
+class Chain:
+    """What a program's commands carry from one target to the next, for a program fed a part at
+    a time (streaming compensate): the last row of the part before after each fixed-point
+    iteration (``previous_pose``; None: the program's first target comes next), the approach
+    settling's last command, joint angles and sides (``_Settle.head``), and the controller's
+    joint angles at the last target (``controller.controller_inputs``: the configuration chain,
+    LIN keeps / PTP nearest)."""
+
+    before: list | None = None
+    settled: tuple | None = None
+    joints: np.ndarray | None = None
+    branch: int | None = None  # (the controller's branch at the last target)
+    origin: np.ndarray | None = None  # (the controller's start position, the program's first part's)
 
 
 @dataclass

@@ -226,7 +226,8 @@ def _candidates(robot: Robot, table: np.ndarray, ok: np.ndarray, turn: np.ndarra
 def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.ndarray,
                       ptp: np.ndarray, initial_q: np.ndarray | None = None,
                       tools: np.ndarray | None = None,
-                      independent: np.ndarray | None = None, check_all: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                      independent: np.ndarray | None = None, check_all: bool = False,
+                      chain=None) -> tuple[np.ndarray, np.ndarray]:
     """The joint angles [N, 6] (deg) the controller uses for targets in program order, and a mask
     of the targets that have them: stated S/T where given, else the controller's rules (module
     docstring). ``ptp`` [N] bool marks PTP motions (PTP, SPTP; the rest keep the configuration);
@@ -234,7 +235,9 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
     each target's TCP on the flange (default the robot's tool); ``independent`` [N] bool: rows
     solved on their own, nearest ``initial_q`` whatever came before (a pose list's rows: each
     pose reached as ``measure`` reaches it, the branch nearest HOME). ``check_all`` as in
-    :func:`stated_joints`."""
+    :func:`stated_joints`. ``chain`` (a ``compensator.Chain``, for a program fed a part at a
+    time): its ``joints`` / ``branch`` (the last target's of the part before; None: this is the
+    first part) continue the rules as one call would, and are set to this part's last."""
     poses = np.atleast_2d(np.asarray(poses, float))
     n = len(poses)
     status = np.asarray(status, int).reshape(n)
@@ -246,21 +249,30 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
     branches = _Branches(robot, poses, tools, check_all)
     alone = np.zeros(n, bool) if independent is None else np.asarray(independent, bool).reshape(n)
     while True:
-        q, found, picks = _rules(robot, branches.table, branches.ok, status, turn, ptp, start, alone)
+        q, found, picks, filled = _rules(robot, branches.table, branches.ok, status, turn, ptp, start, alone, chain)
         if not any([branches.confirm(b, r) for b, r in picks]):  # (every pick checked)
+            if chain is not None:
+                last = _forward_fill_rows(q)[-1]
+                chain.joints = last if np.isfinite(last).all() else chain.joints
+                chain.branch = int(filled[-1])
             return q, found
 
 
 def _rules(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, turn: np.ndarray, ptp: np.ndarray,
-           start: np.ndarray, alone: np.ndarray) -> tuple[np.ndarray, np.ndarray, list]:
-    """The controller's rules on a branch table: (q, found, the (branch, rows) entries picked)."""
+           start: np.ndarray, alone: np.ndarray, chain=None) -> tuple[np.ndarray, np.ndarray, list]:
+    """The controller's rules on a branch table: (q, found, the (branch, rows) entries picked,
+    each target's branch);
+    ``chain``: see ``controller_joints``."""
     n = len(status)
     picks = []
-    start_s = int(status_turn_of(robot, start[None])[0][0])
+    continued = chain is not None and chain.joints is not None
+    before = np.asarray(chain.joints, float) if continued else start  # the axis position before row 0
+    start_s = chain.branch if continued else int(status_turn_of(robot, start[None])[0][0])
     # the branch each target is on: stated, else the previous target's (the first: the start's)
     branch = np.where(status >= 0, status, UNSTATED)
     free_ptp = (status < 0) & ptp
-    free_ptp[0] = status[0] < 0  # the first target: nearest the start position, whatever its motion
+    if not continued:
+        free_ptp[0] = status[0] < 0  # the first target: nearest the start position, whatever its motion
     free_ptp &= ~alone
     q_alone = ok_alone = None
     if alone.any():
@@ -281,11 +293,11 @@ def _rules(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, 
     for _ in range(n + 1):
         filled = _forward_fill(branch, start_s)
         picks.append((filled, np.arange(n)))
-        q, found = _continue_turns(robot, table, ok, filled, turn, start)
+        q, found = _continue_turns(robot, table, ok, filled, turn, start, before)
         if not free_ptp.any():
             break
         # PTP without S: the solution nearest the previous target's joint angles, any branch
-        previous = np.vstack([start[None], _forward_fill_rows(q)[:-1]])
+        previous = np.vstack([before[None], _forward_fill_rows(q)[:-1]])
         q_ptp, ok_ptp, best = _choose(robot, table[:, free_ptp], ok[:, free_ptp],
                                       np.full(int(free_ptp.sum()), UNSTATED), turn[free_ptp], previous[free_ptp])
         picks.append((best, np.flatnonzero(free_ptp)))
@@ -297,7 +309,7 @@ def _rules(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, 
         branch = new
     if alone.any():
         q[alone], found[alone] = q_alone, ok_alone
-    return q, found, picks
+    return q, found, picks, filled
 
 
 def _forward_fill(values: np.ndarray, first: int) -> np.ndarray:
@@ -318,21 +330,23 @@ def _forward_fill_rows(q: np.ndarray) -> np.ndarray:
 
 
 def _continue_turns(robot: Robot, table: np.ndarray, ok: np.ndarray, branch: np.ndarray, turn: np.ndarray,
-                    start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    start: np.ndarray, before: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Joint angles on the given branches [N]: joints with a stated T on that turn, the others
     continuing from the previous target (unwrapped from the turn before: continuous motion),
-    brought inside the limits. A run restarts after a target without solution."""
+    brought inside the limits. A run restarts after a target without solution. ``before``: the
+    axis position before the first row (default ``start``, the program's start position)."""
+    before = start if before is None else before
     n = len(branch)
     rows = np.arange(n)
     principal = table[branch, rows]
     reached = ok[branch, rows]
     principal[~reached] = np.nan
     # the joint path: each step the shortest way round, from the start position
-    anchors = np.vstack([start[None], principal])
+    anchors = np.vstack([before[None], principal])
     steps = _wrap(np.diff(anchors, axis=0))
     broken = ~np.isfinite(steps).all(axis=1)
     steps[broken] = 0.0
-    path = start + np.cumsum(steps, axis=0)
+    path = before + np.cumsum(steps, axis=0)
     # the motion restarts at a target with a stated T (its turn) and after an unreachable
     # target (the target's own turn nearest the start position)
     stated = (turn >= 0) & reached
@@ -377,7 +391,7 @@ def execution_kinds(motion: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, tools: np.ndarray | None = None,
-                  initial_q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  initial_q: np.ndarray | None = None, chain=None) -> tuple[np.ndarray, np.ndarray]:
     """The controller's joint angles [n, 6] (deg) for ``rows`` of a program's ``Targets`` (in
     program order) at ``poses`` [n, 6] (robot base, TCP) with ``tools`` [n, 6], and a mask of
     those that have them: the program's own joint angles where it gives them (``Targets.joints``),
@@ -390,7 +404,7 @@ def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, to
     else:
         status, turn = (np.asarray(config[rows, k], int) for k in (0, 1))
     nearest, alone = execution_kinds(np.asarray(targets.motion)[rows])
-    q, ok = controller_joints(robot, poses, status, turn, nearest, initial_q, tools, alone)
+    q, ok = controller_joints(robot, poses, status, turn, nearest, initial_q, tools, alone, chain=chain)
     given = getattr(targets, "joints", None)
     if given is not None:
         own = np.isfinite(given[rows]).all(axis=1)

@@ -111,14 +111,16 @@ def configuration_mismatch(program: Program, model: Compensator, rows: np.ndarra
 
 
 def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, sel: np.ndarray,
-                      collect) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, list[Diagnostic]]:
+                      collect, chain=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, list[Diagnostic]]:
     """The model's ``joints`` / ``tool`` inputs for targets ``rows`` at base poses ``sel``:
     (rows kept, their poses, joint angles [n, 6] deg or None, TCPs [n, 6] or None, warnings).
     Targets whose configuration has no joint angles on the nominal arm (P309) are left as
     written. The tool is the program's $TOOL where known, else the model's (its card); where
     its lever arm is so far from the measured TCPs' that the mount rotation the model could not
     separate may add TOOL_WARNING_MM or more, a P319 warning says how much (the target is
-    compensated). ``collect`` makes the located warnings (findings.collect)."""
+    compensated). ``collect`` makes the located warnings (findings.collect). ``chain`` (a
+    ``compensator.Chain``, streaming compensate): the rules continue from the part before's last
+    target (its ``origin``: the program's start position) and leave this part's last in it."""
     from . import configuration
     from .robot import Robot
 
@@ -141,12 +143,18 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
     if model.wants_joints and len(rows):
         robot = Robot(description.replace(tool=default_tool))
         first = robot if np.array_equal(tools[0], default_tool) else Robot(description.replace(tool=tools[0]))
-        start, _ = first.ik(sel[:1], robot.home_q)
-        if model.has_joints and np.isfinite(start).all():  # the branch of the model's own IK
-            _, own = model.predict(sel[:1], joints=start, tool=tools[:1] if model.wants_tool else None, with_joints=True)
-            start = own if own is not None and np.isfinite(own).all() else start
+        if chain is not None and chain.joints is not None:
+            start = chain.origin
+        else:
+            start, _ = first.ik(sel[:1], robot.home_q)
+            if model.has_joints and np.isfinite(start).all():  # the branch of the model's own IK
+                _, own = model.predict(sel[:1], joints=start, tool=tools[:1] if model.wants_tool else None,
+                                       with_joints=True)
+                start = own if own is not None and np.isfinite(own).all() else start
+            if chain is not None:
+                chain.origin = start
         q, ok = configuration.target_joints(robot, t, rows, sel, tools,
-                                            start[0] if np.isfinite(start).all() else None)
+                                            start[0] if np.isfinite(start).all() else None, chain)
         if not ok.all():
             warnings += collect(program, rows[~ok], P309, "no joint angles for this target in its arm configuration "
                                 "(S/T, or the one its motion keeps) on the nominal robot: left as it is")

@@ -58,6 +58,7 @@ class Settings:
     force: bool = False  # lifts P401, P304, P310, P202
     fill_partial: bool = True  # False: a partial aggregate is refused (P216), not filled in
     reachable: Callable[[np.ndarray], np.ndarray] | None = None  # robot-base poses → bool mask (P309)
+    chain: object = None  # compensator.Chain: a part of a program after the parts before (streaming compensate)
 
     def __post_init__(self):
         bound = self.max_correction_mm
@@ -319,7 +320,7 @@ def select_with_findings(program: Program, model: Compensator, settings: Setting
     selection = Selection(rows, poses[rows])
     out += reach_rule(program, model, settings, selection)
     if model.wants_joints or model.wants_tool:
-        selection, found = configuration_rule(program, model, selection)
+        selection, found = configuration_rule(program, model, selection, settings.chain)
     else:
         selection, found = stated_configuration_rule(program, model, selection)
     out += found
@@ -341,12 +342,13 @@ def stated_configuration_rule(program: Program, model: Compensator,
     return Selection(selection.rows[~bad], selection.poses[~bad], None, None, left), found
 
 
-def configuration_rule(program: Program, model: Compensator, selection: Selection) -> tuple[Selection, list[Diagnostic]]:
+def configuration_rule(program: Program, model: Compensator, selection: Selection,
+                       chain=None) -> tuple[Selection, list[Diagnostic]]:
     """P309 (a warning): a target whose arm configuration has no joint angles on the nominal
     robot, left as written; the others get the model's ``joints`` / ``tool`` inputs."""
     from .controller import controller_inputs
 
-    rows, poses, q, tool, found = controller_inputs(program, model, selection.rows, selection.poses, collect)
+    rows, poses, q, tool, found = controller_inputs(program, model, selection.rows, selection.poses, collect, chain)
     left = dict(selection.left)
     dropped = np.setdiff1d(selection.rows, rows)
     if len(dropped):

@@ -15,7 +15,7 @@ import sys
 
 import pytest
 
-from postproc.compensate import compensate_file
+from postproc.streaming import compensate_file
 from postproc.compensator import load_model
 
 from helpers import REPO

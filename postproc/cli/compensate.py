@@ -75,7 +75,8 @@ def add_frame_arguments(p, settings: bool = True) -> None:
 def run(args) -> int:
     from pathlib import Path
 
-    from ..compensate import DEFAULT_MAX_CORRECTION_MM, compensate_file, compensate_program, load_program
+    from ..compensate import DEFAULT_MAX_CORRECTION_MM, compensate_program, load_program
+    from ..streaming import compensate_file
     from ..config import load_config
     from ..diagnostics import EXIT_FINDINGS, EXIT_OK
     from ..outputs import check_program_outputs
