@@ -69,6 +69,7 @@ CODES = {
     "P301": "target outside the model's training envelope",
     "P302": "target beyond the nominal robot's reach (model metadata 'reach')",
     "P303": "the model's correction exceeds max_correction",
+    "P336": "the model's error_std at a target exceeds --max-std (default: the model card's)",
     "P304": "the program's $TOOL is not the model's tool",
     "P305": "the model returns NaN or inf at this target",
     "P309": "no inverse-kinematics solution for this target (--robot FILE.toml)",
@@ -177,6 +178,7 @@ def check_program(
     *,
     iterations: int | None = None,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    max_std_mm: float | None = None,
     robot: str | None = None,
     reachable: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> list[Diagnostic]:
@@ -190,7 +192,7 @@ def check_program(
     findings too: a clean check means compensate succeeds.
     """
     settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot,
-                        reachable=reachable)
+                        reachable=reachable, max_std_mm=max_std_mm)
     selection = select(program, model, settings)
     commands = run_model(model, selection, iterations)
     # a stamp is the stamp rules' business here (P402-P404), not "already compensated"

@@ -262,6 +262,7 @@ def compensate_program(
     strict: bool = False,
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    max_std_mm: float | None = None,
     robot: str | None = None,
     fill_partial: bool = True,
     orientation: bool = False,
@@ -278,7 +279,7 @@ def compensate_program(
     not known) are counted in ``Report.left`` / ``Report.left_codes``.
     """
     settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot, force=force,
-                        fill_partial=fill_partial)
+                        fill_partial=fill_partial, max_std_mm=max_std_mm)
     selection, found = select_with_findings(program, model, settings)
     warnings = [d for d in program.diagnostics if d.code != "P202" or force] + found
     _raise_first(found, False)
@@ -637,6 +638,7 @@ def compensate_text(
     strict: bool = False,
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    max_std_mm: float | None = None,
     robot: str | None = None,
     fill_partial: bool = True,
     orientation: bool = False,
@@ -652,7 +654,7 @@ def compensate_text(
     program = parse_program_text(text, name, dialect, dat_text, _config_texts(config), active)
     report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
                                 max_correction_mm=max_correction_mm, robot=robot, fill_partial=fill_partial,
-                                orientation=orientation)
+                                orientation=orientation, max_std_mm=max_std_mm)
     return report.outputs[program.files[0]], report
 
 
@@ -675,6 +677,7 @@ def compensate_file(
     strict: bool = False,
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    max_std_mm: float | None = None,
     robot: str | None = None,
     fill_partial: bool = True,
     orientation: bool = False,
@@ -684,7 +687,7 @@ def compensate_file(
     program = load_program(path, config, active=active)
     report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
                                 max_correction_mm=max_correction_mm, robot=robot, fill_partial=fill_partial,
-                                orientation=orientation)
+                                orientation=orientation, max_std_mm=max_std_mm)
     if str(out) == "-":
         if len(program.files) > 1:
             raise PostprocError("a program with a .dat cannot be written to standard output; give -o FILE",
