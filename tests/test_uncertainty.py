@@ -61,7 +61,9 @@ def exported(fitted, tmp_path_factory):
         train, train[:, :3] - sim.measure(train, rng_seed=0), previous_poses(train))
     from postproc.cli.train_hybrid import arm_metadata
 
-    path = hm.export_onnx(tmp_path_factory.mktemp("std") / "std.onnx", name="std", **arm_metadata(load_description()))
+    card = {"identified": {**hm.describe(), "identifiability": hm.kinematic_.identifiability()}}  # (as train's)
+    path = hm.export_onnx(tmp_path_factory.mktemp("std") / "std.onnx", name="std", **arm_metadata(load_description()),
+                          **card)
     return sim, hm, load_model(path)
 
 
@@ -135,3 +137,40 @@ def test_models_without_error_std_are_not_checked(tmp_path):
     assert not model.has_std and model.max_std_mm is None
     _, report = compensate_text("x,y,z,a,b,c\n2000,0,900,0,90,0\n", model, name="p.csv", max_std_mm=1e-9)
     assert not [d for d in report.warnings if d.code == "P336"]
+
+
+def test_report_and_certificate_show_the_uncertainty_and_what_the_data_could_not_separate(exported, tmp_path):
+    import json
+
+    from postproc.cli import main
+
+    sim, hm, model = exported
+    d = tmp_path
+    assert main(["plan", "--iso9283", "--cycles", "3", "-o", str(d / "iso.csv")]) == 0
+    assert main(["measure", str(d / "iso.csv"), "-o", str(d / "before.csv")]) == 0
+    assert main(["report", "--iso9283", str(d / "before.csv"), "--model", str(model.path), "-o", str(d / "cert")]) == 0
+    md = (d / "cert" / "certificate.md").read_text()
+    ident = hm.kinematic_.identifiability()
+    assert f"Numerical rank {ident['rank']} of {ident['parameters']} parameters; condition number" in md
+    assert " + ".join(ident["unseparated"][0]) in md  # e.g. a zero offset and a placement about its axis
+    # the moved parameters with their std, in the card's units (the simulated gears' lost motion:
+    # backlash.A1 ... in deg), every listed one by more than 3σ; those the data cannot determine
+    # alone (a base shift and A1's placement shift: one effect) counted, not listed
+    rows = [line.split(" | ") for line in md.splitlines() if line.startswith("| backlash.")]
+    assert len(rows) >= 3 and all(r[1].endswith(" deg") and abs(float(r[1].split()[0])) > 3 * float(r[2].split()[0])
+                                  for r in rows)
+    alone = sum(len(v) for v in ident["undetermined"].values())
+    assert 0 < alone < ident["parameters"] and f"{alone} parameters the data does not determine alone" in md
+    assert "| base.x |" not in md and "error_std" in md
+    # the accuracy report states the std at its poses and how many of their residuals it covers
+    from postproc.datasets import write_measurements
+
+    held = latin_hypercube(150, seed=9)
+    write_measurements(d / "held.csv", held, sim.measure(held, rng_seed=3))
+    assert main(["report", str(d / "held.csv"), "--model", str(model.path), "-o", str(d / "rep")]) == 0
+    sure = json.loads((d / "rep" / "summary.json").read_text())["uncertainty"]
+    _, std = model.predict(held, previous_poses(held), std=True)
+    assert sure["error_std_mm"]["mean"] == pytest.approx(std.mean(), rel=1e-5)
+    assert 0.85 < sure["two_sigma_coverage"] <= 1.0 and sure["max_std_mm"] == model.max_std_mm
+    report = (d / "rep" / "report.md").read_text()
+    assert "How sure the model is" in report and "Numerical rank" in report
