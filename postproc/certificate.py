@@ -67,10 +67,13 @@ _SCALE = {"deg": math.degrees(1.0), "mm": 1.0, "deg/kNm": math.degrees(1.0) * 1e
 
 def _parameter_rows(identified: dict) -> tuple[list[list[str]], str]:
     """(rows, note) of the parameters in the card's ``identified.parameters`` that moved more
-    than MOVED_SIGMAS of their std (``parameter_std``) from nominal, most significant first;
+    than MOVED_SIGMAS of their std from nominal, most significant first: the posterior std
+    (``parameter_posterior_std``, what the data knows of the value) where the card has it,
+    else ``parameter_std``;
     those the data does not determine alone (``identifiability.undetermined``) are counted,
     not listed: the prior splits their shared effect, their std says nothing of their value."""
-    params, stds = identified["parameters"], identified.get("parameter_std") or {}
+    params = identified["parameters"]
+    stds = identified.get("parameter_posterior_std") or identified.get("parameter_std") or {}
     undetermined = (identified.get("identifiability") or {}).get("undetermined") or {}
     found, total, apart = [], 0, 0
     for group, values in params.items():
@@ -90,10 +93,12 @@ def _parameter_rows(identified: dict) -> tuple[list[list[str]], str]:
     found.sort(key=lambda f: -f[0])
     note = (f"{len(found)} of {total} identified parameters moved more than {MOVED_SIGMAS:g}σ from nominal"
             + (f" (the {MAX_PARAMETER_ROWS} most significant listed)" if len(found) > MAX_PARAMETER_ROWS else "")
-            + "; σ is the spread of the estimate over repeated measurements of the same poses."
+            + ("; σ: what the data (and the weak prior) knows of the value, the posterior std"
+               if identified.get("parameter_posterior_std") else
+               "; σ is the spread of the estimate over repeated measurements of the same poses") + "."
             + (f" {apart} parameters the data does not determine alone (Identifiability) are not listed: it fixes "
                "their combined effect with others, the weak prior splits it among them." if apart else "")
-            + " Every value and std is in the model card (identified.parameters, parameter_std).")
+            + " Every value and std is in the model card (identified.parameters, parameter_posterior_std).")
     return [row for _, row in found[:MAX_PARAMETER_ROWS]], note
 
 

@@ -64,7 +64,8 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   ``structure``, ``accuracy`` {"val_mean_mm", "val_max_mm", ...}, ``iterations``; optional
   (hybrid/kinematic models) ``identified`` {"parameters": {group: [...]} (rad, mm, rad/Nm, as
   ``training.kinematic.Layout`` orders them), "ripple" [[joint, order]], "ripple_amplitudes"
-  [[sin, cos]], "tau_mean" [27], "parameter_std" {group: [...]}, "residual_std_mm",
+  [[sin, cos]], "tau_mean" [27], "parameter_std" {group: [...]} (the spread of the estimate),
+  "parameter_posterior_std" {group: [...]} (what is known of each value), "residual_std_mm",
   "nominal_sha256" (the robot description it is relative to: ``kinematic.nominal_digest``),
   "ik_family", "ik_branch", "residual_nets", ...}: what ``train --update`` re-fits from (the
   residual networks it reads back from the graph's initializers ``module.nets.K.*``); a model

@@ -428,16 +428,22 @@ class HybridModel:
         p, sizes = km.parameters(), km.layout_.sizes
         # (a re-calibration sets its own: OLD's std, the posterior std of what it re-fitted)
         std, residual_std = getattr(self, "identification_std_", (None, None))
+        posterior = None
         if std is None:
             cov = parameter_covariance(km)
-            std, residual_std = cov.std, math.sqrt(cov.sigma2)
-        std = dict(zip(sizes, np.split(np.asarray(std, dtype=np.float64), np.cumsum(list(sizes.values()))[:-1])))
+            std, residual_std, posterior = cov.std, math.sqrt(cov.sigma2), cov.posterior_std
+        cuts = np.cumsum(list(sizes.values()))[:-1]
+        std = dict(zip(sizes, np.split(np.asarray(std, dtype=np.float64), cuts)))
+        posterior = None if posterior is None else dict(zip(sizes, np.split(posterior, cuts)))
         groups = [name for name in sizes if name != "ripple" and sizes[name]]
         return {
             "parameters": {name: [float(v) for v in np.ravel(p[name])] for name in groups},
             "ripple_amplitudes": [[float(a), float(b)] for a, b in p["ripple"]],
             "tau_mean": [float(v) for v in km.module_.tau_mean],
             "parameter_std": {name: [float(v) if v == v else None for v in std[name]] for name in groups},  # None: unknown
+            # what is known of each value (the certificate's uncertainty; not for a re-calibration)
+            **({"parameter_posterior_std": {name: [float(v) for v in posterior[name]] for name in groups}}
+               if posterior is not None else {}),
             "residual_std_mm": float(residual_std),
             "nominal_sha256": nominal_digest(self.description),
         }

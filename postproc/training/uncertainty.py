@@ -7,7 +7,10 @@ Jacobian the fit uses) and A = JᵀJ + W (W = diag w, the weak prior):
 * residual variance per coordinate σ² = ‖r(θ̂)‖² / (3N − p_eff), p_eff = tr(A⁻¹JᵀJ) the
   effective number of parameters (the prior takes some of their freedom);
 * parameter covariance C = σ²·A⁻¹JᵀJ·A⁻¹ (the sandwich of the regularised least-squares
-  estimate: the spread of θ̂ over repeated measurements of the same poses);
+  estimate: the spread of θ̂ over repeated measurements of the same poses; what the
+  predictions inherit). What is known of a parameter's own value is the posterior σ²·A⁻¹
+  (``posterior_std``: the certificate's uncertainty), which differs where the data fixes only
+  sums of parameters;
 * at a target with Jacobian J_t [3, P] the prediction Ê(t) has covariance J_t C J_tᵀ, and the
   residual a compensation leaves, E − Ê, has per coordinate the variance
   σ² + diag(J_t C J_tᵀ): what the model does not explain plus what it does not know.
@@ -49,10 +52,19 @@ class ParameterCovariance:
     sigma2: float  # residual variance per coordinate, mm²
     dof: float  # 3N − p_eff
     p_eff: float  # effective number of parameters
+    posterior: np.ndarray | None = None  # [P, P] σ²·A⁻¹: what is known of each parameter's value
 
     @property
     def std(self) -> np.ndarray:
         return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+
+    @property
+    def posterior_std(self) -> np.ndarray:
+        """How well the data (with the weak prior) knows each parameter's own value: √diag(σ²A⁻¹).
+        ≈ ``std`` where the data determines the parameter; where it fixes only a sum with others
+        (the prior splits it) ``std`` is ~0 — the split does not vary with the noise — while this
+        stays near the prior's scale: the value itself is not known."""
+        return np.sqrt(np.clip(np.diag(self.posterior), 0.0, None))
 
 
 @dataclass
@@ -100,14 +112,18 @@ def parameter_covariance(model: KinematicModel) -> ParameterCovariance:
     jac = _jac(model, q, s).reshape(-1, len(model.theta_))
     with torch.no_grad():
         tau = model.module_.torques(q)
-    w = model.prior / model._prior_scales(model.layout_, tau) ** 2  # the fit's prior curvature
+    scale = model._prior_scales(model.layout_, tau)  # each parameter's typical size
+    w = model.prior / scale**2  # the fit's prior curvature
     jtj = jac.T @ jac
-    a_inv = np.linalg.pinv(jtj + np.diag(w), hermitian=True)
+    # A⁻¹ in the parameters' own scales: A's raw entries span ~30 decades (mm vs rad/Nm), where a
+    # pseudo-inverse would drop the directions only the prior holds, as if they had no variance
+    a_scaled = scale[:, None] * (jtj + np.diag(w)) * scale[None, :]
+    a_inv = scale[:, None] * np.linalg.inv(a_scaled) * scale[None, :]
     p_eff = float(np.trace(a_inv @ jtj))
     r = np.asarray(model.train_residual_, float).reshape(-1)
     dof = max(len(r) - p_eff, 1.0)
     sigma2 = float(r @ r) / dof
-    return ParameterCovariance(sigma2 * a_inv @ jtj @ a_inv, sigma2, dof, p_eff)
+    return ParameterCovariance(sigma2 * a_inv @ jtj @ a_inv, sigma2, dof, p_eff, sigma2 * a_inv)
 
 
 def position_std(model: KinematicModel, poses: np.ndarray, previous: np.ndarray | None = None,
