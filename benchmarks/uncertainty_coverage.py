@@ -1,6 +1,6 @@
 """Is the per-target std calibrated? 2σ coverage of held-out residuals, simulated and real.
 
-    python benchmarks/uncertainty_coverage.py [--data DIR] [--part sim|ipa|all]
+    python benchmarks/uncertainty_coverage.py [--data DIR] [--part sim|ipa|onnx|all]
 
 sim: the default simulated KR500 (measurement noise seed 0 / 1), kinematic identification
      (pose + visiting order, no ripple search and with it) on n Latin-hypercube poses (seed 1),
@@ -9,6 +9,13 @@ ipa: IPA Series C (UR10 + laser tracker, $POSTPROC_IPA_DATA, default
      /work/shared/datasets/ipa-robot-accuracy): tracker → base registered on the training
      rows (split_indices(n, 0.2, 0), as `postproc train`), identified on models/ur10.toml
      (pose only: the order of a random-pose series is not a motion the data documents).
+
+onnx: the exported graph's output ``error_std`` (HybridModel without residual networks, ripple
+     search, exported and run in onnxruntime): its 2σ coverage on the held-out simulated rows
+     (n = 300) and IPA Series C validation rows, and what asking for it costs: one
+     onnxruntime run over 8192 poses with the outputs compensate asks for (error, ik_joints)
+     and with error_std too (ratio), and compensate on a 20000-target pose list with the
+     card's --max-std (one more run at the commands) against --max-std inf (no P336 check).
 
 Coverage = the fraction of held-out residual coordinates (X, Y, Z of E − Ê) within
 2·std (training/uncertainty.position_std); 95.4 % for Gaussian residuals.
@@ -90,15 +97,94 @@ def ipa_part(data: str) -> None:
         print(line(f"ipa C n={len(train_idx)} ripple={'search' if ripple else 'none'}", km, residual, std, seconds))
 
 
+def _coverage(model, poses, previous, errors, joints=None) -> tuple[float, np.ndarray]:
+    error, std = model.predict(poses, previous, joints=joints, std=True)
+    return float((np.abs(errors - error) <= 2.0 * std[:, None]).mean()), std
+
+
+def onnx_part(data: str) -> None:
+    import tempfile
+
+    from postproc.cli.train_hybrid import arm_metadata
+    from postproc.compensate import compensate_text
+    from postproc.compensator import OUTPUT_ERROR, OUTPUT_JOINTS, OUTPUT_STD, load_model
+    from postproc.planning import latin_hypercube
+    from postproc.robot import load_description
+    from postproc.simulator import SimulatedRobot
+    from postproc.training.features import previous_poses
+    from postproc.training.hybrid import HybridModel
+
+    tmp = Path(tempfile.mkdtemp(prefix="uncertainty_"))
+    d = load_description()
+    sim = SimulatedRobot(d)
+    train = latin_hypercube(300, seed=1)
+    hm = HybridModel(d, residual="none").fit(train, train[:, :3] - sim.measure(train, rng_seed=0), previous_poses(train))
+    model = load_model(hm.export_onnx(tmp / "sim.onnx", name="sim", **arm_metadata(d)))
+    held = latin_hypercube(300, seed=5)
+    cover, std = _coverage(model, held, previous_poses(held), held[:, :3] - sim.measure(held, rng_seed=1))
+    print(f"onnx sim n=300 P {len(hm.kinematic_.theta_)}: error_std mean {std.mean():.4f} mm (card bound "
+          f"{model.max_std_mm:.4f}), 2σ coverage {100 * cover:.1f} %")
+
+    poses = latin_hypercube(8192, seed=7).astype(np.float32)
+    nan = np.full(poses.shape, np.nan, np.float32)
+    feeds = {"pose": poses, "previous_pose": np.r_[poses[:1], poses[:-1]], "joints": nan, "approach": nan, "tool": nan}
+    timings = {}
+    for label, names in (("error+ik_joints", [OUTPUT_ERROR, OUTPUT_JOINTS]),
+                         ("+error_std", [OUTPUT_ERROR, OUTPUT_JOINTS, OUTPUT_STD])):
+        model.session.run(names, feeds)
+        t0 = time.perf_counter()
+        for _ in range(5):
+            model.session.run(names, feeds)
+        timings[label] = (time.perf_counter() - t0) / 5
+    base = timings["error+ik_joints"]
+    print(f"onnx run 8192 poses: error+ik_joints {1e3 * base:.1f} ms, +error_std {1e3 * timings['+error_std']:.1f} ms "
+          f"(x{timings['+error_std'] / base:.2f})")
+    program = latin_hypercube(20000, seed=8)
+    text = "x,y,z,a,b,c\n" + "".join(",".join(f"{v:.3f}" for v in p) + "\n" for p in program)
+    runs = {}
+    for label, bound in (("--max-std inf", float("inf")), ("card --max-std", None)):
+        compensate_text(text, model, name="p.csv", max_std_mm=bound)
+        t0 = time.perf_counter()
+        _, report = compensate_text(text, model, name="p.csv", max_std_mm=bound)
+        runs[label] = time.perf_counter() - t0
+    print(f"compensate 20000 targets: --max-std inf {runs['--max-std inf']:.2f} s, card bound "
+          f"{runs['card --max-std']:.2f} s (x{runs['card --max-std'] / runs['--max-std inf']:.2f}); "
+          f"P336 {sum(w.code == 'P336' for w in report.warnings)} listed")
+
+    source = Path(data) / "Series_C/measurements_random_poses.csv"
+    if not source.exists():
+        print(f"onnx ipa: skip, {source} not found")
+        return
+    from postproc.datasets import read_ipa
+    from postproc.registration import register_measurements
+    from postproc.resources import model_path
+    from postproc.training.data import split_indices
+
+    s = read_ipa(source)
+    train_idx, val_idx = split_indices(len(s), 0.2, 0)
+    fit_rows = np.zeros(len(s), bool)
+    fit_rows[train_idx] = True
+    measured, _, _ = register_measurements(s.commanded[:, :3], s.measured, fit_rows)
+    errors = s.commanded[:, :3] - measured
+    ur = load_description(model_path("ur10.toml"))
+    hm = HybridModel(ur, residual="none").fit(s.commanded[train_idx], errors[train_idx], q_deg=s.joints[train_idx])
+    model = load_model(hm.export_onnx(tmp / "ipa.onnx", name="ipa", **arm_metadata(ur)))
+    cover, std = _coverage(model, s.commanded[val_idx], None, errors[val_idx], s.joints[val_idx])
+    print(f"onnx ipa C n={len(train_idx)} P {len(hm.kinematic_.theta_)}: error_std mean {std.mean():.4f} mm, "
+          f"2σ coverage {100 * cover:.1f} % on {len(val_idx)} validation rows")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=os.environ.get("POSTPROC_IPA_DATA", DEFAULT_DATA))
-    parser.add_argument("--part", choices=["sim", "ipa", "all"], default="all")
+    parser.add_argument("--part", choices=["sim", "ipa", "onnx", "all"], default="all")
     args = parser.parse_args()
     if args.part in ("sim", "all"):
         sim_part()
     if args.part in ("ipa", "all"):
         ipa_part(args.data)
+    if args.part in ("onnx", "all"):
+        onnx_part(args.data)
     return 0
 
 

@@ -23,6 +23,7 @@ import numpy as np
 
 from .diagnostics import P107, PostprocError
 from .iso9283 import IsoResult, iso_summary
+from .report import identifiability_lines, model_card
 from .stats import table2
 
 __all__ = ["NOT_RECORDED", "certificate_blocks", "render_markdown", "render_html", "write_certificate"]
@@ -42,13 +43,77 @@ def _card_value(card: dict, key: str):
 UNIT_SUFFIXES = ("_deg", "_mm", "_rad", "_mm_per_n", "_deg_per_nm")
 
 
-def _moved_parameters(card: dict) -> list[list[str]]:
+# an identified parameter "moved" when it lies more than this many of its std from nominal (0),
+# as train --update's table calls a change significant (training/update.MOVED_SIGMAS)
+MOVED_SIGMAS = 3.0
+MAX_PARAMETER_ROWS = 24  # the page lists this many (most significant first); all in the model card
+_XYZ = ("x", "y", "z")
+_R = ("rx", "ry", "rz")
+_AXES = tuple(f"A{j}" for j in range(1, 7))
+# each group of the card's identified.parameters (training.kinematic.Layout's order): names, unit
+PARAMETER_NAMES = {
+    "placement": ([f"A{j}.{n}" for j in range(1, 7) for n in _R + _XYZ], ["deg"] * 3 + ["mm"] * 3),
+    "base": (list(_R + _XYZ), ["deg"] * 3 + ["mm"] * 3),
+    "tool": (list(_XYZ), ["mm"]),
+    "mount": (list(_R), ["deg"]),
+    "tool_rotation": (list(_R), ["deg"]),
+    "zero": (list(_AXES), ["deg"]),
+    "compliance": (list(_AXES), ["deg/kNm"]),
+    "coupling": (None, ["deg/kNm"]),
+    "backlash": (list(_AXES), ["deg"]),
+}
+_SCALE = {"deg": math.degrees(1.0), "mm": 1.0, "deg/kNm": math.degrees(1.0) * 1e3}  # from rad, mm, rad/Nm
+
+
+def _parameter_rows(identified: dict) -> tuple[list[list[str]], str]:
+    """(rows, note) of the parameters in the card's ``identified.parameters`` that moved more
+    than MOVED_SIGMAS of their std from nominal, most significant first: the posterior std
+    (``parameter_posterior_std``, what the data knows of the value) where the card has it,
+    else ``parameter_std``;
+    those the data does not determine alone (``identifiability.undetermined``) are counted,
+    not listed: the prior splits their shared effect, their std says nothing of their value."""
+    params = identified["parameters"]
+    stds = identified.get("parameter_posterior_std") or identified.get("parameter_std") or {}
+    undetermined = (identified.get("identifiability") or {}).get("undetermined") or {}
+    found, total, apart = [], 0, 0
+    for group, values in params.items():
+        names, units = PARAMETER_NAMES.get(group, (None, [""]))
+        std = stds.get(group) or [None] * len(values)
+        for k, (v, s) in enumerate(zip(values, std)):
+            total += 1
+            if k in undetermined.get(group, ()):
+                apart += 1
+                continue
+            unit = units[k % len(units)]
+            name = f"{group}.{names[k]}" if names and k < len(names) else f"{group}[{k}]"
+            scale = _SCALE.get(unit, 1.0)
+            z = abs(v) / s if s else (math.inf if v else 0.0)
+            if z > MOVED_SIGMAS:
+                found.append((z, [name, f"{v * scale:.5g} {unit}", f"{s * scale:.2g} {unit}" if s else NOT_RECORDED]))
+    found.sort(key=lambda f: -f[0])
+    note = (f"{len(found)} of {total} identified parameters moved more than {MOVED_SIGMAS:g}σ from nominal"
+            + (f" (the {MAX_PARAMETER_ROWS} most significant listed)" if len(found) > MAX_PARAMETER_ROWS else "")
+            + ("; σ: what the data (and the weak prior) knows of the value, the posterior std"
+               if identified.get("parameter_posterior_std") else
+               "; σ is the spread of the estimate over repeated measurements of the same poses") + "."
+            + (f" {apart} parameters the data does not determine alone (Identifiability) are not listed: it fixes "
+               "their combined effect with others, the weak prior splits it among them." if apart else "")
+            + " Every value and std is in the model card (identified.parameters, parameter_posterior_std).")
+    return [row for _, row in found[:MAX_PARAMETER_ROWS]], note
+
+
+def _moved_parameters(card: dict) -> tuple[list[list[str]], str | None]:
     """Rows (parameter, value, uncertainty) of the identified parameters that moved from their
-    nominal value: the non-zero numbers of the model card's ``identified`` whose key names a
-    unit (``backlash_deg`` …; orders, branches and flags are not parameters). The uncertainty
-    comes from ``identified_std`` (same keys) where the card has it."""
+    nominal value, and a note. From the card's ``identified.parameters`` and ``parameter_std``
+    (hybrid / kinematic models; see :func:`_parameter_rows`); older cards: the non-zero numbers
+    of ``identified`` whose key names a unit (``backlash_deg`` …; orders, branches and flags
+    are not parameters), with ``identified_std`` (same keys) where the card has it."""
     rows = []
     identified = card.get("identified") or {}
+    note = None
+    if isinstance(identified.get("parameters"), dict):
+        rows, note = _parameter_rows(identified)
+        identified = {"ripple": identified["ripple"]} if identified.get("ripple") else {}
     uncertainty = card.get("identified_std") or {}
     for key, value in identified.items():
         if not key.endswith(UNIT_SUFFIXES) or not _numeric(value):
@@ -62,7 +127,7 @@ def _moved_parameters(card: dict) -> list[list[str]]:
     if "ripple" in identified:
         rows.append(["gear-ripple orders (joint, harmonic)",
                      "; ".join(f"A{j} ×{h}" for j, h in identified["ripple"]), "–"])
-    return rows
+    return rows, note
 
 
 def _numeric(value) -> bool:
@@ -139,17 +204,26 @@ def certificate_blocks(result: IsoResult, card: dict | None = None, date: str | 
     blocks += [("h2", "Table 2: positioning-error norm over all rows, mm"),
                ("table", ["", "max", "min", "mean", "std"], t_rows)]
 
-    moved = _moved_parameters(card)
+    moved, note = _moved_parameters(card)
     blocks.append(("h2", "Identified parameters that moved"))
     if moved:
         blocks.append(("table", ["parameter", "identified value", "uncertainty (1σ)"], moved))
-        if not card.get("identified_std"):
+        if note:
+            blocks.append(("p", note))
+        elif not card.get("identified_std"):
             blocks.append(("p", "Uncertainty: " + NOT_RECORDED + " in the model card."))
         if card.get("structure"):
             blocks.append(("p", f"Model structure: {card['structure']}; the model card records only the values "
                                 "listed here, the others are " + NOT_RECORDED + "."))
     else:
         blocks.append(("p", NOT_RECORDED + (" (no model given)" if not card else " (the model card lists none)")))
+    ident = identifiability_lines(card)
+    if ident:
+        blocks += [("h2", "Identifiability"), *(("p", line) for line in ident)]
+    sure = card.get("uncertainty")
+    if isinstance(sure, dict) and "max_std_mm" in sure:
+        blocks.append(("p", f"Per target the model states its own std (ONNX output error_std); compensate warns "
+                            f"(P336) where it exceeds {sure['max_std_mm']:g} mm ({sure.get('max_std_rule', 'the card')})."))
     if plot:
         blocks.append(("img", plot, "AP and RP per pose, before and after compensation"))
     return blocks
@@ -236,8 +310,6 @@ def write_plot(result: IsoResult, path: Path, max_poses: int = 40) -> None:
 
 def write_certificate(result: IsoResult, folder: str | Path, model=None, date: str | None = None) -> dict[str, Path]:
     """Write iso9283.json, certificate.png, certificate.md and certificate.html into ``folder``."""
-    from .report import model_card
-
     folder = Path(folder)
     try:
         folder.mkdir(parents=True, exist_ok=True)

@@ -138,6 +138,7 @@ def check_program(
     *,
     iterations: int | None = None,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    max_std_mm: float | None = None,
     robot: str | None = None,
     reachable: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> list[Diagnostic]:
@@ -151,7 +152,7 @@ def check_program(
     findings too: a clean check means compensate succeeds.
     """
     settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot,
-                        reachable=reachable)
+                        reachable=reachable, max_std_mm=max_std_mm)
     selection = select(program, model, settings)
     commands = run_model(model, selection, iterations)
     # a stamp is the stamp rules' business here (P402-P404), not "already compensated"

@@ -250,6 +250,7 @@ def compensate_program(
     strict: bool = False,
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    max_std_mm: float | None = None,
     robot: str | None = None,
     fill_partial: bool = True,
     orientation: bool = False,
@@ -270,7 +271,7 @@ def compensate_program(
     before it, the texts returned unstamped.)
     """
     settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot, force=force,
-                        fill_partial=fill_partial, chain=_chain)
+                        fill_partial=fill_partial, chain=_chain, max_std_mm=max_std_mm)
     selection, found = select_with_findings(program, model, settings)
     warnings = [d for d in program.diagnostics if d.code != P202 or force] + found
     _raise_first(found, False)
@@ -633,6 +634,7 @@ def compensate_text(
     strict: bool = False,
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    max_std_mm: float | None = None,
     robot: str | None = None,
     fill_partial: bool = True,
     orientation: bool = False,
@@ -648,7 +650,7 @@ def compensate_text(
     program = parse_program_text(text, name, dialect, dat_text, _config_texts(config), active)
     report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
                                 max_correction_mm=max_correction_mm, robot=robot, fill_partial=fill_partial,
-                                orientation=orientation)
+                                orientation=orientation, max_std_mm=max_std_mm)
     return report.outputs[program.files[0]], report
 
 

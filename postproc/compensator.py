@@ -50,6 +50,16 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   identified from measured orientations (``a_meas,b_meas,c_meas``; the card's
   ``identified.orientation.fitted``): a model without it cannot be used with ``--orientation``
   (P306), a model never outputs an orientation error that no data stood behind;
+* optional output ``error_std``: float32 [N, 1] mm, how sure the model is at each target: the
+  standard deviation of a coordinate of the residual a compensation leaves, E − Ê (root mean
+  over X, Y, Z), = √(σ² + tr(J_t C J_tᵀ)/3) with C the identification's parameter covariance, σ
+  its residual std per coordinate and J_t the identified arm's sensitivity to its parameters at
+  the target (at the graph's q, approach signs and tool; ``training/uncertainty.py``): small
+  where the training data pinned the parameters down, large where it did not reach. ``train``'s
+  hybrid/kinematic graphs have it (not a re-calibration's, not the networks alone); of the
+  identified arm only (σ errs on the safe side where residual networks were kept). onnxruntime
+  computes only the outputs asked for: ``compensate`` and ``check`` ask for it once, at the
+  final commands, and only to hold the targets to ``--max-std`` (P336);
 * ``metadata_props`` (values JSON-encoded where structured): ``postproc_contract`` "1",
   ``name``, ``robot``, ``tool`` {"name", "frame", optional "measured": [[X,Y,Z,A,B,C], ...]
   the TCPs of the data, "unseparated": [[x,y,z], ...] unit directions (flange frame) of the
@@ -60,13 +70,16 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   ``structure``, ``accuracy`` {"val_mean_mm", "val_max_mm", ...}, ``iterations``; optional
   (hybrid/kinematic models) ``identified`` {"parameters": {group: [...]} (rad, mm, rad/Nm, as
   ``training.kinematic.Layout`` orders them), "ripple" [[joint, order]], "ripple_amplitudes"
-  [[sin, cos]], "tau_mean" [27], "parameter_std" {group: [...]}, "residual_std_mm",
+  [[sin, cos]], "tau_mean" [27], "parameter_std" {group: [...]} (the spread of the estimate),
+  "parameter_posterior_std" {group: [...]} (what is known of each value), "residual_std_mm",
   "nominal_sha256" (the robot description it is relative to: ``kinematic.nominal_digest``),
   "ik_family", "ik_branch", "residual_nets", ...}: what ``train --update`` re-fits from (the
   residual networks it reads back from the graph's initializers ``module.nets.K.*``); a model
   written by ``--update`` adds ``update`` {"from", "from_sha256", "rows", "groups",
   "moved_at_sigmas", "parameters": [{"group", "name", "unit", "old", "new", "change", "std",
-  "moved"}]}; optional ``transfer`` (benchmarks/cross_series.py: figures on other series).
+  "moved"}]}; optional ``uncertainty`` {"max_std_mm" (the bound on ``error_std``
+  compensate and check apply without ``--max-std``: uncertainty.MAX_STD_FACTOR × the
+  identification's residual std), "residual_std_mm"} beside ``error_std``; optional ``transfer`` (benchmarks/cross_series.py: figures on other series).
 
 The command sent for target P is c = P + Ê(c), solved by fixed-point iteration from
 c₀ = P (one iteration = the method's c = P + Ê(P)).
@@ -109,6 +122,7 @@ INPUT_PREVIOUS_JOINTS = "previous_joints"
 OUTPUT_JOINTS = "ik_joints"
 LEGACY_OUTPUT_JOINTS = "joints"  # (the output's name before the ``joints`` input existed)
 OUTPUT_ROTATION = "rotation_error"
+OUTPUT_STD = "error_std"
 INPUT_APPROACH = "approach"
 # a command further than this from c = P + Ê(c) under its own joint motion is not settled (mm):
 # the plain iteration leaves ~1e-6 mm where the approach signs hold still
@@ -192,6 +206,7 @@ class Compensator:
     wants_tool: bool = False  # the graph takes the TCP on the flange (``tool``)
     wants_previous_joints: bool = False  # the graph takes the previous target's ``joints``
     has_rotation: bool = False  # the graph also outputs ``rotation_error``
+    has_std: bool = False  # the graph also outputs ``error_std``
     wants_approach: bool = False  # the graph takes fixed approach signs (``approach``)
     settle: bool = True  # settle the commands on their approach where the model can (False: the plain fixed point)
 
@@ -235,6 +250,13 @@ class Compensator:
         return None if env is None else env.attitude
 
     @property
+    def max_std_mm(self) -> float | None:
+        """The card's bound on ``error_std`` (``uncertainty.max_std_mm``: what ``compensate`` and
+        ``check`` hold the targets to without ``--max-std``), None for a model without one."""
+        card = self.metadata.get("uncertainty")
+        return float(card["max_std_mm"]) if self.has_std and isinstance(card, dict) and "max_std_mm" in card else None
+
+    @property
     def default_iterations(self) -> int:
         try:
             return max(1, int(self.metadata.get("iterations", 2)))
@@ -252,7 +274,7 @@ class Compensator:
 
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None, joints=None,
                 tool: np.ndarray | None = None, with_joints: bool = False, rotation: bool = False,
-                approach: np.ndarray | None = None, previous_joints: np.ndarray | None = None):
+                approach: np.ndarray | None = None, previous_joints: np.ndarray | None = None, std: bool = False):
         """Ê for poses [N, 6] (robot base frame) → [N, 3] mm (float64). ``joints`` [N, 6] deg:
         the controller's joint angles at each pose (its configuration; NaN rows unknown), fed
         to a model with that input, ignored by others; ``tool`` [N, 6]: the TCP on the flange
@@ -263,7 +285,7 @@ class Compensator:
         With ``rotation``: the rotation error [N, 3] deg is returned last. ``approach`` [N, 6]:
         approach signs to assume (NaN: from ``previous``), for a model with that input;
         ``previous_joints`` [N, 6] deg: the joint angles at the target before each pose (NaN
-        rows unknown)."""
+        rows unknown). With ``std`` (a model with ``error_std``): that [N] mm is returned last."""
         if isinstance(joints, bool):
             joints, with_joints = None, joints
         inputs = self._inputs(poses, previous, joints, tool, approach, previous_joints)
@@ -275,6 +297,11 @@ class Compensator:
                 raise PostprocError(f"the model has no output '{OUTPUT_ROTATION}'", str(self.path), code=P306)
             names.append(OUTPUT_ROTATION)
             results.append(np.empty((len(poses), 3)))
+        if std:
+            if not self.has_std:
+                raise PostprocError(f"the model has no output '{OUTPUT_STD}'", str(self.path), code="P306")
+            names.append(OUTPUT_STD)
+            results.append(np.empty((len(poses), 1)))
 
         def run(at: int) -> None:
             batch = slice(at, at + self.predict_batch)
@@ -305,7 +332,9 @@ class Compensator:
         if with_joints:
             out.append(results[1] if self.has_joints else None)
         if rotation:
-            out.append(results[-1])
+            out.append(results[-2] if std else results[-1])
+        if std:
+            out.append(results[-1][:, 0])
         return out[0] if len(out) == 1 else tuple(out)
 
     def _inputs(self, poses, previous, joints, tool, approach=None, previous_joints=None) -> dict[str, np.ndarray]:
@@ -695,10 +724,11 @@ def _interface_problems(inputs: dict, outputs: dict, joints_output: str) -> list
     if OUTPUT_ROTATION in outputs and (len(outputs[OUTPUT_ROTATION].shape) != 2
                                        or outputs[OUTPUT_ROTATION].shape[1] not in (3, None)):
         problems.append(f"output '{OUTPUT_ROTATION}' has shape {outputs[OUTPUT_ROTATION].shape}, expected [N, 3]")
+    if OUTPUT_STD in outputs and (len(outputs[OUTPUT_STD].shape) != 2 or outputs[OUTPUT_STD].shape[1] not in (1, None)):
+        problems.append(f"output '{OUTPUT_STD}' has shape {outputs[OUTPUT_STD].shape}, expected [N, 1]")
     for node in (*inputs.values(), *outputs.values()):
         if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, INPUT_APPROACH, INPUT_PREVIOUS_JOINTS,
-                         OUTPUT_ERROR,
-                         joints_output, OUTPUT_ROTATION) and node.type != "tensor(float)":
+                         OUTPUT_ERROR, joints_output, OUTPUT_ROTATION, OUTPUT_STD) and node.type != "tensor(float)":
             problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
     return problems
 
@@ -741,6 +771,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
         wants_tool=INPUT_TOOL in inputs,
         wants_previous_joints=INPUT_PREVIOUS_JOINTS in inputs,
         has_rotation=OUTPUT_ROTATION in outputs,
+        has_std=OUTPUT_STD in outputs,
         wants_approach=INPUT_APPROACH in inputs,
     )
 
@@ -774,6 +805,10 @@ def _metadata_problem(meta: dict) -> str | None:
     tool = meta.get("tool")
     if isinstance(tool, dict) and tool.get("frame") is not None and not _numbers(tool["frame"], 6):
         return "'tool' frame must be [X,Y,Z,A,B,C]"
+    card = meta.get("uncertainty")
+    if card is not None and not (isinstance(card, dict) and _numbers([card.get("max_std_mm")], 1)
+                                 and card["max_std_mm"] > 0):
+        return "'uncertainty' needs max_std_mm > 0"
     iterations = meta.get("iterations")
     if iterations is not None and not (isinstance(iterations, int) and 1 <= iterations <= MAX_ITERATIONS):
         return f"'iterations' must be a whole number from 1 to {MAX_ITERATIONS}, not {iterations!r}"

@@ -103,6 +103,8 @@ P331 = _code("P331", "error", "a robot description with an unknown or misplaced 
 P332 = _code("P332", "error", "a robot description with a bad value")
 P333 = _code("P333", "error", "a robot geometry the closed-form inverse kinematics does not cover")
 P335 = _code("P335", "error", "poses out of the robot's reach (plan, simulator, ISO 9283 cube)")
+P336 = _code("P336", "warning", "the model's error_std (its stated uncertainty) at the target exceeds --max-std "
+             "(default: the card's uncertainty.max_std_mm); an error under --strict")
 # P4xx: stamps and compensated outputs
 P401 = _code("P401", "error", "already compensated (a stamp line): compensate refuses unless --force")
 P402 = _code("P402", "error", "compensated with a model other than the configured one")

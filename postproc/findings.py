@@ -15,7 +15,8 @@ One function per code family, in the order compensate applies them:
 * :func:`reach_rule` P302 (beyond the model's reach), P309 (no IK, with ``reachable``);
 * :func:`envelope_rule` P301 (outside the training box / attitude range);
 * with the model's commands: :func:`output_rule` P305 (NaN), P303 (too large),
-  :func:`joints_rule` P301 (joint angles outside the trained ranges).
+  :func:`joints_rule` P301 (joint angles outside the trained ranges), :func:`std_rule` P336
+  (the model's ``error_std`` above ``--max-std``).
 
 :func:`select` says which targets the model takes (their robot-base poses, the nominal
 attitude filled in where the program gives none); :class:`Commands` is what the model
@@ -32,7 +33,7 @@ import numpy as np
 from . import frames
 from .compensator import Compensator, Inside
 from .diagnostics import (
-    P103, P202, P212, P213, P216, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P401, Diagnostic,
+    P103, P202, P212, P213, P216, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P336, P401, Diagnostic,
     PostprocError,
 )
 from .programs import Program
@@ -59,12 +60,16 @@ class Settings:
     fill_partial: bool = True  # False: a partial aggregate is refused (P216), not filled in
     reachable: Callable[[np.ndarray], np.ndarray] | None = None  # robot-base poses → bool mask (P309)
     chain: object = None  # compensator.Chain: a part of a program after the parts before (streaming compensate)
+    max_std_mm: float | None = None  # bound on the model's error_std (P336); None: the card's; inf: none
 
     def __post_init__(self):
         bound = self.max_correction_mm
         if not (isinstance(bound, int | float) and 0 < bound < math.inf):
             # NaN would switch the bound off silently: every comparison with it is False
             raise PostprocError(f"--max-correction must be a positive number of mm, not {bound}", code=P308)
+        std = self.max_std_mm
+        if std is not None and not (isinstance(std, int | float) and std > 0):  # (NaN: not > 0)
+            raise PostprocError(f"--max-std must be a positive number of mm, not {std}", code=P308)
 
 
 @dataclass
@@ -306,6 +311,25 @@ def joints_rule(program: Program, model: Compensator, commands: Commands) -> lis
                    f"model was trained on ({_joints_away(q[away[i]], envelope.joints)})")
 
 
+def std_rule(program: Program, model: Compensator, settings: Settings, commands: Commands) -> list[Diagnostic]:
+    """P336 (a warning): the model's own std at a target (output ``error_std`` at its command,
+    each reached from the previous one's) above ``settings.max_std_mm`` or, without it, the
+    card's ``uncertainty.max_std_mm``: the training data did not pin the model down there.
+    A model without ``error_std`` states nothing: no finding. The one model run that asks for
+    ``error_std`` is this rule's (onnxruntime computes only the outputs asked for)."""
+    bound = settings.max_std_mm if settings.max_std_mm is not None else model.max_std_mm
+    sel = commands.selection
+    if not model.has_std or bound is None or not math.isfinite(bound) or not len(sel.rows):
+        return []
+    poses = np.c_[commands.commanded, sel.poses[:, 3:6]]
+    previous = np.r_[poses[:1], poses[:-1]] if model.wants_previous else None
+    _, std = model.predict(poses, previous, joints=sel.joints, tool=sel.tool, std=True)
+    high = np.flatnonzero(std > bound)
+    high = high[np.argsort(-std[high], kind="stable")]
+    return collect(program, sel.rows[high], P336, lambda i: f"the model's std at this target is {std[high[i]]:.3f} "
+                   f"mm, above {bound:g} mm (--max-std): its training data did not pin it down here")
+
+
 # --------------------------------------------------------------------------- all
 
 
@@ -387,7 +411,8 @@ def dead_band_notes(program: Program, commands: Commands) -> list[Diagnostic]:
 
 def command_findings(program: Program, commands: Commands, model: Compensator, settings: Settings) -> list[Diagnostic]:
     """Every finding about the model's commands for the selected targets."""
-    return output_rule(program, settings, commands) + joints_rule(program, model, commands)
+    return (output_rule(program, settings, commands) + joints_rule(program, model, commands)
+            + std_rule(program, model, settings, commands))
 
 
 def findings(program: Program, commands: Commands | None, model: Compensator, settings: Settings) -> list[Diagnostic]:

@@ -73,6 +73,7 @@ class ReportData:
     outside_envelope: int = 0
     rotation_before: np.ndarray | None = None  # [N, 3] deg, commanded → measured (a_meas..c_meas)
     rotation_after: np.ndarray | None = None  # [N, 3] deg, r − r̂ (first order) or target → measured after
+    error_std: np.ndarray | None = None  # [N] mm: the model's own std at each pose (output error_std)
 
     @property
     def trained_on(self) -> bool:
@@ -195,7 +196,11 @@ def read_report_data(path: str | Path, model: Compensator | None = None, after: 
     rotation_before, rotation_after = _rotations(m, model, after_m, previous_of(m, model))
     # rows in visiting order: a model that takes previous_pose sees each row's predecessor
     previous = previous_of(m, model)
-    predicted = model.predict(m.poses, previous) if model is not None else None
+    error_std = None
+    if model is not None and model.has_std:  # (the same run: onnxruntime adds only that output)
+        predicted, error_std = model.predict(m.poses, previous, std=True)
+    else:
+        predicted = model.predict(m.poses, previous) if model is not None else None
     if predicted is not None and not np.isfinite(predicted).all():
         raise PostprocError("the model returns NaN or inf on these poses", str(model.path), code=P305)
     if reached is not None:
@@ -218,6 +223,7 @@ def read_report_data(path: str | Path, model: Compensator | None = None, after: 
         outside_envelope=int(envelope.outside(m.poses).sum()) if envelope is not None else 0,
         rotation_before=rotation_before,
         rotation_after=rotation_after,
+        error_std=error_std,
     )
 
 
@@ -408,8 +414,48 @@ def summary(data: ReportData) -> dict:
         "trained_on_these_rows": data.trained_on,
         "vector_scale": _vector_scale(data),
         "vector_rows": vector_rows(len(data)).tolist(),
+        "uncertainty": uncertainty_summary(data),
         "model": data.model_card,
     }
+
+
+def uncertainty_summary(data: ReportData) -> dict | None:
+    """How sure the model is at these poses (its output ``error_std``; None without it): the
+    std's Table 2, the share of the residual coordinates (``after``, E − Ê) within 2·std (95 % if
+    the std is calibrated; a measured "after" adds the robot's repeatability), the poses above
+    the card's bound (compensate's P336) — and what the identification could separate."""
+    if data.error_std is None:
+        return None
+    bound = (data.model_card.get("uncertainty") or {}).get("max_std_mm")
+    return {
+        "error_std_mm": table2(data.error_std),
+        "two_sigma_coverage": float((np.abs(data.after) <= 2.0 * data.error_std[:, None]).mean()),
+        "max_std_mm": bound,
+        "above_max_std": int((data.error_std > bound).sum()) if bound is not None else None,
+    }
+
+
+def identifiability_lines(card: dict) -> list[str]:
+    """The identification's identifiability from the model card (``identified.identifiability``:
+    numerical rank, condition number of what the data separates, groups it cannot), in words;
+    [] when the card has none (no physical model, or a re-calibration)."""
+    ident = (card.get("identified") or {}).get("identifiability")
+    if not isinstance(ident, dict) or "rank" not in ident:
+        return []
+    condition = ident.get("condition")
+    lines = [f"Numerical rank {ident['rank']} of {ident.get('parameters', '?')} parameters"
+             + (f"; condition number {condition:.3g} (of the directions the data separates)"
+                if isinstance(condition, int | float) else "") + "."]
+    apart = ident.get("unseparated") or []
+    lines.append("Parameter groups the data cannot separate (the weak prior settles them, the data does not): "
+                 + ("; ".join(" + ".join(g) for g in apart) if apart else "none") + ".")
+    alone = ident.get("undetermined")
+    if isinstance(alone, dict):
+        count = sum(len(v) for v in alone.values())
+        lines.append(f"{count} of {ident.get('parameters', '?')} parameters are not determined alone by the data"
+                     + (f" ({', '.join(f'{g} {len(v)}' for g, v in alone.items())})" if count else "")
+                     + ": their sum with others is, the model's predictions rest on that.")
+    return lines
 
 
 def write_markdown(data: ReportData, numbers: dict, figures: dict[str, Path], path: Path, title: str) -> None:
@@ -453,6 +499,20 @@ def write_markdown(data: ReportData, numbers: dict, figures: dict[str, Path], pa
                 "predicted": "Predicted vs measured error per axis"}
     for key, figure in figures.items():
         lines += [f"![{captions[key]}]({figure.name})", ""]
+    sure = numbers.get("uncertainty")
+    ident = identifiability_lines(data.model_card)
+    if sure or ident:
+        lines += ["## How sure the model is", ""]
+    if sure:
+        s = sure["error_std_mm"]
+        lines += [f"The model's own std at these poses (output `error_std`, per coordinate of E − Ê): mean "
+                  f"{s['mean']:.4f} mm, min {s['min']:.4f}, max {s['max']:.4f} mm; "
+                  f"{100 * sure['two_sigma_coverage']:.1f} % of the residual coordinates lie within 2σ "
+                  "(95 % when calibrated)."
+                  + (f" {sure['above_max_std']} pose(s) above the card's bound of {sure['max_std_mm']:g} mm "
+                     "(compensate warns there, P336)." if sure["max_std_mm"] is not None else ""), ""]
+    for line in ident:
+        lines += [line, ""]
     if data.model_card:
         lines += ["## Model card", "", "| field | value |", "|---|---|", *_card_rows(data.model_card), ""]
     lines += ["Plotted numbers: `series.csv` (per pose), `histogram.csv` (bins); figures: `summary.json`.", ""]

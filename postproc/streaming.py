@@ -271,6 +271,7 @@ def compensate_file(
     strict: bool = False,
     force: bool = False,
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    max_std_mm: float | None = None,
     robot: str | None = None,
     fill_partial: bool = True,
     orientation: bool = False,
@@ -283,7 +284,7 @@ def compensate_file(
     programs it does not carry exactly are compensated in memory); ``Report.outputs`` is then
     empty."""
     kwargs = dict(iterations=iterations, strict=strict, force=force, max_correction_mm=max_correction_mm,
-                  robot=robot, fill_partial=fill_partial, orientation=orientation)
+                  max_std_mm=max_std_mm, robot=robot, fill_partial=fill_partial, orientation=orientation)
     refusal = None  # (a chunk's error: raised where the program is too large for the in-memory path)
     if streams(path, out, orientation) if stream is None else stream:
         model = _model(model)

@@ -159,7 +159,8 @@ def test_simulated_cell_end_to_end(tmp_path):
     assert len(before) == 5 and all(p["n"] == 4 for p in s["before"]["poses"])
     assert max(after) < 0.5 * max(before)
     md = (d / "cert" / "certificate.md").read_text()
-    assert "KR500-sim" in md and "backlash_deg" in md
+    # the shipped model's card holds its identification: the parameters that moved, with units
+    assert "KR500-sim" in md and "Identified parameters that moved" in md and "backlash.A5" in md
 
 
 def test_ipa_series_d_excerpt(tmp_path):

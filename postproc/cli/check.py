@@ -45,6 +45,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--strict", action="store_true", default=None, help="warnings are findings too (exit 1)")
     p.add_argument("--ignore", metavar="CODES", default="", help="comma-separated codes not to report, e.g. P301,P213")
     p.add_argument("--max-correction", type=float, metavar="MM", help="corrections above this are findings (default 5 mm)")
+    p.add_argument("--max-std", type=float, metavar="MM", help="warn (P336) where the model's own std (output "
+                   "error_std) exceeds this (default: the model card's; models without error_std: no check)")
     p.add_argument("--iterations", type=int, metavar="K", help="fixed-point iterations (default: the model's)")
     add_frame_arguments(p)
     p.add_argument("--list-codes", action="store_true", help="print every diagnostic code (code, severity, meaning) and exit")
@@ -107,7 +109,8 @@ def _options(args, cfg) -> dict:
     """The options of check_files from the settings (and --robot: a name or a description)."""
     from ..compensate import DEFAULT_MAX_CORRECTION_MM
 
-    options = dict(iterations=cfg.iterations, max_correction_mm=cfg.max_correction_mm or DEFAULT_MAX_CORRECTION_MM)
+    options = dict(iterations=cfg.iterations, max_correction_mm=cfg.max_correction_mm or DEFAULT_MAX_CORRECTION_MM,
+                   max_std_mm=args.max_std)
     if args.robot:  # (into the settings too: --fresh compensates for the same robot)
         cfg.robot, options["reachable"] = _robot(args.robot)
     options["robot"] = cfg.robot

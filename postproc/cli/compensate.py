@@ -40,6 +40,9 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--iterations", type=int, metavar="K", help="fixed-point iterations c ← P + Ê(c) (default: the model's)")
     p.add_argument("--max-correction", type=float, metavar="MM", default=None,
                    help="refuse corrections larger than this (default 5 mm)")
+    p.add_argument("--max-std", type=float, metavar="MM", default=None,
+                   help="warn (P336) where the model's own std (output error_std) exceeds this (default: the model "
+                   "card's uncertainty.max_std_mm; models without error_std: no check)")
     p.add_argument("--strict", action="store_true", help="treat warnings as errors")
     p.add_argument("--orientation", action="store_true",
                    help="correct A/B/C too (a model with output rotation_error; pose lists)")
@@ -96,6 +99,7 @@ def run(args) -> int:
         strict=args.strict or cfg.strict,
         force=args.force,
         max_correction_mm=DEFAULT_MAX_CORRECTION_MM if max_correction is None else max_correction,
+        max_std_mm=args.max_std,
         robot=args.robot or cfg.robot,
         orientation=args.orientation,
         fill_partial=args.fill_partial,

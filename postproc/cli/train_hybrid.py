@@ -165,7 +165,8 @@ def run_hybrid(args, data, errors: np.ndarray, train_rows: np.ndarray, val_rows:
         if ident:
             apart = "; ".join("+".join(g) for g in ident["unseparated"][:6]) or "none"
             apart += " ..." if len(ident["unseparated"]) > 6 else ""
-            print(f"identify  rank {ident['rank']} of {ident['parameters']} parameters; groups the data cannot "
+            print(f"identify  rank {ident['rank']} of {ident['parameters']} parameters, condition "
+                  f"{ident['condition']:.3g}; groups the data cannot "
                   f"separate (settled by the prior): {apart}")
         tool = metadata["tool"]
         if "unseparated" in tool:

@@ -18,7 +18,7 @@ import torch
 
 from .. import outputs
 from ..compensator import (INPUT_APPROACH, INPUT_JOINTS, INPUT_POSE, INPUT_PREVIOUS, INPUT_PREVIOUS_JOINTS, INPUT_TOOL,
-                           OUTPUT_ERROR, OUTPUT_JOINTS, OUTPUT_ROTATION, contract_metadata)
+                           OUTPUT_ERROR, OUTPUT_JOINTS, OUTPUT_ROTATION, OUTPUT_STD, contract_metadata)
 
 __all__ = ["export_onnx", "onnx_bytes", "write_atomic", "OPSET"]
 
@@ -27,11 +27,11 @@ OPSET = 17
 
 def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False, joints: bool = False,
                joints_input: bool = False, approach_input: bool = False, tool_input: bool = False,
-               previous_joints_input: bool = False, rotation: bool = False) -> bytes:
+               previous_joints_input: bool = False, rotation: bool = False, std: bool = False) -> bytes:
     """The serialised ONNX model of ``module`` (pose [N, 6] [, previous_pose [N, 6]] [, joints
     [N, 6] deg] [, approach [N, 6]] [, tool [N, 6]] [, previous_joints [N, 6] deg] → error
-    [N, 3] [, ik_joints [N, 6] deg] [, rotation_error [N, 3] deg]) with metadata; the inputs in
-    that order."""
+    [N, 3] [, ik_joints [N, 6] deg] [, rotation_error [N, 3] deg] [, error_std [N, 1] mm]) with
+    metadata; inputs and outputs in that order."""
     inputs = [INPUT_POSE, INPUT_PREVIOUS] if previous else [INPUT_POSE]
     if joints_input:
         inputs.append(INPUT_JOINTS)
@@ -44,6 +44,8 @@ def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False, 
     outputs = [OUTPUT_ERROR, OUTPUT_JOINTS] if joints else [OUTPUT_ERROR]
     if rotation:
         outputs.append(OUTPUT_ROTATION)
+    if std:
+        outputs.append(OUTPUT_STD)
     example = tuple(torch.tensor([[2000.0, 0.0, 900.0, 0.0, 90.0, 0.0]] * 2, dtype=torch.float32) for _ in inputs)
     buffer = io.BytesIO()
     with warnings.catch_warnings():

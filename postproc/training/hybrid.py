@@ -79,6 +79,20 @@ class HybridModule(torch.nn.Module):
         self.nets = torch.nn.ModuleList(nets)
         rng = np.array([[-4.0, 4.0]] * 6) if joint_range is None else np.asarray(joint_range, dtype=np.float64)
         self.register_buffer("joint_range", torch.as_tensor(rng))
+        # the identification's parameter covariance [P, P] and residual variance (mm²): the
+        # graph's error_std (training/uncertainty.py); None: the model states no uncertainty
+        self.register_buffer("covariance", None)
+        self.register_buffer("sigma2", None)
+
+    def set_uncertainty(self, covariance: np.ndarray, sigma2: float) -> "HybridModule":
+        """Store the parameter covariance (``uncertainty.parameter_covariance``) for ``error_std``."""
+        self.covariance = torch.as_tensor(np.asarray(covariance, dtype=np.float64))
+        self.sigma2 = torch.tensor(float(sigma2), dtype=torch.float64)
+        return self
+
+    @property
+    def has_uncertainty(self) -> bool:
+        return self.covariance is not None
 
     @property
     def uses_previous(self) -> bool:
@@ -92,14 +106,16 @@ class HybridModule(torch.nn.Module):
     def error_and_joints(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
                          q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None,
                          rotation: bool = False, approach: torch.Tensor | None = None,
-                         q_previous: torch.Tensor | None = None) -> tuple[torch.Tensor, ...]:
+                         q_previous: torch.Tensor | None = None,
+                         uncertainty: bool = False) -> tuple[torch.Tensor, ...]:
         """(Ê [N, 3], the controller's joint angles q [N, 6] rad) in the dtype of ``pose``;
         ``q_in`` [N, 6] rad picks each row's IK branch (NaN rows: the identified branch);
         ``tool`` [N, 6] each row's TCP on the flange (NaN rows: the model's own). With
         ``rotation``: + r̂ [N, 3] rad, the identified arm's orientation error (the residual nets
         are of the position only). ``approach`` [N, 6] fixes the approach signs (NaN: from
         ``previous_pose``); ``q_previous`` [N, 6] rad the controller's angles at the target
-        before (NaN rows: unknown)."""
+        before (NaN rows: unknown). With ``uncertainty`` (and ``covariance`` set): + the std of
+        E − Ê [N, 1] mm last (``uncertainty.error_std``)."""
         dtype = pose.dtype
         pose = pose.to(torch.float64)
         prev = previous_pose.to(torch.float64) if previous_pose is not None else None
@@ -112,6 +128,10 @@ class HybridModule(torch.nn.Module):
         if len(self.nets):
             features = joint_features(q, signs if self.uses_previous else None)
             error = error + learned[:, None] * torch.stack([net(features) for net in self.nets]).mean(dim=0)
+        if uncertainty:
+            from .uncertainty import error_std
+
+            turned.append(error_std(self.kinematic, self.covariance, self.sigma2, q, signs, learned, tool))
         return (error.to(dtype), q.to(dtype), *(t.to(dtype) for t in turned))
 
     def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
@@ -127,13 +147,15 @@ class _WithJoints(torch.nn.Module):
     ``previous_joints`` (deg, NaN rows: unknown; with ``previous_pose``)]; outputs ``error`` and
     ``joints`` (deg, wrapped to [−180, 180)), so that compensate can check the joint ranges of
     the envelope with onnxruntime alone, and, when the orientation was identified from measured
-    orientations, ``rotation_error`` (deg)."""
+    orientations, ``rotation_error`` (deg), and, with ``uncertainty``, ``error_std`` (mm, last)."""
 
-    def __init__(self, module: HybridModule, tool: bool = False, previous_joints: bool = False):
+    def __init__(self, module: HybridModule, tool: bool = False, previous_joints: bool = False,
+                 uncertainty: bool = False):
         super().__init__()
         self.module = module
         self.tool = tool
         self.previous_joints = previous_joints and module.uses_previous
+        self.uncertainty = uncertainty
 
     def forward(self, pose: torch.Tensor, *rest: torch.Tensor):
         rest = list(rest)  # (previous_pose,) joints, (approach,) (tool,) (previous_joints,): onnx_bytes' order
@@ -144,8 +166,9 @@ class _WithJoints(torch.nn.Module):
         tool = rest.pop(0) if self.tool else None
         q_previous = rest.pop(0) * to_rad if self.previous_joints else None
         error, q, *turned = self.module.error_and_joints(pose, previous_pose, joints, tool, self.module.orientation,
-                                                         approach, q_previous)
-        return (error, wrap_angles(q) * (180.0 / math.pi), *(t * (180.0 / math.pi) for t in turned))
+                                                         approach, q_previous, self.uncertainty)
+        std = [turned.pop()] if self.uncertainty else []
+        return (error, wrap_angles(q) * (180.0 / math.pi), *(t * (180.0 / math.pi) for t in turned), *std)
 
 
 def _train_net(x: np.ndarray, y: np.ndarray, hidden: tuple[int, ...], epochs: int, seed: int) -> ResidualNet:
@@ -422,16 +445,22 @@ class HybridModel:
         p, sizes = km.parameters(), km.layout_.sizes
         # (a re-calibration sets its own: OLD's std, the posterior std of what it re-fitted)
         std, residual_std = getattr(self, "identification_std_", (None, None))
+        posterior = None
         if std is None:
             cov = parameter_covariance(km)
-            std, residual_std = cov.std, math.sqrt(cov.sigma2)
-        std = dict(zip(sizes, np.split(np.asarray(std, dtype=np.float64), np.cumsum(list(sizes.values()))[:-1])))
+            std, residual_std, posterior = cov.std, math.sqrt(cov.sigma2), cov.posterior_std
+        cuts = np.cumsum(list(sizes.values()))[:-1]
+        std = dict(zip(sizes, np.split(np.asarray(std, dtype=np.float64), cuts)))
+        posterior = None if posterior is None else dict(zip(sizes, np.split(posterior, cuts)))
         groups = [name for name in sizes if name != "ripple" and sizes[name]]
         return {
             "parameters": {name: [float(v) for v in np.ravel(p[name])] for name in groups},
             "ripple_amplitudes": [[float(a), float(b)] for a, b in p["ripple"]],
             "tau_mean": [float(v) for v in km.module_.tau_mean],
             "parameter_std": {name: [float(v) if v == v else None for v in std[name]] for name in groups},  # None: unknown
+            # what is known of each value (the certificate's uncertainty; not for a re-calibration)
+            **({"parameter_posterior_std": {name: [float(v) for v in posterior[name]] for name in groups}}
+               if posterior is not None else {}),
             "residual_std_mm": float(residual_std),
             "nominal_sha256": nominal_digest(self.description),
         }
@@ -471,16 +500,38 @@ class HybridModel:
         envelope = dict(self.envelope_)
         envelope["joints"] = self.joint_range_
         meta = {"method": self.label, "structure": self.structure, "envelope": envelope, "iterations": 2}
+        std = self._uncertainty()
+        if std:
+            from .uncertainty import MAX_STD_FACTOR
+
+            sigma = math.sqrt(float(self.module_.sigma2))
+            meta["uncertainty"] = {"max_std_mm": round(MAX_STD_FACTOR * sigma, 6), "residual_std_mm": round(sigma, 6),
+                                   "max_std_rule": f"{MAX_STD_FACTOR:g} x residual_std_mm"}
         meta.update(metadata)
         # the tool input where the error is the identified arm's (a physical model); the residual
         # networks alone (dnn-joints) learned one TCP's error and keep P304 for the others
         tool = bool(self.kinematic_.layout_.n)
         # with backlash: the controller's angles at the target before (a turn or configuration
         # change between targets is a motion their poses alone do not show)
-        graph = _WithJoints(self.module_, tool, previous_joints=True)
+        graph = _WithJoints(self.module_, tool, previous_joints=True, uncertainty=std)
         return write_atomic(path, onnx_bytes(graph, meta, self.uses_previous, joints=True, joints_input=True,
                                              approach_input=self.uses_previous, tool_input=tool,
-                                             previous_joints_input=graph.previous_joints, rotation=self.orientation))
+                                             previous_joints_input=graph.previous_joints, rotation=self.orientation,
+                                             std=std))
+
+    def _uncertainty(self) -> bool:
+        """Put the identification's parameter covariance into the graph (output ``error_std``):
+        for an identified arm fitted here; a re-calibration (``train --update``, whose
+        ``identification_std_`` comes from the older model) and the networks alone state none."""
+        if self.module_.has_uncertainty:
+            return True
+        if not self.kinematic_.layout_.n or hasattr(self, "identification_std_"):
+            return False
+        from .uncertainty import parameter_covariance
+
+        cov = parameter_covariance(self.kinematic_)
+        self.module_.set_uncertainty(cov.covariance, cov.sigma2)
+        return True
 
     @property
     def structure(self) -> str:

@@ -291,7 +291,7 @@ def _joint_columns(layout: Layout, q: torch.Tensor, signs: torch.Tensor, tau: to
         rows = 1.0 if ripple_rows is None else ripple_rows[:, None, None]
         out["ripple"] = lambda s: torch.stack([s[:, :, ripple_joint] * rows * torch.sin(phase)[:, None, :],
                                                s[:, :, ripple_joint] * rows * torch.cos(phase)[:, None, :]],
-                                              dim=-1).reshape(len(q), 3, -1)
+                                              dim=-1).reshape(q.shape[0], 3, -1)  # (traced: not len(q))
     return out
 
 
@@ -833,9 +833,14 @@ class KinematicModel:
     def identifiability(self, tolerance: float = 1e-6) -> dict:
         """What the data can tell apart: the numerical rank of the fit's Jacobian (columns scaled
         by each parameter's typical size, singular values below ``tolerance`` × the largest
-        count as zero) and, for each direction it cannot see, the groups that share it (e.g. a
+        count as zero), the condition number of the part it can see (largest / smallest kept
+        singular value: how much noise the worst-seen direction amplifies) and, for each
+        direction it cannot see, the groups that share it (e.g. a
         zero offset and a placement turned about that joint's axis: one effect, two groups);
-        the weak prior settles those, the data does not."""
+        the weak prior settles those, the data does not. ``undetermined`` {group: [index in the
+        group]}: the parameters with more than 1 % of their (scaled) weight in those directions:
+        the data fixes their sum with others, not their own value (the prior splits it; their
+        spread from fit to fit is the optimiser's path, not a statistical one)."""
         _, jac, _ = self._state
         layout = self.layout_
         sigma = self._prior_scales(layout, torch.as_tensor(np.ones((1, 6 + N_COUPLING))))
@@ -851,7 +856,13 @@ class KinematicModel:
             groups = tuple(sorted(g for g, w in share.items() if w > 0.05))
             if groups not in together:
                 together.append(groups)
-        return {"parameters": int(layout.n), "rank": rank, "unseparated": [list(g) for g in together]}
+        # the condition number of what the data does separate (largest / smallest kept singular value)
+        condition = float(sv[0] / sv[rank - 1]) if rank else math.inf
+        null = (vt[rank:] ** 2).sum(axis=0)  # [P] each parameter's weight in the unseen directions
+        undetermined = {name: [int(k) for k in np.flatnonzero(null[s] > 0.01)] for name, s in layout.slices().items()
+                        if s.stop > s.start and (null[s] > 0.01).any()}
+        return {"parameters": int(layout.n), "rank": rank, "condition": condition,
+                "unseparated": [list(g) for g in together], "undetermined": undetermined}
 
     # ------------------------------------------------------------------ using it
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:

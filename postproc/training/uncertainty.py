@@ -7,7 +7,10 @@ Jacobian the fit uses) and A = JᵀJ + W (W = diag w, the weak prior):
 * residual variance per coordinate σ² = ‖r(θ̂)‖² / (3N − p_eff), p_eff = tr(A⁻¹JᵀJ) the
   effective number of parameters (the prior takes some of their freedom);
 * parameter covariance C = σ²·A⁻¹JᵀJ·A⁻¹ (the sandwich of the regularised least-squares
-  estimate: the spread of θ̂ over repeated measurements of the same poses);
+  estimate: the spread of θ̂ over repeated measurements of the same poses; what the
+  predictions inherit). What is known of a parameter's own value is the posterior σ²·A⁻¹
+  (``posterior_std``: the certificate's uncertainty), which differs where the data fixes only
+  sums of parameters;
 * at a target with Jacobian J_t [3, P] the prediction Ê(t) has covariance J_t C J_tᵀ, and the
   residual a compensation leaves, E − Ê, has per coordinate the variance
   σ² + diag(J_t C J_tᵀ): what the model does not explain plus what it does not know.
@@ -15,6 +18,14 @@ Jacobian the fit uses) and A = JᵀJ + W (W = diag w, the weak prior):
 :func:`position_std` returns, per target, that residual std (the root mean over X, Y, Z) and
 its model part alone. Under Gaussian residuals 95.4 % of the held-out residual coordinates
 lie within 2σ; the test checks 90–98 % on simulated data. numpy + torch (as training/).
+
+The exported graph computes the same figure (the contract's optional output ``error_std``):
+:func:`error_std` builds J_t with the same geometric Jacobian (``kinematic.jacobian``, whose
+operations the TorchScript ONNX exporter handles) from the graph's own q, approach signs and
+tool, and takes σ² + diag(J_t C J_tᵀ) with C and σ² stored in the graph (``HybridModule``'s
+buffers ``covariance`` [P, P] and ``sigma2``). It is of the identified arm only: where residual
+networks were kept, σ is the identification's residual (larger than what the networks leave,
+so the figure errs on the safe side).
 """
 from __future__ import annotations
 
@@ -25,7 +36,14 @@ import torch
 
 from .kinematic import KinematicModel, approach_signs, jacobian
 
-__all__ = ["ParameterCovariance", "parameter_covariance", "PositionStd", "position_std"]
+# compensate / check warn (P336) where error_std exceeds this multiple of the identification's
+# residual std σ per coordinate (the card's uncertainty.max_std_mm; --max-std overrides). Inside
+# the data error_std ≈ σ (the model's own part ~0.1-0.3 σ); at 2σ that part has grown to √3·σ:
+# the residual to expect there is twice what the card's accuracy was validated at
+MAX_STD_FACTOR = 2.0
+
+__all__ = ["MAX_STD_FACTOR", "ParameterCovariance", "parameter_covariance", "PositionStd", "position_std", "error_std",
+           "residual_variance"]
 
 
 @dataclass
@@ -34,10 +52,19 @@ class ParameterCovariance:
     sigma2: float  # residual variance per coordinate, mm²
     dof: float  # 3N − p_eff
     p_eff: float  # effective number of parameters
+    posterior: np.ndarray | None = None  # [P, P] σ²·A⁻¹: what is known of each parameter's value
 
     @property
     def std(self) -> np.ndarray:
         return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+
+    @property
+    def posterior_std(self) -> np.ndarray:
+        """How well the data (with the weak prior) knows each parameter's own value: √diag(σ²A⁻¹).
+        ≈ ``std`` where the data determines the parameter; where it fixes only a sum with others
+        (the prior splits it) ``std`` is ~0 — the split does not vary with the noise — while this
+        stays near the prior's scale: the value itself is not known."""
+        return np.sqrt(np.clip(np.diag(self.posterior), 0.0, None))
 
 
 @dataclass
@@ -45,6 +72,29 @@ class PositionStd:
     total: np.ndarray  # [N] mm: std of a coordinate of E − Ê (unexplained + model)
     model: np.ndarray  # [N] mm: the model's part, √(tr(J C Jᵀ)/3)
     per_axis: np.ndarray  # [N, 3] mm: std of X, Y, Z of E − Ê
+
+
+def residual_variance(jac: torch.Tensor, covariance: torch.Tensor, sigma2: torch.Tensor | float) -> torch.Tensor:
+    """Per target and coordinate [N, 3] the variance of E − Ê: σ² + diag(J_t C J_tᵀ) (the
+    model part clipped at 0) for target Jacobians ``jac`` [N, 3, P]. One rule, used by
+    :func:`position_std` and by the exported graph."""
+    return sigma2 + ((jac @ covariance) * jac).sum(dim=-1).clamp(min=0.0)
+
+
+def error_std(kinematic, covariance: torch.Tensor, sigma2: torch.Tensor, q: torch.Tensor, signs: torch.Tensor,
+              learned: torch.Tensor | None = None, tool: torch.Tensor | None = None) -> torch.Tensor:
+    """The graph's ``error_std`` [N, 1] mm (root mean over X, Y, Z of the std of E − Ê, as
+    ``PositionStd.total``) of the identified arm ``kinematic`` (a ``KinematicErrorModule``) at
+    joint angles q [N, 6] rad reached with ``signs``; ``learned`` [N] 1/0: the rows inside the
+    trained joint ranges (outside, the graph leaves the ripple terms out: so does their
+    uncertainty); ``tool`` [N, 6]: each row's TCP on the flange (NaN rows: the model's own)."""
+    tau = kinematic.torques(q)
+    tools = None
+    if tool is not None:
+        tools = torch.where(torch.isnan(tool[:, :3]), kinematic.tool0[:3].expand(tool.shape[0], 3), tool[:, :3])
+    rows = learned if learned is not None and len(kinematic.layout.ripple) else None
+    _, jac, _ = jacobian(kinematic.arm, kinematic.layout, kinematic.theta, q, signs, tau, tools, ripple_rows=rows)
+    return residual_variance(jac, covariance, sigma2).mean(dim=-1, keepdim=True).sqrt()
 
 
 def _jac(model: KinematicModel, q: torch.Tensor, signs: torch.Tensor) -> np.ndarray:
@@ -62,14 +112,18 @@ def parameter_covariance(model: KinematicModel) -> ParameterCovariance:
     jac = _jac(model, q, s).reshape(-1, len(model.theta_))
     with torch.no_grad():
         tau = model.module_.torques(q)
-    w = model.prior / model._prior_scales(model.layout_, tau) ** 2  # the fit's prior curvature
+    scale = model._prior_scales(model.layout_, tau)  # each parameter's typical size
+    w = model.prior / scale**2  # the fit's prior curvature
     jtj = jac.T @ jac
-    a_inv = np.linalg.pinv(jtj + np.diag(w), hermitian=True)
+    # A⁻¹ in the parameters' own scales: A's raw entries span ~30 decades (mm vs rad/Nm), where a
+    # pseudo-inverse would drop the directions only the prior holds, as if they had no variance
+    a_scaled = scale[:, None] * (jtj + np.diag(w)) * scale[None, :]
+    a_inv = scale[:, None] * np.linalg.inv(a_scaled) * scale[None, :]
     p_eff = float(np.trace(a_inv @ jtj))
     r = np.asarray(model.train_residual_, float).reshape(-1)
     dof = max(len(r) - p_eff, 1.0)
     sigma2 = float(r @ r) / dof
-    return ParameterCovariance(sigma2 * a_inv @ jtj @ a_inv, sigma2, dof, p_eff)
+    return ParameterCovariance(sigma2 * a_inv @ jtj @ a_inv, sigma2, dof, p_eff, sigma2 * a_inv)
 
 
 def position_std(model: KinematicModel, poses: np.ndarray, previous: np.ndarray | None = None,
@@ -85,7 +139,6 @@ def position_std(model: KinematicModel, poses: np.ndarray, previous: np.ndarray 
             prev = torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
             signs = approach_signs(model.ik_, model.arm_.home_q, q, pose, prev)
     jac = _jac(model, q, signs)  # [N, 3, P]
-    var_model = np.einsum("nkp,pq,nkq->nk", jac, cov.covariance, jac)  # diag of J C Jᵀ
-    per_axis = np.sqrt(cov.sigma2 + np.clip(var_model, 0.0, None))
-    return PositionStd(np.sqrt((per_axis**2).mean(axis=1)), np.sqrt(np.clip(var_model, 0.0, None).mean(axis=1)),
-                       per_axis)
+    var_model = residual_variance(torch.as_tensor(jac), torch.as_tensor(cov.covariance), 0.0).numpy()
+    per_axis = np.sqrt(cov.sigma2 + var_model)
+    return PositionStd(np.sqrt((per_axis**2).mean(axis=1)), np.sqrt(var_model.mean(axis=1)), per_axis)
