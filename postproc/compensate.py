@@ -21,7 +21,7 @@ from collections import Counter
 from . import frames
 from .compensator import Chain, Compensator, Inside, load_model
 from .diagnostics import (
-    P105, P106, P107, P108, P109, P201, P202, P203, P212, P220, P221, P306, P312, Diagnostic, LEFT_AS_WRITTEN,
+    P105, P106, P107, P108, P201, P202, P203, P212, P220, P221, P306, P312, Diagnostic, LEFT_AS_WRITTEN,
     PostprocError,
 )
 from .findings import (

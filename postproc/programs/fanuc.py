@@ -31,12 +31,12 @@ import tomllib
 from dataclasses import dataclass, field
 
 import numpy as np
-from lark import Lark, Token, Tree
+from lark import Lark, Token
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
 from ..diagnostics import Diagnostic, PostprocError
 from ..frames import frame_to_matrix
-from ..resources import grammar_path
+from .grammar import lalr_parser
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline
 
@@ -71,16 +71,9 @@ class FanucProgram(Program):
     configs: list[str] = field(default_factory=list)
 
 
-_PARSER = None
-
-
 def parser() -> Lark:
     """The LALR parser of ``grammars/ls.lark`` (built once, cached on disk by lark)."""
-    global _PARSER
-    if _PARSER is None:
-        _PARSER = Lark(grammar_path("ls.lark").read_text(), parser="lalr", lexer="contextual", start="record",
-                       cache=True)
-    return _PARSER
+    return lalr_parser("ls.lark", "record")
 
 
 def wpr_to_abc(wpr: np.ndarray) -> np.ndarray:

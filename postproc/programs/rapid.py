@@ -33,7 +33,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..diagnostics import P101, P102, P103, P104, P201, P202, P211, Diagnostic, PostprocError, line_col
 from ..frames import abc_from_rotation
-from ..resources import grammar_path
+from .grammar import lalr_parser
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline  # a file's newline: \r\n if at least half its line ends are
 
@@ -82,16 +82,9 @@ class RapidProgram(Program):
     confdata: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
 
 
-_PARSER = None
-
-
 def parser() -> Lark:
     """The LALR parser of ``grammars/rapid.lark`` (built once, cached on disk by lark)."""
-    global _PARSER
-    if _PARSER is None:
-        _PARSER = Lark(grammar_path("rapid.lark").read_text(), parser="lalr", lexer="contextual", start="unit",
-                       cache=True)
-    return _PARSER
+    return lalr_parser("rapid.lark", "unit")
 
 
 def quaternion_matrix(q: np.ndarray) -> np.ndarray:

@@ -40,7 +40,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..diagnostics import Diagnostic, PostprocError, line_col
 from ..frames import abc_from_rotation
-from ..resources import grammar_path
+from .grammar import lalr_parser
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline
 
@@ -62,16 +62,9 @@ MOTION_OF = {"movel": ("LIN",), "movej": ("PTP",), "movep": ("LIN",), "movec": (
 _JOINT_FUNCS = {"get_inverse_kin", "get_actual_joint_positions", "get_target_joint_positions",
                 "get_joint_positions"}
 
-_PARSER = None
-
-
 def parser() -> Lark:
     """The LALR parser of ``grammars/urscript.lark`` (built once, cached on disk by lark)."""
-    global _PARSER
-    if _PARSER is None:
-        _PARSER = Lark(grammar_path("urscript.lark").read_text(), parser="lalr", lexer="contextual", start="unit",
-                       cache=True)
-    return _PARSER
+    return lalr_parser("urscript.lark", "unit")
 
 
 def rotvec_matrix(v: np.ndarray) -> np.ndarray:
