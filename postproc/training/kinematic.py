@@ -75,6 +75,10 @@ SIGN_DEADBAND = 2e-6
 # orientation residual of that fit (each kind weighed by what it leaves unexplained: noise
 # and unmodelled error), within LEVER_RANGE
 LEVER_MM = 1000.0
+# gear-ripple orders up to this one are smooth over a joint's range (sin q, sin 2q: what the
+# geometry also describes) and extrapolate as the geometry does: kept outside the trained joint
+# ranges, where the higher orders (gear meshes, fitted at the angles the data visited) are left out
+SMOOTH_ORDER = 2
 LEVER_RANGE = (10.0, 10000.0)
 
 
@@ -193,6 +197,12 @@ def static_deflection(p: dict[str, torch.Tensor], tau: torch.Tensor) -> torch.Te
     return dq + (p["coupling"] * tau[..., 6:]) @ COUPLING_ONEHOT.to(tau.dtype)
 
 
+def _ripple_mask(rows: torch.Tensor, ripple_order: torch.Tensor) -> torch.Tensor:
+    """[N, R] 1/0: each ripple term kept at each row — where ``rows`` [N] is 1, and the smooth
+    orders (≤ SMOOTH_ORDER) everywhere."""
+    return torch.maximum(rows[:, None], (ripple_order <= SMOOTH_ORDER).to(rows.dtype)[None, :])
+
+
 def joint_error(p: dict[str, torch.Tensor], q: torch.Tensor, signs: torch.Tensor, tau: torch.Tensor,
                 ripple_joint: torch.Tensor, ripple_order: torch.Tensor,
                 ripple_rows: torch.Tensor | None = None) -> torch.Tensor:
@@ -204,7 +214,7 @@ def joint_error(p: dict[str, torch.Tensor], q: torch.Tensor, signs: torch.Tensor
         phase = q[:, ripple_joint] * ripple_order  # [N, R]
         terms = torch.sin(phase) * p["ripple"][:, 0] + torch.cos(phase) * p["ripple"][:, 1]
         if ripple_rows is not None:
-            terms = terms * ripple_rows[:, None]
+            terms = terms * _ripple_mask(ripple_rows, ripple_order)
         onehot = torch.nn.functional.one_hot(ripple_joint, 6).to(q.dtype)  # [R, 6]
         dq = dq + terms @ onehot
     return dq
@@ -288,7 +298,7 @@ def _joint_columns(layout: Layout, q: torch.Tensor, signs: torch.Tensor, tau: to
         out["backlash"] = lambda s: -s * signs[:, None, :]
     if len(layout.ripple):
         phase = q[:, ripple_joint] * ripple_order
-        rows = 1.0 if ripple_rows is None else ripple_rows[:, None, None]
+        rows = 1.0 if ripple_rows is None else _ripple_mask(ripple_rows, ripple_order)[:, None, :]
         out["ripple"] = lambda s: torch.stack([s[:, :, ripple_joint] * rows * torch.sin(phase)[:, None, :],
                                                s[:, :, ripple_joint] * rows * torch.cos(phase)[:, None, :]],
                                               dim=-1).reshape(q.shape[0], 3, -1)  # (traced: not len(q))
@@ -440,7 +450,8 @@ class KinematicErrorModule(torch.nn.Module):
         tau = self.arm.torque_terms(rot, org) - self.tau_mean
         dq = joint_error(p, q, signs, tau, self.ripple_joint, self.ripple_order)
         if learned is not None and len(self.ripple_joint):
-            p["ripple"] = torch.zeros_like(p["ripple"])
+            # outside the trained ranges the gear-mesh orders go, the smooth ones stay (SMOOTH_ORDER)
+            p["ripple"] = p["ripple"] * (self.ripple_order <= SMOOTH_ORDER).to(q.dtype)[:, None]
             physical = joint_error(p, q, signs, tau, self.ripple_joint, self.ripple_order)
             dq = physical + learned[:, None] * (dq - physical)
         omega = torch.stack([mv(rot[:, j], self.arm.axes[j]) for j in range(6)], dim=1)
