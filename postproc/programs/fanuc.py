@@ -32,11 +32,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from lark import Lark, Token
-from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
+from lark.exceptions import UnexpectedInput
 
 from ..diagnostics import Diagnostic, PostprocError
 from ..frames import frame_to_matrix
-from .grammar import lalr_parser
+from .grammar import lalr_parser, unexpected
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline
 
@@ -276,19 +276,10 @@ class _Reader:
         return out
 
     def syntax_error(self, start, record):
-        try:
-            parser().parse(record)
-        except UnexpectedInput as exc:
-            pos = getattr(exc, "pos_in_stream", None)
-            if isinstance(exc, UnexpectedEOF) or pos is None or pos < 0:
-                pos = len(record.rstrip())
-            if isinstance(exc, UnexpectedToken):
-                found = f"'{exc.token}'" if exc.token.type != "$END" else "end of record"
-            elif isinstance(exc, UnexpectedCharacters):
-                found = repr(record[pos])
-            else:
-                found = "end of record"
-            raise self.error(start + pos, f"syntax error: unexpected {found}") from None
+        located = unexpected(parser().parse, record, "end of record")
+        if located is not None:
+            pos, found = located
+            raise self.error(start + pos, f"syntax error: unexpected {found}")
         raise self.error(start, "syntax error")
 
     def number(self, tokens, ordinal, signed):

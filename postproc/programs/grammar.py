@@ -13,3 +13,24 @@ from ..resources import grammar_path
 def lalr_parser(grammar: str, start: str) -> Lark:
     """The LALR parser (contextual lexer) of ``grammars/<grammar>`` starting at ``start``."""
     return Lark(grammar_path(grammar).read_text(), parser="lalr", lexer="contextual", start=start, cache=True)
+
+
+def unexpected(parse, text: str, end: str = "end of line") -> tuple[int, str] | None:
+    """Parse ``text`` as written to locate a syntax error: (offset in ``text``, what was found
+    there, e.g. ``"'}'"`` or ``end``) from lark's error, or None where it parses."""
+    from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
+
+    try:
+        parse(text)
+    except UnexpectedInput as exc:
+        pos = getattr(exc, "pos_in_stream", None)
+        if isinstance(exc, UnexpectedEOF) or pos is None or pos < 0:
+            pos = len(text.rstrip())
+        if isinstance(exc, UnexpectedToken):
+            found = f"'{exc.token}'" if exc.token.type != "$END" else end
+        elif isinstance(exc, UnexpectedCharacters):
+            found = repr(text[pos])
+        else:
+            found = end
+        return pos, found
+    return None

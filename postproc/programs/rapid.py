@@ -29,11 +29,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from lark import Lark, Token, Tree
-from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
+from lark.exceptions import UnexpectedInput
 
 from ..diagnostics import P101, P102, P103, P104, P201, P202, P211, Diagnostic, PostprocError, line_col
 from ..frames import abc_from_rotation
-from .grammar import lalr_parser
+from .grammar import lalr_parser, unexpected
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline  # a file's newline: \r\n if at least half its line ends are
 
@@ -341,20 +341,10 @@ class _Reader:
     def syntax_error(self, path, text, start, unit):
         """Parse the unit as written to locate the error; raise P101 there."""
         lead = len(unit) - len(unit.lstrip())
-        try:
-            parser().parse(unit)
-        except UnexpectedInput as exc:
-            pos = getattr(exc, "pos_in_stream", None)
-            if isinstance(exc, UnexpectedEOF) or pos is None or pos < 0:
-                pos = len(unit.rstrip())
-            if isinstance(exc, UnexpectedToken):
-                found = f"'{exc.token}'" if exc.token.type != "$END" else "end of statement"
-            elif isinstance(exc, UnexpectedCharacters):
-                found = repr(unit[pos])
-            else:
-                found = "end of statement"
-            raise PostprocError(f"syntax error: unexpected {found}", path, *line_col(text, start + pos),
-                                P101) from None
+        located = unexpected(parser().parse, unit, "end of statement")
+        if located is not None:
+            pos, found = located
+            raise PostprocError(f"syntax error: unexpected {found}", path, *line_col(text, start + pos), P101)
         raise PostprocError("syntax error", path, *line_col(text, start + lead), P101)
 
     # -------------------------------------------------------------- one module

@@ -36,11 +36,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from lark import Lark, Token, Tree
-from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
+from lark.exceptions import UnexpectedInput
 
 from ..diagnostics import Diagnostic, PostprocError, line_col
 from ..frames import abc_from_rotation
-from .grammar import lalr_parser
+from .grammar import lalr_parser, unexpected
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline
 
@@ -260,20 +260,10 @@ class _Reader:
 
     def syntax_error(self, start, unit):
         """Parse the line as written to locate the error; raise P101 there."""
-        try:
-            parser().parse(unit)
-        except UnexpectedInput as exc:
-            pos = getattr(exc, "pos_in_stream", None)
-            if isinstance(exc, UnexpectedEOF) or pos is None or pos < 0:
-                pos = len(unit.rstrip())
-            if isinstance(exc, UnexpectedToken):
-                found = f"'{exc.token}'" if exc.token.type != "$END" else "end of line"
-            elif isinstance(exc, UnexpectedCharacters):
-                found = repr(unit[pos])
-            else:
-                found = "end of line"
-            raise PostprocError(f"syntax error: unexpected {found}", self.path, *self.line_col(start + pos),
-                                "P101") from None
+        located = unexpected(parser().parse, unit)
+        if located is not None:
+            pos, found = located
+            raise PostprocError(f"syntax error: unexpected {found}", self.path, *self.line_col(start + pos), "P101")
         raise PostprocError("syntax error", self.path, *self.line_col(start), "P101")
 
     # -------------------------------------------------------------- the pass over the script
