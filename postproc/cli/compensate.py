@@ -18,7 +18,8 @@ def add_parser(sub, common, formatter) -> None:
         parents=[common],
         formatter_class=formatter,
         help="rewrite a program with compensated target coordinates",
-        description="Send every Cartesian target of a KRL (.src + .dat) or pose-list program through the "
+        description="Send every Cartesian target of a KRL (.src + .dat), ABB RAPID, URScript, Fanuc LS or "
+        "pose-list program through the "
         "error model and write the program back with corrected X/Y/Z; every other byte stays as it was "
         "(partial aggregates get the X/Y/Z their correction needs written in). Exit 0: every target "
         "compensated; 1: written, but some targets left as written (the summary line says which codes); "
@@ -26,7 +27,8 @@ def add_parser(sub, common, formatter) -> None:
         epilog=EXAMPLES,
     )
     p.add_argument("input", metavar="IN", nargs="+",
-                   help="program (.src with its .dat beside it, .csv/.txt pose list) or - for stdin; or a cell: "
+                   help="program (.src with its .dat beside it, .mod/.prg/.sys, .script, .ls, .csv/.txt pose list) or - for "
+                   "stdin (with --dialect); or a cell: "
                    "several KRL files or a directory (a controller backup KRC/R1/), compensated as one unit")
     p.add_argument("-o", "--output", metavar="OUT", required=True,
                    help="where to write (its .dat goes beside it); - for stdout; for a cell a directory (OUTDIR), "
@@ -70,8 +72,8 @@ def add_frame_arguments(p, settings: bool = True) -> None:
                    "$NULLFRAME) or the frame itself (mm, deg)" + default.format("base") + ". Without it such targets "
                    "are left as written (P220)")
     p.add_argument("--tool", metavar="N|X,Y,Z,A,B,C|model",
-                   help="the $TOOL active where a KRL program has not set it: TOOL_DATA[N] of $config.dat, the frame "
-                   "itself, or 'model' (the model's own tool)" + default.format("tool") + ". Without it such targets "
+                   help="the $TOOL active where a KRL program has not set it (and a URScript program's TCP before its "
+                   "first set_tcp): TOOL_DATA[N] of $config.dat, the frame itself, or 'model' (the model's own tool)" + default.format("tool") + ". Without it such targets "
                    "are left as written (P221)")
 
 
