@@ -33,7 +33,7 @@ def add_parser(sub, common, formatter) -> None:
         "twice, and (--fresh) compensated outputs that no longer match their sources.",
         epilog=EXAMPLES,
     )
-    p.add_argument("files", nargs="*", metavar="FILE", help="programs (.src/.dat/.csv/.txt) or directories, checked as one "
+    p.add_argument("files", nargs="*", metavar="FILE", help="programs (.src/.dat, .mod/.prg/.sys, .script, .ls, .csv/.txt) or directories, checked as one "
                    "cell: a .dat is checked with its .src, a $config.dat among them configures the others, a data list "
                    "without DEF is checked for syntax")
     p.add_argument("--model", metavar="M", help="the configured ONNX model (default: settings, else models/default.onnx)")
