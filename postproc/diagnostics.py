@@ -196,3 +196,21 @@ def line_col(text: str, offset: int) -> tuple[int, int]:
     line = text.count("\n", 0, offset) + 1
     start = text.rfind("\n", 0, offset) + 1
     return line, offset - start + 1
+
+
+class LineIndex:
+    """``line_col`` for many offsets of one text: the line starts found once (a reader that
+    warns at thousands of targets stays linear)."""
+
+    def __init__(self, text: str):
+        self.text = text
+        self._starts = None
+
+    def line_col(self, offset: int) -> tuple[int, int]:
+        if self._starts is None:
+            import numpy as np
+
+            newline = np.frombuffer(self.text.encode("latin-1", "replace"), np.uint8) == 10
+            self._starts = np.concatenate([[0], np.flatnonzero(newline) + 1])
+        k = int(self._starts.searchsorted(offset, "right")) - 1
+        return k + 1, offset - int(self._starts[k]) + 1

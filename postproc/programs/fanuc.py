@@ -34,7 +34,7 @@ import numpy as np
 from lark import Lark, Token
 from lark.exceptions import UnexpectedInput
 
-from ..diagnostics import Diagnostic, PostprocError
+from ..diagnostics import Diagnostic, LineIndex, PostprocError
 from ..frames import frame_to_matrix
 from .grammar import lalr_parser, unexpected
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
@@ -162,19 +162,15 @@ class _Reader:
         self.path, self.text = path, text
         self.frames_text = frames_text
         self.diagnostics: list[Diagnostic] = []
-        self._starts: np.ndarray | None = None
+        self._lines = LineIndex(text)
         self.shapes: dict[str, dict | None] = {}
 
     def warn(self, at: int, code: str, message: str) -> None:
         self.diagnostics.append(Diagnostic(self.path, *self.line_col(at), code, message))
 
     def line_col(self, at: int) -> tuple[int, int]:
-        """1-based (line, column) of an offset (the line starts found once: many warnings stay cheap)."""
-        if self._starts is None:
-            self._starts = np.concatenate([[0], np.flatnonzero(np.frombuffer(
-                self.text.encode("latin-1", "replace"), np.uint8) == 10) + 1])
-        k = int(np.searchsorted(self._starts, at, "right")) - 1
-        return k + 1, at - int(self._starts[k]) + 1
+        """1-based (line, column) of an offset (``diagnostics.LineIndex``: many warnings stay cheap)."""
+        return self._lines.line_col(at)
 
     def error(self, at: int, message: str, code: str = "P101"):
         return PostprocError(message, self.path, *self.line_col(at), code)

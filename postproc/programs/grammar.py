@@ -34,3 +34,14 @@ def unexpected(parse, text: str, end: str = "end of line") -> tuple[int, str] | 
             found = end
         return pos, found
     return None
+
+
+def first_ordinal(node, ordinal_at: dict[int, int], types: tuple[str, ...] | None = None) -> int:
+    """The smallest ordinal (``ordinal_at``: a token's start → its number in the line) of the
+    tokens below ``node`` (of ``types`` only, if given), -1 if none: where a value starts."""
+    from lark import Token
+
+    if isinstance(node, Token):
+        return ordinal_at.get(node.start_pos, -1) if types is None or node.type in types else -1
+    found = [k for k in (first_ordinal(c, ordinal_at, types) for c in node.children if c is not None) if k >= 0]
+    return min(found, default=-1)

@@ -33,7 +33,7 @@ from lark.exceptions import UnexpectedInput
 
 from ..diagnostics import P101, P102, P103, P104, P201, P202, P211, Diagnostic, PostprocError, line_col
 from ..frames import abc_from_rotation
-from .grammar import lalr_parser, unexpected
+from .grammar import first_ordinal, lalr_parser, unexpected
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline  # a file's newline: \r\n if at least half its line ends are
 
@@ -139,16 +139,7 @@ class _Shape:
 
 def _analyse(tree, ordinal_at) -> _Shape:
     def first(node):
-        if isinstance(node, Token):
-            return ordinal_at.get(node.start_pos, -1) if node.type in ("NAME", "NUMBER") else -1
-        best = -1
-        for c in node.children:
-            if c is None:
-                continue
-            k = first(c)
-            if k >= 0 and (best < 0 or k < best):
-                best = k
-        return best
+        return first_ordinal(node, ordinal_at, ("NAME", "NUMBER"))
 
     def value(node):
         if isinstance(node, Tree):

@@ -38,9 +38,9 @@ import numpy as np
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedInput
 
-from ..diagnostics import Diagnostic, PostprocError, line_col
+from ..diagnostics import Diagnostic, LineIndex, PostprocError, line_col
 from ..frames import abc_from_rotation
-from .grammar import lalr_parser, unexpected
+from .grammar import first_ordinal, lalr_parser, unexpected
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline
 
@@ -93,16 +93,7 @@ class _Shape:
 
 def _analyse(tree, ordinal_at) -> _Shape:
     def first(node):
-        if isinstance(node, Token):
-            return ordinal_at.get(node.start_pos, -1)
-        best = -1
-        for c in node.children:
-            if c is None:
-                continue
-            k = first(c)
-            if k >= 0 and (best < 0 or k < best):
-                best = k
-        return best
+        return first_ordinal(node, ordinal_at)
 
     def value(node):
         if isinstance(node, Tree):
@@ -187,7 +178,7 @@ class _Reader:
         self.path, self.text = path, text
         self.active = active  # ActiveFrames: the TCP stated for targets before the first set_tcp
         self.diagnostics: list[Diagnostic] = []
-        self._starts: np.ndarray | None = None
+        self._lines = LineIndex(text)
         self.shapes: dict[str, _Shape] = {}
         self.exact: dict[str, _Shape] = {}
         self.code = ""
@@ -196,12 +187,8 @@ class _Reader:
         self.diagnostics.append(Diagnostic(self.path, *self.line_col(at), code, message))
 
     def line_col(self, at: int) -> tuple[int, int]:
-        """1-based (line, column) of an offset (the line starts found once: many warnings stay cheap)."""
-        if self._starts is None:
-            self._starts = np.concatenate([[0], np.flatnonzero(np.frombuffer(
-                self.text.encode("latin-1", "replace"), np.uint8) == 10) + 1])
-        k = int(np.searchsorted(self._starts, at, "right")) - 1
-        return k + 1, at - int(self._starts[k]) + 1
+        """1-based (line, column) of an offset (``diagnostics.LineIndex``: many warnings stay cheap)."""
+        return self._lines.line_col(at)
 
     def units(self):
         """Yield (start, end) of each logical line; fill ``self.code``."""
