@@ -68,24 +68,34 @@ def sim_part() -> None:
             print(line(f"sim n={n} ripple={'search' if ripple else 'none'}", km, residual, std, seconds))
 
 
-def ipa_part(data: str) -> None:
+def _ipa_c(data: str):
+    """IPA Series C registered on its training rows (80/20 split, seed 0): (series, train rows,
+    validation rows, errors E [N, 3] mm), or None where the data set is not here."""
     from postproc.datasets import read_ipa
     from postproc.registration import register_measurements
-    from postproc.robot import load_description
-    from postproc.resources import model_path
     from postproc.training.data import split_indices
-    from postproc.training.kinematic import KinematicModel
 
     source = Path(data) / "Series_C/measurements_random_poses.csv"
     if not source.exists():
-        print(f"ipa: skip, {source} not found")
-        return
+        return None
     s = read_ipa(source)
     train_idx, val_idx = split_indices(len(s), 0.2, 0)
     fit_rows = np.zeros(len(s), bool)
     fit_rows[train_idx] = True
     measured, _, _ = register_measurements(s.commanded[:, :3], s.measured, fit_rows)
-    errors = s.commanded[:, :3] - measured
+    return s, train_idx, val_idx, s.commanded[:, :3] - measured
+
+
+def ipa_part(data: str) -> None:
+    from postproc.robot import load_description
+    from postproc.resources import model_path
+    from postproc.training.kinematic import KinematicModel
+
+    loaded = _ipa_c(data)
+    if loaded is None:
+        print(f"ipa: skip, {Path(data) / 'Series_C'} not found")
+        return
+    s, train_idx, val_idx, errors = loaded
     d = load_description(model_path("ur10.toml"))
     for ripple in ([], "search"):
         t0 = time.perf_counter()
@@ -151,21 +161,13 @@ def onnx_part(data: str) -> None:
           f"{runs['card --max-std']:.2f} s (x{runs['card --max-std'] / runs['--max-std inf']:.2f}); "
           f"P336 {sum(w.code == 'P336' for w in report.warnings)} listed")
 
-    source = Path(data) / "Series_C/measurements_random_poses.csv"
-    if not source.exists():
-        print(f"onnx ipa: skip, {source} not found")
+    loaded = _ipa_c(data)
+    if loaded is None:
+        print(f"onnx ipa: skip, {Path(data) / 'Series_C'} not found")
         return
-    from postproc.datasets import read_ipa
-    from postproc.registration import register_measurements
     from postproc.resources import model_path
-    from postproc.training.data import split_indices
 
-    s = read_ipa(source)
-    train_idx, val_idx = split_indices(len(s), 0.2, 0)
-    fit_rows = np.zeros(len(s), bool)
-    fit_rows[train_idx] = True
-    measured, _, _ = register_measurements(s.commanded[:, :3], s.measured, fit_rows)
-    errors = s.commanded[:, :3] - measured
+    s, train_idx, val_idx, errors = loaded
     ur = load_description(model_path("ur10.toml"))
     hm = HybridModel(ur, residual="none").fit(s.commanded[train_idx], errors[train_idx], q_deg=s.joints[train_idx])
     model = load_model(hm.export_onnx(tmp / "ipa.onnx", name="ipa", **arm_metadata(ur)))
