@@ -52,6 +52,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
+from _common import record  # noqa: E402  (benchmarks/ is on sys.path when a benchmark runs as a script)
 from postproc.cli.train_hybrid import arm_metadata  # noqa: E402
 from postproc.compensator import load_model  # noqa: E402
 from postproc.registration import register_measurements  # noqa: E402
@@ -172,9 +173,11 @@ def main() -> None:
     ap.add_argument("--train", default="C", choices=sorted(SERIES))
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=None, help="keep the CSVs and the model in this folder")
-    ap.add_argument("--variants", default="default,physical",
-                    help="default: the hybrid as `postproc train` fits it (gear-ripple orders searched); "
-                         "physical: the same without ripple orders (geometry, compliance, backlash only)")
+    ap.add_argument("--variants", default="default,joint,physical",
+                    help="default: the hybrid as `postproc train` fits it (gear-ripple orders searched on top of "
+                         "the physical fit); joint: the orders fitted jointly with the physical groups (staged=False, "
+                         "the fit before 2026-12-02, without its Gaussian prior: prior 1e-3); physical: no ripple "
+                         "orders (geometry, compliance, backlash only)")
     ap.add_argument("--update-rows", type=int, default=30, help="rows of each other series for --update (0: none)")
     ap.add_argument("--update-seeds", default="0,1,2,3,4", help="the random draws of those rows")
     args = ap.parse_args()
@@ -190,7 +193,9 @@ def main() -> None:
     train = data[args.train]
     fit_rows, held = split_indices(len(train), 0.2, args.seed)
     previous = previous_poses(train.poses)
-    settings = {"default": {}, "physical": {"kinematic": {"ripple": []}}}
+    settings = {"default": {}, "joint": {"kinematic": {"staged": False, "prior": 1e-3}},
+                "physical": {"kinematic": {"ripple": []}}}
+    figures = {}
     description = load_description(ROOT / "models/ur10.toml")
     for variant in [v for v in args.variants.split(",") if v]:
         t1 = time.perf_counter()
@@ -210,7 +215,27 @@ def main() -> None:
                 transfer["series"][name]["update"] = entry
         model.export_onnx(path, transfer=transfer, **card)  # the table in the benchmark model's card
         print(f"model card 'transfer' written to {path}")
+        figures[variant] = _figures(transfer["series"], model)
     print(f"total {time.perf_counter() - t0:.1f} s (one thread); files in {out}")
+    if args.data == DEFAULT_DATA or os.environ.get("POSTPROC_IPA_DATA"):
+        print(f"figures: {record('cross_series', figures)}")
+
+
+def _figures(series: dict, model: HybridModel) -> dict:
+    """Scalars for the README's figure markers (``benchmarks/figures.py``)."""
+    out = {"orders": len(model.kinematic_.layout_.ripple)}
+    for name, entry in series.items():
+        before, after = entry["uncompensated_mm"], entry["model_mm"]
+        row = {"uncompensated_mean": before[0], "uncompensated_p95": before[1], "uncompensated_max": before[2],
+               "mean": after[0], "p95": after[1], "max": after[2]}
+        update = entry.get("update")
+        if update:
+            mean = update["updated_mean_of_draws_mm"]
+            row.update({"rigid30_mean": update["rigid_mean_of_draws_mm"], "update_mean": mean[0],
+                        "update_p95": mean[1], "update_max": mean[2],
+                        "update_worst_draw_mean": max(r["updated_mm"][0] for r in update["seeds"])})
+        out[name] = row
+    return out
 
 
 if __name__ == "__main__":

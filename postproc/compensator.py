@@ -65,7 +65,9 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   the TCPs of the data, "unseparated": [[x,y,z], ...] unit directions (flange frame) of the
   mount rotation the data cannot tell from a shift (P319 where a TCP's lever arm makes them
   matter), "valid": the tools the model is valid for, in words}, ``envelope`` {"box": [x0,x1,y0,y1,z0,z1],
-  "attitude": [A,B,C], "range": deg, optional "joints": [[lo, hi] × 6] deg}, ``reach`` {"center": [x,y,z], "radius_min",
+  "attitude": [A,B,C], "range": deg, optional "joints": [[lo, hi] × 6] deg: each joint's trained
+  arc, from lo (in [−180, 180)) counterclockwise to hi (lo ≤ hi < lo + 360; hi may pass 180:
+  an arc across ±180), see :func:`joint_arcs`}, ``reach`` {"center": [x,y,z], "radius_min",
   "radius_max"} (TCP distance from the shoulder), ``data_sha256``, ``method``,
   ``structure``, ``accuracy`` {"val_mean_mm", "val_max_mm", ...}, ``iterations``; optional
   (hybrid/kinematic models) ``identified`` {"parameters": {group: [...]} (rad, mm, rad/Nm, as
@@ -180,15 +182,35 @@ class Envelope:
         return out | (np.any(np.abs(d) > limit, axis=1) & np.any(np.abs(d_alt) > limit, axis=1))
 
     def outside_joints(self, q_deg: np.ndarray) -> np.ndarray:
-        """Boolean mask of joint angles [N, 6] (deg) outside the trained ranges widened by
-        JOINT_MARGIN of each range + 0.5° (the training poses sample the box, not its joint-space
-        hull: a pose inside the box may turn a joint a little past what any training pose did)."""
+        """Boolean mask of joint angles [N, 6] (deg, any turn) outside the trained arcs widened
+        by :func:`widened_arcs` (the training poses sample the box, not its joint-space hull: a
+        pose inside the box may turn a joint a little past what any training pose did)."""
         if self.joints is None:
             return np.zeros(len(q_deg), bool)
-        lo, hi = self.joints[:, 0], self.joints[:, 1]
-        margin = JOINT_MARGIN * (hi - lo) + 0.5
+        arcs = widened_arcs(self.joints)
         with np.errstate(invalid="ignore"):
-            return np.any((q_deg < lo - margin) | (q_deg > hi + margin), axis=1)
+            return np.any(np.mod(np.asarray(q_deg, float) - arcs[:, 0], 360.0) > arcs[:, 1] - arcs[:, 0], axis=1)
+
+
+def joint_arcs(q_deg: np.ndarray) -> np.ndarray:
+    """[J, 2] deg: each joint's smallest arc holding all its angles q_deg [N, J] (any turn): from
+    lo in [−180, 180) counterclockwise to hi = lo + width (past 180 where the arc crosses ±180:
+    a range of −170…170 is two arcs' worth apart from one of 170…190). The complement of the
+    largest gap between the sorted angles on the circle."""
+    w = np.sort(np.mod(np.asarray(q_deg, float).reshape(len(q_deg), -1) + 180.0, 360.0) - 180.0, axis=0)
+    gaps = np.vstack([np.diff(w, axis=0), w[:1] + 360.0 - w[-1:]])  # gap after each sorted angle
+    k = np.argmax(gaps, axis=0)
+    cols = np.arange(w.shape[1])
+    lo = w[(k + 1) % len(w), cols]
+    return np.c_[lo, lo + 360.0 - gaps[k, cols]]
+
+
+def widened_arcs(arcs: np.ndarray) -> np.ndarray:
+    """[J, 2] deg: the trained arcs [J, 2] widened on each side by JOINT_MARGIN of their width +
+    0.5°: where compensate warns P301 and the models' learned parts stop holding (one rule)."""
+    lo, hi = np.asarray(arcs, float).T
+    margin = JOINT_MARGIN * (hi - lo) + 0.5
+    return np.c_[lo - margin, np.minimum(hi + margin, lo - margin + 360.0)]
 
 
 @dataclass

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import torch
 import pytest
 
 from postproc.cli import main
@@ -196,3 +197,21 @@ def test_update_refuses_the_same_name_with_another_geometry(old, kr500):
         read_old_model(path, other)
     assert info.value.code == "P318" and "not the one the model was identified on" in str(info.value)
     assert read_old_model(path, kr500.replace(text="# another comment\n" + kr500.text)).layout.n  # text alone: same
+
+
+def test_update_reads_back_every_residual_network(kr500, tmp_path):
+    """An ensemble of residual networks fitted on the same rows shares its standardisation: the
+    exporter keeps those equal tensors once, under the first network's name; every network is
+    read back whole (was: P317 "network 1 cannot be read back")."""
+    from postproc.cli.train_hybrid import arm_metadata
+
+    poses, errors = _campaign(SimulatedRobot(kr500, seed=4), 200, 2)
+    model = HybridModel(kr500, residual="always", ensemble=2, epochs=20, kinematic={"max_ripple": 4}).fit(
+        poses, errors, previous_poses(poses))
+    path = model.export_onnx(tmp_path / "two_nets.onnx", identified=model.describe(), **arm_metadata(kr500))
+    back = read_old_model(path, kr500)
+    assert len(back.nets) == 2
+    x = torch.as_tensor(np.random.default_rng(0).normal(size=(50, back.nets[0].x_mean.shape[0])))
+    with torch.no_grad():
+        for mine, read in zip(model.nets_, back.nets):
+            assert torch.allclose(mine(x), read(x), atol=1e-6)

@@ -46,9 +46,9 @@ def wrap_angles(q: torch.Tensor) -> torch.Tensor:
 
 
 def inside_ranges(q: torch.Tensor, ranges: torch.Tensor) -> torch.Tensor:
-    """1.0 / 0.0 [N]: every joint angle of q [N, 6] rad (wrapped) within ``ranges`` [6, 2] rad."""
-    w = wrap_angles(q)
-    return ((w >= ranges[:, 0]) & (w <= ranges[:, 1])).all(dim=1).to(q.dtype)
+    """1.0 / 0.0 [N]: every joint angle of q [N, 6] rad (any turn) on its arc ``ranges`` [6, 2]
+    rad (from lo counterclockwise to hi, ``compensator.joint_arcs``, widened)."""
+    return (torch.remainder(q - ranges[:, 0], 2 * math.pi) <= ranges[:, 1] - ranges[:, 0]).all(dim=1).to(q.dtype)
 
 
 def motion_signs(q: torch.Tensor, q_previous: torch.Tensor, fill: bool = False, eps: float = 1e-9) -> torch.Tensor:

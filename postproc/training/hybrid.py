@@ -23,7 +23,7 @@ import torch
 
 from ..progress import stages
 from ..robot import RobotDescription
-from ..compensator import JOINT_MARGIN
+from ..compensator import joint_arcs, widened_arcs
 from .data import envelope_of
 from .estimator import _one_thread, residual_stats
 from .export import onnx_bytes, write_atomic
@@ -38,11 +38,10 @@ KEEP_GAIN = 0.03
 
 
 def learned_ranges(joint_range) -> np.ndarray:
-    """[6, 2] rad: the trained joint ranges [6][2] deg widened as compensate's P301 rule widens
-    them; the graph's learned parts (ripple orders, residual nets) hold inside them only."""
-    lo, hi = np.asarray(joint_range, dtype=np.float64).T
-    margin = JOINT_MARGIN * (hi - lo) + 0.5
-    return np.radians(np.c_[lo - margin, hi + margin])
+    """[6, 2] rad: the trained joint arcs [6][2] deg (``compensator.joint_arcs``) widened as
+    compensate's P301 rule widens them; the graph's learned parts (ripple orders, residual
+    nets) hold inside them only."""
+    return np.radians(widened_arcs(joint_range))
 
 
 class ResidualNet(torch.nn.Module):
@@ -257,8 +256,8 @@ class HybridModel:
             stage(names[1])
             self.nets_ = self._fit_residual(self.kinematic_.train_residual_)
             t2 = time.perf_counter()
-        q = np.degrees(wrap_angles(torch.as_tensor(self.kinematic_.train_q_)).numpy())  # the trained joints
-        joint_range = [[round(float(a), 3), round(float(b), 3)] for a, b in zip(q.min(0), q.max(0))]
+        arcs = joint_arcs(np.degrees(self.kinematic_.train_q_))  # the trained joints' arcs
+        joint_range = [[math.floor(a * 1e3) / 1e3, math.ceil(b * 1e3) / 1e3] for a, b in arcs]
         self._finish(poses, errors, previous, q_deg, joint_range, tools=tools, rotation_errors=rotation_errors,
                      previous_q_deg=previous_q_deg)
         self.fit_seconds_ = {"kinematic": t1 - t0, "residual": t2 - t1, "total": t2 - t0}

@@ -113,7 +113,7 @@ def parameter_covariance(model: KinematicModel) -> ParameterCovariance:
     with torch.no_grad():
         tau = model.module_.torques(q)
     scale = model._prior_scales(model.layout_, tau)  # each parameter's typical size
-    w = model.prior / scale**2  # the fit's prior curvature
+    w = model.prior_ / scale**2  # the fit's prior curvature
     jtj = jac.T @ jac
     # A⁻¹ in the parameters' own scales: A's raw entries span ~30 decades (mm vs rad/Nm), where a
     # pseudo-inverse would drop the directions only the prior holds, as if they had no variance

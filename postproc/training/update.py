@@ -118,6 +118,12 @@ def _residual_nets(path: Path, data: bytes, count: int) -> tuple[list[ResidualNe
         try:
             state = {name[len(prefix):]: torch.as_tensor(np.array(w, dtype=np.float64)) for name, w in weights.items()
                      if name.startswith(prefix)}
+            # the exporter keeps one initializer for equal tensors, under the first network's
+            # name: the networks fitted on the same rows share their standardisation
+            for key in ("x_mean", "x_std", "y_std"):
+                earlier = [f"module.nets.{j}.{key}" for j in range(k) if f"module.nets.{j}.{key}" in weights]
+                if key not in state and earlier:
+                    state[key] = torch.as_tensor(np.array(weights[earlier[0]], dtype=np.float64))
             shapes = [tuple(state[f"net.{i}.weight"].shape) for i in layers]
             hidden = tuple(s[0] for s in shapes[:-1])
             net = ResidualNet(shapes[0][1], hidden, state["x_mean"], state["x_std"], state["y_std"])
