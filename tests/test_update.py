@@ -215,3 +215,24 @@ def test_update_reads_back_every_residual_network(kr500, tmp_path):
     with torch.no_grad():
         for mine, read in zip(model.nets_, back.nets):
             assert torch.allclose(mine(x), read(x), atol=1e-6)
+
+
+def test_an_updated_model_keeps_stating_its_uncertainty(kr500, old, tmp_path):
+    """OLD with ``error_std``: the update exports it too, from OLD's covariance of what it kept
+    and the re-fit's of what it moved, at the new rows' residual level — so compensate's P336
+    bound goes on holding after a re-calibration (was: the output was dropped)."""
+    path, _ = old
+    before = load_model(path)
+    assert before.has_std
+    sim = _changed(SimulatedRobot(kr500, seed=3))
+    poses, errors = _campaign(sim, 30, 7)
+    update = update_model(read_old_model(path, kr500), kr500, poses, errors, previous_poses(poses))
+    new = load_model(update.model.export_onnx(tmp_path / "new.onnx", name="new"))
+    assert new.has_std and new.max_std_mm is not None
+    held = latin_hypercube(200, seed=9)
+    truth = sim.true_error(held)
+    predicted, std = new.predict(held, previous_poses(held), std=True)
+    residual = np.abs(truth - predicted)  # per coordinate
+    # the stated std is of the residual this campaign leaves: most coordinates within 2 std
+    assert 0.8 < float((residual <= 2 * std[:, None]).mean()) <= 1.0
+    assert np.all(std > 0) and np.all(np.isfinite(std))

@@ -25,6 +25,9 @@ The parameters that moved are those whose change exceeds ``MOVED_SIGMAS`` times 
 std, σ²·(JᵀJ + W)⁻¹ (σ² the new rows' residual variance per coordinate): name, old, new,
 change, std (deg for angles, mm for lengths).
 
+A model with ``error_std`` keeps it: OLD's parameter covariance (read from its graph) for what
+the update kept, the re-fit's for what it moved, the new rows' residual variance.
+
 OLD must carry its identification in its card (``identified.parameters``, ``ripple_amplitudes``,
 ``tau_mean``: hybrid/kinematic models since ``--update`` exists): else P317 (a DNN/gpso model,
 an older card); a model of another robot description: P318.
@@ -77,6 +80,7 @@ class OldModel:
     hidden: tuple[int, ...] = (32, 32)
     joint_range: list | None = None
     envelope: dict | None = None
+    covariance: np.ndarray | None = None  # [P, P] OLD's parameter covariance (its graph's error_std), if it has one
 
 
 @dataclass
@@ -188,11 +192,25 @@ def read_old_model(path: str | Path, description: RobotDescription) -> OldModel:
         raise _refuse("--update: the model card has no trained joint ranges (envelope.joints)", path)
     data = path.read_bytes()
     nets, hidden = _residual_nets(path, data, int(found.get("residual_nets") or 0))
+    covariance = _graph_covariance(data, layout.n)
     residual_std = float(found.get("residual_std_mm") or 0.0)
     if not residual_std > 0:  # (a card without it: the training residual's mean norm ≈ 1.6 σ per coordinate)
         residual_std = float(((card.get("accuracy") or {}).get("train_mean_mm") or 0.1)) / 1.6
     return OldModel(path, hashlib.sha256(data).hexdigest(), card, layout, theta, std, residual_std, tau_mean, ik,
-                    old.wants_previous, nets, hidden, joint_range, envelope)
+                    old.wants_previous, nets, hidden, joint_range, envelope, covariance)
+
+
+def _graph_covariance(data: bytes, n: int) -> np.ndarray | None:
+    """OLD's parameter covariance [n, n] from its graph (the buffer behind ``error_std``), or
+    None for a model without that output."""
+    import onnx
+    from onnx import numpy_helper
+
+    for init in onnx.load_from_string(data).graph.initializer:
+        if init.name == "module.covariance":
+            cov = np.array(numpy_helper.to_array(init), dtype=np.float64)
+            return cov if cov.shape == (n, n) else None
+    return None
 
 
 def _prior(old: OldModel, groups: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -261,6 +279,14 @@ def update_model(old: OldModel, description: RobotDescription, poses: np.ndarray
     std = old.std.copy()
     std[free] = post_std
     model.identification_std_ = (std, old.residual_std_mm)
+    if old.covariance is not None:
+        # error_std goes on: OLD's covariance of what it kept, the re-fit's of what it moved (the
+        # regularised estimate's spread, σ²A⁻¹JᵀJA⁻¹, as ``uncertainty.parameter_covariance``),
+        # and the new rows' residual variance: what this campaign leaves unexplained
+        cov = old.covariance.copy()
+        cov[free, :], cov[:, free] = 0.0, 0.0
+        cov[np.ix_(free, free)] = sigma2 * (a_inv @ (jf.T @ jf) @ a_inv)
+        model.module_.set_uncertainty(cov, sigma2)
     column = {int(i): k for k, i in enumerate(np.flatnonzero(free))}  # parameter → its place among the free ones
     table = []
     slices = old.layout.slices()
