@@ -80,7 +80,7 @@ def sim_part() -> None:
             cov = parameter_covariance(km)  # (no joint angles in the data: the fit's residual is at the IK)
             std = position_std(km, held, previous_poses(held), cov)
             label = f"sim n={n} ripple={'search' if ripple else 'none'}"
-            FIGURES[label.replace(" ", "_")] = coverage(residual, std)
+            FIGURES.setdefault("sim", {})[f"n{n}_{'search' if ripple else 'none'}"] = coverage(residual, std)
             print(line(label, km, cov, residual, std, seconds))
 
 
@@ -126,12 +126,10 @@ def ipa_part(data: str) -> None:
         print(line(label, km, cov, residual, std, seconds))
         before_cov = parameter_covariance(km)  # σ from the residual at the data's q1..q6
         before = position_std(km, s.commanded[val_idx], covariance=before_cov)
-        key = f"ipa_C_ripple={'search' if ripple else 'none'}"
-        FIGURES[key] = coverage(residual, std)
-        FIGURES[key + "_before"] = coverage(residual, before)
-        FIGURES[key + "_sigma_mm"] = round(float(np.sqrt(cov.sigma2)), 4)
-        FIGURES[key + "_sigma_before_mm"] = round(float(np.sqrt(before_cov.sigma2)), 4)
-        FIGURES[key + "_residual_rms_mm"] = round(float(np.sqrt((residual**2).mean())), 4)
+        FIGURES.setdefault("ipa_C", {})["search" if ripple else "none"] = {
+            "coverage": coverage(residual, std), "coverage_before": coverage(residual, before),
+            "sigma_mm": round(float(np.sqrt(cov.sigma2)), 4), "sigma_before_mm": round(float(np.sqrt(before_cov.sigma2)), 4),
+            "residual_rms_mm": round(float(np.sqrt((residual**2).mean())), 4), "validation_rows": len(val_idx)}
         print(f"{'':28s} (σ from the residual at the data's q1..q6: {np.sqrt(before_cov.sigma2):.4f} mm, "
               f"2σ coverage {coverage(residual, before):.1f} %)")
 
@@ -161,7 +159,7 @@ def onnx_part(data: str) -> None:
     model = load_model(hm.export_onnx(tmp / "sim.onnx", name="sim", **arm_metadata(d)))
     held = latin_hypercube(300, seed=5)
     cover, std = _coverage(model, held, previous_poses(held), held[:, :3] - sim.measure(held, rng_seed=1))
-    FIGURES["onnx_sim"] = cover
+    FIGURES.setdefault("onnx", {})["sim"] = cover
     print(f"onnx sim n=300 P {len(hm.kinematic_.theta_)}: error_std mean {std.mean():.4f} mm (card bound "
           f"{model.max_std_mm:.4f}), 2σ coverage {cover:.1f} %")
 
@@ -203,8 +201,7 @@ def onnx_part(data: str) -> None:
     hm = HybridModel(ur, residual="none").fit(s.commanded[train_idx], errors[train_idx], q_deg=s.joints[train_idx])
     model = load_model(hm.export_onnx(tmp / "ipa.onnx", name="ipa", **arm_metadata(ur)))
     cover, std = _coverage(model, s.commanded[val_idx], None, errors[val_idx], s.joints[val_idx])
-    FIGURES["onnx_ipa_C"] = cover
-    FIGURES["onnx_ipa_C_validation_rows"] = len(val_idx)
+    FIGURES.setdefault("onnx", {})["ipa_C"] = cover
     print(f"onnx ipa C n={len(train_idx)} P {len(hm.kinematic_.theta_)}: error_std mean {std.mean():.4f} mm, "
           f"2σ coverage {cover:.1f} % on {len(val_idx)} validation rows")
 
