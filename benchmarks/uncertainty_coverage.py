@@ -47,8 +47,8 @@ FIGURES: dict = {}
 
 
 def coverage(residual: np.ndarray, std) -> float:
-    """% of the residual coordinates [N, 3] within 2·std (``PositionStd``'s per axis, or [N])."""
-    bound = std.per_axis if hasattr(std, "per_axis") else np.asarray(std)[:, None]
+    """% of the residual coordinates [N, k] within 2·std (``PositionStd``'s per axis, [N, k] or [N])."""
+    bound = std.per_axis if hasattr(std, "per_axis") else np.asarray(std).reshape(len(residual), -1)
     return round(100.0 * float((np.abs(residual) <= 2.0 * bound).mean()), 1)
 
 
@@ -113,6 +113,16 @@ def ipa_part(data: str) -> None:
         return
     s, train_idx, val_idx, errors = loaded
     d = load_description(model_path("ur10.toml"))
+    import torch
+
+    from postproc.training.arm import Arm
+
+    with torch.no_grad():  # how far the nominal arm at the data's joint angles is from the pose (planner's IK)
+        miss = Arm(d).frames(torch.as_tensor(np.radians(s.joints)))[2].numpy() - s.commanded[:, :3]
+    FIGURES.setdefault("ipa_C", {})["joint_angle_miss"] = {"rms_mm": round(float(np.sqrt((miss**2).mean())), 3),
+                                                          "max_mm": round(float(np.abs(miss).max()), 2)}
+    print(f"ipa C: the nominal arm at the data's q1..q6 misses the pose by {np.sqrt((miss**2).mean()):.3f} mm rms "
+          f"per coordinate (max {np.abs(miss).max():.2f} mm)")
     for ripple in ([], "search"):
         t0 = time.perf_counter()
         km = KinematicModel(d, ripple=ripple).fit(s.commanded[train_idx], errors[train_idx],
@@ -129,7 +139,9 @@ def ipa_part(data: str) -> None:
         FIGURES.setdefault("ipa_C", {})["search" if ripple else "none"] = {
             "coverage": coverage(residual, std), "coverage_before": coverage(residual, before),
             "sigma_mm": round(float(np.sqrt(cov.sigma2)), 4), "sigma_before_mm": round(float(np.sqrt(before_cov.sigma2)), 4),
-            "residual_rms_mm": round(float(np.sqrt((residual**2).mean())), 4), "validation_rows": len(val_idx)}
+            "residual_rms_mm": round(float(np.sqrt((residual**2).mean())), 4), "validation_rows": len(val_idx),
+            # one σ for X, Y and Z: the axes' own coverage spreads around it where their residuals differ
+            **{f"coverage_{axis}": coverage(residual[:, [k]], std.per_axis[:, [k]]) for k, axis in enumerate("xyz")}}
         print(f"{'':28s} (σ from the residual at the data's q1..q6: {np.sqrt(before_cov.sigma2):.4f} mm, "
               f"2σ coverage {coverage(residual, before):.1f} %)")
 

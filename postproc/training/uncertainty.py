@@ -24,8 +24,8 @@ and on IPA rows. numpy + torch (as training/).
 
 Which residual: where the data has joint angles q1..q6 the fit evaluates the arm at them and
 fits the identified arm *relative to the nominal one at the same q* (FK_id(q) against
-FK_nom(q) − E), so the pose a planner's numerical IK misses by (FK_nom(q) ≠ P: IPA 0.06 mm
-rms per coordinate, up to 0.27 mm) cancels in the least squares; ``train_residual_``
+FK_nom(q) − E), so the pose a planner's numerical IK misses by (FK_nom(q) ≠ P: IPA 0.057 mm
+rms per coordinate, up to 0.26 mm) cancels in the least squares; ``train_residual_``
 (E − (P − FK_id(q))) still carries that miss, which no compensation leaves (the graph runs at
 the pose's exact IK). σ from it overstated IPA's held-out residual std by 40 % (2σ covered
 98.8 %); callers that have the training rows pass the residual at the IK
