@@ -53,7 +53,8 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
 * optional output ``error_std``: float32 [N, 1] mm, how sure the model is at each target: the
   standard deviation of a coordinate of the residual a compensation leaves, E − Ê (root mean
   over X, Y, Z), = √(σ² + tr(J_t C J_tᵀ)/3) with C the identification's parameter covariance, σ
-  its residual std per coordinate and J_t the identified arm's sensitivity to its parameters at
+  its residual std per coordinate (at the training rows, evaluated as the graph evaluates them)
+  and J_t the identified arm's sensitivity to its parameters at
   the target (at the graph's q, approach signs and tool; ``training/uncertainty.py``): small
   where the training data pinned the parameters down, large where it did not reach. ``train``'s
   hybrid/kinematic graphs have it (not a re-calibration's, not the networks alone); of the

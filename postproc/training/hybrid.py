@@ -283,7 +283,12 @@ class HybridModel:
         self.module_ = HybridModule(self.kinematic_.module_, self.nets_, learned_ranges(joint_range)).eval()
         self.envelope_ = envelope_of(poses) if envelope is None else envelope
         self.n_train_ = len(poses)
-        self.train_stats_ = residual_stats(errors - self.predict(poses, previous, q_deg, tools, previous_q_deg))
+        fitted = self.predict(poses, previous, q_deg, tools, previous_q_deg)
+        self.train_stats_ = residual_stats(errors - fitted)
+        # what the identified arm leaves at the rows evaluated as the graph does (at the IK of the
+        # poses): the σ of error_std (uncertainty.parameter_covariance's residual)
+        self.identified_residual_ = errors - (self.predict(poses, previous, q_deg, tools, previous_q_deg, arm_only=True)
+                                              if self.nets_ else fitted)
         self.train_rotation_stats_ = None
         if self.orientation:
             rotation_errors = np.asarray(rotation_errors, dtype=np.float64).reshape(-1, 3)[keep]
@@ -338,12 +343,13 @@ class HybridModel:
 
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None,
                 joints: np.ndarray | None = None, tools: np.ndarray | None = None,
-                previous_joints: np.ndarray | None = None) -> np.ndarray:
+                previous_joints: np.ndarray | None = None, arm_only: bool = False) -> np.ndarray:
         """Ê [N, 3] mm for poses [N, 6], the poses visited before them (None: unknown), the
         controller's joint angles [N, 6] deg (None / NaN rows: unknown), which pick each row's
         IK branch (as the exported graph's ``joints`` input), and each row's TCP on the flange
         [N, 6] (None / NaN rows: the model's own; the graph's ``tool`` input), the joint angles
-        [N, 6] deg at the poses visited before (None / NaN rows: unknown; ``previous_joints``)."""
+        [N, 6] deg at the poses visited before (None / NaN rows: unknown; ``previous_joints``).
+        ``arm_only``: the identified arm's part alone (without the residual networks)."""
         self._check_fitted()
         pose = torch.as_tensor(np.asarray(poses, dtype=np.float64).reshape(-1, 6))
         prev = None if previous is None else torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
@@ -352,6 +358,9 @@ class HybridModel:
         q_prev = (None if previous_joints is None
                   else torch.as_tensor(np.radians(np.asarray(previous_joints, dtype=np.float64).reshape(-1, 6))))
         with torch.no_grad():
+            if arm_only:
+                m = self.module_
+                return m.kinematic.parts(pose, prev, q_in, m.joint_range, tool, q_previous=q_prev)[0].numpy()
             return self.module_(pose, prev, q_in, tool, q_prev).numpy()
 
     @property
@@ -439,14 +448,12 @@ class HybridModel:
         km = self.kinematic_
         if not km.layout_.n:
             return {}
-        from .uncertainty import parameter_covariance
-
         p, sizes = km.parameters(), km.layout_.sizes
         # (a re-calibration sets its own: OLD's std, the posterior std of what it re-fitted)
         std, residual_std = getattr(self, "identification_std_", (None, None))
         posterior = None
         if std is None:
-            cov = parameter_covariance(km)
+            cov = self._covariance()
             std, residual_std, posterior = cov.std, math.sqrt(cov.sigma2), cov.posterior_std
         cuts = np.cumsum(list(sizes.values()))[:-1]
         std = dict(zip(sizes, np.split(np.asarray(std, dtype=np.float64), cuts)))
@@ -526,11 +533,16 @@ class HybridModel:
             return True
         if not self.kinematic_.layout_.n or hasattr(self, "identification_std_"):
             return False
-        from .uncertainty import parameter_covariance
-
-        cov = parameter_covariance(self.kinematic_)
+        cov = self._covariance()
         self.module_.set_uncertainty(cov.covariance, cov.sigma2)
         return True
+
+    def _covariance(self):
+        """The identification's ``uncertainty.ParameterCovariance``, its σ from the residual the
+        identified arm leaves at the training rows as the graph evaluates it."""
+        from .uncertainty import parameter_covariance
+
+        return parameter_covariance(self.kinematic_, getattr(self, "identified_residual_", None))
 
     @property
     def structure(self) -> str:

@@ -5,7 +5,9 @@ residuals of the training rows. At its solution θ̂, with J = ∂r/∂θ [3N, P
 Jacobian the fit uses) and A = JᵀJ + W (W = diag w, the weak prior):
 
 * residual variance per coordinate σ² = ‖r(θ̂)‖² / (3N − p_eff), p_eff = tr(A⁻¹JᵀJ) the
-  effective number of parameters (the prior takes some of their freedom);
+  effective number of parameters (the prior takes some of their freedom); r the residual the
+  model leaves at its training rows evaluated as the graph evaluates it, at the IK of each
+  row's pose (see below);
 * parameter covariance C = σ²·A⁻¹JᵀJ·A⁻¹ (the sandwich of the regularised least-squares
   estimate: the spread of θ̂ over repeated measurements of the same poses; what the
   predictions inherit). What is known of a parameter's own value is the posterior σ²·A⁻¹
@@ -17,7 +19,18 @@ Jacobian the fit uses) and A = JᵀJ + W (W = diag w, the weak prior):
 
 :func:`position_std` returns, per target, that residual std (the root mean over X, Y, Z) and
 its model part alone. Under Gaussian residuals 95.4 % of the held-out residual coordinates
-lie within 2σ; the test checks 90–98 % on simulated data. numpy + torch (as training/).
+lie within 2σ; the tests check 90–98 % on simulated data (also with a planner's joint angles)
+and on IPA rows. numpy + torch (as training/).
+
+Which residual: where the data has joint angles q1..q6 the fit evaluates the arm at them and
+fits the identified arm *relative to the nominal one at the same q* (FK_id(q) against
+FK_nom(q) − E), so the pose a planner's numerical IK misses by (FK_nom(q) ≠ P: IPA 0.057 mm
+rms per coordinate, up to 0.26 mm) cancels in the least squares; ``train_residual_``
+(E − (P − FK_id(q))) still carries that miss, which no compensation leaves (the graph runs at
+the pose's exact IK). σ from it overstated IPA's held-out residual std by 40 % (2σ covered
+98.8 %); callers that have the training rows pass the residual at the IK
+(:func:`parameter_covariance`'s ``residual``: HybridModel, the benchmark). Without joint angles
+in the data both are the same.
 
 The exported graph computes the same figure (the contract's optional output ``error_std``):
 :func:`error_std` builds J_t with the same geometric Jacobian (``kinematic.jacobian``, whose
@@ -104,9 +117,12 @@ def _jac(model: KinematicModel, q: torch.Tensor, signs: torch.Tensor) -> np.ndar
     return jac.numpy()  # [N, 3, P]
 
 
-def parameter_covariance(model: KinematicModel) -> ParameterCovariance:
+def parameter_covariance(model: KinematicModel, residual: np.ndarray | None = None) -> ParameterCovariance:
     """The covariance of the identified parameters from the Jacobian at the solution and the
-    training residuals (see the module docstring). ``model`` is a fitted KinematicModel."""
+    training residuals (see the module docstring). ``model`` is a fitted KinematicModel;
+    ``residual`` [N, 3] mm: what it leaves at its training rows (those the fit kept) evaluated
+    at the IK of their poses, as the graph does (None: ``train_residual_``, the same unless the
+    fit had the data's joint angles)."""
     q = torch.as_tensor(model.train_q_)
     s = torch.as_tensor(model.train_signs_)
     jac = _jac(model, q, s).reshape(-1, len(model.theta_))
@@ -120,7 +136,9 @@ def parameter_covariance(model: KinematicModel) -> ParameterCovariance:
     a_scaled = scale[:, None] * (jtj + np.diag(w)) * scale[None, :]
     a_inv = scale[:, None] * np.linalg.inv(a_scaled) * scale[None, :]
     p_eff = float(np.trace(a_inv @ jtj))
-    r = np.asarray(model.train_residual_, float).reshape(-1)
+    r = np.asarray(model.train_residual_ if residual is None else residual, float).reshape(-1)
+    if len(r) != jac.shape[0]:
+        raise ValueError(f"residual has {len(r)} coordinates, the fit's rows {jac.shape[0]}")
     dof = max(len(r) - p_eff, 1.0)
     sigma2 = float(r @ r) / dof
     return ParameterCovariance(sigma2 * a_inv @ jtj @ a_inv, sigma2, dof, p_eff, sigma2 * a_inv)
