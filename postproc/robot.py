@@ -11,7 +11,7 @@ One description → chain construction (:class:`RobotDescription`'s ``placements
 ``flange_matrix``, ``tool_matrix``, ``masses``, ``coms``): Pinocchio's model (built lazily with
 ``addJoint`` / ``appendBodyToJoint`` / ``addFrame``) is the reference FK and gravity; the
 forward kinematics of many poses at once is numpy (:class:`Chain`, products of per-joint
-transforms over all poses in one go), the gravity torques :func:`gravity_from_frames` of its
+transforms over all poses in one go), the gravity torques :func:`gravity_from_points` of its
 joint frames (numpy here, torch in training/arm.py); tests/test_kinematics.py checks both,
 and the torch/ONNX FK, against ``pin.framesForwardKinematics`` / ``computeGeneralizedGravity``.
 The inverse kinematics is the controller's: closed form for the KUKA-type arm with a
@@ -33,7 +33,7 @@ from .diagnostics import P330, P331, P332, P333, PostprocError
 from .resources import model_path
 
 __all__ = ["JointSpec", "RobotDescription", "load_description", "parse_description", "check_value", "Chain", "Robot",
-           "axis_rotations", "GRAVITY", "gravity_from_frames", "holding_torques", "link_centres", "pin_model"]
+           "axis_rotations", "GRAVITY", "gravity_torques", "gravity_from_points", "holding_torques", "pin_model"]
 
 MM = 1e-3  # mm → m
 
@@ -325,72 +325,116 @@ class Chain:
         return cls(description.placements, description.axes, end)
 
     def _walk(self, q_rad: np.ndarray, count: int | None = None):
-        """Each of the first ``count`` joints' rotation [N, 3, 3] (after its turn) and origin
-        [N, 3], in order: the one FK walk (over the joints, vectorised over poses)."""
+        """Each of the first ``count`` joints' rotation (after its turn) and origin, in order,
+        stored component-major (rotations [3, 3, N], origins [3, N]: every step a few products
+        over contiguous rows): the one FK walk, over the joints and vectorised over poses."""
         count = len(self.axes) if count is None else count
-        rot = axis_rotations(self.axes[:count], q_rad[:, :count])
-        n = len(q_rad)
-        r = np.broadcast_to(self.base[:3, :3], (n, 3, 3))
-        p = np.broadcast_to(self.base[:3, 3], (n, 3))
+        angles = np.ascontiguousarray(q_rad[:, :count].T)  # [count, N]
+        cos, sin = np.cos(angles), np.sin(angles)
+        r = np.repeat(self.base[:3, :3, None], len(q_rad), axis=2)
+        p = self.base[:3, 3, None]
         for j in range(count):
             m = self.placements[j]
-            p = p + r @ m[:3, 3]
-            r = r @ m[:3, :3] @ rot[:, j]
+            p = p + _times(r, m[:3, 3])
+            if not np.array_equal(m[:3, :3], np.eye(3)):  # (a description's placements are pure offsets)
+                r = _times(r, m[:3, :3])
+            r = _turned(r, self.axes[j], cos[j], sin[j])
             yield r, p
 
     def joints(self, q_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Joint rotations [N, J, 3, 3] and origins [N, J, 3] (mm) for configurations [N, J] (radians)."""
         q_rad = np.atleast_2d(np.asarray(q_rad, float))
         rs, ps = zip(*self._walk(q_rad))
-        return np.stack(rs, axis=1), np.stack(ps, axis=1)
+        return np.stack(rs).transpose(3, 0, 1, 2), np.stack(ps).transpose(2, 0, 1)
 
     def transforms(self, q_rad: np.ndarray) -> np.ndarray:
         """[N, 4, 4] end frames for configurations [N, J] (radians)."""
         q_rad = np.atleast_2d(np.asarray(q_rad, float))
-        for r, p in self._walk(q_rad):
-            pass
+        *_, (r, p) = self._walk(q_rad)
         out = np.zeros((len(q_rad), 4, 4))
-        out[:, :3, :3] = r @ self.end[:3, :3]
-        out[:, :3, 3] = p + r @ self.end[:3, 3]
+        out[:, :3, :3] = _times(r, self.end[:3, :3]).transpose(2, 0, 1)
+        out[:, :3, 3] = (p + _times(r, self.end[:3, 3])).T
         out[:, 3, 3] = 1.0
         return out
+
+
+def _times(r: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """Rotations stored component-major, r [3, 3, N], times a constant [3] → [3, N] or [3, 3] → [3, 3, N]."""
+    if m.ndim == 1:
+        return r[:, 0] * m[0] + r[:, 1] * m[1] + r[:, 2] * m[2]
+    return np.matmul(m.T, r)
+
+
+def _turned(r: np.ndarray, axis: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
+    """r [3, 3, N] (component-major) times the rotations about unit ``axis`` by the angles of
+    ``cos``, ``sin`` [N]: about ±e_k two columns mix; any other axis by Rodrigues,
+    c·r + s·r[a]× + (1 − c)·(r a) aᵀ."""
+    k = int(np.argmax(np.abs(axis)))
+    if abs(abs(axis[k]) - 1.0) < 1e-12:
+        s = np.sign(axis[k]) * sin
+        i, j = [(1, 2), (2, 0), (0, 1)][k]  # R_k mixes columns i, j: (x_i c + x_j s, x_j c − x_i s)
+        out = np.empty_like(r)
+        out[:, k] = r[:, k]
+        out[:, i] = r[:, i] * cos + r[:, j] * s
+        out[:, j] = r[:, j] * cos - r[:, i] * s
+        return out
+    skew = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return cos * r + sin * _times(r, skew) + (1.0 - cos) * _times(r, axis)[:, None, :] * axis[None, :, None]
 
 
 # --------------------------------------------------------------------------- gravity
 
 GRAVITY = 9.81  # m/s², along −Z of the robot base frame (Pinocchio's default)
-GRAVITY_ROWS = 100_000  # poses per vectorised gravity evaluation
+GRAVITY_ROWS = 16_384  # poses per block of the vectorised gravity torques
 
 
-def link_centres(rotations, origins, coms):
-    """Each link's centre of mass [N, J, 3] (mm) from joint rotations [N, J, 3, 3], origins
-    [N, J, 3] and centres [J, 3] in the joint frames. Like the two functions below it takes
-    numpy arrays or torch tensors alike (operators and indexing only): one formula for the
-    simulator (numpy) and the identification's ONNX graph (training/arm.py)."""
-    return origins + (rotations * coms[:, None, :]).sum(-1)
-
-
-def holding_torques(rotations, axes, lever):
-    """τ [N, J] (Nm) that holds weights against gravity: τ_j = −ω_j · (l_j × m·g), g = (0, 0, −g),
-    with ω_j the joint axes in the base frame (``axes`` [J, 3] turned by ``rotations``) and
-    ``lever`` [N, J, 3] (kg·m) the mass-weighted lever Σ m_i (c_i − p_j) each joint carries."""
-    omega = (rotations * axes[:, None, :]).sum(-1)
+def holding_torques(omega, lever):
+    """τ [...] (Nm) that holds weights against gravity: τ = −ω · (l × m·g), g = (0, 0, −g), for
+    joint axes ``omega`` [..., 3] in the base frame and ``lever`` [..., ≥2] (kg·m) the
+    mass-weighted lever Σ m_i (c_i − p_j) the joint carries (only its x, y count). Like
+    :func:`gravity_from_points` it takes numpy arrays or torch tensors alike (operators and
+    indexing only): one formula for the simulator and the identification's ONNX graph."""
     return GRAVITY * (omega[..., 0] * lever[..., 1] - omega[..., 1] * lever[..., 0])
 
 
-def gravity_from_frames(rotations, origins, axes, masses, coms, payload_mass: float = 0.0, payload_com=None):
-    """Joint torques [N, J] (Nm) that hold the arm against gravity (``pin.computeGeneralizedGravity``),
-    from its joint frames (rotations [N, J, 3, 3], origins [N, J, 3] mm), axes [J, 3], link masses
-    [J] (kg) and centres [J, 3] (mm, joint frames); the payload (kg, centre [3] mm in the last
-    joint's frame) rides on the last link. τ_j = −ω_j · Σ_{i≥j} (c_i − p_j) × m_i·g."""
-    tip_first = list(range(len(masses) - 1, -1, -1))
-    moment = (link_centres(rotations, origins, coms) * masses[:, None])[:, tip_first].cumsum(1)[:, tip_first]
-    mass = masses[tip_first].cumsum(0)[tip_first]  # Σ_{i≥j} m_i and, above, Σ_{i≥j} m_i·c_i
+def gravity_from_points(origins, centres, omega, masses, payload_mass: float = 0.0, payload=None) -> list:
+    """Joint torques (J arrays [N], Nm) that hold the arm against gravity
+    (``pin.computeGeneralizedGravity``) from per-joint lists of its joint origins, links'
+    centres of mass (arrays [N, 3] mm) and joint axes ``omega`` [N, 3], all in the base frame,
+    and link masses [J] (kg); the payload (kg, centre ``payload`` [N, 3] mm) rides on the last
+    link. τ_j = −ω_j · Σ_{i≥j} (c_i − p_j) × m_i·g, summed from the tip."""
+    moment, mass, torques = 0.0, payload_mass, []  # Σ_{i≥j} m_i·c_i (x, y) and Σ_{i≥j} m_i
     if payload_mass > 0:
-        payload = origins[:, -1] + (rotations[:, -1] * payload_com).sum(-1)
-        moment = moment + payload_mass * payload[:, None, :]
-        mass = mass + payload_mass
-    return holding_torques(rotations, axes, (moment - mass[:, None] * origins) * MM)
+        moment = payload_mass * payload[:, :2]
+    for j in reversed(range(len(masses))):
+        moment = moment + masses[j] * centres[j][:, :2]
+        mass = mass + masses[j]
+        torques.append(holding_torques(omega[j], (moment - mass * origins[j][:, :2]) * MM))
+    return torques[::-1]
+
+
+def gravity_torques(description: RobotDescription, q_deg: np.ndarray, payload: bool = True,
+                    chain: Chain | None = None) -> np.ndarray:
+    """Joint torques [N, J] (Nm) that hold a description's arm (with its payload, or without)
+    against gravity at joint angles [N, J] (deg): :func:`gravity_from_points` of the joint
+    frames of its ``chain`` (default ``Chain.of(description)``), all poses at once, a block of
+    rows at a time (tests/test_kinematics.py checks it against ``pin.computeGeneralizedGravity``)."""
+    d = description
+    chain = Chain.of(d, tool=False) if chain is None else chain
+    q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
+    coms, axes, masses, payload_com = d.coms, d.axes, d.masses, d.payload_com_in_last
+    out = np.empty_like(q)
+    for start in range(0, len(q), GRAVITY_ROWS):  # blocks that stay in the cache
+        rows = slice(start, start + GRAVITY_ROWS)
+        origins, centres, omega = [], [], []
+        for j, (r, p) in enumerate(chain._walk(q[rows])):  # ([N, 3] views of the component-major walk)
+            origins.append(p.T)
+            centres.append((p + _times(r, coms[j])).T)
+            omega.append(_times(r, axes[j]).T)
+        torques = gravity_from_points(origins, centres, omega, masses, d.payload_mass if payload else 0.0,
+                                      (p + _times(r, payload_com)).T)
+        out[rows] = np.stack(torques, axis=1)
+    return out
 
 
 def _pin_inertia(pin, mass: float, com_mm: np.ndarray, inertia: np.ndarray | None):
@@ -518,16 +562,8 @@ class Robot:
     # ---------------------------------------------------------------- gravity
     def gravity_torques(self, q_deg: np.ndarray, payload: bool = True) -> np.ndarray:
         """Joint torques [N, 6] (Nm) that hold the arm (with its payload, or without) against
-        gravity at joint angles [N, 6] (deg): :func:`gravity_from_frames` of the chain's joint
-        frames, all poses at once (the tests check it against ``pin.computeGeneralizedGravity``)."""
-        d = self.description
-        q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
-        out = np.empty_like(q)
-        for rows in range(0, len(q), GRAVITY_ROWS):  # bounded temporaries for 10^6 poses
-            rot, org = self.flange_chain.joints(q[rows:rows + GRAVITY_ROWS])
-            out[rows:rows + GRAVITY_ROWS] = gravity_from_frames(
-                rot, org, d.axes, d.masses, d.coms, d.payload_mass if payload else 0.0, d.payload_com_in_last)
-        return out
+        gravity at joint angles [N, 6] (deg): :func:`gravity_torques`."""
+        return gravity_torques(self.description, q_deg, payload, self.flange_chain)
 
     # ---------------------------------------------------------------- IK
     def ik(self, poses: np.ndarray, reference_q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -636,7 +672,7 @@ class Robot:
         the chain after A1 walked only as far as needed (status bit 0 of 10^6 branches)."""
         after_a1 = Chain(self.flange_chain.placements[1:], self.flange_chain.axes[1:], np.eye(4))
         *_, (_, origin) = after_a1._walk(q_rad[:, 1:], wrist)  # joints A2 .. the wrist point's
-        return origin
+        return origin.T
 
     @property
     def reach(self) -> dict:

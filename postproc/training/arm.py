@@ -22,7 +22,7 @@ import torch
 
 from .. import frames
 from ..diagnostics import PostprocError
-from ..robot import GRAVITY, RobotDescription, gravity_from_frames, holding_torques, link_centres, ur_geometry
+from ..robot import GRAVITY, RobotDescription, gravity_from_points, holding_torques, ur_geometry
 from .features import wrapped_step
 from .network import rotation_matrices
 
@@ -198,11 +198,18 @@ class Arm:
         """TCP positions [N, 3] mm at q [N, J] rad."""
         return self.frames(q, **chain)[2]
 
+    def _points(self, rotations: torch.Tensor, origins: torch.Tensor) -> tuple[list, list]:
+        """Each link's centre of mass [N, 3] (mm) and each joint's axis [N, 3] in the base frame."""
+        count = range(len(self.axes))
+        return ([origins[:, j] + mv(rotations[:, j], self.coms[j]) for j in count],
+                [mv(rotations[:, j], self.axes[j]) for j in count])
+
     def gravity_torques(self, rotations: torch.Tensor, origins: torch.Tensor) -> torch.Tensor:
         """Joint torques [N, J] (Nm) that hold the arm against gravity, from the joint frames of
-        :meth:`frames`: postproc.robot.gravity_from_frames (one formula with the simulator's)."""
-        return gravity_from_frames(rotations, origins, self.axes, self.masses, self.coms, self.payload_mass,
-                                   self.payload_com)
+        :meth:`frames`: postproc.robot.gravity_from_points, the simulator's formula."""
+        payload = origins[:, -1] + mv(rotations[:, -1], self.payload_com)
+        return torch.stack(gravity_from_points(origins.unbind(1), *self._points(rotations, origins), self.masses,
+                                               self.payload_mass, payload), dim=1)
 
     def torque_terms(self, rotations: torch.Tensor, origins: torch.Tensor) -> torch.Tensor:
         """[N, J + J(J+1)/2]: the gravity torques of :meth:`gravity_torques`, then each link's
@@ -210,11 +217,11 @@ class Arm:
         of a compliance whose link masses and lever arms are not known (only their directions)."""
         total = self.gravity_torques(rotations, origins)
         j_idx, i_idx = coupling_pairs(len(self.axes))
-        coms = link_centres(rotations, origins, self.coms)
+        centres, omega = (torch.stack(points, 1) for points in self._points(rotations, origins))
         weights = self.masses.clone()
         weights[-1] = weights[-1] + self.payload_mass
-        lever = (coms[:, i_idx] - origins[:, j_idx]) * MM * weights[i_idx][:, None]  # [N, P, 3]
-        return torch.cat([total, holding_torques(rotations[:, j_idx], self.axes[j_idx], lever)], dim=1)
+        lever = (centres[:, i_idx] - origins[:, j_idx]) * MM * weights[i_idx][:, None]  # [N, P, 3]
+        return torch.cat([total, holding_torques(omega[:, j_idx], lever)], dim=1)
 
 
 def coupling_pairs(n: int = 6) -> tuple[list[int], list[int]]:
