@@ -417,7 +417,7 @@ def gravity_torques(description: RobotDescription, q_deg: np.ndarray, payload: b
                     chain: Chain | None = None) -> np.ndarray:
     """Joint torques [N, J] (Nm) that hold a description's arm (with its payload, or without)
     against gravity at joint angles [N, J] (deg): :func:`gravity_from_points` of the joint
-    frames of its ``chain`` (default ``Chain.of(description)``), all poses at once, a block of
+    frames of its ``chain`` (default ``Chain.of(description, tool=False)``), all poses at once, a block of
     rows at a time (tests/test_kinematics.py checks it against ``pin.computeGeneralizedGravity``)."""
     d = description
     chain = Chain.of(d, tool=False) if chain is None else chain
