@@ -1,4 +1,5 @@
-"""The nominal robot: a description file (TOML) → ``pin.Model`` + vectorised FK and analytic IK.
+"""The nominal robot: a description file (TOML) → its kinematic chain, vectorised FK, gravity
+torques and analytic IK; ``pin.Model`` as the reference.
 
 A description (``models/kr500.toml`` is the example) lists the joints of a serial 6R arm with
 their origins (a pure offset at q = 0 for the robots postproc ships), axes, limits and link
@@ -6,12 +7,15 @@ masses, then the flange, the tool (TCP), the payload, the workspace and optional
 ``[errors]`` table that :mod:`postproc.simulator` reads. Units at every public interface
 are mm and degrees; Pinocchio works in metres and radians, converted here at the boundary.
 
-Pinocchio holds the model (built once with ``addJoint`` / ``appendBodyToJoint`` /
-``addFrame``; its ``Data`` reused) and computes gravity torques. Forward kinematics of many
-poses at once is numpy (:class:`Chain`, products of per-joint transforms over all poses in
-one go); the tests check it against ``pin.forwardKinematics``. The inverse kinematics is the
-controller's: closed form for the KUKA-type arm with a spherical wrist (8 branches),
-choosing per pose the branch nearest to a reference configuration.
+One description → chain construction (:class:`RobotDescription`'s ``placements``, ``axes``,
+``flange_matrix``, ``tool_matrix``, ``masses``, ``coms``): Pinocchio's model (built lazily with
+``addJoint`` / ``appendBodyToJoint`` / ``addFrame``) is the reference FK and gravity; the
+forward kinematics of many poses at once is numpy (:class:`Chain`, products of per-joint
+transforms over all poses in one go), the gravity torques :func:`gravity_from_points` of its
+joint frames (numpy here, torch in training/arm.py); tests/test_kinematics.py checks both,
+and the torch/ONNX FK, against ``pin.framesForwardKinematics`` / ``computeGeneralizedGravity``.
+The inverse kinematics is the controller's: closed form for the KUKA-type arm with a
+spherical wrist (8 branches), choosing per pose the branch nearest to a reference configuration.
 """
 from __future__ import annotations
 
@@ -29,7 +33,7 @@ from .diagnostics import P330, P331, P332, P333, PostprocError
 from .resources import model_path
 
 __all__ = ["JointSpec", "RobotDescription", "load_description", "parse_description", "check_value", "Chain", "Robot",
-           "axis_rotations"]
+           "axis_rotations", "GRAVITY", "gravity_torques", "gravity_from_points", "holding_torques", "pin_model"]
 
 MM = 1e-3  # mm → m
 
@@ -89,6 +93,48 @@ class RobotDescription:
     def replace(self, **changes) -> "RobotDescription":
         """A copy with some fields changed (e.g. ``payload_mass=0``)."""
         return dataclasses.replace(self, **changes)
+
+    # The one description → chain construction: the numpy Chain, the torch Arm
+    # (training/arm.py) and the pin.Model are all built from these arrays.
+    @property
+    def origins(self) -> np.ndarray:
+        """[J, 6] each joint's frame in its parent at q = 0 (X,Y,Z mm, A,B,C deg)."""
+        return np.array([j.origin for j in self.joints])
+
+    @property
+    def placements(self) -> np.ndarray:
+        """[J, 4, 4] the joint origins as transforms (mm)."""
+        return frames.frame_to_matrix(self.origins)
+
+    @property
+    def axes(self) -> np.ndarray:
+        """[J, 3] unit joint axes, each in its joint's frame."""
+        return np.array([j.axis for j in self.joints])
+
+    @property
+    def flange_matrix(self) -> np.ndarray:
+        """[4, 4] the flange in the last joint's frame (mm)."""
+        return frames.frame_to_matrix(self.flange)
+
+    @property
+    def tool_matrix(self) -> np.ndarray:
+        """[4, 4] the TCP in the flange frame (mm)."""
+        return frames.frame_to_matrix(self.tool)
+
+    @property
+    def masses(self) -> np.ndarray:
+        """[J] kg of the link each joint moves."""
+        return np.array([j.mass for j in self.joints], dtype=float)
+
+    @property
+    def coms(self) -> np.ndarray:
+        """[J, 3] each link's centre of mass in its joint's frame (mm)."""
+        return np.array([j.com for j in self.joints], dtype=float)
+
+    @property
+    def payload_com_in_last(self) -> np.ndarray:
+        """[3] the payload's centre of mass in the last joint's frame (mm)."""
+        return (self.flange_matrix @ np.r_[self.payload_com, 1.0])[:3]
 
 
 # --------------------------------------------------------------------------- reading
@@ -261,7 +307,9 @@ class Chain:
 
     ``placements`` [J, 4, 4] (mm) are joint frames in their parents at q = 0, ``axes`` [J, 3]
     unit axes in the joint frames, ``end`` [4, 4] the end frame (flange, TCP) in the last joint
-    frame and ``base`` [4, 4] the first joint's parent in the reference frame.
+    frame and ``base`` [4, 4] the first joint's parent in the reference frame. A description's
+    chain is :meth:`of`; the simulator perturbs its arrays. Tested against Pinocchio's FK
+    (tests/test_kinematics.py).
     """
 
     def __init__(self, placements: np.ndarray, axes: np.ndarray, end: np.ndarray, base: np.ndarray | None = None):
@@ -270,40 +318,123 @@ class Chain:
         self.end = np.asarray(end, float)
         self.base = np.eye(4) if base is None else np.asarray(base, float)
 
-    def joint_frames(self, q_rad: np.ndarray) -> np.ndarray:
-        """[N, J+1, 4, 4]: each joint's frame after its rotation, then the end frame."""
-        q_rad = np.atleast_2d(np.asarray(q_rad, float))
-        rot = axis_rotations(self.axes, q_rad)
-        n, count = len(q_rad), len(self.axes)
-        out = np.empty((n, count + 1, 4, 4))
-        r = np.broadcast_to(self.base[:3, :3], (n, 3, 3))
-        p = np.broadcast_to(self.base[:3, 3], (n, 3))
-        for j in range(count):  # over joints (6), vectorised over poses
+    @classmethod
+    def of(cls, description: RobotDescription, tool: bool = True) -> "Chain":
+        """The nominal chain of a description, ending at the TCP (or at the flange)."""
+        end = description.flange_matrix @ description.tool_matrix if tool else description.flange_matrix
+        return cls(description.placements, description.axes, end)
+
+    def _walk(self, q_rad: np.ndarray, count: int | None = None):
+        """Each of the first ``count`` joints' rotation (after its turn) and origin, in order,
+        stored component-major (rotations [3, 3, N], origins [3, N]: every step a few products
+        over contiguous rows): the one FK walk, over the joints and vectorised over poses."""
+        count = len(self.axes) if count is None else count
+        angles = np.ascontiguousarray(q_rad[:, :count].T)  # [count, N]
+        cos, sin = np.cos(angles), np.sin(angles)
+        r = np.repeat(self.base[:3, :3, None], len(q_rad), axis=2)
+        p = self.base[:3, 3, None]
+        for j in range(count):
             m = self.placements[j]
-            p = p + r @ m[:3, 3]
-            r = r @ m[:3, :3] @ rot[:, j]
-            out[:, j, :3, :3], out[:, j, :3, 3] = r, p
-        out[:, count, :3, :3] = r @ self.end[:3, :3]
-        out[:, count, :3, 3] = p + r @ self.end[:3, 3]
-        out[:, :, 3, :] = (0.0, 0.0, 0.0, 1.0)
-        return out
+            p = p + _times(r, m[:3, 3])
+            if not np.array_equal(m[:3, :3], np.eye(3)):  # (a description's placements are pure offsets)
+                r = _times(r, m[:3, :3])
+            r = _turned(r, self.axes[j], cos[j], sin[j])
+            yield r, p
+
+    def joints(self, q_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Joint rotations [N, J, 3, 3] and origins [N, J, 3] (mm) for configurations [N, J] (radians)."""
+        q_rad = np.atleast_2d(np.asarray(q_rad, float))
+        rs, ps = zip(*self._walk(q_rad))
+        return np.stack(rs).transpose(3, 0, 1, 2), np.stack(ps).transpose(2, 0, 1)
 
     def transforms(self, q_rad: np.ndarray) -> np.ndarray:
         """[N, 4, 4] end frames for configurations [N, J] (radians)."""
         q_rad = np.atleast_2d(np.asarray(q_rad, float))
-        rot = axis_rotations(self.axes, q_rad)
-        n = len(q_rad)
-        r = np.broadcast_to(self.base[:3, :3], (n, 3, 3))
-        p = np.broadcast_to(self.base[:3, 3], (n, 3))
-        for j in range(len(self.axes)):
-            m = self.placements[j]
-            p = p + r @ m[:3, 3]
-            r = r @ m[:3, :3] @ rot[:, j]
-        out = np.zeros((n, 4, 4))
-        out[:, :3, :3] = r @ self.end[:3, :3]
-        out[:, :3, 3] = p + r @ self.end[:3, 3]
+        *_, (r, p) = self._walk(q_rad)
+        out = np.zeros((len(q_rad), 4, 4))
+        out[:, :3, :3] = _times(r, self.end[:3, :3]).transpose(2, 0, 1)
+        out[:, :3, 3] = (p + _times(r, self.end[:3, 3])).T
         out[:, 3, 3] = 1.0
         return out
+
+
+def _times(r: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """Rotations stored component-major, r [3, 3, N], times a constant [3] → [3, N] or [3, 3] → [3, 3, N]."""
+    if m.ndim == 1:
+        return r[:, 0] * m[0] + r[:, 1] * m[1] + r[:, 2] * m[2]
+    return np.matmul(m.T, r)
+
+
+def _turned(r: np.ndarray, axis: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
+    """r [3, 3, N] (component-major) times the rotations about unit ``axis`` by the angles of
+    ``cos``, ``sin`` [N]: about ±e_k two columns mix; any other axis by Rodrigues,
+    c·r + s·r[a]× + (1 − c)·(r a) aᵀ."""
+    k = int(np.argmax(np.abs(axis)))
+    if abs(abs(axis[k]) - 1.0) < 1e-12:
+        s = np.sign(axis[k]) * sin
+        i, j = [(1, 2), (2, 0), (0, 1)][k]  # R_k mixes columns i, j: (x_i c + x_j s, x_j c − x_i s)
+        out = np.empty_like(r)
+        out[:, k] = r[:, k]
+        out[:, i] = r[:, i] * cos + r[:, j] * s
+        out[:, j] = r[:, j] * cos - r[:, i] * s
+        return out
+    skew = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return cos * r + sin * _times(r, skew) + (1.0 - cos) * _times(r, axis)[:, None, :] * axis[None, :, None]
+
+
+# --------------------------------------------------------------------------- gravity
+
+GRAVITY = 9.81  # m/s², along −Z of the robot base frame (Pinocchio's default)
+GRAVITY_ROWS = 16_384  # poses per block of the vectorised gravity torques
+
+
+def holding_torques(omega, lever):
+    """τ [...] (Nm) that holds weights against gravity: τ = −ω · (l × m·g), g = (0, 0, −g), for
+    joint axes ``omega`` [..., 3] in the base frame and ``lever`` [..., ≥2] (kg·m) the
+    mass-weighted lever Σ m_i (c_i − p_j) the joint carries (only its x, y count). Like
+    :func:`gravity_from_points` it takes numpy arrays or torch tensors alike (operators and
+    indexing only): one formula for the simulator and the identification's ONNX graph."""
+    return GRAVITY * (omega[..., 0] * lever[..., 1] - omega[..., 1] * lever[..., 0])
+
+
+def gravity_from_points(origins, centres, omega, masses, payload_mass: float = 0.0, payload=None) -> list:
+    """Joint torques (J arrays [N], Nm) that hold the arm against gravity
+    (``pin.computeGeneralizedGravity``) from per-joint lists of its joint origins, links'
+    centres of mass (arrays [N, 3] mm) and joint axes ``omega`` [N, 3], all in the base frame,
+    and link masses [J] (kg); the payload (kg, centre ``payload`` [N, 3] mm) rides on the last
+    link. τ_j = −ω_j · Σ_{i≥j} (c_i − p_j) × m_i·g, summed from the tip."""
+    moment, mass, torques = 0.0, payload_mass, []  # Σ_{i≥j} m_i·c_i (x, y) and Σ_{i≥j} m_i
+    if payload_mass > 0:
+        moment = payload_mass * payload[:, :2]
+    for j in reversed(range(len(masses))):
+        moment = moment + masses[j] * centres[j][:, :2]
+        mass = mass + masses[j]
+        torques.append(holding_torques(omega[j], (moment - mass * origins[j][:, :2]) * MM))
+    return torques[::-1]
+
+
+def gravity_torques(description: RobotDescription, q_deg: np.ndarray, payload: bool = True,
+                    chain: Chain | None = None) -> np.ndarray:
+    """Joint torques [N, J] (Nm) that hold a description's arm (with its payload, or without)
+    against gravity at joint angles [N, J] (deg): :func:`gravity_from_points` of the joint
+    frames of its ``chain`` (default ``Chain.of(description, tool=False)``), all poses at once, a block of
+    rows at a time (tests/test_kinematics.py checks it against ``pin.computeGeneralizedGravity``)."""
+    d = description
+    chain = Chain.of(d, tool=False) if chain is None else chain
+    q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
+    coms, axes, masses, payload_com = d.coms, d.axes, d.masses, d.payload_com_in_last
+    out = np.empty_like(q)
+    for start in range(0, len(q), GRAVITY_ROWS):  # blocks that stay in the cache
+        rows = slice(start, start + GRAVITY_ROWS)
+        origins, centres, omega = [], [], []
+        for j, (r, p) in enumerate(chain._walk(q[rows])):  # ([N, 3] views of the component-major walk)
+            origins.append(p.T)
+            centres.append((p + _times(r, coms[j])).T)
+            omega.append(_times(r, axes[j]).T)
+        torques = gravity_from_points(origins, centres, omega, masses, d.payload_mass if payload else 0.0,
+                                      (p + _times(r, payload_com)).T)
+        out[rows] = np.stack(torques, axis=1)
+    return out
 
 
 def _pin_inertia(pin, mass: float, com_mm: np.ndarray, inertia: np.ndarray | None):
@@ -311,13 +442,37 @@ def _pin_inertia(pin, mass: float, com_mm: np.ndarray, inertia: np.ndarray | Non
     return pin.Inertia(float(mass), np.asarray(com_mm, float) * MM, np.diag(moments))
 
 
-def _se3(pin, frame_mm_deg: np.ndarray):
-    t = frames.frame_to_matrix(frame_mm_deg)
-    return pin.SE3(t[:3, :3].copy(), t[:3, 3] * MM)
+def _se3(pin, matrix_mm: np.ndarray):
+    return pin.SE3(matrix_mm[:3, :3].copy(), matrix_mm[:3, 3] * MM)
+
+
+def pin_model(description: RobotDescription):
+    """The reference: Pinocchio's model of a description (metres inside), built from the same
+    arrays as :class:`Chain`, the payload a body of its own on the last joint at the flange,
+    frames "flange" and "tcp". The numpy and torch kinematics are tested against it."""
+    import pinocchio as pin
+
+    d = description
+    model = pin.Model()
+    model.name = d.name
+    parent = 0
+    for spec, placement in zip(d.joints, d.placements):
+        lo, hi = np.radians(spec.limits)
+        parent = model.addJoint(
+            parent, pin.JointModelRevoluteUnaligned(*spec.axis), _se3(pin, placement), spec.name,
+            np.array([1e6]), np.array([10.0]), np.array([lo]), np.array([hi]))
+        model.appendBodyToJoint(parent, _pin_inertia(pin, spec.mass, spec.com, spec.inertia), pin.SE3.Identity())
+    flange = _se3(pin, d.flange_matrix)
+    if d.payload_mass > 0:
+        model.appendBodyToJoint(parent, _pin_inertia(pin, d.payload_mass, d.payload_com, None), flange)
+    fid = model.addFrame(pin.Frame("flange", parent, flange, pin.FrameType.OP_FRAME))
+    model.addFrame(pin.Frame("tcp", parent, fid, flange * _se3(pin, d.tool_matrix), pin.FrameType.OP_FRAME))
+    return model
 
 
 class Robot:
-    """The nominal robot: ``pin.Model`` built once (``model``, ``data``), FK, the controller's IK.
+    """The nominal robot: FK (:class:`Chain`), gravity torques, the controller's IK; its
+    ``pin.Model`` (``model``, ``data``: the reference, built on first use).
 
     >>> robot = Robot()                       # models/kr500.toml
     >>> poses = robot.fk([[0, -90, 90, 0, 45, 0]])
@@ -333,11 +488,9 @@ class Robot:
         self.home_q: np.ndarray = d.home_q.copy()
         self.joint_names: list[str] = [j.name for j in d.joints]
         self.limits: np.ndarray = np.array([j.limits for j in d.joints])  # [6, 2] deg
-        placements = frames.frame_to_matrix(np.array([j.origin for j in d.joints]))
-        axes = np.array([j.axis for j in d.joints])
-        self.flange_chain = Chain(placements, axes, frames.frame_to_matrix(d.flange))
-        self.tool_matrix = frames.frame_to_matrix(d.tool)
-        self.chain = Chain(placements, axes, self.flange_chain.end @ self.tool_matrix)
+        self.flange_chain = Chain.of(d, tool=False)
+        self.tool_matrix = d.tool_matrix
+        self.chain = Chain.of(d)
         try:
             self._solver: _IkGeometry | _UrIkGeometry = _IkGeometry(self)
             self._kuka_error: PostprocError | None = None
@@ -363,30 +516,11 @@ class Robot:
         return self._solver
 
     def _build_model(self) -> None:
-        """The pin.Model (metres inside), built once on first use: planning needs only numpy
-        kinematics and starts faster without importing Pinocchio."""
+        """The pin.Model, built once on first use (only checks need it)."""
         import pinocchio as pin
 
-        d = self.description
-        # payload as a separate body on A6 so that the unloaded model can be kept too
-        model = pin.Model()
-        model.name = d.name
-        parent = 0
-        for j, spec in enumerate(d.joints):
-            lo, hi = np.radians(spec.limits)
-            parent = model.addJoint(
-                parent, pin.JointModelRevoluteUnaligned(*spec.axis), _se3(pin, spec.origin), spec.name,
-                np.array([1e6]), np.array([10.0]), np.array([lo]), np.array([hi]))
-            model.appendBodyToJoint(parent, _pin_inertia(pin, spec.mass, spec.com, spec.inertia), pin.SE3.Identity())
-        flange = _se3(pin, d.flange)
-        self._unloaded = pin.Model(model)  # without the payload: gravity at mastering
-        if d.payload_mass > 0:
-            model.appendBodyToJoint(parent, _pin_inertia(pin, d.payload_mass, d.payload_com, None), flange)
-        fid = model.addFrame(pin.Frame("flange", parent, flange, pin.FrameType.OP_FRAME))
-        model.addFrame(pin.Frame("tcp", parent, fid, flange * _se3(pin, d.tool), pin.FrameType.OP_FRAME))
-        self._model = model
-        self._data = model.createData()
-        self._unloaded_data = self._unloaded.createData()
+        self._model = pin_model(self.description)
+        self._data = self._model.createData()
         self._pin = pin
 
     @property
@@ -413,7 +547,7 @@ class Robot:
         return frames.matrix_to_frame(self.fk_matrix(q_deg))
 
     def pin_fk(self, q_deg: np.ndarray, frame: str = "tcp") -> np.ndarray:
-        """The same through Pinocchio (one call per pose; for checks, not for bulk work)."""
+        """The reference FK, Pinocchio's (one call per pose; for checks, not for bulk work)."""
         model, data = self.model, self.data
         pin = self._pin
         fid = model.getFrameId(frame)
@@ -427,16 +561,9 @@ class Robot:
 
     # ---------------------------------------------------------------- gravity
     def gravity_torques(self, q_deg: np.ndarray, payload: bool = True) -> np.ndarray:
-        """Joint torques [N, 6] (Nm) that hold the arm against gravity (pin.computeGeneralizedGravity)."""
-        if self._model is None:
-            self._build_model()
-        model, data = (self._model, self._data) if payload else (self._unloaded, self._unloaded_data)
-        pin = self._pin
-        q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
-        out = np.empty_like(q)
-        for i, qi in enumerate(q):  # ~2 µs per call in C++: pin is the right tool here
-            out[i] = pin.computeGeneralizedGravity(model, data, qi)
-        return out
+        """Joint torques [N, 6] (Nm) that hold the arm (with its payload, or without) against
+        gravity at joint angles [N, 6] (deg): :func:`gravity_torques`."""
+        return gravity_torques(self.description, q_deg, payload, self.flange_chain)
 
     # ---------------------------------------------------------------- IK
     def ik(self, poses: np.ndarray, reference_q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -542,18 +669,10 @@ class Robot:
 
     def _wrist_in_a1(self, q_rad: np.ndarray, wrist: int) -> np.ndarray:
         """The origin of joint ``wrist`` [N, 3] in A1's turned frame (relative to A1's origin):
-        the chain walked only as far as needed (status bit 0 of 10^6 branches)."""
-        chain = self.flange_chain
-        m = chain.placements
-        rot = axis_rotations(chain.axes[:wrist], q_rad[:, :wrist])
-        r = np.broadcast_to(m[0][:3, :3], (len(q_rad), 3, 3)) @ rot[:, 0]  # A1's frame (base = identity)
-        r1 = r
-        p = np.zeros((len(q_rad), 3))
-        for j in range(1, wrist + 1):
-            p = p + r @ m[j][:3, 3]
-            if j < wrist:
-                r = r @ m[j][:3, :3] @ rot[:, j]
-        return np.einsum("nji,nj->ni", r1, p)
+        the chain after A1 walked only as far as needed (status bit 0 of 10^6 branches)."""
+        after_a1 = Chain(self.flange_chain.placements[1:], self.flange_chain.axes[1:], np.eye(4))
+        *_, (_, origin) = after_a1._walk(q_rad[:, 1:], wrist)  # joints A2 .. the wrist point's
+        return origin.T
 
     @property
     def reach(self) -> dict:
@@ -575,8 +694,7 @@ class _IkGeometry:
 
     def __init__(self, robot: Robot):
         d = robot.description
-        o = np.array([j.origin for j in d.joints])
-        axes = np.array([j.axis for j in d.joints])
+        o, axes = d.origins, d.axes
         want = [2, 1, 1, 0, 1, 0]  # which base axis each joint turns about
         ok = np.allclose(o[:, 3:], 0.0) and all(abs(abs(axes[j, want[j]]) - 1.0) < 1e-12 for j in range(6))
         ok = ok and np.allclose(o[1:, 1], 0.0) and np.allclose(o[4:6, 2], 0.0)
@@ -593,9 +711,8 @@ class _IkGeometry:
         self.L3 = np.array([o[3, 0] + o[4, 0], o[3, 2] + o[4, 2]])
         self.l2, self.l3 = float(np.linalg.norm(self.L2)), float(np.linalg.norm(self.L3))
         self.al2, self.al3 = math.atan2(self.L2[1], self.L2[0]), math.atan2(self.L3[1], self.L3[0])
-        zero = robot.flange_chain.joint_frames(np.zeros((1, 6)))[0]
-        self.c0 = zero[4, :3, 3]  # wrist centre = A5's origin, on the A4 and A6 axes
-        self.flange0 = zero[6]
+        self.c0 = robot.flange_chain.joints(np.zeros((1, 6)))[1][0, 4]  # wrist centre = A5's origin, on the A4 and A6 axes
+        self.flange0 = robot.flange_chain.transforms(np.zeros((1, 6)))[0]
         self.tcp0 = (self.flange0 @ robot.tool_matrix)[:3, 3]
         self.inv_tool = frames.inverse(robot.tool_matrix)
 
@@ -663,8 +780,7 @@ def ur_geometry(description) -> tuple[np.ndarray, np.ndarray]:
     """The joint origins [6, 6] and axis signs [6] of a UR-type description (the one check of
     the geometry the closed-form UR IK needs, numpy here and torch in training/arm.py); P333
     for another geometry."""
-    o = np.array([j.origin for j in description.joints])
-    axes = np.array([j.axis for j in description.joints])
+    o, axes = description.origins, description.axes
     want = [2, 1, 1, 1, 2, 1]
     ok = np.allclose(o[:, 3:], 0.0) and all(abs(abs(axes[j, want[j]]) - 1.0) < 1e-12 for j in range(6))
     ok = ok and np.allclose(axes[1], axes[2]) and np.allclose(axes[1], axes[3])

@@ -7,7 +7,7 @@ The real robot then turns its joints to
     q_true = q + zero offsets                                 (mastering)
                + Σ_k a_jk·sin(n_k·q_j + φ_jk)                  (gear transmission error)
                − d_j·b_j/2                                     (backlash: d = sign of the last motion)
-               − K⁻¹·(τ_g(q, payload) − τ_g(mastering, no load)) (compliance under gravity, pin)
+               − K⁻¹·(τ_g(q, payload) − τ_g(mastering, no load)) (compliance under gravity)
 
 and its TCP lands at the real robot's forward kinematics of q_true: joint placements off by
 a small rigid motion each (position and direction of every axis, 6 numbers per joint), the
@@ -23,8 +23,8 @@ offsets, base, tool) of every drawn robot so that its mean error norm over the w
 and noise keep their physical sizes. The default robot (``seed`` of the file) is the one
 calibrated to Hu, Hua & Tian's uncompensated row (mean 0.754 mm).
 
-Vectorised throughout: IK/FK in numpy over all poses, backlash signs from ``np.diff`` with a
-forward fill; Pinocchio is called only for gravity torques.
+Vectorised throughout: IK/FK and gravity torques (from the joint frames) in numpy over all
+poses, backlash signs from ``np.diff`` with a forward fill; Pinocchio is not needed.
 
 Arm configuration and tools: a command may carry its Status/Turn (``config`` [N, 2], -1 = not
 stated; the controller's rules of :mod:`postproc.configuration` for the rest, from HOME) or

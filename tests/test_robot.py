@@ -1,4 +1,4 @@
-"""The nominal robot: description file, FK against hand-computed poses and Pinocchio, IK."""
+"""The nominal robot: description file, FK against hand-computed poses, IK (against Pinocchio: test_kinematics)."""
 import math
 
 import numpy as np
@@ -46,13 +46,6 @@ def test_home_and_tool_pointing_down_by_hand(robot):
     r = frames.rotation_from_abc(down[3:])
     np.testing.assert_allclose(r[:, 0], [0, 0, -1], atol=1e-12)  # tool X (working direction) down
     np.testing.assert_allclose(r[:, 2], [1, 0, 0], atol=1e-12)  # tool Z away from the robot
-
-
-def test_numpy_fk_matches_pinocchio(robot):
-    q = np.random.default_rng(1).uniform(robot.limits[:, 0], robot.limits[:, 1], (200, 6))
-    np.testing.assert_allclose(robot.fk_matrix(q), robot.pin_fk(q), atol=1e-9)
-    flange = robot.pin_fk(q[:5], "flange")
-    np.testing.assert_allclose(flange @ robot.tool_matrix, robot.fk_matrix(q[:5]), atol=1e-9)
 
 
 def test_fk_of_ik_round_trips_in_the_box(robot):

@@ -22,14 +22,13 @@ import torch
 
 from .. import frames
 from ..diagnostics import PostprocError
-from ..robot import RobotDescription, ur_geometry
+from ..robot import GRAVITY, RobotDescription, gravity_from_points, holding_torques, ur_geometry
 from .features import wrapped_step
 from .network import rotation_matrices
 
 __all__ = ["coupling_pairs", "Arm", "axis_rotations", "mc", "mv", "turn_columns", "turn_rows", "small_rotation", "pose_matrices", "at_tool", "KukaIK", "UrIK", "make_ik", "choose_branch",
            "GRAVITY"]
 
-GRAVITY = 9.81  # m/s², along −Z of the robot base frame (as Pinocchio's default)
 MM = 1e-3
 
 
@@ -155,17 +154,16 @@ class Arm:
 
     def __init__(self, description: RobotDescription):
         d = self.description = description
-        self.placements = _t(frames.frame_to_matrix(np.array([j.origin for j in d.joints])))
-        self.axes = _t(np.array([j.axis for j in d.joints]))
-        self.flange = _t(frames.frame_to_matrix(d.flange))
-        self.tool = _t(frames.frame_to_matrix(d.tool))
+        self.placements = _t(d.placements)
+        self.axes = _t(d.axes)
+        self.flange = _t(d.flange_matrix)
+        self.tool = _t(d.tool_matrix)
         self.end = self.flange @ self.tool
         self.tool0 = _t(d.tool)  # the description's TCP on the flange, X,Y,Z,A,B,C
-        self.masses = _t([j.mass for j in d.joints])
-        self.coms = _t(np.array([j.com for j in d.joints]))
-        payload_com = frames.frame_to_matrix(d.flange) @ np.r_[d.payload_com, 1.0]
+        self.masses = _t(d.masses)
+        self.coms = _t(d.coms)
         self.payload_mass = float(d.payload_mass)
-        self.payload_com = _t(payload_com[:3])  # in the last joint's frame
+        self.payload_com = _t(d.payload_com_in_last)  # in the last joint's frame
         self.home_q = _t(np.radians(d.home_q))
 
     def frames(self, q: torch.Tensor, placements: torch.Tensor | None = None, end: torch.Tensor | None = None,
@@ -200,25 +198,18 @@ class Arm:
         """TCP positions [N, 3] mm at q [N, J] rad."""
         return self.frames(q, **chain)[2]
 
+    def _points(self, rotations: torch.Tensor, origins: torch.Tensor) -> tuple[list, list]:
+        """Each link's centre of mass [N, 3] (mm) and each joint's axis [N, 3] in the base frame."""
+        count = range(len(self.axes))
+        return ([origins[:, j] + mv(rotations[:, j], self.coms[j]) for j in count],
+                [mv(rotations[:, j], self.axes[j]) for j in count])
+
     def gravity_torques(self, rotations: torch.Tensor, origins: torch.Tensor) -> torch.Tensor:
         """Joint torques [N, J] (Nm) that hold the arm against gravity, from the joint frames of
-        :meth:`frames` (as ``pin.computeGeneralizedGravity``): τ_j = −ω_j · Σ_{i≥j} (c_i − p_j) × m_i·g."""
-        coms = origins + torch.stack([mv(rotations[:, j], self.coms[j]) for j in range(len(self.coms))], 1)  # mm
-        weights = self.masses.clone()
-        if self.payload_mass > 0:  # the payload joins the last link: one combined centre of mass
-            pay = origins[:, -1] + mv(rotations[:, -1], self.payload_com)
-            total = weights[-1] + self.payload_mass
-            last = (coms[:, -1] * weights[-1] + pay * self.payload_mass) / total
-            coms = torch.cat([coms[:, :-1], last[:, None]], dim=1)
-            weights = torch.cat([weights[:-1], total.reshape(1)])
-        # moment of the links beyond j about the base origin and their mass, summed from the tip
-        moment = torch.flip(torch.cumsum(torch.flip(coms * weights[:, None], [1]), 1), [1])  # Σ m_i c_i
-        mass = torch.flip(torch.cumsum(torch.flip(weights, [0]), 0), [0])  # Σ m_i
-        lever = (moment - mass[:, None] * origins) * MM  # Σ m_i (c_i − p_j), kg·m
-        force = torch.tensor([0.0, 0.0, -GRAVITY], dtype=lever.dtype)
-        torque = torch.linalg.cross(lever, force.expand_as(lever))
-        omega = torch.stack([mv(rotations[:, j], self.axes[j]) for j in range(len(self.axes))], 1)
-        return -(omega * torque).sum(-1)
+        :meth:`frames`: postproc.robot.gravity_from_points, the simulator's formula."""
+        payload = origins[:, -1] + mv(rotations[:, -1], self.payload_com)
+        return torch.stack(gravity_from_points(origins.unbind(1), *self._points(rotations, origins), self.masses,
+                                               self.payload_mass, payload), dim=1)
 
     def torque_terms(self, rotations: torch.Tensor, origins: torch.Tensor) -> torch.Tensor:
         """[N, J + J(J+1)/2]: the gravity torques of :meth:`gravity_torques`, then each link's
@@ -226,14 +217,11 @@ class Arm:
         of a compliance whose link masses and lever arms are not known (only their directions)."""
         total = self.gravity_torques(rotations, origins)
         j_idx, i_idx = coupling_pairs(len(self.axes))
-        coms = origins + torch.stack([mv(rotations[:, j], self.coms[j]) for j in range(len(self.coms))], 1)
+        centres, omega = (torch.stack(points, 1) for points in self._points(rotations, origins))
         weights = self.masses.clone()
         weights[-1] = weights[-1] + self.payload_mass
-        lever = (coms[:, i_idx] - origins[:, j_idx]) * MM * weights[i_idx][:, None]  # [N, P, 3]
-        force = torch.tensor([0.0, 0.0, -GRAVITY], dtype=lever.dtype)
-        torque = torch.linalg.cross(lever, force.expand_as(lever))
-        omega = torch.stack([mv(rotations[:, j], self.axes[j]) for j in range(len(self.axes))], 1)[:, j_idx]
-        return torch.cat([total, -(omega * torque).sum(-1)], dim=1)
+        lever = (centres[:, i_idx] - origins[:, j_idx]) * MM * weights[i_idx][:, None]  # [N, P, 3]
+        return torch.cat([total, holding_torques(omega[:, j_idx], lever)], dim=1)
 
 
 def coupling_pairs(n: int = 6) -> tuple[list[int], list[int]]:
@@ -340,7 +328,7 @@ class UrIK(torch.nn.Module):
         self.a2, self.a3 = float(o[2, 0]), float(o[3, 0])
         self.y4 = float(o[4, 1])  # A4 → A5 along the shoulder axis
         self.z5 = float(o[5, 2])  # A5 → A6 along Z
-        end = frames.frame_to_matrix(description.flange) @ frames.frame_to_matrix(description.tool)
+        end = description.flange_matrix @ description.tool_matrix
         self.register_buffer("end", _t(end))  # TCP in the A6 frame (parallel to the base at q = 0)
         self.register_buffer("inv_end", _t(frames.inverse(end)))
 
