@@ -52,7 +52,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-from postproc.cli.train_hybrid import arm_metadata  # noqa: E402
+from postproc.training.card import arm_metadata  # noqa: E402
 from postproc.compensator import load_model  # noqa: E402
 from postproc.registration import register_measurements  # noqa: E402
 from postproc.robot import load_description  # noqa: E402

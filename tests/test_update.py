@@ -58,7 +58,7 @@ def kr500():
 @pytest.fixture(scope="module")
 def old(kr500, tmp_path_factory):
     """(path, fitted model) of the first campaign: 300 rows, with a residual network."""
-    from postproc.cli.train_hybrid import arm_metadata
+    from postproc.training.card import arm_metadata
 
     poses, errors = _campaign(SimulatedRobot(kr500, seed=3), 300, 1)
     model = HybridModel(kr500, residual="always", ensemble=1, epochs=40, kinematic={"max_ripple": 6}).fit(
