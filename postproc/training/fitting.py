@@ -172,7 +172,7 @@ def _several_tools(rows: _Rows) -> int:
     return n if n > 1 else 0
 
 
-def _one_tool(rows: _Rows, method: str) -> None:
+def _require_one_tool(rows: _Rows, method: str) -> None:
     """Refuse (P320) data of several tools for a method that learns one TCP's error."""
     if _several_tools(rows):
         raise PostprocError(f"--method {method} learns the error of one tool, the data have "
@@ -223,7 +223,7 @@ def _identified(rows: _Rows, method: str, description, pose_only: bool, update, 
                           "(tool_x..tool_c) a_meas,b_meas,c_meas are not used (no rotation_error output)")
         rotation_errors = None
     if method == "dnn-joints":
-        _one_tool(rows, method)
+        _require_one_tool(rows, method)
     poses = rows.data.poses
     # rows in visiting order (the first came from HOME): the approach direction of each joint
     previous = None if pose_only else previous_poses(poses)
@@ -322,7 +322,7 @@ def _network(rows: _Rows, method: str, robot_meta: dict, search: bool, search_en
     from .network import Structure, parse_hidden
 
     if rows.tools is not None:  # a pose → error map learns one TCP's error
-        _one_tool(rows, method)
+        _require_one_tool(rows, method)
         robot_meta["tool"] = tool_metadata(rows.tools[0])
     model = ErrorModel(method=method, **params)
     poses, errors, train, val = rows.data.poses, rows.errors, rows.train, rows.val
