@@ -53,7 +53,7 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 from _common import record  # noqa: E402  (benchmarks/ is on sys.path when a benchmark runs as a script)
-from postproc.cli.train_hybrid import arm_metadata  # noqa: E402
+from postproc.training.card import arm_metadata  # noqa: E402
 from postproc.compensator import load_model  # noqa: E402
 from postproc.registration import register_measurements  # noqa: E402
 from postproc.robot import load_description  # noqa: E402

@@ -154,7 +154,7 @@ def _coverage(model, poses, previous, errors, joints=None) -> tuple[float, np.nd
 def onnx_part(data: str) -> None:
     import tempfile
 
-    from postproc.cli.train_hybrid import arm_metadata
+    from postproc.training.card import arm_metadata
     from postproc.compensate import compensate_text
     from postproc.compensator import OUTPUT_ERROR, OUTPUT_JOINTS, OUTPUT_STD, load_model
     from postproc.planning import latin_hypercube

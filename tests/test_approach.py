@@ -37,7 +37,7 @@ def model(sim, tmp_path_factory):
     train = latin_hypercube(300, seed=1)
     hybrid = HybridModel(load_description(), residual="none", kinematic={"ripple": []}, seed=0)
     hybrid.fit(train, sim.true_error(train), previous_poses(train))
-    from postproc.cli.train_hybrid import arm_metadata
+    from postproc.training.card import arm_metadata
 
     path = hybrid.export_onnx(tmp_path_factory.mktemp("approach") / "backlash.onnx", name="backlash",
                               **arm_metadata(load_description()))

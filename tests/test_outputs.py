@@ -32,12 +32,12 @@ def plan(tmp_path):
 @pytest.fixture
 def never_read(monkeypatch):
     """The work must not start: reading the data fails the test."""
-    import postproc.training.data as data
+    import postproc.measurements as measurements
 
     def fail(*a, **k):
         raise AssertionError("read the data before checking the output path")
 
-    monkeypatch.setattr(data, "read_measurements", fail)
+    monkeypatch.setattr(measurements, "read_measurements", fail)
 
 
 def test_a_directory_is_refused_by_every_subcommand_before_the_work(capsys, tmp_path, plan, never_read):

@@ -59,7 +59,7 @@ def exported(fitted, tmp_path_factory):
     train = latin_hypercube(200, seed=1)
     hm = HybridModel(load_description(), residual="none", kinematic={"ripple": [(0, 36)]}).fit(
         train, train[:, :3] - sim.measure(train, rng_seed=0), previous_poses(train))
-    from postproc.cli.train_hybrid import arm_metadata
+    from postproc.training.card import arm_metadata
 
     card = {"identified": {**hm.describe(), "identifiability": hm.kinematic_.identifiability()}}  # (as train's)
     path = hm.export_onnx(tmp_path_factory.mktemp("std") / "std.onnx", name="std", **arm_metadata(load_description()),
@@ -180,7 +180,7 @@ def test_report_and_certificate_show_the_uncertainty_and_what_the_data_could_not
 
 
 def _exported_std(hm, path):
-    from postproc.cli.train_hybrid import arm_metadata
+    from postproc.training.card import arm_metadata
 
     return load_model(hm.export_onnx(path, name="std", **arm_metadata(hm.description)))
 

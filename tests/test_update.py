@@ -59,7 +59,7 @@ def kr500():
 @pytest.fixture(scope="module")
 def old(kr500, tmp_path_factory):
     """(path, fitted model) of the first campaign: 300 rows, with a residual network."""
-    from postproc.cli.train_hybrid import arm_metadata
+    from postproc.training.card import arm_metadata
 
     poses, errors = _campaign(SimulatedRobot(kr500, seed=3), 300, 1)
     model = HybridModel(kr500, residual="always", ensemble=1, epochs=40, kinematic={"max_ripple": 6}).fit(
@@ -203,7 +203,7 @@ def test_update_reads_back_every_residual_network(kr500, tmp_path):
     """An ensemble of residual networks fitted on the same rows shares its standardisation: the
     exporter keeps those equal tensors once, under the first network's name; every network is
     read back whole (was: P317 "network 1 cannot be read back")."""
-    from postproc.cli.train_hybrid import arm_metadata
+    from postproc.training.card import arm_metadata
 
     poses, errors = _campaign(SimulatedRobot(kr500, seed=4), 200, 2)
     model = HybridModel(kr500, residual="always", ensemble=2, epochs=20, kinematic={"max_ripple": 4}).fit(

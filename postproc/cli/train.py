@@ -1,12 +1,12 @@
-"""``postproc train``: measurement CSV → a compensator ONNX file (the method: GPSO-DNN)."""
+"""``postproc train``: measurement CSV → a compensator ONNX file. The arguments map to
+``postproc.training.fit`` (training/fitting.py), which fits and makes the model card; this
+module writes the model and prints what the fit found."""
 from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
-METHODS = ("hybrid", "kinematic", "dnn-joints", "gpso", "ga", "pso", "plain")  # see EXAMPLES; no torch import here
-OPTIMIZERS = ("lm", "lbfgs", "adam", "momentum", "gd")
+from ..training.methods import IDENTIFIED, METHODS, OPTIMIZERS  # (no numpy, no torch: see EXAMPLES)
 
 EXAMPLES = """\
 Data: a CSV with the header x,y,z,a,b,c,x_meas,y_meas,z_meas (mm, deg, robot base frame):
@@ -100,154 +100,81 @@ def add_parser(sub, common, formatter) -> None:
     p.set_defaults(run=run)
 
 
-def _robot_metadata(robot: str | None) -> dict:
-    """robot / reach / tool metadata from a robot description, when there is one to read."""
-    from .train_hybrid import arm_metadata
+def _params(args) -> dict:
+    """The estimator's parameters among train's arguments (those given; --optimizer: the networks')."""
+    from . import show_progress
 
-    if not robot:
-        return {}
-    path = Path(robot)
-    try:
-        from ..robot import load_description
-    except ImportError:  # robot description support (pin) not installed: the name only
-        return {"robot": robot}
-    if path.suffix == ".toml":
-        description = load_description(path)
-    else:
-        default = load_description()
-        if default.name != robot:
-            return {"robot": robot}  # an unknown robot: record its name, claim no reach
-        description = default
-    return arm_metadata(description)
+    params = {"seed": args.seed, "progress": show_progress(args)}
+    for key in ("hidden", "epochs") if args.method in IDENTIFIED else ("hidden", "epochs", "optimizer"):
+        if getattr(args, key) is not None:
+            params[key] = getattr(args, key)
+    return params
 
 
 def run(args) -> int:
-    import numpy as np
+    from functools import partial
 
-    from ..diagnostics import PostprocError
+    from ..fleet import task_map
     from ..outputs import check_outputs
-    from ..measurements import read_measurements
-    from ..training.data import (check_errors, check_rotation_errors, check_size, envelope_of, measured_tools,
-                                 split_indices)
-    from . import show_progress
-    from .train_hybrid import HYBRID_METHODS, run_hybrid
+    from ..training.fitting import fit
 
     check_outputs([args.output], [args.data, args.robot or "-", args.update or "-"])  # before the fit, not after it
-    if args.update and args.method not in HYBRID_METHODS:
-        raise PostprocError(f"--update re-fits an identified model: --method {args.method} identifies none "
-                            f"(use hybrid or kinematic, or leave --method out)", args.update, code="P317")
-    data = read_measurements(args.data)
-    from ..planning import parse_tool
+    trained = fit(args.data, args.method, args.robot, tool=args.tool, val_fraction=args.val_fraction,
+                  split_seed=args.split_seed, register=args.register, pose_only=args.pose_only, update=args.update,
+                  search=args.search, search_engine=partial(task_map, args.scheduler), name=args.name,
+                  **_params(args))
+    if trained.search is not None and not args.quiet:
+        from ..training.search import format_table
 
-    tools = measured_tools(data, None if args.tool is None else parse_tool(args.tool))
-    train_rows, val_rows = split_indices(len(data), args.val_fraction, args.split_seed)
-    # a robot description is read before the long part, so that a typo fails fast
-    # (hybrid methods read it themselves: it is the model, and may be an arm postproc.robot cannot solve)
-    robot_meta = {} if args.method in HYBRID_METHODS else _robot_metadata(args.robot)
-    poses, measured = data.poses, data.measured
-    notes = []
-    frame = data.meta.get("frame", "base").lower()
-    if args.register:
-        from ..registration import register_measurements
-
-        mask = np.zeros(len(data), dtype=bool)
-        mask[train_rows] = True
-        measured, transform, rms = register_measurements(poses[:, :3], measured, mask)
-        notes.append(f"registered tracker → base on {len(train_rows)} training rows (rms {rms:.3f} mm)")
-        if data.orientation is not None:  # the probe's orientation turns with the tracker frame
-            from ..frames import abc_from_rotation, rotation_from_abc
-
-            data.orientation = abc_from_rotation(transform[:3, :3] @ rotation_from_abc(data.orientation))
-    elif frame != "base":
-        raise PostprocError(
-            f"measured columns are in the {frame}'s frame ('# frame: {frame}'): train with --register",
-            args.data,
-            code="P507",
-        )
-    if data.holdout is not None and len(val_rows) and not data.holdout[val_rows].all():
-        seen = int((~data.holdout[val_rows]).sum())
-        notes.append(
-            f"warning: {seen} validation row(s) were used by the file's registration (holdout = 0): "
-            "the validation figures are optimistic; use the import's --split-seed and a smaller --val-fraction"
-        )
-    errors = poses[:, :3] - measured
-    notes += check_errors(poses[:, :3], measured, data.lines, args.data)
-    rotation_errors = data.rotation_errors
-    if rotation_errors is not None:
-        check_rotation_errors(rotation_errors, data.lines, args.data)
-        if args.method not in ("hybrid", "kinematic"):
-            notes.append(f"warning: --method {args.method} fits the position only: a_meas,b_meas,c_meas not used "
-                         "(the model has no rotation_error output; compensate --orientation refuses it)")
-
-    progress = show_progress(args)
-    if args.method in HYBRID_METHODS:
-        fitted = rotation_errors if args.method in ("hybrid", "kinematic") else None
-        if fitted is not None and tools is not None and len(np.unique(tools, axis=0)) > 1:
-            notes.append("warning: the orientation is fitted from data of one tool: with several tools "
-                         "(tool_x..tool_c) a_meas,b_meas,c_meas are not used (no rotation_error output)")
-            fitted = None
-        return run_hybrid(args, data, errors, train_rows, val_rows, notes, progress, tools, fitted)
-    if tools is not None:  # a pose → error map learns one TCP's error
-        if len(np.unique(tools, axis=0)) > 1:
-            raise PostprocError(f"--method {args.method} learns the error of one tool, the data have "
-                                f"{len(np.unique(tools, axis=0))}: train --method hybrid (a physical model)",
-                                args.data, code="P320")
-        robot_meta["tool"] = {"name": f"$TOOL {','.join(f'{v:g}' for v in tools[0])}",
-                              "frame": [round(float(v), 6) for v in tools[0]]}
-    hidden = args.hidden or (20, 10, 5)
-    args.epochs = args.epochs or 500
-    if args.search:
-        from ..fleet import task_map
-        from ..training.search import format_table, search_structure
-
-        try:
-            with task_map(args.scheduler) as map_fn:
-                result = search_structure(
-                    poses[train_rows], errors[train_rows], args.method, args.optimizer, args.epochs, args.seed,
-                    progress=progress, map_fn=map_fn,
-                )
-        except PostprocError as exc:
-            exc.path = exc.path or args.data  # too few points for every candidate: say which file
-            raise
-        if not args.quiet:
-            print(format_table(result))
-        hidden = result.best
-
-    from ..training import ErrorModel, accuracy_card
-    from ..training.network import Structure
-
-    structure = Structure(tuple(hidden))
-    check_size(len(train_rows), structure.n_params, str(structure), args.data)
-    model = ErrorModel(hidden, args.method, args.optimizer, args.epochs, seed=args.seed, progress=progress)
-    model.fit(poses[train_rows], errors[train_rows])
-
-    accuracy = accuracy_card(errors[val_rows], model.predict(poses[val_rows]), model.train_stats_["mean"],
-                             len(train_rows))
-    # c = P + Ê(c): iterations after which one more moves no training command by > 0.001 mm;
-    # at least 2 (one more batched call is cheap insurance off the training poses)
-    settled = model.fixed_point_iterations(poses[train_rows])
-    iterations = max(2, settled)
-    metadata = {
-        "name": args.name or Path(args.output).stem,
-        "robot": "",
-        "envelope": envelope_of(poses),
-        "data_sha256": data.sha256,
-        "accuracy": accuracy,
-        "iterations": iterations,
-    }
-    metadata.update(robot_meta)
-    model.export_onnx(args.output, **metadata)
-
+        print(format_table(trained.search))
+    trained.export(args.output)
     if not args.quiet:
-        for note in notes:
+        for note in trained.notes:
             print(note, file=sys.stderr)
-        print(f"model     {args.output}  ({model.label}, structure {structure}, {structure.n_params} weights, "
-              f"{model.fit_seconds_['total']:.1f} s, backprop stopped: {model.stopped_} after {len(model.losses_)} epochs)")
-        print(f"data      {args.data}: {len(train_rows)} training rows, {len(val_rows)} validation rows; "
-              f"fixed point settles after {settled} iteration(s), model card says {iterations}")
-        print_figures(accuracy, model.train_stats_)
+        (_print_identified if args.method in IDENTIFIED else _print_network)(args, trained)
         print(f"postproc train: wrote {args.output}", file=sys.stderr)
     return 0
+
+
+def _print_network(args, trained) -> None:
+    """What train prints (stdout) about a pose-only network."""
+    model, card = trained.model, trained.card
+    structure = model.structure_
+    print(f"model     {args.output}  ({model.label}, structure {structure}, {structure.n_params} weights, "
+          f"{model.fit_seconds_['total']:.1f} s, backprop stopped: {model.stopped_} after {len(model.losses_)} epochs)")
+    print(f"data      {args.data}: {len(trained.train_rows)} training rows, {len(trained.val_rows)} validation rows; "
+          f"fixed point settles after {trained.settled} iteration(s), model card says {card['iterations']}")
+    print_figures(card["accuracy"], model.train_stats_)
+
+
+def _print_identified(args, trained) -> None:
+    """What train prints (stdout) about an identified model (hybrid, kinematic, dnn-joints, --update)."""
+    model, card = trained.model, trained.card
+    found, accuracy = card["identified"], card["accuracy"]
+    order = "backlash from the visiting order" if model.uses_previous else "no visiting order"
+    took = f"; {model.fit_seconds_['total']:.1f} s" if hasattr(model, "fit_seconds_") else ""
+    print(f"model     {args.output}  ({model.label}; {model.structure}; {order}{took})")
+    if trained.update is not None:
+        print_update(trained.update)
+    ident = found["identifiability"]
+    if ident:
+        apart = "; ".join("+".join(g) for g in ident["unseparated"][:6]) or "none"
+        apart += " ..." if len(ident["unseparated"]) > 6 else ""
+        print(f"identify  rank {ident['rank']} of {ident['parameters']} parameters, condition "
+              f"{ident['condition']:.3g}; groups the data cannot "
+              f"separate (settled by the prior): {apart}")
+    tool = card["tool"]
+    if "unseparated" in tool:
+        print(f"tools     measured {len(tool['measured'])}: valid for {tool['valid']}")
+    if found["ripple"]:
+        print(f"ripple    joint:order {' '.join(f'A{j}:{n}' for j, n in found['ripple'])}")
+    print(f"data      {args.data}: {len(trained.train_rows)} training rows, {len(trained.val_rows)} validation rows")
+    print_figures(accuracy, model.train_stats_)
+    if "val_rotation_deg" in accuracy:
+        r = accuracy["val_rotation_deg"]
+        print(f"{'angle deg (validation)':<26} {'mean':>7} {'max':>7} {'std':>7}")
+        for label, key in (("uncompensated", "uncompensated"), ("residual", "residual")):
+            print(f"{label:<26} {r[key]['mean']:7.4f} {r[key]['max']:7.4f} {r[key]['std']:7.4f}")
 
 
 def print_figures(accuracy: dict, train_stats: dict) -> None:
@@ -260,3 +187,15 @@ def print_figures(accuracy: dict, train_stats: dict) -> None:
         print(f"{'residual |E − Ê|':<26} {a['val_mean_mm']:7.4f} {a['val_max_mm']:7.4f} {a['val_std_mm']:7.4f}")
     s = train_stats
     print(f"{'residual |E − Ê| (train)':<26} {s['mean']:7.4f} {s['max']:7.4f} {s['std']:7.4f}")
+
+
+def print_update(update) -> None:
+    """What ``--update`` re-fitted and which parameters moved (stdout)."""
+    card = update.card()
+    moved = update.moved
+    print(f"update    from {update.old.path} ({card['from']}): {update.rows} rows; re-fitted {', '.join(card['groups'])} "
+          f"({len(update.parameters)} parameters), everything else kept; {len(moved)} moved "
+          f"(|change| > {card['moved_at_sigmas']:g} std)")
+    for p in moved:
+        print(f"moved     {p['name']:<9} old {p['old']:+11.5f}  new {p['new']:+11.5f}  change {p['change']:+10.5f} "
+              f"± {p['std']:.5f} {p['unit']}")

@@ -15,9 +15,7 @@ import math
 import numpy as np
 
 from ..diagnostics import PostprocError
-# the reader's names, still imported from here by code being changed elsewhere (cli/train.py, training/);
-# new code imports them from postproc.measurements
-from ..measurements import COLUMNS, Measurements, parse_measurements, parse_rows, read_measurements  # noqa: F401
+from ..measurements import Measurements
 
 __all__ = [
     "measured_tools",

@@ -10,9 +10,15 @@ Everything random draws from one ``torch.Generator`` seeded with ``seed``, and `
 torch on one thread (restored afterwards): the same seed and data give the same model, and
 for networks this small a second thread costs more in synchronisation than it saves
 (measured 6× slower on the shared 2-core machine).
+
+``Estimator``, the conventions every model class here follows (``ErrorModel``,
+``HybridModel``, ``KinematicModel``): the constructor stores its parameters and nothing else,
+``get_params``/``set_params`` read the parameter names from its signature, ``fit`` returns
+the estimator and what it fitted ends in ``_`` — scikit-learn's, without depending on it.
 """
 from __future__ import annotations
 
+import inspect
 import math
 import time
 from contextlib import contextmanager
@@ -25,12 +31,12 @@ from ..stats import table2
 from . import baselines
 from .data import check_size, envelope_of
 from .gpso import InitResult, gpso
+from .methods import NETWORKS as METHODS
 from .network import ErrorNet, Scaling, Structure, forward, parse_hidden
 from .optimise import OPTIMIZERS, refine
 
-__all__ = ["ErrorModel", "METHODS", "DEFAULT_OPTIMIZER", "residual_stats"]
+__all__ = ["Estimator", "ErrorModel", "METHODS", "DEFAULT_OPTIMIZER", "residual_stats"]
 
-METHODS = ("gpso", "ga", "pso", "plain")
 # The backprop optimiser used after the weight search unless told otherwise: the best of
 # gd / momentum / adam / lbfgs / lm measured after GPSO (models/README.md, benchmarks/train_compare.py).
 DEFAULT_OPTIMIZER = "lm"
@@ -73,7 +79,31 @@ def accuracy_card(val_errors: np.ndarray, val_predicted: np.ndarray, train_mean_
     return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in card.items()}
 
 
-class ErrorModel:
+class Estimator:
+    """scikit-learn's estimator conventions, without scikit-learn: the parameters are the
+    constructor's (``inspect.signature``), stored under their own names; ``get_params`` /
+    ``set_params`` read and write them, so ``type(m)(**m.get_params())`` is an unfitted copy
+    that fits the same. (No parameter is itself an estimator: ``deep`` changes nothing.)"""
+
+    @classmethod
+    def _param_names(cls) -> list[str]:
+        signature = inspect.signature(cls.__init__)
+        return [name for name, p in signature.parameters.items()
+                if name != "self" and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)]
+
+    def get_params(self, deep: bool = True) -> dict:
+        return {name: getattr(self, name) for name in self._param_names()}
+
+    def set_params(self, **params):
+        names = self._param_names()
+        for name, value in params.items():
+            if name not in names:
+                raise ValueError(f"unknown parameter {name!r} of {type(self).__name__} ({', '.join(names)})")
+            setattr(self, name, value)
+        return self
+
+
+class ErrorModel(Estimator):
     """Learned positioning error E(pose) of one robot + tool.
 
     Parameters
@@ -115,18 +145,6 @@ class ErrorModel:
         self.inertia = inertia
         self.seed = seed
         self.progress = progress
-
-    # -- scikit-learn conventions -------------------------------------------------------
-    def get_params(self, deep: bool = True) -> dict:
-        keys = ("hidden", "method", "optimizer", "epochs", "lr", "goal", "population", "generations", "inertia", "seed", "progress")
-        return {k: getattr(self, k) for k in keys}
-
-    def set_params(self, **params) -> "ErrorModel":
-        for k, v in params.items():
-            if k not in self.get_params():
-                raise ValueError(f"unknown parameter {k!r}")
-            setattr(self, k, v)
-        return self
 
     def __repr__(self) -> str:
         return f"ErrorModel(hidden={tuple(parse_hidden(self.hidden))}, method={self.method!r}, optimizer={self.optimizer_name!r}, seed={self.seed})"
@@ -247,14 +265,10 @@ class ErrorModel:
                 return k
         return most
 
-    def export_onnx(self, path: str | Path, float64: bool = False, **metadata) -> Path:
-        """Write the fitted model as a contract ONNX file (atomically); ``metadata`` as in the
-        contract (name, robot, tool, envelope, reach, data_sha256, accuracy, iterations).
-
-        method, structure and envelope default to this model's; iterations to 2.
-        """
-        from .export import export_onnx
-
+    def card(self, **metadata) -> dict:
+        """The model card ``export_onnx`` writes: ``metadata`` as in the contract (name, robot,
+        tool, envelope, reach, data_sha256, accuracy, iterations) over this model's method,
+        structure and envelope, and iterations 2."""
         self._check_fitted()
         meta = {
             "method": self.label,
@@ -263,5 +277,12 @@ class ErrorModel:
             "iterations": 2,
         }
         meta.update(metadata)
+        return meta
+
+    def export_onnx(self, path: str | Path, float64: bool = False, **metadata) -> Path:
+        """Write the fitted model as a contract ONNX file (atomically) with ``card(**metadata)``."""
+        from .export import export_onnx
+
+        meta = self.card(**metadata)
         return export_onnx(self.module(torch.float64 if float64 else torch.float32), path, meta)
 

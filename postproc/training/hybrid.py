@@ -25,7 +25,7 @@ from ..progress import stages
 from ..robot import RobotDescription
 from ..compensator import joint_arcs, widened_arcs
 from .data import envelope_of
-from .estimator import _one_thread, residual_stats
+from .estimator import Estimator, _one_thread, residual_stats
 from .export import onnx_bytes, write_atomic
 from .features import inside_ranges, joint_features, previous_poses, wrap_angles
 from .kinematic import KinematicErrorModule, KinematicModel, nominal_digest, unseparated_mount
@@ -194,7 +194,7 @@ def _train_net(x: np.ndarray, y: np.ndarray, hidden: tuple[int, ...], epochs: in
     return net.eval()
 
 
-class HybridModel:
+class HybridModel(Estimator):
     """Learned positioning error of one robot + tool: identified arm + residual networks.
 
     Parameters
@@ -211,11 +211,11 @@ class HybridModel:
                  ensemble: int = 3, seed: int = 0, kinematic: dict | None = None, progress: bool = False):
         self.description = description
         self.residual = residual
-        self.hidden = tuple(hidden)
+        self.hidden = hidden
         self.epochs = epochs
         self.ensemble = ensemble
         self.seed = seed
-        self.kinematic = dict(kinematic or {})
+        self.kinematic = kinematic
         self.progress = progress
 
     @property
@@ -249,9 +249,8 @@ class HybridModel:
         with _one_thread(), stages(names, "hybrid", self.progress) as stage:
             t0 = time.perf_counter()
             stage(names[0])
-            self.kinematic_ = KinematicModel(self.description_, **self.kinematic).fit(poses, errors, previous, q_deg,
-                                                                                     tools, rotation_errors,
-                                                                                     previous_q_deg)
+            self.kinematic_ = KinematicModel(self.description_, **(self.kinematic or {})).fit(
+                poses, errors, previous, q_deg, tools, rotation_errors, previous_q_deg)
             t1 = time.perf_counter()
             stage(names[1])
             self.nets_ = self._fit_residual(self.kinematic_.train_residual_)
@@ -499,21 +498,27 @@ class HybridModel:
             card["valid"] = "any tool; the tool mount's rotation is identified (three or more TCPs not on a line)"
         return card
 
-    def export_onnx(self, path: str | Path, **metadata) -> Path:
-        """Write the fitted model as one contract ONNX file (atomically). method, structure,
-        envelope (+ joint ranges) and iterations default to this model's."""
+    def card(self, **metadata) -> dict:
+        """The model card ``export_onnx`` writes: ``metadata`` over this model's method,
+        structure, envelope (+ joint ranges), iterations 2 and (an identification fitted here)
+        uncertainty."""
         self._check_fitted()
         envelope = dict(self.envelope_)
         envelope["joints"] = self.joint_range_
         meta = {"method": self.label, "structure": self.structure, "envelope": envelope, "iterations": 2}
-        std = self._uncertainty()
-        if std:
+        if self._uncertainty():
             from .uncertainty import MAX_STD_FACTOR
 
             sigma = math.sqrt(float(self.module_.sigma2))
             meta["uncertainty"] = {"max_std_mm": round(MAX_STD_FACTOR * sigma, 6), "residual_std_mm": round(sigma, 6),
                                    "max_std_rule": f"{MAX_STD_FACTOR:g} x residual_std_mm"}
         meta.update(metadata)
+        return meta
+
+    def export_onnx(self, path: str | Path, **metadata) -> Path:
+        """Write the fitted model as one contract ONNX file (atomically) with ``card(**metadata)``."""
+        meta = self.card(**metadata)
+        std = self._uncertainty()
         # the tool input where the error is the identified arm's (a physical model); the residual
         # networks alone (dnn-joints) learned one TCP's error and keep P304 for the others
         tool = bool(self.kinematic_.layout_.n)

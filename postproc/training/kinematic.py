@@ -55,6 +55,7 @@ from .. import frames
 from ..diagnostics import PostprocError
 from ..robot import RobotDescription
 from .arm import Arm, at_tool, axis_rotations, choose_branch, coupling_pairs, make_ik, mc, mv, small_rotation
+from .estimator import Estimator
 from .features import inside_ranges, motion_signs, wrapped_step
 from .network import rotation_matrices
 
@@ -479,7 +480,7 @@ class KinematicErrorModule(torch.nn.Module):
         return self.parts(pose.to(torch.float64), prev)[0].to(dtype)
 
 
-class KinematicModel:
+class KinematicModel(Estimator):
     """Identified kinematic + compliance (+ backlash, gear ripple) error model of one robot.
 
     >>> km = KinematicModel(load_description()).fit(poses, errors, previous_poses(poses))

@@ -22,11 +22,11 @@ from typing import Callable
 
 import torch
 
+from .methods import OPTIMIZERS
 from .network import Structure, forward, jacobian
 
 __all__ = ["OPTIMIZERS", "RefineResult", "refine"]
 
-OPTIMIZERS = ("lm", "lbfgs", "adam", "momentum", "gd")
 MU_START, MU_DEC, MU_INC, MU_MAX = 1e-3, 0.1, 10.0, 1e10  # trainlm's defaults
 
 
