@@ -124,7 +124,7 @@ def test_a_robot_on_a_track_is_left_as_written(backup, model, tmp_path, capsys):
     assert compensate(backup, "-o", tmp_path / "cell", "--model", model) == 1
     err = capsys.readouterr().err
     (warning, summary) = err.splitlines()
-    assert warning.startswith(f"{backup / 'Program' / 'job.src'}:4:3: P225") and "ET1 #ERSYS" in warning
+    assert warning.startswith(f"{backup / 'Program' / 'job.src'}:4:7: P225") and "ET1 #ERSYS" in warning
     assert "4 left as written: P225 ×4" in summary
     assert (tmp_path / "cell" / "Program" / "job.src").read_text() == (backup / "Program" / "job.src").read_text()
     # the track parked where the user says: stated, compensated
