@@ -110,10 +110,13 @@ class ActiveFrames:
         return six
 
     @classmethod
-    def of(cls, base=None, tool=None, robroot: RobotRoot | None = None) -> "ActiveFrames | None":
-        """From user values (strings, ints, lists; None = not stated); None when none is."""
+    def of(cls, base=None, tool=None, robroot=None) -> "ActiveFrames | None":
+        """From user values (strings, ints, lists; None = not stated; ``robroot`` a RobotRoot or
+        six numbers); None when none is."""
         if base is None and tool is None and robroot is None:
             return None
+        if robroot is not None and not isinstance(robroot, RobotRoot):
+            robroot = RobotRoot.parse(robroot, f"robroot {robroot}")
         return cls(base=cls.parse(base, "base"), tool=cls.parse(tool, "tool"), robroot=robroot)
 
     @classmethod
