@@ -78,9 +78,9 @@ def add_frame_arguments(p, settings: bool = True) -> None:
                    "are left as written (P221)")
     p.add_argument("--robroot", metavar="X,Y,Z,A,B,C|MACHINE.DAT",
                    help="the $ROBROOT (the robot's base in $WORLD) where a KRL program has not set it: the frame (mm, "
-                   "deg) or the backup's Mada/$machine.dat ($ROBROOT_C)" + default.format("robroot") + "; default "
-                   "else: the machine data beside the System/$config.dat given, or in a backup directory. Without "
-                   "any, robot base = world is assumed and said once (P224)")
+                   "deg) or the backup's Mada/$machine.dat ($ROBROOT_C)" + default.format("robroot") + "; else the "
+                   "machine data beside the System/$config.dat given, or in a backup directory; else robot base = "
+                   "world is assumed and said once (P224)")
 
 
 def stated_frames(args, settings=None):
