@@ -88,6 +88,12 @@ def test_machine_data_puts_the_targets_where_the_robot_is(backup, model, tmp_pat
     assert np.abs(assumed - (expected - written)).max() > 0.1
     # the Mada/$machine.dat is read, never written
     assert not (tmp_path / "cell" / "Mada").exists()
+    # check finds it the same ways: the directory, the .src with --config; without either, the note
+    assert main(["check", str(backup), "--model", model]) == 0
+    assert main(["check", str(src), "--model", model, "--config", str(backup / "System" / "$config.dat")]) == 0
+    assert capsys.readouterr().out == ""
+    assert main(["check", str(src), "--model", model]) == 0
+    assert " P224 " in capsys.readouterr().out
 
 
 def test_the_assumption_is_said_once_and_exit_0_stays(model, tmp_path, capsys):
