@@ -24,7 +24,7 @@ def __getattr__(name: str):
         from .compensator import load_model
 
         return load_model
-    if name == "ActiveFrames":  # compensate_text(..., active=ActiveFrames.of(base=0, tool="model"))
+    if name == "ActiveFrames":  # compensate_text(..., active=ActiveFrames.of(base=0, tool="model", robroot="0,0,400,0,0,0"))
         from .programs.model import ActiveFrames
 
         return ActiveFrames

@@ -10,6 +10,12 @@ uses. A ``$config.dat`` inside the cell is one of its files (its global points c
 compensated and it is written with the others); one given from outside (``--config``) is
 read only. A target whose point is declared in no file read is left as written with the
 reader's located warning (P215), never compensated in a guessed frame.
+
+The robot's place in $WORLD ($ROBROOT, the ``$ROBROOT_C`` of ``Mada/$machine.dat``) comes from
+the machine data of the backup (``programs.krl.machine``): a ``$machine.dat`` among the files,
+else ``Mada/$machine.dat`` of the directory (the shallowest below it), else the one beside the
+``System/`` of the cell's ``$config.dat``; ``--robroot`` wins. Machine data is read, never
+compensated or written.
 """
 from __future__ import annotations
 
@@ -21,6 +27,7 @@ from .compensate import Report, compensate_program, read_text, write_outputs
 from .compensator import Compensator
 from .diagnostics import P107, P110, P112, PostprocError
 from .programs import ActiveFrames, Program, read_program
+from .programs.krl.machine import found_machine, is_machine, with_machine
 
 __all__ = ["Cell", "find_cell", "compensate_cell", "is_config", "CONFIG_NAME"]
 
@@ -43,7 +50,7 @@ class Cell:
     modules: list[list[Path]] = field(default_factory=list)
     data_lists: list[Path] = field(default_factory=list)
     config: list[Path] = field(default_factory=list)
-    active: ActiveFrames | None = None  # the $BASE/$TOOL stated where its programs do not set them
+    active: ActiveFrames | None = None  # the $BASE/$TOOL/$ROBROOT stated (or machine data) where its programs do not set them
 
     @property
     def files(self) -> list[Path]:
@@ -84,15 +91,18 @@ def find_cell(paths: list[str | Path], config: list[str | Path] | None = None,
               active: ActiveFrames | None = None) -> Cell:
     """The cell made of these files and directories (searched recursively for .src, .sub
     and .dat). ``config`` None: a ``$config.dat`` given among the files, else the one in
-    the directory's ``System/`` (see :func:`_found_config`)."""
+    the directory's ``System/`` (see :func:`_found_config`). ``$machine.dat`` files are the
+    robot's machine data, not programs: its $ROBROOT goes into ``Cell.active`` unless stated
+    (``programs.krl.machine.with_machine``)."""
     files: list[Path] = []
     dirs = []
+    machines: list[Path] = []
     for p in map(Path, paths):
         if p.is_dir():
             dirs.append(p)
-            files += krl_files(p)
+            files += [f for f in krl_files(p) if not is_machine(f)]
         elif p.is_file():
-            files.append(p)
+            (machines if is_machine(p) else files).append(p)
         else:
             raise PostprocError("no such file or directory", str(p), 0, 0, P107)
     if not files:
@@ -103,7 +113,8 @@ def find_cell(paths: list[str | Path], config: list[str | Path] | None = None,
     found = [f for f in files if is_config(f)]
     if not given:
         given = found or [c for d in dirs for c in _found_config(d)][:1]
-    cell = Cell(root=root, config=given, active=active)
+    machines = machines or [m for d in dirs for m in found_machine(d)]
+    cell = Cell(root=root, config=given, active=with_machine(active, configs=given, machines=machines))
     unique = list(dict.fromkeys(f.resolve() for f in files))
     by_stem: dict[tuple[Path, str], Path] = {}
     for f in unique:

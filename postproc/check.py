@@ -4,7 +4,8 @@ Everything here returns :class:`~postproc.diagnostics.Diagnostic` lists; nothing
 A program is checked for what would make ``postproc compensate`` (with the same model and
 settings) refuse or warn, plus what only matters once programs are kept in a repository:
 
-* syntax errors (the dialect reader's ``P1xx``), the reader's warnings (``P2xx``);
+* syntax errors (the dialect reader's ``P1xx``), the reader's warnings (``P2xx``) and notes
+  (``P224``: robot base = world assumed, once per program; never a failure);
 * targets the nominal robot cannot reach (``P302``, the model's ``reach``; ``P309`` with an
   IK reachability test), outside the training envelope (``P301``), not finite (``P103``),
   with a position or orientation that is not known (``P212``, ``P213``), a $TOOL that is not
@@ -83,8 +84,9 @@ def find_stamps(program: Program) -> list[Stamp]:
 
 
 def failed(diagnostics: Iterable[Diagnostic], strict: bool = False) -> bool:
-    """Whether the findings fail a check: any error, and under ``strict`` any warning too."""
-    return any(strict or d.severity == "error" for d in diagnostics)
+    """Whether the findings fail a check: any error, and under ``strict`` any warning too (a
+    note, e.g. P224's assumption, never)."""
+    return any(d.severity == "error" or (strict and d.severity != "note") for d in diagnostics)
 
 
 # --------------------------------------------------------------------------- one program
@@ -156,7 +158,7 @@ def check_program(
     selection = select(program, model, settings)
     commands = run_model(model, selection, iterations)
     # a stamp is the stamp rules' business here (P402-P404), not "already compensated"
-    out = [d for d in program.diagnostics if d.code != P202]
+    out = [d for d in program.diagnostics if d.code != P202] + program.notes
     out += [d for d in findings(program, commands, model, settings) if d.code != P401]
     out += _stamp_findings(program, model, selection)
     if not failed(out):
@@ -234,11 +236,18 @@ def check_files(
     ``config`` is given), a data list without a DEF is checked for syntax only; findings
     sorted by path, line, column."""
     from .cell import KRL, is_config, krl_files
+    from .programs.krl.machine import found_machine, is_machine, with_machine
 
     ignored = set(ignore)
     files: list[Path] = []
+    machines: list[Path] = []  # the robot's machine data ($ROBROOT), not a program
     for p in map(Path, paths):
-        files += krl_files(p) if p.is_dir() else [p]
+        files += [f for f in krl_files(p) if not is_machine(f)] if p.is_dir() else [p] * (not is_machine(p))
+        machines += found_machine(p) if p.is_dir() else [p] * is_machine(p)
+    try:
+        active = with_machine(active, machines=machines)
+    except PostprocError as exc:
+        return [exc.diagnostic()]
     configs = [f for f in files if is_config(f)]
     if config is None and configs:
         config = [str(c) for c in configs]

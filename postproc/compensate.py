@@ -21,7 +21,8 @@ from collections import Counter
 from . import frames
 from .compensator import Chain, Compensator, Inside, load_model
 from .diagnostics import (
-    P105, P106, P107, P108, P201, P202, P203, P212, P220, P221, P306, P312, Diagnostic, LEFT_AS_WRITTEN,
+    P105, P106, P107, P108, P201, P202, P203, P212, P220, P221, P224, P225, P306, P312, P321, Diagnostic,
+    LEFT_AS_WRITTEN,
     PostprocError,
 )
 from .findings import (
@@ -78,7 +79,7 @@ class Report:
     mean_correction_mm: float = 0.0
     outside_envelope: int = 0
     warnings: list[Diagnostic] = field(default_factory=list)
-    notes: list[Diagnostic] = field(default_factory=list)  # P321 (printed with -v)
+    notes: list[Diagnostic] = field(default_factory=list)  # P224, P321 (printed with -v)
     outputs: dict[str, str] = field(default_factory=dict)
     changed: list[str] = field(default_factory=list)
 
@@ -106,8 +107,11 @@ class Report:
                    f"{self.mean_correction_mm:.3f} mm, {self.iterations} iteration{'s' if self.iterations != 1 else ''}")
         if self.warnings:
             details += f", {len(self.warnings)} warning{'s' if len(self.warnings) != 1 else ''}"
-        if self.notes:
-            details += f", {len(self.notes)} in a joint's backlash dead band (P321, -v)"
+        dead_band = sum(n.code == P321 for n in self.notes)
+        if dead_band:
+            details += f", {dead_band} in a joint's backlash dead band (P321, -v)"
+        if any(n.code == P224 for n in self.notes):
+            details += "; robot base = world assumed: $ROBROOT not known (P224, -v)"
         if not self.changed:
             details += "; nothing changed: the output is the input as it was, unstamped"
         return f"{head}; {details}"
@@ -168,11 +172,23 @@ def _config_texts(config: str | Path | list | None) -> list[str] | None:
     return [read_text(Path(p)) for p in paths]
 
 
+def backup_active(config: str | Path | list | None, active: ActiveFrames | None) -> ActiveFrames | None:
+    """``active`` with the $ROBROOT of the controller backup a ``System/$config.dat`` of
+    ``config`` belongs to (its ``Mada/$machine.dat``), unless ``active`` states one."""
+    from .programs.krl.machine import with_machine
+
+    return with_machine(active, configs=[] if config is None else (
+        list(config) if isinstance(config, list | tuple) else [config]))
+
+
 def load_program(path: str | Path, config: str | Path | None = None, dialect: str | None = None,
                  active: ActiveFrames | None = None) -> Program:
     """Read a program from disk: a .src with its .dat companion, a lone .dat, or a pose list.
-    ``-`` reads standard input. ``config`` is a ``$config.dat`` for BASE_DATA / TOOL_DATA;
-    ``active`` the $BASE/$TOOL stated for a KRL program that does not set them."""
+    ``-`` reads standard input. ``config`` is a ``$config.dat`` for BASE_DATA / TOOL_DATA
+    (and, in a backup, the ``Mada/$machine.dat`` beside its ``System/``: ``backup_active``);
+    ``active`` the $BASE/$TOOL/$ROBROOT stated for a KRL program that does not set them."""
+    if dialect in (None, "krl"):
+        active = backup_active(config, active)
     if str(path) == "-":
         return parse_program_text(_decode(sys.stdin.buffer.read(), STDIN), STDIN, dialect, None, _config_texts(config),
                                   active)
@@ -207,7 +223,7 @@ def _left_codes(program: Program, selection: Selection) -> Counter:
     if unknown_frame:
         # frame -1: the base (P201) or the tool (P203) is not known, or not set (P220/P221); the reader's located
         # warnings say which for each statement, the count names the codes it warned with
-        said = {d.code for d in program.diagnostics} & {P201, P203, P220, P221}
+        said = {d.code for d in program.diagnostics} & {P201, P203, P220, P221, P225}
         codes["/".join(sorted(said)) if said else P201] = unknown_frame
     by_rule = 0
     for code, rows in selection.left.items():
@@ -304,7 +320,7 @@ def compensate_program(
     report.mean_correction_mm = float(size.mean()) if len(size) else 0.0
     report.outside_envelope = _outside(model, commands)
     report.warnings = warnings
-    report.notes = dead_band_notes(program, commands)
+    report.notes = program.notes + dead_band_notes(program, commands)
     report.changed = [program.files[i] for i in sorted(set(program.targets.file[selection.rows].tolist()))]
     report.outputs = dict(zip(program.files, outputs))
     return report
@@ -647,7 +663,7 @@ def compensate_text(
     force where a KRL program does not set them (``ActiveFrames``; else such targets are
     left as written, P220/P221).
     """
-    program = parse_program_text(text, name, dialect, dat_text, _config_texts(config), active)
+    program = parse_program_text(text, name, dialect, dat_text, _config_texts(config), backup_active(config, active))
     report = compensate_program(program, _model(model), iterations=iterations, strict=strict, force=force,
                                 max_correction_mm=max_correction_mm, robot=robot, fill_partial=fill_partial,
                                 orientation=orientation, max_std_mm=max_std_mm)

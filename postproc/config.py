@@ -8,6 +8,7 @@
     max_correction = 5.0                 # mm, refuse larger corrections
     iterations = 2                       # fixed-point iterations (default: the model's)
     robot = "KR500-sim"                  # refuse models trained on another robot (unless --force)
+    robroot = "KRC/R1/Mada/$machine.dat" # KRL $ROBROOT where a program does not set it: X,Y,Z,A,B,C or machine data
     ignore = ["P301"]                    # check: codes not reported
     fresh = [                            # compensated outputs kept in git beside their sources
       { source = "src/*.src", output = "out/*.src" },
@@ -27,12 +28,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .diagnostics import P610, PostprocError
+from .programs.krl.machine import robroot_option
 from .programs.model import ActiveFrames
 
 __all__ = ["Config", "FreshPair", "find_config", "load_config", "CONFIG_NAME"]
 
 CONFIG_NAME = "postproc.toml"
-KEYS = ("model", "config", "strict", "max_correction", "iterations", "ignore", "fresh", "robot", "base", "tool")
+KEYS = ("model", "config", "strict", "max_correction", "iterations", "ignore", "fresh", "robot", "base", "tool",
+        "robroot")
 PAIR_KEYS = ("source", "output", "model", "config")
 # a wildcard of a pair pattern; `**/` (any number of directories, also none) comes first
 _WILDCARD = re.compile(r"\*\*/|\*\*|\*|\?")
@@ -80,7 +83,7 @@ class Config:
     max_correction_mm: float | None = None
     iterations: int | None = None
     robot: str | None = None  # the robot the programs are for: models trained on another are refused
-    active: ActiveFrames | None = None  # base / tool: the $BASE/$TOOL where a KRL program does not set them
+    active: ActiveFrames | None = None  # base / tool / robroot: the $BASE/$TOOL/$ROBROOT where a KRL program does not set them
     ignore: tuple[str, ...] = ()
     fresh: list[FreshPair] = field(default_factory=list)
 
@@ -161,11 +164,12 @@ def parse_config(table: dict, path: Path) -> Config:
         if not isinstance(table["robot"], str) or not table["robot"].strip():
             raise _error("expected the robot's name, as in the model card (e.g. \"KR500-sim\")", path, "robot")
         cfg.robot = table["robot"].strip()
-    if "base" in table or "tool" in table:
+    if "base" in table or "tool" in table or "robroot" in table:
         try:
-            cfg.active = ActiveFrames.of(base=table.get("base"), tool=table.get("tool"))
+            robroot = robroot_option(table.get("robroot"), root, label="robroot =")
+            cfg.active = ActiveFrames.of(base=table.get("base"), tool=table.get("tool"), robroot=robroot)
         except ValueError as exc:
-            raise _error(str(exc), path, "base" if str(exc).startswith("base") else "tool") from None
+            raise _error(str(exc), path, str(exc).split(":")[0]) from None
     if "ignore" in table:
         value = table["ignore"]
         if not isinstance(value, list) or not all(isinstance(v, str) and re.fullmatch(r"P\d{3}", v) for v in value):

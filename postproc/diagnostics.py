@@ -74,6 +74,12 @@ P222 = _code("P222", "error", "--base / --tool not N, X,Y,Z,A,B,C (or model for 
              "TOOL_DATA[n] not in the $config.dat given, or given for a pose list / RAPID program")
 P223 = _code("P223", "warning", "a point an INTERRUPT handler switched on may assign (INTERRUPT DECL … DO P = … / a DEF "
              "that assigns it): left as written")
+P224 = _code("P224", "note", "(compensate -v, check) $ROBROOT not known (no --robroot, no backup's Mada/$machine.dat) and "
+             "not set by the program: robot base = world ($NULLFRAME) assumed, said once per program")
+P225 = _code("P225", "warning", "$ROBROOT moves with an external kinematic ($machine.dat: $EX_KIN … #ERSYS, a robot on a "
+             "track): known only at run time, left as written")
+P226 = _code("P226", "error", "--robroot / settings robroot not X,Y,Z,A,B,C or a $machine.dat; a $machine.dat without "
+             "$ROBROOT_C or with a malformed one; several machine data in one cell")
 # P3xx: the model, its envelope and the robot
 P301 = _code("P301", "warning", "target outside the model's training envelope (error with --strict)")
 P302 = _code("P302", "error", "target beyond the nominal robot's reach (model metadata 'reach')")

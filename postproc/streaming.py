@@ -38,10 +38,10 @@ from typing import Iterator
 from . import compensator
 import sys
 
-from .compensate import (DEFAULT_MAX_CORRECTION_MM, Report, _config_texts, _model, compensate_program, load_program,
-                         output_paths, write_outputs)
+from .compensate import (DEFAULT_MAX_CORRECTION_MM, Report, _config_texts, _model, backup_active, compensate_program,
+                         load_program, output_paths, write_outputs)
 from .compensator import Compensator
-from .diagnostics import P109, Diagnostic, PostprocError
+from .diagnostics import P109, P321, Diagnostic, PostprocError
 from .programs import STAMP_PREFIX, ActiveFrames, companion_dat, read_program
 from .rewrite import insert_stamp, stamp_line
 
@@ -204,6 +204,7 @@ def compensate_stream(
         chunk = model.command_chunk if model.settles else min(model.command_chunk, STREAM_TARGETS)
     size = chunk
     configs = _config_texts(config)
+    active = backup_active(config, active)
     name = str(path)
     try:
         fh = path.open("rb")
@@ -242,6 +243,8 @@ def compensate_stream(
                 # the chunk read as a program of its own: the header, the chunk, END (the last: the tail)
                 body, report, comment = part(first, text, source.tail if last else "END" + newline)
                 del text
+                # the header's notes (P224) come with every chunk: said once, at the first
+                total.notes += [d for d in report.notes if d.code == P321 or not total.targets]
                 if not total.targets:
                     yield insert_stamp(header, stamp_line(comment, STAMP_PREFIX, model.name, model.sha256), newline,
                                        after_headers="&")
@@ -251,7 +254,6 @@ def compensate_stream(
                 total.compensated += report.compensated
                 total.max_correction_mm = max(total.max_correction_mm, report.max_correction_mm)
                 corrections += report.mean_correction_mm * report.compensated
-                total.notes += report.notes
             yield source.tail
 
         write_outputs([(Path(out), pieces())])

@@ -290,8 +290,9 @@ def test_krl_module_findings_via_src_or_dat(affine, tmp_path):
     model = load_model(affine())
     for given in ([src], [dat], [src, dat]):
         found = check_files(given, model)
+        # (and once, at the first target, XP1 in the .dat: robot base = world assumed, a note)
         assert [(d.path, d.line, d.col, d.code) for d in found] == [
-            (str(src), 9, 5, "P301"), (str(src), 9, 5, "P302")], given
+            (str(dat), 4, 16, "P224"), (str(src), 9, 5, "P301"), (str(src), 9, 5, "P302")], given
     write(tmp_path / "weld.dat", DAT.replace("Z 900.0", "Z 900.0.0", 1))
     (d,) = check_files([dat], model)
     assert (d.path, d.line, d.code) == (str(dat), 4, "P101")
@@ -309,7 +310,7 @@ def test_krl_module_stamps_and_freshness(affine, tmp_path, monkeypatch):
     out_src, out_dat = tmp_path / "out" / "weld.src", tmp_path / "out" / "weld.dat"
     # both files of the module are written and stamped alike; XP1 moved by 0.1 mm in X
     assert "DECL E6POS XP1={X 2000.100,Y 0.000,Z 900.000," in out_dat.read_text()
-    assert check_files([out_src], model) == []
+    assert [d.code for d in check_files([out_src], model)] == ["P224"]  # (a note: robot base = world assumed)
     # an edited .dat makes the output .dat stale, located at the changed number
     write(tmp_path / "src" / "weld.dat", DAT.replace("Y -100.0", "Y -101.0"))
     found, _ = check_fresh(load_config(), model)
@@ -317,7 +318,7 @@ def test_krl_module_stamps_and_freshness(affine, tmp_path, monkeypatch):
     # the uncompensated .dat copied over the compensated one: a mixed module
     write(out_dat, DAT)
     assert sorted((Path(d.path).name, d.code) for d in check_files([out_dat], model)) == [
-        ("weld.dat", "P404"), ("weld.src", "P404")]
+        ("weld.dat", "P224"), ("weld.dat", "P404"), ("weld.src", "P404")]
 
 
 def test_what_else_compensate_refuses_is_a_finding(affine):

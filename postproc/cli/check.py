@@ -13,7 +13,7 @@ EXAMPLES = """examples:
   postproc check weld.src --robot models/kr500.toml   the model is for this robot? its IK reaches? (postproc[sim])
 
 settings: [tool.postproc] in pyproject.toml or postproc.toml, found from the current directory
-upwards (model, config, robot, base, tool, strict, max_correction, iterations, ignore, fresh); options
+upwards (model, config, robot, base, tool, robroot, strict, max_correction, iterations, ignore, fresh); options
 override them.
 output: one `path:line:col: CODE message` line per finding on stdout.
 exit: 0 clean (warnings only, unless --strict), 1 findings, 2 usage or internal error.
@@ -87,7 +87,7 @@ def _paint(line: str, severity: str, color: bool) -> str:
 def _settings(args):
     """The settings file with the options over it: (config, codes to ignore)."""
     from ..config import load_config
-    from ..programs import ActiveFrames
+    from .compensate import stated_frames
 
     cfg = load_config(args.settings)
     if args.model:
@@ -100,7 +100,7 @@ def _settings(args):
         cfg.max_correction_mm = args.max_correction
     if args.iterations is not None:
         cfg.iterations = args.iterations
-    cfg.active = ActiveFrames.stated(args.base, args.tool, cfg.active)  # (--fresh compensates with them too)
+    cfg.active = stated_frames(args, cfg.active)  # (--fresh compensates with them too)
     ignore = set(cfg.ignore) | {c.strip().upper() for c in args.ignore.split(",") if c.strip()}
     return cfg, ignore
 
@@ -118,13 +118,17 @@ def _options(args, cfg) -> dict:
 
 
 def _summary(findings, strict: bool) -> str:
+    notes = sum(d.severity == "note" for d in findings)
+    said = f" ({notes} note{'s' * (notes != 1)})" if notes else ""
+    findings = [d for d in findings if d.severity != "note"]
     if not findings:
-        return "postproc check: clean"
+        return "postproc check: clean" + said
     errors = sum(d.severity == "error" for d in findings)
     warnings = len(findings) - errors
     programs = len({d.path for d in findings})
     return (f"postproc check: {errors} error{'s' * (errors != 1)}, {warnings} warning{'s' * (warnings != 1)} "
-            f"in {programs} file{'s' * (programs != 1)}" + (" (--strict: warnings count)" if strict and warnings else ""))
+            f"in {programs} file{'s' * (programs != 1)}" + (" (--strict: warnings count)" if strict and warnings else "")
+            + said)
 
 
 def run(args) -> int:
@@ -164,7 +168,7 @@ def run(args) -> int:
 
     color = use_color(sys.stdout)
     for d in findings:
-        if args.quiet and d.severity != "error" and not cfg.strict:
+        if args.quiet and d.severity != "error" and (not cfg.strict or d.severity == "note"):
             continue
         print(_paint(d.format(), d.severity, color))
     for path in written:

@@ -9,6 +9,7 @@ EXAMPLES = """examples:
   cam-post ... | postproc compensate - -o - > part.src          (filter: stdin → stdout)
   postproc compensate poses.csv -o poses_comp.csv --model models/cell7.onnx --strict
   postproc compensate backup/KRC/R1 -o out/R1        (a cell: every module, System/$config.dat found)
+  postproc compensate part.src -o out/part.src --robroot 0,0,2900,0,0,180   (a ceiling robot's $ROBROOT)
 """
 
 
@@ -63,9 +64,9 @@ def add_parser(sub, common, formatter) -> None:
 
 
 def add_frame_arguments(p, settings: bool = True) -> None:
-    """``--base`` / ``--tool`` (compensate, check, verify): the frames a KRL program runs in where
-    it does not set them itself (``programs.ActiveFrames``); ``settings``: their default is the
-    settings' ``base`` / ``tool``."""
+    """``--base`` / ``--tool`` / ``--robroot`` (compensate, check, verify): the frames a KRL program
+    runs in where it does not set them itself (``programs.ActiveFrames``); ``settings``: their
+    default is the settings' ``base`` / ``tool`` / ``robroot``."""
     default = "; default: settings '{}'" if settings else ""
     p.add_argument("--base", metavar="N|X,Y,Z,A,B,C",
                    help="the $BASE active where a KRL program has not set it: BASE_DATA[N] of $config.dat (0 = "
@@ -75,6 +76,24 @@ def add_frame_arguments(p, settings: bool = True) -> None:
                    help="the $TOOL active where a KRL program has not set it (and a URScript program's TCP before its "
                    "first set_tcp): TOOL_DATA[N] of $config.dat, the frame itself, or 'model' (the model's own tool)" + default.format("tool") + ". Without it such targets "
                    "are left as written (P221)")
+    p.add_argument("--robroot", metavar="X,Y,Z,A,B,C|MACHINE.DAT",
+                   help="the $ROBROOT (the robot's base in $WORLD) where a KRL program has not set it: the frame (mm, "
+                   "deg) or the backup's Mada/$machine.dat ($ROBROOT_C)" + default.format("robroot") + "; else the "
+                   "machine data beside the System/$config.dat given, or in a backup directory; else robot base = "
+                   "world is assumed and said once (P224)")
+
+
+def stated_frames(args, settings=None):
+    """``ActiveFrames`` of ``--base`` / ``--tool`` / ``--robroot`` over the settings' (P222 / P226)."""
+    from ..diagnostics import P226, PostprocError
+    from ..programs import ActiveFrames
+    from ..programs.krl.machine import robroot_option
+
+    try:
+        robroot = robroot_option(args.robroot)
+    except ValueError as exc:
+        raise PostprocError(str(exc), "--robroot", 0, 0, P226) from None
+    return ActiveFrames.stated(args.base, args.tool, settings, robroot=robroot)
 
 
 def run(args) -> int:
@@ -85,7 +104,6 @@ def run(args) -> int:
     from ..config import load_config
     from ..diagnostics import EXIT_FINDINGS, EXIT_OK
     from ..outputs import check_program_outputs
-    from ..programs import ActiveFrames
 
     inputs = args.input
     cell = len(inputs) > 1 or Path(inputs[0]).is_dir()
@@ -94,7 +112,7 @@ def run(args) -> int:
     cfg = load_config(args.settings)  # [tool.postproc]: the options given here win
     args.model = args.model or cfg.model
     args.config = args.config or (list(cfg.config) if cfg.config else None)
-    active = ActiveFrames.stated(args.base, args.tool, cfg.active)
+    active = stated_frames(args, cfg.active)
     max_correction = args.max_correction if args.max_correction is not None else cfg.max_correction_mm
     kwargs = dict(
         iterations=args.iterations if args.iterations is not None else cfg.iterations,

@@ -95,9 +95,9 @@ def _pair(args):
     from ..compensate import load_program, robot_base_poses
     from ..diagnostics import P601, PostprocError
 
-    from ..programs import ActiveFrames
+    from .compensate import stated_frames
 
-    active = ActiveFrames.stated(args.base, args.tool)  # (as the program was compensated)
+    active = stated_frames(args)  # (as the program was compensated)
     original = load_program(args.original, args.config, active=active)
     compensated = load_program(args.compensated, args.config, active=active)
     p_orig, ok_orig = robot_base_poses(original)

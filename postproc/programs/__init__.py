@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .model import MOTIONS, STAMP_PREFIX, ActiveFrames, Frame, Program, Targets, TargetsBuilder
+from .model import MOTIONS, STAMP_PREFIX, ActiveFrames, Frame, Program, RobotRoot, Targets, TargetsBuilder
 
-__all__ = ["ActiveFrames", "Frame", "Targets", "TargetsBuilder", "Program", "read_program", "dialect_of", "STAMP_PREFIX", "MOTIONS",
+__all__ = ["ActiveFrames", "RobotRoot", "Frame", "Targets", "TargetsBuilder", "Program", "read_program", "dialect_of", "STAMP_PREFIX", "MOTIONS",
            "companion_dat"]
 
 KRL_SUFFIXES = {".src", ".dat", ".sub"}
@@ -60,7 +60,8 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
     BASE_DATA / TOOL_DATA (for RAPID: other modules' tooldata / wobjdata; for Fanuc LS: the frame
     file, TOML, of --frames). ``active``: the $BASE / $TOOL in force where a KRL program has not
     set them, and the TCP of a URScript program before its first set_tcp (``tool`` only; the
-    other dialects name theirs at every target and refuse it, P222). Raises
+    other dialects name theirs at every target and refuse it, P222; its ``robroot``, KRL's
+    $ROBROOT, they do not need: their targets are in the robot base). Raises
     PostprocError (with file:line:col) on bad input."""
     if dialect == "krl":
         from . import krl
@@ -77,6 +78,8 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
         program.active = active
         program.from_text = True
         return program
+    if active is not None and not active.frames_stated:
+        active = None  # (only $ROBROOT: the other dialects' targets are in the robot base by definition)
     if active is not None:
         from ..diagnostics import PostprocError
 

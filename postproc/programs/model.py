@@ -8,7 +8,7 @@ import numpy as np
 
 from ..diagnostics import Diagnostic
 
-__all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "ActiveFrames", "STAMP_PREFIX", "MOTIONS"]
+__all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "ActiveFrames", "RobotRoot", "STAMP_PREFIX", "MOTIONS"]
 
 # The one line postproc adds to a file it compensated (after the dialect's comment marker).
 STAMP_PREFIX = "postproc: compensated with model"
@@ -33,15 +33,45 @@ class Frame:
 
 
 @dataclass(frozen=True)
+class RobotRoot:
+    """$ROBROOT as known before a KRL program runs: the robot's base in $WORLD (the machine
+    data's ``$ROBROOT_C``, or stated with ``--robroot`` / the settings' ``robroot``).
+    ``frame`` X,Y,Z,A,B,C (mm, deg); None: it is known only at run time, ``why`` says why (a
+    robot on a track: the machine data's ``$EX_KIN`` names an external ROBROOT kinematic);
+    ``label`` says where it came from (``--robroot 0,0,2500,0,0,180``, a $machine.dat)."""
+
+    frame: tuple | None
+    label: str = ""
+    why: str = ""
+
+    @staticmethod
+    def parse(value, label: str = "robroot") -> "RobotRoot":
+        """Six numbers X,Y,Z,A,B,C (``"X,Y,Z,A,B,C"`` or a list of six) → RobotRoot; ValueError
+        with the reason otherwise."""
+        six = None if isinstance(value, str) and "," not in value else ActiveFrames.parse(value, "robroot")
+        if not isinstance(six, tuple):
+            raise ValueError(f"robroot: expected six numbers X,Y,Z,A,B,C (mm, deg) or a $machine.dat, not {value!r}")
+        return RobotRoot(six, label)
+
+
+@dataclass(frozen=True)
 class ActiveFrames:
     """The $BASE / $TOOL active when a program starts, as its user states them (``compensate
     --base/--tool``, the settings' ``base`` / ``tool``), for programs that do not set them
     before their targets. Each is None (not stated: such targets are left as written), an int
     n (``BASE_DATA[n]`` / ``TOOL_DATA[n]`` of ``$config.dat``; 0 = ``$NULLFRAME``), or six
-    floats X,Y,Z,A,B,C; the tool may also be ``"model"``: the model's own tool (its card)."""
+    floats X,Y,Z,A,B,C; the tool may also be ``"model"``: the model's own tool (its card).
+    ``robroot``: $ROBROOT where the program does not set it (``RobotRoot``; None: not known,
+    robot base = world assumed and said once, P224)."""
 
     base: int | tuple | None = None
     tool: int | tuple | str | None = None
+    robroot: RobotRoot | None = None
+
+    @property
+    def frames_stated(self) -> bool:
+        """Whether $BASE or $TOOL is stated (what only KRL and URScript programs take)."""
+        return self.base is not None or self.tool is not None
 
     @staticmethod
     def parse(value, which: str):
@@ -80,26 +110,31 @@ class ActiveFrames:
         return six
 
     @classmethod
-    def of(cls, base=None, tool=None) -> "ActiveFrames | None":
-        """From user values (strings, ints, lists; None = not stated); None when neither is."""
-        if base is None and tool is None:
+    def of(cls, base=None, tool=None, robroot=None) -> "ActiveFrames | None":
+        """From user values (strings, ints, lists; None = not stated; ``robroot`` a RobotRoot or
+        six numbers); None when none is."""
+        if base is None and tool is None and robroot is None:
             return None
-        return cls(base=cls.parse(base, "base"), tool=cls.parse(tool, "tool"))
+        if robroot is not None and not isinstance(robroot, RobotRoot):
+            robroot = RobotRoot.parse(robroot, f"robroot {robroot}")
+        return cls(base=cls.parse(base, "base"), tool=cls.parse(tool, "tool"), robroot=robroot)
 
     @classmethod
-    def stated(cls, base=None, tool=None, settings: "ActiveFrames | None" = None) -> "ActiveFrames | None":
-        """The command line's ``--base`` / ``--tool`` over the settings' (each on its own);
-        a value that is not N / X,Y,Z,A,B,C is refused: PostprocError P222."""
+    def stated(cls, base=None, tool=None, settings: "ActiveFrames | None" = None,
+               robroot: RobotRoot | None = None) -> "ActiveFrames | None":
+        """The command line's ``--base`` / ``--tool`` / ``--robroot`` over the settings' (each on
+        its own); a value that is not N / X,Y,Z,A,B,C is refused: PostprocError P222."""
         from ..diagnostics import PostprocError
 
         try:
-            given = cls.of(base=base, tool=tool)
+            given = cls.of(base=base, tool=tool, robroot=robroot)
         except ValueError as exc:
             raise PostprocError(str(exc), "--" + str(exc).split(":")[0], 0, 0, "P222") from None
         if settings is None or given is None:
             return given or settings
         return cls(base=given.base if given.base is not None else settings.base,
-                   tool=given.tool if given.tool is not None else settings.tool)
+                   tool=given.tool if given.tool is not None else settings.tool,
+                   robroot=given.robroot if given.robroot is not None else settings.robroot)
 
 
 @dataclass
@@ -196,12 +231,14 @@ class Program:
     targets: Targets
     frames: list[Frame] = field(default_factory=list)
     diagnostics: list[Diagnostic] = field(default_factory=list)
+    # what the reader assumed and says once, without leaving a target (P224: robot base = world)
+    notes: list[Diagnostic] = field(default_factory=list)
     dialect: str = ""
     stamps: dict[int, str] = field(default_factory=dict)  # file index → stamp line found in it
     newlines: list[str] = field(default_factory=list)  # dominant line ending per file
     comment: str = ";"  # the dialect's comment marker, for the stamp line
     config: list[str] | None = None  # the $config.dat texts it was read with (to read it again)
-    active: ActiveFrames | None = None  # the $BASE/$TOOL stated for it (to read it again)
+    active: ActiveFrames | None = None  # the $BASE/$TOOL/$ROBROOT stated for it (to read it again)
     from_text: bool = False  # made by read_program: its texts, read again, give it again
     # some targets are variables (declared or assigned aggregates), whose numbers other
     # statements may read too (e.g. as a frame); False: every target is an inline aggregate

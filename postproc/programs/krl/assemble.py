@@ -89,6 +89,7 @@ class Assembly:
         remap[used] = np.arange(len(used), dtype=np.int32)
         frame = np.where(frame >= 0, remap[frame], -1).astype(np.int32)
         self.frames[:] = [self.frames[k] for k in used]
+        self.assumed_robroot = {int(remap[k]) for k in self.assumed_robroot if remap[k] >= 0}
         return Targets(
             poses=pose[keep],
             spans=column("spans", sel).reshape(len(sel), 3, 2),

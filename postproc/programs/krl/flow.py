@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .frames import _FrameState, _NotSet
+from .frames import _ASSUMED_ROBROOT, _FrameState, _NotSet
 from .values import _Unknown
 
 # a motion statement at the start of a line (comments start with ';' and never match)
@@ -70,6 +70,8 @@ def merge_states(states: list, why: str, where: tuple) -> _FrameState:
     base = one([s.base for s in states])
     tool = one([s.tool for s in states])
     robroot = one([s.robroot for s in states])
+    if isinstance(robroot, np.ndarray) and any(s.robroot is _ASSUMED_ROBROOT for s in states):
+        robroot = _ASSUMED_ROBROOT  # (equal to a $NULLFRAME set on another path: still an assumption, P224)
     return _FrameState(base, first.base_label if base is first.base else "", tool,
                        first.tool_label if tool is first.tool else "", robroot)
 

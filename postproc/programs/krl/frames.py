@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 from lark import Tree
 
-from ...diagnostics import P201, P203, P220, P221, P222, PostprocError
+from ...diagnostics import P201, P203, P220, P221, P222, P225, PostprocError
 from ...frames import compose, frame_to_matrix, inverse, matrix_to_frame
 from ..model import Frame
 from .values import XYZABC, _Agg, _COMP, _Num, _Unknown
@@ -52,8 +52,13 @@ _TOOL_NOT_SET = _NotSet("$TOOL is not set before this target (the controller use
                         "set it in the program or state it with --tool N|X,Y,Z,A,B,C|model", P221)
 _NEITHER_SET = _NotSet("neither $BASE nor $TOOL is set before this target (the controller uses whatever is "
                        "active): set them in the program or state them with --base and --tool", P220)
+# $ROBROOT where nothing gives it (no --robroot, no machine data) and the program does not set
+# it: robot base = world, as the controller's default machine data has it. Its own object, so
+# that the targets taken with it are known (``Frames.frame_index``) and the assumption said
+# once (P224, ``Reader.run``), not per target: every real program would be left otherwise.
+_ASSUMED_ROBROOT = np.eye(4)
 # a program's start when nothing is stated: neither frame known (``Frames.start_state``)
-_START = _FrameState(_BASE_NOT_SET, "", _TOOL_NOT_SET, "", _I4)
+_START = _FrameState(_BASE_NOT_SET, "", _TOOL_NOT_SET, "", _ASSUMED_ROBROOT)
 
 
 class Frames:
@@ -61,8 +66,10 @@ class Frames:
 
     def start_state(self) -> _FrameState:
         """The frames at the start of a program: those its user stated (``ActiveFrames``),
-        else not set (P220/P221 at the targets that need them). ``BAS(#INITMOV, 0)`` (the INI
-        fold) initialises motion parameters, not $BASE/$TOOL, so it does not change this."""
+        else not set (P220/P221 at the targets that need them); $ROBROOT stated or from the
+        machine data (``ActiveFrames.robroot``), not known on a track (P225), else the assumed
+        robot base = world. ``BAS(#INITMOV, 0)`` (the INI fold) initialises motion parameters,
+        not $BASE/$TOOL, so it does not change this."""
         st = getattr(self, "_start", None)
         if st is not None:
             return st
@@ -75,8 +82,19 @@ class Frames:
         elif active is not None and active.tool is not None:
             tool, tool_label = self.stated_frame(active.tool, "tool")
             tool = tuple(float(x) for x in matrix_to_frame(tool))
-        self._start = st = _FrameState(base, base_label, tool, tool_label, _I4)
+        self._start = st = _FrameState(base, base_label, tool, tool_label, self.start_robroot())
         return st
+
+    def start_robroot(self):
+        """$ROBROOT before the program sets it: stated or the machine data's (4×4), not known
+        (P225: a robot on a track), or the assumed robot base = world."""
+        robroot = None if self.active is None else self.active.robroot
+        if robroot is None:
+            return _ASSUMED_ROBROOT
+        if robroot.frame is None:
+            return _NotSet(f"$ROBROOT not statically known: {robroot.why} (state it with --robroot X,Y,Z,A,B,C "
+                           "if the track stands still)", P225)
+        return frame_to_matrix(np.array(robroot.frame, float))
 
     def stated_frame(self, value, which):
         """A stated --base / --tool (``ActiveFrames``) → (4×4, label); P222 when it names a
@@ -338,15 +356,18 @@ class Frames:
                 self.unknown_frames[key] = [self.path, why.where[0] or self.ln, why.where[1] or 1, msg, 0, code,
                                             None if isinstance(why, _NotSet) else ()]
             return -1, key
-        base = compose(inverse(st.robroot), st.base) if st.robroot is not _I4 else st.base
+        assumed = st.robroot is _ASSUMED_ROBROOT
+        base = st.base if assumed or st.robroot is _I4 else compose(inverse(st.robroot), st.base)
         tool = st.tool if isinstance(st.tool, tuple) else None
         with np.errstate(over="ignore", invalid="ignore"):  # a 1e308 frame: refused later, not a warning here
-            key = (np.round(base, 9).tobytes(), None if tool is None else tuple(round(x, 9) for x in tool))
+            key = (np.round(base, 9).tobytes(), None if tool is None else tuple(round(x, 9) for x in tool), assumed)
         ix = self.frame_ix.get(key)
         if ix is None:
             label = st.base_label + (f" / {st.tool_label}" if st.tool_label else "")
             ix = self.frame_ix[key] = len(self.frames)
             self.frames.append(Frame(base=base.copy(), tool=None if tool is None else np.array(tool), label=label))
+            if assumed:
+                self.assumed_robroot.add(ix)
         return ix, None
 
     def count_unknown(self, f, why, n=1, at=None):

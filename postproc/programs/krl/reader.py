@@ -8,7 +8,7 @@ from bisect import bisect_left
 import numpy as np
 from lark import Token, Tree
 
-from ...diagnostics import P101, P104, P105, Diagnostic, PostprocError
+from ...diagnostics import P101, P104, P105, P224, Diagnostic, PostprocError
 from ..model import ActiveFrames, Frame, Program, STAMP_PREFIX
 from .assemble import Assembly
 from .blocks import Blocks
@@ -73,6 +73,7 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
         self.frames: list[Frame] = []
         self.newline: dict[int, str] = {}
         self.frame_ix: dict = {}
+        self.assumed_robroot: set[int] = set()  # frame indices taken with robot base = world assumed (P224)
         self.unknown_frames: dict = {}  # reason key → [path, line, col, message, count, code]
         self.hot = _HotRows()
         self.cold = {k: [] for k in ("key", "pose", "written", "spans", "file", "line", "col", "motion",
@@ -118,8 +119,23 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
                 self.diagnostics.append(Diagnostic(path, line, col, code,
                                                    f"{msg}: {count} target(s) left as written"))
         return Program(files=self.files, texts=self.texts, targets=targets, frames=self.frames,
-                       named_targets=bool(self.targets_of),
+                       named_targets=bool(self.targets_of), notes=self.robroot_notes(targets),
                        diagnostics=self.diagnostics, dialect="krl", stamps=stamps, newlines=newlines, comment=";")
+
+    def robroot_notes(self, targets) -> list[Diagnostic]:
+        """P224 once, at the first target taken with robot base = world assumed ($ROBROOT not
+        stated, not in machine data given, not set by the program): a note, not a target left."""
+        if not self.assumed_robroot:
+            return []
+        taken = np.flatnonzero(np.isin(targets.frame, list(self.assumed_robroot)))
+        if not len(taken):
+            return []
+        first = int(taken[0])
+        return [Diagnostic(self.files[targets.file[first]], int(targets.line[first]), int(targets.col[first]), P224,
+                           "robot base = world assumed: $ROBROOT is not known (no --robroot, no machine data) "
+                           "and the program does not set it, so $NULLFRAME is taken; give --robroot X,Y,Z,A,B,C "
+                           "or the backup's Mada/$machine.dat (its System/$config.dat, or the backup directory)",
+                           "note")]
 
     def warn(self, path, line, col, code, msg):
         self.diagnostics.append(Diagnostic(path, line, col, code, msg))

@@ -1,0 +1,145 @@
+"""A controller backup's machine data (``KRC/R1/Mada/$machine.dat``) → the $ROBROOT a KRL
+program starts with (``RobotRoot``): ``$ROBROOT_C`` (KSS 5.x and older: ``$ROBROOT``), the
+robot's base in $WORLD (a ceiling robot: C 180, a wall robot: B 90, a robot on a pedestal: Z),
+or, when ``$EX_KIN`` names an external ROBROOT kinematic (``ET1 #ERSYS``: a robot on a track,
+$ROBROOT moves with the track's axes), a $ROBROOT known only at run time.
+
+Where a backup keeps it: ``Mada/`` beside the ``System/`` of its ``$config.dat``, or below a
+backup directory (``found_machine``); ``with_machine`` puts it into the ``ActiveFrames`` of a
+read unless the user stated ``--robroot`` (or the settings' ``robroot``), which wins.
+Only the lines that matter are read: the rest of the machine data (axis data, motor and
+servo parameters) is no concern of a post-processor and is not parsed.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import replace
+from pathlib import Path
+
+from ...diagnostics import P107, P226, PostprocError, line_col
+from ..model import ActiveFrames, RobotRoot
+from .syntax import _NUM
+
+__all__ = ["MACHINE_NAME", "is_machine", "robroot_of", "read_machine", "found_machine", "beside_config",
+           "with_machine", "robroot_option"]
+
+MACHINE_NAME = "$machine.dat"
+
+# `FRAME $ROBROOT_C={X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}` (group 1: `_C`, group 2: the components)
+_ROBROOT = re.compile(r"^[ \t]*(?:DECL[ \t]+)?FRAME[ \t]+\$ROBROOT(_C)?[ \t]*=[ \t]*\{([^}\r\n]*)\}", re.I | re.M)
+# `DECL EX_KIN $EX_KIN={ET1 #ERSYS,ET2 #NONE,…}`: #ERSYS = the external ROBROOT kinematic
+_EX_KIN = re.compile(r"^[ \t]*(?:DECL[ \t]+)?EX_KIN[ \t]+\$EX_KIN[ \t]*=[ \t]*\{([^}\r\n]*)\}", re.I | re.M)
+_ERSYS = re.compile(r"\b(ET\d)[ \t]+#ERSYS\b", re.I)
+_COMPONENT = re.compile(r"[ \t]*([XYZABC])[ \t]+([-+]?" + _NUM + r")[ \t]*", re.I)
+
+
+def is_machine(path: str | Path) -> bool:
+    return Path(path).name.casefold() == MACHINE_NAME.casefold()
+
+
+def robroot_of(text: str, path: str) -> RobotRoot:
+    """The $ROBROOT the machine data ``text`` (of file ``path``) gives; P226 (located) when it
+    has no ``$ROBROOT_C`` or a malformed one."""
+    kin = _EX_KIN.search(text)
+    track = _ERSYS.search(kin.group(1)) if kin else None
+    if track:
+        line, _ = line_col(text, kin.start())
+        return RobotRoot(None, path, f"the robot is on an external kinematic ($EX_KIN {track.group(1).upper()} "
+                         f"#ERSYS, {path}:{line}: a track): its $ROBROOT moves with that kinematic's axes and is "
+                         "known only at run time")
+    found = sorted(_ROBROOT.finditer(text), key=lambda m: m.group(1) is None)  # ($ROBROOT_C first)
+    if not found:
+        raise PostprocError("no $ROBROOT_C in this machine data: give --robroot X,Y,Z,A,B,C", path, 0, 0, P226)
+    m = found[0]
+    six: dict[str, float] = {}
+    for part in m.group(2).split(","):
+        c = _COMPONENT.fullmatch(part)
+        key = c.group(1).upper() if c else None
+        if c is None or key in six:
+            line, col = line_col(text, m.start(2))
+            raise PostprocError(f"$ROBROOT{m.group(1) or ''} is not a frame {{X …,Y …,Z …,A …,B …,C …}} of numbers",
+                                path, line, col, P226)
+        six[key] = float(c.group(2))
+    if len(six) != 6:
+        line, col = line_col(text, m.start(2))
+        raise PostprocError(f"$ROBROOT{m.group(1) or ''} lacks {', '.join(k for k in 'XYZABC' if k not in six)}",
+                            path, line, col, P226)
+    line, _ = line_col(text, m.start())
+    return RobotRoot(tuple(six[k] for k in "XYZABC"), f"$ROBROOT{m.group(1) or ''} of {path}:{line}")
+
+
+def read_machine(path: str | Path) -> RobotRoot:
+    """:func:`robroot_of` a machine data file (P107 when it cannot be read)."""
+    try:
+        text = Path(path).read_bytes().decode("latin-1")
+    except FileNotFoundError:
+        raise PostprocError("no such file", str(path), 0, 0, P107) from None
+    except OSError as exc:
+        raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, P107) from None
+    return robroot_of(text, str(path))
+
+
+def _in(folder: Path | None, name: str, directory: bool = False) -> Path | None:
+    """The file (or ``directory``) ``folder/name`` in whatever case it is on disk (backups come
+    from Windows)."""
+    if folder is None or not folder.is_dir():
+        return None
+    return next((p for p in sorted(folder.iterdir()) if p.name.casefold() == name.casefold()
+                 and (p.is_dir() if directory else p.is_file())), None)
+
+
+def found_machine(directory: Path) -> list[Path]:
+    """``directory/Mada/$machine.dat``, else the shallowest ``Mada/$machine.dat`` below it
+    (``KRC/`` → ``KRC/R1/Mada/$machine.dat``); several at one depth are all returned."""
+    here = _in(_in(directory, "Mada", directory=True), MACHINE_NAME)
+    if here is not None:
+        return [here]
+    found = sorted(p for p in directory.rglob("*") if is_machine(p) and p.parent.name.casefold() == "mada"
+                   and p.is_file())
+    if not found:
+        return []
+    depth = min(len(p.relative_to(directory).parts) for p in found)
+    return [p for p in found if len(p.relative_to(directory).parts) == depth]
+
+
+def beside_config(config: Path) -> Path | None:
+    """The ``Mada/$machine.dat`` of the backup a ``System/$config.dat`` belongs to."""
+    config = Path(config)
+    if config.parent.name.casefold() != "system":
+        return None
+    return _in(_in(config.parent.parent, "Mada", directory=True), MACHINE_NAME)
+
+
+def with_machine(active: ActiveFrames | None, configs=(), machines=()) -> ActiveFrames | None:
+    """``active`` with the $ROBROOT of the backup's machine data, unless it states one: the
+    ``$machine.dat`` files of ``machines`` (given, or ``found_machine`` in a cell's directory),
+    else the one beside each ``System/$config.dat`` of ``configs``. None found: ``active`` as
+    it is (the reader then assumes robot base = world and says so, P224). Two different ones:
+    refused (P226)."""
+    if active is not None and active.robroot is not None:
+        return active
+    found = [Path(m) for m in machines] or [
+        m for c in configs if isinstance(c, (str, Path)) and (m := beside_config(Path(c))) is not None]
+    unique = list(dict.fromkeys(p.resolve() for p in found))
+    if not unique:
+        return active
+    if len(unique) > 1:
+        raise PostprocError(f"several machine data ({', '.join(str(p) for p in unique)}): one robot's $ROBROOT; "
+                            "give --robroot", str(unique[0]), 0, 0, P226)
+    robroot = read_machine(found[0])
+    return ActiveFrames(robroot=robroot) if active is None else replace(active, robroot=robroot)
+
+
+def robroot_option(value, root: Path | None = None, label: str = "--robroot") -> RobotRoot | None:
+    """``--robroot`` / the settings' ``robroot``: six numbers X,Y,Z,A,B,C, or the path of a
+    ``$machine.dat`` (relative to ``root``); None stays None. ValueError for anything else."""
+    if value is None:
+        return None
+    if isinstance(value, str) and "," not in value:
+        path = Path(value) if root is None else Path(root) / value
+        if not path.is_file():
+            raise ValueError(f"robroot: expected six numbers X,Y,Z,A,B,C (mm, deg) or a $machine.dat; no such file "
+                             f"{str(path)!r}")
+        return read_machine(path)
+    robroot = RobotRoot.parse(value)
+    return replace(robroot, label=f"{label} {','.join(f'{v:g}' for v in robroot.frame)}")
