@@ -581,35 +581,8 @@ class KinematicModel(Estimator):
             turn = torch.as_tensor(np.radians(np.asarray(rotation_errors, dtype=np.float64).reshape(-1, 3)))
             measured = (measured, small_rotation(turn) @ nominal_rot)
             self.lever_ = LEVER_MM
-        fixed = list(self.ripple) if isinstance(self.ripple, list) else []
-        layout = Layout(groups, fixed)
-        theta = np.zeros(layout.n)
-        self.prior_ = WEAK_PRIOR if self.prior == "auto" else float(self.prior)
-        if layout.n:
-            theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
-            if self.orientation_:
-                # weigh position and orientation by what each leaves unexplained (one step of
-                # variance-component estimation): lever = rms position / rms orientation residual
-                r = self._state[0].reshape(-1, 2, 3)
-                rms_mm = float(np.sqrt(np.mean(r[:, 0] ** 2)))
-                rms_rad = float(np.sqrt(np.mean(r[:, 1] ** 2))) / self.lever_
-                self.lever_ = float(np.clip(rms_mm / max(rms_rad, 1e-12), LEVER_RANGE[0], LEVER_RANGE[1]))
-                theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
-            if self.prior == "auto":
-                # the prior as a Gaussian one: each parameter ~ N(0, its typical size²) against
-                # residuals of the variance this fit leaves per coordinate (what the model does
-                # not explain counts as noise): weight = σ̂². Directions the data hardly see
-                # stay near nominal instead of taking up what is particular to these poses
-                r = self._state[0]
-                self.prior_ = max(float(r @ r) / max(len(r) - layout.n, 1), WEAK_PRIOR)
-                theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
-        # the torques of the identified chain (what the exported module computes, one forward
-        # kinematics for everything), refitted twice: they depend on θ only weakly
-        for _ in range(2 if layout.n and ("compliance" in groups or "coupling" in groups) else 0):
-            module = KinematicErrorModule(self.arm_, self.ik_, layout, theta, self.use_previous_, tau.mean(dim=0).numpy())
-            with torch.no_grad():
-                tau = module.torques(q)
-            theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
+        layout = Layout(groups, list(self.ripple) if isinstance(self.ripple, list) else [])
+        theta, tau = self._fit_physical(layout, q, s, tau, measured)
         self.ripple_search_ = []
         if self.ripple == "search":
             layout, theta = self._search_ripple(layout, theta, q, s, tau, measured)
@@ -796,6 +769,39 @@ class KinematicModel(Estimator):
                 break
         self._state = (r, jac, sens)
         return theta
+
+    def _fit_physical(self, layout: Layout, q, s, tau, measured) -> tuple[np.ndarray, torch.Tensor]:
+        """(θ, the torques of the identified chain) of the groups in ``layout`` (with a fixed
+        ripple list, those orders too): the first fit, the orientation's lever, the prior's
+        weight (``prior_``) and the torques refitted."""
+        theta = np.zeros(layout.n)
+        self.prior_ = WEAK_PRIOR if self.prior == "auto" else float(self.prior)
+        if layout.n:
+            theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
+            if self.orientation_:
+                # weigh position and orientation by what each leaves unexplained (one step of
+                # variance-component estimation): lever = rms position / rms orientation residual
+                r = self._state[0].reshape(-1, 2, 3)
+                rms_mm = float(np.sqrt(np.mean(r[:, 0] ** 2)))
+                rms_rad = float(np.sqrt(np.mean(r[:, 1] ** 2))) / self.lever_
+                self.lever_ = float(np.clip(rms_mm / max(rms_rad, 1e-12), LEVER_RANGE[0], LEVER_RANGE[1]))
+                theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
+            if self.prior == "auto":
+                # the prior as a Gaussian one: each parameter ~ N(0, its typical size²) against
+                # residuals of the variance this fit leaves per coordinate (what the model does
+                # not explain counts as noise): weight = σ̂². Directions the data hardly see
+                # stay near nominal instead of taking up what is particular to these poses
+                r = self._state[0]
+                self.prior_ = max(float(r @ r) / max(len(r) - layout.n, 1), WEAK_PRIOR)
+                theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
+        # the torques of the identified chain (what the exported module computes, one forward
+        # kinematics for everything), refitted twice: they depend on θ only weakly
+        for _ in range(2 if layout.n and ("compliance" in layout.groups or "coupling" in layout.groups) else 0):
+            module = KinematicErrorModule(self.arm_, self.ik_, layout, theta, self.use_previous_, tau.mean(dim=0).numpy())
+            with torch.no_grad():
+                tau = module.torques(q)
+            theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
+        return theta, tau
 
     def _search_ripple(self, layout: Layout, theta: np.ndarray, q, s, tau, measured) -> tuple[Layout, np.ndarray]:
         """Gear-ripple orders added on top of the fitted physical model, which stays as fitted
