@@ -17,7 +17,9 @@ independently surveyed base frame. RP does not depend on the registration.
 
 With --model (a compensator of this UR10, e.g. `postproc train` on Series C with --register
 --robot models/ur10.toml) the 'after' figures are first order: the compensated command
-c = P + Ê(P) reaches ≈ attained + Ê, no re-measurement exists for this data.
+c = P + Ê(P) reaches ≈ attained + Ê, no re-measurement exists for this data (see
+first_order_after: the model run with D's joint angles and visiting order, D's measured
+points registered to the model's predicted positions).
 """
 from __future__ import annotations
 
@@ -29,28 +31,52 @@ from pathlib import Path
 
 import numpy as np
 
-from _common import cli  # noqa: E402
+from _common import cli, record  # noqa: E402
 
 DEFAULT_DATA = "/work/shared/datasets/ipa-robot-accuracy"
 SERIES_D = "Series_D/measurements_iso_cubes.csv"
 
 
 def first_order_after(base_csv: Path, model_path: str, out: Path) -> str:
-    """Write the first-order 'after' file; '' or why not (poses outside the model's envelope)."""
+    """Write the first-order 'after' file; returns a note on the poses outside the model's
+    training envelope ('' if none: compensate warns P301 there and applies the physical part).
+    As ``compensate`` would: the model run with the visiting order and the data's joint angles
+    (q1..q6: the arm configuration of each row). Series D's tracker set-up is its own: its
+    measured points are registered (rigid fit) to the positions the model predicts, P − Ê, as
+    benchmarks/cross_series.py does — registered to the Goal instead, the model's constant part
+    (the probe offset it identified on C) would come back as error."""
     from postproc.compensator import load_model
     from postproc.measurements import parse_measurements, write_measurements
+    from postproc.registration import apply_rigid, fit_rigid
+    from postproc.training.features import previous_poses
 
     m = parse_measurements(base_csv.read_bytes(), str(base_csv), repeats=True)
     model = load_model(model_path)
     outside = int(model.envelope.outside(m.poses).sum()) if model.envelope is not None else 0
-    if outside:
-        return (f"{outside} of {len(m)} poses are outside the model's training envelope "
-                f"{model.metadata.get('envelope', {}).get('box')}: a first-order 'after' there would be a guess")
-    predicted = model.predict(m.poses)
+    q = getattr(m, "joints", None)
+    joints_out = int(model.envelope.outside_joints(q).sum()) if model.envelope is not None and q is not None else 0
+    predicted = model.predict(m.poses, previous_poses(m.poses), joints=q)
+    # the model's positions P − Ê in D's frame (rigid fit to D's measured points): the model of
+    # this set-up, whose correction is P minus those (the C frame's constant part gone)
+    rotation, translation = fit_rigid(m.poses[:, :3] - predicted, m.measured)
+    correction = m.poses[:, :3] - apply_rigid(m.poses[:, :3] - predicted, rotation, translation)
     commands = m.poses.copy()
-    commands[:, :3] += predicted
-    write_measurements(out, commands, m.measured + predicted, metadata={"frame": "base", "after": "first order"})
+    commands[:, :3] += correction
+    write_measurements(out, commands, m.measured + correction, metadata={"frame": "base", "after": "first order"})
+    if outside or joints_out:
+        return (f"{outside} of {len(m)} poses outside the model's training box, {joints_out} outside its trained "
+                "joint arcs (compensate warns P301 there; the model's physical part applies)")
     return ""
+
+
+def summary(figures: list[dict], n_min: int) -> dict:
+    rows = [p for p in figures if p["n"] >= n_min]
+    ap = np.array([p["AP"] for p in rows])
+    rp = np.array([p["RP"] for p in rows if p["RP"] is not None])
+    out = {"poses": len(rows), "AP_mean": round(float(ap.mean()), 4), "AP_max": round(float(ap.max()), 4)}
+    if rp.size:
+        out.update({"RP_mean": round(float(rp.mean()), 4), "RP_max": round(float(rp.max()), 4)})
+    return out
 
 
 def table(figures: list[dict], n_min: int) -> str:
@@ -79,11 +105,11 @@ def main() -> int:
         base = tmp / "series_d.csv"
         _, t_import = cli("import", "ipa", str(source), "-o", str(base), "--register")
         report = ["report", "--iso9283", str(base), "-o", str(out)]
-        refused = ""
+        note = ""
         if args.model:
             after = tmp / "series_d_after.csv"
-            refused = first_order_after(base, args.model, after)
-            report += ["--model", args.model] + ([] if refused else ["--after", str(after)])
+            note = first_order_after(base, args.model, after)
+            report += ["--model", args.model, "--after", str(after)]
         _, t_report = cli(*report)
         s = json.loads((out / "iso9283.json").read_text())
     before = s["before"]["poses"]
@@ -98,12 +124,16 @@ def main() -> int:
     print(f"  most repeated pose P{centre['pose']} (n {centre['n']}) at {centre['command'][:3]}: "
           f"AP {centre['AP']:.3f} (APx {centre['APx']:.3f} APy {centre['APy']:.3f} APz {centre['APz']:.3f}) "
           f"RP {centre['RP']:.3f} mm")
-    if refused:
-        print(f"after: not computed: {refused}")
+    figures = {"before": {f"n{n}": summary(before, n) for n in (1, 2)}}
     if "after" in s:
-        print("after (first order, no re-measurement):")
+        print("after (first order, no re-measurement; Series D registered to the model's predicted positions)"
+              + (f":\n  {note}" if note else ":"))
         for n_min in (1, 2, 3, 8):
             print(table(s["after"]["poses"], n_min))
+        figures["after"] = {f"n{n}": summary(s["after"]["poses"], n) for n in (1, 2)}
+        figures["model"] = Path(args.model).name
+    if args.data == DEFAULT_DATA or os.environ.get("POSTPROC_IPA_DATA"):
+        print(f"figures: {record('iso9283_ipa', figures)}")
     return 0
 
 
