@@ -96,7 +96,7 @@ def speed(n: int = 100_000) -> None:
         for with_tool in (False, True):
             path = Path(tmp) / f"{with_tool}.onnx"
             path.write_bytes(onnx_bytes(_WithJoints(model.module_, with_tool), meta, True, joints=True,
-                                        joints_input=True, tool_input=with_tool))
+                                        joints_input=True, approach_input=True, tool_input=with_tool))
             compensator = load_model(path)
             feed = {"tool": tools} if with_tool else {}
             compensator.predict(targets[:1000], **{k: v[:1000] for k, v in feed.items()})
