@@ -232,17 +232,25 @@ def check_files(
     **options,
 ) -> list[Diagnostic]:
     """Check the programs these files belong to, as one cell: directories are searched for
-    KRL files, a ``$config.dat`` among them is the configuration of the others (unless
-    ``config`` is given), a data list without a DEF is checked for syntax only; findings
-    sorted by path, line, column."""
+    programs of every dialect but pose lists (KRL; RAPID, URScript and Fanuc LS files by their
+    suffix: a directory holds measurement CSVs and notes too), a ``$config.dat`` among them is
+    the configuration of the others (unless ``config`` is given), a data list without a DEF is
+    checked for syntax only; findings sorted by path, line, column."""
     from .cell import KRL, is_config, krl_files
+    from .programs import FANUC_SUFFIXES, RAPID_SUFFIXES, URSCRIPT_SUFFIXES
     from .programs.krl.machine import found_machine, is_machine, with_machine
+
+    others = RAPID_SUFFIXES | URSCRIPT_SUFFIXES | FANUC_SUFFIXES
+
+    def in_directory(d: Path) -> list[Path]:
+        return [f for f in krl_files(d) if not is_machine(f)] + sorted(
+            q for q in d.rglob("*") if q.suffix.lower() in others and q.is_file())
 
     ignored = set(ignore)
     files: list[Path] = []
     machines: list[Path] = []  # the robot's machine data ($ROBROOT), not a program
     for p in map(Path, paths):
-        files += [f for f in krl_files(p) if not is_machine(f)] if p.is_dir() else [p] * (not is_machine(p))
+        files += in_directory(p) if p.is_dir() else [p] * (not is_machine(p))
         machines += found_machine(p) if p.is_dir() else [p] * is_machine(p)
     try:
         active = with_machine(active, machines=machines)

@@ -115,6 +115,30 @@ def test_syntax_errors_and_unreadable_files_are_findings(affine, tmp_path):
     ]
 
 
+def test_a_directory_is_searched_for_every_dialects_programs(affine, tmp_path):
+    """``check DIR`` finds RAPID, URScript and Fanuc LS programs beside KRL ones (it found KRL
+    only: the others were skipped without a word), not pose lists (a folder holds measurement
+    CSVs and notes too); each file's findings are those of checking it alone."""
+    import shutil
+
+    from helpers import REPO
+
+    folder = tmp_path / "cell"
+    folder.mkdir()
+    for sample in ("rapid/weld_cell.mod", "urscript/pick_place.script", "fanuc/weld_seam.ls"):
+        shutil.copy(REPO / "samples" / sample, folder)
+    broken = write(folder / "broken.script", "def broken():\n  movel(p[0.5, 0.1, 0.4, 0, 3.14, 0]\nend\n")
+    write(folder / "measured.csv", "x,y,z\n1,zz,3\n")  # not a program: not checked
+    model = load_model(affine())
+    found = check_files([folder], model)
+    alone = sorted((d for f in sorted(folder.iterdir()) if f.suffix != ".csv" for d in check_files([f], model)),
+                   key=lambda d: (d.path, d.line, d.col, d.code))
+    assert [(d.path, d.line, d.code) for d in found] == [(d.path, d.line, d.code) for d in alone]
+    assert any(d.path == str(broken) and d.code.startswith("P1") for d in found)
+    assert {Path(d.path).suffix for d in found} >= {".script"}
+    assert not any(d.path.endswith(".csv") for d in found)
+
+
 def test_a_dat_is_checked_with_its_src(tmp_path):
     src, dat, lone = (write(tmp_path / n, "x") for n in ("Weld.SRC", "weld.dat", "other.dat"))
     assert program_paths([dat, src, lone, tmp_path / "p.csv"]) == [src, lone, tmp_path / "p.csv"]

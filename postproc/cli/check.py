@@ -33,8 +33,8 @@ def add_parser(sub, common, formatter) -> None:
         "twice, and (--fresh) compensated outputs that no longer match their sources.",
         epilog=EXAMPLES,
     )
-    p.add_argument("files", nargs="*", metavar="FILE", help="programs (.src/.dat, .mod/.prg/.sys, .script, .ls, .csv/.txt) or directories, checked as one "
-                   "cell: a .dat is checked with its .src, a $config.dat among them configures the others, a data list "
+    p.add_argument("files", nargs="*", metavar="FILE", help="programs (.src/.dat, .mod/.prg/.sys, .script, .ls, .csv/.txt) or directories (searched for every "
+                   "dialect's programs but pose lists), checked as one cell: a .dat is checked with its .src, a $config.dat among them configures the others, a data list "
                    "without DEF is checked for syntax")
     p.add_argument("--model", metavar="M", help="the configured ONNX model (default: settings, else models/default.onnx)")
     p.add_argument("--config", "--frames", metavar="CONFIG_DAT", action="append",
