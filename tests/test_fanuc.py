@@ -170,9 +170,11 @@ def ls_program(draw):
 
 
 def _strip_stamp(text):
+    """The text without the stamp line, and /ATTR's LINE_COUNT one less (the stamp counted it)."""
     m = re.search(r"^ *\d+:  ! postproc: compensated with model .* ;\r?\n", text, re.M)
     assert m, "no stamp"
-    return text[:m.start()] + text[m.end():]
+    text = text[:m.start()] + text[m.end():]
+    return re.sub(r"^(LINE_COUNT\t= )(\d+)", lambda c: f"{c.group(1)}{int(c.group(2)) - 1}", text, count=1, flags=re.M)
 
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
@@ -201,6 +203,7 @@ def test_stamp_is_a_numbered_remark_and_check_sees_it(models, frames_file):
     out, report = compensate_text(text, models["offset"], name="t.ls", config=frames_file)
     assert report.compensated == 2
     assert "   3:  ! postproc: compensated with model test-model" in out
+    assert "LINE_COUNT\t= 1;" in text and "LINE_COUNT\t= 2;" in out  # one numbered line more
     again = read(out)
     assert again.stamps
     twice = out.replace("/POS", "   4:  ! postproc: compensated with model other 0123456789ab ;\n/POS")

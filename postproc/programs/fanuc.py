@@ -57,6 +57,7 @@ _KIND = {"J": "PTP", "L": "LIN", "C": "CIRC-aux", "A": "CIRC-end"}
 _NUM_RE = re.compile(_NUM, re.ASCII)
 _STRINGS = re.compile(r"'[^'\n]*'|\"[^\"\n]*\"")
 _BLANKS = re.compile(r"\s+")
+_LINE_COUNT = re.compile(r"^(LINE_COUNT[ \t]*=[ \t]*)(\d+)", re.M)
 _STAMP = re.compile(r"^[ \t]*\d+:[ \t]*!.*" + re.escape(STAMP_PREFIX) + r".*$", re.M)
 
 
@@ -404,7 +405,10 @@ def insert_stamp(text: str, stamp: str, newline: str) -> str:
     body_end = mn.end() + end.start()
     numbers = re.findall(r"^[ \t]*(\d+)[ \t]*:", text[mn.end():body_end], re.M)
     number = max(map(int, numbers), default=0) + 1
-    return text[:body_end] + f"{number:4d}:  {stamp} ;" + newline + text[body_end:]
+    head = text[:body_end]
+    # /ATTR's LINE_COUNT counts /MN's lines: one more (the controller's loader may check it)
+    head = _LINE_COUNT.sub(lambda m: f"{m.group(1)}{int(m.group(2)) + 1}", head[:mn.start()], count=1) + head[mn.start():]
+    return head + f"{number:4d}:  {stamp} ;" + newline + text[body_end:]
 
 
 def read(files: list[str], texts: list[str], frames: list[str] | None = None) -> FanucProgram:
