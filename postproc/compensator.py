@@ -139,8 +139,10 @@ STILL_DEG = 1.2e-4
 # by ~1e-5° between rows of a batch (SIMD tails); a joint between the two has moved too little
 # for the model to tell which way (both sides are taken into account)
 SAME_DEG = 3e-5
-# (8192 rows: the intermediates of the hybrid graph stay in cache, 11 % faster than 65536; measured)
-PREDICT_BATCH = 8192
+# (2048 rows: the intermediates of the hybrid graph stay in cache: ~10 % less CPU than 8192 and
+# the same numbers, each row's float32 result does not depend on the batch's length when it is
+# a multiple of the SIMD width; benchmarks/compensate_speed.py)
+PREDICT_BATCH = 2048
 # Rows per chunk of ``command_chunks``: the unit compensate overlaps model runs and rewriting by.
 COMMAND_CHUNK = 1 << 16
 # Joint ranges of the envelope are widened by this share of each range (+ 0.5°) before warning.
