@@ -222,9 +222,10 @@ def _candidates(robot: Robot, table: np.ndarray, ok: np.ndarray, turn: np.ndarra
                 ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Candidates [B, n, 6] of the branches [B, n, 6] on the turn T states (else the turn nearest
     ``ref``) and their squared distance to ``ref`` [B, n] (inf where none)."""
-    near, in_limits = robot.nearest_turn(table, ref)
-    signed = _turn_for_sign(robot, table, np.broadcast_to(turn, table.shape[:2]))
-    cand = np.where((turn >= 0)[None, :, None], signed, near)
+    cand, in_limits = robot.nearest_turn(table, ref)
+    stated = np.flatnonzero(turn >= 0)  # (only those: most programs state no T)
+    if len(stated):
+        cand[:, stated] = _turn_for_sign(robot, table[:, stated], np.broadcast_to(turn[stated], table.shape[:1] + stated.shape))
     good = ok & in_limits & np.isfinite(cand).all(axis=-1)
     with np.errstate(invalid="ignore"):
         cost = np.where(good, ((cand - ref) ** 2).sum(axis=-1), np.inf)
