@@ -126,6 +126,14 @@ def main() -> None:
     print(f"{'warm API: compensate_text, model loaded':48} {statistics.median(calls):8.4f} {min(calls):8.4f} "
           f"{max(calls):8.4f}")
 
+    from _common import record  # (benchmarks/ is on sys.path: this script's own folder)
+
+    figures = {"targets": args.targets, "runs": args.runs, "floor_s": round(medians[FLOOR], 3),
+               "filter_s": round(medians[FILTER], 3), "filter_uncached_s": round(medians[FILTER_UNCACHED], 3),
+               "ratio": round(medians[FILTER] / medians[FLOOR], 2), "ratio_cpu": round(cpus[FILTER] / cpus[FLOOR], 2),
+               "ratio_uncached": round(medians[FILTER_UNCACHED] / medians[FLOOR], 2),
+               "warm_api_s": round(statistics.median(calls), 4)}
+    print(f"figures: {record('cam_latency', figures).relative_to(REPO)}")
     print("\nimports of one filter run (python -X importtime, cumulative ms):")
     for package, ms in import_costs(filter_cmd, data):
         print(f"  {package:40} {ms:8.1f}")

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from .compensate import compensate_program, load_program, output_paths, rewrite_program
-from .findings import DEFAULT_MAX_CORRECTION_MM, Settings, findings, run_model, select
+from .findings import DEFAULT_MAX_CORRECTION_MM, Settings, findings, run_model, select, std_bound
 from .compensator import Compensator, load_model
 from .config import Config
 from .diagnostics import P202, P401, P402, P403, P404, P405, P406, P407, Diagnostic, PostprocError, line_col
@@ -156,7 +156,7 @@ def check_program(
     settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot,
                         reachable=reachable, max_std_mm=max_std_mm)
     selection = select(program, model, settings)
-    commands = run_model(model, selection, iterations)
+    commands = run_model(model, selection, iterations, std=std_bound(model, settings) is not None)
     # a stamp is the stamp rules' business here (P402-P404), not "already compensated"
     out = [d for d in program.diagnostics if d.code != P202] + program.notes
     out += [d for d in findings(program, commands, model, settings) if d.code != P401]

@@ -37,6 +37,7 @@ from .findings import (
     robot_base_poses,
     robot_mismatch,
     select_with_findings,
+    std_bound,
     tool_mismatch,
     where,
 )
@@ -300,10 +301,10 @@ def compensate_program(
     # approach direction, for models that learn backlash). The model runs on a background
     # thread, chunk by chunk, while this one rewrites the numbers of the chunks already done.
     stream = _CommandStream(model, selection, report.iterations, program, max_correction_mm, orientation=orientation,
-                            chain=_chain)
+                            chain=_chain, std=std_bound(model, settings) is not None)
     outputs = _rewrite(program, selection, stream)
     commanded, new_xyz, joints = stream.result()
-    commands = Commands(selection, commanded, joints, Inside.join(stream.inside))
+    commands = Commands(selection, commanded, joints, Inside.join(stream.inside), stream.std)
     after = command_findings(program, commands, model, settings)
     _raise_first(after, strict)
     assert outputs is not None  # _Unsafe is raised only for what output_rule refuses
@@ -423,7 +424,7 @@ class _CommandStream:
 
     def __init__(self, model: Compensator, selection: Selection, iterations: int, program: Program,
                  max_correction_mm: float, computed: Commands | None = None, orientation: bool = False,
-                 chain: Chain | None = None):
+                 chain: Chain | None = None, std: bool = False):
         poses, rows = selection.poses, selection.rows
         self.commanded = np.full((len(poses), 3), np.nan)
         # the corrected numbers in each target's frame: X,Y,Z (and A,B,C with ``orientation``)
@@ -435,6 +436,7 @@ class _CommandStream:
         self.joints = np.full((len(poses), 6), np.nan) if wanted else None
         self.ready = 0  # rows [0, ready) are filled
         self.inside: list = []  # each chunk's Inside (models that settle the approach)
+        self.std = np.full(len(poses), np.nan) if std and computed is None else None  # the model's error_std at the commands
         self.unsafe = False
         self._error: BaseException | None = None
         self._cancel = False
@@ -447,7 +449,7 @@ class _CommandStream:
             chunks = iter([(0, computed.commanded, computed.joints)])
         else:  # checks ``iterations`` here, not on the thread
             chunks = model.command_chunks(poses, iterations, joints=selection.joints, tool=selection.tool, with_joints=wanted,
-                                          orientation=orientation, chain=chain)
+                                          orientation=orientation, chain=chain, std=self.std is not None)
         self._thread = threading.Thread(target=self._run, args=(chunks, poses, max_correction_mm),
                                         name="postproc-model", daemon=True)
         self._thread.start()
@@ -461,6 +463,8 @@ class _CommandStream:
                 if self._cancel:
                     return
                 end = start + len(commands)
+                if self.std is not None:
+                    self.std[start:end] = chunk.std
                 if self._written_abc is not None:
                     self.new_xyz[start:end, 3:] = _local_attitude(commands[:, 3:6], self._bases, self._frame_of[start:end],
                                                                   self._written_abc[start:end])

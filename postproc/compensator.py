@@ -59,8 +59,9 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   where the training data pinned the parameters down, large where it did not reach. ``train``'s
   hybrid/kinematic graphs have it (not a re-calibration's, not the networks alone); of the
   identified arm only (σ errs on the safe side where residual networks were kept). onnxruntime
-  computes only the outputs asked for: ``compensate`` and ``check`` ask for it once, at the
-  final commands, and only to hold the targets to ``--max-std`` (P336);
+  computes only the outputs asked for: ``compensate`` and ``check`` ask for it at the final
+  commands (in the run the approach settling makes there: ``command_chunks(std=True)``), and
+  only to hold the targets to ``--max-std`` (P336);
 * ``metadata_props`` (values JSON-encoded where structured): ``postproc_contract`` "1",
   ``name``, ``robot``, ``tool`` {"name", "frame", optional "measured": [[X,Y,Z,A,B,C], ...]
   the TCPs of the data, "unseparated": [[x,y,z], ...] unit directions (flange frame) of the
@@ -141,8 +142,10 @@ STILL_DEG = 1.2e-4
 # by ~1e-5° between rows of a batch (SIMD tails); a joint between the two has moved too little
 # for the model to tell which way (both sides are taken into account)
 SAME_DEG = 3e-5
-# (8192 rows: the intermediates of the hybrid graph stay in cache, 11 % faster than 65536; measured)
-PREDICT_BATCH = 8192
+# (2048 rows: the intermediates of the hybrid graph stay in cache: ~10 % less CPU than 8192 and
+# the same numbers, each row's float32 result does not depend on the batch's length when it is
+# a multiple of the SIMD width; benchmarks/compensate_speed.py)
+PREDICT_BATCH = 2048
 # Rows per chunk of ``command_chunks``: the unit compensate overlaps model runs and rewriting by.
 COMMAND_CHUNK = 1 << 16
 # Joint ranges of the envelope are widened by this share of each range (+ 0.5°) before warning.
@@ -399,7 +402,7 @@ class Compensator:
 
     def command_chunks(self, poses: np.ndarray, iterations: int | None = None, joints=None, tool=None,
                        with_joints: bool = False, orientation: bool = False,
-                       chain: "Chain | None" = None) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+                       chain: "Chain | None" = None, std: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         """``command`` chunk by chunk (``command_chunk`` rows) in row order: yields (first row,
         commands [n, 3], the targets' joint angles [n, 6] deg if ``with_joints`` and the model
         has them, else None), the same numbers as one ``command`` call (each chunk takes its
@@ -409,9 +412,14 @@ class Compensator:
         the commands are full poses [n, 6]: the fixed point on the orientation too, R_c =
         exp(−r̂(c))·R_P with r̂ the model's ``rotation_error`` (the A,B,C triple nearest P's).
         ``chain``: fed incrementally, a call for the rows after those of an earlier call with the
-        same ``chain`` continues that call (previous pose, approach settling) as one call would."""
+        same ``chain`` continues that call (previous pose, approach settling) as one call would.
+        With ``std`` (a model with ``error_std``): each chunk's ``std`` [n] mm is the model's
+        ``error_std`` at its commands (see :meth:`command_std`), taken from the run the approach
+        settling makes at the commands anyway (a model that settles), else one more run."""
         if isinstance(joints, bool):
             joints, with_joints = None, joints
+        if std and not self.has_std:
+            raise PostprocError(f"the model has no output '{OUTPUT_STD}'", str(self.path), code=P306)
         if orientation and not self.has_rotation:
             raise PostprocError(f"the model has no output '{OUTPUT_ROTATION}': it cannot correct orientation "
                                 "(train it on data with a_meas,b_meas,c_meas)", str(self.path), code=P306)
@@ -420,14 +428,27 @@ class Compensator:
             raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code=P308)
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         rows = [None if v is None else np.broadcast_to(np.asarray(v, float), poses.shape) for v in (joints, tool)]
-        return self._chunks(poses, iterations, with_joints, *rows, orientation, chain)
+        return self._chunks(poses, iterations, with_joints, *rows, orientation, chain, std)
+
+    def command_std(self, commands: np.ndarray, before: np.ndarray | None = None, joints=None, tool=None,
+                    previous_joints=None) -> np.ndarray:
+        """The model's ``error_std`` [N] mm at commands [N, 6] (program order), each reached from
+        the command before it (``previous_pose``; the first row's: ``before`` [6], the command
+        of the target before them, None: the row itself), its approach as the graph computes it
+        (``approach`` NaN). ``joints``, ``tool``, ``previous_joints``: as ``predict``."""
+        commands = np.asarray(commands, float).reshape(-1, 6)
+        previous = None
+        if self.wants_previous:
+            head = commands[:1] if before is None else np.asarray(before, float).reshape(1, 6)
+            previous = np.vstack([head, commands[:-1]])
+        return self.predict(commands, previous, joints=joints, tool=tool, previous_joints=previous_joints, std=True)[1]
 
     def _chunks(self, poses: np.ndarray, iterations: int, with_joints: bool, joints: np.ndarray | None,
                 tool: np.ndarray | None, orientation: bool = False,
-                chain: "Chain | None" = None) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+                chain: "Chain | None" = None, std: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         chunk = self.command_chunk
         chain = Chain() if chain is None else chain
-        settle = _Settle(self, iterations, orientation) if self.settles else None
+        settle = _Settle(self, iterations, orientation, std) if self.settles else None
         if settle is not None:
             settle.head = chain.settled
         for start in range(0, len(poses), chunk):
@@ -459,13 +480,16 @@ class Compensator:
                 if orientation:
                     trial[:, 3:6] = _corrected_attitude(part[:, 3:6], rotation[0])
                 last.append(trial[-1].copy())
+            before = None if chain.before is None else chain.before[-1]  # (the command before the chunk)
             chain.before = last
-            inside = None
+            inside = stds = None
             if settle is not None:
-                inside = settle.chunk(start, part, trial, q, given)
+                inside, stds = settle.chunk(start, part, trial, q, given)
                 chain.settled = settle.head
+            elif std:
+                stds = self.command_std(trial, before, **given)
             yield CommandChunk(start, (trial if orientation else trial[:, :3]), q if with_joints else None,
-                               inside=inside)
+                               inside=inside, std=stds)
 
 
 @dataclass
@@ -507,13 +531,16 @@ class Inside:
 
 class CommandChunk(tuple):
     """(first row, commands, joint angles or None), as ``command_chunks`` yields it; ``inside``:
-    the chunk's :class:`Inside` targets (None for models that do not settle the approach)."""
+    the chunk's :class:`Inside` targets (None for models that do not settle the approach);
+    ``std``: the model's ``error_std`` [n] mm at the commands (None unless asked for)."""
 
     inside: Inside | None
+    std: np.ndarray | None
 
-    def __new__(cls, start: int, commands: np.ndarray, q: np.ndarray | None, inside: Inside | None = None):
+    def __new__(cls, start: int, commands: np.ndarray, q: np.ndarray | None, inside: Inside | None = None,
+                std: np.ndarray | None = None):
         self = super().__new__(cls, (start, commands, q))
-        self.inside = inside
+        self.inside, self.std = inside, std
         return self
 
 
@@ -525,8 +552,8 @@ class _Settle:
     """The approach settling of ``command_chunks`` (module text), chunk after chunk in program
     order: keeps the last target's command, joint angles and approach signs for the next."""
 
-    def __init__(self, model: "Compensator", iterations: int, orientation: bool):
-        self.model, self.iterations, self.orientation = model, iterations, orientation
+    def __init__(self, model: "Compensator", iterations: int, orientation: bool, std: bool = False):
+        self.model, self.iterations, self.orientation, self.std = model, iterations, orientation, std
         self.head: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (command [6], q [6], signs [6])
 
     # -- the joint motion of a chunk's commands: signs, and what the model must be told
@@ -557,12 +584,14 @@ class _Settle:
         keep = np.where(raw == 0, signs, np.nan)
         return step, signs, keep, unsure
 
-    def _run(self, c: np.ndarray, prev: np.ndarray | None, approach: np.ndarray, given: dict, with_joints: bool):
-        """Ê [m, 3] (and q [m, 6]; the rotation error with ``orientation``) at commands ``c``;
-        ``prev`` None: each row comes from itself (the program's first target)."""
+    def _run(self, c: np.ndarray, prev: np.ndarray | None, approach: np.ndarray, given: dict, with_joints: bool,
+             std: bool = False):
+        """Ê [m, 3] (and q [m, 6]; the rotation error with ``orientation``; ``error_std`` [m] with
+        ``std``) at commands ``c``; ``prev`` None: each row comes from itself (the program's first
+        target)."""
         prev = c if prev is None else prev
         out = self.model.predict(c, prev, with_joints=with_joints, rotation=self.orientation,
-                                 approach=approach, **given)
+                                 approach=approach, std=std, **given)
         return out if isinstance(out, tuple) else (out,)
 
     def _landing(self, c, prev, approach, given, q_prev, side_prev):
@@ -583,8 +612,13 @@ class _Settle:
         unsure = (np.abs(step) > SAME_DEG) & (np.abs(step) <= STILL_DEG)
         return e, q, rot, unsure
 
-    def chunk(self, start: int, part: np.ndarray, trial: np.ndarray, q_target: np.ndarray, given: dict) -> Inside:
-        """Settle ``trial`` (the chunk's commands [n, 6], changed in place) on the approach."""
+    def chunk(self, start: int, part: np.ndarray, trial: np.ndarray, q_target: np.ndarray,
+              given: dict) -> tuple[Inside, np.ndarray | None]:
+        """Settle ``trial`` (the chunk's commands [n, 6], changed in place) on the approach.
+        Returns the chunk's Inside targets and, with ``std``, the ``error_std`` [n] at the settled
+        commands (``Compensator.command_std``'s numbers: each pass's run at the commands, with
+        the approach the graph computes, asks for it too; rows whose command or previous command
+        changed after their last such run are run again)."""
         n = len(part)
         q = np.full((n, 6), np.nan)
         inside = np.zeros(n, bool)
@@ -593,14 +627,18 @@ class _Settle:
         error = np.zeros(n)
         check = np.arange(n)
         keep = np.full((n, 6), np.nan)
+        std = np.full(n, np.nan) if self.std else None
+        std_at = np.full((n, 12), np.nan)  # the command and previous command each ``std`` row is of
         for _ in range(SETTLE_PASSES):
             if not len(check):
                 break
             # each command's error with the sides its own joint motion gives
-            prev_c = np.vstack([trial[:1] if self.head is None else self.head[0][None], trial[:-1]])
+            prev_rows = self._previous(trial, check)
             first = check == 0 if self.head is None else np.zeros(len(check), bool)
-            prev_rows = np.where(first[:, None], trial[check], prev_c[check])
-            out = self._run(trial[check], prev_rows, np.full((len(check), 6), np.nan), _rows(given, check), True)
+            out = self._run(trial[check], prev_rows, np.full((len(check), 6), np.nan), _rows(given, check), True,
+                            self.std)
+            if self.std:
+                std[check], std_at[check] = out[-1], np.c_[trial[check], prev_rows]
             q[check] = out[1]
             step, signs, keep, unsure = self._motion(q)
             e, rot = out[0], (out[2] if self.orientation else None)
@@ -633,10 +671,26 @@ class _Settle:
             again[after[after < n]] = True
             again |= ~((keep_after == keep) | (np.isnan(keep_after) & np.isnan(keep))).all(axis=1)
             check = np.flatnonzero(again)
+        if self.std:
+            every = np.arange(n)
+            stale = np.flatnonzero((std_at != np.c_[trial, self._previous(trial, every)]).any(axis=1))
+            if len(stale):
+                prev_rows = self._previous(trial, stale)
+                std[stale] = self._run(trial[stale], prev_rows, np.full((len(stale), 6), np.nan), _rows(given, stale),
+                                       False, True)[-1]
         signs = self._motion(q)[1]
         self.head = (trial[-1].copy(), q[-1].copy(), signs[-1].copy())
         rows = np.flatnonzero(inside)
-        return Inside(start + rows, dead[rows], worst[rows], error[rows])
+        return Inside(start + rows, dead[rows], worst[rows], error[rows]), std
+
+    def _previous(self, trial: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """The command before each of ``rows`` [k, 6] (the chunk before's last; the program's
+        first target's: itself)."""
+        before = rows - 1
+        out = trial[np.maximum(before, 0)]
+        if self.head is not None:
+            out[before < 0] = self.head[0]
+        return out
 
     def _hypotheses(self, bad, part, trial, q, q_target, step, q_prev, side_prev, prev_rows, given):
         """Solve targets ``bad`` again under each approach hypothesis of their SETTLE_JOINTS

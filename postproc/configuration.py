@@ -56,6 +56,15 @@ def _wrap(deg: np.ndarray) -> np.ndarray:
     return (deg + 180.0) % 360.0 - 180.0
 
 
+def _distinct_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(rows, axis=0, return_inverse=True)`` ([k, m] sorted, [N]), with the common
+    case (one $TOOL for the whole program) without its sort of every row."""
+    if len(rows) and (rows == rows[0]).all():
+        return rows[:1].copy(), np.zeros(len(rows), int)
+    distinct, which = np.unique(rows, axis=0, return_inverse=True)
+    return distinct, which.ravel()
+
+
 def branch_table(robot: Robot, poses: np.ndarray, tools: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Joint angles of each branch indexed by its status: [8 (S), N, 6] deg (one turn within the
     limits, NaN where that branch does not reach the pose) and the mask [8, N], every branch
@@ -95,8 +104,7 @@ class _Branches:
         if tools is None:
             self.arms, self.which = [robot], np.zeros(n, int)
         else:
-            distinct, which = np.unique(np.asarray(tools, float).reshape(n, 6), axis=0, return_inverse=True)
-            self.which = which.ravel()
+            distinct, self.which = _distinct_rows(np.asarray(tools, float).reshape(n, 6))
             self.arms = [robot if np.array_equal(tool, robot.tool) else Robot(robot.description.replace(tool=tool))
                          for tool in distinct]  # (the few tools of a program)
         self.table = np.full((8, n, 6), np.nan)
@@ -214,9 +222,10 @@ def _candidates(robot: Robot, table: np.ndarray, ok: np.ndarray, turn: np.ndarra
                 ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Candidates [B, n, 6] of the branches [B, n, 6] on the turn T states (else the turn nearest
     ``ref``) and their squared distance to ``ref`` [B, n] (inf where none)."""
-    near, in_limits = robot.nearest_turn(table, ref)
-    signed = _turn_for_sign(robot, table, np.broadcast_to(turn, table.shape[:2]))
-    cand = np.where((turn >= 0)[None, :, None], signed, near)
+    cand, in_limits = robot.nearest_turn(table, ref)
+    stated = np.flatnonzero(turn >= 0)  # (only those: most programs state no T)
+    if len(stated):
+        cand[:, stated] = _turn_for_sign(robot, table[:, stated], np.broadcast_to(turn[stated], table.shape[:1] + stated.shape))
     good = ok & in_limits & np.isfinite(cand).all(axis=-1)
     with np.errstate(invalid="ignore"):
         cost = np.where(good, ((cand - ref) ** 2).sum(axis=-1), np.inf)

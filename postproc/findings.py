@@ -40,7 +40,7 @@ from .programs import Program
 
 __all__ = [
     "Settings", "Selection", "Commands", "select", "findings", "static_findings", "command_findings", "dead_band_notes",
-    "robot_base_poses", "tool_mismatch", "robot_mismatch", "collect", "MAX_LISTED", "DEFAULT_MAX_CORRECTION_MM",
+    "robot_base_poses", "std_bound", "tool_mismatch", "robot_mismatch", "collect", "MAX_LISTED", "DEFAULT_MAX_CORRECTION_MM",
 ]
 
 # An error model that predicts more than this is wrong, not the robot (guard, --max-correction).
@@ -94,6 +94,7 @@ class Commands:
     commanded: np.ndarray
     joints: np.ndarray | None = None
     inside: Inside | None = None  # targets whose joints stay in their backlash dead band (P321)
+    std: np.ndarray | None = None  # [M] mm: the model's error_std at the commands (std_bound: asked for)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -311,19 +312,29 @@ def joints_rule(program: Program, model: Compensator, commands: Commands) -> lis
                    f"model was trained on ({_joints_away(q[away[i]], envelope.joints)})")
 
 
+def std_bound(model: Compensator, settings: Settings) -> float | None:
+    """The bound :func:`std_rule` holds ``error_std`` to (None: no check, e.g. a model without
+    that output): what the model run must supply (``Commands.std``)."""
+    bound = settings.max_std_mm if settings.max_std_mm is not None else model.max_std_mm
+    return bound if model.has_std and bound is not None and math.isfinite(bound) else None
+
+
 def std_rule(program: Program, model: Compensator, settings: Settings, commands: Commands) -> list[Diagnostic]:
     """P336 (a warning): the model's own std at a target (output ``error_std`` at its command,
-    each reached from the previous one's) above ``settings.max_std_mm`` or, without it, the
-    card's ``uncertainty.max_std_mm``: the training data did not pin the model down there.
-    A model without ``error_std`` states nothing: no finding. The one model run that asks for
-    ``error_std`` is this rule's (onnxruntime computes only the outputs asked for)."""
-    bound = settings.max_std_mm if settings.max_std_mm is not None else model.max_std_mm
+    each reached from the previous one's: ``Compensator.command_std``) above
+    ``settings.max_std_mm`` or, without it, the card's ``uncertainty.max_std_mm``: the training
+    data did not pin the model down there. A model without ``error_std`` states nothing: no
+    finding. The numbers come with the commands (``Commands.std``: onnxruntime computes only the
+    outputs asked for, and the run that settles the approach at the commands asks for it too);
+    commands without them are run once more here."""
+    bound = std_bound(model, settings)
     sel = commands.selection
-    if not model.has_std or bound is None or not math.isfinite(bound) or not len(sel.rows):
+    if bound is None or not len(sel.rows):
         return []
-    poses = np.c_[commands.commanded, sel.poses[:, 3:6]]
-    previous = np.r_[poses[:1], poses[:-1]] if model.wants_previous else None
-    _, std = model.predict(poses, previous, joints=sel.joints, tool=sel.tool, std=True)
+    std = commands.std
+    if std is None:
+        # (no previous_joints: the graph solves each previous command on its target's branch)
+        std = model.command_std(np.c_[commands.commanded, sel.poses[:, 3:6]], joints=sel.joints, tool=sel.tool)
     high = np.flatnonzero(std > bound)
     high = high[np.argsort(-std[high], kind="stable")]
     return collect(program, sel.rows[high], P336, lambda i: f"the model's std at this target is {std[high[i]]:.3f} "
@@ -424,11 +435,22 @@ def findings(program: Program, commands: Commands | None, model: Compensator, se
     return out
 
 
-def run_model(model: Compensator, selection: Selection, iterations: int | None) -> Commands:
-    """The model's fixed-point commands (and joint angles where the card has joint ranges)."""
+def run_model(model: Compensator, selection: Selection, iterations: int | None, std: bool = False) -> Commands:
+    """The model's fixed-point commands (and joint angles where the card has joint ranges; with
+    ``std``, its ``error_std`` at them: :func:`std_bound`)."""
     envelope = model.envelope
     wanted = model.has_joints and envelope is not None and envelope.joints is not None
     if not len(selection.rows):
-        return Commands(selection, np.zeros((0, 3)), np.zeros((0, 6)) if wanted else None)
-    commanded, joints = model.command(selection.poses, iterations, joints=selection.joints, tool=selection.tool, with_joints=True)
-    return Commands(selection, commanded, joints if wanted else None)
+        return Commands(selection, np.zeros((0, 3)), np.zeros((0, 6)) if wanted else None, std=np.zeros(0) if std else None)
+    commanded = np.empty((len(selection.rows), 3))
+    joints = np.empty((len(selection.rows), 6)) if wanted else None
+    stds = np.empty(len(selection.rows)) if std else None
+    for chunk in model.command_chunks(selection.poses, iterations, joints=selection.joints, tool=selection.tool,
+                                      with_joints=True, std=std):
+        start, part, q = chunk
+        commanded[start:start + len(part)] = part
+        if joints is not None:
+            joints[start:start + len(part)] = q
+        if stds is not None:
+            stds[start:start + len(part)] = chunk.std
+    return Commands(selection, commanded, joints, std=stds)

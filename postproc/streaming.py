@@ -54,7 +54,7 @@ STREAM_BYTES = 8 << 20
 # batch (compensator.PREDICT_BATCH) that divides COMMAND_CHUNK, so each row is computed in the
 # same batch as in the in-memory path (the same float32 numbers); settling models take
 # COMMAND_CHUNK (the settling's passes over a chunk differ at other borders by ~1e-4 mm)
-STREAM_TARGETS = 2 * compensator.PREDICT_BATCH
+STREAM_TARGETS = 8 * compensator.PREDICT_BATCH
 # a header or tail longer than this is not a CAM program's: the in-memory path
 HEADER_BYTES = 1 << 20
 TAIL_BYTES = 1 << 16

@@ -121,3 +121,23 @@ def test_compensate_names_the_targets_in_a_dead_band(model, tmp_path, capsys):
     assert main(["compensate", str(src), "-o", str(tmp_path / "q.src"), "--model", str(model.path)]) == 0
     assert "P321 A" not in capsys.readouterr().err  # (-v only)
     assert out.read_bytes() == (tmp_path / "q.src").read_bytes()
+
+
+def test_the_std_at_the_commands_comes_from_the_settling_runs(model, pocket, monkeypatch):
+    """``command_chunks(std=True)``: ``error_std`` at the settled commands (each from the one
+    before, across chunk borders), as ``command_std`` computes it, without a pass of its own."""
+    assert model.has_std and model.settles
+    monkeypatch.setattr(model, "command_chunk", 256)
+    asked = []
+    predict = type(model).predict
+    monkeypatch.setattr(model, "predict", lambda *a, **k: asked.append(len(a[0]) * bool(k.get("std"))) or predict(model, *a, **k))
+    chunks = list(model.command_chunks(pocket, std=True))
+    std = np.concatenate([c.std for c in chunks])
+    # (what settling moved after its first run at the commands was run again, and only that)
+    assert len(pocket) < sum(asked) < 1.2 * len(pocket)
+    commands = np.c_[np.vstack([c for _, c, _ in chunks]), pocket[:, 3:6]]
+    monkeypatch.undo()
+    expected = model.command_std(commands)
+    # (float32 rows computed in other batches differ in their last bits)
+    assert np.allclose(std, expected, rtol=1e-5, atol=0) and np.mean(std == expected) > 0.9
+    assert len(np.unique(std)) > len(std) / 2  # (it varies over the targets)

@@ -15,7 +15,7 @@ def test_a_figure_that_differs_is_reported(tmp_path):
     readme = (REPO / "README.md").read_text()
     marked = readme.index("<!-- fig ")
     start = marked - 1
-    while readme[start - 1].isdigit() or readme[start - 1] == ",":
+    while readme[start - 1].isdigit() or readme[start - 1] in ",.":
         start -= 1
     wrong = tmp_path / "README.md"
     wrong.write_text(readme[:start] + "9" + readme[start:])  # one more digit in front
