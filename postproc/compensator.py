@@ -146,8 +146,11 @@ SAME_DEG = 3e-5
 # the same numbers, each row's float32 result does not depend on the batch's length when it is
 # a multiple of the SIMD width; benchmarks/compensate_speed.py)
 PREDICT_BATCH = 2048
-# Rows per chunk of ``command_chunks``: the unit compensate overlaps model runs and rewriting by.
-COMMAND_CHUNK = 1 << 16
+# Rows per chunk of ``command_chunks``: the unit compensate overlaps model runs and rewriting by,
+# and a streamed program's chunk for a model that settles the approach. 16,384: a 1M-target CAM
+# program streams in 215 MB (65,536: 420 MB, over issue 13's 300 MB) at the same speed; the
+# settling's chunk borders move, which changed 2 of 200,000 coordinates by 0.001 mm (last digit)
+COMMAND_CHUNK = 1 << 14
 # Joint ranges of the envelope are widened by this share of each range (+ 0.5°) before warning.
 JOINT_MARGIN = 0.05
 # More fixed-point iterations than this is a typo or a hostile model card, not a method (a hang).
