@@ -28,11 +28,12 @@ __all__ = ["check_numbers", "check_inserted", "check_round_trip", "check_memory"
 
 # New numbers are written with at least three decimals: half a µm of rounding at most.
 ROUNDING_MM = 5e-4
-# Peak memory of compensating, per byte of program text (benchmarks/compensate_speed.py, 1M
-# targets): 13 × on a KRL CAM program (69.5 MB → 916 MB), 20 × on a pose CSV (45.5 MB → 0.90 GB:
-# shorter lines per target; 27 × before pose lists were read vectorised). A program is refused when 30 × its size is more than the memory
-# available: it would be killed half-way otherwise.
-MEMORY_PER_INPUT_BYTE = 30
+# Peak memory of compensating in memory, per byte of program text (benchmarks/compensate_speed.py
+# --memory, 2026-12-02, the default model with its approach settling): 83 MB + 38 × on a KRL CAM
+# program, 59 × on a 1M-row pose CSV (2.68 GB for 45.5 MB: shorter lines per target). A program
+# is refused when 64 × its size is more than the memory available: it would be killed half-way
+# otherwise (a KRL .src above 8 MB streams, in ~215 MB whatever its size, and is not held to it).
+MEMORY_PER_INPUT_BYTE = 64
 
 
 def _available_bytes() -> int | None:
