@@ -288,9 +288,9 @@ def moved_parameters(card: dict, previous: dict | None) -> list[str]:
 
 
 def train_robot(job: RobotJob, outdir: str | Path) -> dict:
-    """The adapter: one robot's train (+ validate, + update) and report; never raises."""
-    from .compensator import load_model
-
+    """A robot's first step, the adapter to training: ``postproc train`` (``--update`` with a
+    previous model) → ``OUT/NAME/model.onnx``; never raises. Its result (``ok`` still False, or
+    ``error`` set) goes to :func:`report_robot`."""
     out = Path(outdir) / job.name
     out.mkdir(parents=True, exist_ok=True)
     model = out / "model.onnx"
@@ -299,35 +299,77 @@ def train_robot(job: RobotJob, outdir: str | Path) -> dict:
     result["warnings"] = [ln for ln in err.splitlines() if "warning" in ln.lower() or ": W" in ln]
     if code != 0 or not model.is_file():
         result["error"] = (err.splitlines() or [f"postproc train exited {code}"])[-1]
+    return result
+
+
+def report_robot(result: dict, job: RobotJob, outdir: str | Path) -> dict:
+    """A robot's second step, on the model :func:`train_robot` wrote: the model card
+    (``model-card.json``, the table's figures, the moved parameters) and the report on the
+    held-out rows (``held-out.csv``, ``report/``: ``postproc report``'s library calls, the model
+    loaded once for both); never raises. Nothing is done for a robot whose training failed."""
+    if result.get("error"):
         return result
+    from .compensator import load_model
+    from .report import read_report_data, write_report
+
+    out = Path(outdir) / job.name
     try:
-        card = load_model(model).metadata
+        model = load_model(result["model"])
         prev = load_model(job.previous).metadata if job.previous else None
     except PostprocError as exc:
-        result["error"] = str(exc)
-        return result
+        return {**result, "error": str(exc)}
+    card = model.metadata
     (out / "model-card.json").write_text(json.dumps(card, indent=2, default=str), encoding="utf-8")
     acc = card.get("accuracy") or {}
-    result.update(points=(acc.get("n_train") or 0) + (acc.get("n_val") or 0),
-                  unc_mean=acc.get("val_uncompensated_mean_mm"), unc_max=acc.get("val_uncompensated_max_mm"),
-                  comp_mean=acc.get("val_mean_mm"), comp_max=acc.get("val_max_mm"),
-                  moved=moved_parameters(card, prev))
+    result = {**result, "points": (acc.get("n_train") or 0) + (acc.get("n_val") or 0),
+              "unc_mean": acc.get("val_uncompensated_mean_mm"), "unc_max": acc.get("val_uncompensated_max_mm"),
+              "comp_mean": acc.get("val_mean_mm"), "comp_max": acc.get("val_max_mm"),
+              "moved": moved_parameters(card, prev), "warnings": list(result["warnings"])}
     try:
-        held = _held_out(job, out / "held-out.csv")
-        code, err = _run_cli(["report", str(held), "--model", str(model), "-o", str(out / "report")])
-        if code != 0:
-            result["warnings"].append(f"report: {(err.splitlines() or [str(code)])[-1]}")
+        write_report(read_report_data(_held_out(job, out / "held-out.csv"), model), out / "report")
     except PostprocError as exc:
         result["warnings"].append(f"report: {exc}")
+    except ModuleNotFoundError as exc:  # matplotlib: the report extra
+        from .cli import missing_extra
+
+        result["warnings"].append(f"report: {missing_extra(exc, 'report') or exc}")
     result["ok"] = True
     return result
 
 
+def robot(job: RobotJob, outdir: str | Path) -> dict:
+    """One robot's whole job in this process: :func:`train_robot` then :func:`report_robot`."""
+    return report_robot(train_robot(job, outdir), job, outdir)
+
+
+# the local cluster's two kinds of worker processes (Dask worker resources)
+TRAIN, REPORT = "postproc-train", "postproc-report"
+
+
+def _local_cluster(workers: int | None):
+    """``workers`` (default: one per core) training worker processes and a third as many report
+    workers, one thread each. The trainings never share a process with onnxruntime: once it is
+    imported, torch's ONNX export (most of a training) takes ~25 % more CPU here (both use
+    pybind11; C++ exceptions unwind through more of it). The report workers never train."""
+    import logging
+
+    from dask.distributed import Nanny, Scheduler, SpecCluster
+
+    n = workers or os.cpu_count() or 1
+    worker = {"nthreads": 1, "memory_limit": 0, "host": "127.0.0.1", "dashboard": False, "silence_logs": logging.WARN}
+    specs = {f"train-{i}": {"cls": Nanny, "options": {**worker, "resources": {TRAIN: 1}}} for i in range(n)}
+    specs.update({f"report-{i}": {"cls": Nanny, "options": {**worker, "resources": {REPORT: 1}}}
+                  for i in range((n + 2) // 3)})
+    scheduler = {"cls": Scheduler, "options": {"host": "127.0.0.1", "dashboard": False}}
+    return SpecCluster(workers=specs, scheduler=scheduler, silence_logs=logging.WARN)
+
+
 def run_fleet(jobs: list[RobotJob], outdir: str | Path, address: str | None = None, workers: int | None = None,
               force: bool = False) -> list[dict]:
-    """Every robot's :func:`train_robot` as a task on Dask; robots with unchanged inputs skipped."""
+    """Every robot as two tasks on Dask, :func:`train_robot` then :func:`report_robot` (on the local
+    cluster each on its kind of worker); robots with unchanged inputs skipped."""
     import dask
-    from dask.distributed import Client, LocalCluster
+    from dask.distributed import Client
 
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
@@ -343,15 +385,16 @@ def run_fleet(jobs: list[RobotJob], outdir: str | Path, address: str | None = No
             todo.append(job)
     if todo:
         if address:
-            client = Client(address)
+            client, kinds = Client(address), (None, None)
         else:
-            # one process per robot at a time: each imports the training once and runs robot after
-            # robot in itself; a robot that kills its process is retried once, then fails alone
+            # each worker process imports its libraries once and runs robot after robot in itself; a
+            # robot that kills its process is retried once, then fails alone
             with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
-                client = Client(LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                                             processes=True, memory_limit=0, dashboard_address=":0"))
+                client, kinds = Client(_local_cluster(workers)), ({TRAIN: 1}, {REPORT: 1})
         try:
-            futures = client.map(train_robot, todo, outdir=str(outdir), pure=False)
+            trained = client.map(train_robot, todo, outdir=str(outdir), pure=False, resources=kinds[0])
+            futures = [client.submit(report_robot, t, job, str(outdir), pure=False, resources=kinds[1])
+                       for t, job in zip(trained, todo)]
             for job, fut in zip(todo, futures):
                 try:
                     results[job.name] = fut.result()
