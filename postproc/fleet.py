@@ -14,16 +14,21 @@ The fleet file (TOML)::
 
 Paths are relative to the fleet file. A bad file is refused with P610 at its line.
 
-Engine: Dask distributed (a ``LocalCluster`` of one worker process per core, one task at a
-time each; ``address`` for a real scheduler). Each robot's job is one task calling
-:func:`train_robot`, the one adapter to the training: it runs ``postproc train`` (and
-``postproc report`` on the held-out rows). In a worker process of its own it runs them in that
-process (:func:`_run_cli`): the imports (torch alone ~2.5 s here) are paid once per worker, and
-a robot whose training crashes the process (a torch abort, out of memory) fails alone, its
-worker restarted by the nanny. Elsewhere (a worker running several tasks at a time) they run as
-subprocesses. When a library training API exists (issue 16.2) this adapter is the one place to
-switch to it. The structure search of ``train --search`` (:func:`task_map`) runs its candidates
-as tasks on the same cluster.
+Engine: Dask distributed (``address`` for a real scheduler; else a local cluster,
+:func:`_local_cluster`). Each robot is two tasks: :func:`train_robot`, the one adapter to the
+training (``postproc train``, ``--update`` with a previous model), then :func:`report_robot`
+(the model card, the table's figures, ``postproc report``'s library on the held-out rows).
+The local cluster has two kinds of worker process, one task at a time each (Dask worker
+resources): one training worker per core, which never imports onnxruntime (once it is loaded,
+torch's ONNX export, most of a training, takes ~25 % more CPU), and a third as many report
+workers (onnxruntime, matplotlib, no torch). A training worker runs ``postproc train`` in its
+own process (:func:`_run_cli`): the imports (torch alone ~2 s here) are paid once per worker,
+and a robot whose training crashes the process (a torch abort, out of memory) fails alone, its
+worker restarted by the nanny (which also sets OMP/MKL/OpenBLAS threads to 1: torch runs one
+thread). Elsewhere (a worker running several tasks at a time) it is a subprocess. When a
+library training API exists (issue 16.2) this adapter is the one place to switch to it. The
+structure search of ``train --search`` (:func:`task_map`) runs its candidates as tasks on the
+same cluster.
 
 Measured here (2 cores shared by six developers, load 2.2-3.1; benchmarks/fleet_engines.py, 200 no-op
 tasks after 10 warm-up ones): Ray ``ray.init(num_cpus=2)`` import+start 4.4-7.5 s, 1.0-3.3 ms
@@ -31,8 +36,7 @@ per task; Dask ``LocalCluster(processes=False)`` import+start 0.4-0.9 s, 2.0-2.7
 ``pip install "dask[distributed]"`` 6 s, ``pip install ray`` 32 s. A robot's job takes seconds
 (subprocess start, training, report), so the per-task cost of either is noise; Dask starts
 faster, installs faster and is the one picked.
-With the robots run in the worker processes, 16 simulated robots take 1.60-1.96x less wall
-time than ``postproc train`` + ``report`` 16 times in a row (benchmarks/fleet_speed.py).
+The fleet's speed against ``postproc train`` 16 times in a row: benchmarks/fleet_speed.py.
 A rerun skips robots whose inputs (sha256 of the data,
 robot description, method/arguments, previous model) did not change: ``fleet-state.json``
 beside the outputs.
@@ -348,9 +352,7 @@ TRAIN, REPORT = "postproc-train", "postproc-report"
 
 def _local_cluster(workers: int | None):
     """``workers`` (default: one per core) training worker processes and a third as many report
-    workers, one thread each. The trainings never share a process with onnxruntime: once it is
-    imported, torch's ONNX export (most of a training) takes ~25 % more CPU here (both use
-    pybind11; C++ exceptions unwind through more of it). The report workers never train."""
+    workers, one thread each (the module's docstring says why two kinds)."""
     import logging
 
     from dask.distributed import Nanny, Scheduler, SpecCluster
