@@ -350,14 +350,14 @@ def robot(job: RobotJob, outdir: str | Path) -> dict:
 TRAIN, REPORT = "postproc-train", "postproc-report"
 
 
-def _local_cluster(workers: int | None):
-    """``workers`` (default: one per core) training worker processes and a third as many report
-    workers, one thread each (the module's docstring says why two kinds)."""
+def _local_cluster(workers: int | None, robots: int | None = None):
+    """``workers`` (default: one per core; no more than ``robots``) training worker processes and a
+    third as many report workers, one thread each (the module's docstring says why two kinds)."""
     import logging
 
     from dask.distributed import Nanny, Scheduler, SpecCluster
 
-    n = workers or os.cpu_count() or 1
+    n = min(workers or os.cpu_count() or 1, robots or sys.maxsize)
     worker = {"nthreads": 1, "memory_limit": 0, "host": "127.0.0.1", "dashboard": False, "silence_logs": logging.WARN}
     specs = {f"train-{i}": {"cls": Nanny, "options": {**worker, "resources": {TRAIN: 1}}} for i in range(n)}
     specs.update({f"report-{i}": {"cls": Nanny, "options": {**worker, "resources": {REPORT: 1}}}
@@ -392,7 +392,7 @@ def run_fleet(jobs: list[RobotJob], outdir: str | Path, address: str | None = No
             # each worker process imports its libraries once and runs robot after robot in itself; a
             # robot that kills its process is retried once, then fails alone
             with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
-                client, kinds = Client(_local_cluster(workers)), ({TRAIN: 1}, {REPORT: 1})
+                client, kinds = Client(_local_cluster(workers, len(todo))), ({TRAIN: 1}, {REPORT: 1})
         try:
             trained = client.map(train_robot, todo, outdir=str(outdir), pure=False, resources=kinds[0])
             futures = [client.submit(report_robot, t, job, str(outdir), pure=False, resources=kinds[1])
