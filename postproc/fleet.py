@@ -333,10 +333,11 @@ def report_robot(result: dict, job: RobotJob, outdir: str | Path) -> dict:
         write_report(read_report_data(_held_out(job, out / "held-out.csv"), model), out / "report")
     except PostprocError as exc:
         result["warnings"].append(f"report: {exc}")
-    except ModuleNotFoundError as exc:  # matplotlib: the report extra
+    except Exception as exc:  # noqa: BLE001 - as `postproc report` would end: the robot's model stands, its report not
         from .cli import missing_extra
 
-        result["warnings"].append(f"report: {missing_extra(exc, 'report') or exc}")
+        hint = missing_extra(exc, "report") if isinstance(exc, ModuleNotFoundError) else None  # matplotlib
+        result["warnings"].append(f"report: {hint or f'internal error: {type(exc).__name__}: {exc}'}")
     result["ok"] = True
     return result
 

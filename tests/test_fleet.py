@@ -1,5 +1,5 @@
 """postproc fleet: simulated robots (plan + measure --robot-seed) trained as Dask tasks on a
-local in-process cluster; one robot with bad data fails alone; reruns skip unchanged robots;
+local cluster of worker processes; one robot with bad data fails alone; reruns skip unchanged robots;
 a bad fleet file is refused at its line."""
 import json
 
