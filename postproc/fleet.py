@@ -300,6 +300,7 @@ def train_robot(job: RobotJob, outdir: str | Path) -> dict:
     model = out / "model.onnx"
     result = {"name": job.name, "ok": False, "model": str(model), "points": None, "warnings": [], "error": ""}
     code, err = _run_cli(job.train_argv(model))
+    _settle()
     result["warnings"] = [ln for ln in err.splitlines() if "warning" in ln.lower() or ": W" in ln]
     if code != 0 or not model.is_file():
         result["error"] = (err.splitlines() or [f"postproc train exited {code}"])[-1]
@@ -338,8 +339,24 @@ def report_robot(result: dict, job: RobotJob, outdir: str | Path) -> dict:
 
         hint = missing_extra(exc, "report") if isinstance(exc, ModuleNotFoundError) else None  # matplotlib
         result["warnings"].append(f"report: {hint or f'internal error: {type(exc).__name__}: {exc}'}")
+    _settle()
     result["ok"] = True
     return result
+
+
+def _settle() -> None:
+    """In a worker process of its own, after its first robot: what is alive then (the imported
+    libraries, their caches) is moved out of the garbage collector's sight (``gc.freeze``), so
+    that the full collections later robots trigger scan only their own objects (measured in one
+    warm process, 8 robots: ~0.3 s per full collection, one every second robot, before; the
+    collector's time per robot 0.01-0.1 s after)."""
+    if not _own_process() or getattr(_settle, "done", False):
+        return
+    import gc
+
+    gc.collect()
+    gc.freeze()
+    _settle.done = True
 
 
 def robot(job: RobotJob, outdir: str | Path) -> dict:
