@@ -20,8 +20,9 @@ training (``postproc train``, ``--update`` with a previous model), then :func:`r
 (the model card, the table's figures, ``postproc report``'s library on the held-out rows).
 The local cluster has two kinds of worker process, one task at a time each (Dask worker
 resources): one training worker per core, which never imports onnxruntime (once it is loaded,
-torch's ONNX export, most of a training, takes ~25 % more CPU), and a third as many report
-workers (onnxruntime, matplotlib, no torch). A training worker runs ``postproc train`` in its
+a training takes ~25 % more CPU here, in torch's ONNX export; the two share pybind11's internals
+and perf shows C++ exception unwinding there only then, the cause is not pinned down), and a third
+as many report workers (onnxruntime, matplotlib, no torch). A training worker runs ``postproc train`` in its
 own process (:func:`_run_cli`): the imports (torch alone ~2 s here) are paid once per worker,
 and a robot whose training crashes the process (a torch abort, out of memory) fails alone, its
 worker restarted by the nanny (which also sets OMP/MKL/OpenBLAS threads to 1: torch runs one
