@@ -26,7 +26,15 @@ History (same machine, 2 cores shared with up to 7 other developers; 1-min load 
     internals). Now (fleet.py) a robot is two tasks: training on training workers (one per
     core, onnxruntime never imported), then card + report on a report worker (a third as many),
     the model loaded once for both, the report through the library (no CLI parse, no second
-    model load). Measured results: benchmarks/results/fleet_speed.json.
+    model load); a worker's garbage collector freezes what is alive after its first robot.
+  2026-12-02 04:04-04:09Z, this version, --pairs 3, A B A B (1-min load 3.1-4.3 from the others):
+    A 57.0 / 58.7 / 54.0 s (56.0 / 57.3 / 52.9 s CPU); B 42.5 / 49.3 / 34.8 s (56.1 / 55.8 / 47.5 s
+    CPU): 1.34x, 1.19x, 1.55x. The fleet spent as much CPU per robot as `train` alone (3.5 s each
+    under that load; tasks in the workers under load: training 2.0-2.4 s, report 0.9-1.1 s, ~1.5x
+    their CPU on a quiet machine, 1.35 and 0.7 s) and got ~1.3 cores. On the machine at load 2,
+    two `train` loops side by side took 5.65 s CPU and wall for 4 trainings each against 5.31 s
+    alone: the 2 cores are real, the gap is the others' load and the fleet's extra work.
+  Figures of the last run: benchmarks/results/fleet_speed.json (README).
 """
 import argparse
 import os
