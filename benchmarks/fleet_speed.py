@@ -31,7 +31,7 @@ History (same machine, 2 cores shared with up to 7 other developers; 1-min load 
     A 57.0 / 58.7 / 54.0 s (56.0 / 57.3 / 52.9 s CPU); B 42.5 / 49.3 / 34.8 s (56.1 / 55.8 / 47.5 s
     CPU): 1.34x, 1.19x, 1.55x. The fleet spent as much CPU per robot as `train` alone (3.5 s each
     under that load; tasks in the workers under load: training 2.0-2.4 s, report 0.9-1.1 s, ~1.5x
-    their CPU on a quiet machine, 1.35 and 0.7 s) and got ~1.3 cores. On the machine at load 2,
+    their CPU on a quiet machine, 1.35 and 0.7 s) and got 1.1-1.4 cores. On the machine at load 2,
     two `train` loops side by side took 5.65 s CPU and wall for 4 trainings each against 5.31 s
     alone: the 2 cores are real, the gap is the others' load and the fleet's extra work.
   Figures of the last run: benchmarks/results/fleet_speed.json (README).
