@@ -34,6 +34,10 @@ History (same machine, 2 cores shared with up to 7 other developers; 1-min load 
     their CPU on a quiet machine, 1.35 and 0.7 s) and got 1.1-1.4 cores. On the machine at load 2,
     two `train` loops side by side took 5.65 s CPU and wall for 4 trainings each against 5.31 s
     alone: the 2 cores are real, the gap is the others' load and the fleet's extra work.
+  2026-12-02 04:14-04:20Z, the same, --pairs 4 (1-min load 0.8-5.4, this benchmark's processes
+    included): A 62.1 / 52.8 / 54.4 / 58.9 s, B 44.1 / 38.0 / 36.0 / 34.5 s: 1.41x, 1.39x, 1.51x,
+    1.71x; CPU per robot 3.28 s (fleet) against 3.44 s (train alone): the three worker processes'
+    tasks take ~1.5x their quiet CPU when they run side by side under the others' load.
   Figures of the last run: benchmarks/results/fleet_speed.json (README).
 """
 import argparse
