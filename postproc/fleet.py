@@ -14,16 +14,22 @@ The fleet file (TOML)::
 
 Paths are relative to the fleet file. A bad file is refused with P610 at its line.
 
-Engine: Dask distributed (a ``LocalCluster`` of one worker process per core, one task at a
-time each; ``address`` for a real scheduler). Each robot's job is one task calling
-:func:`train_robot`, the one adapter to the training: it runs ``postproc train`` (and
-``postproc report`` on the held-out rows). In a worker process of its own it runs them in that
-process (:func:`_run_cli`): the imports (torch alone ~2.5 s here) are paid once per worker, and
-a robot whose training crashes the process (a torch abort, out of memory) fails alone, its
-worker restarted by the nanny. Elsewhere (a worker running several tasks at a time) they run as
-subprocesses. When a library training API exists (issue 16.2) this adapter is the one place to
-switch to it. The structure search of ``train --search`` (:func:`task_map`) runs its candidates
-as tasks on the same cluster.
+Engine: Dask distributed (``address`` for a real scheduler; else a local cluster,
+:func:`_local_cluster`). Each robot is two tasks: :func:`train_robot`, the one adapter to the
+training (``postproc train``, ``--update`` with a previous model), then :func:`report_robot`
+(the model card, the table's figures, ``postproc report``'s library on the held-out rows).
+The local cluster has two kinds of worker process, one task at a time each (Dask worker
+resources): one training worker per core, which never imports onnxruntime (once it is loaded,
+a training takes ~25 % more CPU here, in torch's ONNX export; the two share pybind11's internals
+and perf shows C++ exception unwinding there only then, the cause is not pinned down), and a third
+as many report workers (onnxruntime, matplotlib, no torch). A training worker runs ``postproc train`` in its
+own process (:func:`_run_cli`): the imports (torch alone ~2 s here) are paid once per worker,
+and a robot whose training crashes the process (a torch abort, out of memory) fails alone, its
+worker restarted by the nanny (which also sets OMP/MKL/OpenBLAS threads to 1: torch runs one
+thread). Elsewhere (a worker running several tasks at a time) it is a subprocess. When a
+library training API exists (issue 16.2) this adapter is the one place to switch to it. The
+structure search of ``train --search`` (:func:`task_map`) runs its candidates as tasks on the
+same cluster.
 
 Measured here (2 cores shared by six developers, load 2.2-3.1; benchmarks/fleet_engines.py, 200 no-op
 tasks after 10 warm-up ones): Ray ``ray.init(num_cpus=2)`` import+start 4.4-7.5 s, 1.0-3.3 ms
@@ -31,8 +37,7 @@ per task; Dask ``LocalCluster(processes=False)`` import+start 0.4-0.9 s, 2.0-2.7
 ``pip install "dask[distributed]"`` 6 s, ``pip install ray`` 32 s. A robot's job takes seconds
 (subprocess start, training, report), so the per-task cost of either is noise; Dask starts
 faster, installs faster and is the one picked.
-With the robots run in the worker processes, 16 simulated robots take 1.60-1.96x less wall
-time than ``postproc train`` + ``report`` 16 times in a row (benchmarks/fleet_speed.py).
+The fleet's speed against ``postproc train`` 16 times in a row: benchmarks/fleet_speed.py.
 A rerun skips robots whose inputs (sha256 of the data,
 robot description, method/arguments, previous model) did not change: ``fleet-state.json``
 beside the outputs.
@@ -288,46 +293,104 @@ def moved_parameters(card: dict, previous: dict | None) -> list[str]:
 
 
 def train_robot(job: RobotJob, outdir: str | Path) -> dict:
-    """The adapter: one robot's train (+ validate, + update) and report; never raises."""
-    from .compensator import load_model
-
+    """A robot's first step, the adapter to training: ``postproc train`` (``--update`` with a
+    previous model) → ``OUT/NAME/model.onnx``; never raises. Its result (``ok`` still False, or
+    ``error`` set) goes to :func:`report_robot`."""
     out = Path(outdir) / job.name
     out.mkdir(parents=True, exist_ok=True)
     model = out / "model.onnx"
     result = {"name": job.name, "ok": False, "model": str(model), "points": None, "warnings": [], "error": ""}
     code, err = _run_cli(job.train_argv(model))
+    _settle()
     result["warnings"] = [ln for ln in err.splitlines() if "warning" in ln.lower() or ": W" in ln]
     if code != 0 or not model.is_file():
         result["error"] = (err.splitlines() or [f"postproc train exited {code}"])[-1]
+    return result
+
+
+def report_robot(result: dict, job: RobotJob, outdir: str | Path) -> dict:
+    """A robot's second step, on the model :func:`train_robot` wrote: the model card
+    (``model-card.json``, the table's figures, the moved parameters) and the report on the
+    held-out rows (``held-out.csv``, ``report/``: ``postproc report``'s library calls, the model
+    loaded once for both); never raises. Nothing is done for a robot whose training failed."""
+    if result.get("error"):
         return result
+    from .compensator import load_model
+    from .report import read_report_data, write_report
+
+    out = Path(outdir) / job.name
     try:
-        card = load_model(model).metadata
+        model = load_model(result["model"])
         prev = load_model(job.previous).metadata if job.previous else None
     except PostprocError as exc:
-        result["error"] = str(exc)
-        return result
+        return {**result, "error": str(exc)}
+    card = model.metadata
     (out / "model-card.json").write_text(json.dumps(card, indent=2, default=str), encoding="utf-8")
     acc = card.get("accuracy") or {}
-    result.update(points=(acc.get("n_train") or 0) + (acc.get("n_val") or 0),
-                  unc_mean=acc.get("val_uncompensated_mean_mm"), unc_max=acc.get("val_uncompensated_max_mm"),
-                  comp_mean=acc.get("val_mean_mm"), comp_max=acc.get("val_max_mm"),
-                  moved=moved_parameters(card, prev))
+    result = {**result, "points": (acc.get("n_train") or 0) + (acc.get("n_val") or 0),
+              "unc_mean": acc.get("val_uncompensated_mean_mm"), "unc_max": acc.get("val_uncompensated_max_mm"),
+              "comp_mean": acc.get("val_mean_mm"), "comp_max": acc.get("val_max_mm"),
+              "moved": moved_parameters(card, prev), "warnings": list(result["warnings"])}
     try:
-        held = _held_out(job, out / "held-out.csv")
-        code, err = _run_cli(["report", str(held), "--model", str(model), "-o", str(out / "report")])
-        if code != 0:
-            result["warnings"].append(f"report: {(err.splitlines() or [str(code)])[-1]}")
+        write_report(read_report_data(_held_out(job, out / "held-out.csv"), model), out / "report")
     except PostprocError as exc:
         result["warnings"].append(f"report: {exc}")
+    except Exception as exc:  # noqa: BLE001 - as `postproc report` would end: the robot's model stands, its report not
+        from .cli import missing_extra
+
+        hint = missing_extra(exc, "report") if isinstance(exc, ModuleNotFoundError) else None  # matplotlib
+        result["warnings"].append(f"report: {hint or f'internal error: {type(exc).__name__}: {exc}'}")
+    _settle()
     result["ok"] = True
     return result
 
 
+def _settle() -> None:
+    """In a worker process of its own, after its first robot: what is alive then (the imported
+    libraries, their caches) is moved out of the garbage collector's sight (``gc.freeze``), so
+    that the full collections later robots trigger scan only their own objects (measured in one
+    warm process, 8 robots: ~0.3 s per full collection, one every second robot, before; the
+    collector's time per robot 0.01-0.1 s after)."""
+    if not _own_process() or getattr(_settle, "done", False):
+        return
+    import gc
+
+    gc.collect()
+    gc.freeze()
+    _settle.done = True
+
+
+def robot(job: RobotJob, outdir: str | Path) -> dict:
+    """One robot's whole job in this process: :func:`train_robot` then :func:`report_robot`."""
+    return report_robot(train_robot(job, outdir), job, outdir)
+
+
+# the local cluster's two kinds of worker processes (Dask worker resources)
+TRAIN, REPORT = "postproc-train", "postproc-report"
+
+
+def _local_cluster(workers: int | None, robots: int | None = None):
+    """``workers`` (default: one per core; no more than ``robots``) training worker processes and a
+    third as many report workers, one thread each (the module's docstring says why two kinds)."""
+    import logging
+
+    from dask.distributed import Nanny, Scheduler, SpecCluster
+
+    n = min(workers or os.cpu_count() or 1, robots or sys.maxsize)
+    worker = {"nthreads": 1, "memory_limit": 0, "host": "127.0.0.1", "dashboard": False, "silence_logs": logging.WARN}
+    specs = {f"train-{i}": {"cls": Nanny, "options": {**worker, "resources": {TRAIN: 1}}} for i in range(n)}
+    specs.update({f"report-{i}": {"cls": Nanny, "options": {**worker, "resources": {REPORT: 1}}}
+                  for i in range((n + 2) // 3)})
+    scheduler = {"cls": Scheduler, "options": {"host": "127.0.0.1", "dashboard": False}}
+    return SpecCluster(workers=specs, scheduler=scheduler, silence_logs=logging.WARN)
+
+
 def run_fleet(jobs: list[RobotJob], outdir: str | Path, address: str | None = None, workers: int | None = None,
               force: bool = False) -> list[dict]:
-    """Every robot's :func:`train_robot` as a task on Dask; robots with unchanged inputs skipped."""
+    """Every robot as two tasks on Dask, :func:`train_robot` then :func:`report_robot` (on the local
+    cluster each on its kind of worker); robots with unchanged inputs skipped."""
     import dask
-    from dask.distributed import Client, LocalCluster
+    from dask.distributed import Client
 
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
@@ -343,15 +406,16 @@ def run_fleet(jobs: list[RobotJob], outdir: str | Path, address: str | None = No
             todo.append(job)
     if todo:
         if address:
-            client = Client(address)
+            client, kinds = Client(address), (None, None)
         else:
-            # one process per robot at a time: each imports the training once and runs robot after
-            # robot in itself; a robot that kills its process is retried once, then fails alone
+            # each worker process imports its libraries once and runs robot after robot in itself; a
+            # robot that kills its process is retried once, then fails alone
             with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
-                client = Client(LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                                             processes=True, memory_limit=0, dashboard_address=":0"))
+                client, kinds = Client(_local_cluster(workers, len(todo))), ({TRAIN: 1}, {REPORT: 1})
         try:
-            futures = client.map(train_robot, todo, outdir=str(outdir), pure=False)
+            trained = client.map(train_robot, todo, outdir=str(outdir), pure=False, resources=kinds[0])
+            futures = [client.submit(report_robot, t, job, str(outdir), pure=False, resources=kinds[1])
+                       for t, job in zip(trained, todo)]
             for job, fut in zip(todo, futures):
                 try:
                     results[job.name] = fut.result()

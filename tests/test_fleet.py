@@ -1,5 +1,5 @@
 """postproc fleet: simulated robots (plan + measure --robot-seed) trained as Dask tasks on a
-local in-process cluster; one robot with bad data fails alone; reruns skip unchanged robots;
+local cluster of worker processes; one robot with bad data fails alone; reruns skip unchanged robots;
 a bad fleet file is refused at its line."""
 import json
 
@@ -111,3 +111,30 @@ def test_fleet_previous_model_is_updated(cell, capsys):
     assert moved == []  # the same robot measured again: nothing moved
     assert rows["r1"].split(",")[-1] == ""
     assert "P317" in rows["r2"]
+
+
+def test_local_cluster_trains_where_onnxruntime_never_is(tmp_path):
+    """The local cluster: training workers (no more than robots), which never import onnxruntime
+    (it slows torch's ONNX export) and run torch on one thread, and a report worker that reads
+    the card and writes the report with it."""
+    from dask.distributed import Client
+
+    from postproc.fleet import REPORT, TRAIN, RobotJob, _local_cluster, report_robot, train_robot
+    from postproc.training.synthetic import synthetic_measurements, to_csv
+
+    def libraries(dask_worker):  # (a local function: sent by value, this module, which imports torch, is not)
+        import sys
+
+        torch = sys.modules.get("torch")
+        return (*dask_worker.state.total_resources, "onnxruntime" in sys.modules,
+                torch.get_num_threads() if torch else None)
+
+    poses, measured = synthetic_measurements(80, seed=2)
+    (tmp_path / "a.csv").write_text(to_csv(poses, measured))
+    job = RobotJob("a", tmp_path / "a.csv", method="plain", args=["--hidden", "3", "--epochs", "5"])
+    with _local_cluster(4, robots=1) as cluster, Client(cluster) as client:
+        trained = client.submit(train_robot, job, str(tmp_path), resources={TRAIN: 1}, pure=False)
+        result = client.submit(report_robot, trained, job, str(tmp_path), resources={REPORT: 1}, pure=False).result()
+        seen = sorted(client.run(libraries).values())
+    assert result["ok"] and result["points"] == 80 and (tmp_path / "a" / "report" / "report.md").is_file()
+    assert seen == [(REPORT, True, None), (TRAIN, False, 1)]

@@ -31,7 +31,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="folder of the outputs (one folder per robot)")
     p.add_argument("--scheduler", "--address", dest="address", metavar="ADDRESS",
                    help="Dask scheduler of a real cluster (default: a local one)")
-    p.add_argument("--workers", type=int, metavar="N", help="robots at a time on the local cluster (default: cores)")
+    p.add_argument("--workers", type=int, metavar="N", help="robots trained at a time on the local cluster (default: cores; a third as many report "
+                   "workers besides)")
     p.add_argument("--format", choices=FORMATS, default="md", help="fleet table format (default md)")
     p.add_argument("--force", action="store_true", help="rerun robots whose inputs did not change")
     p.set_defaults(run=run)
