@@ -257,8 +257,10 @@ def _run_subprocess(argv: list[str], timeout: float) -> tuple[int | str, str]:
 def _strip_stamp(text: str, stamp: str) -> str | None:
     """The text without the one stamp line postproc added (None if it is not there)."""
     ls = re.search(r"^ *\d+:  " + re.escape(stamp) + r" ;\r?\n", text, re.M)  # Fanuc LS: a remark at the end of /MN
-    if ls:
-        return text[:ls.start()] + text[ls.end():]
+    if ls:  # (which /ATTR's LINE_COUNT counts: one less without it)
+        text = text[:ls.start()] + text[ls.end():]
+        return re.sub(r"^(LINE_COUNT[ \t]*=[ \t]*)(\d+)", lambda m: f"{m.group(1)}{int(m.group(2)) - 1}", text,
+                      count=1, flags=re.M)
     for newline in ("\r\n", "\n"):
         if stamp + newline in text:
             return text.replace(stamp + newline, "", 1)
