@@ -138,6 +138,8 @@ P514 = _code("P514", "warning", "a measurement CSV's s,t (no q1..q6) without an 
              "(refused when no row has one or the arm has no closed-form IK)")
 P515 = _code("P515", "error", "a_meas,b_meas,c_meas more than 5° (median) from the commanded orientation: another "
              "frame, the probe's own axes or radians")
+P516 = _code("P516", "error", "a training option the method does not have (--search, --optimizer: the pose-only "
+             "networks'; it was ignored for the identified methods)")
 # P6xx: a command's own inputs
 P601 = _code("P601", "error", "verify's original and compensated programs are not one program")
 P610 = _code("P610", "error", "bad settings (unknown key, bad value, bad TOML)")

@@ -88,6 +88,11 @@ def test_fit_refuses_what_train_refuses(measured):
         fit(measured, "gpso", ensemble=3)  # a HybridModel parameter, not ErrorModel's
     with pytest.raises(ValueError, match="unknown method"):
         fit(measured, "svm")
+    # the networks' options on an identified method: refused, not ignored (P516)
+    with pytest.raises(PostprocError, match="P516.*--search"):
+        fit(measured, "hybrid", search=True)
+    with pytest.raises(PostprocError, match="P516.*--optimizer"):
+        fit(measured, "kinematic", optimizer="adam")
 
 
 @pytest.mark.parametrize("cls", [ErrorModel, HybridModel, KinematicModel])

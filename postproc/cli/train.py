@@ -101,11 +101,12 @@ def add_parser(sub, common, formatter) -> None:
 
 
 def _params(args) -> dict:
-    """The estimator's parameters among train's arguments (those given; --optimizer: the networks')."""
+    """The estimator's parameters among train's arguments (those given; --optimizer for an
+    identified method too, which ``training.fit`` refuses, P516)."""
     from . import show_progress
 
     params = {"seed": args.seed, "progress": show_progress(args)}
-    for key in ("hidden", "epochs") if args.method in IDENTIFIED else ("hidden", "epochs", "optimizer"):
+    for key in ("hidden", "epochs", "optimizer"):
         if getattr(args, key) is not None:
             params[key] = getattr(args, key)
     return params

@@ -31,9 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..diagnostics import P317, P320, P507, P508, PostprocError
+from ..diagnostics import P317, P320, P507, P508, P516, PostprocError
 from .card import arm_metadata, card_iterations, robot_metadata, tool_metadata, tool_name
-from .methods import IDENTIFIED, METHODS
+from .methods import IDENTIFIED, METHODS, NETWORKS
 
 __all__ = ["fit", "TrainedModel", "SETTINGS", "ORIENTATION"]
 
@@ -102,6 +102,11 @@ def fit(measurements, method: str = "hybrid", robot=None, *, tool=None, val_frac
     if update and method not in IDENTIFIED:
         raise PostprocError(f"--update re-fits an identified model: --method {method} identifies none "
                             f"(use hybrid or kinematic, or leave --method out)", str(update), code=P317)
+    if method in IDENTIFIED and (search or params.get("optimizer") is not None):
+        given = " and ".join(o for o, v in (("--search", search), ("--optimizer", params.get("optimizer"))) if v)
+        raise PostprocError(f"{given} applies to the pose-only networks ({', '.join(NETWORKS)}); --method {method} "
+                            "identifies the robot's parameters (its residual networks have a fixed recipe: --hidden, "
+                            "--epochs): leave it out", code=P516)
     rows = _split(measurements, tool, val_fraction, split_seed)
     # a robot description is read before the long part, so that a typo fails fast
     # (identified methods read it themselves: it is the model, and may be an arm postproc.robot cannot solve)
