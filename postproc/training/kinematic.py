@@ -485,6 +485,13 @@ class KinematicModel(Estimator):
 
     >>> km = KinematicModel(load_description()).fit(poses, errors, previous_poses(poses))
     >>> km.predict(poses, previous)          # Ê [N, 3] mm
+
+    ``ripple``: "search" (orders 1…``max_order`` of ``ripple_joints``, at most ``max_ripple``) or
+    a fixed list of (joint, order); ``prior``: the prior's weight in mm² per typical size², or
+    "auto" (the residual variance of a first fit: a Gaussian prior, module text); ``staged``:
+    searched orders fitted on top of the physical groups, which keep their values (False: all
+    refitted together, which lets the geometry lean on orders that hold only where the data
+    was); ``iterations`` of Levenberg–Marquardt; ``family`` of the IK (None: the description's).
     """
 
     def __init__(self, description: RobotDescription, groups: tuple[str, ...] = DEFAULT_GROUPS,
