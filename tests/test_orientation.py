@@ -68,6 +68,33 @@ def test_orientation_compensation_reaches_the_simulated_targets(simulated):
     assert ref["orientation_after"]["mean"] > 0.8 * before["mean"]  # (position-only leaves the orientation)
 
 
+def test_krl_orientation_matches_the_pose_list_in_a_turned_base(simulated):
+    """A KRL program's A/B/C are located and corrected as a pose list's (they were refused,
+    P312): the same targets in a shifted and turned $BASE, compensated with --orientation, land
+    on the pose list's commands once taken back to the robot base — position and orientation."""
+    from postproc import frames
+    from postproc.compensate import compensate_text, parse_program_text
+
+    d = simulated
+    model = load_model(d / "m.onnx")
+    targets, _ = read_pose_csv(d / "test.csv")
+    expected, _ = read_pose_csv(d / "test_o.csv")  # (written by the test above: the pose list's commands)
+    base = np.array([100.0, -50.0, 20.0, 30.0, 0.0, 0.0])
+    local = frames.matrix_to_frame(frames.inverse(frames.frame_to_matrix(base)) @ frames.frame_to_matrix(targets))
+    tool = model.metadata["tool"]["frame"]
+    show = lambda p: ",".join(f"{k} {v:.4f}" for k, v in zip("XYZABC", p))  # noqa: E731
+    text = "\n".join([f"DEF turned( )", "  $BASE = {" + show(base) + "}", "  $TOOL = {" + show(tool) + "}",
+                      *("  LIN {" + show(p) + "}" for p in local), "END", ""])
+    out, report = compensate_text(text, model, name="turned.src", orientation=True)
+    assert report.compensated == len(targets)
+    commands = parse_program_text(out, "turned.src").targets.poses
+    in_base = frames.matrix_to_frame(frames.frame_to_matrix(base) @ frames.frame_to_matrix(commands))
+    assert np.abs(in_base[:, :3] - expected[:, :3]).max() < 2e-3  # mm (4 decimals in, 3 out)
+    turn = np.linalg.norm(frames.rotation_error_deg(expected[:, 3:], in_base[:, 3:]), axis=-1)
+    assert turn.max() < 2e-3  # deg
+    assert np.linalg.norm(frames.rotation_error_deg(local[:, 3:], commands[:, 3:]), axis=-1).mean() > 0.1
+
+
 def test_report_gives_the_orientation_error_before_and_after(simulated, capsys):
     d = simulated
     assert _cli("measure", d / "test.csv", "-o", d / "before.csv", "-q") == 0

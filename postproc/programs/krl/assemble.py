@@ -8,7 +8,8 @@ from ..model import Targets
 
 def _empty_targets() -> Targets:
     return Targets(
-        poses=np.zeros((0, 6)), spans=np.zeros((0, 3, 2), np.int64), file=np.zeros(0, np.int32),
+        poses=np.zeros((0, 6)), spans=np.zeros((0, 3, 2), np.int64), abc_spans=np.zeros((0, 3, 2), np.int64),
+        file=np.zeros(0, np.int32),
         line=np.zeros(0, np.int32), col=np.zeros(0, np.int32), frame=np.zeros(0, np.int32),
         motion=np.zeros(0, np.int8), config=np.zeros((0, 2), np.int16),
     )
@@ -48,7 +49,7 @@ class Assembly:
         if n:
             parts.append(dict(
                 key=np.array(c["key"], np.int64), pose=np.array(c["pose"], float).reshape(n, 6),
-                written=np.array(c["written"], bool).reshape(n, 6), spans=np.array(c["spans"], np.int64).reshape(n, 6),
+                written=np.array(c["written"], bool).reshape(n, 6), spans=np.array(c["spans"], np.int64).reshape(n, 12),
                 file=np.array(c["file"], np.int32), line=np.array(c["line"], np.int32),
                 col=np.array(c["col"], np.int32), motion=np.array(c["motion"], np.int8),
                 chain=np.array(c["chain"], bool), frame=np.array(c["frame"], np.int32),
@@ -92,7 +93,8 @@ class Assembly:
         self.assumed_robroot = {int(remap[k]) for k in self.assumed_robroot if remap[k] >= 0}
         return Targets(
             poses=pose[keep],
-            spans=column("spans", sel).reshape(len(sel), 3, 2),
+            spans=column("spans", sel).reshape(len(sel), 6, 2)[:, :3],
+            abc_spans=column("spans", sel).reshape(len(sel), 6, 2)[:, 3:],
             file=column("file", sel),
             line=column("line", sel),
             col=column("col", sel),

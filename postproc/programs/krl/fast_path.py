@@ -217,7 +217,7 @@ class _HotRows:
             return
         used = sorted({int(s) for s in plan.slots.ravel() if s >= 0})
         brace_slots = [sum(1 for p in plan.ph if p < b) for b in plan.brace]
-        need_len = max([int(plan.slots[:, :3].max()) + 1] + brace_slots)
+        need_len = max([int(plan.slots.max()) + 1] + brace_slots)  # (X..C: A/B/C spans for --orientation)
         lens = {j: np.fromiter(map(len, cols[j]), np.int64, n) for j in range(need_len)}
         vals = {j: np.array(cols[j], dtype=np.float64) for j in used}
         ph = np.array(plan.ph, dtype=np.int64)
@@ -234,7 +234,7 @@ class _HotRows:
         for r in range(len(plan.motion)):
             pose = np.full((n, 6), np.nan)
             written = np.zeros((n, 6), bool)
-            spans = np.full((n, 6), -1, np.int64)
+            spans = np.full((n, 12), -1, np.int64)
             for c in range(6):
                 j = int(plan.slots[r, c])
                 if j < 0:
@@ -242,10 +242,9 @@ class _HotRows:
                 v = vals[j]
                 pose[:, c] = -v if plan.neg[r, c] else v
                 written[:, c] = True
-                if c < 3:
-                    s = start + ph[j] + shift[j]
-                    spans[:, 2 * c] = s - plan.gap[r, c]
-                    spans[:, 2 * c + 1] = s + lens[j]
+                s = start + ph[j] + shift[j]
+                spans[:, 2 * c] = s - plan.gap[r, c]
+                spans[:, 2 * c + 1] = s + lens[j]
             config = np.full((n, 2), -1, np.int16)
             for c in range(2):
                 j = int(plan.st[r, c])

@@ -118,7 +118,7 @@ class Statements:
         """The current position is unknown from here on (partial aggregates get NaN)."""
         if self.role != "module":
             return
-        self.add_row(self.kbase + 3, [np.nan] * 6, [True] * 6, [-1] * 6, self.fi, 0, 0, 0, -1, False, True)
+        self.add_row(self.kbase + 3, [np.nan] * 6, [True] * 6, [-1] * 12, self.fi, 0, 0, 0, -1, False, True)
 
     def add_row(self, key, pose, written, spans, fi, line, col, motion, frame, emit, chain, config=(-1, -1)):
         c = self.cold
@@ -209,12 +209,12 @@ class Statements:
                               "compensated for the first")
                 pose, _, _ = agg.pose(*self.where(agg.file))
                 if len(aggs) == 1:
-                    self.add_row(key, pose, [True] * 6, [-1] * 6, agg.file, agg.line, agg.col, motion, f, False,
+                    self.add_row(key, pose, [True] * 6, [-1] * 12, agg.file, agg.line, agg.col, motion, f, False,
                                  chain, agg.config())
                 continue
             self.targets_of[id(agg)] = (f, self.ln)
             pose, spans, _ = agg.pose(*self.where(agg.file))
-            emit = any(s >= 0 for s in spans) and agg.file >= 0
+            emit = any(s >= 0 for s in spans[:6]) and agg.file >= 0  # (X, Y, Z tokens)
             self.add_row(key, pose, [True] * 6, spans, agg.file, agg.line, agg.col, motion, f, emit,
                          chain and len(aggs) == 1, agg.config())
             if emit:

@@ -121,8 +121,9 @@ class _Agg:
         return "other"
 
     def pose(self, path: str, text: str):
-        """(pose[6] NaN where unwritten, spans[6], written[6]); P103 on a bad component."""
-        pose, spans, written = [np.nan] * 6, [-1] * 6, [False] * 6
+        """(pose[6] NaN where unwritten, spans[12] (start, end of X, Y, Z, A, B, C's own tokens, -1
+        where not its own), written[6]); P103 on a bad component."""
+        pose, spans, written = [np.nan] * 6, [-1] * 12, [False] * 6
         for i, k in enumerate(XYZABC):
             v = self.fields.get(k)
             own = v is not None
@@ -136,7 +137,7 @@ class _Agg:
                                         *line_col(text, v.start), P103)
                 pose[i] = v.value
                 written[i] = True
-                if own and i < 3:
+                if own:
                     spans[2 * i], spans[2 * i + 1] = v.start, v.end
             elif isinstance(v, _Bad):
                 raise PostprocError(f"component {k} of a target must be a number, found '{v.text}'", path,
