@@ -162,9 +162,11 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
         if len(differ):
             raise _refuse(program, differ, f"the compensated text reads as other targets ({column} differs)")
     _check_frames(program, again)
-    # values: the corrected X/Y/Z where compensated and written, everything else as it was
+    # values: the corrected X/Y/Z (and A/B/C with --orientation: new_xyz [n, 6]) where compensated
+    # and written, everything else as it was
     expected = a.poses.copy()
-    expected[rows, :3] = new_xyz
+    width = new_xyz.shape[1] if new_xyz.ndim == 2 else 3
+    expected[rows, :width] = new_xyz
     written = np.zeros(a.poses.shape, bool)
     written[:, :3] = a.spans[:, :, 0] >= 0
     if filled is not None and len(rows):
@@ -174,7 +176,7 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
         lost = np.flatnonzero((gained & (b.spans[:, :, 0] < 0)).any(axis=1))
         if len(lost):
             raise _refuse(program, lost, "a component written into this partial aggregate does not read again")
-    written[:, 3:] = True  # orientation is never rewritten (NaN where unknown, on both sides)
+    written[:, 3:] = True  # orientation as it was, or rewritten (NaN where unknown, on both sides)
     compensated = np.zeros(len(a), bool)
     compensated[rows] = True
     tolerance = np.where(compensated[:, None], ROUNDING_MM, 0.0) + 1e-9 * np.maximum(1.0, np.abs(expected))

@@ -68,6 +68,14 @@ def test_orientation_compensation_reaches_the_simulated_targets(simulated):
     assert ref["orientation_after"]["mean"] > 0.8 * before["mean"]  # (position-only leaves the orientation)
 
 
+def _pose_list_commands(d):
+    """The pose list's commands with --orientation (the test plan compensated by the model)."""
+    if not (d / "test_o.csv").exists():
+        assert _cli("compensate", d / "test.csv", "-o", d / "test_o.csv", "--model", d / "m.onnx", "--orientation",
+                    "-q") in (0, 1)
+    return read_pose_csv(d / "test_o.csv")[0]
+
+
 def test_krl_orientation_matches_the_pose_list_in_a_turned_base(simulated):
     """A KRL program's A/B/C are located and corrected as a pose list's (they were refused,
     P312): the same targets in a shifted and turned $BASE, compensated with --orientation, land
@@ -78,7 +86,7 @@ def test_krl_orientation_matches_the_pose_list_in_a_turned_base(simulated):
     d = simulated
     model = load_model(d / "m.onnx")
     targets, _ = read_pose_csv(d / "test.csv")
-    expected, _ = read_pose_csv(d / "test_o.csv")  # (written by the test above: the pose list's commands)
+    expected = _pose_list_commands(d)
     base = np.array([100.0, -50.0, 20.0, 30.0, 0.0, 0.0])
     local = frames.matrix_to_frame(frames.inverse(frames.frame_to_matrix(base)) @ frames.frame_to_matrix(targets))
     tool = model.metadata["tool"]["frame"]
@@ -93,6 +101,43 @@ def test_krl_orientation_matches_the_pose_list_in_a_turned_base(simulated):
     turn = np.linalg.norm(frames.rotation_error_deg(expected[:, 3:], in_base[:, 3:]), axis=-1)
     assert turn.max() < 2e-3  # deg
     assert np.linalg.norm(frames.rotation_error_deg(local[:, 3:], commands[:, 3:]), axis=-1).mean() > 0.1
+
+
+def test_krl_named_targets_in_the_dat_get_their_orientation_too(simulated):
+    """E6POS variables in the .dat (the round-trip guard reads the written module again, A/B/C
+    included) are corrected as the pose list's targets."""
+    from postproc import frames
+    from postproc.compensate import compensate_text, parse_program_text
+
+    d = simulated
+    model = load_model(d / "m.onnx")
+    targets, _ = read_pose_csv(d / "test.csv")
+    expected = _pose_list_commands(d)
+    show = lambda p: ",".join(f"{k} {v:.4f}" for k, v in zip("XYZABC", p))  # noqa: E731
+    src = "\n".join(["DEF named( )", "  $BASE = {X 0,Y 0,Z 0,A 0,B 0,C 0}",
+                      "  $TOOL = {" + show(model.metadata["tool"]["frame"]) + "}",
+                      *(f"  LIN XP{k}" for k in range(len(targets))), "END", ""])
+    dat = "\n".join(["DEFDAT named", *(f"DECL E6POS XP{k}={{{show(p)}}}" for k, p in enumerate(targets)), "ENDDAT", ""])
+    out, report = compensate_text(src, model, name="named.src", dat_text=dat, orientation=True)
+    assert report.compensated == len(targets)
+    new_dat = next(text for name, text in report.outputs.items() if name.endswith(".dat"))
+    written = parse_program_text(out, "named.src", dat_text=new_dat).targets.poses
+    assert np.abs(written[:, :3] - expected[:, :3]).max() < 2e-3
+    assert np.linalg.norm(frames.rotation_error_deg(expected[:, 3:], written[:, 3:]), axis=-1).max() < 2e-3
+
+
+def test_fanuc_ls_locates_w_p_r_in_a_b_c_order():
+    """An LS position's orientation tokens, in A, B, C order (A = R, B = P, C = W): what
+    --orientation rewrites, each corrected angle into its own token."""
+    from postproc.compensate import parse_program_text
+
+    pos = ("P[1]{\n   GP1:\n\tUF : 0, UT : 1,\t\tCONFIG : 'N U T, 0, 0, 0',\n\tX =   2000.000  mm,\tY =   -10.500  mm,"
+           "\tZ =   900.000  mm,\n\tW =   -4.250 deg,\tP =    97.125 deg,\tR =  -  9.500 deg\n};")
+    text = "\n".join(["/PROG  T", "/ATTR", "LINE_COUNT\t= 1;", "/MN", "   1:L P[1] 100mm/sec FINE ;", "/POS", pos,
+                      "/END", ""])
+    t = parse_program_text(text, "t.ls", config_texts=["[utool.1]\nxyzwpr = [0, 0, 100, 0, 0, 0]\n"]).targets
+    tokens = [text[a:b] for a, b in t.abc_spans[0]]
+    assert [float(tok.replace(" ", "")) for tok in tokens] == [-9.5, 97.125, -4.25] == t.poses[0, 3:].tolist()
 
 
 def test_report_gives_the_orientation_error_before_and_after(simulated, capsys):

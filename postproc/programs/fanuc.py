@@ -341,8 +341,7 @@ class _Reader:
             for axis in "XYZWPR":
                 v, s, e = self.number(tokens, *gp1[axis])
                 values.append(v)
-                if axis in "XYZ":
-                    spans.append((s, e))
+                spans.append((s, e))  # (X, Y, Z, W, P, R)
             uf, ut = gp1.get("uf"), gp1.get("ut")
             uf_n = int(float(tokens[uf][0])) if isinstance(uf, int) else None
             ut_n = int(float(tokens[ut][0])) if isinstance(ut, int) else None
@@ -381,7 +380,10 @@ class _Reader:
             raise PostprocError("a position's component is not a finite number", self.path, int(line[r]), int(col[r]),
                                 "P103")
         poses = np.concatenate([values[:, :3], wpr_to_abc(values[:, 3:])], axis=1)
-        targets = Targets(poses=poses, spans=np.array(spans, np.int64).reshape(n, 3, 2), file=np.zeros(n, np.int32),
+        spans = np.array(spans, np.int64).reshape(n, 6, 2)
+        # A, B, C = R, P, W (``wpr_to_abc``): the orientation's tokens in A, B, C order, so that
+        # --orientation writes each corrected angle into its own token
+        targets = Targets(poses=poses, spans=spans[:, :3], abc_spans=spans[:, [5, 4, 3]], file=np.zeros(n, np.int32),
                           line=line.astype(np.int32), col=col.astype(np.int32), frame=np.array(frame, np.int32),
                           motion=np.array(motion, np.int8))
         stamps = {}
