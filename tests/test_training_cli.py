@@ -85,6 +85,13 @@ def test_bad_nan_row(tmp_path, capsys, csv_text):
     assert f"bad.csv:8:{col}: P502 column 'b': 'NaN' is not a finite number" in err
 
 
+def test_too_few_points_for_the_identification_name_the_data_file(tmp_path, capsys, csv_text):
+    """The identified methods' P505 (raised where the rows are fitted) says which file it is about."""
+    head = "\n".join(csv_text.splitlines()[:4]) + "\n"
+    err = _bad(tmp_path, capsys, head, "--method", "kinematic", "--val-fraction", "0")
+    assert f"{tmp_path / 'bad.csv'}: P505" in err and "fewer than the" in err
+
+
 def test_bad_duplicate_pose(tmp_path, capsys, csv_text):
     lines = csv_text.splitlines()
     lines.append(lines[3])

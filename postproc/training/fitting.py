@@ -248,8 +248,13 @@ def _identified(rows: _Rows, method: str, description, pose_only: bool, update, 
                               "updated model has no rotation_error output)")
     else:
         model = HybridModel(description, **{**SETTINGS[method], **params})
-        model.fit(poses[t], rows.errors[t], _take(previous, t), _take(q_deg, t), _take(rows.tools, t),
-                  _take(rotation_errors, t), _take(inputs.q_previous, t))
+        try:
+            model.fit(poses[t], rows.errors[t], _take(previous, t), _take(q_deg, t), _take(rows.tools, t),
+                      _take(rotation_errors, t), _take(inputs.q_previous, t))
+        except PostprocError as exc:  # (the estimator knows rows, not files: its findings are the data's)
+            if not exc.path:
+                exc.path = str(getattr(rows.data, "path", "") or "")
+            raise
     card = _identified_card(model, description, rows, inputs, rotation_errors, refit, name)
     return TrainedModel(model, card, rows.train, rows.val, rows.notes, update=refit)
 
