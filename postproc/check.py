@@ -236,15 +236,14 @@ def check_files(
     suffix: a directory holds measurement CSVs and notes too), a ``$config.dat`` among them is
     the configuration of the others (unless ``config`` is given), a data list without a DEF is
     checked for syntax only; findings sorted by path, line, column."""
-    from .cell import KRL, is_config, krl_files
+    from .cell import KRL, is_config
     from .programs import FANUC_SUFFIXES, RAPID_SUFFIXES, URSCRIPT_SUFFIXES
     from .programs.krl.machine import found_machine, is_machine, with_machine
 
-    others = RAPID_SUFFIXES | URSCRIPT_SUFFIXES | FANUC_SUFFIXES
+    suffixes = set(KRL) | RAPID_SUFFIXES | URSCRIPT_SUFFIXES | FANUC_SUFFIXES
 
-    def in_directory(d: Path) -> list[Path]:
-        return [f for f in krl_files(d) if not is_machine(f)] + sorted(
-            q for q in d.rglob("*") if q.suffix.lower() in others and q.is_file())
+    def in_directory(d: Path) -> list[Path]:  # (one walk; KRL's machine data is not a program)
+        return sorted(q for q in d.rglob("*") if q.suffix.lower() in suffixes and q.is_file() and not is_machine(q))
 
     ignored = set(ignore)
     files: list[Path] = []

@@ -214,11 +214,23 @@ class LineIndex:
         self.text = text
         self._starts = None
 
-    def line_col(self, offset: int) -> tuple[int, int]:
+    def _line_starts(self):
         if self._starts is None:
             import numpy as np
 
             newline = np.frombuffer(self.text.encode("latin-1", "replace"), np.uint8) == 10
             self._starts = np.concatenate([[0], np.flatnonzero(newline) + 1])
-        k = int(self._starts.searchsorted(offset, "right")) - 1
-        return k + 1, offset - int(self._starts[k]) + 1
+        return self._starts
+
+    def line_col(self, offset: int) -> tuple[int, int]:
+        starts = self._line_starts()
+        k = int(starts.searchsorted(offset, "right")) - 1
+        return k + 1, offset - int(starts[k]) + 1
+
+    def lines_cols(self, offsets):
+        """1-based (lines, columns) int32 arrays of many offsets at once (a reader's targets)."""
+        import numpy as np
+
+        starts = self._line_starts()
+        k = starts.searchsorted(np.asarray(offsets, np.int64), "right") - 1
+        return (k + 1).astype(np.int32), (np.asarray(offsets, np.int64) - starts[k] + 1).astype(np.int32)

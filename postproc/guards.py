@@ -165,8 +165,7 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
     # values: the corrected X/Y/Z (and A/B/C with --orientation: new_xyz [n, 6]) where compensated
     # and written, everything else as it was
     expected = a.poses.copy()
-    width = new_xyz.shape[1] if new_xyz.ndim == 2 else 3
-    expected[rows, :width] = new_xyz
+    expected[rows, :new_xyz.shape[1]] = new_xyz
     written = np.zeros(a.poses.shape, bool)
     written[:, :3] = a.spans[:, :, 0] >= 0
     if filled is not None and len(rows):

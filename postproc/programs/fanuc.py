@@ -369,11 +369,7 @@ class _Reader:
         else:
             at, values, spans, frame, motion = (), (), (), (), ()
         values = np.array(values, float).reshape(n, 6)
-        at = np.array(at, np.int64)
-        newlines = np.flatnonzero(np.frombuffer(self.text.encode("latin-1", "replace"), np.uint8) == 10)
-        before = np.searchsorted(newlines, at, "left")
-        line = before + 1
-        col = at - np.where(before > 0, newlines[np.maximum(before - 1, 0)] + 1, 0) + 1
+        line, col = self._lines.lines_cols(np.array(at, np.int64))
         bad = ~np.isfinite(values).all(axis=1)
         if bad.any():
             r = int(np.flatnonzero(bad)[0])
@@ -384,7 +380,7 @@ class _Reader:
         # A, B, C = R, P, W (``wpr_to_abc``): the orientation's tokens in A, B, C order, so that
         # --orientation writes each corrected angle into its own token
         targets = Targets(poses=poses, spans=spans[:, :3], abc_spans=spans[:, [5, 4, 3]], file=np.zeros(n, np.int32),
-                          line=line.astype(np.int32), col=col.astype(np.int32), frame=np.array(frame, np.int32),
+                          line=line, col=col, frame=np.array(frame, np.int32),
                           motion=np.array(motion, np.int8))
         stamps = {}
         m = _STAMP.search(self.text)

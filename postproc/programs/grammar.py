@@ -2,11 +2,33 @@
 built once per process (lark also caches it on disk: ``cache=True``)."""
 from __future__ import annotations
 
+import re
 from functools import lru_cache
 
 from lark import Lark
 
 from ..resources import grammar_path
+
+
+# a number as the line-based dialects (RAPID, URScript) write it, unsigned (a sign is an operator)
+NUM = r"(?<![\w.])(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])"
+# the tokens a unit's shape keeps the order of: names (keywords too) and numbers
+TOKEN_RE = re.compile(r"[A-Za-z_]\w*|" + NUM, re.ASCII)
+NUM_RE = re.compile(NUM, re.ASCII)
+_NAME_DIGITS = re.compile(r"(?<=[A-Za-z_])\d+(?!\w)", re.ASCII)
+BLANKS = re.compile(r"\s+")
+
+
+def exact_key(unit: str) -> str:
+    """A statement's key with its numbers as 0 and its blanks as one space: units that differ
+    only in their numbers share one parse."""
+    return BLANKS.sub(" ", NUM_RE.sub("0", unit)).strip()
+
+
+def shape_key(exact: str) -> str:
+    """``exact_key`` with the digits that end names as 0 too (``p12`` → ``p0``): units that
+    differ only in their numbers and numbered names share one shape."""
+    return _NAME_DIGITS.sub("0", exact)
 
 
 @lru_cache(maxsize=None)

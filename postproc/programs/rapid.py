@@ -33,22 +33,15 @@ from lark.exceptions import UnexpectedInput
 
 from ..diagnostics import P101, P102, P103, P104, P201, P202, P211, Diagnostic, PostprocError, line_col
 from ..frames import abc_from_rotation
-from .grammar import first_ordinal, lalr_parser, unexpected
+from .grammar import BLANKS, NUM, TOKEN_RE, exact_key, first_ordinal, lalr_parser, shape_key, unexpected
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline  # a file's newline: \r\n if at least half its line ends are
 
 __all__ = ["read", "parser", "RapidProgram", "quaternion_matrix", "TOKEN_RE", "MOTION_OF"]
 
-_NUM = r"(?<![\w.])(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])"
-# the tokens a unit's shape keeps the order of: names (keywords too) and numbers
-TOKEN_RE = re.compile(r"[A-Za-z_]\w*|" + _NUM, re.ASCII)
-_NUM_RE = re.compile(_NUM, re.ASCII)
-_NAME_DIGITS = re.compile(r"(?<=[A-Za-z_])\d+(?!\w)", re.ASCII)
-_BLANKS = re.compile(r"\s+")
-_WHITE = re.compile(r"\s+")
 # an inline robtarget of plain numbers: x, y, z, q1..q4, cf1, cf4, cf6, cfx (a sign may stand
 # before each, as in the grammar: blanks between); its extax aggregate follows
-_SNUM = r"\s*([-+]?\s*" + _NUM + r")\s*"
+_SNUM = r"\s*([-+]?\s*" + NUM + r")\s*"
 _RT_RE = re.compile(r"\[\s*\[" + ",".join([_SNUM] * 3) + r"\]\s*,\s*\[" + ",".join([_SNUM] * 4) + r"\]\s*,\s*\["
                     + ",".join([_SNUM] * 4) + r"\]\s*,\s*\[", re.ASCII)
 # strings, comments, and a quote that opens no string on its line
@@ -312,11 +305,11 @@ class _Reader:
         """(shape, exact key) of the unit at [start, end): the exact key keeps the names as
         written (numbers → 0), the shape key also drops the digits ending names."""
         unit = self.code[start:end]
-        exact = _BLANKS.sub(" ", _NUM_RE.sub("0", unit)).strip()
+        exact = exact_key(unit)
         shape = self.exact.get(exact)
         if shape is not None:
             return shape, exact
-        key = _NAME_DIGITS.sub("0", exact)
+        key = shape_key(exact)
         shape = self.shapes.get(key)
         if shape is None:
             try:
@@ -739,7 +732,7 @@ class _Reader:
         m = len(self.fast_rows)
         if m:
             file, match, frame, motion = zip(*self.fast_rows)
-            text = _WHITE.sub("", ",".join(",".join(x.groups()) for x in match))
+            text = BLANKS.sub("", ",".join(",".join(x.groups()) for x in match))
             values = np.array(text.split(","), dtype=float).reshape(m, 11)
             spans = np.array([x.regs[1:4] for x in match], np.int64)
             fast = [np.array(file, np.int32), spans[:, 0, 0].copy(), values[:, :3], values[:, 3:7], values[:, 7:],

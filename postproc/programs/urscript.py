@@ -40,18 +40,13 @@ from lark.exceptions import UnexpectedInput
 
 from ..diagnostics import Diagnostic, LineIndex, PostprocError, line_col
 from ..frames import abc_from_rotation
-from .grammar import first_ordinal, lalr_parser, unexpected
+from .grammar import TOKEN_RE, exact_key, first_ordinal, lalr_parser, shape_key, unexpected
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline
 
 __all__ = ["read", "parser", "rotvec_matrix", "UNIT_MM", "TOKEN_RE", "MOTION_OF"]
 
 UNIT_MM = 1000.0  # URScript poses are in metres
-_NUM = r"(?<![\w.])(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])"
-TOKEN_RE = re.compile(r"[A-Za-z_]\w*|" + _NUM, re.ASCII)
-_NUM_RE = re.compile(_NUM, re.ASCII)
-_NAME_DIGITS = re.compile(r"(?<=[A-Za-z_])\d+(?!\w)", re.ASCII)
-_BLANKS = re.compile(r"\s+")
 # strings, comments, and a quote that opens no string on its line
 _HIDE = re.compile(r'"[^"\n]*"|\'[^\'\n]*\'|#.*|["\']')
 _MOTION = {m: i for i, m in enumerate(MOTIONS)}
@@ -228,11 +223,11 @@ class _Reader:
 
     def shape_of(self, start, end):
         unit = self.code[start:end]
-        exact = _BLANKS.sub(" ", _NUM_RE.sub("0", unit)).strip()
+        exact = exact_key(unit)
         shape = self.exact.get(exact)
         if shape is not None:
             return shape
-        key = _NAME_DIGITS.sub("0", exact)
+        key = shape_key(exact)
         shape = self.shapes.get(key)
         if shape is None:
             try:
@@ -480,11 +475,7 @@ class _Reader:
             numbers = np.array(numbers, float).reshape(n, 6)
         else:
             at, numbers, spans, frame, motion = (), np.zeros((0, 6)), (), (), ()
-        at = np.array(at, np.int64)
-        newlines = np.flatnonzero(np.frombuffer(self.text.encode("latin-1", "replace"), np.uint8) == 10)
-        before = np.searchsorted(newlines, at, "left")
-        line = before + 1
-        col = at - np.where(before > 0, newlines[np.maximum(before - 1, 0)] + 1, 0) + 1
+        line, col = self._lines.lines_cols(np.array(at, np.int64))
         bad = ~np.isfinite(numbers).all(axis=1)
         with np.errstate(over="ignore", invalid="ignore"):
             bad |= ~np.isfinite(numbers[:, :3] * UNIT_MM).all(axis=1)
@@ -495,7 +486,7 @@ class _Reader:
         abc = abc_from_rotation(rotvec_matrix(numbers[:, 3:])) if n else np.zeros((0, 3))
         targets = Targets(poses=np.concatenate([numbers[:, :3] * UNIT_MM, abc], axis=1),
                           spans=np.array(spans, np.int64).reshape(n, 3, 2), file=np.zeros(n, np.int32),
-                          line=line.astype(np.int32), col=col.astype(np.int32), frame=np.array(frame, np.int32),
+                          line=line, col=col, frame=np.array(frame, np.int32),
                           motion=np.array(motion, np.int8))
         stamps = {}
         m = re.search(r"^[ \t]*#.*" + re.escape(STAMP_PREFIX) + r".*$", self.text, re.M)

@@ -107,14 +107,18 @@ def _refuse(message: str, path: Path, code: str = "P317") -> PostprocError:
     return PostprocError(message, str(path), code=code)
 
 
-def _residual_nets(path: Path, data: bytes, count: int) -> tuple[list[ResidualNet], tuple[int, ...]]:
-    """OLD's residual networks, read back from its graph's named initializers."""
-    if not count:
-        return [], (32, 32)
+def _initializers(data: bytes) -> dict[str, np.ndarray]:
+    """OLD's graph's named initializers (its residual networks' weights, its covariance)."""
     import onnx
     from onnx import numpy_helper
 
-    weights = {i.name: numpy_helper.to_array(i) for i in onnx.load_from_string(data).graph.initializer}
+    return {i.name: numpy_helper.to_array(i) for i in onnx.load_from_string(data).graph.initializer}
+
+
+def _residual_nets(path: Path, weights: dict, count: int) -> tuple[list[ResidualNet], tuple[int, ...]]:
+    """OLD's residual networks, read back from its graph's named initializers ``weights``."""
+    if not count:
+        return [], (32, 32)
     nets, hidden = [], ()
     for k in range(count):
         prefix = f"module.nets.{k}."
@@ -191,8 +195,9 @@ def read_old_model(path: str | Path, description: RobotDescription) -> OldModel:
     if joint_range is None:
         raise _refuse("--update: the model card has no trained joint ranges (envelope.joints)", path)
     data = path.read_bytes()
-    nets, hidden = _residual_nets(path, data, int(found.get("residual_nets") or 0))
-    covariance = _graph_covariance(data, layout.n)
+    weights = _initializers(data)
+    nets, hidden = _residual_nets(path, weights, int(found.get("residual_nets") or 0))
+    covariance = _graph_covariance(weights, layout.n)
     residual_std = float(found.get("residual_std_mm") or 0.0)
     if not residual_std > 0:  # (a card without it: the training residual's mean norm ≈ 1.6 σ per coordinate)
         residual_std = float(((card.get("accuracy") or {}).get("train_mean_mm") or 0.1)) / 1.6
@@ -200,17 +205,14 @@ def read_old_model(path: str | Path, description: RobotDescription) -> OldModel:
                     old.wants_previous, nets, hidden, joint_range, envelope, covariance)
 
 
-def _graph_covariance(data: bytes, n: int) -> np.ndarray | None:
-    """OLD's parameter covariance [n, n] from its graph (the buffer behind ``error_std``), or
-    None for a model without that output."""
-    import onnx
-    from onnx import numpy_helper
-
-    for init in onnx.load_from_string(data).graph.initializer:
-        if init.name == "module.covariance":
-            cov = np.array(numpy_helper.to_array(init), dtype=np.float64)
-            return cov if cov.shape == (n, n) else None
-    return None
+def _graph_covariance(weights: dict, n: int) -> np.ndarray | None:
+    """OLD's parameter covariance [n, n] from its graph's initializers (the buffer behind
+    ``error_std``), or None for a model without that output."""
+    cov = weights.get("module.covariance")
+    if cov is None:
+        return None
+    cov = np.array(cov, dtype=np.float64)
+    return cov if cov.shape == (n, n) else None
 
 
 def _prior(old: OldModel, groups: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
