@@ -452,14 +452,10 @@ class KinematicErrorModule(torch.nn.Module):
         end = self.end if tool is None else self.tool_end(tool)
         rot, org, tcp = self.arm.frames(q, placements=self.placements, end=end)
         tau = self.arm.torque_terms(rot, org) - self.tau_mean
-        dq = joint_error(p, q, signs, tau, self.ripple_joint, self.ripple_order)
-        if learned is not None and len(self.ripple_joint):
-            # outside the trained arcs every ripple order goes (fitted on what the physical part
-            # leaves at the angles the data visited, low orders included: on the IPA UR10 the
-            # orders 1-2 fitted on Series C's arcs made the other series worse, not better)
-            p["ripple"] = torch.zeros_like(p["ripple"])
-            physical = joint_error(p, q, signs, tau, self.ripple_joint, self.ripple_order)
-            dq = physical + learned[:, None] * (dq - physical)
+        # outside the trained arcs (``learned`` 0) every ripple order goes: fitted on what the
+        # physical part leaves at the angles the data visited (low orders included: on the IPA
+        # UR10 the orders 1-2 fitted on Series C's arcs made the other series worse, not better)
+        dq = joint_error(p, q, signs, tau, self.ripple_joint, self.ripple_order, learned)
         omega = torch.stack([mv(rot[:, j], self.arm.axes[j]) for j in range(6)], dim=1)
         sens = torch.linalg.cross(omega, tcp[:, None, :] - org)  # [N, 6, 3]
         actual = tcp + (sens * dq[..., None]).sum(dim=1)
@@ -626,7 +622,7 @@ class KinematicModel(Estimator):
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
         self.arm_, self.ik_, self.branch_share_ = Arm(self.description), ik, math.nan
         self.use_previous_ = use_previous
-        self.prior_ = WEAK_PRIOR if self.prior == "auto" else float(self.prior)
+        self.prior_ = self._first_prior()
         if use_previous and previous is None:
             previous = poses  # (the row itself: came from HOME)
         q, s, _, tcp, pose_t, poses, errors, _, _ = self._prepare(poses, errors, previous if use_previous else None,
@@ -777,12 +773,16 @@ class KinematicModel(Estimator):
         self._state = (r, jac, sens)
         return theta
 
+    def _first_prior(self) -> float:
+        """The prior's weight before any fit: ``prior`` as given, the weak floor for "auto"."""
+        return WEAK_PRIOR if self.prior == "auto" else float(self.prior)
+
     def _fit_physical(self, layout: Layout, q, s, tau, measured) -> tuple[np.ndarray, torch.Tensor]:
         """(θ, the torques of the identified chain) of the groups in ``layout`` (with a fixed
         ripple list, those orders too): the first fit, the orientation's lever, the prior's
         weight (``prior_``) and the torques refitted."""
         theta = np.zeros(layout.n)
-        self.prior_ = WEAK_PRIOR if self.prior == "auto" else float(self.prior)
+        self.prior_ = self._first_prior()
         if layout.n:
             theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
             if self.orientation_:
