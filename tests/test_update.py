@@ -236,3 +236,58 @@ def test_an_updated_model_keeps_stating_its_uncertainty(kr500, old, tmp_path):
     # the stated std is of the residual this campaign leaves: most coordinates within 2 std
     assert 0.8 < float((residual <= 2 * std[:, None]).mean()) <= 1.0
     assert np.all(std > 0) and np.all(np.isfinite(std))
+
+
+TOOL_TURN_RAD = np.array([0.004, -0.003, 0.006])  # the probe mounted again, turned by ~0.45°
+
+
+def _oriented_campaign(sim: SimulatedRobot, n: int, seed: int):
+    """(poses, position errors, orientation errors deg) measured by a 6-DOF probe."""
+    from postproc.frames import rotation_error_deg
+
+    poses = latin_hypercube(n, seed=seed)
+    measured = sim.measure(poses, rng_seed=seed, orientation=True)
+    return poses, poses[:, :3] - measured[:, :3], rotation_error_deg(poses[:, 3:], measured[:, 3:])
+
+
+def test_update_refits_the_orientation_where_the_new_rows_measure_it(kr500, tmp_path):
+    """OLD fitted position and orientation; the robot is re-mastered and its probe mounted
+    again, turned: 30 rows with orientations give a model that keeps ``rotation_error`` and
+    predicts the new orientation error (OLD's is off by the probe's turn), with the probe's turn
+    among what moved; the same rows without orientations give a model without that output."""
+    from postproc.training.card import arm_metadata
+
+    sim = SimulatedRobot(kr500, seed=4)
+    poses, errors, turns = _oriented_campaign(sim, 300, 1)
+    model = HybridModel(kr500, **SETTINGS).fit(poses, errors, previous_poses(poses), rotation_errors=turns)
+    assert model.orientation
+    path = tmp_path / "old.onnx"
+    model.export_onnx(path, identified=model.describe(), **arm_metadata(kr500))
+    old = read_old_model(path, kr500)
+    assert old.lever == pytest.approx(model.kinematic_.lever_, rel=1e-3)
+
+    sim = _changed(sim)
+    c = sim.chain
+    sim.chain = Chain(c.placements, c.axes, c.end @ small_transform(TOOL_TURN_RAD, np.zeros(3)), c.base)
+    new_poses, new_errors, new_turns = _oriented_campaign(sim, 30, 7)
+    held, held_errors, held_turns = _oriented_campaign(sim, 200, 8)
+    update = update_model(old, kr500, new_poses, new_errors, previous_poses(new_poses), rotation_errors=new_turns)
+    assert update.model.orientation
+    prev = previous_poses(held)
+    before = _mean(held_turns, model.predict_rotation(held, prev))
+    after = _mean(held_turns, update.model.predict_rotation(held, prev))
+    probe_turn = float(np.degrees(np.linalg.norm(TOOL_TURN_RAD)))
+    assert before > 0.6 * probe_turn and after < 0.15 * before  # deg
+    assert _mean(held_errors, update.model.predict(held, prev)) < 0.15 * _mean(held_errors, model.predict(held, prev))
+    moved = {p["name"] for p in update.moved}
+    assert {"tool_rotation.rx", "tool_rotation.ry", "tool_rotation.rz"} & moved
+    assert "tool_rotation" in update.card()["groups"]
+    # the exported graph keeps the output and gives the same numbers
+    out = update.model.export_onnx(tmp_path / "new.onnx", name="new")
+    graph = load_model(out)
+    assert graph.has_rotation
+    got = graph.predict(held, prev, rotation=True)[-1]
+    assert np.allclose(got, update.model.predict_rotation(held, prev), atol=2e-4)
+    # without orientations in the new rows: position only, no rotation output
+    plain = update_model(old, kr500, new_poses, new_errors, previous_poses(new_poses))
+    assert not plain.model.orientation and "tool_rotation" not in plain.card()["groups"]

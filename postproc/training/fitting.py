@@ -241,11 +241,16 @@ def _identified(rows: _Rows, method: str, description, pose_only: bool, update, 
     t = rows.train
     refit = None
     if update:
-        refit = _update(rows, description, update, q_deg)
+        refit = _update(rows, description, update, q_deg, rotation_errors)
         model = refit.model
-        if rotation_errors is not None:
-            rows.notes.append("warning: --update re-fits the position only: a_meas,b_meas,c_meas not used (the "
-                              "updated model has no rotation_error output)")
+        if rotation_errors is not None and not model.orientation:
+            rows.notes.append(f"warning: --update: {update} fitted no orientation, so a_meas,b_meas,c_meas are not "
+                              "used (the updated model has no rotation_error output)")
+            rotation_errors = None
+        elif refit.old.lever is not None and rotation_errors is None:
+            rows.notes.append(f"warning: --update: {update} fitted the orientation, these rows measured none "
+                              "(a_meas,b_meas,c_meas): the updated model has no rotation_error output "
+                              "(compensate --orientation needs it)")
     else:
         model = HybridModel(description, **{**SETTINGS[method], **params})
         try:
@@ -259,8 +264,9 @@ def _identified(rows: _Rows, method: str, description, pose_only: bool, update, 
     return TrainedModel(model, card, rows.train, rows.val, rows.notes, update=refit)
 
 
-def _update(rows: _Rows, description, old_path, q_deg: np.ndarray | None):
-    """OLD's identification re-fitted on the training rows (``update.Update``)."""
+def _update(rows: _Rows, description, old_path, q_deg: np.ndarray | None, rotation_errors: np.ndarray | None):
+    """OLD's identification re-fitted on the training rows (``update.Update``), with their
+    orientation errors where OLD fitted the orientation."""
     from .features import previous_poses
     from .update import read_old_model, update_model
 
@@ -272,7 +278,7 @@ def _update(rows: _Rows, description, old_path, q_deg: np.ndarray | None):
     poses, t = rows.data.poses, rows.train
     try:
         return update_model(old, description, poses[t], rows.errors[t], _take(previous_poses(poses), t),
-                            _take(q_deg, t))
+                            _take(q_deg, t), rotation_errors=_take(rotation_errors, t))
     except PostprocError as exc:
         exc.path = exc.path or rows.source  # too few rows: say which file
         raise

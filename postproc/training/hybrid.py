@@ -296,16 +296,17 @@ class HybridModel(Estimator):
     @classmethod
     def refitted(cls, description: RobotDescription, kinematic: KinematicModel, nets: list[ResidualNet],
                  hidden: tuple[int, ...], joint_range: list, envelope: dict, poses: np.ndarray, errors: np.ndarray,
-                 previous: np.ndarray | None = None, q_deg: np.ndarray | None = None) -> "HybridModel":
+                 previous: np.ndarray | None = None, q_deg: np.ndarray | None = None,
+                 rotation_errors: np.ndarray | None = None) -> "HybridModel":
         """A model made of a re-fitted identification (:meth:`KinematicModel.refit`) and an older
         model's residual networks, joint ranges and envelope (training/update.py); the training
-        figures on the re-fit's rows."""
+        figures on the re-fit's rows (the orientation's too where it was re-fitted)."""
         model = cls(description, residual="always" if nets else "none", hidden=hidden)
         model.kinematic_, model.nets_ = kinematic, list(nets)
         model.description_ = kinematic.description  # (the old model's, its tool included)
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
-        model._finish(poses, errors, previous, q_deg, joint_range, envelope)
+        model._finish(poses, errors, previous, q_deg, joint_range, envelope, rotation_errors=rotation_errors)
         return model
 
     def _fit_residual(self, residual: np.ndarray) -> list[ResidualNet]:

@@ -609,7 +609,8 @@ class KinematicModel(Estimator):
     def refit(self, layout: Layout, theta: np.ndarray, tau_mean: np.ndarray, ik: torch.nn.Module,
               use_previous: bool, free: np.ndarray, weights: np.ndarray, poses: np.ndarray, errors: np.ndarray,
               previous: np.ndarray | None = None, q_deg: np.ndarray | None = None,
-              ranges: np.ndarray | None = None) -> "KinematicModel":
+              ranges: np.ndarray | None = None, rotation_errors: np.ndarray | None = None,
+              lever: float | None = None) -> "KinematicModel":
         """Re-calibration: an identified model (``layout``, ``theta``, ``tau_mean``, its IK branch
         ``ik``, whether it takes the visiting order) re-fitted on new rows, moving only the
         parameters ``free`` (bool [P]) under the prior Σ w_i(θ_i − θ_i,old)² (``weights`` [P],
@@ -617,7 +618,10 @@ class KinematicModel(Estimator):
         their old values. The rows as :meth:`fit` takes them; without ``previous`` a model that
         takes the visiting order sees every row as reached from HOME. ``ranges`` [6, 2] rad: the
         model's trained joint ranges, outside which its graph leaves the ripple terms out: the
-        re-fit does the same, so that it fits the model the graph evaluates."""
+        re-fit does the same, so that it fits the model the graph evaluates. ``rotation_errors``
+        [N, 3] deg with ``lever`` (mm/rad, the old fit's): the orientation is re-fitted with the
+        position, as :meth:`fit` weighs them (the graph keeps ``rotation_error``); without them
+        the re-fit is position only and the model has no orientation part."""
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
         self.arm_, self.ik_, self.branch_share_ = Arm(self.description), ik, math.nan
@@ -625,11 +629,16 @@ class KinematicModel(Estimator):
         self.prior_ = self._first_prior()
         if use_previous and previous is None:
             previous = poses  # (the row itself: came from HOME)
-        q, s, _, tcp, pose_t, poses, errors, _, _ = self._prepare(poses, errors, previous if use_previous else None,
-                                                                  q_deg)
-        # (position only, at the model's own tool)
-        self._tool_rows, self.tools_, self.orientation_, self.lever_ = None, None, False, None
+        q, s, _, tcp, pose_t, poses, errors, nominal_rot, keep = self._prepare(
+            poses, errors, previous if use_previous else None, q_deg)
+        # (at the model's own tool; the orientation where the new rows measured it)
+        self.orientation_ = rotation_errors is not None and lever is not None
+        self._tool_rows, self.tools_, self.lever_ = None, None, (float(lever) if self.orientation_ else None)
         measured = tcp - torch.as_tensor(errors)
+        if self.orientation_:
+            rotation_errors = np.asarray(rotation_errors, dtype=np.float64).reshape(-1, 3)[keep]
+            turn = torch.as_tensor(np.radians(rotation_errors))
+            measured = (measured, small_rotation(turn) @ nominal_rot)
         rows = None if ranges is None else inside_ranges(q, torch.as_tensor(np.asarray(ranges, dtype=np.float64)))
         old = np.asarray(theta, dtype=np.float64)
         theta = old.copy()
@@ -642,10 +651,15 @@ class KinematicModel(Estimator):
                                               weights=weights, free=free, ripple_rows=rows)
         self.layout_, self.theta_ = layout, theta
         self.module_ = KinematicErrorModule(self.arm_, ik, layout, theta, use_previous, tau_mean)
+        self.module_.orientation = self.orientation_
         with torch.no_grad():
-            fitted = self.module_.error_at(q, s, pose_t[:, :3], rows).numpy()
+            if self.orientation_:
+                fitted, turned = self.module_.error_at(q, s, pose_t[:, :3], rows, attitude=nominal_rot)
+            else:
+                fitted = self.module_.error_at(q, s, pose_t[:, :3], rows)
         self.train_q_, self.train_signs_ = q.numpy(), s.numpy()
-        self.train_residual_ = errors - fitted
+        self.train_residual_ = errors - fitted.numpy()
+        self.train_rotation_residual_ = (rotation_errors - np.degrees(turned.numpy()) if self.orientation_ else None)
         self.n_train_ = len(poses)
         return self
 

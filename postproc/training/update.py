@@ -7,7 +7,11 @@ compliance, backlash and gears do not. So an update re-fits only
 
 * ``base`` (6: rotation vector rad, offset mm),
 * ``zero`` (6: joint zero offsets, rad),
-* ``tool`` (3: TCP offset mm, along the flange's axes)
+* ``tool`` (3: TCP offset mm, along the flange's axes),
+* ``tool_rotation`` (3: the TCP frame's turn, rad) where OLD fitted the orientation and the new
+  rows measured it (``a_meas,b_meas,c_meas``): then the orientation is re-fitted with the position
+  (OLD's lever, mm/rad) and the updated model keeps ``rotation_error``; new rows without
+  orientations give a model without it (OLD's orientation part would be stale after a re-mount)
 
 of OLD's identified model on the new rows, as regularised least squares toward OLD's values:
 
@@ -51,15 +55,18 @@ from .kinematic import GROUPS, KinematicModel, Layout, nominal_digest
 __all__ = ["UPDATE_GROUPS", "DRIFT", "OldModel", "Update", "read_old_model", "update_model"]
 
 UPDATE_GROUPS = ("base", "zero", "tool")
+ORIENTATION_GROUPS = ("tool_rotation",)  # re-fitted too where the new rows measured the orientation
 # how far each re-fitted parameter may move between campaigns (1σ of the prior on top of OLD's
 # std): a new tracker set-up (10 mrad, 10 mm after the import's rigid fit), re-mastering
-# (5 mrad = 0.29°), a probe or tool mounted again (10 mm)
-DRIFT = {"base": np.r_[np.full(3, 0.01), np.full(3, 10.0)], "zero": np.full(6, 0.005), "tool": np.full(3, 10.0)}
+# (5 mrad = 0.29°), a probe or tool mounted again (10 mm; turned by 50 mrad = 2.9°)
+DRIFT = {"base": np.r_[np.full(3, 0.01), np.full(3, 10.0)], "zero": np.full(6, 0.005), "tool": np.full(3, 10.0),
+         "tool_rotation": np.full(3, 0.05)}
 # a re-fitted parameter moved when its change exceeds this many posterior stds
 MOVED_SIGMAS = 3.0
 # each group's parameters: (name, is an angle)
 NAMES = {"base": [("rx", True), ("ry", True), ("rz", True), ("x", False), ("y", False), ("z", False)],
-         "zero": [(f"A{j}", True) for j in range(1, 7)], "tool": [("x", False), ("y", False), ("z", False)]}
+         "zero": [(f"A{j}", True) for j in range(1, 7)], "tool": [("x", False), ("y", False), ("z", False)],
+         "tool_rotation": [("rx", True), ("ry", True), ("rz", True)]}
 
 
 @dataclass
@@ -81,6 +88,7 @@ class OldModel:
     joint_range: list | None = None
     envelope: dict | None = None
     covariance: np.ndarray | None = None  # [P, P] OLD's parameter covariance (its graph's error_std), if it has one
+    lever: float | None = None  # mm/rad: OLD fitted the orientation with this weight (None: position only)
 
 
 @dataclass
@@ -99,7 +107,7 @@ class Update:
     def card(self) -> dict:
         """The new model card's ``update`` entry."""
         return {"from": self.old.card.get("name") or self.old.path.stem, "from_sha256": self.old.sha256,
-                "rows": self.rows, "groups": list(UPDATE_GROUPS), "moved_at_sigmas": MOVED_SIGMAS,
+                "rows": self.rows, "groups": list(dict.fromkeys(p["group"] for p in self.parameters)), "moved_at_sigmas": MOVED_SIGMAS,
                 "parameters": self.parameters}
 
 
@@ -201,8 +209,11 @@ def read_old_model(path: str | Path, description: RobotDescription) -> OldModel:
     residual_std = float(found.get("residual_std_mm") or 0.0)
     if not residual_std > 0:  # (a card without it: the training residual's mean norm ≈ 1.6 σ per coordinate)
         residual_std = float(((card.get("accuracy") or {}).get("train_mean_mm") or 0.1)) / 1.6
+    orientation = found.get("orientation") if isinstance(found.get("orientation"), dict) else {}
+    lever = orientation.get("lever_mm_per_rad") if orientation.get("fitted") else None
     return OldModel(path, hashlib.sha256(data).hexdigest(), card, layout, theta, std, residual_std, tau_mean, ik,
-                    old.wants_previous, nets, hidden, joint_range, envelope, covariance)
+                    old.wants_previous, nets, hidden, joint_range, envelope, covariance,
+                    float(lever) if lever else None)
 
 
 def _graph_covariance(weights: dict, n: int) -> np.ndarray | None:
@@ -249,10 +260,16 @@ def _net_part(old: OldModel, description: RobotDescription, poses: np.ndarray, p
 
 def update_model(old: OldModel, description: RobotDescription, poses: np.ndarray, errors: np.ndarray,
                  previous: np.ndarray | None = None, q_deg: np.ndarray | None = None,
-                 groups: tuple[str, ...] = UPDATE_GROUPS) -> Update:
+                 groups: tuple[str, ...] = UPDATE_GROUPS, rotation_errors: np.ndarray | None = None) -> Update:
     """OLD re-fitted on the new rows (commanded poses [N, 6], errors E [N, 3], the pose visited
-    before each row, the controller's joint angles [N, 6] deg if known): see the module text."""
+    before each row, the controller's joint angles [N, 6] deg if known, the measured orientation
+    errors [N, 3] deg if any): see the module text."""
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
+    lever = old.lever if rotation_errors is not None else None
+    if lever is not None:
+        groups = tuple(groups) + tuple(g for g in ORIENTATION_GROUPS if g not in groups)
+    else:
+        rotation_errors = None
     free, weights = _prior(old, groups)
     if not free.any():
         raise _refuse(f"--update: the model identified none of {', '.join(groups)}", old.path)
@@ -267,15 +284,17 @@ def update_model(old: OldModel, description: RobotDescription, poses: np.ndarray
         target = errors - _net_part(old, description, poses, came_from if old.use_previous else None, q_deg)
     km = KinematicModel(description, groups=old.layout.groups, ripple=list(old.layout.ripple))
     km.refit(old.layout, old.theta, old.tau_mean, old.ik, old.use_previous, free, weights, poses, target, previous,
-             q_deg, learned_ranges(old.joint_range))
+             q_deg, learned_ranges(old.joint_range), rotation_errors, lever)
     model = HybridModel.refitted(description, km, old.nets, old.hidden, old.joint_range, old.envelope, poses, errors,
-                                 previous if old.use_previous else None, q_deg)
+                                 previous if old.use_previous else None, q_deg, rotation_errors)
     # the posterior of the re-fitted parameters: σ²(JᵀJ + W)⁻¹ at the solution
     _, jac, _ = km._state
     jf = jac[:, free]
     a_inv = np.linalg.pinv(jf.T @ jf + np.diag(weights[free]), hermitian=True)
     p_eff = float(np.trace(a_inv @ (jf.T @ jf)))
     r = np.asarray(km.train_residual_, float).reshape(-1)
+    if km.orientation_:  # (the orientation's rows as the fit weighed them: rad × lever)
+        r = np.r_[r, lever * np.radians(np.asarray(km.train_rotation_residual_, float).reshape(-1))]
     sigma2 = float(r @ r) / max(len(r) - p_eff, 1.0)
     post_std = np.sqrt(np.clip(np.diag(a_inv), 0.0, None) * sigma2)
     std = old.std.copy()
