@@ -88,6 +88,7 @@ def test_update_recovers_remastering_and_a_new_tracker_from_30_rows(kr500, old):
     assert after < 1.5 * retrained  # 30 rows do about what 300 do
     # what moved is what changed: A2, A3, A5 and the base's position and tilt
     moved = {p["name"]: p for p in update.moved}
+    assert update.region["chosen"] == 0.0  # (the geometry did not change: the placements are kept)
     assert {"zero.A2", "zero.A3", "zero.A5", "base.x", "base.y", "base.z"} <= set(moved)
     assert not {"zero.A4", "zero.A6", "tool.x", "tool.y", "tool.z"} & set(moved)
     for j in (1, 2, 4):
@@ -291,3 +292,28 @@ def test_update_refits_the_orientation_where_the_new_rows_measure_it(kr500, tmp_
     # without orientations in the new rows: position only, no rotation output
     plain = update_model(old, kr500, new_poses, new_errors, previous_poses(new_poses))
     assert not plain.model.orientation and "tool_rotation" not in plain.card()["groups"]
+
+
+def test_update_refits_the_placements_where_the_new_rows_ask_for_it(kr500, old, monkeypatch):
+    """A robot whose geometry moved (A3's frame shifted 0.4 mm and turned 0.4 mrad, as another
+    joint region's effective geometry does): the GCV on the 30 new rows chooses to re-fit the
+    joint placements, and the held-out error is well below the 15-parameter update's."""
+    from postproc.training import update as module
+
+    path, _ = old
+    sim = _changed(SimulatedRobot(kr500, seed=3))
+    c = sim.chain
+    placements = c.placements.copy()
+    placements[2] = placements[2] @ small_transform(np.array([0.0004, 0.0, -0.0003]), np.array([0.4, 0.0, -0.3]))
+    sim.chain = Chain(placements, c.axes, c.end, c.base)
+    poses, errors = _campaign(sim, 30, 7)
+    held, held_errors = _campaign(sim, 300, 8)
+    prev = previous_poses(held)
+    auto = update_model(read_old_model(path, kr500), kr500, poses, errors, previous_poses(poses))
+    monkeypatch.setattr(module, "REGION_FACTORS", (0.0,))
+    plain = update_model(read_old_model(path, kr500), kr500, poses, errors, previous_poses(poses))
+    assert plain.region is None and auto.region["chosen"] > 0
+    assert min(g for g in auto.region["gcv"][1:]) < module.REGION_GAIN * auto.region["gcv"][0]
+    assert "placement" in auto.card()["groups"]
+    after, before = _mean(held_errors, auto.model.predict(held, prev)), _mean(held_errors, plain.model.predict(held, prev))
+    assert after < 0.7 * before

@@ -13,7 +13,8 @@ compliance, backlash and gears do not. So an update re-fits only
   (OLD's lever, mm/rad) and the updated model keeps ``rotation_error``; new rows without
   orientations give a model without it (OLD's orientation part would be stale after a re-mount)
 
-of OLD's identified model on the new rows, as regularised least squares toward OLD's values:
+of OLD's identified model on the new rows, as regularised least squares toward OLD's values
+(and, where the new rows ask for it, the joint placements: see "The region" below):
 
     min ‖FK_id(q; θ) − measured‖² + Σ_i (σ_r² / s_i²)·(θ_i − θ_i,old)²
 
@@ -24,6 +25,17 @@ amplitudes), the residual networks (read back from OLD's graph), the joint range
 envelope are OLD's. A base rotation about Z and A1's zero offset are one effect (both turn
 the whole arm about the A1 axis): the prior splits it by their spreads, and the posterior std
 reports that the data did not tell them apart.
+
+The region. An identification holds best in the joint region its rows covered: the geometry
+fitted there carries a little of that region's unmodelled error (on the IPA UR10, a model of
+Series C's joint region leaves 0.45–0.50 mm on the other series' regions after the 15-parameter
+update, with 30 rows or with 400). So the update also tries the joint placements (36: each
+joint frame's small turn and shift) free around OLD's values, with prior spreads
+``REGION_FACTORS`` × (1 mrad, 0.5 mm), and keeps the one of those fits with the least
+generalised cross-validation score n·RSS/(n − p_eff)² on the new rows if it is below
+``REGION_GAIN`` × the score without them (else: placements kept) — the rows decide, nothing else (IPA, 30 rows, 5 draws each: B / D / A 0.468 / 0.455 / 0.496 → 0.436 / 0.379 /
+0.463 mm on each series' other rows; the simulator's re-mastering keeps "none"). The card's
+``update.region`` gives each factor's score and the one chosen.
 
 The parameters that moved are those whose change exceeds ``MOVED_SIGMAS`` times its posterior
 std, σ²·(JᵀJ + W)⁻¹ (σ² the new rows' residual variance per coordinate): name, old, new,
@@ -61,12 +73,19 @@ ORIENTATION_GROUPS = ("tool_rotation",)  # re-fitted too where the new rows meas
 # (5 mrad = 0.29°), a probe or tool mounted again (10 mm; turned by 50 mrad = 2.9°)
 DRIFT = {"base": np.r_[np.full(3, 0.01), np.full(3, 10.0)], "zero": np.full(6, 0.005), "tool": np.full(3, 10.0),
          "tool_rotation": np.full(3, 0.05)}
+# the joint placements' prior spreads tried (× REGION_SPREAD per joint: turn rad, shift mm); 0: kept
+REGION_FACTORS = (0.0, 0.1, 0.2, 0.5, 1.0)
+REGION_SPREAD = np.r_[np.full(3, 1e-3), np.full(3, 0.5)]
+# ... and kept only when its GCV score is below this share of the 15-parameter fit's (parsimony:
+# on the simulator's re-mastering the placements change the score by 0.2 %, on IPA by 4–50 %)
+REGION_GAIN = 0.95
 # a re-fitted parameter moved when its change exceeds this many posterior stds
 MOVED_SIGMAS = 3.0
 # each group's parameters: (name, is an angle)
 NAMES = {"base": [("rx", True), ("ry", True), ("rz", True), ("x", False), ("y", False), ("z", False)],
          "zero": [(f"A{j}", True) for j in range(1, 7)], "tool": [("x", False), ("y", False), ("z", False)],
-         "tool_rotation": [("rx", True), ("ry", True), ("rz", True)]}
+         "tool_rotation": [("rx", True), ("ry", True), ("rz", True)],
+         "placement": [(f"A{j}.{c}", c.startswith("r")) for j in range(1, 7) for c in ("rx", "ry", "rz", "x", "y", "z")]}
 
 
 @dataclass
@@ -99,6 +118,7 @@ class Update:
     old: OldModel
     rows: int
     parameters: list[dict]  # every re-fitted parameter: group, name, unit, old, new, change, std, moved
+    region: dict | None = None  # the placements' spread factors tried, their GCV scores, the one chosen
 
     @property
     def moved(self) -> list[dict]:
@@ -108,7 +128,7 @@ class Update:
         """The new model card's ``update`` entry."""
         return {"from": self.old.card.get("name") or self.old.path.stem, "from_sha256": self.old.sha256,
                 "rows": self.rows, "groups": list(dict.fromkeys(p["group"] for p in self.parameters)), "moved_at_sigmas": MOVED_SIGMAS,
-                "parameters": self.parameters}
+                "region": self.region, "parameters": self.parameters}
 
 
 def _refuse(message: str, path: Path, code: str = "P317") -> PostprocError:
@@ -226,8 +246,10 @@ def _graph_covariance(weights: dict, n: int) -> np.ndarray | None:
     return cov if cov.shape == (n, n) else None
 
 
-def _prior(old: OldModel, groups: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """(free [P] bool, weights [P] mm² per unit²) of the re-fit."""
+def _prior(old: OldModel, groups: tuple[str, ...], drift: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(free [P] bool, weights [P] mm² per unit²) of the re-fit; ``drift``: spreads of groups not
+    in ``DRIFT`` (the placements')."""
+    drift = {**DRIFT, **(drift or {})}
     free = np.zeros(old.layout.n, bool)
     spread = np.full(old.layout.n, np.inf)
     slices = old.layout.slices()
@@ -236,7 +258,7 @@ def _prior(old: OldModel, groups: tuple[str, ...]) -> tuple[np.ndarray, np.ndarr
             continue
         free[slices[g]] = True
         prior_std = np.nan_to_num(old.std[slices[g]], nan=0.0)
-        spread[slices[g]] = np.sqrt(prior_std**2 + DRIFT[g] ** 2)
+        spread[slices[g]] = np.sqrt(prior_std**2 + drift[g] ** 2)
     return free, old.residual_std_mm**2 / spread**2
 
 
@@ -282,20 +304,22 @@ def update_model(old: OldModel, description: RobotDescription, poses: np.ndarray
     if old.nets:  # the identification is re-fitted to what OLD's residual networks leave
         came_from = poses if previous is None else previous  # (unknown: from HOME, as the re-fit takes it)
         target = errors - _net_part(old, description, poses, came_from if old.use_previous else None, q_deg)
-    km = KinematicModel(description, groups=old.layout.groups, ripple=list(old.layout.ripple))
-    km.refit(old.layout, old.theta, old.tau_mean, old.ik, old.use_previous, free, weights, poses, target, previous,
-             q_deg, learned_ranges(old.joint_range), rotation_errors, lever)
+    fits, region = [], None
+    for factor in REGION_FACTORS if "placement" in old.layout.groups and "placement" not in groups else (0.0,):
+        tried = groups + (("placement",) if factor else ())
+        fit = _refit(old, description, tried, {"placement": np.tile(factor * REGION_SPREAD, 6)}, poses, target,
+                     previous, q_deg, rotation_errors, lever)
+        fits.append((factor, tried, fit))
+    if len(fits) > 1:
+        region = {"factors": [f for f, _, _ in fits], "spread_rad_mm": REGION_SPREAD[[0, 3]].tolist(),
+                  "gcv": [round(f[-1], 6) if math.isfinite(f[-1]) else None for _, _, f in fits]}
+    best = min(fits[1:], key=lambda f: f[2][-1], default=fits[0])
+    factor, groups, (km, free, weights, jf, a_inv, sigma2, _) = (
+        best if best[2][-1] < REGION_GAIN * fits[0][2][-1] else fits[0])
+    if region is not None:
+        region["chosen"] = factor
     model = HybridModel.refitted(description, km, old.nets, old.hidden, old.joint_range, old.envelope, poses, errors,
                                  previous if old.use_previous else None, q_deg, rotation_errors)
-    # the posterior of the re-fitted parameters: σ²(JᵀJ + W)⁻¹ at the solution
-    _, jac, _ = km._state
-    jf = jac[:, free]
-    a_inv = np.linalg.pinv(jf.T @ jf + np.diag(weights[free]), hermitian=True)
-    p_eff = float(np.trace(a_inv @ (jf.T @ jf)))
-    r = np.asarray(km.train_residual_, float).reshape(-1)
-    if km.orientation_:  # (the orientation's rows as the fit weighed them: rad × lever)
-        r = np.r_[r, lever * np.radians(np.asarray(km.train_rotation_residual_, float).reshape(-1))]
-    sigma2 = float(r @ r) / max(len(r) - p_eff, 1.0)
     post_std = np.sqrt(np.clip(np.diag(a_inv), 0.0, None) * sigma2)
     std = old.std.copy()
     std[free] = post_std
@@ -321,4 +345,26 @@ def update_model(old: OldModel, description: RobotDescription, poses: np.ndarray
                           "old": round(float(before), 6), "new": round(float(after), 6),
                           "change": round(float(after - before), 6), "std": round(float(std), 6),
                           "moved": bool(abs(after - before) > MOVED_SIGMAS * std)})
-    return Update(model, old, model.n_train_, table)
+    return Update(model, old, model.n_train_, table, region)
+
+
+def _refit(old: OldModel, description: RobotDescription, groups: tuple[str, ...], drift: dict, poses, target,
+           previous, q_deg, rotation_errors, lever):
+    """One re-fit of ``groups`` → (KinematicModel, free, weights, J of the free parameters,
+    (JᵀJ + W)⁻¹, σ² per coordinate, GCV score: inf where it has as many effective parameters
+    as measured coordinates)."""
+    free, weights = _prior(old, groups, drift)
+    km = KinematicModel(description, groups=old.layout.groups, ripple=list(old.layout.ripple))
+    km.refit(old.layout, old.theta, old.tau_mean, old.ik, old.use_previous, free, weights, poses, target, previous,
+             q_deg, learned_ranges(old.joint_range), rotation_errors, lever)
+    # the posterior of the re-fitted parameters: σ²(JᵀJ + W)⁻¹ at the solution
+    _, jac, _ = km._state
+    jf = jac[:, free]
+    a_inv = np.linalg.pinv(jf.T @ jf + np.diag(weights[free]), hermitian=True)
+    p_eff = float(np.trace(a_inv @ (jf.T @ jf)))
+    r = np.asarray(km.train_residual_, float).reshape(-1)
+    if km.orientation_:  # (the orientation's rows as the fit weighed them: rad × lever)
+        r = np.r_[r, lever * np.radians(np.asarray(km.train_rotation_residual_, float).reshape(-1))]
+    rss, dof = float(r @ r), len(r) - p_eff
+    gcv = len(r) * rss / dof**2 if dof >= 1.0 else math.inf  # (as many parameters as coordinates: no score)
+    return km, free, weights, jf, a_inv, rss / max(dof, 1.0), gcv
