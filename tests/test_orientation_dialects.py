@@ -269,3 +269,24 @@ def test_a_target_without_its_orientation_is_still_p312_at_its_line(model):
     assert str(refused.value).startswith("part.src:5:7: P312")
     out, report = compensate_text(src, model, name="part.src")  # (without --orientation: compensated)
     assert report.compensated == 2
+
+
+def test_a_quaternion_written_wrong_is_refused_before_writing(model, monkeypatch):
+    """A formatter that writes a quaternion number 2e-6 off (4× its rounding): P190 at the
+    target, nothing returned — the orientation's new tokens are checked like X/Y/Z."""
+    import postproc.compensate
+
+    real = postproc.compensate.format_many
+
+    def off(tokens, values, unit=1.0):  # (RAPID: only the quaternion is written like metres)
+        return real(tokens, values + (0.002 if unit == 1000.0 else 0.0), unit)
+
+    monkeypatch.setattr(postproc.compensate, "format_many", off)
+    mod = ("MODULE m\n  PERS tooldata t1:=[TRUE,[[300,0,75],[1,0,0,0]],[5,[0,0,100],[1,0,0,0],0,0,0]];\n  PROC main()\n"
+           "    MoveL [[2000,0,900],[0.7071068,0,0.7071068,0],[0,0,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]], v100, "
+           "fine, t1;\n  ENDPROC\nENDMODULE\n")
+    with pytest.raises(PostprocError) as refused:
+        compensate_text(mod, model, name="m.mod", orientation=True)
+    assert str(refused.value).startswith("m.mod:4:13: P190 refusing to write: the number '0.70885")
+    out, report = compensate_text(mod, model, name="m.mod")  # (X/Y/Z alone: written)
+    assert report.compensated == 1
