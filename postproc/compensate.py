@@ -44,7 +44,7 @@ from .findings import (
 from .guards import ROUNDING_MM, check_inserted, check_memory, check_numbers, check_round_trip
 from .outputs import check_outputs, write
 from .programs import STAMP_PREFIX, ActiveFrames, Program, companion_dat, dialect_of, read_program
-from .rewrite import check_disjoint, format_like, format_many, insert_stamp, splice, stamp_line
+from .rewrite import ORIENTATION_DECIMALS, check_disjoint, format_like, format_many, insert_stamp, splice, stamp_line
 
 __all__ = [
     "Report",
@@ -276,7 +276,8 @@ def compensate_program(
 ) -> Report:
     """Compensate every resolvable target of ``program``; the new texts are in ``Report.outputs``
     (a file in which no target was compensated is returned as it was, without a stamp). With
-    ``orientation`` A/B/C are corrected too (the model's ``rotation_error``; P306 without it).
+    ``orientation`` the orientation is corrected too (A/B/C; RAPID's q1..q4, URScript's rx,ry,rz:
+    ``Program.orientation``), with the model's ``rotation_error`` (P306 without it).
 
     Raises PostprocError for what must not be written: every error of
     :func:`postproc.findings.findings` (double compensation, a model for another robot or
@@ -378,14 +379,15 @@ def _finish(program: Program, model: Compensator, selection: Selection, outputs:
 
 def _orientation_check(program: Program, model: Compensator, rows: np.ndarray) -> None:
     """Refuse ``--orientation`` when it cannot be done right: no ``rotation_error`` output
-    (P306), A/B/C tokens the reader does not locate (P312) or targets without A/B/C (P312)."""
+    (P306), orientation numbers the reader does not locate (P312: A/B/C, RAPID's q1..q4 and
+    URScript's rx,ry,rz are) or targets without all of A/B/C (P312: KRL, pose lists)."""
     if not model.has_rotation:
         raise PostprocError("the model has no output 'rotation_error': it cannot correct orientation (train it on "
                             "data with a_meas,b_meas,c_meas); compensate without --orientation", str(model.path),
                             0, 0, P306)
     spans = program.targets.abc_spans
     if spans is None:
-        raise PostprocError(f"--orientation: the {program.dialect} reader does not locate A/B/C numbers yet",
+        raise PostprocError(f"--orientation: the {program.dialect} reader does not locate the orientation's numbers",
                             program.files[0], 1, 1, P312)
     missing = rows[(spans[rows, :, 0] < 0).any(axis=1)]
     if len(missing):
@@ -393,19 +395,17 @@ def _orientation_check(program: Program, model: Compensator, rows: np.ndarray) -
                             P312)
 
 
-def _local_attitude(abc_base: np.ndarray, bases: list, frame_of: np.ndarray, written: np.ndarray) -> np.ndarray:
-    """A,B,C in each target's own frame of commanded attitudes in the base, on the triple and
-    turns nearest the numbers as written."""
+def _local_orientation(abc_base: np.ndarray, bases: list, frame_of: np.ndarray, written: np.ndarray,
+                       form: str) -> np.ndarray:
+    """The numbers (in the program's orientation ``form``) of commanded attitudes in the base,
+    in each target's own frame, nearest the numbers as written (``frames.orientation_numbers``)."""
     out = abc_base.copy()
     for f in np.unique(frame_of):
         here = frame_of == f
         rot = bases[f][:3, :3]
         if not np.allclose(rot, np.eye(3), atol=1e-12):
             out[here] = frames.abc_from_rotation(rot.T @ frames.rotation_from_abc(abc_base[here]))
-    alt = np.stack([out[:, 0] + 180.0, 180.0 - out[:, 1], out[:, 2] + 180.0], axis=1)
-    near = [written + (t - written + 180.0) % 360.0 - 180.0 for t in (out, alt)]
-    return np.where((np.abs(near[1] - written).max(axis=1) < np.abs(near[0] - written).max(axis=1))[:, None],
-                    near[1], near[0])
+    return frames.orientation_numbers(out, written, form)
 
 
 # Edits are made this many tokens at a time: a million-target program never holds all its
@@ -427,9 +427,12 @@ class _CommandStream:
                  chain: Chain | None = None, std: bool = False):
         poses, rows = selection.poses, selection.rows
         self.commanded = np.full((len(poses), 3), np.nan)
-        # the corrected numbers in each target's frame: X,Y,Z (and A,B,C with ``orientation``)
-        self.new_xyz = np.full((len(poses), 6 if orientation else 3), np.nan)
-        self._written_abc = program.targets.poses[rows, 3:6] if orientation else None
+        # the corrected numbers in each target's frame: X,Y,Z (and with ``orientation`` the
+        # orientation's numbers in the program's form: A,B,C, RAPID's q1..q4, URScript's rx,ry,rz)
+        self._written_orientation = program.targets.written_orientation(rows) if orientation else None
+        self._form = program.orientation
+        width = 3 + (self._written_orientation.shape[1] if orientation else 0)
+        self.new_xyz = np.full((len(poses), width), np.nan)
         # the targets' joint angles, only where the model card has joint ranges to check them against
         envelope = model.envelope
         wanted = model.has_joints and envelope is not None and envelope.joints is not None
@@ -465,9 +468,10 @@ class _CommandStream:
                 end = start + len(commands)
                 if self.std is not None:
                     self.std[start:end] = chunk.std
-                if self._written_abc is not None:
-                    self.new_xyz[start:end, 3:] = _local_attitude(commands[:, 3:6], self._bases, self._frame_of[start:end],
-                                                                  self._written_abc[start:end])
+                if self._written_orientation is not None:
+                    self.new_xyz[start:end, 3:] = _local_orientation(commands[:, 3:6], self._bases,
+                                                                     self._frame_of[start:end],
+                                                                     self._written_orientation[start:end], self._form)
                     commands = commands[:, :3]
                 correction = commands - poses[start:end, :3]
                 # back into each target's own frame: only the rotation of its base applies to a shift
@@ -522,8 +526,9 @@ def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, str
     written into it (:func:`fill_partial`, checked by guards.check_inserted)."""
     t = program.targets
     mine = np.flatnonzero(t.file[rows] == index)
-    # X,Y,Z (and A,B,C with --orientation: stream.new_xyz has 6 columns then)
-    spans = t.spans if stream.new_xyz.shape[1] == 3 else np.concatenate([t.spans, t.abc_spans], axis=1)
+    # X,Y,Z (and the orientation's numbers with --orientation: stream.new_xyz has their columns then)
+    orientation = stream.new_xyz.shape[1] > 3
+    spans = np.concatenate([t.spans, t.abc_spans], axis=1) if orientation else t.spans
     width = spans.shape[1]
     starts = spans[rows[mine], :, 0].ravel()
     ends = spans[rows[mine], :, 1].ravel()
@@ -543,7 +548,7 @@ def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, str
         return text
     check_disjoint(starts, ends)
     owners = rows[at_row]
-    read = t.poses[owners, axis]
+    read = (np.concatenate([t.poses[:, :3], t.written_orientation()], axis=1) if orientation else t.poses)[owners, axis]
     parts, prev = [], 0
     for at in range(0, len(starts), EDIT_CHUNK):
         chunk = slice(at, at + EDIT_CHUNK)
@@ -552,19 +557,13 @@ def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, str
         new = piece[chunk] >= 0
         if not new.any():  # (the common case: no partial aggregate in the chunk)
             tokens = [text[a:b] for a, b in zip(s, e)]
-            check_numbers(program, owners[chunk], tokens, read[chunk], 0.0, "is not the {} read for the target")
-            replacements = format_many(tokens, values, program.unit)
-            check_numbers(program, owners[chunk], replacements, values, ROUNDING_MM,
-                          "does not read back as the corrected {}")
+            replacements = _renumber(program, owners[chunk], tokens, read[chunk], values, axis[chunk])
         else:
             replacements = [""] * len(s)
             numbers, added = np.flatnonzero(~new), np.flatnonzero(new)
             tokens = [text[s[i]:e[i]] for i in numbers.tolist()]
-            check_numbers(program, owners[chunk][numbers], tokens, read[chunk][numbers], 0.0,
-                          "is not the {} read for the target")
-            formatted = format_many(tokens, values[numbers], program.unit)
-            check_numbers(program, owners[chunk][numbers], formatted, values[numbers], ROUNDING_MM,
-                          "does not read back as the corrected {}")
+            formatted = _renumber(program, owners[chunk][numbers], tokens, read[chunk][numbers], values[numbers],
+                                  axis[chunk][numbers])
             pieces = inserts.text(piece[chunk][added], values[added])
             check_inserted(program, owners[chunk][added], pieces, axis[chunk][added], values[added])
             for i, r in zip(numbers.tolist() + added.tolist(), formatted + pieces):
@@ -573,6 +572,37 @@ def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, str
         prev = e[-1]
     parts.append(text[prev:])
     return "".join(parts)
+
+
+def _renumber(program: Program, owners: np.ndarray, tokens: list[str], read: np.ndarray, values: np.ndarray,
+              axis: np.ndarray) -> list[str]:
+    """The new number tokens: ``tokens`` (of the targets ``owners``; ``axis`` 0-2 X/Y/Z, from 3
+    the orientation's numbers) checked to be the numbers ``read``, written as ``values`` in
+    their style and checked to read back as them (guards.check_numbers, P190): X/Y/Z in the
+    program's unit, the orientation's numbers with their form's decimals (ORIENTATION_DECIMALS)."""
+    turn = axis >= 3
+    if not turn.any():
+        return _renumbered(program, owners, tokens, read, values, program.unit, program.unit)
+    out = [""] * len(tokens)
+    for part, unit, decimals in ((~turn, program.unit, program.unit),
+                                 (turn, 1.0, ORIENTATION_DECIMALS[program.orientation])):
+        idx = np.flatnonzero(part)
+        new = _renumbered(program, owners[idx], [tokens[i] for i in idx.tolist()], read[idx], values[idx], unit,
+                          decimals)
+        for i, token in zip(idx.tolist(), new):
+            out[i] = token
+    return out
+
+
+def _renumbered(program: Program, owners: np.ndarray, tokens: list[str], read: np.ndarray, values: np.ndarray,
+                unit: float, decimals: float) -> list[str]:
+    """``_renumber`` for tokens of one kind: a value is the token × ``unit``; the token is
+    written with the decimals of a length in units of ``decimals`` mm (rewrite.decimal_range)."""
+    check_numbers(program, owners, tokens, read, 0.0, "is not the {} read for the target", unit)
+    new = format_many(tokens, values if decimals == unit else values * (decimals / unit), decimals)
+    check_numbers(program, owners, new, values, ROUNDING_MM * unit / decimals, "does not read back as the corrected {}",
+                  unit)
+    return new
 
 
 @dataclass

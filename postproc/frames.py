@@ -2,6 +2,12 @@
 
 All functions are vectorised over leading axes: a frame is ``[..., 6]``, a homogeneous
 transform ``[..., 4, 4]``. ``F1:F2`` in KRL is ``compose(F1, F2)`` = T1·T2.
+
+The dialects write an orientation in one of three *forms* (``ORIENTATION_NAMES``): ``abc``
+(KUKA A,B,C degrees; pose lists, Fanuc W/P/R in A,B,C order), ``quaternion`` (RAPID's
+q1..q4 = w,x,y,z) and ``rotvec`` (URScript's rotation vector, radians).
+``orientation_rotation`` reads a form's numbers, ``orientation_numbers`` writes a rotation in
+a form, as the numbers nearest those written before (``compensate --orientation``).
 """
 from __future__ import annotations
 
@@ -19,6 +25,13 @@ __all__ = [
     "rotation_vector",
     "rotation_error_deg",
     "frames_used",
+    "rotation_from_quaternion",
+    "quaternion_from_rotation",
+    "rotation_from_rotvec",
+    "rotvec_from_rotation",
+    "ORIENTATION_NAMES",
+    "orientation_rotation",
+    "orientation_numbers",
 ]
 
 
@@ -124,3 +137,106 @@ def rotation_error_deg(nominal_abc: np.ndarray, actual_abc: np.ndarray) -> np.nd
     frame) of nominal → actual, r with R_actual = exp(r)·R_nominal, from A,B,C [..., 3] each."""
     relative = rotation_from_abc(actual_abc) @ np.swapaxes(rotation_from_abc(nominal_abc), -1, -2)
     return np.degrees(rotation_vector(relative))
+
+
+def rotation_from_quaternion(q: np.ndarray) -> np.ndarray:
+    """[..., 4] quaternions w,x,y,z (any length > 0: scaled to 1) → [..., 3, 3] rotations."""
+    q = np.asarray(q, float)
+    w, x, y, z = np.moveaxis(q / np.linalg.norm(q, axis=-1, keepdims=True), -1, 0)
+    r = np.empty(q.shape[:-1] + (3, 3))
+    r[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    r[..., 0, 1] = 2 * (x * y - w * z)
+    r[..., 0, 2] = 2 * (x * z + w * y)
+    r[..., 1, 0] = 2 * (x * y + w * z)
+    r[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    r[..., 1, 2] = 2 * (y * z - w * x)
+    r[..., 2, 0] = 2 * (x * z - w * y)
+    r[..., 2, 1] = 2 * (y * z + w * x)
+    r[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return r
+
+
+def quaternion_from_rotation(r: np.ndarray) -> np.ndarray:
+    """[..., 3, 3] rotations → [..., 4] unit quaternions w,x,y,z (either sign: q and −q are one
+    rotation). Each row of 4·q·qᵀ is built from R's entries and the one with the largest
+    diagonal taken (Shepperd's choice: no division by a small number, exact at 180°)."""
+    r = np.asarray(r, float)
+    d0, d1, d2 = r[..., 0, 0], r[..., 1, 1], r[..., 2, 2]
+    a, b, c = r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]
+    e, f, g = r[..., 0, 1] + r[..., 1, 0], r[..., 0, 2] + r[..., 2, 0], r[..., 1, 2] + r[..., 2, 1]
+    outer = np.stack([np.stack([1 + d0 + d1 + d2, a, b, c], -1),
+                      np.stack([a, 1 + d0 - d1 - d2, e, f], -1),
+                      np.stack([b, e, 1 - d0 + d1 - d2, g], -1),
+                      np.stack([c, f, g, 1 - d0 - d1 + d2], -1)], -2)  # 4·q·qᵀ
+    k = np.argmax(np.diagonal(outer, axis1=-2, axis2=-1), axis=-1)
+    q = np.take_along_axis(outer, k[..., None, None], axis=-2)[..., 0, :]
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def rotation_from_rotvec(v: np.ndarray) -> np.ndarray:
+    """[..., 3] rotation vectors (rad: axis × angle, any angle) → [..., 3, 3] rotations."""
+    v = np.asarray(v, float)
+    angle = np.linalg.norm(v, axis=-1, keepdims=True)
+    # sin(θ/2)/θ as 0.5·sinc(θ/2π): no division by zero at θ = 0
+    q = np.concatenate([np.cos(angle / 2), v * (0.5 * np.sinc(angle / (2 * np.pi)))], axis=-1)
+    return rotation_from_quaternion(q)
+
+
+def rotvec_from_rotation(r: np.ndarray) -> np.ndarray:
+    """[..., 3, 3] rotations → [..., 3] rotation vectors (rad), angle in [0, π] (at π either
+    axis sign). Through the quaternion: exact near 180°, where the log map of R's antisymmetric
+    part (``rotation_vector``) loses the axis."""
+    q = quaternion_from_rotation(r)
+    q = np.where(q[..., :1] < 0, -q, q)
+    s = np.linalg.norm(q[..., 1:], axis=-1, keepdims=True)
+    angle = 2 * np.arctan2(s, q[..., :1])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 2.0 / q[..., :1])
+    return q[..., 1:] * scale
+
+
+# the numbers each orientation form writes, by name (for messages)
+ORIENTATION_NAMES = {"abc": ("A", "B", "C"), "quaternion": ("q1", "q2", "q3", "q4"), "rotvec": ("rx", "ry", "rz")}
+
+
+def orientation_rotation(numbers: np.ndarray, form: str) -> np.ndarray:
+    """[..., k] the numbers of an orientation ``form`` (A,B,C deg; w,x,y,z; rotation vector
+    rad) → [..., 3, 3] rotations."""
+    if form == "abc":
+        return rotation_from_abc(numbers)
+    if form == "quaternion":
+        return rotation_from_quaternion(numbers)
+    if form == "rotvec":
+        return rotation_from_rotvec(numbers)
+    raise ValueError(f"unknown orientation form {form!r}")
+
+
+def orientation_numbers(abc: np.ndarray, written: np.ndarray, form: str) -> np.ndarray:
+    """[n, 3] attitudes A,B,C (deg) → [n, k] the numbers of ``form`` nearest ``written`` [n, k]
+    (the numbers the program wrote, which every form can write in more than one way):
+
+    * ``abc``: of the two triples of a rotation — (A, B, C) and (A+180, 180−B, C+180) — and
+      their turns (±360° on each angle), the one nearest the written triple;
+    * ``quaternion``: unit, in the written one's hemisphere (q or −q: one rotation);
+    * ``rotvec``: of the vectors (θ + 2πk)·u of one rotation, the one nearest the written vector:
+      the principal one (θ ≤ π) unless the written vector is within the correction of θ = π
+      (then on its side: continuous with it, θ may pass π by as much) or on another branch.
+    """
+    abc = np.asarray(abc, float)
+    written = np.asarray(written, float)
+    if form == "abc":
+        alt = np.stack([abc[:, 0] + 180.0, 180.0 - abc[:, 1], abc[:, 2] + 180.0], axis=1)
+        near = [written + (t - written + 180.0) % 360.0 - 180.0 for t in (abc, alt)]
+        return np.where((np.abs(near[1] - written).max(axis=1) < np.abs(near[0] - written).max(axis=1))[:, None],
+                        near[1], near[0])
+    r = rotation_from_abc(abc)
+    if form == "quaternion":
+        q = quaternion_from_rotation(r)
+        return np.where(np.sum(q * written, axis=1, keepdims=True) < 0, -q, q)
+    if form == "rotvec":
+        v = rotvec_from_rotation(r)
+        angle = np.linalg.norm(v, axis=1, keepdims=True)
+        axis = np.where(angle > 0, v / np.where(angle > 0, angle, 1.0), 0.0)
+        turns = np.round((np.sum(written * axis, axis=1, keepdims=True) - angle) / (2 * np.pi))
+        return v + (2 * np.pi * turns) * axis
+    raise ValueError(f"unknown orientation form {form!r}")

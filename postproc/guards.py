@@ -5,8 +5,9 @@ changed one target at a time, becomes a refusal (``PostprocError``), never a wro
 * :func:`check_numbers` — the tokens at the targets' spans read as the numbers the reader
   took (a span on the wrong token), and the new tokens as the corrected values (P190);
 * :func:`check_round_trip` — the new texts, read again, are the same program with only the
-  corrected X/Y/Z: the same targets in the same frames, every other component as it was
-  (P191). This catches what no single edit shows, e.g. a position variable that is both a
+  corrected X/Y/Z (and, with ``--orientation``, the orientation's numbers: A,B,C, RAPID's
+  q1..q4, URScript's rx,ry,rz): the same targets in the same frames, every other component
+  as it was (P191). This catches what no single edit shows, e.g. a position variable that is both a
   motion target (so it is compensated) and a frame (``$BASE = XP1``, ``XP1:XP2``): changing
   its numbers would move every target programmed in that frame.
 
@@ -22,7 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from .diagnostics import P111, P190, P191, PostprocError
+from .frames import ORIENTATION_NAMES
 from .programs import Program, read_program
+from .rewrite import ORIENTATION_DECIMALS
 
 __all__ = ["check_numbers", "check_inserted", "check_round_trip", "check_memory", "ROUNDING_MM", "MEMORY_PER_INPUT_BYTE"]
 
@@ -76,15 +79,17 @@ def _floats(tokens: list[str]) -> np.ndarray:
 
 
 def check_numbers(program: Program, owners: np.ndarray, tokens: list[str], values: np.ndarray, rounding: float,
-                  what: str) -> None:
+                  what: str, unit: float | None = None) -> None:
     """Refuse (P190) unless every token reads as its value to ``rounding`` (0 for the
     numbers as read; :data:`ROUNDING_MM` for replacements). ``owners`` are the target rows
     the tokens belong to (for the message); ``what`` says what a mismatch means, with a
-    ``{}`` for the value."""
+    ``{}`` for the value. A value is its token × ``unit`` (default the program's: X/Y/Z in
+    mm; 1 for the orientation's numbers)."""
     tolerance = rounding + 1e-9 * np.maximum(1.0, np.abs(values))
     read = _floats(tokens)
-    if program.unit != 1.0:  # tokens in the file's unit (URScript: metres), values in mm
-        read = read * program.unit
+    unit = program.unit if unit is None else unit
+    if unit != 1.0:  # tokens in the file's unit (URScript: metres), values in mm
+        read = read * unit
     bad = np.flatnonzero(~(np.abs(read - values) <= tolerance))
     if len(bad):
         i = int(bad[0])
@@ -143,7 +148,9 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
     """Read ``texts`` (the program's files with the corrected numbers, before the stamp)
     again and refuse (P191) unless they hold the same targets (file, line, motion) in the
     same frames, with ``new_xyz`` [len(rows), 3] at the compensated targets' written X/Y/Z
-    (to the rounding of the format) and every other written component unchanged.
+    (to the rounding of the format; [len(rows), 3 + k] with ``--orientation``: then the
+    orientation's k numbers in the program's form too, to their form's rounding) and every
+    other written component unchanged (the orientation compared as the numbers written).
     ``filled`` [len(rows), 3]: the X/Y/Z written into partial aggregates; they must now be
     written, with their ``new_xyz``."""
     a = program.targets
@@ -162,15 +169,17 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
         if len(differ):
             raise _refuse(program, differ, f"the compensated text reads as other targets ({column} differs)")
     _check_frames(program, again)
-    # values: the corrected X/Y/Z (and A/B/C with --orientation: new_xyz [n, 6]) where compensated
-    # and written, everything else as it was
-    expected = a.poses.copy()
+    # values: the corrected X/Y/Z (and the orientation's numbers with --orientation: new_xyz
+    # [n, 3 + k]) where compensated and written, everything else as it was
+    expected = np.concatenate([a.poses[:, :3], a.written_orientation()], axis=1)
+    got = np.concatenate([b.poses[:, :3], b.written_orientation()], axis=1)
+    names = ("X", "Y", "Z") + ORIENTATION_NAMES[program.orientation]
     expected[rows, :new_xyz.shape[1]] = new_xyz
-    written = np.zeros(a.poses.shape, bool)
+    written = np.zeros(expected.shape, bool)
     written[:, :3] = a.spans[:, :, 0] >= 0
     if filled is not None and len(rows):
         written[rows, :3] |= filled
-        gained = np.zeros(a.poses.shape[0:1] + (3,), bool)
+        gained = np.zeros((len(a), 3), bool)
         gained[rows] = filled
         lost = np.flatnonzero((gained & (b.spans[:, :, 0] < 0)).any(axis=1))
         if len(lost):
@@ -178,11 +187,14 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
     written[:, 3:] = True  # orientation as it was, or rewritten (NaN where unknown, on both sides)
     compensated = np.zeros(len(a), bool)
     compensated[rows] = True
-    tolerance = np.where(compensated[:, None], ROUNDING_MM, 0.0) + 1e-9 * np.maximum(1.0, np.abs(expected))
-    same = (np.abs(b.poses - expected) <= tolerance) | (np.isnan(b.poses) & np.isnan(expected))
+    # the rounding of a new number: X/Y/Z in mm, the orientation's in its form's decimals
+    rounding = np.full(len(names), ROUNDING_MM)
+    rounding[3:] /= ORIENTATION_DECIMALS[program.orientation]
+    tolerance = np.where(compensated[:, None], rounding, 0.0) + 1e-9 * np.maximum(1.0, np.abs(expected))
+    same = (np.abs(got - expected) <= tolerance) | (np.isnan(got) & np.isnan(expected))
     bad = np.flatnonzero((written & ~same).any(axis=1))
     if len(bad):
         r = int(bad[0])
         k = int(np.flatnonzero(written[r] & ~same[r])[0])
-        raise _refuse(program, bad, f"the compensated text reads {'XYZABC'[k]} {b.poses[r, k]!r} at this target, "
+        raise _refuse(program, bad, f"the compensated text reads {names[k]} {got[r, k]!r} at this target, "
                       f"expected {expected[r, k]!r}: its numbers are shared with another target")

@@ -15,13 +15,19 @@ import numpy as np
 
 from .diagnostics import PostprocError
 
-__all__ = ["decimal_range", "format_like", "format_many", "apply_edits", "splice", "check_disjoint", "insert_stamp", "stamp_line"]
+__all__ = ["decimal_range", "format_like", "format_many", "apply_edits", "splice", "check_disjoint", "insert_stamp", "stamp_line",
+           "ORIENTATION_DECIMALS"]
 
 MIN_DECIMALS = 3
 # at most 1 nm: the model's correction is float32 (~1e-7 of a mm-size value) and a KRL REAL
 # is 32-bit, so digits past this would be float noise, not the number's meaning
 MAX_DECIMALS = 6
 # KRL allows blanks between a sign and its number ('X - 5'): the reader's span covers both
+# The decimals of an orientation form's numbers (frames.ORIENTATION_NAMES) as the unit (mm) of
+# a length written alike (``decimal_range``): A,B,C degrees like mm (3 to 6 decimals: ≤ 0.0005°
+# each), quaternion components and radians like metres (6 to 9: ≤ 5e-7 each, a rotation of at
+# most 1.2e-4° for a quaternion and 5e-5° for a rotation vector; tests/test_orientation_dialects.py)
+ORIENTATION_DECIMALS = {"abc": 1.0, "quaternion": 1000.0, "rotvec": 1000.0}
 _TOKEN = re.compile(r"([+-]?)([ \t]*)(\d*)(?:\.(\d*))?(?:([eE])([+-]?)(\d+))?\Z")
 
 

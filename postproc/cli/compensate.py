@@ -48,7 +48,8 @@ def add_parser(sub, common, formatter) -> None:
                    "card's uncertainty.max_std_mm; models without error_std: no check)")
     p.add_argument("--strict", action="store_true", help="treat warnings as errors")
     p.add_argument("--orientation", action="store_true",
-                   help="correct A/B/C too (a model with output rotation_error; pose lists)")
+                   help="correct the orientation too: A/B/C, RAPID's quaternion, URScript's rotation vector (a model "
+                   "with output rotation_error)")
     p.add_argument("--robot", metavar="NAME", help="the robot the program is for: refuse a model trained on another "
                    "(its 'robot' metadata), unless --force")
     p.add_argument("--settings", metavar="TOML", help="pyproject.toml or postproc.toml to read (default: searched "

@@ -158,8 +158,12 @@ class Targets:
                                the current axes, LIN/CIRC keep the current one)
     joints     [N, 6] float64  the controller's joint angles (deg) where the program gives
                                them (a pose list's q1..q6), NaN elsewhere (None: none given)
-    abc_spans  [N, 3, 2] int64 (start, end) of the A, B, C tokens, -1 where absent (None: the
-                               reader does not locate them; ``compensate --orientation`` needs them)
+    abc_spans  [N, k, 2] int64 (start, end) of the orientation's k tokens in the program's
+                               form (``Program.orientation``: A, B, C; RAPID's q1..q4; URScript's
+                               rx, ry, rz), -1 where absent (None: the reader does not locate
+                               them; ``compensate --orientation`` needs them)
+    orientation [N, k] float64 the orientation's numbers as written, where the form is not A,B,C
+                               (None: ``poses[:, 3:6]`` are them); ``written_orientation``
 
     A frame's ``tool`` of None means the model's tool, stated by the user (``--tool model``);
     a $TOOL (or $BASE) that is not set and not stated (P221/P220) or set but not known makes
@@ -176,10 +180,15 @@ class Targets:
     config: np.ndarray | None = None  # None: no target states S/T (filled with -1)
     joints: np.ndarray | None = None
     abc_spans: np.ndarray | None = None
+    orientation: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.config is None:
             self.config = np.full((len(self.poses), 2), -1, np.int16)
+
+    def written_orientation(self, rows=slice(None)) -> np.ndarray:
+        """The orientation numbers of ``rows`` as written, in the program's form [n, k]."""
+        return self.poses[rows, 3:6] if self.orientation is None else self.orientation[rows]
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -246,6 +255,9 @@ class Program:
     # mm per unit of the X/Y/Z numbers as written (URScript: metres, 1000): poses are held in mm,
     # the rewrite writes and the guards read the tokens in the file's own unit
     unit: float = 1.0
+    # the form its orientation numbers are written in (frames.ORIENTATION_NAMES): "abc" (A,B,C
+    # degrees), "quaternion" (RAPID's q1..q4 = w,x,y,z), "rotvec" (URScript's rx,ry,rz, radians)
+    orientation: str = "abc"
     # [N] bool: the target states an arm configuration in a form postproc does not translate to
     # joint angles (Fanuc CONFIG): a model that takes joint angles leaves it as written (P309)
     unmapped_configuration: np.ndarray | None = None

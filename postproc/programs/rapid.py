@@ -14,7 +14,9 @@ Semantics (tests/test_rapid.py shows each on a small program):
   that a motion of the module moves to; its frame is that motion's ``\\WObj`` (work object;
   ``wobj0`` when absent): uframe · oframe, the world frame taken as the robot base;
 * orientation is the quaternion q1..q4 (w, x, y, z), held as KUKA A,B,C (Rz·Ry·Rx) like
-  every pose in postproc; only X, Y, Z are ever rewritten;
+  every pose in postproc, its four numbers as written located (``Program.orientation`` =
+  "quaternion", ``Targets.orientation``, ``Targets.abc_spans``): X, Y, Z are rewritten, and
+  with ``compensate --orientation`` q1..q4 too;
 * the configuration cf1, cf4, cf6, cfx of every target is kept as read
   (:attr:`RapidProgram.confdata`);
 * ``Offs(…)``/``RelTool(…)`` and other computed targets, robtargets assigned at run time or
@@ -32,7 +34,7 @@ from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedInput
 
 from ..diagnostics import P101, P102, P103, P104, P201, P202, P211, Diagnostic, PostprocError, line_col
-from ..frames import abc_from_rotation
+from ..frames import abc_from_rotation, rotation_from_quaternion
 from .grammar import BLANKS, NUM, TOKEN_RE, exact_key, first_ordinal, lalr_parser, shape_key, unexpected
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline  # a file's newline: \r\n if at least half its line ends are
@@ -80,21 +82,8 @@ def parser() -> Lark:
     return lalr_parser("rapid.lark", "unit")
 
 
-def quaternion_matrix(q: np.ndarray) -> np.ndarray:
-    """[..., 4] unit quaternions q1..q4 = (w, x, y, z), as RAPID writes them → [..., 3, 3]."""
-    q = np.asarray(q, float)
-    w, x, y, z = np.moveaxis(q / np.linalg.norm(q, axis=-1, keepdims=True), -1, 0)
-    r = np.empty(q.shape[:-1] + (3, 3))
-    r[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    r[..., 0, 1] = 2 * (x * y - w * z)
-    r[..., 0, 2] = 2 * (x * z + w * y)
-    r[..., 1, 0] = 2 * (x * y + w * z)
-    r[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    r[..., 1, 2] = 2 * (y * z - w * x)
-    r[..., 2, 0] = 2 * (x * z - w * y)
-    r[..., 2, 1] = 2 * (y * z + w * x)
-    r[..., 2, 2] = 1 - 2 * (x * x + y * y)
-    return r
+# [..., 4] quaternions q1..q4 = (w, x, y, z), as RAPID writes them → [..., 3, 3]
+quaternion_matrix = rotation_from_quaternion
 
 
 def _scaled(q: np.ndarray) -> np.ndarray | None:
@@ -108,7 +97,7 @@ def _scaled(q: np.ndarray) -> np.ndarray | None:
 
 def _pose_matrix(xyz, q) -> np.ndarray:
     t = np.eye(4)
-    t[:3, :3] = quaternion_matrix(q)
+    t[:3, :3] = rotation_from_quaternion(q)
     t[:3, 3] = xyz
     return t
 
@@ -245,7 +234,7 @@ class _Reader:
         self.shapes: dict[str, _Shape] = {}
         self.frames: list[Frame] = []
         self.frame_keys: dict = {}
-        self.rows: list = []  # (file, offset, pose3, quat4, conf4, spans6, line, col, frame, motion)
+        self.rows: list = []  # (file, offset, pose3, quat4 as written, conf4, spans of the 7 numbers, frame, motion)
         self.referenced: set[str] = set()  # names motions move to
         self.exact: dict[str, _Shape] = {}
         self.fast_rows: list = []  # (file, _RT_RE match, frame, motion)
@@ -408,7 +397,8 @@ class _Reader:
         return val, span_start, e
 
     def robtarget(self, st, v, tokens, what):
-        """[[x,y,z],[q1..q4],[cf…],[eax…]] → (xyz, spans, quat, conf, offset of x) or None + P211."""
+        """[[x,y,z],[q1..q4],[cf…],[eax…]] → (xyz, spans of x..q4, quat as written, conf, offset of x)
+        or None + P211."""
         if v[0] != "agg" or len(v[1]) != 4 or any(p[0] != "agg" for p in v[1][:3]) or \
                 len(v[1][0][1]) != 3 or len(v[1][1][1]) != 4 or len(v[1][2][1]) != 4:
             self.warn(st, self.at(v, tokens), P211, f"{what} is not a robtarget [[x,y,z],[q1,q2,q3,q4],"
@@ -423,13 +413,13 @@ class _Reader:
             if not np.isfinite(n[0]):
                 raise PostprocError(f"{what}: '{st.text[n[1]:n[2]]}' is not a finite number", st.path,
                                     *line_col(st.text, n[1]), P103)
-        q = _scaled(np.array([n[0] for n in nums[3:]]))
-        if q is None:
+        q = [n[0] for n in nums[3:]]
+        if _scaled(np.array(q)) is None:
             raise PostprocError(f"{what}: quaternion [0,0,0,0] is no orientation", st.path,
                                 *line_col(st.text, nums[3][1]), P103)
         conf = [self.number(st, c, tokens) for c in v[1][2][1]]
         conf = [c[0] if c is not None else np.nan for c in conf]
-        spans = [p for n in nums[:3] for p in n[1:]]
+        spans = [p for n in nums for p in n[1:]]
         return [n[0] for n in nums[:3]], spans, q, conf, nums[0][1]
 
     def at(self, v, tokens):
@@ -719,22 +709,23 @@ class _Reader:
         return self.build()
 
     def columns(self):
-        """The rows of both paths as arrays: file, offset of X, xyz, quaternion, conf, spans, frame, motion."""
+        """The rows of both paths as arrays: file, offset of X, xyz, quaternion as written, conf, spans of the
+        seven numbers x..q4, frame, motion."""
         n = len(self.rows)
         if n:
             file, at, xyz, q, conf, spans, frame, motion = zip(*self.rows)
             cols = [np.array(file, np.int32), np.array(at, np.int64), np.array(xyz, float).reshape(n, 3),
                     np.array(q, float).reshape(n, 4), np.array(conf, float).reshape(n, 4),
-                    np.array(spans, np.int64).reshape(n, 3, 2), np.array(frame, np.int32), np.array(motion, np.int8)]
+                    np.array(spans, np.int64).reshape(n, 7, 2), np.array(frame, np.int32), np.array(motion, np.int8)]
         else:
             cols = [np.zeros(0, np.int32), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 4)), np.zeros((0, 4)),
-                    np.zeros((0, 3, 2), np.int64), np.zeros(0, np.int32), np.zeros(0, np.int8)]
+                    np.zeros((0, 7, 2), np.int64), np.zeros(0, np.int32), np.zeros(0, np.int8)]
         m = len(self.fast_rows)
         if m:
             file, match, frame, motion = zip(*self.fast_rows)
             text = BLANKS.sub("", ",".join(",".join(x.groups()) for x in match))
             values = np.array(text.split(","), dtype=float).reshape(m, 11)
-            spans = np.array([x.regs[1:4] for x in match], np.int64)
+            spans = np.array([x.regs[1:8] for x in match], np.int64)
             fast = [np.array(file, np.int32), spans[:, 0, 0].copy(), values[:, :3], values[:, 3:7], values[:, 7:],
                     spans, np.array(frame, np.int32), np.array(motion, np.int8)]
             cols = [np.concatenate([a, b]) for a, b in zip(cols, fast)]
@@ -761,11 +752,12 @@ class _Reader:
             raise PostprocError("a robtarget's quaternion [0,0,0,0] is no orientation", self.files[file[r]],
                                 int(line[r]), int(col[r]), P103)
         if n:
-            abc = abc_from_rotation(quaternion_matrix(q / big[:, None]))
+            abc = abc_from_rotation(rotation_from_quaternion(q / big[:, None]))
         else:
             abc = np.zeros((0, 3))
-        targets = Targets(poses=np.concatenate([xyz, abc], axis=1), spans=spans, file=file,
-                          line=line.astype(np.int32), col=col.astype(np.int32), frame=frame, motion=motion)
+        targets = Targets(poses=np.concatenate([xyz, abc], axis=1), spans=spans[:, :3], file=file,
+                          line=line.astype(np.int32), col=col.astype(np.int32), frame=frame, motion=motion,
+                          abc_spans=spans[:, 3:], orientation=q)
         stamps = {}
         for fi, text in enumerate(self.texts):
             m = re.search(r"^[ \t]*!.*" + re.escape(STAMP_PREFIX) + r".*$", text, re.M)
@@ -774,7 +766,8 @@ class _Reader:
         return RapidProgram(
             files=list(self.files), texts=list(self.texts), targets=targets, frames=self.frames,
             diagnostics=self.diagnostics, dialect="rapid", stamps=stamps,
-            newlines=[_newline(t) for t in self.texts], comment="!", named_targets=True, confdata=conf)
+            newlines=[_newline(t) for t in self.texts], comment="!", named_targets=True, confdata=conf,
+            orientation="quaternion")
 
 
 def read(files: list[str], texts: list[str], config: list[str] | None = None) -> RapidProgram:

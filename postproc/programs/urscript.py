@@ -14,7 +14,9 @@ Semantics (tests/test_urscript.py shows each on a small script):
   pose): inline, or a pose variable (``global wp1 = p[…]``, ``local``, plain ``wp1 = p[…]``)
   assigned once in the script and read by motions only. Poses are held in mm and KUKA
   A,B,C degrees (``Program.unit`` = 1000: the numbers are written back in metres, in the
-  token's style, with µm resolution); only X, Y, Z are ever rewritten;
+  token's style, with µm resolution); X, Y, Z are rewritten, and with ``compensate
+  --orientation`` rx, ry, rz too (``Program.orientation`` = "rotvec": located, as written, in
+  ``Targets.abc_spans`` / ``Targets.orientation``);
 * the robot base is the frame of every pose; ``set_tcp(p[…])`` is the tool. Its value is
   known for a target on the straight line of the program (top level, or directly in the
   outermost ``def``) from the ``set_tcp`` before it; inside a block, a thread or another
@@ -39,7 +41,7 @@ from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedInput
 
 from ..diagnostics import Diagnostic, LineIndex, PostprocError, line_col
-from ..frames import abc_from_rotation
+from ..frames import abc_from_rotation, rotation_from_rotvec
 from .grammar import TOKEN_RE, exact_key, first_ordinal, lalr_parser, shape_key, unexpected
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline
@@ -62,12 +64,8 @@ def parser() -> Lark:
     return lalr_parser("urscript.lark", "unit")
 
 
-def rotvec_matrix(v: np.ndarray) -> np.ndarray:
-    """[..., 3] rotation vectors (radians, axis × angle, as URScript writes them) → [..., 3, 3]."""
-    from scipy.spatial.transform import Rotation
-
-    v = np.asarray(v, float)
-    return Rotation.from_rotvec(v.reshape(-1, 3)).as_matrix().reshape(v.shape[:-1] + (3, 3))
+# [..., 3] rotation vectors (radians, axis × angle, as URScript writes them) → [..., 3, 3]
+rotvec_matrix = rotation_from_rotvec
 
 
 # ---------------------------------------------------------------------------- shapes
@@ -308,7 +306,7 @@ class _Reader:
         return self.build(motions, assigns, read_by, tcp)
 
     def pose_numbers(self, value, tokens):
-        """(six floats, spans of X, Y, Z incl. their signs) of a pose of plain numbers, else None."""
+        """(six floats, spans of the six numbers incl. their signs) of a pose of plain numbers, else None."""
         numbers, spans = [], []
         for k, element in enumerate(value[1]):
             if element[0] != "num":
@@ -321,8 +319,7 @@ class _Reader:
                     s -= 1
                 token = self.code[s] + token
             numbers.append(float(token))
-            if k < 3:
-                spans.append((s, tokens[element[1]].end()))
+            spans.append((s, tokens[element[1]].end()))
         return numbers, spans
 
     def tool(self, value, tokens, assigns):
@@ -484,17 +481,19 @@ class _Reader:
             raise PostprocError("a pose's position or rotation is not a finite number", self.path, int(line[r]),
                                 int(col[r]), "P103")
         abc = abc_from_rotation(rotvec_matrix(numbers[:, 3:])) if n else np.zeros((0, 3))
+        spans = np.array(spans, np.int64).reshape(n, 6, 2)
         targets = Targets(poses=np.concatenate([numbers[:, :3] * UNIT_MM, abc], axis=1),
-                          spans=np.array(spans, np.int64).reshape(n, 3, 2), file=np.zeros(n, np.int32),
+                          spans=spans[:, :3], file=np.zeros(n, np.int32),
                           line=line, col=col, frame=np.array(frame, np.int32),
-                          motion=np.array(motion, np.int8))
+                          motion=np.array(motion, np.int8), abc_spans=spans[:, 3:], orientation=numbers[:, 3:].copy())
         stamps = {}
         m = re.search(r"^[ \t]*#.*" + re.escape(STAMP_PREFIX) + r".*$", self.text, re.M)
         if m:
             stamps[0] = m.group().strip()
         return Program(files=[self.path], texts=[self.text], targets=targets, frames=frames,
                        diagnostics=self.diagnostics, dialect="urscript", stamps=stamps,
-                       newlines=[_newline(self.text)], comment="#", named_targets=bool(done), unit=UNIT_MM)
+                       newlines=[_newline(self.text)], comment="#", named_targets=bool(done), unit=UNIT_MM,
+                       orientation="rotvec")
 
 
 _NOT_SET = object()  # the TCP before the first set_tcp, not stated by the user
