@@ -133,6 +133,7 @@ def test_train_update_cli_writes_the_moved_parameters(kr500, old, tmp_path, caps
     for name in moved:
         assert f"moved     {name}" in printed
     assert "zero.A4" not in printed.split("update    ")[1]
+    assert "region    joint placements kept (GCV score" in printed and update["region"]["chosen"] == 0.0
     # the new card can be updated again (the chain of campaigns)
     again = tmp_path / "again.onnx"
     assert main(["train", str(data), "-o", str(again), "--update", str(out), "--val-fraction", "0", "-q"]) == 0

@@ -197,6 +197,13 @@ def print_update(update) -> None:
     print(f"update    from {update.old.path} ({card['from']}): {update.rows} rows; re-fitted {', '.join(card['groups'])} "
           f"({len(update.parameters)} parameters), everything else kept; {len(moved)} moved "
           f"(|change| > {card['moved_at_sigmas']:g} std)")
+    region = card.get("region")
+    if region:
+        chosen = region["chosen"]
+        rad, mm = region["spread_rad_mm"]
+        what = f"re-fitted, prior spread {chosen * rad * 1e3:g} mrad / {chosen * mm:g} mm" if chosen else "kept"
+        scores = ", ".join(f"{f:g}: {'-' if g is None else f'{g:.4g}'}" for f, g in zip(region["factors"], region["gcv"]))
+        print(f"region    joint placements {what} (GCV score on the new rows per spread factor: {scores})")
     for p in moved:
         print(f"moved     {p['name']:<9} old {p['old']:+11.5f}  new {p['new']:+11.5f}  change {p['change']:+10.5f} "
               f"± {p['std']:.5f} {p['unit']}")
