@@ -34,6 +34,7 @@ from .findings import (
     dead_band_notes,
     missing_xyz,
     outside_envelope,
+    model_bases,
     robot_base_poses,
     robot_mismatch,
     select_with_findings,
@@ -447,7 +448,7 @@ class _CommandStream:
         t = program.targets
         self._frame_of = t.frame[rows]
         self._written = t.poses[rows, :3]
-        self._bases = [f.base for f in program.frames]
+        self._bases = model_bases(program, model)
         if computed is not None:  # (commands and joints of every row, from the caller)
             chunks = iter([(0, computed.commanded, computed.joints)])
         else:  # checks ``iterations`` here, not on the thread

@@ -70,7 +70,11 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   "attitude": [A,B,C], "range": deg, optional "joints": [[lo, hi] × 6] deg: each joint's trained
   arc, from lo (in [−180, 180)) counterclockwise to hi (lo ≤ hi < lo + 360; hi may pass 180:
   an arc across ±180), see :func:`joint_arcs`}, ``reach`` {"center": [x,y,z], "radius_min",
-  "radius_max"} (TCP distance from the shoulder), ``data_sha256``, ``method``,
+  "radius_max"} (TCP distance from the shoulder), optional ``controller_base`` [X,Y,Z,A,B,C]
+  (the frame the robot's controller takes a program's base-relative poses in, in the model's
+  frame, where they differ: a UR description in ROS's base_link has 0,0,0,180,0,0; a program's
+  targets — not a pose list's rows, which are in the model's frame — are taken through it:
+  ``findings.model_bases``), ``data_sha256``, ``method``,
   ``structure``, ``accuracy`` {"val_mean_mm", "val_max_mm", ...}, ``iterations``; optional
   (hybrid/kinematic models) ``identified`` {"parameters": {group: [...]} (rad, mm, rad/Nm, as
   ``training.kinematic.Layout`` orders them), "ripple" [[joint, order]], "ripple_amplitudes"
@@ -272,6 +276,15 @@ class Compensator:
             return None
         joints = np.asarray(env["joints"], float) if env.get("joints") is not None else None
         return Envelope(np.asarray(env["box"], float), np.asarray(env["attitude"], float), float(env["range"]), joints)
+
+    @property
+    def controller_base(self) -> np.ndarray:
+        """4×4: the controller's base frame (a program's poses) in the model's frame (the card's
+        ``controller_base``; identity where the model's frame is the controller's)."""
+        from .frames import frame_to_matrix
+
+        pose = self.metadata.get("controller_base")
+        return np.eye(4) if pose is None else frame_to_matrix(np.asarray(pose, float))
 
     @property
     def nominal_attitude(self) -> np.ndarray | None:
@@ -882,6 +895,8 @@ def _metadata_problem(meta: dict) -> str | None:
                                   and _numbers([reach.get("radius_max"), reach.get("radius_min", 0.0)], 2)
                                   and reach["radius_max"] > 0):
         return "'reach' needs center [x,y,z], radius_max > 0 and optionally radius_min"
+    if meta.get("controller_base") is not None and not _numbers(meta["controller_base"], 6):
+        return "'controller_base' must be [X,Y,Z,A,B,C]"
     tool = meta.get("tool")
     if isinstance(tool, dict) and tool.get("frame") is not None and not _numbers(tool["frame"], 6):
         return "'tool' frame must be [X,Y,Z,A,B,C]"

@@ -40,7 +40,7 @@ from .programs import Program
 
 __all__ = [
     "Settings", "Selection", "Commands", "select", "findings", "static_findings", "command_findings", "dead_band_notes",
-    "robot_base_poses", "std_bound", "tool_mismatch", "robot_mismatch", "collect", "MAX_LISTED", "DEFAULT_MAX_CORRECTION_MM",
+    "robot_base_poses", "model_bases", "std_bound", "tool_mismatch", "robot_mismatch", "collect", "MAX_LISTED", "DEFAULT_MAX_CORRECTION_MM",
 ]
 
 # An error model that predicts more than this is wrong, not the robot (guard, --max-correction).
@@ -100,15 +100,26 @@ class Commands:
 # --------------------------------------------------------------------------- helpers
 
 
-def robot_base_poses(program: Program) -> tuple[np.ndarray, np.ndarray]:
-    """Every target's pose in the robot base frame [N, 6], and a mask of those whose frame
-    is known. Unknown orientation components stay NaN; unresolved rows are NaN."""
+def model_bases(program: Program, model: Compensator | None) -> list[np.ndarray]:
+    """Each of the program's frames [4×4] in the model's frame: the frame's base (into the
+    controller's robot base) after the model's ``controller_base`` (a program's targets; a pose
+    list's rows are in the model's frame already)."""
+    base = np.eye(4) if model is None or program.dialect == "poses" else model.controller_base
+    if np.array_equal(base, np.eye(4)):
+        return [f.base for f in program.frames]
+    return [base @ f.base for f in program.frames]
+
+
+def robot_base_poses(program: Program, bases: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Every target's pose in the robot base frame [N, 6] (the model's, with ``bases`` from
+    :func:`model_bases`; else the program's frames), and a mask of those whose frame is known.
+    Unknown orientation components stay NaN; unresolved rows are NaN."""
     t = program.targets
     out = np.full((len(t), 6), np.nan)
     resolved = t.frame >= 0
     for f in frames.frames_used(t.frame[resolved]):
         rows = np.flatnonzero(t.frame == f)
-        base = program.frames[f].base
+        base = program.frames[f].base if bases is None else bases[f]
         out[rows, :3] = frames.transform_points(base, t.poses[rows, :3])
         known = rows[~np.isnan(t.poses[rows, 3:6]).any(axis=1)]
         if not len(known):
@@ -347,7 +358,7 @@ def std_rule(program: Program, model: Compensator, settings: Settings, commands:
 def select_with_findings(program: Program, model: Compensator, settings: Settings) -> tuple[Selection, list[Diagnostic]]:
     """The targets the model takes, and every finding that needs no model output."""
     out = stamp_rule(program, settings) + fit_rule(program, model, settings) + shared_rule(program, settings)
-    poses, use = robot_base_poses(program)
+    poses, use = robot_base_poses(program, model_bases(program, model))
     out += frame_rule(program, use)
     out += known_rule(program, model, settings, poses, use)
     out += finite_rule(program, poses, use)

@@ -39,7 +39,7 @@ MM = 1e-3  # mm → m
 
 # table → key → kind; "vec:n" = n numbers, "num" = a number, "str" = text, "int" = an integer
 _SCHEMA: dict[str, dict[str, str]] = {
-    "robot": {"name": "str", "home": "vec:6"},
+    "robot": {"name": "str", "home": "vec:6", "controller_base": "vec:6"},
     "joint": {"name": "str", "origin": "vec:6", "axis": "vec:3", "limits": "vec:2", "mass": "num",
               "com": "vec:3", "inertia": "vec:3"},
     "flange": {"origin": "vec:6"},
@@ -79,6 +79,11 @@ class RobotDescription:
     home_q: np.ndarray = field(default_factory=lambda: np.zeros(6))
     workspace: dict = field(default_factory=dict)  # box [6], attitude [3], range
     errors: dict = field(default_factory=dict)  # the raw [errors] table (see postproc.simulator)
+    # the frame the robot's controller takes a program's base-relative poses in (its base), as a
+    # pose X,Y,Z,A,B,C in this description's frame: 0 where the description is written in it
+    # (KUKA, ABB); a UR description in ROS's base_link: 0,0,0,180,0,0 (the controller's base is
+    # base_link turned 180° about Z)
+    controller_base: np.ndarray = field(default_factory=lambda: np.zeros(6))
     path: str = ""
     text: str = ""  # the file's text, to point at a key's line in messages
 
@@ -281,6 +286,7 @@ def parse_description(text: str, path: str = "<robot>") -> RobotDescription:
         home_q=home,
         workspace=workspace,
         errors=dict(errors),
+        controller_base=robot.get("controller_base", np.zeros(6)),
         path=path,
         text=text,
     )

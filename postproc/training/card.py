@@ -49,7 +49,10 @@ def arm_metadata(description) -> dict:
         radius = (math.hypot(*origins[1, :2]) + float(np.linalg.norm(origins[2:], axis=1).sum())
                   + float(np.linalg.norm(flange)) + float(np.linalg.norm(description.tool[:3])))
         reach = {"center": [round(float(v), 3) for v in centre], "radius_min": 0.0, "radius_max": round(radius, 3)}
-    return {"robot": description.name, "reach": reach, "tool": tool}
+    out = {"robot": description.name, "reach": reach, "tool": tool}
+    if np.any(np.asarray(description.controller_base) != 0):  # (a program's base is not the model's frame)
+        out["controller_base"] = [round(float(v), 6) for v in description.controller_base]
+    return out
 
 
 def robot_metadata(robot) -> dict:
