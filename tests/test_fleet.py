@@ -106,7 +106,8 @@ def test_fleet_previous_model_is_updated(cell, capsys):
     assert main(["fleet", str(cell / "update.toml"), "-o", str(out), "--format", "csv"]) == 1
     rows = {line.split(",")[0]: line for line in (out / "fleet.csv").read_text().splitlines()[1:]}
     card = json.loads((out / "r1" / "model-card.json").read_text())
-    assert card["update"]["rows"] == 160 and card["update"]["groups"] == ["base", "zero", "tool"]
+    # (the data measured the orientation, which old1 fitted: the probe's turn is re-fitted too)
+    assert card["update"]["rows"] == 160 and card["update"]["groups"] == ["base", "zero", "tool", "tool_rotation"]
     moved = [p["name"] for p in card["update"]["parameters"] if p["moved"]]
     assert moved == []  # the same robot measured again: nothing moved
     assert rows["r1"].split(",")[-1] == ""
