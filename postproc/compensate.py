@@ -177,6 +177,8 @@ def _config_texts(config: str | Path | list | None) -> list[str] | None:
 def backup_active(config: str | Path | list | None, active: ActiveFrames | None) -> ActiveFrames | None:
     """``active`` with the $ROBROOT of the controller backup a ``System/$config.dat`` of
     ``config`` belongs to (its ``Mada/$machine.dat``), unless ``active`` states one."""
+    if config is None:  # no $config.dat, no backup: ``active`` as it is (and no import of the KRL reader)
+        return active
     from .programs.krl.machine import with_machine
 
     return with_machine(active, configs=[] if config is None else (

@@ -21,15 +21,15 @@ Only tomllib and the standard library here: this module decides nothing about mo
 """
 from __future__ import annotations
 
-import difflib
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .diagnostics import P610, PostprocError
-from .programs.krl.machine import robroot_option
 from .programs.model import ActiveFrames
+
+# imported where used (a compensate without a settings file does not pay them): tomllib (_read_toml), difflib
+# (_unknown), programs.krl.machine (a settings' robroot)
 
 __all__ = ["Config", "FreshPair", "find_config", "load_config", "CONFIG_NAME"]
 
@@ -112,6 +112,8 @@ def _error(message: str, path: Path, key: str = "") -> PostprocError:
 
 
 def _unknown(keys, allowed, path: Path, where: str) -> None:
+    import difflib
+
     for key in keys:
         if key not in allowed:
             close = difflib.get_close_matches(key, allowed, n=1)
@@ -165,6 +167,8 @@ def parse_config(table: dict, path: Path) -> Config:
             raise _error("expected the robot's name, as in the model card (e.g. \"KR500-sim\")", path, "robot")
         cfg.robot = table["robot"].strip()
     if "base" in table or "tool" in table or "robroot" in table:
+        from .programs.krl.machine import robroot_option
+
         try:
             robroot = robroot_option(table.get("robroot"), root, label="robroot =")
             cfg.active = ActiveFrames.of(base=table.get("base"), tool=table.get("tool"), robroot=robroot)
@@ -202,6 +206,8 @@ def parse_config(table: dict, path: Path) -> Config:
 
 
 def _read_toml(path: Path) -> dict:
+    import tomllib
+
     try:
         with path.open("rb") as fh:
             return tomllib.load(fh)

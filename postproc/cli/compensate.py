@@ -88,12 +88,15 @@ def stated_frames(args, settings=None):
     """``ActiveFrames`` of ``--base`` / ``--tool`` / ``--robroot`` over the settings' (P222 / P226)."""
     from ..diagnostics import P226, PostprocError
     from ..programs import ActiveFrames
-    from ..programs.krl.machine import robroot_option
 
-    try:
-        robroot = robroot_option(args.robroot)
-    except ValueError as exc:
-        raise PostprocError(str(exc), "--robroot", 0, 0, P226) from None
+    robroot = None
+    if args.robroot is not None:  # (the KRL machine data's module only then)
+        from ..programs.krl.machine import robroot_option
+
+        try:
+            robroot = robroot_option(args.robroot)
+        except ValueError as exc:
+            raise PostprocError(str(exc), "--robroot", 0, 0, P226) from None
     return ActiveFrames.stated(args.base, args.tool, settings, robroot=robroot)
 
 
@@ -101,7 +104,6 @@ def run(args) -> int:
     from pathlib import Path
 
     from ..compensate import DEFAULT_MAX_CORRECTION_MM, compensate_program, load_program
-    from ..streaming import compensate_file
     from ..config import load_config
     from ..diagnostics import EXIT_FINDINGS, EXIT_OK
     from ..outputs import check_program_outputs
@@ -144,6 +146,8 @@ def run(args) -> int:
             sys.stdout.buffer.write(report.outputs[program.files[0]].encode("latin-1"))
             sys.stdout.buffer.flush()
     else:
+        from ..streaming import compensate_file
+
         report = compensate_file(inputs[0], args.output, args.model, config=args.config, active=active, **kwargs)
     if not args.quiet:
         for w in report.warnings + (report.notes if args.verbose else []):
