@@ -10,8 +10,9 @@ fixed-point iteration (``error`` + ``ik_joints``), the second (``error``) and th
 settling's run at the commands (``error`` + ``ik_joints`` + ``error_std``), on one thread and
 on two. Several models are timed interleaved (model by model within each repeat), so their
 ratios come from the same run; the best of the repeats is printed (one thread: the CPU time of the
-thread that runs the graph, two: wall time). With ``--record`` the
-figures of the first model go to benchmarks/results/graph_speed.json.
+thread that runs the graph, two: wall time). With ``--record`` the figures go to
+benchmarks/results/graph_speed.json: the first model's, and the second's under ``before``
+(e.g. ``git show main:models/default.onnx > /tmp/before.onnx``).
 """
 from __future__ import annotations
 
@@ -24,18 +25,9 @@ import onnx
 import onnxruntime as ort
 
 from _common import ROOT, load, record  # (benchmarks/ is on sys.path when a benchmark runs as a script)
+from compensate_speed import cam_poses
 
 PASSES = {"first": ("error", "ik_joints"), "iterate": ("error",), "settle": ("error", "ik_joints", "error_std")}
-
-
-def cam_poses(n: int, seed: int = 0) -> np.ndarray:
-    """compensate_speed.make_cam_program's targets [n, 6]: a spiral through the envelope."""
-    rng = np.random.default_rng(seed)
-    t = np.linspace(0, 40 * np.pi, n)
-    x = 2000 + 250 * np.cos(t) * np.linspace(0.2, 1, n)
-    y = 500 * np.sin(t) * np.linspace(0.2, 1, n)
-    z = 600 + 600 * np.linspace(0, 1, n) + rng.normal(0, 0.01, n)
-    return np.c_[x, y, z, rng.uniform(-3, 3, n), 90 + rng.uniform(-3, 3, n), rng.uniform(-3, 3, n)]
 
 
 def session(path: Path, threads: int) -> ort.InferenceSession:
@@ -71,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--record", action="store_true")
     args = parser.parse_args(argv)
     poses = cam_poses(100_000)[20_000:20_000 + args.rows]
-    figures: dict = {}
+    per_model: list[dict] = [{"model": str(m)} for m in args.models]
     for threads in (1, 2):
         # one thread: the calling thread's CPU time (onnxruntime runs there; other jobs' load does not
         # count); two: wall time
@@ -92,13 +84,17 @@ def main(argv: list[str] | None = None) -> int:
             us = {name: best[i, name] / args.rows * 1e6 for name in PASSES}
             print(f"{m}: {threads} thread(s): " + ", ".join(f"{k} {v:.2f}" for k, v in us.items())
                   + f" µs/row; the three runs {sum(us.values()):.2f} µs/row")
-            if i == 0:
-                figures[f"threads_{threads}"] = {k: round(v, 3) for k, v in us.items()} | {
-                    "three_runs": round(sum(us.values()), 3)}
+            per_model[i][f"threads_{threads}"] = {k: round(v, 3) for k, v in us.items()} | {
+                "three_runs": round(sum(us.values()), 3)}
     for i, m in enumerate(args.models):
-        print(f"{m}: {len(onnx.load(str(m)).graph.node)} nodes")
-    figures["nodes"] = len(onnx.load(str(args.models[0])).graph.node)
-    figures["rows"] = args.rows
+        per_model[i]["nodes"] = len(onnx.load(str(m)).graph.node)
+        print(f"{m}: {per_model[i]['nodes']} nodes")
+    figures = per_model[0] | {"rows": args.rows}
+    if len(args.models) > 1:
+        figures["before"] = per_model[1]
+        figures["speedup_1_thread"] = round(per_model[1]["threads_1"]["three_runs"]
+                                            / per_model[0]["threads_1"]["three_runs"], 2)
+        print(f"one thread: {figures['speedup_1_thread']}x faster than {args.models[1]}")
     print("load:", load())
     if args.record:
         print("wrote", record("graph_speed", figures))

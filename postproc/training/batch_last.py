@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import torch
 
-from ..robot import GRAVITY
+from ..robot import gravity_from_points, holding_torques
 
 __all__ = ["const_mat", "mat", "mat_t", "mat_vec", "const_vec", "cross", "abc_rotations", "joint_turns", "Frames",
            "frames", "torque_terms"]
@@ -126,25 +126,18 @@ def frames(turns: torch.Tensor, offsets: torch.Tensor, q: torch.Tensor, end: tor
 
 def torque_terms(arm, f: Frames) -> torch.Tensor:
     """[6 + 21, N]: ``Arm.torque_terms`` (the gravity torques, then each link's share τ_ji, i ≥ j,
-    in ``coupling_pairs`` order) of the frames ``f`` (``robot.gravity_from_points``' formula)."""
+    in ``coupling_pairs`` order) of the frames ``f``: ``robot.gravity_from_points`` /
+    ``holding_torques``, the one gravity formula, on [N, …] views of the batch-last frames."""
     from .arm import coupling_pairs
 
-    n_joints = len(arm.axes)
     omega = f.axes(arm.axes)[:, :2]  # [6, 2, N] (only x, y turn against gravity)
     origins = f.origins_stacked()[:, :2]
     centres = torch.stack([o[:2] + const_vec(r[:2], c) for r, o, c in zip(f.rotations, f.origins, arm.coms)])
-    moment, mass, torques = 0.0, arm.payload_mass, []
-    if arm.payload_mass > 0:
-        moment = arm.payload_mass * (origins[-1] + const_vec(f.rotations[-1][:2], arm.payload_com))
-    for j in reversed(range(n_joints)):
-        moment = moment + arm.masses[j] * centres[j]
-        mass = mass + arm.masses[j]
-        lever = (moment - mass * origins[j]) * MM
-        torques.append(GRAVITY * (omega[j, 0] * lever[1] - omega[j, 1] * lever[0]))
-    j_idx, i_idx = (torch.tensor(v) for v in coupling_pairs(n_joints))
+    payload = (f.origins[-1][:2] + const_vec(f.rotations[-1][:2], arm.payload_com)).t()
+    total = gravity_from_points(origins.transpose(1, 2), centres.transpose(1, 2), omega.transpose(1, 2), arm.masses,
+                                arm.payload_mass, payload)
+    j_idx, i_idx = (torch.tensor(v) for v in coupling_pairs(len(arm.axes)))
     weights = arm.masses.clone()
     weights[-1] = weights[-1] + arm.payload_mass
     lever = (centres[i_idx] - origins[j_idx]) * (MM * weights[i_idx])[:, None, None]  # [21, 2, N]
-    w = omega[j_idx]
-    coupling = GRAVITY * (w[:, 0] * lever[:, 1] - w[:, 1] * lever[:, 0])
-    return torch.cat([torch.stack(torques[::-1]), coupling])
+    return torch.cat([torch.stack(total), holding_torques(omega[j_idx].transpose(1, 2), lever.transpose(1, 2))])
