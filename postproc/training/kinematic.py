@@ -61,7 +61,7 @@ from .features import inside_ranges, motion_signs, wrapped_step
 from .network import rotation_matrices
 
 __all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS", "unseparated_mount",
-           "nominal_digest"]
+           "nominal_digest", "residual_variance"]
 
 GROUPS = ("placement", "base", "tool", "mount", "tool_rotation", "zero", "compliance", "coupling", "backlash")
 DEFAULT_GROUPS = GROUPS
@@ -285,6 +285,17 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
     if not rotation:
         return tcp, jac, sens
     return tcp, jac, sens, tcp_rot, torch.cat([cols[name][1] for name in names], dim=2), sens_rot
+
+
+def residual_variance(jac: torch.Tensor, covariance: torch.Tensor, sigma2: torch.Tensor | float,
+                      batch_last: bool = False) -> torch.Tensor:
+    """Per target and coordinate [N, 3] the variance of E − Ê: σ² + diag(J_t C J_tᵀ) (the
+    model part clipped at 0) for target Jacobians ``jac`` [N, 3, P]; ``batch_last``: ``jac``
+    [P, M] (the exported graph's layout, M = 3N) → [M]. One rule, used by
+    ``uncertainty.position_std`` and by the exported graph (``KinematicErrorModule``)."""
+    if batch_last:  # (one GEMM with the parameters first: no transpose of the [P, 3N] Jacobian)
+        return sigma2 + ((covariance @ jac) * jac).sum(dim=0).clamp(min=0.0)
+    return sigma2 + ((jac @ covariance) * jac).sum(dim=-1).clamp(min=0.0)
 
 
 def _joint_columns(layout: Layout, q: torch.Tensor, signs: torch.Tensor, tau: torch.Tensor,
@@ -540,8 +551,6 @@ class KinematicErrorModule(torch.nn.Module):
                    rows: torch.Tensor | None, covariance: torch.Tensor, sigma2: torch.Tensor) -> torch.Tensor:
         """The graph's ``error_std`` [N, 1] (``uncertainty``): the position Jacobian of the identified
         chain at q + δq (``jacobian``'s columns, [P, 3, N]) and σ² + diag(J C Jᵀ) (``residual_variance``)."""
-        from .uncertainty import residual_variance
-
         c, arm = self._batch_last, self.arm
         end = c["end"] if tools is None else c["end_turn"] @ tools + c["end_shift"][:, None]
         dq = self._joint_error(qt, st, tau, rows, zero=True)

@@ -35,7 +35,7 @@ in the data both are the same.
 The exported graph computes the same figure (the contract's optional output ``error_std``):
 ``KinematicErrorModule`` builds J_t with the columns of the same geometric Jacobian
 (``kinematic.jacobian``, batch-last: ``kinematic.KinematicErrorModule._error_std``) from the
-graph's own q, approach signs and tool, and takes :func:`residual_variance` with C and σ²
+graph's own q, approach signs and tool, and takes ``kinematic.residual_variance`` with C and σ²
 stored in the graph (``HybridModule``'s buffers ``covariance`` [P, P] and ``sigma2``). It is of
 the identified arm only: where residual networks were kept, σ is the identification's residual
 (larger than what the networks leave,
@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .kinematic import KinematicModel, approach_signs, jacobian
+from .kinematic import KinematicModel, approach_signs, jacobian, residual_variance
 
 # compensate / check warn (P336) where error_std exceeds this multiple of the identification's
 # residual std σ per coordinate (the card's uncertainty.max_std_mm; --max-std overrides). Inside
@@ -86,17 +86,6 @@ class PositionStd:
     total: np.ndarray  # [N] mm: std of a coordinate of E − Ê (unexplained + model)
     model: np.ndarray  # [N] mm: the model's part, √(tr(J C Jᵀ)/3)
     per_axis: np.ndarray  # [N, 3] mm: std of X, Y, Z of E − Ê
-
-
-def residual_variance(jac: torch.Tensor, covariance: torch.Tensor, sigma2: torch.Tensor | float,
-                      batch_last: bool = False) -> torch.Tensor:
-    """Per target and coordinate [N, 3] the variance of E − Ê: σ² + diag(J_t C J_tᵀ) (the
-    model part clipped at 0) for target Jacobians ``jac`` [N, 3, P]; ``batch_last``: ``jac``
-    [P, M] (the exported graph's layout, M = 3N) → [M]. One rule, used by
-    :func:`position_std` and by the exported graph."""
-    if batch_last:  # (one GEMM with the parameters first: no transpose of the [P, 3N] Jacobian)
-        return sigma2 + ((covariance @ jac) * jac).sum(dim=0).clamp(min=0.0)
-    return sigma2 + ((jac @ covariance) * jac).sum(dim=-1).clamp(min=0.0)
 
 
 def _jac(model: KinematicModel, q: torch.Tensor, signs: torch.Tensor) -> np.ndarray:
