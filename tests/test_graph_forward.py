@@ -11,11 +11,11 @@ torch = pytest.importorskip("torch")
 
 from postproc.resources import model_path  # noqa: E402
 from postproc.robot import load_description  # noqa: E402
-from postproc.training.arm import Arm  # noqa: E402
+from postproc.training.arm import Arm, make_ik  # noqa: E402
 from postproc.training.features import previous_poses  # noqa: E402
-from postproc.training.kinematic import KinematicErrorModule, approach_signs, jacobian  # noqa: E402
+from postproc.training.kinematic import GROUPS, KinematicErrorModule, Layout, approach_signs, jacobian  # noqa: E402
 from postproc.training.network import rotation_matrices  # noqa: E402
-from postproc.training.uncertainty import residual_variance  # noqa: E402
+from postproc.training.kinematic import residual_variance  # noqa: E402
 from postproc.training.update import read_old_model  # noqa: E402
 
 ROWS = 400
@@ -38,25 +38,56 @@ def shipped():
     return module, torch.as_tensor(old.covariance), torch.as_tensor(poses), torch.as_tensor(tool)
 
 
+def _reference(module, pose, q, signs, learned, tool, covariance, sigma2):
+    """error_at's error and rotation error, and the std of jacobian's columns (the fit's [N, …] functions)."""
+    error, turned = module.error_at(q, signs, pose[:, :3], learned, tool, rotation_matrices(pose[:, 3:6]))
+    tools = None
+    if tool is not None:
+        tools = torch.where(torch.isnan(tool[:, :3]), module.tool0[:3].expand(len(tool), 3), tool[:, :3])
+    _, jac, _ = jacobian(module.arm, module.layout, module.theta, q, signs, module.torques(q), tools,
+                         ripple_rows=learned)
+    return error, turned, residual_variance(jac, covariance, sigma2).mean(dim=-1, keepdim=True).sqrt()
+
+
+RANGES = np.radians([[-15.0, 15.0], [-85.0, -30.0], [55.0, 130.0], [-10.0, 10.0], [5.0, 95.0], [-40.0, 40.0]])
+
+
 def test_the_batch_last_forward_is_the_fits_error_rotation_and_std(shipped):
     module, covariance, pose, tool = shipped
     sigma2 = torch.tensor(0.02**2, dtype=torch.float64)
-    ranges = torch.as_tensor(np.radians([[-15.0, 15.0], [-85.0, -30.0], [55.0, 130.0], [-10.0, 10.0],
-                                         [5.0, 95.0], [-40.0, 40.0]]))
     previous = torch.as_tensor(previous_poses(pose.numpy()))
     with torch.no_grad():
-        error, q, signs, learned, turned, std = module.parts(pose, previous, ranges=ranges, tool=tool, rotation=True,
-                                                             uncertainty=(covariance, sigma2))
+        error, q, signs, learned, turned, std = module.parts(pose, previous, ranges=torch.as_tensor(RANGES), tool=tool,
+                                                             rotation=True, uncertainty=(covariance, sigma2))
         assert 0 < learned.sum() < len(learned) and (signs != 0).any()  # both sides of the ripple mask, backlash
-        ref_error, ref_turned = module.error_at(q, signs, pose[:, :3], learned, tool, rotation_matrices(pose[:, 3:6]))
-        tools = torch.where(torch.isnan(tool[:, :3]), module.tool0[:3].expand(len(tool), 3), tool[:, :3])
-        _, jac, _ = jacobian(module.arm, module.layout, module.theta, q, signs, module.torques(q), tools,
-                             ripple_rows=learned)
-        ref_std = residual_variance(jac, covariance, sigma2).mean(dim=-1, keepdim=True).sqrt()
+        ref_error, ref_turned, ref_std = _reference(module, pose, q, signs, learned, tool, covariance, sigma2)
     assert error.abs().max() > 0.3 and np.ptp(std.numpy()) > 0.1 * std.mean().item()  # (it varies over space)
     assert (error - ref_error).abs().max() < 1e-9  # mm
     assert (turned - ref_turned).abs().max() < 1e-12  # rad
     assert (std - ref_std).abs().max() < 1e-12  # mm
+
+
+def test_every_parameter_group_and_no_tool_input(shipped):
+    """An identification with every group (the tool mount's rotation and the tool's too, which the
+    shipped model has not) at random parameters, without a tool input."""
+    _, _, pose, _ = shipped
+    d = load_description()
+    layout = Layout(GROUPS, [(0, 36), (2, 3), (2, 7)])
+    rng = np.random.default_rng(5)
+    theta = rng.normal(0.0, 1e-3, layout.n)
+    theta[layout.slices()["compliance"]] *= 1e-4  # (rad/Nm: τ ~ 1e3–1e4 Nm)
+    theta[layout.slices()["coupling"]] *= 1e-4
+    module = KinematicErrorModule(Arm(d), make_ik(d), layout, theta, True, rng.normal(0.0, 100.0, 27))
+    half = rng.normal(size=(layout.n, layout.n)) * 1e-3
+    covariance, sigma2 = torch.as_tensor(half @ half.T), torch.tensor(1e-4, dtype=torch.float64)
+    previous = torch.as_tensor(previous_poses(pose.numpy()))
+    with torch.no_grad():
+        error, q, signs, learned, turned, std = module.parts(pose, previous, ranges=torch.as_tensor(RANGES),
+                                                             rotation=True, uncertainty=(covariance, sigma2))
+        ref_error, ref_turned, ref_std = _reference(module, pose, q, signs, learned, None, covariance, sigma2)
+    assert error.abs().max() > 0.3 and turned.abs().max() > 1e-4 and np.ptp(std.numpy()) > 0.1 * std.mean().item()
+    assert (error - ref_error).abs().max() < 1e-9 and (turned - ref_turned).abs().max() < 1e-12
+    assert (std - ref_std).abs().max() < 1e-9 * ref_std.abs().max()
 
 
 class _Counting(torch.nn.Module):

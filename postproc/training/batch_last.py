@@ -18,8 +18,8 @@ import torch
 
 from ..robot import gravity_from_points, holding_torques
 
-__all__ = ["const_mat", "mat", "mat_t", "mat_vec", "const_vec", "cross", "abc_rotations", "joint_turns", "Frames",
-           "frames", "torque_terms"]
+__all__ = ["const_mat", "mat", "mat_t", "mat_vec", "const_vec", "cross", "unit_crosses", "abc_rotations", "joint_turns",
+           "Frames", "frames", "torque_terms"]
 
 MM = 1e-3
 _NEXT, _PREV = [1, 2, 0], [2, 0, 1]
@@ -54,6 +54,13 @@ def cross(a: torch.Tensor, b: torch.Tensor, dim: int) -> torch.Tensor:
     """a × b along ``dim`` (broadcast)."""
     nxt, prv = torch.tensor(_NEXT), torch.tensor(_PREV)
     return (a.index_select(dim, nxt) * b.index_select(dim, prv) - a.index_select(dim, prv) * b.index_select(dim, nxt))
+
+
+def unit_crosses(v: torch.Tensor) -> torch.Tensor:
+    """e_k × v for k = 0, 1, 2 [3(k), 3, N] of vectors ``v`` [3, N]."""
+    zero = torch.zeros_like(v[0])
+    return torch.stack([torch.stack([zero, -v[2], v[1]]), torch.stack([v[2], zero, -v[0]]),
+                        torch.stack([-v[1], v[0], zero])])
 
 
 def abc_rotations(abc_deg: torch.Tensor) -> torch.Tensor:

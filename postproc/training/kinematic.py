@@ -457,8 +457,9 @@ class KinematicErrorModule(torch.nn.Module):
         from ``previous``; NaN = from ``previous`` (the contract's ``approach`` input).
         ``q_previous`` [N, 6] rad: the controller's angles at the target before (see
         ``approach_signs``). ``uncertainty`` (covariance [P, P], σ²): + the std of E − Ê [N, 1]
-        mm last (``uncertainty.error_std``'s figure). Evaluated batch-last (``batch_last``):
-        the same quantities as ``error_at`` and ``uncertainty.error_std``, to rounding."""
+        mm last (the contract's ``error_std``: ``uncertainty``'s module text). Evaluated
+        batch-last (``batch_last``): the same quantities as ``error_at`` and, for the std,
+        ``jacobian`` with ``residual_variance``, to rounding."""
         at = None if tool is None else (lambda p: at_tool(p, tool, self.tool0))  # noqa: E731
         q = self.joints_of(pose if at is None else at(pose), q_in)
         signs = torch.zeros_like(q)
@@ -502,8 +503,8 @@ class KinematicErrorModule(torch.nn.Module):
     def _evaluate(self, q: torch.Tensor, signs: torch.Tensor, pose: torch.Tensor, learned: torch.Tensor | None,
                   tool: torch.Tensor | None, rotation: bool, uncertainty) -> tuple[torch.Tensor, ...]:
         """(Ê [N, 3] [, r̂ [N, 3] rad] [, error_std [N, 1] mm]) at q [N, 6] reached with ``signs``
-        for the commanded ``pose`` [N, 6]: ``error_at``'s and ``uncertainty.error_std``'s
-        quantities, batch-last (``batch_last``: vectors [3, N], rotations [3, 3, N])."""
+        for the commanded ``pose`` [N, 6]: ``error_at``'s quantities (and ``_error_std``),
+        batch-last (``batch_last``: vectors [3, N], rotations [3, 3, N])."""
         c = self._batch_last
         qt, st = q.t(), signs.t()
         tools = None if tool is None else torch.where(torch.isnan(tool[:, :3]), self.tool0[:3], tool[:, :3]).t()
@@ -569,18 +570,12 @@ class KinematicErrorModule(torch.nn.Module):
             turn = bl.cross(axes, lever[:, None], 2)
             blocks["placement"] = torch.cat([turn, axes], dim=1).reshape(36, 3, n)
         if "base" in groups:
-            d = g.tcp - c["id_base"][:3, 3:4]
-            zero = torch.zeros_like(d[0])
-            turn = torch.stack([torch.stack([zero, -d[2], d[1]]), torch.stack([d[2], zero, -d[0]]),
-                                torch.stack([-d[1], d[0], zero])])  # e_k × d [k, 3, N]
-            blocks["base"] = torch.cat([turn, torch.eye(3, dtype=d.dtype)[:, :, None].expand(3, 3, n)])
+            turn = bl.unit_crosses(g.tcp - c["id_base"][:3, 3:4])
+            blocks["base"] = torch.cat([turn, torch.eye(3, dtype=turn.dtype)[:, :, None].expand(3, 3, n)])
         if "tool" in groups:
             blocks["tool"] = bl.mat(g.rotations[-1], arm.end[:3, :3][:, :, None]).transpose(0, 1)
         if "mount" in groups:
-            t = arm.tool[:3, 3:4].expand(3, n) if tools is None else tools
-            zero = torch.zeros_like(t[0])
-            turn = torch.stack([torch.stack([zero, -t[2], t[1]]), torch.stack([t[2], zero, -t[0]]),
-                                torch.stack([-t[1], t[0], zero])])  # e_k × t [k, 3, N]
+            turn = bl.unit_crosses(arm.tool[:3, 3:4].expand(3, n) if tools is None else tools)
             on_flange = (arm.flange[:3, :3] @ turn.transpose(0, 1).reshape(3, -1)).reshape(3, 3, n).transpose(0, 1)
             blocks["mount"] = (g.rotations[-1][None] * on_flange[:, None]).sum(2)
         if "zero" in groups:
