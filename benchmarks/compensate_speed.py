@@ -35,14 +35,20 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 
 
-def make_cam_program(path: Path, n: int, seed: int = 0) -> None:
-    """A CAM-style module: header, $BASE/$TOOL at the top, n LIN lines inside the envelope."""
+def cam_poses(n: int, seed: int = 0) -> np.ndarray:
+    """The n targets [n, 6] of :func:`make_cam_program`: a spiral through the envelope."""
     rng = np.random.default_rng(seed)
     t = np.linspace(0, 40 * np.pi, n)
     x = 2000 + 250 * np.cos(t) * np.linspace(0.2, 1, n)
     y = 500 * np.sin(t) * np.linspace(0.2, 1, n)
     z = 600 + 600 * np.linspace(0, 1, n) + rng.normal(0, 0.01, n)
     a, b, c = rng.uniform(-3, 3, n), 90 + rng.uniform(-3, 3, n), rng.uniform(-3, 3, n)
+    return np.c_[x, y, z, a, b, c]
+
+
+def make_cam_program(path: Path, n: int, seed: int = 0) -> None:
+    """A CAM-style module: header, $BASE/$TOOL at the top, n LIN lines inside the envelope."""
+    x, y, z, a, b, c = cam_poses(n, seed).T
     body = "\n".join(
         f"LIN {{X {x[i]:.3f},Y {y[i]:.3f},Z {z[i]:.3f},A {a[i]:.3f},B {b[i]:.3f},C {c[i]:.3f}}} C_VEL"
         for i in range(n)

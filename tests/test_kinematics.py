@@ -1,6 +1,6 @@
 """One robot description, one reference FK: Pinocchio's model (postproc.robot.pin_model). The
 derived kinematics — the numpy Chain (IK checks, simulator), the torch Arm (identification) and
-the ONNX graph the Arm is exported in — and the vectorised gravity torques are checked against
+the batch-last FK the exported ONNX graph runs (training/batch_last.py) — and the vectorised gravity torques are checked against
 it on random joint angles over the joint ranges of both shipped descriptions and of a skewed
 one (joint frames turned, axes off the coordinate axes: code paths the shipped robots skip)."""
 from __future__ import annotations
@@ -105,17 +105,22 @@ def test_the_torch_arm_is_pinocchios_fk(case):
 
 
 class _Exported(torch.nn.Module):
-    """The Arm's FK and gravity torques as they run inside an exported graph."""
+    """The FK and gravity torques as they run inside an exported graph (training/batch_last.py:
+    [3, N] vectors, [3, 3, N] rotations), brought back to [N, …]."""
 
     def __init__(self, arm):
         super().__init__()
         self.arm = arm
 
     def forward(self, q):
-        from postproc.training.arm import mc
+        from postproc.training import batch_last as bl
 
-        rot, org, tcp = self.arm.frames(q)
-        return tcp, mc(rot[:, -1], self.arm.end[:3, :3]), self.arm.gravity_torques(rot, org)
+        arm = self.arm
+        f = bl.frames(bl.joint_turns(arm.placements, arm.axes), arm.placements[:, :3, 3], q.t(), arm.end[:3, 3])
+        rotations = torch.stack(f.rotations).permute(3, 0, 1, 2)
+        tcp_rotation = bl.mat(f.rotations[-1], arm.end[:3, :3][:, :, None]).permute(2, 0, 1)
+        return (rotations, f.origins_stacked().permute(2, 0, 1), f.tcp.t(), tcp_rotation,
+                bl.torque_terms(arm, f)[:6].t())
 
 
 def test_the_onnx_graph_is_pinocchios_fk_and_gravity(case):
@@ -126,16 +131,17 @@ def test_the_onnx_graph_is_pinocchios_fk_and_gravity(case):
 
     d, q = case
     buffer = io.BytesIO()
+    names = ("rotations", "origins", "tcp", "rotation", "tau")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation notice
         torch.onnx.export(_Exported(Arm(d)).eval(), (torch.zeros(2, 6, dtype=torch.float64),), buffer, dynamo=False,
-                          input_names=["q"], output_names=["tcp", "rotation", "tau"],
-                          dynamic_axes={name: {0: "N"} for name in ("q", "tcp", "rotation", "tau")},
-                          opset_version=OPSET)
+                          input_names=["q"], output_names=list(names),
+                          dynamic_axes={name: {0: "N"} for name in ("q",) + names}, opset_version=OPSET)
     session = onnxruntime.InferenceSession(buffer.getvalue(), providers=["CPUExecutionProvider"])
-    tcp, rotation, tau = session.run(None, {"q": np.radians(q)})
-    _, _, ref = reference_frames(d, q)
-    assert np.abs(tcp - ref[:, :3, 3]).max() < POSITION_MM and np.abs(rotation - ref[:, :3, :3]).max() < ROTATION
+    rotations, origins, tcp, rotation, tau = session.run(None, {"q": np.radians(q)})
+    end = np.zeros((len(q), 4, 4))
+    end[:, :3, :3], end[:, :3, 3] = rotation, tcp
+    assert_frames(rotations, origins, end, reference_frames(d, q))
     assert_torques(tau, reference_gravity(d, q))
 
 

@@ -122,15 +122,12 @@ class HybridModule(torch.nn.Module):
         tool = tool.to(torch.float64) if tool is not None else None
         approach = approach.to(torch.float64) if approach is not None else None
         q_previous = q_previous.to(torch.float64) if q_previous is not None else None
-        error, q, signs, learned, *turned = self.kinematic.parts(pose, prev, q_in, self.joint_range, tool, rotation,
-                                                                 approach, q_previous)
+        error, q, signs, learned, *turned = self.kinematic.parts(
+            pose, prev, q_in, self.joint_range, tool, rotation, approach, q_previous,
+            (self.covariance, self.sigma2) if uncertainty else None)
         if len(self.nets):
             features = joint_features(q, signs if self.uses_previous else None)
             error = error + learned[:, None] * torch.stack([net(features) for net in self.nets]).mean(dim=0)
-        if uncertainty:
-            from .uncertainty import error_std
-
-            turned.append(error_std(self.kinematic, self.covariance, self.sigma2, q, signs, learned, tool))
         return (error.to(dtype), q.to(dtype), *(t.to(dtype) for t in turned))
 
     def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,

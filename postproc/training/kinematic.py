@@ -54,13 +54,14 @@ import torch
 from .. import frames
 from ..diagnostics import PostprocError
 from ..robot import RobotDescription
+from . import batch_last as bl
 from .arm import Arm, at_tool, axis_rotations, choose_branch, coupling_pairs, make_ik, mc, mv, small_rotation
 from .estimator import Estimator
 from .features import inside_ranges, motion_signs, wrapped_step
 from .network import rotation_matrices
 
 __all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS", "unseparated_mount",
-           "nominal_digest"]
+           "nominal_digest", "residual_variance"]
 
 GROUPS = ("placement", "base", "tool", "mount", "tool_rotation", "zero", "compliance", "coupling", "backlash")
 DEFAULT_GROUPS = GROUPS
@@ -286,6 +287,17 @@ def jacobian(arm: Arm, layout: Layout, theta: torch.Tensor, q: torch.Tensor, sig
     return tcp, jac, sens, tcp_rot, torch.cat([cols[name][1] for name in names], dim=2), sens_rot
 
 
+def residual_variance(jac: torch.Tensor, covariance: torch.Tensor, sigma2: torch.Tensor | float,
+                      batch_last: bool = False) -> torch.Tensor:
+    """Per target and coordinate [N, 3] the variance of E − Ê: σ² + diag(J_t C J_tᵀ) (the
+    model part clipped at 0) for target Jacobians ``jac`` [N, 3, P]; ``batch_last``: ``jac``
+    [P, M] (the exported graph's layout, M = 3N) → [M]. One rule, used by
+    ``uncertainty.position_std`` and by the exported graph (``KinematicErrorModule``)."""
+    if batch_last:  # (one GEMM with the parameters first: no transpose of the [P, 3N] Jacobian)
+        return sigma2 + ((covariance @ jac) * jac).sum(dim=0).clamp(min=0.0)
+    return sigma2 + ((jac @ covariance) * jac).sum(dim=-1).clamp(min=0.0)
+
+
 def _joint_columns(layout: Layout, q: torch.Tensor, signs: torch.Tensor, tau: torch.Tensor,
                    ripple_joint: torch.Tensor, ripple_order: torch.Tensor,
                    ripple_rows: torch.Tensor | None = None) -> dict:
@@ -317,9 +329,17 @@ def rotation_log(m: torch.Tensor) -> torch.Tensor:
     return v * (1.0 + (v * v).sum(1, keepdim=True) / 6.0)
 
 
+def previous_branch(q_in: torch.Tensor | None, q_previous: torch.Tensor | None) -> torch.Tensor | None:
+    """The joint angles [N, 6] whose branch the previous pose is solved on (``approach_signs``):
+    the previous target's own (``q_previous``) where known, else this target's (``q_in``)."""
+    if q_previous is None or q_in is None:
+        return q_in
+    return torch.where(torch.isnan(q_previous).any(dim=1, keepdim=True), q_in, q_previous)
+
+
 def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, pose: torch.Tensor,
                    previous: torch.Tensor, q_in: torch.Tensor | None = None, at=None,
-                   q_previous: torch.Tensor | None = None) -> torch.Tensor:
+                   q_previous: torch.Tensor | None = None, solved: torch.Tensor | None = None) -> torch.Tensor:
     """Approach signs [N, 6] for q = IK(pose) reached from ``previous`` [N, 6]. A row whose
     previous pose is the pose itself (compensate's first target: nothing known before it) is
     taken as reached from HOME, where robot programs start (a joint HOME leaves as it is: +1,
@@ -333,13 +353,18 @@ def approach_signs(ik: torch.nn.Module, home_q: torch.Tensor, q: torch.Tensor, p
 
     Hard signs, as the simulator's backlash: a ramp over the lost motion (a joint turning back
     by less than it takes it up in part) is more physical, but measured worse on the simulator
-    (0.23 vs 0.10 mm max on robot seed 3: a 0.003° step of A1 got a third of its sign)."""
+    (0.23 vs 0.10 mm max on robot seed 3: a 0.003° step of A1 got a third of its sign).
+
+    ``solved`` [N, 6]: that IK of the previous poses when the caller has it already
+    (``KinematicErrorModule.previous_joints``: the row before's where it is that row's pose)."""
     same = (previous == pose).all(dim=1, keepdim=True)
-    previous = previous if at is None else at(previous)
     both = q_previous is not None and q_in is not None
-    # the previous pose solved on its own target's branch where that is known, else on this one's
-    branch = q_in if not both else torch.where(torch.isnan(q_previous).any(dim=1, keepdim=True), q_in, q_previous)
-    q_prev = torch.where(same, home_q.expand_as(q), ik(previous) if branch is None else ik(previous, branch))
+    if solved is None:
+        # the previous pose solved on its own target's branch where that is known, else on this one's
+        branch = previous_branch(q_in, q_previous)
+        previous = previous if at is None else at(previous)
+        solved = ik(previous) if branch is None else ik(previous, branch)
+    q_prev = torch.where(same, home_q.expand_as(q), solved)
     signs = motion_signs(q, q_prev, eps=SIGN_DEADBAND)
     # a joint that has not moved since HOME is on the side the robot starts it on (the
     # simulator's start sign, +1), not in the middle
@@ -390,6 +415,27 @@ class KinematicErrorModule(torch.nn.Module):
         self.register_buffer("end", chain["end"])
         self.register_buffer("tool0", torch.as_tensor(np.asarray(arm.description.tool, dtype=np.float64)))
         self.register_buffer("base", chain["base"])
+        self._batch_last = self._constants()
+
+    def _constants(self) -> dict[str, torch.Tensor]:
+        """The constants of the batch-last evaluation (``_evaluate``), from θ."""
+        arm, layout = self.arm, self.layout
+        with torch.no_grad():
+            p = layout.unpack(self.theta)
+            chain = identified_chain(arm, p)
+            mount = arm.flange[:3, :3] @ small_rotation(p["mount"])
+            return {
+                "turns": bl.joint_turns(self.placements, arm.axes), "offsets": self.placements[:, :3, 3],
+                "id_turns": bl.joint_turns(chain["placements"], arm.axes), "id_offsets": chain["placements"][:, :3, 3],
+                "id_base": chain["base"], "end": self.end[:3, 3],
+                # per-row TCPs t on the flange: identified_end = mount-turned t + the tool shift, on the flange
+                "end_turn": mount, "end_shift": arm.flange[:3, 3] + arm.flange[:3, :3] @ (arm.tool[:3, :3] @ p["tool"]),
+                "tool_turn": self.end[:3, :3] @ arm.tool[:3, :3].T,
+                "zero": p["zero"], "compliance": p["compliance"], "coupling": p["coupling"], "backlash": p["backlash"],
+                "coupling_sum": COUPLING_ONEHOT.T.contiguous(), "coupling_joints": torch.tensor(COUPLING_J),
+                "ripple": p["ripple"],
+                "ripple_sum": torch.nn.functional.one_hot(self.ripple_joint, 6).to(torch.float64).T.contiguous(),
+            }
 
     def joints_of(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
         """q [N, 6] rad the controller turns to for float64 ``pose``: the nominal IK on the
@@ -399,8 +445,8 @@ class KinematicErrorModule(torch.nn.Module):
 
     def parts(self, pose: torch.Tensor, previous: torch.Tensor | None = None, q_in: torch.Tensor | None = None,
               ranges: torch.Tensor | None = None, tool: torch.Tensor | None = None, rotation: bool = False,
-              approach: torch.Tensor | None = None, q_previous: torch.Tensor | None = None
-              ) -> tuple[torch.Tensor, ...]:
+              approach: torch.Tensor | None = None, q_previous: torch.Tensor | None = None,
+              uncertainty: tuple[torch.Tensor, torch.Tensor] | None = None) -> tuple[torch.Tensor, ...]:
         """(Ê [N, 3], q [N, 6], signs [N, 6], learned [N]) for float64 poses (``q_in``: see
         ``joints_of``); with joint ``ranges`` [6, 2] rad the ripple terms are left out where q
         is outside them (learned = 0 there, else 1). ``tool`` [N, 6]: each row's TCP on the
@@ -410,20 +456,148 @@ class KinematicErrorModule(torch.nn.Module):
         each joint to assume (+1, −1, 0 = the middle of the lost motion) in place of the one
         from ``previous``; NaN = from ``previous`` (the contract's ``approach`` input).
         ``q_previous`` [N, 6] rad: the controller's angles at the target before (see
-        ``approach_signs``)."""
+        ``approach_signs``). ``uncertainty`` (covariance [P, P], σ²): + the std of E − Ê [N, 1]
+        mm last (the contract's ``error_std``: ``uncertainty``'s module text). Evaluated
+        batch-last (``batch_last``): the same quantities as ``error_at`` and, for the std,
+        ``jacobian`` with ``residual_variance``, to rounding."""
         at = None if tool is None else (lambda p: at_tool(p, tool, self.tool0))  # noqa: E731
         q = self.joints_of(pose if at is None else at(pose), q_in)
         signs = torch.zeros_like(q)
         if self.use_previous and previous is not None:
-            signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous, q_in, at, q_previous)
+            solved = self.previous_joints(q, pose, previous, q_in, tool, q_previous)
+            signs = approach_signs(self.ik, self.arm.home_q, q, pose, previous, q_in, at, q_previous, solved)
         if self.use_previous and approach is not None:
             signs = torch.where(torch.isnan(approach), signs, approach)
         learned = torch.ones_like(q[:, 0]) if ranges is None else inside_ranges(q, ranges)
         mask = None if ranges is None else learned
+        out = self._evaluate(q, signs, pose, mask, tool, rotation, uncertainty)
+        return (out[0], q, signs, learned, *out[1:])
+
+    def previous_joints(self, q: torch.Tensor, pose: torch.Tensor, previous: torch.Tensor,
+                        q_in: torch.Tensor | None, tool: torch.Tensor | None,
+                        q_previous: torch.Tensor | None) -> torch.Tensor:
+        """The IK of the previous poses [N, 6] as ``approach_signs`` solves it: where a row's
+        previous pose is the row before's pose (program order: compensate passes each target's
+        predecessor command), with the same tool and branch, that row's q, which is the same
+        number; the other rows solved (only those: gathered, then scattered back)."""
+        def before(x: torch.Tensor) -> torch.Tensor:
+            return torch.cat([x[:1], x[:-1]])
+
+        def same_rows(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:  # (any NaN: the default branch)
+            return (a == b).all(dim=1) | (torch.isnan(a).any(dim=1) & torch.isnan(b).any(dim=1))
+
+        branch = previous_branch(q_in, q_previous)
+        shared = (previous == before(pose)).all(dim=1) & (torch.arange(pose.shape[0]) > 0)
+        if branch is not None:
+            shared = shared & same_rows(branch, before(q_in))
+        if tool is not None:
+            own = torch.where(torch.isnan(tool), self.tool0.expand_as(tool), tool)
+            shared = shared & (own == before(own)).all(dim=1)
+        rows = torch.nonzero(~shared).reshape(-1)
+        ahead = previous.index_select(0, rows)
+        if tool is not None:
+            ahead = at_tool(ahead, tool.index_select(0, rows), self.tool0)
+        solved = self.ik(ahead) if branch is None else self.ik(ahead, branch.index_select(0, rows))
+        return before(q).scatter(0, rows[:, None].expand(-1, q.shape[1]), solved)
+
+    def _evaluate(self, q: torch.Tensor, signs: torch.Tensor, pose: torch.Tensor, learned: torch.Tensor | None,
+                  tool: torch.Tensor | None, rotation: bool, uncertainty) -> tuple[torch.Tensor, ...]:
+        """(Ê [N, 3] [, r̂ [N, 3] rad] [, error_std [N, 1] mm]) at q [N, 6] reached with ``signs``
+        for the commanded ``pose`` [N, 6]: ``error_at``'s quantities (and ``_error_std``),
+        batch-last (``batch_last``: vectors [3, N], rotations [3, 3, N])."""
+        c = self._batch_last
+        qt, st = q.t(), signs.t()
+        tools = None if tool is None else torch.where(torch.isnan(tool[:, :3]), self.tool0[:3], tool[:, :3]).t()
+        end = c["end"] if tools is None else c["end_turn"] @ tools + c["end_shift"][:, None]
+        f = bl.frames(c["turns"], c["offsets"], qt, end)
+        tau = bl.torque_terms(self.arm, f)  # [27, N] (the fit's ``torques``: of the identified chain at q)
+        dq = self._joint_error(qt, st, tau - self.tau_mean[:, None], learned, zero=False)
+        omega = f.axes(self.arm.axes)  # [6, 3, N]
+        sens = bl.cross(omega, f.tcp[None] - f.origins_stacked(), 1)  # [6, 3, N]
+        actual = f.tcp + (sens * dq[:, None, :]).sum(0)
+        out = [(pose[:, :3].t() - self.base[:3, :3] @ actual - self.base[:3, 3:4]).t()]
         if rotation:
-            error, turned = self.error_at(q, signs, pose[:, :3], mask, tool, rotation_matrices(pose[:, 3:6]))
-            return error, q, signs, learned, turned
-        return self.error_at(q, signs, pose[:, :3], mask, tool), q, signs, learned
+            last = f.rotations[-1]
+            if tool is None:  # the TCP's rotation at q (identified chain, no base)
+                reached = bl.mat(last, self.end[:3, :3][:, :, None])
+            else:  # each row's TCP frame on the flange, turned as the model's own: R_end·R_tool0ᵀ·R_tool
+                abc = torch.where(torch.isnan(tool[:, 3:6]), self.tool0[3:6], tool[:, 3:6])
+                reached = bl.mat(bl.mat(last, c["tool_turn"][:, :, None]), bl.abc_rotations(abc))
+            m = bl.mat_t(bl.const_mat(self.base[:3, :3], reached), bl.abc_rotations(pose[:, 3:6]))
+            v = 0.5 * torch.stack([m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]])  # (rotation_log)
+            turned = v * (1.0 + (v * v).sum(0, keepdim=True) / 6.0)
+            out.append((turned + self.base[:3, :3] @ (omega * dq[:, None, :]).sum(0)).t())
+        if uncertainty is not None:
+            rows = learned if learned is not None and len(self.layout.ripple) else None
+            out.append(self._error_std(qt, st, tau, tools, rows, *uncertainty))
+        return tuple(out)
+
+    def _joint_error(self, qt: torch.Tensor, st: torch.Tensor, tau: torch.Tensor, rows: torch.Tensor | None,
+                     zero: bool) -> torch.Tensor:
+        """δq [6, N] (``joint_error`` batch-last): + the zero offsets with ``zero`` (else folded)."""
+        c = self._batch_last
+        dq = c["compliance"][:, None] * tau[:6] + c["coupling_sum"] @ (c["coupling"][:, None] * tau[6:])
+        if zero:
+            dq = c["zero"][:, None] + dq
+        dq = dq - c["backlash"][:, None] * st
+        if len(self.layout.ripple):
+            phase = qt.index_select(0, self.ripple_joint) * self.ripple_order[:, None]  # [R, N]
+            terms = torch.sin(phase) * c["ripple"][:, 0:1] + torch.cos(phase) * c["ripple"][:, 1:2]
+            if rows is not None:
+                terms = terms * rows[None, :]
+            dq = dq + c["ripple_sum"] @ terms
+        return dq
+
+    def _error_std(self, qt: torch.Tensor, st: torch.Tensor, tau: torch.Tensor, tools: torch.Tensor | None,
+                   rows: torch.Tensor | None, covariance: torch.Tensor, sigma2: torch.Tensor) -> torch.Tensor:
+        """The graph's ``error_std`` [N, 1] (``uncertainty``): the position Jacobian of the identified
+        chain at q + δq (``jacobian``'s columns, [P, 3, N]) and σ² + diag(J C Jᵀ) (``residual_variance``)."""
+        c, arm = self._batch_last, self.arm
+        end = c["end"] if tools is None else c["end_turn"] @ tools + c["end_shift"][:, None]
+        dq = self._joint_error(qt, st, tau, rows, zero=True)
+        g = bl.frames(c["id_turns"], c["id_offsets"], qt + dq, end, base=c["id_base"])
+        omega = g.axes(arm.axes)
+        lever = g.tcp[None] - g.origins_stacked()  # [6, 3, N]
+        sens = bl.cross(omega, lever, 1)  # ∂tcp/∂q_j [6, 3, N]
+        n = qt.shape[1]
+        blocks = {}
+        groups = self.layout.groups
+        if "placement" in groups:
+            first = (c["id_base"][:3, :3] @ arm.placements[0, :3, :3])[:, :, None].expand(3, 3, n)
+            axes = torch.stack([first] + [bl.mat(r, m[:3, :3][:, :, None])
+                                          for r, m in zip(g.rotations[:-1], arm.placements[1:])])  # [6, 3, 3(k), N]
+            axes = axes.transpose(1, 2)  # [6, k, 3, N]: the placement's own axes
+            turn = bl.cross(axes, lever[:, None], 2)
+            blocks["placement"] = torch.cat([turn, axes], dim=1).reshape(36, 3, n)
+        if "base" in groups:
+            turn = bl.unit_crosses(g.tcp - c["id_base"][:3, 3:4])
+            blocks["base"] = torch.cat([turn, torch.eye(3, dtype=turn.dtype)[:, :, None].expand(3, 3, n)])
+        if "tool" in groups:
+            blocks["tool"] = bl.mat(g.rotations[-1], arm.end[:3, :3][:, :, None]).transpose(0, 1)
+        if "mount" in groups:
+            turn = bl.unit_crosses(arm.tool[:3, 3:4].expand(3, n) if tools is None else tools)
+            on_flange = (arm.flange[:3, :3] @ turn.transpose(0, 1).reshape(3, -1)).reshape(3, 3, n).transpose(0, 1)
+            blocks["mount"] = (g.rotations[-1][None] * on_flange[:, None]).sum(2)
+        if "zero" in groups:
+            blocks["zero"] = sens
+        if "compliance" in groups:
+            blocks["compliance"] = sens * tau[:6, None]
+        if "coupling" in groups:
+            blocks["coupling"] = sens.index_select(0, c["coupling_joints"]) * tau[6:, None]
+        if "backlash" in groups:
+            blocks["backlash"] = -sens * st[:, None]
+        if len(self.layout.ripple):
+            phase = (qt.index_select(0, self.ripple_joint) * self.ripple_order[:, None])[:, None]  # [R, 1, N]
+            at_joint = sens.index_select(0, self.ripple_joint)
+            if rows is not None:
+                at_joint = at_joint * rows
+            blocks["ripple"] = torch.stack([at_joint * torch.sin(phase), at_joint * torch.cos(phase)], dim=1).reshape(
+                -1, 3, n)
+        if "tool_rotation" in groups:  # (turns the TCP frame only: zero in position)
+            blocks["tool_rotation"] = torch.zeros_like(sens[:3])
+        jac = torch.cat([blocks[name] for name in self.layout.sizes if name in blocks]).reshape(self.layout.n, -1)
+        # (the covariance as stored: train --update reads it back from the graph, initializer module.covariance)
+        return residual_variance(jac, covariance, sigma2, batch_last=True).reshape(3, n).mean(dim=0).sqrt()[:, None]
 
     def tool_end(self, tool: torch.Tensor) -> torch.Tensor:
         """The identified TCP positions [N, 3] in the last joint's frame for the TCPs ``tool``

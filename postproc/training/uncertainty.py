@@ -33,11 +33,12 @@ the pose's exact IK). σ from it overstated IPA's held-out residual std by 40 % 
 in the data both are the same.
 
 The exported graph computes the same figure (the contract's optional output ``error_std``):
-:func:`error_std` builds J_t with the same geometric Jacobian (``kinematic.jacobian``, whose
-operations the TorchScript ONNX exporter handles) from the graph's own q, approach signs and
-tool, and takes σ² + diag(J_t C J_tᵀ) with C and σ² stored in the graph (``HybridModule``'s
-buffers ``covariance`` [P, P] and ``sigma2``). It is of the identified arm only: where residual
-networks were kept, σ is the identification's residual (larger than what the networks leave,
+``KinematicErrorModule`` builds J_t with the columns of the same geometric Jacobian
+(``kinematic.jacobian``, batch-last: ``kinematic.KinematicErrorModule._error_std``) from the
+graph's own q, approach signs and tool, and takes ``kinematic.residual_variance`` with C and σ²
+stored in the graph (``HybridModule``'s buffers ``covariance`` [P, P] and ``sigma2``). It is of
+the identified arm only: where residual networks were kept, σ is the identification's residual
+(larger than what the networks leave,
 so the figure errs on the safe side).
 """
 from __future__ import annotations
@@ -47,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .kinematic import KinematicModel, approach_signs, jacobian
+from .kinematic import KinematicModel, approach_signs, jacobian, residual_variance
 
 # compensate / check warn (P336) where error_std exceeds this multiple of the identification's
 # residual std σ per coordinate (the card's uncertainty.max_std_mm; --max-std overrides). Inside
@@ -55,7 +56,7 @@ from .kinematic import KinematicModel, approach_signs, jacobian
 # the residual to expect there is twice what the card's accuracy was validated at
 MAX_STD_FACTOR = 2.0
 
-__all__ = ["MAX_STD_FACTOR", "ParameterCovariance", "parameter_covariance", "PositionStd", "position_std", "error_std",
+__all__ = ["MAX_STD_FACTOR", "ParameterCovariance", "parameter_covariance", "PositionStd", "position_std",
            "residual_variance"]
 
 
@@ -85,29 +86,6 @@ class PositionStd:
     total: np.ndarray  # [N] mm: std of a coordinate of E − Ê (unexplained + model)
     model: np.ndarray  # [N] mm: the model's part, √(tr(J C Jᵀ)/3)
     per_axis: np.ndarray  # [N, 3] mm: std of X, Y, Z of E − Ê
-
-
-def residual_variance(jac: torch.Tensor, covariance: torch.Tensor, sigma2: torch.Tensor | float) -> torch.Tensor:
-    """Per target and coordinate [N, 3] the variance of E − Ê: σ² + diag(J_t C J_tᵀ) (the
-    model part clipped at 0) for target Jacobians ``jac`` [N, 3, P]. One rule, used by
-    :func:`position_std` and by the exported graph."""
-    return sigma2 + ((jac @ covariance) * jac).sum(dim=-1).clamp(min=0.0)
-
-
-def error_std(kinematic, covariance: torch.Tensor, sigma2: torch.Tensor, q: torch.Tensor, signs: torch.Tensor,
-              learned: torch.Tensor | None = None, tool: torch.Tensor | None = None) -> torch.Tensor:
-    """The graph's ``error_std`` [N, 1] mm (root mean over X, Y, Z of the std of E − Ê, as
-    ``PositionStd.total``) of the identified arm ``kinematic`` (a ``KinematicErrorModule``) at
-    joint angles q [N, 6] rad reached with ``signs``; ``learned`` [N] 1/0: the rows inside the
-    trained joint ranges (outside, the graph leaves the ripple terms out: so does their
-    uncertainty); ``tool`` [N, 6]: each row's TCP on the flange (NaN rows: the model's own)."""
-    tau = kinematic.torques(q)
-    tools = None
-    if tool is not None:
-        tools = torch.where(torch.isnan(tool[:, :3]), kinematic.tool0[:3].expand(tool.shape[0], 3), tool[:, :3])
-    rows = learned if learned is not None and len(kinematic.layout.ripple) else None
-    _, jac, _ = jacobian(kinematic.arm, kinematic.layout, kinematic.theta, q, signs, tau, tools, ripple_rows=rows)
-    return residual_variance(jac, covariance, sigma2).mean(dim=-1, keepdim=True).sqrt()
 
 
 def _jac(model: KinematicModel, q: torch.Tensor, signs: torch.Tensor) -> np.ndarray:
