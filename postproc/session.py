@@ -16,6 +16,13 @@ shipped model's 1,724 optimised nodes, against ~150 ms optimising at each start)
 graph's nodes; the same graph in ORT format starts no faster, nor does a cached graph of a
 lower optimisation level, and with one thread there is no pool to spin (allow_spinning: no
 change). ORT holds the GIL while it builds a session: a thread would not overlap it with reading.
+
+A session of the graph cut to some of its outputs (``inference_session(data, outputs)``):
+onnxruntime runs every node of a graph whichever outputs a run asks for, so the fixed-point
+iterations, which need ``error`` (and ``ik_joints``) only, paid for the ``error_std`` Jacobian
+too. The cut keeps the nodes those outputs need (the ``onnx`` package: ``_cut``) and is cached
+like the whole graph, keyed by the model's bytes and the outputs; the numbers are the whole
+graph's bit for bit (tests/test_session.py).
 """
 from __future__ import annotations
 
@@ -54,15 +61,20 @@ def _key(ort, data: bytes) -> str:
     return h.hexdigest()
 
 
-def inference_session(data: bytes):
+def inference_session(data: bytes, outputs: tuple[str, ...] | None = None):
     """An ``onnxruntime.InferenceSession`` (CPU) of the model ``data``; raises what ORT raises
-    for a model it cannot load."""
+    for a model it cannot load. With ``outputs``: of the graph cut to what they need, or None
+    where it cannot be cut here (no ``onnx`` package, a graph with subgraphs)."""
     import onnxruntime as ort
 
     folder = cache_dir()
     if folder is None:
+        if outputs is not None:
+            data = _cut(data, outputs)
+            if data is None:
+                return None
         return ort.InferenceSession(data, _options(ort, True), providers=["CPUExecutionProvider"])
-    key = _key(ort, data)
+    key = _key(ort, data if outputs is None else data + "\0outputs\0".join(["", *outputs]).encode())
     cached, digest = folder / f"{key}.onnx", folder / f"{key}.sha256"
     try:
         optimised = cached.read_bytes()
@@ -70,6 +82,10 @@ def inference_session(data: bytes):
             return ort.InferenceSession(optimised, _options(ort, False), providers=["CPUExecutionProvider"])
     except Exception:  # noqa: BLE001 - not there yet, unreadable, or a cache ORT refuses (its own types): made again below
         pass
+    if outputs is not None:
+        data = _cut(data, outputs)
+        if data is None:
+            return None
     options = _options(ort, True)
     tmp = None
     try:
@@ -100,3 +116,32 @@ def _keep(written: Path, cached: Path, digest: Path) -> None:
         os.replace(tmp, digest)
     except OSError:
         pass
+
+
+def _cut(data: bytes, outputs: tuple[str, ...]) -> bytes | None:
+    """The model ``data`` with only the graph outputs ``outputs`` and the nodes and initializers
+    they need (every input kept); None without the ``onnx`` package or for a graph whose nodes
+    carry subgraphs (their outer names are not followed here)."""
+    try:
+        import onnx
+    except ImportError:
+        return None
+    model = onnx.load_from_string(data)
+    graph = model.graph
+    subgraphs = (onnx.AttributeProto.GRAPH, onnx.AttributeProto.GRAPHS)
+    if any(a.type in subgraphs for node in graph.node for a in node.attribute):
+        return None
+    needed, keep = set(outputs), []
+    for node in reversed(graph.node):
+        if any(name in needed for name in node.output):
+            keep.append(node)
+            needed.update(name for name in node.input if name)
+    kept_outputs = [o for o in graph.output if o.name in outputs]
+    if len(kept_outputs) != len(set(outputs)):
+        return None
+    initializers = [i for i in graph.initializer if i.name in needed]
+    del graph.node[:], graph.output[:], graph.initializer[:]
+    graph.node.extend(reversed(keep))
+    graph.output.extend(kept_outputs)
+    graph.initializer.extend(initializers)
+    return model.SerializeToString()

@@ -83,3 +83,42 @@ def test_no_cache_dir_or_an_unwritable_one_still_gives_a_session(tmp_path, monke
         monkeypatch.setenv("POSTPROC_CACHE_DIR", where)
         sess = ps.inference_session(model_bytes)
         assert _run(sess, _feeds(sess, n=5))[0].shape[0] == 5
+
+
+@pytest.mark.parametrize("cache", [False, True])
+def test_a_graph_cut_to_some_outputs_gives_their_numbers_bit_for_bit(tmp_path, monkeypatch, model_bytes, cache):
+    """onnxruntime runs every node whichever outputs are asked: the cut graph keeps only what
+    ``error`` and ``ik_joints`` need (no error_std Jacobian) and gives the same numbers; cached
+    apart from the whole graph, read back on the next use."""
+    monkeypatch.setenv("POSTPROC_CACHE_DIR", str(tmp_path) if cache else "")
+    whole = ps.inference_session(model_bytes)
+    names = ("error", "ik_joints")
+    cut = ps.inference_session(model_bytes, names)
+    assert [o.name for o in cut.get_outputs()] == list(names)
+    assert {i.name for i in cut.get_inputs()} == {i.name for i in whole.get_inputs()}
+    feeds = _feeds(whole)
+    want = whole.run(list(names), feeds)
+    for got, expected in zip(cut.run(list(names), feeds), want):
+        assert np.array_equal(got, expected)
+    if cache:
+        assert len(list(tmp_path.glob("*.onnx"))) == 2  # the whole graph and the cut one
+        again = ps.inference_session(model_bytes, names)
+        assert all(np.array_equal(g, w) for g, w in zip(again.run(list(names), feeds), want))
+    assert ps.inference_session(model_bytes, ("error", "no such output")) is None
+
+
+def test_a_large_predict_runs_the_cut_graph_with_the_same_numbers():
+    from postproc.compensator import load_model
+
+    model = load_model()
+    feeds = _feeds(model.session, n=3000, seed=2)
+    poses, q = feeds["pose"].astype(np.float64), feeds["joints"].astype(np.float64)
+    model.cut_rows = 10**9
+    want = model.predict(poses, np.roll(poses, 1, axis=0), joints=q, with_joints=True)
+    model.cut_rows = 1000
+    got = model.predict(poses, np.roll(poses, 1, axis=0), joints=q, with_joints=True)
+    assert all(np.array_equal(g, w) for g, w in zip(got, want))
+    (cut,) = model._cut.values()
+    assert cut is not model.session and len(cut.get_outputs()) == 2
+    with_std = model.predict(poses, np.roll(poses, 1, axis=0), joints=q, with_joints=True, std=True)
+    assert np.array_equal(with_std[0], want[0]) and len(model._cut) == 2
