@@ -89,14 +89,21 @@ def _status_table(robot: Robot, poses: np.ndarray, check: bool) -> tuple[np.ndar
 
 
 class _Branches:
-    """The branch table of a program's poses with the FK check done lazily: the closed form is
+    """The branch table of a program's poses, solved and FK-checked lazily: the closed form is
     exact and the check (:meth:`Robot.reaches`) only guards the reachability masks, so only the
     entries the rules pick are checked (:meth:`confirm`, ~1 of the ~4 reaching branches of a
     target); a row with an entry that fails is solved again with every branch checked, and the
     rules run again. What the rules pick never fails its check, and they pick the same entries
     as on the fully checked table (an unchecked entry that is never picked changes no minimum),
     so the results are those of the fully checked table. Rows where two branches share a status
-    are checked at once (the check decides which one stays)."""
+    are checked at once (the check decides which one stays).
+
+    Rows are solved only as far as the rules read them: all 8 branches where a rule compares
+    them (:meth:`need_rows`: a PTP without S, a pose list's row, the first target), else only
+    the branch the target is on (:meth:`need`: a LIN keeps its configuration, a stated S),
+    through :meth:`Robot.status_branch` where it is sure to give the full table's entry (no
+    other branch of that status), all 8 where not. ``table`` and ``ok`` hold the entries solved
+    so far (the others NaN / False: read only what ``need`` / ``need_rows`` solved)."""
 
     def __init__(self, robot: Robot, poses: np.ndarray, tools: np.ndarray | None, check_all: bool = False):
         self.poses = np.atleast_2d(np.asarray(poses, float))
@@ -110,17 +117,64 @@ class _Branches:
         self.table = np.full((8, n, 6), np.nan)
         self.ok = np.zeros((8, n), bool)
         self.confirmed = np.full((8, n), check_all)
+        self.check_all = check_all
+        self.full = np.zeros(n, bool)  # rows with all 8 branches solved
+        self.known = np.zeros((8, n), bool)  # entries solved alone (status_branch)
+        if check_all:
+            self.need_rows(np.arange(n))
+
+    def need_rows(self, rows: np.ndarray) -> None:
+        """Solve every branch of ``rows`` (those not solved yet)."""
+        rows = np.asarray(rows, int)
+        rows = rows[~self.full[rows]]
+        if not len(rows):
+            return
+        self.full[rows] = True
         for k, arm in enumerate(self.arms):
-            rows = np.flatnonzero(self.which == k)
-            self.table[:, rows], self.ok[:, rows], collide = _status_table(arm, self.poses[rows], check_all)
-            if collide.any() and not check_all:
-                self._check_rows(rows[collide])
+            r = rows[self.which[rows] == k]
+            if len(r):
+                self.table[:, r], self.ok[:, r], collide = _status_table(arm, self.poses[r], self.check_all)
+                if collide.any() and not self.check_all:
+                    self._check_rows(r[collide])
+
+    def need(self, branch: np.ndarray, rows: np.ndarray) -> None:
+        """Solve the entries (branch[i], rows[i]) not solved yet: alone where sure, else their rows."""
+        branch, rows = (np.asarray(v, int).ravel() for v in np.broadcast_arrays(branch, rows))
+        branch = branch % 8  # (as an index: UNSTATED reads the last)
+        todo = np.flatnonzero(~self.full[rows] & ~self.known[branch, rows])
+        if not len(todo):
+            return
+        branch, rows = branch[todo], rows[todo]
+        code = np.unique(rows * 8 + branch)  # (each entry once)
+        rows, branch = code // 8, code % 8
+        unsure = []
+        for k, arm in enumerate(self.arms):
+            m = self.which[rows] == k
+            if not m.any():
+                continue
+            r, b = rows[m], branch[m]
+            solved = arm.status_branch(self.poses[r], b)
+            if solved is None:
+                unsure.append(r)
+                continue
+            q, ok, sure = solved
+            if ok.any():  # (the closed form's status of the entry: the index's, where sure)
+                got = np.full(len(r), -1)
+                got[ok] = arm.status_turn(q[ok], np.where(b[ok] & 1, 1, 0))[0]
+                sure &= ~ok | (got == b)
+            self.table[b[sure], r[sure]] = q[sure]
+            self.ok[b[sure], r[sure]] = ok[sure]
+            self.known[b[sure], r[sure]] = True
+            unsure.append(r[~sure])
+        if unsure:
+            self.need_rows(np.concatenate(unsure))
 
     def _check_rows(self, rows: np.ndarray) -> None:
         for k, arm in enumerate(self.arms):
             r = rows[self.which[rows] == k]
             if len(r):
                 self.table[:, r], self.ok[:, r], _ = _status_table(arm, self.poses[r], True)
+        self.full[rows] = True
         self.confirmed[:, rows] = True
 
     def confirm(self, branch: np.ndarray, rows: np.ndarray) -> bool:
@@ -185,6 +239,8 @@ def stated_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.
     ref = np.broadcast_to(robot.home_q if reference is None else np.asarray(reference, float), (n, 6))
     branches = _Branches(robot, poses, tools, check_all)
     status, turn = np.asarray(status).reshape(n), np.asarray(turn).reshape(n)
+    branches.need(status[status >= 0], np.flatnonzero(status >= 0))
+    branches.need_rows(np.flatnonzero(status < 0))
     while True:
         q, found, best = _choose(robot, branches.table, branches.ok, status, turn, ref)
         if not branches.confirm(best, np.arange(n)):
@@ -258,7 +314,7 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
     branches = _Branches(robot, poses, tools, check_all)
     alone = np.zeros(n, bool) if independent is None else np.asarray(independent, bool).reshape(n)
     while True:
-        q, found, picks, filled = _rules(robot, branches.table, branches.ok, status, turn, ptp, start, alone, chain)
+        q, found, picks, filled = _rules(robot, branches, status, turn, ptp, start, alone, chain)
         if not any([branches.confirm(b, r) for b, r in picks]):  # (every pick checked)
             if chain is not None:
                 last = _forward_fill_rows(q)[-1]
@@ -267,12 +323,13 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
             return q, found
 
 
-def _rules(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, turn: np.ndarray, ptp: np.ndarray,
+def _rules(robot: Robot, branches: _Branches, status: np.ndarray, turn: np.ndarray, ptp: np.ndarray,
            start: np.ndarray, alone: np.ndarray, chain=None) -> tuple[np.ndarray, np.ndarray, list]:
     """The controller's rules on a branch table: (q, found, the (branch, rows) entries picked,
     each target's branch);
     ``chain``: see ``controller_joints``."""
     n = len(status)
+    table, ok = branches.table, branches.ok  # (solved as the rules read them: need, need_rows)
     picks = []
     continued = chain is not None and chain.joints is not None
     before = np.asarray(chain.joints, float) if continued else start  # the axis position before row 0
@@ -285,6 +342,8 @@ def _rules(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, 
     free_ptp &= ~alone
     q_alone = ok_alone = None
     if alone.any():
+        branches.need(status[alone & (status >= 0)], np.flatnonzero(alone & (status >= 0)))
+        branches.need_rows(np.flatnonzero(alone & (status < 0)))
         q_alone, ok_alone, best = _choose(robot, table[:, alone], ok[:, alone], status[alone], turn[alone],
                                           np.broadcast_to(start, (int(alone.sum()), 6)))
         picks.append((best, np.flatnonzero(alone)))
@@ -293,6 +352,7 @@ def _rules(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, 
         # a first guess for the free PTP targets: each one's solution nearest the start. (The
         # start's own branch forward-filled was a chain the passes undid one target at a time:
         # HOME's A5 = 0 counts as the flipped wrist.)
+        branches.need_rows(np.flatnonzero(free_ptp))
         q_guess, ok_guess, best = _choose(robot, table[:, free_ptp], ok[:, free_ptp],
                                           np.full(int(free_ptp.sum()), UNSTATED), turn[free_ptp],
                                           np.broadcast_to(start, (int(free_ptp.sum()), 6)))
@@ -302,6 +362,7 @@ def _rules(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, 
     for _ in range(n + 1):
         filled = _forward_fill(branch, start_s)
         picks.append((filled, np.arange(n)))
+        branches.need(filled, np.arange(n))
         q, found = _continue_turns(robot, table, ok, filled, turn, start, before)
         if not free_ptp.any():
             break

@@ -23,6 +23,7 @@ import dataclasses
 import math
 import re
 import tomllib
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -609,6 +610,26 @@ class Robot:
                 q_all.reshape(-1, 6)[idx] = np.nan
         return q_all, ok_all
 
+    def status_branch(self, poses: np.ndarray, status: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The branch of each pose [n, 6] whose Status is ``status`` [n], without the other seven:
+        (joint angles [n, 6] deg, reach mask [n], sure [n]), the entry ``ik_branches(poses,
+        zeros, check=False)`` gives that status (same numbers), where ``sure``: every reaching
+        branch of the pose is clear of the shoulder, elbow and wrist boundaries, so each has the
+        status of its index and no two share one (the rows not sure: solve all 8). None for an
+        arm without this shortcut (UR-type)."""
+        if self.family != "kuka":
+            return None
+        poses = np.atleast_2d(np.asarray(poses, float))
+        ref = np.zeros((len(poses), 6))
+        t_tcp = frames.frame_to_matrix(poses)
+        status = np.asarray(status, int).reshape(len(poses))
+        q, ok, sure = self._solver.status_branch(t_tcp, np.radians(ref), status)
+        q = np.degrees(q)
+        q, in_limits = self.nearest_turn(q, ref)
+        ok &= in_limits
+        q[~ok] = np.nan
+        return q, ok, sure
+
     def reaches(self, q_deg: np.ndarray, t_tcp: np.ndarray) -> np.ndarray:
         """The FK check of IK solutions: [M] bool, joint angles [M, 6] (deg) whose TCP is the
         transform [M, 4, 4] within 1e-6 mm and 1e-9 (rotation matrix entries)."""
@@ -637,7 +658,7 @@ class Robot:
         if self.family != "kuka":
             return None
         poses = np.atleast_2d(np.asarray(poses, float))
-        known = self._solver.wrist_radius(frames.frame_to_matrix(poses)) > 1e-3
+        known = self._solver.wrist_radius(frames.frame_to_matrix(poses)) > SHOULDER_MM
         side = np.repeat(np.array([0, 1], np.int8), 4)[:, None]
         return np.where(known[None, :], side, np.int8(-1))
 
@@ -688,6 +709,10 @@ class Robot:
         return f"Robot({self.name!r}, tool={self.tool.tolist()})"
 
 
+# the wrist centre this far (mm) off the A1 axis or more: S bit 0 is the IK's shoulder branch
+SHOULDER_MM = 1e-3
+
+
 class _IkGeometry:
     """Closed-form IK of a KUKA-type arm: A1 about ±Z, A2/A3 about ±Y, spherical wrist
     A4 (±X) · A5 (±Y) · A6 (±X); joint frames parallel to the base at q = 0."""
@@ -730,20 +755,19 @@ class _IkGeometry:
         """θ3 (rad) with the forearm in line with the upper arm."""
         return self.al3 - self.al2
 
-    def branches(self, t_tcp: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The 8 closed-form solutions [8, N, 6] (rad, principal angles) of TCP transforms
-        [N, 4, 4] and their reachability [8, N]; ``ref`` [N, 6] (rad) keeps A4 at a wrist
-        singularity (A5 = 0, where only A4 + A6 is defined)."""
-        s = self.s
+    def _wrist_centre(self, t_tcp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(product of the six axis rotations [N, 3, 3], wrist centre relative to A1's origin [N, 3])."""
         t_fl = t_tcp @ self.inv_tool
         r_all = t_fl[:, :3, :3] @ self.flange0[:3, :3].T  # product of the six axis rotations
         c = t_fl[:, :3, 3] - r_all @ (self.flange0[:3, 3] - self.c0)
-        c = c - self.p1
+        return r_all, c - self.p1
 
+    def _arms(self, c: np.ndarray) -> Iterator[tuple[float, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+        """The 4 arm branches (A1-A3) of wrist centres [N, 3], in ``branches``' order: (shoulder,
+        elbow, reach mask, the elbow's opening γ0, θ1, θ2, θ3) [N] each (rad)."""
         # A1: the wrist centre's azimuth, in front of the A1 axis or over the top (behind)
         phi = np.arctan2(c[:, 1], c[:, 0])
         r_xy = np.hypot(c[:, 0], c[:, 1])
-        branches, valid = [], []
         for shoulder in (1.0, -1.0):
             th1 = phi if shoulder > 0 else phi + np.pi
             u = shoulder * r_xy - self.a1
@@ -758,22 +782,66 @@ class _IkGeometry:
                 ang = self.al3 - th3  # direction of the forearm vector before A2's rotation
                 w2 = np.stack([self.L2[0] + self.l3 * np.cos(ang), self.L2[1] + self.l3 * np.sin(ang)], axis=-1)
                 th2 = np.arctan2(w2[:, 1], w2[:, 0]) - np.arctan2(w, u)
-                q123 = np.stack([s[0] * th1, s[1] * th2, s[2] * th3], axis=-1)
-                rw = _rz_ry(th1, th2 + th3).swapaxes(-1, -2) @ r_all  # = Rx(α) Ry(β) Rx(γ)
-                for flip in (1.0, -1.0):
-                    sb = flip * np.hypot(rw[:, 0, 1], rw[:, 0, 2])
-                    beta = np.arctan2(sb, rw[:, 0, 0])
-                    alpha = np.arctan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
-                    gam = np.arctan2(flip * rw[:, 0, 1], flip * rw[:, 0, 2])
-                    singular = np.abs(sb) < 1e-10  # A5 ≈ 0: only A4 + A6 is defined; keep A4 at the reference
-                    if singular.any():
-                        alpha = np.where(singular, s[3] * ref[:, 3], alpha)
-                        gam = np.where(singular, np.arctan2(rw[:, 2, 1], rw[:, 1, 1]) - alpha, gam)
-                    q = np.concatenate([q123, np.stack([s[3] * alpha, s[4] * beta, s[5] * gam], axis=-1)], axis=-1)
-                    branches.append(q)
-                    valid.append(reach_ok)
-        q_all = (np.stack(branches) + np.pi) % (2 * np.pi) - np.pi
-        return q_all, np.stack(valid)
+                yield shoulder, elbow, reach_ok, gamma0, th1, th2, th3
+
+    def _wrist(self, th1: np.ndarray, th2: np.ndarray, th3: np.ndarray, r_all: np.ndarray, flip,
+               ref: np.ndarray) -> np.ndarray:
+        """Principal joint angles [N, 6] (rad) of an arm branch and wrist ``flip`` (±1, or [N])."""
+        s = self.s
+        q123 = np.stack([s[0] * th1, s[1] * th2, s[2] * th3], axis=-1)
+        rw = _rz_ry(th1, th2 + th3).swapaxes(-1, -2) @ r_all  # = Rx(α) Ry(β) Rx(γ)
+        sb = flip * np.hypot(rw[:, 0, 1], rw[:, 0, 2])
+        beta = np.arctan2(sb, rw[:, 0, 0])
+        alpha = np.arctan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
+        gam = np.arctan2(flip * rw[:, 0, 1], flip * rw[:, 0, 2])
+        singular = np.abs(sb) < 1e-10  # A5 ≈ 0: only A4 + A6 is defined; keep A4 at the reference
+        if singular.any():
+            alpha = np.where(singular, s[3] * ref[:, 3], alpha)
+            gam = np.where(singular, np.arctan2(rw[:, 2, 1], rw[:, 1, 1]) - alpha, gam)
+        q = np.concatenate([q123, np.stack([s[3] * alpha, s[4] * beta, s[5] * gam], axis=-1)], axis=-1)
+        return (q + np.pi) % (2 * np.pi) - np.pi
+
+    def branches(self, t_tcp: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The 8 closed-form solutions [8, N, 6] (rad, principal angles) of TCP transforms
+        [N, 4, 4] and their reachability [8, N]; ``ref`` [N, 6] (rad) keeps A4 at a wrist
+        singularity (A5 = 0, where only A4 + A6 is defined)."""
+        r_all, c = self._wrist_centre(t_tcp)
+        branches, valid = [], []
+        for _, _, reach_ok, _, th1, th2, th3 in self._arms(c):
+            for flip in (1.0, -1.0):
+                branches.append(self._wrist(th1, th2, th3, r_all, flip, ref))
+                valid.append(reach_ok)
+        return np.stack(branches), np.stack(valid)
+
+    # clearance (rad) from the elbow's stretched/folded and the wrist's A5 = 0/180° boundaries
+    # beyond which a branch's Status is that of its index (far above the float error, ~1e-15)
+    _CLEAR = 1e-9
+
+    def status_branch(self, t_tcp: np.ndarray, ref: np.ndarray, status: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The branch of Status ``status`` [N] of each transform, alone: (principal angles [N, 6]
+        rad, reach [N], sure [N]) as :meth:`branches` computes that branch; ``sure`` where every
+        reaching arm branch is clear of the elbow (γ0 = 0, π) and wrist (β = 0, π) boundaries
+        and the wrist centre off the A1 axis (:meth:`Robot.shoulder_status` knows bit 0).
+        Index = shoulder·4 + elbow·2 + flip (in ``branches``' order); bit 0 of S is the shoulder
+        (where :meth:`Robot.shoulder_status` knows it: the caller's check), bit 1 (A3 beyond
+        stretched) the elbow −1, bit 2 (A5 ≤ 0) the flip whose A5 has the sign −1."""
+        r_all, c = self._wrist_centre(t_tcp)
+        want = 2 * (status & 1) + ((status >> 1) & 1)  # the arm branch (shoulder, elbow)
+        flip = np.where(((status >> 2) & 1) == (1 if self.s[4] > 0 else 0), -1.0, 1.0)
+        sure = np.hypot(c[:, 0], c[:, 1]) > SHOULDER_MM  # (= wrist_radius: S bit 0 is the shoulder's)
+        th = np.zeros((3, len(status)))
+        reach = np.zeros(len(status), bool)
+        for k, (_, _, reach_ok, gamma0, th1, th2, th3) in enumerate(self._arms(c)):
+            th23 = th2 + th3  # the wrist's β from the first row of Rw = (Rz(θ1)·Ry(θ2+θ3))ᵀ·R
+            c23 = np.cos(th23)
+            col = np.stack([np.cos(th1) * c23, np.sin(th1) * c23, -np.sin(th23)], axis=-1)
+            rw0 = np.einsum("nk,nkj->nj", col, r_all)
+            clear = (gamma0 > self._CLEAR) & (gamma0 < np.pi - self._CLEAR) & (np.hypot(rw0[:, 1], rw0[:, 2]) > self._CLEAR)
+            sure &= ~reach_ok | clear
+            mine = want == k
+            th[:, mine] = th1[mine], th2[mine], th3[mine]
+            reach[mine] = reach_ok[mine]
+        return self._wrist(th[0], th[1], th[2], r_all, flip, ref), reach, sure
 
 
 def ur_geometry(description) -> tuple[np.ndarray, np.ndarray]:
