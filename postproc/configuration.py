@@ -173,6 +173,46 @@ class _Branches:
         if unsure:
             self.need_rows(np.concatenate(unsure))
 
+    def nearest(self, rows: np.ndarray, status: np.ndarray, turn: np.ndarray, ref: np.ndarray):
+        """``_choose`` for ``rows`` (their S, T, reference [m, 6]): (q [m, 6], found [m], the
+        branch picked [m], sure [m]: the picked branch's Status is its index, :meth:`Robot.status_branch`). A row without S or T whose nearest arm branch (A1-A3) is nearer than
+        any other's by more than the float error (:meth:`Robot.nearest_pair`) compares only that
+        arm's two wrists: every branch of another arm is farther (its A1-A3 alone are), so the
+        pick is the same; the other rows solve all 8 (or their S's) and choose among them."""
+        rows = np.asarray(rows, int)
+        m = len(rows)
+        ref = np.broadcast_to(np.asarray(ref, float), (m, 6))
+        q, found, best = np.full((m, 6), np.nan), np.zeros(m, bool), np.zeros(m, int)
+        rest = np.ones(m, bool)  # (the rows not done by pairs: also those not sure)
+        free = np.flatnonzero((status < 0) & (turn < 0) & ~self.full[rows])
+        for k, arm, at in ((k, arm, at) for k, arm in enumerate(self.arms) for at in range(0, len(free), BLOCK)):
+            i = free[at:at + BLOCK][self.which[rows[free[at:at + BLOCK]]] == k]
+            pair = arm.nearest_pair(self.poses[rows[i]], ref[i]) if len(i) else None
+            if pair is None:
+                continue
+            q2, ok2, s2, others, sure = pair
+            cand, cost = _candidates(arm, q2, ok2, turn[i], ref[i])
+            pick = np.where(cost[1] < cost[0], 1, np.where(cost[1] == cost[0], (s2[1] < s2[0]).astype(int), 0))
+            at_i = np.arange(len(i))
+            least = cost[pick, at_i]
+            alone = sure & np.isfinite(least) & (others > least * (1.0 + 1e-9) + 1e-9)  # (the float error of the sums)
+            r, j = rows[i[alone]], i[alone]
+            for w in (0, 1):  # the table's entries of both wrists (confirm, the rules after this read them)
+                self.table[s2[w, alone], r] = q2[w, alone]
+                self.ok[s2[w, alone], r] = ok2[w, alone]
+                self.known[s2[w, alone], r] = True
+            q[j] = cand[pick[alone], at_i[alone]]
+            found[j] = True
+            best[j] = s2[pick[alone], at_i[alone]]
+            rest[j] = False
+        if rest.any():
+            r = rows[rest]
+            stated = status[rest] >= 0
+            self.need(status[rest][stated], r[stated])
+            self.need_rows(r[~stated])
+            q[rest], found[rest], best[rest] = _choose(self.arms[0], self.table, self.ok, status[rest], turn[rest], ref[rest], r)
+        return q, found, best, ~rest
+
     def _check_rows(self, rows: np.ndarray) -> None:
         for k, arm in enumerate(self.arms):
             r = rows[self.which[rows] == k]
@@ -249,6 +289,15 @@ def stated_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.
         q, found, best = _choose(robot, branches.table, branches.ok, status, turn, ref)
         if not branches.confirm(best, np.arange(n)):
             return q, found
+
+
+def _status_of(robot: Robot, q: np.ndarray, best: np.ndarray, sure: np.ndarray) -> np.ndarray:
+    """The Status of the chosen joint angles [n, 6]: the branch picked where ``sure`` (its
+    index is its Status, clear of every boundary), else :func:`status_turn_of`."""
+    out = best.copy()
+    if not sure.all():
+        out[~sure] = status_turn_of(robot, q[~sure])[0]
+    return out
 
 
 def _choose(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, turn: np.ndarray,
@@ -349,21 +398,17 @@ def _rules(robot: Robot, branches: _Branches, status: np.ndarray, turn: np.ndarr
     free_ptp &= ~alone
     q_alone = ok_alone = None
     if alone.any():
-        branches.need(status[alone & (status >= 0)], np.flatnonzero(alone & (status >= 0)))
-        branches.need_rows(np.flatnonzero(alone & (status < 0)))
-        q_alone, ok_alone, best = _choose(robot, table, ok, status[alone], turn[alone],
-                                          np.broadcast_to(start, (int(alone.sum()), 6)), np.flatnonzero(alone))
+        q_alone, ok_alone, best, sure = branches.nearest(np.flatnonzero(alone), status[alone], turn[alone], start)
         picks.append((best, np.flatnonzero(alone)))
-        branch[alone] = np.where(ok_alone, status_turn_of(robot, q_alone)[0], branch[alone])
+        branch[alone] = np.where(ok_alone, _status_of(robot, q_alone, best, sure), branch[alone])
     if free_ptp.any():
         # a first guess for the free PTP targets: each one's solution nearest the start. (The
         # start's own branch forward-filled was a chain the passes undid one target at a time:
         # HOME's A5 = 0 counts as the flipped wrist.)
-        branches.need_rows(np.flatnonzero(free_ptp))
-        q_guess, ok_guess, best = _choose(robot, table, ok, np.full(int(free_ptp.sum()), UNSTATED), turn[free_ptp],
-                                          np.broadcast_to(start, (int(free_ptp.sum()), 6)), np.flatnonzero(free_ptp))
+        q_guess, ok_guess, best, sure = branches.nearest(np.flatnonzero(free_ptp), np.full(int(free_ptp.sum()), UNSTATED),
+                                                         turn[free_ptp], start)
         picks.append((best, np.flatnonzero(free_ptp)))
-        branch[free_ptp] = np.where(ok_guess, status_turn_of(robot, q_guess)[0], UNSTATED)
+        branch[free_ptp] = np.where(ok_guess, _status_of(robot, q_guess, best, sure), UNSTATED)
     q = found = None
     for _ in range(n + 1):
         filled = _forward_fill(branch, start_s)
@@ -374,10 +419,10 @@ def _rules(robot: Robot, branches: _Branches, status: np.ndarray, turn: np.ndarr
             break
         # PTP without S: the solution nearest the previous target's joint angles, any branch
         previous = np.vstack([before[None], _forward_fill_rows(q)[:-1]])
-        q_ptp, ok_ptp, best = _choose(robot, table, ok, np.full(int(free_ptp.sum()), UNSTATED), turn[free_ptp],
-                                      previous[free_ptp], np.flatnonzero(free_ptp))
+        q_ptp, ok_ptp, best, sure = branches.nearest(np.flatnonzero(free_ptp), np.full(int(free_ptp.sum()), UNSTATED),
+                                                     turn[free_ptp], previous[free_ptp])
         picks.append((best, np.flatnonzero(free_ptp)))
-        chosen = np.where(ok_ptp, status_turn_of(robot, q_ptp)[0], UNSTATED)
+        chosen = np.where(ok_ptp, _status_of(robot, q_ptp, best, sure), UNSTATED)
         new = branch.copy()
         new[free_ptp] = chosen
         if np.array_equal(new, branch):

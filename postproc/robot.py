@@ -630,6 +630,46 @@ class Robot:
         q[~ok] = np.nan
         return q, ok, sure
 
+    def nearest_pair(self, poses: np.ndarray, ref_deg: np.ndarray) -> tuple | None:
+        """For a choice of the branch nearest ``ref_deg`` [n, 6]: the two branches (both wrists)
+        of the arm branch (A1-A3) whose A1-A3 lie nearest ``ref_deg`` (on their nearest turns),
+        as :meth:`ik_branches` (zeros, check=False) gives them: (joint angles [2, n, 6] deg,
+        reach [2, n], their Status [2, n], the least squared A1-A3 distance of the other three
+        arm branches [n] (inf where none reaches within the limits), sure [n] (:meth:`status_branch`)).
+        A branch of another arm is at least that far from ``ref_deg``. None for a UR-type arm."""
+        if self.family != "kuka":
+            return None
+        poses = np.atleast_2d(np.asarray(poses, float))
+        n = len(poses)
+        zeros = np.zeros((n, 6))
+        ref_deg = np.broadcast_to(np.asarray(ref_deg, float), (n, 6))
+        g = self._solver
+        r_all, arms, sure = g.arm_table(frames.frame_to_matrix(poses))
+        lo, hi = self.limits[:3, 0] - 1e-9, self.limits[:3, 1] + 1e-9
+        far = np.empty((4, n))
+        for k, (reach_ok, th1, th2, th3) in enumerate(arms):
+            q = np.zeros((n, 6))  # A1-A3 as _wrist and ik_branches make them (each joint on its own)
+            q[:, :3] = np.stack([g.s[0] * th1, g.s[1] * th2, g.s[2] * th3], axis=-1)
+            q = np.degrees((q + np.pi) % (2 * np.pi) - np.pi)
+            q, _ = self.nearest_turn(q, zeros)
+            inside = ((q[:, :3] >= lo) & (q[:, :3] <= hi)).all(axis=1)
+            cand, _ = self.nearest_turn(q, ref_deg)
+            inside &= ((cand[:, :3] >= lo) & (cand[:, :3] <= hi)).all(axis=1)
+            with np.errstate(invalid="ignore"):
+                far[k] = np.where(reach_ok & inside, ((cand[:, :3] - ref_deg[:, :3]) ** 2).sum(axis=-1), np.inf)
+        arm = np.argmin(far, axis=0)
+        others = np.where(np.arange(4)[:, None] == arm, np.inf, far).min(axis=0)
+        th = [np.choose(arm, [a[i] for a in arms]) for i in (1, 2, 3)]
+        reach = np.choose(arm, [a[0] for a in arms])
+        q_pair, ok_pair, status = np.empty((2, n, 6)), np.empty((2, n), bool), np.empty((2, n), int)
+        for j, flip in enumerate((1.0, -1.0)):
+            q = np.degrees(g._wrist(th[0], th[1], th[2], r_all, flip, np.radians(zeros)))
+            q, in_limits = self.nearest_turn(q, zeros)
+            ok = reach & in_limits
+            q[~ok] = np.nan
+            q_pair[j], ok_pair[j], status[j] = q, ok, g.status_of(arm, np.full(n, flip))
+        return q_pair, ok_pair, status, others, sure
+
     def reaches(self, q_deg: np.ndarray, t_tcp: np.ndarray) -> np.ndarray:
         """The FK check of IK solutions: [M] bool, joint angles [M, 6] (deg) whose TCP is the
         transform [M, 4, 4] within 1e-6 mm and 1e-9 (rotation matrix entries)."""
@@ -817,27 +857,39 @@ class _IkGeometry:
     # beyond which a branch's Status is that of its index (far above the float error, ~1e-15)
     _CLEAR = 1e-9
 
-    def status_branch(self, t_tcp: np.ndarray, ref: np.ndarray, status: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The branch of Status ``status`` [N] of each transform, alone: (principal angles [N, 6]
-        rad, reach [N], sure [N]) as :meth:`branches` computes that branch; ``sure`` where every
-        reaching arm branch is clear of the elbow (γ0 = 0, π) and wrist (β = 0, π) boundaries
-        and the wrist centre off the A1 axis (:meth:`Robot.shoulder_status` knows bit 0).
-        Index = shoulder·4 + elbow·2 + flip (in ``branches``' order); bit 0 of S is the shoulder
-        (where :meth:`Robot.shoulder_status` knows it: the caller's check), bit 1 (A3 beyond
-        stretched) the elbow −1, bit 2 (A5 ≤ 0) the flip whose A5 has the sign −1."""
+    def arm_table(self, t_tcp: np.ndarray) -> tuple[np.ndarray, list, np.ndarray]:
+        """(product of the axis rotations [N, 3, 3], the 4 arm branches (reach, θ1, θ2, θ3) [N]
+        each in ``branches``' order, sure [N]): every reaching arm branch clear of the elbow
+        (γ0 = 0, π) and wrist (β = 0, π) boundaries and the wrist centre off the A1 axis, so
+        that each of the 8 branches has the Status of its index: shoulder·4 + elbow·2 + flip, S
+        bit 0 the shoulder (:meth:`Robot.shoulder_status`), bit 1 (A3 beyond stretched) the
+        elbow −1, bit 2 (A5 ≤ 0) the flip whose A5 has the sign −1 (:meth:`status_of`)."""
         r_all, c = self._wrist_centre(t_tcp)
-        want = 2 * (status & 1) + ((status >> 1) & 1)  # the arm branch (shoulder, elbow)
-        flip = np.where(((status >> 2) & 1) == (1 if self.s[4] > 0 else 0), -1.0, 1.0)
         sure = np.hypot(c[:, 0], c[:, 1]) > SHOULDER_MM  # (= wrist_radius: S bit 0 is the shoulder's)
-        th = np.zeros((3, len(status)))
-        reach = np.zeros(len(status), bool)
-        for k, (_, _, reach_ok, gamma0, th1, th2, th3) in enumerate(self._arms(c)):
+        arms = []
+        for _, _, reach_ok, gamma0, th1, th2, th3 in self._arms(c):
             th23 = th2 + th3  # the wrist's β from the first row of Rw = (Rz(θ1)·Ry(θ2+θ3))ᵀ·R
             c23 = np.cos(th23)
             col = np.stack([np.cos(th1) * c23, np.sin(th1) * c23, -np.sin(th23)], axis=-1)
             rw0 = np.einsum("nk,nkj->nj", col, r_all)
             clear = (gamma0 > self._CLEAR) & (gamma0 < np.pi - self._CLEAR) & (np.hypot(rw0[:, 1], rw0[:, 2]) > self._CLEAR)
             sure &= ~reach_ok | clear
+            arms.append((reach_ok, th1, th2, th3))
+        return r_all, arms, sure
+
+    def status_of(self, arm: np.ndarray, flip: np.ndarray) -> np.ndarray:
+        """The Status of arm branch ``arm`` (0..3) with wrist ``flip`` (±1) where sure (:meth:`arm_table`)."""
+        return (arm >> 1) | ((arm & 1) << 1) | (((flip * self.s[4]) < 0).astype(int) << 2)
+
+    def status_branch(self, t_tcp: np.ndarray, ref: np.ndarray, status: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The branch of Status ``status`` [N] of each transform, alone: (principal angles [N, 6]
+        rad, reach [N], sure [N] as :meth:`arm_table`) as :meth:`branches` computes that branch."""
+        r_all, arms, sure = self.arm_table(t_tcp)
+        want = 2 * (status & 1) + ((status >> 1) & 1)  # the arm branch (shoulder, elbow)
+        flip = np.where(((status >> 2) & 1) == (1 if self.s[4] > 0 else 0), -1.0, 1.0)
+        th = np.zeros((3, len(status)))
+        reach = np.zeros(len(status), bool)
+        for k, (reach_ok, th1, th2, th3) in enumerate(arms):
             mine = want == k
             th[:, mine] = th1[mine], th2[mine], th3[mine]
             reach[mine] = reach_ok[mine]

@@ -134,3 +134,27 @@ def test_one_branch_alone_is_the_full_tables_entry_and_boundaries_are_not_sure()
     assert unsure[1000:6000].mean() < 0.05
     assert robot.status_branch(poses, np.zeros(len(poses), int)) is not None
     assert Robot(load_description(model_path("ur10.toml"))).status_branch(poses[:3], np.zeros(3, int)) is None
+
+
+@pytest.mark.parametrize("ptp", [False, True])
+def test_nearest_choices_by_the_nearest_arm_equal_the_full_comparison(arm, ptp):
+    """A pose list's rows (nearest HOME) and PTPs without S (nearest the previous target) compare
+    only the nearest arm branch's two wrists where the others are farther (Robot.nearest_pair):
+    the same joints and branches as comparing all 8, bit for bit."""
+    robot = arm
+    rng = np.random.default_rng(5)
+    size = 300 if ptp else 3000  # (a PTP chain settles in passes over the program)
+    q = rng.uniform(np.maximum(robot.limits[:, 0], -300), np.minimum(robot.limits[:, 1], 300), (size, 6))
+    q[:30, 4] = 0.0  # wrist singular: all 8 solved there
+    poses = robot.fk(q)
+    n = len(poses)
+    none = np.full(n, cf.UNSTATED)
+    args = (poses, none, none, np.full(n, ptp), None, None, np.full(n, not ptp))
+    fast = cf.controller_joints(robot, *args)
+    ref = cf.controller_joints(robot, *args, check_all=True)
+    assert ref[1].mean() > 0.9
+    np.testing.assert_array_equal(fast[0], ref[0])
+    np.testing.assert_array_equal(fast[1], ref[1])
+    if robot.family == "kuka":
+        pair = robot.nearest_pair(poses, np.broadcast_to(robot.home_q, (n, 6)))
+        assert pair[4][30:].mean() > 0.9 and not pair[4][:30].any()
