@@ -175,8 +175,9 @@ class _Branches:
 
     def nearest(self, rows: np.ndarray, status: np.ndarray, turn: np.ndarray, ref: np.ndarray):
         """``_choose`` for ``rows`` (their S, T, reference [m, 6]): (q [m, 6], found [m], the
-        branch picked [m], sure [m]: the picked branch's Status is its index, :meth:`Robot.status_branch`). A row without S or T whose nearest arm branch (A1-A3) is nearer than
-        any other's by more than the float error (:meth:`Robot.nearest_pair`) compares only that
+        branch picked [m], sure [m]: the picked branch's Status is its index, see
+        :meth:`Robot.status_branch`). A row without S or T whose nearest arm branch (A1-A3) is
+        nearer than any other's by more than the float error (:meth:`Robot.nearest_pair`) compares only that
         arm's two wrists: every branch of another arm is farther (its A1-A3 alone are), so the
         pick is the same; the other rows solve all 8 (or their S's) and choose among them."""
         rows = np.asarray(rows, int)
