@@ -42,6 +42,9 @@ from .robot import Robot
 __all__ = ["UNSTATED", "branch_table", "stated_joints", "controller_joints", "status_turn_of", "measurement_joints"]
 
 UNSTATED = -1  # S or T not written for a target
+# rows per numpy pass over the branches: [8, BLOCK, 6] float64 (3 MB) stays in cache (~1.5x
+# faster than one pass over a long program's table; the same numbers)
+BLOCK = 8192
 # A joint this close to 0° fits either sign of T (the turn of the written angle is kept): a
 # pose written with 3 decimals moves its joint angles by ~1e-3°, and a compensated command
 # (S and T left as written) by ~0.1° (a target taught at A6 −0.01° is commanded at +0.01°).
@@ -89,14 +92,21 @@ def _status_table(robot: Robot, poses: np.ndarray, check: bool) -> tuple[np.ndar
 
 
 class _Branches:
-    """The branch table of a program's poses with the FK check done lazily: the closed form is
+    """The branch table of a program's poses, solved and FK-checked lazily: the closed form is
     exact and the check (:meth:`Robot.reaches`) only guards the reachability masks, so only the
     entries the rules pick are checked (:meth:`confirm`, ~1 of the ~4 reaching branches of a
     target); a row with an entry that fails is solved again with every branch checked, and the
     rules run again. What the rules pick never fails its check, and they pick the same entries
     as on the fully checked table (an unchecked entry that is never picked changes no minimum),
     so the results are those of the fully checked table. Rows where two branches share a status
-    are checked at once (the check decides which one stays)."""
+    are checked at once (the check decides which one stays).
+
+    Rows are solved only as far as the rules read them: all 8 branches where a rule compares
+    them (:meth:`need_rows`: a PTP without S, a pose list's row, the first target), else only
+    the branch the target is on (:meth:`need`: a LIN keeps its configuration, a stated S),
+    through :meth:`Robot.status_branch` where it is sure to give the full table's entry (no
+    other branch of that status), all 8 where not. ``table`` and ``ok`` hold the entries solved
+    so far (the others NaN / False: read only what ``need`` / ``need_rows`` solved)."""
 
     def __init__(self, robot: Robot, poses: np.ndarray, tools: np.ndarray | None, check_all: bool = False):
         self.poses = np.atleast_2d(np.asarray(poses, float))
@@ -110,17 +120,106 @@ class _Branches:
         self.table = np.full((8, n, 6), np.nan)
         self.ok = np.zeros((8, n), bool)
         self.confirmed = np.full((8, n), check_all)
+        self.check_all = check_all
+        self.full = np.zeros(n, bool)  # rows with all 8 branches solved
+        self.known = np.zeros((8, n), bool)  # entries solved alone (status_branch)
+        if check_all:
+            self.need_rows(np.arange(n))
+
+    def need_rows(self, rows: np.ndarray) -> None:
+        """Solve every branch of ``rows`` (those not solved yet)."""
+        rows = np.asarray(rows, int)
+        rows = rows[~self.full[rows]]
+        if not len(rows):
+            return
+        self.full[rows] = True
         for k, arm in enumerate(self.arms):
-            rows = np.flatnonzero(self.which == k)
-            self.table[:, rows], self.ok[:, rows], collide = _status_table(arm, self.poses[rows], check_all)
-            if collide.any() and not check_all:
-                self._check_rows(rows[collide])
+            mine = rows[self.which[rows] == k]
+            for at in range(0, len(mine), BLOCK):
+                r = mine[at:at + BLOCK]
+                self.table[:, r], self.ok[:, r], collide = _status_table(arm, self.poses[r], self.check_all)
+                if collide.any() and not self.check_all:
+                    self._check_rows(r[collide])
+
+    def need(self, branch: np.ndarray, rows: np.ndarray) -> None:
+        """Solve the entries (branch[i], rows[i]) not solved yet: alone where sure, else their rows."""
+        branch, rows = (np.asarray(v, int).ravel() for v in np.broadcast_arrays(branch, rows))
+        branch = branch % 8  # (as an index: UNSTATED reads the last)
+        todo = np.flatnonzero(~self.full[rows] & ~self.known[branch, rows])
+        if not len(todo):
+            return
+        branch, rows = branch[todo], rows[todo]
+        code = np.unique(rows * 8 + branch)  # (each entry once)
+        rows, branch = code // 8, code % 8
+        unsure = []
+        for k, arm, at in ((k, arm, at) for k, arm in enumerate(self.arms) for at in range(0, len(rows), BLOCK)):
+            m = self.which[rows[at:at + BLOCK]] == k
+            if not m.any():
+                continue
+            r, b = rows[at:at + BLOCK][m], branch[at:at + BLOCK][m]
+            solved = arm.status_branch(self.poses[r], b)
+            if solved is None:
+                unsure.append(r)
+                continue
+            q, ok, sure = solved
+            if ok.any():  # (the closed form's status of the entry: the index's, where sure)
+                got = np.full(len(r), -1)
+                got[ok] = arm.status_turn(q[ok], np.where(b[ok] & 1, 1, 0))[0]
+                sure &= ~ok | (got == b)
+            self.table[b[sure], r[sure]] = q[sure]
+            self.ok[b[sure], r[sure]] = ok[sure]
+            self.known[b[sure], r[sure]] = True
+            unsure.append(r[~sure])
+        if unsure:
+            self.need_rows(np.concatenate(unsure))
+
+    def nearest(self, rows: np.ndarray, status: np.ndarray, turn: np.ndarray, ref: np.ndarray):
+        """``_choose`` for ``rows`` (their S, T, reference [m, 6]): (q [m, 6], found [m], the
+        branch picked [m], sure [m]: the picked branch's Status is its index, see
+        :meth:`Robot.status_branch`). A row without S or T whose nearest arm branch (A1-A3) is
+        nearer than any other's by more than the float error (:meth:`Robot.nearest_pair`) compares only that
+        arm's two wrists: every branch of another arm is farther (its A1-A3 alone are), so the
+        pick is the same; the other rows solve all 8 (or their S's) and choose among them."""
+        rows = np.asarray(rows, int)
+        m = len(rows)
+        ref = np.broadcast_to(np.asarray(ref, float), (m, 6))
+        q, found, best = np.full((m, 6), np.nan), np.zeros(m, bool), np.zeros(m, int)
+        rest = np.ones(m, bool)  # (the rows not done by pairs: also those not sure)
+        free = np.flatnonzero((status < 0) & (turn < 0) & ~self.full[rows])
+        for k, arm, at in ((k, arm, at) for k, arm in enumerate(self.arms) for at in range(0, len(free), BLOCK)):
+            i = free[at:at + BLOCK][self.which[rows[free[at:at + BLOCK]]] == k]
+            pair = arm.nearest_pair(self.poses[rows[i]], ref[i]) if len(i) else None
+            if pair is None:
+                continue
+            q2, ok2, s2, others, sure = pair
+            cand, cost = _candidates(arm, q2, ok2, turn[i], ref[i])
+            pick = np.where(cost[1] < cost[0], 1, np.where(cost[1] == cost[0], (s2[1] < s2[0]).astype(int), 0))
+            at_i = np.arange(len(i))
+            least = cost[pick, at_i]
+            alone = sure & np.isfinite(least) & (others > least * (1.0 + 1e-9) + 1e-9)  # (the float error of the sums)
+            r, j = rows[i[alone]], i[alone]
+            for w in (0, 1):  # the table's entries of both wrists (confirm, the rules after this read them)
+                self.table[s2[w, alone], r] = q2[w, alone]
+                self.ok[s2[w, alone], r] = ok2[w, alone]
+                self.known[s2[w, alone], r] = True
+            q[j] = cand[pick[alone], at_i[alone]]
+            found[j] = True
+            best[j] = s2[pick[alone], at_i[alone]]
+            rest[j] = False
+        if rest.any():
+            r = rows[rest]
+            stated = status[rest] >= 0
+            self.need(status[rest][stated], r[stated])
+            self.need_rows(r[~stated])
+            q[rest], found[rest], best[rest] = _choose(self.arms[0], self.table, self.ok, status[rest], turn[rest], ref[rest], r)
+        return q, found, best, ~rest
 
     def _check_rows(self, rows: np.ndarray) -> None:
         for k, arm in enumerate(self.arms):
             r = rows[self.which[rows] == k]
             if len(r):
                 self.table[:, r], self.ok[:, r], _ = _status_table(arm, self.poses[r], True)
+        self.full[rows] = True
         self.confirmed[:, rows] = True
 
     def confirm(self, branch: np.ndarray, rows: np.ndarray) -> bool:
@@ -185,17 +284,30 @@ def stated_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.
     ref = np.broadcast_to(robot.home_q if reference is None else np.asarray(reference, float), (n, 6))
     branches = _Branches(robot, poses, tools, check_all)
     status, turn = np.asarray(status).reshape(n), np.asarray(turn).reshape(n)
+    branches.need(status[status >= 0], np.flatnonzero(status >= 0))
+    branches.need_rows(np.flatnonzero(status < 0))
     while True:
         q, found, best = _choose(robot, branches.table, branches.ok, status, turn, ref)
         if not branches.confirm(best, np.arange(n)):
             return q, found
 
 
+def _status_of(robot: Robot, q: np.ndarray, best: np.ndarray, sure: np.ndarray) -> np.ndarray:
+    """The Status of the chosen joint angles [n, 6]: the branch picked where ``sure`` (its
+    index is its Status, clear of every boundary), else :func:`status_turn_of`."""
+    out = best.copy()
+    if not sure.all():
+        out[~sure] = status_turn_of(robot, q[~sure])[0]
+    return out
+
+
 def _choose(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, turn: np.ndarray,
-            ref: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            ref: np.ndarray, of: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(q [n, 6], found [n], the branch picked [n]) of each row's candidate nearest ``ref``: a
-    row with a stated S has the one candidate of its branch, the others 8 (one per branch)."""
-    n = table.shape[1]
+    row with a stated S has the one candidate of its branch, the others 8 (one per branch).
+    ``of`` [n]: the rows of ``table`` these are (default all of them)."""
+    n = table.shape[1] if of is None else len(of)
+    of = np.arange(n) if of is None else of
     ref = np.broadcast_to(ref, (n, 6))
     q = np.full((n, 6), np.nan)
     found = np.zeros(n, bool)
@@ -204,17 +316,18 @@ def _choose(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray,
         rows = np.flatnonzero((status >= 0) == stated)
         if not len(rows):
             continue
-        if stated:
-            cand, cost = _candidates(robot, table[status[rows], rows][None], ok[status[rows], rows][None],
-                                     turn[rows], ref[rows])
-            pick = np.zeros(len(rows), int)
-        else:
-            cand, cost = _candidates(robot, table[:, rows], ok[:, rows], turn[rows], ref[rows])
-            pick = np.argmin(cost, axis=0)
-            best[rows] = pick
-        at = np.arange(len(rows))
-        found[rows] = np.isfinite(cost[pick, at])
-        q[rows] = np.where(found[rows][:, None], cand[pick, at], np.nan)
+        for block in (rows[at:at + BLOCK] for at in range(0, len(rows), BLOCK)):
+            if stated:
+                cand, cost = _candidates(robot, table[status[block], of[block]][None], ok[status[block], of[block]][None],
+                                         turn[block], ref[block])
+                pick = np.zeros(len(block), int)
+            else:
+                cand, cost = _candidates(robot, table[:, of[block]], ok[:, of[block]], turn[block], ref[block])
+                pick = np.argmin(cost, axis=0)
+                best[block] = pick
+            at = np.arange(len(block))
+            found[block] = np.isfinite(cost[pick, at])
+            q[block] = np.where(found[block][:, None], cand[pick, at], np.nan)
     return q, found, best
 
 
@@ -258,7 +371,7 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
     branches = _Branches(robot, poses, tools, check_all)
     alone = np.zeros(n, bool) if independent is None else np.asarray(independent, bool).reshape(n)
     while True:
-        q, found, picks, filled = _rules(robot, branches.table, branches.ok, status, turn, ptp, start, alone, chain)
+        q, found, picks, filled = _rules(robot, branches, status, turn, ptp, start, alone, chain)
         if not any([branches.confirm(b, r) for b, r in picks]):  # (every pick checked)
             if chain is not None:
                 last = _forward_fill_rows(q)[-1]
@@ -267,12 +380,13 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
             return q, found
 
 
-def _rules(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, turn: np.ndarray, ptp: np.ndarray,
+def _rules(robot: Robot, branches: _Branches, status: np.ndarray, turn: np.ndarray, ptp: np.ndarray,
            start: np.ndarray, alone: np.ndarray, chain=None) -> tuple[np.ndarray, np.ndarray, list]:
     """The controller's rules on a branch table: (q, found, the (branch, rows) entries picked,
     each target's branch);
     ``chain``: see ``controller_joints``."""
     n = len(status)
+    table, ok = branches.table, branches.ok  # (solved as the rules read them: need, need_rows)
     picks = []
     continued = chain is not None and chain.joints is not None
     before = np.asarray(chain.joints, float) if continued else start  # the axis position before row 0
@@ -285,32 +399,31 @@ def _rules(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, 
     free_ptp &= ~alone
     q_alone = ok_alone = None
     if alone.any():
-        q_alone, ok_alone, best = _choose(robot, table[:, alone], ok[:, alone], status[alone], turn[alone],
-                                          np.broadcast_to(start, (int(alone.sum()), 6)))
+        q_alone, ok_alone, best, sure = branches.nearest(np.flatnonzero(alone), status[alone], turn[alone], start)
         picks.append((best, np.flatnonzero(alone)))
-        branch[alone] = np.where(ok_alone, status_turn_of(robot, q_alone)[0], branch[alone])
+        branch[alone] = np.where(ok_alone, _status_of(robot, q_alone, best, sure), branch[alone])
     if free_ptp.any():
         # a first guess for the free PTP targets: each one's solution nearest the start. (The
         # start's own branch forward-filled was a chain the passes undid one target at a time:
         # HOME's A5 = 0 counts as the flipped wrist.)
-        q_guess, ok_guess, best = _choose(robot, table[:, free_ptp], ok[:, free_ptp],
-                                          np.full(int(free_ptp.sum()), UNSTATED), turn[free_ptp],
-                                          np.broadcast_to(start, (int(free_ptp.sum()), 6)))
+        q_guess, ok_guess, best, sure = branches.nearest(np.flatnonzero(free_ptp), np.full(int(free_ptp.sum()), UNSTATED),
+                                                         turn[free_ptp], start)
         picks.append((best, np.flatnonzero(free_ptp)))
-        branch[free_ptp] = np.where(ok_guess, status_turn_of(robot, q_guess)[0], UNSTATED)
+        branch[free_ptp] = np.where(ok_guess, _status_of(robot, q_guess, best, sure), UNSTATED)
     q = found = None
     for _ in range(n + 1):
         filled = _forward_fill(branch, start_s)
         picks.append((filled, np.arange(n)))
+        branches.need(filled, np.arange(n))
         q, found = _continue_turns(robot, table, ok, filled, turn, start, before)
         if not free_ptp.any():
             break
         # PTP without S: the solution nearest the previous target's joint angles, any branch
         previous = np.vstack([before[None], _forward_fill_rows(q)[:-1]])
-        q_ptp, ok_ptp, best = _choose(robot, table[:, free_ptp], ok[:, free_ptp],
-                                      np.full(int(free_ptp.sum()), UNSTATED), turn[free_ptp], previous[free_ptp])
+        q_ptp, ok_ptp, best, sure = branches.nearest(np.flatnonzero(free_ptp), np.full(int(free_ptp.sum()), UNSTATED),
+                                                     turn[free_ptp], previous[free_ptp])
         picks.append((best, np.flatnonzero(free_ptp)))
-        chosen = np.where(ok_ptp, status_turn_of(robot, q_ptp)[0], UNSTATED)
+        chosen = np.where(ok_ptp, _status_of(robot, q_ptp, best, sure), UNSTATED)
         new = branch.copy()
         new[free_ptp] = chosen
         if np.array_equal(new, branch):
@@ -394,9 +507,13 @@ def execution_kinds(motion: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(PTP-like, independent) masks [N] of motion kinds (indices into programs.MOTIONS)."""
     from .programs import MOTIONS
 
-    motion = np.asarray(motion)
-    return (np.isin(motion, [MOTIONS.index(m) for m in _NEAREST]),
-            np.isin(motion, [MOTIONS.index(m) for m in _INDEPENDENT]))
+    motion = np.asarray(motion, np.intp)
+    kinds = np.zeros((2, len(MOTIONS)), bool)  # (a lookup, not np.isin: its sort of 10^6 rows)
+    kinds[0, [MOTIONS.index(m) for m in _NEAREST]] = True
+    kinds[1, [MOTIONS.index(m) for m in _INDEPENDENT]] = True
+    known = (motion >= 0) & (motion < len(MOTIONS))
+    at = np.where(known, motion, 0)
+    return kinds[0][at] & known, kinds[1][at] & known
 
 
 def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, tools: np.ndarray | None = None,

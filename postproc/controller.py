@@ -36,7 +36,10 @@ def unseparated_mount_mm(model: Compensator, tools: np.ndarray) -> np.ndarray:
     apart = np.asarray(card.get("unseparated", []), float).reshape(-1, 3)
     if not len(apart) or card.get("frame") is None or not len(tools):
         return np.zeros(len(tools))
-    lever = np.asarray(tools, float)[:, :3] - np.asarray(card["frame"], float)[:3]
+    tools = np.asarray(tools, float)
+    if len(tools) > 1 and (tools == tools[0]).all():  # (one $TOOL for the whole program: one value)
+        return np.repeat(unseparated_mount_mm(model, tools[:1]), len(tools))
+    lever = tools[:, :3] - np.asarray(card["frame"], float)[:3]
     turned = np.cross(apart[None, :, :], lever[:, None, :])  # [n, k, 3]
     return np.radians(MOUNT_ROTATION_DEG) * np.linalg.norm(turned, ord=2, axis=(1, 2))  # largest singular value
 

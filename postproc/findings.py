@@ -396,7 +396,7 @@ def configuration_rule(program: Program, model: Compensator, selection: Selectio
 
     rows, poses, q, tool, found = controller_inputs(program, model, selection.rows, selection.poses, collect, chain)
     left = dict(selection.left)
-    dropped = np.setdiff1d(selection.rows, rows)
+    dropped = np.setdiff1d(selection.rows, rows) if len(rows) < len(selection.rows) else rows[:0]  # (rows: a subset)
     if len(dropped):
         left[P309] = dropped
     return Selection(rows, poses, q, tool, left), found

@@ -23,6 +23,7 @@ import dataclasses
 import math
 import re
 import tomllib
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -615,6 +616,66 @@ class Robot:
                 q_all.reshape(-1, 6)[idx] = np.nan
         return q_all, ok_all
 
+    def status_branch(self, poses: np.ndarray, status: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The branch of each pose [n, 6] whose Status is ``status`` [n], without the other seven:
+        (joint angles [n, 6] deg, reach mask [n], sure [n]), the entry ``ik_branches(poses,
+        zeros, check=False)`` gives that status (same numbers), where ``sure``: every reaching
+        branch of the pose is clear of the shoulder, elbow and wrist boundaries, so each has the
+        status of its index and no two share one (the rows not sure: solve all 8). None for an
+        arm without this shortcut (UR-type)."""
+        if self.family != "kuka":
+            return None
+        poses = np.atleast_2d(np.asarray(poses, float))
+        ref = np.zeros((len(poses), 6))
+        t_tcp = frames.frame_to_matrix(poses)
+        status = np.asarray(status, int).reshape(len(poses))
+        q, ok, sure = self._solver.status_branch(t_tcp, np.radians(ref), status)
+        q = np.degrees(q)
+        q, in_limits = self.nearest_turn(q, ref)
+        ok &= in_limits
+        q[~ok] = np.nan
+        return q, ok, sure
+
+    def nearest_pair(self, poses: np.ndarray, ref_deg: np.ndarray) -> tuple | None:
+        """For a choice of the branch nearest ``ref_deg`` [n, 6]: the two branches (both wrists)
+        of the arm branch (A1-A3) whose A1-A3 lie nearest ``ref_deg`` (on their nearest turns),
+        as :meth:`ik_branches` (zeros, check=False) gives them: (joint angles [2, n, 6] deg,
+        reach [2, n], their Status [2, n], the least squared A1-A3 distance of the other three
+        arm branches [n] (inf where none reaches within the limits), sure [n] (:meth:`status_branch`)).
+        A branch of another arm is at least that far from ``ref_deg``. None for a UR-type arm."""
+        if self.family != "kuka":
+            return None
+        poses = np.atleast_2d(np.asarray(poses, float))
+        n = len(poses)
+        zeros = np.zeros((n, 6))
+        ref_deg = np.broadcast_to(np.asarray(ref_deg, float), (n, 6))
+        g = self._solver
+        r_all, arms, sure = g.arm_table(frames.frame_to_matrix(poses))
+        lo, hi = self.limits[:3, 0] - 1e-9, self.limits[:3, 1] + 1e-9
+        far = np.empty((4, n))
+        for k, (reach_ok, th1, th2, th3) in enumerate(arms):
+            q = np.zeros((n, 6))  # A1-A3 as _wrist and ik_branches make them (each joint on its own)
+            q[:, :3] = np.stack([g.s[0] * th1, g.s[1] * th2, g.s[2] * th3], axis=-1)
+            q = np.degrees((q + np.pi) % (2 * np.pi) - np.pi)
+            q, _ = self.nearest_turn(q, zeros)
+            inside = ((q[:, :3] >= lo) & (q[:, :3] <= hi)).all(axis=1)
+            cand, _ = self.nearest_turn(q, ref_deg)
+            inside &= ((cand[:, :3] >= lo) & (cand[:, :3] <= hi)).all(axis=1)
+            with np.errstate(invalid="ignore"):
+                far[k] = np.where(reach_ok & inside, ((cand[:, :3] - ref_deg[:, :3]) ** 2).sum(axis=-1), np.inf)
+        arm = np.argmin(far, axis=0)
+        others = np.where(np.arange(4)[:, None] == arm, np.inf, far).min(axis=0)
+        th = [np.choose(arm, [a[i] for a in arms]) for i in (1, 2, 3)]
+        reach = np.choose(arm, [a[0] for a in arms])
+        q_pair, ok_pair, status = np.empty((2, n, 6)), np.empty((2, n), bool), np.empty((2, n), int)
+        for j, flip in enumerate((1.0, -1.0)):
+            q = np.degrees(g._wrist(th[0], th[1], th[2], r_all, flip, np.radians(zeros)))
+            q, in_limits = self.nearest_turn(q, zeros)
+            ok = reach & in_limits
+            q[~ok] = np.nan
+            q_pair[j], ok_pair[j], status[j] = q, ok, g.status_of(arm, np.full(n, flip))
+        return q_pair, ok_pair, status, others, sure
+
     def reaches(self, q_deg: np.ndarray, t_tcp: np.ndarray) -> np.ndarray:
         """The FK check of IK solutions: [M] bool, joint angles [M, 6] (deg) whose TCP is the
         transform [M, 4, 4] within 1e-6 mm and 1e-9 (rotation matrix entries)."""
@@ -643,7 +704,7 @@ class Robot:
         if self.family != "kuka":
             return None
         poses = np.atleast_2d(np.asarray(poses, float))
-        known = self._solver.wrist_radius(frames.frame_to_matrix(poses)) > 1e-3
+        known = self._solver.wrist_radius(frames.frame_to_matrix(poses)) > SHOULDER_MM
         side = np.repeat(np.array([0, 1], np.int8), 4)[:, None]
         return np.where(known[None, :], side, np.int8(-1))
 
@@ -694,6 +755,10 @@ class Robot:
         return f"Robot({self.name!r}, tool={self.tool.tolist()})"
 
 
+# the wrist centre this far (mm) off the A1 axis or more: S bit 0 is the IK's shoulder branch
+SHOULDER_MM = 1e-3
+
+
 class _IkGeometry:
     """Closed-form IK of a KUKA-type arm: A1 about ±Z, A2/A3 about ±Y, spherical wrist
     A4 (±X) · A5 (±Y) · A6 (±X); joint frames parallel to the base at q = 0."""
@@ -736,20 +801,19 @@ class _IkGeometry:
         """θ3 (rad) with the forearm in line with the upper arm."""
         return self.al3 - self.al2
 
-    def branches(self, t_tcp: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The 8 closed-form solutions [8, N, 6] (rad, principal angles) of TCP transforms
-        [N, 4, 4] and their reachability [8, N]; ``ref`` [N, 6] (rad) keeps A4 at a wrist
-        singularity (A5 = 0, where only A4 + A6 is defined)."""
-        s = self.s
+    def _wrist_centre(self, t_tcp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(product of the six axis rotations [N, 3, 3], wrist centre relative to A1's origin [N, 3])."""
         t_fl = t_tcp @ self.inv_tool
         r_all = t_fl[:, :3, :3] @ self.flange0[:3, :3].T  # product of the six axis rotations
         c = t_fl[:, :3, 3] - r_all @ (self.flange0[:3, 3] - self.c0)
-        c = c - self.p1
+        return r_all, c - self.p1
 
+    def _arms(self, c: np.ndarray) -> Iterator[tuple[float, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+        """The 4 arm branches (A1-A3) of wrist centres [N, 3], in ``branches``' order: (shoulder,
+        elbow, reach mask, the elbow's opening γ0, θ1, θ2, θ3) [N] each (rad)."""
         # A1: the wrist centre's azimuth, in front of the A1 axis or over the top (behind)
         phi = np.arctan2(c[:, 1], c[:, 0])
         r_xy = np.hypot(c[:, 0], c[:, 1])
-        branches, valid = [], []
         for shoulder in (1.0, -1.0):
             th1 = phi if shoulder > 0 else phi + np.pi
             u = shoulder * r_xy - self.a1
@@ -764,22 +828,78 @@ class _IkGeometry:
                 ang = self.al3 - th3  # direction of the forearm vector before A2's rotation
                 w2 = np.stack([self.L2[0] + self.l3 * np.cos(ang), self.L2[1] + self.l3 * np.sin(ang)], axis=-1)
                 th2 = np.arctan2(w2[:, 1], w2[:, 0]) - np.arctan2(w, u)
-                q123 = np.stack([s[0] * th1, s[1] * th2, s[2] * th3], axis=-1)
-                rw = _rz_ry(th1, th2 + th3).swapaxes(-1, -2) @ r_all  # = Rx(α) Ry(β) Rx(γ)
-                for flip in (1.0, -1.0):
-                    sb = flip * np.hypot(rw[:, 0, 1], rw[:, 0, 2])
-                    beta = np.arctan2(sb, rw[:, 0, 0])
-                    alpha = np.arctan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
-                    gam = np.arctan2(flip * rw[:, 0, 1], flip * rw[:, 0, 2])
-                    singular = np.abs(sb) < 1e-10  # A5 ≈ 0: only A4 + A6 is defined; keep A4 at the reference
-                    if singular.any():
-                        alpha = np.where(singular, s[3] * ref[:, 3], alpha)
-                        gam = np.where(singular, np.arctan2(rw[:, 2, 1], rw[:, 1, 1]) - alpha, gam)
-                    q = np.concatenate([q123, np.stack([s[3] * alpha, s[4] * beta, s[5] * gam], axis=-1)], axis=-1)
-                    branches.append(q)
-                    valid.append(reach_ok)
-        q_all = (np.stack(branches) + np.pi) % (2 * np.pi) - np.pi
-        return q_all, np.stack(valid)
+                yield shoulder, elbow, reach_ok, gamma0, th1, th2, th3
+
+    def _wrist(self, th1: np.ndarray, th2: np.ndarray, th3: np.ndarray, r_all: np.ndarray, flip,
+               ref: np.ndarray) -> np.ndarray:
+        """Principal joint angles [N, 6] (rad) of an arm branch and wrist ``flip`` (±1, or [N])."""
+        s = self.s
+        q123 = np.stack([s[0] * th1, s[1] * th2, s[2] * th3], axis=-1)
+        rw = _rz_ry(th1, th2 + th3).swapaxes(-1, -2) @ r_all  # = Rx(α) Ry(β) Rx(γ)
+        sb = flip * np.hypot(rw[:, 0, 1], rw[:, 0, 2])
+        beta = np.arctan2(sb, rw[:, 0, 0])
+        alpha = np.arctan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
+        gam = np.arctan2(flip * rw[:, 0, 1], flip * rw[:, 0, 2])
+        singular = np.abs(sb) < 1e-10  # A5 ≈ 0: only A4 + A6 is defined; keep A4 at the reference
+        if singular.any():
+            alpha = np.where(singular, s[3] * ref[:, 3], alpha)
+            gam = np.where(singular, np.arctan2(rw[:, 2, 1], rw[:, 1, 1]) - alpha, gam)
+        q = np.concatenate([q123, np.stack([s[3] * alpha, s[4] * beta, s[5] * gam], axis=-1)], axis=-1)
+        return (q + np.pi) % (2 * np.pi) - np.pi
+
+    def branches(self, t_tcp: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The 8 closed-form solutions [8, N, 6] (rad, principal angles) of TCP transforms
+        [N, 4, 4] and their reachability [8, N]; ``ref`` [N, 6] (rad) keeps A4 at a wrist
+        singularity (A5 = 0, where only A4 + A6 is defined)."""
+        r_all, c = self._wrist_centre(t_tcp)
+        branches, valid = [], []
+        for _, _, reach_ok, _, th1, th2, th3 in self._arms(c):
+            for flip in (1.0, -1.0):
+                branches.append(self._wrist(th1, th2, th3, r_all, flip, ref))
+                valid.append(reach_ok)
+        return np.stack(branches), np.stack(valid)
+
+    # clearance (rad) from the elbow's stretched/folded and the wrist's A5 = 0/180° boundaries
+    # beyond which a branch's Status is that of its index (far above the float error, ~1e-15)
+    _CLEAR = 1e-9
+
+    def arm_table(self, t_tcp: np.ndarray) -> tuple[np.ndarray, list, np.ndarray]:
+        """(product of the axis rotations [N, 3, 3], the 4 arm branches (reach, θ1, θ2, θ3) [N]
+        each in ``branches``' order, sure [N]): every reaching arm branch clear of the elbow
+        (γ0 = 0, π) and wrist (β = 0, π) boundaries and the wrist centre off the A1 axis, so
+        that each of the 8 branches has the Status of its index: shoulder·4 + elbow·2 + flip, S
+        bit 0 the shoulder (:meth:`Robot.shoulder_status`), bit 1 (A3 beyond stretched) the
+        elbow −1, bit 2 (A5 ≤ 0) the flip whose A5 has the sign −1 (:meth:`status_of`)."""
+        r_all, c = self._wrist_centre(t_tcp)
+        sure = np.hypot(c[:, 0], c[:, 1]) > SHOULDER_MM  # (= wrist_radius: S bit 0 is the shoulder's)
+        arms = []
+        for _, _, reach_ok, gamma0, th1, th2, th3 in self._arms(c):
+            th23 = th2 + th3  # the wrist's β from the first row of Rw = (Rz(θ1)·Ry(θ2+θ3))ᵀ·R
+            c23 = np.cos(th23)
+            col = np.stack([np.cos(th1) * c23, np.sin(th1) * c23, -np.sin(th23)], axis=-1)
+            rw0 = np.einsum("nk,nkj->nj", col, r_all)
+            clear = (gamma0 > self._CLEAR) & (gamma0 < np.pi - self._CLEAR) & (np.hypot(rw0[:, 1], rw0[:, 2]) > self._CLEAR)
+            sure &= ~reach_ok | clear
+            arms.append((reach_ok, th1, th2, th3))
+        return r_all, arms, sure
+
+    def status_of(self, arm: np.ndarray, flip: np.ndarray) -> np.ndarray:
+        """The Status of arm branch ``arm`` (0..3) with wrist ``flip`` (±1) where sure (:meth:`arm_table`)."""
+        return (arm >> 1) | ((arm & 1) << 1) | (((flip * self.s[4]) < 0).astype(int) << 2)
+
+    def status_branch(self, t_tcp: np.ndarray, ref: np.ndarray, status: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The branch of Status ``status`` [N] of each transform, alone: (principal angles [N, 6]
+        rad, reach [N], sure [N] as :meth:`arm_table`) as :meth:`branches` computes that branch."""
+        r_all, arms, sure = self.arm_table(t_tcp)
+        want = 2 * (status & 1) + ((status >> 1) & 1)  # the arm branch (shoulder, elbow)
+        flip = np.where(((status >> 2) & 1) == (1 if self.s[4] > 0 else 0), -1.0, 1.0)
+        th = np.zeros((3, len(status)))
+        reach = np.zeros(len(status), bool)
+        for k, (reach_ok, th1, th2, th3) in enumerate(arms):
+            mine = want == k
+            th[:, mine] = th1[mine], th2[mine], th3[mine]
+            reach[mine] = reach_ok[mine]
+        return self._wrist(th[0], th[1], th[2], r_all, flip, ref), reach, sure
 
 
 def ur_geometry(description) -> tuple[np.ndarray, np.ndarray]:

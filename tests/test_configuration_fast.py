@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from postproc import configuration as cf
+from postproc import frames
 from postproc.resources import model_path
 from postproc.robot import Robot, load_description
 
@@ -106,3 +107,54 @@ def test_stated_joints_equals_a_target_by_target_reference(arm):
     assert want[1].mean() > 0.5
     np.testing.assert_array_equal(got[1], want[1])
     np.testing.assert_array_equal(got[0], want[0])
+
+
+def test_one_branch_alone_is_the_full_tables_entry_and_boundaries_are_not_sure():
+    """Robot.status_branch (a LIN's branch solved without the other seven) gives the full table's
+    entry bit for bit where it says sure; poses on the shoulder, elbow and wrist boundaries (two
+    branches may share a status there) are not sure, and the rules solve all 8 for them."""
+    robot = Robot(load_description(model_path("kr500.toml")))
+    rng = np.random.default_rng(3)
+    q = rng.uniform(robot.limits[:, 0], robot.limits[:, 1], (6000, 6))
+    q[:500, 4] = 0.0  # wrist singular (A5 = 0)
+    q[500:1000, 2] = np.degrees(robot._solver.s[2] * robot._solver.stretched)  # elbow stretched (to ~1e-8 rad)
+    poses = robot.fk(q)
+    on_axis = poses[1000:1010].copy()  # the same poses moved so that the wrist centre is on the A1 axis
+    on_axis[:, :2] -= robot._solver._wrist_centre(frames.frame_to_matrix(on_axis))[1][:, :2]
+    poses = np.vstack([poses, np.round(poses, 3), on_axis])  # + as written
+    table, ok, collide = cf._status_table(robot, poses, False)
+    unsure = np.zeros(len(poses), bool)
+    for s in range(8):
+        got, got_ok, sure = robot.status_branch(poses, np.full(len(poses), s))
+        np.testing.assert_array_equal(got[sure], table[s][sure])
+        np.testing.assert_array_equal(got_ok[sure], ok[s][sure])
+        unsure |= ~sure
+    assert not collide[~unsure].any()
+    assert unsure[:500].all() and unsure[-10:].all()
+    assert unsure[1000:6000].mean() < 0.05
+    assert robot.status_branch(poses, np.zeros(len(poses), int)) is not None
+    assert Robot(load_description(model_path("ur10.toml"))).status_branch(poses[:3], np.zeros(3, int)) is None
+
+
+@pytest.mark.parametrize("ptp", [False, True])
+def test_nearest_choices_by_the_nearest_arm_equal_the_full_comparison(arm, ptp):
+    """A pose list's rows (nearest HOME) and PTPs without S (nearest the previous target) compare
+    only the nearest arm branch's two wrists where the others are farther (Robot.nearest_pair):
+    the same joints and branches as comparing all 8, bit for bit."""
+    robot = arm
+    rng = np.random.default_rng(5)
+    size = 300 if ptp else 3000  # (a PTP chain settles in passes over the program)
+    q = rng.uniform(np.maximum(robot.limits[:, 0], -300), np.minimum(robot.limits[:, 1], 300), (size, 6))
+    q[:30, 4] = 0.0  # wrist singular: all 8 solved there
+    poses = robot.fk(q)
+    n = len(poses)
+    none = np.full(n, cf.UNSTATED)
+    args = (poses, none, none, np.full(n, ptp), None, None, np.full(n, not ptp))
+    fast = cf.controller_joints(robot, *args)
+    ref = cf.controller_joints(robot, *args, check_all=True)
+    assert ref[1].mean() > 0.9
+    np.testing.assert_array_equal(fast[0], ref[0])
+    np.testing.assert_array_equal(fast[1], ref[1])
+    if robot.family == "kuka":
+        pair = robot.nearest_pair(poses, np.broadcast_to(robot.home_q, (n, 6)))
+        assert pair[4][30:].mean() > 0.9 and not pair[4][:30].any()

@@ -333,6 +333,12 @@ def _generalise(shape: _Shape):
     return "".join(out), g
 
 
+# lines read by the interpreter before the first accelerated chunk, to learn the hot shapes (a
+# CAM program has a few; a shape learned later joins the regex as it comes): few, since a
+# streamed program reads every chunk of ~16k lines as a program of its own
+LEARN_LINES = 256
+
+
 class FastPath:
     """The shape cache and the accelerated reading of hot (literal target) lines. (methods of the Reader)"""
 
@@ -344,7 +350,7 @@ class FastPath:
         from operator import itemgetter
 
         starts = self.starts
-        learn = 2048
+        learn = LEARN_LINES
         self.scan_lines(range(learn), hot_lines)
         counts, plans = {}, {}
 
