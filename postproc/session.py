@@ -45,8 +45,27 @@ def cache_dir() -> Path | None:
     return Path(base) / "postproc"
 
 
+_SHARED = []  # the process's one CPU arena, registered with onnxruntime's environment once
+
+
+def _shared_arena(ort) -> bool:
+    """Register one CPU arena allocator for every session of this process (a model's whole and
+    cut graphs run one after the other: one arena, not one per session); False where this
+    onnxruntime cannot."""
+    if not _SHARED:
+        try:
+            info = ort.OrtMemoryInfo("Cpu", ort.OrtAllocatorType.ORT_ARENA_ALLOCATOR, 0, ort.OrtMemType.DEFAULT)
+            ort.create_and_register_allocator(info, ort.OrtArenaCfg(0, -1, -1, -1))
+            _SHARED.append(True)
+        except Exception:  # noqa: BLE001 - an older or other build: each session keeps its own arena
+            _SHARED.append(False)
+    return _SHARED[0]
+
+
 def _options(ort, optimise: bool):
     options = ort.SessionOptions()
+    if _shared_arena(ort):
+        options.add_session_config_entry("session.use_env_allocators", "1")
     options.log_severity_level = 3
     options.intra_op_num_threads = _THREADS
     options.inter_op_num_threads = _THREADS
