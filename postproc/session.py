@@ -22,7 +22,10 @@ onnxruntime runs every node of a graph whichever outputs a run asks for, so the 
 iterations, which need ``error`` (and ``ik_joints``) only, paid for the ``error_std`` Jacobian
 too. The cut keeps the nodes those outputs need (the ``onnx`` package: ``_cut``) and is cached
 like the whole graph, keyed by the model's bytes and the outputs; the numbers are the whole
-graph's bit for bit (tests/test_session.py).
+graph's bit for bit (tests/test_session.py). Every session of the process draws on one CPU arena
+registered with onnxruntime's environment (``session.use_env_allocators``): with one arena per
+session the cut graphs added ~85 MB to a streamed 1M-target program's peak (202 → 287 MB; one
+arena: 241 MB), for the same speed.
 """
 from __future__ import annotations
 
