@@ -92,7 +92,7 @@ P308 = _code("P308", "error", "--iterations outside 1…100, or --max-correction
 P309 = _code("P309", "error", "no inverse-kinematics solution for this target (a warning, left as written, for models with a joints input)")
 P310 = _code("P310", "error", "the model was trained on another robot than the configured one")
 P311 = _code("P311", "error", "a model with a joints input for a robot postproc has no description of")
-P312 = _code("P312", "error", "--orientation where the program's A/B/C numbers are not located")
+P312 = _code("P312", "error", "--orientation where a target does not write all of its orientation's numbers (A/B/C, q1..q4, rx,ry,rz) or the reader does not locate them")
 P313 = _code("P313", "warning", "the target's S/T is another arm configuration than the model evaluates: left as written")
 P317 = _code("P317", "error", "train --update: the old model has no identification to re-fit (a DNN/gpso model, an "
              "older card), --method is not hybrid/kinematic, or the new rows name other tools")
