@@ -67,6 +67,8 @@ P215 = _code("P215", "warning", "a target name declared in none of the files rea
 P216 = _code("P216", "error", "partial aggregate refused (compensate --no-fill-partial; filled in by default)")
 P217 = _code("P217", "warning", "a pose variable (URScript) or P[n] (Fanuc LS) that other statements read too: "
              "compensating it would change them, left as written")
+P218 = _code("P218", "warning", "a pose list that does not state its frame (# frame: controller or # frame: model) for a model "
+               "whose frame is not the controller's base (the card's controller_base): left as written")
 P220 = _code("P220", "warning", "$BASE (or both $BASE and $TOOL) not set before the target and not stated with --base: "
              "left as written")
 P221 = _code("P221", "warning", "$TOOL not set before the target and not stated with --tool: left as written")

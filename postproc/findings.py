@@ -33,14 +33,14 @@ import numpy as np
 from . import frames
 from .compensator import Compensator, Inside
 from .diagnostics import (
-    P103, P202, P212, P213, P216, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P336, P401, Diagnostic,
+    P103, P202, P212, P213, P216, P218, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P336, P401, Diagnostic,
     PostprocError,
 )
 from .programs import Program
 
 __all__ = [
     "Settings", "Selection", "Commands", "select", "findings", "static_findings", "command_findings", "dead_band_notes",
-    "robot_base_poses", "model_bases", "std_bound", "tool_mismatch", "robot_mismatch", "collect", "MAX_LISTED", "DEFAULT_MAX_CORRECTION_MM",
+    "robot_base_poses", "model_bases", "pose_frame_rule", "std_bound", "tool_mismatch", "robot_mismatch", "collect", "MAX_LISTED", "DEFAULT_MAX_CORRECTION_MM",
 ]
 
 # An error model that predicts more than this is wrong, not the robot (guard, --max-correction).
@@ -102,12 +102,29 @@ class Commands:
 
 def model_bases(program: Program, model: Compensator | None) -> list[np.ndarray]:
     """Each of the program's frames [4×4] in the model's frame: the frame's base (into the
-    controller's robot base) after the model's ``controller_base`` (a program's targets; a pose
-    list's rows are in the model's frame already)."""
-    base = np.eye(4) if model is None or program.dialect == "poses" else model.controller_base
+    controller's robot base) after the model's ``controller_base``, for a program's targets and
+    a pose list that states ``# frame: controller``; a pose list's rows are in the model's frame
+    where it states ``# frame: model`` or states nothing (where it matters it must state it:
+    :func:`pose_frame_rule`)."""
+    base = np.eye(4) if model is None or not program.in_controller_base else model.controller_base
     if np.array_equal(base, np.eye(4)):
         return [f.base for f in program.frames]
     return [base @ f.base for f in program.frames]
+
+
+def pose_frame_rule(program: Program, model: Compensator, use: np.ndarray) -> list[Diagnostic]:
+    """P218: a pose list that does not state its frame, for a model whose frame is not the
+    controller's base — its rows could be in either (a UR description in ROS's base_link: the
+    controller's base is turned 180° about Z). Narrows ``use``: every row left as written."""
+    if program.in_controller_base is not None or np.array_equal(model.controller_base, np.eye(4)):
+        return []
+    rows = np.flatnonzero(use)
+    use[rows] = False
+    pose = [round(float(v), 6) for v in model.metadata.get("controller_base", [])]
+    return collect(program, rows[:1], P218,
+                   f"the model's frame is not the robot controller's base (controller_base {pose}): say which frame "
+                   f"the rows are in with a line '# frame: controller' or '# frame: model' before them; all "
+                   f"{len(rows)} left as written")
 
 
 def robot_base_poses(program: Program, bases: list[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -360,10 +377,13 @@ def select_with_findings(program: Program, model: Compensator, settings: Setting
     out = stamp_rule(program, settings) + fit_rule(program, model, settings) + shared_rule(program, settings)
     poses, use = robot_base_poses(program, model_bases(program, model))
     out += frame_rule(program, use)
+    unstated = use.copy()
+    out += pose_frame_rule(program, model, use)
+    unstated &= ~use
     out += known_rule(program, model, settings, poses, use)
     out += finite_rule(program, poses, use)
     rows = np.flatnonzero(use)
-    selection = Selection(rows, poses[rows])
+    selection = Selection(rows, poses[rows], left={P218: np.flatnonzero(unstated)} if unstated.any() else {})
     out += reach_rule(program, model, settings, selection)
     if model.wants_joints or model.wants_tool:
         selection, found = configuration_rule(program, model, selection, settings.chain)

@@ -72,11 +72,42 @@ def test_urscript_targets_are_taken_into_the_models_frame(models):
     assert off > 1.0
 
 
-def test_pose_list_rows_stay_in_the_models_frame(models):
+def _rows(frame_line: str | None, rows: np.ndarray) -> str:
+    head = ([frame_line] if frame_line else []) + ["x,y,z,a,b,c"]
+    return "\n".join(head) + "\n" + "".join(",".join(f"{v:.6f}" for v in r) + "\n" for r in rows)
+
+
+def test_a_pose_list_states_its_frame_where_the_model_is_not_in_the_controllers_base(models):
+    """A pose list's rows could be in either frame: unstated, with a model whose frame is not the
+    controller's base, every row is left as written (P218); '# frame: model' takes them as the
+    model's, '# frame: controller' through controller_base (as a URScript program's); a model in
+    the controller's base needs no statement."""
+    from postproc.diagnostics import PostprocError
+
     turned, plain = models
-    rows = np.c_[np.random.default_rng(4).uniform([500, 100, 300], [900, 500, 900], (5, 3)), np.zeros((5, 2)),
-                 np.full(5, 180.0)]
-    text = "x,y,z,a,b,c\n" + "".join(",".join(f"{v:.6f}" for v in r) + "\n" for r in rows)
-    a, _ = compensate_text(text, turned, name="targets.csv")
-    b, _ = compensate_text(text, plain, name="targets.csv")
-    assert a.split("\n", 1)[1] == b.split("\n", 1)[1] != text  # (the stamp line names the model)
+    rng = np.random.default_rng(4)
+    model_frame = rng.uniform([500, 100, 300], [900, 500, 900], (5, 3))
+    rows = np.c_[model_frame, np.zeros((5, 2)), np.full(5, 180.0)]
+    out, report = compensate_text(_rows(None, rows), turned, name="targets.csv")
+    assert report.compensated == 0 and report.left_codes == {"P218": 5}
+    assert [d.code for d in report.warnings] == ["P218"] and report.warnings[0].line == 2
+    assert out == _rows(None, rows)  # (nothing changed: written as it was)
+
+    as_model, report = compensate_text(_rows("# frame: model", rows), turned, name="targets.csv")
+    assert report.compensated == 5 and not report.warnings
+    unstated_plain, _ = compensate_text(_rows(None, rows), plain, name="targets.csv")
+    body = lambda text: text.split("x,y,z,a,b,c\n", 1)[1]  # noqa: E731
+    assert body(as_model) == body(unstated_plain)
+
+    controller = frames.transform_points(np.linalg.inv(TURN), model_frame)  # the same points, the controller's base
+    as_controller, report = compensate_text(_rows("# frame: controller", np.c_[controller, rows[:, 3:]]), turned,
+                                            name="targets.csv")
+    assert report.compensated == 5
+    got = parse_program_text(as_controller, "targets.csv").targets.poses[:, :3]
+    c = model_frame.copy()
+    for _ in range(30):
+        c = model_frame + (np.array([0.2, -0.1, 0.3]) + (c - CENTRE) @ GAIN.T)
+    assert np.abs(got - frames.transform_points(np.linalg.inv(TURN), c)).max() < 2e-3
+    with pytest.raises(PostprocError) as bad:
+        compensate_text(_rows("# frame: tracker", rows), turned, name="targets.csv")
+    assert bad.value.code == "P101" and bad.value.line == 1

@@ -243,6 +243,10 @@ class Program:
     # what the reader assumed and says once, without leaving a target (P224: robot base = world)
     notes: list[Diagnostic] = field(default_factory=list)
     dialect: str = ""
+    # the targets' frames map into the robot controller's base (programs: True); a pose list's
+    # rows are in the frame its ``# frame:`` line states (controller: True, model: False) or,
+    # unstated, in the model's frame where that is the controller's base (None)
+    in_controller_base: bool | None = True
     stamps: dict[int, str] = field(default_factory=dict)  # file index → stamp line found in it
     newlines: list[str] = field(default_factory=list)  # dominant line ending per file
     comment: str = ";"  # the dialect's comment marker, for the stamp line

@@ -31,6 +31,11 @@ JOINTS = ("q1", "q2", "q3", "q4", "q5", "q6")
 _OPTIONAL = CONFIG + JOINTS
 _ALL = COLUMNS + _OPTIONAL
 _COMMENT = re.compile(r"[ \t]*(#|;|//)")
+# ``# frame: controller`` (the robot controller's base) or ``# frame: model`` (the model's frame)
+# in the comments before the first row: where a pose list's rows are, for a model whose frame
+# is not the controller's base (a UR description in ROS's base_link)
+_FRAME = re.compile(r"[ \t]*(?:#|;|//)[ \t]*frame[ \t]*:[ \t]*(\S*)[ \t]*$", re.IGNORECASE)
+FRAMES = {"controller": True, "model": False}
 _ROW_MOTION = MOTIONS.index("row")
 _FAST_MIN_CHARS = 1 << 16  # smaller texts: line by line only
 _FAST_LEARN = 256  # lines read line by line first, to learn the shapes
@@ -403,13 +408,37 @@ def read(files: list[str], texts: list[str], fast: bool = True) -> Program:
         raise PostprocError("no poses in this file (empty, or comments only)", path, 1, 1, P105)
     targets = rows.targets()
     stamps = rows.stamps
+    stated = _stated_frame(text, path)
     return Program(
         files=list(files[:1]),
         texts=list(texts[:1]),
         targets=targets,
-        frames=[Frame(np.eye(4), None, "robot base")],
+        frames=[Frame(np.eye(4), None, {True: "controller base", False: "model frame"}.get(stated, "robot base"))],
         dialect="poses",
+        in_controller_base=stated,
         stamps=stamps,
         newlines=[_newline(text)],
         comment="#",
     )
+
+
+def _stated_frame(text: str, path: str) -> bool | None:
+    """The frame a ``# frame:`` line among the comments before the first row states (``FRAMES``),
+    None without one; another value is a syntax error at its line."""
+    start, number = 0, 0
+    while start < len(text):  # (lines end at "\n" only, as the reader counts them; no copy of the whole text)
+        end = text.find("\n", start)
+        end = len(text) if end < 0 else end
+        line, start, number = text[start:end].rstrip("\r"), end + 1, number + 1
+        if not line.strip():
+            continue
+        if not _COMMENT.match(line):
+            return None
+        found = _FRAME.match(line)
+        if found:
+            value = found.group(1).lower()
+            if value not in FRAMES:
+                raise PostprocError(f"# frame: {found.group(1)!r}: say controller (the robot controller's base) or "
+                                    f"model (the model's frame)", path, number, found.start(1) + 1, P101)
+            return FRAMES[value]
+    return None
