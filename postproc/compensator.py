@@ -259,6 +259,7 @@ class Compensator:
     predict_batch: int = field(default_factory=lambda: PREDICT_BATCH)  # rows per onnxruntime call of ``predict``
     command_chunk: int = field(default_factory=lambda: COMMAND_CHUNK)  # rows per chunk of ``command_chunks``
     cut_rows: int = field(default_factory=lambda: CUT_ROWS)  # a predict this large runs a cut graph
+    data: bytes = field(default=b"", repr=False)  # the ONNX file's bytes as loaded (to cut the graph from)
     _cut: dict = field(default_factory=dict, repr=False)  # outputs → session of the graph cut to them
 
     @property
@@ -391,18 +392,15 @@ class Compensator:
     def _session_for(self, names: list[str], rows: int):
         """The session to run ``names`` on ``rows`` rows: the whole graph's, or for a large run
         that asks for fewer outputs than it has, one of the graph cut to them (made once per
-        output set; the whole graph's where it cannot be cut, or the file changed on disk)."""
-        if rows < self.cut_rows or len(names) >= len(self.session.get_outputs()):
+        output set from the bytes loaded; the whole graph's where it cannot be cut)."""
+        if rows < self.cut_rows or not self.data or len(names) >= len(self.session.get_outputs()):
             return self.session
         key = tuple(names)
         if key not in self._cut:
             from .session import inference_session
 
-            cut = None
             try:
-                data = self.path.read_bytes()
-                if hashlib.sha256(data).hexdigest() == self.sha256:
-                    cut = inference_session(data, key)
+                cut = inference_session(self.data, key)
             except Exception:  # noqa: BLE001 - speed only: the whole graph gives the same numbers
                 cut = None
             self._cut[key] = cut if cut is not None else self.session
@@ -886,6 +884,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
         session=session,
         metadata=meta,
         sha256=hashlib.sha256(data).hexdigest(),
+        data=data,
         wants_previous=INPUT_PREVIOUS in inputs,
         has_joints=joints_output in outputs,
         joints_output=joints_output,

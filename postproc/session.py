@@ -29,6 +29,7 @@ arena: 241 MB), for the same speed.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import tempfile
@@ -48,21 +49,17 @@ def cache_dir() -> Path | None:
     return Path(base) / "postproc"
 
 
-_SHARED = []  # the process's one CPU arena, registered with onnxruntime's environment once
-
-
+@functools.cache
 def _shared_arena(ort) -> bool:
     """Register one CPU arena allocator for every session of this process (a model's whole and
-    cut graphs run one after the other: one arena, not one per session); False where this
+    cut graphs run one after the other: one arena, not one per session), once; False where this
     onnxruntime cannot."""
-    if not _SHARED:
-        try:
-            info = ort.OrtMemoryInfo("Cpu", ort.OrtAllocatorType.ORT_ARENA_ALLOCATOR, 0, ort.OrtMemType.DEFAULT)
-            ort.create_and_register_allocator(info, ort.OrtArenaCfg(0, -1, -1, -1))
-            _SHARED.append(True)
-        except Exception:  # noqa: BLE001 - an older or other build: each session keeps its own arena
-            _SHARED.append(False)
-    return _SHARED[0]
+    try:
+        info = ort.OrtMemoryInfo("Cpu", ort.OrtAllocatorType.ORT_ARENA_ALLOCATOR, 0, ort.OrtMemType.DEFAULT)
+        ort.create_and_register_allocator(info, ort.OrtArenaCfg(0, -1, -1, -1))
+        return True
+    except Exception:  # noqa: BLE001 - an older or other build: each session keeps its own arena
+        return False
 
 
 def _options(ort, optimise: bool):
@@ -77,9 +74,11 @@ def _options(ort, optimise: bool):
     return options
 
 
-def _key(ort, data: bytes) -> str:
+def _key(ort, data: bytes, outputs: tuple[str, ...] | None = None) -> str:
     h = hashlib.sha256(data)
     h.update(f"\0onnxruntime {ort.__version__}\0threads {_THREADS}\0level all\0cpu".encode())
+    if outputs is not None:
+        h.update("\0outputs".join(["", *outputs]).encode())
     return h.hexdigest()
 
 
@@ -90,24 +89,21 @@ def inference_session(data: bytes, outputs: tuple[str, ...] | None = None):
     import onnxruntime as ort
 
     folder = cache_dir()
-    if folder is None:
-        if outputs is not None:
-            data = _cut(data, outputs)
-            if data is None:
-                return None
-        return ort.InferenceSession(data, _options(ort, True), providers=["CPUExecutionProvider"])
-    key = _key(ort, data if outputs is None else data + "\0outputs\0".join(["", *outputs]).encode())
-    cached, digest = folder / f"{key}.onnx", folder / f"{key}.sha256"
-    try:
-        optimised = cached.read_bytes()
-        if hashlib.sha256(optimised).hexdigest() == digest.read_text().strip():
-            return ort.InferenceSession(optimised, _options(ort, False), providers=["CPUExecutionProvider"])
-    except Exception:  # noqa: BLE001 - not there yet, unreadable, or a cache ORT refuses (its own types): made again below
-        pass
+    if folder is not None:
+        key = _key(ort, data, outputs)
+        cached, digest = folder / f"{key}.onnx", folder / f"{key}.sha256"
+        try:
+            optimised = cached.read_bytes()
+            if hashlib.sha256(optimised).hexdigest() == digest.read_text().strip():
+                return ort.InferenceSession(optimised, _options(ort, False), providers=["CPUExecutionProvider"])
+        except Exception:  # noqa: BLE001 - not there yet, unreadable, or a cache ORT refuses (its own types): made again below
+            pass
     if outputs is not None:
         data = _cut(data, outputs)
         if data is None:
             return None
+    if folder is None:
+        return ort.InferenceSession(data, _options(ort, True), providers=["CPUExecutionProvider"])
     options = _options(ort, True)
     tmp = None
     try:

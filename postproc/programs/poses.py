@@ -167,6 +167,7 @@ class _Rows:
         self.shapes: dict[str, tuple] = {}  # line shape → ordinal of each x..c among the line's numbers
         self.counts: dict[str, int] = {}  # lines read per shape
         self.extras = False  # the header names s, t or q1..q6
+        self.frame: bool | None = None  # a ``# frame:`` line before the rows (``FRAMES``), None: none
         # exact rows (lists), then vectorised parts (arrays), merged by line number at the end
         self.pose: list = []
         self.spans: list = []
@@ -186,6 +187,8 @@ class _Rows:
         if _COMMENT.match(line):
             if STAMP_PREFIX in line:
                 self.stamps[0] = body
+            elif not self.pose and not self.parts:  # (before the first row: where it states their frame)
+                self._frame(line, lineno)
             return
         lead = len(line) - len(line.lstrip())
         columns = self.columns
@@ -208,6 +211,17 @@ class _Rows:
         self.abc.append(abc)
         self.lineno.append(lineno)
         self.col.append(lead + 1)
+
+    def _frame(self, line: str, lineno: int) -> None:
+        """A ``# frame: controller|model`` comment: the rows' frame; another value is a syntax
+        error at its line."""
+        found = _FRAME.match(line)
+        if found:
+            value = found.group(1).lower()
+            if value not in FRAMES:
+                raise PostprocError(f"# frame: {found.group(1)!r}: say controller (the robot controller's base) or "
+                                    f"model (the model's frame)", self.path, lineno, found.start(1) + 1, P101)
+            self.frame = FRAMES[value]
 
     def lines(self, first: int, last: int, starts: np.ndarray) -> None:
         """Lines ``first`` … ``last - 1`` (0-based) by the exact path."""
@@ -408,7 +422,7 @@ def read(files: list[str], texts: list[str], fast: bool = True) -> Program:
         raise PostprocError("no poses in this file (empty, or comments only)", path, 1, 1, P105)
     targets = rows.targets()
     stamps = rows.stamps
-    stated = _stated_frame(text, path)
+    stated = rows.frame
     return Program(
         files=list(files[:1]),
         texts=list(texts[:1]),
@@ -421,24 +435,3 @@ def read(files: list[str], texts: list[str], fast: bool = True) -> Program:
         comment="#",
     )
 
-
-def _stated_frame(text: str, path: str) -> bool | None:
-    """The frame a ``# frame:`` line among the comments before the first row states (``FRAMES``),
-    None without one; another value is a syntax error at its line."""
-    start, number = 0, 0
-    while start < len(text):  # (lines end at "\n" only, as the reader counts them; no copy of the whole text)
-        end = text.find("\n", start)
-        end = len(text) if end < 0 else end
-        line, start, number = text[start:end].rstrip("\r"), end + 1, number + 1
-        if not line.strip():
-            continue
-        if not _COMMENT.match(line):
-            return None
-        found = _FRAME.match(line)
-        if found:
-            value = found.group(1).lower()
-            if value not in FRAMES:
-                raise PostprocError(f"# frame: {found.group(1)!r}: say controller (the robot controller's base) or "
-                                    f"model (the model's frame)", path, number, found.start(1) + 1, P101)
-            return FRAMES[value]
-    return None

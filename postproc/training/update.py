@@ -33,8 +33,9 @@ update, with 30 rows or with 400). So the update also tries the joint placements
 joint frame's small turn and shift) free around OLD's values, with prior spreads
 ``REGION_FACTORS`` × (1 mrad, 0.5 mm), and keeps the one of those fits with the least
 generalised cross-validation score n·RSS/(n − p_eff)² on the new rows if it is below
-``REGION_GAIN`` × the score without them (else: placements kept) — the rows decide, nothing else (IPA, 30 rows, 5 draws each: B / D / A 0.468 / 0.455 / 0.496 → 0.436 / 0.379 /
-0.463 mm on each series' other rows; the simulator's re-mastering keeps "none"). The card's
+``REGION_GAIN`` × the score without them (else: placements kept) — the rows decide, nothing
+else (IPA, 30 rows, 5 draws each: B / D / A 0.468 / 0.455 / 0.496 → 0.436 / 0.379 / 0.474 mm
+on each series' other rows; the simulator's re-mastering keeps them). The card's
 ``update.region`` gives each factor's score and the one chosen.
 
 The parameters that moved are those whose change exceeds ``MOVED_SIGMAS`` times its posterior
@@ -127,8 +128,8 @@ class Update:
     def card(self) -> dict:
         """The new model card's ``update`` entry."""
         return {"from": self.old.card.get("name") or self.old.path.stem, "from_sha256": self.old.sha256,
-                "rows": self.rows, "groups": list(dict.fromkeys(p["group"] for p in self.parameters)), "moved_at_sigmas": MOVED_SIGMAS,
-                "region": self.region, "parameters": self.parameters}
+                "rows": self.rows, "groups": list(dict.fromkeys(p["group"] for p in self.parameters)),
+                "moved_at_sigmas": MOVED_SIGMAS, "region": self.region, "parameters": self.parameters}
 
 
 def _refuse(message: str, path: Path, code: str = "P317") -> PostprocError:
