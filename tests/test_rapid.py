@@ -15,7 +15,7 @@ from postproc.compensate import compensate_text, parse_program_text
 from postproc.compensator import load_model
 from postproc.diagnostics import PostprocError
 from postproc.programs import MOTIONS, dialect_of
-from postproc.programs.rapid import quaternion_matrix
+from postproc.frames import rotation_from_quaternion as quaternion_matrix
 from postproc.resources import sample_path
 
 EAX = "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]"

@@ -39,7 +39,7 @@ from .grammar import BLANKS, NUM, TOKEN_RE, exact_key, first_ordinal, lalr_parse
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline  # a file's newline: \r\n if at least half its line ends are
 
-__all__ = ["read", "parser", "RapidProgram", "quaternion_matrix", "TOKEN_RE", "MOTION_OF"]
+__all__ = ["read", "parser", "RapidProgram", "TOKEN_RE", "MOTION_OF"]
 
 # an inline robtarget of plain numbers: x, y, z, q1..q4, cf1, cf4, cf6, cfx (a sign may stand
 # before each, as in the grammar: blanks between); its extax aggregate follows
@@ -80,10 +80,6 @@ class RapidProgram(Program):
 def parser() -> Lark:
     """The LALR parser of ``grammars/rapid.lark`` (built once, cached on disk by lark)."""
     return lalr_parser("rapid.lark", "unit")
-
-
-# [..., 4] quaternions q1..q4 = (w, x, y, z), as RAPID writes them → [..., 3, 3]
-quaternion_matrix = rotation_from_quaternion
 
 
 def _scaled(q: np.ndarray) -> np.ndarray | None:

@@ -46,7 +46,7 @@ from .grammar import TOKEN_RE, exact_key, first_ordinal, lalr_parser, shape_key,
 from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
 from .poses import _newline
 
-__all__ = ["read", "parser", "rotvec_matrix", "UNIT_MM", "TOKEN_RE", "MOTION_OF"]
+__all__ = ["read", "parser", "UNIT_MM", "TOKEN_RE", "MOTION_OF"]
 
 UNIT_MM = 1000.0  # URScript poses are in metres
 # strings, comments, and a quote that opens no string on its line
@@ -62,10 +62,6 @@ _JOINT_FUNCS = {"get_inverse_kin", "get_actual_joint_positions", "get_target_joi
 def parser() -> Lark:
     """The LALR parser of ``grammars/urscript.lark`` (built once, cached on disk by lark)."""
     return lalr_parser("urscript.lark", "unit")
-
-
-# [..., 3] rotation vectors (radians, axis × angle, as URScript writes them) → [..., 3, 3]
-rotvec_matrix = rotation_from_rotvec
 
 
 # ---------------------------------------------------------------------------- shapes
@@ -335,7 +331,7 @@ class _Reader:
         if got is None or not np.isfinite(got[0]).all():
             return None
         v = np.array(got[0])
-        abc = abc_from_rotation(rotvec_matrix(v[3:]))
+        abc = abc_from_rotation(rotation_from_rotvec(v[3:]))
         return tuple(float(x) for x in np.concatenate([v[:3] * UNIT_MM, abc]))
 
     def tool_at(self, offset, straight, block, events):
@@ -480,7 +476,7 @@ class _Reader:
             r = int(np.flatnonzero(bad)[0])
             raise PostprocError("a pose's position or rotation is not a finite number", self.path, int(line[r]),
                                 int(col[r]), "P103")
-        abc = abc_from_rotation(rotvec_matrix(numbers[:, 3:])) if n else np.zeros((0, 3))
+        abc = abc_from_rotation(rotation_from_rotvec(numbers[:, 3:])) if n else np.zeros((0, 3))
         spans = np.array(spans, np.int64).reshape(n, 6, 2)
         targets = Targets(poses=np.concatenate([numbers[:, :3] * UNIT_MM, abc], axis=1),
                           spans=spans[:, :3], file=np.zeros(n, np.int32),
