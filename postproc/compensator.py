@@ -295,6 +295,11 @@ class Compensator:
         return np.eye(4) if pose is None else frame_to_matrix(np.asarray(pose, float))
 
     @property
+    def in_controller_base(self) -> bool:
+        """The model's frame is the controller's base (no ``controller_base``, or the identity)."""
+        return bool(np.array_equal(self.controller_base, np.eye(4)))
+
+    @property
     def nominal_attitude(self) -> np.ndarray | None:
         env = self.envelope
         return None if env is None else env.attitude

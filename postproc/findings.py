@@ -106,17 +106,16 @@ def model_bases(program: Program, model: Compensator | None) -> list[np.ndarray]
     a pose list that states ``# frame: controller``; a pose list's rows are in the model's frame
     where it states ``# frame: model`` or states nothing (where it matters it must state it:
     :func:`pose_frame_rule`)."""
-    base = np.eye(4) if model is None or not program.in_controller_base else model.controller_base
-    if np.array_equal(base, np.eye(4)):
+    if model is None or not program.in_controller_base or model.in_controller_base:
         return [f.base for f in program.frames]
-    return [base @ f.base for f in program.frames]
+    return [model.controller_base @ f.base for f in program.frames]
 
 
 def pose_frame_rule(program: Program, model: Compensator, use: np.ndarray) -> list[Diagnostic]:
     """P218: a pose list that does not state its frame, for a model whose frame is not the
     controller's base — its rows could be in either (a UR description in ROS's base_link: the
     controller's base is turned 180° about Z). Narrows ``use``: every row left as written."""
-    if program.in_controller_base is not None or np.array_equal(model.controller_base, np.eye(4)):
+    if program.in_controller_base is not None or model.in_controller_base:
         return []
     rows = np.flatnonzero(use)
     use[rows] = False
