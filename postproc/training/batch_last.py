@@ -17,6 +17,7 @@ from __future__ import annotations
 import torch
 
 from ..robot import gravity_from_points, holding_torques
+from .network import abc_entries
 
 __all__ = ["const_mat", "mat", "mat_t", "mat_vec", "const_vec", "cross", "unit_crosses", "abc_rotations", "joint_turns",
            "Frames", "frames", "torque_terms"]
@@ -64,16 +65,10 @@ def unit_crosses(v: torch.Tensor) -> torch.Tensor:
 
 
 def abc_rotations(abc_deg: torch.Tensor) -> torch.Tensor:
-    """[N, 3] KUKA A,B,C (deg) → [3, 3, N] R = Rz(A)·Ry(B)·Rx(C) (network.rotation_matrices' formula)."""
+    """[N, 3] KUKA A,B,C (deg) → [3, 3, N] R = Rz(A)·Ry(B)·Rx(C) (``network.abc_entries``)."""
     rad = abc_deg.t() * (torch.pi / 180.0)
     cos, sin = torch.cos(rad), torch.sin(rad)
-    ca, cb, cc = cos[0], cos[1], cos[2]
-    sa, sb, sc = sin[0], sin[1], sin[2]
-    rows = [
-        ca * cb, ca * sb * sc - sa * cc, ca * sb * cc + sa * sc,
-        sa * cb, sa * sb * sc + ca * cc, sa * sb * cc - ca * sc,
-        -sb, cb * sc, cb * cc,
-    ]  # fmt: skip
+    rows = abc_entries(cos[0], sin[0], cos[1], sin[1], cos[2], sin[2])
     return torch.stack(rows).reshape(3, 3, -1)
 
 

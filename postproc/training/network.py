@@ -127,15 +127,21 @@ def jacobian(structure: Structure, theta: torch.Tensor, x: torch.Tensor) -> torc
     return torch.cat(blocks[::-1], dim=2).reshape(n * N_OUT, -1)
 
 
-def rotation_matrices(abc_deg: torch.Tensor) -> torch.Tensor:
-    """[N, 3] KUKA A,B,C (deg) → [N, 3, 3] R = Rz(A)·Ry(B)·Rx(C) (as postproc.frames, in torch)."""
-    a, b, c = (abc_deg * (math.pi / 180.0)).unbind(dim=1)
-    ca, sa, cb, sb, cc, sc = torch.cos(a), torch.sin(a), torch.cos(b), torch.sin(b), torch.cos(c), torch.sin(c)
-    rows = [
+def abc_entries(ca, sa, cb, sb, cc, sc) -> list[torch.Tensor]:
+    """The nine entries (row by row) of R = Rz(A)·Ry(B)·Rx(C) from the cosines and sines of
+    A, B, C: the one formula of the torch rotations (``rotation_matrices``, and the exported
+    graph's batch-last ``batch_last.abc_rotations``)."""
+    return [
         ca * cb, ca * sb * sc - sa * cc, ca * sb * cc + sa * sc,
         sa * cb, sa * sb * sc + ca * cc, sa * sb * cc - ca * sc,
         -sb, cb * sc, cb * cc,
     ]  # fmt: skip
+
+
+def rotation_matrices(abc_deg: torch.Tensor) -> torch.Tensor:
+    """[N, 3] KUKA A,B,C (deg) → [N, 3, 3] R = Rz(A)·Ry(B)·Rx(C) (as postproc.frames, in torch)."""
+    a, b, c = (abc_deg * (math.pi / 180.0)).unbind(dim=1)
+    rows = abc_entries(torch.cos(a), torch.sin(a), torch.cos(b), torch.sin(b), torch.cos(c), torch.sin(c))
     return torch.stack(rows, dim=1).reshape(-1, 3, 3)
 
 
