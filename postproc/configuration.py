@@ -5,8 +5,11 @@ more than 360°, several turns of each. KUKA's Status and Turn pick one
 (``../shared/KRL-NOTES.md``; KSS manual, "Status and Turn"):
 
 * S bit 0: the wrist point behind the A1 axis (overhead area), bit 1: A3 at or beyond the
-  stretched-arm angle (elbow), bit 2: A5 ≤ 0 (wrist flip);
-* T bit i set ⇔ A(i+1) < 0 (which turn of each joint).
+  stretched-arm angle (elbow), bit 2: A5 ≤ 0 (wrist flip); the higher bits say nothing of the
+  arm's configuration (real points state ``S 18``, ``'B00010110'``: bit 4 set), so only bits 0–2
+  pick a branch (:func:`arm_status`, the one place a Status becomes a branch index);
+* T bit i set ⇔ A(i+1) < 0 (which turn of each joint); bits 6 and up (external axes) are not
+  the arm's.
 
 For a UR-type arm (``models/ur10.toml``, no S/T on its controller) postproc uses the same bits
 for the same geometric facts (:meth:`postproc.robot.Robot.status_turn`): bit 0 = A6's origin
@@ -39,9 +42,11 @@ import numpy as np
 from . import frames
 from .robot import Robot
 
-__all__ = ["UNSTATED", "branch_table", "stated_joints", "controller_joints", "status_turn_of", "measurement_joints"]
+__all__ = ["UNSTATED", "arm_status", "branch_table", "stated_joints", "controller_joints", "status_turn_of",
+           "measurement_joints"]
 
 UNSTATED = -1  # S or T not written for a target
+ARM_BITS = 0b111  # S bits 0-2: shoulder, elbow, wrist (the branch); the others are not the arm's
 # rows per numpy pass over the branches: [8, BLOCK, 6] float64 (3 MB) stays in cache (~1.5x
 # faster than one pass over a long program's table; the same numbers)
 BLOCK = 8192
@@ -53,6 +58,13 @@ SIGN_TOLERANCE_DEG = 0.5
 # next target in program order, so a program of n targets needs at most n + 1; usually a few
 # (a chain of choices that each depend on the one before — a wrist flip early in a long PTP
 # program — settles one target per pass: 20 passes, the old cap, left such targets wrong)
+
+
+def arm_status(status) -> np.ndarray:
+    """S as written [N] → the arm branch it states [N] (bits 0–2; UNSTATED stays): never index
+    the branch table with an S unmasked (``S 18`` is branch 2 with bit 4 set)."""
+    status = np.asarray(status, int)
+    return np.where(status >= 0, status & ARM_BITS, UNSTATED)
 
 
 def _wrap(deg: np.ndarray) -> np.ndarray:
@@ -283,7 +295,7 @@ def stated_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.
     n = len(poses)
     ref = np.broadcast_to(robot.home_q if reference is None else np.asarray(reference, float), (n, 6))
     branches = _Branches(robot, poses, tools, check_all)
-    status, turn = np.asarray(status).reshape(n), np.asarray(turn).reshape(n)
+    status, turn = arm_status(np.asarray(status).reshape(n)), np.asarray(turn).reshape(n)
     branches.need(status[status >= 0], np.flatnonzero(status >= 0))
     branches.need_rows(np.flatnonzero(status < 0))
     while True:
@@ -362,7 +374,7 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
     first part) continue the rules as one call would, and are set to this part's last."""
     poses = np.atleast_2d(np.asarray(poses, float))
     n = len(poses)
-    status = np.asarray(status, int).reshape(n)
+    status = arm_status(np.asarray(status, int).reshape(n))
     turn = np.asarray(turn, int).reshape(n)
     ptp = np.asarray(ptp, bool).reshape(n)
     start = np.asarray(robot.home_q if initial_q is None else initial_q, float).reshape(6)

@@ -129,3 +129,56 @@ def test_a_long_ptp_chain_from_home_takes_each_solution_nearest_the_previous_one
     alone = np.vstack([cf.controller_joints(robot, poses[i:i + 1], one, one, np.ones(1, bool), previous[i])[0]
                        for i in range(n)])
     np.testing.assert_allclose(q, alone, atol=1e-6)
+
+
+def test_status_bits_above_the_arm_are_not_a_branch():
+    """Real points state S 18 / 'B00010110' (bit 4 set beside bits 0-2): the branch is bits 0-2,
+    for every S and T a program can write (a property over the whole 0…32767 range)."""
+    from hypothesis import given, settings, strategies as st
+
+    robot = Robot()
+    q = _random_q(robot, 64, 11)
+    poses = robot.fk(q)
+    status, turn = robot.status_turn(q)
+    plain, ok = cf.stated_joints(robot, poses, status, turn)
+    assert ok.all()
+
+    @settings(max_examples=60, deadline=None, derandomize=True)
+    @given(st.integers(0, 32767 >> 3), st.integers(0, 32767 >> 6), st.integers(0, 63))
+    def high_bits_change_nothing(s_high, t_high, row):
+        s = np.array([status[row] | (s_high << 3)])
+        t = np.array([turn[row] | (t_high << 6)])
+        got, found = cf.stated_joints(robot, poses[row:row + 1], s, t)
+        assert found[0]
+        np.testing.assert_array_equal(got[0], plain[row])
+        ptp = np.array([True])
+        got, found = cf.controller_joints(robot, poses[row:row + 1], s, t, ptp)
+        assert found[0]
+        np.testing.assert_array_equal(got[0], plain[row])
+
+    high_bits_change_nothing()
+
+
+def test_a_program_stating_status_bit_4_is_compensated_on_its_branch(tmp_path):
+    """``S 18`` is branch 2 (bit 4 set): compensated with branch 2's joint angles, as ``S 2``
+    (was an IndexError), with a model of the joints (its correction varies with them)."""
+    from postproc.compensate import compensate_text
+    from postproc.testing.models import joint_model
+
+    robot = Robot()
+    q = np.array([[10.0, -80.0, 100.0, 20.0, 40.0, 30.0], [-5.0, -70.0, 95.0, -10.0, -35.0, 60.0]])
+    poses = robot.fk(q)
+    status, turn = robot.status_turn(q)
+    model = joint_model(tmp_path / "m.onnx", gain=np.diag([0.4, -0.3, 0.5]) @ np.ones((3, 6)) / 6)
+
+    def program(extra):
+        lines = [f"PTP {{X {p[0]:.4f}, Y {p[1]:.4f}, Z {p[2]:.4f}, A {p[3]:.4f}, B {p[4]:.4f}, C {p[5]:.4f}, "
+                 f"S {s | extra}, T {t}}}" for p, s, t in zip(poses, status, turn)]
+        return "DEF p()\n$BASE = $NULLFRAME\n$TOOL = {X 300, Y 0, Z 75, A 0, B 0, C 0}\n" + "\n".join(lines) + "\nEND\n"
+
+    plain, report = compensate_text(program(0), str(model), name="p.src")
+    high, report_high = compensate_text(program(16), str(model), name="p.src")
+    assert report_high.compensated == report.compensated == 2 and report_high.complete
+    for s in status.tolist():
+        high = high.replace(f"S {s | 16},", f"S {s},")
+    assert high == plain and plain != program(0)
