@@ -156,7 +156,7 @@ def test_calls_on_the_fast_path_equal_the_line_by_line_read():
     assert (f[:2000] == 0).all() and (f[2000:4000] == 1).all() and (f[4000:] == -1).all()
 
 
-def test_a_callee_that_moves_leaves_the_current_position_unknown():
+def test_after_a_callee_that_moves_the_robot_stands_at_its_target():
     src = ("DEF t( )\n  LIN {X 1,Y 2,Z 3,A 0,B 90,C 0}\n  settle()\n  LIN {Z 40}\n  park()\n  LIN {Z 50}\nEND\n"
            "DEF settle( )\n  $VEL.CP = 0.1\nEND\n"
            "DEF park( )\n  go()\nEND\n"
@@ -164,8 +164,9 @@ def test_a_callee_that_moves_leaves_the_current_position_unknown():
     for accelerate in (True, False):
         p = read(("t.src", src), accelerate=accelerate)
         poses = p.targets.poses
-        # settle() does not move: {Z 40} takes X, Y from line 2; after park() (which moves in
-        # go()) the position is the callee's: {Z 50} cannot take them from line 4
+        # settle() does not move: {Z 40} takes X, Y from line 2; park() moves in go(), which
+        # runs before {Z 50}: that takes X, Y from go()'s target, not from line 4
         np.testing.assert_allclose(poses[1, :3], [1, 2, 40])
-        assert np.isnan(poses[2, :2]).all() and poses[2, 2] == 50
-        np.testing.assert_allclose(poses[3, :3], [100, 200, 300])
+        np.testing.assert_allclose(poses[2, :3], [100, 200, 300])
+        np.testing.assert_allclose(poses[3, :3], [100, 200, 50])
+        assert p.targets.prev.tolist() == [-1, 0, 1, 2]

@@ -49,20 +49,21 @@ def cell(*names):
 def test_a_cell_resolves_globals_across_data_lists_and_config():
     p = cell("main.src", "xPoints.dat", "main.dat", "$config.dat", "place.src")
     t = p.targets
-    # each point once, in the file it is declared in
+    # each motion in the order it runs, its point in the file it is declared in
     where = [(p.files[f].rsplit("/", 1)[1], int(line)) for f, line in zip(t.file, t.line)]
-    assert where == [("xPoints.dat", 2), ("main.dat", 2), ("xPoints.dat", 3), ("$config.dat", 30)]
+    assert where == [("xPoints.dat", 2), ("main.dat", 2), ("xPoints.dat", 3), ("$config.dat", 30),
+                     ("xPoints.dat", 3), ("xPoints.dat", 2)]
     base1 = frame_to_matrix(np.array([1850.0, -300.0, 650.0, 0, 0, 0]))
     base2 = frame_to_matrix(np.array([1780.0, 150.0, 700.0, 90.0, 0, 0]))
-    assert t.frame.tolist() == [0, 0, 1, 1]
+    # XPLACE runs under BASE_DATA[1] (main) and BASE_DATA[2] (place.src): two rows of one target
+    # (compensate writes it only if both agree); XPICK at line 10 is under BASE_DATA[2] again, set
+    # inside place()
+    assert t.frame.tolist() == [0, 0, 1, 1, 0, 0] and t.twin.tolist() == [-1, -1, -1, -1, 2, 0]
     np.testing.assert_allclose(p.frames[0].base, base2)
     np.testing.assert_allclose(p.frames[1].base, base1)
     assert t.config[3].tolist() == [2, 10]
-    # XLOCAL is not GLOBAL: not visible from main. XPLACE is used under BASE_DATA[1] (main) and
-    # BASE_DATA[2] (place.src): P202. XPICK at line 10 is under BASE_DATA[2] again, set inside
-    # place(): no P202.
-    assert [(d.path.rsplit("/", 1)[1], d.code, d.line) for d in p.diagnostics] == [
-        ("main.src", "P215", 8), ("place.src", "P202", 3)]
+    # XLOCAL is not GLOBAL: not visible from main
+    assert [(d.path.rsplit("/", 1)[1], d.code, d.line) for d in p.diagnostics] == [("main.src", "P215", 8)]
 
 
 def test_a_global_not_in_the_set_is_left_alone_not_an_error_for_the_file():
@@ -78,4 +79,4 @@ def test_a_data_list_alone_says_what_is_missing():
         cell("xPoints.dat")
     assert e.value.code == "P104" and "give the modules (.src) that use it" in e.value.message
     p = cell("xPoints.dat", "main.src", "main.dat", "$config.dat", "place.src")  # a data list first: fine
-    assert p.targets.poses[:, 0].tolist() == [100, 10, 400, 50]
+    assert p.targets.poses[:, 0].tolist() == [100, 10, 400, 50, 400, 100]

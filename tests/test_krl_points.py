@@ -50,13 +50,17 @@ def test_configuration_on_the_fast_path_equals_the_line_by_line_read():
     assert fast.targets.config[5999].tolist() == [5999 % 8, 5999 % 64]
 
 
-def test_a_derived_point_is_warned_at_its_use_not_treated_as_unchanged():
+def test_a_derived_point_shares_the_tokens_it_is_derived_from():
+    """``XP2 = XP1; XP2.Z = XP1.Z + 150`` and ``XP3.X = XP1.X - 20``: at run time XP2 and XP3
+    move with XP1's numbers. Each is a row whose tokens are XP1's (+ an offset); the rows that
+    share a token are one group: compensate writes the tokens only where every row of the group
+    agrees (test_compensate's groups), so none moves by another's correction without a word."""
     src = ("DEF t( )\n"
-           "  LIN XP1\n"                     # 2: compensated
+           "  LIN XP1\n"                     # 2
            "  XP2 = XP1\n"                   # 3
            "  XP2.Z = XP1.Z + 150\n"         # 4
-           "  LIN XP2\n"                     # 5: moves with XP1
-           "  XP3.X = XP1.X - 20\n"          # 6: XP3 was its own point
+           "  LIN XP2\n"                     # 5: XP1's tokens, Z + 150
+           "  XP3.X = XP1.X - 20\n"          # 6: XP3's own Y, Z; X is XP1's − 20
            "  LIN XP3\n"                     # 7
            "  LIN XP4\n"                     # 8: its own point
            "END\n")
@@ -64,8 +68,10 @@ def test_a_derived_point_is_warned_at_its_use_not_treated_as_unchanged():
            "  DECL E6POS XP3={X 7,Y 7,Z 7,A 0,B 0,C 0}\n  DECL E6POS XP4={X 8,Y 8,Z 8,A 0,B 0,C 0}\nENDDAT\n")
     for accelerate in (True, False):
         p = read(src, dat, accelerate)
-        assert p.targets.poses[:, 0].tolist() == [4, 8]  # XP1 and XP4; XP2, XP3 left as written
-        assert [(d.code, d.line, d.col) for d in p.diagnostics] == [("P214", 5, 7), ("P214", 7, 7)]
-        assert "derived from XP1 at line 3" in p.diagnostics[0].message
-        assert "derived from XP1 at line 6" in p.diagnostics[1].message
-        assert "carries XP1's correction" in p.diagnostics[0].message
+        t = p.targets
+        assert p.diagnostics == []
+        np.testing.assert_allclose(t.poses[:, :3], [[4, 5, 6], [4, 5, 156], [-16, 7, 7], [8, 8, 8]])
+        xp1 = t.spans[0]
+        assert (t.spans[1] == xp1).all() and t.offset[1].tolist() == [0, 0, 150]
+        assert (t.spans[2, 0] == xp1[0]).all() and t.offset[2].tolist() == [-20, 0, 0]
+        assert t.group.tolist() == [0, 0, 0, -1]

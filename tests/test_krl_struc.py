@@ -45,13 +45,19 @@ def test_a_part_of_the_array_and_a_step():
 
 @pytest.mark.parametrize("loop,why", [
     ("FOR counter = 1 TO n", "bounds known only at run time"),
-    (f"FOR counter = 1 TO {N + 1}", f"gsMill_TOP1[{N + 1}] is not initialised"),
-    ("FOR n = 1 TO 3", "not the variable of an enclosing FOR"),
+    ("FOR n = 1 TO 3", "counter is not initialised"),
 ])
 def test_struc_arrays_that_cannot_be_enumerated_are_left_alone(loop, why):
     p = krl.read(["mill.src", "mill.dat"], [src(loop), DAT], active=STATED)
     assert len(p.targets) == 1  # only the inline LIN after the loop
     assert [(d.code, d.line) for d in p.diagnostics] == [("P211", 5)] and why in p.diagnostics[0].message
+
+
+def test_an_element_not_initialised_is_left_the_others_are_targets():
+    p = krl.read(["mill.src", "mill.dat"], [src(f"FOR counter = 1 TO {N + 1}"), DAT], active=STATED)
+    assert len(p.targets) == N + 1  # the N elements, the inline LIN after the loop
+    assert [(d.code, d.line) for d in p.diagnostics] == [("P211", 5)]
+    assert "gsMill_TOP1[…] is not set in the data given" in p.diagnostics[0].message
 
 
 def test_a_struc_member_of_axis_type_is_not_a_target():

@@ -164,6 +164,18 @@ class Targets:
                                them; ``compensate --orientation`` needs them)
     orientation [N, k] float64 the orientation's numbers as written, where the form is not A,B,C
                                (None: ``poses[:, 3:6]`` are them); ``written_orientation``
+    prev       [N] int32       the row executed just before this one (its command is this row's
+                               previous pose), -1 none known (the program's start, or after a
+                               motion whose target is not a row); None: each row's is the row
+                               before it (a pose list, a straight-line program)
+    offset     [N, 3] float64  what the program adds to each X/Y/Z token before the motion uses it
+                               (``XA.Z = XS1.Z + 300``: the token is XS1's Z): the token reads
+                               pose − offset (None: zeros)
+    twin       [N] int32       the first row with the same X/Y/Z tokens (one target executed
+                               several times: in a loop, a routine called twice, after a merge),
+                               -1 for a first one (None: every row is)
+    group      [N] int32       rows that share any X/Y/Z token: one group, id ≥ 0; -1 alone (None:
+                               every row is): a token is rewritten only where every row agrees
 
     A frame's ``tool`` of None means the model's tool, stated by the user (``--tool model``);
     a $TOOL (or $BASE) that is not set and not stated (P221/P220) or set but not known makes
@@ -181,6 +193,10 @@ class Targets:
     joints: np.ndarray | None = None
     abc_spans: np.ndarray | None = None
     orientation: np.ndarray | None = None
+    prev: np.ndarray | None = None
+    offset: np.ndarray | None = None
+    twin: np.ndarray | None = None
+    group: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.config is None:
@@ -265,3 +281,6 @@ class Program:
     # [N] bool: the target states an arm configuration in a form postproc does not translate to
     # joint angles (Fanuc CONFIG): a model that takes joint angles leaves it as written (P309)
     unmapped_configuration: np.ndarray | None = None
+    # rows the analysis leaves as written, by the code that says why (P217: a target whose numbers
+    # something else reads too); each was warned at its line
+    held: dict = field(default_factory=dict)

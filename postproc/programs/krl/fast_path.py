@@ -11,7 +11,10 @@ from lark.exceptions import UnexpectedInput
 from ...diagnostics import P103, PostprocError, line_col
 from ..model import STAMP_PREFIX
 from .syntax import SHAPE_RE, _FOLD, _MALFORMED, _NUM, MalformedNumber, parser
-from .values import _AXIS_KEYS, _COMP, _KIND_OF, _MOTION, _mark_brace
+from ..ir import MOTION_INDEX as _MOTION
+from .lower import _AXIS_KEYS, _KIND_OF, mark_brace as _mark_brace
+
+_COMP = {k: i for i, k in enumerate(("X", "Y", "Z", "A", "B", "C"))}
 
 
 class _Shape:

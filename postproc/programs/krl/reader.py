@@ -1,25 +1,24 @@
-"""The reading loop: files, lines, shapes; the Reader combines the handlers of the other modules."""
+"""The reading loop: files, lines, shapes → the motion IR (``lower.py``) → the analysis
+(``programs.analysis``, with KRL's ``semantics.py``) → Program."""
 from __future__ import annotations
 
 import gc
 from pathlib import PurePath
 from bisect import bisect_left
 
-import numpy as np
 from lark import Token, Tree
 
-from ...diagnostics import P101, P104, P105, P224, Diagnostic, PostprocError
-from ..model import ActiveFrames, Frame, Program, STAMP_PREFIX
-from .assemble import Assembly
+from ...diagnostics import P101, P104, P105, Diagnostic, PostprocError
+from ..analysis import analyse
+from ..ir import Invoke, Loc, Unit, walk
+from ..model import ActiveFrames, Program, STAMP_PREFIX
 from .blocks import Blocks
-from .calls import Calls
 from .fast_path import FastPath, _HotRows, _Shape, _analyse, _name_paths
-from .flow import Flow
-from .frames import Frames, _START
-from .scopes import Scopes
-from .statements import AsyncStatements, Statements
+from .lower import Lowering
+from .semantics import KRL
 from .syntax import SHAPE_RE, SyntaxErrors, _BLANK, _PLACEHOLDER
-from .values import Values, _Num, _Var
+
+BOM = "\xef\xbb\xbf"  # a UTF-8 byte order mark, as the latin-1 text holds it
 
 
 def read(files: list[str], texts: list[str], config: list[str] | None = None, accelerate: bool = True,
@@ -34,8 +33,8 @@ def read(files: list[str], texts: list[str], config: list[str] | None = None, ac
     ``accelerate=False`` reads every line through the interpreter (no vectorised fast path:
     same result, slower; for tests).
 
-    Raises PostprocError (P101 syntax, P102 undeclared target, P103 bad component, P104
-    empty / no DEF) with the file:line:col of the offending token."""
+    Raises PostprocError (P101 syntax, P103 bad component, P104 empty / no DEF) with the
+    file:line:col of the offending token."""
     enabled = gc.isenabled()
     gc.disable()  # millions of small objects, no cycles: the collector only costs time here
     try:
@@ -43,6 +42,13 @@ def read(files: list[str], texts: list[str], config: list[str] | None = None, ac
     finally:
         if enabled:
             gc.enable()
+
+
+def lower(files: list[str], texts: list[str], config: list[str] | None = None, accelerate: bool = True,
+          active: ActiveFrames | None = None) -> tuple[Unit, KRL]:
+    """The motion IR of a KRL module or cell and its dialect (what ``read`` analyses)."""
+    reader = Reader(list(files), list(texts), list(config or []), accelerate=accelerate, active=active)
+    return reader.lower(), reader.dialect()
 
 
 def _stem(path: str) -> str:
@@ -57,9 +63,8 @@ def _kind(path: str) -> str:
     return "dat" if name.endswith(".dat") else "src"
 
 
-class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes, Values, SyntaxErrors, Assembly,
-             Calls):
-    """The KRL reader: one module per concept, each contributing its methods."""
+class Reader(FastPath, Lowering, Blocks, SyntaxErrors):
+    """The KRL reader: the lines of its files lowered to one Unit."""
 
     def __init__(self, files, texts, config, accelerate: bool = True, active: ActiveFrames | None = None):
         if len(files) != len(texts):
@@ -70,26 +75,26 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
         self.ln = 0  # (the line being read; 0 before any)
         self.shapes: dict[str, _Shape] = {}
         self.diagnostics: list[Diagnostic] = []
-        self.frames: list[Frame] = []
         self.newline: dict[int, str] = {}
-        self.frame_ix: dict = {}
-        self.assumed_robroot: set[int] = set()  # frame indices taken with robot base = world assumed (P224)
-        self.unknown_frames: dict = {}  # reason key → [path, line, col, message, count, code]
         self.hot = _HotRows()
-        self.cold = {k: [] for k in ("key", "pose", "written", "spans", "file", "line", "col", "motion",
-                                     "frame", "emit", "chain", "config")}
-        self.timeline: list = []  # (key, frame index, unknown reason key)
-        self.globals: dict[str, _Var] = {}
-        self.module: dict[str, _Var] = {}  # the scope of the module being read
-        self.modules: dict[str, dict] = {}  # module name (file stem) → its scope (.src + .dat)
-        self.local: dict[str, _Var] | None = None
-        self.targets_of: dict[int, tuple] = {}  # id(_Agg) → (frame, line) of its first use
-        self.call_states: dict[str, list] = {}
-        self.strucs: dict[str, dict] = {}  # STRUC type → member → member type (upper case)
+        config_names = ["$config.dat" if len(config) == 1 else f"$config.dat[{k}]" for k in range(len(config))]
+        self.unit = Unit("krl", files, texts, config_names=config_names, config_texts=config)
+        self.datas: dict[str, list] = {}  # module → its data statements
+        self.local_defs: dict[str, set] = {}
+        self.strucs: dict[str, dict] = {}
+        self.config_globals: set = set()
+        self.routine_order: list = []
+        self.file_routines: list = []
 
-    def run(self) -> Program:
+    def dialect(self) -> KRL:
+        d = KRL(self.active, config=bool(self.config) or "config" in map(_kind, self.files),
+                modules=self.local_defs, strucs=self.strucs)
+        d.config_globals |= self.config_globals
+        return d
+
+    def lower(self) -> Unit:
         for k, text in enumerate(self.config):
-            self.scan(-1 - k, text, "$config.dat" if len(self.config) == 1 else f"$config.dat[{k}]", role="config")
+            self.scan(-1 - k, text, self.unit.config_names[k], role="config")
         kinds = [_kind(f) for f in self.files]
         # $config.dat first, then the data lists, then the code (in the order given): every
         # global is declared before a module uses it
@@ -98,7 +103,27 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
         for rank, fi in enumerate(order):
             role = "config" if kinds[fi] == "config" else "module"
             self.scan(fi, self.texts[fi], self.files[fi], role=role, rank=rank)
-        targets = self.assemble()
+        unit = self.unit
+        unit.data = list(self.datas.items())
+        unit.prologue = [Invoke("KRL.START", (), Loc(0, 1, 1))]
+        called = set()
+        for key in self.routine_order:
+            r = unit.routines[key]
+            for s in walk(r.body):
+                if isinstance(s, Invoke):
+                    called.add(self._resolve(s.name, r.module))
+            for name in _calls_in(r.body):
+                called.add(self._resolve(name, r.module))
+        unit.entries = [k for k in self.routine_order if k not in called]
+        return unit
+
+    def _resolve(self, name: str, module: str) -> str:
+        name = name.upper()
+        return f"{module}::{name}" if name in self.local_defs.get(module, ()) else name
+
+    def run(self) -> Program:
+        unit = self.lower()
+        built = analyse(unit, self.dialect())
         stamps, newlines = {}, []
         for fi, text in enumerate(self.texts):
             newlines.append(self.newline.get(fi, "\n"))
@@ -112,30 +137,12 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
                     stamps[fi] = line.strip()
                     break
                 at = text.find(STAMP_PREFIX, b)
-        for path, line, col, msg, count, code, first in self.unknown_frames.values():
-            if first:
-                _, line, col, path = first
-            if count:
-                self.diagnostics.append(Diagnostic(path, line, col, code,
-                                                   f"{msg}: {count} target(s) left as written"))
-        return Program(files=self.files, texts=self.texts, targets=targets, frames=self.frames,
-                       named_targets=bool(self.targets_of), notes=self.robroot_notes(targets),
-                       diagnostics=self.diagnostics, dialect="krl", stamps=stamps, newlines=newlines, comment=";")
-
-    def robroot_notes(self, targets) -> list[Diagnostic]:
-        """P224 once, at the first target taken with robot base = world assumed ($ROBROOT not
-        stated, not in machine data given, not set by the program): a note, not a target left."""
-        if not self.assumed_robroot:
-            return []
-        taken = np.flatnonzero(np.isin(targets.frame, list(self.assumed_robroot)))
-        if not len(taken):
-            return []
-        first = int(taken[0])
-        return [Diagnostic(self.files[targets.file[first]], int(targets.line[first]), int(targets.col[first]), P224,
-                           "robot base = world assumed: $ROBROOT is not known (no --robroot, no machine data) "
-                           "and the program does not set it, so $NULLFRAME is taken; give --robroot X,Y,Z,A,B,C "
-                           "or the backup's Mada/$machine.dat (its System/$config.dat, or the backup directory)",
-                           "note")]
+        program = Program(files=self.files, texts=self.texts, targets=built.targets, frames=built.frames,
+                          named_targets=built.named, notes=built.notes,
+                          diagnostics=self.diagnostics + built.diagnostics, dialect="krl", stamps=stamps,
+                          newlines=newlines, comment=";")
+        program.held = built.held
+        return program
 
     def warn(self, path, line, col, code, msg):
         self.diagnostics.append(Diagnostic(path, line, col, code, msg))
@@ -149,31 +156,25 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
         return sh
 
     def scan(self, fi: int, text: str, path: str, role: str, rank: int = 0) -> None:
-        self.module = self.modules.setdefault(_stem(path), {}) if role == "module" else {}
-        self.loops: list = []  # enclosing FORs: (variable, first, last, step), None where not constant
+        self.module_name = "$CONFIG" if role == "config" else _stem(path)
+        self.module_data = self.datas.setdefault(self.module_name, [])
         self.fi, self.path, self.text, self.role = fi, path, text, role
         self.key0 = rank << 40
-        self.blocks: list = []  # (kind, line, col, detail)
-        self.flow: list = []  # open IF / SWITCH / loops (flow.py)
-        self.interrupts: dict = {}  # number → (frames, points) a handler read may set (AsyncStatements)
-        self.active_interrupts: dict = {}  # those switched on (INTERRUPT ON … OFF)
-        self.moves = 0  # calls that moved so far (flow.py: did a branch move?)
-        self.gotos: dict = {}  # label → frame states of the GOTOs to it read so far (flow.py)
+        self.begin_file()
         self.folds: list = []
         self.defs_seen = 0
-        self.state = self.start_state() if role == "module" else _START
-        self.saved_state = None
-        self.fdat = None
-        self.in_def = False
         self.has_dat = False
         self.kbase = self.key0
         self.def_lines: list = []  # (first, last) 1-based lines of DEF/DEFFCT bodies
         self.spline_lines: list = []
         self.block_open = {}
+        self.file_routines = []
         if _BLANK.fullmatch(text):
             if role == "module" and fi == 0:
                 raise PostprocError("the file is empty", path, 1, 1, P104)
             return  # an empty .dat or $config.dat declares nothing
+        import numpy as np
+
         data = text.encode("latin-1", "replace") if not text.isascii() else text.encode("ascii")
         raw = np.frombuffer(data, np.uint8)
         nl = np.flatnonzero(raw == 10)
@@ -181,6 +182,8 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
             crlf = int(np.count_nonzero(raw[nl[nl > 0] - 1] == 13))
             self.newline[fi] = "\r\n" if crlf and 2 * crlf >= len(nl) else "\n"
         self.starts = np.concatenate([[0], nl + 1]).astype(np.int64)
+        if text.startswith(BOM):  # (RSI driver programs start with one: the first line starts after it)
+            self.starts[0] = len(BOM)
         nlines = len(self.starts) - (1 if text.endswith("\n") else 0)
         hot_lines = {}  # shape → (lines, starts, numbers) read by the interpreter loop
         first_part = len(self.hot.parts)
@@ -192,8 +195,12 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
             cols = list(zip(*nums)) if sh.ph else []
             self.hot.add(sh.plan, fi, np.array(lines, np.int64), np.array(starts, np.int64), cols, self.key0,
                          (self.path, self.text))
+        self.kbase = self.key0 + (nlines + 1) * 4
         self.finish_file(nlines)
-        self.check_parts(self.hot.parts[first_part:])
+        parts = self.hot.parts[first_part:]
+        self.check_parts(parts)
+        self.fill_gaps(parts)
+        del self.hot.parts[first_part:]  # (they are the routines' MoveRuns now)
 
     def scan_lines(self, line_indices, hot_lines) -> None:
         text, starts = self.text, self.starts
@@ -246,12 +253,13 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
                 stmt = c
         if stmt is None:
             return
-        if sh.fcalls and stmt.data not in ("interrupt_decl", "trigger"):  # (handlers: AsyncStatements)
-            # functions run before the statement takes effect; one may set a frame
-            self.expression_calls(stmt)
+        self.gap()
         handler = getattr(self, "s_" + stmt.data, None)
         if handler is not None:
+            before = self.routine
             handler(stmt)
+            if self.routine is not None and self.routine is not before:
+                self.file_routines.append(self.routine.name)
 
     def concrete(self, tree):
         """``tree`` with the names of this line (a shape has XP0 where the line has XP12);
@@ -305,6 +313,40 @@ class Reader(FastPath, Blocks, Flow, Statements, AsyncStatements, Frames, Scopes
         pos = token_or_pos if isinstance(token_or_pos, int) else token_or_pos.start_pos
         raise PostprocError(msg, self.path, self.ln, self.col(pos), code)
 
-    def number(self, tok) -> _Num:
+    def number(self, tok):
+        from .syntax import Number
+
         s, e = self.nums()[self.sh.phidx[tok.start_pos]]
-        return _Num(float(self.text[s:e]), s, e)
+        return Number(float(self.text[s:e]), s, e)
+
+
+def _calls_in(body):
+    """Names of routines called in expressions (``Call``) of a body."""
+    from ..ir import Call
+
+    out = []
+
+    def visit(e):
+        if isinstance(e, Call):
+            out.append(e.name)
+        for f in getattr(e, "__slots__", ()):
+            v = getattr(e, f, None)
+            if isinstance(v, tuple):
+                for x in v:
+                    if isinstance(x, tuple):
+                        for y in x:
+                            visit(y)
+                    else:
+                        visit(x)
+            elif hasattr(v, "__slots__") and not isinstance(v, (str, Loc)):
+                visit(v)
+
+    for s in walk(body):
+        for f in getattr(s, "__slots__", ()):
+            v = getattr(s, f, None)
+            if isinstance(v, tuple):
+                for x in v:
+                    visit(x)
+            elif hasattr(v, "__slots__") and not isinstance(v, (str, Loc)):
+                visit(v)
+    return out

@@ -129,3 +129,14 @@ class SyntaxErrors:
         else:
             msg = f"unexpected {found}{where}"
         raise PostprocError(f"syntax error: {msg}", self.path, self.ln, self.col(pos), P101)
+
+
+class Number:
+    """A number token of the line: its value and its span in the file (sign included)."""
+
+    __slots__ = ("value", "start", "end")
+
+    def __init__(self, value: float, start: int, end: int):
+        self.value = value
+        self.start = start
+        self.end = end

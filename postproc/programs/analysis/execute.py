@@ -1,0 +1,864 @@
+"""The dataflow analysis: an abstract interpretation of the motion IR to a fixed point.
+
+Each variable holds a value (``values``): known, with its provenance, or unknown (``Top``)
+with why and where. The analysis runs the program's entries as the controller would, with
+these rules, each written once here:
+
+* at a merge of paths (after an IF/SWITCH, a loop's head, a label some GOTO jumps to)
+  differing values join to unknown (``values.join``);
+* a loop runs to a fixed point (its head's state the join of the entry and every pass's end);
+  a FOR whose bounds are known is unrolled (each pass with its index known) while the
+  analysis's budget lasts; code after an endless loop without EXIT, after GOTO, RETURN, HALT
+  that no path reaches is dead (no motion there runs);
+* a routine read is analysed at each call with the caller's state (call strings up to
+  ``MAX_DEPTH``), its IN arguments copied in, its OUT / by-reference arguments copied back;
+  a routine not read (or a recursion) makes its OUT arguments, the globals it may touch and
+  the frames unknown (``Dialect.unread``);
+* an asynchronous handler switched on (an INTERRUPT, a TRIGGER, a thread) may run before any
+  statement: what it may write is unknown while it is on and after it is switched off;
+* each executed motion is recorded (:class:`Use`) with its target's value, the frame and tool
+  in force, and the motions that may have run just before it (its predecessors in execution
+  order: a set, joined at merges like any value), in the pass after the fixed point;
+* every number token that flows anywhere but into a motion's target (a frame, a condition,
+  arithmetic, a routine not read) is recorded as read there (``Recorder.escapes``): compensating
+  it would change that computation too.
+
+The result (:class:`Recorder`) is turned into the targets by :mod:`.targets`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..ir import (Agg, Assign, Async, AsyncSwitch, Call, Continue, Decl, Eval, Exit, Field, Goto, Halt, Havoc, If, Invoke,
+                  Item, Label, Lit, Loc, Loop, Move, MoveRun, Name, Note, Num, Op, Return, Routine, Switch, Unit,
+                  Unknown)
+from .values import Arr, Mat, Rec, Taint, Tok, Top, join, number, same, taint, tokens_of
+
+__all__ = ["Analysis", "Recorder", "Use", "RunUse", "State", "START"]
+
+MAX_DEPTH = 8  # nested calls followed
+MAX_PASSES = 40  # passes of a loop / of a routine's jumps before what still changes is made unknown
+MAX_PREDS = 4  # predecessors of a motion kept apart; more: not known
+UNROLL_BUDGET = 2_000_000  # statements run by unrolled FOR passes in one analysis
+START = ("start",)  # the predecessor of a program's first motion (where the robot stands before it)
+
+
+class State:
+    """The analysis's state at a point: ``vars`` (scope key → value: ``("G", name)`` globals,
+    ``("M", module, name)`` module data, ``("L", activation, name)`` locals), ``last`` (the
+    keys of the motions that may have run just before; None: not known), ``cur`` (where the
+    robot stands, for a partial aggregate's missing components: (fields, frame value) of the
+    last target, None: not known), ``on`` (handlers switched on)."""
+
+    __slots__ = ("vars", "last", "cur", "on")
+
+    def __init__(self, vars_: dict, last=frozenset([START]), cur=None, on=frozenset()):
+        self.vars = vars_
+        self.last = last
+        self.cur = cur
+        self.on = on
+
+    def copy(self) -> "State":
+        return State(dict(self.vars), self.last, self.cur, self.on)
+
+    def __eq__(self, other):
+        return isinstance(other, State) and self.last == other.last and self.on == other.on \
+            and _same_cur(self.cur, other.cur) and self.vars == other.vars
+
+
+def _same_cur(a, b) -> bool:
+    if a is None or b is None:
+        return a is b
+    return a[0] == b[0] and same(a[1], b[1])
+
+
+def join_states(a: State | None, b: State | None, why: str, loc: Loc | None) -> State | None:
+    """One state for two paths (None: a path that does not reach here)."""
+    if a is None:
+        return b
+    if b is None or a is b:
+        return a
+    out = {}
+    missing = Top(why, loc)
+    for k in a.vars.keys() | b.vars.keys():
+        x, y = a.vars.get(k, missing), b.vars.get(k, missing)
+        out[k] = x if x is y else join(x, y, why, loc)
+    if a.last is None or b.last is None:
+        last = None
+    else:
+        last = a.last | b.last
+        if len(last) > MAX_PREDS:
+            last = None
+    cur = a.cur if _same_cur(a.cur, b.cur) else None
+    return State(out, last, cur, a.on | b.on)
+
+
+@dataclass
+class Use:
+    """One executed motion: ``key`` (statement, call path), the statement, the value of its
+    target (after a partial aggregate's missing components were taken from where the robot
+    stands: ``filled``), the frame (``Mat`` robot base ← target coordinates, or ``Top``) and the
+    tool (six numbers, None: the model's, or ``Top``) in force, its predecessors' keys (None:
+    not known), and the target as written (``what``: ``XP1``, ``P[3]``) for messages."""
+
+    key: tuple
+    stmt: Move
+    target: object
+    filled: tuple
+    frame: object
+    tool: object
+    preds: frozenset | None
+    what: str
+    config: object = None
+    ext: object = None
+
+
+@dataclass
+class RunUse:
+    """One execution of a MoveRun: its frame and tool, the first row's predecessors and where
+    the robot stands before it (``cur``, for the run's partial aggregates)."""
+
+    key: tuple
+    run: MoveRun
+    frame: object
+    tool: object
+    preds: frozenset | None
+    cur: object
+
+
+@dataclass
+class Recorder:
+    """What the recording pass saw: the motions in the order they ran (``uses``: Use and
+    RunUse), the tokens read by something other than a motion's target (``escapes``: token →
+    (Loc, why) of the first such read), and the located findings (``notes``: (code, message,
+    Loc, left) once each)."""
+
+    uses: list = field(default_factory=list)
+    escapes: dict = field(default_factory=dict)
+    notes: dict = field(default_factory=dict)
+
+    def escape(self, tokens, loc: Loc | None, why: str) -> None:
+        for t in tokens:
+            if t not in self.escapes:
+                self.escapes[t] = (loc, why)
+
+    def note(self, code: str, message: str, loc: Loc, left: bool = True) -> None:
+        self.notes.setdefault((code, loc, message), left)
+
+
+class _Jump(Exception):
+    pass
+
+
+@dataclass
+class _LoopFrame:
+    breaks: list = field(default_factory=list)
+    continues: list = field(default_factory=list)
+
+
+class _Activation:
+    """One run of a routine: its locals' scope, the path of its motions' keys (call sites and
+    unrolled passes), its returns, jumps and loops."""
+
+    def __init__(self, routine: Routine | None, scope: tuple, module: str):
+        self.routine = routine
+        self.scope = scope  # locals are ("L", scope, name)
+        self.path = scope  # motions' keys: the scope + unrolled passes
+        self.module = module
+        self.returns: list = []  # (state, value)
+        self.labels_in: dict = {}  # label → state of the jumps to it (the pass before)
+        self.jumps: dict = {}  # label → state of the jumps to it (this pass)
+        self.loops: list = []
+
+
+def _has_goto(body) -> bool:
+    from ..ir import walk
+
+    return any(isinstance(s, Goto) for s in walk(body))
+
+
+class Analysis:
+    """The analysis of one Unit with the builtins of its dialect (``dialect``: a
+    :class:`.builtins.Dialect`)."""
+
+    def __init__(self, unit: Unit, dialect):
+        self.unit = unit
+        self.dialect = dialect
+        self.rec: Recorder | None = None
+        self.stack: tuple = ()
+        self.loc: Loc | None = None
+        self.act: _Activation | None = None
+        self.budget = UNROLL_BUDGET
+        self.types: dict = {}  # scope key → (type, is array)
+        self.gotos: dict = {}  # routine name → has a Goto
+        self.handlers: dict = {}  # handler id → (Async statement, write set, why)
+        self.reached: set = set()  # routines analysed
+
+    # ------------------------------------------------------------------ the whole program
+    def run(self) -> Recorder:
+        rec = Recorder()
+        self.rec = rec
+        st = State(dict(self.dialect.initial(self.unit)))
+        top = _Activation(None, ("data",), "")
+        self.act = top
+        for module, stmts in self.unit.data:
+            top.module = module
+            st = self.block(stmts, st) or st
+        start = st
+        entries = list(self.unit.entries)
+        done = set()
+        while True:
+            for name in entries:
+                if name in done:
+                    continue
+                done.add(name)
+                routine = self.unit.routines[name]
+                entry = start.copy()
+                entry.last = frozenset([START])
+                self.act = _Activation(None, ("prologue", name), routine.module)
+                entry = self.block(self.unit.prologue, entry)
+                self.dialect.enter(self, entry, routine)
+                self.routine(routine, entry, (name,), ())
+            rest = [n for n in self.unit.routines if n not in self.reached and n not in done]
+            if not rest:
+                break
+            entries = rest  # routines no entry reaches: the controller may start them too
+        return rec
+
+    # ------------------------------------------------------------------ routines
+    def routine(self, routine: Routine, st: State, scope: tuple, args_out: tuple):
+        """Run ``routine`` from ``st`` (its parameters already bound in ``st`` under ``scope``):
+        (state after it, return value)."""
+        self.reached.add(routine.name)
+        saved = self.act
+        act = _Activation(routine, scope, routine.module)
+        self.act = act
+        self.stack = self.stack + (routine.name,)
+        try:
+            has_goto = self.gotos.get(routine.name)
+            if has_goto is None:
+                has_goto = self.gotos[routine.name] = _has_goto(routine.body)
+            if not has_goto:
+                out = self.block(routine.body, st)
+            else:
+                out = self._with_jumps(routine.body, st, act)
+            value = None
+            for s, v in act.returns:
+                out = join_states(out, s, f"{routine.name} returns from several places", routine.loc)
+                value = v if value is None else join(value, v, f"{routine.name} returns different values",
+                                                     routine.loc)
+            return out, value
+        finally:
+            self.stack = self.stack[:-1]
+            self.act = saved
+
+    def _with_jumps(self, body, st: State, act: _Activation):
+        """A body with GOTOs: passes until the state at every label is the join of all the
+        jumps to it (a jump back is a loop); the last pass records."""
+        rec, self.rec = self.rec, None
+        try:
+            for _ in range(MAX_PASSES):
+                act.jumps, act.returns, act.loops = {}, [], []
+                self.block(body, st.copy())
+                changed = False
+                for name, s in act.jumps.items():
+                    old = act.labels_in.get(name)
+                    new = join_states(old, s, f"a GOTO {name} jumps here with others", s and None)
+                    if old is None or not (new == old):
+                        act.labels_in[name] = new
+                        changed = True
+                if not changed:
+                    break
+            else:
+                for name, s in act.labels_in.items():
+                    act.labels_in[name] = self._widen(s, f"the jumps to {name} do not settle")
+        finally:
+            self.rec = rec
+        act.jumps, act.returns, act.loops = {}, [], []
+        return self.block(body, st)
+
+    # ------------------------------------------------------------------ statements
+    def block(self, stmts, st: State | None) -> State | None:
+        for s in stmts:
+            if st is None and not isinstance(s, Label):
+                continue  # dead code: no path reaches it
+            st = self.stmt(s, st)
+        return st
+
+    def stmt(self, s, st: State | None) -> State | None:
+        self.loc = getattr(s, "loc", self.loc)
+        kind = type(s)
+        if kind is MoveRun:
+            return self.move_run(s, st)
+        if kind is Move:
+            return self.move(s, st)
+        if kind is Assign:
+            value = self.eval(s.value, st)
+            self.write(s.target, value, st, literal=isinstance(s.value, Agg))
+            return st
+        if kind is Invoke:
+            return self.invoke(s, st)
+        if kind is Eval:
+            self.consume(self.eval(s.expr, st), "a condition")
+            return st
+        if kind is Decl:
+            return self.decl(s, st)
+        if kind is If:
+            return self.if_(s, st)
+        if kind is Loop:
+            return self.loop(s, st)
+        if kind is Switch:
+            return self.switch(s, st)
+        if kind is Label:
+            act = self.act
+            st = join_states(st, act.jumps.get(s.name), f"a GOTO {s.name} jumps to line {s.loc.line} with others",
+                             s.loc)
+            st = join_states(st, act.labels_in.get(s.name), f"a GOTO {s.name} jumps to line {s.loc.line} with others",
+                             s.loc)
+            if st is not None and (s.name in act.jumps or s.name in act.labels_in):
+                st.cur = None  # (the robot may come from elsewhere)
+            return st
+        if kind is Goto:
+            if s.cond is not None:
+                c = self.condition(s.cond, st)
+                if c is False:
+                    return st
+            act = self.act
+            act.jumps[s.name] = join_states(act.jumps.get(s.name), st.copy(),
+                                            f"a GOTO {s.name} jumps to it with others", s.loc)
+            return None if s.cond is None or c is True else st
+        if kind is Return:
+            value = self.eval(s.value, st) if s.value is not None else None
+            self.act.returns.append((st, value))
+            return None
+        if kind is Halt:
+            return None
+        if kind is Exit:
+            if self.act.loops:
+                self.act.loops[-1].breaks.append(st)
+            else:
+                self.act.returns.append((st, None))
+            return None
+        if kind is Continue:
+            if self.act.loops:
+                self.act.loops[-1].continues.append(st)
+            return None
+        if kind is Havoc:
+            return self.havoc(st, s.names, s.why, s.loc)
+        if kind is Note:
+            if self.rec is not None:
+                self.rec.note(s.code, s.message, s.loc, s.left)
+            return st
+        if kind is Async:
+            return self.async_decl(s, st)
+        if kind is AsyncSwitch:
+            return self.async_switch(s, st)
+        raise TypeError(f"not an IR statement: {s!r}")
+
+    def decl(self, s: Decl, st: State) -> State:
+        act = self.act
+        if s.scope == "global":
+            key = ("G", s.name)
+        elif s.scope == "module" or act.routine is None:
+            key = ("M", act.module, s.name)
+        else:
+            key = ("L", act.scope, s.name)
+        self.types[key] = (s.type, s.dims is not None)
+        if s.init is not None:
+            value = self.eval(s.init, st)
+            if isinstance(value, Tok) and self.dialect.scalar(s.type):
+                value = taint(value.value, value)
+            if isinstance(value, Rec) and not value.type:
+                value = Rec(s.type, value.fields, value.loc)
+        elif key in st.vars and act.routine is not None and key[0] == "L":
+            return st  # (a parameter declared again in its routine keeps the argument: KRL)
+        else:
+            value = self.dialect.uninitialised(s)
+        st.vars[key] = value
+        return st
+
+    def if_(self, s: If, st: State) -> State | None:
+        c = self.condition(s.cond, st)
+        if c is True:
+            return self.block(s.then, st)
+        if c is False:
+            return self.block(s.orelse, st)
+        a = self.block(s.then, st.copy())
+        b = self.block(s.orelse, st)
+        return join_states(a, b, f"the branches of the IF at line {s.loc.line} leave it different", s.loc)
+
+    def switch(self, s: Switch, st: State) -> State | None:
+        subject = self.eval(s.subject, st)
+        self.consume(subject, "a SWITCH subject")
+        out, whole = None, s.default is not None
+        why = f"the branches of the SWITCH at line {s.loc.line} leave it different"
+        for values, body in s.cases:
+            out = join_states(out, self.block(body, st.copy()), why, s.loc)
+        if s.default is not None:
+            out = join_states(out, self.block(s.default, st.copy()), why, s.loc)
+        if not whole:
+            out = join_states(out, st, why, s.loc)
+        return out
+
+    def condition(self, expr, st: State):
+        """A condition's value: True / False where known, else None (both ways)."""
+        v = self.eval(expr, st)
+        self.consume(v, "a condition")
+        return v if isinstance(v, bool) else None
+
+    # ------------------------------------------------------------------ loops
+    def loop(self, s: Loop, st: State) -> State | None:
+        if s.kind == "for":
+            start, stop, step = (self.eval(e, st) if e is not None else 1 for e in (s.start, s.stop, s.step))
+            for v in (start, stop, step):
+                self.consume(v, "a FOR bound")
+            lo, hi, by = number(start), number(stop), number(step)
+            if None not in (lo, hi, by) and by != 0 and lo == int(lo) and hi == int(hi) and by == int(by):
+                count = max(0, (int(hi) - int(lo)) // int(by) + 1)
+                cost = count * max(1, _size(s.body))
+                if cost <= self.budget:
+                    self.budget -= cost
+                    return self._unrolled(s, st, int(lo), int(hi), int(by))
+            head = self._fixpoint(s, st, Top(f"the FOR at line {s.loc.line} has bounds known only at run time",
+                                             s.loc))
+        else:
+            head = self._fixpoint(s, st, None)
+        return head
+
+    def _unrolled(self, s: Loop, st: State, lo: int, hi: int, by: int) -> State | None:
+        act = self.act
+        frame = _LoopFrame()
+        act.loops.append(frame)
+        path = act.path
+        out = None
+        try:
+            i = lo
+            while (by > 0 and i <= hi) or (by < 0 and i >= hi):
+                if st is None:
+                    break
+                self.write(Name(s.var), i, st)
+                act.path = path + ((id(s), i),)
+                st = self.block(s.body, st)
+                for c in frame.continues:
+                    st = join_states(st, c, f"the FOR at line {s.loc.line} continues from several places", s.loc)
+                frame.continues = []
+                i += by
+            out = st
+            for b in frame.breaks:
+                out = join_states(out, b, f"the FOR at line {s.loc.line} may end after any pass", s.loc)
+        finally:
+            act.path = path
+            act.loops.pop()
+        return out
+
+    def _fixpoint(self, s: Loop, st: State, var_value) -> State | None:
+        """A loop whose passes are not unrolled: its head's state to a fixed point, then the
+        recording pass; the state after it."""
+        why = f"the body of the {s.kind.upper()} at line {s.loc.line} changes it between passes"
+        act = self.act
+        if var_value is not None:
+            self.write(Name(s.var), var_value, st)
+        head = st.copy()
+        rec, self.rec = self.rec, None
+        try:
+            for _ in range(MAX_PASSES):
+                end = self._pass(s, head.copy(), act)
+                new = join_states(head, end[0], why, s.loc)
+                if var_value is not None and new is not None:
+                    self.write(Name(s.var), var_value, new)
+                if new == head:
+                    break
+                head = new
+            else:
+                head = self._widen(head, why)
+        finally:
+            self.rec = rec
+        body_end, breaks = self._pass(s, head.copy(), act)
+        exits = list(breaks)
+        if s.kind in ("for", "while"):
+            if not (s.kind == "while" and self._always(s.cond, head)):
+                exits.append(head)  # the condition fails at the head (before any pass, or after one)
+        elif s.kind == "repeat":
+            exits.append(body_end)
+        out = None
+        for e in exits:
+            out = join_states(out, e, f"the {s.kind.upper()} at line {s.loc.line} may end after any pass", s.loc)
+        return out
+
+    def _pass(self, s: Loop, st: State, act: _Activation):
+        """One pass of the body: (state at its end, continues joined in; the breaks' states)."""
+        frame = _LoopFrame()
+        act.loops.append(frame)
+        try:
+            if s.kind == "while":
+                c = self.condition(s.cond, st)
+                if c is False:
+                    return None, []
+            end = self.block(s.body, st)
+            for c in frame.continues:
+                end = join_states(end, c, f"the {s.kind.upper()} at line {s.loc.line} continues from several "
+                                  "places", s.loc)
+            if s.kind == "repeat" and end is not None:
+                c = self.condition(s.cond, end)
+                if c is True:
+                    return None, frame.breaks + [end]
+            return end, frame.breaks
+        finally:
+            act.loops.pop()
+
+    def _always(self, cond, st) -> bool:
+        v = self.eval(cond, st) if cond is not None else True
+        return v is True
+
+    def _widen(self, st: State | None, why: str) -> State | None:
+        """What still changes after MAX_PASSES made unknown (never reached with the analysis's
+        flat values; a guard)."""
+        if st is None:
+            return None
+        out = st.copy()
+        for k, v in st.vars.items():
+            if isinstance(v, (Arr, Rec)):
+                out.vars[k] = Top(why, self.loc)
+        out.last, out.cur = None, None
+        return out
+
+    # ------------------------------------------------------------------ motions
+    def move(self, s: Move, st: State) -> State:
+        act = self.act
+        key = (id(s), act.path)
+        if s.joint or s.relative:
+            target = Top("an axis target" if s.joint else "a relative motion: its target is known only at run time",
+                         s.loc)
+            if self.rec is not None:
+                self.rec.uses.append(Use(key, s, target, (), None, None, st.last, ""))
+            self.eval(s.target, st) if not s.relative else None
+            st.last, st.cur = frozenset([key]), None
+            return st
+        target = self.eval(s.target, st)
+        filled = ()
+        frame = self.frame_value(s.frame, st)
+        tool = self.tool_value(s.tool, st)
+        if isinstance(s.target, Agg) and isinstance(target, Rec):
+            target, filled = self.dialect.fill(target, st.cur, frame)
+        config = self.eval(s.config, st) if s.config is not None else None
+        ext = self.eval(s.ext, st) if s.ext is not None else None
+        if self.rec is not None:
+            self.rec.uses.append(Use(key, s, target, filled, frame, tool, st.last, _written(s.target), config, ext))
+        st.last = frozenset([key])
+        if s.chain:
+            st.cur = (self.dialect.position(target), frame) if isinstance(target, Rec) else None
+        return st
+
+    def move_run(self, s: MoveRun, st: State) -> State:
+        key = (id(s), self.act.path)
+        frame = self.frame_value(s.frame, st)
+        tool = self.tool_value(s.tool, st)
+        if self.rec is not None:
+            self.rec.uses.append(RunUse(key, s, frame, tool, st.last, st.cur))
+        st.last = frozenset([key])
+        st.cur = self.dialect.run_position(s, st.cur, frame)
+        return st
+
+    def frame_value(self, expr, st: State):
+        if expr is None:
+            return Mat(_EYE, "")
+        return self.dialect.frame(self, self.eval(expr, st))
+
+    def tool_value(self, expr, st: State):
+        if expr is None:
+            return None
+        return self.dialect.tool(self, self.eval(expr, st))
+
+    # ------------------------------------------------------------------ calls
+    def invoke(self, s: Invoke, st: State) -> State | None:
+        name = s.name
+        proc = self.dialect.procedure(name)
+        if proc is not None:
+            return proc(self, st, s.args, s.loc)
+        routine = self.unit.routines.get(self.dialect.routine_key(self, name))
+        if routine is None:
+            return self.dialect.unread(self, st, s, None)
+        return self.call(routine, s.args, st, s)[0]
+
+    def call(self, routine: Routine, args, st: State, site) -> tuple:
+        """(state after the call, its value) of ``routine(args)`` at ``site`` (an Invoke or a
+        Call expression)."""
+        loc = site.loc
+        if len(self.stack) >= MAX_DEPTH or routine.name in self.stack:
+            why = f"{routine.name}() called at line {loc.line if loc else 0} recurses" if routine.name in self.stack \
+                else f"{routine.name}() called at line {loc.line if loc else 0} is nested too deep"
+            st = self.dialect.unread(self, st, site, why)
+            return st, Top(why, loc)
+        scope = self.act.path + (id(site),)
+        bound, back = {}, []
+        for k, p in enumerate(routine.params):
+            arg = args[k] if k < len(args) else None
+            if arg is None:
+                value = Top(f"parameter {p.name} of {routine.name}() is not passed", loc)
+            else:
+                value = self.eval(arg, st)
+                if p.mode != "in" and isinstance(arg, (Name, Field, Item)):
+                    back.append((p.name, arg))
+            bound[("L", scope, p.name)] = value
+        st.vars.update(bound)
+        before = {k: v for k, v in st.vars.items() if k[0] == "G"}
+        out, value = self.routine(routine, st, scope, tuple(back))
+        if out is None:
+            return None, value
+        self._relocate(before, out, getattr(site, "name", routine.name), loc)
+        for name, arg in back:
+            v = out.vars.get(("L", scope, name))
+            if v is not None:
+                self.write(arg, v, out)
+        for k in [k for k in out.vars if k[0] == "L" and k[1] == scope]:
+            del out.vars[k]
+        return out, value
+
+    def _relocate(self, before: dict, out: State, name: str, loc: Loc | None) -> None:
+        """Globals a callee left unknown say so at the call (``… in MoveSettings() called at
+        line 4``): where the caller's reader looks."""
+        if loc is None:
+            return
+        for k, v in out.vars.items():
+            if k[0] == "G" and isinstance(v, Top) and not (before.get(k) == v) and v.loc != loc:
+                out.vars[k] = Top(f"{v.why} in {name}() called at line {loc.line}", loc, v.code)
+
+    def havoc(self, st: State, names, why: str, loc: Loc | None) -> State:
+        """Code not seen runs here: ``names`` (None: every global and frame the dialect says such
+        code may touch) become unknown, and where the robot stands."""
+        top = Top(why, loc)
+        keys = self.dialect.touched(self, st, names)
+        for k in keys:
+            v = st.vars.get(k)
+            st.vars[k] = top if not isinstance(v, Arr) else Arr({}, top, v.type)
+        st.last, st.cur = None, None
+        return st
+
+    # ------------------------------------------------------------------ handlers
+    def async_decl(self, s: Async, st: State) -> State:
+        """A handler declared: what it writes is unknown while it is on (``_pin``). A handler
+        whose code is not read is taken as a call at its declaration (``Dialect.unread_handler``:
+        the frames unknown from here until the program sets them again), unless the dialect
+        knows it sets none."""
+        action = s.action
+        if isinstance(action, Invoke) and self.dialect.procedure(action.name) is None and \
+                self.unit.routines.get(self.dialect.routine_key(self, action.name)) is None:
+            return self.dialect.unread_handler(self, st, s)
+        writes = self.dialect.writes(self, action, st)
+        why = f"may be set by the {s.what} declared at line {s.loc.line}"
+        if isinstance(action, Invoke):
+            why += f" ({action.name}())"
+        self.handlers[id(s)] = (s, writes, why)
+        if self.rec is not None:
+            self.dialect.handler_reached(self, s)
+        if s.on:
+            st.on = st.on | {id(s)}
+            st = self._pin(st)
+        return st
+
+    def async_switch(self, s: AsyncSwitch, st: State) -> State:
+        """Handlers switched on or off: ``number`` None all of them; a number known only at run
+        time switches every one on (any may be), and none off (which is not known)."""
+        n = None
+        if s.number is not None:
+            v = number(self.eval(s.number, st))
+            if v is None:
+                if not s.on:
+                    return st
+            else:
+                n = int(v)
+        chosen = [h for h, (decl, _, _) in self.handlers.items()
+                  if n is None or decl.number is None or self._number(decl.number, st) in (n, None)]
+        if s.on:
+            st.on = st.on | set(chosen)
+            return self._pin(st)
+        off = [h for h in chosen if h in st.on]
+        st.on = st.on - set(off)
+        for h in off:  # it may have run: what it sets stays unknown until set again
+            decl, writes, why = self.handlers[h]
+            for k in writes:
+                st.vars[k] = Top(f"{_key_name(k)} {why}", decl.loc, self.dialect.handler_code(k))
+        return st
+
+    def _number(self, expr, st):
+        v = self.eval(expr, st)
+        return int(number(v)) if number(v) is not None else None
+
+    def _pin(self, st: State) -> State:
+        for h in st.on:
+            decl, writes, why = self.handlers[h]
+            for k in writes:
+                st.vars[k] = Top(f"{_key_name(k)} {why}", decl.loc, self.dialect.handler_code(k))
+        return st
+
+    # ------------------------------------------------------------------ values
+    def lookup(self, name: str, st: State):
+        """(scope key, value) of a variable read here; key None: not declared anywhere."""
+        act = self.act
+        for key in (("L", act.scope, name), ("M", act.module, name), ("G", name)):
+            if key in st.vars:
+                v = st.vars[key]
+                if st.on:
+                    for h in st.on:
+                        decl, writes, why = self.handlers[h]
+                        if key in writes:  # (a frame: at the handler; another variable: where it is read)
+                            at = decl.loc if name in self.dialect.frame_names else self.loc
+                            return key, Top(f"{name} {why}", at, self.dialect.handler_code(key))
+                return key, v
+        return None, None
+
+    def eval(self, e, st: State):
+        kind = type(e)
+        if kind is Num:
+            return Tok(e.value, (e.file, e.start, e.end))
+        if kind is Lit:
+            return e.value
+        if kind is Name:
+            key, v = self.lookup(e.name, st)
+            if key is None:
+                return self.dialect.undeclared(self, e.name)
+            return v
+        if kind is Agg:
+            return Rec(e.type.upper() if e.type else "", {k: self.eval(v, st) for k, v in e.items}, e.loc)
+        if kind is Field:
+            base = self.eval(e.base, st)
+            return self.dialect.field(self, base, e.name)
+        if kind is Item:
+            base = self.eval(e.base, st)
+            key = self.index(e.index, st)
+            if isinstance(base, Arr):
+                if isinstance(key, Top):
+                    return Top(f"{_written(e.base)}[…] with a run-time index ({key.why})", self.loc)
+                return base.get(key)
+            if isinstance(base, Top):
+                return base
+            return Top(f"{_written(e)} is not an array", self.loc)
+        if kind is Op:
+            # (a number written in an operation is a constant: ``XP1.Z + 150`` keeps XP1's token)
+            return self.dialect.operate(self, e.op, [a.value if type(a) is Num else self.eval(a, st) for a in e.args])
+        if kind is Call:
+            fn = self.dialect.function(e.name)
+            if fn is not None:
+                return fn(self, st, [self.eval(a, st) for a in e.args], e)
+            routine = self.unit.routines.get(self.dialect.routine_key(self, e.name))
+            if routine is not None:
+                out, value = self.call(routine, e.args, st, e)
+                if out is not None and out is not st:
+                    st.vars, st.last, st.cur, st.on = out.vars, out.last, out.cur, out.on
+                return value if value is not None else Top(f"the value of {e.name}()", e.loc)
+            self.dialect.unread(self, st, e, None)
+            return Top(f"{e.name}() is not in the files read", e.loc)
+        if kind is Unknown:
+            return Top(e.why, self.loc, e.code)
+        if e is None:
+            return None
+        raise TypeError(f"not an IR expression: {e!r}")
+
+    def index(self, index, st: State):
+        """An index tuple of whole numbers, or Top."""
+        out = []
+        for x in index:
+            v = self.eval(x, st)
+            self.consume(v, "an index")
+            n = number(v)
+            if n is None or n != int(n):
+                return Top(v.why if isinstance(v, Top) else "an index that is not a whole number", self.loc)
+            out.append(int(n))
+        return tuple(out)
+
+    def consume(self, value, why: str) -> None:
+        """``value`` is read by something other than a motion's target: its tokens escape."""
+        if self.rec is not None and not isinstance(value, (bool, str, type(None), Top)) \
+                and not (isinstance(value, (int, float)) and not isinstance(value, (Tok, Taint))):
+            toks = tokens_of(value)
+            if toks:
+                self.rec.escape(toks, self.loc, why)
+
+    def write(self, target, value, st: State, literal: bool = False) -> None:
+        """``target = value`` (``literal``: an aggregate as written: a record it is assigned to
+        keeps the components it does not name)."""
+        kind = type(target)
+        if kind is Name:
+            key, old = self.lookup(target.name, st)
+            if key is None:
+                key = self.dialect.implicit(self, target.name)
+            if literal and isinstance(old, Rec) and isinstance(value, Rec):
+                fields = dict(old.fields)
+                fields.update(value.fields)
+                value = Rec(value.type or old.type, fields, value.loc)
+            elif isinstance(value, Rec) and not value.type and key in self.types:
+                value = Rec(self.types[key][0], value.fields, value.loc)
+            elif isinstance(value, Tok) and self.dialect.scalar(self.types.get(key, ("", False))[0]):
+                value = taint(value.value, value)  # (a scalar variable's number: not a target's own token)
+            st.vars[key] = value
+            return
+        if kind is Field:
+            base = self.eval(target.base, st)
+            if isinstance(base, Mat):  # (a frame the analysis computed: its components)
+                base = self.dialect.record_of(base)
+            if isinstance(base, Rec):
+                if literal and isinstance(value, Rec) and isinstance(base.get(target.name), Rec):
+                    merged = dict(base.get(target.name).fields)
+                    merged.update(value.fields)
+                    value = Rec(value.type or base.get(target.name).type, merged, value.loc)
+                new = base.with_field(target.name, value)
+            elif isinstance(base, Top):
+                new = base
+            else:
+                new = Top(f"{_written(target.base)} is not a record", self.loc)
+            self.write(target.base, new, st)
+            return
+        if kind is Item:
+            base = self.eval(target.base, st)
+            key = self.index(target.index, st)
+            if isinstance(base, Arr):
+                if isinstance(key, Top):
+                    why = f"{_written(target.base)}[…] is assigned with a run-time index at line {self.loc.line}"
+                    new = Arr({}, Top(why, self.loc), base.type)
+                else:
+                    old = base.get(key)
+                    if literal and isinstance(old, Rec) and isinstance(value, Rec):
+                        fields = dict(old.fields)
+                        fields.update(value.fields)
+                        value = Rec(value.type or old.type, fields, value.loc)
+                    new = base.with_elem(key, value)
+            elif isinstance(base, Top) and isinstance(key, tuple) and self.dialect.implicit_arrays:
+                new = Arr({key: value}, base, "")
+            else:
+                new = base if isinstance(base, Top) else Top(f"{_written(target.base)} is not an array", self.loc)
+            self.write(target.base, new, st)
+            return
+        raise TypeError(f"not an assignable expression: {target!r}")
+
+
+def _key_name(key: tuple) -> str:
+    return key[-1]
+
+
+def _written(e) -> str:
+    """An expression as the program names it, for messages (``XP1``, ``P[3]``, ``gs[…].fCNC``)."""
+    if isinstance(e, Name):
+        return e.written or e.name
+    if isinstance(e, Field):
+        return f"{_written(e.base)}.{e.written or e.name}"
+    if isinstance(e, Item):
+        parts = [str(int(x.value)) if isinstance(x, (Num, Lit)) and isinstance(getattr(x, "value", None), (int, float))
+                 else "…" for x in e.index]
+        return f"{_written(e.base)}[{', '.join(parts)}]"
+    if isinstance(e, Call):
+        return f"{e.name.split('.')[-1]}(…)"
+    if isinstance(e, Op) and e.op == "compose":
+        return ":".join(_written(a) for a in e.args)
+    return ""
+
+
+def _size(body) -> int:
+    from ..ir import walk
+
+    return sum(len(s) if isinstance(s, MoveRun) else 1 for s in walk(body))
+
+
+import numpy as _np  # noqa: E402
+
+_EYE = _np.eye(4)
+_EYE.setflags(write=False)

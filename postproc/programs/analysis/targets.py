@@ -1,0 +1,428 @@
+"""From the analysis's recorded motions to the program's targets: one row per executed motion
+to a Cartesian target (``Targets``), its frame (``Program.frames``), its predecessor row
+(``Targets.prev``), the rows that share number tokens (``Targets.twin``, ``Targets.group``),
+and the located findings of what is left as written and why.
+
+A row's X/Y/Z are known numbers with their tokens (a token + an offset: a copy of another
+point moved by a constant); a row whose number is computed in another way (``P2 = F:P1``, a
+product) or not known has no token to rewrite and is left as written. The rows that share a
+token are one *group*: compensating the token moves every row of the group, so the rewrite
+writes it only where every row agrees (``compensate``), and a group with a token that
+something else reads too (a frame built from the point, a condition: ``Recorder.escapes``) is
+left as written here (P217).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ... import frames as fr
+from ...diagnostics import P201, P203, P211, P212, P214, P217, P220, P221, P224, P225, Diagnostic
+from ..ir import MOTION_INDEX, Agg, Loc, Move
+from ..model import Frame, Targets
+from .execute import START, RunUse, Use
+from .values import Mat, Six, Taint, Tok, Top, number, tokens_of
+
+__all__ = ["build", "Built"]
+
+# what a frame code says at the targets it leaves (old wording: "frame"/"tool" not statically known)
+_WHAT = {P201: "frame", P203: "tool", P225: "frame"}
+NEITHER_SET = ("neither $BASE nor $TOOL is set before this target (the controller uses whatever is active): set "
+               "them in the program or state them with --base and --tool")
+
+
+@dataclass
+class Built:
+    targets: Targets
+    frames: list
+    diagnostics: list
+    notes: list
+    held: dict = field(default_factory=dict)
+    named: bool = False
+
+
+class _Rows:
+    """Rows collected one use (or one run) at a time."""
+
+    def __init__(self):
+        self.parts: list = []
+        self.n = 0
+
+    def add(self, **cols) -> int:
+        m = len(cols["line"])
+        self.parts.append(cols)
+        self.n += m
+        return self.n - m
+
+
+def _path(unit, file: int) -> str:
+    return unit.files[file] if file >= 0 else unit.config_names[-1 - file]
+
+
+def build(unit, dialect, rec, form: str | None = None) -> Built:
+    """The targets of the recorded uses (``rec``: execute.Recorder) of ``unit``."""
+    form = form or unit.form
+    rows = _Rows()
+    frames: list[Frame] = []
+    frame_ix: dict = {}
+    unknown: dict = {}  # (code, why, loc) → [count, first (path, line, col)]
+    key_row: dict = {}  # use key → its last row (-1: no row)
+    diagnostics: list[Diagnostic] = []
+    assumed: set = set()  # frame indices taken with robot base = world assumed (P224)
+    named = False
+    k_orient = 3 if form == "abc" else (4 if form == "quaternion" else 3)
+    pending: dict = {}  # pred key → [(use columns without prev), …] waiting for the pred's row
+    used_keys: list = []
+
+    def frame_index(base, tool):
+        """Program.frames index of (base Mat, tool) or (-1, the Top that leaves it, its code)."""
+        for value, code in ((base, P201), (tool, P203)):
+            if isinstance(value, Top):
+                return -1, value, value.code or code
+        key = (base._key, None if tool is None else tuple(round(x, 9) for x in tool))
+        ix = frame_ix.get(key)
+        if ix is None:
+            label = base.label + (f" / {tool.label}" if isinstance(tool, Six) and tool.label else "")
+            ix = frame_ix[key] = len(frames)
+            frames.append(Frame(base=base.m.copy(), tool=None if tool is None else np.array(tool, float), label=label))
+            if "assumed-robroot" in getattr(base, "flags", ()):
+                assumed.add(ix)
+        return ix, None, None
+
+    def count(top, code, n, first):
+        if isinstance(top, Top) and top.code in (P220,) and _is_tool_unset(first[3]):
+            top = Top(NEITHER_SET, None, P220)
+        key = (code, top.why)  # (one finding per cause, at its first place)
+        entry = unknown.get(key)
+        if entry is None:
+            unknown[key] = [n, first[:3], top.loc]
+        else:
+            entry[0] += n
+
+    def prev_of(preds):
+        """(the primary predecessor row, the other predecessors' keys)."""
+        if preds is None:
+            return -1, []
+        rows_ = sorted(((key_row.get(p, -2), p) for p in preds if p != START), key=lambda x: x[0])
+        known = [r for r, _ in rows_ if r >= 0]
+        primary = known[-1] if known else -1
+        others = [p for r, p in rows_ if r != primary or r < 0 and p not in key_row]
+        return primary, [p for p in others if key_row.get(p, -1) != primary]
+
+    for use in rec.uses:
+        if isinstance(use, RunUse):
+            first = _run_rows(unit, dialect, use, rows, frame_index, count, prev_of, key_row, form)
+            continue
+        key_row[use.key] = -1
+        s = use.stmt
+        loc = s.loc
+        target = use.target
+        if s.joint or s.relative:
+            continue
+        if isinstance(target, Top):
+            code = target.code if target.code in (P211, P214, "P215", P217, "P223") else P211
+            if target.code and target.code not in (P201, P203, P220, P221, P225):
+                code = target.code
+            what = use.what or "the target"
+            if code == "P215":
+                msg = f"target {what}: {target.why} (a global of a data list or $config.dat not given?): left as written"
+            elif code == "P223":
+                msg = f"target {what} is not known here ({target.why}, switched on): left as written"
+            else:
+                msg = f"target {what} not statically known ({target.why}): left as written"
+            rec.note(code, msg, loc, True)
+            continue
+        if not hasattr(target, "fields"):
+            rec.note(P211, f"target {use.what or ''} is not a position: left as written", loc, True)
+            continue
+        view = dialect.view(target)
+        if view.kind != "cart":
+            if view.kind == "other" and use.what and not isinstance(s.target, Agg):
+                rec.note(P211, f"target {use.what} has type {target.type or 'unknown'}, not a position: left as "
+                         "written", loc, True)
+            continue
+        unknown_comp = next(((k, v) for k, v in zip("XYZABC", list(view.xyz) + list(view.orient)[:3])
+                             if isinstance(v, Top)), None)
+        if unknown_comp is not None:
+            k, v = unknown_comp
+            rec.note(P212, f"target {use.what or 'the target'}: its {k} is not known here ({v.why}): left as written",
+                     loc, True)
+            continue
+        pose = np.full(6, np.nan)
+        spans = np.full(12, -1, np.int64)
+        offset = np.zeros(3)
+        computed = []
+        for k, v in enumerate(view.xyz):
+            if isinstance(v, Tok):
+                pose[k] = v.value
+                spans[2 * k], spans[2 * k + 1] = v.token[1], v.token[2]
+                offset[k] = v.offset
+                tok_file = v.token[0]
+            elif number(v) is not None:
+                pose[k] = number(v)
+                if "XYZ"[k] not in use.filled:
+                    computed.append("XYZ"[k])
+        files = {v.token[0] for v in view.xyz if isinstance(v, Tok)}
+        if computed:
+            read = set()
+            for v in view.xyz:
+                read |= tokens_of(v) if isinstance(v, Taint) else set()
+            rec.escape(read, loc, f"target {use.what or ''} is computed from them")
+            rec.note(P214, f"target {use.what or 'the target'}: its {'/'.join(computed)} "
+                     f"{'is' if len(computed) == 1 else 'are'} computed at run time from other values, not a number "
+                     "of the program: left as written", loc, True)
+            continue
+        if len(files) > 1:
+            rec.note(P214, f"target {use.what or 'the target'}: its X/Y/Z come from numbers in several files: left "
+                     "as written", loc, True)
+            continue
+        orient = view.orient
+        nums = [number(v) for v in orient]
+        abc_spans = np.full((k_orient, 2), -1, np.int64)
+        written_orient = np.full(k_orient, np.nan)
+        if all(n is not None for n in nums) and orient:
+            numbers_ = np.array(nums, float)
+            if view.form == "abc":
+                pose[3:6] = numbers_
+            else:
+                with np.errstate(invalid="ignore"):
+                    pose[3:6] = fr.abc_from_rotation(fr.orientation_rotation(numbers_, view.form))
+            if view.form == form:
+                written_orient[:len(nums)] = numbers_
+                for j, v in enumerate(orient):
+                    if isinstance(v, Tok) and v.offset == 0 and v.token[0] in files | {v.token[0]} and j < k_orient:
+                        abc_spans[j] = v.token[1:]
+        if view.form == "abc" and form == "abc":
+            spans[6:12] = abc_spans.ravel()
+        file = next(iter(files)) if files else (view.loc.file if view.loc is not None else loc.file)
+        if not isinstance(s.target, Agg):
+            named = True
+        ix, why, code = frame_index(use.frame, use.tool)
+        aloc = view.loc or loc
+        first = (_path(unit, aloc.file), aloc.line, aloc.col, use)
+        if ix < 0:
+            count(why, code, 1, first if why.code in (P220, P221) else (_path(unit, why.loc.file), why.loc.line,
+                                                                        why.loc.col, use) if why.loc else first)
+        primary, others = prev_of(use.preds)
+        cols = dict(pose=pose[None], spans=spans[None], abc=abc_spans[None], worient=written_orient[None],
+                    file=np.array([file], np.int32), line=np.array([aloc.line], np.int32),
+                    col=np.array([aloc.col], np.int32), frame=np.array([ix], np.int32),
+                    motion=np.array([MOTION_INDEX[s.kind]], np.int8),
+                    config=np.array([view.config], np.int16), offset=offset[None],
+                    prev=np.array([primary], np.int32), site=[loc])
+        r = rows.add(**cols)
+        key_row[use.key] = r
+        used_keys.append(use.key)
+        for p in others:  # the same target reached from another predecessor: a twin row
+            twin = dict(cols)
+            pr = key_row.get(p, -2)
+            if pr >= 0:
+                twin["prev"] = np.array([pr], np.int32)
+                rows.add(**twin)
+            elif p in key_row:  # (a predecessor without a row: where it leaves the robot is not known)
+                twin["prev"] = np.array([-1], np.int32)
+                rows.add(**twin)
+            else:
+                pending.setdefault(p, []).append(twin)
+        for twin in pending.pop(use.key, []):
+            twin["prev"] = np.array([r], np.int32)
+            rows.add(**twin)
+    # twins whose predecessor never ran with a row: the predecessor is not known
+    for waiting in pending.values():
+        for twin in waiting:
+            twin["prev"] = np.array([-1], np.int32)
+            rows.add(**twin)
+    targets = _columns(rows, k_orient, form)
+    for (code, why), (n, first, wloc) in unknown.items():
+        if wloc is not None and code not in (P220, P221):
+            path, line, col = _path(unit, wloc.file), wloc.line, wloc.col
+        else:
+            path, line, col = first
+        what = _WHAT.get(code)
+        msg = why if code in (P220, P221, P225) or what is None else f"{what} not statically known ({why})"
+        diagnostics.append(Diagnostic(path, line, col, code, f"{msg}: {n} target(s) left as written"))
+    held = _groups(unit, targets, rec, diagnostics)
+    notes = []
+    if assumed:
+        taken = np.flatnonzero(np.isin(targets.frame, list(assumed)))
+        if len(taken):
+            r = int(taken[0])
+            notes.append(Diagnostic(_path(unit, int(targets.file[r])), int(targets.line[r]), int(targets.col[r]), P224,
+                                    "robot base = world assumed: $ROBROOT is not known (no --robroot, no machine "
+                                    "data) and the program does not set it, so $NULLFRAME is taken; give --robroot "
+                                    "X,Y,Z,A,B,C or the backup's Mada/$machine.dat (its System/$config.dat, or the "
+                                    "backup directory)", "note"))
+    for (code, loc, message), left in rec.notes.items():
+        diagnostics.append(Diagnostic(_path(unit, loc.file), loc.line, loc.col, code, message))
+    order = {path: k for k, path in enumerate(list(unit.files) + list(unit.config_names))}
+    diagnostics.sort(key=lambda d: (order.get(d.path, len(order)), d.line, d.col))  # (in the order written)
+    return Built(targets, frames, diagnostics, notes, held, named)
+
+
+def _is_tool_unset(use) -> bool:
+    tool = getattr(use, "tool", None)
+    return isinstance(tool, Top) and tool.code == P221
+
+
+def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_of, key_row, form):
+    """A MoveRun's rows: its frame for all, partial aggregates filled from the rows before
+    (and where the robot stood before the run), the first row's predecessor."""
+    r = use.run.rows
+    n = len(r["line"])
+    if not n:
+        key_row[use.key] = key_row.get(use.key, -1)
+        return
+    ix, why, code = frame_index(use.frame, use.tool)
+    if ix < 0:
+        first = (_path(unit, int(r["file"][0])), int(r["line"][0]), int(r["col"][0]), use)
+        at = first if why.code in (P220, P221) or why.loc is None else (_path(unit, why.loc.file), why.loc.line,
+                                                                         why.loc.col, use)
+        count(why, code, n, at)
+    pose = r["pose"].copy()
+    written = r["written"]
+    chain = r["chain"]
+    if not written.all():
+        ar = np.arange(n)
+        cur = dict(use.cur[0]) if use.cur is not None and _same(use.cur[1], use.frame) else {}
+        names = ("X", "Y", "Z", "A", "B", "C")
+        for k in range(6):
+            w = written[:, k]
+            if w.all():
+                continue
+            src = np.where(chain & w, ar, -1)
+            # the row before each: the last chain row that writes it (a row takes nothing from itself)
+            before = np.concatenate([[-1], np.maximum.accumulate(src)[:-1]])
+            need = np.flatnonzero(~w)
+            prev = before[need]
+            ok = prev >= 0
+            pose[need[ok], k] = pose[prev[ok], k]
+            start = cur.get(names[k])
+            pose[need[~ok], k] = start if start is not None else np.nan
+    primary, _ = prev_of(use.preds)
+    prev = np.arange(rows.n - 1, rows.n - 1 + n, dtype=np.int32)
+    prev[0] = primary
+    spans = r["spans"]
+    k_orient = 3
+    rows.add(pose=pose, spans=spans, abc=spans[:, 6:12].reshape(n, 3, 2) if form == "abc" else
+             np.full((n, k_orient, 2), -1, np.int64), worient=pose[:, 3:6] if form != "abc" else np.full((n, 3), np.nan),
+             file=r["file"], line=r["line"], col=r["col"], frame=np.full(n, ix, np.int32), motion=r["motion"],
+             config=r["config"], offset=np.zeros((n, 3)), prev=prev, site=None)
+    key_row[use.key] = rows.n - 1
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, Mat) and isinstance(b, Mat):
+        return a == b
+    return a is b
+
+
+def _columns(rows: _Rows, k_orient: int, form: str) -> Targets:
+    parts = rows.parts
+    n = rows.n
+    if not parts:
+        return Targets(poses=np.zeros((0, 6)), spans=np.zeros((0, 3, 2), np.int64),
+                       abc_spans=np.zeros((0, k_orient, 2), np.int64), file=np.zeros(0, np.int32),
+                       line=np.zeros(0, np.int32), col=np.zeros(0, np.int32), frame=np.zeros(0, np.int32),
+                       motion=np.zeros(0, np.int8), config=np.zeros((0, 2), np.int16),
+                       orientation=None if form == "abc" else np.zeros((0, k_orient)),
+                       prev=np.zeros(0, np.int32), offset=None, twin=np.zeros(0, np.int32))
+
+    def col(name):
+        return np.concatenate([p[name] for p in parts]) if len(parts) > 1 else parts[0][name]
+
+    spans = col("spans").reshape(n, 6, 2)
+    offset = col("offset")
+    targets = Targets(
+        poses=col("pose"), spans=np.ascontiguousarray(spans[:, :3]),
+        abc_spans=np.ascontiguousarray(col("abc").reshape(n, k_orient, 2)), file=col("file").astype(np.int32),
+        line=col("line").astype(np.int32), col=col("col").astype(np.int32), frame=col("frame"), motion=col("motion"),
+        config=col("config").astype(np.int16),
+        orientation=None if form == "abc" else col("worient").reshape(n, k_orient),
+        prev=col("prev"), offset=offset if offset.any() else None)
+    targets.twin = _twins(targets)
+    return targets
+
+
+def _twins(t: Targets) -> np.ndarray:
+    """[N] the first row with the same X/Y/Z tokens (-1: the row is the first)."""
+    n = len(t)
+    twin = np.full(n, -1, np.int32)
+    has = (t.spans[:, :, 0] >= 0).any(axis=1)
+    if n < 2 or not has.any():
+        return twin
+    key = np.concatenate([t.file[:, None].astype(np.int64), t.spans[:, :, 0]], axis=1)
+    rows = np.flatnonzero(has)
+    order = np.lexsort(key[rows].T[::-1])
+    s = key[rows][order]
+    same = np.r_[False, (s[1:] == s[:-1]).all(axis=1)]
+    if not same.any():
+        return twin
+    firsts = rows[order]
+    head = np.maximum.accumulate(np.where(~same, np.arange(len(s)), 0))
+    first_row = np.minimum.reduceat(firsts, np.flatnonzero(~same)) if len(s) else firsts
+    grp = np.cumsum(~same) - 1
+    lead = first_row[grp]
+    mask = firsts != lead
+    twin[firsts[mask]] = lead[mask]
+    del head
+    return twin
+
+
+def _groups(unit, t: Targets, rec, diagnostics: list) -> dict:
+    """``Targets.group``: rows that share any X/Y/Z token are one group (id: its first row; -1
+    alone). A group with a token something else reads (``rec.escapes``) is held: P217 at each
+    row, the rows returned as held (code → rows)."""
+    n = len(t)
+    group = np.full(n, -1, np.int32)
+    t.group = group
+    starts = t.spans[:, :, 0]
+    present = starts >= 0
+    if not present.any():
+        return {}
+    r, c = np.nonzero(present)
+    tok = np.stack([t.file[r].astype(np.int64), starts[r, c]], axis=1)
+    order = np.lexsort((tok[:, 1], tok[:, 0]))
+    ts, rs = tok[order], r[order]
+    dup = np.r_[False, (ts[1:] == ts[:-1]).all(axis=1)]
+    parent = {}
+
+    def find(x):
+        while parent.get(x, x) != x:
+            parent[x] = parent.get(parent[x], parent[x])
+            x = parent[x]
+        return x
+
+    shared_rows = set()
+    for i in np.flatnonzero(dup).tolist():
+        a, b = find(int(rs[i - 1])), find(int(rs[i]))
+        shared_rows.update((int(rs[i - 1]), int(rs[i])))
+        if a != b:
+            parent[max(a, b)] = min(a, b)
+    for x in shared_rows:
+        group[x] = find(x)
+    if not rec.escapes:
+        return {}
+    escaped = np.zeros(n, bool)
+    for k in range(3):
+        rows = np.flatnonzero(present[:, k])
+        for i in rows.tolist():
+            token = (int(t.file[i]), int(t.spans[i, k, 0]), int(t.spans[i, k, 1]))
+            if token in rec.escapes:
+                escaped[i] = True
+    if not escaped.any():
+        return {}
+    held_groups = {int(group[i]) for i in np.flatnonzero(escaped) if group[i] >= 0}
+    held = escaped | (np.isin(group, list(held_groups)) & (group >= 0))
+    rows = np.flatnonzero(held)
+    for i in rows.tolist():
+        token = next(((int(t.file[i]), int(t.spans[i, k, 0]), int(t.spans[i, k, 1])) for k in range(3)
+                      if (int(t.file[i]), int(t.spans[i, k, 0]), int(t.spans[i, k, 1])) in rec.escapes), None)
+        if token is None:
+            continue
+        wloc, why = rec.escapes[token]
+        at = f" at {_path(unit, wloc.file)}:{wloc.line}" if wloc is not None else ""
+        diagnostics.append(Diagnostic(_path(unit, int(t.file[i])), int(t.line[i]), int(t.col[i]), P217,
+                                      f"this target's numbers are read{at} too ({why}): compensating them would change "
+                                      "that as well; left as written"))
+    return {P217: rows}
