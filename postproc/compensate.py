@@ -21,13 +21,15 @@ from collections import Counter
 from . import frames
 from .compensator import Chain, Compensator, Inside, load_model
 from .diagnostics import (
-    P105, P106, P107, P108, P201, P202, P203, P212, P220, P221, P224, P225, P306, P312, P321, Diagnostic,
+    P105, P106, P107, P108, P201, P202, P203, P212, P220, P221, P224, P225, P230, P306, P312, P321, Diagnostic,
     LEFT_AS_WRITTEN,
     PostprocError,
 )
 from .findings import (
     DEFAULT_MAX_CORRECTION_MM,
     Commands,
+    collect,
+    execution_order,
     Selection,
     Settings,
     command_findings,
@@ -222,6 +224,8 @@ def _left_codes(program: Program, selection: Selection) -> Counter:
     t = program.targets
     left = np.ones(len(t), bool)
     left[selection.rows] = False
+    first = _firsts(program)
+    left &= first
     codes: Counter = Counter()
     unknown_frame = int((left & (t.frame < 0)).sum())
     if unknown_frame:
@@ -231,14 +235,96 @@ def _left_codes(program: Program, selection: Selection) -> Counter:
         codes["/".join(sorted(said)) if said else P201] = unknown_frame
     by_rule = 0
     for code, rows in selection.left.items():
-        codes[code] += len(rows)
-        by_rule += len(rows)
+        n = int(first[np.asarray(rows, int)].sum())
+        if n:
+            codes[code] += n
+        by_rule += n
     if left.sum() > unknown_frame + by_rule:
         codes[P212] = int(left.sum()) - unknown_frame - by_rule
     for d in program.diagnostics:
         if d.code in LEFT_AS_WRITTEN:
             codes[d.code] += 1
     return codes
+
+
+def _firsts(program: Program) -> np.ndarray:
+    """[N] bool: the rows that are a target's first run (``Targets.twin`` -1): what the summary
+    counts (a target in a loop or a routine called twice is one target)."""
+    twin = getattr(program.targets, "twin", None)
+    return np.ones(len(program.targets), bool) if twin is None else twin < 0
+
+
+# the runs of one set of numbers (twins, copies) agree when the numbers each would have written
+# differ by no more than this (mm; the orientation's numbers: this × their form's decimals per mm)
+AGREE_MM = 0.005
+# rounds of compensating again without the targets whose runs disagree (each round removes groups)
+MAX_ROUNDS = 8
+
+
+def _shared_tokens(program: Program, rows: np.ndarray, width: int):
+    """For the selected ``rows`` that share numbers with other rows (``Targets.group``): per
+    component written or inserted, a key of what the text holds there [m] (int64 pairs flattened
+    to one sortable array), the position in ``rows`` and the column; None where no row shares."""
+    t = program.targets
+    group = getattr(t, "group", None)
+    if group is None or not len(rows):
+        return None
+    shared = np.flatnonzero(group[rows] >= 0)
+    if not len(shared):
+        return None
+    r = rows[shared]
+    spans = t.spans[r, :, 0]  # X, Y, Z token starts (-1 missing: written in at the aggregate)
+    cols = [spans]
+    if width > 3 and t.abc_spans is not None:
+        cols.append(t.abc_spans[r, :width - 3, 0])
+    starts = np.concatenate(cols, axis=1)
+    anchor = np.where(spans >= 0, spans, np.iinfo(np.int64).max).min(axis=1)  # the aggregate (its first token)
+    k = np.arange(starts.shape[1])
+    key_pos = np.where(starts >= 0, starts, -1 - anchor[:, None] * 8 - k[None, :])  # an insert: per aggregate, column
+    key_file = np.repeat(t.file[r].astype(np.int64)[:, None], starts.shape[1], axis=1)
+    pos = np.repeat(shared[:, None], starts.shape[1], axis=1)
+    col = np.broadcast_to(k, starts.shape)
+    return key_file.ravel(), key_pos.ravel(), pos.ravel(), np.asarray(col).ravel()
+
+
+def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, orientation: bool):
+    """The runs of one set of numbers that do not agree (``AGREE_MM``): (positions in the
+    selection to leave as written: whole groups; their P230 warnings; the numbers the text
+    holds for each selected row: its first run's, [len(rows), width])."""
+    rows = selection.rows
+    effective = new_xyz.copy()
+    found = _shared_tokens(program, rows, new_xyz.shape[1])
+    if found is None:
+        return np.zeros(0, int), [], effective
+    key_file, key_pos, pos, col = found
+    value = new_xyz[pos, col]
+    tol = np.where(col < 3, AGREE_MM, AGREE_MM * ORIENTATION_DECIMALS[program.orientation])
+    order = np.lexsort((pos, key_pos, key_file))
+    kf, kp, v, p, c, tl = key_file[order], key_pos[order], value[order], pos[order], col[order], tol[order]
+    new = np.r_[True, (kf[1:] != kf[:-1]) | (kp[1:] != kp[:-1])]
+    starts = np.flatnonzero(new)
+    lead = np.repeat(starts, np.diff(np.r_[starts, len(v)]))
+    with np.errstate(invalid="ignore"):
+        spread = np.abs(v - v[lead])
+    bad = spread > tl
+    effective[p, c] = v[lead]  # (what the text holds: the first run's number)
+    group = program.targets.group[rows]
+    bad_groups = np.unique(group[p[bad]])
+    drop = np.flatnonzero(np.isin(group, bad_groups) & (group >= 0)) if len(bad_groups) else np.zeros(0, int)
+    if not len(drop):
+        return drop, [], effective
+    worst = {}
+    for g, d in zip(group[p[bad]].tolist(), spread[bad].tolist()):
+        worst[g] = max(worst.get(g, 0.0), d)
+    t = program.targets
+    places = np.stack([t.file[rows[drop]], t.line[rows[drop]], t.col[rows[drop]]], axis=1)
+    _, once = np.unique(places, axis=0, return_index=True)  # (one warning per target, not per run)
+    said = drop[np.sort(once)]
+    found_ = collect(program, rows[said], P230, lambda i: (
+        "this target runs more than once (a loop, a routine called twice, after a branch, or a point copied "
+        "into another) and the runs need corrections up to {:.3f} mm apart (other frames, tools, offsets or "
+        "approaches): no one set of numbers is right for all, left as written".format(worst[int(group[said[i]])])))
+    return drop, found_, effective
 
 
 def _outside(model: Compensator, commands: Commands) -> int:
@@ -301,23 +387,36 @@ def compensate_program(
         _orientation_check(program, model, selection.rows)
     report = Report(model=model.name, model_sha256=model.sha256, iterations=
                     model.default_iterations if iterations is None else iterations)
-    # rows in program order: the model chains each target to the previous one's command (the
+    # rows in execution order: the model chains each target to its predecessor's command (the
     # approach direction, for models that learn backlash). The model runs on a background
     # thread, chunk by chunk, while this one rewrites the numbers of the chunks already done.
-    stream = _CommandStream(model, selection, report.iterations, program, max_correction_mm, orientation=orientation,
-                            chain=_chain, std=std_bound(model, settings) is not None)
-    outputs = _rewrite(program, selection, stream)
-    commanded, new_xyz, joints = stream.result()
+    for attempt in range(MAX_ROUNDS):
+        stream = _CommandStream(model, selection, report.iterations, program, max_correction_mm,
+                                orientation=orientation, chain=_chain, std=std_bound(model, settings) is not None)
+        outputs = _rewrite(program, selection, stream)
+        commanded, new_xyz, joints = stream.result()
+        # the runs of one set of numbers (a loop, a routine called twice, copies) must agree
+        drop, disagree, written = _agreement(program, selection, new_xyz, orientation)
+        if not len(drop) or attempt == MAX_ROUNDS - 1:
+            break
+        warnings += disagree
+        _raise_first(disagree, strict)
+        selection = selection.without(drop, P230)
+        selection.order = execution_order(program, selection, selection.base_poses)
     commands = Commands(selection, commanded, joints, Inside.join(stream.inside), stream.std)
     after = command_findings(program, commands, model, settings)
     _raise_first(after, strict)
     assert outputs is not None  # _Unsafe is raised only for what output_rule refuses
     warnings += after
-    outputs = _finish(program, model, selection, outputs, new_xyz, stamp=_stamp)
+    offset = program.targets.offset
+    if offset is not None:  # (the numbers read again are the tokens + what the program adds to them)
+        written = written.copy()
+        written[:, :3] += offset[selection.rows]
+    outputs = _finish(program, model, selection, outputs, written, stamp=_stamp)
 
     size = np.linalg.norm(commanded - selection.poses[:, :3], axis=1)
     left = _left_codes(program, selection)
-    report.compensated = len(selection.rows)
+    report.compensated = int(_firsts(program)[selection.rows].sum())
     report.left = sum(left.values())
     report.targets = report.compensated + report.left
     report.left_codes = dict(left)
@@ -449,13 +548,15 @@ class _CommandStream:
         self._changed = threading.Condition()
         t = program.targets
         self._frame_of = t.frame[rows]
-        self._written = t.poses[rows, :3]
+        # the X/Y/Z tokens as written: the poses less what the program adds to them (Targets.offset)
+        self._written = t.poses[rows, :3] if t.offset is None else t.poses[rows, :3] - t.offset[rows]
         self._bases = model_bases(program, model)
         if computed is not None:  # (commands and joints of every row, from the caller)
             chunks = iter([(0, computed.commanded, computed.joints)])
         else:  # checks ``iterations`` here, not on the thread
             chunks = model.command_chunks(poses, iterations, joints=selection.joints, tool=selection.tool, with_joints=wanted,
-                                          orientation=orientation, chain=chain, std=self.std is not None)
+                                          orientation=orientation, chain=chain, std=self.std is not None,
+                                          order=selection.order)
         self._thread = threading.Thread(target=self._run, args=(chunks, poses, max_correction_mm),
                                         name="postproc-model", daemon=True)
         self._thread.start()
@@ -483,7 +584,7 @@ class _CommandStream:
                 for f in frames.frames_used(frame_of):
                     here = frame_of == f
                     local[here] = frames.rotate_vectors(frames.inverse(self._bases[f]), correction[here])
-                self.commanded[start:end] = commands
+                self.commanded[start:end] = commands[:, :3]
                 if self.joints is not None and q is not None:
                     self.joints[start:end] = q
                 self.new_xyz[start:end, :3] = self._written[start:end] + local
@@ -549,9 +650,17 @@ def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, str
     starts, ends, at_row, axis, piece = (a[order] for a in (starts, ends, at_row, axis, piece))
     if not len(starts):
         return text
+    # a number several rows hold (a target run more than once, copies): written once, the first
+    # row's (compensate_program checks that they agree); an insert: once per aggregate and column
+    kind = np.where(piece >= 0, axis, -1)
+    first = np.r_[True, (starts[1:] != starts[:-1]) | (kind[1:] != kind[:-1])]
+    if not first.all():
+        starts, ends, at_row, axis, piece = (a[first] for a in (starts, ends, at_row, axis, piece))
     check_disjoint(starts, ends)
     owners = rows[at_row]
-    read = (np.concatenate([t.poses[:, :3], t.written_orientation()], axis=1) if orientation else t.poses)[owners, axis]
+    xyz = t.poses[:, :3] if t.offset is None else t.poses[:, :3] - t.offset
+    read = (np.concatenate([xyz, t.written_orientation()], axis=1) if orientation else
+            np.concatenate([xyz, t.poses[:, 3:6]], axis=1))[owners, axis]
     parts, prev = [], 0
     for at in range(0, len(starts), EDIT_CHUNK):
         chunk = slice(at, at + EDIT_CHUNK)

@@ -450,7 +450,8 @@ class Compensator:
 
     def command_chunks(self, poses: np.ndarray, iterations: int | None = None, joints=None, tool=None,
                        with_joints: bool = False, orientation: bool = False,
-                       chain: "Chain | None" = None, std: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+                       chain: "Chain | None" = None, std: bool = False,
+                       order: "Order | None" = None) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         """``command`` chunk by chunk (``command_chunk`` rows) in row order: yields (first row,
         commands [n, 3], the targets' joint angles [n, 6] deg if ``with_joints`` and the model
         has them, else None), the same numbers as one ``command`` call (each chunk takes its
@@ -463,7 +464,10 @@ class Compensator:
         same ``chain`` continues that call (previous pose, approach settling) as one call would.
         With ``std`` (a model with ``error_std``): each chunk's ``std`` [n] mm is the model's
         ``error_std`` at its commands (see :meth:`command_std`), taken from the run the approach
-        settling makes at the commands anyway (a model that settles), else one more run."""
+        settling makes at the commands anyway (a model that settles), else one more run.
+        ``order``: the rows' predecessors in execution order (:class:`Order`; None: each row's is
+        the row before): a program's targets after a branch, in a loop, or after a motion whose
+        target is no row come from another command than the row before's (one chunk of all rows)."""
         if isinstance(joints, bool):
             joints, with_joints = None, joints
         if std and not self.has_std:
@@ -476,20 +480,54 @@ class Compensator:
             raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code=P308)
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         rows = [None if v is None else np.broadcast_to(np.asarray(v, float), poses.shape) for v in (joints, tool)]
+        if order is not None and not order.sequential:
+            return self._ordered(poses, iterations, with_joints, *rows, orientation, std, order)
         return self._chunks(poses, iterations, with_joints, *rows, orientation, chain, std)
 
     def command_std(self, commands: np.ndarray, before: np.ndarray | None = None, joints=None, tool=None,
-                    previous_joints=None) -> np.ndarray:
+                    previous_joints=None, order: "Order | None" = None) -> np.ndarray:
         """The model's ``error_std`` [N] mm at commands [N, 6] (program order), each reached from
         the command before it (``previous_pose``; the first row's: ``before`` [6], the command
         of the target before them, None: the row itself), its approach as the graph computes it
         (``approach`` NaN). ``joints``, ``tool``, ``previous_joints``: as ``predict``."""
         commands = np.asarray(commands, float).reshape(-1, 6)
         previous = None
-        if self.wants_previous:
+        if self.wants_previous and order is not None and not order.sequential:
+            previous = order.previous(commands)
+        elif self.wants_previous:
             head = commands[:1] if before is None else np.asarray(before, float).reshape(1, 6)
             previous = np.vstack([head, commands[:-1]])
         return self.predict(commands, previous, joints=joints, tool=tool, previous_joints=previous_joints, std=True)[1]
+
+    def _ordered(self, poses: np.ndarray, iterations: int, with_joints: bool, joints: np.ndarray | None,
+                 tool: np.ndarray | None, orientation: bool, std: bool, order: Order):
+        """``command_chunks`` for rows in an :class:`Order` that is not row after row: one chunk,
+        each row's previous command its predecessor's (the same fixed-point iteration)."""
+        settle = _Settle(self, iterations, orientation, std, order) if self.settles else None
+        given = {"joints": joints, "tool": tool}
+        if self.wants_previous_joints and joints is not None:
+            given["previous_joints"] = order.take(np.asarray(joints, float))
+        trial = poses.copy()
+        q = None
+        for k in range(iterations):
+            prev = order.previous(trial) if self.wants_previous else None
+            rotation = None
+            if k == 0 and (with_joints or settle):
+                error, q, *rotation = self.predict(trial, prev, with_joints=True, rotation=orientation, **given)
+            elif orientation:
+                error, *rotation = self.predict(trial, prev, rotation=True, **given)
+            else:
+                error = self.predict(trial, prev, **given)
+            trial[:, :3] = poses[:, :3] + error
+            if orientation:
+                trial[:, 3:6] = _corrected_attitude(poses[:, 3:6], rotation[0])
+        inside = stds = None
+        if settle is not None:
+            inside, stds = settle.chunk(0, poses, trial, q, given)
+        elif std:
+            stds = self.command_std(trial, None, order=order, **given)
+        yield CommandChunk(0, (trial if orientation else trial[:, :3]), q if with_joints else None, inside=inside,
+                           std=stds)
 
     def _chunks(self, poses: np.ndarray, iterations: int, with_joints: bool, joints: np.ndarray | None,
                 tool: np.ndarray | None, orientation: bool = False,
@@ -557,6 +595,58 @@ class Chain:
 
 
 @dataclass
+class Order:
+    """Which row each row is reached from (its *predecessor* in execution order): ``prev`` [n]
+    the row's index (-1: nothing known before it: its own pose, as a program's first target;
+    -2: a pose given in ``fixed`` [n, 6], a target left as written before it). Rows come after
+    their predecessors (``prev[i] < i``). None / ``sequential``: each row's is the row before."""
+
+    prev: np.ndarray
+    fixed: np.ndarray | None = None
+
+    @property
+    def sequential(self) -> bool:
+        n = len(self.prev)
+        return n == 0 or (self.prev[0] in (-1, -2) and (self.fixed is None or self.prev[0] == -1)
+                          and bool((self.prev[1:] == np.arange(n - 1)).all()))
+
+    def previous(self, values: np.ndarray) -> np.ndarray:
+        """Each row's predecessor's row of ``values`` [n, k] (the row itself where none is known;
+        the fixed pose's first k columns where one is given)."""
+        prev = self.prev
+        out = values[np.maximum(prev, 0)].copy()
+        own = prev == -1
+        out[own] = values[own]
+        given = prev == -2
+        if given.any():
+            out[given] = self.fixed[given, :values.shape[1]] if self.fixed is not None else values[given]
+        return out
+
+    def take(self, values: np.ndarray, missing=np.nan) -> np.ndarray:
+        """``values`` [n, k] of each row's predecessor, ``missing`` where it is not a row."""
+        out = values[np.maximum(self.prev, 0)].copy()
+        out[self.prev < 0] = missing
+        return out
+
+    def along(self, raw: np.ndarray, seed: np.ndarray | None = None) -> np.ndarray:
+        """[n, k]: per column the last value ≠ 0 (NaN counts) along each row's chain of
+        predecessors, itself first (``seed`` [k] before the first row of the chain; NaN)."""
+        n, k = raw.shape
+        out = np.full((n, k), np.nan)
+        prev = self.prev
+        starts = np.flatnonzero(np.r_[True, prev[1:] != np.arange(n - 1)])
+        ends = np.r_[starts[1:], n]
+        for a, b in zip(starts.tolist(), ends.tolist()):
+            p = int(prev[a])
+            head = out[p] if p >= 0 else (np.full(k, np.nan) if seed is None else seed)
+            part = raw[a:b]
+            idx = np.where(part != 0, np.arange(b - a)[:, None], -1)
+            last = np.maximum.accumulate(idx, axis=0)
+            out[a:b] = np.where(last >= 0, np.take_along_axis(part, np.maximum(last, 0), axis=0), head)
+        return out
+
+
+@dataclass
 class Inside:
     """Targets whose command no approach hypothesis makes self-consistent: a joint barely
     moving there sits in its backlash dead band whatever is sent. ``rows`` [k] (program rows),
@@ -600,14 +690,22 @@ class _Settle:
     """The approach settling of ``command_chunks`` (module text), chunk after chunk in program
     order: keeps the last target's command, joint angles and approach signs for the next."""
 
-    def __init__(self, model: "Compensator", iterations: int, orientation: bool, std: bool = False):
+    def __init__(self, model: "Compensator", iterations: int, orientation: bool, std: bool = False,
+                 order: Order | None = None):
         self.model, self.iterations, self.orientation, self.std = model, iterations, orientation, std
         self.head: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (command [6], q [6], signs [6])
+        self.order = order  # (one chunk of rows in this execution order: ``Compensator._ordered``)
 
     # -- the joint motion of a chunk's commands: signs, and what the model must be told
     def _prev_q_signs(self, q: np.ndarray, signs: np.ndarray | None = None):
         """Joint angles [n, 6] and sides [n, 6] of each row's previous command (row 0: the chunk
         before's; the program's first target: itself, unknown side)."""
+        if self.order is not None:
+            o = self.order
+            q_prev = o.take(q)
+            own = o.prev == -1
+            q_prev[own] = q[own]
+            return q_prev, (None if signs is None else o.take(signs))
         if self.head is None:
             return np.vstack([q[:1], q[:-1]]), (None if signs is None else np.vstack([np.full((1, 6), np.nan), signs[:-1]]))
         return (np.vstack([self.head[1][None], q[:-1]]),
@@ -624,6 +722,12 @@ class _Settle:
         step = _wrap_deg(q - q_prev)
         raw = np.where(np.abs(step) <= SAME_DEG, 0.0, np.where(np.abs(step) > STILL_DEG, np.sign(step), np.nan))
         unsure = np.isnan(raw)
+        if self.order is not None:
+            first = self.order.prev < 0  # (from where nothing is known: the model's own rule)
+            raw[first], unsure[first] = np.nan, False
+            signs = self.order.along(raw)
+            keep = np.where(raw == 0, signs, np.nan)
+            return step, signs, keep, unsure
         if self.head is None:
             raw[0], unsure[0] = np.nan, False  # (from HOME: the model's own rule)
         idx = np.where(raw != 0, np.arange(n)[:, None], -1)
@@ -682,7 +786,10 @@ class _Settle:
                 break
             # each command's error with the sides its own joint motion gives
             prev_rows = self._previous(trial, check)
-            first = check == 0 if self.head is None else np.zeros(len(check), bool)
+            if self.order is not None:
+                first = self.order.prev[check] < 0
+            else:
+                first = check == 0 if self.head is None else np.zeros(len(check), bool)
             out = self._run(trial[check], prev_rows, np.full((len(check), 6), np.nan), _rows(given, check), True,
                             self.std)
             if self.std:
@@ -715,8 +822,11 @@ class _Settle:
             changed = bad[np.abs(trial[bad] - old).max(axis=1) > 0]
             keep_after = self._motion(q)[2]
             again = np.zeros(n, bool)
-            after = changed + 1
-            again[after[after < n]] = True
+            if self.order is not None:
+                again[np.isin(self.order.prev, changed)] = True
+            else:
+                after = changed + 1
+                again[after[after < n]] = True
             again |= ~((keep_after == keep) | (np.isnan(keep_after) & np.isnan(keep))).all(axis=1)
             check = np.flatnonzero(again)
         if self.std:
@@ -734,6 +844,8 @@ class _Settle:
     def _previous(self, trial: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """The command before each of ``rows`` [k, 6] (the chunk before's last; the program's
         first target's: itself)."""
+        if self.order is not None:
+            return self.order.previous(trial)[rows]
         before = rows - 1
         out = trial[np.maximum(before, 0)]
         if self.head is not None:

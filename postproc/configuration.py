@@ -529,11 +529,13 @@ def execution_kinds(motion: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, tools: np.ndarray | None = None,
-                  initial_q: np.ndarray | None = None, chain=None) -> tuple[np.ndarray, np.ndarray]:
+                  initial_q: np.ndarray | None = None, chain=None, order=None) -> tuple[np.ndarray, np.ndarray]:
     """The controller's joint angles [n, 6] (deg) for ``rows`` of a program's ``Targets`` (in
     program order) at ``poses`` [n, 6] (robot base, TCP) with ``tools`` [n, 6], and a mask of
     those that have them: the program's own joint angles where it gives them (``Targets.joints``),
-    else its S/T (``Targets.config``), else the controller's rules (module docstring)."""
+    else its S/T (``Targets.config``), else the controller's rules (module docstring). ``order``
+    (``compensator.Order``): each row's predecessor where it is not the row before (a branch, a
+    loop, a routine called from two places): the rules continue from it, run by run of rows."""
     rows = np.asarray(rows, int)
     n = len(rows)
     config = getattr(targets, "config", None)
@@ -542,11 +544,37 @@ def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, to
     else:
         status, turn = (np.asarray(config[rows, k], int) for k in (0, 1))
     nearest, alone = execution_kinds(np.asarray(targets.motion)[rows])
-    q, ok = controller_joints(robot, poses, status, turn, nearest, initial_q, tools, alone, chain=chain)
+    if order is not None and not order.sequential and n:
+        q, ok = _ordered_joints(robot, poses, status, turn, nearest, initial_q, tools, alone, order)
+    else:
+        q, ok = controller_joints(robot, poses, status, turn, nearest, initial_q, tools, alone, chain=chain)
     given = getattr(targets, "joints", None)
     if given is not None:
         own = np.isfinite(given[rows]).all(axis=1)
         q[own], ok[own] = given[rows][own], True
+    return q, ok
+
+
+def _ordered_joints(robot: Robot, poses, status, turn, nearest, initial_q, tools, alone, order):
+    """``controller_joints`` run by run of rows that follow each other (``order``): each run
+    continues from its first row's predecessor (its joint angles and branch), or starts afresh
+    where nothing is known before it."""
+    from types import SimpleNamespace
+
+    n = len(poses)
+    q = np.full((n, 6), np.nan)
+    ok = np.zeros(n, bool)
+    prev = order.prev
+    starts = np.flatnonzero(np.r_[True, prev[1:] != np.arange(n - 1)])
+    ends = np.r_[starts[1:], n]
+    for a, b in zip(starts.tolist(), ends.tolist()):
+        p = int(prev[a])
+        chain = None
+        if p >= 0 and ok[p]:
+            chain = SimpleNamespace(joints=q[p].copy(), branch=int(status_turn_of(robot, q[p][None])[0][0]))
+        part = slice(a, b)
+        q[part], ok[part] = controller_joints(robot, poses[part], status[part], turn[part], nearest[part], initial_q,
+                                              None if tools is None else tools[part], alone[part], chain=chain)
     return q, ok
 
 

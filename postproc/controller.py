@@ -114,7 +114,7 @@ def configuration_mismatch(program: Program, model: Compensator, rows: np.ndarra
 
 
 def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, sel: np.ndarray,
-                      collect, chain=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, list[Diagnostic]]:
+                      collect, chain=None, order=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, list[Diagnostic]]:
     """The model's ``joints`` / ``tool`` inputs for targets ``rows`` at base poses ``sel``:
     (rows kept, their poses, joint angles [n, 6] deg or None, TCPs [n, 6] or None, warnings).
     Targets whose configuration has no joint angles on the nominal arm (P309) are left as
@@ -143,6 +143,7 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
         warnings += collect(program, rows[~keep], P309, "the target states its arm configuration in a form postproc "
                             "does not translate to joint angles (Fanuc CONFIG): left as it is")
         rows, sel, tools = rows[keep], sel[keep], tools[keep]
+        order = None  # (rows dropped: the order of the rest is made again by findings)
     if model.wants_joints and len(rows):
         robot = Robot(description.replace(tool=default_tool))
         first = robot if np.array_equal(tools[0], default_tool) else Robot(description.replace(tool=tools[0]))
@@ -157,7 +158,7 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
             if chain is not None:
                 chain.origin = start
         q, ok = configuration.target_joints(robot, t, rows, sel, tools,
-                                            start[0] if np.isfinite(start).all() else None, chain)
+                                            start[0] if np.isfinite(start).all() else None, chain, order)
         if not ok.all():
             warnings += collect(program, rows[~ok], P309, "no joint angles for this target in its arm configuration "
                                 "(S/T, or the one its motion keeps) on the nominal robot: left as it is")

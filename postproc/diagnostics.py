@@ -56,7 +56,7 @@ P190 = _code("P190", "error", "last check before writing: a span or new number t
 P191 = _code("P191", "error", "last check before writing: the new text does not read again as the same program (a postproc bug)")
 # P2xx: frames and targets not statically known (the target is left as written)
 P201 = _code("P201", "warning", "the target's base (frame) is not statically known: left as written")
-P202 = _code("P202", "error", "one set of numbers used as targets in two frames (compensate refuses it unless --force)")
+P202 = _code("P202", "error", "(retired: one set of numbers in two frames is P230 now, a warning)")
 P203 = _code("P203", "warning", "the target's $TOOL is not known: left as written")
 P210 = _code("P210", "warning", "a _REL motion: its absolute target is known only at run time")
 P211 = _code("P211", "warning", "a target computed at run time (or an element the reader cannot enumerate)")
@@ -65,8 +65,8 @@ P213 = _code("P213", "warning", "target orientation not known (the model's nomin
 P214 = _code("P214", "warning", "a point derived from another at run time (P2 = P1; P2.Z = …): it carries the other's correction")
 P215 = _code("P215", "warning", "a target name declared in none of the files read (a global whose data list was not given)")
 P216 = _code("P216", "error", "partial aggregate refused (compensate --no-fill-partial; filled in by default)")
-P217 = _code("P217", "warning", "a pose variable (URScript) or P[n] (Fanuc LS) that other statements read too: "
-             "compensating it would change them, left as written")
+P217 = _code("P217", "warning", "a target whose numbers other statements read too (a frame built from the point, a "
+             "condition, a computation, a routine not read): compensating it would change them, left as written")
 P218 = _code("P218", "warning", "a pose list that does not state its frame (# frame: controller or # frame: model) for a model "
                "whose frame is not the controller's base (the card's controller_base): left as written")
 P220 = _code("P220", "warning", "$BASE (or both $BASE and $TOOL) not set before the target and not stated with --base: "
@@ -82,6 +82,9 @@ P225 = _code("P225", "warning", "$ROBROOT moves with an external kinematic ($mac
              "track): known only at run time, left as written")
 P226 = _code("P226", "error", "--robroot / settings robroot not X,Y,Z,A,B,C or a $machine.dat; a $machine.dat without "
              "$ROBROOT_C or with a malformed one; several machine data in one cell")
+P230 = _code("P230", "warning", "one set of numbers the program executes more than once (in a loop, a routine called "
+             "twice, after a branch, copied into another point) where the runs need different corrections (other "
+             "frames, tools, offsets, approaches) or one of them is left as written: left as written at every run")
 # P3xx: the model, its envelope and the robot
 P301 = _code("P301", "warning", "target outside the model's training envelope (error with --strict)")
 P302 = _code("P302", "error", "target beyond the nominal robot's reach (model metadata 'reach')")
@@ -148,7 +151,7 @@ P610 = _code("P610", "error", "bad settings (unknown key, bad value, bad TOML)")
 
 # Reader warnings whose target never became a row of Targets: each one is a Cartesian
 # target left as written (compensate counts them and exits 1; one place for the rule).
-LEFT_AS_WRITTEN = frozenset({P210, P211, P214, P215, P217, P223})
+LEFT_AS_WRITTEN = frozenset({P210, P211, P212, P214, P215, P217, P223})
 
 
 def codes_table(markdown: bool = False) -> str:

@@ -31,10 +31,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import frames
-from .compensator import Compensator, Inside
+from .compensator import Compensator, Inside, Order
 from .diagnostics import (
-    P103, P202, P212, P213, P216, P218, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P336, P401, Diagnostic,
-    PostprocError,
+    P103, P202, P212, P213, P216, P218, P230, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P336, P401,
+    Diagnostic, PostprocError,
 )
 from .programs import Program
 
@@ -83,6 +83,19 @@ class Selection:
     tool: np.ndarray | None = None  # [len(rows), 6]: the model's input ``tool``
     # targets left as written by a rule of this module (not the reader's): code → rows
     left: dict = field(default_factory=dict)
+    # the rows' predecessors in execution order (positions in ``rows``; None: row after row)
+    order: Order | None = None
+    base_poses: np.ndarray | None = field(default=None, repr=False)  # every row's robot-base pose (order)
+
+    def without(self, drop: np.ndarray, code: str) -> "Selection":
+        """The selection without the positions ``drop`` (left as written for ``code``)."""
+        keep = np.ones(len(self.rows), bool)
+        keep[drop] = False
+        left = dict(self.left)
+        if len(drop):
+            left[code] = np.concatenate([left.get(code, np.zeros(0, int)), self.rows[drop]])
+        return Selection(self.rows[keep], self.poses[keep], None if self.joints is None else self.joints[keep],
+                         None if self.tool is None else self.tool[keep], left, base_poses=self.base_poses)
 
 
 @dataclass
@@ -241,6 +254,68 @@ def shared_rule(program: Program, settings: Settings) -> list[Diagnostic]:
                        "compensate for the first", "error") for d in program.diagnostics if d.code == P202]
 
 
+def held_rule(program: Program, use: np.ndarray) -> dict:
+    """The rows the analysis leaves as written (``Program.held``: P217, a target whose numbers
+    something else reads too; warned by the reader at each): code → rows. Narrows ``use``."""
+    out = {}
+    for code, rows in getattr(program, "held", {}).items():
+        rows = np.asarray(rows, int)
+        if len(rows):
+            use[rows] = False
+            out[code] = rows
+    return out
+
+
+def group_rule(program: Program, selection: Selection) -> tuple[Selection, list[Diagnostic]]:
+    """P230: a target that shares its numbers with a row left as written (another run of it, a
+    point it is copied from): rewriting them would move that row too, so it is left as well."""
+    t = program.targets
+    group = getattr(t, "group", None)
+    if group is None or not len(selection.rows) or not (group[selection.rows] >= 0).any():
+        return selection, []
+    chosen = np.zeros(len(t), bool)
+    chosen[selection.rows] = True
+    left_groups = np.unique(group[~chosen & (group >= 0)])
+    if not len(left_groups):
+        return selection, []
+    drop = np.flatnonzero(np.isin(group[selection.rows], left_groups) & (group[selection.rows] >= 0))
+    if not len(drop):
+        return selection, []
+    first_left = {int(g): int(np.flatnonzero((group == g) & ~chosen)[0]) for g in left_groups}
+    rows = selection.rows[drop]
+    found = collect(program, rows, P230, lambda i: "this target's numbers are also those of a run of it (or of a point "
+                    "it is copied from or into) that is left as written, at {}:{}: left as written too".format(
+                        *where(program, first_left[int(group[rows[i]])])[:2]))
+    return selection.without(drop, P230), found
+
+
+def execution_order(program: Program, selection: Selection, poses: np.ndarray) -> Order | None:
+    """The selected rows' predecessors in execution order (``Targets.prev``) as positions in the
+    selection; a predecessor left as written is reached at its nominal pose (``poses``: every
+    row's in the robot base, NaN where not known: then nothing is known before the row). None
+    where it is row after row."""
+    t = program.targets
+    prev = getattr(t, "prev", None)
+    rows = selection.rows
+    if prev is None or not len(rows):
+        return None
+    pos = np.full(len(t), -1, np.int64)
+    pos[rows] = np.arange(len(rows))
+    p = prev[rows]
+    out = np.where(p >= 0, pos[np.maximum(p, 0)], -1)
+    fixed = None
+    outside = np.flatnonzero((p >= 0) & (out < 0))
+    if len(outside):
+        base = poses[p[outside]]
+        known = np.isfinite(base).all(axis=1)
+        if known.any():
+            fixed = np.full((len(rows), 6), np.nan)
+            fixed[outside[known]] = base[known]
+            out[outside[known]] = -2
+    order = Order(out, fixed)
+    return None if order.sequential else order
+
+
 def frame_rule(program: Program, use: np.ndarray) -> list[Diagnostic]:
     """P103: a frame that is not finite (its targets would only be 'not fully known').
     Narrows ``use``."""
@@ -361,7 +436,8 @@ def std_rule(program: Program, model: Compensator, settings: Settings, commands:
     std = commands.std
     if std is None:
         # (no previous_joints: the graph solves each previous command on its target's branch)
-        std = model.command_std(np.c_[commands.commanded, sel.poses[:, 3:6]], joints=sel.joints, tool=sel.tool)
+        std = model.command_std(np.c_[commands.commanded, sel.poses[:, 3:6]], joints=sel.joints, tool=sel.tool,
+                                order=sel.order)
     high = np.flatnonzero(std > bound)
     high = high[np.argsort(-std[high], kind="stable")]
     return collect(program, sel.rows[high], P336, lambda i: f"the model's std at this target is {std[high[i]]:.3f} "
@@ -375,6 +451,7 @@ def select_with_findings(program: Program, model: Compensator, settings: Setting
     """The targets the model takes, and every finding that needs no model output."""
     out = stamp_rule(program, settings) + fit_rule(program, model, settings) + shared_rule(program, settings)
     poses, use = robot_base_poses(program, model_bases(program, model))
+    held = held_rule(program, use)
     out += frame_rule(program, use)
     unstated = use.copy()
     out += pose_frame_rule(program, model, use)
@@ -382,13 +459,21 @@ def select_with_findings(program: Program, model: Compensator, settings: Setting
     out += known_rule(program, model, settings, poses, use)
     out += finite_rule(program, poses, use)
     rows = np.flatnonzero(use)
-    selection = Selection(rows, poses[rows], left={P218: np.flatnonzero(unstated)} if unstated.any() else {})
+    left = dict(held)
+    if unstated.any():
+        left[P218] = np.flatnonzero(unstated)
+    selection = Selection(rows, poses[rows], left=left)
     out += reach_rule(program, model, settings, selection)
+    selection.order = execution_order(program, selection, poses)
     if model.wants_joints or model.wants_tool:
         selection, found = configuration_rule(program, model, selection, settings.chain)
     else:
         selection, found = stated_configuration_rule(program, model, selection)
     out += found
+    selection, found = group_rule(program, selection)
+    out += found
+    selection.order = execution_order(program, selection, poses)
+    selection.base_poses = poses
     out += envelope_rule(program, model, selection)
     return selection, out
 
@@ -413,7 +498,8 @@ def configuration_rule(program: Program, model: Compensator, selection: Selectio
     robot, left as written; the others get the model's ``joints`` / ``tool`` inputs."""
     from .controller import controller_inputs
 
-    rows, poses, q, tool, found = controller_inputs(program, model, selection.rows, selection.poses, collect, chain)
+    rows, poses, q, tool, found = controller_inputs(program, model, selection.rows, selection.poses, collect, chain,
+                                                    selection.order)
     left = dict(selection.left)
     dropped = np.setdiff1d(selection.rows, rows) if len(rows) < len(selection.rows) else rows[:0]  # (rows: a subset)
     if len(dropped):
@@ -476,7 +562,7 @@ def run_model(model: Compensator, selection: Selection, iterations: int | None, 
     joints = np.empty((len(selection.rows), 6)) if wanted else None
     stds = np.empty(len(selection.rows)) if std else None
     for chunk in model.command_chunks(selection.poses, iterations, joints=selection.joints, tool=selection.tool,
-                                      with_joints=True, std=std):
+                                      with_joints=True, std=std, order=selection.order):
         start, part, q = chunk
         commanded[start:start + len(part)] = part
         if joints is not None:

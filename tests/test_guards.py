@@ -285,16 +285,19 @@ def krl_run(tmp_path, capsys, src, dat, model, *options, output="cell.src"):
 
 def test_position_used_as_a_frame_is_not_compensated(tmp_path, capsys, affine):
     # XP1 is a motion target and, after it, the base of XP2: correcting XP1's numbers would
-    # move XP2 by the same amount (and XP2's own correction on top)
+    # move XP2 by the same amount (and XP2's own correction on top): XP1 is left as written
+    # (P217, at its declaration), XP2 compensated in the base XP1 is
     model = affine(offset=(0.3, -0.2, 0.1), tool={"name": "any"})
     code, err, written = krl_run(tmp_path, capsys, *KRL_FRAME_VARIABLE, model)
-    assert code == 2 and written == []
-    assert err.startswith(f"{tmp_path / 'cell.dat'}:3:16: P191 refusing to write: compensating moves the base of this "
-                          "target (XP1, by 0.374 mm)")
+    assert code == 1 and written == ["cell.dat", "cell.src"]
+    assert err.startswith(f"{tmp_path / 'cell.dat'}:2:16: P217 this target's numbers are read at "
+                          f"{tmp_path / 'cell.src'}:4 too (a frame)")
+    dat = (tmp_path / "out" / "cell.dat").read_text()
+    assert "XP1={X 1900.0,Y 0.0,Z 900.0," in dat and "XP2={X 9.900,Y 19.800,Z 30.300," in dat
     # the same with XP1 as the tool
     src = KRL_FRAME_VARIABLE[0].replace("$BASE = XP1", "$TOOL = XP1")
     code, err, written = krl_run(tmp_path, capsys, src, KRL_FRAME_VARIABLE[1], model)
-    assert code == 2 and written == [] and "P191 refusing to write: compensating moves the tool" in err
+    assert code == 1 and "P217" in err and "XP1={X 1900.0,Y 0.0,Z 900.0," in (tmp_path / "out" / "cell.dat").read_text()
     # used as a frame only (not a motion target), XP1 stays as it is and XP2 is compensated in it
     src = KRL_FRAME_VARIABLE[0].replace("LIN XP1\r\n", "")
     code, err, written = krl_run(tmp_path, capsys, src, KRL_FRAME_VARIABLE[1], model, "-q")
@@ -361,16 +364,20 @@ def test_non_finite_frame_or_float32_overflow_is_refused(tmp_path, capsys, run, 
     refused(run(text, affine()), run, "P103", run.src(), 3, 1, "too large for the model")
 
 
-def test_position_used_in_two_frames_is_refused_unless_forced(tmp_path, capsys, affine):
+def test_position_used_in_two_frames_is_left_where_the_runs_disagree(tmp_path, capsys, affine):
     src = ("DEF cell( )\n$BASE = {X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}\nLIN XP1\n"
            "$BASE = {X 0.0,Y 0.0,Z 0.0,A 180.0,B 0.0,C 0.0}\nLIN XP1\nEND\n")
     dat = "DEFDAT cell\nDECL E6POS XP1={X 1900.0,Y 0.0,Z 900.0,A 0.0,B 90.0,C 0.0}\nENDDAT\n"
     model = affine(offset=(0.3, -0.2, 0.1), tool={"name": "any"})
     code, err, written = krl_run(tmp_path, capsys, src, dat, model)
-    assert code == 2 and written == []
-    assert err.startswith(f"{tmp_path / 'cell.src'}:5:5: P202 XP1 is used in another frame than at its first use "
-                          "(line 3): no one correction is right for both")
-    code, err, written = krl_run(tmp_path, capsys, src, dat, model, "--force", "-q")
+    # in the base turned by 180° the same correction is (−0.3, 0.2, 0.1) in XP1's numbers
+    assert code == 1 and err.count("P230 this target runs more than once") == 1
+    assert "need corrections up to 0.600 mm apart" in err
+    assert "XP1={X 1900.0,Y 0.0,Z 900.0," in (tmp_path / "out" / "cell.dat").read_text()
+    assert "0 of 1 compensated, 1 left as written: P230 ×1" in err
+    # in one frame the two runs agree: compensated once
+    same = src.replace("A 180.0", "A 0.0")
+    code, err, written = krl_run(tmp_path, capsys, same, dat, model, "-q")
     assert code == 0 and "XP1={X 1900.300,Y -0.200,Z 900.100," in (tmp_path / "out" / "cell.dat").read_text()
 
 

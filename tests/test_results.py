@@ -64,7 +64,7 @@ def test_a_tool_not_known_is_counted_by_its_code(tmp_path, affine, cli):
     src = tmp_path / "a.src"
     src.write_text(SRC.replace("BAS(#BASE, 3)", "BAS(#TOOL, 6)"))
     code, _, err = cli(src, "-o", tmp_path / "out.src", "--model", affine(offset=(0.1, 0, 0), gain=GAIN))
-    assert code == 1 and "a.src:4:1: P203" in err, err
+    assert code == 1 and "a.src:4:3: P203" in err, err
     assert "2 of 4 compensated, 2 left as written: P203 ×2;" in err
 
 

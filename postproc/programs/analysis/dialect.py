@@ -217,10 +217,11 @@ class Dialect:
             unknown = next((v for v in view.xyz + view.orient if isinstance(v, Top)), None)
             if unknown is not None:
                 return Top(unknown.why, unknown.loc)
-            if view.kind == "cart" and None not in nums and all(np.isfinite(nums)):
+            if view.kind == "cart" and None not in nums:  # (not finite: a frame P103 refuses, findings.frame_rule)
                 an.consume(value, "a frame")
                 m = np.eye(4)
-                m[:3, :3] = fr.orientation_rotation(np.array(nums[3:], float), view.form)
+                with np.errstate(invalid="ignore", over="ignore"):
+                    m[:3, :3] = fr.orientation_rotation(np.array(nums[3:], float), view.form)
                 m[:3, 3] = nums[:3]
                 return Mat(m, value.label, frozenset(tokens_of(value)))
             return Top(f"{value.label or 'a frame'} is not a fully known frame", an.loc)

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ... import frames as fr
-from ...diagnostics import P201, P203, P211, P212, P214, P217, P220, P221, P224, P225, Diagnostic
+from ...diagnostics import P201, P203, P211, P212, P214, P215, P217, P220, P221, P223, P224, P225, Diagnostic
 from ..ir import MOTION_INDEX, Agg, Loc, Move
 from ..model import Frame, Targets
 from .execute import START, RunUse, Use
@@ -121,13 +121,13 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         if s.joint or s.relative:
             continue
         if isinstance(target, Top):
-            code = target.code if target.code in (P211, P214, "P215", P217, "P223") else P211
+            code = target.code if target.code in (P211, P214, P215, P217, P223) else P211
             if target.code and target.code not in (P201, P203, P220, P221, P225):
                 code = target.code
             what = use.what or "the target"
-            if code == "P215":
+            if code == P215:
                 msg = f"target {what}: {target.why} (a global of a data list or $config.dat not given?): left as written"
-            elif code == "P223":
+            elif code == P223:
                 msg = f"target {what} is not known here ({target.why}, switched on): left as written"
             else:
                 msg = f"target {what} not statically known ({target.why}): left as written"

@@ -316,7 +316,7 @@ class Lowering:
         self.emit(Exit(self.here(first_pos(node))))
 
     def s_halt(self, node):
-        self.emit(Halt(self.here(first_pos(node))))
+        pass  # (KRL's HALT pauses: the operator's Start resumes at the next statement, which runs)
 
     def s_return_(self, node):
         value = next((c for c in node.children if isinstance(c, Tree)), None)
