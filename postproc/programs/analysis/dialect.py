@@ -263,6 +263,15 @@ class Dialect:
         return PoseView(kind, [fields.get(k) for k in _XYZ], [fields.get(k) for k in names], self.form, config,
                         value.loc, value.type)
 
+    def row_extras(self, use, view) -> dict:
+        """A dialect's own columns for the row of ``use`` (an ``execute.Use`` whose target is
+        ``view``): name → value (``Built.extras``; e.g. RAPID's confdata, Fanuc's CONFIG)."""
+        return {}
+
+    def run_extras(self, run) -> dict:
+        """The same for a MoveRun's rows: name → a sequence of len(run) values."""
+        return {}
+
     def position(self, target):
         """Where the robot stands after a motion to ``target`` (for the partial targets after it)."""
         names = _XYZ + ORIENTATION_FIELDS[self.form]

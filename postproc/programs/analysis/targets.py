@@ -34,12 +34,18 @@ NEITHER_SET = ("neither $BASE nor $TOOL is set before this target (the controlle
 
 @dataclass
 class Built:
+    """The targets of a program and what goes with them: ``frames``, located ``diagnostics``
+    (what is left and why), ``notes`` (P224), ``held`` (rows left by the analysis: code → rows),
+    ``named`` (some targets are variables), ``extras`` (a dialect's own per-row columns, name →
+    list aligned with the rows: ``Dialect.row_extras``, e.g. RAPID's confdata, Fanuc's CONFIG)."""
+
     targets: Targets
     frames: list
     diagnostics: list
     notes: list
     held: dict = field(default_factory=dict)
     named: bool = False
+    extras: dict = field(default_factory=dict)
 
 
 class _Rows:
@@ -54,6 +60,19 @@ class _Rows:
         self.parts.append(cols)
         self.n += m
         return self.n - m
+
+    def extras(self) -> dict:
+        """The dialect's per-row columns (``row_extras``), name → list over every row."""
+        out: dict = {}
+        for p in self.parts:
+            for name, values in (p.get("extras") or {}).items():
+                out.setdefault(name, [None] * 0)
+        for name in out:
+            for p in self.parts:
+                m = len(p["line"])
+                values = (p.get("extras") or {}).get(name)
+                out[name].extend(values if values is not None else [None] * m)
+        return out
 
 
 def _path(unit, file: int) -> str:
@@ -210,7 +229,8 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                     col=np.array([aloc.col], np.int32), frame=np.array([ix], np.int32),
                     motion=np.array([MOTION_INDEX[s.kind]], np.int8),
                     config=np.array([view.config], np.int16), offset=offset[None],
-                    prev=np.array([primary], np.int32), site=[loc])
+                    prev=np.array([primary], np.int32), site=[loc],
+                    extras={k: [v] for k, v in dialect.row_extras(use, view).items()})
         r = rows.add(**cols)
         key_row[use.key] = r
         used_keys.append(use.key)
@@ -257,7 +277,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         diagnostics.append(Diagnostic(_path(unit, loc.file), loc.line, loc.col, code, message))
     order = {path: k for k, path in enumerate(list(unit.files) + list(unit.config_names))}
     diagnostics.sort(key=lambda d: (order.get(d.path, len(order)), d.line, d.col))  # (in the order written)
-    return Built(targets, frames, diagnostics, notes, held, named)
+    return Built(targets, frames, diagnostics, notes, held, named, rows.extras())
 
 
 def _is_tool_unset(use) -> bool:
@@ -307,7 +327,8 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
     rows.add(pose=pose, spans=spans, abc=spans[:, 6:12].reshape(n, 3, 2) if form == "abc" else
              np.full((n, k_orient, 2), -1, np.int64), worient=pose[:, 3:6] if form != "abc" else np.full((n, 3), np.nan),
              file=r["file"], line=r["line"], col=r["col"], frame=np.full(n, ix, np.int32), motion=r["motion"],
-             config=r["config"], offset=np.zeros((n, 3)), prev=prev, site=None)
+             config=r["config"], offset=np.zeros((n, 3)), prev=prev, site=None,
+             extras={k: list(v) for k, v in dialect.run_extras(use.run).items()})
     key_row[use.key] = rows.n - 1
 
 
