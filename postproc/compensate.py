@@ -21,7 +21,7 @@ from collections import Counter
 from . import frames
 from .compensator import Chain, Compensator, Inside, load_model
 from .diagnostics import (
-    P105, P106, P107, P108, P201, P202, P203, P212, P220, P221, P224, P225, P230, P306, P312, P321, Diagnostic,
+    P105, P106, P107, P108, P201, P202, P203, P212, P220, P221, P224, P225, P230, P306, P312, P321, P322, Diagnostic,
     LEFT_AS_WRITTEN,
     PostprocError,
 )
@@ -287,15 +287,35 @@ def _shared_tokens(program: Program, rows: np.ndarray, width: int):
     return key_file.ravel(), key_pos.ravel(), pos.ravel(), np.asarray(col).ravel()
 
 
-def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, orientation: bool):
-    """The runs of one set of numbers that do not agree (``AGREE_MM``): (positions in the
-    selection to leave as written: whole groups; their P230 warnings; the numbers the text
-    holds for each selected row: its first run's, [len(rows), width])."""
+@dataclass
+class _Agreement:
+    """What the runs of one set of numbers came to: ``drop`` (positions in the selection left as
+    written: whole groups whose runs need other numbers: other frames, tools, offsets),
+    ``warnings`` (their P230), ``written`` (the numbers the text holds for each selected row:
+    its group's first run's, [len(rows), width]), ``settled`` (positions whose runs differ only in
+    where they come from, the approach: commanded at the middle of the runs' commands, the
+    smallest worst case) with ``commanded`` [len(settled), 3] and ``notes`` (P322)."""
+
+    drop: np.ndarray
+    warnings: list
+    written: np.ndarray
+    settled: np.ndarray
+    commanded: np.ndarray
+    notes: list
+
+
+def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, commanded: np.ndarray,
+               orientation: bool = False) -> _Agreement:
+    """The runs of one set of numbers (``Targets.group``): they agree where the numbers each would
+    write differ by no more than ``AGREE_MM``; runs of one target at one pose that differ only in
+    where they come from (the approach) are commanded at the middle (P322, a note); any other
+    disagreement leaves the whole group as written (P230)."""
     rows = selection.rows
-    effective = new_xyz.copy()
+    written = new_xyz.copy()
+    none = np.zeros(0, int)
     found = _shared_tokens(program, rows, new_xyz.shape[1])
     if found is None:
-        return np.zeros(0, int), [], effective
+        return _Agreement(none, [], written, none, np.zeros((0, 3)), [])
     key_file, key_pos, pos, col = found
     value = new_xyz[pos, col]
     tol = np.where(col < 3, AGREE_MM, AGREE_MM * ORIENTATION_DECIMALS[program.orientation])
@@ -307,24 +327,52 @@ def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, orie
     with np.errstate(invalid="ignore"):
         spread = np.abs(v - v[lead])
     bad = spread > tl
-    effective[p, c] = v[lead]  # (what the text holds: the first run's number)
-    group = program.targets.group[rows]
-    bad_groups = np.unique(group[p[bad]])
-    drop = np.flatnonzero(np.isin(group, bad_groups) & (group >= 0)) if len(bad_groups) else np.zeros(0, int)
-    if not len(drop):
-        return drop, [], effective
-    worst = {}
-    for g, d in zip(group[p[bad]].tolist(), spread[bad].tolist()):
-        worst[g] = max(worst.get(g, 0.0), d)
+    written[p, c] = v[lead]  # (what the text holds: the first run's number)
     t = program.targets
-    places = np.stack([t.file[rows[drop]], t.line[rows[drop]], t.col[rows[drop]]], axis=1)
-    _, once = np.unique(places, axis=0, return_index=True)  # (one warning per target, not per run)
-    said = drop[np.sort(once)]
-    found_ = collect(program, rows[said], P230, lambda i: (
-        "this target runs more than once (a loop, a routine called twice, after a branch, or a point copied "
-        "into another) and the runs need corrections up to {:.3f} mm apart (other frames, tools, offsets or "
-        "approaches): no one set of numbers is right for all, left as written".format(worst[int(group[said[i]])])))
-    return drop, found_, effective
+    group = t.group[rows]
+    bad_groups = np.unique(group[p[bad]])
+    if not len(bad_groups):
+        return _Agreement(none, [], written, none, np.zeros((0, 3)), [])
+    # a group whose rows are one target at one pose, frame and tool (runs that differ in their
+    # predecessor only): the middle of its runs' commands
+    approach = []
+    for g in ([] if orientation else bad_groups.tolist()):  # (--orientation: the middle of turns is not settled)
+        members = np.flatnonzero(group == g)
+        r = rows[members]
+        same = ((t.poses[r] == t.poses[r[0]]) | (np.isnan(t.poses[r]) & np.isnan(t.poses[r[0]]))).all() and \
+            (t.frame[r] == t.frame[r[0]]).all() and (t.twin[r] >= 0).sum() == len(r) - 1 and \
+            (selection.tool is None or (selection.tool[members] == selection.tool[members[0]]).all())
+        if same:
+            approach.append(g)
+    settled, middles, notes = [], [], []
+    for g in approach:
+        members = np.flatnonzero(group == g)
+        lo, hi = commanded[members].min(axis=0), commanded[members].max(axis=0)
+        mid = (lo + hi) / 2
+        worst = float(np.linalg.norm((hi - lo) / 2))
+        settled.extend(members.tolist())
+        middles.extend([mid] * len(members))
+        first = int(members[0])
+        notes.append(Diagnostic(*where(program, int(rows[first])), P322,
+                                f"this target runs {len(members)} times from other places (after a branch, in a loop) "
+                                f"and the runs need commands up to {2 * worst:.3f} mm apart (the approach): commanded "
+                                f"at the middle, at most {worst:.3f} mm from each run's own", "note"))
+    other = np.setdiff1d(bad_groups, approach)
+    drop = np.flatnonzero(np.isin(group, other) & (group >= 0)) if len(other) else none
+    warnings = []
+    if len(drop):
+        worst_of = {}
+        for g, d in zip(group[p[bad]].tolist(), spread[bad].tolist()):
+            worst_of[g] = max(worst_of.get(g, 0.0), d)
+        places = np.stack([t.file[rows[drop]], t.line[rows[drop]], t.col[rows[drop]]], axis=1)
+        _, once = np.unique(places, axis=0, return_index=True)  # (one warning per target, not per run)
+        said = drop[np.sort(once)]
+        warnings = collect(program, rows[said], P230, lambda i: (
+            "this target runs more than once (a loop, a routine called twice, after a branch, or a point copied "
+            "into another) and the runs need corrections up to {:.3f} mm apart (other frames, tools, offsets or "
+            "approaches): no one set of numbers is right for all, left as written".format(worst_of[int(group[said[i]])])))
+    return _Agreement(drop, warnings, written, np.asarray(settled, int),
+                      np.asarray(middles, float).reshape(-1, 3), notes)
 
 
 def _outside(model: Compensator, commands: Commands) -> int:
@@ -390,19 +438,31 @@ def compensate_program(
     # rows in execution order: the model chains each target to its predecessor's command (the
     # approach direction, for models that learn backlash). The model runs on a background
     # thread, chunk by chunk, while this one rewrites the numbers of the chunks already done.
+    approach_notes: list[Diagnostic] = []
     for attempt in range(MAX_ROUNDS):
         stream = _CommandStream(model, selection, report.iterations, program, max_correction_mm,
                                 orientation=orientation, chain=_chain, std=std_bound(model, settings) is not None)
         outputs = _rewrite(program, selection, stream)
         commanded, new_xyz, joints = stream.result()
         # the runs of one set of numbers (a loop, a routine called twice, copies) must agree
-        drop, disagree, written = _agreement(program, selection, new_xyz, orientation)
-        if not len(drop) or attempt == MAX_ROUNDS - 1:
-            break
-        warnings += disagree
-        _raise_first(disagree, strict)
-        selection = selection.without(drop, P230)
-        selection.order = execution_order(program, selection, selection.base_poses)
+        agreed = _agreement(program, selection, new_xyz, commanded, orientation)
+        if len(agreed.drop) and attempt < MAX_ROUNDS - 1:
+            warnings += agreed.warnings
+            _raise_first(agreed.warnings, strict)
+            selection = selection.without(agreed.drop, P230)
+            selection.order = execution_order(program, selection, selection.base_poses)
+            continue
+        written = agreed.written
+        if len(agreed.settled):  # (runs that differ in their approach only: the middle command)
+            commanded = commanded.copy()
+            commanded[agreed.settled] = agreed.commanded
+            approach_notes = agreed.notes
+            again = _CommandStream(model, selection, 1, program, math.inf,
+                                   Commands(selection, commanded, joints), orientation=orientation)
+            outputs = _rewrite(program, selection, again)
+            _, new_xyz, _ = again.result()
+            written = _agreement(program, selection, new_xyz, commanded).written
+        break
     commands = Commands(selection, commanded, joints, Inside.join(stream.inside), stream.std)
     after = command_findings(program, commands, model, settings)
     _raise_first(after, strict)
@@ -424,7 +484,7 @@ def compensate_program(
     report.mean_correction_mm = float(size.mean()) if len(size) else 0.0
     report.outside_envelope = _outside(model, commands)
     report.warnings = warnings
-    report.notes = program.notes + dead_band_notes(program, commands)
+    report.notes = program.notes + dead_band_notes(program, commands) + approach_notes
     report.changed = [program.files[i] for i in sorted(set(program.targets.file[selection.rows].tolist()))]
     report.outputs = dict(zip(program.files, outputs))
     return report

@@ -109,6 +109,9 @@ P320 = _code("P320", "error", "the data's tool sources disagree (--tool, # tool:
              "line, several tools for a pose-only method, or measure --tool for a plan that names its tools")
 P321 = _code("P321", "note", "(compensate -v, models with an approach input) a joint barely moving at the target stays "
              "in its backlash dead band: compensated with the command of the smallest worst case over both sides")
+P322 = _code("P322", "note", "(compensate -v, models with a previous_pose input) a target the program reaches from "
+             "several places (after a branch, in a loop): its runs need slightly other commands (the approach), "
+             "compensated with the one of the smallest worst case over them")
 P330 = _code("P330", "error", "a robot description that cannot be read or is not TOML")
 P331 = _code("P331", "error", "a robot description with an unknown or misplaced table or key")
 P332 = _code("P332", "error", "a robot description with a bad value")

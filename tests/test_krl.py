@@ -114,8 +114,9 @@ def test_weld_cell_targets_frames_and_spans():
     p = weld()
     t = p.targets
     # XP1..XP11 (CIRC XP4,XP5 and SCIRC XP9,XP10 both points), XTACK[1..4], XPARK,
-    # the inline SPL and the two inline LINs of seam_clean
-    assert len(t) == 19
+    # the inline SPL and the two inline LINs of seam_clean; XP11 twice (after seam_clean, or after
+    # the DEFAULT's HALT, which pauses: Start resumes it)
+    assert len(t) == 20 and t.twin.tolist()[-2:] == [-1, 18]
     assert_spans_exact(p)
     assert p.newlines == ["\r\n", "\r\n"]
     dat = p.texts[1]
@@ -124,7 +125,7 @@ def test_weld_cell_targets_frames_and_spans():
     names = [re.match(r"(?:DECL (?:GLOBAL )?\w+ )?(\w+(?:\[\d\])?)=", dat.splitlines()[ln - 1]).group(1)
              for ln, f in zip(t.line, t.file) if f == 1]
     assert names == ["XP1", "XP2", "XP3", "XP4", "XP5", "XP6", "XP7", "XP8", "XP9", "XP10",
-                     "XTACK[1]", "XTACK[2]", "XTACK[3]", "XTACK[4]", "XPARK", "XP11"]
+                     "XTACK[1]", "XTACK[2]", "XTACK[3]", "XTACK[4]", "XPARK", "XP11", "XP11"]
     kinds = [MOTIONS[m] for m in t.motion]
     assert kinds[:10] == ["PTP", "LIN", "LIN", "CIRC-aux", "CIRC-end", "SPL", "SPL", "SLIN", "SCIRC-aux",
                           "SCIRC-end"]
