@@ -114,6 +114,9 @@ class Report:
         dead_band = sum(n.code == P321 for n in self.notes)
         if dead_band:
             details += f", {dead_band} in a joint's backlash dead band (P321, -v)"
+        approaches = sum(n.code == P322 for n in self.notes)
+        if approaches:
+            details += f", {approaches} reached from several places (P322, -v)"
         if any(n.code == P224 for n in self.notes):
             details += "; robot base = world assumed: $ROBROOT not known (P224, -v)"
         if not self.changed:
