@@ -420,7 +420,7 @@ def read(files: list[str], texts: list[str], fast: bool = True) -> Program:
             i = j
     if rows.columns is None:
         raise PostprocError("no poses in this file (empty, or comments only)", path, 1, 1, P105)
-    targets = rows.targets()
+    targets = _analysed(files, texts, rows.targets())
     stamps = rows.stamps
     stated = rows.frame
     return Program(
@@ -435,3 +435,40 @@ def read(files: list[str], texts: list[str], fast: bool = True) -> Program:
         comment="#",
     )
 
+
+def _analysed(files: list[str], texts: list[str], read: Targets) -> Targets:
+    """The rows read, lowered to the motion IR (one routine: a MoveRun of the rows, in the robot
+    base, the model's tool) and through the analysis as every dialect's targets are: a pose list
+    is visited row after row (``Targets.prev``)."""
+    from .analysis import Dialect, analyse
+    from .ir import Loc, MoveRun, Routine, Unit
+
+    n = len(read)
+    spans = np.concatenate([read.spans.reshape(n, 6), read.abc_spans.reshape(n, 6)], axis=1)
+    run = MoveRun(dict(pose=read.poses, written=~np.isnan(read.poses), spans=spans, file=read.file, line=read.line,
+                       col=read.col, motion=read.motion, chain=np.ones(n, bool), config=read.config))
+    unit = Unit("poses", list(files[:1]), list(texts[:1]))
+    unit.routines["ROWS"] = Routine("ROWS", (), [run], Loc(0, 1, 1))
+    unit.entries = ["ROWS"]
+    built = analyse(unit, _PoseList())
+    targets = built.targets
+    targets.joints = read.joints
+    return targets
+
+
+
+
+def _pose_list_dialect():
+    from .analysis import Dialect
+
+    class PoseList(Dialect):
+        """A pose list: rows in the robot base (the frame its ``# frame:`` line states), the
+        model's tool, nothing written between them."""
+
+        name = "POSES"
+
+    return PoseList()
+
+
+def _PoseList():
+    return _pose_list_dialect()
