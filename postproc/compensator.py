@@ -120,7 +120,10 @@ import numpy as np
 from .diagnostics import P306, P307, P308, PostprocError
 from .resources import model_path
 
-CONTRACT_VERSION = "1"
+CONTRACT_VERSION = "2"
+# the contract versions this postproc reads: 1 (every input a graph takes required), 2 (the
+# optional inputs carry defaults: contract.py); a newer file is refused naming its version
+CONTRACT_VERSIONS = ("1", "2")
 INPUT_POSE = "pose"
 INPUT_PREVIOUS = "previous_pose"
 OUTPUT_ERROR = "error"
@@ -247,6 +250,7 @@ class Compensator:
     has_std: bool = False  # the graph also outputs ``error_std``
     wants_approach: bool = False  # the graph takes fixed approach signs (``approach``)
     settle: bool = True  # settle the commands on their approach where the model can (False: the plain fixed point)
+    defaults: tuple = ()  # the inputs a caller may omit (their default initializers: contract 2, contract.py)
 
     @property
     def settles(self) -> bool:
@@ -874,13 +878,17 @@ def load_model(path: str | Path | None = None) -> Compensator:
         session = inference_session(data)  # (the graph optimised once per model: session.py)
     except Exception as exc:  # onnxruntime raises its own exception types
         raise PostprocError(f"not an ONNX model: {str(exc).splitlines()[0][:200]}", str(path), code=P306) from exc
-    inputs = {i.name: i for i in session.get_inputs()}
+    # (an optional input with its default initializer is an "overridable initializer" to onnxruntime)
+    inputs = {i.name: i for i in (*session.get_inputs(), *session.get_overridable_initializers())}
     outputs = {o.name: o for o in session.get_outputs()}
     joints_output = OUTPUT_JOINTS if OUTPUT_JOINTS in outputs or INPUT_JOINTS in inputs else LEGACY_OUTPUT_JOINTS
     problems = _interface_problems(inputs, outputs, joints_output)
     if problems:
         raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path), code=P306)
     meta = {k: _json_or_text(v) for k, v in session.get_modelmeta().custom_metadata_map.items()}
+    problem = _version_problem(meta)
+    if problem:
+        raise PostprocError(problem, str(path), code=P306)
     problem = _metadata_problem(meta)
     if problem:
         raise PostprocError(f"model card (metadata_props) is malformed: {problem}", str(path), code=P306)
@@ -899,7 +907,25 @@ def load_model(path: str | Path | None = None) -> Compensator:
         has_rotation=OUTPUT_ROTATION in outputs,
         has_std=OUTPUT_STD in outputs,
         wants_approach=INPUT_APPROACH in inputs,
+        defaults=tuple(i.name for i in session.get_overridable_initializers()),
     )
+
+
+def contract_version(meta: dict) -> str:
+    """The contract version of a model card (``postproc_contract``; a file without one, made by
+    other tools, is read as version 1)."""
+    value = meta.get("postproc_contract", "1")
+    return str(value) if not isinstance(value, float) else f"{value:g}"
+
+
+def _version_problem(meta: dict) -> str | None:
+    version = contract_version(meta)
+    if version in CONTRACT_VERSIONS:
+        return None
+    newer = version.isdigit() and int(version) > int(CONTRACT_VERSIONS[-1])
+    return (f"model contract version {version!r} (metadata postproc_contract) is "
+            + ("newer than this postproc reads" if newer else "not a contract version")
+            + f" (it reads {', '.join(CONTRACT_VERSIONS)}){': update postproc' if newer else ''}")
 
 
 def _numbers(value, n: int) -> bool:

@@ -28,6 +28,8 @@ SUBCOMMANDS = [
     "import_data",
     "report",
     "fleet",
+    "model",
+    "export",
 ]
 
 
