@@ -107,7 +107,8 @@ def _internal_error(exc: Exception, args) -> int:
 
 
 # optional dependencies: the module a subcommand imports -> the extra that installs it
-EXTRA_OF_MODULE = {"pinocchio": "sim", "torch": "train", "onnx": "train", "matplotlib": "report", "dask": "fleet",
+EXTRA_OF_MODULE = {"pinocchio": "sim", "torch": "train", "onnx": "train", "matplotlib": "report", "jsonschema": "report",
+                   "dask": "fleet",
                    "distributed": "fleet"}
 # modules in more than one extra: the subcommand says which one
 EXTRA_OF_COMMAND = {"plan": "sim", "measure": "sim", "verify": "sim", "train": "train", "import": "train",
