@@ -1,7 +1,15 @@
 """The compensator: one ONNX file that maps commanded TCP poses to positioning errors.
 
-Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (which runs it):
+Contract (version 2), shared by ``train`` (which writes it) and ``compensate`` (which runs it),
+and the interface of any other program that runs the file (onnxruntime alone: ``examples/``,
+``docs/INTEGRATION.md``):
 
+* every input but ``pose`` is optional in the ONNX sense: the graph carries a default for it
+  (an initializer of the same name, float32 [1, 6] NaN, broadcast to ``pose``'s rows:
+  ``contract.with_defaults``), so a caller that omits it gets its NaN meaning below, and an
+  omitted ``previous_pose`` (or a row of it with a NaN) is the pose itself; contract-1 files
+  (``postproc_contract`` "1") have the same inputs without defaults (``postproc model upgrade``
+  adds them); ``Compensator`` feeds every input the graph takes either way;
 * input ``pose``: float32 [N, 6] = X, Y, Z (mm), A, B, C (deg) in the robot base frame;
 * optional input ``previous_pose``: float32 [N, 6], the pose commanded just before each
   target (program order), for models that learn direction-dependent error (backlash);
@@ -62,7 +70,9 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   computes only the outputs asked for: ``compensate`` and ``check`` ask for it at the final
   commands (in the run the approach settling makes there: ``command_chunks(std=True)``), and
   only to hold the targets to ``--max-std`` (P336);
-* ``metadata_props`` (values JSON-encoded where structured): ``postproc_contract`` "1",
+* ``metadata_props`` (values JSON-encoded where structured; JSON Schema
+  ``postproc/schemas/model_card.schema.json``, ``model_card.py``): ``postproc_contract`` "2" (a
+  newer version is refused naming it),
   ``name``, ``robot``, ``tool`` {"name", "frame", optional "measured": [[X,Y,Z,A,B,C], ...]
   the TCPs of the data, "unseparated": [[x,y,z], ...] unit directions (flange frame) of the
   mount rotation the data cannot tell from a shift (P319 where a TCP's lever arm makes them
