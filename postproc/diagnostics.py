@@ -121,6 +121,11 @@ P404 = _code("P404", "error", "the .src and .dat do not come from one compensati
 P405 = _code("P405", "error", "compensated output is stale: re-compensating its source gives other bytes")
 P406 = _code("P406", "error", "compensated output is missing")
 P407 = _code("P407", "warning", "compensated output has no source")
+P408 = _code("P408", "error", "the controller's own absolute-accuracy model is active (the backup's $ABS_ACCUR in "
+             "Mada/$machine.dat or $custom.dat): compensating would correct the error twice; compensate refuses "
+             "unless --force")
+P409 = _code("P409", "warning", "the controller's own absolute-accuracy model is suppressed for now ($ABS_ACCUR "
+             "#SUPPRESSED): the program is compensated, and would be corrected twice where the model is switched on again")
 # P5xx: data (measurement and pose CSV files, registration, plans)
 P500 = _code("P500", "error", "a data file that cannot be read, is empty or has no rows")
 P501 = _code("P501", "error", "a data file's columns: missing, misnamed, repeated, or given twice")
