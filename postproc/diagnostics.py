@@ -147,6 +147,12 @@ P515 = _code("P515", "error", "a_meas,b_meas,c_meas more than 5° (median) from 
              "frame, the probe's own axes or radians")
 P516 = _code("P516", "error", "a training option the method does not have (--search, --optimizer: the pose-only "
              "networks'; it was ignored for the identified methods)")
+P530 = _code("P530", "error", "an imported measurement file that does not state its units or its frame (no silent "
+             "metres): a 'units:' / 'frame:' line or units in the header")
+P531 = _code("P531", "error", "three-reflector measurements: the reflectors' places on the TCP frame missing or not "
+             "three points, or a row whose three centres do not fit them (a swapped or moved SMR)")
+P532 = _code("P532", "error", "imported points and commanded poses that do not match (a name without its pose, a "
+             "pose measured twice, other counts where matched by order)")
 # P6xx: a command's own inputs
 P601 = _code("P601", "error", "verify's original and compensated programs are not one program")
 P610 = _code("P610", "error", "bad settings (unknown key, bad value, bad TOML)")
