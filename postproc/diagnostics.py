@@ -153,6 +153,8 @@ P531 = _code("P531", "error", "three-reflector measurements: the reflectors' pla
              "three points, or a row whose three centres do not fit them (a swapped or moved SMR)")
 P532 = _code("P532", "error", "imported points and commanded poses that do not match (a name without its pose, a "
              "pose measured twice, other counts where matched by order)")
+P533 = _code("P533", "error", "postproc export: a nominal URDF that is not XML, has no chain of six revolute joints, "
+             "or whose joints are not the robot description's (other axes, joint zeros, directions or lengths)")
 # P6xx: a command's own inputs
 P601 = _code("P601", "error", "verify's original and compensated programs are not one program")
 P610 = _code("P610", "error", "bad settings (unknown key, bad value, bad TOML)")

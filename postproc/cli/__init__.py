@@ -112,7 +112,7 @@ EXTRA_OF_MODULE = {"pinocchio": "sim", "torch": "train", "onnx": "train", "matpl
                    "distributed": "fleet"}
 # modules in more than one extra: the subcommand says which one
 EXTRA_OF_COMMAND = {"plan": "sim", "measure": "sim", "verify": "sim", "train": "train", "import": "train",
-                    "report": "report"}
+                    "report": "report", "export": "train", "model": "train"}
 OPTIONAL_MODULES = set(EXTRA_OF_MODULE) | {"scipy", "tqdm"}
 
 
