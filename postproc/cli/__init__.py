@@ -49,7 +49,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="postproc",
         description="Compensate industrial-robot positioning error in robot programs (KUKA KRL, pose lists).",
-        epilog="Exit codes: 0 ok, 1 findings (check) or gate exceeded (verify --max-mean), 2 error (nothing written).",
+        epilog="Exit codes: 0 ok, 1 findings (check) or a limit exceeded (verify/report --max-mean ...), 2 error (nothing written).",
         formatter_class=Formatter,
     )
     parser.add_argument("--version", action="version", version=f"postproc {__version__}")
