@@ -40,7 +40,7 @@ from . import frames
 from .diagnostics import P317, P533, PostprocError
 
 __all__ = ["Geometry", "identified_geometry", "nominal_urdf", "UrdfChain", "read_urdf", "calibrated_urdf",
-           "calibration_yaml", "parameters_json", "NOT_GEOMETRIC"]
+           "calibration_yaml", "parameters_json", "NOT_GEOMETRIC", "dh_parameters", "dh_transforms", "ur_calibration"]
 
 MM = 1000.0  # mm per m
 NOT_GEOMETRIC = ("compliance", "coupling", "backlash", "ripple")
@@ -384,3 +384,139 @@ def parameters_json(model, geometry: Geometry | None = None) -> dict:
            "std": "posterior (what the data knows of each value)" if ident.get("parameter_posterior_std")
            else "spread of the estimate", "parameters": rows}
     return out
+
+
+# --------------------------------------------------------------------------- UR (DH)
+
+
+def _chain_lines(placements, axes, end, base) -> tuple[list, np.ndarray]:
+    """The joint axis lines (point, direction) at q = 0 and the end frame, in ``base``'s frame."""
+    m, lines = base.copy(), []
+    for placement, axis in zip(placements, axes):
+        m = m @ placement
+        lines.append((m[:3, 3].copy(), m[:3, :3] @ axis))
+    return lines, m @ end
+
+
+def dh_parameters(lines: list, end: np.ndarray, parallel: float = 1e-12) -> np.ndarray:
+    """[6, 4] standard DH rows (θ offset rad, d mm, a mm, α rad) of a chain whose joint axes at
+    q = 0 are ``lines`` [(point, direction)] × 6 and whose end frame (DH frame 6, its z along the
+    last axis) is ``end`` [4, 4], all in the DH base frame (z_0 = the first axis). Each row i
+    goes from frame i−1 to frame i on the common normal of axes i and i+1 (x_i along it, turned
+    the way x_{i−1} points); parallel axes (|z_{i−1} × z_i| ≤ ``parallel``) take d = 0, the last
+    row ends at ``end``'s origin with its x."""
+    o, x, z = np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    targets = [(p, w / np.linalg.norm(w)) for p, w in lines[1:]] + [(end[:3, 3], end[:3, 2])]
+    rows = []
+    for i, (p, w) in enumerate(targets):
+        last = i == len(targets) - 1
+        n = np.cross(z, w)
+        if np.linalg.norm(n) > parallel:
+            r = p - o
+            b = z @ w
+            s_, t_ = (z @ r - b * (w @ r)) / (1 - b * b), (b * (z @ r) - w @ r) / (1 - b * b)
+            foot, new_o = o + s_ * z, p + t_ * w
+            new_x = n / np.linalg.norm(n)
+            d = s_
+        else:
+            if last:  # the end frame's origin on its line: d along the axis, a across
+                d = (p - o) @ z
+                foot, new_o = o + d * z, p
+            else:
+                d, foot = 0.0, o
+                new_o = p + ((o - p) @ w) * w
+            v = new_o - foot
+            if last:  # DH frame 6 is the end frame: its x (what is left across is no DH row's)
+                new_x = end[:3, 0] - (end[:3, 0] @ w) * w
+                new_x = new_x / np.linalg.norm(new_x)
+            elif np.linalg.norm(v) > 1e-9:
+                new_x = v / np.linalg.norm(v)
+            else:
+                new_x = x
+        if new_x @ x < 0:
+            new_x = -new_x
+        a = (new_o - foot) @ new_x
+        alpha = math.atan2(np.cross(z, w) @ new_x, z @ w)
+        theta = math.atan2(np.cross(x, new_x) @ z, x @ new_x)
+        rows.append((theta, d, a, alpha))
+        o, x, z = new_o, new_x, w
+    return np.array(rows)
+
+
+def dh_transforms(dh: np.ndarray, q_rad: np.ndarray) -> np.ndarray:
+    """[N, 4, 4] the DH chain's end (mm) at joint angles [N, 6] rad."""
+    q_rad = np.atleast_2d(q_rad)
+    out = np.repeat(np.eye(4)[None], len(q_rad), axis=0)
+    for i, (theta, d, a, alpha) in enumerate(dh):
+        t = theta + q_rad[:, i]
+        ct, st, ca, sa = np.cos(t), np.sin(t), math.cos(alpha), math.sin(alpha)
+        m = np.zeros((len(q_rad), 4, 4))
+        m[:, 0, 0], m[:, 0, 1], m[:, 0, 2], m[:, 0, 3] = ct, -st * ca, st * sa, a * ct
+        m[:, 1, 0], m[:, 1, 1], m[:, 1, 2], m[:, 1, 3] = st, ct * ca, -ct * sa, a * st
+        m[:, 2, 1], m[:, 2, 2], m[:, 2, 3] = sa, ca, d
+        m[:, 3, 3] = 1.0
+        out = out @ m
+    return out
+
+
+def ur_calibration(geometry: Geometry, model_name: str = "", samples: int = 200) -> tuple[str, dict]:
+    """The UR controller's calibration layout of ``geometry`` (module text): (the text of a
+    ``calibration.conf``, {"dh", "nominal_dh", "delta", "residual_mm"}); P533 for an arm whose
+    nominal chain is not a DH chain in its controller base (a KUKA-type description)."""
+    d = geometry.description
+    controller = (frames.frame_to_matrix(np.asarray(d.controller_base, float))
+                  if getattr(d, "controller_base", None) is not None else np.eye(4))
+    to_dh = np.linalg.inv(controller)
+    rng = np.random.default_rng(0)
+    q = rng.uniform(-np.pi, np.pi, (samples, 6))
+
+    def rows(placements, base):
+        from .robot import Chain
+
+        lines, flange = _chain_lines(placements, d.axes, d.flange_matrix, base)
+        dh = dh_parameters(lines, flange)
+        reference = Chain(placements, d.axes, d.flange_matrix, base).transforms(q)
+        return dh, float(np.linalg.norm(dh_transforms(dh, q)[:, :3, 3] - reference[:, :3, 3], axis=1).max())
+
+    nominal, nominal_off = rows(geometry.nominal_placements, to_dh)
+    if nominal_off > 1e-6:
+        raise PostprocError(f"{d.name}'s nominal chain is no DH chain in its controller base ({nominal_off:.3g} mm "
+                            "off): the UR calibration layout does not apply", code=P533)
+    # a robot's base frame is its first axis: the identified one (z along it, through the point of it
+    # nearest the nominal origin, x the nominal x across it); how far that moved is the mounting's
+    p1, w1 = _chain_lines(geometry.placements[:1], d.axes[:1], np.eye(4), to_dh)[0][0]
+    w1 = w1 / np.linalg.norm(w1)
+    mounting = np.eye(4)
+    x = np.array([1.0, 0.0, 0.0]) - w1[0] * w1
+    mounting[:3, 0], mounting[:3, 2] = x / np.linalg.norm(x), w1
+    mounting[:3, 1] = np.cross(w1, mounting[:3, 0])
+    mounting[:3, 3] = p1 - (p1 @ w1) * w1
+    # the joint geometry only: the identified chain with the nominal flange (the tool's shift and
+    # turn are the TCP's, set as the UR's TCP)
+    dh, off = rows(geometry.placements, np.linalg.inv(mounting) @ to_dh)
+    delta = dh - nominal
+    delta[:, 0] = (delta[:, 0] + np.pi) % (2 * np.pi) - np.pi
+    delta[:, 3] = (delta[:, 3] + np.pi) % (2 * np.pi) - np.pi
+
+    def fmt(values, scale=1.0):
+        return "[" + ", ".join(f"{v * scale:.15g}" for v in values) + "]"
+
+    text = (f"# postproc export of model {model_name!r} ({d.name}): the identified joint geometry as a UR controller's "
+            "calibration (standard DH deltas, m and rad, in the controller's base)\n"
+            f"# the DH chain is {off:.4g} mm from the identified joint geometry at most over {samples} joint angle sets "
+            "(what DH rows cannot hold); not in it: the base (the tracker registration), the tool's shift and turn (the "
+            "UR's TCP), compliance, backlash, gear ripple\n"
+            f"# the base frame is the identified first axis: {_pose_text(mounting)} (X,Y,Z mm, A,B,C deg) in the "
+            "nominal controller base (the mounting's, not calibration.conf's)\n"
+            f"# nominal DH: theta {fmt(nominal[:, 0])}, d {fmt(nominal[:, 1], 1e-3)}, a {fmt(nominal[:, 2], 1e-3)}, "
+            f"alpha {fmt(nominal[:, 3])}\n"
+            "[mounting]\n"
+            f"delta_theta = {fmt(delta[:, 0])}\n"
+            f"delta_a = {fmt(delta[:, 2], 1e-3)}\n"
+            f"delta_d = {fmt(delta[:, 1], 1e-3)}\n"
+            f"delta_alpha = {fmt(delta[:, 3])}\n")
+    return text, {"dh": dh, "nominal_dh": nominal, "delta": delta, "residual_mm": off, "mounting": mounting}
+
+
+def _pose_text(m: np.ndarray) -> str:
+    return "{" + ", ".join(f"{v:.6g}" for v in frames.matrix_to_frame(m)) + "}"

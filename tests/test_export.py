@@ -178,3 +178,41 @@ def test_a_network_model_has_nothing_to_export(tmp_path, affine):
     path = affine()
     assert main(["export", str(path), "-o", str(tmp_path / "x.urdf")]) == 2
     assert not (tmp_path / "x.urdf").exists()
+
+
+def test_the_ur_layout_holds_the_identified_joint_geometry(tmp_path):
+    """A UR model: DH deltas (calibration.conf) whose DH chain is the identified joint geometry (in
+    the base its first axis defines) to well below 1 µm; the nominal rows are UR's published DH."""
+    from postproc.descriptions import dh_transforms, ur_calibration
+    from postproc.training.fitting import fit
+
+    from helpers import REPO
+
+    data = tmp_path / "ipa.csv"
+    assert main(["import", "ipa", str(REPO / "samples" / "ipa" / "series_c_excerpt.csv"), "-o", str(data),
+                 "--register", "-q"]) == 0
+    ur10 = REPO / "models" / "ur10.toml"
+    path = fit(str(data), method="kinematic", robot=str(ur10), pose_only=True, val_fraction=0.1,
+               kinematic=GEOMETRIC).export(tmp_path / "ur.onnx")
+    conf = tmp_path / "calibration.conf"
+    assert main(["export", str(path), "--robot", str(ur10), "--ur", str(conf), "-q"]) == 0
+    text = conf.read_text()
+    assert "[mounting]" in text and "delta_theta = [" in text
+    geometry = identified_geometry(load_model(path), load_description(ur10))
+    _, ur = ur_calibration(geometry)
+    np.testing.assert_allclose(ur["nominal_dh"][:, 1:3].T, [[127.3, 0, 0, 163.941, 115.7, 92.2],
+                                                           [0, -612, -572.3, 0, 0, 0]], atol=1e-9)
+    np.testing.assert_allclose(ur["nominal_dh"][:, 3], np.radians([90, 0, 0, 90, -90, 0]), atol=1e-12)
+    assert np.abs(ur["delta"]).max() > 1e-4 and ur["residual_mm"] < 1e-3
+    # the deltas as a UR applies them (nominal + delta) against the identified chain, read independently
+    q = np.random.default_rng(3).uniform(-3, 3, (50, 6))
+    controller = frames.frame_to_matrix(np.array([0, 0, 0, 180.0, 0, 0]))
+    chain = geometry.tcp(np.degrees(q))  # (base and TCP: take them out)
+    flange = (np.linalg.inv(ur["mounting"]) @ np.linalg.inv(controller) @ np.linalg.inv(geometry.base) @ chain
+              @ np.linalg.inv(geometry.end) @ load_description(ur10).flange_matrix)
+    dh = dh_transforms(ur["nominal_dh"] + ur["delta"], q)
+    assert np.abs(dh[:, :3, 3] - flange[:, :3, 3]).max() < 1e-3
+    # a KUKA-type arm is no DH chain in its base (A1 turns about -Z): refused
+    kuka = tmp_path / "k.conf"
+    assert main(["export", str(REPO / "models" / "default.onnx"), "--ur", str(kuka)]) == 2
+    assert not kuka.exists()

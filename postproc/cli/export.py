@@ -8,6 +8,7 @@ EXAMPLES = """examples:
   postproc export cell3.onnx --robot models/kr500.toml -o cell3.urdf               (the description's own URDF, calibrated)
   postproc export ur10.onnx --robot models/ur10.toml --urdf ur10_nominal.urdf -o ur10_calibrated.urdf
   postproc export cell3.onnx --robot models/kr500.toml --yaml offsets.yaml --json parameters.json
+  postproc export ur10.onnx --robot models/ur10.toml --ur calibration.conf          (a UR controller's DH deltas)
   postproc export --nominal --robot models/kr500.toml -o kr500.urdf                  (the nominal URDF only)
 
 The URDF carries the identified joint placements and zero offsets (joint origins), the base (in the
@@ -36,6 +37,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("-o", "--output", metavar="CALIBRATED.urdf", help="the calibrated URDF to write")
     p.add_argument("--yaml", metavar="OFFSETS.yaml", help="ROS robot_calibration offsets to write")
     p.add_argument("--json", metavar="PARAMETERS.json", help="the identified parameters with their std to write")
+    p.add_argument("--ur", metavar="CALIBRATION.conf", help="a UR model: the UR controller's calibration layout (DH "
+                   "deltas; the part DH rows cannot hold stated in the file)")
     p.add_argument("--nominal", action="store_true", help="write the description's nominal URDF to -o (no model)")
     p.set_defaults(run=run)
 
@@ -47,16 +50,16 @@ def run(args) -> int:
     from ..diagnostics import P308, PostprocError
     from ..robot import load_description
 
-    wanted = [p for p in (args.output, args.yaml, args.json) if p]
+    wanted = [p for p in (args.output, args.yaml, args.json, args.ur) if p]
     if not wanted:
-        raise PostprocError("nothing to write: give -o CALIBRATED.urdf, --yaml and/or --json", code=P308)
+        raise PostprocError("nothing to write: give -o CALIBRATED.urdf, --yaml, --json and/or --ur", code=P308)
     targets = outputs.check_outputs(wanted, [args.model, args.urdf, args.robot])
     description = load_description(args.robot)
     from ..descriptions import (calibrated_urdf, calibration_yaml, identified_geometry, nominal_urdf,
-                                parameters_json)
+                                parameters_json, ur_calibration)
 
     if args.nominal:
-        if args.yaml or args.json or not args.output:
+        if args.yaml or args.json or args.ur or not args.output:
             raise PostprocError("--nominal writes the description's URDF to -o only", code=P308)
         outputs.write([(targets[0], nominal_urdf(description))])
         return 0
@@ -84,6 +87,12 @@ def run(args) -> int:
         files.append((Path(args.yaml), calibration_yaml(offsets, model.name)))
     if args.json:
         files.append((Path(args.json), json.dumps(parameters_json(model, geometry), indent=2) + "\n"))
+    if args.ur:
+        conf, ur = ur_calibration(geometry, model.name)
+        files.append((Path(args.ur), conf))
+        if not args.quiet:
+            print(f"postproc export: UR layout: the DH chain is {ur['residual_mm']:.4g} mm from the identified one at "
+                  "most (the rest DH rows cannot hold)", file=sys.stderr)
     outputs.write(files)
     if not args.quiet:
         moved = max(float(abs(m[:3, 3]).max()) for m in offsets.values())
