@@ -44,8 +44,33 @@ def _targets(model, n=30, seed=5):
     env = model.envelope
     rng = np.random.default_rng(seed)
     poses = np.c_[rng.uniform(env.box[0::2], env.box[1::2], (n, 3)), env.attitude + rng.uniform(-5, 5, (n, 3))]
+    poses = poses.astype(np.float32).astype(float)  # (the poses the graph sees: its input is float32)
     error, q = model.predict(poses, with_joints=True)
-    return q, poses[:, :3] - error
+    return _refined(load_description(), poses, q), poses[:, :3] - error
+
+
+def _refined(description, poses: np.ndarray, q_deg: np.ndarray) -> np.ndarray:
+    """The nominal IK's joint angles in float64: the graph's ``ik_joints`` (float32 deg, ~1e-7 rad)
+    refined by Newton steps on the nominal FK to the poses themselves (the angles the graph used)."""
+    from postproc import frames
+    from postproc.robot import Robot
+
+    robot = Robot(description)
+    target = frames.frame_to_matrix(poses)
+    q = np.radians(np.asarray(q_deg, float))
+    for _ in range(3):
+        now = robot.fk_matrix(np.degrees(q))
+        residual = np.c_[target[:, :3, 3] - now[:, :3, 3],
+                         frames.rotvec_from_rotation(target[:, :3, :3] @ np.swapaxes(now[:, :3, :3], 1, 2)) * 1000.0]
+        jac = np.empty((len(q), 6, 6))
+        for k in range(6):
+            step = np.zeros(6)
+            step[k] = 1e-7
+            moved = robot.fk_matrix(np.degrees(q + step))
+            jac[:, :, k] = np.c_[moved[:, :3, 3] - now[:, :3, 3], frames.rotvec_from_rotation(
+                moved[:, :3, :3] @ np.swapaxes(now[:, :3, :3], 1, 2)) * 1000.0] / 1e-7
+        q = q + np.linalg.solve(jac, residual[..., None])[..., 0]
+    return np.degrees(q)
 
 
 def _pin_tcp(urdf_text: str, q_deg: np.ndarray, frame: str = "postproc_tcp", tmp=None) -> np.ndarray:
