@@ -43,7 +43,7 @@ def feeds(sess: ort.InferenceSession, poses: np.ndarray) -> dict[str, np.ndarray
     pose = poses.astype(np.float32)
     nan = np.full((n, 6), np.nan, np.float32)
     tool = np.tile(np.array([300, 0, 75, 0, 0, 0], np.float32), (n, 1))
-    names = [i.name for i in sess.get_inputs()]
+    names = [i.name for i in (*sess.get_inputs(), *sess.get_overridable_initializers())]  # (optional inputs too)
     base = {"pose": pose, "previous_pose": np.vstack([pose[:1], pose[:-1]]), "joints": nan, "approach": nan,
             "tool": tool, "previous_joints": nan}
     base = {k: v for k, v in base.items() if k in names}

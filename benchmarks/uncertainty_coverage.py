@@ -178,7 +178,7 @@ def onnx_part(data: str) -> None:
     poses = latin_hypercube(8192, seed=7).astype(np.float32)
     nan = np.full(poses.shape, np.nan, np.float32)
     given = {"pose": poses, "previous_pose": np.r_[poses[:1], poses[:-1]]}
-    feeds = {i.name: given.get(i.name, nan) for i in model.session.get_inputs()}  # (the others unknown: NaN)
+    feeds = {i.name: given.get(i.name, nan) for i in (*model.session.get_inputs(), *model.session.get_overridable_initializers())}  # (the others unknown: NaN)
     timings = {}
     for label, names in (("error+ik_joints", [OUTPUT_ERROR, OUTPUT_JOINTS]),
                          ("+error_std", [OUTPUT_ERROR, OUTPUT_JOINTS, OUTPUT_STD])):

@@ -1,7 +1,15 @@
 """The compensator: one ONNX file that maps commanded TCP poses to positioning errors.
 
-Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (which runs it):
+Contract (version 2), shared by ``train`` (which writes it) and ``compensate`` (which runs it),
+and the interface of any other program that runs the file (onnxruntime alone: ``examples/``,
+``docs/INTEGRATION.md``):
 
+* every input but ``pose`` is optional in the ONNX sense: the graph carries a default for it
+  (an initializer of the same name, float32 [1, 6] NaN, broadcast to ``pose``'s rows:
+  ``contract.with_defaults``), so a caller that omits it gets its NaN meaning below, and an
+  omitted ``previous_pose`` (or a row of it with a NaN) is the pose itself; contract-1 files
+  (``postproc_contract`` "1") have the same inputs without defaults (``postproc model upgrade``
+  adds them); ``Compensator`` feeds every input the graph takes either way;
 * input ``pose``: float32 [N, 6] = X, Y, Z (mm), A, B, C (deg) in the robot base frame;
 * optional input ``previous_pose``: float32 [N, 6], the pose commanded just before each
   target (program order), for models that learn direction-dependent error (backlash);
@@ -62,7 +70,9 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   computes only the outputs asked for: ``compensate`` and ``check`` ask for it at the final
   commands (in the run the approach settling makes there: ``command_chunks(std=True)``), and
   only to hold the targets to ``--max-std`` (P336);
-* ``metadata_props`` (values JSON-encoded where structured): ``postproc_contract`` "1",
+* ``metadata_props`` (values JSON-encoded where structured; JSON Schema
+  ``postproc/schemas/model_card.schema.json``, ``model_card.py``): ``postproc_contract`` "2" (a
+  newer version is refused naming it),
   ``name``, ``robot``, ``tool`` {"name", "frame", optional "measured": [[X,Y,Z,A,B,C], ...]
   the TCPs of the data, "unseparated": [[x,y,z], ...] unit directions (flange frame) of the
   mount rotation the data cannot tell from a shift (P319 where a TCP's lever arm makes them
@@ -120,7 +130,10 @@ import numpy as np
 from .diagnostics import P306, P307, P308, PostprocError
 from .resources import model_path
 
-CONTRACT_VERSION = "1"
+CONTRACT_VERSION = "2"
+# the contract versions this postproc reads: 1 (every input a graph takes required), 2 (the
+# optional inputs carry defaults: contract.py); a newer file is refused naming its version
+CONTRACT_VERSIONS = ("1", "2")
 INPUT_POSE = "pose"
 INPUT_PREVIOUS = "previous_pose"
 OUTPUT_ERROR = "error"
@@ -247,6 +260,7 @@ class Compensator:
     has_std: bool = False  # the graph also outputs ``error_std``
     wants_approach: bool = False  # the graph takes fixed approach signs (``approach``)
     settle: bool = True  # settle the commands on their approach where the model can (False: the plain fixed point)
+    defaults: tuple = ()  # the inputs a caller may omit (their default initializers: contract 2, contract.py)
 
     @property
     def settles(self) -> bool:
@@ -986,13 +1000,17 @@ def load_model(path: str | Path | None = None) -> Compensator:
         session = inference_session(data)  # (the graph optimised once per model: session.py)
     except Exception as exc:  # onnxruntime raises its own exception types
         raise PostprocError(f"not an ONNX model: {str(exc).splitlines()[0][:200]}", str(path), code=P306) from exc
-    inputs = {i.name: i for i in session.get_inputs()}
+    # (an optional input with its default initializer is an "overridable initializer" to onnxruntime)
+    inputs = {i.name: i for i in (*session.get_inputs(), *session.get_overridable_initializers())}
     outputs = {o.name: o for o in session.get_outputs()}
     joints_output = OUTPUT_JOINTS if OUTPUT_JOINTS in outputs or INPUT_JOINTS in inputs else LEGACY_OUTPUT_JOINTS
     problems = _interface_problems(inputs, outputs, joints_output)
     if problems:
         raise PostprocError("not a postproc compensator: " + "; ".join(problems), str(path), code=P306)
     meta = {k: _json_or_text(v) for k, v in session.get_modelmeta().custom_metadata_map.items()}
+    problem = _version_problem(meta)
+    if problem:
+        raise PostprocError(problem, str(path), code=P306)
     problem = _metadata_problem(meta)
     if problem:
         raise PostprocError(f"model card (metadata_props) is malformed: {problem}", str(path), code=P306)
@@ -1011,7 +1029,25 @@ def load_model(path: str | Path | None = None) -> Compensator:
         has_rotation=OUTPUT_ROTATION in outputs,
         has_std=OUTPUT_STD in outputs,
         wants_approach=INPUT_APPROACH in inputs,
+        defaults=tuple(i.name for i in session.get_overridable_initializers()),
     )
+
+
+def contract_version(meta: dict) -> str:
+    """The contract version of a model card (``postproc_contract``; a file without one, made by
+    other tools, is read as version 1)."""
+    value = meta.get("postproc_contract", "1")
+    return str(value) if not isinstance(value, float) else f"{value:g}"
+
+
+def _version_problem(meta: dict) -> str | None:
+    version = contract_version(meta)
+    if version in CONTRACT_VERSIONS:
+        return None
+    newer = version.isdigit() and int(version) > int(CONTRACT_VERSIONS[-1])
+    return (f"model contract version {version!r} (metadata postproc_contract) is "
+            + ("newer than this postproc reads" if newer else "not a contract version")
+            + f" (it reads {', '.join(CONTRACT_VERSIONS)}){': update postproc' if newer else ''}")
 
 
 def _numbers(value, n: int) -> bool:

@@ -127,6 +127,11 @@ P404 = _code("P404", "error", "the .src and .dat do not come from one compensati
 P405 = _code("P405", "error", "compensated output is stale: re-compensating its source gives other bytes")
 P406 = _code("P406", "error", "compensated output is missing")
 P407 = _code("P407", "warning", "compensated output has no source")
+P408 = _code("P408", "error", "the controller's own absolute-accuracy model is active (the backup's $ABS_ACCUR in "
+             "Mada/$machine.dat or $custom.dat): compensating would correct the error twice; compensate refuses "
+             "unless --force")
+P409 = _code("P409", "warning", "the controller's own absolute-accuracy model is suppressed for now ($ABS_ACCUR "
+             "#SUPPRESSED): the program is compensated, and would be corrected twice where the model is switched on again")
 # P5xx: data (measurement and pose CSV files, registration, plans)
 P500 = _code("P500", "error", "a data file that cannot be read, is empty or has no rows")
 P501 = _code("P501", "error", "a data file's columns: missing, misnamed, repeated, or given twice")
@@ -148,6 +153,14 @@ P515 = _code("P515", "error", "a_meas,b_meas,c_meas more than 5° (median) from 
              "frame, the probe's own axes or radians")
 P516 = _code("P516", "error", "a training option the method does not have (--search, --optimizer: the pose-only "
              "networks'; it was ignored for the identified methods)")
+P530 = _code("P530", "error", "an imported measurement file that does not state its units or its frame (no silent "
+             "metres): a 'units:' / 'frame:' line or units in the header")
+P531 = _code("P531", "error", "three-reflector measurements: the reflectors' places on the TCP frame missing or not "
+             "three points, or a row whose three centres do not fit them (a swapped or moved SMR)")
+P532 = _code("P532", "error", "imported points and commanded poses that do not match (a name without its pose, a "
+             "pose measured twice, other counts where matched by order)")
+P533 = _code("P533", "error", "postproc export: a nominal URDF that is not XML, has no chain of six revolute joints, "
+             "or whose joints are not the robot description's (other axes, joint zeros, directions or lengths)")
 # P6xx: a command's own inputs
 P601 = _code("P601", "error", "verify's original and compensated programs are not one program")
 P610 = _code("P610", "error", "bad settings (unknown key, bad value, bad TOML)")

@@ -5,9 +5,10 @@ rule, one place. :func:`findings` returns every finding as a :class:`Diagnostic`
 
 One function per code family, in the order compensate applies them:
 
-* :func:`stamp_rule` P401 (already compensated), :func:`fit_rule` P304/P310 (another tool
-  or robot), :func:`shared_rule` P202 (one set of numbers in two frames) — each lifted by
-  ``force``;
+* :func:`stamp_rule` P401 (already compensated, at the stamp's line), :func:`accuracy_rule`
+  P408/P409 (a KUKA backup whose controller corrects the error itself: its absolute-accuracy
+  model active / suppressed), :func:`fit_rule` P304/P310 (another tool or robot),
+  :func:`shared_rule` P202 (one set of numbers in two frames) — each lifted by ``force``;
 * :func:`frame_rule` P103 (a frame that is not finite);
 * :func:`known_rule` P212 (position not known), P213 (orientation not known), P216
   (a partial aggregate, refused only with ``fill_partial=False``);
@@ -34,7 +35,7 @@ from . import frames
 from .compensator import Compensator, Inside, Order
 from .diagnostics import (
     P103, P202, P212, P213, P216, P218, P230, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P336, P401,
-    Diagnostic, PostprocError,
+    P408, P409, Diagnostic, PostprocError, line_col,
 )
 from .programs import Program
 
@@ -56,7 +57,7 @@ class Settings:
     iterations: int | None = None
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM
     robot: str | None = None  # the robot the program is for (P310)
-    force: bool = False  # lifts P401, P304, P310, P202
+    force: bool = False  # lifts P401, P408, P409, P304, P310, P202
     fill_partial: bool = True  # False: a partial aggregate is refused (P216), not filled in
     reachable: Callable[[np.ndarray], np.ndarray] | None = None  # robot-base poses → bool mask (P309)
     chain: object = None  # compensator.Chain: a part of a program after the parts before (streaming compensate)
@@ -226,8 +227,35 @@ def stamp_rule(program: Program, settings: Settings) -> list[Diagnostic]:
     if not program.stamps or settings.force:
         return []
     index, stamp = next(iter(program.stamps.items()))
-    return [Diagnostic(program.files[index], 1, 1, P401, f"already compensated ({stamp.lstrip(';# ')}); "
+    text = program.texts[index] if index < len(program.texts) else ""
+    line, col = line_col(text, text.find(stamp)) if stamp in text else (1, 1)
+    return [Diagnostic(program.files[index], line, col, P401, f"already compensated ({stamp.lstrip(';# ')}); "
                        "use --force to compensate again", "error")]
+
+
+def accuracy_rule(program: Program, settings: Settings) -> list[Diagnostic]:
+    """P408: a KRL program in a controller backup whose machine data switch on the controller's
+    own absolute-accuracy model (``$ABS_ACCUR``): the controller corrects the positioning error
+    itself, postproc's correction would be a second one. P409 (a warning) where that model is
+    suppressed for now. Located at the machine data's line (``programs.krl.machine``)."""
+    if settings.force or program.dialect != "krl":
+        return []
+    from .programs.krl.machine import backup_accuracy
+
+    try:
+        model = backup_accuracy(program.files)
+    except PostprocError as exc:
+        return [exc.diagnostic()]
+    if model is None:
+        return []
+    if model.state == "active":
+        return [Diagnostic(model.path, model.line, model.col, P408,
+                           f"{model.value}: the controller's absolute-accuracy model is active for this robot; its "
+                           "own correction and postproc's would add up (compensated twice); leave the program as "
+                           "written, switch that model off, or --force to compensate anyway", "error")]
+    return [Diagnostic(model.path, model.line, model.col, P409,
+                        f"{model.value}: the controller's absolute-accuracy model is suppressed for now; where it is "
+                        "switched on again this program is corrected twice", "warning")]
 
 
 def fit_rule(program: Program, model: Compensator, settings: Settings) -> list[Diagnostic]:
@@ -449,7 +477,8 @@ def std_rule(program: Program, model: Compensator, settings: Settings, commands:
 
 def select_with_findings(program: Program, model: Compensator, settings: Settings) -> tuple[Selection, list[Diagnostic]]:
     """The targets the model takes, and every finding that needs no model output."""
-    out = stamp_rule(program, settings) + fit_rule(program, model, settings) + shared_rule(program, settings)
+    out = (stamp_rule(program, settings) + accuracy_rule(program, settings) + fit_rule(program, model, settings)
+           + shared_rule(program, settings))
     poses, use = robot_base_poses(program, model_bases(program, model))
     held = held_rule(program, use)
     out += frame_rule(program, use)

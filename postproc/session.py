@@ -157,7 +157,8 @@ def _cut(data: bytes, outputs: tuple[str, ...]) -> bytes | None:
     kept_outputs = [o for o in graph.output if o.name in outputs]
     if len(kept_outputs) != len(set(outputs)):
         return None
-    initializers = [i for i in graph.initializer if i.name in needed]
+    inputs = {i.name for i in graph.input}  # (an optional input's default kept with it: contract.py)
+    initializers = [i for i in graph.initializer if i.name in needed or i.name in inputs]
     del graph.node[:], graph.output[:], graph.initializer[:]
     graph.node.extend(reversed(keep))
     graph.output.extend(kept_outputs)

@@ -14,7 +14,7 @@ def _feeds(sess, n=500, seed=0):
     q = rng.uniform([-150, -120, 10, -180, -100, -300], [150, -30, 140, 180, 100, 300], (n, 6))
     poses = robot.fk(q).astype(np.float32)  # a spread of the workspace: the correction varies
     feeds = {}
-    for i in sess.get_inputs():
+    for i in (*sess.get_inputs(), *sess.get_overridable_initializers()):  # (the optional inputs too)
         feeds[i.name] = {"pose": poses, "joints": q.astype(np.float32)}.get(
             i.name, np.roll(poses, 1, axis=0) if "previous" in i.name else np.zeros((n, 6), np.float32))
     return feeds
@@ -95,7 +95,8 @@ def test_a_graph_cut_to_some_outputs_gives_their_numbers_bit_for_bit(tmp_path, m
     names = ("error", "ik_joints")
     cut = ps.inference_session(model_bytes, names)
     assert [o.name for o in cut.get_outputs()] == list(names)
-    assert {i.name for i in cut.get_inputs()} == {i.name for i in whole.get_inputs()}
+    assert ({i.name for i in (*cut.get_inputs(), *cut.get_overridable_initializers())}
+            == {i.name for i in (*whole.get_inputs(), *whole.get_overridable_initializers())})
     feeds = _feeds(whole)
     want = whole.run(list(names), feeds)
     for got, expected in zip(cut.run(list(names), feeds), want):

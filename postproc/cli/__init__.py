@@ -28,6 +28,8 @@ SUBCOMMANDS = [
     "import_data",
     "report",
     "fleet",
+    "model",
+    "export",
 ]
 
 
@@ -47,7 +49,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="postproc",
         description="Compensate industrial-robot positioning error in robot programs (KUKA KRL, pose lists).",
-        epilog="Exit codes: 0 ok, 1 findings (check) or gate exceeded (verify --max-mean), 2 error (nothing written).",
+        epilog="Exit codes: 0 ok, 1 findings (check) or a limit exceeded (verify/report --max-mean ...), 2 error (nothing written).",
         formatter_class=Formatter,
     )
     parser.add_argument("--version", action="version", version=f"postproc {__version__}")
@@ -105,11 +107,12 @@ def _internal_error(exc: Exception, args) -> int:
 
 
 # optional dependencies: the module a subcommand imports -> the extra that installs it
-EXTRA_OF_MODULE = {"pinocchio": "sim", "torch": "train", "onnx": "train", "matplotlib": "report", "dask": "fleet",
+EXTRA_OF_MODULE = {"pinocchio": "sim", "torch": "train", "onnx": "train", "matplotlib": "report", "jsonschema": "report",
+                   "dask": "fleet",
                    "distributed": "fleet"}
 # modules in more than one extra: the subcommand says which one
 EXTRA_OF_COMMAND = {"plan": "sim", "measure": "sim", "verify": "sim", "train": "train", "import": "train",
-                    "report": "report"}
+                    "report": "report", "export": "train", "model": "train"}
 OPTIONAL_MODULES = set(EXTRA_OF_MODULE) | {"scipy", "tqdm"}
 
 

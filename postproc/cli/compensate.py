@@ -60,7 +60,10 @@ def add_parser(sub, common, formatter) -> None:
                    "command)")
     p.add_argument("--in-place", action="store_true", help="allow -o to be the input itself (overwrite it)")
     p.add_argument("--force", action="store_true",
-                   help="compensate an already compensated program / another tool's or robot's program")
+                   help="compensate anyway: an already compensated program (P401), a robot whose backup switches on "
+                   "the controller's own absolute-accuracy model ($ABS_ACCUR: P408/P409; its correction and this one "
+                   "then add up), another tool's or robot's program (P304/P310), one set of numbers in two frames "
+                   "(P202)")
     p.set_defaults(run=run)
 
 

@@ -5,9 +5,19 @@ import sys
 
 EXAMPLES = """\
 Formats:
-  ipa   IPA robot-accuracy data (UR10 + laser tracker, Landgraf et al. 2021): ';'-separated,
-        decimal comma, Goal pose in m / rad (extrinsic roll-pitch-yaw), measurement in mm
-        in the tracker's frame.
+  ipa              IPA robot-accuracy data (UR10 + laser tracker, Landgraf et al. 2021): ';'-separated,
+                   decimal comma, Goal pose in m / rad (extrinsic roll-pitch-yaw), measurement in mm
+                   in the tracker's frame.
+  spatialanalyzer  a SpatialAnalyzer point export (name, X, Y, Z) + --poses PLAN.csv (the commanded
+                   poses, postproc's plan CSV), matched by name where both name their rows, else by order.
+  robodk           a RoboDK-style calibration table: J1..J6 and the measured X, Y, Z; the commanded
+                   pose is the nominal FK of the joints (--robot, its tool or --tool).
+  reflectors       three-reflector flange measurements: x,y,z,a,b,c and r1_x..r3_z, the reflectors'
+                   places on the TCP frame in a '// reflectors: x,y,z; x,y,z; x,y,z' line: each row's
+                   measured TCP position and orientation (a_meas,b_meas,c_meas).
+  The three state their units ('// units: mm, deg' or 'X [mm]') and frame ('// frame: tracker' or
+  '// frame: base') in the file, or are refused (P530): postproc converts m, in and rad but never guesses.
+  Samples: samples/import/ (made by samples/import/make_samples.py from the simulated robot).
 
 Output: `x,y,z,a,b,c,x_meas,y_meas,z_meas,q1..q6,temperature` (mm, KUKA A,B,C and joint
 angles in degrees, °C), rows in the file's order, after `# key: value` lines. The first,
@@ -21,6 +31,9 @@ rows (`# probe_rotation`), so that `train` fits the orientation error too.
 
 Examples:
   postproc import ipa Series_C/measurements_random_poses.csv -o measured.csv
+  postproc import spatialanalyzer samples/import/sa_points.txt --poses samples/import/sa_plan.csv -o m.csv --register
+  postproc import robodk samples/import/robodk_calibration.csv --robot models/kr500.toml -o m.csv --register
+  postproc import reflectors samples/import/three_reflectors.csv -o m.csv --register
   postproc train measured.csv --register ...
   postproc import ipa Series_C/measurements_random_poses.csv -o base.csv --register --split-seed 0 --val-fraction 0.2
 """
@@ -31,12 +44,18 @@ def add_parser(sub, common, formatter) -> None:
         "import",
         parents=[common],
         formatter_class=formatter,
-        help="convert a public measurement data set (IPA UR10 tracker data) into a measurement CSV",
-        description="Convert a public measurement data set into postproc's measurement CSV.",
+        help="convert measurements (IPA data set, SpatialAnalyzer, RoboDK-style CSV, three reflectors) into a "
+        "measurement CSV",
+        description="Convert measurements from a public data set or a cell's measuring tools into postproc's "
+        "measurement CSV.",
         epilog=EXAMPLES,
     )
-    p.add_argument("format", choices=["ipa"], help="format of SRC")
-    p.add_argument("src", metavar="SRC", help="the data set's measurement file")
+    p.add_argument("format", choices=["ipa", "spatialanalyzer", "robodk", "reflectors"], help="format of SRC")
+    p.add_argument("src", metavar="SRC", help="the measurement file")
+    p.add_argument("--poses", metavar="PLAN.csv", help="spatialanalyzer: the commanded poses (x,y,z,a,b,c [, name])")
+    p.add_argument("--robot", metavar="FILE.toml", help="robodk: the robot description whose nominal FK gives the "
+                   "commanded poses (default models/kr500.toml)")
+    p.add_argument("--tool", metavar="X,Y,Z,A,B,C", help="robodk: the TCP on the flange (default: the description's)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.csv", help="measurement CSV to write")
     p.add_argument(
         "--register",
@@ -62,6 +81,8 @@ def add_parser(sub, common, formatter) -> None:
 
 
 def run(args) -> int:
+    if args.format != "ipa":
+        return run_tool(args)
     import os
 
     import numpy as np
@@ -109,4 +130,66 @@ def run(args) -> int:
             f"postproc import: {len(series)} rows {args.src} -> {args.output} (frame: {metadata['frame']}{summary})",
             file=sys.stderr,
         )
+    return 0
+
+
+def run_tool(args) -> int:
+    """spatialanalyzer / robodk / reflectors: ``postproc.imports`` → the measurement CSV (with
+    ``--register``: tracker → base fitted on the rows outside ``--val-fraction``)."""
+    import numpy as np
+
+    from .. import imports
+    from ..diagnostics import P308, P513, PostprocError
+    from ..measurements import write_measurements
+    from ..outputs import check_outputs
+
+    if args.format == "spatialanalyzer" and not args.poses:
+        raise PostprocError("spatialanalyzer needs --poses PLAN.csv: the commanded poses the points were measured at",
+                            code=P308)
+    check_outputs([args.output], [args.src, args.poses])
+    if args.format == "spatialanalyzer":
+        data = imports.read_spatial_analyzer(args.src, args.poses)
+    elif args.format == "robodk":
+        from ..robot import load_description
+
+        tool = None
+        if args.tool:
+            try:
+                tool = np.array([float(v) for v in args.tool.split(",")], float)
+            except ValueError:
+                tool = np.zeros(0)
+            if tool.shape != (6,) or not np.isfinite(tool).all():
+                raise PostprocError(f"--tool {args.tool!r}: expected X,Y,Z,A,B,C", code=P308)
+        data = imports.read_robodk(args.src, load_description(args.robot), tool)
+    else:
+        data = imports.read_reflectors(args.src)
+    measured, extra, metadata = data.measured, dict(data.extra), dict(data.metadata)
+    orientation = data.orientation
+    summary = ""
+    if args.register:
+        from .. import frames
+        from ..registration import register_measurements
+        from ..simulator import nearest_triple
+        from ..training.data import split_indices
+
+        if data.frame == "base":
+            raise PostprocError("--register: the file states frame: base, its points are in the robot base already",
+                                args.src, code=P513)
+        held = np.zeros(len(data), dtype=bool)
+        held[split_indices(len(data), args.val_fraction, args.split_seed)[1]] = True
+        measured, transform, rms = register_measurements(data.commanded[:, :3], data.measured, ~held)
+        metadata.update(frame="base", registration=f"rigid (Kabsch) fit on {int((~held).sum())} rows (holdout = 0; "
+                        f"seed {args.split_seed}, val fraction {args.val_fraction}), rms {rms:.3f} mm",
+                        tracker_to_base=" ".join(f"{v:.9g}" for v in transform[:3].ravel()))
+        if orientation is not None:  # the measured orientation turns with the frame
+            turned = transform[:3, :3] @ frames.rotation_from_abc(orientation)
+            orientation = nearest_triple(frames.abc_from_rotation(turned), data.commanded[:, 3:6])
+        extra["holdout"] = held.astype(float)
+        summary = f"; registration fitted on {int((~held).sum())} rows, rms {rms:.3f} mm"
+    if orientation is not None:
+        extra = {**dict(zip(("a_meas", "b_meas", "c_meas"), orientation.T)), **extra}
+    write_measurements(args.output, data.commanded, measured, extra, metadata)
+    if not args.quiet:
+        print(f"postproc import: {len(data)} rows {args.src} -> {args.output} (frame: {metadata['frame']}{summary})",
+              file=sys.stderr)
     return 0

@@ -21,7 +21,8 @@ the compensated program ran (its x_meas,y_meas,z_meas, row by row; or x_after,y_
 columns in MEASURED.csv): then it is the measured residual.
 
 writes: report.md (Table 2: max/min/mean/std of |E| before and after, mm; the model card),
-summary.json, series.csv + histogram.csv (the plotted numbers), error_histogram.png,
+summary.json, verdict.json (pass/fail against --max-mean/--max-p95/--max-max/--max-orientation-mean,
+the figures, the model's sha256; exit 1 where a limit fails; schema postproc/schemas/verdict.schema.json), series.csv + histogram.csv (the plotted numbers), error_histogram.png,
 error_vectors.png, predicted_vs_measured.png (needs matplotlib: pip install 'postproc[report]').
 """
 
@@ -42,6 +43,9 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--after", metavar="AFTER.csv",
                    help="measurement of the compensated program (same rows, same order): the measured 'after'")
     p.add_argument("--title", default="Positioning accuracy", help="heading of report.md")
+    from ..verdict import add_limit_arguments
+
+    add_limit_arguments(p)
     p.add_argument("--iso9283", action="store_true",
                    help="ISO 9283 pose test: cluster rows to their poses, AP/RP per pose before (and --after) "
                    "compensation; writes iso9283.json and the certificate (certificate.md/.html/.png)")
@@ -54,13 +58,39 @@ def run(args) -> int:
     from ..report import read_report_data, write_report
 
     import matplotlib  # noqa: F401  (only to fail early: postproc.cli names the extra to install)
+    from ..verdict import Limits
+
+    if args.iso9283 and Limits.of(args).stated:
+        from ..diagnostics import P308, PostprocError
+
+        raise PostprocError("--max-mean/--max-p95/--max-max/--max-orientation-mean hold the report's Table 2, not the "
+                            "ISO 9283 pose test's AP/RP: give them without --iso9283", code=P308)
     if args.iso9283:  # the model only for the certificate's card: never a default that may be another robot's
         from .iso9283 import run_report
 
         return run_report(args, load_model(args.model) if args.model else None)
+    from ..verdict import Limits, failed_lines, model_entry, verdict
+
+    limits = Limits.of(args)
     model = load_model(args.model or load_config().model)
     data = read_report_data(args.measured, model, args.after)
     files = write_report(data, args.output, args.title)
+    from ..report import summary as _summary
+
+    numbers = _summary(data)
+    angles = numbers["orientation_deg"]
+    document = verdict("report", limits, {
+        "before": numbers["table2_mm"]["before"], "after": numbers["table2_mm"]["after"],
+        "orientation_before": None if angles is None else angles["before"],
+        "orientation_after": None if angles is None else angles["after"], "targets": len(data)},
+        model_entry(model), {"measured": args.measured, "after": args.after})
+    import json
+    from pathlib import Path
+
+    from ..outputs import write
+
+    files["verdict"] = Path(args.output) / "verdict.json"
+    write([(files["verdict"], json.dumps(document, indent=2) + "\n")])
     if not args.quiet:
         from ..report import summary
 
@@ -84,4 +114,7 @@ def run(args) -> int:
         if args.verbose:
             for role, path in files.items():
                 print(f"  {role}: {path}", file=sys.stderr)
+    if not document["passed"]:
+        print(f"postproc report: FAILED: {'; '.join(failed_lines(document))} (verdict.json)", file=sys.stderr)
+        return 1
     return 0

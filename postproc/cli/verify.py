@@ -7,6 +7,7 @@ EXAMPLES = """examples:
   postproc verify part.src out/part.src                       (KRL: .dat beside each .src)
   postproc verify part.src out/part.src --config KRC/R1/System/$config.dat --json
   postproc verify poses.csv poses_comp.csv --robot-seed 3 --max-mean 0.1   (exit 1 if above)
+  postproc verify part.src out/part.src --max-mean 0.1 --max-p95 0.2 --verdict verdict.json   (a cell's CI gate)
 
 Error = distance between each target of ORIGINAL (robot base frame) and where the simulated
 robot's TCP goes when commanded that target (before) or the corresponding target of
@@ -38,7 +39,13 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--seed", type=int, default=0, metavar="S", help="measurement noise seed (default 0)")
     p.add_argument("--no-noise", action="store_true", help="exact positions: no tracker noise, no repeatability")
     p.add_argument("--json", action="store_true", help="print the figures as JSON on stdout")
-    p.add_argument("--max-mean", type=float, metavar="MM", help="exit 1 if the compensated mean error exceeds MM")
+    from ..verdict import add_limit_arguments
+
+    add_limit_arguments(p)
+    p.add_argument("--verdict", metavar="VERDICT.json", help="write the pass/fail verdict (limits, checks, figures, "
+                   "inputs' sha256; schema postproc/schemas/verdict.schema.json) for a CI job to gate on")
+    p.add_argument("--model", metavar="M", help="the model the program was compensated with (its name and sha256 "
+                   "go into the verdict; the figures do not depend on it)")
     p.set_defaults(run=run)
 
 
@@ -164,8 +171,24 @@ def run(args) -> int:
     notes += n1 + n2
     options = execution(original, rows, sim)
     _check_reach(sim, ((original, p_orig, "ORIGINAL"), (compensated, p_comp, "COMPENSATED")), rows, options)
+    from ..verdict import Limits, failed_lines, model_entry, verdict
+
+    limits = Limits.of(args)
+    if args.verdict:
+        from ..outputs import check_outputs
+
+        check_outputs([args.verdict], [args.original, args.compensated])
     result = sim.verify(p_orig, p_comp, rng_seed=args.seed, noise=not args.no_noise, **options)
-    failed = args.max_mean is not None and result["after"]["mean"] > args.max_mean
+    model = None
+    if args.model:
+        from ..compensator import load_model
+
+        model = load_model(args.model)
+    document = verdict("verify", limits, {"before": result["before"], "after": result["after"],
+                                          "orientation_before": result["orientation_before"],
+                                          "orientation_after": result["orientation_after"], "targets": int(len(p_orig))},
+                       model_entry(model), {"original": args.original, "compensated": args.compensated})
+    failed = not document["passed"]
     figures = {
         "targets": int(len(p_orig)),
         "skipped": skipped,
@@ -178,9 +201,15 @@ def run(args) -> int:
         "orientation_before_deg": result["orientation_before"],
         "orientation_after_deg": result["orientation_after"],
     }
-    if args.max_mean is not None:
-        figures["max_mean"] = args.max_mean
+    if limits.stated:
+        figures.update(limits.stated)
         figures["passed"] = not failed
+    if args.verdict:
+        from pathlib import Path
+
+        from ..outputs import write
+
+        write([(Path(args.verdict), json.dumps(document, indent=2) + "\n")])
     if not args.quiet:
         for note in notes:
             print(f"postproc: warning: {note}", file=sys.stderr)
@@ -189,8 +218,8 @@ def run(args) -> int:
     else:
         _print_table(result, len(p_orig), sim, figures["noise"])
     if not args.quiet:
-        gate = "" if args.max_mean is None else (f"; FAILED: mean {result['after']['mean']:.3f} > {args.max_mean:g} mm"
-                                                 if failed else f"; mean within {args.max_mean:g} mm")
+        gate = "" if not limits.stated else (f"; FAILED: {'; '.join(failed_lines(document))}" if failed
+                                             else "; within the limits stated")
         a = result["after"]
         print(f"postproc: verify: mean error {result['before']['mean']:.3f} → {a['mean']:.3f} mm "
               f"(after: p95 {a['p95']:.3f}, max {a['max']:.3f} mm){gate}", file=sys.stderr)

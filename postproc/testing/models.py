@@ -1,7 +1,9 @@
 """Small ONNX compensators built with onnx.helper, for tests and benchmarks (no torch needed).
 
 ``affine_model(offset, gain)`` predicts E = offset + gain · (xyz − centre): zero, constant
-and position-dependent models with the full contract metadata.
+and position-dependent models with the full contract metadata. Each optional input has its
+default (``contract.with_defaults``), as in every exported graph; ``defaults=False`` writes a
+file as contract 1 did (every input required).
 """
 from __future__ import annotations
 
@@ -12,15 +14,20 @@ import onnx
 from onnx import TensorProto, helper, numpy_helper
 
 from postproc.compensator import contract_metadata
+from postproc.contract import with_defaults
 
 DEFAULT_ENVELOPE = {"box": [1700, 2300, -600, 600, 500, 1300], "attitude": [0, 90, 0], "range": 10}
 DEFAULT_REACH = {"center": [500, 0, 1045], "radius_min": 300, "radius_max": 2700}
 
 
-def _save(model, meta: dict, path) -> Path:
+def _save(model, meta: dict, path, defaults: bool = True) -> Path:
     """Add the contract metadata, check and write the model; its path."""
     for k, v in meta.items():
         model.metadata_props.add(key=k, value=v)
+    if defaults:
+        with_defaults(model)  # (the optional inputs optional, as every exported graph's)
+    else:  # a file as contract 1 wrote it: every input required
+        next(p for p in model.metadata_props if p.key == "postproc_contract").value = "1"
     onnx.checker.check_model(model)
     path = Path(path)
     onnx.save(model, path)
@@ -39,6 +46,7 @@ def affine_model(
     reach: dict | None = DEFAULT_REACH,
     previous_input: bool = False,
     method: str = "affine-test",
+    defaults: bool = True,
     **extra_meta,
 ) -> Path:
     gain = np.zeros((3, 3)) if gain is None else np.asarray(gain, float)
@@ -74,11 +82,12 @@ def affine_model(
         method=method,
         **extra_meta,
     )
-    return _save(model, meta, path)
+    return _save(model, meta, path, defaults)
 
 
 def joint_model(path: Path, gain: np.ndarray, tool_gain: np.ndarray | None = None, rotation_gain: np.ndarray | None = None,
-                robot: str = "KR500-sim", tool: dict | None = None, name: str = "joint-test", **extra_meta) -> Path:
+                robot: str = "KR500-sim", tool: dict | None = None, name: str = "joint-test", defaults: bool = True,
+                **extra_meta) -> Path:
     """A model of the arm's joints: E = gain · sin(joints) [+ tool_gain · tool[:3]] (input
     ``joints`` [N, 6] deg, optional input ``tool``), optional output ``rotation_error`` =
     rotation_gain · sin(joints) deg; E does not depend on ``pose`` at all, so a test sees which
@@ -119,4 +128,4 @@ def joint_model(path: Path, gain: np.ndarray, tool_gain: np.ndarray | None = Non
     meta = contract_metadata(name=name, robot=robot, tool=tool or {"name": "spindle", "frame": [300, 0, 75, 0, 0, 0]},
                              envelope=extra_meta.pop("envelope", None), reach=DEFAULT_REACH,
                              method="joint-test", **extra_meta)
-    return _save(model, meta, path)
+    return _save(model, meta, path, defaults)

@@ -3,7 +3,8 @@
 torch.onnx.export (the TorchScript exporter: the dynamo one needs onnxscript, which the
 ``train`` extra does not pull in), opset 17, input ``pose`` float32 [N, 6] with a dynamic
 batch axis, output ``error`` float32 [N, 3]; pose features and standardisation are inside
-the graph. Metadata go into ``metadata_props`` through ``contract_metadata``. The file is
+the graph. Metadata go into ``metadata_props`` through ``contract_metadata``; each optional
+input gets its default (``contract.with_defaults``: a caller may feed ``pose`` alone). The file is
 written to a temporary name in the target folder and moved into place, so a failed export
 never leaves a half-written model.
 """
@@ -17,6 +18,7 @@ import onnx
 import torch
 
 from .. import outputs
+from ..contract import with_defaults
 from ..compensator import (INPUT_APPROACH, INPUT_JOINTS, INPUT_POSE, INPUT_PREVIOUS, INPUT_PREVIOUS_JOINTS, INPUT_TOOL,
                            OUTPUT_ERROR, OUTPUT_JOINTS, OUTPUT_ROTATION, OUTPUT_STD, contract_metadata)
 
@@ -68,6 +70,7 @@ def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False, 
     del model.metadata_props[:]
     for key, value in contract_metadata(**metadata).items():
         model.metadata_props.add(key=key, value=value)
+    with_defaults(model)  # the optional inputs optional for any onnxruntime caller (contract.py)
     onnx.checker.check_model(model)
     return model.SerializeToString()
 

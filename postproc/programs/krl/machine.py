@@ -9,21 +9,41 @@ backup directory (``found_machine``); ``with_machine`` puts it into the ``Active
 read unless the user stated ``--robroot`` (or the settings' ``robroot``), which wins.
 Only the lines that matter are read: the rest of the machine data (axis data, motor and
 servo parameters) is no concern of a post-processor and is not parsed.
+
+The controller's own absolute-accuracy model (KUKA's "positionally accurate robot model",
+option Absolute Accuracy): ``accuracy_model`` reads ``$ABS_ACCUR`` from a backup's
+``Mada/$machine.dat`` and ``Mada/$custom.dat`` (``backup_accuracy``: the backup a program's
+files lie in). KUKA's system-variable documentation (KSS 8.1–8.3 "System Variables", section
+$ABS_ACCUR, with $ABS_RELOAD and $ABS_UPDATE) gives it as an ENUM: #ACTIVATED (the model is
+active), #SUPPRESSED (suppressed for now by ``$SUPPRESS_ABS_ACCUR``), #NONE (no such model);
+KSS 5.x and older as a BOOL (TRUE = on). A robot whose controller corrects its positioning error
+itself must not get postproc's correction too (``findings.accuracy_rule``: P408, P409 where
+suppressed). A Status bit marking points taught with that model is *not* used: KUKA's
+documentation found defines S bits 0–2 only (``configuration.arm_status``).
 """
 from __future__ import annotations
 
 import re
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
-from ...diagnostics import P107, P226, PostprocError, line_col
+from ...diagnostics import P107, P226, P408, PostprocError, line_col
 from ..model import ActiveFrames, RobotRoot
 from .syntax import _NUM
 
-__all__ = ["MACHINE_NAME", "is_machine", "robroot_of", "read_machine", "found_machine", "beside_config",
-           "with_machine", "robroot_option"]
+__all__ = ["MACHINE_NAME", "CUSTOM_NAME", "is_machine", "robroot_of", "read_machine", "found_machine", "beside_config",
+           "with_machine", "robroot_option", "AccuracyModel", "accuracy_model", "backup_accuracy"]
 
 MACHINE_NAME = "$machine.dat"
+CUSTOM_NAME = "$custom.dat"
+# `BOOL $ABS_ACCUR=TRUE` (KSS 5.x), `DECL <enum> $ABS_ACCUR=#ACTIVATED` (KSS 8.x); group 1: the value
+_ABS_ACCUR = re.compile(r"^[ \t]*(?:DECL[ \t]+)?(?:[A-Z_][A-Z0-9_]*[ \t]+)?\$ABS_ACCUR[ \t]*=[ \t]*([^\s;]*)",
+                        re.I | re.M)
+_SUPPRESS = re.compile(r"^[ \t]*(?:DECL[ \t]+)?(?:BOOL[ \t]+)?\$SUPPRESS_ABS_ACCUR[ \t]*=[ \t]*([^\s;]*)",
+                       re.I | re.M)
+_ACTIVE, _SUPPRESSED, _OFF = ("TRUE", "#ACTIVATED"), ("#SUPPRESSED",), ("FALSE", "#NONE")
+# how far above a program's file its backup's root (the folder with Mada/) may lie: KRC/R1/Program/sub/x.src
+BACKUP_LEVELS = 4
 
 # `FRAME $ROBROOT_C={X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}` (group 1: `_C`, group 2: the components)
 _ROBROOT = re.compile(r"^[ \t]*(?:DECL[ \t]+)?FRAME[ \t]+\$ROBROOT(_C)?[ \t]*=[ \t]*\{([^}\r\n]*)\}", re.I | re.M)
@@ -143,3 +163,71 @@ def robroot_option(value, root: Path | None = None, label: str = "--robroot") ->
         return read_machine(path)
     robroot = RobotRoot.parse(value)
     return replace(robroot, label=f"{label} {','.join(f'{v:g}' for v in robroot.frame)}")
+
+
+@dataclass(frozen=True)
+class AccuracyModel:
+    """The controller's absolute-accuracy model as a backup states it: ``state`` "active" or
+    "suppressed", the value as written, where (``path``:``line``:``col``)."""
+
+    state: str
+    value: str
+    path: str
+    line: int
+    col: int
+
+    def where(self) -> str:
+        return f"{self.path}:{self.line}"
+
+
+def accuracy_model(text: str, path: str) -> AccuracyModel | None:
+    """The state of ``$ABS_ACCUR`` in machine data ``text`` (of ``path``): active, suppressed
+    (``#SUPPRESSED``, or an active one with ``$SUPPRESS_ABS_ACCUR=TRUE``), None where it is off or
+    not there. A value that is none of KUKA's (TRUE/FALSE, #ACTIVATED/#SUPPRESSED/#NONE) is
+    refused at its place (P408): the state it means cannot be known."""
+    found = _ABS_ACCUR.search(text)
+    if found is None:
+        return None
+    value = found.group(1).upper()
+    line, col = line_col(text, found.start(1))
+    if value in _OFF:
+        return None
+    if value not in _ACTIVE + _SUPPRESSED:
+        raise PostprocError(f"$ABS_ACCUR = {found.group(1)!r} is none of TRUE, FALSE, #ACTIVATED, #SUPPRESSED, #NONE: "
+                            "whether the controller's absolute-accuracy model is on cannot be told", path, line, col,
+                            P408)
+    suppress = _SUPPRESS.search(text)
+    if value in _ACTIVE and suppress is not None and suppress.group(1).upper() == "TRUE":
+        line, col = line_col(text, suppress.start(1))
+        return AccuracyModel("suppressed", "$SUPPRESS_ABS_ACCUR=TRUE", path, line, col)
+    return AccuracyModel("active" if value in _ACTIVE else "suppressed", f"$ABS_ACCUR={found.group(1)}", path, line, col)
+
+
+def _backup_data(file: Path) -> list[Path]:
+    """The ``Mada/$machine.dat`` and ``Mada/$custom.dat`` of the backup ``file`` lies in: the
+    nearest folder above it (at most BACKUP_LEVELS up) with a ``Mada/`` folder."""
+    folder = file.resolve().parent
+    for _ in range(BACKUP_LEVELS):
+        mada = _in(folder, "Mada", directory=True)
+        if mada is not None:
+            return [p for name in (MACHINE_NAME, CUSTOM_NAME) if (p := _in(mada, name)) is not None]
+        if folder.parent == folder:
+            break
+        folder = folder.parent
+    return []
+
+
+def backup_accuracy(files) -> AccuracyModel | None:
+    """The controller's absolute-accuracy model of the backup the program ``files`` lie in (an
+    active one before a suppressed one), None where no backup's machine data turns it on. A
+    file that is not on disk (standard input, a text given in memory) has no backup."""
+    found = []
+    for data in dict.fromkeys(p for f in files if Path(f).is_file() for p in _backup_data(Path(f))):
+        try:
+            text = data.read_bytes().decode("latin-1")
+        except OSError as exc:
+            raise PostprocError(f"cannot read: {exc.strerror}", str(data), 0, 0, P107) from None
+        model = accuracy_model(text, str(data))
+        if model is not None:
+            found.append(model)
+    return min(found, key=lambda m: m.state != "active", default=None)

@@ -1,0 +1,75 @@
+"""postproc model: what a compensator is (``info``) and an older one brought to this contract (``upgrade``)."""
+from __future__ import annotations
+
+import json
+import sys
+
+EXAMPLES = """examples:
+  postproc model info models/default.onnx             inputs, outputs, the card in words
+  postproc model info m.onnx --json                    the card (metadata, JSON-decoded) on stdout
+  postproc model upgrade old.onnx -o new.onnx          a contract-1 file: every optional input made optional
+
+`info` checks the card against the model card's JSON Schema (postproc/schemas/model_card.schema.json;
+needs the jsonschema package) and exits 1 if it does not hold. `upgrade` keeps the graph's nodes
+and numbers; it adds each optional input's default (NaN rows; previous_pose: the pose itself),
+so that onnxruntime runs the model with `pose` alone.
+"""
+
+
+def add_parser(sub, common, formatter) -> None:
+    p = sub.add_parser(
+        "model",
+        parents=[common],
+        formatter_class=formatter,
+        help="a compensator's inputs, outputs and card (info); an older file brought to this contract (upgrade)",
+        description="Describe an ONNX compensator as another program sees it, or upgrade an older one.",
+        epilog=EXAMPLES,
+    )
+    actions = p.add_subparsers(dest="action", metavar="ACTION", required=True)
+    info = actions.add_parser("info", parents=[common], formatter_class=formatter,
+                              help="inputs (required/optional), outputs and the model card in words")
+    info.add_argument("model", metavar="MODEL.onnx")
+    info.add_argument("--json", action="store_true", help="print the card as JSON on stdout instead")
+    info.set_defaults(run=run_info)
+    up = actions.add_parser("upgrade", parents=[common], formatter_class=formatter,
+                            help="write MODEL.onnx with this contract's optional-input defaults")
+    up.add_argument("model", metavar="MODEL.onnx")
+    up.add_argument("-o", "--output", required=True, metavar="NEW.onnx")
+    up.set_defaults(run=run_upgrade)
+
+
+def run_info(args) -> int:
+    from ..compensator import load_model
+    from ..model_card import card_lines, card_problems, interface_lines
+
+    model = load_model(args.model)
+    try:
+        problems = card_problems(model.metadata)
+        checked = "the card holds to the model card schema"
+    except ModuleNotFoundError:
+        problems, checked = [], "card not checked against its schema (install jsonschema: pip install jsonschema)"
+    if args.json:
+        print(json.dumps(model.metadata, indent=2, ensure_ascii=False))
+    else:
+        print("\n".join([*card_lines(model), *interface_lines(model)]))
+    for problem in problems:
+        print(f"{model.path}: card does not hold to its schema: {problem}", file=sys.stderr)
+    if not args.quiet and not problems:
+        print(f"postproc model info: {checked}", file=sys.stderr)
+    return 1 if problems else 0
+
+
+def run_upgrade(args) -> int:
+    from .. import outputs
+    from ..compensator import load_model
+    from ..contract import upgrade
+
+    target = outputs.check_outputs([args.output], [args.model])[0]
+    old = load_model(args.model)
+    new = upgrade(old.data)
+    outputs.write([(target, new)])
+    made = load_model(target)
+    if not args.quiet:
+        print(f"postproc model upgrade: {target}: optional inputs {', '.join(made.defaults) or '(none)'}",
+              file=sys.stderr)
+    return 0
