@@ -709,13 +709,14 @@ def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, str
     at_row = np.concatenate([at_row[keep], mine[inserts.row]])
     axis = np.concatenate([axis[keep], inserts.axis])
     piece = np.concatenate([np.full(int(keep.sum()), -1), np.arange(len(inserts.at))])
-    order = np.argsort(starts, kind="stable")  # (inserts at one place stay in axis order)
-    starts, ends, at_row, axis, piece = (a[order] for a in (starts, ends, at_row, axis, piece))
+    kind = np.where(piece >= 0, axis, -1)
+    # by place; inserts at one place in axis order; runs of one number in row order
+    order = np.lexsort((at_row, kind, starts))
+    starts, ends, at_row, axis, piece, kind = (a[order] for a in (starts, ends, at_row, axis, piece, kind))
     if not len(starts):
         return text
     # a number several rows hold (a target run more than once, copies): written once, the first
     # row's (compensate_program checks that they agree); an insert: once per aggregate and column
-    kind = np.where(piece >= 0, axis, -1)
     first = np.r_[True, (starts[1:] != starts[:-1]) | (kind[1:] != kind[:-1])]
     if not first.all():
         starts, ends, at_row, axis, piece = (a[first] for a in (starts, ends, at_row, axis, piece))

@@ -13,7 +13,7 @@ from pathlib import Path
 from .model import MOTIONS, STAMP_PREFIX, ActiveFrames, Frame, Program, RobotRoot, Targets, TargetsBuilder
 
 __all__ = ["ActiveFrames", "RobotRoot", "Frame", "Targets", "TargetsBuilder", "Program", "read_program", "dialect_of", "STAMP_PREFIX", "MOTIONS",
-           "companion_dat"]
+           "companion_dat", "lower"]
 
 KRL_SUFFIXES = {".src", ".dat", ".sub"}
 POSE_SUFFIXES = {".csv", ".txt", ".pose", ".poses", ".xyz"}
@@ -106,3 +106,26 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
         program.from_text = True
         return program
     raise ValueError(f"unknown dialect {dialect!r}")
+
+
+def lower(files: list[str], texts: list[str], dialect: str, config: list[str] | None = None,
+          active: ActiveFrames | None = None):
+    """The motion IR of a program and its dialect's meaning: (``ir.Unit``, ``analysis.Dialect``)
+    — what ``read_program`` analyses, and what ``interpreter.run`` executes."""
+    if dialect == "krl":
+        from .krl.reader import lower as krl_lower
+
+        return krl_lower(files, texts, config=config, active=active)
+    if dialect == "poses":
+        from .poses import lower as poses_lower
+
+        return poses_lower(files, texts)
+    module = {"rapid": "rapid", "urscript": "urscript", "fanuc": "fanuc"}.get(dialect)
+    if module is None:
+        raise ValueError(f"unknown dialect {dialect!r}")
+    import importlib
+
+    reader = importlib.import_module(f".{module}", __name__)
+    if not hasattr(reader, "lower"):
+        raise NotImplementedError(f"the {dialect} reader does not lower to the motion IR yet")
+    return reader.lower(files, texts, config=config, active=active)

@@ -386,7 +386,7 @@ def _line_starts(text: str) -> np.ndarray | None:
     return np.concatenate([[0], np.flatnonzero(np.frombuffer(data, np.uint8) == 10) + 1]).astype(np.int64)
 
 
-def read(files: list[str], texts: list[str], fast: bool = True) -> Program:
+def read(files: list[str], texts: list[str], fast: bool = True, _lowered: bool = False) -> Program:
     """Read a pose program (one file). Raises PostprocError with file:line:col on bad input.
 
     ``fast``: lines of a shape seen before are read a chunk at a time (the same targets and
@@ -420,7 +420,7 @@ def read(files: list[str], texts: list[str], fast: bool = True) -> Program:
             i = j
     if rows.columns is None:
         raise PostprocError("no poses in this file (empty, or comments only)", path, 1, 1, P105)
-    targets = _analysed(files, texts, rows.targets())
+    targets = rows.targets() if _lowered else _analysed(files, texts, rows.targets())
     stamps = rows.stamps
     stated = rows.frame
     return Program(
@@ -437,10 +437,24 @@ def read(files: list[str], texts: list[str], fast: bool = True) -> Program:
 
 
 def _analysed(files: list[str], texts: list[str], read: Targets) -> Targets:
-    """The rows read, lowered to the motion IR (one routine: a MoveRun of the rows, in the robot
-    base, the model's tool) and through the analysis as every dialect's targets are: a pose list
-    is visited row after row (``Targets.prev``)."""
-    from .analysis import Dialect, analyse
+    """The rows read, lowered to the motion IR and through the analysis as every dialect's
+    targets are: a pose list is visited row after row (``Targets.prev``)."""
+    from .analysis import analyse
+
+    unit, dialect = _unit(files, texts, read)
+    built = analyse(unit, dialect)
+    targets = built.targets
+    targets.joints = read.joints
+    return targets
+
+
+def lower(files: list[str], texts: list[str]):
+    """(the motion IR of a pose list, its Dialect): ``programs.lower``."""
+    return _unit(files, texts, read(files, texts, _lowered=True).targets)
+
+
+def _unit(files: list[str], texts: list[str], read: Targets):
+    """One routine: a MoveRun of the rows, in the robot base, with the model's tool."""
     from .ir import Loc, MoveRun, Routine, Unit
 
     n = len(read)
@@ -450,10 +464,7 @@ def _analysed(files: list[str], texts: list[str], read: Targets) -> Targets:
     unit = Unit("poses", list(files[:1]), list(texts[:1]))
     unit.routines["ROWS"] = Routine("ROWS", (), [run], Loc(0, 1, 1))
     unit.entries = ["ROWS"]
-    built = analyse(unit, _PoseList())
-    targets = built.targets
-    targets.joints = read.joints
-    return targets
+    return unit, _PoseList()
 
 
 

@@ -47,16 +47,28 @@ def affine_model(
     previous_input: bool = False,
     method: str = "affine-test",
     defaults: bool = True,
+    previous_gain: float = 0.0,
     **extra_meta,
 ) -> Path:
+    """E = offset + gain · (xyz − centre) [+ previous_gain · (xyz − previous xyz): a model whose
+    correction depends on where the robot comes from, with ``previous_gain`` (implies
+    ``previous_input``)]."""
+    previous_input = previous_input or bool(previous_gain)
     gain = np.zeros((3, 3)) if gain is None else np.asarray(gain, float)
     # error = (xyz - centre) @ gain.T + offset, computed on the first 3 columns of pose
     nodes = [
         helper.make_node("Slice", ["pose", "s0", "s3", "ax1"], ["xyz"]),
         helper.make_node("Sub", ["xyz", "centre"], ["dx"]),
         helper.make_node("MatMul", ["dx", "gainT"], ["lin"]),
-        helper.make_node("Add", ["lin", "offset"], ["error"]),
+        helper.make_node("Add", ["lin", "offset"], ["error"] if not previous_gain else ["fixed"]),
     ]
+    if previous_gain:
+        nodes += [
+            helper.make_node("Slice", ["previous_pose", "s0", "s3", "ax1"], ["pxyz"]),
+            helper.make_node("Sub", ["xyz", "pxyz"], ["step"]),
+            helper.make_node("Mul", ["step", "pgain"], ["approach"]),
+            helper.make_node("Add", ["fixed", "approach"], ["error"]),
+        ]
     inits = [
         numpy_helper.from_array(np.array([0], np.int64), "s0"),
         numpy_helper.from_array(np.array([3], np.int64), "s3"),
@@ -65,6 +77,8 @@ def affine_model(
         numpy_helper.from_array(gain.T.astype(np.float32), "gainT"),
         numpy_helper.from_array(np.asarray(offset, np.float32), "offset"),
     ]
+    if previous_gain:
+        inits.append(numpy_helper.from_array(np.array([previous_gain], np.float32), "pgain"))
     inputs = [helper.make_tensor_value_info("pose", TensorProto.FLOAT, ["N", 6])]
     if previous_input:
         inputs.append(helper.make_tensor_value_info("previous_pose", TensorProto.FLOAT, ["N", 6]))

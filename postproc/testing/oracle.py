@@ -1,0 +1,120 @@
+"""The property "never silently wrong", checked with the IR's interpreter (``programs.interpreter``).
+
+``check(files, texts, dialect, model, …)`` compensates a program, then runs the original and the
+compensated texts through the interpreter with the same oracle (the same answers to the same
+questions: branches, inputs, what code not read does), for several oracles, and compares the
+motions that ran:
+
+* a target whose commanded pose changed must be at P + Ê(C) for its own executed nominal pose
+  P, reached from the command that really ran before it (C: its new command; the model's
+  ``previous_pose`` the predecessor's command), to the rewrite's agreement (``AGREE_MM``) and
+  rounding, or to the worst case compensate named for it (P322: reached from several places);
+* a target whose pose did not change was left as written — and then compensate must not have
+  said every target was compensated (exit 0).
+
+Returned: the violations found (empty: the property holds), and how many paths and motions were
+looked at. Used by ``tests/test_interpreter.py`` (a fast profile) and ``benchmarks/interpreter.py``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import frames as fr
+
+__all__ = ["check", "Checked", "lowered"]
+
+
+@dataclass
+class Checked:
+    violations: list = field(default_factory=list)
+    paths: int = 0
+    motions: int = 0
+    compensated: int = 0
+    untouched: int = 0
+    exit_code: int = 0
+
+
+def lowered(files, texts, dialect: str, config=None, active=None):
+    """(Unit, Dialect) of a program (``programs.lower``)."""
+    from ..programs import lower
+
+    return lower(list(files), list(texts), dialect, config=config, active=active)
+
+
+def _six(m: np.ndarray) -> np.ndarray:
+    return fr.matrix_to_frame(m)
+
+
+def check(files, texts, dialect: str, model, config=None, active=None, seeds=range(4), tol_mm: float = 0.0065,
+          compensate_kwargs: dict | None = None) -> Checked:
+    """Compensate ``texts`` with ``model`` (a Compensator) and check the property over the
+    oracles of ``seeds`` (see the module text)."""
+    from ..compensate import compensate_program
+    from ..diagnostics import P322, PostprocError
+    from ..programs import read_program
+    from ..programs.interpreter import Oracle, run
+
+    out = Checked()
+    program = read_program(list(files), list(texts), dialect, config=config, active=active)
+    try:
+        report = compensate_program(program, model, **(compensate_kwargs or {}))
+    except PostprocError:
+        out.exit_code = 2  # nothing written: nothing to check
+        return out
+    out.exit_code = 0 if report.complete else 1
+    new_texts = [report.outputs[f] for f in files]
+    worst = {}
+    for note in report.notes:
+        if note.code == P322:
+            # "… at most 0.098 mm from each run's own"
+            text = note.message.rsplit("at most ", 1)[-1].split(" mm")[0]
+            try:
+                worst[(note.path, note.line, note.col)] = float(text)
+            except ValueError:
+                pass
+    unit_a, dialect_a = lowered(files, texts, dialect, config, active)
+    unit_b, dialect_b = lowered(files, new_texts, dialect, config, active)
+    entries = list(unit_a.entries)
+    for seed in seeds:
+        for entry in entries:
+            oracle = Oracle(seed)
+            a = run(unit_a, dialect_a, oracle, entry)
+            b = run(unit_b, dialect_b, oracle, entry)
+            out.paths += 1
+            if [(m.site.file, m.kind) for m in a] != [(m.site.file, m.kind) for m in b]:  # (the stamp moves lines)
+                out.violations.append(f"seed {seed} {entry}: the compensated program runs another path")
+                continue
+            prev = None
+            for i, (ma, mb) in enumerate(zip(a, b)):
+                if ma.base is None or mb.base is None:
+                    prev = None
+                    continue
+                out.motions += 1
+                p, c = _six(ma.base), _six(mb.base)
+                previous = prev if prev is not None else c
+                e = model.predict(c[None], previous[None] if model.wants_previous else None)[0]
+                moved = np.abs(c[:3] - p[:3]).max() > 1e-6
+                if moved:
+                    out.compensated += 1
+                    where_ = (files[ma.loc.file] if ma.loc and ma.loc.file >= 0 else "", ma.loc.line if ma.loc else 0,
+                              ma.loc.col if ma.loc else 0)
+                    allowed = tol_mm + 2 * worst.get(where_, 0.0)
+                    dev = float(np.linalg.norm(c[:3] - p[:3] - e))
+                    if dev > allowed:
+                        out.violations.append(
+                            f"seed {seed} {entry}: motion {i} at {files[ma.site.file]}:{ma.site.line} commanded "
+                            f"{np.round(c[:3], 4).tolist()} for {np.round(p[:3], 4).tolist()}: {dev:.4f} mm from "
+                            f"P + Ê (allowed {allowed:.4f})")
+                else:
+                    e0 = model.predict(p[None], (prev if prev is not None else p)[None] if model.wants_previous
+                                       else None)[0]
+                    if np.linalg.norm(e0) > tol_mm:
+                        out.untouched += 1
+                        if report.complete:
+                            out.violations.append(
+                                f"seed {seed} {entry}: motion {i} at {files[ma.site.file]}:{ma.site.line} is left as "
+                                "written and compensate said every target was compensated (exit 0)")
+                prev = c
+    return out
