@@ -148,10 +148,14 @@ def stamp_line(comment: str, prefix: str, model_name: str, sha256: str) -> str:
     return f"{comment} {prefix} {model_name} {sha256[:12]}"
 
 
+BOM = "\xef\xbb\xbf"  # a UTF-8 byte order mark as the latin-1 text holds it
+
+
 def insert_stamp(text: str, stamp: str, newline: str, after_headers: str | None = None) -> str:
     """Insert ``stamp`` as a line of its own: after the leading lines that start with
-    ``after_headers`` (KRL's '&ACCESS'… lines must stay first), else at the top."""
-    pos = 0
+    ``after_headers`` (KRL's '&ACCESS'… lines must stay first), else at the top (after a UTF-8
+    byte order mark, which stays the file's first bytes)."""
+    pos = len(BOM) if text.startswith(BOM) else 0
     if after_headers:
         while pos < len(text) and text.startswith(after_headers, pos):
             nl = text.find("\n", pos)

@@ -61,6 +61,19 @@ class _Rows:
         self.n += m
         return self.n - m
 
+    def tokens_of(self, row: int) -> set:
+        """The X/Y/Z tokens (file, start, end) of a row added before."""
+        at = 0
+        for p in self.parts:
+            m = len(p["line"])
+            if row < at + m:
+                i = row - at
+                f = int(p["file"][i])
+                sp = p["spans"][i].reshape(-1, 2)[:3]
+                return {(f, int(a), int(b)) for a, b in sp if a >= 0}
+            at += m
+        return set()
+
     def extras(self) -> dict:
         """The dialect's per-row columns (``row_extras``), name → list over every row."""
         out: dict = {}
@@ -120,18 +133,31 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             entry[0] += n
 
     def prev_of(preds):
-        """(the primary predecessor row, the other predecessors' keys)."""
+        """(the primary predecessor row, the others: row indices, -1 where nothing is known before
+        (the program's start, a motion without a row), or keys of motions not emitted yet (a
+        loop's back edge))."""
         if preds is None:
             return -1, []
-        rows_ = sorted(((key_row.get(p, -2), p) for p in preds if p != START), key=lambda x: x[0])
-        known = [r for r, _ in rows_ if r >= 0]
-        primary = known[-1] if known else -1
-        others = [p for r, p in rows_ if r != primary or r < 0 and p not in key_row]
-        return primary, [p for p in others if key_row.get(p, -1) != primary]
+        known, unknown, later = set(), False, []
+        for p in preds:
+            if p == START:
+                unknown = True
+                continue
+            r = key_row.get(p)
+            if r is None:
+                later.append(p)
+            elif r < 0:
+                unknown = True
+            else:
+                known.add(r)
+        ordered = sorted(known)
+        if not ordered:
+            return -1, later
+        return ordered[-1], ordered[:-1] + ([-1] if unknown else []) + later
 
     for use in rec.uses:
         if isinstance(use, RunUse):
-            first = _run_rows(unit, dialect, use, rows, frame_index, count, prev_of, key_row, form)
+            _run_rows(unit, dialect, use, rows, frame_index, count, prev_of, key_row, form, rec, pending)
             continue
         key_row[use.key] = -1
         s = use.stmt
@@ -157,16 +183,21 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             continue
         view = dialect.view(target)
         if view.kind != "cart":
+            rec.escape(tokens_of(target), loc, f"target {use.what or ''} (not a Cartesian target) reads them")
             if view.kind == "other" and use.what and not isinstance(s.target, Agg):
                 rec.note(P211, f"target {use.what} has type {target.type or 'unknown'}, not a position: left as "
                          "written", loc, True)
             continue
+        if any(v is None for v in view.xyz) and isinstance(s.target, Agg):
+            _where_it_stands(rec, rows, key_row, use.preds, loc)
         unknown_comp = next(((k, v) for k, v in zip("XYZABC", list(view.xyz) + list(view.orient)[:3])
                              if isinstance(v, Top)), None)
         if unknown_comp is not None:
             k, v = unknown_comp
             rec.note(P212, f"target {use.what or 'the target'}: its {k} is not known here ({v.why}): left as written",
                      loc, True)
+            # (it runs with the numbers it does hold: compensating them for another run would move it)
+            rec.escape(tokens_of(target), loc, f"target {use.what or ''} left as written reads them")
             continue
         pose = np.full(6, np.nan)
         spans = np.full(12, -1, np.int64)
@@ -184,10 +215,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                     computed.append("XYZ"[k])
         files = {v.token[0] for v in view.xyz if isinstance(v, Tok)}
         if computed:
-            read = set()
-            for v in view.xyz:
-                read |= tokens_of(v) if isinstance(v, Taint) else set()
-            rec.escape(read, loc, f"target {use.what or ''} is computed from them")
+            rec.escape(tokens_of(target), loc, f"target {use.what or ''} is computed from them")
             rec.note(P214, f"target {use.what or 'the target'}: its {'/'.join(computed)} "
                      f"{'is' if len(computed) == 1 else 'are'} computed at run time from other values, not a number "
                      "of the program: left as written", loc, True)
@@ -195,6 +223,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         if len(files) > 1:
             rec.note(P214, f"target {use.what or 'the target'}: its X/Y/Z come from numbers in several files: left "
                      "as written", loc, True)
+            rec.escape(tokens_of(target), loc, f"target {use.what or ''} left as written reads them")
             continue
         orient = view.orient
         nums = [number(v) for v in orient]
@@ -234,17 +263,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         r = rows.add(**cols)
         key_row[use.key] = r
         used_keys.append(use.key)
-        for p in others:  # the same target reached from another predecessor: a twin row
-            twin = dict(cols)
-            pr = key_row.get(p, -2)
-            if pr >= 0:
-                twin["prev"] = np.array([pr], np.int32)
-                rows.add(**twin)
-            elif p in key_row:  # (a predecessor without a row: where it leaves the robot is not known)
-                twin["prev"] = np.array([-1], np.int32)
-                rows.add(**twin)
-            else:
-                pending.setdefault(p, []).append(twin)
+        _twins_of(cols, others, rows, pending)
         for twin in pending.pop(use.key, []):
             twin["prev"] = np.array([r], np.int32)
             rows.add(**twin)
@@ -285,7 +304,29 @@ def _is_tool_unset(use) -> bool:
     return isinstance(tool, Top) and tool.code == P221
 
 
-def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_of, key_row, form):
+def _twins_of(cols: dict, others: list, rows: _Rows, pending: dict) -> None:
+    """The same target reached from its other predecessors: a row each (``prev`` that row, -1
+    nothing known before), or waiting for a predecessor not emitted yet (``pending``)."""
+    for o in others:
+        twin = dict(cols)
+        if isinstance(o, (int, np.integer)):
+            twin["prev"] = np.array([o], np.int32)
+            rows.add(**twin)
+        else:
+            pending.setdefault(o, []).append(twin)
+
+
+def _where_it_stands(rec, rows: _Rows, key_row: dict, preds, loc) -> None:
+    """A partial target whose missing components are not known here (the robot may come from
+    several places) takes them at run time from the command before it: that command's numbers
+    are read by it — compensating them would move it too (they escape)."""
+    for p in preds or ():
+        r = key_row.get(p, -1)
+        if r >= 0:
+            rec.escape(rows.tokens_of(r), loc, "where the robot stands for a partial target after it")
+
+
+def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_of, key_row, form, rec, pending):
     """A MoveRun's rows: its frame for all, partial aggregates filled from the rows before
     (and where the robot stood before the run), the first row's predecessor."""
     r = use.run.rows
@@ -319,7 +360,10 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
             pose[need[ok], k] = pose[prev[ok], k]
             start = cur.get(names[k])
             pose[need[~ok], k] = start if start is not None else np.nan
-    primary, _ = prev_of(use.preds)
+            if start is None and (~ok).any() and k < 3:
+                loc = Loc(int(r["file"][need[~ok][0]]), int(r["line"][need[~ok][0]]), int(r["col"][need[~ok][0]]))
+                _where_it_stands(rec, rows, key_row, use.preds, loc)
+    primary, others = prev_of(use.preds)
     prev = np.arange(rows.n - 1, rows.n - 1 + n, dtype=np.int32)
     prev[0] = primary
     spans = r["spans"]
@@ -330,6 +374,15 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
              config=r["config"], offset=np.zeros((n, 3)), prev=prev, site=None,
              extras={k: list(v) for k, v in dialect.run_extras(use.run).items()})
     key_row[use.key] = rows.n - 1
+    if others:  # (the run's first target reached from its other predecessors)
+        first = {k: (v[:1] if hasattr(v, "__len__") and not isinstance(v, dict) else v)
+                 for k, v in rows.parts[-1].items()}
+        first["extras"] = {k: v[:1] for k, v in (rows.parts[-1].get("extras") or {}).items()}
+        _twins_of(first, others, rows, pending)
+    last = key_row[use.key]
+    for twin in pending.pop(use.key, []):  # (twins that waited for this run: a loop's back edge)
+        twin["prev"] = np.array([last], np.int32)
+        rows.add(**twin)
 
 
 def _same(a, b) -> bool:
