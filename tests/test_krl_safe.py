@@ -182,7 +182,8 @@ def bases(p):
 
 def test_if_branches_start_from_the_entry_and_merge_at_endif():
     p = flow("IF $IN[1] THEN", B10, P, "ELSE", P, "ENDIF", P)  # lines 3..9
-    assert bases(p) == [10.0, 0.0, None]  # the ELSE branch runs in the entry's base
+    # the ELSE branch runs in the entry's base; the last target comes after either branch (two rows)
+    assert bases(p) == [10.0, 0.0, None, None] and p.targets.prev.tolist() == [-1, -1, 1, 0]
     assert codes(p) == [("P201", 3, 3)] and "IF at line 3" in p.diagnostics[0].message
     # without ELSE the path through no branch keeps the entry's base
     assert bases(flow("IF $IN[1] THEN", B10, "ENDIF", P)) == [None]
@@ -219,7 +220,10 @@ def test_a_loop_body_that_changes_the_base(accelerate):
     assert p.targets.twin.tolist() == [-1, -1, 0, 1, 0, 1, -1]
     # a loop whose passes are not known: its head joins the entry's frames with the body's end's
     p = flow("WHILE $IN[2]", P, B10, P, "ENDWHILE", P, accelerate=accelerate)
-    assert bases(p) == [None, 10.0, None] and codes(p) == [("P201", 3, 3)]
+    # (the body's first target from before the loop and, a second row, from the body's end; the one
+    # after the loop from the body's end or, the loop not run, from before it)
+    assert bases(p) == [None, 10.0, None, None, None] and codes(p) == [("P201", 3, 3)]
+    assert p.targets.prev.tolist() == [-1, 0, 1, 1, -1]
     assert "WHILE at line 3" in p.diagnostics[0].message
     # a WHILE may run 0 times; an EXIT leaves with the base in force there
     assert bases(flow("WHILE $IN[1]", B10, "ENDWHILE", P)) == [None]
@@ -239,7 +243,7 @@ def test_loop_data_assigned_in_the_body_is_unknown_for_the_next_iteration():
     # passes not known: unknown in the body, known after it only where every way out agrees
     p = flow("WHILE $IN[1]", "BAS(#BASE, 1)", P, "BASE_DATA[1] = {X 20,Y 0,Z 0,A 0,B 0,C 0}", "ENDWHILE",
              "BAS(#BASE, 1)", P, config=[CONFIG])
-    assert bases(p) == [None, None]
+    assert bases(p) == [None] * 4
 
 
 @pytest.mark.parametrize("accelerate", [True, False])
@@ -268,7 +272,9 @@ def test_compensate_leaves_the_unknown_position_located(tmp_path, affine, capsys
                    "  LIN {Z 5}\nEND\n")
     assert main(["compensate", str(src), "-o", str(tmp_path / "o.src"), "--model", str(affine(gain=GAIN))]) == 1
     err = capsys.readouterr().err
-    assert f"{src}:7:7: P212" in err and "1 of 2 compensated" in err
+    # {Z 5} takes X, Y from where the robot stands: after P, or not: not known, left (P212); on the
+    # IF's path it takes them from P's command, so P is left too (P217): compensating it would move {Z 5}
+    assert f"{src}:7:7: P212" in err and f"{src}:5:9: P217" in err and "0 of 2 compensated" in err
 
 
 # ---------------------------------------------------------------- functions and handlers
@@ -361,8 +367,8 @@ def test_a_label_a_goto_jumps_to_merges_the_frames_of_the_jumps():
     p = flow(P, "M1:", P, B10, P, "IF $IN[1] THEN", "GOTO M2", "ENDIF", "IF $IN[2] THEN", "GOTO M1", "ENDIF",
              "BAS(#BASE, 0)", "M2:", P, "M3:", P)
     # M1: the jump back comes with base 10; M2: the jump from base 10 and the fall-through from 0;
-    # a label no GOTO names changes nothing
-    assert bases(p) == [0.0, None, 10.0, None, None]
+    # a label no GOTO names changes nothing; the target at M1 a second time from the jump back
+    assert bases(p) == [0.0, None, 10.0, None, None, None]
     assert [(c, line) for c, line, _ in codes(p)] == [("P201", 4), ("P201", 15)]
     assert "GOTO M1 jumps to line 4" in p.diagnostics[0].message
     assert bases(flow(P, "GOTO M1", "M1:", P)) == [0.0, 0.0]
