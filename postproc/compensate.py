@@ -30,6 +30,7 @@ from .findings import (
     Commands,
     collect,
     execution_order,
+    group_rule,
     Selection,
     Settings,
     command_findings,
@@ -454,6 +455,8 @@ def compensate_program(
             warnings += agreed.warnings
             _raise_first(agreed.warnings, strict)
             selection = selection.without(agreed.drop, P230)
+            selection, tied = group_rule(program, selection)  # (what the rows left take with them)
+            warnings += tied
             selection.order = execution_order(program, selection, selection.base_poses)
             continue
         written = agreed.written

@@ -295,26 +295,51 @@ def held_rule(program: Program, use: np.ndarray) -> dict:
 
 
 def group_rule(program: Program, selection: Selection) -> tuple[Selection, list[Diagnostic]]:
-    """P230: a target that shares its numbers with a row left as written (another run of it, a
-    point it is copied from): rewriting them would move that row too, so it is left as well."""
+    """P230: what a target left as written takes with it, to a fixed point:
+
+    * a row that shares its numbers with a row left as written (another run of it, a point it is
+      copied from or into): rewriting them would move that row too;
+    * the row before a partial target left as written (``LIN {Z 5}``): at run time it takes its
+      missing X/Y/Z from that row's command, which, compensated, would move it.
+    """
     t = program.targets
     group = getattr(t, "group", None)
-    if group is None or not len(selection.rows) or not (group[selection.rows] >= 0).any():
+    prev = getattr(t, "prev", None)
+    if not len(selection.rows) or (group is None and prev is None):
         return selection, []
     chosen = np.zeros(len(t), bool)
     chosen[selection.rows] = True
-    left_groups = np.unique(group[~chosen & (group >= 0)])
-    if not len(left_groups):
+    partial = (t.spans[:, :, 0] < 0).any(axis=1) & ~np.isnan(t.poses[:, :3]).any(axis=1)
+    why = {}  # row dropped → the row left that takes it with it
+    while True:
+        left = ~chosen
+        drop = np.zeros(len(t), bool)
+        if group is not None and (group >= 0).any():
+            left_groups = np.unique(group[left & (group >= 0)])
+            if len(left_groups):
+                tied = chosen & np.isin(group, left_groups) & (group >= 0)
+                for r in np.flatnonzero(tied).tolist():
+                    why.setdefault(r, int(np.flatnonzero((group == group[r]) & left)[0]))
+                drop |= tied
+        if prev is not None:
+            source = left & partial & (prev >= 0)
+            feeds = prev[source]
+            fed = chosen[feeds]
+            for r, by in zip(feeds[fed].tolist(), np.flatnonzero(source)[fed].tolist()):
+                why.setdefault(r, by)
+                drop[r] = True
+        if not drop.any():
+            break
+        chosen &= ~drop
+    out = np.flatnonzero(~chosen[selection.rows])
+    if not len(out):
         return selection, []
-    drop = np.flatnonzero(np.isin(group[selection.rows], left_groups) & (group[selection.rows] >= 0))
-    if not len(drop):
-        return selection, []
-    first_left = {int(g): int(np.flatnonzero((group == g) & ~chosen)[0]) for g in left_groups}
-    rows = selection.rows[drop]
-    found = collect(program, rows, P230, lambda i: "this target's numbers are also those of a run of it (or of a point "
-                    "it is copied from or into) that is left as written, at {}:{}: left as written too".format(
-                        *where(program, first_left[int(group[rows[i]])])[:2]))
-    return selection.without(drop, P230), found
+    rows = selection.rows[out]
+    found = collect(program, rows, P230, lambda i: "this target's numbers are also those of a target left as written "
+                    "(another run of it, a point it is copied from or into, or a partial target after it that takes "
+                    "its X/Y/Z from its command), at {}:{}: left as written too".format(
+                        *where(program, why.get(int(rows[i]), int(rows[i])))[:2]))
+    return selection.without(out, P230), found
 
 
 def execution_order(program: Program, selection: Selection, poses: np.ndarray) -> Order | None:

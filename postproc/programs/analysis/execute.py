@@ -316,6 +316,7 @@ class Analysis:
             st = join_states(st, act.labels_in.get(s.name), f"a GOTO {s.name} jumps to line {s.loc.line} with others",
                              s.loc)
             if st is not None and (s.name in act.jumps or s.name in act.labels_in):
+                st = st.copy()  # (never the jumps' own states: what runs after the label changes it)
                 st.cur = None  # (the robot may come from elsewhere)
             return st
         if kind is Goto:

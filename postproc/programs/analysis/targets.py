@@ -54,6 +54,7 @@ class _Rows:
     def __init__(self):
         self.parts: list = []
         self.n = 0
+        self.later: dict = {}  # a motion's key → partial targets that read its command (loop back edges)
 
     def add(self, **cols) -> int:
         m = len(cols["line"])
@@ -262,6 +263,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                     extras={k: [v] for k, v in dialect.row_extras(use, view).items()})
         r = rows.add(**cols)
         key_row[use.key] = r
+        _emitted(rec, rows, use.key, r)
         used_keys.append(use.key)
         _twins_of(cols, others, rows, pending)
         for twin in pending.pop(use.key, []):
@@ -319,11 +321,21 @@ def _twins_of(cols: dict, others: list, rows: _Rows, pending: dict) -> None:
 def _where_it_stands(rec, rows: _Rows, key_row: dict, preds, loc) -> None:
     """A partial target whose missing components are not known here (the robot may come from
     several places) takes them at run time from the command before it: that command's numbers
-    are read by it — compensating them would move it too (they escape)."""
+    are read by it — compensating them would move it too (they escape). A predecessor not emitted
+    yet (a loop's back edge): when it is (``rows.later``)."""
     for p in preds or ():
-        r = key_row.get(p, -1)
-        if r >= 0:
+        r = key_row.get(p)
+        if r is None:
+            rows.later.setdefault(p, []).append(loc)
+        elif r >= 0:
             rec.escape(rows.tokens_of(r), loc, "where the robot stands for a partial target after it")
+
+
+def _emitted(rec, rows: _Rows, key, row: int) -> None:
+    """Row ``row`` is the motion ``key``'s: the partial targets that wait for it read its numbers."""
+    for loc in rows.later.pop(key, ()):
+        if row >= 0:
+            rec.escape(rows.tokens_of(row), loc, "where the robot stands for a partial target after it")
 
 
 def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_of, key_row, form, rec, pending):
@@ -380,6 +392,7 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
         first["extras"] = {k: v[:1] for k, v in (rows.parts[-1].get("extras") or {}).items()}
         _twins_of(first, others, rows, pending)
     last = key_row[use.key]
+    _emitted(rec, rows, use.key, last)
     for twin in pending.pop(use.key, []):  # (twins that waited for this run: a loop's back edge)
         twin["prev"] = np.array([last], np.int32)
         rows.add(**twin)
