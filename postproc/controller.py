@@ -117,8 +117,9 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
                       collect, chain=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, list[Diagnostic]]:
     """The model's ``joints`` / ``tool`` inputs for targets ``rows`` at base poses ``sel``:
     (rows kept, their poses, joint angles [n, 6] deg or None, TCPs [n, 6] or None, warnings).
-    Targets whose configuration has no joint angles on the nominal arm (P309) are left as
-    written. The tool is the program's $TOOL where known, else the model's (its card); where
+    Targets whose configuration has no joint angles on the nominal arm, or is stated in a form
+    the model's description cannot say (``configuration.stated_configuration``), are left as
+    written (P309). The tool is the program's $TOOL where known, else the model's (its card); where
     its lever arm is so far from the measured TCPs' that the mount rotation the model could not
     separate may add TOOL_WARNING_MM or more, a P319 warning says how much (the target is
     compensated). ``collect`` makes the located warnings (findings.collect). ``chain`` (a
@@ -137,12 +138,13 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
     t = program.targets
     warnings: list[Diagnostic] = []
     q = None
-    unmapped = program.unmapped_configuration
-    if model.wants_joints and unmapped is not None and unmapped[rows].any():
-        keep = ~unmapped[rows]
-        warnings += collect(program, rows[~keep], P309, "the target states its arm configuration in a form postproc "
-                            "does not translate to joint angles (Fanuc CONFIG): left as it is")
-        rows, sel, tools = rows[keep], sel[keep], tools[keep]
+    stated = None
+    if model.wants_joints:
+        stated, unmapped, why = configuration.stated_configuration(program, description, rows)
+        if unmapped.any():
+            warnings += collect(program, rows[unmapped], P309, lambda i: why[i] + ": left as it is")
+            keep = ~unmapped
+            rows, sel, tools, stated = rows[keep], sel[keep], tools[keep], stated.take(keep)
     if model.wants_joints and len(rows):
         robot = Robot(description.replace(tool=default_tool))
         first = robot if np.array_equal(tools[0], default_tool) else Robot(description.replace(tool=tools[0]))
@@ -157,7 +159,7 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
             if chain is not None:
                 chain.origin = start
         q, ok = configuration.target_joints(robot, t, rows, sel, tools,
-                                            start[0] if np.isfinite(start).all() else None, chain)
+                                            start[0] if np.isfinite(start).all() else None, chain, stated)
         if not ok.all():
             warnings += collect(program, rows[~ok], P309, "no joint angles for this target in its arm configuration "
                                 "(S/T, or the one its motion keeps) on the nominal robot: left as it is")
