@@ -87,7 +87,9 @@ Contract (version 1), shared by ``train`` (which writes it) and ``compensate`` (
   "moved_at_sigmas", "parameters": [{"group", "name", "unit", "old", "new", "change", "std",
   "moved"}]}; optional ``uncertainty`` {"max_std_mm" (the bound on ``error_std``
   compensate and check apply without ``--max-std``: uncertainty.MAX_STD_FACTOR × the
-  identification's residual std), "residual_std_mm"} beside ``error_std``; optional ``transfer`` (benchmarks/cross_series.py: figures on other series).
+  identification's residual std), "residual_std_mm"} beside ``error_std``; optional ``transfer`` (benchmarks/cross_series.py: figures on other series);
+  optional ``demonstration`` {"robot", "robot_seed"}: trained on data ``postproc measure``
+  simulated, a demonstration model of a simulated robot (compensate and check say so, P340).
 
 The command sent for target P is c = P + Ê(c), solved by fixed-point iteration from
 c₀ = P (one iteration = the method's c = P + Ê(P)).
@@ -271,6 +273,16 @@ class Compensator:
     @property
     def robot(self) -> str:
         return str(self.metadata.get("robot", ""))
+
+    @property
+    def demonstration(self) -> str | None:
+        """What the card's ``demonstration`` says the model is ("a demonstration model of a
+        simulated KR500-sim": trained on data ``postproc measure`` simulated), None for a model
+        of a real robot's data (no such key)."""
+        demo = self.metadata.get("demonstration")
+        if not isinstance(demo, dict):
+            return None
+        return f"a demonstration model of a simulated {demo.get('robot') or self.robot or 'robot'}"
 
     @property
     def tool(self) -> dict:

@@ -113,6 +113,8 @@ P333 = _code("P333", "error", "a robot geometry the closed-form inverse kinemati
 P335 = _code("P335", "error", "poses out of the robot's reach (plan, simulator, ISO 9283 cube)")
 P336 = _code("P336", "warning", "the model's error_std (its stated uncertainty) at the target exceeds --max-std "
              "(default: the card's uncertainty.max_std_mm); an error under --strict")
+P340 = _code("P340", "note", "(compensate, check) the model is a demonstration model of a simulated robot (its card's "
+             "'demonstration'): it knows nothing of a real robot; train one for yours")
 # P4xx: stamps and compensated outputs
 P401 = _code("P401", "error", "already compensated (a stamp line): compensate refuses unless --force")
 P402 = _code("P402", "error", "compensated with a model other than the configured one")
@@ -142,6 +144,9 @@ P515 = _code("P515", "error", "a_meas,b_meas,c_meas more than 5° (median) from 
              "frame, the probe's own axes or radians")
 P516 = _code("P516", "error", "a training option the method does not have (--search, --optimizer: the pose-only "
              "networks'; it was ignored for the identified methods)")
+P517 = _code("P517", "error", "positions in another unit than mm: a pose list or measurement CSV whose every |x|,|y|,|z| "
+             "is below 5 for a robot that reaches metres (metres), or whose uncompensated errors are ~1/1000 of any "
+             "robot's")
 # P6xx: a command's own inputs
 P601 = _code("P601", "error", "verify's original and compensated programs are not one program")
 P610 = _code("P610", "error", "bad settings (unknown key, bad value, bad TOML)")
