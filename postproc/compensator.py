@@ -871,8 +871,12 @@ def _interface_problems(inputs: dict, outputs: dict, joints_output: str) -> list
 
 
 def load_model(path: str | Path | None = None) -> Compensator:
-    """Load and check an ONNX compensator (default: the shipped ``models/default.onnx``)."""
+    """Load and check an ONNX compensator (default: the shipped ``models/default.onnx``; a bare
+    name that is no file, ``irb6700``, a shipped model: ``models/irb6700.onnx``)."""
     path = Path(path) if path is not None else model_path()
+    if not path.is_file() and path.parent == Path(".") and path.suffix in ("", ".onnx"):
+        shipped = model_path(path.with_suffix(".onnx").name)
+        path = shipped if shipped.is_file() else path
     if not path.is_file():
         raise PostprocError("model not found", str(path), code=P307)
     try:

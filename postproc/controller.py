@@ -9,13 +9,15 @@ angles on the nominal arm (P309, left as written) and attaches the inputs to it.
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from .compensator import Compensator
 from .diagnostics import P309, P311, P313, P319, Diagnostic, PostprocError
 from .programs import Program
 
-__all__ = ["model_description", "controller_inputs", "configuration_mismatch", "unseparated_mount_mm",
+__all__ = ["model_description", "controller_inputs", "family_mismatch", "DIALECT_CONTROLLERS", "configuration_mismatch", "unseparated_mount_mm",
            "JOINT_TOLERANCE_DEG", "MOUNT_ROTATION_DEG", "TOOL_WARNING_MM"]
 
 # A target's stated configuration (S/T) is the model's when the joint angles agree to this.
@@ -56,6 +58,41 @@ def model_description(model: Compensator):
         if model.robot and description.name.casefold() == model.robot.casefold():
             return description
     return None
+
+
+# the controller a program's dialect is written for (a pose list: any robot's), and the one a
+# description's [robot] configuration names (a UR-type arm: Universal Robots')
+DIALECT_CONTROLLERS = {"krl": "KUKA", "rapid": "ABB", "urscript": "Universal Robots", "fanuc": "FANUC"}
+_FORM_CONTROLLERS = {"kuka": "KUKA", "abb": "ABB", "fanuc": "FANUC"}
+_DIALECT_NAMES = {"krl": "KRL", "rapid": "RAPID", "urscript": "URScript", "fanuc": "an LS program"}
+
+
+def family_mismatch(program: Program, model: Compensator) -> str | None:
+    """Why a model that takes joint angles does not fit the controller ``program`` is written
+    for (its dialect: KRL a KUKA's, RAPID an ABB's, URScript a Universal Robots', LS a FANUC's),
+    when the description of the model's robot names another (``[robot] configuration``, or a
+    UR-type arm); None where they agree or either is not known (a pose list, a model without
+    the ``joints`` input or without a description)."""
+    wanted = DIALECT_CONTROLLERS.get(program.dialect)
+    if wanted is None or not model.wants_joints:
+        return None
+    description = model_description(model)
+    if description is None:
+        return None
+    own = _FORM_CONTROLLERS.get(description.configuration)
+    if own is None:
+        from .robot import Robot
+
+        try:
+            own = "Universal Robots" if Robot(description).family == "ur" else None
+        except PostprocError:  # (an arm postproc has no closed-form IK for: unknown)
+            own = None
+    if own is None or own == wanted:
+        return None
+    name = _DIALECT_NAMES[program.dialect]
+    return (f"the program is {name}, for a {wanted} controller, and the model was trained on {model.robot}, "
+            f"a {own} robot (its description models/{Path(description.path).name}): compensate with a model of "
+            "this program's robot")
 
 
 def _tools(program: Program, model: Compensator, description, rows: np.ndarray) -> np.ndarray:

@@ -6,7 +6,7 @@ rule, one place. :func:`findings` returns every finding as a :class:`Diagnostic`
 One function per code family, in the order compensate applies them:
 
 * :func:`stamp_rule` P401 (already compensated), :func:`fit_rule` P304/P310 (another tool
-  or robot), :func:`shared_rule` P202 (one set of numbers in two frames) — each lifted by
+  or robot: the one named, or the controller the program's dialect is written for), :func:`shared_rule` P202 (one set of numbers in two frames) — each lifted by
   ``force``; :func:`demonstration_rule` P340 (a note: a demonstration model of a simulated
   robot); :func:`unit_rule` P517 (a pose list in metres);
 * :func:`frame_rule` P103 (a frame that is not finite);
@@ -183,10 +183,17 @@ def tool_mismatch(program: Program, model: Compensator) -> str | None:
     return None
 
 
-def robot_mismatch(robot: str | None, model: Compensator) -> str | None:
-    """Why the model (trained on its card's robot) does not fit ``robot`` (None: it does, or unknown)."""
+def robot_mismatch(robot: str | None, model: Compensator, program: Program | None = None) -> str | None:
+    """Why the model (trained on its card's robot) does not fit ``robot`` (None: it does, or
+    unknown); without ``robot``, why it does not fit the controller ``program`` is written for
+    (a model that takes joint angles, of a robot whose controller its description names:
+    ``controller.family_mismatch``)."""
     if not robot:
-        return None
+        if program is None:
+            return None
+        from .controller import family_mismatch
+
+        return family_mismatch(program, model)
     if not model.robot:
         return f"the model does not say which robot it was trained on (the program is for {robot})"
     if model.robot.casefold() != robot.casefold():
@@ -227,7 +234,7 @@ def fit_rule(program: Program, model: Compensator, settings: Settings) -> list[D
     mismatch = None if model.wants_tool else tool_mismatch(program, model)  # (a model with a tool input: any)
     if mismatch:
         out.append(Diagnostic(program.files[0], 1, 1, P304, mismatch + "; use --force to compensate anyway", "error"))
-    mismatch = robot_mismatch(settings.robot, model)
+    mismatch = robot_mismatch(settings.robot, model, program)
     if mismatch:
         out.append(Diagnostic(str(model.path), 0, 0, P310, mismatch + "; use --force to compensate anyway", "error"))
     return out

@@ -71,19 +71,27 @@ def _fill(poses, program, attitude, name: str):
 
 
 def execution(program, rows, sim) -> dict:
-    """How the controller runs targets ``rows`` of ``program``: their S/T (``Targets.config``),
-    motion kinds (configuration.execution_kinds) and $TOOL (the simulated robot's tool where the
-    program's is unknown) — the options of SimulatedRobot.verify. Both runs use the ORIGINAL's."""
+    """How the controller runs targets ``rows`` of ``program``: their stated configuration (S/T,
+    RAPID confdata, FANUC CONFIG on the simulated robot's description: configuration.
+    stated_configuration; a form the description cannot say is P309, refused), motion kinds
+    (configuration.execution_kinds) and $TOOL (the simulated robot's tool where the program's is
+    unknown) — the options of SimulatedRobot.verify. Both runs use the ORIGINAL's."""
     import numpy as np
 
+    from ..configuration import stated_configuration
+    from ..diagnostics import P309, PostprocError
+
     t = program.targets
-    config = getattr(t, "config", None)
+    stated, unmapped, why = stated_configuration(program, sim.description, rows)
+    if unmapped.any():
+        r = rows[np.flatnonzero(unmapped)[0]]
+        raise PostprocError(f"{why[0]}: the simulated {sim.robot.name} cannot run this program",
+                            program.files[t.file[r]], int(t.line[r]), int(t.col[r]), P309)
     tools = np.tile(sim.robot.tool, (len(rows), 1))
     for f in np.unique(t.frame[rows]):
         if program.frames[f].tool is not None:
             tools[t.frame[rows] == f] = program.frames[f].tool
-    return {"config": None if config is None else np.asarray(config[rows], int), "tools": tools,
-            "motions": t.motion[rows]}
+    return {"config": stated, "tools": tools, "motions": t.motion[rows]}
 
 
 def _pair(args):
