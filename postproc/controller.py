@@ -90,9 +90,9 @@ def family_mismatch(program: Program, model: Compensator) -> str | None:
     if own is None or own == wanted:
         return None
     name = _DIALECT_NAMES[program.dialect]
-    return (f"the program is {name}, for a {wanted} controller, and the model was trained on {model.robot}, "
-            f"a {own} robot (its description models/{Path(description.path).name}): compensate with a model of "
-            "this program's robot")
+    return (f"the program is {name}, written for {wanted} controllers, and the model was trained on {model.robot}, "
+            f"an arm of {own}'s (its description {Path(description.path).name}): compensate with a model of this "
+            "program's robot")
 
 
 def _tools(program: Program, model: Compensator, description, rows: np.ndarray) -> np.ndarray:

@@ -217,7 +217,7 @@ def test_config_is_not_guessed_for_a_model_that_takes_joint_angles(tmp_path, fra
     no_config = pos(2, 1500, 0, 900, uf=0).replace("CONFIG : 'N U T, 0, 0, 0',", "")
     text = program(["L P[1] 100mm/sec FINE", "L P[2] 100mm/sec FINE"], [pos(1, 1500, 100, 900, uf=0), no_config])
     # a model of a KUKA (its description states KUKA S/T) is no model of a FANUC's program: refused
-    with pytest.raises(PostprocError, match="P310.*FANUC controller.*KR500-sim"):
+    with pytest.raises(PostprocError, match="P310.*FANUC controllers.*KR500-sim"):
         compensate_text(text, model, name="t.ls", config=frames_file)
     out, report = compensate_text(text, model, name="t.ls", config=frames_file, force=True)
     assert report.left_codes == {"P309": 1} and report.compensated == 1
