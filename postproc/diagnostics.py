@@ -92,7 +92,8 @@ P306 = _code("P306", "error", "an ONNX file that is not a compensator (inputs, o
 P307 = _code("P307", "error", "no such model")
 P308 = _code("P308", "error", "--iterations outside 1…100, or --max-correction not a positive number")
 P309 = _code("P309", "error", "no inverse-kinematics solution for this target (a warning, left as written, for models with a joints input)")
-P310 = _code("P310", "error", "the model was trained on another robot than the configured one")
+P310 = _code("P310", "error", "the model was trained on another robot than the configured one, or (a model that "
+             "takes joint angles) on an arm of another controller than the program's dialect is written for")
 P311 = _code("P311", "error", "a model with a joints input for a robot postproc has no description of")
 P312 = _code("P312", "error", "--orientation where a target does not write all of its orientation's numbers (A/B/C, q1..q4, rx,ry,rz) or the reader does not locate them")
 P313 = _code("P313", "warning", "the target's S/T is another arm configuration than the model evaluates: left as written")
@@ -144,9 +145,9 @@ P515 = _code("P515", "error", "a_meas,b_meas,c_meas more than 5° (median) from 
              "frame, the probe's own axes or radians")
 P516 = _code("P516", "error", "a training option the method does not have (--search, --optimizer: the pose-only "
              "networks'; it was ignored for the identified methods)")
-P517 = _code("P517", "error", "positions in another unit than mm: a pose list or measurement CSV whose every |x|,|y|,|z| "
-             "is below 5 for a robot that reaches metres (metres), or whose uncompensated errors are ~1/1000 of any "
-             "robot's")
+P517 = _code("P517", "error", "positions in another unit than mm: a pose list or measurement CSV whose every x, y, z "
+             "lies within ±5 for a robot that reaches metres (metres), or whose uncompensated errors are ~1/1000 of "
+             "any robot's")
 # P6xx: a command's own inputs
 P601 = _code("P601", "error", "verify's original and compensated programs are not one program")
 P610 = _code("P610", "error", "bad settings (unknown key, bad value, bad TOML)")
