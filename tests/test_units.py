@@ -26,6 +26,10 @@ def test_the_rule():
     assert unit_problem(ROWS / 1000, reach_mm=4.0) is None
     assert unit_problem(ROWS, errors=np.full((4, 3), 0.2)) is None
     assert "~1/1000 of any robot's" in unit_problem(ROWS, errors=np.full((4, 3), 5e-4))
+    # measured columns in metres (errors ~1000× a robot's): named, not "another frame"
+    said = unit_problem(ROWS, errors=ROWS[:, :3] * 0.999, measured=ROWS[:, :3] / 1000)
+    assert "x_meas, y_meas, z_meas are in metres" in said
+    assert unit_problem(ROWS, errors=np.full((4, 3), 0.2), measured=ROWS[:, :3] - 0.2) is None
 
 
 def test_a_pose_list_in_metres_is_refused_naming_the_unit(tmp_path, capsys):

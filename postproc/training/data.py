@@ -102,16 +102,13 @@ def check_errors(positions: np.ndarray, measured: np.ndarray, lines: np.ndarray,
     from ..units import check_unit
 
     errors = positions - measured
-    check_unit(positions, path, int(lines[0]) if len(lines) else 0, errors=errors)  # (metres: P517, naming the unit)
+    check_unit(positions, path, int(lines[0]) if len(lines) else 0, errors=errors, measured=measured)  # (P517: metres)
     size = np.linalg.norm(errors, axis=1)
     median = float(np.median(size)) if len(size) else 0.0
-    if median > FRAME_ERROR_MM:
+    if median > FRAME_ERROR_MM:  # (not metres: postproc.units said so above)
         i = int(np.argmax(size))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = float(np.median(np.linalg.norm(positions, axis=1) / np.linalg.norm(measured, axis=1)))
-        unit = f" (commanded / measured distances from the origin: {ratio:.4g}, metres?)" if 300 < ratio < 3000 else ""
         raise PostprocError(f"uncompensated errors of {median:.4g} mm (median; line {lines[i]}: {size[i]:.4g} mm): "
-                            f"the measured points are in another frame or unit{unit}: register them (--register, "
+                            f"the measured points are in another frame or unit: register them (--register, "
                             f"'# frame: tracker') or convert to mm", path, int(lines[i]), 1, "P509")
     far = np.flatnonzero(size > 10.0 * median + 5.0)
     if not len(far):
