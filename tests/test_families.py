@@ -100,3 +100,24 @@ def test_plan_writes_a_fanuc_measurement_program_whose_config_reads_back(tmp_pat
     # not for another robot's description
     assert main(["plan", "-n", "3", "-o", str(tmp_path / "k.csv"), "--ls", str(tmp_path / "k.ls")]) == 2
     assert "P512" in capsys.readouterr().err and not (tmp_path / "k.ls").exists()
+
+
+DESCRIPTIONS = {"default": "kr500.toml", "irb6700": "irb6700.toml", "r2000ic": "r2000ic.toml", "ur10": "ur10.toml"}
+
+
+@pytest.mark.parametrize("argv", [a for a in _commands() if "cam_pocket" not in a[2]], ids=lambda a: a[2])
+def test_each_sample_lands_on_its_simulated_robot(tmp_path, capsys, monkeypatch, argv):
+    """postproc verify: the sample and its compensation run on the simulated robot of its
+    family (in the configurations the program states, its frames; URScript's base turned to
+    the UR description's base_link): the compensated targets land within 0.1 mm on average."""
+    import json
+
+    model = _table()[argv[2]][0]
+    monkeypatch.chdir(REPO)
+    out = tmp_path / argv[argv.index("-o") + 1].split("/")[-1]
+    assert main(argv[1:argv.index("-o")] + ["-o", str(out), "-q"]) in (0, 1)
+    config = ["--config", argv[argv.index("--frames") + 1]] if "--frames" in argv else []
+    assert main(["verify", argv[2], str(out), *config, "--robot", str(model_path(DESCRIPTIONS[model])), "--json",
+                 "-q"]) == 0
+    figures = json.loads(capsys.readouterr().out)
+    assert figures["after"]["mean"] < 0.1 < figures["before"]["mean"], figures
