@@ -66,7 +66,7 @@ from .robot import Robot
 
 __all__ = ["UNSTATED", "arm_status", "branch_table", "stated_joints", "controller_joints", "status_turn_of",
            "measurement_joints", "Stated", "stated_configuration", "parse_fanuc_config", "fanuc_configs",
-           "fanuc_turn", "abb_confdata", "FORM_NAMES"]
+           "fanuc_turn", "abb_confdata", "FORM_NAMES", "linear_changes"]
 
 UNSTATED = -1  # S or T not written for a target
 ARM_BITS = 0b111  # S bits 0-2: shoulder, elbow, wrist (the branch); the others are not the arm's
@@ -771,6 +771,29 @@ def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, to
         own = np.isfinite(given[rows]).all(axis=1)
         q[own], ok[own] = given[rows][own], True
     return q, ok
+
+
+def linear_changes(robot: Robot, targets, rows: np.ndarray, stated: Stated, q: np.ndarray) -> np.ndarray:
+    """[n] bool: linear targets (LIN, CIRC: not PTP, not a pose list's row) of ``rows`` whose
+    stated branch (an ABB or FANUC form: ``stated.windows``) is not the branch of the target
+    before them, whose joint angles ``q`` [n, 6] are. A linear motion keeps the arm's
+    configuration: the controller stops there (``ConfL\\On``, FANUC) or keeps its own
+    (``ConfL\\Off``) — which one the program text does not say, so the caller leaves them as
+    written (P309). KUKA's S/T on a LIN, which the controller ignores, is not judged here."""
+    n = len(rows)
+    out = np.zeros(n, bool)
+    if stated.windows is None or n < 2:
+        return out
+    nearest, alone = execution_kinds(np.asarray(targets.motion)[np.asarray(rows, int)])
+    form = np.isfinite(stated.windows[:, :, 0]).any(axis=1) & (stated.status >= 0)
+    linear = form & ~nearest & ~alone
+    linear[0] = False
+    if not linear.any():
+        return out
+    before = status_turn_of(robot, q[:-1])[0]  # (NaN rows: UNSTATED, not judged)
+    i = np.flatnonzero(linear[1:]) + 1
+    out[i] = (before[i - 1] >= 0) & (before[i - 1] != arm_status(stated.status[i]))
+    return out
 
 
 def measurement_joints(description, data) -> tuple[np.ndarray | None, np.ndarray, list[str]]:

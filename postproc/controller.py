@@ -197,6 +197,13 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
                 chain.origin = start
         q, ok = configuration.target_joints(robot, t, rows, sel, tools,
                                             start[0] if np.isfinite(start).all() else None, chain, stated)
+        changes = configuration.linear_changes(robot, t, rows, stated, q) & ok
+        if changes.any():
+            warnings += collect(program, rows[changes], P309, "a linear motion cannot change the arm configuration, and "
+                                "the one this target states is not the one its motion keeps: the controller stops "
+                                "(ConfL\\On, FANUC) or keeps its own (ConfL\\Off), which the program does not say: left as it is")
+            keep = ~changes
+            rows, sel, q, tools, ok = rows[keep], sel[keep], q[keep], tools[keep], ok[keep]
         if not ok.all():
             warnings += collect(program, rows[~ok], P309, "no joint angles for this target in its arm configuration "
                                 "(S/T, or the one its motion keeps) on the nominal robot: left as it is")

@@ -194,3 +194,22 @@ def test_a_form_the_description_cannot_say_is_left_as_written(tmp_path, fanuc, a
     arm = Robot(abb.description.replace(tool=np.array([0, 0, 300.0, 0, 0, 0])))
     rows = "x,y,z,a,b,c\n" + "\n".join(",".join(f"{v:.4f}" for v in p) for p in arm.fk(workspace_q["abb"][:1])) + "\n"
     assert compensate_text(rows, abb_model, name="p.csv")[1].compensated == 1
+
+
+def test_a_linear_motion_that_states_another_branch_is_left_as_written(tmp_path, abb, workspace_q):
+    """MoveL keeps the arm's configuration: a MoveL whose confdata states another branch than
+    the target before it is run so by no controller (ConfL\\On stops, ConfL\\Off keeps its own):
+    left as written (P309), the others compensated; as MoveJ the same target is reached."""
+    q = workspace_q["abb"][:2]  # one pose, two wrists
+    poses = abb.fk(q)
+    conf = configuration.abb_confdata(abb, q)
+    model = load_model(joint_model(tmp_path / "j.onnx", GAIN, robot="IRB6700-sim",
+                                   tool={"name": "tSpindle", "frame": abb.tool.tolist()}))
+    text = _rapid(poses, conf, abb.tool)
+    linear = text.replace("MoveJ", "MoveL", 2).replace("MoveL", "MoveJ", 1)  # (MoveJ, then MoveL to the other wrist)
+    _, report = compensate_text(linear, model, name="t.mod")
+    assert report.left_codes == {"P309": 1} and report.compensated == 1
+    (warning,) = [w for w in report.warnings if w.code == "P309"]
+    assert warning.line == 5 and "a linear motion cannot change the arm configuration" in warning.message
+    _, report = compensate_text(text, model, name="t.mod")
+    assert report.compensated == 2

@@ -74,7 +74,7 @@ def test_sample_targets_frames_and_configuration():
     # P[1] joint representation; P[3] also moved to with Offset,PR[1]: left as written
     assert t.line.tolist() == [39, 51, 57]
     assert [MOTIONS[m] for m in t.motion] == ["LIN", "CIRC-aux", "CIRC-end"]
-    assert p.configs == ["N U T, 0, 0, 0", "F U T, 0, 0, 0", "N U T, 0, 0, 0"]
+    assert p.configs == ["N U T, 0, 0, 0"] * 3  # (a circular motion keeps the arm's configuration)
     assert codes(p) == ["P211", "P211"]
     assert np.allclose(p.frames[0].base, frames.frame_to_matrix([1650, 0, -450, -90, 0, 0]))
     assert p.frames[0].tool == pytest.approx((0, 0, 300, 0, 0, 0))
