@@ -21,7 +21,8 @@ from collections import Counter
 from . import frames
 from .compensator import Chain, Compensator, Inside, load_model
 from .diagnostics import (
-    P105, P106, P107, P108, P201, P202, P203, P212, P220, P221, P224, P225, P230, P306, P312, P321, P322, Diagnostic,
+    P105, P106, P107, P108, P201, P202, P203, P212, P220, P221, P224, P225, P230, P306, P312, P321, P322, P340,
+    Diagnostic,
     LEFT_AS_WRITTEN,
     PostprocError,
 )
@@ -84,7 +85,7 @@ class Report:
     mean_correction_mm: float = 0.0
     outside_envelope: int = 0
     warnings: list[Diagnostic] = field(default_factory=list)
-    notes: list[Diagnostic] = field(default_factory=list)  # P224, P321 (printed with -v)
+    notes: list[Diagnostic] = field(default_factory=list)  # P224, P321 (printed with -v), P340 (printed)
     outputs: dict[str, str] = field(default_factory=dict)
     changed: list[str] = field(default_factory=list)
 
@@ -120,6 +121,8 @@ class Report:
             details += f", {approaches} reached from several places (P322, -v)"
         if any(n.code == P224 for n in self.notes):
             details += "; robot base = world assumed: $ROBROOT not known (P224, -v)"
+        if any(n.code == P340 for n in self.notes):
+            details += "; a demonstration model of a simulated robot (P340)"
         if not self.changed:
             details += "; nothing changed: the output is the input as it was, unstamped"
         return f"{head}; {details}"
@@ -433,6 +436,8 @@ def compensate_program(
     settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot, force=force,
                         fill_partial=fill_partial, chain=_chain, max_std_mm=max_std_mm)
     selection, found = select_with_findings(program, model, settings)
+    model_notes = [d for d in found if d.severity == "note"]  # (P340: said once, not a warning)
+    found = [d for d in found if d.severity != "note"]
     warnings = [d for d in program.diagnostics if d.code != P202 or force] + found
     _raise_first(found, False)
     _raise_first(warnings, strict)
@@ -491,7 +496,7 @@ def compensate_program(
     report.mean_correction_mm = float(size.mean()) if len(size) else 0.0
     report.outside_envelope = _outside(model, commands)
     report.warnings = warnings
-    report.notes = program.notes + dead_band_notes(program, commands) + approach_notes
+    report.notes = program.notes + model_notes + dead_band_notes(program, commands) + approach_notes
     report.changed = [program.files[i] for i in sorted(set(program.targets.file[selection.rows].tolist()))]
     report.outputs = dict(zip(program.files, outputs))
     return report

@@ -97,7 +97,9 @@ and the interface of any other program that runs the file (onnxruntime alone: ``
   "moved_at_sigmas", "parameters": [{"group", "name", "unit", "old", "new", "change", "std",
   "moved"}]}; optional ``uncertainty`` {"max_std_mm" (the bound on ``error_std``
   compensate and check apply without ``--max-std``: uncertainty.MAX_STD_FACTOR × the
-  identification's residual std), "residual_std_mm"} beside ``error_std``; optional ``transfer`` (benchmarks/cross_series.py: figures on other series).
+  identification's residual std), "residual_std_mm"} beside ``error_std``; optional ``transfer`` (benchmarks/cross_series.py: figures on other series);
+  optional ``demonstration`` {"robot", "robot_seed"}: trained on data ``postproc measure``
+  simulated, a demonstration model of a simulated robot (compensate and check say so, P340).
 
 The command sent for target P is c = P + Ê(c), solved by fixed-point iteration from
 c₀ = P (one iteration = the method's c = P + Ê(P)).
@@ -285,6 +287,16 @@ class Compensator:
     @property
     def robot(self) -> str:
         return str(self.metadata.get("robot", ""))
+
+    @property
+    def demonstration(self) -> str | None:
+        """What the card's ``demonstration`` says the model is ("a demonstration model of a
+        simulated KR500-sim": trained on data ``postproc measure`` simulated), None for a model
+        of a real robot's data (no such key)."""
+        demo = self.metadata.get("demonstration")
+        if not isinstance(demo, dict):
+            return None
+        return f"a demonstration model of a simulated {demo.get('robot') or self.robot or 'robot'}"
 
     @property
     def tool(self) -> dict:
@@ -985,8 +997,12 @@ def _interface_problems(inputs: dict, outputs: dict, joints_output: str) -> list
 
 
 def load_model(path: str | Path | None = None) -> Compensator:
-    """Load and check an ONNX compensator (default: the shipped ``models/default.onnx``)."""
+    """Load and check an ONNX compensator (default: the shipped ``models/default.onnx``; a bare
+    name that is no file, ``irb6700``, a shipped model: ``models/irb6700.onnx``)."""
     path = Path(path) if path is not None else model_path()
+    if not path.is_file() and path.parent == Path(".") and path.suffix in ("", ".onnx"):
+        shipped = model_path(path.with_suffix(".onnx").name)
+        path = shipped if shipped.is_file() else path
     if not path.is_file():
         raise PostprocError("model not found", str(path), code=P307)
     try:

@@ -32,10 +32,32 @@ each joint's sign (the turn inside the limits with that sign). Targets whose con
 no solution (the pose unreachable on that branch, within the limits) come back NaN with
 ``ok`` False: the caller leaves them as written.
 
+The other controllers' forms (docs/CONFIGURATIONS.md, with the sources) map on the same
+branch table, for a description that says its controller states them (``[robot]
+configuration``):
+
+* ABB RAPID ``confdata [cf1, cf4, cf6, cfx]`` (``"abb"``): cfx 0…7 = 4·(wrist centre behind
+  axis 1) + 2·(wrist centre behind the lower arm, i.e. the elbow down) + (axis 5 negative);
+  cf1, cf4, cf6 the quadrant of axes 1, 4, 6 (⌊q/90°⌋), a *window* [90·cf, 90·cf + 90°] each
+  joint's turn is taken in;
+* FANUC ``CONFIG : 'F U T, t1, t4, t6'`` (``"fanuc"``): N/F no flip / flip (F: J5 > 0 in
+  FANUC's joint angles, the wrist bent the other way than in the tool-down pose J4 = 0,
+  J5 = −90°), U/D the elbow up / down, T/B the wrist centre in front of / behind the J1 axis;
+  t1, t4, t6 the turn numbers of J1, J4, J6 (0: −180° < q < 180°, 1: 180° ≤ q < 540°, −1:
+  −540° < q ≤ −180°), windows as cf's.
+
+Both ways: :func:`stated_configuration` (a program's stated forms → :class:`Stated`: branch,
+T, turn windows, and the rows whose form the description cannot say: left as written, P309),
+:func:`fanuc_configs` / :func:`abb_confdata` (joint angles → the strings / numbers a program
+states, as plan and the benchmarks write them).
+
 numpy only: the nominal arm is :class:`postproc.robot.Robot`'s numpy kinematics (Pinocchio is
 imported by robot.py only for gravity and checks).
 """
 from __future__ import annotations
+
+import re
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -43,7 +65,8 @@ from . import frames
 from .robot import Robot
 
 __all__ = ["UNSTATED", "arm_status", "branch_table", "stated_joints", "controller_joints", "status_turn_of",
-           "measurement_joints"]
+           "measurement_joints", "Stated", "stated_configuration", "parse_fanuc_config", "fanuc_configs",
+           "fanuc_turn", "abb_confdata", "FORM_NAMES", "linear_changes"]
 
 UNSTATED = -1  # S or T not written for a target
 ARM_BITS = 0b111  # S bits 0-2: shoulder, elbow, wrist (the branch); the others are not the arm's
@@ -185,7 +208,8 @@ class _Branches:
         if unsure:
             self.need_rows(np.concatenate(unsure))
 
-    def nearest(self, rows: np.ndarray, status: np.ndarray, turn: np.ndarray, ref: np.ndarray):
+    def nearest(self, rows: np.ndarray, status: np.ndarray, turn: np.ndarray, ref: np.ndarray,
+                windows: np.ndarray | None = None):
         """``_choose`` for ``rows`` (their S, T, reference [m, 6]): (q [m, 6], found [m], the
         branch picked [m], sure [m]: the picked branch's Status is its index, see
         :meth:`Robot.status_branch`). A row without S or T whose nearest arm branch (A1-A3) is
@@ -223,7 +247,8 @@ class _Branches:
             stated = status[rest] >= 0
             self.need(status[rest][stated], r[stated])
             self.need_rows(r[~stated])
-            q[rest], found[rest], best[rest] = _choose(self.arms[0], self.table, self.ok, status[rest], turn[rest], ref[rest], r)
+            q[rest], found[rest], best[rest] = _choose(self.arms[0], self.table, self.ok, status[rest], turn[rest], ref[rest], r,
+                                                       None if windows is None else windows[rest])
         return q, found, best, ~rest
 
     def _check_rows(self, rows: np.ndarray) -> None:
@@ -314,10 +339,12 @@ def _status_of(robot: Robot, q: np.ndarray, best: np.ndarray, sure: np.ndarray) 
 
 
 def _choose(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray, turn: np.ndarray,
-            ref: np.ndarray, of: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            ref: np.ndarray, of: np.ndarray | None = None,
+            windows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(q [n, 6], found [n], the branch picked [n]) of each row's candidate nearest ``ref``: a
     row with a stated S has the one candidate of its branch, the others 8 (one per branch).
-    ``of`` [n]: the rows of ``table`` these are (default all of them)."""
+    ``of`` [n]: the rows of ``table`` these are (default all of them); ``windows`` [n, 6, 2]
+    the turn windows the rows state (:class:`Stated`)."""
     n = table.shape[1] if of is None else len(of)
     of = np.arange(n) if of is None else of
     ref = np.broadcast_to(ref, (n, 6))
@@ -331,10 +358,11 @@ def _choose(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray,
         for block in (rows[at:at + BLOCK] for at in range(0, len(rows), BLOCK)):
             if stated:
                 cand, cost = _candidates(robot, table[status[block], of[block]][None], ok[status[block], of[block]][None],
-                                         turn[block], ref[block])
+                                         turn[block], ref[block], None if windows is None else windows[block])
                 pick = np.zeros(len(block), int)
             else:
-                cand, cost = _candidates(robot, table[:, of[block]], ok[:, of[block]], turn[block], ref[block])
+                cand, cost = _candidates(robot, table[:, of[block]], ok[:, of[block]], turn[block], ref[block],
+                                         None if windows is None else windows[block])
                 pick = np.argmin(cost, axis=0)
                 best[block] = pick
             at = np.arange(len(block))
@@ -344,13 +372,20 @@ def _choose(robot: Robot, table: np.ndarray, ok: np.ndarray, status: np.ndarray,
 
 
 def _candidates(robot: Robot, table: np.ndarray, ok: np.ndarray, turn: np.ndarray,
-                ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                ref: np.ndarray, windows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Candidates [B, n, 6] of the branches [B, n, 6] on the turn T states (else the turn nearest
-    ``ref``) and their squared distance to ``ref`` [B, n] (inf where none)."""
+    ``ref``; joints with a turn window [n, 6, 2]: the turn in it) and their squared distance to
+    ``ref`` [B, n] (inf where none)."""
     cand, in_limits = robot.nearest_turn(table, ref)
     stated = np.flatnonzero(turn >= 0)  # (only those: most programs state no T)
     if len(stated):
         cand[:, stated] = _turn_for_sign(robot, table[:, stated], np.broadcast_to(turn[stated], table.shape[:1] + stated.shape))
+    if windows is not None:
+        rows = np.flatnonzero(np.isfinite(windows[..., 0]).any(axis=1))
+        if len(rows):
+            turned = _turn_in_window(robot, table[:, rows], windows[rows])
+            free = ~np.isfinite(windows[rows, :, 0])  # (the joints the form does not state keep theirs)
+            cand[:, rows] = np.where(free, cand[:, rows], turned)  # (NaN where no turn of the window: no candidate)
     good = ok & in_limits & np.isfinite(cand).all(axis=-1)
     with np.errstate(invalid="ignore"):
         cost = np.where(good, ((cand - ref) ** 2).sum(axis=-1), np.inf)
@@ -361,7 +396,7 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
                       ptp: np.ndarray, initial_q: np.ndarray | None = None,
                       tools: np.ndarray | None = None,
                       independent: np.ndarray | None = None, check_all: bool = False,
-                      chain=None) -> tuple[np.ndarray, np.ndarray]:
+                      chain=None, windows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The joint angles [N, 6] (deg) the controller uses for targets in program order, and a mask
     of the targets that have them: stated S/T where given, else the controller's rules (module
     docstring). ``ptp`` [N] bool marks PTP motions (PTP, SPTP; the rest keep the configuration);
@@ -371,7 +406,9 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
     pose reached as ``measure`` reaches it, the branch nearest HOME). ``check_all`` as in
     :func:`stated_joints`. ``chain`` (a ``compensator.Chain``, for a program fed a part at a
     time): its ``joints`` / ``branch`` (the last target's of the part before; None: this is the
-    first part) continue the rules as one call would, and are set to this part's last."""
+    first part) continue the rules as one call would, and are set to this part's last.
+    ``windows`` [N, 6, 2] deg: the turn windows a program's form states for some joints
+    (ABB's quadrants, FANUC's turn numbers: :class:`Stated`; NaN = not stated)."""
     poses = np.atleast_2d(np.asarray(poses, float))
     n = len(poses)
     status = arm_status(np.asarray(status, int).reshape(n))
@@ -383,7 +420,7 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
     branches = _Branches(robot, poses, tools, check_all)
     alone = np.zeros(n, bool) if independent is None else np.asarray(independent, bool).reshape(n)
     while True:
-        q, found, picks, filled = _rules(robot, branches, status, turn, ptp, start, alone, chain)
+        q, found, picks, filled = _rules(robot, branches, status, turn, ptp, start, alone, chain, windows)
         if not any([branches.confirm(b, r) for b, r in picks]):  # (every pick checked)
             if chain is not None:
                 last = _forward_fill_rows(q)[-1]
@@ -393,10 +430,11 @@ def controller_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn:
 
 
 def _rules(robot: Robot, branches: _Branches, status: np.ndarray, turn: np.ndarray, ptp: np.ndarray,
-           start: np.ndarray, alone: np.ndarray, chain=None) -> tuple[np.ndarray, np.ndarray, list]:
+           start: np.ndarray, alone: np.ndarray, chain=None,
+           windows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, list]:
     """The controller's rules on a branch table: (q, found, the (branch, rows) entries picked,
     each target's branch);
-    ``chain``: see ``controller_joints``."""
+    ``chain``, ``windows``: see ``controller_joints``."""
     n = len(status)
     table, ok = branches.table, branches.ok  # (solved as the rules read them: need, need_rows)
     picks = []
@@ -411,7 +449,8 @@ def _rules(robot: Robot, branches: _Branches, status: np.ndarray, turn: np.ndarr
     free_ptp &= ~alone
     q_alone = ok_alone = None
     if alone.any():
-        q_alone, ok_alone, best, sure = branches.nearest(np.flatnonzero(alone), status[alone], turn[alone], start)
+        q_alone, ok_alone, best, sure = branches.nearest(np.flatnonzero(alone), status[alone], turn[alone], start,
+                                                         None if windows is None else windows[alone])
         picks.append((best, np.flatnonzero(alone)))
         branch[alone] = np.where(ok_alone, _status_of(robot, q_alone, best, sure), branch[alone])
     if free_ptp.any():
@@ -427,7 +466,7 @@ def _rules(robot: Robot, branches: _Branches, status: np.ndarray, turn: np.ndarr
         filled = _forward_fill(branch, start_s)
         picks.append((filled, np.arange(n)))
         branches.need(filled, np.arange(n))
-        q, found = _continue_turns(robot, table, ok, filled, turn, start, before)
+        q, found = _continue_turns(robot, table, ok, filled, turn, start, before, windows)
         if not free_ptp.any():
             break
         # PTP without S: the solution nearest the previous target's joint angles, any branch
@@ -464,11 +503,13 @@ def _forward_fill_rows(q: np.ndarray) -> np.ndarray:
 
 
 def _continue_turns(robot: Robot, table: np.ndarray, ok: np.ndarray, branch: np.ndarray, turn: np.ndarray,
-                    start: np.ndarray, before: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Joint angles on the given branches [N]: joints with a stated T on that turn, the others
-    continuing from the previous target (unwrapped from the turn before: continuous motion),
-    brought inside the limits. A run restarts after a target without solution. ``before``: the
-    axis position before the first row (default ``start``, the program's start position)."""
+                    start: np.ndarray, before: np.ndarray | None = None,
+                    windows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Joint angles on the given branches [N]: joints with a stated T on that turn, joints with
+    a turn window [N, 6, 2] on the turn in it, the others continuing from the previous target
+    (unwrapped from the turn before: continuous motion), brought inside the limits. A run
+    restarts after a target without solution. ``before``: the axis position before the first
+    row (default ``start``, the program's start position)."""
     before = start if before is None else before
     n = len(branch)
     rows = np.arange(n)
@@ -495,6 +536,18 @@ def _continue_turns(robot: Robot, table: np.ndarray, ok: np.ndarray, branch: np.
         offset[1:][fits] = anchor[fits] - path[first_rows[fits]]
         path = path + offset[np.cumsum(restart)]
         reached[first_rows[~fits]] = False  # a stated T no turn within the limits has
+    if windows is not None:  # each joint a window states restarts there on the window's turn
+        framed = np.isfinite(windows[:, :, 0]) & reached[:, None]
+        if framed.any():
+            anchor = np.full((n, 6), np.nan)
+            some = framed.any(axis=1)
+            anchor[some] = _turn_in_window(robot, principal[some], windows[some])
+            reached &= ~(framed & ~np.isfinite(anchor)).any(axis=1)  # no turn of the window within the limits
+            for j in np.flatnonzero(framed.any(axis=0)):
+                at = framed[:, j] & np.isfinite(anchor[:, j])
+                last = np.maximum.accumulate(np.where(at, rows, -1))
+                has = last >= 0
+                path[has, j] = anchor[last[has], j] + (path[has, j] - path[last[has], j])
     # the same turns on the exact angles (no drift of the sums), brought inside the limits
     with np.errstate(invalid="ignore"):
         q = principal + 360.0 * np.rint((path - principal) / 360.0)
@@ -503,6 +556,174 @@ def _continue_turns(robot: Robot, table: np.ndarray, ok: np.ndarray, branch: np.
     found = reached & np.isfinite(q).all(axis=1)
     q[~found] = np.nan
     return q, found
+
+
+# --------------------------------------------------------------------------- other controllers' forms
+
+# the forms a description's [robot] configuration names, as messages name them
+FORM_NAMES = {"kuka": "KUKA S/T", "abb": "ABB confdata", "fanuc": "FANUC CONFIG"}
+# the joints whose quadrant (ABB cf1, cf4, cf6) or turn number (FANUC t1, t4, t6) a form states
+TURN_JOINTS = (0, 3, 5)
+# 'F U T, 0, 0, 0': flip, elbow, front/back, the turn numbers of J1, J4, J6 (optional)
+_FANUC_CONFIG = re.compile(r"\s*([NF])\s*([UD])\s*([TB])\s*(?:,\s*([-+]?\d+)\s*,\s*([-+]?\d+)\s*,\s*([-+]?\d+)\s*)?$",
+                           re.IGNORECASE)
+
+
+def _turn_in_window(robot: Robot, q: np.ndarray, windows: np.ndarray) -> np.ndarray:
+    """Each joint of ``q`` [..., 6] (deg) on the turn (q + k·360°, within the limits) nearest its
+    window ``windows`` [..., 6, 2] (inside it where one is; ties: nearest its middle); NaN where
+    no turn lies within the limits; joints without a window (NaN) as they are."""
+    lo, hi = robot.limits[:, 0], robot.limits[:, 1]
+    w_lo, w_hi = windows[..., 0], windows[..., 1]
+    middle = (w_lo + w_hi) / 2.0
+    best = np.full(np.broadcast_shapes(q.shape, w_lo.shape), np.nan)
+    best_d = np.full(best.shape, np.inf)
+    with np.errstate(invalid="ignore"):
+        for k in (0, -1, 1, -2, 2):
+            c = q + 360.0 * k
+            inside = (c >= lo - 1e-9) & (c <= hi + 1e-9)
+            d = np.maximum(np.maximum(w_lo - c, c - w_hi), 0.0) * 1e6 + np.abs(c - middle)
+            closer = inside & (d < best_d)
+            best = np.where(closer, c, best)
+            best_d = np.where(closer, d, best_d)
+    return np.where(np.isfinite(w_lo), best, q)
+
+
+@dataclass
+class Stated:
+    """The arm configuration targets state, mapped on a description's branch table: ``status``
+    [N] the branch (S numbering, bits 0–2; UNSTATED), ``turn`` [N] KUKA's T (UNSTATED), and
+    ``windows`` [N, 6, 2] (deg) the turn windows other forms state for some joints (NaN: not
+    stated; None: none at all)."""
+
+    status: np.ndarray
+    turn: np.ndarray
+    windows: np.ndarray | None = None
+
+    def take(self, rows) -> "Stated":
+        return Stated(self.status[rows], self.turn[rows], None if self.windows is None else self.windows[rows])
+
+    @classmethod
+    def unstated(cls, n: int) -> "Stated":
+        return cls(np.full(n, UNSTATED), np.full(n, UNSTATED))
+
+
+def fanuc_turn(q_deg: np.ndarray) -> np.ndarray:
+    """FANUC's turn number of joint angles (deg): 0 for −180° < q < 180°, k for the k-th turn
+    beyond (180° ≤ q < 540°: 1; −540° < q ≤ −180°: −1), as RoboDK's FANUC post writes it."""
+    q = np.asarray(q_deg, float)
+    return np.where(q >= 0, np.floor((q + 180.0) / 360.0), -np.floor((180.0 - q) / 360.0)).astype(int)
+
+
+def parse_fanuc_config(text: str) -> tuple[int, np.ndarray] | None:
+    """A FANUC CONFIG string 'F U T, t1, t4, t6' → (the branch it states, S numbering; the turn
+    numbers of J1, J4, J6 [3], −999 where not written), None if it is not of that form. S bit 0 =
+    B (the wrist centre behind the J1 axis), bit 1 = U (elbow up: A3 beyond the stretched arm),
+    bit 2 = N (J5 ≤ 0 in FANUC's joint angles: the tool-down wrist of J4 = 0 is J5 = −90°)."""
+    m = _FANUC_CONFIG.match(text)
+    if m is None:
+        return None
+    flip, elbow, side = (g.upper() for g in m.groups()[:3])
+    status = (side == "B") | (elbow == "U") << 1 | (flip == "N") << 2
+    turns = np.array([int(g) if g is not None else -999 for g in m.groups()[3:]])
+    return int(status), turns
+
+
+def fanuc_configs(robot: Robot, q_deg: np.ndarray) -> list[str]:
+    """The FANUC CONFIG strings ('N U T, 0, 0, 0') of joint angles [N, 6] deg (NaN rows: '')."""
+    q = np.atleast_2d(np.asarray(q_deg, float))
+    status, _ = status_turn_of(robot, q)
+    turns = fanuc_turn(np.nan_to_num(q[:, list(TURN_JOINTS)]))
+    return ["" if st < 0 else f"{'N' if st & 4 else 'F'} {'U' if st & 2 else 'D'} {'B' if st & 1 else 'T'}, "
+            f"{t[0]}, {t[1]}, {t[2]}" for st, t in zip(status.tolist(), turns.tolist())]
+
+
+def abb_confdata(robot: Robot, q_deg: np.ndarray) -> np.ndarray:
+    """ABB confdata [N, 4] (cf1, cf4, cf6, cfx) of joint angles [N, 6] deg: the quadrants
+    ⌊q/90°⌋ of axes 1, 4, 6 and cfx = 4·(wrist centre behind axis 1) + 2·(behind the lower arm)
+    + (axis 5 negative)."""
+    q = np.atleast_2d(np.asarray(q_deg, float))
+    status, _ = status_turn_of(robot, q)
+    quadrants = np.floor(q[:, list(TURN_JOINTS)] / 90.0)
+    cfx = 4 * (status & 1) + 2 * (1 - ((status >> 1) & 1)) + ((status >> 2) & 1)
+    return np.c_[quadrants, cfx].astype(int)
+
+
+def _abb_branch(conf: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """confdata [n, 4] → (the branch, S numbering [n], windows [n, 6, 2], rows well formed [n])."""
+    conf = np.asarray(conf, float)
+    whole = np.isfinite(conf).all(axis=1) & (conf == np.round(conf)).all(axis=1)
+    cfx = np.where(whole, conf[:, 3], -1).astype(int)
+    good = whole & (cfx >= 0) & (cfx <= 7)
+    status = np.where(good, ((cfx >> 2) & 1) | ((1 - ((cfx >> 1) & 1)) << 1) | ((cfx & 1) << 2), UNSTATED)
+    windows = np.full((len(conf), 6, 2), np.nan)
+    for k, j in enumerate(TURN_JOINTS):
+        windows[good, j, 0] = 90.0 * conf[good, k]
+        windows[good, j, 1] = 90.0 * conf[good, k] + 90.0
+    return status, windows, good
+
+
+def stated_configuration(program, description, rows: np.ndarray) -> tuple[Stated, np.ndarray, list[str]]:
+    """What targets ``rows`` of a program state of their arm configuration, mapped on the branch
+    table of ``description`` (a RobotDescription): (:class:`Stated`, a mask [n] of the rows whose
+    stated form the description cannot say or that is malformed — left as written, P309 —, and
+    the reason of each of those, in order). KUKA's S/T (``Targets.config``) is read on any arm;
+    ABB's confdata (``RapidProgram.confdata``) only for a description whose ``configuration`` is
+    "abb", FANUC's CONFIG (``FanucProgram.configs``) only for "fanuc": never a guess."""
+    rows = np.asarray(rows, int)
+    n = len(rows)
+    config = getattr(program.targets, "config", None)
+    if config is None:
+        stated = Stated.unstated(n)
+    else:
+        stated = Stated(np.asarray(config[rows, 0], int), np.asarray(config[rows, 1], int))
+    unmapped = np.zeros(n, bool)
+    why: list[str] = []
+    form = getattr(description, "configuration", "")
+    name = getattr(description, "name", "the robot")
+    raw_conf = getattr(program, "confdata", None) if program.dialect == "rapid" else None
+    raw_fanuc = getattr(program, "configs", None) if program.dialect == "fanuc" else None
+    if raw_conf is not None and len(raw_conf):
+        conf = np.asarray(raw_conf, float)[rows]
+        given = np.isfinite(conf).any(axis=1)
+        if form != "abb":
+            unmapped |= given
+            why += [f"the target states ABB confdata {_shown(conf[i])} and the description of {name} does not say "
+                    "how its controller's configurations map on the arm ([robot] configuration = \"abb\")"
+                    for i in np.flatnonzero(given)]
+        else:
+            status, windows, good = _abb_branch(conf)
+            stated.status = np.where(good, status, stated.status)
+            stated.windows = windows
+            bad = given & ~good
+            unmapped |= bad
+            why += [f"confdata {_shown(conf[i])} is not four integers with cfx 0…7" for i in np.flatnonzero(bad)]
+    if raw_fanuc is not None and len(raw_fanuc):
+        texts = [raw_fanuc[r] for r in rows]
+        given = np.array([bool(t.strip()) for t in texts], bool)
+        if form != "fanuc":
+            unmapped |= given
+            why += [f"the target states FANUC CONFIG '{texts[i]}' and the description of {name} does not say how its "
+                    "controller's configurations map on the arm ([robot] configuration = \"fanuc\")"
+                    for i in np.flatnonzero(given)]
+        else:
+            windows = np.full((n, 6, 2), np.nan)
+            for i in np.flatnonzero(given):
+                parsed = parse_fanuc_config(texts[i])
+                if parsed is None:
+                    unmapped[i] = True
+                    why.append(f"CONFIG '{texts[i]}' is not of the form 'F|N U|D T|B, t1, t4, t6'")
+                    continue
+                stated.status[i], turns = parsed
+                for t, j in zip(turns, TURN_JOINTS):
+                    if t != -999:
+                        windows[i, j] = (360.0 * t - 180.0, 360.0 * t + 180.0)
+            stated.windows = windows
+    return stated, unmapped, why
+
+
+def _shown(conf: np.ndarray) -> str:
+    return "[" + ",".join("?" if not np.isfinite(v) else f"{v:g}" for v in conf) + "]"
 
 
 # --------------------------------------------------------------------------- targets of a program
@@ -529,25 +750,27 @@ def execution_kinds(motion: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, tools: np.ndarray | None = None,
-                  initial_q: np.ndarray | None = None, chain=None, order=None) -> tuple[np.ndarray, np.ndarray]:
+                  initial_q: np.ndarray | None = None, chain=None,
+                  stated: Stated | None = None, order=None) -> tuple[np.ndarray, np.ndarray]:
     """The controller's joint angles [n, 6] (deg) for ``rows`` of a program's ``Targets`` (in
     program order) at ``poses`` [n, 6] (robot base, TCP) with ``tools`` [n, 6], and a mask of
     those that have them: the program's own joint angles where it gives them (``Targets.joints``),
-    else its S/T (``Targets.config``), else the controller's rules (module docstring). ``order``
-    (``compensator.Order``): each row's predecessor where it is not the row before (a branch, a
-    loop, a routine called from two places): the rules continue from it, run by run of rows."""
+    else its stated configuration (``stated``: :func:`stated_configuration` of these rows;
+    default its S/T, ``Targets.config``), else the controller's rules (module docstring).
+    ``order`` (``compensator.Order``): each row's predecessor where it is not the row before (a
+    branch, a loop, a routine called from two places): the rules continue from it, run by run."""
     rows = np.asarray(rows, int)
     n = len(rows)
-    config = getattr(targets, "config", None)
-    if config is None:
-        status = turn = np.full(n, UNSTATED)
-    else:
-        status, turn = (np.asarray(config[rows, k], int) for k in (0, 1))
+    if stated is None:
+        config = getattr(targets, "config", None)
+        stated = Stated.unstated(n) if config is None else Stated(np.asarray(config[rows, 0], int),
+                                                                   np.asarray(config[rows, 1], int))
     nearest, alone = execution_kinds(np.asarray(targets.motion)[rows])
     if order is not None and not order.sequential and n:
-        q, ok = _ordered_joints(robot, poses, status, turn, nearest, initial_q, tools, alone, order)
+        q, ok = _ordered_joints(robot, poses, stated, nearest, initial_q, tools, alone, order)
     else:
-        q, ok = controller_joints(robot, poses, status, turn, nearest, initial_q, tools, alone, chain=chain)
+        q, ok = controller_joints(robot, poses, stated.status, stated.turn, nearest, initial_q, tools, alone,
+                                  chain=chain, windows=stated.windows)
     given = getattr(targets, "joints", None)
     if given is not None:
         own = np.isfinite(given[rows]).all(axis=1)
@@ -555,7 +778,7 @@ def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, to
     return q, ok
 
 
-def _ordered_joints(robot: Robot, poses, status, turn, nearest, initial_q, tools, alone, order):
+def _ordered_joints(robot: Robot, poses, stated, nearest, initial_q, tools, alone, order):
     """``controller_joints`` run by run of rows that follow each other (``order``): each run
     continues from its first row's predecessor (its joint angles and branch), or starts afresh
     where nothing is known before it."""
@@ -573,9 +796,38 @@ def _ordered_joints(robot: Robot, poses, status, turn, nearest, initial_q, tools
         if p >= 0 and ok[p]:
             chain = SimpleNamespace(joints=q[p].copy(), branch=int(status_turn_of(robot, q[p][None])[0][0]))
         part = slice(a, b)
-        q[part], ok[part] = controller_joints(robot, poses[part], status[part], turn[part], nearest[part], initial_q,
-                                              None if tools is None else tools[part], alone[part], chain=chain)
+        q[part], ok[part] = controller_joints(robot, poses[part], stated.status[part], stated.turn[part],
+                                              nearest[part], initial_q, None if tools is None else tools[part],
+                                              alone[part], chain=chain,
+                                              windows=None if stated.windows is None else stated.windows[part])
     return q, ok
+
+
+def linear_changes(robot: Robot, targets, rows: np.ndarray, stated: Stated, q: np.ndarray,
+                   order=None) -> np.ndarray:
+    """[n] bool: linear targets (LIN, CIRC: not PTP, not a pose list's row) of ``rows`` whose
+    stated branch (an ABB or FANUC form: ``stated.windows``) is not the branch of the target
+    before them (its predecessor: ``order``, else the row before), whose joint angles ``q``
+    [n, 6] are. A linear motion keeps the arm's configuration: the controller stops there
+    (``ConfL\\On``, FANUC) or keeps its own (``ConfL\\Off``) — which one the program text does not
+    say, so the caller leaves them as written (P309). KUKA's S/T on a LIN, which the controller
+    ignores, is not judged here."""
+    n = len(rows)
+    out = np.zeros(n, bool)
+    if stated.windows is None or n < 2:
+        return out
+    nearest, alone = execution_kinds(np.asarray(targets.motion)[np.asarray(rows, int)])
+    form = np.isfinite(stated.windows[:, :, 0]).any(axis=1) & (stated.status >= 0)
+    linear = form & ~nearest & ~alone
+    prev = np.arange(-1, n - 1) if order is None or order.sequential else np.asarray(order.prev)
+    linear &= prev >= 0
+    if not linear.any():
+        return out
+    status = status_turn_of(robot, q)[0]  # (NaN rows: UNSTATED, not judged)
+    i = np.flatnonzero(linear)
+    before = status[prev[i]]
+    out[i] = (before >= 0) & (before != arm_status(stated.status[i]))
+    return out
 
 
 def measurement_joints(description, data) -> tuple[np.ndarray | None, np.ndarray, list[str]]:

@@ -9,13 +9,15 @@ angles on the nominal arm (P309, left as written) and attaches the inputs to it.
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from .compensator import Compensator
 from .diagnostics import P309, P311, P313, P319, Diagnostic, PostprocError
 from .programs import Program
 
-__all__ = ["model_description", "controller_inputs", "configuration_mismatch", "unseparated_mount_mm",
+__all__ = ["model_description", "controller_inputs", "family_mismatch", "DIALECT_CONTROLLERS", "configuration_mismatch", "unseparated_mount_mm",
            "JOINT_TOLERANCE_DEG", "MOUNT_ROTATION_DEG", "TOOL_WARNING_MM"]
 
 # A target's stated configuration (S/T) is the model's when the joint angles agree to this.
@@ -56,6 +58,41 @@ def model_description(model: Compensator):
         if model.robot and description.name.casefold() == model.robot.casefold():
             return description
     return None
+
+
+# the controller a program's dialect is written for (a pose list: any robot's), and the one a
+# description's [robot] configuration names (a UR-type arm: Universal Robots')
+DIALECT_CONTROLLERS = {"krl": "KUKA", "rapid": "ABB", "urscript": "Universal Robots", "fanuc": "FANUC"}
+_FORM_CONTROLLERS = {"kuka": "KUKA", "abb": "ABB", "fanuc": "FANUC"}
+_DIALECT_NAMES = {"krl": "KRL", "rapid": "RAPID", "urscript": "URScript", "fanuc": "an LS program"}
+
+
+def family_mismatch(program: Program, model: Compensator) -> str | None:
+    """Why a model that takes joint angles does not fit the controller ``program`` is written
+    for (its dialect: KRL a KUKA's, RAPID an ABB's, URScript a Universal Robots', LS a FANUC's),
+    when the description of the model's robot names another (``[robot] configuration``, or a
+    UR-type arm); None where they agree or either is not known (a pose list, a model without
+    the ``joints`` input or without a description)."""
+    wanted = DIALECT_CONTROLLERS.get(program.dialect)
+    if wanted is None or not model.wants_joints:
+        return None
+    description = model_description(model)
+    if description is None:
+        return None
+    own = _FORM_CONTROLLERS.get(description.configuration)
+    if own is None:
+        from .robot import Robot
+
+        try:
+            own = "Universal Robots" if Robot(description).family == "ur" else None
+        except PostprocError:  # (an arm postproc has no closed-form IK for: unknown)
+            own = None
+    if own is None or own == wanted:
+        return None
+    name = _DIALECT_NAMES[program.dialect]
+    return (f"the program is {name}, written for {wanted} controllers, and the model was trained on {model.robot}, "
+            f"an arm of {own}'s (its description {Path(description.path).name}): compensate with a model of this "
+            "program's robot")
 
 
 def _tools(program: Program, model: Compensator, description, rows: np.ndarray) -> np.ndarray:
@@ -117,8 +154,9 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
                       collect, chain=None, order=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, list[Diagnostic]]:
     """The model's ``joints`` / ``tool`` inputs for targets ``rows`` at base poses ``sel``:
     (rows kept, their poses, joint angles [n, 6] deg or None, TCPs [n, 6] or None, warnings).
-    Targets whose configuration has no joint angles on the nominal arm (P309) are left as
-    written. The tool is the program's $TOOL where known, else the model's (its card); where
+    Targets whose configuration has no joint angles on the nominal arm, or is stated in a form
+    the model's description cannot say (``configuration.stated_configuration``), are left as
+    written (P309). The tool is the program's $TOOL where known, else the model's (its card); where
     its lever arm is so far from the measured TCPs' that the mount rotation the model could not
     separate may add TOOL_WARNING_MM or more, a P319 warning says how much (the target is
     compensated). ``collect`` makes the located warnings (findings.collect). ``chain`` (a
@@ -137,13 +175,14 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
     t = program.targets
     warnings: list[Diagnostic] = []
     q = None
-    unmapped = program.unmapped_configuration
-    if model.wants_joints and unmapped is not None and unmapped[rows].any():
-        keep = ~unmapped[rows]
-        warnings += collect(program, rows[~keep], P309, "the target states its arm configuration in a form postproc "
-                            "does not translate to joint angles (Fanuc CONFIG): left as it is")
-        rows, sel, tools = rows[keep], sel[keep], tools[keep]
-        order = None  # (rows dropped: the order of the rest is made again by findings)
+    stated = None
+    if model.wants_joints:
+        stated, unmapped, why = configuration.stated_configuration(program, description, rows)
+        if unmapped.any():
+            warnings += collect(program, rows[unmapped], P309, lambda i: why[i] + ": left as it is")
+            keep = ~unmapped
+            rows, sel, tools, stated = rows[keep], sel[keep], tools[keep], stated.take(keep)
+            order = None  # (rows dropped: the order of the rest is made again by findings)
     if model.wants_joints and len(rows):
         robot = Robot(description.replace(tool=default_tool))
         first = robot if np.array_equal(tools[0], default_tool) else Robot(description.replace(tool=tools[0]))
@@ -158,7 +197,14 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
             if chain is not None:
                 chain.origin = start
         q, ok = configuration.target_joints(robot, t, rows, sel, tools,
-                                            start[0] if np.isfinite(start).all() else None, chain, order)
+                                            start[0] if np.isfinite(start).all() else None, chain, stated, order)
+        changes = configuration.linear_changes(robot, t, rows, stated, q, order) & ok
+        if changes.any():
+            warnings += collect(program, rows[changes], P309, "a linear motion cannot change the arm configuration, and "
+                                "the one this target states is not the one its motion keeps: the controller stops "
+                                "(ConfL\\On, FANUC) or keeps its own (ConfL\\Off), which the program does not say: left as it is")
+            keep = ~changes
+            rows, sel, q, tools, ok = rows[keep], sel[keep], q[keep], tools[keep], ok[keep]
         if not ok.all():
             warnings += collect(program, rows[~ok], P309, "no joint angles for this target in its arm configuration "
                                 "(S/T, or the one its motion keeps) on the nominal robot: left as it is")

@@ -95,7 +95,8 @@ P306 = _code("P306", "error", "an ONNX file that is not a compensator (inputs, o
 P307 = _code("P307", "error", "no such model")
 P308 = _code("P308", "error", "--iterations outside 1…100, or --max-correction not a positive number")
 P309 = _code("P309", "error", "no inverse-kinematics solution for this target (a warning, left as written, for models with a joints input)")
-P310 = _code("P310", "error", "the model was trained on another robot than the configured one")
+P310 = _code("P310", "error", "the model was trained on another robot than the configured one, or (a model that "
+             "takes joint angles) on an arm of another controller than the program's dialect is written for")
 P311 = _code("P311", "error", "a model with a joints input for a robot postproc has no description of")
 P312 = _code("P312", "error", "--orientation where a target does not write all of its orientation's numbers (A/B/C, q1..q4, rx,ry,rz) or the reader does not locate them")
 P313 = _code("P313", "warning", "the target's S/T is another arm configuration than the model evaluates: left as written")
@@ -119,6 +120,8 @@ P333 = _code("P333", "error", "a robot geometry the closed-form inverse kinemati
 P335 = _code("P335", "error", "poses out of the robot's reach (plan, simulator, ISO 9283 cube)")
 P336 = _code("P336", "warning", "the model's error_std (its stated uncertainty) at the target exceeds --max-std "
              "(default: the card's uncertainty.max_std_mm); an error under --strict")
+P340 = _code("P340", "note", "(compensate, check) the model is a demonstration model of a simulated robot (its card's "
+             "'demonstration'): it knows nothing of a real robot; train one for yours")
 # P4xx: stamps and compensated outputs
 P401 = _code("P401", "error", "already compensated (a stamp line): compensate refuses unless --force")
 P402 = _code("P402", "error", "compensated with a model other than the configured one")
@@ -153,6 +156,9 @@ P515 = _code("P515", "error", "a_meas,b_meas,c_meas more than 5° (median) from 
              "frame, the probe's own axes or radians")
 P516 = _code("P516", "error", "a training option the method does not have (--search, --optimizer: the pose-only "
              "networks'; it was ignored for the identified methods)")
+P517 = _code("P517", "error", "positions in another unit than mm: a pose list or measurement CSV whose every x, y, z "
+             "lies within ±5 for a robot that reaches metres (metres), or whose uncompensated errors are ~1/1000 of "
+             "any robot's")
 P530 = _code("P530", "error", "an imported measurement file that does not state its units or its frame (no silent "
              "metres): a 'units:' / 'frame:' line or units in the header")
 P531 = _code("P531", "error", "three-reflector measurements: the reflectors' places on the TCP frame missing or not "

@@ -7,8 +7,10 @@ One function per code family, in the order compensate applies them:
 
 * :func:`stamp_rule` P401 (already compensated, at the stamp's line), :func:`accuracy_rule`
   P408/P409 (a KUKA backup whose controller corrects the error itself: its absolute-accuracy
-  model active / suppressed), :func:`fit_rule` P304/P310 (another tool or robot),
-  :func:`shared_rule` P202 (one set of numbers in two frames) — each lifted by ``force``;
+  model active / suppressed), :func:`fit_rule` P304/P310 (another tool or robot: the one named,
+  or the controller the program's dialect is written for) — each lifted by ``force``;
+  :func:`demonstration_rule` P340 (a note: a demonstration model of a simulated robot);
+  :func:`unit_rule` P517 (a pose list in metres);
 * :func:`frame_rule` P103 (a frame that is not finite);
 * :func:`known_rule` P212 (position not known), P213 (orientation not known), P216
   (a partial aggregate, refused only with ``fill_partial=False``);
@@ -34,14 +36,15 @@ import numpy as np
 from . import frames
 from .compensator import Compensator, Inside, Order
 from .diagnostics import (
-    P103, P202, P212, P213, P216, P218, P230, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P336, P401,
-    P408, P409, Diagnostic, PostprocError, line_col,
+    P103, P202, P212, P213, P216, P218, P230, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P336, P340,
+    P401, P408, P409, P517, Diagnostic, PostprocError, line_col,
 )
 from .programs import Program
 
 __all__ = [
     "Settings", "Selection", "Commands", "select", "findings", "static_findings", "command_findings", "dead_band_notes",
     "robot_base_poses", "model_bases", "pose_frame_rule", "std_bound", "tool_mismatch", "robot_mismatch", "collect", "MAX_LISTED", "DEFAULT_MAX_CORRECTION_MM",
+    "demonstration_rule", "unit_rule",
 ]
 
 # An error model that predicts more than this is wrong, not the robot (guard, --max-correction).
@@ -195,10 +198,17 @@ def tool_mismatch(program: Program, model: Compensator) -> str | None:
     return None
 
 
-def robot_mismatch(robot: str | None, model: Compensator) -> str | None:
-    """Why the model (trained on its card's robot) does not fit ``robot`` (None: it does, or unknown)."""
+def robot_mismatch(robot: str | None, model: Compensator, program: Program | None = None) -> str | None:
+    """Why the model (trained on its card's robot) does not fit ``robot`` (None: it does, or
+    unknown); without ``robot``, why it does not fit the controller ``program`` is written for
+    (a model that takes joint angles, of a robot whose controller its description names:
+    ``controller.family_mismatch``)."""
     if not robot:
-        return None
+        if program is None:
+            return None
+        from .controller import family_mismatch
+
+        return family_mismatch(program, model)
     if not model.robot:
         return f"the model does not say which robot it was trained on (the program is for {robot})"
     if model.robot.casefold() != robot.casefold():
@@ -266,10 +276,34 @@ def fit_rule(program: Program, model: Compensator, settings: Settings) -> list[D
     mismatch = None if model.wants_tool else tool_mismatch(program, model)  # (a model with a tool input: any)
     if mismatch:
         out.append(Diagnostic(program.files[0], 1, 1, P304, mismatch + "; use --force to compensate anyway", "error"))
-    mismatch = robot_mismatch(settings.robot, model)
+    mismatch = robot_mismatch(settings.robot, model, program)
     if mismatch:
         out.append(Diagnostic(str(model.path), 0, 0, P310, mismatch + "; use --force to compensate anyway", "error"))
     return out
+
+
+def demonstration_rule(model: Compensator) -> list[Diagnostic]:
+    """P340 (a note, once per model): a demonstration model of a simulated robot (its card's
+    ``demonstration``) knows nothing of a real one."""
+    what = model.demonstration
+    if what is None:
+        return []
+    return [Diagnostic(str(model.path), 0, 0, P340, f"model {model.name}: {what} — train one for your robot: postproc "
+                       "train MEASURED.csv --robot ROBOT.toml -o MODEL.onnx (models/README.md)", "note")]
+
+
+def unit_rule(program: Program, model: Compensator) -> list[Diagnostic]:
+    """P517 (an error): a pose list whose positions are in another unit than mm
+    (``units.unit_problem``: every |x|, |y|, |z| below 5 for a robot that reaches metres), said
+    once, naming the unit — not a P309 at every row."""
+    from .units import unit_problem
+
+    if program.dialect != "poses" or not len(program.targets):
+        return []
+    reach = model.metadata.get("reach")
+    radius = reach.get("radius_max") if isinstance(reach, dict) else None
+    problem = unit_problem(program.targets.poses * program.unit, None if radius is None else float(radius))
+    return [] if problem is None else [Diagnostic(*where(program, 0), P517, problem, "error")]
 
 
 def shared_rule(program: Program, settings: Settings) -> list[Diagnostic]:
@@ -504,7 +538,12 @@ def select_with_findings(program: Program, model: Compensator, settings: Setting
     """The targets the model takes, and every finding that needs no model output."""
     out = (stamp_rule(program, settings) + accuracy_rule(program, settings) + fit_rule(program, model, settings)
            + shared_rule(program, settings))
+    out += demonstration_rule(model)
+    in_metres = unit_rule(program, model)
+    out += in_metres
     poses, use = robot_base_poses(program, model_bases(program, model))
+    if in_metres:  # (no target is taken: one finding names the unit)
+        use[:] = False
     held = held_rule(program, use)
     out += frame_rule(program, use)
     unstated = use.copy()

@@ -40,6 +40,7 @@ __all__ = [
     "WRIST_CHOICES",
     "krl_measurement_program",
     "write_krl_measurement_program",
+    "ls_measurement_program",
 ]
 
 # the calibration box of the method (Hu, Hua & Tian) and models/kr500.toml's [workspace]
@@ -378,3 +379,47 @@ def write_krl_measurement_program(path: str | Path, poses: np.ndarray, robot, **
 
     path = Path(path)
     write_atomic([(path, krl_measurement_program(poses, path.stem, robot, **options))])
+
+
+# --------------------------------------------------------------------------- FANUC LS
+
+
+def ls_measurement_program(poses: np.ndarray, name: str, robot, wait_s: float = 1.0, trigger_out: int = 1,
+                           done_in: int = 1, config: np.ndarray | None = None, comment: str = "") -> str:
+    """A FANUC LS program (one .ls, UF 0 = the robot's world, UT 1 = the plan's tool) that
+    measures ``poses`` in order: J to each pose in the configuration it states, ``CONFIG : 'F U T,
+    t1, t4, t6'`` (``configuration.fanuc_configs`` of its joint angles: the S/T of ``config`` [N,
+    2], else the branch nearest HOME — what ``measure`` simulates), settle ``wait_s``, DO
+    ``trigger_out`` on, wait for DI ``done_in``. ``robot`` (a :class:`postproc.robot.Robot` of a
+    FANUC-type description) gives the joint angles and the TCP UT 1 must hold (the caller says it:
+    the program cannot set a tool frame's values); poses are W, P, R = C, B, A."""
+    from . import configuration
+
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,35}", name):
+        raise PostprocError(f"'{name}' is not an LS program name (a letter, then letters, digits, _): name the .ls "
+                            "file like one", code=P512)
+    poses = round_poses(np.atleast_2d(poses))
+    if config is None:
+        q, ok = robot.ik(poses)
+    else:
+        config = np.asarray(config, int).reshape(len(poses), 2)
+        q, ok = configuration.stated_joints(robot, poses, config[:, 0], config[:, 1])
+    if not ok.all():
+        raise PostprocError(f"pose {int(np.flatnonzero(~ok)[0]) + 1} is out of reach in its configuration", code=P335)
+    configs = configuration.fanuc_configs(robot, q)
+    comment = (comment or f"postproc plan, {len(poses)} poses").encode("ascii", "replace").decode()[:30]
+    mn = ["UFRAME_NUM=0 ;", "UTOOL_NUM=1 ;", "! UT 1: the plan's TCP ;"]
+    for k in range(1, len(poses) + 1):
+        mn += [f"J P[{k}] 20% FINE ;", f"WAIT {wait_s:.2f}(sec) ;", f"DO[{trigger_out}]=ON ;",
+               f"WAIT DI[{done_in}]=ON ;", f"DO[{trigger_out}]=OFF ;", f"WAIT DI[{done_in}]=OFF ;"]
+    body = [f"{i:4d}:  {line}" if not line.startswith(("J ", "L ")) else f"{i:4d}:{line}" for i, line in
+            enumerate(mn, start=1)]
+    pos = []
+    for k, (p, c) in enumerate(zip(poses, configs), start=1):
+        x, y, z, a, b, cc = p
+        pos.append(f"P[{k}]{{\n   GP1:\n\tUF : 0, UT : 1,\t\tCONFIG : '{c}',\n"
+                   f"\tX = {x:10.3f}  mm,\tY = {y:10.3f}  mm,\tZ = {z:10.3f}  mm,\n"
+                   f"\tW = {cc:10.3f} deg,\tP = {b:10.3f} deg,\tR = {a:10.3f} deg\n}};")
+    head = [f"/PROG  {name.upper()}", "/ATTR", "OWNER\t\t= MNEDITOR;", f'COMMENT\t\t= "{comment}";',
+            f"LINE_COUNT\t= {len(body)};", "PROTECT\t\t= READ_WRITE;", "DEFAULT_GROUP\t= 1,*,*,*,*;", "/MN"]
+    return "\n".join(head + body + ["/POS"] + pos + ["/END", ""])

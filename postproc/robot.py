@@ -33,14 +33,16 @@ from . import frames
 from .diagnostics import P330, P331, P332, P333, PostprocError
 from .resources import model_path
 
-__all__ = ["JointSpec", "RobotDescription", "load_description", "parse_description", "check_value", "Chain", "Robot",
+__all__ = ["CONFIGURATION_FORMS", "JointSpec", "RobotDescription", "load_description", "parse_description", "check_value", "Chain", "Robot",
            "axis_rotations", "GRAVITY", "gravity_torques", "gravity_from_points", "holding_torques", "pin_model"]
 
 MM = 1e-3  # mm → m
+# the forms a controller states an arm configuration in ([robot] configuration; postproc.configuration)
+CONFIGURATION_FORMS = ("kuka", "abb", "fanuc")
 
 # table → key → kind; "vec:n" = n numbers, "num" = a number, "str" = text, "int" = an integer
 _SCHEMA: dict[str, dict[str, str]] = {
-    "robot": {"name": "str", "home": "vec:6", "controller_base": "vec:6"},
+    "robot": {"name": "str", "home": "vec:6", "controller_base": "vec:6", "configuration": "str"},
     "joint": {"name": "str", "origin": "vec:6", "axis": "vec:3", "limits": "vec:2", "mass": "num",
               "com": "vec:3", "inertia": "vec:3"},
     "flange": {"origin": "vec:6"},
@@ -85,6 +87,11 @@ class RobotDescription:
     # (KUKA, ABB); a UR description in ROS's base_link: 0,0,0,180,0,0 (the controller's base is
     # base_link turned 180° about Z)
     controller_base: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    # how the robot's controller states an arm configuration, the branch table postproc maps it
+    # with (postproc.configuration, docs/CONFIGURATIONS.md): "kuka" (S/T), "abb" (confdata
+    # cf1, cf4, cf6, cfx), "fanuc" (CONFIG 'F U T, t1, t4, t6'); "" = the description does not
+    # say (KUKA S/T is still read, as postproc's mapping on any arm; confdata and CONFIG are not)
+    configuration: str = ""
     path: str = ""
     text: str = ""  # the file's text, to point at a key's line in messages
 
@@ -272,6 +279,10 @@ def parse_description(text: str, path: str = "<robot>") -> RobotDescription:
         raise fail_at("payload", "mass")("payload mass must not be negative")
     workspace = section("workspace", doc.get("workspace", {}))
     home = robot["home"]
+    form = robot.get("configuration", "")
+    if form and form not in CONFIGURATION_FORMS:
+        raise fail_at("robot", "configuration")(
+            f"[robot] configuration must be one of {', '.join(CONFIGURATION_FORMS)}, not {form!r}")
     for j, (spec, q) in enumerate(zip(joints, home)):
         if not spec.limits[0] <= q <= spec.limits[1]:
             raise fail_at("robot", "home")(f"home {spec.name} = {q:g} is outside its limits {spec.limits.tolist()}")
@@ -288,6 +299,7 @@ def parse_description(text: str, path: str = "<robot>") -> RobotDescription:
         workspace=workspace,
         errors=dict(errors),
         controller_base=robot.get("controller_base", np.zeros(6)),
+        configuration=form,
         path=path,
         text=text,
     )

@@ -27,8 +27,8 @@ Vectorised throughout: IK/FK and gravity torques (from the joint frames) in nump
 poses, backlash signs from ``np.diff`` with a forward fill; Pinocchio is not needed.
 
 Arm configuration and tools: a command may carry its Status/Turn (``config`` [N, 2], -1 = not
-stated; the controller's rules of :mod:`postproc.configuration` for the rest, from HOME) or
-its joint angles, and its own TCP on the flange (``tools`` [N, 6], default the description's
+stated, or a ``configuration.Stated``: what a program states in its controller's form; the
+controller's rules of :mod:`postproc.configuration` for the rest, from HOME) or its joint angles, and its own TCP on the flange (``tools`` [N, 6], default the description's
 tool). The drawn tool error is a mount error on the flange: for the description's tool T₀ the
 real TCP is flange·T₀·E, for another tool T it is flange·(T₀·E·T₀⁻¹)·T, the same physical
 error carried by the flange. ``actual_poses`` / ``measure(..., orientation=True)`` give the
@@ -416,13 +416,17 @@ class SimulatedRobot:
         if config is None and motions is None and (tools is None or np.allclose(tools, self.robot.tool)):
             return self._ik(poses)  # (the plain case, cached)
         n = len(poses)
-        config = np.full((n, 2), configuration.UNSTATED) if config is None else np.asarray(config, int)
+        if isinstance(config, configuration.Stated):  # (a program's stated forms: S/T, confdata, CONFIG)
+            stated = config
+        else:
+            config = np.full((n, 2), configuration.UNSTATED) if config is None else np.asarray(config, int)
+            stated = configuration.Stated(config[:, 0], config[:, 1])
         if motions is None:
             ptp, alone = np.zeros(n, bool), np.ones(n, bool)
         else:
             ptp, alone = configuration.execution_kinds(motions)
-        return configuration.controller_joints(self.robot, poses, config[:, 0], config[:, 1], ptp,
-                                               self.robot.home_q, tools, alone)
+        return configuration.controller_joints(self.robot, poses, stated.status, stated.turn, ptp,
+                                               self.robot.home_q, tools, alone, windows=stated.windows)
 
     def approach_directions(self, poses: np.ndarray, start_q: np.ndarray | None = None) -> np.ndarray:
         """Sign (+1/−1) [N, 6] of each joint's last motion when the poses are visited in order

@@ -383,7 +383,7 @@ def test_check_runs_the_model_once_for_a_clean_program(tmp_path, monkeypatch):
     points = []
     chunks = Compensator.command_chunks
     monkeypatch.setattr(Compensator, "command_chunks", lambda self, *a, **k: points.append(1) or chunks(self, *a, **k))
-    assert check_files([path], model) == []
+    assert [d.code for d in check_files([path], model)] == ["P340"]  # (the demonstration model's note only)
     assert len(points) == 1  # one fixed point
     # (a model that settles the approach runs once more, to check the commands it settled)
     assert len(calls) == model.default_iterations or model.settles

@@ -45,7 +45,8 @@ def test_missing_extra_names_it_and_the_install_command(measured, module, argv, 
 def test_the_simulator_needs_no_pinocchio(measured):
     # kinematics and gravity torques are numpy (Pinocchio is the tests' reference only)
     status, err = without("pinocchio", "measure", "m.csv", "-o", "sim.csv", "-q", cwd=measured)
-    assert (status, err) == (0, "") and (measured / "sim.csv").read_text().count("\n") == 31
+    # (30 rows, the header, '# simulated: …' and '# robot_seed: …')
+    assert (status, err) == (0, "") and (measured / "sim.csv").read_text().count("\n") == 33
     status, err = without("pinocchio", "verify", SAMPLE, SAMPLE, "-q", cwd=measured)
     assert (status, err) == (0, "")
 

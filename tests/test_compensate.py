@@ -298,7 +298,7 @@ def test_targets_outside_the_trained_joint_ranges_warn(tmp_path):
     assert (info.value.code, info.value.line) == ("P301", 3)
     path = tmp_path / "p.csv"
     path.write_text(text)
-    assert [(d.code, d.line) for d in check_files([path], model)] == [("P301", 3)]
+    assert [(d.code, d.line) for d in check_files([path], model) if d.severity != "note"] == [("P301", 3)]
     # the trained ranges themselves: nothing to say
     assert compensate_text(text, load_model(), name="p.csv")[1].warnings == []
 

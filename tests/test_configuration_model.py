@@ -185,8 +185,11 @@ def test_measurements_in_metres_are_refused_and_outliers_named():
     rng = np.random.default_rng(0)
     positions = rng.uniform(500, 2000, (50, 3))
     lines = np.arange(50) + 2
-    with pytest.raises(PostprocError, match="metres") as err:
+    with pytest.raises(PostprocError, match="x_meas, y_meas, z_meas are in metres") as err:
         check_errors(positions, positions / 1000.0, lines, "m.csv")
+    assert err.value.code == "P517"  # (the unit named: postproc.units, the one check)
+    with pytest.raises(PostprocError, match="another frame") as err:  # (not metres: another frame)
+        check_errors(positions, positions + [300.0, -80.0, 20.0], lines, "m.csv")
     assert err.value.code == "P509"
     measured = positions - rng.normal(0, 0.5, (50, 3))
     assert check_errors(positions, measured, lines) == []

@@ -119,3 +119,85 @@ def test_same_poses_same_corrections_in_every_dialect(model, tmp_path):
     assert np.ptp(reference, axis=0).max() > 0.1
     for name, correction in results.items():
         assert np.allclose(correction, reference, atol=2 * WRITTEN), name
+
+
+# --------------------------------------------------------------------------- stated configurations
+
+JOINT_GAIN = np.array([[0.3, -0.2, 0.5, 0.1, 0.4, -0.3],
+                       [0.1, 0.4, -0.2, 0.3, -0.5, 0.2],
+                       [-0.4, 0.2, 0.3, -0.1, 0.2, 0.5]])  # mm per unit sin(q): a model of the joints
+
+
+def _family_program(kind, robot, q):
+    """The poses of joint angles ``q`` [n, 6] as a program of ``kind`` that states each one's
+    configuration in its controller's form (KRL: S/T, RAPID: confdata, LS: CONFIG), in a frame
+    turned and shifted (BASE), PTP / MoveJ / J motions; with its config texts."""
+    from postproc import configuration
+
+    poses = robot.fk(q)
+    local = frames.matrix_to_frame(frames.inverse(frames.frame_to_matrix(BASE)) @ frames.frame_to_matrix(poses))
+    tool = robot.tool
+    if kind == "krl":
+        s, t = robot.status_turn(q)
+        lines = ["DEF cons( )", "$BASE = {X %.3f,Y %.3f,Z %.3f,A %.3f,B %.3f,C %.3f}" % tuple(BASE),
+                 "$TOOL = {X %g,Y %g,Z %g,A %g,B %g,C %g}" % tuple(tool)]
+        lines += ["PTP {X %.4f,Y %.4f,Z %.4f,A %.4f,B %.4f,C %.4f,S %d,T %d}" % (*p, a, b) for p, a, b in zip(local, s, t)]
+        return "\n".join(lines + ["END", ""]), "cons.src", None
+    if kind == "rapid":
+        conf = configuration.abb_confdata(robot, q)
+        bq = ",".join(f"{v:.12f}" for v in _quat(BASE[3:]))
+        lines = ["MODULE cons", f"PERS tooldata t1:=[TRUE,[[{tool[0]},{tool[1]},{tool[2]}],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];",
+                 f"PERS wobjdata w1:=[FALSE,TRUE,\"\",[[{BASE[0]:.3f},{BASE[1]:.3f},{BASE[2]:.3f}],[{bq}]],"
+                 "[[0,0,0],[1,0,0,0]]];", "PROC main()"]
+        for p, c in zip(local, conf):
+            qs = ",".join(f"{v:.12f}" for v in _quat(p[3:]))
+            lines.append(f"MoveJ [[{p[0]:.4f},{p[1]:.4f},{p[2]:.4f}],[{qs}],[{c[0]},{c[1]},{c[2]},{c[3]}],"
+                         "[9E9,9E9,9E9,9E9,9E9,9E9]],v100,z1,t1\\WObj:=w1;")
+        return "\n".join(lines + ["ENDPROC", "ENDMODULE", ""]), "cons.mod", None
+    configs = configuration.fanuc_configs(robot, q)
+    mn = [f"{k:4d}:J P[{k}] 100% FINE    ;" for k in range(1, len(q) + 1)]
+    pos = [f"P[{k}]{{\n   GP1:\n\tUF : 3, UT : 2,\t\tCONFIG : '{c}',\n"
+           f"\tX = {p[0]:10.4f}  mm,\tY = {p[1]:10.4f}  mm,\tZ = {p[2]:10.4f}  mm,\n"
+           f"\tW = {p[5]:10.4f} deg,\tP = {p[4]:10.4f} deg,\tR = {p[3]:10.4f} deg\n}};"
+           for k, (p, c) in enumerate(zip(local, configs), start=1)]
+    frames_text = ("[uframe.3]\nxyzwpr = [%.3f, %.3f, %.3f, %.3f, %.3f, %.3f]\n" % (*BASE[:3], BASE[5], BASE[4], BASE[3])
+                   + "[utool.2]\nxyzwpr = [%g, %g, %g, 0, 0, 0]\n" % tuple(tool[:3]))
+    return "\n".join(["/PROG  CONS", "/ATTR", "/MN", *mn, "/POS", *pos, "/END", ""]), "cons.ls", frames_text
+
+
+@pytest.mark.parametrize("kind, description, robot_name, q", [
+    ("krl", "kr500.toml", "KR500-sim", [[5.0, -60.0, 100.0, 30.0, 50.0, 20.0], [5.0, -60.0, 100.0, -150.0, -50.0, -160.0],
+                                       [-10.0, -75.0, 110.0, 200.0, 40.0, 0.0]]),
+    ("rapid", "irb6700.toml", "IRB6700-sim", [[5.0, 20.0, 10.0, 0.0, 60.0, 10.0], [5.0, 20.0, 10.0, 180.0, -60.0, -170.0],
+                                              [-20.0, 30.0, -5.0, 100.0, 45.0, 250.0]]),
+    ("fanuc", "r2000ic.toml", "R2000iC-sim", [[10.0, 20.0, -10.0, 0.0, -90.0, 30.0], [10.0, 20.0, -10.0, 180.0, 90.0, 210.0],
+                                              [15.0, -20.0, -60.0, 330.0, -40.0, 10.0]]),
+])
+def test_stated_configurations_give_the_pose_lists_commands(tmp_path, kind, description, robot_name, q):
+    """The same poses, each in a stated arm configuration (both wrists, joints on other turns), as
+    a program in the controller's form and as a pose list with the joint angles q1..q6: a model
+    of the joints gives them the same commands (its correction differs from branch to branch)."""
+    from postproc.resources import model_path
+    from postproc.robot import Robot, load_description
+    from postproc.testing.models import joint_model
+
+    robot = Robot(load_description(model_path(description)))
+    q = np.array(q)
+    model = load_model(joint_model(tmp_path / "j.onnx", JOINT_GAIN, robot=robot_name,
+                                   tool={"name": "tool", "frame": robot.tool.tolist()}))
+    text, name, frames_text = _family_program(kind, robot, q)
+    config = None
+    if frames_text:
+        config = tmp_path / "frames.toml"
+        config.write_text(frames_text)
+    before, _ = _in_base(text, name, config)
+    out, report = compensate_text(text, model, name=name, config=config)
+    assert report.compensated == len(q) and report.left == 0, report.summary()
+    after, _ = _in_base(out, name, config)
+    poses = robot.fk(q)
+    rows = "x,y,z,a,b,c,q1,q2,q3,q4,q5,q6\n" + "\n".join(",".join(f"{v:.6f}" for v in [*p, *j]) for p, j in zip(poses, q))
+    listed, listed_report = compensate_text(rows + "\n", model, name="cons.csv")
+    assert listed_report.compensated == len(q)
+    reference = _in_base(listed, "cons.csv")[0] - poses[:, :3]
+    assert np.abs(reference[0] - reference[1]).max() > 0.1  # (one pose, two wrists: two corrections)
+    np.testing.assert_allclose(after - before, reference, atol=2e-3)  # (4 decimals written, in a turned frame)

@@ -74,10 +74,10 @@ def test_sample_targets_frames_and_configuration():
     # P[1] joint representation; P[3] also moved to with Offset,PR[1]: left as written
     assert t.line.tolist() == [39, 51, 57]
     assert [MOTIONS[m] for m in t.motion] == ["LIN", "CIRC-aux", "CIRC-end"]
-    assert p.configs == ["N U T, 0, 0, 0", "F U T, 0, 0, 0", "N U T, 0, 0, 0"]
+    assert p.configs == ["N U T, 0, 0, 0"] * 3  # (a circular motion keeps the arm's configuration)
     assert codes(p) == ["P211", "P211"]
-    assert np.allclose(p.frames[0].base, frames.frame_to_matrix([1200, -300, 450, 90, 0, 0]))
-    assert p.frames[0].tool == pytest.approx((0, 0, 200, 0, 0, 0))
+    assert np.allclose(p.frames[0].base, frames.frame_to_matrix([1650, 0, -450, -90, 0, 0]))
+    assert p.frames[0].tool == pytest.approx((0, 0, 300, 0, 0, 0))
 
 
 def test_frames_per_position_and_unknown_frames():
@@ -216,6 +216,9 @@ def test_config_is_not_guessed_for_a_model_that_takes_joint_angles(tmp_path, fra
     model = load_model(joint_model(tmp_path / "j.onnx", np.diag([0.5, 0.4, 0.3]) @ np.eye(3, 6), tool={"name": "any"}))
     no_config = pos(2, 1500, 0, 900, uf=0).replace("CONFIG : 'N U T, 0, 0, 0',", "")
     text = program(["L P[1] 100mm/sec FINE", "L P[2] 100mm/sec FINE"], [pos(1, 1500, 100, 900, uf=0), no_config])
-    out, report = compensate_text(text, model, name="t.ls", config=frames_file)
+    # a model of a KUKA (its description states KUKA S/T) is no model of a FANUC's program: refused
+    with pytest.raises(PostprocError, match="P310.*FANUC controllers.*KR500-sim"):
+        compensate_text(text, model, name="t.ls", config=frames_file)
+    out, report = compensate_text(text, model, name="t.ls", config=frames_file, force=True)
     assert report.left_codes == {"P309": 1} and report.compensated == 1
     assert "X =  1500.000  mm,\tY =   100.000" in out  # P[1] (CONFIG 'N U T, 0, 0, 0') as written

@@ -48,7 +48,7 @@ def test_fleet_trains_each_robot_and_the_bad_one_fails_alone(cell, capsys):
         assert unc == pytest.approx(card["accuracy"]["val_uncompensated_mean_mm"], abs=1e-3)
         assert comp < 0.5 * unc  # each robot's own model compensates its own error
         assert (out / s / "report" / "report.md").is_file()
-        held = [ln for ln in (out / s / "held-out.csv").read_text().splitlines()[1:] if not ln.startswith("#")]
+        held = [ln for ln in (out / s / "held-out.csv").read_text().splitlines() if not ln.startswith("#")][1:]
         assert len(held) == card["accuracy"]["n_val"] == 40
         assert rows[s][-1] == ""
     assert "P50" in rows["bad"][-1] and rows["bad"][4] == ""

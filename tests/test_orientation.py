@@ -22,9 +22,15 @@ def _cli(*args) -> int:
     return main([str(a) for a in args])
 
 
+def _rows(text: str) -> list[str]:
+    """A measurement CSV's header and rows, without its '# key: value' lines (measure writes
+    '# simulated: …' and '# robot_seed: …' above the header)."""
+    return [line for line in text.splitlines() if not line.startswith("#")]
+
+
 def _without(text: str, names: set[str]) -> str:
-    """The CSV text with the columns ``names`` removed."""
-    lines = text.splitlines()
+    """The CSV text with the columns ``names`` removed (and its '# key: value' lines)."""
+    lines = _rows(text)
     keep = [i for i, h in enumerate(lines[0].split(",")) if h not in names]
     return "\n".join(",".join(f for i, f in enumerate(line.split(",")) if i in keep) for line in lines) + "\n"
 
@@ -165,7 +171,7 @@ def test_without_orientation_data_the_model_has_no_rotation_output(simulated, ca
 
 def test_orientation_in_radians_is_refused_with_its_line(simulated, capsys):
     d = simulated
-    lines = (d / "measured.csv").read_text().splitlines()
+    lines = _rows((d / "measured.csv").read_text())
     header = lines[0].split(",")
     cols = [header.index(n) for n in ("a_meas", "b_meas", "c_meas")]
     out = [lines[0]]

@@ -62,8 +62,10 @@ def test_measure_writes_the_training_csv_in_visiting_order(tmp_path):
                     "2,2100,100,800,2,88,-1\n3,1800,-200,1000,0,95,5\n")
     assert main(["measure", str(plan), "-o", str(out), "--seed", "4", "-q"]) == 0
     lines = out.read_text().splitlines()
-    assert lines[0] == "x,y,z,a,b,c,x_meas,y_meas,z_meas,a_meas,b_meas,c_meas,q1,q2,q3,q4,q5,q6"
-    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    # the simulator's data say so (a model trained on them says it is a demonstration model, P340)
+    assert lines[:2] == ["# simulated: KR500-sim", "# robot_seed: 8"]
+    assert lines[2] == "x,y,z,a,b,c,x_meas,y_meas,z_meas,a_meas,b_meas,c_meas,q1,q2,q3,q4,q5,q6"
+    table = np.loadtxt(out, delimiter=",", skiprows=3)
     np.testing.assert_array_equal(table[:, :6], [[2000, 0, 900, 0, 90, 0], [2100, 100, 800, 2, 88, -1],
                                                  [1800, -200, 1000, 0, 95, 5]])
     assert np.all(np.linalg.norm(table[:, 6:9] - table[:, :3], axis=1) < 3)
@@ -119,7 +121,7 @@ def test_plan_with_both_wrists_is_measured_in_its_configurations(tmp_path):
     ptp = [ln for ln in src.read_text().splitlines() if ln.startswith("PTP {X")]
     assert len(ptp) == 41 and all(",S 'B" in ln and ",T 'B" in ln for ln in ptp)
     assert main(["measure", str(plan), "-o", str(out), "-q"]) == 0
-    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    table = np.loadtxt(out, delimiter=",", skiprows=3)  # ('# simulated: …', '# robot_seed: …', the header)
     robot = Robot()
     s, t = robot.status_turn(table[:, 12:18])
     np.testing.assert_array_equal(np.stack([s, t], axis=1), st)  # measured in the stated configurations
@@ -130,9 +132,10 @@ def test_measure_with_another_tool_records_it(tmp_path):
     plan, out = tmp_path / "plan.csv", tmp_path / "m.csv"
     plan.write_text("x,y,z,a,b,c\n2000,0,900,0,90,0\n2100,100,800,2,88,-1\n")
     assert main(["measure", str(plan), "-o", str(out), "--tool", "150,20,250,0,0,0", "-q"]) == 0
-    assert out.read_text().splitlines()[0] == "# tool: 150,20,250,0,0,0"
+    # (after the lines that say the data are the simulator's: '# simulated: KR500-sim', '# robot_seed: 8')
+    assert out.read_text().splitlines()[:3] == ["# simulated: KR500-sim", "# robot_seed: 8", "# tool: 150,20,250,0,0,0"]
     from postproc.robot import Robot, load_description
 
-    table = np.loadtxt(out, delimiter=",", skiprows=2)
+    table = np.loadtxt(out, delimiter=",", skiprows=4)
     arm = Robot(load_description().replace(tool=np.array([150.0, 20, 250, 0, 0, 0])))
     np.testing.assert_allclose(arm.fk(table[:, 12:18])[:, :3], table[:, :3], atol=1e-3)

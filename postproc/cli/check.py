@@ -165,6 +165,7 @@ def run(args) -> int:
                   "under [tool.postproc])", file=sys.stderr)
         fresh, written = check_fresh(cfg, model, fix=args.fix, ignore=ignore)
         findings += fresh
+    findings = list(dict.fromkeys(findings))  # (a note of the model, P340, said once for every program)
 
     color = use_color(sys.stdout)
     for d in findings:

@@ -153,7 +153,9 @@ def run(args) -> int:
 
         report = compensate_file(inputs[0], args.output, args.model, config=args.config, active=active, **kwargs)
     if not args.quiet:
-        for w in report.warnings + (report.notes if args.verbose else []):
+        from ..diagnostics import P340
+
+        for w in report.warnings + [n for n in report.notes if args.verbose or n.code == P340]:
             print(w.format(), file=sys.stderr)
         print(f"postproc: {report.summary()}", file=sys.stderr)
     # like `ruff --fix` with findings left: the output is written, but not everything was done

@@ -10,7 +10,9 @@ EXAMPLES = """examples:
 
 Output header: x,y,z,a,b,c,x_meas,y_meas,z_meas,a_meas,b_meas,c_meas,q1..q6 (commanded TCP
 pose, measured TCP pose (a 6-DOF probe), the controller's joint angles; mm/deg, robot base
-frame), rows in visiting order: what `postproc train` reads. A plan with s,t columns is run in
+frame), rows in visiting order: what `postproc train` reads (after `# simulated: ROBOT` and
+`# robot_seed: S` lines: a model trained on them says it is a demonstration model of a simulated
+robot). A plan with s,t columns is run in
 those configurations (s,t copied to the output); with --tool the output starts with
 `# tool: X,Y,Z,A,B,C`. With --tool given two or more times the plan is measured in as many
 consecutive parts, one tool each (the tool changed between them), and each row names its TCP
@@ -91,7 +93,10 @@ def run(args) -> int:
         if several:
             extra |= {name: tools[:, k] for k, name in enumerate(TOOL_COLUMNS)}
             fmt += ["%.10g"] * 6
-        metadata = {"tool": ",".join(f"{v:g}" for v in tools[0])} if tools is not None and not several else None
+        # (what a model trained on these rows is: a demonstration model of a simulated robot, its card says)
+        metadata = {"simulated": sim.robot.name, "robot_seed": str(sim.seed)}
+        if tools is not None and not several:
+            metadata["tool"] = ",".join(f"{v:g}" for v in tools[0])
         text = measurement_csv(poses, measured[:, :3], extra, metadata, fmt)
         measured = measured[:, :3]
         stage("write")

@@ -5,6 +5,7 @@ import sys
 
 EXAMPLES = """examples:
   postproc plan -n 2000 --seed 0 -o plan.csv --krl measure.src
+  postproc plan -n 2000 --robot models/r2000ic.toml --wrist both -o plan.csv --ls measure.ls   (FANUC: CONFIG strings)
   postproc plan -n 500 --box 1800 2200 -400 400 600 1200 --attitude 0 90 0 --range 5 -o small.csv
   postproc plan -n 2000 --robot cell7.toml -o plan.csv        (box/attitude from its [workspace])
   postproc plan --iso9283 -o iso.csv --krl iso.src             (ISO 9283 pose test, 30 cycles)
@@ -39,6 +40,9 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--robot", metavar="FILE", help="robot description (default models/kr500.toml)")
     p.add_argument("-o", "--output", metavar="PLAN_CSV", required=True, help="plan CSV to write")
     p.add_argument("--krl", metavar="SRC", help="also write a KRL measurement program (.src, module named after it)")
+    p.add_argument("--ls", metavar="LS", help="also write a FANUC LS measurement program (.ls, program named after it): "
+                   "J to each pose with the CONFIG string of its configuration (docs/CONFIGURATIONS.md), UF 0, UT 1 = "
+                   "the plan's tool; for a FANUC-type description")
     p.add_argument("--wrist", choices=("home", "both"),
                    help="state each pose's configuration (s,t columns; KRL: PTP with S/T): 'home' = the branch "
                    "nearest HOME, 'both' = half the poses (rows 2, 3 of every four) in the flipped-wrist configuration")
@@ -72,7 +76,7 @@ def run(args) -> int:
     from ..robot import Robot, load_description
     from . import show_progress
 
-    check_outputs([args.output, args.krl or "-"], [args.robot or "-"])
+    check_outputs([args.output, args.krl or "-", args.ls or "-"], [args.robot or "-"])
     description = load_description(args.robot)
     tools = [parse_tool(t) for t in args.tool or []]
     if tools:
@@ -83,6 +87,11 @@ def run(args) -> int:
     range_deg = args.range if args.range is not None else ws.get("range", DEFAULT_RANGE)
     if args.krl is not None and Path(args.krl).suffix.lower() != ".src":
         raise PostprocError(f"--krl {args.krl}: a KRL program is a .src file", code=P512)
+    if args.ls is not None and (Path(args.ls).suffix.lower() != ".ls" or description.configuration != "fanuc"):
+        raise PostprocError(f"--ls {args.ls}: an LS program is a .ls file, for a robot whose description states FANUC "
+                            "configurations ([robot] configuration = \"fanuc\", e.g. models/r2000ic.toml)", code=P512)
+    if args.ls is not None and (args.iso9283 or len(tools) > 1):
+        raise PostprocError("--ls writes a Latin-hypercube plan measured with one tool", code=P512)
     if args.iso9283:
         from .iso9283 import run_plan
 
@@ -119,6 +128,12 @@ def run(args) -> int:
                        f"attitude {list(map(float, attitude))} +- {range_deg:g} deg")
             outputs.append((src, krl_measurement_program(poses, src.stem, robot, wait_s=args.wait, comment=comment,
                                                                   config=config, tools=rows)))
+        if args.ls is not None:
+            from ..planning import ls_measurement_program
+
+            ls = Path(args.ls)
+            outputs.append((ls, ls_measurement_program(poses, ls.stem, robot, wait_s=args.wait, config=config,
+                                                       comment=f"postproc plan seed {args.seed}")))
         write(outputs)
     if not args.quiet:
         written = " + ".join(str(p) for p, _ in outputs)

@@ -78,25 +78,48 @@ def _fill(poses, program, attitude, name: str):
 
 
 def execution(program, rows, sim) -> dict:
-    """How the controller runs targets ``rows`` of ``program``: their S/T (``Targets.config``),
-    motion kinds (configuration.execution_kinds) and $TOOL (the simulated robot's tool where the
-    program's is unknown) — the options of SimulatedRobot.verify. Both runs use the ORIGINAL's."""
+    """How the controller runs targets ``rows`` of ``program``: their stated configuration (S/T,
+    RAPID confdata, FANUC CONFIG on the simulated robot's description: configuration.
+    stated_configuration; a form the description cannot say is P309, refused), motion kinds
+    (configuration.execution_kinds) and $TOOL (the simulated robot's tool where the program's is
+    unknown) — the options of SimulatedRobot.verify. Both runs use the ORIGINAL's."""
     import numpy as np
 
+    from ..configuration import stated_configuration
+    from ..diagnostics import P309, PostprocError
+
     t = program.targets
-    config = getattr(t, "config", None)
+    stated, unmapped, why = stated_configuration(program, sim.description, rows)
+    if unmapped.any():
+        r = rows[np.flatnonzero(unmapped)[0]]
+        raise PostprocError(f"{why[0]}: the simulated {sim.robot.name} cannot run this program",
+                            program.files[t.file[r]], int(t.line[r]), int(t.col[r]), P309)
     tools = np.tile(sim.robot.tool, (len(rows), 1))
     for f in np.unique(t.frame[rows]):
         if program.frames[f].tool is not None:
             tools[t.frame[rows] == f] = program.frames[f].tool
-    return {"config": None if config is None else np.asarray(config[rows], int), "tools": tools,
-            "motions": t.motion[rows]}
+    return {"config": stated, "tools": tools, "motions": t.motion[rows]}
 
 
-def _pair(args):
+def _in_description(program, description):
+    """Each frame of ``program`` in the simulated robot's description frame: through the
+    description's ``controller_base`` for a program's targets (a UR description in ROS's
+    base_link: URScript's base is turned 180° about Z), a pose list's rows unless they say
+    '# frame: controller' taken as they are (as findings.model_bases does for a model)."""
+    import numpy as np
+
+    from ..frames import frame_to_matrix
+
+    base = frame_to_matrix(np.asarray(description.controller_base, float))
+    if not program.in_controller_base or np.array_equal(base, np.eye(4)):
+        return None
+    return [base @ f.base for f in program.frames]
+
+
+def _pair(args, description):
     """The two programs read and matched target by target: (original, compensated, their poses of
-    the targets with a known frame, those rows, how many were skipped, notes); P601 where they are
-    not one program."""
+    the targets with a known frame, in the simulated robot's description frame, those rows, how
+    many were skipped, notes); P601 where they are not one program."""
     import numpy as np
 
     from ..compensate import load_program, robot_base_poses
@@ -107,8 +130,8 @@ def _pair(args):
     active = stated_frames(args)  # (as the program was compensated)
     original = load_program(args.original, args.config, active=active)
     compensated = load_program(args.compensated, args.config, active=active)
-    p_orig, ok_orig = robot_base_poses(original)
-    p_comp, ok_comp = robot_base_poses(compensated)
+    p_orig, ok_orig = robot_base_poses(original, _in_description(original, description))
+    p_comp, ok_comp = robot_base_poses(compensated, _in_description(compensated, description))
     if len(p_orig) != len(p_comp):
         raise PostprocError(f"ORIGINAL has {len(p_orig)} targets, COMPENSATED has {len(p_comp)}: they must be the "
                             "same program with changed numbers", args.compensated, code=P601)
@@ -163,8 +186,8 @@ def run(args) -> int:
     from ..diagnostics import EXIT_FINDINGS
     from ..simulator import SimulatedRobot
 
-    original, compensated, p_orig, p_comp, rows, skipped, notes = _pair(args)
     sim = SimulatedRobot.from_file(args.robot, args.robot_seed)
+    original, compensated, p_orig, p_comp, rows, skipped, notes = _pair(args, sim.description)
     attitude = np.asarray(sim.description.workspace.get("attitude", (0.0, 90.0, 0.0)), float)
     p_orig, n1 = _fill(p_orig, original, attitude, "ORIGINAL")
     p_comp, n2 = _fill(p_comp, compensated, attitude, "COMPENSATED")

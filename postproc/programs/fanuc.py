@@ -16,10 +16,10 @@ Semantics (tests/test_fanuc.py shows each on a small program):
   base) and ``UT : t`` (tool frame) from the frame file given with ``--frames`` (TOML:
   ``[uframe.1] xyzwpr = [x, y, z, w, p, r]``, ``[utool.1] …``); a frame the file does not
   give leaves the target as written (P201 user frame, P203 tool);
-* ``CONFIG : '…'`` is kept as written (:attr:`FanucProgram.configs`), not translated to
-  joint angles: a model that takes joint angles leaves the targets that state one as
-  written (P309, ``Program.unmapped_configuration``); joint representations (``J1 = … deg``)
-  are not targets;
+* ``CONFIG : '…'`` is kept as written (:attr:`FanucProgram.configs`); a model that takes joint
+  angles has it translated (``configuration.stated_configuration``, for a description whose
+  controller states FANUC configurations; else P309, left as written); joint representations
+  (``J1 = … deg``) are not targets;
 * ``PR[…]`` position registers, indirect positions (``P[R[1]]``) and motions with ``Offset``/``Tool_Offset``/``INC``/``VOFFSET``
   are computed at run time (P211); a ``P[n]`` other instructions read too (``PR[1]=P[2]``)
   is left as written (P217); a ``P[n]`` no ``/POS`` record gives (P215).

@@ -1,5 +1,6 @@
 """The model card's robot parts: ``robot``, ``reach`` (the sphere compensate checks targets
-against, P302) and ``tool`` of a robot description, and the rule for ``iterations``.
+against, P302) and ``tool`` of a robot description, ``demonstration`` (data the simulator
+measured), and the rule for ``iterations``.
 
 numpy only (the robot description and its closed-form IK are read lazily): fit's card and
 the benchmarks that export models of their own take these from here.
@@ -11,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["MIN_ITERATIONS", "arm_metadata", "card_iterations", "robot_metadata", "tool_metadata", "tool_name"]
+__all__ = ["MIN_ITERATIONS", "arm_metadata", "card_iterations", "demonstration_metadata", "robot_metadata",
+           "tool_metadata", "tool_name"]
 
 # c = P + Ê(c): the card's iterations are those after which the fixed point settled on the
 # training poses, at least 2 (one more batched call is cheap insurance off the training poses)
@@ -21,6 +23,17 @@ MIN_ITERATIONS = 2
 def card_iterations(settled: int) -> int:
     """The card's ``iterations`` for a fixed point that settled after ``settled`` iterations."""
     return max(MIN_ITERATIONS, settled)
+
+
+def demonstration_metadata(meta: dict) -> dict:
+    """The card's ``demonstration`` of a model trained on a measurement CSV's ``meta`` (its
+    ``# key: value`` lines): data ``postproc measure`` simulated (``# simulated: ROBOT``, ``#
+    robot_seed: S``) make a demonstration model of a simulated robot; other data none."""
+    if "simulated" not in meta:
+        return {}
+    seed = meta.get("robot_seed", "")
+    return {"demonstration": {"robot": meta["simulated"],
+                              "robot_seed": int(seed) if seed.lstrip("-").isdigit() else None}}
 
 
 def tool_name(frame) -> str:

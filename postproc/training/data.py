@@ -4,7 +4,7 @@ errors, the envelope of the data.
 
 Codes: P320 tool sources that disagree (``measured_tools``), P505 too few points for the
 network, P506 a split that leaves a side empty, P509 errors no robot makes (another frame or
-unit: ``check_errors``), P515 orientation errors no robot makes (``check_rotation_errors``).
+unit: ``check_errors``; positions in metres, P517, ``postproc.units``), P515 orientation errors no robot makes (``check_rotation_errors``).
 
 numpy only: no torch here, so bad data is reported before torch is even loaded.
 """
@@ -99,16 +99,16 @@ def check_errors(positions: np.ndarray, measured: np.ndarray, lines: np.ndarray,
     another frame or unit; return warnings naming the rows (file lines) whose |E| is far
     above the others' (more than 10 × the median + 5 mm): a mis-measured point or a
     wrong row."""
+    from ..units import check_unit
+
     errors = positions - measured
+    check_unit(positions, path, int(lines[0]) if len(lines) else 0, errors=errors, measured=measured)  # (P517: metres)
     size = np.linalg.norm(errors, axis=1)
     median = float(np.median(size)) if len(size) else 0.0
-    if median > FRAME_ERROR_MM:
+    if median > FRAME_ERROR_MM:  # (not metres: postproc.units said so above)
         i = int(np.argmax(size))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = float(np.median(np.linalg.norm(positions, axis=1) / np.linalg.norm(measured, axis=1)))
-        unit = f" (commanded / measured distances from the origin: {ratio:.4g}, metres?)" if 300 < ratio < 3000 else ""
         raise PostprocError(f"uncompensated errors of {median:.4g} mm (median; line {lines[i]}: {size[i]:.4g} mm): "
-                            f"the measured points are in another frame or unit{unit}: register them (--register, "
+                            f"the measured points are in another frame or unit: register them (--register, "
                             f"'# frame: tracker') or convert to mm", path, int(lines[i]), 1, "P509")
     far = np.flatnonzero(size > 10.0 * median + 5.0)
     if not len(far):

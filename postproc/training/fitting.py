@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..diagnostics import P317, P320, P507, P508, P516, PostprocError
-from .card import arm_metadata, card_iterations, robot_metadata, tool_metadata, tool_name
+from .card import arm_metadata, card_iterations, demonstration_metadata, robot_metadata, tool_metadata, tool_name
 from .methods import IDENTIFIED, METHODS, NETWORKS
 
 __all__ = ["fit", "TrainedModel", "SETTINGS", "ORIENTATION"]
@@ -322,6 +322,7 @@ def _identified_card(model, description, rows: _Rows, inputs: _Inputs, rotation_
     if refit is not None:
         metadata["update"] = refit.card()
     metadata.update(arm_metadata(description))
+    metadata.update(demonstration_metadata(data.meta))
     if rows.tools is not None or model.kinematic_.layout_.n:
         own = model.description_.tool
         same = np.allclose(own, description.tool)
@@ -360,6 +361,7 @@ def _network(rows: _Rows, method: str, robot_meta: dict, search: bool, search_en
         "iterations": card_iterations(settled),
     }
     metadata.update(robot_meta)
+    metadata.update(demonstration_metadata(rows.data.meta))
     return TrainedModel(model, model.card(**metadata), train, val, rows.notes, settled=settled, search=found)
 
 

@@ -50,9 +50,9 @@ P[3]{
 };
 P[4]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
 	X =   300.000  mm,	Y =   -80.000  mm,	Z =   180.250  mm,
-	W =  -175.000 deg,	P =     5.000 deg,	R =    80.000 deg
+	W =  -175.000 deg,	P =     5.000 deg,	R =    85.000 deg
 };
 P[5]{
    GP1:
