@@ -551,6 +551,9 @@ class Analysis:
 
     def move_run(self, s: MoveRun, st: State) -> State:
         key = (id(s), self.act.path)
+        if len(s):  # (where the analysis is: the run's first motion)
+            rows = s.rows
+            self.loc = Loc(int(rows["file"][0]), int(rows["line"][0]), int(rows["col"][0]))
         frame = self.frame_value(s.frame, st)
         tool = self.tool_value(s.tool, st)
         if self.rec is not None:

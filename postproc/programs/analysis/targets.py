@@ -145,7 +145,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                 code = target.code
             what = use.what or "the target"
             if code == P215:
-                msg = f"target {what}: {target.why} (a global of a data list or $config.dat not given?): left as written"
+                msg = f"target {what}: {target.why} ({dialect.undeclared_hint}): left as written"
             elif code == P223:
                 msg = f"target {what} is not known here ({target.why}, switched on): left as written"
             else:
@@ -192,6 +192,10 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                      f"{'is' if len(computed) == 1 else 'are'} computed at run time from other values, not a number "
                      "of the program: left as written", loc, True)
             continue
+        if any(f < 0 for f in files):  # (a configuration text is read, never written)
+            rec.note(P211, f"target {use.what or 'the target'}: its numbers stand in {_path(unit, min(files))}, which "
+                     "is read only: left as written", loc, True)
+            continue
         if len(files) > 1:
             rec.note(P214, f"target {use.what or 'the target'}: its X/Y/Z come from numbers in several files: left "
                      "as written", loc, True)
@@ -217,7 +221,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         file = next(iter(files)) if files else (view.loc.file if view.loc is not None else loc.file)
         if not isinstance(s.target, Agg):
             named = True
-        ix, why, code = frame_index(use.frame, use.tool)
+        ix, why, code = frame_index(use.frame if view.moving is None else view.moving, use.tool)
         aloc = view.loc or loc
         first = (_path(unit, aloc.file), aloc.line, aloc.col, use)
         if ix < 0:
@@ -323,9 +327,12 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
     prev = np.arange(rows.n - 1, rows.n - 1 + n, dtype=np.int32)
     prev[0] = primary
     spans = r["spans"]
-    k_orient = 3
-    rows.add(pose=pose, spans=spans, abc=spans[:, 6:12].reshape(n, 3, 2) if form == "abc" else
-             np.full((n, k_orient, 2), -1, np.int64), worient=pose[:, 3:6] if form != "abc" else np.full((n, 3), np.nan),
+    if r.get("ospans") is not None:  # (a form other than A,B,C: the run's numbers as written, located)
+        abc, worient = r["ospans"], r["orient"]
+    else:
+        abc = spans[:, 6:12].reshape(n, 3, 2) if form == "abc" else np.full((n, 3, 2), -1, np.int64)
+        worient = pose[:, 3:6] if form != "abc" else np.full((n, 3), np.nan)
+    rows.add(pose=pose, spans=spans, abc=abc, worient=worient,
              file=r["file"], line=r["line"], col=r["col"], frame=np.full(n, ix, np.int32), motion=r["motion"],
              config=r["config"], offset=np.zeros((n, 3)), prev=prev, site=None,
              extras={k: list(v) for k, v in dialect.run_extras(use.run).items()})
