@@ -244,8 +244,9 @@ def _left_codes(program: Program, selection: Selection) -> Counter:
         by_rule += n
     if left.sum() > unknown_frame + by_rule:
         codes[P212] = int(left.sum()) - unknown_frame - by_rule
+    held = getattr(program, "held", {}) or {}
     for d in program.diagnostics:
-        if d.code in LEFT_AS_WRITTEN:
+        if d.code in LEFT_AS_WRITTEN and d.code not in held:  # (rows the analysis holds are counted above)
             codes[d.code] += 1
     return codes
 

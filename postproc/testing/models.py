@@ -39,8 +39,12 @@ def affine_model(
     reach: dict | None = DEFAULT_REACH,
     previous_input: bool = False,
     method: str = "affine-test",
+    previous_gain: np.ndarray | None = None,
     **extra_meta,
 ) -> Path:
+    """``previous_gain`` [3, 3] (with ``previous_input``): the error also varies with the step
+    from the previous pose, E += previous_gain · (xyz − previous xyz) — a model whose correction
+    depends on where the robot comes from (the approach), for tests of execution order."""
     gain = np.zeros((3, 3)) if gain is None else np.asarray(gain, float)
     # error = (xyz - centre) @ gain.T + offset, computed on the first 3 columns of pose
     nodes = [
@@ -60,6 +64,13 @@ def affine_model(
     inputs = [helper.make_tensor_value_info("pose", TensorProto.FLOAT, ["N", 6])]
     if previous_input:
         inputs.append(helper.make_tensor_value_info("previous_pose", TensorProto.FLOAT, ["N", 6]))
+        if previous_gain is not None:
+            nodes[-1] = helper.make_node("Add", ["lin", "offset"], ["base_error"])
+            nodes += [helper.make_node("Slice", ["previous_pose", "s0", "s3", "ax1"], ["pxyz"]),
+                      helper.make_node("Sub", ["xyz", "pxyz"], ["step"]),
+                      helper.make_node("MatMul", ["step", "prevT"], ["plin"]),
+                      helper.make_node("Add", ["base_error", "plin"], ["error"])]
+            inits.append(numpy_helper.from_array(np.asarray(previous_gain, float).T.astype(np.float32), "prevT"))
     graph = helper.make_graph(
         nodes, "affine", inputs, [helper.make_tensor_value_info("error", TensorProto.FLOAT, ["N", 3])], inits
     )

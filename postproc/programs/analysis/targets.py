@@ -443,7 +443,11 @@ def _groups(unit, t: Targets, rec, diagnostics: list) -> dict:
     held_groups = {int(group[i]) for i in np.flatnonzero(escaped) if group[i] >= 0}
     held = escaped | (np.isin(group, list(held_groups)) & (group >= 0))
     rows = np.flatnonzero(held)
+    said = set()
     for i in rows.tolist():
+        if (int(t.file[i]), int(t.line[i]), int(t.col[i])) in said:
+            continue  # (another run of one target: said once)
+        said.add((int(t.file[i]), int(t.line[i]), int(t.col[i])))
         token = next(((int(t.file[i]), int(t.spans[i, k, 0]), int(t.spans[i, k, 1])) for k in range(3)
                       if (int(t.file[i]), int(t.spans[i, k, 0]), int(t.spans[i, k, 1])) in rec.escapes), None)
         if token is None:

@@ -39,7 +39,7 @@ from ..ir import (Agg, Assign, Async, AsyncSwitch, Call, Decl, Eval, Field, Goto
                   Loc, Loop, Move, MoveRun, Name, Note, Num, Op, Param, Return, Routine, Stmt, Switch, Unit, Unknown,
                   walk)
 from ..model import MOTIONS
-from .semantics import FUNCTIONS, INSTRUCTIONS, RECORDS, RUNTIME_POSITION, UNUSED_AXIS
+from .semantics import FUNCTIONS, INSTRUCTIONS, RECORDS, RUNTIME_POSITION, SCALARS, UNUSED_AXIS
 from .syntax import STRING_RE, TOKEN_RE, Source
 
 __all__ = ["Lowering", "MOTIONS_OF", "MOTION_OF"]
@@ -142,7 +142,8 @@ class _Run:
 class Lowering:
     """The files of one read lowered to a Unit."""
 
-    def __init__(self, sources: list, config_sources: list, unit: Unit):
+    def __init__(self, sources: list, config_sources: list, unit: Unit, accelerate: bool = True):
+        self.accelerate = accelerate
         self.sources = sources
         self.config_sources = config_sources
         self.unit = unit
@@ -314,7 +315,8 @@ class Lowering:
             kind = shape.kind
             if self.record and kind != "record_end":
                 continue
-            if kind == "call" and self.routine is not None and not self.sig.handler and not self.discard:
+            if kind == "call" and self.accelerate and self.routine is not None and not self.sig.handler \
+                    and not self.discard:
                 template = entry.template
                 if template is None:
                     template = entry.template = self._template(_U(src, shape, start, end)) or False
@@ -710,13 +712,18 @@ class Lowering:
         out = [None] * len(params)
         required = [k for k, p in enumerate(params) if not p[3]]
         for k, node in zip(required, positional):
-            out[k] = self.expr(node, params[k][1])
+            out[k] = self.argument(node, params[k][1])
         for opt, value in options:
             k = next((k for k, p in enumerate(params) if p[3] and p[0] == opt.upper()), None)
             if k is None:
                 continue
-            out[k] = Lit(True) if value is None else self.expr(value, params[k][1])
+            out[k] = Lit(True) if value is None else self.argument(value, params[k][1])
         return tuple(out)
+
+    def argument(self, node, typ: str):
+        """An argument for a parameter of type ``typ``: a number written for a scalar (``lift
+        pWork, 300``) is a constant of the routine's computation, no target's token."""
+        return self.constant(node) if typ in SCALARS else self.expr(node, typ)
 
     # ------------------------------------------------------------ motions
     def motion(self, u, name, written, positional, options):
@@ -985,30 +992,34 @@ class Lowering:
     def _persistent(self) -> None:
         """Module data (PERS, and VAR: initialised when the module is loaded or the program
         pointer set to main, not when ``main`` runs again in continuous mode) that the program
-        assigns (or passes by reference) keep what the last run left: their value when a run
-        starts is not the one written (it is known from their assignment on)."""
-        assigned: set = set()
-        for r in self.unit.routines.values():
+        assigns (or passes by reference) keep what the last run left: the parts it assigns
+        (``w.oframe.trans``: that component; ``p``: all of it) are not known when a run starts
+        (they are from their assignment on), the others are as written."""
+        assigned: dict = {}  # NAME → the component paths assigned (() the whole)
+        for r in list(self.unit.routines.values()) + list(self.config_routines.values()):
             for s in walk(r.body):
                 if isinstance(s, Assign) and id(s) not in self.element_inits:
-                    root = _root(s.target)
+                    root, path = _path(s.target)
                     if root is not None:
-                        assigned.add(root)
+                        assigned.setdefault(root, set()).add(path)
                 elif isinstance(s, Invoke) and s.name in self.sigs:
                     for p, a in zip(self.sigs[s.name].params, s.args):
-                        if p[2] == "ref" and a is not None and _root(a) is not None:
-                            assigned.add(_root(a))
+                        if p[2] == "ref" and a is not None:
+                            root, path = _path(a)
+                            if root is not None:
+                                assigned.setdefault(root, set()).add(path)
         for module, stmts in self.unit.data:
             for k, s in enumerate(stmts):
                 storage = self.storage.get(id(s))
-                if isinstance(s, Decl) and storage in ("PERS", "VAR") and s.name in assigned:
-                    why = (f"{storage} {s.written or s.name} is assigned at run time (a run starts with the value the "
-                           "last run left)")
-                    if s.init is not None:
-                        s.init = Unknown(why, P211)
-                    for a in stmts[k + 1:]:
-                        if isinstance(a, Assign) and self.element_inits.get(id(a)) == s.name:
-                            a.value = Unknown(why, P211)
+                if not (isinstance(s, Decl) and storage in ("PERS", "VAR") and s.name in assigned):
+                    continue
+                paths = assigned[s.name]
+                why = f"{storage} {s.written or s.name} is assigned at run time (a run starts with the value the last run left)"
+                if s.init is not None:
+                    s.init = _unknown_at(s.init, paths, why)
+                for a in stmts[k + 1:]:
+                    if isinstance(a, Assign) and self.element_inits.get(id(a)) == s.name:
+                        a.value = Unknown(why, P211)
 
 
 # ------------------------------------------------------------------------------- helpers
@@ -1147,11 +1158,8 @@ def _move_run(run: _Run, src: Source) -> MoveRun:
     values = np.array(run.values, float).reshape(n, 17)
     spans = np.array(run.spans, np.int64).reshape(n, 7, 2)
     line, col = src.lines.lines_cols(np.array(run.at, np.int64))
-    q = values[:, 3:7]
-    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-        big = np.abs(q).max(axis=1, keepdims=True)
-        unit = q / np.where(big > 0, big, np.nan)
-        abc = fr.abc_from_rotation(fr.rotation_from_quaternion(unit))
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # (as analysis.targets reads one target)
+        abc = fr.abc_from_rotation(fr.orientation_rotation(values[:, 3:7], "quaternion"))
     pose = np.concatenate([values[:, :3], abc], axis=1)
     all_spans = np.full((n, 12), -1, np.int64)
     all_spans[:, :6] = spans[:, :3].reshape(n, 6)
@@ -1163,10 +1171,28 @@ def _move_run(run: _Run, src: Source) -> MoveRun:
     return MoveRun(rows, run.frame, run.tool)
 
 
-def _root(e):
+def _path(e) -> tuple:
+    """(root name, the component path assigned: field names down to the first element index)
+    of an assignable expression; (None, ()) for another."""
+    path: list = []
     while isinstance(e, (Field, Item)):
+        if isinstance(e, Item):
+            path.clear()  # (an element: the path from the array on is not followed)
+        else:
+            path.append(e.name)
         e = e.base
-    return e.name if isinstance(e, Name) else None
+    return (e.name, tuple(reversed(path))) if isinstance(e, Name) else (None, ())
+
+
+def _unknown_at(init, paths: set, why: str):
+    """``init`` (an aggregate as written) with the components at ``paths`` unknown."""
+    if () in paths or not isinstance(init, Agg):
+        return Unknown(why, P211)
+    items = []
+    for name, value in init.items:
+        sub = {p[1:] for p in paths if p[0] == name}
+        items.append((name, _unknown_at(value, sub, why) if sub else value))
+    return Agg(init.kind, tuple(items), init.loc, init.type, init.form)
 
 
 def _called(body) -> set:

@@ -27,25 +27,28 @@ class RapidProgram(Program):
     confdata: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
 
 
-def read(files: list[str], texts: list[str], config: list[str] | None = None) -> RapidProgram:
+def read(files: list[str], texts: list[str], config: list[str] | None = None, accelerate: bool = True) -> RapidProgram:
     """Read RAPID module(s) ``files`` with contents ``texts`` as one task; ``config`` holds the
     texts of other modules (e.g. a .sys) whose data the motions may name and whose routines
-    they may call (read-only: never rewritten). Raises PostprocError (P1xx, with
-    path:line:col) on bad input."""
-    return Reader(list(files), list(texts), list(config or [])).run()
+    they may call (read-only: never rewritten). ``accelerate=False`` lowers every motion
+    through its tree (no MoveRun of inline robtargets: the same result, slower; for tests).
+    Raises PostprocError (P1xx, with path:line:col) on bad input."""
+    return Reader(list(files), list(texts), list(config or []), accelerate).run()
 
 
-def lower(files: list[str], texts: list[str], config: list[str] | None = None) -> tuple[Unit, RAPID]:
+def lower(files: list[str], texts: list[str], config: list[str] | None = None,
+          accelerate: bool = True) -> tuple[Unit, RAPID]:
     """The motion IR of RAPID module(s) and their dialect (what ``read`` analyses)."""
-    reader = Reader(list(files), list(texts), list(config or []))
+    reader = Reader(list(files), list(texts), list(config or []), accelerate)
     return reader.lower()
 
 
 class Reader:
-    def __init__(self, files, texts, config):
+    def __init__(self, files, texts, config, accelerate: bool = True):
         if len(files) != len(texts):
             raise ValueError("files and texts differ in length")
         self.files, self.texts, self.config = files, texts, config
+        self.accelerate = accelerate
         self.config_names = ["--config" if len(config) == 1 else f"--config[{k}]" for k in range(len(config))]
 
     def lower(self) -> tuple[Unit, RAPID]:
@@ -58,7 +61,7 @@ class Reader:
                 raise PostprocError("expected a RAPID module: MODULE name … ENDMODULE", src.path, 1, 1, P104)
         unit = Unit("rapid", self.files, self.texts, config_names=self.config_names, config_texts=self.config,
                     form="quaternion")
-        low = Lowering(sources, config_sources, unit)
+        low = Lowering(sources, config_sources, unit, self.accelerate)
         low.declare()
         low.lower()
         self.sources = sources

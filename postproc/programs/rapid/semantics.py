@@ -231,6 +231,14 @@ class RAPID(Dialect):
         keep = self.readonly | self.consts
         return [k for k in st.vars if k[0] == "G" and k[1] not in keep] + [("G", "C_PROGDISP")]
 
+    def unread(self, an, st, site, why: str | None):
+        """A routine not read; a late-bound call (``%name%``, ``CallByVar``) names one known only
+        at run time."""
+        if why is None and site.name == "%late%":
+            line = site.loc.line if site.loc else 0
+            why = f"a routine named at run time (late binding, line {line}) is not known here"
+        return super().unread(an, st, site, why)
+
     def scalar(self, type_: str) -> bool:
         return type_.upper() in SCALARS
 
