@@ -27,6 +27,7 @@ The result (:class:`Recorder`) is turned into the targets by :mod:`.targets`.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from ..ir import (Agg, Assign, Async, AsyncSwitch, Call, Continue, Decl, Eval, Exit, Field, Goto, Halt, Havoc, If, Invoke,
@@ -413,7 +414,8 @@ class Analysis:
             for v in (start, stop, step):
                 self.consume(v, "a FOR bound")
             lo, hi, by = number(start), number(stop), number(step)
-            if None not in (lo, hi, by) and by != 0 and lo == int(lo) and hi == int(hi) and by == int(by):
+            finite = None not in (lo, hi, by) and all(math.isfinite(x) for x in (lo, hi, by))
+            if finite and by != 0 and lo == int(lo) and hi == int(hi) and by == int(by):
                 count = max(0, (int(hi) - int(lo)) // int(by) + 1)
                 cost = count * max(1, _size(s.body))
                 if cost <= self.budget:

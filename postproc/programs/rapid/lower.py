@@ -40,11 +40,13 @@ from ..ir import (Agg, Assign, Async, AsyncSwitch, Call, Decl, Eval, Field, Goto
                   walk)
 from ..model import MOTIONS
 from .semantics import FUNCTIONS, INSTRUCTIONS, RECORDS, RUNTIME_POSITION, SCALARS, UNUSED_AXIS
-from .syntax import STRING_RE, TOKEN_RE, Source
+from .syntax import STRING_RE, TOKEN_RE, Source, misread
 
 __all__ = ["Lowering", "MOTIONS_OF", "MOTION_OF"]
 
 _MOTION = {m: i for i, m in enumerate(MOTIONS)}
+_XYZ, _Q, _CF = ("X", "Y", "Z"), ("Q1", "Q2", "Q3", "Q4"), ("CF1", "CF4", "CF6", "CFX")
+_EAX = tuple(f"EAX_{c}" for c in "ABCDEF")
 
 
 @dataclass(frozen=True)
@@ -120,12 +122,13 @@ class _Sig:
 class Template:
     """What every unit of one exact key is, for the fast path: an inline-robtarget motion.
     ``kinds`` per target; ``numbers`` per target the 17 (ordinal, signed) of x,y,z, q1..q4,
-    cf1..cfx, eax_a..f; its frame and tool expressions."""
+    cf1..cfx, eax_a..f; its frame and tool expressions; ``count`` its names and numbers."""
 
     kinds: tuple
     numbers: tuple
     frame: object
     tool: object
+    count: int = 0
 
 
 class _Run:
@@ -159,6 +162,7 @@ class Lowering:
         self.element_inits: dict = {}  # id(Assign) of an array's initial element → declared name
         self.config_routines: dict = {}
         self.written: dict = {}  # NAME → as first written (messages)
+        self._plains: dict = {}  # (shape, aggregate node) → plain robtarget ordinals
 
     # ================================================================ pass 1: declarations
     def declare(self) -> None:
@@ -803,13 +807,15 @@ class Lowering:
             frame, tool = self._frame_tool(u, spec, positional, options)
         finally:
             self.u = saved
-        return Template(tuple(kind for _, kind in spec.targets), tuple(numbers), frame, tool)
+        return Template(tuple(kind for _, kind in spec.targets), tuple(numbers), frame, tool, len(u.shape.ordinal_at))
 
     def _fast(self, t: Template, start: int, end: int) -> bool:
         """The unit's rows into the run being collected; False where it cannot be one (an
         external axis in use: the general path says why)."""
         code = self.src.code
         toks = list(TOKEN_RE.finditer(code, start, end))
+        if len(toks) != t.count:
+            return False  # (the general path says where it is malformed)
         rows = []
         for nums in t.numbers:
             values, spans = [], []
@@ -927,15 +933,56 @@ class Lowering:
             return Op("not", (self.expr(node.children[-1]),))
         return Unknown("an expression the reader does not evaluate")
 
-    def aggregate(self, node, typ: str) -> Agg:
+    def aggregate(self, node, typ: str, loc: Loc | None = None) -> Agg:
+        if typ == "ROBTARGET":
+            plain = self._plain(node)
+            if plain:
+                return self._robtarget(plain)
         items = [c for c in node.children if c is not None]
         fields = RECORDS.get(typ) or self.records.get(typ)
-        loc = self.here(self.u, node)
+        loc = loc or self.here(self.u, node)
         if fields is not None and len(fields) == len(items):
             lowered = tuple((f, self.expr(c, t)) for (f, t), c in zip(fields, items))
         else:
             lowered = tuple((str(k + 1), self.expr(c)) for k, c in enumerate(items))
         return Agg("pose" if typ == "ROBTARGET" else "record", lowered, loc, typ, "quaternion")
+
+    def _plain(self, node):
+        """The 17 (ordinal, signed) of a robtarget aggregate of plain numbers (cached by the
+        shape), False for another."""
+        shape = self.u.shape
+        key = (id(shape), id(node))
+        found = self._plains.get(key)
+        if found is None:
+            found = self._plains[key] = (shape, node, _plain_robtarget(node, shape.ordinal_at) or False)
+        return found[2]
+
+    def _robtarget(self, plain) -> Agg:
+        """A robtarget aggregate of plain numbers, read by their ordinals (no tree walk)."""
+        toks = self.u.toks()
+        code = self.src.code
+        fi = self.fi
+        nums = []
+        for ordinal, signed in plain:
+            m = toks[ordinal]
+            s, e = m.span()
+            v = float(m.group())
+            if signed:
+                j = s
+                while code[j - 1] in " \t\r\n":
+                    j -= 1
+                s = j - 1
+                if code[s] == "-":
+                    v = -v
+            nums.append(Num(v, fi, s, e))
+        loc = Loc(fi, *self.src.locate(toks[plain[0][0]].start()))
+
+        def rec(typ, names, values):
+            return Agg("record", tuple(zip(names, values)), loc, typ, "quaternion")
+
+        return Agg("pose", (("TRANS", rec("POS", _XYZ, nums[:3])), ("ROT", rec("ORIENT", _Q, nums[3:7])),
+                            ("ROBCONF", rec("CONFDATA", _CF, nums[7:11])), ("EXTAX", rec("EXTJOINT", _EAX, nums[11:]))),
+                   loc, "ROBTARGET", "quaternion")
 
     def constant(self, node):
         """A number written as an argument of a function is a constant of that computation (no
@@ -1038,6 +1085,8 @@ class _U:
     def toks(self):
         if self._toks is None:
             self._toks = list(TOKEN_RE.finditer(self.src.code, self.start, self.end))
+            if len(self._toks) != len(self.shape.ordinal_at):
+                misread(self.src, self.start, self.end, self.shape, self._toks)
         return self._toks
 
     def tok(self, token):

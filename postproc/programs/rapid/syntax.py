@@ -10,6 +10,7 @@ strings are read from the unit's own text by their ordinals (``Shape.ordinal_at`
 from __future__ import annotations
 
 import re
+from bisect import bisect_right
 
 from lark import Token, Tree
 from lark.exceptions import UnexpectedInput
@@ -17,7 +18,7 @@ from lark.exceptions import UnexpectedInput
 from ...diagnostics import P101, LineIndex, PostprocError, line_col
 from ..grammar import TOKEN_RE, exact_key, lalr_parser, shape_key, unexpected
 
-__all__ = ["parser", "Shape", "Exact", "Source", "scan", "TOKEN_RE", "STRING_RE"]
+__all__ = ["parser", "Shape", "Exact", "Source", "scan", "misread", "TOKEN_RE", "STRING_RE"]
 
 # strings, comments, and a quote that opens no string on its line
 _HIDE = re.compile(r'"[^"\n]*"|!.*|"')
@@ -40,14 +41,23 @@ class Shape:
     """One unit shape: its tree, the ordinal of each name/number token by its position in the
     shape (``ordinal_at``), the ordinal of each string (``string_at``)."""
 
-    __slots__ = ("tree", "kind", "ordinal_at", "string_at", "text")
+    __slots__ = ("tree", "kind", "ordinal_at", "string_at", "text", "bad")
 
     def __init__(self, text: str, tree):
         self.text = text
         self.tree = tree
         self.kind = tree.data if isinstance(tree, Tree) else ""
-        self.ordinal_at = {m.start(): k for k, m in enumerate(TOKEN_RE.finditer(text))}
+        words = {m.start(): m.end() for m in TOKEN_RE.finditer(text)}
+        self.ordinal_at = {start: k for k, start in enumerate(words)}
         self.string_at = {m.start(): k for k, m in enumerate(STRING_RE.finditer(text))}
+        # a name or number of the tree that is not one token of the text (a keyword run into a
+        # name: ``PERSata``): the shape position of the first, None for none
+        self.bad = None
+        if isinstance(tree, Tree):
+            for t in tree.scan_values(lambda v: isinstance(v, Token)):
+                if t and (t[0].isalnum() or t[0] in "_.") and words.get(t.start_pos) != t.start_pos + len(t):
+                    self.bad = t.start_pos
+                    break
 
 
 class Exact:
@@ -71,9 +81,15 @@ class Source:
         self.code = ""
         self.units: list = []
         self.lines = LineIndex(text)
+        self._starts = None
 
     def locate(self, offset: int) -> tuple[int, int]:
-        return self.lines.line_col(offset)
+        """1-based (line, col) of an offset (a bisection of the line starts, found once)."""
+        starts = self._starts
+        if starts is None:
+            starts = self._starts = self.lines._line_starts().tolist()
+        k = bisect_right(starts, offset) - 1
+        return k + 1, offset - starts[k] + 1
 
 
 def _blank(code: str, path: str, text: str) -> str:
@@ -152,6 +168,8 @@ def scan(fi: int, path: str, text: str, shapes: dict, exact: dict) -> Source:
                 except UnexpectedInput:
                     _syntax_error(src, start, piece)
                 shape = shapes[skey] = Shape(skey, tree)
+            if shape.bad is not None:
+                _syntax_error(src, start, piece, "syntax error: a keyword run into a name")
             entry = Exact(shape)
             if len(exact) < 100_000:
                 exact[key] = entry
@@ -159,14 +177,26 @@ def scan(fi: int, path: str, text: str, shapes: dict, exact: dict) -> Source:
     return src
 
 
-def _syntax_error(src: Source, start: int, unit: str):
+def _syntax_error(src: Source, start: int, unit: str, why: str = "syntax error"):
     """Parse the unit as written to locate the error; raise P101 there."""
     lead = len(unit) - len(unit.lstrip())
     located = unexpected(parser().parse, unit, "end of statement")
     if located is not None:
         pos, found = located
         raise PostprocError(f"syntax error: unexpected {found}", src.path, *src.locate(start + pos), P101)
-    raise PostprocError("syntax error", src.path, *src.locate(start + lead), P101)
+    raise PostprocError(why, src.path, *src.locate(start + lead), P101)
+
+
+def misread(src: Source, start: int, end: int, shape: Shape, toks: list):
+    """P101 where the unit's names and numbers are not those of its shape (a malformed number:
+    ``9E+099E+09``), at the first that differs."""
+    words = list(TOKEN_RE.finditer(shape.text))
+    for m, w in zip(toks, words):
+        if (m.group()[0].isdigit() or m.group()[0] == ".") != (w.group()[0].isdigit() or w.group()[0] == "."):
+            raise PostprocError(f"syntax error: a malformed number or name '{m.group()}'", src.path,
+                                *src.locate(m.start()), P101)
+    at = toks[min(len(toks), len(words)) - 1].start() if toks else start
+    raise PostprocError("syntax error: a malformed number", src.path, *src.locate(at), P101)
 
 
 _ = Token
