@@ -310,3 +310,21 @@ def test_fast_path_and_tree_read_inline_robtargets_alike():
         assert np.array_equal(getattr(fast.targets, name), getattr(slow.targets, name), equal_nan=True), name
     assert np.array_equal(fast.confdata, slow.confdata) and len(fast.targets) == 9
     assert np.allclose(fast.frames[0].base, slow.frames[0].base)
+
+
+def test_config_modules_are_read_only_data_and_their_routines_are_read_where_called():
+    sysmod = "\n".join(["MODULE user(SYSMODULE)",
+                        'PERS wobjdata wCfg:=[FALSE,TRUE,"",[[0,0,500],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];',
+                        "PROC toHome()", f"  MoveJ {rt(1600, 0, 1200)}, v1000, fine, tool0;", "ENDPROC",
+                        "PROC unused()", f"  MoveJ {rt(1700, 0, 1200)}, v1000, fine, tool0;", "ENDPROC", "ENDMODULE", ""])
+    data = [f"CONST robtarget p1:={rt(80, -120, 60)};"]
+    text = module("MoveL p1, v100, fine, tool0\\WObj:=wCfg;", "toHome;", "gripperOpen;",
+                  "MoveL p1, v100, fine, tool0\\WObj:=wCfg;", data=data)
+    p = rapid.read(["m.mod"], [text], config=[sysmod])
+    assert np.allclose(p.frames[0].base[:3, 3], [0, 0, 500])
+    # toHome is read (its target left: it stands in the --config text, which is never rewritten);
+    # unused is not called: no target of the program. Code not read (gripperOpen) may change the
+    # program displacement (and every global but the --config modules' data): p1 after it is left
+    assert p.targets.frame.tolist() == [0, -1] and len(p.targets) == 2
+    assert [(d.code, d.path, d.line) for d in p.diagnostics] == [("P201", "m.mod", 6), ("P211", "--config", 4)]
+    assert "gripperOpen()" in p.diagnostics[0].message and "read only" in p.diagnostics[1].message

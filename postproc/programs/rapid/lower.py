@@ -163,6 +163,7 @@ class Lowering:
         self.config_routines: dict = {}
         self.written: dict = {}  # NAME → as first written (messages)
         self._plains: dict = {}  # (shape, aggregate node) → plain robtarget ordinals
+        self.calls: dict = {}  # routine key → the keys of the routines it calls (read)
 
     # ================================================================ pass 1: declarations
     def declare(self) -> None:
@@ -278,26 +279,27 @@ class Lowering:
 
     # ================================================================ pass 2: statements
     def lower(self) -> None:
+        # --config modules first (their data are there before the program's); their routines
+        # are read where the program calls them
+        for src in self.config_sources:
+            self._lower(src, config=True)
         for src in self.sources:
             self._lower(src)
-        # routines of --config modules: read where the program calls them
-        pending = [src for src in self.config_sources]
-        for src in pending:
-            self._lower(src, config=True)
         self._reach_config()
         self._persistent()
 
     def _reach_config(self) -> None:
         """Routines of --config modules the program calls (transitively) join the unit."""
         routines = self.unit.routines
-        todo = [r for r in routines.values()]
+        if not self.config_routines:
+            return
+        todo = list(routines)
         while todo:
-            r = todo.pop()
-            for name in _called(r.body):
+            for name in self.calls.get(todo.pop(), ()):
                 extra = self.config_routines.get(name)
                 if extra is not None and name not in routines:
                     routines[name] = extra
-                    todo.append(extra)
+                    todo.append(name)
 
     def _lower(self, src: Source, config: bool = False) -> None:
         self.src = src
@@ -319,8 +321,8 @@ class Lowering:
             kind = shape.kind
             if self.record and kind != "record_end":
                 continue
-            if kind == "call" and self.accelerate and self.routine is not None and not self.sig.handler \
-                    and not self.discard:
+            if kind == "call" and self.accelerate and not config and self.routine is not None \
+                    and not self.sig.handler and not self.discard:
                 template = entry.template
                 if template is None:
                     template = entry.template = self._template(_U(src, shape, start, end)) or False
@@ -701,12 +703,15 @@ class Lowering:
 
     def resolve(self, name: str) -> str | None:
         """The key of the routine a call names from the running module (its LOCAL routines
-        first), None where no file read holds it."""
+        first), None where no file read holds it; the call is recorded (``calls``)."""
+        key = None
         if name in self.local_routines.get(self.module, ()):
-            return f"{self.module}::{name}"
-        if name in self.sigs and "::" not in name:
-            return name
-        return None
+            key = f"{self.module}::{name}"
+        elif name in self.sigs and "::" not in name:
+            key = name
+        if key is not None:
+            self.calls.setdefault(self.routine.name if self.routine is not None else "", set()).add(key)
+        return key
 
     def bind(self, key: str, positional, options) -> tuple:
         """A call's arguments in the order of the routine's parameters (None: not passed);
@@ -1242,32 +1247,6 @@ def _unknown_at(init, paths: set, why: str):
         sub = {p[1:] for p in paths if p[0] == name}
         items.append((name, _unknown_at(value, sub, why) if sub else value))
     return Agg(init.kind, tuple(items), init.loc, init.type, init.form)
-
-
-def _called(body) -> set:
-    """The names of the routines a body calls (statements and expressions)."""
-    out = set()
-
-    def visit(e):
-        if isinstance(e, Call):
-            out.add(e.name)
-        if isinstance(e, (tuple, list)):
-            for x in e:
-                visit(x)
-        elif hasattr(e, "__slots__") and not isinstance(e, (str, Loc)):
-            for f in e.__slots__:
-                visit(getattr(e, f, None))
-
-    for s in walk(body):
-        if isinstance(s, Invoke):
-            out.add(s.name)
-        if isinstance(s, Async) and isinstance(s.action, Invoke):
-            out.add(s.action.name)
-        for f in getattr(s, "__slots__", ()):
-            v = getattr(s, f, None)
-            if not isinstance(v, list):
-                visit(v)
-    return out
 
 
 def _no_handler(body: list) -> list:

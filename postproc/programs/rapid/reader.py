@@ -12,7 +12,7 @@ from ..analysis import analyse
 from ..ir import Call, Invoke, Unit, walk
 from ..model import STAMP_PREFIX, Program
 from ..poses import _newline  # a file's newline: \r\n if at least half its line ends are
-from .lower import Lowering, _called
+from .lower import Lowering
 from .semantics import RAPID
 from .syntax import scan
 
@@ -69,10 +69,8 @@ class Reader:
         main = next((k for k in ("MAIN",) + tuple(k for k in routines if k.endswith("::MAIN")) if k in routines), None)
         if main is not None:
             unit.entries = [main]
-        else:
-            called = set()
-            for r in routines.values():
-                called |= _called(r.body)
+        else:  # the routines nothing calls (the analysis runs the others nothing reached after them)
+            called = set().union(*low.calls.values()) if low.calls else set()
             unit.entries = [k for k in routines if k not in called]
         return unit, RAPID(readonly=low.readonly, consts=low.consts, written=low.written)
 
