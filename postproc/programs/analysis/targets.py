@@ -208,9 +208,10 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             numbers_ = np.array(nums, float)
             if view.form == "abc":
                 pose[3:6] = numbers_
-            else:
+            elif view.form != form:
                 with np.errstate(invalid="ignore"):
                     pose[3:6] = fr.abc_from_rotation(fr.orientation_rotation(numbers_, view.form))
+            # (in the program's form: A,B,C from the numbers as written, every row at once, _columns)
             if view.form == form:
                 written_orient[:len(nums)] = numbers_
                 for j, v in enumerate(orient):
@@ -368,6 +369,12 @@ def _columns(rows: _Rows, k_orient: int, form: str) -> Targets:
         config=col("config").astype(np.int16),
         orientation=None if form == "abc" else col("worient").reshape(n, k_orient),
         prev=col("prev"), offset=offset if offset.any() else None)
+    if form != "abc":  # the rows' A,B,C from their orientation's numbers as written (build leaves them NaN)
+        o = targets.orientation
+        todo = np.isnan(targets.poses[:, 3]) & ~np.isnan(o).any(axis=1)
+        if todo.any():
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                targets.poses[todo, 3:6] = fr.abc_from_rotation(fr.orientation_rotation(o[todo], form))
     targets.twin = _twins(targets)
     return targets
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,6 +41,7 @@ from ..ir import (Agg, Assign, Async, AsyncSwitch, Call, Decl, Eval, Field, Goto
                   walk)
 from ..model import MOTIONS
 from .semantics import FUNCTIONS, INSTRUCTIONS, RECORDS, RUNTIME_POSITION, SCALARS, UNUSED_AXIS
+from ..grammar import BLANKS, NUM
 from .syntax import STRING_RE, TOKEN_RE, Source, misread
 
 __all__ = ["Lowering", "MOTIONS_OF", "MOTION_OF"]
@@ -132,14 +134,20 @@ class Template:
 
 
 class _Run:
-    """The rows of a MoveRun being collected (one frame and tool)."""
+    """The rows of a MoveRun being collected (one frame and tool): each robtarget's ``RT_RE``
+    match and motion kind."""
 
     def __init__(self, frame, tool, fi):
         self.frame, self.tool, self.fi = frame, tool, fi
-        self.at: list = []  # offset of X
-        self.values: list = []  # 17 floats
-        self.spans: list = []  # 7 (start, end)
+        self.matches: list = []
         self.motion: list = []
+
+
+# a robtarget aggregate of plain numbers (a sign may stand before each, blanks between): its
+# 17 numbers x, y, z, q1..q4, cf1, cf4, cf6, cfx, eax_a..f, each with its sign
+_SNUM = r"\s*([-+]?\s*" + NUM + r")\s*"
+RT_RE = re.compile(r"\[\s*\[" + ",".join([_SNUM] * 3) + r"\]\s*,\s*\[" + ",".join([_SNUM] * 4) + r"\]\s*,\s*\["
+                   + ",".join([_SNUM] * 4) + r"\]\s*,\s*\[" + ",".join([_SNUM] * 6) + r"\]\s*\]", re.ASCII)
 
 
 class Lowering:
@@ -164,6 +172,8 @@ class Lowering:
         self.written: dict = {}  # NAME → as first written (messages)
         self._plains: dict = {}  # (shape, aggregate node) → plain robtarget ordinals
         self.calls: dict = {}  # routine key → the keys of the routines it calls (read)
+        self._unused: dict = {}  # an external axis value as written → not in use (9E9)
+        self._decl_templates: dict = {}  # id(shape) → (shape, what a module's robtarget declaration is)
 
     # ================================================================ pass 1: declarations
     def declare(self) -> None:
@@ -328,6 +338,8 @@ class Lowering:
                     template = entry.template = self._template(_U(src, shape, start, end)) or False
                 if template and self._fast(template, start, end):
                     continue
+            if kind == "decl" and self.routine is None and self.data is not None and self._fast_decl(shape, start, end):
+                continue
             self.flush()
             u = _U(src, shape, start, end)
             self.u = u
@@ -806,6 +818,12 @@ class Lowering:
             return None
         if any(v is not None and not _is_name(v) for k, v in options if k.upper() == "WOBJ"):
             return None
+        # (the regex finds these robtargets, each number where the tree has it)
+        toks = u.toks()
+        found = list(RT_RE.finditer(u.src.code, u.start, u.end))
+        if len(found) != len(numbers) or any(m.regs[1 + k][1] != toks[o].end() for m, nums in zip(found, numbers)
+                                             for k, (o, _) in enumerate(nums)):
+            return None
         saved = self.u
         self.u = u
         try:
@@ -815,43 +833,53 @@ class Lowering:
         return Template(tuple(kind for _, kind in spec.targets), tuple(numbers), frame, tool, len(u.shape.ordinal_at))
 
     def _fast(self, t: Template, start: int, end: int) -> bool:
-        """The unit's rows into the run being collected; False where it cannot be one (an
-        external axis in use: the general path says why)."""
-        code = self.src.code
-        toks = list(TOKEN_RE.finditer(code, start, end))
-        if len(toks) != t.count:
-            return False  # (the general path says where it is malformed)
-        rows = []
-        for nums in t.numbers:
-            values, spans = [], []
-            for k, (ordinal, signed) in enumerate(nums):
-                m = toks[ordinal]
-                s, e = m.start(), m.end()
-                v = float(m.group())
-                if signed:
-                    j = s
-                    while code[j - 1] in " \t\r\n":
-                        j -= 1
-                    s = j - 1
-                    if code[s] == "-":
-                        v = -v
-                values.append(v)
-                if k < 7:
-                    spans.append((s, e))
-            if any(abs(x) < UNUSED_AXIS for x in values[11:]):
-                return False
-            rows.append((values, spans))
+        """The unit's rows into the run being collected (its robtargets found by ``RT_RE``, read
+        at the run's end); False where it cannot be one (an external axis in use: the general
+        path says why)."""
+        ms = list(RT_RE.finditer(self.src.code, start, end))
+        if len(ms) != len(t.kinds):
+            return False
+        unused = self._unused
+        for m in ms:
+            for x in m.groups()[11:]:
+                free = unused.get(x)
+                if free is None:
+                    free = unused[x] = abs(float(BLANKS.sub("", x))) >= UNUSED_AXIS
+                if not free:
+                    return False
         run = self.run
-        if run is not None and (run.frame != t.frame or run.tool != t.tool):
+        if run is not None and not (run.frame is t.frame and run.tool is t.tool) and \
+                (run.frame != t.frame or run.tool != t.tool):
             self.flush()
             run = None
         if run is None:
             run = self.run = _Run(t.frame, t.tool, self.fi)
-        for (values, spans), kind in zip(rows, t.kinds):
-            run.at.append(spans[0][0])
-            run.values.append(values)
-            run.spans.append(spans)
-            run.motion.append(kind)
+        run.matches += ms
+        run.motion += t.kinds
+        return True
+
+    def _fast_decl(self, shape, start: int, end: int) -> bool:
+        """A module's robtarget declared with plain numbers (a RobotStudio module's data),
+        read by the ordinals of its name and numbers; False for any other declaration."""
+        t = self._decl_templates.get(id(shape))
+        if t is None:
+            storage, tnode, nnode, dims, init, local = _decl_parts(shape.tree)
+            plain = _plain_robtarget(init, shape.ordinal_at) if dims is None and init is not None else None
+            t = self._decl_templates[id(shape)] = (shape, (storage, shape.ordinal_at[tnode.start_pos],
+                                                            shape.ordinal_at[nnode.start_pos], local, plain))
+        storage, type_at, name_at, local, plain = t[1]
+        if not plain:
+            return False
+        toks = list(TOKEN_RE.finditer(self.src.code, start, end))
+        if len(toks) != len(shape.ordinal_at) or toks[type_at].group().upper() != "ROBTARGET":
+            return False
+        u = self.u = _U(self.src, shape, start, end)
+        u._toks = toks
+        written = toks[name_at].group()
+        decl = Decl(written.upper(), "ROBTARGET", None, self._robtarget(plain), "module" if local else "global",
+                    Loc(self.fi, *self.src.locate(toks[name_at].start())), written)
+        self.storage[id(decl)] = storage
+        self.data.append(decl)
         return True
 
     # ------------------------------------------------------------ expressions
@@ -1208,10 +1236,11 @@ def _plain_robtarget(node, ordinal_at):
 
 
 def _move_run(run: _Run, src: Source) -> MoveRun:
-    n = len(run.at)
-    values = np.array(run.values, float).reshape(n, 17)
-    spans = np.array(run.spans, np.int64).reshape(n, 7, 2)
-    line, col = src.lines.lines_cols(np.array(run.at, np.int64))
+    n = len(run.matches)
+    text = BLANKS.sub("", ",".join(",".join(m.groups()) for m in run.matches))
+    values = np.array(text.split(","), float).reshape(n, 17)
+    spans = np.array([m.regs[1:8] for m in run.matches], np.int64).reshape(n, 7, 2)
+    line, col = src.lines.lines_cols(spans[:, 0, 0])
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # (as analysis.targets reads one target)
         abc = fr.abc_from_rotation(fr.orientation_rotation(values[:, 3:7], "quaternion"))
     pose = np.concatenate([values[:, :3], abc], axis=1)
