@@ -174,6 +174,7 @@ class Lowering:
         self.calls: dict = {}  # routine key → the keys of the routines it calls (read)
         self._unused: dict = {}  # an external axis value as written → not in use (9E9)
         self._decl_templates: dict = {}  # id(shape) → (shape, what a module's robtarget declaration is)
+        self._exprs: dict = {}  # a frame or tool expression → the one object for it
 
     # ================================================================ pass 1: declarations
     def declare(self) -> None:
@@ -777,7 +778,8 @@ class Lowering:
             tool = Call("RAPID.TOOL", (self.expr(node), Lit(label)))
         else:
             tool = Call("RAPID.TOOL", (Unknown("the motion names no tool"), Lit("")))
-        return frame, tool
+        # (one object for each frame and tool written alike: the runs and the analysis compare them)
+        return self._exprs.setdefault(frame, frame), self._exprs.setdefault(tool, tool)
 
     def pdisp(self, u, name, positional, options):
         loc = self.here(u)

@@ -2,6 +2,7 @@
 → the analysis (``programs.analysis``, with RAPID's ``semantics.py``) → RapidProgram."""
 from __future__ import annotations
 
+import gc
 import re
 from dataclasses import dataclass, field
 
@@ -33,7 +34,13 @@ def read(files: list[str], texts: list[str], config: list[str] | None = None, ac
     they may call (read-only: never rewritten). ``accelerate=False`` lowers every motion
     through its tree (no MoveRun of inline robtargets: the same result, slower; for tests).
     Raises PostprocError (P1xx, with path:line:col) on bad input."""
-    return Reader(list(files), list(texts), list(config or []), accelerate).run()
+    enabled = gc.isenabled()
+    gc.disable()  # (many small objects, no cycles: the collector only costs time here)
+    try:
+        return Reader(list(files), list(texts), list(config or []), accelerate).run()
+    finally:
+        if enabled:
+            gc.enable()
 
 
 def lower(files: list[str], texts: list[str], config: list[str] | None = None,
