@@ -283,6 +283,8 @@ def group_rule(program: Program, selection: Selection) -> tuple[Selection, list[
         return selection, []
     first_left = {int(g): int(np.flatnonzero((group == g) & ~chosen)[0]) for g in left_groups}
     rows = selection.rows[drop]
+    places = np.stack([t.file[rows], t.line[rows], t.col[rows]], axis=1)
+    rows = rows[np.sort(np.unique(places, axis=0, return_index=True)[1])]  # (one warning per target, not per run)
     found = collect(program, rows, P230, lambda i: "this target's numbers are also those of a run of it (or of a point "
                     "it is copied from or into) that is left as written, at {}:{}: left as written too".format(
                         *where(program, first_left[int(group[rows[i]])])[:2]))

@@ -328,3 +328,24 @@ def test_config_modules_are_read_only_data_and_their_routines_are_read_where_cal
     assert p.targets.frame.tolist() == [0, -1] and len(p.targets) == 2
     assert [(d.code, d.path, d.line) for d in p.diagnostics] == [("P201", "m.mod", 6), ("P211", "--config", 4)]
     assert "gripperOpen()" in p.diagnostics[0].message and "read only" in p.diagnostics[1].message
+
+
+def test_components_of_a_robtarget_copied_offset_and_read_in_a_condition(model):
+    data = [f"CONST robtarget pA:={rt(1900, 0, 900)};", f"CONST robtarget pB:={rt(2000, 50, 950)};"]
+    text = module("VAR robtarget pT;",
+                  "pT := pA;",
+                  "pT.trans.x := pT.trans.x + 25;",          # a copy of pA's numbers, 25 mm further in X
+                  "MoveL pT, v100, fine, tool0;",
+                  "IF pB.trans.z > 900 THEN",                # pB's Z is read by the condition
+                  "  MoveL pB, v100, fine, tool0;",
+                  "ENDIF",
+                  data=data)
+    p = rapid.read(["m.mod"], [text])
+    assert p.targets.poses[:, :3].tolist() == [[1925, 0, 900], [2000, 50, 950]]
+    assert p.targets.offset[0].tolist() == [25, 0, 0]
+    # compensating pB would change what the condition decides: left (P217), pT compensated in pA's numbers
+    assert codes(p) == [("P217", 3)] and "read at m.mod:9 too (a comparison" in p.diagnostics[0].message
+    out, report = compensate_text(text, model, name="m.mod")
+    assert report.compensated == 1 and report.left_codes == {"P217": 1}
+    _, after = in_base(out)
+    assert np.allclose(after[0], twin_commands(model, [[1925, 0, 900]])[0], atol=1e-3)

@@ -27,6 +27,8 @@ S4/IRC5 (pages ``8-PDispOn``, ``8-PDispSet``, ``Offs``, ``RelTool``).
   (translation; with ``\\Rot`` the rotation too), ``PDispSet f`` sets ``f``, ``PDispOff``
   none; the points read are read as a frame (their tokens escape: P217 holds a target built
   on them). Without ``\\ExeP`` the robot's position at run time is taken: not known.
+* ``EOffsOn``/``EOffsSet``/``EOffsOff`` offset the external axes only: a target that uses
+  none (every ``eax`` 9E9) is where it was; one that uses one is left already (P225).
 * Code not read (a routine of a module not given) may change every global that is not a
   constant nor data of a ``--config`` module (read-only), and the displacement.
 """
