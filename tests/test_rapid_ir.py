@@ -12,6 +12,7 @@ from postproc import frames
 from postproc.cli import main
 from postproc.compensate import compensate_text, parse_program_text
 from postproc.compensator import load_model
+from postproc.diagnostics import PostprocError
 from postproc.programs import rapid
 
 EAX = "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]"
@@ -297,6 +298,10 @@ def test_optional_parameters_without_a_comma_and_a_byte_order_mark():
     # (the byte order mark is no part of the first line's columns)
     assert p.targets.col.tolist() == [23, 23]
     assert rapid.read(["m.mod"], [text[3:]]).targets.col.tolist() == [23, 23]
+    # (the byte order mark is no column of the first line)
+    with pytest.raises(PostprocError) as e:
+        rapid.read(["m.mod"], ["\xef\xbb\xbfMODULE m x\nENDMODULE\n"])
+    assert (e.value.line, e.value.col, e.value.code) == (1, 10, "P101")
 
 
 def test_fast_path_and_tree_read_inline_robtargets_alike():

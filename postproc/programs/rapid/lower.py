@@ -1242,7 +1242,7 @@ def _move_run(run: _Run, src: Source) -> MoveRun:
     text = BLANKS.sub("", ",".join(",".join(m.groups()) for m in run.matches))
     values = np.array(text.split(","), float).reshape(n, 17)
     spans = np.array([m.regs[1:8] for m in run.matches], np.int64).reshape(n, 7, 2)
-    line, col = src.lines.lines_cols(spans[:, 0, 0])
+    line, col = src.lines_cols(spans[:, 0, 0])
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # (as analysis.targets reads one target)
         abc = fr.abc_from_rotation(fr.orientation_rotation(values[:, 3:7], "quaternion"))
     pose = np.concatenate([values[:, :3], abc], axis=1)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import re
 from bisect import bisect_right
 
+import numpy as np
 from lark import Token, Tree
 from lark.exceptions import UnexpectedInput
 
@@ -82,14 +83,24 @@ class Source:
         self.units: list = []
         self.lines = LineIndex(text)
         self._starts = None
+        # (a byte order mark is no column of the first line)
+        self.bom = next((len(b) for b in BOMS if text.startswith(b)), 0)
 
     def locate(self, offset: int) -> tuple[int, int]:
         """1-based (line, col) of an offset (a bisection of the line starts, found once)."""
         starts = self._starts
         if starts is None:
             starts = self._starts = self.lines._line_starts().tolist()
+            starts[0] = self.bom
         k = bisect_right(starts, offset) - 1
         return k + 1, offset - starts[k] + 1
+
+    def lines_cols(self, offsets):
+        """``locate`` of many offsets: (lines, cols) int32 arrays."""
+        line, col = self.lines.lines_cols(offsets)
+        if self.bom:
+            col = col - np.where(line == 1, self.bom, 0).astype(col.dtype)
+        return line, col
 
 
 def _blank(code: str, path: str, text: str) -> str:
