@@ -71,7 +71,8 @@ def main() -> None:
                 entry["baseline_seconds"] = round(best["baseline"], 3)
                 entry["ratio_to_baseline"] = round(best["this"] / best["baseline"], 2)
             figures[style] = entry
-            print(f"{style:9s} {args.targets:>8,} targets  {best['this']:6.2f} s  {entry['targets_per_s']:>8,} targets/s  "
+            print(f"{style:9s} {args.targets:>8,} targets  {best['this']:6.2f} s  "
+                  f"{entry['targets_per_s']:>8,} targets/s  "
                   f"{entry['us_per_statement']:6.1f} µs/statement"
                   + (f"  baseline {best['baseline']:6.2f} s  ratio {entry['ratio_to_baseline']:.2f}"
                      if args.baseline is not None else ""))

@@ -321,7 +321,8 @@ def test_config_modules_are_read_only_data_and_their_routines_are_read_where_cal
     sysmod = "\n".join(["MODULE user(SYSMODULE)",
                         'PERS wobjdata wCfg:=[FALSE,TRUE,"",[[0,0,500],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];',
                         "PROC toHome()", f"  MoveJ {rt(1600, 0, 1200)}, v1000, fine, tool0;", "ENDPROC",
-                        "PROC unused()", f"  MoveJ {rt(1700, 0, 1200)}, v1000, fine, tool0;", "ENDPROC", "ENDMODULE", ""])
+                        "PROC unused()", f"  MoveJ {rt(1700, 0, 1200)}, v1000, fine, tool0;", "ENDPROC", "ENDMODULE",
+                        ""])
     data = [f"CONST robtarget p1:={rt(80, -120, 60)};"]
     text = module("MoveL p1, v100, fine, tool0\\WObj:=wCfg;", "toHome;", "gripperOpen;",
                   "MoveL p1, v100, fine, tool0\\WObj:=wCfg;", data=data)

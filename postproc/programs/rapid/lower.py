@@ -1043,11 +1043,13 @@ class Lowering:
         if name in RUNTIME_POSITION:
             return Unknown(f"{written}() is where the robot is at run time", P211)
         if name == "OFFS":
-            return Call("RAPID." + written, (self.expr(positional[0], "ROBTARGET") if positional else Unknown("Offs()"),)
+            point = self.expr(positional[0], "ROBTARGET") if positional else Unknown("Offs() without its point")
+            return Call("RAPID." + written, (point,)
                         + tuple(self.constant(a) for a in positional[1:4]), loc)
         if name == "RELTOOL":
             rot = {k.upper(): self.constant(v) for k, v in options if v is not None}
-            return Call("RAPID." + written, (self.expr(positional[0], "ROBTARGET") if positional else Unknown("RelTool()"),)
+            point = self.expr(positional[0], "ROBTARGET") if positional else Unknown("RelTool() without its point")
+            return Call("RAPID." + written, (point,)
                         + tuple(self.constant(a) for a in positional[1:4])
                         + tuple(rot.get(k, Lit(0.0)) for k in ("RX", "RY", "RZ")), loc)
         if name == "DIM" and len(positional) == 2 and _is_name(positional[0]):
@@ -1096,7 +1098,8 @@ class Lowering:
                 if not (isinstance(s, Decl) and storage in ("PERS", "VAR") and s.name in assigned):
                     continue
                 paths = assigned[s.name]
-                why = f"{storage} {s.written or s.name} is assigned at run time (a run starts with the value the last run left)"
+                why = (f"{storage} {s.written or s.name} is assigned at run time (a run starts with the value the last "
+                       "run left)")
                 if s.init is not None:
                     s.init = _unknown_at(s.init, paths, why)
                 for a in stmts[k + 1:]:
