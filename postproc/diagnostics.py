@@ -78,8 +78,9 @@ P223 = _code("P223", "warning", "a point an INTERRUPT handler switched on may as
              "that assigns it): left as written")
 P224 = _code("P224", "note", "(compensate -v, check) $ROBROOT not known (no --robroot, no backup's Mada/$machine.dat) and "
              "not set by the program: robot base = world ($NULLFRAME) assumed, said once per program")
-P225 = _code("P225", "warning", "$ROBROOT moves with an external kinematic ($machine.dat: $EX_KIN … #ERSYS, a robot on a "
-             "track): known only at run time, left as written")
+P225 = _code("P225", "warning", "the robot's base or the target's frame moves with external axes (KRL: $ROBROOT on an "
+             "external kinematic, $machine.dat $EX_KIN … #ERSYS, a base on a turntable; RAPID: a robtarget's eax_a…f in "
+             "use, a work object a mechanical unit moves): known only at run time, left as written")
 P226 = _code("P226", "error", "--robroot / settings robroot not X,Y,Z,A,B,C or a $machine.dat; a $machine.dat without "
              "$ROBROOT_C or with a malformed one; several machine data in one cell")
 P230 = _code("P230", "warning", "one set of numbers the program executes more than once (in a loop, a routine called "

@@ -369,10 +369,12 @@ def group_rule(program: Program, selection: Selection) -> tuple[Selection, list[
     if not len(out):
         return selection, []
     rows = selection.rows[out]
-    found = collect(program, rows, P230, lambda i: "this target's numbers are also those of a target left as written "
+    places = np.stack([t.file[rows], t.line[rows], t.col[rows]], axis=1)
+    said = rows[np.sort(np.unique(places, axis=0, return_index=True)[1])]  # (one warning per target, not per run)
+    found = collect(program, said, P230, lambda i: "this target's numbers are also those of a target left as written "
                     "(another run of it, a point it is copied from or into, or a partial target after it that takes "
                     "its X/Y/Z from its command), at {}:{}: left as written too".format(
-                        *where(program, why.get(int(rows[i]), int(rows[i])))[:2]))
+                        *where(program, why.get(int(said[i]), int(said[i])))[:2]))
     return selection.without(out, P230), found
 
 

@@ -201,3 +201,45 @@ def test_stated_configurations_give_the_pose_lists_commands(tmp_path, kind, desc
     reference = _in_base(listed, "cons.csv")[0] - poses[:, :3]
     assert np.abs(reference[0] - reference[1]).max() > 0.1  # (one pose, two wrists: two corrections)
     np.testing.assert_allclose(after - before, reference, atol=2e-3)  # (4 decimals written, in a turned frame)
+
+
+def test_targets_declared_at_the_top_run_in_the_order_main_moves_to_them(tmp_path):
+    """Issue 24: a RAPID module declares its 60 robtargets at the top and main moves to them in
+    another order: each target's previous pose (the approach, for a model that takes it) is the
+    one main ran before it, as in the pose list of the same poses in that order."""
+    from postproc.testing.models import affine_model
+
+    model = load_model(affine_model(tmp_path / "approach.onnx", offset=(0.3, -0.2, 0.1), gain=GAIN,
+                                    previous_input=True, previous_gain=np.diag([2e-3, -3e-3, 2.5e-3]), reach=None,
+                                    tool={"name": "any"}))
+    rng = np.random.default_rng(24)
+    n = 60
+    local = np.c_[rng.uniform([-300, -250, 250], [300, 250, 450], (n, 3)), np.zeros((n, 1)), np.full((n, 1), 90.0),
+                  np.zeros((n, 1))]
+    order = rng.permutation(n)  # main's order; the declarations stand in index order
+    bq = ",".join(f"{v:.12f}" for v in _quat(BASE[3:]))
+    lines = ["MODULE cons", "PERS tooldata t1:=[TRUE,[[0,0,200],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];",
+             f"PERS wobjdata w1:=[FALSE,TRUE,\"\",[[{BASE[0]:.3f},{BASE[1]:.3f},{BASE[2]:.3f}],[{bq}]],"
+             "[[0,0,0],[1,0,0,0]]];"]
+    for k, p in enumerate(local):
+        q = ",".join(f"{v:.12f}" for v in _quat(p[3:]))
+        lines.append(f"CONST robtarget p{k}:=[[{p[0]:.3f},{p[1]:.3f},{p[2]:.3f}],[{q}],[0,0,0,0],"
+                     "[9E9,9E9,9E9,9E9,9E9,9E9]];")
+    lines += ["PROC main()"] + [f"  MoveL p{k},v100,z1,t1\\WObj:=w1;" for k in order] + ["ENDPROC", "ENDMODULE", ""]
+    text = "\n".join(lines)
+    before, program = _in_base(text, "cons.mod")
+    assert program.targets.line[:5].tolist() == [4 + k for k in order[:5]]  # rows in main's order
+    out, report = compensate_text(text, model, name="cons.mod")
+    assert report.compensated == n
+    after, _ = _in_base(out, "cons.mod")
+    base = frames.matrix_to_frame(frames.frame_to_matrix(BASE) @ frames.frame_to_matrix(local[order]))
+    csv_text = "x,y,z,a,b,c\n" + "".join(",".join(f"{v:.6f}" for v in p) + "\n" for p in base)
+    twin, _ = compensate_text(csv_text, model, name="cons.csv")
+    reference = _in_base(twin, "cons.csv")[0] - _in_base(csv_text, "cons.csv")[0]
+    assert np.allclose(after - before, reference, atol=2 * WRITTEN)
+    # the approach matters here: chained in the order written, the corrections would differ
+    shuffled = frames.matrix_to_frame(frames.frame_to_matrix(BASE) @ frames.frame_to_matrix(local))
+    csv_written = "x,y,z,a,b,c\n" + "".join(",".join(f"{v:.6f}" for v in p) + "\n" for p in shuffled)
+    other, _ = compensate_text(csv_written, model, name="cons.csv")
+    wrong = (_in_base(other, "cons.csv")[0] - _in_base(csv_written, "cons.csv")[0])[order]
+    assert np.abs(wrong - reference).max() > 0.1

@@ -56,20 +56,28 @@ def test_sample_module_targets_frames_and_configuration():
     path = sample_path("rapid/weld_cell.mod")
     p = parse_program_text(path.read_text(encoding="latin-1"), str(path))
     t = p.targets
-    # pHome, p10, p20, pCirc, pEnd and the three elements of seam{}: declaration order
-    assert t.line.tolist() == [6, 7, 8, 9, 10, 11, 12, 13]
-    assert [MOTIONS[m] for m in t.motion] == ["PTP", "LIN", "LIN", "CIRC-aux", "CIRC-end", "LIN", "LIN", "LIN"]
-    assert t.poses[1, :3].tolist() == [150.5, 200, 50]
-    assert p.confdata[3].tolist() == [0, -1, 0, 1]
+    # one row per motion in the order main runs them (the motion IR: not the order of the
+    # declarations): pHome, Offs(p10,0,0,100), p10, p20, pCirc, pEnd, RelTool(pEnd,0,0,-50) and
+    # the FOR's three elements of seam{}; each row at the robtarget's numbers
+    assert t.line.tolist() == [6, 7, 7, 8, 9, 10, 10, 11, 12, 13]
+    assert [MOTIONS[m] for m in t.motion] == ["PTP", "PTP", "LIN", "LIN", "CIRC-aux", "CIRC-end", "LIN", "LIN", "LIN",
+                                              "LIN"]
+    assert t.prev.tolist() == [-1, 0, 1, 2, 3, 4, 5, 6, 7, 8]
+    assert t.poses[2, :3].tolist() == [150.5, 200, 50]
+    # Offs(p10, 0,0,100) is p10's numbers + 100 in Z of the work object; RelTool(pEnd, 0,0,-50)
+    # pEnd's + 50 mm along its tool's Z (its quaternion turns the tool 180° about (1,1,0)):
+    # both share the numbers of the point they are computed from
+    assert t.poses[1, :3].tolist() == [150.5, 200, 150] and t.offset[1].tolist() == [0, 0, 100]
+    assert np.allclose(t.poses[6, :3], [350, 300, 100], atol=1e-5) and np.allclose(t.offset[6], [0, 0, 50], atol=1e-5)
+    assert t.twin.tolist() == [-1, -1, 1, -1, -1, -1, 5, -1, -1, -1]
+    assert p.confdata[4].tolist() == [0, -1, 0, 1] and len(p.confdata) == len(t)
     home, table = p.frames
     assert np.allclose(home.base, np.eye(4)) and home.tool == pytest.approx((0, 0, 200, 0, 0, 0))
     assert table.label == "wTable / tWeld"
     # wTable: uframe 90° about Z at (1800, -300, 600)
     assert np.allclose(table.base[:3, 3], [1800, -300, 600]) and np.allclose(table.base[:2, :2], [[0, -1], [1, 0]])
-    assert t.frame.tolist() == [0, 1, 1, 1, 1, 1, 1, 1]
-    offs, reltool = [d for d in p.diagnostics if d.code == "P211"]
-    assert (offs.line, offs.col) == (18, 11) and "Offs" in offs.message
-    assert reltool.line == 22 and "RelTool" in reltool.message
+    assert t.frame.tolist() == [0, 1, 1, 1, 1, 1, 1, 1, 1, 1]
+    assert p.diagnostics == []
 
 
 def test_inline_targets_with_options_and_spanning_lines():
@@ -91,8 +99,12 @@ def test_arrays_literal_index_and_run_time_index():
             f"CONST robtarget b{{2}}:=[{rt(4, 0, 0)},{rt(5, 0, 0)}];"]
     p = read(module("MoveL a{2}, v100, z1, tool0;", "MoveL b{i}, v100, z1, tool0;", "MoveL a{7}, v1, z1, tool0;",
                     data=data))
-    assert p.targets.poses[:, 0].tolist() == [2, 4, 5]
-    assert "a{7} is outside the array" in p.diagnostics[0].message
+    # (an index known only at run time names no one element: b{i} is left as written where the
+    # old reader compensated every element, each without knowing its predecessor)
+    assert p.targets.poses[:, 0].tolist() == [2]
+    assert [(d.code, d.line) for d in p.diagnostics] == [("P211", 6), ("P211", 7)]
+    assert "run-time index" in p.diagnostics[0].message
+    assert "a{…} is not set (or outside the array)" in p.diagnostics[1].message
 
 
 def test_work_object_frames_compose_user_and_object_frame():
@@ -117,20 +129,28 @@ def test_tool_and_work_object_from_config_modules():
     assert np.allclose(p.frames[0].base[:3, 3], [0, 0, 500]) and p.targets.frame.tolist() == [0]
 
 
-@pytest.mark.parametrize("data, wobj, why", [
-    ([], "wNone", "not declared"),
-    (["PERS wobjdata w:=[TRUE,TRUE,\"\",[[0,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];"], "w", "held by the robot"),
-    (["PERS wobjdata w:=[FALSE,FALSE,\"STN1\",[[0,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];"], "w", "mechanical unit"),
-    (["PERS wobjdata w:=[FALSE,TRUE,\"\",[[0,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];"], "w", "assigned at run time"),
+@pytest.mark.parametrize("data, wobj, why, code", [
+    ([], "wNone", "not declared", "P201"),
+    (["PERS wobjdata w:=[TRUE,TRUE,\"\",[[0,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];"], "w", "held by the robot", "P201"),
+    # (a user frame a mechanical unit moves: P225, the code of a base that moves with external axes)
+    (["PERS wobjdata w:=[FALSE,FALSE,\"STN1\",[[0,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];"], "w", "mechanical unit STN1",
+     "P225"),
+    (["PERS wobjdata w:=[FALSE,TRUE,\"\",[[0,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];"], "w", "assigned at run time",
+     "P201"),
 ])
-def test_unknown_work_objects_leave_targets_as_written(data, wobj, why):
+def test_unknown_work_objects_leave_targets_as_written(data, wobj, why, code):
     lines = [f"MoveL {rt(1, 2, 3)}, v100, z1, tool0\\WObj:={wobj};"]
     if why.startswith("assigned"):
         lines.append("w.uframe.trans.x := 5;")
     p = read(module(*lines, data=data))
-    assert len(p.targets) == 0
-    assert p.diagnostics[0].code == "P201" and why in p.diagnostics[0].message
-    assert (p.diagnostics[0].line, p.diagnostics[0].col) == (3 + len(data), 9)  # at its X
+    # the target is a row left as written (frame -1: counted by compensate, exit 1)
+    assert len(p.targets) == 1 and p.targets.frame.tolist() == [-1]
+    (d,) = p.diagnostics
+    assert d.code == code and why in d.message and "1 target(s) left as written" in d.message
+    if why.startswith("assigned"):  # at the cause: the PERS the program assigns
+        assert (d.line, d.col) == (2, 15)
+    else:
+        assert (d.line, d.col) == (3 + len(data), 9)  # at its X
 
 
 def test_named_targets_not_statically_known_are_warned():
@@ -140,24 +160,31 @@ def test_named_targets_not_statically_known_are_warned():
                     "MoveL pe, v1, z1, tool0;", "MoveL CRobT(), v1, z1, tool0;", "MoveAbsJ jHome, v1, z1, tool0;",
                     data=data))
     assert len(p.targets) == 0
+    # each at the motion that moves to it (a robtarget no motion runs is no target: not said)
     messages = [(d.code, d.line) for d in p.diagnostics]
-    assert messages == [("P211", 6), ("P211", 8), ("P211", 4), ("P211", 10), ("P211", 3)]
-    assert "assigned at run time" in p.diagnostics[0].message
+    assert messages == [("P211", 6), ("P215", 8), ("P212", 9), ("P211", 10)]
+    # module data the program assigns: a run (main again, in continuous mode) starts with the last run's value
+    assert "VAR pv is assigned at run time" in p.diagnostics[0].message
     assert "pOther is not declared" in p.diagnostics[1].message
-    assert "not a number" in p.diagnostics[2].message  # (at pe's declaration)
-    assert "unused is not moved to by a motion" in p.diagnostics[4].message
+    assert "its X is not known here (xx is not declared" in p.diagnostics[2].message
+    assert "CRobT() is where the robot is at run time" in p.diagnostics[3].message
 
 
-def test_one_robtarget_in_two_frames_is_refused_by_compensate(affine):
-    data = [f"CONST robtarget p1:={rt(1, 2, 3)};",
-            "PERS wobjdata w:=[FALSE,TRUE,\"\",[[0,0,100],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];"]
-    text = module("MoveL p1, v100, z1, tool0;", "MoveL p1, v100, z1, tool0\\WObj:=w;", data=data)
+def test_one_robtarget_in_two_frames_is_left_with_p230(affine):
+    # (P202 is retired: one set of numbers the two motions need different corrections for is
+    # left as written at both, a warning, and the rest compensated; exit 1)
+    data = [f"CONST robtarget p1:={rt(1800, 2, 900)};", f"CONST robtarget p2:={rt(1900, 50, 950)};",
+            "PERS wobjdata w:=[FALSE,TRUE,\"\",[[0,0,100],[0.7071068,0,0,0.7071068]],[[0,0,0],[1,0,0,0]]];"]
+    text = module("MoveL p1, v100, z1, tool0;", "MoveL p1, v100, z1, tool0\\WObj:=w;", "MoveL p2, v100, z1, tool0;",
+                  data=data)
     p = read(text)
-    assert len(p.targets) == 1 and codes(p) == ["P202"]
-    model = load_model(affine(offset=(0.1, 0, 0), reach=None, envelope=None, tool={"name": "any"}))
-    with pytest.raises(PostprocError) as exc:
-        compensate_text(text, model, name="m.mod")
-    assert exc.value.code == "P202" and exc.value.line == 6
+    assert len(p.targets) == 3 and p.targets.frame.tolist() == [0, 1, 0] and p.targets.twin.tolist() == [-1, 0, -1]
+    model = load_model(affine(offset=(0.1, 0, 0), gain=np.diag([1e-3, 2e-3, -1e-3]), reach=None, envelope=None,
+                              tool={"name": "any"}))
+    out, report = compensate_text(text, model, name="m.mod")
+    assert [(w.code, w.line) for w in report.warnings] == [("P230", 2)]  # at p1's numbers
+    assert report.compensated == 1 and report.left_codes == {"P230": 1}
+    assert f"{rt(1800, 2, 900)};" in out and f"{rt(1900, 50, 950)};" not in out
 
 
 def test_header_of_older_controllers_and_stamp_detection():
@@ -210,7 +237,7 @@ blank = st.sampled_from(["", " ", "  "])
 def rapid_module(draw):
     """A module with declared and inline targets in wobj0 and in a turned work object. Returns
     (text, [(x, y, z) written, rotation of its frame, position in the robot base] per target,
-    in text order, with the offsets of its X/Y/Z tokens)."""
+    in the order main moves to them)."""
     rot = Rotation.from_euler("ZYX", draw(st.tuples(*[st.integers(-180, 180)] * 3)), degrees=True)
     origin = np.array(draw(st.tuples(number, number, number)))
     qw = rot.as_quat()
@@ -238,10 +265,9 @@ def rapid_module(draw):
         targets.append((declared, i, np.array(xyz, float), in_w))
     body += ["  ENDPROC", "ENDMODULE", ""]
     text = nl.join(head + body)
-    # order of the targets in the text: declarations first (in order), then inline ones
-    order = [t for t in targets if t[0]] + [t for t in targets if not t[0]]
+    # rows in the order main runs its motions
     out = []
-    for declared, i, xyz, in_w in order:
+    for declared, i, xyz, in_w in targets:
         r = rot.as_matrix() if in_w else np.eye(3)
         o = origin if in_w else np.zeros(3)
         out.append((xyz, r, o + r @ xyz))

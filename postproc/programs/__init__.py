@@ -128,4 +128,6 @@ def lower(files: list[str], texts: list[str], dialect: str, config: list[str] | 
     reader = importlib.import_module(f".{module}", __name__)
     if not hasattr(reader, "lower"):
         raise NotImplementedError(f"the {dialect} reader does not lower to the motion IR yet")
-    return reader.lower(files, texts, config=config, active=active)
+    if active is not None:
+        raise ValueError(f"active frames are KRL's ($BASE/$TOOL at the start): not {dialect}")
+    return reader.lower(files, texts, config=config)

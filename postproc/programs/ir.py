@@ -223,7 +223,9 @@ class MoveRun(Stmt):
     """Consecutive motions to literal Cartesian targets with nothing between them (a CAM
     program's body), as columns of ``rows`` (``MoveRun.COLUMNS``: pose [n, 6] NaN where not
     written, written [n, 6], spans [n, 12] (X…C token spans, -1 absent), file, line, col,
-    motion [n] (index into MOTIONS), chain [n] bool, config [n, 2] S/T (-1 not stated)); in
+    motion [n] (index into MOTIONS), chain [n] bool, config [n, 2] S/T (-1 not stated); where
+    the orientation's form is not A,B,C, ``orient`` [n, k] its numbers as written and ``ospans``
+    [n, k, 2] their spans; a dialect may add its own columns, ``Dialect.run_extras``); in
     the frame and with the tool the program has in force at the run (its ``frame``/``tool``
     expressions, as a Move's)."""
 

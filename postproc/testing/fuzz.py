@@ -325,16 +325,30 @@ def check_output(files: list[str], texts: list[str], outputs: list[str], model, 
     stripped = [_strip_stamp(t, stamp) for t in outputs]
     a = before.targets
     moved = (a.frame >= 0) & np.isfinite(a.poses[:, :3]).all(axis=1)  # what compensate changes
-    for index, text in enumerate(stripped):
-        changed = bool(moved[a.file == index].any())
-        if text is None and changed:
-            return f"{files[index]} has no stamp line"
-        if text is None:
-            stripped[index] = outputs[index]
-            if stamp in outputs[index]:
-                return f"{files[index]}: a stamp line in a file in which no target was compensated"
+    # rows the analysis holds (P217: their numbers are read elsewhere too) stay as written
+    for rows in (getattr(before, "held", None) or {}).values():
+        moved[np.asarray(rows, int)] = False
+    unstamped = [index for index, text in enumerate(stripped) if text is None]
+    for index in unstamped:
+        stripped[index] = outputs[index]
     after = read_program(files, stripped, dialect, config=config)
     b = after.targets
+    group = getattr(a, "group", None)
+    if len(a) == len(b) and group is not None and (group >= 0).any() \
+            and np.array_equal(a.spans[:, :, 0] >= 0, b.spans[:, :, 0] >= 0):
+        # one set of numbers run more than once (a loop, copies): compensated at every run or,
+        # where the runs need other numbers (P230), left as written at every run
+        same = (np.nan_to_num(_values(texts, a, before.unit)) == np.nan_to_num(_values(stripped, b, before.unit)))
+        for g in np.unique(group[group >= 0]):
+            rows = group == g
+            if same[rows].all():
+                moved[rows] = False
+    for index in range(len(stripped)):
+        changed = bool(moved[a.file == index].any())
+        if index in unstamped and changed:
+            return f"{files[index]} has no stamp line"
+        if index in unstamped and stamp in outputs[index]:
+            return f"{files[index]}: a stamp line in a file in which no target was compensated"
     if len(a) != len(b):
         return f"{len(a)} targets before, {len(b)} after"
     # (not col: a longer number earlier on the line moves the aggregates after it)

@@ -47,28 +47,26 @@ def affine_model(
     previous_input: bool = False,
     method: str = "affine-test",
     defaults: bool = True,
-    previous_gain: float = 0.0,
+    previous_gain=None,
     **extra_meta,
 ) -> Path:
     """E = offset + gain · (xyz − centre) [+ previous_gain · (xyz − previous xyz): a model whose
-    correction depends on where the robot comes from, with ``previous_gain`` (implies
-    ``previous_input``)]."""
-    previous_input = previous_input or bool(previous_gain)
+    correction depends on where the robot comes from (the approach), for tests of execution
+    order; ``previous_gain`` a number (times the identity) or [3, 3]; it implies
+    ``previous_input``]."""
+    if previous_gain is not None and not np.any(previous_gain):
+        previous_gain = None
+    if previous_gain is not None:
+        previous_input = True
+        previous_gain = np.asarray(previous_gain, float) * (np.eye(3) if np.ndim(previous_gain) == 0 else 1.0)
     gain = np.zeros((3, 3)) if gain is None else np.asarray(gain, float)
     # error = (xyz - centre) @ gain.T + offset, computed on the first 3 columns of pose
     nodes = [
         helper.make_node("Slice", ["pose", "s0", "s3", "ax1"], ["xyz"]),
         helper.make_node("Sub", ["xyz", "centre"], ["dx"]),
         helper.make_node("MatMul", ["dx", "gainT"], ["lin"]),
-        helper.make_node("Add", ["lin", "offset"], ["error"] if not previous_gain else ["fixed"]),
+        helper.make_node("Add", ["lin", "offset"], ["error"]),
     ]
-    if previous_gain:
-        nodes += [
-            helper.make_node("Slice", ["previous_pose", "s0", "s3", "ax1"], ["pxyz"]),
-            helper.make_node("Sub", ["xyz", "pxyz"], ["step"]),
-            helper.make_node("Mul", ["step", "pgain"], ["approach"]),
-            helper.make_node("Add", ["fixed", "approach"], ["error"]),
-        ]
     inits = [
         numpy_helper.from_array(np.array([0], np.int64), "s0"),
         numpy_helper.from_array(np.array([3], np.int64), "s3"),
@@ -77,11 +75,16 @@ def affine_model(
         numpy_helper.from_array(gain.T.astype(np.float32), "gainT"),
         numpy_helper.from_array(np.asarray(offset, np.float32), "offset"),
     ]
-    if previous_gain:
-        inits.append(numpy_helper.from_array(np.array([previous_gain], np.float32), "pgain"))
     inputs = [helper.make_tensor_value_info("pose", TensorProto.FLOAT, ["N", 6])]
     if previous_input:
         inputs.append(helper.make_tensor_value_info("previous_pose", TensorProto.FLOAT, ["N", 6]))
+        if previous_gain is not None:
+            nodes[-1] = helper.make_node("Add", ["lin", "offset"], ["base_error"])
+            nodes += [helper.make_node("Slice", ["previous_pose", "s0", "s3", "ax1"], ["pxyz"]),
+                      helper.make_node("Sub", ["xyz", "pxyz"], ["step"]),
+                      helper.make_node("MatMul", ["step", "prevT"], ["plin"]),
+                      helper.make_node("Add", ["base_error", "plin"], ["error"])]
+            inits.append(numpy_helper.from_array(previous_gain.T.astype(np.float32), "prevT"))
     graph = helper.make_graph(
         nodes, "affine", inputs, [helper.make_tensor_value_info("error", TensorProto.FLOAT, ["N", 3])], inits
     )

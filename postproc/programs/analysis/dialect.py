@@ -41,6 +41,9 @@ class PoseView:
     config: tuple
     loc: Loc | None
     type: str = ""
+    # the target's own robot base moves (an external axis it states: a track), a Top with why and
+    # code (P225): the target is left as written as with an unknown frame; None: it stands still
+    moving: object = None
 
 
 class Dialect:
@@ -51,6 +54,8 @@ class Dialect:
     form = "abc"
     frame_names: tuple = ()  # the system variables that hold the frames (what a handler not read may set)
     implicit_arrays = False  # an element assigned to an undeclared name makes it an array (LS registers)
+    # what a target name declared in none of the files read may be (P215's message)
+    undeclared_hint = "a global of a data list or $config.dat not given?"
 
     def __init__(self):
         self.procedures: dict = {}

@@ -27,6 +27,7 @@ The result (:class:`Recorder`) is turned into the targets by :mod:`.targets`.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from ..ir import (Agg, Assign, Async, AsyncSwitch, Call, Continue, Decl, Eval, Exit, Field, Goto, Halt, Havoc, If, Invoke,
@@ -414,7 +415,8 @@ class Analysis:
             for v in (start, stop, step):
                 self.consume(v, "a FOR bound")
             lo, hi, by = number(start), number(stop), number(step)
-            if None not in (lo, hi, by) and by != 0 and lo == int(lo) and hi == int(hi) and by == int(by):
+            finite = None not in (lo, hi, by) and all(math.isfinite(x) for x in (lo, hi, by))
+            if finite and by != 0 and lo == int(lo) and hi == int(hi) and by == int(by):
                 count = max(0, (int(hi) - int(lo)) // int(by) + 1)
                 cost = count * max(1, _size(s.body))
                 if cost <= self.budget:
@@ -552,6 +554,9 @@ class Analysis:
 
     def move_run(self, s: MoveRun, st: State) -> State:
         key = (id(s), self.act.path)
+        if len(s):  # (where the analysis is: the run's first motion)
+            rows = s.rows
+            self.loc = Loc(int(rows["file"][0]), int(rows["line"][0]), int(rows["col"][0]))
         frame = self.frame_value(s.frame, st)
         tool = self.tool_value(s.tool, st)
         if self.rec is not None:

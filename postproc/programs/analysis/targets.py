@@ -172,7 +172,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                 code = target.code
             what = use.what or "the target"
             if code == P215:
-                msg = f"target {what}: {target.why} (a global of a data list or $config.dat not given?): left as written"
+                msg = f"target {what}: {target.why} ({dialect.undeclared_hint}): left as written"
             elif code == P223:
                 msg = f"target {what} is not known here ({target.why}, switched on): left as written"
             else:
@@ -221,6 +221,10 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                      f"{'is' if len(computed) == 1 else 'are'} computed at run time from other values, not a number "
                      "of the program: left as written", loc, True)
             continue
+        if any(f < 0 for f in files):  # (a configuration text is read, never written)
+            rec.note(P211, f"target {use.what or 'the target'}: its numbers stand in {_path(unit, min(files))}, which "
+                     "is read only: left as written", loc, True)
+            continue
         if len(files) > 1:
             rec.note(P214, f"target {use.what or 'the target'}: its X/Y/Z come from numbers in several files: left "
                      "as written", loc, True)
@@ -234,9 +238,10 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             numbers_ = np.array(nums, float)
             if view.form == "abc":
                 pose[3:6] = numbers_
-            else:
+            elif view.form != form:
                 with np.errstate(invalid="ignore"):
                     pose[3:6] = fr.abc_from_rotation(fr.orientation_rotation(numbers_, view.form))
+            # (in the program's form: A,B,C from the numbers as written, every row at once, _columns)
             if view.form == form:
                 written_orient[:len(nums)] = numbers_
                 for j, v in enumerate(orient):
@@ -247,7 +252,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         file = next(iter(files)) if files else (view.loc.file if view.loc is not None else loc.file)
         if not isinstance(s.target, Agg):
             named = True
-        ix, why, code = frame_index(use.frame, use.tool)
+        ix, why, code = frame_index(use.frame if view.moving is None else view.moving, use.tool)
         aloc = view.loc or loc
         first = (_path(unit, aloc.file), aloc.line, aloc.col, use)
         if ix < 0:
@@ -379,9 +384,12 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
     prev = np.arange(rows.n - 1, rows.n - 1 + n, dtype=np.int32)
     prev[0] = primary
     spans = r["spans"]
-    k_orient = 3
-    rows.add(pose=pose, spans=spans, abc=spans[:, 6:12].reshape(n, 3, 2) if form == "abc" else
-             np.full((n, k_orient, 2), -1, np.int64), worient=pose[:, 3:6] if form != "abc" else np.full((n, 3), np.nan),
+    if r.get("ospans") is not None:  # (a form other than A,B,C: the run's numbers as written, located)
+        abc, worient = r["ospans"], r["orient"]
+    else:
+        abc = spans[:, 6:12].reshape(n, 3, 2) if form == "abc" else np.full((n, 3, 2), -1, np.int64)
+        worient = pose[:, 3:6] if form != "abc" else np.full((n, 3), np.nan)
+    rows.add(pose=pose, spans=spans, abc=abc, worient=worient,
              file=r["file"], line=r["line"], col=r["col"], frame=np.full(n, ix, np.int32), motion=r["motion"],
              config=r["config"], offset=np.zeros((n, 3)), prev=prev, site=None,
              extras={k: list(v) for k, v in dialect.run_extras(use.run).items()})
@@ -427,6 +435,12 @@ def _columns(rows: _Rows, k_orient: int, form: str) -> Targets:
         config=col("config").astype(np.int16),
         orientation=None if form == "abc" else col("worient").reshape(n, k_orient),
         prev=col("prev"), offset=offset if offset.any() else None)
+    if form != "abc":  # the rows' A,B,C from their orientation's numbers as written (build leaves them NaN)
+        o = targets.orientation
+        todo = np.isnan(targets.poses[:, 3]) & ~np.isnan(o).any(axis=1)
+        if todo.any():
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                targets.poses[todo, 3:6] = fr.abc_from_rotation(fr.orientation_rotation(o[todo], form))
     targets.twin = _twins(targets)
     return targets
 
@@ -502,7 +516,11 @@ def _groups(unit, t: Targets, rec, diagnostics: list) -> dict:
     held_groups = {int(group[i]) for i in np.flatnonzero(escaped) if group[i] >= 0}
     held = escaped | (np.isin(group, list(held_groups)) & (group >= 0))
     rows = np.flatnonzero(held)
+    said = set()
     for i in rows.tolist():
+        if (int(t.file[i]), int(t.line[i]), int(t.col[i])) in said:
+            continue  # (another run of one target: said once)
+        said.add((int(t.file[i]), int(t.line[i]), int(t.col[i])))
         token = next(((int(t.file[i]), int(t.spans[i, k, 0]), int(t.spans[i, k, 1])) for k in range(3)
                       if (int(t.file[i]), int(t.spans[i, k, 0]), int(t.spans[i, k, 1])) in rec.escapes), None)
         if token is None:

@@ -1,0 +1,138 @@
+"""The RAPID reader: texts → units and shapes (``syntax.py``) → the motion IR (``lower.py``)
+→ the analysis (``programs.analysis``, with RAPID's ``semantics.py``) → RapidProgram."""
+from __future__ import annotations
+
+import gc
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...diagnostics import P103, P104, PostprocError
+from ..analysis import analyse
+from ..ir import Call, Invoke, Unit, walk
+from ..model import STAMP_PREFIX, Program
+from ..poses import _newline  # a file's newline: \r\n if at least half its line ends are
+from .lower import Lowering
+from .semantics import RAPID
+from .syntax import scan
+
+__all__ = ["read", "lower", "RapidProgram"]
+
+
+@dataclass
+class RapidProgram(Program):
+    """A RAPID Program, plus each target row's configuration data as written."""
+
+    # [N, 4] cf1, cf4, cf6, cfx per target row (NaN where not a number), aligned with the rows
+    confdata: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+
+
+def read(files: list[str], texts: list[str], config: list[str] | None = None, accelerate: bool = True) -> RapidProgram:
+    """Read RAPID module(s) ``files`` with contents ``texts`` as one task; ``config`` holds the
+    texts of other modules (e.g. a .sys) whose data the motions may name and whose routines
+    they may call (read-only: never rewritten). ``accelerate=False`` lowers every motion
+    through its tree (no MoveRun of inline robtargets: the same result, slower; for tests).
+    Raises PostprocError (P1xx, with path:line:col) on bad input."""
+    enabled = gc.isenabled()
+    gc.disable()  # (many small objects, no cycles: the collector only costs time here)
+    try:
+        return Reader(list(files), list(texts), list(config or []), accelerate).run()
+    finally:
+        if enabled:
+            gc.enable()
+
+
+def lower(files: list[str], texts: list[str], config: list[str] | None = None,
+          accelerate: bool = True) -> tuple[Unit, RAPID]:
+    """The motion IR of RAPID module(s) and their dialect (what ``read`` analyses)."""
+    reader = Reader(list(files), list(texts), list(config or []), accelerate)
+    return reader.lower()
+
+
+class Reader:
+    def __init__(self, files, texts, config, accelerate: bool = True):
+        if len(files) != len(texts):
+            raise ValueError("files and texts differ in length")
+        self.files, self.texts, self.config = files, texts, config
+        self.accelerate = accelerate
+        self.config_names = ["--config" if len(config) == 1 else f"--config[{k}]" for k in range(len(config))]
+
+    def lower(self) -> tuple[Unit, RAPID]:
+        shapes, exact = {}, {}
+        config_sources = [scan(-1 - k, name, text, shapes, exact)
+                          for k, (name, text) in enumerate(zip(self.config_names, self.config))]
+        sources = [scan(fi, path, text, shapes, exact) for fi, (path, text) in enumerate(zip(self.files, self.texts))]
+        for src in sources:
+            if not src.units:
+                raise PostprocError("expected a RAPID module: MODULE name … ENDMODULE", src.path, 1, 1, P104)
+        unit = Unit("rapid", self.files, self.texts, config_names=self.config_names, config_texts=self.config,
+                    form="quaternion")
+        low = Lowering(sources, config_sources, unit, self.accelerate)
+        low.declare()
+        low.lower()
+        self.sources = sources
+        routines = unit.routines
+        main = next((k for k in ("MAIN",) + tuple(k for k in routines if k.endswith("::MAIN")) if k in routines), None)
+        if main is not None:
+            unit.entries = [main]
+        else:  # the routines nothing calls (the analysis runs the others nothing reached after them)
+            called = set().union(*low.calls.values()) if low.calls else set()
+            unit.entries = [k for k in routines if k not in called]
+        return unit, RAPID(readonly=low.readonly, consts=low.consts, written=low.written)
+
+    def run(self) -> RapidProgram:
+        unit, dialect = self.lower()
+        built = analyse(unit, dialect)
+        t = built.targets
+        _finite(self, t)
+        stamps = {}
+        for fi, text in enumerate(self.texts):
+            m = re.search(r"^[ \t]*!.*" + re.escape(STAMP_PREFIX) + r".*$", text, re.M)
+            if m:
+                stamps[fi] = m.group().strip()
+        conf = built.extras.get("confdata")
+        confdata = np.array([np.asarray(c, float) for c in conf], float).reshape(-1, 4) if conf else np.zeros((0, 4))
+        program = RapidProgram(
+            files=list(self.files), texts=list(self.texts), targets=t, frames=built.frames,
+            diagnostics=list(unit.diagnostics) + built.diagnostics, notes=built.notes, dialect="rapid",
+            stamps=stamps, newlines=[_newline(x) for x in self.texts], comment="!", named_targets=built.named,
+            confdata=confdata, orientation="quaternion")
+        program.held = built.held
+        return program
+
+
+def _finite(reader: Reader, t) -> None:
+    """P103 at the first robtarget (in the order written) whose position or orientation as
+    written is not a finite number, or whose quaternion is [0,0,0,0]."""
+    n = len(t)
+    if not n:
+        return
+    q = t.written_orientation()
+    with np.errstate(invalid="ignore", over="ignore"):
+        bad_xyz = ~np.isfinite(t.poses[:, :3]) & (t.spans[:, :, 0] >= 0)
+        bad_q = ~np.isfinite(q)
+        zero = ~bad_q.any(axis=1) & ~(np.abs(q) > 0).any(axis=1)
+    bad = np.flatnonzero(bad_xyz.any(axis=1) | bad_q.any(axis=1) | zero)
+    if not len(bad):
+        return
+    r = int(bad[np.lexsort((t.col[bad], t.line[bad], t.file[bad]))[0]])
+    src = reader.sources[int(t.file[r])]
+    text = src.text
+    if bad_xyz[r].any() or bad_q[r].any():
+        if bad_xyz[r].any():
+            s, e = (int(x) for x in t.spans[r, int(np.flatnonzero(bad_xyz[r])[0])])
+        else:
+            j = int(np.flatnonzero(bad_q[r])[0])
+            s, e = (int(x) for x in t.abc_spans[r, j]) if t.abc_spans is not None else (-1, -1)
+        if s < 0:
+            raise PostprocError("a robtarget's position or orientation is not a finite number", src.path,
+                                int(t.line[r]), int(t.col[r]), P103)
+        raise PostprocError(f"a robtarget: '{text[s:e].strip()}' is not a finite number", src.path, *src.locate(s),
+                            P103)
+    s = int(t.abc_spans[r, 0, 0]) if t.abc_spans is not None else -1
+    where = src.locate(s) if s >= 0 else (int(t.line[r]), int(t.col[r]))
+    raise PostprocError("a robtarget's quaternion [0,0,0,0] is no orientation", src.path, *where, P103)
+
+
+_ = (Call, Invoke, walk)
