@@ -51,6 +51,8 @@ class Dialect:
     form = "abc"
     frame_names: tuple = ()  # the system variables that hold the frames (what a handler not read may set)
     implicit_arrays = False  # an element assigned to an undeclared name makes it an array (LS registers)
+    # what a target named by a variable no file declares adds to its P215 message (where to look)
+    undeclared_hint = " (a global of a data list or $config.dat not given?)"
 
     def __init__(self):
         self.procedures: dict = {}

@@ -593,7 +593,9 @@ class Analysis:
         bound, back = {}, []
         for k, p in enumerate(routine.params):
             arg = args[k] if k < len(args) else None
-            if arg is None:
+            if arg is None and p.default is not None:
+                value = self.eval(p.default, st)
+            elif arg is None:
                 value = Top(f"parameter {p.name} of {routine.name}() is not passed", loc)
             else:
                 value = self.eval(arg, st)

@@ -145,7 +145,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                 code = target.code
             what = use.what or "the target"
             if code == P215:
-                msg = f"target {what}: {target.why} (a global of a data list or $config.dat not given?): left as written"
+                msg = f"target {what}: {target.why}{dialect.undeclared_hint}: left as written"
             elif code == P223:
                 msg = f"target {what} is not known here ({target.why}, switched on): left as written"
             else:
