@@ -182,7 +182,9 @@ def bases(p):
 
 def test_if_branches_start_from_the_entry_and_merge_at_endif():
     p = flow("IF $IN[1] THEN", B10, P, "ELSE", P, "ENDIF", P)  # lines 3..9
-    assert bases(p) == [10.0, 0.0, None]  # the ELSE branch runs in the entry's base
+    # the ELSE branch runs in the entry's base; the target after ENDIF runs after either branch's target: a row
+    # for each predecessor (a literal target's run of rows has its twins as a named target has)
+    assert bases(p) == [10.0, 0.0, None, None]
     assert codes(p) == [("P201", 3, 3)] and "IF at line 3" in p.diagnostics[0].message
     # without ELSE the path through no branch keeps the entry's base
     assert bases(flow("IF $IN[1] THEN", B10, "ENDIF", P)) == [None]
@@ -219,7 +221,9 @@ def test_a_loop_body_that_changes_the_base(accelerate):
     assert p.targets.twin.tolist() == [-1, -1, 0, 1, 0, 1, -1]
     # a loop whose passes are not known: its head joins the entry's frames with the body's end's
     p = flow("WHILE $IN[2]", P, B10, P, "ENDWHILE", P, accelerate=accelerate)
-    assert bases(p) == [None, 10.0, None] and codes(p) == [("P201", 3, 3)]
+    # (the body's first target runs after the start and, in a later pass, after the body's last: a twin row)
+    assert bases(p) == [None, 10.0, None, None] and codes(p) == [("P201", 3, 3)]
+    assert p.targets.line.tolist() == [4, 6, 4, 8] and p.targets.prev.tolist() == [-1, 0, 1, 1]
     assert "WHILE at line 3" in p.diagnostics[0].message
     # a WHILE may run 0 times; an EXIT leaves with the base in force there
     assert bases(flow("WHILE $IN[1]", B10, "ENDWHILE", P)) == [None]
@@ -228,7 +232,8 @@ def test_a_loop_body_that_changes_the_base(accelerate):
     assert bases(flow("LOOP", "IF $IN[1] THEN", "EXIT", "ENDIF", B10, "ENDLOOP", P)) == [None]
     assert bases(flow("REPEAT", B10, "UNTIL $IN[1]", P)) == [10.0]
     # a body that does not touch the frames changes nothing
-    assert bases(flow("FOR i = 1 TO n", P, "$VEL.CP = 0.1", "ENDFOR", P)) == [0.0, 0.0]
+    # (the body's target runs after the start and after itself: two rows)
+    assert bases(flow("FOR i = 1 TO n", P, "$VEL.CP = 0.1", "ENDFOR", P)) == [0.0, 0.0, 0.0]
 
 
 def test_loop_data_assigned_in_the_body_is_unknown_for_the_next_iteration():
@@ -239,7 +244,7 @@ def test_loop_data_assigned_in_the_body_is_unknown_for_the_next_iteration():
     # passes not known: unknown in the body, known after it only where every way out agrees
     p = flow("WHILE $IN[1]", "BAS(#BASE, 1)", P, "BASE_DATA[1] = {X 20,Y 0,Z 0,A 0,B 0,C 0}", "ENDWHILE",
              "BAS(#BASE, 1)", P, config=[CONFIG])
-    assert bases(p) == [None, None]
+    assert bases(p) == [None, None, None]  # (the body's target a second time: after itself)
 
 
 @pytest.mark.parametrize("accelerate", [True, False])
@@ -362,7 +367,9 @@ def test_a_label_a_goto_jumps_to_merges_the_frames_of_the_jumps():
              "BAS(#BASE, 0)", "M2:", P, "M3:", P)
     # M1: the jump back comes with base 10; M2: the jump from base 10 and the fall-through from 0;
     # a label no GOTO names changes nothing
-    assert bases(p) == [0.0, None, 10.0, None, None]
+    # (M1's target twice: after the one before it and after the GOTO M1's jump from base 10)
+    assert bases(p) == [0.0, None, 10.0, None, None, None]
+    assert p.targets.line.tolist() == [3, 5, 7, 5, 16, 18] and p.targets.prev.tolist() == [-1, 0, 1, 2, 2, 4]
     assert [(c, line) for c, line, _ in codes(p)] == [("P201", 4), ("P201", 15)]
     assert "GOTO M1 jumps to line 4" in p.diagnostics[0].message
     assert bases(flow(P, "GOTO M1", "M1:", P)) == [0.0, 0.0]

@@ -311,10 +311,12 @@ class Analysis:
             return self.switch(s, st)
         if kind is Label:
             act = self.act
-            st = join_states(st, act.jumps.get(s.name), f"a GOTO {s.name} jumps to line {s.loc.line} with others",
-                             s.loc)
-            st = join_states(st, act.labels_in.get(s.name), f"a GOTO {s.name} jumps to line {s.loc.line} with others",
-                             s.loc)
+            # (the jumps' states are copied: the statements after the label change the state they go on with)
+            jumped, before = act.jumps.get(s.name), act.labels_in.get(s.name)
+            st = join_states(st, jumped.copy() if jumped is not None else None,
+                             f"a GOTO {s.name} jumps to line {s.loc.line} with others", s.loc)
+            st = join_states(st, before.copy() if before is not None else None,
+                             f"a GOTO {s.name} jumps to line {s.loc.line} with others", s.loc)
             if st is not None and (s.name in act.jumps or s.name in act.labels_in):
                 st.cur = None  # (the robot may come from elsewhere)
             return st

@@ -127,11 +127,31 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         known = [r for r, _ in rows_ if r >= 0]
         primary = known[-1] if known else -1
         others = [p for r, p in rows_ if r != primary or r < 0 and p not in key_row]
-        return primary, [p for p in others if key_row.get(p, -1) != primary]
+        return primary, [p for p in others if key_row.get(p, -2) != primary]  # (-2: no row yet, e.g. itself)
+
+    def twins(cols, others, key):
+        """The same target reached from other predecessors (``others``): a twin row each (its
+        predecessor's row, -1 where it has none, or when that row comes); then the twins waiting
+        for this use's row (``key``: it is their predecessor)."""
+        for p in others if cols is not None else ():
+            twin = dict(cols)
+            pr = key_row.get(p, -2)
+            if pr >= 0:
+                twin["prev"] = np.array([pr], np.int32)
+                rows.add(**twin)
+            elif p in key_row:  # (a predecessor without a row: where it leaves the robot is not known)
+                twin["prev"] = np.array([-1], np.int32)
+                rows.add(**twin)
+            else:
+                pending.setdefault(p, []).append(twin)
+        for twin in pending.pop(key, []):
+            twin["prev"] = np.array([key_row[key]], np.int32)
+            rows.add(**twin)
 
     for use in rec.uses:
         if isinstance(use, RunUse):
-            first = _run_rows(unit, dialect, use, rows, frame_index, count, prev_of, key_row, form)
+            # (the run's first row reached from other predecessors too; the twins waiting for its last)
+            twins(*_run_rows(unit, dialect, use, rows, frame_index, count, prev_of, key_row, form), use.key)
             continue
         key_row[use.key] = -1
         s = use.stmt
@@ -234,20 +254,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         r = rows.add(**cols)
         key_row[use.key] = r
         used_keys.append(use.key)
-        for p in others:  # the same target reached from another predecessor: a twin row
-            twin = dict(cols)
-            pr = key_row.get(p, -2)
-            if pr >= 0:
-                twin["prev"] = np.array([pr], np.int32)
-                rows.add(**twin)
-            elif p in key_row:  # (a predecessor without a row: where it leaves the robot is not known)
-                twin["prev"] = np.array([-1], np.int32)
-                rows.add(**twin)
-            else:
-                pending.setdefault(p, []).append(twin)
-        for twin in pending.pop(use.key, []):
-            twin["prev"] = np.array([r], np.int32)
-            rows.add(**twin)
+        twins(cols, others, use.key)  # the same target reached from another predecessor: a twin row
     # twins whose predecessor never ran with a row: the predecessor is not known
     for waiting in pending.values():
         for twin in waiting:
@@ -292,7 +299,7 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
     n = len(r["line"])
     if not n:
         key_row[use.key] = key_row.get(use.key, -1)
-        return
+        return None, ()
     ix, why, code = frame_index(use.frame, use.tool)
     if ix < 0:
         first = (_path(unit, int(r["file"][0])), int(r["line"][0]), int(r["col"][0]), use)
@@ -319,17 +326,33 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
             pose[need[ok], k] = pose[prev[ok], k]
             start = cur.get(names[k])
             pose[need[~ok], k] = start if start is not None else np.nan
-    primary, _ = prev_of(use.preds)
+    primary, others = prev_of(use.preds)
     prev = np.arange(rows.n - 1, rows.n - 1 + n, dtype=np.int32)
     prev[0] = primary
     spans = r["spans"]
     k_orient = 3
-    rows.add(pose=pose, spans=spans, abc=spans[:, 6:12].reshape(n, 3, 2) if form == "abc" else
-             np.full((n, k_orient, 2), -1, np.int64), worient=pose[:, 3:6] if form != "abc" else np.full((n, 3), np.nan),
-             file=r["file"], line=r["line"], col=r["col"], frame=np.full(n, ix, np.int32), motion=r["motion"],
-             config=r["config"], offset=np.zeros((n, 3)), prev=prev, site=None,
-             extras={k: list(v) for k, v in dialect.run_extras(use.run).items()})
+    worient = np.full((n, 3), np.nan)
+    abc = np.full((n, k_orient, 2), -1, np.int64)
+    if form == "abc":
+        abc = spans[:, 6:12].reshape(n, 3, 2)
+    elif form == "rotvec":  # (a run's orientation columns are its form's three numbers: A,B,C from them)
+        abc = spans[:, 6:12].reshape(n, 3, 2)
+        worient = pose[:, 3:6].copy()
+        with np.errstate(invalid="ignore"):
+            pose[:, 3:6] = fr.abc_from_rotation(fr.orientation_rotation(worient, form))
+    else:
+        worient = pose[:, 3:6]
+    extras = {k: list(v) for k, v in dialect.run_extras(use.run).items()}
+    cols = dict(pose=pose, spans=spans, abc=abc, worient=worient,
+                file=r["file"], line=r["line"], col=r["col"], frame=np.full(n, ix, np.int32), motion=r["motion"],
+                config=r["config"], offset=np.zeros((n, 3)), prev=prev, site=None, extras=extras)
+    rows.add(**cols)
     key_row[use.key] = rows.n - 1
+    if not others:
+        return None, ()
+    first = {k: (v[:1] if k not in ("site", "extras") else v) for k, v in cols.items()}
+    first["extras"] = {k: v[:1] for k, v in extras.items()}
+    return first, others
 
 
 def _same(a, b) -> bool:

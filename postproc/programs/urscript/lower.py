@@ -90,6 +90,7 @@ class Lowering:
         self.threads: set = set()
         self.programs: set = set()
         self.runs = 0
+        self.called: set = set()  # the routines some statement calls (or runs)
         self.unit = Unit("urscript", [path], [text], form="rotvec", unit=UNIT_MM)
 
     # ------------------------------------------------------------------ lines and shapes
@@ -192,13 +193,25 @@ class Lowering:
         self.body = top
         self.blocks: list[_Block] = []
         self.chain: list = []  # keys of the enclosing defs/threads, innermost last
+        self.hot: dict | None = None  # the rows of the run of hot lines being read (``MoveRun``)
+        plans = self.plans = {}
         for line in lines:
             self.line = line
             tree = line.tree
+            plan = plans.get(id(tree), False)
+            if plan is False:
+                plan = plans[id(tree)] = _plan(tree, line.ordinal_at)
+            if plan is not None and line.tokens[0].group() == plan[0] and plan[0] not in self.defs:
+                self.hot_row(line, plan)
+                continue
+            if self.hot is not None:
+                self.flush()
             handler = getattr(self, "s_" + tree.data, None)
             if handler is None:
                 continue
             handler(tree)
+        if self.hot is not None:
+            self.flush()
         if self.blocks:
             b = self.blocks[-1]
             what = {"def": "def", "thread": "thread"}.get(b.kind, "block")
@@ -209,14 +222,58 @@ class Lowering:
             unit.entries = [SCRIPT]
             self.programs.add(SCRIPT)
         else:
-            called = set()
-            for r in unit.routines.values():
-                called |= _called(r.body)
+            called = self.called
             tops = [k for k, outer in ((k, o) for entries in self.defs.values() for k, o in entries)
                     if outer is None and k not in self.threads]
             entries = [k for k in tops if k not in called] or tops
             unit.entries = entries
             self.programs |= set(entries)
+
+    # ------------------------------------------------------------------ hot lines
+    def hot_row(self, line, plan) -> None:
+        """A motion to a literal pose (``movel(p[…], a=…, v=…)``): a row of the run being read."""
+        hot = self.hot
+        if hot is None:
+            hot = self.hot = {"at": [], "pose": [], "spans": [], "motions": []}
+        tokens, code = line.tokens, self.code
+        values, spans = [], []
+        for k, (ordinal, signed) in enumerate(plan[3]):
+            m = tokens[ordinal]
+            value = float(m.group())
+            start = m.start()
+            if signed:
+                start -= 1
+                while code[start] in " \t\r\n":
+                    start -= 1
+                if code[start] == "-":
+                    value = -value
+            values.append(value * UNIT_MM if k < 3 else value)
+            spans += (start, m.end())
+        hot["at"].append(tokens[plan[2]].start())
+        hot["pose"].append(values)
+        hot["spans"].append(spans)
+        hot["motions"].append(plan[1])
+
+    def flush(self) -> None:
+        """The run of hot lines read so far as one ``MoveRun`` where they stand."""
+        import numpy as np
+
+        from ..ir import MOTION_INDEX, MoveRun
+
+        hot, self.hot = self.hot, None
+        n = len(hot["at"])
+        pose = np.array(hot["pose"], float).reshape(n, 6)
+        at = np.array(hot["at"], np.int64)
+        bad = ~np.isfinite(pose).all(axis=1)
+        if bad.any():
+            raise self.error(int(at[np.flatnonzero(bad)[0]]), "a pose's position or rotation is not a finite number",
+                             P103)
+        line, col = self.index.lines_cols(at)
+        rows = dict(pose=pose, written=np.ones((n, 6), bool), spans=np.array(hot["spans"], np.int64).reshape(n, 12),
+                    file=np.zeros(n, np.int32), line=line, col=col,
+                    motion=np.array([MOTION_INDEX[m] for m in hot["motions"]], np.int8), chain=np.ones(n, bool),
+                    config=np.full((n, 2), -1, np.int16))
+        self.body.append(MoveRun(rows, Call("UR.FRAME", _FRAMES), Name("$TCP")))
 
     # ------------------------------------------------------------------ helpers
     def tok(self, line, token: Token):
@@ -360,6 +417,7 @@ class Lowering:
         ``kill``/``join``)."""
         name = self.tok(self.line, node.children[1]).group()
         key = self.resolve(name) or name
+        self.called.add(key)
         self.runs += 1
         loc = self.loc(self.at(node))
         self.emit(Async(Lit(self.runs), Invoke(key, (), loc), loc, True, "thread"))
@@ -390,7 +448,7 @@ class Lowering:
     def s_method_stmt(self, node):
         args, keywords = self.arguments(node.children[2:])
         name = self.tok(self.line, node.children[1]).group()
-        self.emit(Eval(Call("UR.VALUE", (Lit(name),) + tuple(args) + tuple(keywords.values()),
+        self.emit(Eval(Call("UR.VALUE." + name, tuple(args) + tuple(keywords.values()),
                             self.loc(self.line.start)), self.loc(self.line.start)))
 
     def s_call_stmt(self, node):
@@ -399,6 +457,7 @@ class Lowering:
         loc = self.loc(line.start)
         key = self.resolve(name)
         if key is not None:  # (a function of the script, even where it has a builtin's name)
+            self.called.add(key)
             self.emit(Invoke(key, self.bind(key, node.children[1:]), loc))
             return
         if name in MOTION_OF:
@@ -411,16 +470,16 @@ class Lowering:
             return
         if name in _PATH_MOVERS:
             which, on = _PATH_MOVERS[name]
-            self.emit(Eval(Call("UR.VALUE", (Lit(name),) + tuple(args) + tuple(keywords.values()), loc), loc))
+            self.emit(Eval(Call("UR.VALUE." + name, tuple(args) + tuple(keywords.values()), loc), loc))
             value = Unknown(_PATH_WHY[which].format(name, loc.line), None) if on else Call("UR.FRAME", ())
             self.emit(Assign(Name(which), value, loc))
             return
         if name in _MOVE_AWAY:
-            self.emit(Eval(Call("UR.VALUE", (Lit(name),) + tuple(args) + tuple(keywords.values()), loc), loc))
+            self.emit(Eval(Call("UR.VALUE." + name, tuple(args) + tuple(keywords.values()), loc), loc))
             self.emit(Havoc((), f"{name}() at line {loc.line} moves the robot", loc))
             return
         if is_builtin(name) or name in JOINT_VALUES or name == "get_inverse_kin":
-            self.emit(Eval(Call("UR.VALUE", (Lit(name),) + tuple(args) + tuple(keywords.values()), loc), loc))
+            self.emit(Eval(Call("UR.VALUE." + name, tuple(args) + tuple(keywords.values()), loc), loc))
             return
         self.emit(Invoke(name, tuple(args) + tuple(keywords.values()), loc))  # (code not read)
 
@@ -542,7 +601,7 @@ class Lowering:
         if d == "method":
             args, keywords = self.arguments(node.children[2:])
             name = self.tok(line, node.children[1]).group()
-            return Call("UR.VALUE", (Lit(name), self.expr(node.children[0])) + tuple(args) + tuple(keywords.values()),
+            return Call("UR.VALUE." + name, (self.expr(node.children[0]),) + tuple(args) + tuple(keywords.values()),
                         self.loc(self.at(node)))
         return Unknown("an expression the reader does not evaluate")
 
@@ -552,6 +611,7 @@ class Lowering:
         loc = self.loc(self.at(node))
         key = self.resolve(name)
         if key is not None:
+            self.called.add(key)
             return Call(key, self.bind(key, node.children[1:]), loc)
         args, keywords = self.arguments(node.children[1:])
         rest = tuple(args) + tuple(keywords.values())
@@ -560,7 +620,7 @@ class Lowering:
         if name in ("pose_trans", "pose_add", "pose_inv"):
             return Call("UR." + name, tuple(args), loc)
         if is_builtin(name) or name in JOINT_VALUES or name in MATH:
-            return Call("UR.VALUE", (Lit(name),) + rest, loc)
+            return Call("UR.VALUE." + name, rest, loc)
         return Call(name, rest, loc)  # (code not read)
 
     def pose(self, node) -> Agg:
@@ -603,6 +663,44 @@ class Lowering:
         return None
 
 
+# motions whose one target a literal pose makes a hot line
+_HOT = {"movel": "LIN", "movej": "PTP", "movep": "LIN", "servoc": "LIN"}
+
+
+def _plain(node) -> tuple | None:
+    """(the number token, signed) of a plain number node, None otherwise."""
+    if isinstance(node, Tree) and node.data == "number":
+        return node.children[0], False
+    if isinstance(node, Tree) and node.data == "signed" and isinstance(node.children[1], Tree) and \
+            node.children[1].data == "number":
+        return node.children[1].children[0], True
+    return None
+
+
+def _plan(tree, ordinal_at) -> tuple | None:
+    """A hot line's shape: a motion to a pose of six plain numbers, its other arguments plain
+    numbers (``movel(p[…], a=1.2, v=0.25, r=0)``) → (function name, motion kind, ordinal of the
+    'p', [(ordinal, signed)] × 6); None for any other shape."""
+    if tree.data != "call_stmt":
+        return None
+    name = tree.children[0]
+    args = [a for a in tree.children[1:] if a is not None]
+    if str(name) not in _HOT or not args or args[0].data != "arg":
+        return None
+    pose = args[0].children[0]
+    if not (isinstance(pose, Tree) and pose.data == "pose"):
+        return None
+    parts = [c for c in pose.children[1:] if c is not None]
+    plain = [_plain(c) for c in parts]
+    if len(parts) != 6 or None in plain:
+        return None
+    for a in args[1:]:
+        if _plain(a.children[-1]) is None:
+            return None
+    return (str(name), _HOT[str(name)], ordinal_at[pose.children[0].start_pos],
+            [(ordinal_at[t.start_pos], signed) for t, signed in plain])
+
+
 def _first_token(node):
     if isinstance(node, Token):
         return node
@@ -613,32 +711,6 @@ def _first_token(node):
         if t is not None:
             return t
     return None
-
-
-def _called(body) -> set:
-    """The routine names a body calls (statements and expressions)."""
-    from ..ir import walk
-
-    out: set = set()
-
-    def visit(v):
-        if isinstance(v, tuple):
-            for x in v:
-                visit(x)
-        elif isinstance(v, Expr):
-            if isinstance(v, Call):
-                out.add(v.name)
-            for f in v.__slots__:
-                visit(getattr(v, f))
-
-    for s in walk(body):
-        if isinstance(s, Invoke):
-            out.add(s.name)
-        if isinstance(s, Async) and isinstance(s.action, Invoke):
-            out.add(s.action.name)
-        for f in s.__slots__:
-            visit(getattr(s, f, None))
-    return out
 
 
 _ = P102

@@ -47,6 +47,7 @@ _EYE = np.eye(4)
 _EYE.setflags(write=False)
 _XYZ = ("X", "Y", "Z")
 _RV = ("RX", "RY", "RZ")
+FREE = Mat(_EYE, "robot base")  # the robot base, nothing moving the path
 
 # the math URScript computes from numbers: evaluated where the numbers are known
 MATH = {
@@ -100,8 +101,14 @@ class UR(Dialect):
         self.active = active
         self.programs = set(programs)
         self.threads = set(threads)
-        self.functions = {"UR.FRAME": frame_of, "UR.VALUE": value_of, "UR.pose_trans": pose_trans,
+        self._last_tool = None
+        self.functions = {"UR.FRAME": frame_of, "UR.pose_trans": pose_trans,
                           "UR.pose_add": pose_add, "UR.pose_inv": pose_inv, "UR.IK": inverse_kin}
+
+    def function(self, name: str):
+        if name.startswith("UR.VALUE."):  # (a builtin that reads or reports, by its name)
+            return value_of
+        return self.functions.get(name)
 
     # ---------------------------------------------------------------- state
     def initial(self, unit) -> dict:
@@ -115,8 +122,7 @@ class UR(Dialect):
         else:  # TOOL_DATA[n] is KUKA's: a script has no such table
             raise PostprocError(f"--tool {tool}: a URScript TCP is stated as X,Y,Z,A,B,C (mm, deg) or 'model'",
                                 unit.files[0], 0, 0, P222)
-        free = Mat(_EYE, "robot base")
-        return {("G", "$TCP"): tcp, ("G", "$CONVEYOR"): free, ("G", "$PATH_OFFSET"): free, ("G", "$FORCE"): free}
+        return {("G", "$TCP"): tcp, ("G", "$CONVEYOR"): FREE, ("G", "$PATH_OFFSET"): FREE, ("G", "$FORCE"): FREE}
 
     def implicit(self, an, name: str) -> tuple:
         """A variable assigned without ``global``/``local`` where no global of its name exists:
@@ -149,6 +155,15 @@ class UR(Dialect):
     def tool(self, an, value):
         if value == "model":
             return None
+        last = self._last_tool
+        if last is not None and last[0] is value:  # (one TCP for many targets: its numbers read once)
+            an.consume(value, "a frame")
+            return last[1]
+        six = self._tool(an, value)
+        self._last_tool = (value, six)
+        return six
+
+    def _tool(self, an, value):
         f = self.frame(an, value)
         if isinstance(f, Top):
             return Top(f.why, f.loc, f.code if f.code in (P203, P221) else P203)
@@ -164,6 +179,8 @@ class UR(Dialect):
 def frame_of(an, st, args, call):
     """``UR.FRAME(conveyor, path offset, force mode, lefts…)``: the frame of a motion's target,
     the robot base moved by what moves the path, and the ``pose_trans`` frames it is written in."""
+    if all(v is FREE for v in args):
+        return FREE
     d = an.dialect
     m = np.eye(4)
     labels, toks = [], set()
@@ -179,10 +196,10 @@ def frame_of(an, st, args, call):
 
 
 def value_of(an, st, args, call):
-    """``UR.VALUE(name, args…)``: a builtin that reads or reports: its arguments are read; its
+    """``UR.VALUE.name(args…)``: a builtin that reads or reports: its arguments are read; its
     value is computed for URScript's math of known numbers, a joint list for the functions that
     give joint positions, else known only at run time."""
-    name, values = args[0], args[1:]
+    name, values = call.name[len("UR.VALUE."):], args
     for v in values:
         an.consume(v, f"passed to {name}()")
     if name in MATH:
