@@ -325,6 +325,8 @@ def check_output(files: list[str], texts: list[str], outputs: list[str], model, 
     stripped = [_strip_stamp(t, stamp) for t in outputs]
     a = before.targets
     moved = (a.frame >= 0) & np.isfinite(a.poses[:, :3]).all(axis=1)  # what compensate changes
+    for rows in getattr(before, "held", {}).values():  # (but the rows the analysis holds: P217)
+        moved[np.asarray(rows, int)] = False
     for index, text in enumerate(stripped):
         changed = bool(moved[a.file == index].any())
         if text is None and changed:
