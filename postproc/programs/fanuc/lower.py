@@ -410,7 +410,8 @@ class Lowering:
             if t.accept(","):  # (in another user / tool frame than the position's)
                 self.emit(Assign(Name(which), Unknown(f"{w} CONDITION at line {loc.line} names its own frame"), loc))
                 return
-            self.emit(Assign(Name(which), Lit(reg.name) if isinstance(reg, Name) else Unknown("an indirect register"),
+            number = re.fullmatch(r"PR\[(\d+)\]", reg.name) if isinstance(reg, Name) else None
+            self.emit(Assign(Name(which), Lit(float(number.group(1))) if number else Unknown("an indirect register"),
                              loc))
             return
         if w in HARMLESS:
@@ -566,6 +567,9 @@ class Lowering:
                               f"{w}[…] is set with an index known at run time at line {loc.line}", loc))
             return
         if w == "PR" and isinstance(target, Name):  # (a whole register: a position without frame numbers)
+            if isinstance(value, Op) and value.op == "-" and value.args[0] == value.args[1]:
+                # PR[n]=PR[m]-PR[m]: zero, whatever PR[m] held (the way a register is cleared)
+                value = Agg("pose", tuple((k, Lit(0.0)) for k in ("X", "Y", "Z", "A", "B", "C")), loc, "POS")
             value = Call("LS.AS_PR", (value,))
         body.append(Assign(target, value, loc))
 
