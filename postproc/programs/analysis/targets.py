@@ -49,17 +49,51 @@ class Built:
 
 
 class _Rows:
-    """Rows collected one use (or one run) at a time."""
+    """Rows collected one use (or one run) at a time: a run's columns as a part; single rows
+    (``add_one``: plain Python values) buffered and made a part of columns when a run comes or
+    at the end (a program of many named targets stays cheap)."""
 
-    def __init__(self):
+    def __init__(self, k_orient: int = 3):
         self.parts: list = []
         self.n = 0
+        self.k_orient = k_orient
+        self.singles: list = []
+        self.convert: list = []  # (row, numbers, form): orientations to turn into A,B,C at the end, at once
 
     def add(self, **cols) -> int:
+        self.flush()
         m = len(cols["line"])
         self.parts.append(cols)
         self.n += m
         return self.n - m
+
+    def add_one(self, row: dict) -> int:
+        """One row: pose [6], spans [12], abc [k][2], worient [k], file, line, col, frame, motion,
+        config (S, T), offset [3], prev, site, extras (name → value)."""
+        self.singles.append(row)
+        self.n += 1
+        return self.n - 1
+
+    def flush(self) -> None:
+        rows, self.singles = self.singles, []
+        if not rows:
+            return
+        m, k = len(rows), self.k_orient
+
+        def column(name, dtype, shape=None):
+            a = np.array([r[name] for r in rows], dtype)
+            return a.reshape((m,) + shape) if shape is not None else a
+
+        extras: dict = {}
+        for j, r in enumerate(rows):
+            for name, value in r["extras"].items():
+                extras.setdefault(name, [None] * m)[j] = value
+        self.parts.append(dict(pose=column("pose", float, (6,)), spans=column("spans", np.int64, (12,)),
+                               abc=column("abc", np.int64, (k, 2)), worient=column("worient", float, (k,)),
+                               file=column("file", np.int32), line=column("line", np.int32), col=column("col", np.int32),
+                               frame=column("frame", np.int32), motion=column("motion", np.int8),
+                               config=column("config", np.int16, (2,)), offset=column("offset", float, (3,)),
+                               prev=column("prev", np.int32), site=[r["site"] for r in rows], extras=extras))
 
     def extras(self) -> dict:
         """The dialect's per-row columns (``row_extras``), name → list over every row."""
@@ -75,6 +109,9 @@ class _Rows:
         return out
 
 
+_NAN = float("nan")
+
+
 def _path(unit, file: int) -> str:
     return unit.files[file] if file >= 0 else unit.config_names[-1 - file]
 
@@ -82,7 +119,8 @@ def _path(unit, file: int) -> str:
 def build(unit, dialect, rec, form: str | None = None) -> Built:
     """The targets of the recorded uses (``rec``: execute.Recorder) of ``unit``."""
     form = form or unit.form
-    rows = _Rows()
+    k_orient = 3 if form == "abc" else (4 if form == "quaternion" else 3)
+    rows = _Rows(k_orient)
     frames: list[Frame] = []
     frame_ix: dict = {}
     unknown: dict = {}  # (code, why, loc) → [count, first (path, line, col)]
@@ -90,7 +128,6 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
     diagnostics: list[Diagnostic] = []
     assumed: set = set()  # frame indices taken with robot base = world assumed (P224)
     named = False
-    k_orient = 3 if form == "abc" else (4 if form == "quaternion" else 3)
     pending: dict = {}  # pred key → [(use columns without prev), …] waiting for the pred's row
     used_keys: list = []
 
@@ -137,16 +174,22 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             twin = dict(cols)
             pr = key_row.get(p, -2)
             if pr >= 0:
-                twin["prev"] = np.array([pr], np.int32)
-                rows.add(**twin)
+                twin["prev"] = pr
+                add_one(twin)
             elif p in key_row:  # (a predecessor without a row: where it leaves the robot is not known)
-                twin["prev"] = np.array([-1], np.int32)
-                rows.add(**twin)
+                twin["prev"] = -1
+                add_one(twin)
             else:
                 pending.setdefault(p, []).append(twin)
         for twin in pending.pop(key, []):
-            twin["prev"] = np.array([key_row[key]], np.int32)
-            rows.add(**twin)
+            twin["prev"] = key_row[key]
+            add_one(twin)
+
+    def add_one(row):
+        r = rows.add_one(row)
+        if row.get("convert") is not None:
+            rows.convert.append((r,) + row["convert"])
+        return r
 
     for use in rec.uses:
         if isinstance(use, RunUse):
@@ -188,16 +231,15 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             rec.note(P212, f"target {use.what or 'the target'}: its {k} is not known here ({v.why}): left as written",
                      loc, True)
             continue
-        pose = np.full(6, np.nan)
-        spans = np.full(12, -1, np.int64)
-        offset = np.zeros(3)
+        pose = [_NAN] * 6
+        spans = [-1] * 12
+        offset = [0.0, 0.0, 0.0]
         computed = []
         for k, v in enumerate(view.xyz):
             if isinstance(v, Tok):
                 pose[k] = v.value
                 spans[2 * k], spans[2 * k + 1] = v.token[1], v.token[2]
                 offset[k] = v.offset
-                tok_file = v.token[0]
             elif number(v) is not None:
                 pose[k] = number(v)
                 if "XYZ"[k] not in use.filled:
@@ -218,22 +260,21 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             continue
         orient = view.orient
         nums = [number(v) for v in orient]
-        abc_spans = np.full((k_orient, 2), -1, np.int64)
-        written_orient = np.full(k_orient, np.nan)
+        abc_spans = [[-1, -1] for _ in range(k_orient)]
+        written_orient = [_NAN] * k_orient
+        convert = None
         if all(n is not None for n in nums) and orient:
-            numbers_ = np.array(nums, float)
             if view.form == "abc":
-                pose[3:6] = numbers_
-            else:
-                with np.errstate(invalid="ignore"):
-                    pose[3:6] = fr.abc_from_rotation(fr.orientation_rotation(numbers_, view.form))
+                pose[3:6] = [float(x) for x in nums]
+            else:  # (turned into A,B,C with the other rows', at once)
+                convert = (tuple(float(x) for x in nums), view.form)
             if view.form == form:
-                written_orient[:len(nums)] = numbers_
+                written_orient[:len(nums)] = [float(x) for x in nums]
                 for j, v in enumerate(orient):
                     if isinstance(v, Tok) and v.offset == 0 and v.token[0] in files | {v.token[0]} and j < k_orient:
-                        abc_spans[j] = v.token[1:]
+                        abc_spans[j] = list(v.token[1:])
         if view.form == "abc" and form == "abc":
-            spans[6:12] = abc_spans.ravel()
+            spans[6:12] = [x for pair in abc_spans for x in pair]
         file = next(iter(files)) if files else (view.loc.file if view.loc is not None else loc.file)
         if not isinstance(s.target, Agg):
             named = True
@@ -244,23 +285,27 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             count(why, code, 1, first if why.code in (P220, P221) else (_path(unit, why.loc.file), why.loc.line,
                                                                         why.loc.col, use) if why.loc else first)
         primary, others = prev_of(use.preds)
-        cols = dict(pose=pose[None], spans=spans[None], abc=abc_spans[None], worient=written_orient[None],
-                    file=np.array([file], np.int32), line=np.array([aloc.line], np.int32),
-                    col=np.array([aloc.col], np.int32), frame=np.array([ix], np.int32),
-                    motion=np.array([MOTION_INDEX[s.kind]], np.int8),
-                    config=np.array([view.config], np.int16), offset=offset[None],
-                    prev=np.array([primary], np.int32), site=[loc],
-                    extras={k: [v] for k, v in dialect.row_extras(use, view).items()})
-        r = rows.add(**cols)
+        cols = dict(pose=pose, spans=spans, abc=abc_spans, worient=written_orient, file=file, line=aloc.line,
+                    col=aloc.col, frame=ix, motion=MOTION_INDEX[s.kind], config=view.config, offset=offset,
+                    prev=primary, site=loc, extras=dialect.row_extras(use, view), convert=convert)
+        r = add_one(cols)
         key_row[use.key] = r
         used_keys.append(use.key)
         twins(cols, others, use.key)  # the same target reached from another predecessor: a twin row
     # twins whose predecessor never ran with a row: the predecessor is not known
     for waiting in pending.values():
         for twin in waiting:
-            twin["prev"] = np.array([-1], np.int32)
-            rows.add(**twin)
+            twin["prev"] = -1
+            add_one(twin)
+    rows.flush()
     targets = _columns(rows, k_orient, form)
+    if rows.convert:  # the orientations of other forms as A,B,C, each form at once
+        for f in {c[2] for c in rows.convert}:
+            chosen = [c for c in rows.convert if c[2] == f]
+            at = np.array([c[0] for c in chosen], np.int64)
+            with np.errstate(invalid="ignore"):
+                targets.poses[at, 3:6] = fr.abc_from_rotation(fr.orientation_rotation(
+                    np.array([c[1] for c in chosen], float), f))
     for (code, why), (n, first, wloc) in unknown.items():
         if wloc is not None and code not in (P220, P221):
             path, line, col = _path(unit, wloc.file), wloc.line, wloc.col
@@ -350,8 +395,10 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
     key_row[use.key] = rows.n - 1
     if not others:
         return None, ()
-    first = {k: (v[:1] if k not in ("site", "extras") else v) for k, v in cols.items()}
-    first["extras"] = {k: v[:1] for k, v in extras.items()}
+    first = dict(pose=pose[0].tolist(), spans=spans[0].tolist(), abc=abc[0].tolist(), worient=worient[0].tolist(),
+                 file=int(r["file"][0]), line=int(r["line"][0]), col=int(r["col"][0]), frame=ix,
+                 motion=int(r["motion"][0]), config=tuple(int(x) for x in r["config"][0]), offset=[0.0, 0.0, 0.0],
+                 prev=-1, site=None, extras={k: v[0] for k, v in extras.items()}, convert=None)
     return first, others
 
 
