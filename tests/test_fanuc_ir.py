@@ -136,6 +136,12 @@ def test_position_registers_copies_with_an_offset_are_compensated_consistently(m
     assert np.allclose(again.poses[0, :3], commanded_in_uf1([300, 20, 130]), atol=6e-4)
     s, e = again.spans[0, 2]
     assert abs(float(out[s:e]) - (commanded_in_uf1([300, 20, 130])[2] - 100)) < 6e-4
+    # PR[i]=PR[j]+PR[k]: component by component (a shift built in a cleared register)
+    mn2 = ["UFRAME_NUM=1", "UTOOL_NUM=1", "PR[1]=P[1]", "PR[2]=PR[2]-PR[2]", "PR[2,1]=10", "PR[2,2]=-5",
+           "PR[1]=PR[1]+PR[2]", "L PR[1] 100mm/sec FINE", "PR[1]=LPOS"]
+    p = read(program(mn2, [pos(1, 300.0)]))
+    assert p.targets.offset.tolist() == [[10, -5, 0]] and np.allclose(p.targets.poses[0, :3], [310, 15, 30])
+    assert found(p) == []
     # a register the program leaves holding the position at its end: other programs may read it (P217)
     p = read(program(mn[:-1], [pos(1, 300.0)]))
     assert found(p) == [("P217", record_line(mn[:-1], 1))] and "PR[1] holds them at the program's end" in \
@@ -173,6 +179,14 @@ def test_a_frame_built_from_a_position_and_the_frames_a_program_sets():
     mn = ["UFRAME[2]=PR[5]", "L P[1] 100mm/sec FINE", "CALL SUB", "UTOOL_NUM=1", "L P[2] 100mm/sec FINE"]
     p = read(program(mn, [pos(1, 1.0, uf=2), pos(2, 4.0, uf=2)]))
     assert p.targets.frame.tolist() == [-1, -1] and found(p) == [("P201", 6)]
+
+
+def test_a_position_in_another_frame_than_the_selected_one_is_left():
+    mn = ["UFRAME_NUM=2", "UTOOL_NUM=1", "L P[1] 100mm/sec FINE", "UFRAME_NUM=1", "UTOOL_NUM=2", "L P[1] 100mm/sec FINE",
+          "UTOOL_NUM=1", "L P[1] 100mm/sec FINE"]
+    p = read(program(mn, [pos(1, 100.0)]))
+    assert p.targets.frame.tolist()[:2] == [-1, -1] and p.targets.frame[2] >= 0
+    assert [c for c, _ in found(p)] == ["P201", "P203"] and "user frame mismatch" in p.diagnostics[0].message
 
 
 def test_skip_jumps_where_its_condition_is_not_met():

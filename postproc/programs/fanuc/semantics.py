@@ -2,8 +2,10 @@
 
 * A position ``P[n]`` is the program's own (its ``/POS`` record: X, Y, Z, W, P, R with W, P, R
   fixed angles about X, Y, Z, i.e. KUKA A = R, B = P, C = W; its UF, UT and CONFIG). A motion to
-  it is in the position's own user frame UF and tool frame UT (the controller refuses a
-  position whose frame numbers are not the active ones), their values from the frame file given
+  it is in the position's own user frame UF and tool frame UT: the controller stops where they
+  are not the selected ones (INTP-250, user frame mismatch, with its default frame check) —
+  where the program selects others (``UFRAME_NUM``, ``UTOOL_NUM`` known and different) the target
+  is left (P201/P203: stopped, or moved in the selected frame with the check off). The frames' values from the frame file given
   with ``--frames`` (``UFRAME[n]``/``UTOOL[n]``; UF 0 = the world, taken as the robot base; UT 0
   = the flange) or as the program sets them (``UFRAME[1]=PR[2]``).
 * A position register ``PR[n]`` holds a position without frame numbers: a motion to it is in
@@ -161,6 +163,10 @@ def uframe_of(an, st, args, call):
             if n is None:
                 return Top(f"user frame UF {uf} of {target.label or 'the position'} is not in the frame file "
                            "(--frames)", an.loc, P201)
+            active = _frame_no(selected)
+            if active is not None and active != n:
+                return Top(f"the position is taught in UF {n} and UFRAME_NUM={active} is selected: the controller "
+                           f"stops (user frame mismatch) or, with its frame check off, moves in UF {active}", an.loc, P201)
             return _frame(an, st, f"UFRAME[{n}]")
     if isinstance(selected, Top):
         return selected
@@ -190,6 +196,10 @@ def utool_of(an, st, args, call):
         if n is None:
             return Top(f"tool frame UT {ut} of {target.label or 'the position'} is not in the frame file (--frames)",
                        an.loc, P203)
+        active = _frame_no(selected)
+        if active is not None and active != n:
+            return Top(f"the position is taught with UT {n} and UTOOL_NUM={active} is selected: the controller stops "
+                       f"(tool frame mismatch) or, with its frame check off, moves with UT {active}", an.loc, P203)
     else:
         if isinstance(selected, Top):
             return selected
