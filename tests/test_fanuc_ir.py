@@ -189,6 +189,14 @@ def test_a_position_in_another_frame_than_the_selected_one_is_left():
     assert [c for c, _ in found(p)] == ["P201", "P203"] and "user frame mismatch" in p.diagnostics[0].message
 
 
+def test_line_tracking_leaves_the_targets():
+    text = program(["L P[1] 100mm/sec FINE"], [pos(1, 100.0)]).replace("/MN", "/APPL\n  LINE_TRACK;\n"
+                                                                          "  LINE_TRACK_SCHEDULE_NUMBER : 1;\n/MN")
+    p = read(text)
+    assert p.targets.frame.tolist() == [-1] and [c for c, _ in found(p)] == ["P201"]
+    assert "LINE_TRACK" in p.diagnostics[0].message
+
+
 def test_skip_jumps_where_its_condition_is_not_met():
     mn = ["L P[1] 100mm/sec FINE Skip,LBL[2],PR[3]=LPOS", "L P[2] 100mm/sec FINE", "LBL[2]", "L P[3] 100mm/sec FINE"]
     t = read(program(mn, P4)).targets

@@ -19,7 +19,7 @@ import re
 from lark import Token
 from lark.exceptions import UnexpectedInput
 
-from ...diagnostics import P101, P103, P118, P203, P210, P211, P215, P225, LineIndex, PostprocError
+from ...diagnostics import P101, P103, P118, P201, P203, P210, P211, P215, P225, LineIndex, PostprocError
 from ..grammar import lalr_parser, unexpected
 from ..ir import (Agg, Assign, Async, Call, Decl, Eval, Field, Goto, Halt, Havoc, If, Invoke, Label, Lit, Loc, Loop, Move,
                   Name, Note, Num, Op, Return, Routine, Switch, Unit, Unknown)
@@ -242,6 +242,11 @@ class Lowering:
         records = self.positions(*sections["POS"]) if "POS" in sections else {}
         self.records = records
         body: list = [self.declaration(n, r) for n, r in sorted(records.items())]
+        appl = self.text[slice(*sections["APPL"])] if "APPL" in sections else ""
+        if re.search(r"^\s*LINE_TRACK\b", appl, re.M):  # (the program's targets move with a conveyor)
+            at = sections["APPL"][0]
+            body.append(Assign(Name("$MOVING"), Unknown("line tracking (/APPL LINE_TRACK): the targets move with the "
+                                                        "conveyor", P201), self.loc(at)))
         self.body = body
         self.blocks: list = []  # open IF … ENDIF / FOR … ENDFOR: (kind, node, outer body, offset)
         self.select = None  # the SELECT being read (a Switch)

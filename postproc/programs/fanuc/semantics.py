@@ -153,6 +153,9 @@ def uframe_of(an, st, args, call):
     """``LS.UFRAME(target, UFRAME_NUM)``: the user frame of a motion's target: a position's own
     UF, a register's the selected one; a position moving other groups: not known (P225)."""
     target, selected = args
+    key, moving = an.lookup("$MOVING", st)
+    if key is not None and isinstance(moving, Top):  # (line tracking: every target moves with the conveyor)
+        return moving
     if isinstance(target, Rec):
         ext = target.fields.get("EXT")
         if isinstance(ext, str):
