@@ -334,8 +334,6 @@ class Lowering:
                            (t.peek(1)[0] == "w" and t.peek(2)[1] == "[")):
             self.motion(t, loc)
             return
-        if w in ("P", "PR") and t.peek(1)[1] == "[" and self.continued_circle(t, loc):
-            return
         if w == "LBL":
             t.take()
             n = self.label_number(t)
@@ -349,7 +347,7 @@ class Lowering:
         if w == "IF":
             self.if_(t, loc)
             return
-        if w == "ELSE" and t.done() is False and t.peek(1)[0] is None:
+        if w == "ELSE" and t.peek(1)[0] is None:  # (of IF … THEN)
             self.else_(loc)
             return
         if w == "ENDIF":
@@ -719,10 +717,6 @@ class Lowering:
             depth += (x == "(") - (x == ")")
 
     # ------------------------------------------------------------------ motions
-    def continued_circle(self, t: _Tokens, loc: Loc) -> bool:
-        """(never: a C motion's second position is read with its first, the lines joined)"""
-        return False
-
     def motion(self, t: _Tokens, loc: Loc) -> None:
         letter = t.take()[1].upper()
         t.accept("@")

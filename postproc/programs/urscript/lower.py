@@ -20,7 +20,7 @@ from lark.exceptions import UnexpectedInput
 
 from ...diagnostics import P101, P102, P103, P117, LineIndex, PostprocError
 from ..grammar import TOKEN_RE, exact_key, lalr_parser, shape_key, unexpected
-from ..ir import (Agg, Assign, Expr, Async, AsyncSwitch, Call, Continue, Decl, Eval, Exit, Field, Halt, Havoc, If, Invoke,
+from ..ir import (Agg, Assign, Async, AsyncSwitch, Call, Continue, Decl, Eval, Exit, Field, Halt, Havoc, If, Invoke,
                   Item, Lit, Loc, Loop, Move, Name, Num, Op, Param, Return, Routine, Unit, Unknown)
 from .semantics import JOINT_VALUES, MATH, is_builtin
 
@@ -96,7 +96,7 @@ class Lowering:
     # ------------------------------------------------------------------ lines and shapes
     def units(self):
         """Yield (start, end) of each logical line; fill ``self.code``."""
-        text, path = self.text, self.path
+        text = self.text
         bad = []
 
         def hide(m):
