@@ -55,6 +55,11 @@ HARMLESS = frozenset({
 _IO = frozenset({"DO", "DI", "RO", "RI", "GO", "GI", "AO", "AI", "SO", "SI", "UO", "UI", "WO", "WI", "WSTKO", "F", "M",
                  "SR", "AR", "TIMER", "VR", "OVERRIDE", "TIMER_OVERFLOW", "ER", "CR"})
 _TERMINATION = re.compile(r"^(FINE|CNT\d*|CD\d*|CR\d*)$", re.I)
+# a motion without options to a P[n] (most lines of a long program): read without the parser
+_SIMPLE_MOTION = re.compile(r"([JL])\s*P\[\s*(\d+)\s*(?::[^\]\n]*)?\]\s+\d+(?:\.\d*)?\s*(?:%|mm/sec|cm/min|inch/min|"
+                            r"deg/sec|sec|msec)\s+(?:FINE|CNT\s*\d+)")
+_NO_OPTIONS = {"offset": None, "tool_offset": None, "inc": False, "vision": None, "coord": False, "rtcp": False,
+               "skip": None, "after": ()}
 
 
 def parser():
@@ -300,6 +305,13 @@ class Lowering:
         if stripped.endswith(";"):
             stripped = stripped[:-1].rstrip()
         if not stripped or stripped.startswith(("!", "//", "--eg")):
+            return
+        simple = _SIMPLE_MOTION.fullmatch(stripped)
+        if simple is not None and self.select is None:  # (the common line: J/L P[n] speed FINE|CNTn, no option)
+            self.at = at
+            loc = self.loc(at + len(text) - len(text.lstrip()))
+            self.here = loc
+            self.move(_KIND[simple.group(1)], Name(f"P[{int(simple.group(2))}]"), _NO_OPTIONS, loc)
             return
         self.at = at
         loc = self.loc(at + len(text) - len(text.lstrip()))
