@@ -719,6 +719,16 @@ def stated_configuration(program, description, rows: np.ndarray) -> tuple[Stated
                     if t != -999:
                         windows[i, j] = (360.0 * t - 180.0, 360.0 * t + 180.0)
             stated.windows = windows
+    other = getattr(program, "unmapped_configuration", None)  # (a form no description maps: URScript's qnear)
+    if other is not None and len(other):
+        more = np.asarray(other, bool)[rows] & ~unmapped
+        if more.any():
+            reasons = dict(zip(np.flatnonzero(unmapped).tolist(), why))
+            for i in np.flatnonzero(more).tolist():
+                reasons[i] = ("the target states its arm configuration in a form postproc does not map on joint angles "
+                              "(URScript's get_inverse_kin qnear: the solution nearest those joints)")
+            unmapped |= more
+            why = [reasons[i] for i in np.flatnonzero(unmapped).tolist()]
     return stated, unmapped, why
 
 

@@ -71,11 +71,13 @@ def test_sample_targets_frames_and_configuration():
     p = parse_program_text(path.read_text(encoding="latin-1"), str(path),
                            config_texts=[sample_path("fanuc/frames.toml").read_text()])
     t = p.targets
-    # P[1] joint representation; P[3] also moved to with Offset,PR[1]: left as written
-    assert t.line.tolist() == [39, 51, 57]
-    assert [MOTIONS[m] for m in t.motion] == ["LIN", "CIRC-aux", "CIRC-end"]
-    assert p.configs == ["N U T, 0, 0, 0"] * 3  # (a circular motion keeps the arm's configuration)
-    assert codes(p) == ["P211", "P211"]
+    # P[1] joint representation; P[3] (line 45) also read by the Offset,PR[1] motion of line 30 (PR[1] not known
+    # there): its row is left as written (P217); PR[2] is not known (P211)
+    assert t.line.tolist() == [39, 45, 51, 57]
+    assert [MOTIONS[m] for m in t.motion] == ["LIN", "LIN", "CIRC-aux", "CIRC-end"]
+    assert p.configs == ["N U T, 0, 0, 0"] * 4  # (a circular motion keeps the arm's configuration)
+    assert [(d.code, d.line) for d in p.diagnostics] == [("P211", 30), ("P211", 31), ("P217", 45)]
+    assert p.held["P217"].tolist() == [1]
     assert np.allclose(p.frames[0].base, frames.frame_to_matrix([1650, 0, -450, -90, 0, 0]))
     assert p.frames[0].tool == pytest.approx((0, 0, 300, 0, 0, 0))
 
@@ -96,15 +98,20 @@ def test_run_time_and_shared_positions_are_left_as_written():
                       "PR[1]=P[3]", "L P[3] 100mm/sec FINE", "L P[9] 100mm/sec FINE",
                       "! L P[1] in a remark", "L P[4] 100mm/sec FINE Tool_Offset,PR[2]", "L P[R[2]] 100mm/sec FINE"],
                      [pos(k, k, 2, 3) for k in (1, 2, 3, 4)]))
-    assert p.targets.line.tolist() == [16]  # P[1] only (records from line 16 on, six lines each)
-    assert codes(p) == ["P211", "P211", "P217", "P215", "P211", "P211"]
+    # P[1] and P[3] (records from line 16 on, six lines each); P[3] is copied into PR[1], which holds it at the
+    # program's end where other programs may read it: left as written (P217); INC is relative (P210)
+    assert p.targets.line.tolist() == [16, 28] and p.held["P217"].tolist() == [1]
+    assert [(d.code, d.line) for d in p.diagnostics] == [("P211", 7), ("P210", 8), ("P215", 11), ("P211", 13),
+                                                         ("P211", 14), ("P217", 28)]
 
 
-def test_joint_representation_and_other_groups_are_untouched():
+def test_joint_representation_is_no_target_and_other_groups_are_left():
     joint = "P[1]{\n   GP1:\n\tUF : 1, UT : 1,\n\tJ1=  10.000 deg,\tJ2= -20.000 deg\n};"
     two = pos(2, 5, 6, 7).replace("};", "   GP2:\n\tUF : 1, UT : 1,\n\tJ1=  100.000 mm\n};")
     p = read(program(["J P[1] 50% FINE", "L P[2] 100mm/sec FINE"], [joint, two]))
-    assert p.targets.poses[:, :3].tolist() == [[5, 6, 7]] and not codes(p)
+    # a second group (a track, a positioner: issue 25) moves too: without its kinematics, left as written (P225)
+    assert p.targets.poses[:, :3].tolist() == [[5, 6, 7]] and p.targets.frame.tolist() == [-1]
+    assert codes(p) == ["P225"] and "GP2" in p.diagnostics[0].message
 
 
 @pytest.mark.parametrize("text, line, col, code", [

@@ -46,11 +46,14 @@ def test_statements_sample():
     assert all(d.code != "P101" for d in p.diagnostics)
     t = p.targets
     # LIN literal (src 21), XP1/XP2 from the .dat (16, 17), SPTP … WITH $TOOL (49), LIN (50);
-    # XP2 runs after line 21 or XP1 (the IF's branches): a second row from the other predecessor
-    assert list(t.line) == [21, 16, 17, 17, 49, 50]
-    assert t.twin.tolist() == [-1, -1, -1, 2, -1, -1] and t.prev.tolist()[2:4] == [1, 0]
+    # XP2 runs after line 21 or XP1 (the IF's branches): a second row from the other predecessor; the SPTP
+    # (49) after XP2, after line 21 or XP1 (the SWITCH's CASE 3 and DEFAULT go on) or after the LOOP's LIN_REL
+    # (where that leaves the robot is not known): a row for each
+    assert list(t.line) == [21, 16, 17, 17, 49, 49, 49, 49, 50]
+    assert t.twin.tolist() == [-1, -1, -1, 2, -1, 4, 4, 4, -1] and t.prev.tolist()[2:4] == [1, 0]
+    assert sorted(t.prev.tolist()[4:8]) == [-1, 0, 1, 2]
     # PULSE cannot set a frame; the WITH $TOOL (the model's tool) is for its motion only
-    assert list(t.frame) == [0, 0, 0, 0, 0, 0]
+    assert list(t.frame) == [0] * 9
     np.testing.assert_allclose(p.frames[0].tool, [0, 0, 200, 0, 0, 0])
     assert {d.code for d in p.diagnostics} == {"P210"}
 

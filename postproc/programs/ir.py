@@ -241,11 +241,13 @@ class MoveRun(Stmt):
 
 @dataclass(frozen=True, slots=True)
 class Param:
-    """A routine's parameter: its name and how it is passed ("in": a copy; "out"/"ref": by
-    reference, the routine may change the caller's variable)."""
+    """A routine's parameter: its name, how it is passed ("in": a copy; "out"/"ref": by
+    reference, the routine may change the caller's variable) and the value it takes where a
+    call leaves it out (``default``: an expression evaluated at the call; None: none)."""
 
     name: str
     mode: str = "in"
+    default: Expr | None = None
 
 
 @dataclass(slots=True)

@@ -279,7 +279,8 @@ class Program:
     # degrees), "quaternion" (RAPID's q1..q4 = w,x,y,z), "rotvec" (URScript's rx,ry,rz, radians)
     orientation: str = "abc"
     # [N] bool: the target states an arm configuration in a form postproc does not translate to
-    # joint angles (Fanuc CONFIG): a model that takes joint angles leaves it as written (P309)
+    # joint angles (URScript's get_inverse_kin qnear): a model that takes joint angles leaves it as
+    # written (P309; configuration.stated_configuration)
     unmapped_configuration: np.ndarray | None = None
     # rows the analysis leaves as written, by the code that says why (P217: a target whose numbers
     # something else reads too); each was warned at its line

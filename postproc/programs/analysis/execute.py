@@ -312,10 +312,12 @@ class Analysis:
             return self.switch(s, st)
         if kind is Label:
             act = self.act
-            st = join_states(st, act.jumps.get(s.name), f"a GOTO {s.name} jumps to line {s.loc.line} with others",
-                             s.loc)
-            st = join_states(st, act.labels_in.get(s.name), f"a GOTO {s.name} jumps to line {s.loc.line} with others",
-                             s.loc)
+            # (the jumps' states are copied: the statements after the label change the state they go on with)
+            jumped, before = act.jumps.get(s.name), act.labels_in.get(s.name)
+            st = join_states(st, jumped.copy() if jumped is not None else None,
+                             f"a GOTO {s.name} jumps to line {s.loc.line} with others", s.loc)
+            st = join_states(st, before.copy() if before is not None else None,
+                             f"a GOTO {s.name} jumps to line {s.loc.line} with others", s.loc)
             if st is not None and (s.name in act.jumps or s.name in act.labels_in):
                 st = st.copy()  # (never the jumps' own states: what runs after the label changes it)
                 st.cur = None  # (the robot may come from elsewhere)
@@ -464,6 +466,9 @@ class Analysis:
         head = st.copy()
         rec, self.rec = self.rec, None
         try:
+            # a WHILE whose condition holds where the loop is entered runs at least once: it ends
+            # after a pass, never from the entry
+            entered = s.kind == "while" and self._always(s.cond, st)
             for _ in range(MAX_PASSES):
                 end = self._pass(s, head.copy(), act)
                 new = join_states(head, end[0], why, s.loc)
@@ -479,7 +484,11 @@ class Analysis:
         body_end, breaks = self._pass(s, head.copy(), act)
         exits = list(breaks)
         if s.kind in ("for", "while"):
-            if not (s.kind == "while" and self._always(s.cond, head)):
+            if s.kind == "while" and self._always(s.cond, head):
+                pass  # (it never ends at its head)
+            elif entered:
+                exits.append(body_end)  # (the condition fails after a pass)
+            else:
                 exits.append(head)  # the condition fails at the head (before any pass, or after one)
         elif s.kind == "repeat":
             exits.append(body_end)
@@ -599,7 +608,9 @@ class Analysis:
         bound, back = {}, []
         for k, p in enumerate(routine.params):
             arg = args[k] if k < len(args) else None
-            if arg is None:
+            if arg is None and p.default is not None:
+                value = self.eval(p.default, st)
+            elif arg is None:
                 value = Top(f"parameter {p.name} of {routine.name}() is not passed", loc)
             else:
                 value = self.eval(arg, st)

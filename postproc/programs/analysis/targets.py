@@ -27,6 +27,7 @@ from .values import Mat, Six, Taint, Tok, Top, number, tokens_of
 __all__ = ["build", "Built"]
 
 # what a frame code says at the targets it leaves (old wording: "frame"/"tool" not statically known)
+_NAN = float("nan")
 _WHAT = {P201: "frame", P203: "tool", P225: "frame"}
 NEITHER_SET = ("neither $BASE nor $TOOL is set before this target (the controller uses whatever is active): set "
                "them in the program or state them with --base and --tool")
@@ -49,21 +50,55 @@ class Built:
 
 
 class _Rows:
-    """Rows collected one use (or one run) at a time."""
+    """Rows collected one use (or one run) at a time: a run's columns as a part (``add``); single
+    rows (``add_one``: plain Python values) buffered and made one part of columns when a run
+    comes or at the end (a program of many named targets stays cheap)."""
 
-    def __init__(self):
+    def __init__(self, k_orient: int = 3):
         self.parts: list = []
         self.n = 0
+        self.k_orient = k_orient
+        self.singles: list = []
         self.later: dict = {}  # a motion's key → partial targets that read its command (loop back edges)
 
     def add(self, **cols) -> int:
+        self.flush()
         m = len(cols["line"])
         self.parts.append(cols)
         self.n += m
         return self.n - m
 
+    def add_one(self, row: dict) -> int:
+        """One row: pose [6], spans [12], abc [k][2], worient [k], file, line, col, frame, motion,
+        config (S, T), offset [3], prev, site, extras (name → value)."""
+        self.singles.append(row)
+        self.n += 1
+        return self.n - 1
+
+    def flush(self) -> None:
+        rows, self.singles = self.singles, []
+        if not rows:
+            return
+        m, k = len(rows), self.k_orient
+
+        def column(name, dtype, shape=None):
+            a = np.array([r[name] for r in rows], dtype)
+            return a.reshape((m,) + shape) if shape is not None else a
+
+        extras: dict = {}
+        for j, r in enumerate(rows):
+            for name, value in r["extras"].items():
+                extras.setdefault(name, [None] * m)[j] = value
+        self.parts.append(dict(pose=column("pose", float, (6,)), spans=column("spans", np.int64, (12,)),
+                               abc=column("abc", np.int64, (k, 2)), worient=column("worient", float, (k,)),
+                               file=column("file", np.int32), line=column("line", np.int32), col=column("col", np.int32),
+                               frame=column("frame", np.int32), motion=column("motion", np.int8),
+                               config=column("config", np.int16, (2,)), offset=column("offset", float, (3,)),
+                               prev=column("prev", np.int32), site=[r["site"] for r in rows], extras=extras))
+
     def tokens_of(self, row: int) -> set:
         """The X/Y/Z tokens (file, start, end) of a row added before."""
+        self.flush()
         at = 0
         for p in self.parts:
             m = len(p["line"])
@@ -96,7 +131,8 @@ def _path(unit, file: int) -> str:
 def build(unit, dialect, rec, form: str | None = None) -> Built:
     """The targets of the recorded uses (``rec``: execute.Recorder) of ``unit``."""
     form = form or unit.form
-    rows = _Rows()
+    k_orient = 3 if form == "abc" else (4 if form == "quaternion" else 3)
+    rows = _Rows(k_orient)
     frames: list[Frame] = []
     frame_ix: dict = {}
     unknown: dict = {}  # (code, why, loc) → [count, first (path, line, col)]
@@ -104,7 +140,6 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
     diagnostics: list[Diagnostic] = []
     assumed: set = set()  # frame indices taken with robot base = world assumed (P224)
     named = False
-    k_orient = 3 if form == "abc" else (4 if form == "quaternion" else 3)
     pending: dict = {}  # pred key → [(use columns without prev), …] waiting for the pred's row
     used_keys: list = []
 
@@ -133,10 +168,10 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         else:
             entry[0] += n
 
-    def prev_of(preds):
+    def prev_of(preds, key=None):
         """(the primary predecessor row, the others: row indices, -1 where nothing is known before
         (the program's start, a motion without a row), or keys of motions not emitted yet (a
-        loop's back edge))."""
+        loop's back edge; ``key``: the motion itself, reached from itself))."""
         if preds is None:
             return -1, []
         known, unknown, later = set(), False, []
@@ -145,7 +180,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                 unknown = True
                 continue
             r = key_row.get(p)
-            if r is None:
+            if r is None or p == key:
                 later.append(p)
             elif r < 0:
                 unknown = True
@@ -172,7 +207,8 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                 code = target.code
             what = use.what or "the target"
             if code == P215:
-                msg = f"target {what}: {target.why} ({dialect.undeclared_hint}): left as written"
+                hint = f" ({dialect.undeclared_hint})" if dialect.undeclared_hint else ""
+                msg = f"target {what}: {target.why}{hint}: left as written"
             elif code == P223:
                 msg = f"target {what} is not known here ({target.why}, switched on): left as written"
             else:
@@ -200,9 +236,9 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             # (it runs with the numbers it does hold: compensating them for another run would move it)
             rec.escape(tokens_of(target), loc, f"target {use.what or ''} left as written reads them")
             continue
-        pose = np.full(6, np.nan)
-        spans = np.full(12, -1, np.int64)
-        offset = np.zeros(3)
+        pose = [_NAN] * 6
+        spans = [-1] * 12
+        offset = [0.0, 0.0, 0.0]
         computed = []
         for k, v in enumerate(view.xyz):
             if isinstance(v, Tok):
@@ -232,23 +268,22 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             continue
         orient = view.orient
         nums = [number(v) for v in orient]
-        abc_spans = np.full((k_orient, 2), -1, np.int64)
-        written_orient = np.full(k_orient, np.nan)
+        abc_spans = [[-1, -1] for _ in range(k_orient)]
+        written_orient = [_NAN] * k_orient
         if all(n is not None for n in nums) and orient:
-            numbers_ = np.array(nums, float)
             if view.form == "abc":
-                pose[3:6] = numbers_
+                pose[3:6] = [float(x) for x in nums]
             elif view.form != form:
                 with np.errstate(invalid="ignore"):
-                    pose[3:6] = fr.abc_from_rotation(fr.orientation_rotation(numbers_, view.form))
+                    pose[3:6] = fr.abc_from_rotation(fr.orientation_rotation(np.array(nums, float), view.form)).tolist()
             # (in the program's form: A,B,C from the numbers as written, every row at once, _columns)
             if view.form == form:
-                written_orient[:len(nums)] = numbers_
+                written_orient[:len(nums)] = [float(x) for x in nums]
                 for j, v in enumerate(orient):
                     if isinstance(v, Tok) and v.offset == 0 and v.token[0] in files | {v.token[0]} and j < k_orient:
-                        abc_spans[j] = v.token[1:]
+                        abc_spans[j] = list(v.token[1:])
         if view.form == "abc" and form == "abc":
-            spans[6:12] = abc_spans.ravel()
+            spans[6:12] = [x for pair in abc_spans for x in pair]
         file = next(iter(files)) if files else (view.loc.file if view.loc is not None else loc.file)
         if not isinstance(s.target, Agg):
             named = True
@@ -258,27 +293,24 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         if ix < 0:
             count(why, code, 1, first if why.code in (P220, P221) else (_path(unit, why.loc.file), why.loc.line,
                                                                         why.loc.col, use) if why.loc else first)
-        primary, others = prev_of(use.preds)
-        cols = dict(pose=pose[None], spans=spans[None], abc=abc_spans[None], worient=written_orient[None],
-                    file=np.array([file], np.int32), line=np.array([aloc.line], np.int32),
-                    col=np.array([aloc.col], np.int32), frame=np.array([ix], np.int32),
-                    motion=np.array([MOTION_INDEX[s.kind]], np.int8),
-                    config=np.array([view.config], np.int16), offset=offset[None],
-                    prev=np.array([primary], np.int32), site=[loc],
-                    extras={k: [v] for k, v in dialect.row_extras(use, view).items()})
-        r = rows.add(**cols)
+        primary, others = prev_of(use.preds, use.key)
+        cols = dict(pose=pose, spans=spans, abc=abc_spans, worient=written_orient, file=file, line=aloc.line,
+                    col=aloc.col, frame=ix, motion=MOTION_INDEX[s.kind], config=view.config, offset=offset,
+                    prev=primary, site=loc, extras=dialect.row_extras(use, view))
+        r = rows.add_one(cols)
         key_row[use.key] = r
         _emitted(rec, rows, use.key, r)
         used_keys.append(use.key)
         _twins_of(cols, others, rows, pending)
         for twin in pending.pop(use.key, []):
-            twin["prev"] = np.array([r], np.int32)
-            rows.add(**twin)
+            twin["prev"] = r
+            rows.add_one(twin)
     # twins whose predecessor never ran with a row: the predecessor is not known
     for waiting in pending.values():
         for twin in waiting:
-            twin["prev"] = np.array([-1], np.int32)
-            rows.add(**twin)
+            twin["prev"] = -1
+            rows.add_one(twin)
+    rows.flush()
     targets = _columns(rows, k_orient, form)
     for (code, why), (n, first, wloc) in unknown.items():
         if wloc is not None and code not in (P220, P221):
@@ -317,8 +349,8 @@ def _twins_of(cols: dict, others: list, rows: _Rows, pending: dict) -> None:
     for o in others:
         twin = dict(cols)
         if isinstance(o, (int, np.integer)):
-            twin["prev"] = np.array([o], np.int32)
-            rows.add(**twin)
+            twin["prev"] = int(o)
+            rows.add_one(twin)
         else:
             pending.setdefault(o, []).append(twin)
 
@@ -380,30 +412,34 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
             if start is None and (~ok).any() and k < 3:
                 loc = Loc(int(r["file"][need[~ok][0]]), int(r["line"][need[~ok][0]]), int(r["col"][need[~ok][0]]))
                 _where_it_stands(rec, rows, key_row, use.preds, loc)
-    primary, others = prev_of(use.preds)
+    primary, others = prev_of(use.preds, use.key)
+    rows.flush()
     prev = np.arange(rows.n - 1, rows.n - 1 + n, dtype=np.int32)
     prev[0] = primary
     spans = r["spans"]
     if r.get("ospans") is not None:  # (a form other than A,B,C: the run's numbers as written, located)
         abc, worient = r["ospans"], r["orient"]
-    else:
-        abc = spans[:, 6:12].reshape(n, 3, 2) if form == "abc" else np.full((n, 3, 2), -1, np.int64)
-        worient = pose[:, 3:6] if form != "abc" else np.full((n, 3), np.nan)
+    elif form == "abc":
+        abc, worient = spans[:, 6:12].reshape(n, 3, 2), np.full((n, 3), np.nan)
+    else:  # (the run's orientation columns hold its form's three numbers: A,B,C from them in _columns)
+        abc, worient = spans[:, 6:12].reshape(n, 3, 2), pose[:, 3:6].copy()
+        pose[:, 3:6] = np.nan
+    extras = {k: list(v) for k, v in dialect.run_extras(use.run).items()}
     rows.add(pose=pose, spans=spans, abc=abc, worient=worient,
              file=r["file"], line=r["line"], col=r["col"], frame=np.full(n, ix, np.int32), motion=r["motion"],
-             config=r["config"], offset=np.zeros((n, 3)), prev=prev, site=None,
-             extras={k: list(v) for k, v in dialect.run_extras(use.run).items()})
+             config=r["config"], offset=np.zeros((n, 3)), prev=prev, site=None, extras=extras)
     key_row[use.key] = rows.n - 1
     if others:  # (the run's first target reached from its other predecessors)
-        first = {k: (v[:1] if hasattr(v, "__len__") and not isinstance(v, dict) else v)
-                 for k, v in rows.parts[-1].items()}
-        first["extras"] = {k: v[:1] for k, v in (rows.parts[-1].get("extras") or {}).items()}
+        first = dict(pose=pose[0].tolist(), spans=spans[0].tolist(), abc=abc[0].tolist(), worient=worient[0].tolist(),
+                     file=int(r["file"][0]), line=int(r["line"][0]), col=int(r["col"][0]), frame=ix,
+                     motion=int(r["motion"][0]), config=tuple(int(x) for x in r["config"][0]), offset=[0.0, 0.0, 0.0],
+                     prev=-1, site=None, extras={k: v[0] for k, v in extras.items()})
         _twins_of(first, others, rows, pending)
     last = key_row[use.key]
     _emitted(rec, rows, use.key, last)
     for twin in pending.pop(use.key, []):  # (twins that waited for this run: a loop's back edge)
-        twin["prev"] = np.array([last], np.int32)
-        rows.add(**twin)
+        twin["prev"] = last
+        rows.add_one(twin)
 
 
 def _same(a, b) -> bool:

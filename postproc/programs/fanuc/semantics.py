@@ -1,0 +1,324 @@
+"""What Fanuc LS means, written once for the analysis (``analysis.dialect.Dialect``).
+
+* A position ``P[n]`` is the program's own (its ``/POS`` record: X, Y, Z, W, P, R with W, P, R
+  fixed angles about X, Y, Z, i.e. KUKA A = R, B = P, C = W; its UF, UT and CONFIG). A motion to
+  it is in the position's own user frame UF and tool frame UT: the controller stops where they
+  are not the selected ones (INTP-250, user frame mismatch, with its default frame check) —
+  where the program selects others (``UFRAME_NUM``, ``UTOOL_NUM`` known and different) the target
+  is left (P201/P203: stopped, or moved in the selected frame with the check off). The frames' values from the frame file given
+  with ``--frames`` (``UFRAME[n]``/``UTOOL[n]``; UF 0 = the world, taken as the robot base; UT 0
+  = the flange) or as the program sets them (``UFRAME[1]=PR[2]``).
+* A position register ``PR[n]`` holds a position without frame numbers: a motion to it is in
+  the user and tool frame selected then (``UFRAME_NUM``, ``UTOOL_NUM``: not known where the
+  program does not select them); registers ``R[n]``/``PR[n]`` hold what was set before the
+  program runs until it sets them. ``PR[n]=P[m]`` copies the position's numbers (the rows of
+  both share its tokens); ``PR[i]=PR[j]+PR[k]`` adds component by component; ``PR[n,k]`` is
+  one component (1…6: X, Y, Z, W, P, R).
+* ``Offset,PR[n]`` (or the ``OFFSET CONDITION`` register) shifts the target by the register's
+  X, Y, Z in the position's user frame: a target + constant offset where the register is known
+  and turns nothing; ``Tool_Offset`` shifts it in the tool frame (computed); anything else about
+  an offset is known only at run time.
+* A program called (``CALL``) is not read: the registers and the selected frame numbers are not
+  known after it (the frame file's ``UFRAME[n]``/``UTOOL[n]`` are the cell's configuration,
+  which only the program's own statements change); one started with ``RUN`` runs beside it and
+  may change the registers at any time.
+* A position that moves other groups (``GP2``…) or extended axes (``E1``…) is reached with axes
+  postproc has no kinematics of (a track, a positioner: issue 25): left as written (P225).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ... import frames as fr
+from ...diagnostics import P201, P203, P211, P215, P223, P225
+from ..analysis.dialect import Dialect, PoseView
+from ..analysis.values import Mat, Rec, Six, Taint, Tok, Top, number, tokens_of
+
+__all__ = ["LS", "COMPONENTS"]
+
+# PR[n,k]: the component k of a position register (W, P, R are KUKA's C, B, A)
+COMPONENTS = {1: "X", 2: "Y", 3: "Z", 4: "C", 5: "B", 6: "A"}
+_POSE = ("X", "Y", "Z", "A", "B", "C")
+
+
+class LS(Dialect):
+    """The LS dialect: ``uframes`` / ``utools`` the frame file's (number → 4×4 / X,Y,Z,A,B,C),
+    ``registers`` every R[…]/PR[…] name the program uses (what a program started with RUN may
+    change at any time)."""
+
+    name = "LS"
+    form = "abc"
+    frame_names = ("UFRAME_NUM", "UTOOL_NUM")
+    undeclared_hint = ""
+
+    def __init__(self, uframes: dict, utools: dict, registers=()):
+        super().__init__()
+        self.uframes = uframes
+        self.utools = utools
+        self.registers = set(registers)
+        self.functions = {"LS.UFRAME": uframe_of, "LS.UTOOL": utool_of, "LS.AS_PR": as_register,
+                          "LS.Offset": offset, "LS.Tool_Offset": tool_offset, "LS.P": indirect, "LS.PR": indirect,
+                          "LS.R": indirect, "LS.READ": read}
+
+    # ---------------------------------------------------------------- state
+    def initial(self, unit) -> dict:
+        out = {}
+        for n, m in self.uframes.items():
+            out[("G", f"UFRAME[{n}]")] = Mat(m, f"UF {n}")
+        for n, t in self.utools.items():
+            out[("G", f"UTOOL[{n}]")] = Six(t, f"UT {n}")
+        out[("G", "UFRAME_NUM")] = Top("the user frame selected when the program starts is not known: UFRAME_NUM is "
+                                       "not set before this target", None, P201)
+        out[("G", "UTOOL_NUM")] = Top("the tool frame selected when the program starts is not known: UTOOL_NUM is not "
+                                      "set before this target", None, P203)
+        return out
+
+    def undeclared(self, an, name: str):
+        if name.startswith("UFRAME["):
+            return Top(f"user frame UF {name[7:-1]} is not in the frame file (--frames)", an.loc, P201)
+        if name.startswith("UTOOL["):
+            return Top(f"tool frame UT {name[6:-1]} is not in the frame file (--frames)", an.loc, P203)
+        if name.startswith("P["):
+            return Top(f"{name} has no record in /POS", an.loc, P215)
+        if name.startswith(("R[", "PR[")):
+            return Top(f"{name} holds what was set before the program runs", an.loc, P211)
+        return Top(f"{name} is known only at run time", an.loc, P211)
+
+    def implicit(self, an, name: str) -> tuple:
+        return ("G", name)  # (registers and the selected frames are the controller's)
+
+    def touched(self, an, st, names) -> list:
+        """A program not read: the registers and the selected frame numbers (not the frame
+        file's UFRAME[n]/UTOOL[n], nor this program's own positions)."""
+        if names is not None:
+            return []
+        keys = [k for k in st.vars if k[0] == "G" and k[1].startswith(("R[", "PR["))]
+        return keys + [("G", n) for n in self.frame_names] + [("G", n) for n in self.registers]
+
+    def unread_handler(self, an, st, s):
+        """``RUN prog``: the program runs beside this one and may set every register and the
+        selected frames at any time while it runs (to the end of this one)."""
+        why = f"may be set by {s.action.name} (started with RUN at line {s.loc.line}, not read)"
+        writes = {("G", n) for n in self.registers} | {("G", n) for n in self.frame_names}
+        an.handlers[id(s)] = (s, writes, why)
+        st.on = st.on | {id(s)}
+        return an._pin(st)
+
+    def handler_code(self, key):
+        return None if key[-1] in self.frame_names else P223
+
+    # ---------------------------------------------------------------- values
+    def operate(self, an, op: str, args: list):
+        """``PR[i]+PR[j]``, ``PR[i]-PR[j]``: component by component."""
+        if op in ("+", "-") and len(args) == 2 and all(isinstance(a, Rec) for a in args):
+            a, b = args
+            fields = dict(a.fields)
+            for k in _POSE:
+                x, y = a.fields.get(k), b.fields.get(k)
+                if x is None or y is None:
+                    return Top(f"a position register's {k} is not set", an.loc)
+                fields[k] = super().operate(an, op, [x, y])
+            return Rec(a.type, fields, None)
+        if op in ("+", "-") and any(isinstance(a, Rec) for a in args):
+            return Top(f"{op} of a position and a number", an.loc)
+        return super().operate(an, op, args)
+
+    def view(self, value) -> PoseView:
+        v = super().view(value)
+        if value.type == "JOINTS":
+            v.kind = "axis"
+        return v
+
+    def tool(self, an, value):
+        if isinstance(value, Six):
+            return value
+        return super().tool(an, value)
+
+    def row_extras(self, use, view) -> dict:
+        config = use.target.fields.get("CONFIG") if isinstance(use.target, Rec) else None
+        return {"config": config if isinstance(config, str) else ""}
+
+
+# ------------------------------------------------------------------------------- builtins
+
+
+def _frame_no(value):
+    n = number(value)
+    if n is None or n != int(n):
+        return None
+    return int(n)
+
+
+def uframe_of(an, st, args, call):
+    """``LS.UFRAME(target, UFRAME_NUM)``: the user frame of a motion's target: a position's own
+    UF, a register's the selected one; a position moving other groups: not known (P225)."""
+    target, selected = args
+    key, moving = an.lookup("$MOVING", st)
+    if key is not None and isinstance(moving, Top):  # (line tracking: every target moves with the conveyor)
+        return moving
+    if isinstance(target, Rec):
+        ext = target.fields.get("EXT")
+        if isinstance(ext, str):
+            return Top(ext, an.loc, P225)
+        uf = target.fields.get("UF")
+        if uf is not None:
+            n = _frame_no(uf)
+            if n is None:
+                return Top(f"user frame UF {uf} of {target.label or 'the position'} is not in the frame file "
+                           "(--frames)", an.loc, P201)
+            active = _frame_no(selected)
+            if active is not None and active != n:
+                return Top(f"the position is taught in UF {n} and UFRAME_NUM={active} is selected: the controller "
+                           f"stops (user frame mismatch) or, with its frame check off, moves in UF {active}", an.loc, P201)
+            return _frame(an, st, f"UFRAME[{n}]")
+    if isinstance(selected, Top):
+        return selected
+    n = _frame_no(selected)
+    if n is None:
+        return Top("UFRAME_NUM is not a frame number", an.loc, P201)
+    return _frame(an, st, f"UFRAME[{n}]")
+
+
+def _frame(an, st, name):
+    key, value = an.lookup(name, st)
+    if key is None:
+        value = an.dialect.undeclared(an, name)
+    f = an.dialect.frame(an, value)
+    if isinstance(f, Top):
+        return Top(f.why, f.loc, P201)
+    return f if f.label else Mat(f.m, "UF " + name[7:-1], f.tokens)
+
+
+def utool_of(an, st, args, call):
+    """``LS.UTOOL(target, UTOOL_NUM)``: the tool frame of a motion's target (as LS.UFRAME)."""
+    target, selected = args
+    n = None
+    if isinstance(target, Rec) and target.fields.get("UT") is not None:
+        ut = target.fields.get("UT")
+        n = _frame_no(ut)
+        if n is None:
+            return Top(f"tool frame UT {ut} of {target.label or 'the position'} is not in the frame file (--frames)",
+                       an.loc, P203)
+        active = _frame_no(selected)
+        if active is not None and active != n:
+            return Top(f"the position is taught with UT {n} and UTOOL_NUM={active} is selected: the controller stops "
+                       f"(tool frame mismatch) or, with its frame check off, moves with UT {active}", an.loc, P203)
+    else:
+        if isinstance(selected, Top):
+            return selected
+        n = _frame_no(selected)
+        if n is None:
+            return Top("UTOOL_NUM is not a tool number", an.loc, P203)
+    name = f"UTOOL[{n}]"
+    key, value = an.lookup(name, st)
+    if key is None:
+        value = an.dialect.undeclared(an, name)
+    if isinstance(value, Six):
+        return value
+    t = an.dialect.tool(an, value)
+    if isinstance(t, Top):
+        return Top(t.why, t.loc, P203)
+    return t if t is None or t.label else Six(t, f"UT {n}")
+
+
+def as_register(an, st, args, call):
+    """``PR[n] = value``: a position's numbers without its frame numbers (a register's target is
+    in the frames selected where it runs); a frame (``UFRAME[n]``) as its components."""
+    (v,) = args
+    if isinstance(v, Mat):
+        return an.dialect.record_of(v)
+    if isinstance(v, Rec):
+        fields = {k: x for k, x in v.fields.items() if k not in ("UF", "UT")}
+        return Rec(v.type, fields, v.loc, v.label)
+    return v
+
+
+def _known_shift(an, reg, what: str):
+    """A register's X, Y, Z as three plain numbers where it turns nothing, or a Top."""
+    if isinstance(reg, Top):
+        return Top(f"{what} ({reg.why})", reg.loc or an.loc, P211)
+    if not isinstance(reg, Rec):
+        return Top(f"{what} is not a position register", an.loc, P211)
+    values = [reg.fields.get(k) for k in _POSE]
+    if any(isinstance(x, Top) for x in values):
+        return Top(f"{what}: {next(x for x in values if isinstance(x, Top)).why}", an.loc, P211)
+    nums = [number(x) for x in values]
+    if None in nums:
+        return Top(f"{what} is not fully known", an.loc, P211)
+    return nums
+
+
+def offset(an, st, args, call):
+    """``Offset,PR[n]``: the target shifted by the register's X, Y, Z in its user frame (a
+    rotation in the register: known only at run time here)."""
+    target, reg = args
+    if isinstance(target, Top):
+        return target
+    an.consume(reg, "an Offset")
+    nums = _known_shift(an, reg, "the Offset register")
+    if isinstance(nums, Top):
+        an.consume(target, "an Offset motion's position")
+        return nums
+    if any(abs(x) > 1e-12 for x in nums[3:]):
+        an.consume(target, "an Offset motion's position")
+        return Top("the Offset register turns the position (W, P, R not 0): computed at run time", an.loc, P211)
+    if not isinstance(target, Rec):
+        return Top("an Offset of a value that is not a position", an.loc, P211)
+    fields = dict(target.fields)
+    for k, d in zip(("X", "Y", "Z"), nums[:3]):
+        if k in fields:
+            fields[k] = an.dialect.operate(an, "+", [fields[k], float(d)])
+    return Rec(target.type, fields, target.loc, target.label)
+
+
+def tool_offset(an, st, args, call):
+    """``Tool_Offset,PR[n]``: the target shifted in its tool frame: computed from its orientation
+    (known, not rewritable), or known only at run time."""
+    target, reg = args
+    an.consume(target, "a Tool_Offset motion's position")
+    an.consume(reg, "a Tool_Offset")
+    if isinstance(target, Top):
+        return target
+    nums = _known_shift(an, reg, "the Tool_Offset register")
+    if isinstance(nums, Top):
+        return nums
+    if not isinstance(target, Rec) or None in [number(target.fields.get(k)) for k in _POSE]:
+        return Top("a Tool_Offset of a position not fully known", an.loc, P211)
+    p = fr.frame_to_matrix(np.array([number(target.fields[k]) for k in _POSE], float))
+    m = p @ fr.frame_to_matrix(np.array(nums, float))
+    six = fr.matrix_to_frame(m)
+    toks = tokens_of(target) | tokens_of(reg)
+    fields = dict(target.fields)
+    for k, x in zip(_POSE, six):
+        fields[k] = Taint(float(x), frozenset(toks)) if toks else float(x)
+    return Rec(target.type, fields, None, target.label)
+
+
+def indirect(an, st, args, call):
+    """``P[R[k]]``, ``PR[R[k]]``, ``R[R[k]]``: the element the index register holds."""
+    (index,) = args
+    kind = call.name.split(".")[-1]
+    an.consume(index, "an index")
+    n = _frame_no(index)
+    if n is None:
+        why = index.why if isinstance(index, Top) else "an index that is not a whole number"
+        return Top(f"{kind}[…] with a run-time index ({why})", an.loc, P211)
+    name = f"{kind}[{n}]"
+    key, value = an.lookup(name, st)
+    if key is None:
+        value = an.dialect.undeclared(an, name)
+        if isinstance(value, Top) and value.code == P215:
+            return Top(value.why, value.loc, P211)
+    return value
+
+
+def read(an, st, args, call):
+    """``LS.READ(value, why)``: a value read by something other than a target (an INC motion's
+    increment, a vision offset's position)."""
+    value, why = args
+    an.consume(value, why)
+    return value
+
+
+# (kept importable)
+_ = Tok
