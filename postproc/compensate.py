@@ -265,6 +265,11 @@ def _firsts(program: Program) -> np.ndarray:
 # the runs of one set of numbers (twins, copies) agree when the numbers each would have written
 # differ by no more than this (mm; the orientation's numbers: this × their form's decimals per mm)
 AGREE_MM = 0.005
+# runs of one target at one pose that differ only in where they come from (the approach) are
+# commanded at the middle of their commands where that is at most this far from each run's own
+# (mm, as far as agreeing runs' numbers may be); further apart (another arm configuration, a
+# model that depends much on the approach): left as written at every run (P230)
+MIDDLE_MM = AGREE_MM
 # rounds of compensating again without the targets whose runs disagree (each round removes groups)
 MAX_ROUNDS = 8
 
@@ -353,11 +358,14 @@ def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, comm
         if same:
             approach.append(g)
     settled, middles, notes = [], [], []
-    for g in approach:
+    for g in list(approach):
         members = np.flatnonzero(group == g)
         lo, hi = commanded[members].min(axis=0), commanded[members].max(axis=0)
         mid = (lo + hi) / 2
         worst = float(np.linalg.norm((hi - lo) / 2))
+        if not worst <= MIDDLE_MM:
+            approach.remove(g)
+            continue
         settled.extend(members.tolist())
         middles.extend([mid] * len(members))
         first = int(members[0])
@@ -377,8 +385,8 @@ def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, comm
         said = drop[np.sort(once)]
         warnings = collect(program, rows[said], P230, lambda i: (
             "this target runs more than once (a loop, a routine called twice, after a branch, or a point copied "
-            "into another) and the runs need corrections up to {:.3f} mm apart (other frames, tools, offsets or "
-            "approaches): no one set of numbers is right for all, left as written".format(worst_of[int(group[said[i]])])))
+            "into another) and the runs need corrections up to {:.3f} mm apart (other frames, tools, offsets, arm "
+            "configurations or approaches): no one set of numbers is right for all, left as written".format(worst_of[int(group[said[i]])])))
     return _Agreement(drop, warnings, written, np.asarray(settled, int),
                       np.asarray(middles, float).reshape(-1, 3), notes)
 

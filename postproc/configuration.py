@@ -65,7 +65,7 @@ from . import frames
 from .robot import Robot
 
 __all__ = ["UNSTATED", "arm_status", "branch_table", "stated_joints", "controller_joints", "status_turn_of",
-           "measurement_joints", "Stated", "stated_configuration", "parse_fanuc_config", "fanuc_configs",
+           "measurement_joints", "Stated", "stated_configuration", "ordered_joints", "parse_fanuc_config", "fanuc_configs",
            "fanuc_turn", "abb_confdata", "FORM_NAMES", "linear_changes"]
 
 UNSTATED = -1  # S or T not written for a target
@@ -776,9 +776,13 @@ def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, to
         stated = Stated.unstated(n) if config is None else Stated(np.asarray(config[rows, 0], int),
                                                                    np.asarray(config[rows, 1], int))
     nearest, alone = execution_kinds(np.asarray(targets.motion)[rows])
+    starts = getattr(targets, "start", None)
+    starts = None if starts is None else starts[rows]
     if order is not None and not order.sequential and n:
-        q, ok = _ordered_joints(robot, poses, stated, nearest, initial_q, tools, alone, order)
+        q, ok = ordered_joints(robot, poses, stated, nearest, initial_q, tools, alone, order.prev, starts)
     else:
+        if starts is not None and n and np.isfinite(starts[0]).all() and (chain is None or chain.joints is None):
+            initial_q = starts[0]  # (the program's own: a joint motion to known axis values before it)
         q, ok = controller_joints(robot, poses, stated.status, stated.turn, nearest, initial_q, tools, alone,
                                   chain=chain, windows=stated.windows)
     given = getattr(targets, "joints", None)
@@ -788,26 +792,32 @@ def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, to
     return q, ok
 
 
-def _ordered_joints(robot: Robot, poses, stated, nearest, initial_q, tools, alone, order):
-    """``controller_joints`` run by run of rows that follow each other (``order``): each run
-    continues from its first row's predecessor (its joint angles and branch), or starts afresh
-    where nothing is known before it."""
+def ordered_joints(robot: Robot, poses, stated, nearest, initial_q, tools, alone, prev: np.ndarray,
+                   axes: np.ndarray | None = None):
+    """``controller_joints`` run by run of rows that follow each other (``prev`` [n]: each row's
+    predecessor row, ``compensator.Order.prev``): each run continues from its first row's
+    predecessor (its joint angles and branch), from the axis values a joint motion left the
+    robot at (``axes`` [n, 6] deg, ``Targets.start``), or starts afresh (``initial_q``) where
+    nothing is known before it."""
     from types import SimpleNamespace
 
     n = len(poses)
     q = np.full((n, 6), np.nan)
     ok = np.zeros(n, bool)
-    prev = order.prev
+    prev = np.asarray(prev)
     starts = np.flatnonzero(np.r_[True, prev[1:] != np.arange(n - 1)])
     ends = np.r_[starts[1:], n]
     for a, b in zip(starts.tolist(), ends.tolist()):
         p = int(prev[a])
         chain = None
+        first_q = initial_q
         if p >= 0 and ok[p]:
             chain = SimpleNamespace(joints=q[p].copy(), branch=int(status_turn_of(robot, q[p][None])[0][0]))
+        elif p < 0 and axes is not None and np.isfinite(axes[a]).all():
+            first_q = axes[a]
         part = slice(a, b)
         q[part], ok[part] = controller_joints(robot, poses[part], stated.status[part], stated.turn[part],
-                                              nearest[part], initial_q, None if tools is None else tools[part],
+                                              nearest[part], first_q, None if tools is None else tools[part],
                                               alone[part], chain=chain,
                                               windows=None if stated.windows is None else stated.windows[part])
     return q, ok

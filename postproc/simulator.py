@@ -153,6 +153,29 @@ def approach_signs(q_deg: np.ndarray, start_q: np.ndarray, start_sign: float = 1
     return np.take_along_axis(sign, last, axis=0)[1:]
 
 
+def ordered_approach_signs(q_deg: np.ndarray, prev: np.ndarray, start_q: np.ndarray, axes: np.ndarray | None = None,
+                           start_sign: float = 1.0) -> np.ndarray:
+    """:func:`approach_signs` in execution order: each row reached from its predecessor row
+    ``prev`` [N] (``prev[i] < i``; -1: from ``axes[i]`` where a joint motion left the robot,
+    else from ``start_q``); a joint that has not moved keeps its predecessor's sign."""
+    q = np.atleast_2d(np.asarray(q_deg, float))
+    prev = np.asarray(prev, int)
+    n = len(q)
+    before = np.tile(np.asarray(start_q, float), (n, 1))
+    if axes is not None:
+        given = np.isfinite(axes).all(axis=1)
+        before[given] = axes[given]
+    inner = prev >= 0
+    before[inner] = q[prev[inner]]
+    step = q - before
+    sign = np.where(np.abs(step) > 1e-9, np.sign(step), 0.0)
+    out = sign.copy()
+    for i in np.flatnonzero((sign == 0).any(axis=1)).tolist():  # (rows come after their predecessors)
+        carried = out[prev[i]] if prev[i] >= 0 else np.full(q.shape[1], start_sign)
+        out[i] = np.where(sign[i] != 0, sign[i], carried)
+    return out
+
+
 def small_transform(rotvec_rad: np.ndarray, offset_mm: np.ndarray) -> np.ndarray:
     """[..., 4, 4] rigid transforms from rotation vectors [..., 3] and offsets [..., 3]."""
     angle = np.linalg.norm(rotvec_rad, axis=-1)
@@ -390,14 +413,18 @@ class SimulatedRobot:
         return self._ik(poses)[1]
 
     def joint_angles(self, poses: np.ndarray, config: np.ndarray | None = None, tools: np.ndarray | None = None,
-                     motions: np.ndarray | None = None) -> np.ndarray:
+                     motions: np.ndarray | None = None, prev: np.ndarray | None = None,
+                     axes: np.ndarray | None = None) -> np.ndarray:
         """The controller's commanded joint angles [N, 6] (deg) for TCP poses [N, 6]: nominal
         IK, branch nearest HOME; with ``config`` [N, 2] (S, T; -1 = not stated) the stated
         branches and the controller's rules from HOME (``motions`` [N] kinds, programs.MOTIONS indices;
-        default: every row on its own, as a plan's), with ``tools`` [N, 6] each row's TCP.
-        Raises PostprocError (P335) if any pose is out of reach (in its configuration)."""
+        default: every row on its own, as a plan's), with ``tools`` [N, 6] each row's TCP;
+        ``prev`` [N] each row's predecessor (-1 none: a program's execution order, default the row
+        before) and ``axes`` [N, 6] the axis values a joint motion before a row left the robot at
+        (``Targets.start``). Raises PostprocError (P335) if any pose is out of reach (in its
+        configuration)."""
         poses = np.atleast_2d(np.asarray(poses, float))
-        q, ok = self._configured_ik(poses, config, tools, motions)
+        q, ok = self._configured_ik(poses, config, tools, motions, prev, axes)
         if not ok.all():
             bad = np.flatnonzero(~ok)
             raise PostprocError(
@@ -406,14 +433,16 @@ class SimulatedRobot:
         return q
 
     def reachable_in(self, poses: np.ndarray, config: np.ndarray | None = None, tools: np.ndarray | None = None,
-                     motions: np.ndarray | None = None) -> np.ndarray:
+                     motions: np.ndarray | None = None, prev: np.ndarray | None = None,
+                     axes: np.ndarray | None = None) -> np.ndarray:
         """Mask of poses reachable in their configuration (see :meth:`joint_angles`)."""
-        return self._configured_ik(np.atleast_2d(np.asarray(poses, float)), config, tools, motions)[1]
+        return self._configured_ik(np.atleast_2d(np.asarray(poses, float)), config, tools, motions, prev, axes)[1]
 
-    def _configured_ik(self, poses, config, tools, motions) -> tuple[np.ndarray, np.ndarray]:
+    def _configured_ik(self, poses, config, tools, motions, prev=None, axes=None) -> tuple[np.ndarray, np.ndarray]:
         """``motions``: None = every row on its own (nearest HOME), else [N] motion kinds
         (programs.MOTIONS indices: PTP-like, keep-configuration and independent rows)."""
-        if config is None and motions is None and (tools is None or np.allclose(tools, self.robot.tool)):
+        if config is None and motions is None and prev is None and axes is None \
+                and (tools is None or np.allclose(tools, self.robot.tool)):
             return self._ik(poses)  # (the plain case, cached)
         n = len(poses)
         if isinstance(config, configuration.Stated):  # (a program's stated forms: S/T, confdata, CONFIG)
@@ -425,6 +454,10 @@ class SimulatedRobot:
             ptp, alone = np.zeros(n, bool), np.ones(n, bool)
         else:
             ptp, alone = configuration.execution_kinds(motions)
+        if prev is not None or axes is not None:
+            prev = np.arange(-1, n - 1) if prev is None else np.asarray(prev)
+            return configuration.ordered_joints(self.robot, poses, stated, ptp, self.robot.home_q, tools, alone, prev,
+                                                axes)
         return configuration.controller_joints(self.robot, poses, stated.status, stated.turn, ptp,
                                                self.robot.home_q, tools, alone, windows=stated.windows)
 
@@ -442,14 +475,17 @@ class SimulatedRobot:
 
     def actual_poses(self, commanded_poses: np.ndarray, start_q: np.ndarray | None = None, *,
                      q_deg: np.ndarray | None = None, config: np.ndarray | None = None,
-                     tools: np.ndarray | None = None, motions: np.ndarray | None = None) -> np.ndarray:
+                     tools: np.ndarray | None = None, motions: np.ndarray | None = None,
+                     prev: np.ndarray | None = None, axes: np.ndarray | None = None) -> np.ndarray:
         """Where the TCP really goes as transforms [N, 4, 4] (mm, robot base frame) when the
         commanded poses [N, 6] are visited in order from ``start_q`` (default HOME), at the
         joint angles ``q_deg`` if given, else in their configuration ``config`` (see
         :meth:`joint_angles`), with each row's ``tools``. Deterministic: no noise."""
-        q = self.joint_angles(commanded_poses, config, tools, motions) if q_deg is None else np.asarray(q_deg, float)
+        q = (self.joint_angles(commanded_poses, config, tools, motions, prev, axes) if q_deg is None
+             else np.asarray(q_deg, float))
         start = self.robot.home_q if start_q is None else np.asarray(start_q, float)
-        return self._tcp_matrix(q, self._joint_errors(q, approach_signs(q, start)), tools)
+        signs = approach_signs(q, start) if prev is None else ordered_approach_signs(q, prev, start, axes)
+        return self._tcp_matrix(q, self._joint_errors(q, signs), tools)
 
     def actual_positions(self, commanded_poses: np.ndarray, start_q: np.ndarray | None = None, **options) -> np.ndarray:
         """Where the TCP really goes [N, 3] (mm, robot base frame): :meth:`actual_poses`' positions."""

@@ -159,3 +159,38 @@ def test_targets_run_in_a_loop_after_branches_are_compensated_from_their_real_pr
            "  ENDFOR\nEND\n")
     new, dat, report, checked = run(model, src, DAT.replace("ENDDAT", "  DECL INT I\nENDDAT"))
     assert checked.compensated > 0 and checked.paths == 4
+
+
+def test_a_joint_motion_to_known_axis_values_is_the_arm_configuration_a_target_after_it_keeps(tmp_path):
+    """PTP to axis values the program states (E6AXIS), then a LIN: the LIN keeps that arm
+    configuration (wrist flipped or not), which a model of the joints corrects differently; the
+    command is the pose list's with the joint angles of that configuration."""
+    from postproc.compensate import parse_program_text
+    from postproc.resources import model_path
+    from postproc.robot import Robot, load_description
+    from postproc.testing.models import joint_model
+
+    gain = np.array([[0.3, -0.2, 0.5, 0.1, 0.4, -0.3], [0.1, 0.4, -0.2, 0.3, -0.5, 0.2],
+                     [-0.4, 0.2, 0.3, -0.1, 0.2, 0.5]])
+    tool = (0.0, 0.0, 200.0, 0.0, 0.0, 0.0)
+    joints = load_model(joint_model(tmp_path / "j.onnx", gain, tool={"name": "t", "frame": list(tool)}))
+    robot = Robot(load_description(model_path("kr500.toml")).replace(tool=np.array(tool)))
+    target = np.array([[1900.0, 100.0, 1100.0, 0.0, 90.0, 0.0]])
+    commands = []
+    for start in ([10.0, -80.0, 95.0, 20.0, 40.0, 10.0], [10.0, -80.0, 95.0, -160.0, -40.0, -170.0]):
+        src = ("DEF t( )\n  $BASE = $NULLFRAME\n  $TOOL = {X 0,Y 0,Z 200,A 0,B 0,C 0}\n"
+               "  PTP {A1 %g,A2 %g,A3 %g,A4 %g,A5 %g,A6 %g}\n" % tuple(start)
+               + "  LIN {X 1900.0,Y 100.0,Z 1100.0,A 0.0,B 90.0,C 0.0}\nEND\n")
+        p = parse_program_text(src, "t.src")
+        assert p.targets.start.tolist() == [start]  # (where the PTP left the arm)
+        new, report = compensate_text(src, joints, name="t.src")
+        assert report.complete and report.compensated == 1
+        commanded = parse_program_text(new, "t.src").targets.poses[0, :3]
+        q, ok = robot.ik(target, np.array(start))
+        assert ok.all() and np.sign(q[0, 4]) == np.sign(start[4])  # (the branch of the start: its wrist)
+        rows = "x,y,z,a,b,c,q1,q2,q3,q4,q5,q6\n" + ",".join(f"{v:.6f}" for v in [*target[0], *q[0]]) + "\n"
+        listed, _ = compensate_text(rows, joints, name="l.csv")
+        expected = parse_program_text(listed, "l.csv").targets.poses[0, :3]
+        np.testing.assert_allclose(commanded, expected, atol=2e-3)
+        commands.append(commanded)
+    assert np.abs(commands[0] - commands[1]).max() > 0.1  # (the two wrists: two corrections)

@@ -66,7 +66,9 @@ def test_sample_targets_kinds_tool_and_warnings():
     assert t.prev.tolist() == [-1, 0, 1, 2, 3, 4, 5, 6, 7]
     assert t.group.tolist() == [0, -1, 0, -1, -1, -1, -1, -1, 0]  # wp_approach runs three times: one group
     assert p.frames[0].tool == pytest.approx((0, 0, 150, 0, 0, 0))
-    feature = frames.frame_to_matrix([100, 200, 0, np.degrees(0.7854), 0, 0])
+    rot = frames.orientation_rotation(np.array([[3.1416, 0, 0]]), "rotvec")[0]
+    feature = np.eye(4)
+    feature[:3, :3], feature[:3, 3] = rot, (300, -450, 100)  # p[0.3, -0.45, 0.1, 3.1416, 0, 0]: x, y, z in mm
     assert np.allclose(p.frames[t.frame[7]].base, feature) and p.frames[t.frame[7]].tool == pytest.approx(
         (0, 0, 150, 0, 0, 0))
     assert codes(p) == []

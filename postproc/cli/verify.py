@@ -11,8 +11,10 @@ EXAMPLES = """examples:
 
 Error = distance between each target of ORIGINAL (robot base frame) and where the simulated
 robot's TCP goes when commanded that target (before) or the corresponding target of
-COMPENSATED (after); both programs run in program order from HOME, measured with the
-tracker's noise and the robot's repeatability (--no-noise: the exact positions).
+COMPENSATED (after); both programs run in execution order (each target after the one the
+program runs before it), from HOME or the axis values a joint motion to known ones left the
+robot at (PTP HOME, movej(q)), measured with the tracker's noise and the robot's
+repeatability (--no-noise: the exact positions).
 """
 
 
@@ -98,7 +100,14 @@ def execution(program, rows, sim) -> dict:
     for f in np.unique(t.frame[rows]):
         if program.frames[f].tool is not None:
             tools[t.frame[rows] == f] = program.frames[f].tool
-    return {"config": stated, "tools": tools, "motions": t.motion[rows]}
+    options = {"config": stated, "tools": tools, "motions": t.motion[rows]}
+    if t.prev is not None:  # (in execution order: each row after its predecessor, a row of these or none)
+        at = np.full(len(t), -1)
+        at[rows] = np.arange(len(rows))
+        options["prev"] = np.where(t.prev[rows] >= 0, at[np.maximum(t.prev[rows], 0)], -1)
+    if t.start is not None:
+        options["axes"] = t.start[rows]
+    return options
 
 
 def _in_description(program, description):
@@ -224,6 +233,12 @@ def run(args) -> int:
         "orientation_before_deg": result["orientation_before"],
         "orientation_after_deg": result["orientation_after"],
     }
+    # the targets COMPENSATED changes (the others were left as written and keep their error)
+    changed = np.abs(p_comp[:, :3] - p_orig[:, :3]).max(axis=1) > 1e-6
+    from ..stats import table2
+
+    figures["compensated"] = int(changed.sum())
+    figures["after_compensated"] = table2(result["errors_after"][changed])
     if limits.stated:
         figures.update(limits.stated)
         figures["passed"] = not failed
@@ -244,6 +259,10 @@ def run(args) -> int:
         gate = "" if not limits.stated else (f"; FAILED: {'; '.join(failed_lines(document))}" if failed
                                              else "; within the limits stated")
         a = result["after"]
+        left = len(changed) - figures["compensated"]
+        of = "" if not left else (f"; the {figures['compensated']} targets changed: mean "
+                                  f"{figures['after_compensated']['mean']:.3f}, max "
+                                  f"{figures['after_compensated']['max']:.3f} mm, {left} left as written")
         print(f"postproc: verify: mean error {result['before']['mean']:.3f} → {a['mean']:.3f} mm "
-              f"(after: p95 {a['p95']:.3f}, max {a['max']:.3f} mm){gate}", file=sys.stderr)
+              f"(after: p95 {a['p95']:.3f}, max {a['max']:.3f} mm{of}){gate}", file=sys.stderr)
     return EXIT_FINDINGS if failed else 0

@@ -176,6 +176,11 @@ class Targets:
                                -1 for a first one (None: every row is)
     group      [N] int32       rows that share any X/Y/Z token: one group, id ≥ 0; -1 alone (None:
                                every row is): a token is rewritten only where every row agrees
+    start      [N, 6] float64  the axis position (deg, the controller's) the robot stands at
+                               before the row where its predecessor is a joint motion to known
+                               axis values (``PTP HOME``, ``movej(home_q)``; ``prev`` -1), NaN
+                               elsewhere (None: no row has one): the arm configuration a
+                               Cartesian target after it keeps
 
     A frame's ``tool`` of None means the model's tool, stated by the user (``--tool model``);
     a $TOOL (or $BASE) that is not set and not stated (P221/P220) or set but not known makes
@@ -197,6 +202,7 @@ class Targets:
     offset: np.ndarray | None = None
     twin: np.ndarray | None = None
     group: np.ndarray | None = None
+    start: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.config is None:

@@ -57,6 +57,15 @@ class Dialect:
     # what a target name declared in none of the files read may be (P215's message)
     undeclared_hint = "a global of a data list or $config.dat not given?"
 
+    def axis_values(self, value) -> list | None:
+        """The six arm axis values (deg, the controller's convention) of a joint motion's target
+        where every one is a known number (KRL's ``E6AXIS``/``AXIS``: A1…A6), else None."""
+        fields = getattr(value, "fields", None)
+        if not fields:
+            return None
+        out = [number(fields.get(f"A{k}")) for k in range(1, 7)]
+        return None if any(v is None for v in out) else [float(v) for v in out]
+
     def __init__(self):
         self.procedures: dict = {}
         self.functions: dict = {}

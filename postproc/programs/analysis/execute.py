@@ -539,11 +539,13 @@ class Analysis:
         act = self.act
         key = (id(s), act.path)
         if s.joint or s.relative:
-            target = Top("an axis target" if s.joint else "a relative motion: its target is known only at run time",
-                         s.loc)
+            # (an axis target: its value, where the robot stands after it — the arm configuration
+            # a Cartesian target after it keeps, targets.build; a relative one: known at run time)
+            target = Top("a relative motion: its target is known only at run time", s.loc)
+            if not s.relative:
+                target = self.eval(s.target, st)
             if self.rec is not None:
                 self.rec.uses.append(Use(key, s, target, (), None, None, st.last, ""))
-            self.eval(s.target, st) if not s.relative else None
             st.last, st.cur = frozenset([key]), None
             return st
         target = self.eval(s.target, st)

@@ -28,6 +28,16 @@ __all__ = ["build", "Built"]
 
 # what a frame code says at the targets it leaves (old wording: "frame"/"tool" not statically known)
 _NAN = float("nan")
+_NO_AXES = (_NAN,) * 6
+
+
+class _Axes:
+    """A predecessor that is a joint motion to known axis values ``q`` (deg)."""
+
+    __slots__ = ("q",)
+
+    def __init__(self, q):
+        self.q = q
 _WHAT = {P201: "frame", P203: "tool", P225: "frame"}
 NEITHER_SET = ("neither $BASE nor $TOOL is set before this target (the controller uses whatever is active): set "
                "them in the program or state them with --base and --tool")
@@ -94,7 +104,8 @@ class _Rows:
                                file=column("file", np.int32), line=column("line", np.int32), col=column("col", np.int32),
                                frame=column("frame", np.int32), motion=column("motion", np.int8),
                                config=column("config", np.int16, (2,)), offset=column("offset", float, (3,)),
-                               prev=column("prev", np.int32), site=[r["site"] for r in rows], extras=extras))
+                               prev=column("prev", np.int32), start=column("start", float, (6,)),
+                               site=[r["site"] for r in rows], extras=extras))
 
     def tokens_of(self, row: int) -> set:
         """The X/Y/Z tokens (file, start, end) of a row added before."""
@@ -142,6 +153,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
     named = False
     pending: dict = {}  # pred key → [(use columns without prev), …] waiting for the pred's row
     used_keys: list = []
+    key_axes: dict = {}  # a joint motion's key → its known axis values (deg): where it leaves the robot
 
     def frame_index(base, tool):
         """Program.frames index of (base Mat, tool) or (-1, the Top that leaves it, its code)."""
@@ -169,12 +181,14 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             entry[0] += n
 
     def prev_of(preds, key=None):
-        """(the primary predecessor row, the others: row indices, -1 where nothing is known before
-        (the program's start, a motion without a row), or keys of motions not emitted yet (a
-        loop's back edge; ``key``: the motion itself, reached from itself))."""
+        """(the primary predecessor row, the others, the axis values the robot stands at before
+        the primary where it is a joint motion to known ones (else None)): the others are row
+        indices, -1 where nothing is known before (the program's start, a motion without a
+        row), ``_Axes`` (a joint motion to known axis values), or keys of motions not emitted yet
+        (a loop's back edge; ``key``: the motion itself, reached from itself)."""
         if preds is None:
-            return -1, []
-        known, unknown, later = set(), False, []
+            return -1, [], None
+        known, unknown, later, axes = set(), False, [], []
         for p in preds:
             if p == START:
                 unknown = True
@@ -183,13 +197,19 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             if r is None or p == key:
                 later.append(p)
             elif r < 0:
-                unknown = True
+                q = key_axes.get(p)
+                if q is None:
+                    unknown = True
+                elif q not in axes:
+                    axes.append(q)
             else:
                 known.add(r)
         ordered = sorted(known)
         if not ordered:
-            return -1, later
-        return ordered[-1], ordered[:-1] + ([-1] if unknown else []) + later
+            if axes:  # (the robot stands where the joint motion left it)
+                return -1, [_Axes(q) for q in axes[1:]] + ([-1] if unknown else []) + later, axes[0]
+            return -1, later, None
+        return ordered[-1], ordered[:-1] + [_Axes(q) for q in axes] + ([-1] if unknown else []) + later, None
 
     for use in rec.uses:
         if isinstance(use, RunUse):
@@ -199,6 +219,10 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         s = use.stmt
         loc = s.loc
         target = use.target
+        if s.joint and not s.relative and hasattr(target, "fields"):
+            axes = dialect.axis_values(target)
+            if axes is not None:
+                key_axes[use.key] = tuple(axes)
         if s.joint or s.relative:
             continue
         if isinstance(target, Top):
@@ -219,6 +243,10 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             rec.note(P211, f"target {use.what or ''} is not a position: left as written", loc, True)
             continue
         view = dialect.view(target)
+        if view.kind == "axis" and not s.relative:
+            axes = dialect.axis_values(target)
+            if axes is not None:
+                key_axes[use.key] = tuple(axes)
         if view.kind != "cart":
             rec.escape(tokens_of(target), loc, f"target {use.what or ''} (not a Cartesian target) reads them")
             if view.kind == "other" and use.what and not isinstance(s.target, Agg):
@@ -293,10 +321,11 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         if ix < 0:
             count(why, code, 1, first if why.code in (P220, P221) else (_path(unit, why.loc.file), why.loc.line,
                                                                         why.loc.col, use) if why.loc else first)
-        primary, others = prev_of(use.preds, use.key)
+        primary, others, axes = prev_of(use.preds, use.key)
         cols = dict(pose=pose, spans=spans, abc=abc_spans, worient=written_orient, file=file, line=aloc.line,
                     col=aloc.col, frame=ix, motion=MOTION_INDEX[s.kind], config=view.config, offset=offset,
-                    prev=primary, site=loc, extras=dialect.row_extras(use, view))
+                    prev=primary, start=_NO_AXES if axes is None else axes, site=loc,
+                    extras=dialect.row_extras(use, view))
         r = rows.add_one(cols)
         key_row[use.key] = r
         _emitted(rec, rows, use.key, r)
@@ -305,10 +334,12 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         for twin in pending.pop(use.key, []):
             twin["prev"] = r
             rows.add_one(twin)
-    # twins whose predecessor never ran with a row: the predecessor is not known
-    for waiting in pending.values():
+    # twins whose predecessor never ran with a row: the predecessor is not known (a joint motion
+    # to known axis values: where it leaves the robot)
+    for key, waiting in pending.items():
+        q = key_axes.get(key)
         for twin in waiting:
-            twin["prev"] = -1
+            twin["prev"], twin["start"] = -1, _NO_AXES if q is None else q
             rows.add_one(twin)
     rows.flush()
     targets = _columns(rows, k_orient, form)
@@ -348,7 +379,11 @@ def _twins_of(cols: dict, others: list, rows: _Rows, pending: dict) -> None:
     nothing known before), or waiting for a predecessor not emitted yet (``pending``)."""
     for o in others:
         twin = dict(cols)
-        if isinstance(o, (int, np.integer)):
+        twin["start"] = _NO_AXES
+        if isinstance(o, _Axes):
+            twin["prev"], twin["start"] = -1, o.q
+            rows.add_one(twin)
+        elif isinstance(o, (int, np.integer)):
             twin["prev"] = int(o)
             rows.add_one(twin)
         else:
@@ -412,7 +447,7 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
             if start is None and (~ok).any() and k < 3:
                 loc = Loc(int(r["file"][need[~ok][0]]), int(r["line"][need[~ok][0]]), int(r["col"][need[~ok][0]]))
                 _where_it_stands(rec, rows, key_row, use.preds, loc)
-    primary, others = prev_of(use.preds, use.key)
+    primary, others, axes = prev_of(use.preds, use.key)
     rows.flush()
     prev = np.arange(rows.n - 1, rows.n - 1 + n, dtype=np.int32)
     prev[0] = primary
@@ -425,15 +460,18 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
         abc, worient = spans[:, 6:12].reshape(n, 3, 2), pose[:, 3:6].copy()
         pose[:, 3:6] = np.nan
     extras = {k: list(v) for k, v in dialect.run_extras(use.run).items()}
+    start = np.full((n, 6), np.nan)
+    if axes is not None:
+        start[0] = axes
     rows.add(pose=pose, spans=spans, abc=abc, worient=worient,
              file=r["file"], line=r["line"], col=r["col"], frame=np.full(n, ix, np.int32), motion=r["motion"],
-             config=r["config"], offset=np.zeros((n, 3)), prev=prev, site=None, extras=extras)
+             config=r["config"], offset=np.zeros((n, 3)), prev=prev, start=start, site=None, extras=extras)
     key_row[use.key] = rows.n - 1
     if others:  # (the run's first target reached from its other predecessors)
         first = dict(pose=pose[0].tolist(), spans=spans[0].tolist(), abc=abc[0].tolist(), worient=worient[0].tolist(),
                      file=int(r["file"][0]), line=int(r["line"][0]), col=int(r["col"][0]), frame=ix,
                      motion=int(r["motion"][0]), config=tuple(int(x) for x in r["config"][0]), offset=[0.0, 0.0, 0.0],
-                     prev=-1, site=None, extras={k: v[0] for k, v in extras.items()})
+                     prev=-1, start=_NO_AXES, site=None, extras={k: v[0] for k, v in extras.items()})
         _twins_of(first, others, rows, pending)
     last = key_row[use.key]
     _emitted(rec, rows, use.key, last)
@@ -471,6 +509,9 @@ def _columns(rows: _Rows, k_orient: int, form: str) -> Targets:
         config=col("config").astype(np.int16),
         orientation=None if form == "abc" else col("worient").reshape(n, k_orient),
         prev=col("prev"), offset=offset if offset.any() else None)
+    start = col("start")
+    if not np.isnan(start).all():
+        targets.start = start
     if form != "abc":  # the rows' A,B,C from their orientation's numbers as written (build leaves them NaN)
         o = targets.orientation
         todo = np.isnan(targets.poses[:, 3]) & ~np.isnan(o).any(axis=1)

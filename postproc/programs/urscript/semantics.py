@@ -152,6 +152,13 @@ class UR(Dialect):
             v.kind = "axis"  # joint positions (movel / movej of a list: a joint target)
         return v
 
+    def axis_values(self, value) -> list | None:
+        """A list of six known joint positions (radians, the UR controller's): in degrees."""
+        if getattr(value, "type", None) != "LIST" or len(value.fields) != 6:
+            return None
+        out = [number(value.fields.get(str(k))) for k in range(6)]
+        return None if any(v is None for v in out) else [math.degrees(float(v)) for v in out]
+
     def tool(self, an, value):
         if value == "model":
             return None
