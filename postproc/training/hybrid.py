@@ -456,13 +456,15 @@ class HybridModel(Estimator):
         std = dict(zip(sizes, np.split(np.asarray(std, dtype=np.float64), cuts)))
         posterior = None if posterior is None else dict(zip(sizes, np.split(posterior, cuts)))
         groups = [name for name in sizes if name != "ripple" and sizes[name]]
+        # (the stds also of the ripple amplitudes, key "ripple", in the order of ripple_amplitudes flattened)
+        with_ripple = [name for name in sizes if sizes[name]]
         return {
             "parameters": {name: [float(v) for v in np.ravel(p[name])] for name in groups},
             "ripple_amplitudes": [[float(a), float(b)] for a, b in p["ripple"]],
             "tau_mean": [float(v) for v in km.module_.tau_mean],
-            "parameter_std": {name: [float(v) if v == v else None for v in std[name]] for name in groups},  # None: unknown
+            "parameter_std": {name: [float(v) if v == v else None for v in std[name]] for name in with_ripple},  # None: unknown
             # what is known of each value (the certificate's uncertainty; not for a re-calibration)
-            **({"parameter_posterior_std": {name: [float(v) for v in posterior[name]] for name in groups}}
+            **({"parameter_posterior_std": {name: [float(v) for v in posterior[name]] for name in with_ripple}}
                if posterior is not None else {}),
             "residual_std_mm": float(residual_std),
             "nominal_sha256": nominal_digest(self.description),
