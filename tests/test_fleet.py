@@ -120,7 +120,8 @@ def test_local_cluster_trains_where_onnxruntime_never_is(tmp_path):
     the card and writes the report with it."""
     from dask.distributed import Client
 
-    from postproc.fleet import REPORT, TRAIN, RobotJob, _local_cluster, report_robot, train_robot
+    from postproc.fleet import REPORT, TRAIN, RobotJob, _local_cluster, read_inputs, report_robot, train_robot, \
+        write_outputs
     from postproc.training.synthetic import synthetic_measurements, to_csv
 
     def libraries(dask_worker):  # (a local function: sent by value, this module, which imports torch, is not)
@@ -133,9 +134,11 @@ def test_local_cluster_trains_where_onnxruntime_never_is(tmp_path):
     poses, measured = synthetic_measurements(80, seed=2)
     (tmp_path / "a.csv").write_text(to_csv(poses, measured))
     job = RobotJob("a", tmp_path / "a.csv", method="plain", args=["--hidden", "3", "--epochs", "5"])
+    inputs = read_inputs(job)
     with _local_cluster(4, robots=1) as cluster, Client(cluster) as client:
-        trained = client.submit(train_robot, job, str(tmp_path), resources={TRAIN: 1}, pure=False)
-        result = client.submit(report_robot, trained, job, str(tmp_path), resources={REPORT: 1}, pure=False).result()
+        trained = client.submit(train_robot, job, inputs, resources={TRAIN: 1}, pure=False)
+        result = client.submit(report_robot, trained, job, inputs, resources={REPORT: 1}, pure=False).result()
         seen = sorted(client.run(libraries).values())
+    result = write_outputs(result, tmp_path)
     assert result["ok"] and result["points"] == 80 and (tmp_path / "a" / "report" / "report.md").is_file()
     assert seen == [(REPORT, True, None), (TRAIN, False, 1)]
