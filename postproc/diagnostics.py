@@ -113,6 +113,8 @@ P333 = _code("P333", "error", "a robot geometry the closed-form inverse kinemati
 P335 = _code("P335", "error", "poses out of the robot's reach (plan, simulator, ISO 9283 cube)")
 P336 = _code("P336", "warning", "the model's error_std (its stated uncertainty) at the target exceeds --max-std "
              "(default: the card's uncertainty.max_std_mm); an error under --strict")
+P337 = _code("P337", "warning", "plan --for: a program target the measurement data (--data) does not cover (its arm "
+             "configuration, its tool, or a joint outside the data's arcs); as a note: targets not planned for")
 # P4xx: stamps and compensated outputs
 P401 = _code("P401", "error", "already compensated (a stamp line): compensate refuses unless --force")
 P402 = _code("P402", "error", "compensated with a model other than the configured one")

@@ -61,7 +61,7 @@ from .features import inside_ranges, motion_signs, wrapped_step
 from .network import rotation_matrices
 
 __all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS", "unseparated_mount",
-           "nominal_digest", "residual_variance"]
+           "nominal_digest", "residual_variance", "prior_scales"]
 
 GROUPS = ("placement", "base", "tool", "mount", "tool_rotation", "zero", "compliance", "coupling", "backlash")
 DEFAULT_GROUPS = GROUPS
@@ -104,6 +104,21 @@ def nominal_digest(description: RobotDescription) -> str:
                 description.home_q]
     text = ";".join(",".join(f"{float(v):.9g}" for v in np.ravel(a)) for a in numbers)
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+def prior_scales(layout: "Layout", tau: np.ndarray) -> np.ndarray:
+    """A typical size of every parameter of ``layout`` (rad, mm, rad/Nm): the prior's unit. The
+    compliance and coupling terms' from the largest torque terms ``tau`` [N, 27] of the rows
+    (a deflection of PRIOR_RAD there)."""
+    tau_max = np.abs(np.asarray(tau, float)).max(axis=0)
+    scales = np.where(tau_max > 1e-9, PRIOR_RAD / np.maximum(tau_max, 1e-9), PRIOR_RAD)
+    compliance, coupling = scales[:6], scales[6:]
+    unit = {"placement": np.tile(np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], 6),
+            "base": np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], "tool": np.full(3, PRIOR_MM),
+            "mount": np.full(3, PRIOR_RAD), "tool_rotation": np.full(3, PRIOR_RAD),
+            "zero": np.full(6, PRIOR_RAD), "compliance": compliance, "coupling": coupling,
+            "backlash": np.full(6, PRIOR_RAD), "ripple": np.full(2 * len(layout.ripple), PRIOR_RAD)}
+    return np.concatenate([unit[name] for name in layout.sizes])
 
 
 @dataclass
@@ -883,16 +898,8 @@ class KinematicModel(Estimator):
         return q, s, tau, tcp, pose_t, poses, errors, nominal_rot, keep
 
     def _prior_scales(self, layout: Layout, tau: torch.Tensor) -> np.ndarray:
-        """A typical size of every parameter (rad, mm, rad/Nm): the prior's unit."""
-        tau_max = torch.abs(tau).amax(dim=0).numpy()
-        scales = np.where(tau_max > 1e-9, PRIOR_RAD / np.maximum(tau_max, 1e-9), PRIOR_RAD)
-        compliance, coupling = scales[:6], scales[6:]
-        unit = {"placement": np.tile(np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], 6),
-                "base": np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], "tool": np.full(3, PRIOR_MM),
-                "mount": np.full(3, PRIOR_RAD), "tool_rotation": np.full(3, PRIOR_RAD),
-                "zero": np.full(6, PRIOR_RAD), "compliance": compliance, "coupling": coupling, "backlash": np.full(6, PRIOR_RAD),
-                "ripple": np.full(2 * len(layout.ripple), PRIOR_RAD)}
-        return np.concatenate([unit[name] for name in layout.sizes])
+        """A typical size of every parameter (rad, mm, rad/Nm): the prior's unit (:func:`prior_scales`)."""
+        return prior_scales(layout, tau.numpy())
 
     def _levenberg_marquardt(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
                              iterations: int, anchor: np.ndarray | None = None, weights: np.ndarray | None = None,
