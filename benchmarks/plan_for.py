@@ -16,13 +16,16 @@ each plan of ``--poses`` rows, ``postproc measure`` → ``postproc train`` (the 
 * ``for``: ``postproc plan --for default.src flipped.src`` (each configuration ≥ 20 %, half
   space-filling in the programs' joint arcs, half D-optimal).
 
-The goal: the flipped program within 2× the default one's residual. Figures to
+The goal: the flipped program within 2× the default one's residual. (compensate runs with
+``--max-correction 50``: drawn robot 3 is 15.6 mm off in the flipped wrist, 0.56 mm in the
+default one, beyond the default 5 mm bound.) Figures to
 benchmarks/results/plan_for.json.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import tempfile
@@ -61,8 +64,14 @@ def programs(folder: Path, n: int) -> None:
 
 
 def verify(folder: Path, program: str, model: Path, seed_args: list[str]) -> dict:
+    """compensate + verify; a refused compensation (exit 2, e.g. P303: the model predicts a
+    correction beyond its bound far from its data) is a result: its first line."""
     out = folder / f"{program}_{model.stem}.src"
-    cli("compensate", str(folder / f"{program}.src"), "-o", str(out), "--model", str(model), "-q")
+    try:
+        cli("compensate", str(folder / f"{program}.src"), "-o", str(out), "--model", str(model), "-q",
+            "--max-correction", "50")
+    except SystemExit as exc:
+        return {"refused": str(exc).splitlines()[-1].split(": ", 1)[-1]}
     text, _ = cli("verify", str(folder / f"{program}.src"), str(out), "--json", *seed_args)
     result = json.loads(text)
     return {"before_mean": round(result["before"]["mean"], 4), "after_mean": round(result["after"]["mean"], 4),
@@ -96,16 +105,17 @@ def main() -> None:
             model = folder / f"{name}_{robot_seed}.onnx"
             cli("train", str(measured), "-o", str(model), "-q")
             result = {p: verify(folder, p, model, seed_args) for p in ("default", "flipped")}
-            ratio = result["flipped"]["after_mean"] / result["default"]["after_mean"]
-            result["ratio"] = round(ratio, 3)
-            rows[name] = result
             d, f = result["default"], result["flipped"]
-            print(f"{robot_seed:>8} {name:>9}   {d['before_mean']:.3f} → {d['after_mean']:.3f} ({d['after_max']:.3f})"
-                  f"          {f['before_mean']:.3f} → {f['after_mean']:.3f} ({f['after_max']:.3f})          "
-                  f"{ratio:.2f}x{'  (≤ 2×: met)' if ratio <= 2 and name == 'for' else ''}", flush=True)
+            ratio = math.inf if "refused" in d or "refused" in f else f["after_mean"] / d["after_mean"]
+            result["ratio"] = round(ratio, 3) if math.isfinite(ratio) else None
+            rows[name] = result
+            shown = [f"{r['before_mean']:.3f} → {r['after_mean']:.3f} ({r['after_max']:.3f})" if "refused" not in r
+                     else f"refused: {r['refused'][:40]}" for r in (d, f)]
+            print(f"{robot_seed:>8} {name:>9}   {shown[0]:<30} {shown[1]:<30} {ratio:.2f}x"
+                  f"{'  (≤ 2×: met)' if ratio <= 2 and name == 'for' else ''}", flush=True)
         figures["robots"][robot_seed] = rows
-    figures["for_ratio_max"] = max(r["for"]["ratio"] for r in figures["robots"].values())
-    figures["lhs_home_ratio_min"] = min(r["lhs-home"]["ratio"] for r in figures["robots"].values())
+    ratios = [r["for"]["ratio"] for r in figures["robots"].values()]
+    figures["for_ratio_max"] = None if None in ratios else max(ratios)
     print(f"load {load()}; wrote {record('plan_for', figures)}")
 
 

@@ -317,15 +317,15 @@ class _ThreadStreams:
 def _held_out(job: RobotJob, data: Path, path: Path) -> Path:
     """The held-out rows of the robot's data (at ``data``; the split `postproc train` draws) as a CSV."""
     from .measurements import read_measurements
-    from .training.data import split_indices
+    from .training.data import default_val_fraction, split_indices
 
     m = read_measurements(data)
-    frac, seed = 0.05, 0
+    frac, seed = None, 0
     for opt, conv in (("--val-fraction", float), ("--split-seed", int)):
         if opt in job.args and job.args.index(opt) + 1 < len(job.args):
             value = conv(job.args[job.args.index(opt) + 1])
             frac, seed = (value, seed) if opt == "--val-fraction" else (frac, value)
-    _, val = split_indices(len(m), frac, seed)
+    _, val = split_indices(len(m), default_val_fraction(len(m), frac), seed)
     lines = data.read_text(encoding="utf-8").splitlines()
     head = next(i for i, line in enumerate(lines) if line.strip() and not line.startswith("#"))
     # the '# key: value' lines and the header as they are, then the held-out rows

@@ -77,7 +77,8 @@ def add_parser(sub, common, formatter) -> None:
                    help="--search: fit the candidates as tasks on this Dask scheduler (postproc[fleet]; in a fleet: its own)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the training's random draws (default 0)")
     p.add_argument("--split-seed", type=int, default=0, metavar="S", help="seed of the validation draw (default 0)")
-    p.add_argument("--val-fraction", type=float, default=0.05, metavar="F", help="rows held out for validation (default 0.05)")
+    p.add_argument("--val-fraction", type=float, default=None, metavar="F",
+                   help="rows held out for validation (default 0.05; none below 100 rows: each row counts in a small fit)")
     p.add_argument("--epochs", type=_positive, default=None, metavar="N",
                    help="backprop epochs at most (default 500; hybrid's residual networks 1500)")
     p.add_argument("--name", help="model name for the metadata (default: the output file's stem)")
@@ -169,6 +170,12 @@ def _print_identified(args, trained) -> None:
         print(f"tools     measured {len(tool['measured'])}: valid for {tool['valid']}")
     if found["ripple"]:
         print(f"ripple    joint:order {' '.join(f'A{j}:{n}' for j, n in found['ripple'])}")
+    chosen = found.get("selection")
+    if chosen:
+        ripple = chosen.get("ripple") or {}
+        print(f"select    blocked CV over {chosen['regions']} joint-space regions: "
+              f"{'left out ' + ', '.join(chosen['dropped']) if chosen['dropped'] else 'every physical group kept'}"
+              + (f"; {ripple['kept']} of {ripple['searched']} ripple orders kept" if ripple.get("searched") else ""))
     print(f"data      {args.data}: {len(trained.train_rows)} training rows, {len(trained.val_rows)} validation rows")
     print_figures(accuracy, model.train_stats_)
     if "val_rotation_deg" in accuracy:
@@ -186,6 +193,10 @@ def print_figures(accuracy: dict, train_stats: dict) -> None:
         print(f"{'uncompensated':<26} {a['val_uncompensated_mean_mm']:7.4f} {a['val_uncompensated_max_mm']:7.4f} "
               f"{a['val_uncompensated_std_mm']:7.4f}")
         print(f"{'residual |E − Ê|':<26} {a['val_mean_mm']:7.4f} {a['val_max_mm']:7.4f} {a['val_std_mm']:7.4f}")
+    b = accuracy.get("blocked")
+    if b:  # (each training row predicted by the identified arm fitted without its joint-space region)
+        print(f"{'residual (blocked, arm)':<26} {b['mean_mm']:7.4f} {b['max_mm']:7.4f} {'':>7}  "
+              f"({b['rows']} training rows, each region held out)")
     s = train_stats
     print(f"{'residual |E − Ê| (train)':<26} {s['mean']:7.4f} {s['max']:7.4f} {s['std']:7.4f}")
 

@@ -676,15 +676,19 @@ class KinematicModel(Estimator):
     "auto" (the residual variance of a first fit: a Gaussian prior, module text); ``staged``:
     searched orders fitted on top of the physical groups, which keep their values (False: all
     refitted together, which lets the geometry lean on orders that hold only where the data
-    was); ``iterations`` of Levenberg–Marquardt; ``family`` of the IK (None: the description's).
+    was); ``iterations`` of Levenberg–Marquardt; ``family`` of the IK (None: the description's);
+    ``select``: "blocked" (the optional physical groups and how many of the searched ripple orders
+    are kept, chosen by blocked cross-validation over joint-space regions: training/blocked.py;
+    ``selection_`` says what it found) or "none" (every group and order kept).
     """
 
     def __init__(self, description: RobotDescription, groups: tuple[str, ...] = DEFAULT_GROUPS,
                  ripple: str | list[tuple[int, int]] = "search", max_order: int = 100, ripple_joints=range(6),
                  max_ripple: int = 120, prior: float | str = "auto", iterations: int = 20, family: str | None = None,
-                 staged: bool = True):
+                 staged: bool = True, select: str = "blocked"):
         self.description = description
         self.staged = staged
+        self.select = select
         self.groups = tuple(groups)
         self.ripple = ripple
         self.max_order = max_order
@@ -775,9 +779,15 @@ class KinematicModel(Estimator):
             self.lever_ = LEVER_MM
         layout = Layout(groups, list(self.ripple) if isinstance(self.ripple, list) else [])
         theta, tau = self._fit_physical(layout, q, s, tau, measured)
-        self.ripple_search_ = []
+        self.ripple_search_, self.ripple_rounds_, self.selection_, self.blocked_ = [], [], None, None
+        region = self._regions(ik_poses[keep], q) if self.select == "blocked" and layout.n else None
+        self.regions_ = region  # (each training row's region; the residual networks' check holds some out)
+        if region is not None:
+            layout, theta, tau = self._select_groups(layout, theta, q, s, tau, measured, region)
         if self.ripple == "search":
             layout, theta = self._search_ripple(layout, theta, q, s, tau, measured)
+        if region is not None:
+            layout, theta = self._select_ripple(layout, theta, q, s, tau, measured, region)
         self.layout_ = layout
         self.theta_ = theta
         self.module_ = KinematicErrorModule(self.arm_, self.ik_, layout, theta, self.use_previous_,
@@ -832,7 +842,8 @@ class KinematicModel(Estimator):
         old = np.asarray(theta, dtype=np.float64)
         theta = old.copy()
         tau_mean = np.asarray(tau_mean, dtype=np.float64)
-        self.ripple_search_ = []
+        self.ripple_search_, self.ripple_rounds_, self.selection_, self.blocked_ = [], [], None, None
+        self.regions_ = None
         for _ in range(2):  # the torques of the identified chain depend on θ only weakly
             with torch.no_grad():
                 tau = KinematicErrorModule(self.arm_, ik, layout, theta, use_previous, tau_mean).torques(q)
@@ -1005,6 +1016,100 @@ class KinematicModel(Estimator):
             theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
         return theta, tau
 
+    def _regions(self, ik_poses: np.ndarray, q: torch.Tensor) -> np.ndarray | None:
+        """The rows' joint-space regions for the blocked selection (``blocked.folds``: IK branch ×
+        octant of A1–A3), None where there are too few rows or fewer than two regions."""
+        from .blocked import MIN_ROWS, folds
+
+        if len(q) < MIN_ROWS:
+            return None
+        with torch.no_grad():
+            branches = torch.stack(self.ik_.branch_of(torch.as_tensor(ik_poses), q), dim=1).numpy()
+        region = folds(q.numpy(), branches)
+        return region if region.max() >= 1 else None
+
+    def _blocked(self, layout: Layout, theta: np.ndarray, q: torch.Tensor, region: np.ndarray):
+        """The blocked CV (``blocked.BlockedCV``) linearised at the last fit (``_state``) of ``layout``."""
+        from .blocked import BlockedCV
+
+        r, jac, _ = self._state
+        return BlockedCV(jac, r, theta, region, q.numpy())
+
+    def _select_groups(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
+                       region: np.ndarray) -> tuple[Layout, np.ndarray, torch.Tensor]:
+        """The physical groups kept: of the candidates without some of ``blocked.OPTIONAL_GROUPS``
+        the one whose blocked held-out sum of squares is least (within ``blocked.PARSIMONY`` of
+        it, the one with fewest parameters); refitted without the groups it leaves out."""
+        from itertools import combinations
+
+        from .blocked import OPTIONAL_GROUPS, PARSIMONY
+
+        cv = self._blocked(layout, theta, q, region)
+        weights = self.prior_ / self._prior_scales(layout, tau) ** 2
+        slices = layout.slices()
+        optional = [g for g in OPTIONAL_GROUPS if g in layout.groups]
+        scores = []
+        for k in range(len(optional) + 1):
+            for drop in combinations(optional, k):
+                cols = np.concatenate([np.arange(slices[g].start, slices[g].stop) for g in layout.groups
+                                       if g not in drop and slices[g].stop > slices[g].start])
+                scores.append((drop, cols, cv.evaluate(cols, np.zeros(0, int), weights)))
+        best = min(e.sse for _, _, e in scores)
+        drop, chosen_cols, chosen = min((c for c in scores if c[2].sse <= (1.0 + PARSIMONY) * best),
+                                        key=lambda c: len(c[1]))
+        self.selection_ = {"regions": int(cv.regions), "rows": int(len(region)),
+                           "groups": {("without " + " and ".join(d)) if d else "all": round(e.rms, 6)
+                                      for d, _, e in scores},
+                           "dropped": list(drop)}
+        if drop:
+            layout = Layout(tuple(g for g in layout.groups if g not in drop), layout.ripple)
+            theta, tau = self._fit_physical(layout, q, s, tau, measured)
+        self.blocked_ = chosen  # (its variances with the ripple orders' selection, or here without them)
+        if self.ripple != "search":
+            self.blocked_ = cv.evaluate(chosen_cols, np.zeros(0, int), weights, variance=True)
+        return layout, theta, tau
+
+    def _select_ripple(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
+                       region: np.ndarray) -> tuple[Layout, np.ndarray]:
+        """How many of the searched ripple orders are kept: the first m (the search's order, m at
+        the end of one of its rounds, 0 included) whose blocked held-out sum of squares is least
+        (within ``blocked.PARSIMONY``, the fewest); the amplitudes refitted for them."""
+        from .blocked import PARSIMONY
+
+        searched = len(layout.ripple)
+        physical = layout.n - 2 * searched
+        if not searched or not self.staged:
+            if self.selection_ is not None:
+                self.selection_["ripple"] = {"searched": searched, "kept": searched}
+            return layout, theta
+        cv = self._blocked(layout, theta, q, region)
+        weights = self.prior_ / self._prior_scales(layout, tau) ** 2
+        scores = {}
+        for m in dict.fromkeys([0, *self.ripple_rounds_, searched]):
+            scores[m] = cv.evaluate(np.arange(physical), physical + np.arange(2 * m), weights)
+        best = min(e.sse for e in scores.values())
+        kept = min(m for m, e in scores.items() if e.sse <= (1.0 + PARSIMONY) * best)
+        self.selection_["ripple"] = {"searched": searched, "kept": kept,
+                                     "rms": {str(m): round(e.rms, 6) for m, e in scores.items()}}
+        self.blocked_ = cv.evaluate(np.arange(physical), physical + np.arange(2 * kept), weights, variance=True)
+        if kept < searched:
+            layout = Layout(layout.groups, layout.ripple[:kept])
+            theta = theta[: physical + 2 * kept].copy()
+            if kept:
+                theta = self._fit_ripple(layout, theta, physical, q, s, tau, measured, self.iterations)
+        return layout, theta
+
+    def blocked_figures(self) -> dict | None:
+        """The identified arm's blocked held-out figures (mm: mean, p95, max of |E − Ê| at the
+        rows, each predicted by the fit without its region; rms per coordinate), None without a
+        blocked selection."""
+        if self.blocked_ is None:
+            return None
+        norms = self.blocked_.norms()
+        return {"regions": self.selection_["regions"], "rows": int(len(norms)), "mean_mm": round(float(norms.mean()), 6),
+                "p95_mm": round(float(np.quantile(norms, 0.95)), 6), "max_mm": round(float(norms.max()), 6),
+                "rms_mm": round(self.blocked_.rms, 6)}
+
     def _search_ripple(self, layout: Layout, theta: np.ndarray, q, s, tau, measured) -> tuple[Layout, np.ndarray]:
         """Gear-ripple orders added on top of the fitted physical model, which stays as fitted
         (``staged``): the orders take up what it leaves at the angles the data visited, and the
@@ -1019,6 +1124,7 @@ class KinematicModel(Estimator):
                 break
             self.ripple_search_ += picks
             layout = Layout(layout.groups, layout.ripple + [pick for pick, _ in picks])
+            self.ripple_rounds_.append(len(layout.ripple))
             theta = np.r_[theta, np.zeros(2 * len(picks))]
             # a few iterations per round (warm start); the full fit at the end
             theta = self._fit_ripple(layout, theta, physical, q, s, tau, measured, 3)

@@ -43,6 +43,7 @@ so the figure errs on the safe side).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,9 +56,13 @@ from .kinematic import KinematicModel, approach_signs, jacobian, residual_varian
 # the data error_std ≈ σ (the model's own part ~0.1-0.3 σ); at 2σ that part has grown to √3·σ:
 # the residual to expect there is twice what the card's accuracy was validated at
 MAX_STD_FACTOR = 2.0
+# the predictive covariance's calibration on blocked held-out rows (``calibrate``): the 2σ share
+# it asks for (a Gaussian's), and the largest factor on the posterior it takes
+COVERAGE = 0.954
+KAPPA_MAX = 100.0
 
 __all__ = ["MAX_STD_FACTOR", "ParameterCovariance", "parameter_covariance", "PositionStd", "position_std",
-           "residual_variance"]
+           "residual_variance", "calibrate", "COVERAGE", "KAPPA_MAX"]
 
 
 @dataclass
@@ -67,6 +72,13 @@ class ParameterCovariance:
     dof: float  # 3N − p_eff
     p_eff: float  # effective number of parameters
     posterior: np.ndarray | None = None  # [P, P] σ²·A⁻¹: what is known of each parameter's value
+    kappa: float = 1.0  # the posterior's factor from the blocked calibration (``calibrate``)
+    calibration: dict | None = None  # what ``calibrate`` found (the card's uncertainty.calibration)
+
+    @property
+    def predictive(self) -> np.ndarray:
+        """[P, P] the covariance error_std propagates: κ·σ²·A⁻¹ (module text)."""
+        return self.kappa * (self.posterior if self.posterior is not None else self.covariance)
 
     @property
     def std(self) -> np.ndarray:
@@ -119,7 +131,39 @@ def parameter_covariance(model: KinematicModel, residual: np.ndarray | None = No
         raise ValueError(f"residual has {len(r)} coordinates, the fit's rows {jac.shape[0]}")
     dof = max(len(r) - p_eff, 1.0)
     sigma2 = float(r @ r) / dof
-    return ParameterCovariance(sigma2 * a_inv @ jtj @ a_inv, sigma2, dof, p_eff, sigma2 * a_inv)
+    cov = ParameterCovariance(sigma2 * a_inv @ jtj @ a_inv, sigma2, dof, p_eff, sigma2 * a_inv)
+    blocked = getattr(model, "blocked_", None)
+    if blocked is not None:
+        cov.kappa, cov.calibration = calibrate(blocked, sigma2)
+    return cov
+
+
+def _coverage(e: np.ndarray, var: np.ndarray) -> float:
+    """Share of the coordinates ``e`` [N, 3] within 2σ, σ² = ``var`` [N]."""
+    return float((np.abs(e) <= 2.0 * np.sqrt(var)[:, None]).mean())
+
+
+def calibrate(blocked, sigma2: float) -> tuple[float, dict]:
+    """κ ≥ 1 of the predictive covariance κ·σ²·A⁻¹ from the blocked held-out rows
+    (``blocked.Evaluation``: each row's residual where the model fitted without its joint-space
+    region predicted it, and the model part of its variance then, per σ²): the least κ with which
+    σ² + κ·σ²·v covers COVERAGE of those residual coordinates within 2σ, at most KAPPA_MAX (1
+    where σ² alone covers them). The rows another region's fit extrapolates to are what error_std
+    must hold at targets away from the data; random held-out rows would only ask for σ."""
+    e, v = blocked.residual[:, :3], blocked.variance
+    before = _coverage(e, sigma2 * (1.0 + v))
+    kappa = 1.0
+    if before < COVERAGE and _coverage(e, sigma2 * (1.0 + KAPPA_MAX * v)) >= COVERAGE:
+        lo, hi = 1.0, KAPPA_MAX
+        for _ in range(40):  # (the coverage grows with κ)
+            mid = math.sqrt(lo * hi)
+            lo, hi = (mid, hi) if _coverage(e, sigma2 * (1.0 + mid * v)) < COVERAGE else (lo, mid)
+        kappa = hi
+    elif before < COVERAGE:
+        kappa = KAPPA_MAX
+    after = _coverage(e, sigma2 * (1.0 + kappa * v))
+    return kappa, {"kappa": round(kappa, 4), "blocked_rows": int(len(e)),
+                   "blocked_2sigma_coverage_before": round(before, 4), "blocked_2sigma_coverage": round(after, 4)}
 
 
 def position_std(model: KinematicModel, poses: np.ndarray, previous: np.ndarray | None = None,
@@ -135,6 +179,6 @@ def position_std(model: KinematicModel, poses: np.ndarray, previous: np.ndarray 
             prev = torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
             signs = approach_signs(model.ik_, model.arm_.home_q, q, pose, prev)
     jac = _jac(model, q, signs)  # [N, 3, P]
-    var_model = residual_variance(torch.as_tensor(jac), torch.as_tensor(cov.covariance), 0.0).numpy()
+    var_model = residual_variance(torch.as_tensor(jac), torch.as_tensor(cov.predictive), 0.0).numpy()
     per_axis = np.sqrt(cov.sigma2 + var_model)
     return PositionStd(np.sqrt((per_axis**2).mean(axis=1)), np.sqrt(var_model.mean(axis=1)), per_axis)

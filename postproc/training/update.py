@@ -109,6 +109,7 @@ class OldModel:
     envelope: dict | None = None
     covariance: np.ndarray | None = None  # [P, P] OLD's parameter covariance (its graph's error_std), if it has one
     lever: float | None = None  # mm/rad: OLD fitted the orientation with this weight (None: position only)
+    learned_var: float = 0.0  # mm²: what OLD's error_std adds outside its joint arcs (its learned parts)
 
 
 @dataclass
@@ -227,6 +228,7 @@ def read_old_model(path: str | Path, description: RobotDescription) -> OldModel:
     weights = _initializers(data)
     nets, hidden = _residual_nets(path, weights, int(found.get("residual_nets") or 0))
     covariance = _graph_covariance(weights, layout.n)
+    learned_var = float(np.asarray(weights.get("module.learned_var", 0.0)))
     residual_std = float(found.get("residual_std_mm") or 0.0)
     if not residual_std > 0:  # (a card without it: the training residual's mean norm ≈ 1.6 σ per coordinate)
         residual_std = float(((card.get("accuracy") or {}).get("train_mean_mm") or 0.1)) / 1.6
@@ -234,7 +236,7 @@ def read_old_model(path: str | Path, description: RobotDescription) -> OldModel:
     lever = orientation.get("lever_mm_per_rad") if orientation.get("fitted") else None
     return OldModel(path, hashlib.sha256(data).hexdigest(), card, layout, theta, std, residual_std, tau_mean, ik,
                     old.wants_previous, nets, hidden, joint_range, envelope, covariance,
-                    float(lever) if lever else None)
+                    float(lever) if lever else None, learned_var=learned_var)
 
 
 def _graph_covariance(weights: dict, n: int) -> np.ndarray | None:
@@ -326,13 +328,14 @@ def update_model(old: OldModel, description: RobotDescription, poses: np.ndarray
     std[free] = post_std
     model.identification_std_ = (std, old.residual_std_mm)
     if old.covariance is not None:
-        # error_std goes on: OLD's covariance of what it kept, the re-fit's of what it moved (the
-        # regularised estimate's spread, σ²A⁻¹JᵀJA⁻¹, as ``uncertainty.parameter_covariance``),
-        # and the new rows' residual variance: what this campaign leaves unexplained
+        # error_std goes on: OLD's covariance of what it kept, the re-fit's posterior of what it
+        # moved (σ²A⁻¹, as ``uncertainty``'s predictive covariance: the directions the new rows
+        # do not separate keep their prior's spread), the new rows' residual variance (what this
+        # campaign leaves unexplained) and OLD's learned parts' variance outside its arcs
         cov = old.covariance.copy()
         cov[free, :], cov[:, free] = 0.0, 0.0
-        cov[np.ix_(free, free)] = sigma2 * (a_inv @ (jf.T @ jf) @ a_inv)
-        model.module_.set_uncertainty(cov, sigma2)
+        cov[np.ix_(free, free)] = sigma2 * a_inv
+        model.module_.set_uncertainty(cov, sigma2, old.learned_var)
     column = {int(i): k for k, i in enumerate(np.flatnonzero(free))}  # parameter → its place among the free ones
     table = []
     slices = old.layout.slices()
