@@ -133,7 +133,7 @@ def test_local_cluster_trains_where_onnxruntime_never_is(tmp_path):
 
     poses, measured = synthetic_measurements(80, seed=2)
     (tmp_path / "a.csv").write_text(to_csv(poses, measured))
-    job = RobotJob("a", tmp_path / "a.csv", method="plain", args=["--hidden", "3", "--epochs", "5"])
+    job = RobotJob("a", tmp_path / "a.csv", method="plain", args=["--hidden", "3", "--epochs", "5", "--val-fraction", "0.1"])
     inputs = read_inputs(job)
     with _local_cluster(4, robots=1) as cluster, Client(cluster) as client:
         trained = client.submit(train_robot, job, inputs, resources={TRAIN: 1}, pure=False)

@@ -173,7 +173,8 @@ def _print_identified(args, trained) -> None:
     chosen = found.get("selection")
     if chosen:
         ripple = chosen.get("ripple") or {}
-        print(f"select    blocked CV over {chosen['regions']} joint-space regions: "
+        ways = " and ".join(f"{k} {name}" for name, k in chosen["regions"].items())
+        print(f"select    blocked CV over joint-space regions ({ways}, each held out): "
               f"{'left out ' + ', '.join(chosen['dropped']) if chosen['dropped'] else 'every physical group kept'}"
               + (f"; {ripple['kept']} of {ripple['searched']} ripple orders kept" if ripple.get("searched") else ""))
     print(f"data      {args.data}: {len(trained.train_rows)} training rows, {len(trained.val_rows)} validation rows")
@@ -196,7 +197,7 @@ def print_figures(accuracy: dict, train_stats: dict) -> None:
     b = accuracy.get("blocked")
     if b:  # (each training row predicted by the identified arm fitted without its joint-space region)
         print(f"{'residual (blocked, arm)':<26} {b['mean_mm']:7.4f} {b['max_mm']:7.4f} {'':>7}  "
-              f"({b['rows']} training rows, each region held out)")
+              f"({b['rows']} training rows, each predicted with its region held out)")
     s = train_stats
     print(f"{'residual |E − Ê| (train)':<26} {s['mean']:7.4f} {s['max']:7.4f} {s['std']:7.4f}")
 

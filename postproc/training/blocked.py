@@ -5,8 +5,9 @@ campaign's own rows scores well there, whether it carries to other regions or no
 identification chooses what it adds to the physical model — optional physical groups
 (``OPTIONAL_GROUPS``: the 21 torque couplings, the joint compliances), how many of the gear-
 ripple orders it found — by holding out whole regions of joint space instead (``folds``): the
-rows' arm configurations (the IK branch: shoulder, elbow, wrist) × octants of A1/A2/A3 (each
-joint's arc split at its median). Each region is predicted by the model fitted on the others, as
+rows' octants of A1/A2/A3 (each joint's arc split at its median) and, where the data has more
+than one, their arm configurations (the IK branch: shoulder, elbow, wrist; a configuration held
+out whole, as a program in another one). Each region is predicted by the model fitted on the others, as
 the exported graph would predict it: the ripple orders left out where a row lies outside the
 joint arcs of the rows fitted.
 
@@ -31,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["folds", "BlockedCV", "Evaluation", "OPTIONAL_GROUPS", "PARSIMONY", "MIN_ROWS"]
+__all__ = ["folds", "BlockedCV", "BlockedSets", "Evaluation", "OPTIONAL_GROUPS", "PARSIMONY", "MIN_ROWS"]
 
 # physical groups the blocked CV may leave out (terms whose fit on one region need not carry:
 # the couplings are 21 free functions of the arm's posture)
@@ -40,12 +41,16 @@ OPTIONAL_GROUPS = ("coupling", "compliance")
 PARSIMONY = 0.01
 # fewer rows than this (or fewer than two regions): no selection, every group and order kept
 MIN_ROWS = 60
+# the arm configurations are a way to split the rows when two of them hold this share of them each
+MIN_SHARE = 0.05
 
 
-def folds(q_rad: np.ndarray, branches: np.ndarray) -> np.ndarray:
-    """Each row's region [N] (0…K−1): its IK branch ``branches`` [N, 3] (±1: shoulder, elbow,
-    wrist) × the octant of its A1, A2, A3 (each split at the median of its angle along the
-    smallest arc that holds the rows: ``compensator.joint_arcs``)."""
+def folds(q_rad: np.ndarray, branches: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """The ways the rows are split into regions, each a (name, region of each row [N] 0…K−1):
+    "octants" of A1, A2, A3 (each joint split at the median of its angle along the smallest arc
+    that holds the rows: ``compensator.joint_arcs``), and "configurations", the IK branch
+    ``branches`` [N, 3] (±1: shoulder, elbow, wrist), where at least two of them hold
+    ``MIN_SHARE`` of the rows each. Each row is held out once per way."""
     from ..compensator import joint_arcs
 
     q_deg = np.degrees(np.asarray(q_rad, float))
@@ -54,8 +59,12 @@ def folds(q_rad: np.ndarray, branches: np.ndarray) -> np.ndarray:
     for j in range(3):
         u = np.mod(q_deg[:, j] - arcs[j, 0], 360.0)
         octant += (u > np.median(u)).astype(int) << j
+    out = [("octants", np.unique(octant, return_inverse=True)[1].reshape(-1))]
     branch = ((np.asarray(branches) > 0).astype(int) * np.array([1, 2, 4])).sum(axis=1)
-    return np.unique(branch * 8 + octant, return_inverse=True)[1].reshape(-1)
+    configuration = np.unique(branch, return_inverse=True)[1].reshape(-1)
+    if (np.bincount(configuration) >= MIN_SHARE * len(branch)).sum() >= 2:
+        out.append(("configurations", configuration))
+    return [(name, fold) for name, fold in out if fold.max() >= 1]
 
 
 @dataclass
@@ -152,3 +161,23 @@ class BlockedCV:
             var = np.einsum("ij,ij->i", jc @ np.linalg.inv(a_all), jc).reshape(-1, self.per_row)[:, :3]
             model_var[mine] = var.mean(axis=1)
         return Evaluation(residual, model_var, sse, outside)
+
+
+class BlockedSets:
+    """Several ways of splitting the rows (``folds``), each a ``BlockedCV``: a candidate's score
+    is the sum over them (each row held out once per way), its rows one after the other."""
+
+    def __init__(self, jac: np.ndarray, r: np.ndarray, theta: np.ndarray, ways: list[tuple[str, np.ndarray]],
+                 q_rad: np.ndarray):
+        self.names = [name for name, _ in ways]
+        self.sets = [BlockedCV(jac, r, theta, fold, q_rad) for _, fold in ways]
+
+    @property
+    def regions(self) -> dict[str, int]:
+        return {name: cv.regions for name, cv in zip(self.names, self.sets)}
+
+    def evaluate(self, physical: np.ndarray, ripple: np.ndarray, weights: np.ndarray,
+                 variance: bool = False) -> Evaluation:
+        parts = [cv.evaluate(physical, ripple, weights, variance) for cv in self.sets]
+        return Evaluation(np.concatenate([e.residual for e in parts]), np.concatenate([e.variance for e in parts]),
+                          sum(e.sse for e in parts), np.concatenate([e.outside for e in parts]))

@@ -734,6 +734,7 @@ class KinematicModel(Estimator):
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
         self.arm_ = Arm(self.description)
+        self.torque_span_ = self._torque_span()
         if tools is not None and np.allclose(tools, self.description.tool):
             tools = None
         tools_t = None if tools is None else torch.as_tensor(np.asarray(tools, dtype=np.float64).reshape(-1, 6))
@@ -781,7 +782,8 @@ class KinematicModel(Estimator):
         theta, tau = self._fit_physical(layout, q, s, tau, measured)
         self.ripple_search_, self.ripple_rounds_, self.selection_, self.blocked_ = [], [], None, None
         region = self._regions(ik_poses[keep], q) if self.select == "blocked" and layout.n else None
-        self.regions_ = region  # (each training row's region; the residual networks' check holds some out)
+        # (each training row's octant: the residual networks' check holds some out)
+        self.regions_ = None if region is None else region[0][1]
         if region is not None:
             layout, theta, tau = self._select_groups(layout, theta, q, s, tau, measured, region)
         if self.ripple == "search":
@@ -824,6 +826,7 @@ class KinematicModel(Estimator):
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
         self.arm_, self.ik_, self.branch_share_ = Arm(self.description), ik, math.nan
+        self.torque_span_ = self._torque_span()
         self.use_previous_ = use_previous
         self.prior_ = self._first_prior()
         if use_previous and previous is None:
@@ -909,8 +912,25 @@ class KinematicModel(Estimator):
         return q, s, tau, tcp, pose_t, poses, errors, nominal_rot, keep
 
     def _prior_scales(self, layout: Layout, tau: torch.Tensor) -> np.ndarray:
-        """A typical size of every parameter (rad, mm, rad/Nm): the prior's unit (:func:`prior_scales`)."""
-        return prior_scales(layout, tau.numpy())
+        """A typical size of every parameter (rad, mm, rad/Nm): the prior's unit (:func:`prior_scales`),
+        the compliance and coupling terms' from the largest torques of the rows ``tau`` or of the
+        arm anywhere in its joint limits (``torque_span_``), whichever is larger: a deflection of
+        PRIOR_RAD at the largest torque the joint can see, not at the largest these rows saw (a
+        compliance fitted where a joint's torque stays small would be free to grow, and a pose
+        with more torque — the arm stretched — would carry it out: 4.6 mm at IPA Series D's
+        stretched pose from A5's)."""
+        span = getattr(self, "torque_span_", None)
+        rows = np.abs(tau.numpy()).max(axis=0, initial=0.0)
+        return prior_scales(layout, rows if span is None else np.maximum(rows, span)[None])
+
+    def _torque_span(self, samples: int = 4096) -> np.ndarray:
+        """[27] the largest |torque term| of the nominal arm over ``samples`` joint configurations
+        drawn (seeded) uniformly within its joint limits (each within ±180°)."""
+        limits = np.clip(np.array([j.limits for j in self.description.joints], float), -180.0, 180.0)
+        q = np.random.default_rng(0).uniform(limits[:, 0], limits[:, 1], size=(samples, 6))
+        with torch.no_grad():
+            rot, org, _ = self.arm_.frames(torch.as_tensor(np.radians(q)))
+            return torch.abs(self.arm_.torque_terms(rot, org)).amax(dim=0).numpy()
 
     def _levenberg_marquardt(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
                              iterations: int, anchor: np.ndarray | None = None, weights: np.ndarray | None = None,
@@ -1016,27 +1036,27 @@ class KinematicModel(Estimator):
             theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
         return theta, tau
 
-    def _regions(self, ik_poses: np.ndarray, q: torch.Tensor) -> np.ndarray | None:
-        """The rows' joint-space regions for the blocked selection (``blocked.folds``: IK branch ×
-        octant of A1–A3), None where there are too few rows or fewer than two regions."""
+    def _regions(self, ik_poses: np.ndarray, q: torch.Tensor) -> list | None:
+        """The ways the rows are split into joint-space regions for the blocked selection
+        (``blocked.folds``: octants of A1–A3, the IK branches), None where there are too few rows
+        or no way with two regions."""
         from .blocked import MIN_ROWS, folds
 
         if len(q) < MIN_ROWS:
             return None
         with torch.no_grad():
             branches = torch.stack(self.ik_.branch_of(torch.as_tensor(ik_poses), q), dim=1).numpy()
-        region = folds(q.numpy(), branches)
-        return region if region.max() >= 1 else None
+        return folds(q.numpy(), branches) or None
 
-    def _blocked(self, layout: Layout, theta: np.ndarray, q: torch.Tensor, region: np.ndarray):
-        """The blocked CV (``blocked.BlockedCV``) linearised at the last fit (``_state``) of ``layout``."""
-        from .blocked import BlockedCV
+    def _blocked(self, layout: Layout, theta: np.ndarray, q: torch.Tensor, region: list):
+        """The blocked CV (``blocked.BlockedSets``) linearised at the last fit (``_state``) of ``layout``."""
+        from .blocked import BlockedSets
 
         r, jac, _ = self._state
-        return BlockedCV(jac, r, theta, region, q.numpy())
+        return BlockedSets(jac, r, theta, region, q.numpy())
 
     def _select_groups(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
-                       region: np.ndarray) -> tuple[Layout, np.ndarray, torch.Tensor]:
+                       region: list) -> tuple[Layout, np.ndarray, torch.Tensor]:
         """The physical groups kept: of the candidates without some of ``blocked.OPTIONAL_GROUPS``
         the one whose blocked held-out sum of squares is least (within ``blocked.PARSIMONY`` of
         it, the one with fewest parameters); refitted without the groups it leaves out."""
@@ -1057,7 +1077,7 @@ class KinematicModel(Estimator):
         best = min(e.sse for _, _, e in scores)
         drop, chosen_cols, chosen = min((c for c in scores if c[2].sse <= (1.0 + PARSIMONY) * best),
                                         key=lambda c: len(c[1]))
-        self.selection_ = {"regions": int(cv.regions), "rows": int(len(region)),
+        self.selection_ = {"regions": cv.regions, "rows": int(len(q)),
                            "groups": {("without " + " and ".join(d)) if d else "all": round(e.rms, 6)
                                       for d, _, e in scores},
                            "dropped": list(drop)}
@@ -1070,7 +1090,7 @@ class KinematicModel(Estimator):
         return layout, theta, tau
 
     def _select_ripple(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
-                       region: np.ndarray) -> tuple[Layout, np.ndarray]:
+                       region: list) -> tuple[Layout, np.ndarray]:
         """How many of the searched ripple orders are kept: the first m (the search's order, m at
         the end of one of its rounds, 0 included) whose blocked held-out sum of squares is least
         (within ``blocked.PARSIMONY``, the fewest); the amplitudes refitted for them."""
@@ -1106,7 +1126,8 @@ class KinematicModel(Estimator):
         if self.blocked_ is None:
             return None
         norms = self.blocked_.norms()
-        return {"regions": self.selection_["regions"], "rows": int(len(norms)), "mean_mm": round(float(norms.mean()), 6),
+        return {"regions": self.selection_["regions"], "rows": int(self.selection_["rows"]),
+                "mean_mm": round(float(norms.mean()), 6),
                 "p95_mm": round(float(np.quantile(norms, 0.95)), 6), "max_mm": round(float(norms.max()), 6),
                 "rms_mm": round(self.blocked_.rms, 6)}
 
@@ -1208,7 +1229,7 @@ class KinematicModel(Estimator):
         spread from fit to fit is the optimiser's path, not a statistical one)."""
         _, jac, _ = self._state
         layout = self.layout_
-        sigma = self._prior_scales(layout, torch.as_tensor(np.ones((1, 6 + N_COUPLING))))
+        sigma = prior_scales(layout, np.ones((1, 6 + N_COUPLING)))
         scaled = jac * sigma
         _, sv, vt = np.linalg.svd(scaled, full_matrices=False)
         rank = int((sv > tolerance * sv[0]).sum()) if len(sv) else 0
