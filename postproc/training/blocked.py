@@ -37,7 +37,9 @@ __all__ = ["folds", "BlockedCV", "BlockedSets", "Evaluation", "OPTIONAL_GROUPS",
 # physical groups the blocked CV may leave out (terms whose fit on one region need not carry:
 # the couplings are 21 free functions of the arm's posture)
 OPTIONAL_GROUPS = ("coupling", "compliance")
-# of the candidates within this share of the best blocked score, the one with fewest parameters
+# the candidates within this share of the best blocked score count as equal: of the physical
+# groups the most are kept (left out only where held-out regions show harm), of the ripple orders
+# the fewest (``KinematicModel._select_groups`` / ``_select_ripple``)
 PARSIMONY = 0.01
 # fewer rows than this (or fewer than two regions): no selection, every group and order kept
 MIN_ROWS = 60

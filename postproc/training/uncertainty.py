@@ -13,12 +13,24 @@ Jacobian the fit uses) and A = JᵀJ + W (W = diag w, the weak prior):
   predictions inherit). What is known of a parameter's own value is the posterior σ²·A⁻¹
   (``posterior_std``: the certificate's uncertainty), which differs where the data fixes only
   sums of parameters;
-* at a target with Jacobian J_t [3, P] the prediction Ê(t) has covariance J_t C J_tᵀ, and the
-  residual a compensation leaves, E − Ê, has per coordinate the variance
-  σ² + diag(J_t C J_tᵀ): what the model does not explain plus what it does not know.
+* at a target with Jacobian J_t [3, P] the residual a compensation leaves, E − Ê, has per
+  coordinate the variance σ² + diag(J_t C_p J_tᵀ): what the model does not explain plus what it
+  does not know. C_p is the *predictive* covariance κ·σ²·A⁻¹, the posterior, not the sandwich:
+  along the directions the data cannot separate (a zero offset and a placement turned about
+  its axis; the wrist's zero offsets and the tool with one arm configuration) the sandwich has
+  no spread — the split does not vary with the noise — while the posterior keeps the prior's,
+  which is what a target that does separate them (the flipped wrist) inherits. κ ≥ 1 is
+  calibrated on the blocked held-out rows (training/blocked.py: each row predicted by the fit
+  without its joint-space region, with that fit's posterior): the least κ whose band covers
+  ``COVERAGE`` of their residual coordinates within 2σ (``calibrate``; the card's
+  ``uncertainty.calibration``);
+* where the graph leaves its learned parts out (outside the trained joint arcs: the ripple
+  orders, the residual networks) it adds what they explain at the training rows, per coordinate
+  (``HybridModule.learned_var``, the card's ``uncertainty.learned_std_mm``): there the model
+  does not know that part of the error.
 
 :func:`position_std` returns, per target, that residual std (the root mean over X, Y, Z) and
-its model part alone. Under Gaussian residuals 95.4 % of the held-out residual coordinates
+its model part alone (of the identified arm: without the learned parts' term, which the graph adds). Under Gaussian residuals 95.4 % of the held-out residual coordinates
 lie within 2σ; the tests check 90–98 % on simulated data (also with a planner's joint angles)
 and on IPA rows. numpy + torch (as training/).
 
@@ -35,8 +47,9 @@ in the data both are the same.
 The exported graph computes the same figure (the contract's optional output ``error_std``):
 ``KinematicErrorModule`` builds J_t with the columns of the same geometric Jacobian
 (``kinematic.jacobian``, batch-last: ``kinematic.KinematicErrorModule._error_std``) from the
-graph's own q, approach signs and tool, and takes ``kinematic.residual_variance`` with C and σ²
-stored in the graph (``HybridModule``'s buffers ``covariance`` [P, P] and ``sigma2``). It is of
+graph's own q, approach signs and tool, and takes ``kinematic.residual_variance`` with C_p and
+σ² stored in the graph (``HybridModule``'s buffers ``covariance`` [P, P], ``sigma2`` and
+``learned_var``). It is of
 the identified arm only: where residual networks were kept, σ is the identification's residual
 (larger than what the networks leave,
 so the figure errs on the safe side).
