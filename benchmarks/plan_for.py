@@ -10,9 +10,9 @@ For each simulated robot (``--robot-seeds``; "default" = the description's calib
 each plan of ``--poses`` rows, ``postproc measure`` → ``postproc train`` (the hybrid default) →
 ``postproc compensate`` both programs → ``postproc verify`` (mean |error| after, mm):
 
-* ``lhs-home``: ``postproc plan`` in the programs' box, every pose in the configuration nearest
+* ``lhs_home``: ``postproc plan`` in the programs' box, every pose in the configuration nearest
   HOME (the default plan): the flipped wrist never measured;
-* ``lhs-both``: the same with ``--wrist both`` (half the poses in the flipped wrist);
+* ``lhs_both``: the same with ``--wrist both`` (half the poses in the flipped wrist);
 * ``for``: ``postproc plan --for default.src flipped.src`` (each configuration ≥ 20 %, half
   space-filling in the programs' joint arcs, half D-optimal).
 
@@ -88,8 +88,8 @@ def main() -> None:
     folder = Path(tempfile.mkdtemp(prefix="plan_for_"))
     programs(folder, args.targets)
     box = [str(v) for v in BOX]
-    plans = {"lhs-home": ["plan", "-n", str(args.poses), "--seed", str(args.seed), "--box", *box, "--wrist", "home"],
-             "lhs-both": ["plan", "-n", str(args.poses), "--seed", str(args.seed), "--box", *box, "--wrist", "both"],
+    plans = {"lhs_home": ["plan", "-n", str(args.poses), "--seed", str(args.seed), "--box", *box, "--wrist", "home"],
+             "lhs_both": ["plan", "-n", str(args.poses), "--seed", str(args.seed), "--box", *box, "--wrist", "both"],
              "for": ["plan", "--for", str(folder / "default.src"), str(folder / "flipped.src"), "-n", str(args.poses),
                      "--seed", str(args.seed)]}
     figures = {"poses": args.poses, "targets": args.targets, "robots": {}}

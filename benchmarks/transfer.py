@@ -140,7 +140,7 @@ def part_cross(data: dict, description, out: Path, seed: int) -> dict:
                 continue
             s = data[name]
             entry["series"][name] = scored(comp, s, np.arange(len(s)))
-            if CAMPAIGN.get(name) in trained:
+            if CAMPAIGN.get(name, "-") in trained:
                 entry["series"][f"{name} in {CAMPAIGN[name]}'s frame"] = scored(comp, s, np.arange(len(s)),
                                                                               data[CAMPAIGN[name]].transform)
         _print(f"trained on {trained} ({entry['train_rows']} rows, {entry['seconds']} s): {model.structure}",
@@ -285,10 +285,49 @@ def part_flipped(out: Path) -> dict:
     return result
 
 
+def _key(name: str) -> str:
+    """A README figure marker's key for a scored set's name ("B in C's frame" → "B_in_C_frame")."""
+    return "_".join("".join(c if c.isalnum() else " " for c in name.replace("'s", "")).split())
+
+
+def scalars(figures: dict) -> dict:
+    """The README's figures (benchmarks/figures.py reads dotted keys of \\w names, no lists):
+    per part the means, maxima and 2σ coverages under plain keys."""
+    out = {}
+    for trained, entry in (figures.get("cross") or {}).items():
+        if isinstance(entry, dict) and "series" in entry:
+            out[f"cross_{trained}"] = {f"{_key(n)}_{what}": v for n, e in entry["series"].items()
+                                       for what, v in (("mean", e["mm"][0]), ("max", e["mm"][2]),
+                                                       ("cover", round(100 * e["two_sigma_coverage"], 1)))}
+    for name, e in (figures.get("random") or {}).items():
+        if isinstance(e, dict) and "mm" in e:
+            out.setdefault("random", {}).update({f"{name}_mean": e["mm"][0], f"{name}_max": e["mm"][2]})
+    for name, e in (figures.get("octant") or {}).items():
+        if isinstance(e, dict) and "pooled_mm" in e:
+            out.setdefault("octant", {}).update({f"{name}_mean": e["pooled_mm"][0], f"{name}_max": e["pooled_mm"][2]})
+    single = figures.get("singular") or {}
+    if "residual_mm" in single:
+        out["singular"] = {"residual": single["residual_mm"][0], "predicted_norm": round(float(np.linalg.norm(
+            single["predicted_mm"][0])), 4), "measured_norm": round(float(np.linalg.norm(single["measured_error_mm"][0])), 4),
+            "std": single["error_std_mm"][0], "cover": round(100 * single["two_sigma_coverage"], 1)}
+    for trained, series in (figures.get("update") or {}).items():
+        if isinstance(series, dict):
+            out[f"update_{trained}"] = {f"{n}_{what}": v for n, e in series.items() if isinstance(e, dict)
+                                        for what, v in (("mean", e["updated_mean_of_draws_mm"][0]),
+                                                        ("worst", max(r["updated_mm"][0] for r in e["seeds"])),
+                                                        ("rigid", e["rigid_mean_of_draws_mm"]))}
+    for name, e in (figures.get("flipped") or {}).items():
+        if isinstance(e, dict) and "mm" in e:
+            out.setdefault("flipped", {}).update({f"{_key(name)}_mean": e["mm"][0], f"{_key(name)}_std": e["error_std_median_mm"],
+                                                  f"{_key(name)}_cover": round(100 * e["two_sigma_coverage"], 1)})
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", default=os.environ.get("POSTPROC_IPA_DATA", DEFAULT_DATA))
-    ap.add_argument("--parts", default="cross,random,octant,singular,update,flipped")
+    ap.add_argument("--parts", default="cross,random,octant,singular,update,flipped",
+                    help="the parts to run (each merged into the result file); 'summary': only the README's figures again")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--octant-series", default="BCDA")
     ap.add_argument("--update-rows", type=int, default=30)
@@ -301,6 +340,12 @@ def main() -> None:
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="transfer_"))
     out.mkdir(parents=True, exist_ok=True)
     parts = [p for p in args.parts.split(",") if p]
+    if parts == ["summary"]:  # (the result file's README figures again, from its parts)
+        path = RESULTS / "transfer.json"
+        entry = json.loads(path.read_text())
+        entry["figures"]["summary"] = scalars(entry["figures"])
+        path.write_text(json.dumps(entry, indent=1) + "\n")
+        return
     data = {n: Series(args.data, n) for n in SERIES} if set(parts) - {"flipped"} else {}
     description = load_description(ROOT / "models/ur10.toml")
     figures = {}
@@ -326,6 +371,7 @@ def main() -> None:
         path = RESULTS / "transfer.json"
         merged = json.loads(path.read_text())["figures"] if path.is_file() else {}
         merged.update({part: figures[part]})
+        merged["summary"] = scalars(merged)
         print(f"[{part}] wrote {record('transfer', merged, sys.argv[1:])}", flush=True)
 
 

@@ -87,8 +87,8 @@ def test_exported_error_std_is_position_std_and_calibrated(exported):
     learned = model.metadata["uncertainty"]["learned_std_mm"] ** 2
     assert learned == pytest.approx(hm.learned_var_, rel=1e-4) and learned > 0
     sigma2 = parameter_covariance(hm.kinematic_).sigma2
-    assert (std[~inside] ** 2 <= (ref.total[~inside] ** 2 + learned) * (1 + 1e-5)).all()
-    assert (std[~inside] ** 2 >= (sigma2 + learned) * (1 - 1e-5)).all()
+    assert (std[~inside] ** 2 <= (ref.total[~inside] ** 2 + learned) * (1 + 1e-3)).all()  # (float32, the card rounds)
+    assert (std[~inside] ** 2 >= (sigma2 + learned) * (1 - 1e-3)).all()
     assert np.ptp(std) > 0.05 * std.mean()  # it varies over space
     np.testing.assert_array_equal(error, model.predict(held, prev))  # asked for or not, the same error
     np.testing.assert_allclose(error, hm.predict(held, prev), atol=1e-3)  # (float32 poses in the graph)

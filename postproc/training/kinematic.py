@@ -788,7 +788,7 @@ class KinematicModel(Estimator):
             layout, theta, tau = self._select_groups(layout, theta, q, s, tau, measured, region)
         if self.ripple == "search":
             layout, theta = self._search_ripple(layout, theta, q, s, tau, measured)
-        if region is not None:
+        if region is not None and self.ripple == "search":  # (a list given is kept as given)
             layout, theta = self._select_ripple(layout, theta, q, s, tau, measured, region)
         self.layout_ = layout
         self.theta_ = theta
@@ -1118,8 +1118,8 @@ class KinematicModel(Estimator):
         if kept < searched:
             layout = Layout(layout.groups, layout.ripple[:kept])
             theta = theta[: physical + 2 * kept].copy()
-            if kept:
-                theta = self._fit_ripple(layout, theta, physical, q, s, tau, measured, self.iterations)
+            # (the amplitudes kept refitted; none kept: the state — residual, Jacobian — of the physical fit)
+            theta = self._fit_ripple(layout, theta, physical, q, s, tau, measured, self.iterations if kept else 0)
         return layout, theta
 
     def blocked_figures(self) -> dict | None:
