@@ -176,7 +176,8 @@ def main() -> None:
     ap.add_argument("--variants", default="default,joint,physical",
                     help="default: the hybrid as `postproc train` fits it (gear-ripple orders searched on top of "
                          "the physical fit); joint: the orders fitted jointly with the physical groups (staged=False, "
-                         "the fit before 2026-12-02, without its Gaussian prior: prior 1e-3); physical: no ripple "
+                         "the fit before 2026-12-02, without its Gaussian prior: prior 1e-3, nothing selected by "
+                         "blocked cross-validation); physical: no ripple "
                          "orders (geometry, compliance, backlash only)")
     ap.add_argument("--update-rows", type=int, default=30, help="rows of each other series for --update (0: none)")
     ap.add_argument("--update-seeds", default="0,1,2,3,4", help="the random draws of those rows")
@@ -193,7 +194,7 @@ def main() -> None:
     train = data[args.train]
     fit_rows, held = split_indices(len(train), 0.2, args.seed)
     previous = previous_poses(train.poses)
-    settings = {"default": {}, "joint": {"kinematic": {"staged": False, "prior": 1e-3}},
+    settings = {"default": {}, "joint": {"kinematic": {"staged": False, "prior": 1e-3, "select": "none"}},
                 "physical": {"kinematic": {"ripple": []}}}
     figures = {}
     description = load_description(ROOT / "models/ur10.toml")

@@ -107,6 +107,9 @@ class BlockedCV:
         self.grams = np.stack([self.z[rows == k].T @ self.z[rows == k] for k in range(self.k)])
         self.total = self.grams.sum(axis=0)
         self.row_of = [np.flatnonzero(self.fold == k) for k in range(self.k)]
+        # each region's coordinates of [J, r0], taken out once
+        self.z_of = [self.z[np.repeat(mine, self.per_row) * self.per_row + np.tile(np.arange(self.per_row), len(mine))]
+                     for mine in self.row_of]
         # ripple columns (2 per order: sin, cos) of each held-out row outside the others' arcs: 0
         q_deg = np.degrees(np.asarray(q_rad, float))
         self.outside = []
@@ -145,12 +148,11 @@ class BlockedCV:
             if len(ripple):
                 a_rr = a[np.ix_(ripple, ripple)] + np.diag(weights[ripple])
                 theta[ripple] = -np.linalg.solve(a_rr, a[ripple, p] + a[np.ix_(ripple, physical)] @ theta[physical])
-            z = self.z[np.repeat(mine, self.per_row) * self.per_row + np.tile(np.arange(self.per_row), len(mine))]
-            cols = z[:, :p].copy()
-            if len(ripple):
-                out = np.repeat(self.outside[k], self.per_row)
-                cols[np.ix_(out, ripple)] = 0.0
-            e = z[:, p] + cols @ theta
+            z = self.z_of[k]
+            e = z[:, p] + z[:, :p] @ theta
+            out = np.repeat(self.outside[k], self.per_row) if len(ripple) else None
+            if out is not None and out.any():  # (the ripple terms left out there)
+                e[out] -= z[np.ix_(out, ripple)] @ theta[ripple]
             residual[mine] = e.reshape(-1, self.per_row)
             outside[mine] = self.outside[k]
             sse += float(e @ e)
@@ -159,7 +161,9 @@ class BlockedCV:
             # the model part of each row's variance (σ² = 1): the staged posterior taken as one
             # regularised fit of both sets, J A⁻¹ Jᵀ over the row's position coordinates
             a_all = a[np.ix_(both, both)] + np.diag(weights[both])
-            jc = cols[:, both]
+            jc = z[:, both].copy()
+            if out is not None and out.any():
+                jc[np.ix_(out, np.arange(len(physical), len(both)))] = 0.0
             var = np.einsum("ij,ij->i", jc @ np.linalg.inv(a_all), jc).reshape(-1, self.per_row)[:, :3]
             model_var[mine] = var.mean(axis=1)
         return Evaluation(residual, model_var, sse, outside)
