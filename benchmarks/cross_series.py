@@ -119,7 +119,8 @@ def _rounded(figures) -> list[float]:
     return [round(float(v), 4) for v in figures]
 
 
-def updates(data: dict, trained: str, old_path: Path, description, n_rows: int, seeds: list[int], out: Path) -> dict:
+def updates(data: dict, trained: str, old_path: Path, description, n_rows: int, seeds: list[int], out: Path,
+            series: str = "BDA") -> dict:
     """``train --update`` (the library function) of the model in ``old_path`` with ``n_rows``
     random rows of each other series, per seed; scored through the exported ONNX on the
     series' other rows. The frame is the new campaign's own: the series' measured points are
@@ -133,7 +134,7 @@ def updates(data: dict, trained: str, old_path: Path, description, n_rows: int, 
     print(f"{'series':<8}{'seed':>5}   {'uncompensated mean / p95 / max':>32}   {'rigid':>6}   "
           f"{'updated (ONNX, joints)':>28}   moved")
     result = {}
-    for name in [n for n in "BDA" if n != trained]:
+    for name in [n for n in series if n != trained]:
         m = data[name]
         previous = previous_poses(m.poses)
         old_positions = m.poses[:, :3] - load_model(old_path).predict(m.poses, previous, joints=m.joints)

@@ -234,7 +234,7 @@ def part_update(data: dict, description, out: Path, seed: int, rows: int, seeds:
             train(description, [(s, split_indices(len(s), 0.2, seed)[0])], path, f"ipa-{trained}")
         # (cross_series.updates reads series with .poses, .errors via registration on the drawn rows, .joints, .measured)
         shown = {n: _AsMeasurements(data[n]) for n in others}
-        result[trained] = updates(shown, trained, path, description, rows, seeds, out)
+        result[trained] = updates(shown, trained, path, description, rows, seeds, out, others)
         worst = max(max(r["updated_mm"][0] for r in e["seeds"]) for e in result[trained].values())
         print(f"update from the {trained} model: worst draw's mean {worst:.3f} (goal ≤ {UPDATE_GOALS[trained]:.2f})")
     return result
