@@ -209,6 +209,11 @@ def print_update(update) -> None:
     print(f"update    from {update.old.path} ({card['from']}): {update.rows} rows; re-fitted {', '.join(card['groups'])} "
           f"({len(update.parameters)} parameters), everything else kept; {len(moved)} moved "
           f"(|change| > {card['moved_at_sigmas']:g} std)")
+    choice = card.get("choice")
+    if choice and len(choice["candidates"]) > 1:
+        scores = "; ".join(f"{'+'.join(c['groups'])}: {'-' if c['gcv'] is None else format(c['gcv'], '.4g')}"
+                           for c in choice["candidates"])
+        print(f"choice    the groups the new rows ask for, in turn (GCV score on the new rows: {scores})")
     region = card.get("region")
     if region:
         chosen = region["chosen"]
