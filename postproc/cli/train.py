@@ -14,12 +14,13 @@ the commanded TCP pose and the measured TCP position, one row per visited pose. 
 learns E = P_target − P_measured. Optional columns: a_meas,b_meas,c_meas (a 6-DOF probe's
 TCP orientation: hybrid/kinematic then fit the orientation error too and the model outputs
 rotation_error, for compensate --orientation), q1..q6 (the controller's joint angles) or,
-without them, s,t (KUKA Status/Turn: the joint angles of that configuration). `--val-fraction` of the rows (drawn with --split-seed)
-are held out and only scored on.
+without them, s,t (KUKA Status/Turn: the joint angles of that configuration). `--val-fraction` of the rows (drawn with --split-seed;
+default 5 %, none below 100 rows) are held out and only scored on.
 
 Methods: hybrid (the default: the robot's kinematics, compliance, backlash and gear ripple
 identified on its nominal description --robot FILE.toml, default models/kr500.toml, plus
-residual networks on the joint angles when they help on held-back rows; the visiting order
+residual networks on the joint angles when they help on held-back rows; the optional groups
+and how many ripple orders are kept chosen on held-out joint-space regions; the visiting order
 of the rows gives the approach directions, and the model takes previous_pose), kinematic
 (the identification alone), dnn-joints (no identification: an ensemble of MLPs on the
 nominal joint angles and approach directions), gpso (the method of Hu, Hua & Tian: GPSO-searched initial weights
