@@ -119,7 +119,8 @@ def _rounded(figures) -> list[float]:
     return [round(float(v), 4) for v in figures]
 
 
-def updates(data: dict, trained: str, old_path: Path, description, n_rows: int, seeds: list[int], out: Path) -> dict:
+def updates(data: dict, trained: str, old_path: Path, description, n_rows: int, seeds: list[int], out: Path,
+            series: str = "BDA") -> dict:
     """``train --update`` (the library function) of the model in ``old_path`` with ``n_rows``
     random rows of each other series, per seed; scored through the exported ONNX on the
     series' other rows. The frame is the new campaign's own: the series' measured points are
@@ -133,7 +134,7 @@ def updates(data: dict, trained: str, old_path: Path, description, n_rows: int, 
     print(f"{'series':<8}{'seed':>5}   {'uncompensated mean / p95 / max':>32}   {'rigid':>6}   "
           f"{'updated (ONNX, joints)':>28}   moved")
     result = {}
-    for name in [n for n in "BDA" if n != trained]:
+    for name in [n for n in series if n != trained]:
         m = data[name]
         previous = previous_poses(m.poses)
         old_positions = m.poses[:, :3] - load_model(old_path).predict(m.poses, previous, joints=m.joints)
@@ -176,7 +177,8 @@ def main() -> None:
     ap.add_argument("--variants", default="default,joint,physical",
                     help="default: the hybrid as `postproc train` fits it (gear-ripple orders searched on top of "
                          "the physical fit); joint: the orders fitted jointly with the physical groups (staged=False, "
-                         "the fit before 2026-12-02, without its Gaussian prior: prior 1e-3); physical: no ripple "
+                         "the fit before 2026-12-02, without its Gaussian prior: prior 1e-3, nothing selected by "
+                         "blocked cross-validation); physical: no ripple "
                          "orders (geometry, compliance, backlash only)")
     ap.add_argument("--update-rows", type=int, default=30, help="rows of each other series for --update (0: none)")
     ap.add_argument("--update-seeds", default="0,1,2,3,4", help="the random draws of those rows")
@@ -193,7 +195,7 @@ def main() -> None:
     train = data[args.train]
     fit_rows, held = split_indices(len(train), 0.2, args.seed)
     previous = previous_poses(train.poses)
-    settings = {"default": {}, "joint": {"kinematic": {"staged": False, "prior": 1e-3}},
+    settings = {"default": {}, "joint": {"kinematic": {"staged": False, "prior": 1e-3, "select": "none"}},
                 "physical": {"kinematic": {"ripple": []}}}
     figures = {}
     description = load_description(ROOT / "models/ur10.toml")

@@ -65,40 +65,60 @@ PARAMETER_NAMES = {
 _SCALE = {"deg": math.degrees(1.0), "mm": 1.0, "deg/kNm": math.degrees(1.0) * 1e3}  # from rad, mm, rad/Nm
 
 
-def _parameter_rows(identified: dict) -> tuple[list[list[str]], str]:
-    """(rows, note) of the parameters in the card's ``identified.parameters`` that moved more
-    than MOVED_SIGMAS of their std from nominal, most significant first: the posterior std
-    (``parameter_posterior_std``, what the data knows of the value) where the card has it,
-    else ``parameter_std``;
-    those the data does not determine alone (``identifiability.undetermined``) are counted,
-    not listed: the prior splits their shared effect, their std says nothing of their value."""
-    params = identified["parameters"]
+def identified_table(identified: dict) -> list[tuple[str, int, str, float, float | None, str]]:
+    """Every identified parameter of the card's ``identified`` (training.kinematic.Layout's order:
+    the groups of ``parameters``, then the gear-ripple amplitudes of ``ripple`` /
+    ``ripple_amplitudes``): (group, index in the group, name, value, std, unit of the value's
+    display). The std is the posterior one (``parameter_posterior_std``, what the data knows of
+    the value) where the card has it, else ``parameter_std``; None where neither has it. The one
+    list the certificate counts and lists, as the identifiability counts the layout's parameters."""
     stds = identified.get("parameter_posterior_std") or identified.get("parameter_std") or {}
-    undetermined = (identified.get("identifiability") or {}).get("undetermined") or {}
-    found, total, apart = [], 0, 0
-    for group, values in params.items():
+    out = []
+    for group, values in identified["parameters"].items():
         names, units = PARAMETER_NAMES.get(group, (None, [""]))
         std = stds.get(group) or [None] * len(values)
         for k, (v, s) in enumerate(zip(values, std)):
-            total += 1
-            if k in undetermined.get(group, ()):
-                apart += 1
-                continue
-            unit = units[k % len(units)]
             name = f"{group}.{names[k]}" if names and k < len(names) else f"{group}[{k}]"
-            scale = _SCALE.get(unit, 1.0)
-            z = abs(v) / s if s else (math.inf if v else 0.0)
-            if z > MOVED_SIGMAS:
-                found.append((z, [name, f"{v * scale:.5g} {unit}", f"{s * scale:.2g} {unit}" if s else NOT_RECORDED]))
+            out.append((group, k, name, float(v), s, units[k % len(units)]))
+    amplitudes = [float(v) for pair in identified.get("ripple_amplitudes") or [] for v in pair]
+    orders = identified.get("ripple") or []
+    std = stds.get("ripple") or [None] * len(amplitudes)
+    for k, (v, s) in enumerate(zip(amplitudes, std)):
+        joint, order = orders[k // 2] if k // 2 < len(orders) else ("?", "?")
+        out.append(("ripple", k, f"ripple.A{joint}x{order}.{'sin' if k % 2 == 0 else 'cos'}", v, s, "deg"))
+    return out
+
+
+def _parameter_rows(identified: dict) -> tuple[list[list[str]], str]:
+    """(rows, note) of the identified parameters (:func:`identified_table`) that moved more than
+    MOVED_SIGMAS of their std from nominal, most significant first; those the data does not
+    determine alone (``identifiability.undetermined``) are counted, not listed: the prior splits
+    their shared effect, their std says nothing of their value."""
+    undetermined = (identified.get("identifiability") or {}).get("undetermined") or {}
+    table = identified_table(identified)
+    found, apart, untested = [], 0, 0
+    for group, k, name, v, s, unit in table:
+        if k in undetermined.get(group, ()):
+            apart += 1
+            continue
+        if s is None:  # (an older card: no std of the ripple amplitudes)
+            untested += 1
+            continue
+        scale = _SCALE.get(unit, 1.0)
+        z = abs(v) / s if s else (math.inf if v else 0.0)
+        if z > MOVED_SIGMAS:
+            found.append((z, [name, f"{v * scale:.5g} {unit}", f"{s * scale:.2g} {unit}"]))
     found.sort(key=lambda f: -f[0])
-    note = (f"{len(found)} of {total} identified parameters moved more than {MOVED_SIGMAS:g}σ from nominal"
+    note = (f"{len(found)} of {len(table)} identified parameters moved more than {MOVED_SIGMAS:g}σ from nominal"
             + (f" (the {MAX_PARAMETER_ROWS} most significant listed)" if len(found) > MAX_PARAMETER_ROWS else "")
             + ("; σ: what the data (and the weak prior) knows of the value, the posterior std"
                if identified.get("parameter_posterior_std") else
                "; σ is the spread of the estimate over repeated measurements of the same poses") + "."
-            + (f" {apart} parameters the data does not determine alone (Identifiability) are not listed: it fixes "
+            + (f" {apart} of them the data does not determine alone (Identifiability) are not listed: it fixes "
                "their combined effect with others, the weak prior splits it among them." if apart else "")
-            + " Every value and std is in the model card (identified.parameters, parameter_posterior_std).")
+            + (f" {untested} without a std in the model card are not tested." if untested else "")
+            + " Every value and std is in the model card (identified.parameters, ripple_amplitudes, "
+              "parameter_posterior_std).")
     return [row for _, row in found[:MAX_PARAMETER_ROWS]], note
 
 
@@ -113,7 +133,7 @@ def _moved_parameters(card: dict) -> tuple[list[list[str]], str | None]:
     note = None
     if isinstance(identified.get("parameters"), dict):
         rows, note = _parameter_rows(identified)
-        identified = {"ripple": identified["ripple"]} if identified.get("ripple") else {}
+        identified = {}  # (its ripple orders are parameters of the table above)
     uncertainty = card.get("identified_std") or {}
     for key, value in identified.items():
         if not key.endswith(UNIT_SUFFIXES) or not _numeric(value):
@@ -171,7 +191,7 @@ def certificate_blocks(result: IsoResult, card: dict | None = None, date: str | 
     header = ["pose", "n", "X, Y, Z (mm)", "AP before", "RP before"] + (["AP after", "RP after"] if a else [])
     rows = []
     for k in order:
-        row = [f"P{k + 1}", str(b.n[k]), ", ".join(f"{v:.1f}" for v in b.command[k, :3]), _f(b.ap[k]), _f(b.rp[k])]
+        row = [b.name(k), str(b.n[k]), ", ".join(f"{v:.1f}" for v in b.command[k, :3]), _f(b.ap[k]), _f(b.rp[k])]
         if a is not None:
             row += [_f(a.ap[k]), _f(a.rp[k])]
         rows.append(row)
@@ -190,7 +210,7 @@ def certificate_blocks(result: IsoResult, card: dict | None = None, date: str | 
         blocks.append(("p", f"Fewer than the standard's 30 cycles at {int((b.n < 30).sum())} of {len(b)} poses: "
                             "the standard's formulas, not a test to the standard."))
     if b.ap_abc is not None:
-        o_rows = [[f"P{k + 1}"] + [_f(v, 4) for v in b.ap_abc[k]] + [_f(v, 4) for v in b.rp_abc[k]] for k in order]
+        o_rows = [[b.name(k)] + [_f(v, 4) for v in b.ap_abc[k]] + [_f(v, 4) for v in b.rp_abc[k]] for k in order]
         blocks += [("h2", "Orientation (deg, before)"),
                    ("table", ["pose", "APa", "APb", "APc", "RPa ±", "RPb ±", "RPc ±"], o_rows)]
     else:
@@ -297,7 +317,7 @@ def write_plot(result: IsoResult, path: Path, max_poses: int = 40) -> None:
         ax.bar(k - (width / 2 if a is not None else 0), pick(b)[k], width, label="before", color="tab:red")
         if a is not None:
             ax.bar(k + width / 2, pick(a)[k], width, label="after (measured)", color="tab:blue")
-        ax.set_xticks(k, [f"P{j + 1}" for j in k], rotation=90 if len(k) > 10 else 0, fontsize=8)
+        ax.set_xticks(k, [b.name(j) for j in k], rotation=90 if len(k) > 10 else 0, fontsize=8)
         ax.set_ylabel(f"{name} (mm)")
         ax.set_title(f"pose {'accuracy' if name == 'AP' else 'repeatability'} {name} per pose"
                      + ("" if len(k) == len(b) else f" (first {len(k)} of {len(b)})"))

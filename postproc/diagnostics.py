@@ -121,6 +121,8 @@ P333 = _code("P333", "error", "a robot geometry the closed-form inverse kinemati
 P335 = _code("P335", "error", "poses out of the robot's reach (plan, simulator, ISO 9283 cube)")
 P336 = _code("P336", "warning", "the model's error_std (its stated uncertainty) at the target exceeds --max-std "
              "(default: the card's uncertainty.max_std_mm); an error under --strict")
+P337 = _code("P337", "warning", "plan --for: a program target the measurement data (--data) does not cover (its arm "
+             "configuration, its tool, or a joint outside the data's arcs); as a note: targets not planned for")
 P340 = _code("P340", "note", "(compensate, check) the model is a demonstration model of a simulated robot (its card's "
              "'demonstration'): it knows nothing of a real robot; train one for yours")
 # P4xx: stamps and compensated outputs

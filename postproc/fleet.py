@@ -12,7 +12,17 @@ The fleet file (TOML)::
     data = "cell1.csv"               # required: the measurement CSV
     previous = "old/cell1.onnx"      # optional: the robot's previous model: train --update it
 
-Paths are relative to the fleet file. A bad file is refused with P610 at its line.
+Paths are relative to the fleet file, resolved where ``postproc fleet`` runs (the client). A
+bad file is refused with P610 at its line.
+
+Where things happen: the client reads each robot's files (data, description, previous model)
+and sends their bytes to the cluster; a task puts them in a scratch folder of its own worker,
+works there and sends back the files it made (the model, its card, the held-out rows, the
+report), which the client writes into ``-o`` (each robot's folder whole or not at all). So a
+real cluster — ``dask scheduler`` and ``dask worker`` processes started elsewhere, with other
+working directories or other disks — reads and writes exactly what the local one does, and
+messages name the client's paths. A rerun skips a robot only when its inputs are unchanged and
+the outputs recorded for it are still in ``-o`` as written.
 
 Engine: Dask distributed (``address`` for a real scheduler; else a local cluster,
 :func:`_local_cluster`). Each robot is two tasks: :func:`train_robot`, the one adapter to the
@@ -39,8 +49,8 @@ per task; Dask ``LocalCluster(processes=False)`` import+start 0.4-0.9 s, 2.0-2.7
 faster, installs faster and is the one picked.
 The fleet's speed against ``postproc train`` 16 times in a row: benchmarks/fleet_speed.py.
 A rerun skips robots whose inputs (sha256 of the data,
-robot description, method/arguments, previous model) did not change: ``fleet-state.json``
-beside the outputs.
+robot description, method/arguments, previous model) did not change and whose outputs are still
+there (their sha256 recorded): ``fleet-state.json`` beside the outputs.
 """
 from __future__ import annotations
 
@@ -51,15 +61,17 @@ import html
 import io
 import json
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 import threading
 import tomllib
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
-from .diagnostics import P610, PostprocError
+from .diagnostics import P500, P610, PostprocError
 
 STATE_FILE = "fleet-state.json"
 ROBOT_KEYS = {"name", "data", "robot", "method", "args", "previous"}
@@ -75,14 +87,21 @@ class RobotJob:
     args: list[str] = field(default_factory=list)
     previous: Path | None = None
 
-    def train_argv(self, model: Path) -> list[str]:
-        argv = ["train", str(self.data), "-o", str(model), "--name", self.name]
+    def files(self) -> dict[str, Path]:
+        """The robot's input files by role (``data``, ``robot``, ``previous``), as the client names them."""
+        return {role: path for role, path in (("data", self.data), ("robot", self.robot), ("previous", self.previous))
+                if path is not None}
+
+    def train_argv(self, model: Path, files: dict[str, Path] | None = None) -> list[str]:
+        """``postproc train`` for this robot, its inputs at ``files`` (by role; default its own paths)."""
+        files = files or self.files()
+        argv = ["train", str(files["data"]), "-o", str(model), "--name", self.name]
         if self.method:
             argv += ["--method", self.method]
-        if self.robot:
-            argv += ["--robot", str(self.robot)]
-        if self.previous:  # re-calibration: OLD's base, zero offsets and tool re-fitted, the rest kept
-            argv += ["--update", str(self.previous)]
+        if "robot" in files:
+            argv += ["--robot", str(files["robot"])]
+        if "previous" in files:  # re-calibration: OLD's base, zero offsets and tool re-fitted, the rest kept
+            argv += ["--update", str(files["previous"])]
         return argv + list(self.args)
 
     def digest(self) -> str:
@@ -92,6 +111,42 @@ class RobotJob:
             h.update(_file_sha(p).encode() if p else b"-")
         h.update(json.dumps([self.method, self.args]).encode())
         return h.hexdigest()
+
+
+def read_inputs(job: RobotJob) -> dict[str, tuple[str, bytes]]:
+    """The robot's input files as the client reads them: role → (file name, bytes); what a task
+    takes to its worker. PostprocError P500 naming the file when one cannot be read."""
+    out = {}
+    for role, path in job.files().items():
+        try:
+            out[role] = (path.name, path.read_bytes())
+        except OSError as exc:
+            raise PostprocError(f"cannot read the robot's {role} file: {exc.strerror or exc}", str(path),
+                                code=P500) from None
+    return out
+
+
+@contextlib.contextmanager
+def _scratch(inputs: dict[str, tuple[str, bytes]]):
+    """A scratch folder on this worker with the robot's inputs written into it (each role in a
+    folder of its own, under its file name): yields (folder, role → path); removed afterwards."""
+    folder = Path(tempfile.mkdtemp(prefix="postproc-fleet-"))
+    try:
+        placed = {}
+        for role, (name, data) in inputs.items():
+            (folder / role).mkdir()
+            placed[role] = folder / role / name
+            placed[role].write_bytes(data)
+        yield folder, placed
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _client_paths(text: str, job: RobotJob, placed: dict[str, Path]) -> str:
+    """A worker's message with its scratch paths replaced by the client's own."""
+    for role, path in placed.items():
+        text = text.replace(str(path), str(job.files()[role]))
+    return text
 
 
 def _file_sha(path: Path) -> str:
@@ -128,7 +183,7 @@ def load_fleet(path: str | Path) -> list[RobotJob]:
         line, col = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
         message = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(exc))
         raise PostprocError(f"not valid TOML: {message}", str(path), line, col, P610) from None
-    base = path.parent
+    base = path.resolve().parent  # (the client's: workers elsewhere get the files, not the paths)
 
     def bad(message: str, line: int) -> PostprocError:
         return PostprocError(message, str(path), line, 1 if line else 0, P610)
@@ -259,19 +314,19 @@ class _ThreadStreams:
         return getattr(self._target(), name)
 
 
-def _held_out(job: RobotJob, path: Path) -> Path:
-    """The held-out rows of the robot's data (the split `postproc train` draws) as a CSV."""
+def _held_out(job: RobotJob, data: Path, path: Path) -> Path:
+    """The held-out rows of the robot's data (at ``data``; the split `postproc train` draws) as a CSV."""
     from .measurements import read_measurements
-    from .training.data import split_indices
+    from .training.data import default_val_fraction, split_indices
 
-    m = read_measurements(job.data)
-    frac, seed = 0.05, 0
+    m = read_measurements(data)
+    frac, seed = None, 0
     for opt, conv in (("--val-fraction", float), ("--split-seed", int)):
         if opt in job.args and job.args.index(opt) + 1 < len(job.args):
             value = conv(job.args[job.args.index(opt) + 1])
             frac, seed = (value, seed) if opt == "--val-fraction" else (frac, value)
-    _, val = split_indices(len(m), frac, seed)
-    lines = job.data.read_text(encoding="utf-8").splitlines()
+    _, val = split_indices(len(m), default_val_fraction(len(m), frac), seed)
+    lines = data.read_text(encoding="utf-8").splitlines()
     head = next(i for i, line in enumerate(lines) if line.strip() and not line.startswith("#"))
     # the '# key: value' lines and the header as they are, then the held-out rows
     path.write_text("\n".join([*lines[:head + 1], *(lines[int(m.lines[i]) - 1] for i in val)]) + "\n",
@@ -292,57 +347,98 @@ def moved_parameters(card: dict, previous: dict | None) -> list[str]:
     return sorted(k for k in new if k in old and new[k] != old[k])
 
 
-def train_robot(job: RobotJob, outdir: str | Path) -> dict:
+MODEL = "model.onnx"
+
+
+def train_robot(job: RobotJob, inputs: dict[str, tuple[str, bytes]]) -> dict:
     """A robot's first step, the adapter to training: ``postproc train`` (``--update`` with a
-    previous model) → ``OUT/NAME/model.onnx``; never raises. Its result (``ok`` still False, or
-    ``error`` set) goes to :func:`report_robot`."""
-    out = Path(outdir) / job.name
-    out.mkdir(parents=True, exist_ok=True)
-    model = out / "model.onnx"
-    result = {"name": job.name, "ok": False, "model": str(model), "points": None, "warnings": [], "error": ""}
-    code, err = _run_cli(job.train_argv(model))
-    _settle()
-    result["warnings"] = [ln for ln in err.splitlines() if "warning" in ln.lower() or ": W" in ln]
-    if code != 0 or not model.is_file():
-        result["error"] = (err.splitlines() or [f"postproc train exited {code}"])[-1]
+    previous model) on its ``inputs`` (:func:`read_inputs`) in a scratch folder of this worker;
+    never raises. Its result (``ok`` still False, or ``error`` set; ``files``: the model's bytes
+    under its name in the robot's folder) goes to :func:`report_robot`."""
+    result = {"name": job.name, "ok": False, "points": None, "warnings": [], "error": "", "files": {}}
+    with _scratch(inputs) as (folder, placed):
+        model = folder / MODEL
+        code, err = _run_cli(job.train_argv(model, placed))
+        _settle()
+        err = _client_paths(err, job, placed)
+        result["warnings"] = [ln for ln in err.splitlines() if "warning" in ln.lower() or ": W" in ln]
+        if code != 0 or not model.is_file():
+            result["error"] = (err.splitlines() or [f"postproc train exited {code}"])[-1]
+        else:
+            result["files"] = {MODEL: model.read_bytes()}
     return result
 
 
-def report_robot(result: dict, job: RobotJob, outdir: str | Path) -> dict:
-    """A robot's second step, on the model :func:`train_robot` wrote: the model card
-    (``model-card.json``, the table's figures, the moved parameters) and the report on the
-    held-out rows (``held-out.csv``, ``report/``: ``postproc report``'s library calls, the model
-    loaded once for both); never raises. Nothing is done for a robot whose training failed."""
+def report_robot(result: dict, job: RobotJob, inputs: dict[str, tuple[str, bytes]]) -> dict:
+    """A robot's second step, on the model :func:`train_robot` made, in a scratch folder of this
+    worker: the model card (``model-card.json``, the table's figures, the moved parameters) and
+    the report on the held-out rows (``held-out.csv``, ``report/``: ``postproc report``'s library
+    calls, the model loaded once for both), added to ``files``; never raises. Nothing is done for
+    a robot whose training failed."""
     if result.get("error"):
         return result
     from .compensator import load_model
     from .report import read_report_data, write_report
 
-    out = Path(outdir) / job.name
-    try:
-        model = load_model(result["model"])
-        prev = load_model(job.previous).metadata if job.previous else None
-    except PostprocError as exc:
-        return {**result, "error": str(exc)}
-    card = model.metadata
-    (out / "model-card.json").write_text(json.dumps(card, indent=2, default=str), encoding="utf-8")
-    acc = card.get("accuracy") or {}
-    result = {**result, "points": (acc.get("n_train") or 0) + (acc.get("n_val") or 0),
-              "unc_mean": acc.get("val_uncompensated_mean_mm"), "unc_max": acc.get("val_uncompensated_max_mm"),
-              "comp_mean": acc.get("val_mean_mm"), "comp_max": acc.get("val_max_mm"),
-              "moved": moved_parameters(card, prev), "warnings": list(result["warnings"])}
-    try:
-        write_report(read_report_data(_held_out(job, out / "held-out.csv"), model), out / "report")
-    except PostprocError as exc:
-        result["warnings"].append(f"report: {exc}")
-    except Exception as exc:  # noqa: BLE001 - as `postproc report` would end: the robot's model stands, its report not
-        from .cli import missing_extra
+    with _scratch(inputs) as (folder, placed):
+        out = folder / "out"
+        out.mkdir()
+        (out / MODEL).write_bytes(result["files"][MODEL])
+        try:
+            model = load_model(out / MODEL)
+            prev = load_model(placed["previous"]).metadata if "previous" in placed else None
+        except PostprocError as exc:
+            return {**result, "error": _client_paths(str(exc), job, placed)}
+        card = model.metadata
+        (out / "model-card.json").write_text(json.dumps(card, indent=2, default=str), encoding="utf-8")
+        acc = card.get("accuracy") or {}
+        result = {**result, "points": (acc.get("n_train") or 0) + (acc.get("n_val") or 0),
+                  "unc_mean": acc.get("val_uncompensated_mean_mm"), "unc_max": acc.get("val_uncompensated_max_mm"),
+                  "comp_mean": acc.get("val_mean_mm"), "comp_max": acc.get("val_max_mm"),
+                  "moved": moved_parameters(card, prev), "warnings": list(result["warnings"])}
+        try:
+            write_report(read_report_data(_held_out(job, placed["data"], out / "held-out.csv"), model), out / "report")
+        except PostprocError as exc:
+            result["warnings"].append(f"report: {_client_paths(str(exc), job, placed)}")
+        except Exception as exc:  # noqa: BLE001 - as `postproc report` would end: the robot's model stands, its report not
+            from .cli import missing_extra
 
-        hint = missing_extra(exc, "report") if isinstance(exc, ModuleNotFoundError) else None  # matplotlib
-        result["warnings"].append(f"report: {hint or f'internal error: {type(exc).__name__}: {exc}'}")
+            hint = missing_extra(exc, "report") if isinstance(exc, ModuleNotFoundError) else None  # matplotlib
+            result["warnings"].append(f"report: {hint or f'internal error: {type(exc).__name__}: {exc}'}")
+        files = {p.relative_to(out).as_posix(): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
     _settle()
+    result["files"] = files
     result["ok"] = True
     return result
+
+
+def write_outputs(result: dict, outdir: str | Path) -> dict:
+    """On the client: the files a robot's tasks made (``result["files"]``), written into
+    ``OUTDIR/NAME/`` all or none (the atomic writer); the result without them, with ``model``
+    (its path) and ``outputs`` (each file's sha256, what a rerun checks)."""
+    from .atomic import write_atomic
+
+    files = result.get("files") or {}
+    result = {k: v for k, v in result.items() if k != "files"}
+    folder = Path(outdir) / result["name"]
+    result["model"] = str(folder / MODEL)
+    if not files:
+        return result
+    paths = [(folder / name, data) for name, data in files.items()]
+    for path, _ in paths:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        write_atomic(paths)
+    except OSError as exc:
+        return {**result, "ok": False, "error": f"{folder}: cannot write the outputs: {exc.strerror or exc}"}
+    result["outputs"] = {name: hashlib.sha256(data).hexdigest() for name, data in files.items()}
+    return result
+
+
+def _outputs_there(result: dict, outdir: Path) -> bool:
+    """The outputs recorded for a robot (``write_outputs``' sha256s) are in ``outdir`` as written."""
+    recorded = result.get("outputs")
+    return bool(recorded) and all(_file_sha(outdir / result["name"] / name) == sha for name, sha in recorded.items())
 
 
 def _settle() -> None:
@@ -361,8 +457,13 @@ def _settle() -> None:
 
 
 def robot(job: RobotJob, outdir: str | Path) -> dict:
-    """One robot's whole job in this process: :func:`train_robot` then :func:`report_robot`."""
-    return report_robot(train_robot(job, outdir), job, outdir)
+    """One robot's whole job in this process: :func:`train_robot` then :func:`report_robot`,
+    the outputs written into ``outdir``."""
+    try:
+        inputs = read_inputs(job)
+    except PostprocError as exc:
+        return {"name": job.name, "ok": False, "error": str(exc), "warnings": []}
+    return write_outputs(report_robot(train_robot(job, inputs), job, inputs), outdir)
 
 
 # the local cluster's two kinds of worker processes (Dask worker resources)
@@ -397,13 +498,18 @@ def run_fleet(jobs: list[RobotJob], outdir: str | Path, address: str | None = No
     state_path = outdir / STATE_FILE
     state = json.loads(state_path.read_text()) if state_path.is_file() else {}
     digests = {j.name: j.digest() for j in jobs}
-    results, todo = {}, []
+    results, todo, inputs = {}, [], []
     for job in jobs:
         old = state.get(job.name)
-        if not force and old and old.get("digest") == digests[job.name] and old["result"].get("ok"):
+        if (not force and old and old.get("digest") == digests[job.name] and old["result"].get("ok")
+                and _outputs_there(old["result"], outdir)):
             results[job.name] = {**old["result"], "skipped": True}
-        else:
+            continue
+        try:
+            inputs.append(read_inputs(job))  # (on the client: the workers get the bytes)
             todo.append(job)
+        except PostprocError as exc:
+            results[job.name] = {"name": job.name, "ok": False, "error": str(exc), "warnings": []}
     if todo:
         if address:
             client, kinds = Client(address), (None, None)
@@ -413,12 +519,14 @@ def run_fleet(jobs: list[RobotJob], outdir: str | Path, address: str | None = No
             with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
                 client, kinds = Client(_local_cluster(workers, len(todo))), ({TRAIN: 1}, {REPORT: 1})
         try:
-            trained = client.map(train_robot, todo, outdir=str(outdir), pure=False, resources=kinds[0])
-            futures = [client.submit(report_robot, t, job, str(outdir), pure=False, resources=kinds[1])
-                       for t, job in zip(trained, todo)]
+            # the bytes go in the tasks themselves (not scattered: a worker that dies would take
+            # scattered data with it, and with it every robot whose inputs it held)
+            trained = client.map(train_robot, todo, inputs, pure=False, resources=kinds[0])
+            futures = [client.submit(report_robot, t, job, i, pure=False, resources=kinds[1])
+                       for t, job, i in zip(trained, todo, inputs)]
             for job, fut in zip(todo, futures):
                 try:
-                    results[job.name] = fut.result()
+                    results[job.name] = write_outputs(fut.result(), outdir)
                 except Exception as exc:  # the task itself broke (worker lost): this robot fails alone
                     results[job.name] = {"name": job.name, "ok": False, "error": f"{type(exc).__name__}: {exc}",
                                          "warnings": []}

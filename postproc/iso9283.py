@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .diagnostics import P335, P500, P502, P512, P513, PostprocError
+from .diagnostics import P335, P500, P502, P503, P512, P513, PostprocError
 
 __all__ = [
     "ISO_CYCLES",
@@ -229,9 +229,18 @@ class PoseFigures:
     rp: np.ndarray  # [K] RP_l = l̄ + 3·S_l (NaN for n < 2)
     ap_abc: np.ndarray | None = None  # [K, 3] APa, APb, APc
     rp_abc: np.ndarray | None = None  # [K, 3] RPa, RPb, RPc (±, the value given is 3·S)
+    numbers: np.ndarray | None = None  # [K] each pose's number (P1…P5 of a plan's pose column); None: 1…K
 
     def __len__(self) -> int:
         return len(self.n)
+
+    def number(self, k: int) -> int:
+        """The k-th pose's number: the plan's (its ``pose`` column) or, without one, k + 1 (the
+        poses numbered by first appearance)."""
+        return k + 1 if self.numbers is None else int(self.numbers[k])
+
+    def name(self, k: int) -> str:
+        return f"P{self.number(k)}"
 
 
 def _group_mean(values: np.ndarray, labels: np.ndarray, k: int, counts: np.ndarray) -> np.ndarray:
@@ -248,10 +257,11 @@ def _group_std(values: np.ndarray, labels: np.ndarray, k: int, counts: np.ndarra
 
 
 def pose_figures(commanded: np.ndarray, attained: np.ndarray, labels: np.ndarray,
-                 attained_abc: np.ndarray | None = None) -> PoseFigures:
+                 attained_abc: np.ndarray | None = None, numbers: np.ndarray | None = None) -> PoseFigures:
     """AP and RP of each pose (ISO 9283:1998 §7.2.1 and §7.2.2, formulas in the module
     docstring) from commands [N, 6], attained positions [N, 3] (robot base frame), pose
-    labels [N] (0…K−1) and, if measured, attained A, B, C [N, 3]."""
+    labels [N] (0…K−1), if measured, attained A, B, C [N, 3], and the poses' ``numbers`` [K]
+    (their names P<number>; None: 1…K)."""
     commanded, attained = np.asarray(commanded, float), np.asarray(attained, float)
     labels = np.asarray(labels, int)
     k = int(labels.max()) + 1
@@ -271,6 +281,7 @@ def pose_figures(commanded: np.ndarray, attained: np.ndarray, labels: np.ndarray
         l_mean=l_mean,
         s_l=s_l,
         rp=l_mean + 3.0 * s_l,
+        numbers=None if numbers is None else np.asarray(numbers, int),
     )
     if attained_abc is not None:
         da = orientation_deviation(commanded[:, 3:], attained_abc)
@@ -288,7 +299,7 @@ class IsoResult:
 
     source: str
     source_sha256: str
-    labels: np.ndarray  # [N] pose of each row
+    labels: np.ndarray  # [N] pose of each row (0…K−1; its name: ``before.name``)
     before: PoseFigures
     deviation: np.ndarray  # [N, 3] attained − command, before compensation
     after: PoseFigures | None = None
@@ -336,6 +347,30 @@ def _read(path: Path):
     return data, m
 
 
+def _pose_labels(m, path: str, position_mm: float, attitude_deg: float) -> tuple[np.ndarray, np.ndarray | None]:
+    """Each row's pose (0…K−1) and the poses' numbers: the plan's ``pose`` column where the file
+    has it (``postproc measure`` carries it from ``plan --iso9283``: P1…P5 as the standard and the
+    plan name them), each number one commanded pose (P503 where a number labels rows the
+    clustering puts apart, or one pose carries two numbers); else the rows clustered to their
+    nominal poses, numbered by first appearance (numbers None)."""
+    clusters = cluster_poses(m.poses, position_mm, attitude_deg)
+    given = m.labels.get("pose")
+    if given is None:
+        return clusters, None
+    numbers, labels = np.unique(given, return_inverse=True)
+    labels = labels.reshape(-1)
+    for mine, theirs, what in ((labels, clusters, "rows of different commanded poses"),
+                               (clusters, labels, "one commanded pose by different numbers")):
+        for k in np.unique(mine):  # every row of one value of ``mine`` has one value of ``theirs``
+            rows = np.flatnonzero(mine == k)
+            apart = rows[theirs[rows] != theirs[rows[0]]]
+            if len(apart):
+                raise PostprocError(f"column 'pose' names {what} (lines {int(m.lines[rows[0]])} and "
+                                    f"{int(m.lines[apart[0]])}): it must be the plan's", path,
+                                    int(m.lines[apart[0]]), 1, P503)
+    return labels.reshape(-1), numbers
+
+
 def read_iso_result(path: str | Path, after: str | Path | None = None,
                     position_mm: float = POSITION_TOLERANCE_MM,
                     attitude_deg: float = ATTITUDE_TOLERANCE_DEG) -> IsoResult:
@@ -347,8 +382,8 @@ def read_iso_result(path: str | Path, after: str | Path | None = None,
 
     path = Path(path)
     data, m = _read(path)
-    labels = cluster_poses(m.poses, position_mm, attitude_deg)
-    before = pose_figures(m.poses, m.measured, labels, _orientation_columns(data, m.lines, str(path)))
+    labels, numbers = _pose_labels(m, str(path), position_mm, attitude_deg)
+    before = pose_figures(m.poses, m.measured, labels, _orientation_columns(data, m.lines, str(path)), numbers)
     result = IsoResult(str(path), hashlib.sha256(data).hexdigest(), labels, before, m.measured - m.poses[:, :3],
                        meta=m.meta)
     if after is not None:
@@ -358,7 +393,7 @@ def read_iso_result(path: str | Path, after: str | Path | None = None,
         after_data, am = _read(after)
         reached = _reached_after(after, m.poses, am)  # am: read once, above
         abc = _orientation_columns(after_data, am.lines, str(after))
-        result.after = pose_figures(m.poses, reached, labels, abc)
+        result.after = pose_figures(m.poses, reached, labels, abc, numbers)
         result.deviation_after = reached - m.poses[:, :3]
         result.after_source, result.after_sha256 = str(after), hashlib.sha256(after_data).hexdigest()
     return result
@@ -367,7 +402,7 @@ def read_iso_result(path: str | Path, after: str | Path | None = None,
 def _figures_dict(f: PoseFigures) -> list[dict]:
     rows = []
     for k in range(len(f)):
-        row = {"pose": k + 1, "n": int(f.n[k]), "command": f.command[k].round(4).tolist(),
+        row = {"pose": f.number(k), "n": int(f.n[k]), "command": f.command[k].round(4).tolist(),
                "APx": float(f.ap_xyz[k, 0]), "APy": float(f.ap_xyz[k, 1]), "APz": float(f.ap_xyz[k, 2]),
                "AP": float(f.ap[k]), "l_mean": float(f.l_mean[k]), "S_l": _num(f.s_l[k]), "RP": _num(f.rp[k])}
         if f.ap_abc is not None:
@@ -412,7 +447,7 @@ def iso_markdown(result: IsoResult, max_rows: int = 60) -> list[str]:
     b, a = result.before, result.after
     shown = min(len(b), max_rows)
     for k in range(shown):
-        row = (f"| P{k + 1} | {b.n[k]} | {b.command[k, 0]:.1f} | {b.command[k, 1]:.1f} | {b.command[k, 2]:.1f} | "
+        row = (f"| {b.name(k)} | {b.n[k]} | {b.command[k, 0]:.1f} | {b.command[k, 1]:.1f} | {b.command[k, 2]:.1f} | "
                f"{b.ap_xyz[k, 0]:.3f} | {b.ap_xyz[k, 1]:.3f} | {b.ap_xyz[k, 2]:.3f} | {b.ap[k]:.3f} | {_cell(b.rp[k])}")
         if a is not None:
             row += f" | {a.ap[k]:.3f} | {_cell(a.rp[k])}"
@@ -422,7 +457,7 @@ def iso_markdown(result: IsoResult, max_rows: int = 60) -> list[str]:
     if b.ap_abc is not None:
         lines += ["", "| pose | APa | APb | APc | RPa (±) | RPb (±) | RPc (±) |", "|---:|---:|---:|---:|---:|---:|---:|"]
         for k in range(shown):
-            lines.append(f"| P{k + 1} | " + " | ".join(f"{v:.4f}" for v in b.ap_abc[k]) + " | "
+            lines.append(f"| {b.name(k)} | " + " | ".join(f"{v:.4f}" for v in b.ap_abc[k]) + " | "
                          + " | ".join(_cell(v) for v in b.rp_abc[k]) + " |")
     notes = ["", "mm and degrees. AP = distance of the barycentre of the attained positions from the command "
              "(ISO 9283:1998 §7.2.1), RP = l̄ + 3·S_l (§7.2.2), S with n − 1."]
@@ -430,6 +465,9 @@ def iso_markdown(result: IsoResult, max_rows: int = 60) -> list[str]:
         notes.append(f"**{int((b.n < ISO_CYCLES).sum())} of {len(b)} poses have fewer than the standard's "
                      f"{ISO_CYCLES} cycles (n = {b.n.min()}…{b.n.max()}): the figures are the standard's formulas, "
                      "not a test to the standard.**")
+    if b.numbers is None:
+        notes.append("Poses numbered by first appearance in the file (it has no pose column: a plan's "
+                     "`postproc plan --iso9283` names them P1…P5 as the standard does, `postproc measure` keeps it).")
     if b.ap_abc is None:
         notes.append("Orientation was not measured (no a_meas,b_meas,c_meas columns): no APa/b/c, RPa/b/c.")
     return lines + notes

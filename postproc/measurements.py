@@ -15,7 +15,9 @@ mount's rotation): ``Measurements.tools``; which TCP training takes is ``trainin
 Optional columns: ``a_meas,b_meas,c_meas`` (deg, KUKA A,B,C: a 6-DOF probe's measured TCP
 orientation, same frame as x_meas..z_meas; all three or none, P501), ``q1..q6`` (deg, the
 controller's joint angles), ``s,t`` (KUKA Status/Turn integers, used when q1..q6 are absent:
-``postproc.configuration`` turns them into joint angles).
+``postproc.configuration`` turns them into joint angles), ``pose,cycle`` (a plan's labels of
+each row, whole numbers ≥ 1: ``postproc plan --iso9283`` names the ISO 9283 poses P1…P5 so, and
+``postproc measure`` carries them into its output: ``Measurements.labels``).
 
 Codes: P500 unreadable/empty, P501 missing or misnamed column, P502 a value that is not a
 finite number, P503 wrong number of fields, P504 duplicate pose.
@@ -47,10 +49,12 @@ __all__ = [
     "TOOL_COLUMNS",
     "ORIENTATION_COLUMNS",
     "STATUS_TURN_COLUMNS",
+    "LABEL_COLUMNS",
     "Measurements",
     "read_measurements",
     "parse_measurements",
     "parse_rows",
+    "label_columns",
     "read_metadata",
     "measurement_csv",
     "write_measurements",
@@ -62,6 +66,9 @@ COLUMNS = POSE_COLUMNS + MEAS_COLUMNS
 TOOL_COLUMNS = ("tool_x", "tool_y", "tool_z", "tool_a", "tool_b", "tool_c")
 ORIENTATION_COLUMNS = ("a_meas", "b_meas", "c_meas")
 STATUS_TURN_COLUMNS = ("s", "t")
+# a plan's labels of each row, carried by ``postproc measure``: the ISO 9283 pose (1…5 = P1…P5 as
+# the plan names them) and the cycle (1…n)
+LABEL_COLUMNS = ("pose", "cycle")
 
 
 @dataclass
@@ -79,6 +86,7 @@ class Measurements:
     tools: np.ndarray | None = None  # [N, 6] from 'tool_x'..'tool_c' (each row's TCP on the flange), if there
     orientation: np.ndarray | None = None  # [N, 3] measured A,B,C (deg) from 'a_meas'..'c_meas', if there
     status_turn: np.ndarray | None = None  # [N, 2] int S, T from 's','t' (only without q1..q6)
+    labels: dict[str, np.ndarray] = field(default_factory=dict)  # LABEL_COLUMNS present: [N] int each
 
     @property
     def errors(self) -> np.ndarray:
@@ -140,6 +148,7 @@ def parse_measurements(data: bytes, path: str = "<data>", repeats: bool = False)
     tools = _tool_columns(lines, first, header, path)
     orientation = _orientation_columns(lines, first, header, path)
     status_turn = _status_turn_columns(lines, first, header, path) if joints is None else None
+    labels = label_columns(lines, first, header, path)
     # the same pose in another arm configuration (joint angles a degree or more apart) or
     # with another tool is another measurement, not a repeat
     key = table[:, :6] if joints is None else np.c_[table[:, :6], np.round(joints)]
@@ -148,7 +157,7 @@ def parse_measurements(data: bytes, path: str = "<data>", repeats: bool = False)
         _check_duplicates(key, line_numbers, path)
     holdout = table[:, 9] != 0 if table.shape[1] > 9 else None
     return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout, joints,
-                        tools, orientation, status_turn)
+                        tools, orientation, status_turn, labels)
 
 
 def _tool_columns(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:
@@ -190,6 +199,22 @@ def _status_turn_columns(lines: list[str], first: int, header: list[str], path: 
         raise PostprocError(f"column '{STATUS_TURN_COLUMNS[k]}': {values[bad[0], k]:g} is not a Status/Turn "
                             "(a whole number 0..63)", path, int(numbers[bad[0]]), _field_starts(raw)[index[k]] + 1, P502)
     return values.astype(np.int64)
+
+
+def label_columns(lines: list[str], first: int, header: list[str], path: str) -> dict[str, np.ndarray]:
+    """The plan's labels of each row (``LABEL_COLUMNS`` the header names: ``pose``, ``cycle``) as
+    ints [N]; each a whole number ≥ 1 (P502 at the value)."""
+    out = {}
+    for name in (n for n in LABEL_COLUMNS if n in header):
+        values, numbers = parse_rows(lines, first, header, [header.index(name)], path)
+        bad = np.flatnonzero((values[:, 0] != np.round(values[:, 0])) | (values[:, 0] < 1))
+        if len(bad):
+            raw = lines[int(numbers[bad[0]]) - 1]
+            raise PostprocError(f"column '{name}': {values[bad[0], 0]:g} is not a {name} number (a whole number "
+                                "1, 2, …)", path, int(numbers[bad[0]]),
+                                _field_starts(raw)[header.index(name)] + 1, P502)
+        out[name] = values[:, 0].astype(np.int64)
+    return out
 
 
 def _joint_columns(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:

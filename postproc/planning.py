@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .diagnostics import P335, P500, P501, P503, P512, PostprocError
-from .measurements import TOOL_COLUMNS, parse_rows
+from .measurements import TOOL_COLUMNS, label_columns, parse_rows
 
 __all__ = [
     "DEFAULT_BOX",
@@ -35,6 +35,7 @@ __all__ = [
     "write_plan_csv",
     "read_pose_csv",
     "read_plan_config",
+    "read_plan_labels",
     "parse_tool",
     "plan_configurations",
     "WRIST_CHOICES",
@@ -188,6 +189,16 @@ def parse_tool(text: str) -> np.ndarray:
     if tool.shape != (6,) or not np.isfinite(tool).all():
         raise PostprocError(f"a tool is X,Y,Z,A,B,C (six numbers, mm and deg), not {text!r}", code=P512)
     return tool
+
+
+def read_plan_labels(path: str | Path) -> dict[str, np.ndarray]:
+    """The plan's labels of each row (``measurements.LABEL_COLUMNS``: ``pose``, ``cycle`` of an
+    ISO 9283 plan) as ints [N], {} without them; ``postproc measure`` carries them over."""
+    lines = Path(path).read_bytes().removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
+    first = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
+    if first is None:
+        return {}
+    return label_columns(lines, first, [h.strip().lower() for h in lines[first].split(",")], str(path))
 
 
 def read_plan_config(path: str | Path) -> np.ndarray | None:

@@ -21,10 +21,10 @@ class CrashOn(WorkerPlugin):
 
         real = getattr(fleet.train_robot, "real", fleet.train_robot)
 
-        def train_robot(job, outdir):
+        def train_robot(job, inputs):
             if job.name == self.name:
                 os._exit(3)  # as a torch abort or the OOM killer would
-            return real(job, outdir)
+            return real(job, inputs)
 
         train_robot.real = real
         fleet.train_robot = train_robot

@@ -162,6 +162,44 @@ def test_simulated_cell_end_to_end(tmp_path):
     md = (d / "cert" / "certificate.md").read_text()
     # the shipped model's card holds its identification: the parameters that moved, with units
     assert "KR500-sim" in md and "Identified parameters that moved" in md and "backlash.A5" in md
+    # measure carried the plan's pose column: the report names each pose as the plan does (the
+    # cycles visit P1 P5 P4 P3 P2: numbered by first appearance P5 would be "P2")
+    plan = np.loadtxt(d / "iso.csv", delimiter=",", skiprows=1)
+    for entry in s["before"]["poses"]:
+        assert entry["command"][:3] == pytest.approx(plan[plan[:, 6] == entry["pose"]][0, :3], abs=1e-6)
+    assert [p["pose"] for p in s["before"]["poses"]] == [1, 2, 3, 4, 5]
+    p5 = plan[plan[:, 6] == 5][0, :3]
+    assert f"| P5 | 4 | {p5[0]:.1f}, {p5[1]:.1f}, {p5[2]:.1f} |" in md and "numbered by first appearance" not in md
+    # the parameter counts of the moved-parameter note and of the identifiability come from one list
+    import re
+
+    moved = re.search(r"(\d+) of (\d+) identified parameters moved.*?(\d+) of them the data does not determine", md)
+    alone = re.search(r"(\d+) of (\d+) parameters are not determined alone", md)
+    assert moved and alone and moved.group(2) == alone.group(2) and moved.group(3) == alone.group(1)
+
+
+def test_a_pose_column_is_the_plans_and_must_name_one_pose_each(tmp_path):
+    """A measurement CSV with the plan's pose column (``postproc measure`` keeps it): the poses
+    are named by it; a number on two different commands, or two numbers on one, is refused
+    (P503) rather than mixed into one pose's figures; without it the poses are numbered by first
+    appearance, and the table says so."""
+    cube = IsoCube((2000.0, 0.0, 900.0), 300.0)
+    cmd, numbers = pose_test_plan(cube, (0.0, 90.0, 0.0), cycles=2)
+    offset = np.array([[0.1, 0, 0], [0, 0.2, 0], [0, 0, 0.3], [0.4, 0, 0], [0, 0.5, 0]])[numbers - 1]
+    _write(tmp_path / "labelled.csv", cmd, cmd[:, :3] + offset, pose=numbers)
+    result = read_iso_result(tmp_path / "labelled.csv")
+    assert result.before.ap == pytest.approx([0.1, 0.2, 0.3, 0.4, 0.5])  # P1…P5, the plan's numbers
+    assert [result.before.name(k) for k in range(5)] == ["P1", "P2", "P3", "P4", "P5"]
+    wrong = numbers.copy()
+    wrong[6] = wrong[5]  # the second cycle's P5 and P4 both called P5
+    _write(tmp_path / "wrong.csv", cmd, cmd[:, :3] + offset, pose=wrong)
+    with pytest.raises(PostprocError) as err:
+        read_iso_result(tmp_path / "wrong.csv")
+    assert err.value.code == "P503" and err.value.line == 8
+    _write(tmp_path / "bare.csv", cmd, cmd[:, :3] + offset)
+    from postproc.iso9283 import iso_markdown
+
+    assert any("numbered by first appearance" in line for line in iso_markdown(read_iso_result(tmp_path / "bare.csv")))
 
 
 def test_ipa_series_d_excerpt(tmp_path):

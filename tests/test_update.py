@@ -127,17 +127,25 @@ def test_train_update_cli_writes_the_moved_parameters(kr500, old, tmp_path, caps
     printed = capsys.readouterr().out
     card = load_model(out).metadata
     update = card["update"]
-    assert update["rows"] == 30 and update["from_sha256"] and update["groups"] == ["base", "zero", "tool"]
+    # re-mastered and a new tracker set-up, the tool as it was: the rows ask for the frame and
+    # the zero offsets, not the tool (its step's GCV score does not beat theirs)
+    assert update["rows"] == 30 and update["from_sha256"] and update["groups"] == ["base", "zero"]
+    assert [c["groups"] for c in update["choice"]["candidates"]] == [["base"], ["base", "zero"], ["base", "zero", "tool"]]
+    assert "choice    the groups the new rows ask for" in printed
     moved = [p["name"] for p in update["parameters"] if p["moved"]]
     assert "zero.A2" in moved and "zero.A4" not in moved
     for name in moved:
         assert f"moved     {name}" in printed
     assert "zero.A4" not in printed.split("update    ")[1]
     assert "region    joint placements kept (GCV score" in printed and update["region"]["chosen"] == 0.0
-    # the new card can be updated again (the chain of campaigns)
+    # the new card can be updated again (the chain of campaigns); without --val-fraction every one
+    # of the 30 rows is fitted (below 100 rows none is held out), and train says so
     again = tmp_path / "again.onnx"
-    assert main(["train", str(data), "-o", str(again), "--update", str(out), "--val-fraction", "0", "-q"]) == 0
-    assert json.loads(json.dumps(load_model(again).metadata["update"]))["from"] == "new"
+    assert main(["train", str(data), "-o", str(again), "--update", str(out)]) == 0
+    assert "every one of the 30 rows fitted, none held out" in capsys.readouterr().err
+    card = load_model(again).metadata
+    assert json.loads(json.dumps(card["update"]))["from"] == "new" and card["update"]["rows"] == 30
+    assert card["accuracy"]["n_val"] == 0
 
 
 def test_update_refuses_a_model_without_identification(affine, kr500, tmp_path, capsys):

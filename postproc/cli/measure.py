@@ -18,6 +18,8 @@ those configurations (s,t copied to the output); with --tool the output starts w
 consecutive parts, one tool each (the tool changed between them), and each row names its TCP
 in columns tool_x..tool_c: data that separate the tool mount's rotation (`postproc train`);
 a plan with tool_x..tool_c columns (`postproc plan --tool A --tool B`) is measured with them.
+A plan's pose,cycle columns (`postproc plan --iso9283`) are copied to the output, so that
+`postproc report --iso9283` names the poses P1..P5 as the plan does.
 """
 
 
@@ -52,7 +54,7 @@ def run(args) -> int:
 
     from ..diagnostics import P320, P335, PostprocError
     from ..measurements import TOOL_COLUMNS, measurement_csv
-    from ..planning import parse_tool, read_plan_config, read_plan_tools, read_pose_csv, tool_parts
+    from ..planning import parse_tool, read_plan_config, read_plan_labels, read_plan_tools, read_pose_csv, tool_parts
     from ..progress import stages
     from ..outputs import check_outputs, write
     from ..simulator import SimulatedRobot
@@ -64,6 +66,7 @@ def run(args) -> int:
         stage("read plan")
         poses, lines = read_pose_csv(args.plan)
         config = read_plan_config(args.plan)
+        labels = read_plan_labels(args.plan)
         given = [parse_tool(t) for t in args.tool or []]
         stage("draw robot")
         sim = SimulatedRobot.from_file(args.robot, args.robot_seed)
@@ -93,6 +96,8 @@ def run(args) -> int:
         if several:
             extra |= {name: tools[:, k] for k, name in enumerate(TOOL_COLUMNS)}
             fmt += ["%.10g"] * 6
+        extra |= labels  # an ISO 9283 plan's pose,cycle: the report names the poses as the plan does
+        fmt += ["%d"] * len(labels)
         # (what a model trained on these rows is: a demonstration model of a simulated robot, its card says)
         metadata = {"simulated": sim.robot.name, "robot_seed": str(sim.seed)}
         if tools is not None and not several:

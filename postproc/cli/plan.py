@@ -12,6 +12,8 @@ EXAMPLES = """examples:
   postproc plan --iso9283 --cube 2000 0 900 400 --cycles 10 -o iso.csv
   postproc plan -n 600 -o plan.csv --krl m.src --tool 300,0,75,0,0,0 --tool 450,0,75,0,0,0 --tool 300,0,200,0,0,0
                                                                (three tools: the plan in three parts)
+  postproc plan --for part1.src part2.mod -n 300 -o plan.csv --krl m.src   (for the programs that will run)
+  postproc plan --for part1.src --data measured.csv -o more.csv   (what the data does not cover: P337; more poses)
 
 The plan is the visiting order: `postproc measure plan.csv -o measured.csv` simulates it,
 the KRL program drives a real robot through it (LIN, settle, $OUT[1] to the tracker, wait
@@ -31,7 +33,8 @@ def add_parser(sub, common, formatter) -> None:
         "(KR500-sim: X 1700..2300, Y -600..600, Z 500..1300 mm, A 0 B 90 C 0 ± 10°).",
         epilog=EXAMPLES,
     )
-    p.add_argument("-n", "--poses", type=int, default=2000, metavar="N", help="number of poses (default 2000)")
+    p.add_argument("-n", "--poses", type=int, default=None, metavar="N",
+                   help="number of poses (default 2000; with --for 300)")
     p.add_argument("--seed", type=int, default=0, help="Latin hypercube seed (default 0)")
     p.add_argument("--box", type=float, nargs=6, metavar=("X0", "X1", "Y0", "Y1", "Z0", "Z1"),
                    help="position box in the robot base frame, mm")
@@ -53,6 +56,15 @@ def add_parser(sub, common, formatter) -> None:
                    "them), data that separate the tool mount's rotation (README: Any tool)")
     p.add_argument("--wait", type=float, default=1.0, metavar="S",
                    help="settling time before each measurement (default 1 s)")
+    progs = p.add_argument_group("a plan for the programs that will run (instead of the Latin hypercube)")
+    progs.add_argument("--for", dest="programs", nargs="+", metavar="PROGRAM",
+                       help="programs (any dialect compensate reads): poses covering the joint arcs, arm configurations "
+                       "and tools they use, each configuration x tool at least 20 %% of the plan, half space-filling, "
+                       "half chosen for observability (D-optimal over the identification's Jacobian); s,t columns "
+                       "(and tool_x..tool_c for several tools)")
+    progs.add_argument("--data", metavar="MEASURED_CSV",
+                       help="with --for: measurements already made: the design counts them, and the targets they do not "
+                       "cover are named (P337 at each)")
     iso = p.add_argument_group("ISO 9283 pose test (instead of the Latin hypercube)")
     iso.add_argument("--iso9283", action="store_true",
                      help="the standard's pose test: P1..P5 in the diagonal plane of the largest cube of the box "
@@ -92,6 +104,11 @@ def run(args) -> int:
                             "configurations ([robot] configuration = \"fanuc\", e.g. models/r2000ic.toml)", code=P512)
     if args.ls is not None and (args.iso9283 or len(tools) > 1):
         raise PostprocError("--ls writes a Latin-hypercube plan measured with one tool", code=P512)
+    if args.programs:
+        return _run_for(args, description)
+    if args.data:
+        raise PostprocError("--data goes with --for (the programs the plan is for)", code=P512)
+    args.poses = 2000 if args.poses is None else args.poses
     if args.iso9283:
         from .iso9283 import run_plan
 
@@ -140,4 +157,50 @@ def run(args) -> int:
         print(f"postproc: {written}: {len(poses)} poses (LHS seed {args.seed}) in X {box[0]:g}..{box[1]:g} "
               f"Y {box[2]:g}..{box[3]:g} Z {box[4]:g}..{box[5]:g} mm, A {attitude[0]:g} B {attitude[1]:g} "
               f"C {attitude[2]:g} ± {range_deg:g}°, all reachable by {robot.name}", file=sys.stderr)
+    return 0
+
+
+def _run_for(args, description) -> int:
+    """``plan --for PROGRAMS``: arguments → ``plan_for`` → the plan CSV (and KRL program), the
+    coverage findings printed."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from ..diagnostics import P512, PostprocError
+    from ..outputs import check_outputs, write
+    from ..plan_for import listed, coverage, plan_for, program_targets, read_data
+    from ..planning import krl_measurement_program, plan_csv_chunks
+    from ..robot import Robot
+
+    if args.iso9283 or args.tool or args.wrist:
+        raise PostprocError("--for takes the configurations and tools from the programs: leave out --iso9283, --tool "
+                            "and --wrist", code=P512)
+    check_outputs([args.output, args.krl or "-"], [*args.programs, args.data or "-"])
+    n = 300 if args.poses is None else args.poses
+    targets = program_targets(args.programs, description)
+    data_q, data_tools = read_data(args.data, description) if args.data else (None, None)
+    plan = plan_for(targets, description, n, args.seed, data_q, data_tools)
+    several = len(np.unique(plan.tools, axis=0)) > 1
+    tools = plan.tools if several else None
+    outputs = [(Path(args.output), plan_csv_chunks(plan.poses, plan.config, tools=tools))]
+    robot = Robot(description if several else description.replace(tool=plan.tools[0]))
+    if args.krl is not None:
+        src = Path(args.krl)
+        comment = f"for {len(args.programs)} program(s), {len(targets)} targets, seed {args.seed}"
+        outputs.append((src, krl_measurement_program(plan.poses, src.stem, robot, wait_s=args.wait, comment=comment,
+                                                    config=plan.config, tools=tools)))
+    write(outputs)
+    coverage_rows = coverage(targets, description, data_q, data_tools) if args.data else []
+    findings = [*targets.skipped, *listed(coverage_rows)]
+    for d in findings:
+        print(d.format(), file=sys.stderr)
+    if not args.quiet:
+        groups = ", ".join(f"S {int(k[0])} tool {[round(float(v), 3) for v in k[1:4]]}: {int((plan.group == g).sum())} "
+                           f"poses for {int(c)} targets" for g, (k, c) in enumerate(zip(plan.keys, plan.targets_per_group)))
+        uncovered = len(coverage_rows)
+        print(f"postproc: {' + '.join(str(p) for p, _ in outputs)}: {len(plan.poses)} poses for {len(targets)} targets "
+              f"of {len(args.programs)} program(s) ({groups}); log det of the identification's information "
+              f"{plan.log_det[0]:.1f} -> {plan.log_det[1]:.1f}"
+              + (f"; {uncovered} target(s) the data does not cover (P337)" if args.data else ""), file=sys.stderr)
     return 0

@@ -14,12 +14,13 @@ the commanded TCP pose and the measured TCP position, one row per visited pose. 
 learns E = P_target − P_measured. Optional columns: a_meas,b_meas,c_meas (a 6-DOF probe's
 TCP orientation: hybrid/kinematic then fit the orientation error too and the model outputs
 rotation_error, for compensate --orientation), q1..q6 (the controller's joint angles) or,
-without them, s,t (KUKA Status/Turn: the joint angles of that configuration). `--val-fraction` of the rows (drawn with --split-seed)
-are held out and only scored on.
+without them, s,t (KUKA Status/Turn: the joint angles of that configuration). `--val-fraction` of the rows (drawn with --split-seed;
+default 5 %, none below 100 rows) are held out and only scored on.
 
 Methods: hybrid (the default: the robot's kinematics, compliance, backlash and gear ripple
 identified on its nominal description --robot FILE.toml, default models/kr500.toml, plus
-residual networks on the joint angles when they help on held-back rows; the visiting order
+residual networks on the joint angles when they help on held-back rows; the optional groups
+and how many ripple orders are kept chosen on held-out joint-space regions; the visiting order
 of the rows gives the approach directions, and the model takes previous_pose), kinematic
 (the identification alone), dnn-joints (no identification: an ensemble of MLPs on the
 nominal joint angles and approach directions), gpso (the method of Hu, Hua & Tian: GPSO-searched initial weights
@@ -77,7 +78,8 @@ def add_parser(sub, common, formatter) -> None:
                    help="--search: fit the candidates as tasks on this Dask scheduler (postproc[fleet]; in a fleet: its own)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the training's random draws (default 0)")
     p.add_argument("--split-seed", type=int, default=0, metavar="S", help="seed of the validation draw (default 0)")
-    p.add_argument("--val-fraction", type=float, default=0.05, metavar="F", help="rows held out for validation (default 0.05)")
+    p.add_argument("--val-fraction", type=float, default=None, metavar="F",
+                   help="rows held out for validation (default 0.05; none below 100 rows: each row counts in a small fit)")
     p.add_argument("--epochs", type=_positive, default=None, metavar="N",
                    help="backprop epochs at most (default 500; hybrid's residual networks 1500)")
     p.add_argument("--name", help="model name for the metadata (default: the output file's stem)")
@@ -169,6 +171,13 @@ def _print_identified(args, trained) -> None:
         print(f"tools     measured {len(tool['measured'])}: valid for {tool['valid']}")
     if found["ripple"]:
         print(f"ripple    joint:order {' '.join(f'A{j}:{n}' for j, n in found['ripple'])}")
+    chosen = found.get("selection")
+    if chosen:
+        ripple = chosen.get("ripple") or {}
+        ways = " and ".join(f"{k} {name}" for name, k in chosen["regions"].items())
+        print(f"select    blocked CV over joint-space regions ({ways}, each held out): "
+              f"{'left out ' + ', '.join(chosen['dropped']) if chosen['dropped'] else 'every physical group kept'}"
+              + (f"; {ripple['kept']} of {ripple['searched']} ripple orders kept" if ripple.get("searched") else ""))
     print(f"data      {args.data}: {len(trained.train_rows)} training rows, {len(trained.val_rows)} validation rows")
     print_figures(accuracy, model.train_stats_)
     if "val_rotation_deg" in accuracy:
@@ -186,6 +195,10 @@ def print_figures(accuracy: dict, train_stats: dict) -> None:
         print(f"{'uncompensated':<26} {a['val_uncompensated_mean_mm']:7.4f} {a['val_uncompensated_max_mm']:7.4f} "
               f"{a['val_uncompensated_std_mm']:7.4f}")
         print(f"{'residual |E − Ê|':<26} {a['val_mean_mm']:7.4f} {a['val_max_mm']:7.4f} {a['val_std_mm']:7.4f}")
+    b = accuracy.get("blocked")
+    if b:  # (each training row predicted by the identified arm fitted without its joint-space region)
+        print(f"{'residual (blocked, arm)':<26} {b['mean_mm']:7.4f} {b['max_mm']:7.4f} {'':>7}  "
+              f"({b['rows']} training rows, each predicted with its region held out)")
     s = train_stats
     print(f"{'residual |E − Ê| (train)':<26} {s['mean']:7.4f} {s['max']:7.4f} {s['std']:7.4f}")
 
@@ -197,6 +210,11 @@ def print_update(update) -> None:
     print(f"update    from {update.old.path} ({card['from']}): {update.rows} rows; re-fitted {', '.join(card['groups'])} "
           f"({len(update.parameters)} parameters), everything else kept; {len(moved)} moved "
           f"(|change| > {card['moved_at_sigmas']:g} std)")
+    choice = card.get("choice")
+    if choice and len(choice["candidates"]) > 1:
+        scores = "; ".join(f"{'+'.join(c['groups'])}: {'-' if c['gcv'] is None else format(c['gcv'], '.4g')}"
+                           for c in choice["candidates"])
+        print(f"choice    the groups the new rows ask for, in turn (GCV score on the new rows: {scores})")
     region = card.get("region")
     if region:
         chosen = region["chosen"]

@@ -55,6 +55,20 @@ def measured_tools(data: Measurements, tool: np.ndarray | None = None) -> np.nda
     return sources[0][1] if sources else None
 
 
+# --val-fraction when not given: VAL_FRACTION of the rows, none below ALL_ROWS_BELOW rows (a
+# validation figure of one to four rows says little, and each row counts in a small fit: a
+# 30-row --update held two of them out)
+VAL_FRACTION = 0.05
+ALL_ROWS_BELOW = 100
+
+
+def default_val_fraction(n: int, val_fraction: float | None = None) -> float:
+    """``val_fraction`` as given, else the default for ``n`` rows (VAL_FRACTION; 0 below ALL_ROWS_BELOW)."""
+    if val_fraction is not None:
+        return val_fraction
+    return 0.0 if n < ALL_ROWS_BELOW else VAL_FRACTION
+
+
 def split_indices(n: int, val_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Random (seeded) train / validation row indices; each side sorted (visiting order kept)."""
     if not 0.0 <= val_fraction < 1.0:

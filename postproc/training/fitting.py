@@ -83,7 +83,7 @@ class _Rows:
     rotation_errors: np.ndarray | None = None
 
 
-def fit(measurements, method: str = "hybrid", robot=None, *, tool=None, val_fraction: float = 0.05,
+def fit(measurements, method: str = "hybrid", robot=None, *, tool=None, val_fraction: float | None = None,
         split_seed: int = 0, register: bool = False, pose_only: bool = False, update=None, search: bool = False,
         search_engine=None, name: str | None = None, **params) -> TrainedModel:
     """Fit ``method`` to ``measurements`` (a ``measurements.Measurements`` or a CSV's path).
@@ -91,7 +91,8 @@ def fit(measurements, method: str = "hybrid", robot=None, *, tool=None, val_frac
     robot: a RobotDescription, its .toml file or a name (networks: only for the card).
     tool: X,Y,Z,A,B,C (text or 6 numbers) the data were measured with, where the file does not
         say (``# tool:``, tool_x..tool_c; a contradiction is refused, P320).
-    val_fraction, split_seed: the held-out rows. register: the measured columns are a tracker's.
+    val_fraction, split_seed: the held-out rows (None: ``data.default_val_fraction``, 5 %, none
+        below 100 rows: every row fitted, which ``notes`` says). register: the measured columns are a tracker's.
     pose_only: identified methods without the visiting order (no backlash).
     update: OLD.onnx to re-calibrate (identified methods). search: search the networks' hidden
         layers; search_engine: a callable giving a context manager that yields the candidates'
@@ -120,7 +121,7 @@ def fit(measurements, method: str = "hybrid", robot=None, *, tool=None, val_frac
 def _split(measurements, tool, val_fraction: float, split_seed: int) -> _Rows:
     from ..measurements import Measurements, read_measurements
     from ..planning import parse_tool
-    from .data import measured_tools, split_indices
+    from .data import ALL_ROWS_BELOW, default_val_fraction, measured_tools, split_indices
 
     if isinstance(measurements, Measurements):
         data, source = measurements, measurements.path
@@ -129,8 +130,12 @@ def _split(measurements, tool, val_fraction: float, split_seed: int) -> _Rows:
     if isinstance(tool, str):
         tool = parse_tool(tool)
     tools = measured_tools(data, None if tool is None else np.asarray(tool, dtype=np.float64))
-    train, val = split_indices(len(data), val_fraction, split_seed)
-    return _Rows(data, source, tools, train, val)
+    train, val = split_indices(len(data), default_val_fraction(len(data), val_fraction), split_seed)
+    notes = []
+    if val_fraction is None and not len(val):
+        notes.append(f"every one of the {len(data)} rows fitted, none held out for validation (fewer than "
+                     f"{ALL_ROWS_BELOW} rows; --val-fraction F holds some out)")
+    return _Rows(data, source, tools, train, val, notes)
 
 
 def _measured(rows: _Rows, register: bool, method: str) -> None:
@@ -303,6 +308,9 @@ def _identified_card(model, description, rows: _Rows, inputs: _Inputs, rotation_
     predicted = model.predict(poses[val], _take(inputs.previous, val), _take(inputs.q_deg, val),
                               _take(rows.tools, val), _take(inputs.q_previous, val))
     accuracy = accuracy_card(rows.errors[val], predicted, model.train_stats_["mean"], len(train))
+    blocked = model.kinematic_.blocked_figures()
+    if blocked is not None:  # beside the random held-out rows': each region predicted without it
+        accuracy["blocked"] = blocked
     if model.orientation and len(val):
         from ..stats import table2
 

@@ -82,11 +82,16 @@ class HybridModule(torch.nn.Module):
         # graph's error_std (training/uncertainty.py); None: the model states no uncertainty
         self.register_buffer("covariance", None)
         self.register_buffer("sigma2", None)
+        # what the learned parts explain at the training rows (mm² per coordinate): added to the
+        # variance where the graph leaves them out (outside the trained joint arcs)
+        self.register_buffer("learned_var", None)
 
-    def set_uncertainty(self, covariance: np.ndarray, sigma2: float) -> "HybridModule":
-        """Store the parameter covariance (``uncertainty.parameter_covariance``) for ``error_std``."""
+    def set_uncertainty(self, covariance: np.ndarray, sigma2: float, learned_var: float = 0.0) -> "HybridModule":
+        """Store the parameter covariance (``uncertainty.parameter_covariance``), the residual
+        variance and the learned parts' variance for ``error_std``."""
         self.covariance = torch.as_tensor(np.asarray(covariance, dtype=np.float64))
         self.sigma2 = torch.tensor(float(sigma2), dtype=torch.float64)
+        self.learned_var = torch.tensor(float(learned_var), dtype=torch.float64)
         return self
 
     @property
@@ -128,6 +133,9 @@ class HybridModule(torch.nn.Module):
         if len(self.nets):
             features = joint_features(q, signs if self.uses_previous else None)
             error = error + learned[:, None] * torch.stack([net(features) for net in self.nets]).mean(dim=0)
+        if uncertainty and self.learned_var is not None:  # where the learned parts are left out, what they explain
+            std = turned[-1]
+            turned[-1] = torch.sqrt(std * std + (1.0 - learned[:, None]) * self.learned_var)
         return (error.to(dtype), q.to(dtype), *(t.to(dtype) for t in turned))
 
     def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
@@ -283,8 +291,12 @@ class HybridModel(Estimator):
         self.train_stats_ = residual_stats(errors - fitted)
         # what the identified arm leaves at the rows evaluated as the graph does (at the IK of the
         # poses): the σ of error_std (uncertainty.parameter_covariance's residual)
-        self.identified_residual_ = errors - (self.predict(poses, previous, q_deg, tools, previous_q_deg, arm_only=True)
-                                              if self.nets_ else fitted)
+        arm = self.predict(poses, previous, q_deg, tools, previous_q_deg, arm_only=True) if self.nets_ else fitted
+        self.identified_residual_ = errors - arm
+        # what the learned parts (ripple orders, residual networks) explain at the training rows,
+        # per coordinate: the variance error_std adds where the graph leaves them out
+        physical = self.predict(poses, previous, q_deg, tools, previous_q_deg, physical_only=True)
+        self.learned_var_ = float(np.mean((fitted - physical) ** 2))
         self.train_rotation_stats_ = None
         if self.orientation:
             rotation_errors = np.asarray(rotation_errors, dtype=np.float64).reshape(-1, 3)[keep]
@@ -314,19 +326,43 @@ class HybridModel(Estimator):
                            torch.as_tensor(km.train_signs_) if km.use_previous_ else None).numpy()
         self.residual_check_ = None
         if self.residual == "auto":
-            # train on 85 % of the rows, compare on the other 15 %: keep only if it pays
-            order = np.random.default_rng(self.seed).permutation(len(x))
-            held, fit_rows = order[: len(x) * 15 // 100], order[len(x) * 15 // 100:]
+            # train on 85 % of the rows, compare on the other 15 %: keep only if it pays. The 15 %
+            # are whole joint-space regions where the identification has them (its blocked
+            # selection's): random rows sit between training rows, where a network that learned
+            # this campaign's own rows scores well whether it carries or not. As in the graph,
+            # the networks add nothing at held-out rows outside the joint arcs of those fitted
+            held, fit_rows = self._held_regions(len(x))
             if len(held) < 10:
                 return []
             net = _train_net(x[fit_rows], residual[fit_rows], self.hidden, self.epochs, self.seed)
+            q = torch.as_tensor(km.train_q_[held])
+            inside = inside_ranges(q, torch.as_tensor(learned_ranges(joint_arcs(np.degrees(km.train_q_[fit_rows])))))
             with torch.no_grad():
-                after = np.linalg.norm(residual[held] - net(torch.as_tensor(x[held])).numpy(), axis=1).mean()
+                learned = inside[:, None] * net(torch.as_tensor(x[held]))
+            after = np.linalg.norm(residual[held] - learned.numpy(), axis=1).mean()
             before = np.linalg.norm(residual[held], axis=1).mean()
-            self.residual_check_ = {"before_mm": float(before), "after_mm": float(after)}
+            self.residual_check_ = {"before_mm": float(before), "after_mm": float(after),
+                                    "held_out": "regions" if km.regions_ is not None else "random rows"}
             if after > (1.0 - KEEP_GAIN) * before:
                 return []
         return [_train_net(x, residual, self.hidden, self.epochs, self.seed + 1 + k) for k in range(self.ensemble)]
+
+    def _held_regions(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """(held-out rows, fitted rows) of the residual networks' check: about 15 % of the rows,
+        whole regions of the identification's blocked selection (``KinematicModel.regions_``),
+        drawn in a seeded order; random rows where it has none."""
+        rng = np.random.default_rng(self.seed)
+        regions = self.kinematic_.regions_
+        if regions is None:
+            order = rng.permutation(n)
+            return order[: n * 15 // 100], order[n * 15 // 100:]
+        held = np.zeros(n, bool)
+        for k in rng.permutation(int(regions.max()) + 1):
+            if held.sum() >= n * 15 // 100:
+                break
+            if held.sum() + (regions == k).sum() <= n // 2:  # (never half of the rows)
+                held |= regions == k
+        return np.flatnonzero(held), np.flatnonzero(~held)
 
     # ------------------------------------------------------------------ using it
     def _check_fitted(self) -> None:
@@ -340,13 +376,16 @@ class HybridModel(Estimator):
 
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None,
                 joints: np.ndarray | None = None, tools: np.ndarray | None = None,
-                previous_joints: np.ndarray | None = None, arm_only: bool = False) -> np.ndarray:
+                previous_joints: np.ndarray | None = None, arm_only: bool = False,
+                physical_only: bool = False) -> np.ndarray:
         """Ê [N, 3] mm for poses [N, 6], the poses visited before them (None: unknown), the
         controller's joint angles [N, 6] deg (None / NaN rows: unknown), which pick each row's
         IK branch (as the exported graph's ``joints`` input), and each row's TCP on the flange
         [N, 6] (None / NaN rows: the model's own; the graph's ``tool`` input), the joint angles
         [N, 6] deg at the poses visited before (None / NaN rows: unknown; ``previous_joints``).
-        ``arm_only``: the identified arm's part alone (without the residual networks)."""
+        ``arm_only``: the identified arm's part alone (without the residual networks);
+        ``physical_only``: its physical groups alone (as outside the trained joint arcs: no ripple
+        orders, no networks)."""
         self._check_fitted()
         pose = torch.as_tensor(np.asarray(poses, dtype=np.float64).reshape(-1, 6))
         prev = None if previous is None else torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
@@ -355,9 +394,12 @@ class HybridModel(Estimator):
         q_prev = (None if previous_joints is None
                   else torch.as_tensor(np.radians(np.asarray(previous_joints, dtype=np.float64).reshape(-1, 6))))
         with torch.no_grad():
-            if arm_only:
+            if arm_only or physical_only:
                 m = self.module_
-                return m.kinematic.parts(pose, prev, q_in, m.joint_range, tool, q_previous=q_prev)[0].numpy()
+                ranges = m.joint_range
+                if physical_only:  # (arcs that hold no angle: every row outside)
+                    ranges = torch.stack([ranges[:, 0], ranges[:, 0] - 1.0], dim=1)
+                return m.kinematic.parts(pose, prev, q_in, ranges, tool, q_previous=q_prev)[0].numpy()
             return self.module_(pose, prev, q_in, tool, q_prev).numpy()
 
     @property
@@ -426,6 +468,8 @@ class HybridModel(Estimator):
             "ik_family": km.ik_.family,
             "residual_nets": len(self.nets_),
             "residual_check": getattr(self, "residual_check_", None),
+            # what the blocked cross-validation chose (physical groups left out, ripple orders kept)
+            "selection": getattr(km, "selection_", None),
             # what the orientation part rests on: measured orientations (and the lever, mm/rad, that
             # weighed them against the positions) or nothing (then no rotation_error output)
             "orientation": ({"fitted": True, "lever_mm_per_rad": round(km.lever_, 3),
@@ -456,13 +500,15 @@ class HybridModel(Estimator):
         std = dict(zip(sizes, np.split(np.asarray(std, dtype=np.float64), cuts)))
         posterior = None if posterior is None else dict(zip(sizes, np.split(posterior, cuts)))
         groups = [name for name in sizes if name != "ripple" and sizes[name]]
+        # (the stds also of the ripple amplitudes, key "ripple", in the order of ripple_amplitudes flattened)
+        with_ripple = [name for name in sizes if sizes[name]]
         return {
             "parameters": {name: [float(v) for v in np.ravel(p[name])] for name in groups},
             "ripple_amplitudes": [[float(a), float(b)] for a, b in p["ripple"]],
             "tau_mean": [float(v) for v in km.module_.tau_mean],
-            "parameter_std": {name: [float(v) if v == v else None for v in std[name]] for name in groups},  # None: unknown
+            "parameter_std": {name: [float(v) if v == v else None for v in std[name]] for name in with_ripple},  # None: unknown
             # what is known of each value (the certificate's uncertainty; not for a re-calibration)
-            **({"parameter_posterior_std": {name: [float(v) for v in posterior[name]] for name in groups}}
+            **({"parameter_posterior_std": {name: [float(v) for v in posterior[name]] for name in with_ripple}}
                if posterior is not None else {}),
             "residual_std_mm": float(residual_std),
             "nominal_sha256": nominal_digest(self.description),
@@ -510,6 +556,11 @@ class HybridModel(Estimator):
             sigma = math.sqrt(float(self.module_.sigma2))
             meta["uncertainty"] = {"max_std_mm": round(MAX_STD_FACTOR * sigma, 6), "residual_std_mm": round(sigma, 6),
                                    "max_std_rule": f"{MAX_STD_FACTOR:g} x residual_std_mm"}
+            learned = self.module_.learned_var
+            if learned is not None:  # (models whose error_std adds what the learned parts explain outside their arcs)
+                meta["uncertainty"]["learned_std_mm"] = round(math.sqrt(float(learned)), 6)
+            if getattr(self, "uncertainty_calibration_", None):
+                meta["uncertainty"]["calibration"] = self.uncertainty_calibration_
         meta.update(metadata)
         return meta
 
@@ -537,7 +588,8 @@ class HybridModel(Estimator):
         if not self.kinematic_.layout_.n or hasattr(self, "identification_std_"):
             return False
         cov = self._covariance()
-        self.module_.set_uncertainty(cov.covariance, cov.sigma2)
+        self.uncertainty_calibration_ = cov.calibration
+        self.module_.set_uncertainty(cov.predictive, cov.sigma2, getattr(self, "learned_var_", 0.0))
         return True
 
     def _covariance(self):

@@ -61,7 +61,7 @@ from .features import inside_ranges, motion_signs, wrapped_step
 from .network import rotation_matrices
 
 __all__ = ["Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS", "unseparated_mount",
-           "nominal_digest", "residual_variance"]
+           "nominal_digest", "residual_variance", "prior_scales"]
 
 GROUPS = ("placement", "base", "tool", "mount", "tool_rotation", "zero", "compliance", "coupling", "backlash")
 DEFAULT_GROUPS = GROUPS
@@ -104,6 +104,21 @@ def nominal_digest(description: RobotDescription) -> str:
                 description.home_q]
     text = ";".join(",".join(f"{float(v):.9g}" for v in np.ravel(a)) for a in numbers)
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+def prior_scales(layout: "Layout", tau: np.ndarray) -> np.ndarray:
+    """A typical size of every parameter of ``layout`` (rad, mm, rad/Nm): the prior's unit. The
+    compliance and coupling terms' from the largest torque terms ``tau`` [N, 27] of the rows
+    (a deflection of PRIOR_RAD there)."""
+    tau_max = np.abs(np.asarray(tau, float)).max(axis=0)
+    scales = np.where(tau_max > 1e-9, PRIOR_RAD / np.maximum(tau_max, 1e-9), PRIOR_RAD)
+    compliance, coupling = scales[:6], scales[6:]
+    unit = {"placement": np.tile(np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], 6),
+            "base": np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], "tool": np.full(3, PRIOR_MM),
+            "mount": np.full(3, PRIOR_RAD), "tool_rotation": np.full(3, PRIOR_RAD),
+            "zero": np.full(6, PRIOR_RAD), "compliance": compliance, "coupling": coupling,
+            "backlash": np.full(6, PRIOR_RAD), "ripple": np.full(2 * len(layout.ripple), PRIOR_RAD)}
+    return np.concatenate([unit[name] for name in layout.sizes])
 
 
 @dataclass
@@ -661,15 +676,19 @@ class KinematicModel(Estimator):
     "auto" (the residual variance of a first fit: a Gaussian prior, module text); ``staged``:
     searched orders fitted on top of the physical groups, which keep their values (False: all
     refitted together, which lets the geometry lean on orders that hold only where the data
-    was); ``iterations`` of Levenberg–Marquardt; ``family`` of the IK (None: the description's).
+    was); ``iterations`` of Levenberg–Marquardt; ``family`` of the IK (None: the description's);
+    ``select``: "blocked" (the optional physical groups and how many of the searched ripple orders
+    are kept, chosen by blocked cross-validation over joint-space regions: training/blocked.py;
+    ``selection_`` says what it found) or "none" (every group and order kept).
     """
 
     def __init__(self, description: RobotDescription, groups: tuple[str, ...] = DEFAULT_GROUPS,
                  ripple: str | list[tuple[int, int]] = "search", max_order: int = 100, ripple_joints=range(6),
                  max_ripple: int = 120, prior: float | str = "auto", iterations: int = 20, family: str | None = None,
-                 staged: bool = True):
+                 staged: bool = True, select: str = "blocked"):
         self.description = description
         self.staged = staged
+        self.select = select
         self.groups = tuple(groups)
         self.ripple = ripple
         self.max_order = max_order
@@ -715,6 +734,7 @@ class KinematicModel(Estimator):
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
         self.arm_ = Arm(self.description)
+        self.torque_span_ = self._torque_span()
         if tools is not None and np.allclose(tools, self.description.tool):
             tools = None
         tools_t = None if tools is None else torch.as_tensor(np.asarray(tools, dtype=np.float64).reshape(-1, 6))
@@ -760,9 +780,16 @@ class KinematicModel(Estimator):
             self.lever_ = LEVER_MM
         layout = Layout(groups, list(self.ripple) if isinstance(self.ripple, list) else [])
         theta, tau = self._fit_physical(layout, q, s, tau, measured)
-        self.ripple_search_ = []
+        self.ripple_search_, self.ripple_rounds_, self.selection_, self.blocked_ = [], [], None, None
+        region = self._regions(ik_poses[keep], q) if self.select == "blocked" and layout.n else None
+        # (each training row's octant: the residual networks' check holds some out)
+        self.regions_ = None if region is None else region[0][1]
+        if region is not None:
+            layout, theta, tau = self._select_groups(layout, theta, q, s, tau, measured, region)
         if self.ripple == "search":
             layout, theta = self._search_ripple(layout, theta, q, s, tau, measured)
+        if region is not None and self.ripple == "search":  # (a list given is kept as given)
+            layout, theta = self._select_ripple(layout, theta, q, s, tau, measured, region)
         self.layout_ = layout
         self.theta_ = theta
         self.module_ = KinematicErrorModule(self.arm_, self.ik_, layout, theta, self.use_previous_,
@@ -799,6 +826,7 @@ class KinematicModel(Estimator):
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
         self.arm_, self.ik_, self.branch_share_ = Arm(self.description), ik, math.nan
+        self.torque_span_ = self._torque_span()
         self.use_previous_ = use_previous
         self.prior_ = self._first_prior()
         if use_previous and previous is None:
@@ -817,7 +845,8 @@ class KinematicModel(Estimator):
         old = np.asarray(theta, dtype=np.float64)
         theta = old.copy()
         tau_mean = np.asarray(tau_mean, dtype=np.float64)
-        self.ripple_search_ = []
+        self.ripple_search_, self.ripple_rounds_, self.selection_, self.blocked_ = [], [], None, None
+        self.regions_ = None
         for _ in range(2):  # the torques of the identified chain depend on θ only weakly
             with torch.no_grad():
                 tau = KinematicErrorModule(self.arm_, ik, layout, theta, use_previous, tau_mean).torques(q)
@@ -883,16 +912,25 @@ class KinematicModel(Estimator):
         return q, s, tau, tcp, pose_t, poses, errors, nominal_rot, keep
 
     def _prior_scales(self, layout: Layout, tau: torch.Tensor) -> np.ndarray:
-        """A typical size of every parameter (rad, mm, rad/Nm): the prior's unit."""
-        tau_max = torch.abs(tau).amax(dim=0).numpy()
-        scales = np.where(tau_max > 1e-9, PRIOR_RAD / np.maximum(tau_max, 1e-9), PRIOR_RAD)
-        compliance, coupling = scales[:6], scales[6:]
-        unit = {"placement": np.tile(np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], 6),
-                "base": np.r_[np.full(3, PRIOR_RAD), np.full(3, PRIOR_MM)], "tool": np.full(3, PRIOR_MM),
-                "mount": np.full(3, PRIOR_RAD), "tool_rotation": np.full(3, PRIOR_RAD),
-                "zero": np.full(6, PRIOR_RAD), "compliance": compliance, "coupling": coupling, "backlash": np.full(6, PRIOR_RAD),
-                "ripple": np.full(2 * len(layout.ripple), PRIOR_RAD)}
-        return np.concatenate([unit[name] for name in layout.sizes])
+        """A typical size of every parameter (rad, mm, rad/Nm): the prior's unit (:func:`prior_scales`),
+        the compliance and coupling terms' from the largest torques of the rows ``tau`` or of the
+        arm anywhere in its joint limits (``torque_span_``), whichever is larger: a deflection of
+        PRIOR_RAD at the largest torque the joint can see, not at the largest these rows saw (a
+        compliance fitted where a joint's torque stays small would be free to grow, and a pose
+        with more torque — the arm stretched — would carry it out: 4.6 mm at IPA Series D's
+        stretched pose from A5's)."""
+        span = getattr(self, "torque_span_", None)
+        rows = np.abs(tau.numpy()).max(axis=0, initial=0.0)
+        return prior_scales(layout, rows if span is None else np.maximum(rows, span)[None])
+
+    def _torque_span(self, samples: int = 4096) -> np.ndarray:
+        """[27] the largest |torque term| of the nominal arm over ``samples`` joint configurations
+        drawn (seeded) uniformly within its joint limits (each within ±180°)."""
+        limits = np.clip(np.array([j.limits for j in self.description.joints], float), -180.0, 180.0)
+        q = np.random.default_rng(0).uniform(limits[:, 0], limits[:, 1], size=(samples, 6))
+        with torch.no_grad():
+            rot, org, _ = self.arm_.frames(torch.as_tensor(np.radians(q)))
+            return torch.abs(self.arm_.torque_terms(rot, org)).amax(dim=0).numpy()
 
     def _levenberg_marquardt(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
                              iterations: int, anchor: np.ndarray | None = None, weights: np.ndarray | None = None,
@@ -998,6 +1036,104 @@ class KinematicModel(Estimator):
             theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
         return theta, tau
 
+    def _regions(self, ik_poses: np.ndarray, q: torch.Tensor) -> list | None:
+        """The ways the rows are split into joint-space regions for the blocked selection
+        (``blocked.folds``: octants of A1–A3, the IK branches), None where there are too few rows
+        or no way with two regions."""
+        from .blocked import MIN_ROWS, folds
+
+        if len(q) < MIN_ROWS:
+            return None
+        with torch.no_grad():
+            branches = torch.stack(self.ik_.branch_of(torch.as_tensor(ik_poses), q), dim=1).numpy()
+        return folds(q.numpy(), branches) or None
+
+    def _blocked(self, layout: Layout, theta: np.ndarray, q: torch.Tensor, region: list):
+        """The blocked CV (``blocked.BlockedSets``) linearised at the last fit (``_state``) of ``layout``."""
+        from .blocked import BlockedSets
+
+        r, jac, _ = self._state
+        return BlockedSets(jac, r, theta, region, q.numpy())
+
+    def _select_groups(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
+                       region: list) -> tuple[Layout, np.ndarray, torch.Tensor]:
+        """The physical groups kept: of the candidates without some of ``blocked.OPTIONAL_GROUPS``
+        the one whose blocked held-out sum of squares is least — within ``blocked.PARSIMONY`` of
+        it, the one with most parameters: a physical group is left out where holding regions out
+        shows it does harm, not where the data cannot tell (IPA Series C, one arm configuration,
+        cannot tell its 21 couplings from none; kept, they carry it to Series A and D at 0.53 /
+        0.52 mm, left out at 0.60 / 0.68); refitted without the groups it leaves out."""
+        from itertools import combinations
+
+        from .blocked import OPTIONAL_GROUPS, PARSIMONY
+
+        cv = self._blocked(layout, theta, q, region)
+        weights = self.prior_ / self._prior_scales(layout, tau) ** 2
+        slices = layout.slices()
+        optional = [g for g in OPTIONAL_GROUPS if g in layout.groups]
+        scores = []
+        for k in range(len(optional) + 1):
+            for drop in combinations(optional, k):
+                cols = np.concatenate([np.arange(slices[g].start, slices[g].stop) for g in layout.groups
+                                       if g not in drop and slices[g].stop > slices[g].start])
+                scores.append((drop, cols, cv.evaluate(cols, np.zeros(0, int), weights)))
+        best = min(e.sse for _, _, e in scores)
+        drop, chosen_cols, chosen = max((c for c in scores if c[2].sse <= (1.0 + PARSIMONY) * best),
+                                        key=lambda c: len(c[1]))
+        self.selection_ = {"regions": cv.regions, "rows": int(len(q)),
+                           "groups": {("without " + " and ".join(d)) if d else "all": round(e.rms, 6)
+                                      for d, _, e in scores},
+                           "dropped": list(drop)}
+        if drop:
+            layout = Layout(tuple(g for g in layout.groups if g not in drop), layout.ripple)
+            theta, tau = self._fit_physical(layout, q, s, tau, measured)
+        self.blocked_ = chosen  # (its variances with the ripple orders' selection, or here without them)
+        if self.ripple != "search":
+            self.blocked_ = cv.evaluate(chosen_cols, np.zeros(0, int), weights, variance=True)
+        return layout, theta, tau
+
+    def _select_ripple(self, layout: Layout, theta: np.ndarray, q, s, tau, measured,
+                       region: list) -> tuple[Layout, np.ndarray]:
+        """How many of the searched ripple orders are kept: the first m (the search's order, m at
+        the end of one of its rounds, 0 included) whose blocked held-out sum of squares is least
+        (within ``blocked.PARSIMONY``, the fewest); the amplitudes refitted for them."""
+        from .blocked import PARSIMONY
+
+        searched = len(layout.ripple)
+        physical = layout.n - 2 * searched
+        if not searched or not self.staged:
+            if self.selection_ is not None:
+                self.selection_["ripple"] = {"searched": searched, "kept": searched}
+            return layout, theta
+        cv = self._blocked(layout, theta, q, region)
+        weights = self.prior_ / self._prior_scales(layout, tau) ** 2
+        scores = {}
+        for m in dict.fromkeys([0, *self.ripple_rounds_, searched]):
+            scores[m] = cv.evaluate(np.arange(physical), physical + np.arange(2 * m), weights)
+        best = min(e.sse for e in scores.values())
+        kept = min(m for m, e in scores.items() if e.sse <= (1.0 + PARSIMONY) * best)
+        self.selection_["ripple"] = {"searched": searched, "kept": kept,
+                                     "rms": {str(m): round(e.rms, 6) for m, e in scores.items()}}
+        self.blocked_ = cv.evaluate(np.arange(physical), physical + np.arange(2 * kept), weights, variance=True)
+        if kept < searched:
+            layout = Layout(layout.groups, layout.ripple[:kept])
+            theta = theta[: physical + 2 * kept].copy()
+            # (the amplitudes kept refitted; none kept: the state — residual, Jacobian — of the physical fit)
+            theta = self._fit_ripple(layout, theta, physical, q, s, tau, measured, self.iterations if kept else 0)
+        return layout, theta
+
+    def blocked_figures(self) -> dict | None:
+        """The identified arm's blocked held-out figures (mm: mean, p95, max of |E − Ê| at the
+        rows, each predicted by the fit without its region; rms per coordinate), None without a
+        blocked selection."""
+        if self.blocked_ is None:
+            return None
+        norms = self.blocked_.norms()
+        return {"regions": self.selection_["regions"], "rows": int(self.selection_["rows"]),
+                "mean_mm": round(float(norms.mean()), 6),
+                "p95_mm": round(float(np.quantile(norms, 0.95)), 6), "max_mm": round(float(norms.max()), 6),
+                "rms_mm": round(self.blocked_.rms, 6)}
+
     def _search_ripple(self, layout: Layout, theta: np.ndarray, q, s, tau, measured) -> tuple[Layout, np.ndarray]:
         """Gear-ripple orders added on top of the fitted physical model, which stays as fitted
         (``staged``): the orders take up what it leaves at the angles the data visited, and the
@@ -1012,6 +1148,7 @@ class KinematicModel(Estimator):
                 break
             self.ripple_search_ += picks
             layout = Layout(layout.groups, layout.ripple + [pick for pick, _ in picks])
+            self.ripple_rounds_.append(len(layout.ripple))
             theta = np.r_[theta, np.zeros(2 * len(picks))]
             # a few iterations per round (warm start); the full fit at the end
             theta = self._fit_ripple(layout, theta, physical, q, s, tau, measured, 3)
@@ -1095,7 +1232,7 @@ class KinematicModel(Estimator):
         spread from fit to fit is the optimiser's path, not a statistical one)."""
         _, jac, _ = self._state
         layout = self.layout_
-        sigma = self._prior_scales(layout, torch.as_tensor(np.ones((1, 6 + N_COUPLING))))
+        sigma = prior_scales(layout, np.ones((1, 6 + N_COUPLING)))
         scaled = jac * sigma
         _, sv, vt = np.linalg.svd(scaled, full_matrices=False)
         rank = int((sv > tolerance * sv[0]).sum()) if len(sv) else 0

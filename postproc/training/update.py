@@ -3,7 +3,11 @@
 A robot changes between measurement campaigns in a few known ways: the tracker is set up
 again (a new base registration), the axes are re-mastered after a crash or a motor change
 (joint zero offsets), the probe or tool is mounted again (TCP offset). Its geometry,
-compliance, backlash and gears do not. So an update re-fits only
+compliance, backlash and gears do not. So an update re-fits at most — each group in turn, kept
+only where the new rows' GCV score n·RSS/(n − p_eff)² beats the step before's by REGION_GAIN
+(the card's ``update.choice``: a wide campaign's model re-fitted on 30 rows of another lost
+accuracy to zero offsets and a tool the rows did not ask for: IPA B 0.365 mm with the new frame
+alone, 0.386 with all three)
 
 * ``base`` (6: rotation vector rad, offset mm),
 * ``zero`` (6: joint zero offsets, rad),
@@ -109,6 +113,7 @@ class OldModel:
     envelope: dict | None = None
     covariance: np.ndarray | None = None  # [P, P] OLD's parameter covariance (its graph's error_std), if it has one
     lever: float | None = None  # mm/rad: OLD fitted the orientation with this weight (None: position only)
+    learned_var: float = 0.0  # mm²: what OLD's error_std adds outside its joint arcs (its learned parts)
 
 
 @dataclass
@@ -120,6 +125,7 @@ class Update:
     rows: int
     parameters: list[dict]  # every re-fitted parameter: group, name, unit, old, new, change, std, moved
     region: dict | None = None  # the placements' spread factors tried, their GCV scores, the one chosen
+    choice: dict | None = None  # the groups tried in turn, their GCV scores, the ones chosen
 
     @property
     def moved(self) -> list[dict]:
@@ -129,7 +135,8 @@ class Update:
         """The new model card's ``update`` entry."""
         return {"from": self.old.card.get("name") or self.old.path.stem, "from_sha256": self.old.sha256,
                 "rows": self.rows, "groups": list(dict.fromkeys(p["group"] for p in self.parameters)),
-                "moved_at_sigmas": MOVED_SIGMAS, "region": self.region, "parameters": self.parameters}
+                "moved_at_sigmas": MOVED_SIGMAS, "region": self.region, "choice": self.choice,
+                "parameters": self.parameters}
 
 
 def _refuse(message: str, path: Path, code: str = "P317") -> PostprocError:
@@ -227,6 +234,7 @@ def read_old_model(path: str | Path, description: RobotDescription) -> OldModel:
     weights = _initializers(data)
     nets, hidden = _residual_nets(path, weights, int(found.get("residual_nets") or 0))
     covariance = _graph_covariance(weights, layout.n)
+    learned_var = float(np.asarray(weights.get("module.learned_var", 0.0)))
     residual_std = float(found.get("residual_std_mm") or 0.0)
     if not residual_std > 0:  # (a card without it: the training residual's mean norm ≈ 1.6 σ per coordinate)
         residual_std = float(((card.get("accuracy") or {}).get("train_mean_mm") or 0.1)) / 1.6
@@ -234,7 +242,7 @@ def read_old_model(path: str | Path, description: RobotDescription) -> OldModel:
     lever = orientation.get("lever_mm_per_rad") if orientation.get("fitted") else None
     return OldModel(path, hashlib.sha256(data).hexdigest(), card, layout, theta, std, residual_std, tau_mean, ik,
                     old.wants_previous, nets, hidden, joint_range, envelope, covariance,
-                    float(lever) if lever else None)
+                    float(lever) if lever else None, learned_var=learned_var)
 
 
 def _graph_covariance(weights: dict, n: int) -> np.ndarray | None:
@@ -305,18 +313,38 @@ def update_model(old: OldModel, description: RobotDescription, poses: np.ndarray
     if old.nets:  # the identification is re-fitted to what OLD's residual networks leave
         came_from = poses if previous is None else previous  # (unknown: from HOME, as the re-fit takes it)
         target = errors - _net_part(old, description, poses, came_from if old.use_previous else None, q_deg)
-    fits, region = [], None
-    for factor in REGION_FACTORS if "placement" in old.layout.groups and "placement" not in groups else (0.0,):
-        tried = groups + (("placement",) if factor else ())
-        fit = _refit(old, description, tried, {"placement": np.tile(factor * REGION_SPREAD, 6)}, poses, target,
-                     previous, q_deg, rotation_errors, lever)
-        fits.append((factor, tried, fit))
+    # what the new rows ask for: the groups in turn (a new frame; re-mastered axes; a tool mounted
+    # again), each step kept only where its GCV score beats the step before's by REGION_GAIN
+    # (``choice``), then the joint placements on top of them all (``region``)
+    extra = tuple(g for g in groups if g in ORIENTATION_GROUPS)
+    ladder = [t for t in (tuple(g for g in groups if g not in ORIENTATION_GROUPS)[:k + 1] for k in
+                          range(len([g for g in groups if g not in ORIENTATION_GROUPS])))]
+    steps = []
+    for tried in ladder:
+        if not _prior(old, tried + extra)[0].any():
+            continue
+        steps.append((0.0, tried + extra, _refit(old, description, tried + extra, {}, poses, target, previous, q_deg,
+                                                 rotation_errors, lever)))
+    best = steps[0]
+    for step in steps[1:]:
+        if step[2][-1] < REGION_GAIN * best[2][-1]:
+            best = step
+    choice = {"candidates": [{"groups": list(t), "gcv": round(f[-1], 6) if math.isfinite(f[-1]) else None}
+                             for _, t, f in steps], "chosen": list(best[1])}
+    fits, region = [steps[-1]], None
+    if "placement" in old.layout.groups and "placement" not in groups:
+        for factor in REGION_FACTORS[1:]:
+            tried = steps[-1][1] + ("placement",)
+            fits.append((factor, tried, _refit(old, description, tried, {"placement": np.tile(factor * REGION_SPREAD, 6)},
+                                               poses, target, previous, q_deg, rotation_errors, lever)))
     if len(fits) > 1:
         region = {"factors": [f for f, _, _ in fits], "spread_rad_mm": REGION_SPREAD[[0, 3]].tolist(),
                   "gcv": [round(f[-1], 6) if math.isfinite(f[-1]) else None for _, _, f in fits]}
-    best = min(fits[1:], key=lambda f: f[2][-1], default=fits[0])
-    factor, groups, (km, free, weights, jf, a_inv, sigma2, _) = (
-        best if best[2][-1] < REGION_GAIN * fits[0][2][-1] else fits[0])
+    placed = min(fits[1:], key=lambda f: f[2][-1], default=None)
+    if placed is not None and placed[2][-1] < REGION_GAIN * best[2][-1]:
+        best = placed
+        choice["chosen"] = list(best[1])
+    factor, groups, (km, free, weights, jf, a_inv, sigma2, _) = best
     if region is not None:
         region["chosen"] = factor
     model = HybridModel.refitted(description, km, old.nets, old.hidden, old.joint_range, old.envelope, poses, errors,
@@ -326,13 +354,14 @@ def update_model(old: OldModel, description: RobotDescription, poses: np.ndarray
     std[free] = post_std
     model.identification_std_ = (std, old.residual_std_mm)
     if old.covariance is not None:
-        # error_std goes on: OLD's covariance of what it kept, the re-fit's of what it moved (the
-        # regularised estimate's spread, σ²A⁻¹JᵀJA⁻¹, as ``uncertainty.parameter_covariance``),
-        # and the new rows' residual variance: what this campaign leaves unexplained
+        # error_std goes on: OLD's covariance of what it kept, the re-fit's posterior of what it
+        # moved (σ²A⁻¹, as ``uncertainty``'s predictive covariance: the directions the new rows
+        # do not separate keep their prior's spread), the new rows' residual variance (what this
+        # campaign leaves unexplained) and OLD's learned parts' variance outside its arcs
         cov = old.covariance.copy()
         cov[free, :], cov[:, free] = 0.0, 0.0
-        cov[np.ix_(free, free)] = sigma2 * (a_inv @ (jf.T @ jf) @ a_inv)
-        model.module_.set_uncertainty(cov, sigma2)
+        cov[np.ix_(free, free)] = sigma2 * a_inv
+        model.module_.set_uncertainty(cov, sigma2, old.learned_var)
     column = {int(i): k for k, i in enumerate(np.flatnonzero(free))}  # parameter → its place among the free ones
     table = []
     slices = old.layout.slices()
@@ -346,7 +375,7 @@ def update_model(old: OldModel, description: RobotDescription, poses: np.ndarray
                           "old": round(float(before), 6), "new": round(float(after), 6),
                           "change": round(float(after - before), 6), "std": round(float(std), 6),
                           "moved": bool(abs(after - before) > MOVED_SIGMAS * std)})
-    return Update(model, old, model.n_train_, table, region)
+    return Update(model, old, model.n_train_, table, region, choice)
 
 
 def _refit(old: OldModel, description: RobotDescription, groups: tuple[str, ...], drift: dict, poses, target,
