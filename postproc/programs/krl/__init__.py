@@ -3,33 +3,32 @@
 Syntax lives in ``grammars/krl.lark`` (one statement per physical line, as KRL has it).
 Speed comes from parsing each distinct line *shape* once: a line with every number token
 and every digit run ending a name (``XP12``, ``FP3``) replaced by ``0`` (``SHAPE_RE``).
-Whatever the parse of a shape tells (the statement, which of its numbers are a target's
-X…C) holds for every line of that shape, so the numbers and names of the line are all that
-is left to read. Target lines of frequent shapes are then read
-without a Python loop: one regex built from those shapes (``_Accel``) pulls the numbers of
-a whole chunk of text at once and numpy turns them into poses and spans. Everything else
-(declarations, frames, block structure, motions to names) goes line by line through the
-interpreter (``reader.Reader``), in textual order.
+Whatever the parse of a shape tells holds for every line of that shape. Runs of motion lines
+to literal aggregates of frequent shapes are read without a Python loop (``fast_path``: one
+regex per chunk, numpy) and become one ``ir.MoveRun``; every other statement is lowered to the
+motion IR (``lower``) and the one analysis (``programs.analysis``) runs the unit as the
+controller would — calls with IN/OUT parameters, branches joined, loops to a fixed point or
+unrolled, GOTOs, interrupts and triggers — with KRL's meaning of frames, tools, positions and
+system routines (``semantics``: the ``KRL`` Dialect).
 
-Semantics (tests/test_krl.py shows each on a small program):
+Semantics (tests/test_krl*.py and tests/test_execution.py show each on a small program):
 
-* a Target is a Cartesian motion target (inline POS/E6POS/FRAME aggregate or the
-  aggregate a position variable was given: its .dat declaration or an assignment);
-  axis targets, frames, comments and strings are never targets;
-* the frame of a target is INV_POS($ROBROOT):$BASE (and the left operands of ``:``),
-  tracked through each DEF, branches and loops merged (``flow``); unresolvable → frame -1
-  + warning P201 (P203 the tool); not set before the target and not stated by the user
-  (``ActiveFrames``: ``--base`` / ``--tool``) → -1 + P220 / P221;
-* a partial inline aggregate takes its missing components from the preceding Cartesian
-  motion target (same DEF, same frame), NaN where none is known (also after control flow
-  that moves).
+* a target is a Cartesian motion target (an inline POS/E6POS/FRAME aggregate or a position
+  variable's value where the motion runs), one row per executed motion, in execution order
+  (``Targets.prev``); axis targets, frames, comments and strings are never targets (an axis
+  target to known values is where the next target's arm configuration starts:
+  ``Targets.start``);
+* the frame of a target is INV_POS($ROBROOT):$BASE (and the left operands of ``:``) where the
+  motion runs; not known → frame -1 + warning P201 (P203 the tool); not set before the target
+  and not stated by the user (``ActiveFrames``: ``--base`` / ``--tool``) → -1 + P220 / P221;
+* a partial inline aggregate takes its missing components from where the robot stands (the
+  command before it), NaN where that is not known here.
 
-Modules (one concept each; the ``Reader`` class in ``reader`` combines their methods):
-``syntax`` (parser, number token, syntax-error wording), ``values`` (numbers, aggregates,
-variables), ``scopes`` (declarations, lookup), ``frames`` ($BASE/$TOOL/$ROBROOT), ``blocks``
-(block structure, folds), ``flow`` (branches and loops), ``calls`` (callees, functions,
-the sandbox), ``statements`` (assignments, calls, motions), ``fast_path`` (shape
-cache, accelerated regex), ``assemble`` (rows → Targets), ``reader`` (the loop).
+Modules: ``syntax`` (parser, number token, syntax-error wording), ``blocks`` (block
+structure, folds), ``fast_path`` (shape cache, accelerated regex → MoveRun), ``lower``
+(statements → IR), ``semantics`` (the KRL Dialect), ``machine`` (a backup's machine data:
+$ROBROOT, a track, $ABS_ACCUR), ``reader`` (``read`` / ``lower``: files → IR → analysis →
+Program).
 """
 from __future__ import annotations
 
