@@ -10,8 +10,9 @@ settings) refuse or warn, plus what only matters once programs are kept in a rep
   IK reachability test), outside the training envelope (``P301``), not finite (``P103``),
   with a position or orientation that is not known (``P212``, ``P213``), a $TOOL that is not
   the model's (``P304``) or a model trained on another robot (``P310``), corrections the
-  model makes NaN (``P305``) or implausibly large (``P303``), one set of numbers used in two
-  frames (``P202``): the rules of :mod:`postproc.findings`, which compensate applies too;
+  model makes NaN (``P305``) or implausibly large (``P303``), one set of numbers the runs of
+  which need other numbers (``P230``): the rules of :mod:`postproc.findings`, which compensate
+  applies too;
   then, if none is an error, the last checks before writing (``P190``, ``P191``);
 * stamps: compensated with a model other than the configured one (``P402``), compensated
   twice (``P403``), a .src and .dat that do not come from one compensation (``P404``; a
@@ -34,7 +35,7 @@ from .compensate import compensate_program, load_program, output_paths, rewrite_
 from .findings import DEFAULT_MAX_CORRECTION_MM, Settings, findings, run_model, select, std_bound
 from .compensator import Compensator, load_model
 from .config import Config
-from .diagnostics import P202, P401, P402, P403, P404, P405, P406, P407, Diagnostic, PostprocError, line_col
+from .diagnostics import P230, P322, P401, P402, P403, P404, P405, P406, P407, Diagnostic, PostprocError, line_col
 from .programs import STAMP_PREFIX, Program, companion_dat
 from .atomic import write_atomic
 
@@ -158,12 +159,22 @@ def check_program(
     selection = select(program, model, settings)
     commands = run_model(model, selection, iterations, std=std_bound(model, settings) is not None)
     # a stamp is the stamp rules' business here (P402-P404), not "already compensated"
-    out = [d for d in program.diagnostics if d.code != P202] + program.notes
+    out = list(program.diagnostics) + program.notes
     out += [d for d in findings(program, commands, model, settings) if d.code != P401]
     out += _stamp_findings(program, model, selection)
     if not failed(out):
+        t = program.targets
         try:
-            rewrite_program(program, commands, model)
+            if t.group is not None and (t.group >= 0).any():
+                # numbers run more than once: compensate's own agreement of the runs (P230, P322),
+                # which needs its rounds (the model again without the groups that disagree)
+                report = compensate_program(program, model, iterations=iterations, robot=robot,
+                                            max_correction_mm=max_correction_mm, max_std_mm=max_std_mm)
+                said = {(d.path, d.line, d.col, d.code) for d in out}
+                out += [d for d in report.warnings + report.notes if d.code in (P230, P322)
+                        and (d.path, d.line, d.col, d.code) not in said]
+            else:
+                rewrite_program(program, commands, model)
         except PostprocError as exc:
             out.append(exc.diagnostic())
     return out

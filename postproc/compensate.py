@@ -21,7 +21,7 @@ from collections import Counter
 from . import frames
 from .compensator import Chain, Compensator, Inside, load_model
 from .diagnostics import (
-    P105, P106, P107, P108, P201, P202, P203, P212, P220, P221, P224, P225, P230, P306, P312, P321, P322, P340,
+    P105, P106, P107, P108, P201, P203, P212, P220, P221, P224, P225, P230, P306, P312, P321, P322, P340,
     Diagnostic,
     LEFT_AS_WRITTEN,
     PostprocError,
@@ -446,7 +446,7 @@ def compensate_program(
     selection, found = select_with_findings(program, model, settings)
     model_notes = [d for d in found if d.severity == "note"]  # (P340: said once, not a warning)
     found = [d for d in found if d.severity != "note"]
-    warnings = [d for d in program.diagnostics if d.code != P202 or force] + found
+    warnings = list(program.diagnostics) + found
     _raise_first(found, False)
     _raise_first(warnings, strict)
     if orientation:

@@ -36,7 +36,7 @@ import numpy as np
 from . import frames
 from .compensator import Compensator, Inside, Order
 from .diagnostics import (
-    P103, P202, P212, P213, P216, P218, P230, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P336, P340,
+    P103, P212, P213, P216, P218, P230, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P336, P340,
     P401, P408, P409, P517, Diagnostic, PostprocError, line_col,
 )
 from .programs import Program
@@ -60,7 +60,7 @@ class Settings:
     iterations: int | None = None
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM
     robot: str | None = None  # the robot the program is for (P310)
-    force: bool = False  # lifts P401, P408, P409, P304, P310, P202
+    force: bool = False  # lifts P401, P408, P409, P304, P310
     fill_partial: bool = True  # False: a partial aggregate is refused (P216), not filled in
     reachable: Callable[[np.ndarray], np.ndarray] | None = None  # robot-base poses → bool mask (P309)
     chain: object = None  # compensator.Chain: a part of a program after the parts before (streaming compensate)
@@ -306,16 +306,6 @@ def unit_rule(program: Program, model: Compensator) -> list[Diagnostic]:
     return [] if problem is None else [Diagnostic(*where(program, 0), P517, problem, "error")]
 
 
-def shared_rule(program: Program, settings: Settings) -> list[Diagnostic]:
-    """P202 (the reader's warning): one set of numbers, two frames — the correction written
-    is wrong for one of the uses (in a base turned by 180°, twice the error uncompensated)."""
-    if settings.force:
-        return []
-    return [Diagnostic(d.path, d.line, d.col, P202, d.message.replace(": compensated for the first", "")
-                       + ": no one correction is right for both; give each use its own position, or --force to "
-                       "compensate for the first", "error") for d in program.diagnostics if d.code == P202]
-
-
 def held_rule(program: Program, use: np.ndarray) -> dict:
     """The rows the analysis leaves as written (``Program.held``: P217, a target whose numbers
     something else reads too; warned by the reader at each): code → rows. Narrows ``use``."""
@@ -538,8 +528,7 @@ def std_rule(program: Program, model: Compensator, settings: Settings, commands:
 
 def select_with_findings(program: Program, model: Compensator, settings: Settings) -> tuple[Selection, list[Diagnostic]]:
     """The targets the model takes, and every finding that needs no model output."""
-    out = (stamp_rule(program, settings) + accuracy_rule(program, settings) + fit_rule(program, model, settings)
-           + shared_rule(program, settings))
+    out = (stamp_rule(program, settings) + accuracy_rule(program, settings) + fit_rule(program, model, settings))
     out += demonstration_rule(model)
     in_metres = unit_rule(program, model)
     out += in_metres
@@ -638,8 +627,8 @@ def command_findings(program: Program, commands: Commands, model: Compensator, s
 
 
 def findings(program: Program, commands: Commands | None, model: Compensator, settings: Settings) -> list[Diagnostic]:
-    """Every finding of these rules about ``program`` (reader warnings other than P202 are
-    not repeated). ``commands`` None: only those that need no model output."""
+    """Every finding of these rules about ``program`` (the reader's warnings are not
+    repeated). ``commands`` None: only those that need no model output."""
     out = static_findings(program, model, settings)
     if commands is not None:
         out += command_findings(program, commands, model, settings)

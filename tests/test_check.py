@@ -387,3 +387,22 @@ def test_check_runs_the_model_once_for_a_clean_program(tmp_path, monkeypatch):
     assert len(points) == 1  # one fixed point
     # (a model that settles the approach runs once more, to check the commands it settled)
     assert len(calls) == model.default_iterations or model.settles
+
+
+def test_a_point_whose_runs_need_other_numbers_is_a_finding_as_compensate_says(affine, tmp_path):
+    """One position moved to under two bases (a varying model: two corrections): compensate
+    leaves it (P230, exit 1), and check says so at the same place — a clean check means
+    compensate succeeds."""
+    model = load_model(affine(gain=np.diag([2e-3, 1e-3, 3e-3])))
+    src = ("DEF t( )\n  $TOOL = {X 0,Y 0,Z 200,A 0,B 0,C 0}\n  $BASE = {X 0,Y 0,Z 0,A 0,B 0,C 0}\n  LIN XP1\n"
+           "  $BASE = {X 0,Y 300,Z 0,A 0,B 0,C 0}\n  LIN XP1\nEND\n")
+    dat = "DEFDAT t\n  DECL E6POS XP1={X 2000,Y 0,Z 900,A 0,B 90,C 0}\nENDDAT\n"
+    _, report = compensate_text(src, model, name="t.src", dat_text=dat)
+    left = [(d.line, d.code) for d in report.warnings if d.code == "P230"]
+    assert left and report.compensated == 0
+    program = parse_program_text(src, "t.src", dat_text=dat)
+    found = check_program(program, model)
+    assert [(d.line, d.code) for d in found if d.code == "P230"] == left and failed(found, strict=True)
+    # the same position under one base: clean, as compensate
+    one = src.replace("  $BASE = {X 0,Y 300,Z 0,A 0,B 0,C 0}\n", "")
+    assert [d for d in check_program(parse_program_text(one, "t.src", dat_text=dat), model) if d.severity != "note"] == []
