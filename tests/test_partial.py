@@ -70,7 +70,9 @@ def test_weld_cell_partial_target_lands_as_if_written_in_full(tmp_path):
     errors = {}
     for name, text in (("partial", partial), ("full", full)):
         new, report = compensate_text(text, model, name="w.src", dat_text=dat, config=config, active=STATED)
-        assert report.complete
+        # (XP11 runs after seam_clean's last target and, where PART_TYPE is neither 1 nor 2, after the last tack:
+        # DEFAULT's HALT pauses, Start resumes — two approaches the default model corrects 0.19 mm apart: P230)
+        assert report.left_codes == {"P230": 1} and report.compensated == report.targets - 1
         for label, src in (("original", text), ("compensated", new)):
             (tmp_path / f"{label}.src").write_text(src, "latin-1")
             (tmp_path / f"{label}.dat").write_text(dat if label == "original" else report.outputs["w.dat"], "latin-1")

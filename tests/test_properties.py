@@ -56,7 +56,9 @@ def models(tmp_path_factory):
 
 class Module:
     """Lines of a .src and a .dat as segments: ("lit", text) or ("xyz", token, target, k);
-    targets as dicts {file, line, motion, delta (None: position unknown), tokens}."""
+    targets as dicts {file, line, motion, known (its position), delta (its correction's change in the
+    numbers; None: left as written — its position unknown, or its command read by a partial target
+    left as written), tokens}."""
 
     def __init__(self):
         self.lines = {0: [], 1: []}
@@ -64,6 +66,7 @@ class Module:
         self.rot = np.eye(3)  # rotation of the active $BASE (in the robot base frame)
         self.known = np.zeros(3, bool)  # which components of the current position are known
         self.decls: list[list] = []  # .dat declarations, written out in the order drawn
+        self.last: dict | None = None  # the target the robot stands at (None: an axis or relative motion's end)
 
     def line(self, file: int, segments: list) -> int:
         self.lines[file].append(segments)
@@ -72,15 +75,24 @@ class Module:
     def target(self, file: int, line: int, motion: str, written, chain: bool = True) -> dict:
         written = np.asarray(written, bool)
         after = self.known | written
-        target = {"file": file, "line": line, "motion": motion,
+        target = {"file": file, "line": line, "motion": motion, "known": bool(after.all()),
                   "delta": self.rot.T @ OFFSET if after.all() else None}
+        if not after.all() and self.last is not None:
+            # (a partial target left as written takes its missing X/Y/Z from the command before it at
+            # run time: compensating that one would move it, so it is left too)
+            self.last["delta"] = None
         if chain:
             self.known = after
+            self.last = target
         self.targets.append(target)
         return target
 
-    def reset(self):
+    def reset(self, stands: bool = True):
+        """The current position is not known any more (``stands``: the robot still stands at the
+        last target's command — a $BASE/$TOOL change —, else an axis or relative motion moved it)."""
         self.known[:] = False
+        if not stands:
+            self.last = None
 
 
 def blanks(draw, least=0):
@@ -214,19 +226,19 @@ def statement(draw, m: Module, canonical: bool, in_spline: bool = False):
         m.line(0, indent + [("lit", cased(draw, t["motion"]) + blanks(draw, 1) + name + blanks(draw))] + trailing(draw))
     elif kind == "axis":
         comps = [(f"A{i}", angle(draw), "lit") for i in range(1, 7)]
-        m.reset()
+        m.reset(stands=False)
         m.line(0, indent + [("lit", cased(draw, draw(st.sampled_from(["PTP", "SPTP"]))) + " ")]
                + aggregate(draw, m, comps, draw(st.sampled_from([None, "E6AXIS", "AXIS"]))))
     elif kind == "axisvar":
         name = f"XA{len(m.decls) + 1}"
         comps = [(f"A{i}", angle(draw), "lit") for i in range(1, 7)] + [("E1", "0.0", "lit")]
         m.decls.append([("lit", f"DECL {cased(draw, 'E6AXIS')} {name}="), ("agg", aggregate(draw, m, comps))])
-        m.reset()
+        m.reset(stands=False)
         m.line(0, indent + [("lit", f"{cased(draw, 'PTP')} {name}")])
     elif kind == "rel":
         rel = draw(st.sampled_from(["LIN_REL {X 10.0}", "LIN_REL {Z -20.000} #TOOL", "PTP_REL {A1 5}",
                                     "SLIN_REL {Y 2.5}"]))
-        m.reset()
+        m.reset(stands=False)
         m.line(0, indent + [("lit", rel)] + trailing(draw))
     elif kind in ("base", "basevar", "tool"):
         six = [draw(st.integers(-2000, 2000)) + draw(st.integers(0, 999)) / 1000 for _ in range(3)]
@@ -415,7 +427,7 @@ def test_output_reads_as_the_same_targets_in_the_same_frames(models, module):
     assert len(t) == len(targets)
     assert [(int(f), int(n)) for f, n in zip(t.file, t.line)] == [(g["file"], g["line"]) for g in targets]
     known = ~np.isnan(t.poses[:, :3]).any(axis=1)
-    assert known.tolist() == [g["delta"] is not None for g in targets]
+    assert known.tolist() == [g["known"] for g in targets]
     out, report = compensate_text(src, models["offset"], name="prog.src", dat_text=dat, active=STATED)
     stripped = [without_stamp(out, models["offset"], "prog.src" in report.changed),
                 without_stamp(report.outputs["prog.dat"], models["offset"], "prog.dat" in report.changed)]
