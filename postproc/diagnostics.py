@@ -56,7 +56,6 @@ P190 = _code("P190", "error", "last check before writing: a span or new number t
 P191 = _code("P191", "error", "last check before writing: the new text does not read again as the same program (a postproc bug)")
 # P2xx: frames and targets not statically known (the target is left as written)
 P201 = _code("P201", "warning", "the target's base (frame) is not statically known: left as written")
-P202 = _code("P202", "error", "(retired: one set of numbers in two frames is P230 now, a warning)")
 P203 = _code("P203", "warning", "the target's $TOOL is not known: left as written")
 P210 = _code("P210", "warning", "a _REL motion: its absolute target is known only at run time")
 P211 = _code("P211", "warning", "a target computed at run time (or an element the reader cannot enumerate)")
