@@ -62,8 +62,7 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--force", action="store_true",
                    help="compensate anyway: an already compensated program (P401), a robot whose backup switches on "
                    "the controller's own absolute-accuracy model ($ABS_ACCUR: P408/P409; its correction and this one "
-                   "then add up), another tool's or robot's program (P304/P310), one set of numbers in two frames "
-                   "(P202)")
+                   "then add up), another tool's or robot's program (P304/P310)")
     p.set_defaults(run=run)
 
 
