@@ -90,6 +90,12 @@ class Oracle:
             return Mat(fr.frame_to_matrix(six), "the world's frame")
         return self._draw(self._key(site, "frame"), make)
 
+    def model_tool(self) -> np.ndarray:
+        """The model's own tool on the flange in this world (drawn once)."""
+        def make(r):
+            return fr.frame_to_matrix(np.r_[r.uniform(-200, 200, 3), r.uniform(-30, 30, 3)])
+        return self._draw(("the model's tool",), make)
+
 
 class _Halt(Exception):
     pass
@@ -279,7 +285,7 @@ class Interpreter(Analysis):
         frame = self.frame_value(s.frame, st)
         tool = self.tool_value(s.tool, st)
         if isinstance(s.target, Agg) and isinstance(target, Rec):
-            target = self.fill_from(target, st, frame)
+            target = self.fill_from(target, st, frame, tool)
         m = self._pose(target, frame)
         view = self.dialect.view(target) if isinstance(target, Rec) else None
         if view is not None and view.kind == "axis":
@@ -290,17 +296,24 @@ class Interpreter(Analysis):
         self.motions.append(Motion(s.loc, s.kind, m, tool if not isinstance(tool, Top) else None,
                                    view.loc if view is not None else None, token))
         if s.chain:
-            st.cur = (m, frame) if m is not None else None
+            st.cur = (m, frame, tool) if m is not None else None
         return st
 
-    def fill_from(self, target: Rec, st: State, frame):
+    def fill_from(self, target: Rec, st: State, frame, tool):
         """A partial target takes its missing components from where the robot stands: the pose
-        last commanded, in the motion's frame (as the controller does)."""
+        last commanded, in the motion's frame, for the motion's tool (as the controller does:
+        the flange stays where the tool before left it)."""
         names = ("X", "Y", "Z", "A", "B", "C")
         missing = [k for k in names if k not in target.fields]
         if not missing or st.cur is None or not isinstance(frame, Mat):
             return target
-        here = np.linalg.inv(frame.m) @ st.cur[0]
+        here = st.cur[0]
+        if not _equal_tools(st.cur[2], tool):
+            before, now = self._tool_matrix(st.cur[2]), self._tool_matrix(tool)
+            if before is None or now is None:
+                return target
+            here = here @ np.linalg.inv(before) @ now
+        here = np.linalg.inv(frame.m) @ here
         six = fr.matrix_to_frame(here)
         fields = dict(target.fields)
         for k in missing:
@@ -322,13 +335,13 @@ class Interpreter(Analysis):
         for i in range(len(r["line"])):
             fields = {k: float(r["pose"][i, j]) for j, k in enumerate("XYZABC") if r["written"][i, j]}
             target = Rec("", fields, Loc(int(r["file"][i]), int(r["line"][i]), int(r["col"][i])))
-            target = self.fill_from(target, st, frame)
+            target = self.fill_from(target, st, frame, tool)
             m = self._pose(target, frame)
             site = target.loc
             token = (int(r["file"][i]), int(r["spans"][i, 0])) if r["spans"][i, 0] >= 0 else None
             self.motions.append(Motion(site, "row", m, tool if not isinstance(tool, Top) else None, site, token))
             if r["chain"][i]:
-                st.cur = (m, frame) if m is not None else None
+                st.cur = (m, frame, tool) if m is not None else None
         return st
 
     def frame_value(self, expr, st):
@@ -340,6 +353,21 @@ class Interpreter(Analysis):
         if isinstance(v, Six):
             return tuple(v)
         return v
+
+    def _tool_matrix(self, tool):
+        """A tool on the flange in this world: six numbers as written; the model's own (None): a
+        tool the oracle draws once; unknown (Top): None."""
+        if isinstance(tool, tuple):
+            return fr.frame_to_matrix(np.asarray(tool, float))
+        if tool is None:
+            return self.oracle.model_tool()
+        return None
+
+
+def _equal_tools(a, b) -> bool:
+    if isinstance(a, tuple) and isinstance(b, tuple):
+        return np.allclose(a, b, rtol=0, atol=1e-12)
+    return a is b
 
 
 def _equal(a, b) -> bool:

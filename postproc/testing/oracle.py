@@ -93,10 +93,12 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
     t = program.targets
     # targets the analysis left with their frame not known: a motion after one has no known predecessor
     blind = set(zip(t.file[t.frame < 0].tolist(), t.line[t.frame < 0].tolist(), t.col[t.frame < 0].tolist()))
-    # targets compensate reached from nothing known (Targets.prev -1): the model's first-target rule
+    # targets compensate reached from nothing known (Targets.prev -1, or a predecessor whose position
+    # is not known): the model's first-target rule
     alone = set()
     if t.prev is not None:
         first = t.prev < 0
+        first[~first] = np.isnan(t.poses[t.prev[~first], :3]).any(axis=1)
         alone = set(zip(t.file[first].tolist(), t.line[first].tolist(), t.col[first].tolist()))
     unit_a, dialect_a = lowered(files, texts, dialect, config, active)
     unit_b, dialect_b = lowered(files, new_texts, dialect, config, active)

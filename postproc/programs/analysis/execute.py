@@ -70,7 +70,14 @@ class State:
 def _same_cur(a, b) -> bool:
     if a is None or b is None:
         return a is b
-    return a[0] == b[0] and same(a[1], b[1])
+    return a[0] == b[0] and same(a[1], b[1]) and same(a[2], b[2])
+
+
+def _with_tool(cur, tool):
+    """Where the robot stands (position, frame, tool) as a target with ``tool`` reads it: None
+    when the tool changed since (the controller's position is the new tool's point, the flange
+    where the old tool left it: not the numbers commanded)."""
+    return cur if cur is not None and same(cur[2], tool) else None
 
 
 def join_states(a: State | None, b: State | None, why: str, loc: Loc | None) -> State | None:
@@ -320,7 +327,6 @@ class Analysis:
                              f"a GOTO {s.name} jumps to line {s.loc.line} with others", s.loc)
             if st is not None and (s.name in act.jumps or s.name in act.labels_in):
                 st = st.copy()  # (never the jumps' own states: what runs after the label changes it)
-                st.cur = None  # (the robot may come from elsewhere)
             return st
         if kind is Goto:
             if s.cond is not None:
@@ -553,14 +559,14 @@ class Analysis:
         frame = self.frame_value(s.frame, st)
         tool = self.tool_value(s.tool, st)
         if isinstance(s.target, Agg) and isinstance(target, Rec):
-            target, filled = self.dialect.fill(target, st.cur, frame)
+            target, filled = self.dialect.fill(target, _with_tool(st.cur, tool), frame)
         config = self.eval(s.config, st) if s.config is not None else None
         ext = self.eval(s.ext, st) if s.ext is not None else None
         if self.rec is not None:
             self.rec.uses.append(Use(key, s, target, filled, frame, tool, st.last, _written(s.target), config, ext))
         st.last = frozenset([key])
         if s.chain:
-            st.cur = (self.dialect.position(target), frame) if isinstance(target, Rec) else None
+            st.cur = (self.dialect.position(target), frame, tool) if isinstance(target, Rec) else None
         return st
 
     def move_run(self, s: MoveRun, st: State) -> State:
@@ -573,7 +579,7 @@ class Analysis:
         if self.rec is not None:
             self.rec.uses.append(RunUse(key, s, frame, tool, st.last, st.cur))
         st.last = frozenset([key])
-        st.cur = self.dialect.run_position(s, st.cur, frame)
+        st.cur = (*self.dialect.run_position(s, _with_tool(st.cur, tool), frame), tool)
         return st
 
     def frame_value(self, expr, st: State):

@@ -429,7 +429,7 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
     chain = r["chain"]
     if not written.all():
         ar = np.arange(n)
-        cur = dict(use.cur[0]) if use.cur is not None and _same(use.cur[1], use.frame) else {}
+        cur = dict(use.cur[0]) if use.cur is not None and _same(use.cur[1], use.frame) and _same(use.cur[2], use.tool) else {}
         names = ("X", "Y", "Z", "A", "B", "C")
         for k in range(6):
             w = written[:, k]
