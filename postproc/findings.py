@@ -414,7 +414,8 @@ def known_rule(program: Program, model: Compensator, settings: Settings, poses: 
     no_position = use & np.isnan(poses[:, :3]).any(axis=1)
     out = collect(program, np.flatnonzero(no_position), P212,
                   "position not fully known (a partial aggregate where the current position is not known: no "
-                  "preceding target, or after a relative motion, a call or a branch / loop that moves): left as it is")
+                  "preceding target, or after a relative or axis motion, a call not read, a $TOOL change, or "
+                  "where paths from different positions meet): left as it is")
     use &= ~no_position
     no_attitude = use & np.isnan(poses[:, 3:6]).any(axis=1)
     if no_attitude.any():
