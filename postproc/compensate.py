@@ -49,6 +49,7 @@ from .findings import (
 from .guards import ROUNDING_MM, check_inserted, check_memory, check_numbers, check_round_trip
 from .outputs import check_outputs, write
 from .programs import STAMP_PREFIX, ActiveFrames, Program, companion_dat, dialect_of, read_program
+from .progress import ProgressBar
 from .rewrite import ORIENTATION_DECIMALS, check_disjoint, format_like, format_many, insert_stamp, splice, stamp_line
 
 __all__ = [
@@ -503,8 +504,9 @@ def compensate_program(
     report.max_correction_mm = float(size.max()) if len(size) else 0.0
     report.mean_correction_mm = float(size.mean()) if len(size) else 0.0
     report.outside_envelope = _outside(model, commands)
-    report.warnings = warnings
-    report.notes = program.notes + model_notes + dead_band_notes(program, commands) + approach_notes
+    # (one finding once: a target run in a loop or from two places is found at each run)
+    report.warnings = list(dict.fromkeys(warnings))
+    report.notes = list(dict.fromkeys(program.notes + model_notes + dead_band_notes(program, commands) + approach_notes))
     report.changed = [program.files[i] for i in sorted(set(program.targets.file[selection.rows].tolist()))]
     report.outputs = dict(zip(program.files, outputs))
     return report
@@ -637,6 +639,8 @@ class _CommandStream:
             chunks = model.command_chunks(poses, iterations, joints=selection.joints, tool=selection.tool, with_joints=wanted,
                                           orientation=orientation, chain=chain, std=self.std is not None,
                                           order=selection.order)
+        # (made on this thread: the CLI's progress switch is this thread's context)
+        self._progress = ProgressBar("compensate", len(poses) if computed is None else 0, "target", scale=True)
         self._thread = threading.Thread(target=self._run, args=(chunks, poses, max_correction_mm),
                                         name="postproc-model", daemon=True)
         self._thread.start()
@@ -674,6 +678,7 @@ class _CommandStream:
                     self.unsafe |= unsafe
                     self.ready = end
                     self._changed.notify_all()
+                self._progress.update(end - start)
         except BaseException as exc:  # re-raised on the caller's thread
             with self._changed:
                 self._error = exc
@@ -693,11 +698,13 @@ class _CommandStream:
         """Stop after the chunk in hand (an error elsewhere) and wait for the thread."""
         self._cancel = True
         self._thread.join()
+        self._progress.close()
 
     def result(self) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """(commanded [N, 3] in the robot base, corrected numbers [N, 3] in each target's frame,
         the targets' joint angles [N, 6] deg or None), every row, once the thread is done."""
         self._thread.join()
+        self._progress.close()
         if self._error is not None:
             raise self._error
         return self.commanded, self.new_xyz, self.joints

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 EXIT_OK = 0
 EXIT_FINDINGS = 1  # check found problems / verify exceeded --max-mean
 EXIT_ERROR = 2  # bad input, usage error, internal error: nothing was written
+EXIT_INTERRUPTED = 130  # Ctrl-C (128 + SIGINT, as shells report it): nothing was written
 
 
 

@@ -72,6 +72,7 @@ from functools import partial
 from pathlib import Path
 
 from .diagnostics import P500, P610, PostprocError
+from .progress import ProgressBar
 
 STATE_FILE = "fleet-state.json"
 ROBOT_KEYS = {"name", "data", "robot", "method", "args", "previous"}
@@ -524,12 +525,14 @@ def run_fleet(jobs: list[RobotJob], outdir: str | Path, address: str | None = No
             trained = client.map(train_robot, todo, inputs, pure=False, resources=kinds[0])
             futures = [client.submit(report_robot, t, job, i, pure=False, resources=kinds[1])
                        for t, job, i in zip(trained, todo, inputs)]
-            for job, fut in zip(todo, futures):
-                try:
-                    results[job.name] = write_outputs(fut.result(), outdir)
-                except Exception as exc:  # the task itself broke (worker lost): this robot fails alone
-                    results[job.name] = {"name": job.name, "ok": False, "error": f"{type(exc).__name__}: {exc}",
-                                         "warnings": []}
+            with ProgressBar("fleet", len(todo), "robot") as bar:
+                for job, fut in zip(todo, futures):
+                    try:
+                        results[job.name] = write_outputs(fut.result(), outdir)
+                    except Exception as exc:  # the task itself broke (worker lost): this robot fails alone
+                        results[job.name] = {"name": job.name, "ok": False, "error": f"{type(exc).__name__}: {exc}",
+                                             "warnings": []}
+                    bar.update(1)
         finally:
             cluster = getattr(client, "cluster", None)
             client.close()

@@ -1,9 +1,58 @@
-"""Progress on stderr for the long commands (train, plan, measure): a tqdm bar when asked
-for, nothing otherwise (the CLI asks only on a terminal and without -q)."""
+"""Progress on stderr for the long commands (compensate, train, plan, measure, fleet): a tqdm
+bar when asked for, nothing otherwise (the CLI asks only on a terminal and without -q).
+
+Named stages (:func:`stages`) are passed their switch by the caller; a count of work done
+(:class:`ProgressBar`: targets, bytes, robots) reads it from :func:`reporting`, which the CLI
+opens around a command, so library code deep down reports without an argument threaded
+through every signature (as ``logging`` does). A ProgressBar shows once the work has
+taken DELAY_S seconds: short runs print nothing."""
 from __future__ import annotations
 
 from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Callable, Iterator
+
+DELAY_S = 2.0
+
+_ON: ContextVar[bool] = ContextVar("postproc_progress", default=False)
+
+
+@contextmanager
+def reporting(enabled: bool) -> Iterator[None]:
+    """ProgressBars made inside show bars (``enabled``) or nothing."""
+    token = _ON.set(bool(enabled))
+    try:
+        yield
+    finally:
+        _ON.reset(token)
+
+
+class ProgressBar:
+    """A bar over ``total`` units of work (``unit``: "target", "B", "robot"), updated with
+    :meth:`update` (from any thread); a no-op outside ``reporting(True)`` (tqdm not imported)."""
+
+    def __init__(self, desc: str, total: int, unit: str = "it", scale: bool = False):
+        self._bar = None
+        if _ON.get() and total > 0:
+            from tqdm import tqdm
+
+            self._bar = tqdm(total=total, desc=desc, unit=unit, unit_scale=scale, leave=False,
+                             dynamic_ncols=True, delay=DELAY_S)
+
+    def update(self, n: int) -> None:
+        if self._bar is not None:
+            self._bar.update(n)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+    def __enter__(self) -> "ProgressBar":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 @contextmanager

@@ -43,6 +43,7 @@ from .compensate import (DEFAULT_MAX_CORRECTION_MM, Report, _config_texts, _mode
 from .compensator import Compensator
 from .diagnostics import P109, P321, Diagnostic, PostprocError
 from .programs import STAMP_PREFIX, ActiveFrames, companion_dat, read_program
+from .progress import ProgressBar, reporting
 from .rewrite import insert_stamp, stamp_line
 
 __all__ = ["STREAM_BYTES", "Fallback", "compensate_stream", "streams"]
@@ -221,8 +222,9 @@ def compensate_stream(
         def part(first: int, body: str, tail: str) -> tuple[str, Report, str]:
             offset = first - (header_lines + 1)
             try:
-                program = read_program([name], [header + body + tail], "krl", config=configs, active=active)
-                report = compensate_program(program, model, _chain=chain, _stamp=False, **kwargs)
+                with reporting(False):  # (the file's bar, not one per chunk)
+                    program = read_program([name], [header + body + tail], "krl", config=configs, active=active)
+                    report = compensate_program(program, model, _chain=chain, _stamp=False, **kwargs)
             except PostprocError as exc:
                 if exc.code in GUARDS:
                     raise _relocated(exc, header_lines, offset) from None
@@ -242,6 +244,7 @@ def compensate_stream(
             for first, text, last in source.chunks():
                 # the chunk read as a program of its own: the header, the chunk, END (the last: the tail)
                 body, report, comment = part(first, text, source.tail if last else "END" + newline)
+                bar.update(len(text))
                 del text
                 # the header's notes (P224) come with every chunk: said once, at the first
                 total.notes += [d for d in report.notes if d.code == P321 or not total.targets]
@@ -256,7 +259,8 @@ def compensate_stream(
                 corrections += report.mean_correction_mm * report.compensated
             yield source.tail
 
-        write_outputs([(Path(out), pieces())])
+        with ProgressBar("compensate", path.stat().st_size, "B", scale=True) as bar:
+            write_outputs([(Path(out), pieces())])
     total.mean_correction_mm = corrections / total.compensated if total.compensated else 0.0
     total.changed = [name]
     return total

@@ -15,7 +15,7 @@ import os
 import sys
 
 from .. import __version__
-from ..diagnostics import EXIT_ERROR, PostprocError
+from ..diagnostics import EXIT_ERROR, EXIT_INTERRUPTED, PostprocError
 
 # (module, one-line help) in the order `postproc --help` lists them
 SUBCOMMANDS = [
@@ -76,14 +76,17 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return EXIT_ERROR
+    from ..progress import reporting
+
     try:
-        return int(args.run(args) or 0)
+        with reporting(show_progress(args)):
+            return int(args.run(args) or 0)
     except PostprocError as exc:
         print(str(exc), file=sys.stderr)
         return EXIT_ERROR
-    except KeyboardInterrupt:
-        print("postproc: interrupted", file=sys.stderr)
-        return EXIT_ERROR
+    except KeyboardInterrupt:  # (every output is written whole or not at all: nothing half-written)
+        print("postproc: interrupted; no file half-written", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except ModuleNotFoundError as exc:
         hint = missing_extra(exc, args.command)
         if hint is None:  # not an optional part: a bug, reported as one below
