@@ -10,6 +10,7 @@ import pytest
 
 from postproc.compensate import compensate_text
 from postproc.compensator import load_model
+from postproc.diagnostics import P212, P217
 from postproc.programs import ActiveFrames
 from postproc.testing.models import affine_model
 from postproc.testing.oracle import check
@@ -194,3 +195,32 @@ def test_a_joint_motion_to_known_axis_values_is_the_arm_configuration_a_target_a
         np.testing.assert_allclose(commanded, expected, atol=2e-3)
         commands.append(commanded)
     assert np.abs(commands[0] - commands[1]).max() > 0.1  # (the two wrists: two corrections)
+
+
+def test_a_partial_target_after_a_tool_change_is_left_with_the_command_it_would_read(model):
+    # at run time LIN {Z 900} takes X/Y from where the new tool's point stands: not the numbers
+    # commanded under the tool before (the flange stays where that tool left it)
+    src = ("DEF t( )\n  $TOOL = {X 0,Y 0,Z 100,A 0,B 0,C 0}\n  LIN XS1\n  $TOOL = {X 0,Y 0,Z 150,A 0,B 0,C 0}\n"
+           "  LIN {Z 900.0}\n  LIN XS2\nEND\n")
+    new, dat, report, checked = run(model, src, DAT)
+    left = {(w.code, w.line) for w in report.warnings}
+    assert (P212, 5) in left and (P217, 2) in left  # the partial target, and XS1 whose command it reads
+    assert number(dat, "XS1", "X") == 2000.0 and number(dat, "XS2", "X") != 1900.0
+    assert not report.complete and checked.compensated
+
+
+def test_a_partial_target_after_the_same_tool_and_a_goto_takes_the_position_every_jump_leaves(model):
+    src = ("DEF t( )\n  $TOOL = {X 0,Y 0,Z 100,A 0,B 0,C 0}\n  LIN XS1\n  GOTO L0\n  LIN XS2\nL0:\n  LIN {Z 950.0}\n"
+           "END\n")
+    new, dat, report, _ = run(model, src, DAT)
+    assert report.complete and report.compensated == 2  # XS1 and {Z 950} at XS1's X/Y (written in)
+    assert "X " in new.splitlines()[-2] and number(dat, "XS1", "X") != 2000.0
+
+
+def test_a_point_one_path_copies_into_another_is_held_where_the_copy_runs(model):
+    # after the IF, XS2.X is XS1's X token on one path and its own on the other: LIN XS2 is not
+    # known, and XS1's numbers, which it may read, are not rewritten for LIN XS1 either
+    src = ("DEF t( )\n  IF $IN[1] THEN\n    XS2.X = XS1.X + 0\n    LIN XS1\n  ENDIF\n  LIN XS2\nEND\n")
+    new, dat, report, _ = run(model, src, DAT)
+    assert number(dat, "XS1", "X") == 2000.0 and not report.complete
+    assert {w.code for w in report.warnings} >= {P212, P217}

@@ -161,7 +161,7 @@ class Dialect:
         every other number is a Taint of the tokens it is computed from; a comparison and a
         logical operator read their operands (their tokens escape: the flow depends on them)."""
         if any(isinstance(a, Top) for a in args):
-            return next(a for a in args if isinstance(a, Top))
+            return next(a for a in args if isinstance(a, Top)).carrying(*args)
         if op in ("+", "-") and len(args) == 2:
             a, b = args
             if isinstance(a, Tok) and _constant(b):
@@ -222,7 +222,7 @@ class Dialect:
         """A value as a frame (robot base ← its coordinates): Mat, or Top with why; its tokens
         are read (they escape)."""
         if isinstance(value, (Mat, Top)):
-            if isinstance(value, Mat) and value.tokens:
+            if value.tokens:
                 an.consume(value, "a frame")
             return value
         if isinstance(value, Rec):
@@ -230,6 +230,7 @@ class Dialect:
             nums = [number(v) for v in view.xyz] + [number(v) for v in view.orient]
             unknown = next((v for v in view.xyz + view.orient if isinstance(v, Top)), None)
             if unknown is not None:
+                an.consume(value, "a frame")
                 return Top(unknown.why, unknown.loc)
             if view.kind == "cart" and None not in nums:  # (not finite: a frame P103 refuses, findings.frame_rule)
                 an.consume(value, "a frame")

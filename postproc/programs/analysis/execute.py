@@ -536,7 +536,7 @@ class Analysis:
         out = st.copy()
         for k, v in st.vars.items():
             if isinstance(v, (Arr, Rec)):
-                out.vars[k] = Top(why, self.loc)
+                out.vars[k] = Top(why, self.loc).carrying(v)
         out.last, out.cur = None, None
         return out
 
@@ -655,7 +655,8 @@ class Analysis:
         keys = self.dialect.touched(self, st, names)
         for k in keys:
             v = st.vars.get(k)
-            st.vars[k] = top if not isinstance(v, Arr) else Arr({}, top, v.type)
+            # (it may still hold what it held: its tokens stay with the unknown)
+            st.vars[k] = top.carrying(v) if not isinstance(v, Arr) else Arr({}, top.carrying(v), v.type)
         st.last, st.cur = None, None
         return st
 
@@ -752,8 +753,8 @@ class Analysis:
             base = self.eval(e.base, st)
             key = self.index(e.index, st)
             if isinstance(base, Arr):
-                if isinstance(key, Top):
-                    return Top(f"{_written(e.base)}[…] with a run-time index ({key.why})", self.loc)
+                if isinstance(key, Top):  # (any element: it reads every element's tokens)
+                    return Top(f"{_written(e.base)}[…] with a run-time index ({key.why})", self.loc).carrying(base)
                 return base.get(key)
             if isinstance(base, Top):
                 return base
@@ -793,7 +794,7 @@ class Analysis:
 
     def consume(self, value, why: str) -> None:
         """``value`` is read by something other than a motion's target: its tokens escape."""
-        if self.rec is not None and not isinstance(value, (bool, str, type(None), Top)) \
+        if self.rec is not None and not isinstance(value, (bool, str, type(None))) \
                 and not (isinstance(value, (int, float)) and not isinstance(value, (Tok, Taint))):
             toks = tokens_of(value)
             if toks:
@@ -839,7 +840,7 @@ class Analysis:
             if isinstance(base, Arr):
                 if isinstance(key, Top):
                     why = f"{_written(target.base)}[…] is assigned with a run-time index at line {self.loc.line}"
-                    new = Arr({}, Top(why, self.loc), base.type)
+                    new = Arr({}, Top(why, self.loc).carrying(base, value), base.type)
                 else:
                     old = base.get(key)
                     if literal and isinstance(old, Rec) and isinstance(value, Rec):

@@ -22,7 +22,7 @@ from ...diagnostics import P201, P203, P211, P212, P214, P215, P217, P220, P221,
 from ..ir import MOTION_INDEX, Agg, Loc, Move
 from ..model import Frame, Targets
 from .execute import START, RunUse, Use
-from .values import Mat, Six, Taint, Tok, Top, number, tokens_of
+from .values import Mat, Six, Taint, Tok, Top, number, same, tokens_of
 
 __all__ = ["build", "Built"]
 
@@ -429,7 +429,7 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
     chain = r["chain"]
     if not written.all():
         ar = np.arange(n)
-        cur = dict(use.cur[0]) if use.cur is not None and _same(use.cur[1], use.frame) and _same(use.cur[2], use.tool) else {}
+        cur = dict(use.cur[0]) if use.cur is not None and _same(use.cur[1], use.frame) and same(use.cur[2], use.tool) else {}
         names = ("X", "Y", "Z", "A", "B", "C")
         for k in range(6):
             w = written[:, k]

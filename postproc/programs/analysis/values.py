@@ -29,17 +29,28 @@ __all__ = ["Top", "Tok", "Taint", "Rec", "Arr", "Mat", "Six", "join", "same", "t
 class Top:
     """A value not known statically: ``why`` (a phrase: "$BASE is set from a run-time value"),
     ``loc`` where the cause stands (or None), ``code`` the diagnostic it leaves a target with
-    where it is a frame (P201 base, P203 tool, P220/P221 not set, P225 a track) or None."""
+    where it is a frame (P201 base, P203 tool, P220/P221 not set, P225 a track) or None;
+    ``tokens`` the number tokens it may hold or be computed from (the join of two paths'
+    tokens, a token plus a value not known): what reads it reads them."""
 
-    __slots__ = ("why", "loc", "code")
+    __slots__ = ("why", "loc", "code", "tokens")
 
-    def __init__(self, why: str, loc: Loc | None = None, code: str | None = None):
+    def __init__(self, why: str, loc: Loc | None = None, code: str | None = None, tokens: frozenset = frozenset()):
         self.why = why
         self.loc = loc
         self.code = code
+        self.tokens = tokens
+
+    def carrying(self, *values) -> "Top":
+        """This unknown, holding the tokens of ``values`` too."""
+        toks = set(self.tokens)
+        for v in values:
+            tokens_of(v, toks)
+        return self if len(toks) == len(self.tokens) else Top(self.why, self.loc, self.code, frozenset(toks))
 
     def __eq__(self, other):
-        return isinstance(other, Top) and other.why == self.why and other.loc == self.loc and other.code == self.code
+        return isinstance(other, Top) and other.why == self.why and other.loc == self.loc and other.code == self.code \
+            and other.tokens == self.tokens
 
     def __hash__(self):
         return hash((self.why, self.loc))
@@ -223,7 +234,7 @@ def tokens_of(v, out: set | None = None) -> set:
     elif isinstance(v, Arr):
         for x in v.elems.values():
             tokens_of(x, out)
-    elif isinstance(v, Mat):
+    elif isinstance(v, (Mat, Top)):
         out |= v.tokens
     return out
 
@@ -253,12 +264,13 @@ def join(a, b, why: str, loc: Loc | None):
         keys = a.elems.keys() | b.elems.keys()
         return Arr({k: join(a.get(k), b.get(k), why, loc) for k in keys}, join(a.default, b.default, why, loc),
                    a.type or b.type)
+    # (the tokens either path holds stay with the unknown: what reads it may read them)
     for x in (a, b):  # a path on which it is unknown already: its reason (one warning for the cause)...
         if isinstance(x, Top) and x.code not in NOT_SET:
-            return x
+            return x.carrying(a, b)
     if isinstance(a, Top) and isinstance(b, Top):
-        return a
-    return Top(why, loc)  # (...but not "never set" where another path sets it)
+        return a.carrying(b)
+    return Top(why, loc).carrying(a, b)  # (...but not "never set" where another path sets it)
 
 
 # the codes of a frame the program does not set and its user did not state (P220 base, P221 tool)
