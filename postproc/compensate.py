@@ -21,7 +21,7 @@ from collections import Counter
 from . import frames
 from .compensator import Chain, Compensator, Inside, load_model
 from .diagnostics import (
-    P105, P106, P107, P108, P201, P203, P212, P220, P221, P224, P225, P230, P306, P312, P321, P322, P340,
+    P105, P106, P107, P108, P201, P203, P212, P220, P221, P224, P225, P230, P231, P306, P312, P321, P322, P340,
     Diagnostic,
     LEFT_AS_WRITTEN,
     PostprocError,
@@ -81,6 +81,8 @@ class Report:
     compensated: int = 0
     left: int = 0
     left_codes: dict[str, int] = field(default_factory=dict)
+    # motions at an offset from a point compensated for its own motions, moved with its correction (P231)
+    moved: int = 0
     iterations: int = 0
     max_correction_mm: float = 0.0
     mean_correction_mm: float = 0.0
@@ -102,7 +104,7 @@ class Report:
     @property
     def complete(self) -> bool:
         """Every Cartesian target was compensated (the CLI's exit 0)."""
-        return self.left == 0
+        return self.left == 0 and self.moved == 0
 
     def summary(self) -> str:
         """``17 of 19 compensated, 2 left as written: P201 ×2; model …`` (one line)."""
@@ -110,6 +112,9 @@ class Report:
         if self.left:
             head += f", {self.left} left as written: " + ", ".join(
                 f"{code} ×{n}" for code, n in sorted(self.left_codes.items()))
+        if self.moved:
+            head += (f", {self.moved} motion{'s' if self.moved != 1 else ''} at an offset moved with the point's "
+                     f"correction ({P231})")
         details = (f"model {self.model}, max correction {self.max_correction_mm:.3f} mm, mean "
                    f"{self.mean_correction_mm:.3f} mm, {self.iterations} iteration{'s' if self.iterations != 1 else ''}")
         if self.warnings:
@@ -230,10 +235,8 @@ def _left_codes(program: Program, selection: Selection) -> Counter:
     targets that never became rows (``diagnostics.LEFT_AS_WRITTEN``: P210, P211, P214, P215, P217, P223)
     count one each."""
     t = program.targets
-    left = np.ones(len(t), bool)
-    left[selection.rows] = False
     first = _firsts(program)
-    left &= first
+    left = first & ~_compensated_classes(program, selection)
     codes: Counter = Counter()
     unknown_frame = int((left & (t.frame < 0)).sum())
     if unknown_frame:
@@ -242,8 +245,13 @@ def _left_codes(program: Program, selection: Selection) -> Counter:
         said = {d.code for d in program.diagnostics} & {P201, P203, P220, P221, P225}
         codes["/".join(sorted(said)) if said else P201] = unknown_frame
     by_rule = 0
+    counted = ~left  # (a target counted once: by the first code that left one of its runs)
+    cls = _classes(program)
     for code, rows in selection.left.items():
-        n = int(first[np.asarray(rows, int)].sum())
+        c = np.unique(cls[np.asarray(rows, int)])
+        c = c[~counted[c]]
+        counted[c] = True
+        n = len(c)
         if n:
             codes[code] += n
         by_rule += n
@@ -254,6 +262,31 @@ def _left_codes(program: Program, selection: Selection) -> Counter:
         if d.code in LEFT_AS_WRITTEN and d.code not in held:  # (held rows: counted as rows above)
             codes[d.code] += 1
     return codes
+
+
+def _classes(program: Program) -> np.ndarray:
+    """[N] each row's target: the row of its first run (``Targets.twin``; itself for a first run)."""
+    twin = getattr(program.targets, "twin", None)
+    n = len(program.targets)
+    return np.arange(n) if twin is None else np.where(twin >= 0, twin, np.arange(n))
+
+
+def _compensated_classes(program: Program, selection: Selection) -> np.ndarray:
+    """[N] bool: the targets (by their first run's row) of which some run is compensated."""
+    out = np.zeros(len(program.targets), bool)
+    out[_classes(program)[selection.rows]] = True
+    return out
+
+
+def _moved(program: Program, selection: Selection) -> int:
+    """Motions at an offset moved with their point's correction (P231): one per offset from a
+    point compensated for its own runs."""
+    rows = np.asarray(selection.left.get(P231, []), int)
+    if not len(rows) or program.targets.offset is None:
+        return 0
+    cls = _classes(program)
+    rows = rows[_compensated_classes(program, selection)[cls[rows]]]
+    return len({(int(cls[r]), *np.round(program.targets.offset[r], 6).tolist()) for r in rows.tolist()})
 
 
 def _firsts(program: Program) -> np.ndarray:
@@ -316,6 +349,7 @@ class _Agreement:
     settled: np.ndarray
     commanded: np.ndarray
     notes: list
+    moved: np.ndarray = field(default_factory=lambda: np.zeros(0, int))  # positions moved with the point's own (P231)
 
 
 def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, commanded: np.ndarray,
@@ -375,8 +409,9 @@ def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, comm
                                 f"and the runs need commands up to {2 * worst:.3f} mm apart (the approach): commanded "
                                 f"at the middle, at most {worst:.3f} mm from each run's own", "note"))
     other = np.setdiff1d(bad_groups, approach)
+    other, moved, moved_warnings = _owned(program, selection, other, (kf, kp, v, p, tl))
     drop = np.flatnonzero(np.isin(group, other) & (group >= 0)) if len(other) else none
-    warnings = []
+    warnings = moved_warnings
     if len(drop):
         worst_of = {}
         for g, d in zip(group[p[bad]].tolist(), spread[bad].tolist()):
@@ -384,12 +419,63 @@ def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, comm
         places = np.stack([t.file[rows[drop]], t.line[rows[drop]], t.col[rows[drop]]], axis=1)
         _, once = np.unique(places, axis=0, return_index=True)  # (one warning per target, not per run)
         said = drop[np.sort(once)]
-        warnings = collect(program, rows[said], P230, lambda i: (
+        warnings += collect(program, rows[said], P230, lambda i: (
             "this target runs more than once (a loop, a routine called twice, after a branch, or a point copied "
             "into another) and the runs need corrections up to {:.3f} mm apart (other frames, tools, offsets, arm "
             "configurations or approaches): no one set of numbers is right for all, left as written".format(worst_of[int(group[said[i]])])))
     return _Agreement(drop, warnings, written, np.asarray(settled, int),
-                      np.asarray(middles, float).reshape(-1, 3), notes)
+                      np.asarray(middles, float).reshape(-1, 3), notes, moved)
+
+
+def _owned(program: Program, selection: Selection, groups: np.ndarray, entries) -> tuple:
+    """Of the ``groups`` whose runs disagree, those whose runs at the point itself (no offset
+    added: ``Targets.offset`` zero) agree among themselves while runs at an offset (``Offs(p, 0, 0,
+    100)``, ``XA.Z = XS1.Z + 300``) need other numbers: the point's numbers are its own runs', and
+    the runs at an offset move with that correction — said (P231), not compensated. ``entries``:
+    _agreement's sorted token entries (file key, position key, value, position in the selection,
+    tolerance). (groups left to P230, positions moved, their warnings)."""
+    t = program.targets
+    rows = selection.rows
+    none = np.zeros(0, int)
+    if not len(groups) or t.offset is None:
+        return groups, none, []
+    kf, kp, v, p, tl = entries
+    group = t.group[rows]
+    at_point = ~(np.abs(t.offset[rows]) > 1e-9).any(axis=1)
+    gp = group[p]
+    keep, moved, warnings = [], [], []
+    for g in groups.tolist():
+        members = np.flatnonzero(group == g)
+        own = at_point[members]
+        if not own.any() or own.all():
+            keep.append(g)
+            continue
+        ref: dict = {}
+        ent = np.flatnonzero(gp == g)
+        for e in ent[at_point[p[ent]]].tolist():
+            ref.setdefault((kf[e], kp[e]), v[e])
+        agree, worst = True, 0.0
+        for e in ent.tolist():
+            r = ref.get((kf[e], kp[e]))
+            if r is None:
+                continue
+            d = abs(v[e] - r)
+            if at_point[p[e]]:
+                agree &= not d > tl[e]
+            elif d == d:
+                worst = max(worst, d)
+        if not agree:
+            keep.append(g)
+            continue
+        off = members[~own]
+        moved.extend(off.tolist())
+        n = len({tuple(np.round(t.offset[rows[i]], 6)) for i in off.tolist()})
+        warnings += collect(program, rows[off[:1]], P231, (
+            f"this point's numbers are compensated for the motions to the point itself; {n} motion"
+            f"{'s' if n != 1 else ''} to it at an offset (Offs/RelTool, a copy with a component changed) move"
+            f"{'' if n != 1 else 's'} with that correction, up to {worst:.3f} mm from {'their' if n != 1 else 'its'} "
+            f"own: not compensated"))
+    return np.asarray(keep, int), np.asarray(moved, int), warnings
 
 
 def _outside(model: Compensator, commands: Commands) -> int:
@@ -465,10 +551,12 @@ def compensate_program(
         commanded, new_xyz, joints = stream.result()
         # the runs of one set of numbers (a loop, a routine called twice, copies) must agree
         agreed = _agreement(program, selection, new_xyz, commanded, orientation)
-        if len(agreed.drop) and attempt < MAX_ROUNDS - 1:
+        if (len(agreed.drop) or len(agreed.moved)) and attempt < MAX_ROUNDS - 1:
             warnings += agreed.warnings
             _raise_first(agreed.warnings, strict)
+            moved_rows = selection.rows[agreed.moved]
             selection = selection.without(agreed.drop, P230)
+            selection = selection.without(np.flatnonzero(np.isin(selection.rows, moved_rows)), P231)
             selection, tied = group_rule(program, selection)  # (what the rows left take with them)
             warnings += tied
             selection.order = execution_order(program, selection, selection.base_poses)
@@ -497,7 +585,8 @@ def compensate_program(
 
     size = np.linalg.norm(commanded - selection.poses[:, :3], axis=1)
     left = _left_codes(program, selection)
-    report.compensated = int(_firsts(program)[selection.rows].sum())
+    report.compensated = int(_compensated_classes(program, selection).sum())
+    report.moved = _moved(program, selection)
     report.left = sum(left.values())
     report.targets = report.compensated + report.left
     report.left_codes = dict(left)
@@ -542,7 +631,8 @@ def _finish(program: Program, model: Compensator, selection: Selection, outputs:
     # and each of their tokens was checked when written; so were a pose list's. A Program built
     # by hand has no text to read it from.
     if program.from_text and program.dialect in ("krl", "rapid", "urscript", "fanuc") and program.named_targets:
-        check_round_trip(program, outputs, rows, new_xyz, filled=missing_xyz(program, rows))
+        check_round_trip(program, outputs, rows, new_xyz, filled=missing_xyz(program, rows),
+                         moved=np.asarray(selection.left.get(P231, []), int))
     if not stamp:
         return list(outputs)
     stamp = stamp_line(program.comment, STAMP_PREFIX, model.name, model.sha256)

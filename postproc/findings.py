@@ -36,7 +36,7 @@ import numpy as np
 from . import frames
 from .compensator import Compensator, Inside, Order
 from .diagnostics import (
-    P103, P212, P213, P216, P218, P230, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P336, P340,
+    P103, P212, P213, P216, P218, P230, P231, P301, P302, P303, P304, P305, P308, P309, P310, P313, P321, P336, P340,
     P401, P408, P409, P517, Diagnostic, PostprocError, line_col,
 )
 from .programs import Program
@@ -334,12 +334,15 @@ def group_rule(program: Program, selection: Selection) -> tuple[Selection, list[
     chosen = np.zeros(len(t), bool)
     chosen[selection.rows] = True
     partial = (t.spans[:, :, 0] < 0).any(axis=1) & ~np.isnan(t.poses[:, :3]).any(axis=1)
+    # (runs at an offset from a point compensated for its own runs move with it, said: P231)
+    with_point = np.zeros(len(t), bool)
+    with_point[np.asarray(selection.left.get(P231, []), int)] = True
     why = {}  # row dropped → the row left that takes it with it
     while True:
         left = ~chosen
         drop = np.zeros(len(t), bool)
         if group is not None and (group >= 0).any():
-            left_groups = np.unique(group[left & (group >= 0)])
+            left_groups = np.unique(group[left & ~with_point & (group >= 0)])
             if len(left_groups):
                 tied = chosen & np.isin(group, left_groups) & (group >= 0)
                 for r in np.flatnonzero(tied).tolist():

@@ -144,7 +144,7 @@ def _check_frames(program: Program, again: Program) -> None:
 
 
 def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_xyz: np.ndarray,
-                     filled: np.ndarray | None = None) -> None:
+                     filled: np.ndarray | None = None, moved: np.ndarray | None = None) -> None:
     """Read ``texts`` (the program's files with the corrected numbers, before the stamp)
     again and refuse (P191) unless they hold the same targets (file, line, motion) in the
     same frames, with ``new_xyz`` [len(rows), 3] at the compensated targets' written X/Y/Z
@@ -175,6 +175,16 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
     got = np.concatenate([b.poses[:, :3], b.written_orientation()], axis=1)
     names = ("X", "Y", "Z") + ORIENTATION_NAMES[program.orientation]
     expected[rows, :new_xyz.shape[1]] = new_xyz
+    if moved is not None and len(moved):
+        # (runs at an offset from a point compensated for its own runs, P231: its new numbers + their offset)
+        new_of = {(int(a.file[r]), int(a.spans[r, k, 0])): float(new_xyz[i, k])
+                  for i, r in enumerate(rows.tolist()) for k in range(3) if a.spans[r, k, 0] >= 0}
+        offset = a.offset if a.offset is not None else np.zeros((len(a), 3))
+        for r in moved.tolist():
+            for k in range(3):
+                v = new_of.get((int(a.file[r]), int(a.spans[r, k, 0])))
+                if v is not None:
+                    expected[r, k] = v + offset[r, k]
     written = np.zeros(expected.shape, bool)
     written[:, :3] = a.spans[:, :, 0] >= 0
     if filled is not None and len(rows):
@@ -187,6 +197,8 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
     written[:, 3:] = True  # orientation as it was, or rewritten (NaN where unknown, on both sides)
     compensated = np.zeros(len(a), bool)
     compensated[rows] = True
+    if moved is not None and len(moved):
+        compensated[moved] = True  # (their numbers rewritten: to the rounding too)
     # the rounding of a new number: X/Y/Z in mm, the orientation's in its form's decimals
     rounding = np.full(len(names), ROUNDING_MM)
     rounding[3:] /= ORIENTATION_DECIMALS[program.orientation]

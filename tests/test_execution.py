@@ -10,7 +10,7 @@ import pytest
 
 from postproc.compensate import compensate_text
 from postproc.compensator import load_model
-from postproc.diagnostics import P212, P217
+from postproc.diagnostics import P212, P217, P231
 from postproc.programs import ActiveFrames
 from postproc.testing.models import affine_model
 from postproc.testing.oracle import check
@@ -224,3 +224,17 @@ def test_a_point_one_path_copies_into_another_is_held_where_the_copy_runs(model)
     new, dat, report, _ = run(model, src, DAT)
     assert number(dat, "XS1", "X") == 2000.0 and not report.complete
     assert {w.code for w in report.warnings} >= {P212, P217}
+
+
+def test_a_point_also_run_at_an_offset_is_compensated_for_itself_and_the_offset_run_said(model):
+    # LIN XS1 and, 300 mm higher, LIN XA (XS1's numbers + 300): one set of numbers cannot serve
+    # both; XS1 gets its own correction, XA moves with it, and says so (P231), exit 1
+    src = ("DEF t( )\n  DECL E6POS XA\n  LIN XS1\n  XA = XS1\n  XA.Z = XA.Z + 300\n  LIN XA\n  LIN XS2\nEND\n")
+    new, dat, report, checked = run(model, src, DAT)
+    assert (report.compensated, report.moved, report.left) == (2, 1, 0) and not report.complete
+    assert [w.code for w in report.warnings] == [P231] and report.warnings[0].line == 2  # at XS1's declaration
+    assert "1 motion at an offset moved with the point's correction (P231)" in report.summary()
+    assert number(dat, "XS1", "X") != 2000.0 and checked.compensated >= 2  # (the property held: run() checks)
+    # without the run at the point itself, the offset run owns the numbers (compensated for where it runs)
+    alone, _, report2, _ = run(model, src.replace("  LIN XS1\n", ""), DAT)
+    assert report2.complete and report2.moved == 0

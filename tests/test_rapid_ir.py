@@ -355,3 +355,18 @@ def test_components_of_a_robtarget_copied_offset_and_read_in_a_condition(model):
     assert report.compensated == 1 and report.left_codes == {"P217": 1}
     _, after = in_base(out)
     assert np.allclose(after[0], twin_commands(model, [[1925, 0, 900]])[0], atol=1e-3)
+
+
+def test_offs_approach_runs_move_with_the_point_compensated_for_itself(model):
+    # the RAPID idiom: approach and retract at Offs(p, 0, 0, 100), the point itself in between
+    text = module("MoveJ Offs(pPick,0,0,100),v1000,z10,tool0;", "MoveL pPick,v100,fine,tool0;",
+                  "MoveL Offs(pPick,0,0,100),v500,z10,tool0;",
+                  data=[f"CONST robtarget pPick:={rt(1800, 100, 500)};"])
+    out, report = compensate_text(text, model, name="m.mod")
+    assert (report.compensated, report.moved, report.left) == (1, 1, 0) and not report.complete
+    (w,) = [w for w in report.warnings if w.code == "P231"]
+    assert w.line == 2 and "up to" in w.message
+    _, base = in_base(text)
+    _, new = in_base(out)
+    point = np.flatnonzero(np.abs(base[:, 2] - 500) < 1e-9)[0]
+    np.testing.assert_allclose(new[point], twin_commands(model, base[point:point + 1])[0], atol=1e-3)
