@@ -581,13 +581,10 @@ def _groups(unit, t: Targets, rec, diagnostics: list) -> dict:
         group[x] = find(x)
     if not rec.escapes:
         return {}
-    escaped = np.zeros(n, bool)
-    for k in range(3):
-        rows = np.flatnonzero(present[:, k])
-        for i in rows.tolist():
-            token = (int(t.file[i]), int(t.spans[i, k, 0]), int(t.spans[i, k, 1]))
-            if token in rec.escapes:
-                escaped[i] = True
+    # (a token is (file, start, end); start alone names it within a file: one vectorised lookup)
+    key = lambda f, s: (np.asarray(f, np.int64) << 40) | np.asarray(s, np.int64)  # noqa: E731
+    escapes = key(*np.array([(f, s) for f, s, _ in rec.escapes], np.int64).T)
+    escaped = (present & np.isin(key(t.file[:, None], starts), escapes)).any(axis=1)
     if not escaped.any():
         return {}
     held_groups = {int(group[i]) for i in np.flatnonzero(escaped) if group[i] >= 0}
