@@ -17,6 +17,7 @@ where a value is not known.
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -67,7 +68,9 @@ class Oracle:
 
     def _draw(self, key, make):
         if key not in self.answers:
-            rng = np.random.default_rng(abs(hash((self.seed,) + key)) % (2 ** 32))
+            # (a stable hash: Python's hash of a string changes from one process to the next)
+            digest = hashlib.blake2b(repr((self.seed,) + key).encode(), digest_size=8).digest()
+            rng = np.random.default_rng(int.from_bytes(digest, "little"))
             self.answers[key] = make(rng)
         return self.answers[key]
 

@@ -61,6 +61,7 @@ def _six(m: np.ndarray) -> np.ndarray:
 # coordinate (compensate._agreement), the numbers are written to ROUNDING_MM, the fixed point leaves
 # ~1e-6 mm: as a distance, √3 × (0.005 + 0.0005) + a margin
 TOL_MM = 0.01
+ANY = ("any",)  # (a predecessor place that stands for every one)
 
 
 def check(files, texts, dialect: str, model, config=None, active=None, seeds=range(4), tol_mm: float = TOL_MM,
@@ -91,15 +92,20 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
             except ValueError:
                 pass
     t = program.targets
-    # targets the analysis left with their frame not known: a motion after one has no known predecessor
-    blind = set(zip(t.file[t.frame < 0].tolist(), t.line[t.frame < 0].tolist(), t.col[t.frame < 0].tolist()))
-    # targets compensate reached from nothing known (Targets.prev -1, or a predecessor whose position
-    # is not known): the model's first-target rule
+    # targets compensate reached from nothing known: Targets.prev -1, or a predecessor whose pose in
+    # the robot base is not known (its frame or its numbers): the model's first-target rule. Kept as
+    # pairs (the target's place, its predecessor's place; ANY where the analysis knew nothing before
+    # it: no motion, or one it cannot tell): one declaration runs in several motions, each with its
+    # own predecessor
     alone = set()
-    if t.prev is not None:
+    if t.prev is not None and len(t):
         first = t.prev < 0
-        first[~first] = np.isnan(t.poses[t.prev[~first], :3]).any(axis=1)
-        alone = set(zip(t.file[first].tolist(), t.line[first].tolist(), t.col[first].tolist()))
+        before = t.prev[~first]
+        first[~first] = np.isnan(t.poses[before, :3]).any(axis=1) | (t.frame[before] < 0)
+        for i in np.flatnonzero(first).tolist():
+            j = int(t.prev[i])
+            alone.add(((int(t.file[i]), int(t.line[i]), int(t.col[i])),
+                       (int(t.file[j]), int(t.line[j]), int(t.col[j])) if j >= 0 else ANY))
     unit_a, dialect_a = lowered(files, texts, dialect, config, active)
     unit_b, dialect_b = lowered(files, new_texts, dialect, config, active)
     entries = list(unit_a.entries)
@@ -113,9 +119,10 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                 out.violations.append(f"seed {seed} {entry}: the compensated program runs another path")
                 continue
             prev = None
+            came = None  # (where the predecessor's target stands)
             for i, (ma, mb) in enumerate(zip(a, b)):
                 if ma.base is None or mb.base is None:
-                    prev = None
+                    prev = came = None
                     continue
                 out.motions += 1
                 p, c = _six(ma.base), _six(mb.base)
@@ -128,7 +135,8 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                               ma.loc.col if ma.loc else 0)
                     allowed = tol_mm + 2 * worst.get(where_, 0.0)
                     dev = float(np.linalg.norm(c[:3] - p[:3] - e))
-                    if dev > allowed and _at(ma) in alone and model.wants_previous:
+                    if dev > allowed and ((_at(ma), came) in alone or (_at(ma), ANY) in alone) \
+                            and model.wants_previous:
                         e_alone = model.predict(c[None], c[None])[0]  # (nothing known before: itself)
                         dev = min(dev, float(np.linalg.norm(c[:3] - p[:3] - e_alone)))
                     if dev > allowed:
@@ -145,5 +153,5 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                             out.violations.append(
                                 f"seed {seed} {entry}: motion {i} at {files[ma.site.file]}:{ma.site.line} is left as "
                                 "written and compensate said every target was compensated (exit 0)")
-                prev = None if _at(ma) in blind else c
+                prev, came = c, _at(ma)
     return out
