@@ -284,6 +284,8 @@ class Interpreter(Analysis):
             self.motions.append(Motion(s.loc, s.kind, None, None))
             st.cur = None
             return st
+        if self.dialect.halts(self, st, s):  # (the controller's alarm: the program stops here)
+            raise _Halt
         target = self.eval(s.target, st)
         frame = self.frame_value(s.frame, st)
         if isinstance(frame, Top):  # (a frame the analysis does not know: the world's, as the controller has one)

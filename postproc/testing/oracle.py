@@ -53,6 +53,12 @@ def _at(motion) -> tuple | None:
     return None if loc is None else (loc.file, loc.line, loc.col)
 
 
+def _key(motion) -> tuple:
+    """A motion as the oracle tells rows apart: (its statement's place, its target's place)."""
+    site = motion.site
+    return (site.file, site.line, site.col), _at(motion)
+
+
 def _six(m: np.ndarray) -> np.ndarray:
     return fr.matrix_to_frame(m)
 
@@ -71,6 +77,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
     from ..compensate import compensate_program
     from ..diagnostics import P322, PostprocError
     from ..programs import read_program
+    from ..programs.analysis import analyse
     from ..programs.interpreter import Oracle, run
 
     out = Checked()
@@ -91,12 +98,21 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                 worst[(note.path, note.line, note.col)] = float(text)
             except ValueError:
                 pass
-    t = program.targets
+    unit_a, dialect_a = lowered(files, texts, dialect, config, active)
+    unit_b, dialect_b = lowered(files, new_texts, dialect, config, active)
     # targets compensate reached from nothing known: Targets.prev -1, or a predecessor whose pose in
     # the robot base is not known (its frame or its numbers): the model's first-target rule. Kept as
-    # pairs (the target's place, its predecessor's place; ANY where the analysis knew nothing before
-    # it: no motion, or one it cannot tell): one declaration runs in several motions, each with its
-    # own predecessor
+    # pairs (the motion: its statement and its target's place; its predecessor's, or ANY where the
+    # analysis knew nothing before it): one declaration runs in several motions, each with its own
+    # predecessor (the rows and their statements: the analysis compensate read them from)
+    built = analyse(unit_a, dialect_a)
+    t = built.targets
+
+    def motion_of(i):
+        here = (int(t.file[i]), int(t.line[i]), int(t.col[i]))
+        site = built.sites[i] if i < len(built.sites) else None
+        return ((site.file, site.line, site.col) if site is not None else here), here
+
     alone = set()
     if t.prev is not None and len(t):
         first = t.prev < 0
@@ -104,10 +120,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
         first[~first] = np.isnan(t.poses[before, :3]).any(axis=1) | (t.frame[before] < 0)
         for i in np.flatnonzero(first).tolist():
             j = int(t.prev[i])
-            alone.add(((int(t.file[i]), int(t.line[i]), int(t.col[i])),
-                       (int(t.file[j]), int(t.line[j]), int(t.col[j])) if j >= 0 else ANY))
-    unit_a, dialect_a = lowered(files, texts, dialect, config, active)
-    unit_b, dialect_b = lowered(files, new_texts, dialect, config, active)
+            alone.add((motion_of(i), motion_of(j) if j >= 0 else ANY))
     entries = list(unit_a.entries)
     for seed in seeds:
         for entry in entries:
@@ -119,7 +132,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                 out.violations.append(f"seed {seed} {entry}: the compensated program runs another path")
                 continue
             prev = None
-            came = None  # (where the predecessor's target stands)
+            came = None  # (the predecessor motion: its statement and its target's place)
             for i, (ma, mb) in enumerate(zip(a, b)):
                 if ma.base is None or mb.base is None:
                     prev = came = None
@@ -135,7 +148,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                               ma.loc.col if ma.loc else 0)
                     allowed = tol_mm + 2 * worst.get(where_, 0.0)
                     dev = float(np.linalg.norm(c[:3] - p[:3] - e))
-                    if dev > allowed and ((_at(ma), came) in alone or (_at(ma), ANY) in alone) \
+                    if dev > allowed and ((_key(ma), came) in alone or (_key(ma), ANY) in alone) \
                             and model.wants_previous:
                         e_alone = model.predict(c[None], c[None])[0]  # (nothing known before: itself)
                         dev = min(dev, float(np.linalg.norm(c[:3] - p[:3] - e_alone)))
@@ -153,5 +166,5 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                             out.violations.append(
                                 f"seed {seed} {entry}: motion {i} at {files[ma.site.file]}:{ma.site.line} is left as "
                                 "written and compensate said every target was compensated (exit 0)")
-                prev, came = c, _at(ma)
+                prev, came = c, _key(ma)
     return out

@@ -230,6 +230,7 @@ class Dialect:
             nums = [number(v) for v in view.xyz] + [number(v) for v in view.orient]
             unknown = next((v for v in view.xyz + view.orient if isinstance(v, Top)), None)
             if unknown is not None:
+                an.consume(value, "a frame")  # (its tokens, known or on some path, are read as one)
                 return Top(unknown.why, unknown.loc)
             if view.kind == "cart" and None not in nums:  # (not finite: a frame P103 refuses, findings.frame_rule)
                 an.consume(value, "a frame")
@@ -290,6 +291,11 @@ class Dialect:
         """Where the robot stands after a motion to ``target`` (for the partial targets after it)."""
         names = _XYZ + ORIENTATION_FIELDS[self.form]
         return tuple((k, number(target.fields.get(k))) for k in names)
+
+    def halts(self, an, st, move) -> str | None:
+        """Why the controller stops the program at ``move`` (an alarm) with the values a concrete
+        run has (the interpreter asks; the analysis does not): None, it moves. The default: never."""
+        return None
 
     def fill(self, target: Rec, cur, frame):
         """A target aggregate that leaves components out takes them from where the robot stands

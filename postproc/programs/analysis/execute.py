@@ -562,6 +562,9 @@ class Analysis:
             target, filled = self.dialect.fill(target, _with_tool(st.cur, tool), frame)
         config = self.eval(s.config, st) if s.config is not None else None
         ext = self.eval(s.ext, st) if s.ext is not None else None
+        held = _unknown_tokens(target)
+        if held and self.rec is not None:  # (a target not known here that is a point's copy on some path)
+            self.rec.escape(held, self.loc, f"a target that is {_written(s.target) or 'a value'} on some path only")
         if self.rec is not None:
             self.rec.uses.append(Use(key, s, target, filled, frame, tool, st.last, _written(s.target), config, ext))
         st.last = frozenset([key])
@@ -793,6 +796,10 @@ class Analysis:
 
     def consume(self, value, why: str) -> None:
         """``value`` is read by something other than a motion's target: its tokens escape."""
+        if self.rec is not None and isinstance(value, Top):
+            if value.tokens:  # (a value that holds tokens on some path: they are read on that path)
+                self.rec.escape(value.tokens, self.loc, why)
+            return
         if self.rec is not None and not isinstance(value, (bool, str, type(None), Top)) \
                 and not (isinstance(value, (int, float)) and not isinstance(value, (Tok, Taint))):
             toks = tokens_of(value)
@@ -854,6 +861,17 @@ class Analysis:
             self.write(target.base, new, st)
             return
         raise TypeError(f"not an assignable expression: {target!r}")
+
+
+def _unknown_tokens(v, out: set | None = None) -> set:
+    """The tokens the unknown parts of a value hold (``Top.tokens``: a join's)."""
+    out = set() if out is None else out
+    if isinstance(v, Top):
+        out |= v.tokens
+    elif isinstance(v, Rec):
+        for x in v.fields.values():
+            _unknown_tokens(x, out)
+    return out
 
 
 def _key_name(key: tuple) -> str:

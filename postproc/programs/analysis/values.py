@@ -31,15 +31,19 @@ class Top:
     ``loc`` where the cause stands (or None), ``code`` the diagnostic it leaves a target with
     where it is a frame (P201 base, P203 tool, P220/P221 not set, P225 a track) or None."""
 
-    __slots__ = ("why", "loc", "code")
+    __slots__ = ("why", "loc", "code", "tokens")
 
-    def __init__(self, why: str, loc: Loc | None = None, code: str | None = None):
+    def __init__(self, why: str, loc: Loc | None = None, code: str | None = None, tokens: frozenset = frozenset()):
         self.why = why
         self.loc = loc
         self.code = code
+        # the number tokens it holds on some path (a join of a point's copy with another value): who
+        # reads it reads them (``tokens_of``), and a motion to it moves with them where that path ran
+        self.tokens = tokens
 
     def __eq__(self, other):
-        return isinstance(other, Top) and other.why == self.why and other.loc == self.loc and other.code == self.code
+        return isinstance(other, Top) and other.why == self.why and other.loc == self.loc and other.code == self.code \
+            and other.tokens == self.tokens
 
     def __hash__(self):
         return hash((self.why, self.loc))
@@ -223,7 +227,7 @@ def tokens_of(v, out: set | None = None) -> set:
     elif isinstance(v, Arr):
         for x in v.elems.values():
             tokens_of(x, out)
-    elif isinstance(v, Mat):
+    elif isinstance(v, (Mat, Top)):
         out |= v.tokens
     return out
 
@@ -253,12 +257,13 @@ def join(a, b, why: str, loc: Loc | None):
         keys = a.elems.keys() | b.elems.keys()
         return Arr({k: join(a.get(k), b.get(k), why, loc) for k in keys}, join(a.default, b.default, why, loc),
                    a.type or b.type)
+    toks = frozenset(tokens_of(a) | tokens_of(b))  # (what either path holds: kept in the unknown)
     for x in (a, b):  # a path on which it is unknown already: its reason (one warning for the cause)...
         if isinstance(x, Top) and x.code not in NOT_SET:
-            return x
+            return x if toks <= x.tokens else Top(x.why, x.loc, x.code, toks)
     if isinstance(a, Top) and isinstance(b, Top):
-        return a
-    return Top(why, loc)  # (...but not "never set" where another path sets it)
+        return a if toks <= a.tokens else Top(a.why, a.loc, a.code, toks)
+    return Top(why, loc, None, toks)  # (...but not "never set" where another path sets it)
 
 
 # the codes of a frame the program does not set and its user did not state (P220 base, P221 tool)
