@@ -1,11 +1,12 @@
-"""The property "never silently wrong", checked at length: random programs (branches, loops,
-jumps, calls with OUT parameters, copies with offsets, frame changes, code not read) compensated
-with a model whose correction varies over space and with where the robot comes from, then the
-original and the compensated program run by the IR's interpreter over several oracles' paths
-(``postproc.testing.oracle.check``). Prints how many programs, paths and executed targets were
-looked at and every violation; writes benchmarks/results/interpreter.json.
+"""The property "never silently wrong", checked at length on every dialect: random programs
+(KRL, RAPID, URScript, Fanuc LS: branches, loops, jumps, calls with OUT / INOUT parameters,
+copies with offsets, frame changes, displacements, code not read — ``postproc.testing.generate``)
+compensated with a model whose correction varies over space and with where the robot comes from,
+then the original and the compensated program run by the IR's interpreter over several oracles'
+paths (``postproc.testing.oracle.check``). Prints per dialect how many programs, paths and executed
+targets were looked at and the violations; writes benchmarks/results/interpreter.json.
 
-    python benchmarks/interpreter.py --examples 300 --seeds 4
+    python benchmarks/interpreter.py --dialect all --examples 200 --seeds 4
 """
 from __future__ import annotations
 
@@ -19,32 +20,24 @@ from hypothesis import HealthCheck, given, settings
 
 from _common import record
 from postproc.compensator import load_model
-from postproc.programs import ActiveFrames
-from postproc.testing.generate import krl_programs
+from postproc.testing.generate import dialect_cases
 from postproc.testing.models import affine_model
 from postproc.testing.oracle import check
 
+DIALECTS = ("krl", "rapid", "urscript", "fanuc")
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--examples", type=int, default=300)
-    parser.add_argument("--seeds", type=int, default=4, help="oracles (paths) per program")
-    parser.add_argument("--depth", type=int, default=3, help="nesting of the random statements")
-    args = parser.parse_args()
-    gain = np.array([[2e-3, 5e-4, 0.0], [0.0, 1.5e-3, 4e-4], [3e-4, 0.0, 2.5e-3]])
-    with tempfile.TemporaryDirectory() as tmp:
-        model = load_model(affine_model(Path(tmp) / "m.onnx", offset=(0.2, -0.1, 0.15), gain=gain,
-                                        previous_gain=5e-5, tool={"name": "any"}))
-    stated = ActiveFrames(base=0, tool="model")
+
+def bench(dialect: str, model, examples: int, seeds: int, depth: int, dump: str | None = None) -> dict:
+    programs, active = dialect_cases(dialect, depth)
     totals = dict(programs=0, paths=0, motions=0, compensated=0, untouched=0, refused=0, violations=0)
-    examples: list = []
+    found: list = []
     t0 = time.perf_counter()
 
-    @settings(max_examples=args.examples, deadline=None, suppress_health_check=list(HealthCheck), database=None)
-    @given(krl_programs(depth=args.depth))
+    @settings(max_examples=examples, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck), database=None)
+    @given(programs)
     def run(program):
         files, texts, config = program
-        checked = check(files, texts, "krl", model, config=config, active=stated, seeds=range(args.seeds))
+        checked = check(files, texts, dialect, model, config=config, active=active, seeds=range(seeds))
         totals["programs"] += 1
         totals["paths"] += checked.paths
         totals["motions"] += checked.motions
@@ -53,20 +46,39 @@ def main() -> None:
         totals["refused"] += checked.exit_code == 2
         if checked.violations:
             totals["violations"] += 1
-            examples.append({"program": texts[0], "data": texts[1], "violations": checked.violations[:3]})
+            found.append({"files": files + ["config"], "program": texts, "config": config, "violations": checked.violations[:3]})
 
     try:
         run()
     except Exception as exc:  # (a crash is a finding too)
-        examples.append({"crash": repr(exc)})
+        found.append({"crash": repr(exc)})
     seconds = time.perf_counter() - t0
-    print(f"KRL: {totals['programs']} programs, {totals['paths']} paths, {totals['motions']} executed targets "
+    print(f"{dialect}: {totals['programs']} programs, {totals['paths']} paths, {totals['motions']} executed targets "
           f"({totals['compensated']} compensated, {totals['untouched']} left as written), {totals['refused']} refused; "
           f"{totals['violations']} programs with a violation; {seconds:.0f} s")
-    for e in examples[:5]:
-        print(e)
-    record("interpreter", dict(totals, seconds=round(seconds, 1), examples=args.examples, seeds=args.seeds,
-                               depth=args.depth, first_violations=examples[:5]))
+    for k, e in enumerate(found):
+        print(e.get("crash") or "\n  ".join(e["violations"]))
+        if dump and "program" in e:
+            for name, text in zip(e["files"], e["program"] + (e["config"] or [])):
+                Path(dump, f"{dialect}_{k}_{name}").write_text(text)
+    return dict(totals, seconds=round(seconds, 1), first_violations=found[:5])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--dialect", choices=DIALECTS + ("all",), default="all")
+    parser.add_argument("--examples", "--programs", type=int, default=200, help="programs per dialect")
+    parser.add_argument("--seeds", type=int, default=4, help="oracles (paths) per program")
+    parser.add_argument("--depth", type=int, default=3, help="nesting of the random statements")
+    parser.add_argument("--dump", help="a directory: each program with a violation written there")
+    args = parser.parse_args()
+    gain = np.array([[2e-3, 5e-4, 0.0], [0.0, 1.5e-3, 4e-4], [3e-4, 0.0, 2.5e-3]])
+    with tempfile.TemporaryDirectory() as tmp:
+        model = load_model(affine_model(Path(tmp) / "m.onnx", offset=(0.2, -0.1, 0.15), gain=gain,
+                                        previous_gain=5e-5, tool={"name": "any"}))
+    chosen = DIALECTS if args.dialect == "all" else (args.dialect,)
+    results = {d: bench(d, model, args.examples, args.seeds, args.depth, args.dump) for d in chosen}
+    record("interpreter", dict(dialects=results, examples=args.examples, seeds=args.seeds, depth=args.depth))
 
 
 if __name__ == "__main__":

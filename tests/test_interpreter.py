@@ -1,9 +1,9 @@
 """The IR's reference interpreter (``postproc.programs.interpreter``) and the property it checks:
-random KRL programs with branches, loops, jumps, calls with OUT parameters, copies and frame
-changes, compensated, then the original and the compensated program run over several oracles'
-paths: every executed target at P + Ê from its real predecessor, or left as written and said so
-(``postproc.testing.oracle.check``). A fast profile here; ``benchmarks/interpreter.py`` runs many
-more."""
+random KRL, RAPID, URScript and Fanuc LS programs with branches, loops, jumps, calls with OUT /
+INOUT parameters, copies and frame changes, compensated, then the original and the compensated
+program run over several oracles' paths: every executed target at P + Ê from its real predecessor,
+or left as written and said so (``postproc.testing.oracle.check``). A fast profile here;
+``benchmarks/interpreter.py --dialect all`` runs many more."""
 from __future__ import annotations
 
 import numpy as np
@@ -13,7 +13,8 @@ from hypothesis import HealthCheck, given, settings
 from postproc.compensator import load_model
 from postproc.programs import ActiveFrames, lower
 from postproc.programs.interpreter import Oracle, run
-from postproc.testing.generate import krl_programs
+from postproc.testing.generate import LS_FRAMES, dialect_cases, krl_programs, ls_programs, rapid_programs, \
+    urscript_programs
 from postproc.testing.models import affine_model
 from postproc.testing.oracle import check
 
@@ -59,3 +60,62 @@ def test_never_silently_wrong_on_random_krl_programs(model, program):
     files, texts, config = program
     checked = check(files, texts, "krl", model, config=config, active=STATED, seeds=range(3))
     assert checked.violations == [], "\n".join(checked.violations) + "\n" + texts[0]
+
+
+def _property(model, program, dialect):
+    files, texts, config = program
+    checked = check(files, texts, dialect, model, config=config, active=dialect_cases(dialect)[1], seeds=range(3))
+    assert checked.violations == [], "\n".join(checked.violations) + "\n" + texts[0]
+
+
+PROFILE = settings(max_examples=20, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+
+
+@PROFILE
+@given(rapid_programs())
+def test_never_silently_wrong_on_random_rapid_programs(model, program):
+    _property(model, program, "rapid")
+
+
+@PROFILE
+@given(urscript_programs())
+def test_never_silently_wrong_on_random_urscript_programs(model, program):
+    _property(model, program, "urscript")
+
+
+@PROFILE
+@given(ls_programs())
+def test_never_silently_wrong_on_random_ls_programs(model, program):
+    _property(model, program, "fanuc")
+
+
+def test_a_point_copied_on_one_path_only_is_left_with_the_target_that_may_be_it(model):
+    """Found by the property: ``IF … XP1 = XP2 ENDIF; LIN XP1`` — XP1 is not known after the IF
+    (P212), but where the branch ran the robot goes to XP2's numbers: compensating XP2 moved
+    that motion by XP2's correction (for XP2's own predecessor) while it was said left as
+    written. The join keeps the tokens either path holds: XP2 is left too (P217)."""
+    src = ("DEF t( )\n  BAS(#BASE, 0)\n  LIN XP2\n  IF $IN[1] THEN\n    XP1 = XP2\n  ENDIF\n  LIN XP3\n  LIN XP1\nEND\n")
+    dat = ("DEFDAT t\n  DECL E6POS XP1={X 2100.0,Y 10.5,Z 900.0,A 0.0,B 90.0,C 0.0}\n"
+           "  DECL E6POS XP2={X 1700.0,Y -300.5,Z 1100.0,A 0.0,B 90.0,C 0.0}\n"
+           "  DECL E6POS XP3={X 2300.0,Y 300.5,Z 700.0,A 0.0,B 90.0,C 0.0}\nENDDAT\n")
+    from postproc.programs import read_program
+
+    p = read_program(["t.src", "t.dat"], [src, dat], "krl", active=STATED)
+    assert [(d.code, d.line) for d in p.diagnostics] == [("P212", 8), ("P217", 3)]
+    checked = check(["t.src", "t.dat"], [src, dat], "krl", model, active=STATED, seeds=range(6))
+    assert checked.violations == [] and checked.exit_code == 1 and checked.paths == 6
+
+
+def test_an_ls_position_in_another_frame_than_the_selected_one_stops_the_controller():
+    """The frame check ($MCR.$UFRCHK, on by default): a position taught in UF 1 run while
+    UFRAME_NUM=2 is selected stops the program (INTP-250/252): nothing after it runs."""
+    pos = ("P[1]{\n   GP1:\n\tUF : 1, UT : 1,\t\tCONFIG : 'N U T, 0, 0, 0',\n"
+           "\tX = 100.000  mm,\tY = 20.000  mm,\tZ = 30.000  mm,\n"
+           "\tW =   180.000 deg,\tP =     0.000 deg,\tR =     0.000 deg\n};")
+    mn = ["UFRAME_NUM=1", "UTOOL_NUM=1", "L P[1] 100mm/sec FINE", "UFRAME_NUM=2", "L P[1] 100mm/sec FINE",
+          "UFRAME_NUM=1", "L P[1] 100mm/sec FINE"]
+    text = "\n".join(["/PROG  T", "/ATTR", "/MN"] + [f"{k:4d}:  {m} ;" for k, m in enumerate(mn, 1)] +
+                     ["/POS", pos, "/END", ""])
+    unit, dialect = lower(["t.ls"], [text], "fanuc", config=[LS_FRAMES])
+    ms = run(unit, dialect, Oracle(0))
+    assert [m.site.line for m in ms] == [6]

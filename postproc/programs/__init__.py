@@ -128,6 +128,10 @@ def lower(files: list[str], texts: list[str], dialect: str, config: list[str] | 
     reader = importlib.import_module(f".{module}", __name__)
     if not hasattr(reader, "lower"):
         raise NotImplementedError(f"the {dialect} reader does not lower to the motion IR yet")
-    if active is not None:
+    if dialect == "urscript":  # (its --tool: the TCP before the script's first set_tcp)
+        return reader.lower(files, texts, active=active)
+    if active is not None and active.frames_stated:
         raise ValueError(f"active frames are KRL's ($BASE/$TOOL at the start): not {dialect}")
+    if dialect == "fanuc":  # (its frame file)
+        return reader.lower(files, texts, frames=config)
     return reader.lower(files, texts, config=config)

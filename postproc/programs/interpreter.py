@@ -17,6 +17,7 @@ where a value is not known.
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -67,7 +68,9 @@ class Oracle:
 
     def _draw(self, key, make):
         if key not in self.answers:
-            rng = np.random.default_rng(abs(hash((self.seed,) + key)) % (2 ** 32))
+            # (a stable hash: Python's hash of a string changes from one process to the next)
+            digest = hashlib.blake2b(repr((self.seed,) + key).encode(), digest_size=8).digest()
+            rng = np.random.default_rng(int.from_bytes(digest, "little"))
             self.answers[key] = make(rng)
         return self.answers[key]
 
@@ -281,8 +284,12 @@ class Interpreter(Analysis):
             self.motions.append(Motion(s.loc, s.kind, None, None))
             st.cur = None
             return st
+        if self.dialect.halts(self, st, s):  # (the controller's alarm: the program stops here)
+            raise _Halt
         target = self.eval(s.target, st)
         frame = self.frame_value(s.frame, st)
+        if isinstance(frame, Top):  # (a frame the analysis does not know: the world's, as the controller has one)
+            frame = self.oracle.frame(self.here)
         tool = self.tool_value(s.tool, st)
         if isinstance(s.target, Agg) and isinstance(target, Rec):
             target = self.fill_from(target, st, frame, tool)
@@ -330,19 +337,35 @@ class Interpreter(Analysis):
 
     def move_run(self, s: MoveRun, st: State) -> State:
         frame = self.frame_value(s.frame, st)
+        if isinstance(frame, Top):
+            frame = self.oracle.frame(self.here)
         tool = self.tool_value(s.tool, st)
         r = s.rows
+        names = ("X", "Y", "Z", "A", "B", "C")
         for i in range(len(r["line"])):
-            fields = {k: float(r["pose"][i, j]) for j, k in enumerate("XYZABC") if r["written"][i, j]}
-            target = Rec("", fields, Loc(int(r["file"][i]), int(r["line"][i]), int(r["col"][i])))
-            target = self.fill_from(target, st, frame, tool)
-            m = self._pose(target, frame)
-            site = target.loc
+            # (a row's pose column is X, Y, Z, A, B, C in every dialect: the orientation as A, B, C)
+            six = np.where(r["written"][i], r["pose"][i], np.nan).astype(float)
+            site = Loc(int(r["file"][i]), int(r["line"][i]), int(r["col"][i]))
+            if np.isnan(six).any():
+                fields = {k: float(six[j]) for j, k in enumerate(names) if r["written"][i, j]}
+                six = self._filled(fields, st, frame, tool)
+            m = None
+            if isinstance(frame, Mat) and six is not None and np.isfinite(six).all():
+                m = frame.m @ fr.frame_to_matrix(six)
             token = (int(r["file"][i]), int(r["spans"][i, 0])) if r["spans"][i, 0] >= 0 else None
             self.motions.append(Motion(site, "row", m, tool if not isinstance(tool, Top) else None, site, token))
             if r["chain"][i]:
                 st.cur = (m, frame, tool) if m is not None else None
         return st
+
+    def _filled(self, fields: dict, st: State, frame, tool):
+        """A MoveRun's partial row (X…C as A, B, C) completed from where the robot stands: six
+        numbers, None where that is not known."""
+        names = ("X", "Y", "Z", "A", "B", "C")
+        out = self.fill_from(Rec("", dict(fields), None), st, frame, tool).fields
+        if any(k not in out for k in names):
+            return None
+        return np.array([float(out[k]) for k in names])
 
     def frame_value(self, expr, st):
         v = super().frame_value(expr, st)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from hypothesis import strategies as st
 
-__all__ = ["krl_programs", "CONFIG"]
+__all__ = ["krl_programs", "rapid_programs", "urscript_programs", "ls_programs", "CONFIG", "LS_FRAMES"]
 
 CONFIG = ("DEFDAT $CONFIG\nDECL GLOBAL FRAME BASE_DATA[32]\n"
           "BASE_DATA[1]={X 40.0,Y -30.0,Z 20.0,A 5.0,B 0.0,C 0.0}\n"
@@ -95,3 +95,296 @@ def krl_programs(draw, depth: int = 2):
     dat = ("DEFDAT t\n" + "".join(f"  {_point(draw, f'XP{i}')}\n" for i in range(1, 5)) +
            "  DECL FRAME XF={X 20.0,Y 10.0,Z -5.0,A 3.0,B 0.0,C 0.0}\nENDDAT\n")
     return ["t.src", "t.dat"], [src, dat], [CONFIG]
+
+
+# ---------------------------------------------------------------------------------------- RAPID
+RAPID_EAX = "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]"
+RAPID_Q = "[0,0,1,0]"  # (the tool pointing down)
+RAPID_ROUTINES = ("PROC lift(INOUT robtarget p, num dz)\n  p.trans.z := p.trans.z + dz;\nENDPROC\n"
+                  "PROC visit(robtarget p)\n  MoveL p, v100, fine, tool0;\n  MoveL Offs(p, 0, 0, 40), v100, z10, tool0;\n"
+                  "ENDPROC\n"
+                  "PROC touch(VAR robtarget p)\n  p := Offs(p, 5, 0, 0);\n  MoveL p, v100, fine, tool0\\WObj:=wPart;\n"
+                  "ENDPROC\n")
+
+
+def _robtarget(draw, around=(2000, 0, 900)) -> str:
+    x, y, z = around[0] + draw(_coord), around[1] + draw(_coord), around[2] + draw(st.integers(-200, 250))
+    return f"[[{x}.5,{y}.25,{z}],{RAPID_Q},[0,0,0,0],{RAPID_EAX}]"
+
+
+@st.composite
+def _rapid_statements(draw, depth: int, labels: list):
+    out = []
+    point = st.sampled_from(["p1", "p2", "p3", "p4"])
+    for _ in range(draw(st.integers(1, 4))):
+        choice = draw(st.integers(0, 19 if depth > 0 else 14))
+        p, q = draw(point), draw(point)
+        if choice == 0:
+            out.append(f"MoveL {p}, v100, fine, tool0;")
+        elif choice == 1:
+            out.append(f"MoveJ {p}, v500, z20, tool0;")
+        elif choice == 2:
+            out.append(f"MoveL {_robtarget(draw)}, v100, fine, tool0;")
+        elif choice == 3:
+            out.append(f"MoveL Offs({p}, {draw(st.integers(-40, 40))}, 0, {draw(st.integers(0, 60))}), v100, fine, "
+                       "tool0;")
+        elif choice == 4:
+            out.append(f"MoveL RelTool({p}, 0, {draw(st.integers(-30, 30))}, {draw(st.integers(-50, 0))}), v100, "
+                       "fine, tool0;")
+        elif choice == 5:
+            out.append(f"MoveL {p}, v100, fine, tool0\\WObj:=wPart;")
+        elif choice == 6:
+            out.append(draw(st.sampled_from([f"PDispOn \\ExeP:={p}, {q}, tool0;", "PDispSet dispF;", "PDispOff;"])))
+        elif choice == 7:
+            out.append(draw(st.sampled_from([f"wPart.oframe.trans := {p}.trans;",
+                                             f"wPart.uframe.trans.x := {draw(st.integers(-100, 100))};"])))
+        elif choice == 8:
+            out.append(draw(st.sampled_from([f"pw := {p};", f"pw := Offs({p}, 0, {draw(st.integers(-30, 30))}, 20);",
+                                             f"{draw(st.sampled_from(['p3', 'p4']))} := {p};"])))
+        elif choice == 9:
+            out.append(f"lift {draw(st.sampled_from(['pw', 'p3', 'p4']))}, {draw(st.integers(10, 80))};")
+        elif choice == 10:
+            out.append("MoveL pw, v100, fine, tool0;")
+        elif choice == 11:
+            out.append(draw(st.sampled_from([f"visit {p};", f"touch {draw(st.sampled_from(['pw', 'p3', 'p4']))};",
+                                             "gripper;", f"n := {draw(st.integers(0, 2))};"])))
+        elif choice == 12:
+            label = f"lbl{len(labels)}"
+            labels.append(label)
+            out += [f"GOTO {label};", f"MoveL {p}, v100, fine, tool0;", f"{label}:"]
+        elif choice == 13:
+            out.append(f"MoveL {p}, v100, fine, tool0\\WObj:=wFix;")
+        elif choice == 14:
+            out.append(f"MoveC {p}, {q}, v100, fine, tool0;")
+        elif choice in (15, 16):
+            then = draw(_rapid_statements(depth - 1, labels))
+            other = draw(_rapid_statements(depth - 1, labels)) if draw(st.booleans()) else []
+            out.append(f"IF DInput(di{draw(st.integers(1, 4))}) = 1 THEN")
+            out += ["  " + s for s in then]
+            if other:
+                out.append("ELSE")
+                out += ["  " + s for s in other]
+            out.append("ENDIF")
+        elif choice == 17:
+            out.append("FOR i FROM 1 TO 2 DO")
+            out += ["  " + s for s in draw(_rapid_statements(depth - 1, labels))]
+            out.append("ENDFOR")
+        elif choice == 18:
+            out.append(f"WHILE DInput(di{draw(st.integers(5, 8))}) = 1 DO")
+            out += ["  " + s for s in draw(_rapid_statements(depth - 1, labels))]
+            out.append("ENDWHILE")
+        else:
+            out.append("TEST n")
+            out.append("CASE 1:")
+            out += ["  " + s for s in draw(_rapid_statements(depth - 1, labels))]
+            out.append("CASE 2:")
+            out.append("  PDispSet dispF;")
+            out.append("DEFAULT:")
+            out.append(f"  MoveL {q}, v100, fine, tool0;")
+            out.append("ENDTEST")
+    return out
+
+
+@st.composite
+def rapid_programs(draw, depth: int = 2):
+    """(files, texts, config texts) of a random RAPID module: robtargets declared at the top
+    (CONST and VAR) and moved to in another order, a work object set from a robtarget, program
+    displacement (PDispOn \\ExeP, PDispSet), Offs/RelTool, INOUT/VAR parameters, routines called
+    twice, IF/WHILE/FOR/TEST/GOTO, a routine not read."""
+    labels: list = []
+    body = ["n := 1;"] + draw(_rapid_statements(depth, labels))
+    data = [f"CONST robtarget p1:={_robtarget(draw)};", f"CONST robtarget p2:={_robtarget(draw)};",
+            f"VAR robtarget p3:={_robtarget(draw)};", f"PERS robtarget p4:={_robtarget(draw)};",
+            "VAR robtarget pw;", "VAR num n:=0;",
+            'PERS wobjdata wPart:=[FALSE,TRUE,"",[[0,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];',
+            'PERS wobjdata wFix:=[FALSE,TRUE,"",[[30,-20,10],[0.9961947,0,0,0.0871557]],[[5,5,0],[1,0,0,0]]];',
+            "CONST pose dispF:=[[12,-8,4],[0.9990482,0,0,0.0436194]];"]
+    text = ("MODULE m\n" + "".join(f"  {d}\n" for d in data) + "PROC main()\n" + "".join(f"  {s}\n" for s in body) +
+            "ENDPROC\n" + RAPID_ROUTINES + "ENDMODULE\n")
+    return ["m.mod"], [text], None
+
+
+def dialect_cases(dialect: str, depth: int = 2):
+    """(the strategy of ``dialect``'s random programs, the ActiveFrames its check states)."""
+    from ..programs import ActiveFrames
+
+    if dialect == "krl":
+        return krl_programs(depth=depth), ActiveFrames(base=0, tool="model")
+    if dialect == "rapid":
+        return rapid_programs(depth=depth), None
+    if dialect == "urscript":
+        return urscript_programs(depth=depth), ActiveFrames(tool="model")
+    if dialect == "fanuc":
+        return ls_programs(depth=depth), None
+    raise ValueError(dialect)
+
+
+# ---------------------------------------------------------------------------------------- URScript
+UR_FUNCTIONS = ("  def lift(q, dz=0.05):\n    return pose_add(q, p[0, 0, dz, 0, 0, 0])\n  end\n"
+                "  def visit(q, up=0.04, v=0.25):\n    movel(q, a=1.2, v=v)\n"
+                "    movel(pose_trans(q, p[0, 0, -up, 0, 0, 0]), a=1.2, v=v)\n  end\n")
+
+
+def _ur_pose(draw) -> str:
+    x, y, z = 2000 + draw(_coord), draw(_coord), 900 + draw(st.integers(-200, 250))
+    return f"p[{x / 1000:.4f}, {y / 1000:.4f}, {z / 1000:.4f}, 0, 3.1416, 0]"
+
+
+@st.composite
+def _ur_statements(draw, depth: int, loop: bool):
+    out = []
+    pose = st.sampled_from(["wp1", "wp2", "wp3", "wp4"])
+    for _ in range(draw(st.integers(1, 4))):
+        choice = draw(st.integers(0, 17 if depth > 0 else 13))
+        p, q = draw(pose), draw(pose)
+        if choice == 0:
+            out.append(f"movel({p}, a=1.2, v=0.25)")
+        elif choice == 1:
+            out.append(f"{draw(st.sampled_from(['movej', 'movep']))}({p}, a=1.4, v=1.05)")
+        elif choice == 2:
+            out.append(f"movel({_ur_pose(draw)}, a=1.2, v=0.25)")
+        elif choice == 3:
+            out.append(f"movel(pose_trans(feat, {p}), a=1.2, v=0.25)")
+        elif choice == 4:
+            out.append(f"movel(pose_trans({p}, p[0, {draw(st.integers(-30, 30)) / 1000}, -0.02, 0, 0, 0]))")
+        elif choice == 5:
+            out.append(draw(st.sampled_from([f"{p} = {q}", f"{p} = lift({q})", f"{p} = lift({q}, dz=0.03)",
+                                             f"{p} = pose_add({q}, p[0.01, 0, 0, 0, 0, 0])"])))
+        elif choice == 6:
+            out.append(draw(st.sampled_from([f"visit({p})", f"visit({p}, v=0.1)", f"visit({p}, 0.02)"])))
+        elif choice == 7:
+            out.append(draw(st.sampled_from(["set_tcp(p[0, 0, 0.15, 0, 0, 0])", "set_tcp(p[0.01, 0, 0.2, 0, 0, 0.1])"])))
+        elif choice == 8:
+            out.append(f"movej(get_inverse_kin({p}), a=1.4, v=1.05)")
+        elif choice == 9:
+            out.append(draw(st.sampled_from(["gripper_open()", "n = n + 1", "feat = pose_trans(feat, p[0.01, 0, 0, 0, 0, 0])",
+                                             f"feat = {p}"])))
+        elif choice == 10:
+            out.append(f"movel(pose_trans(feat, p[0.0, 0.0, {draw(st.integers(-50, 0)) / 1000}, 0, 0, 0]))")
+        elif choice == 11:
+            out.append(f"movej([0.1, -1.2, 1.4, -1.8, -1.5708, 0.0], a=1.4, v=1.05)")
+        elif choice == 12:
+            out.append(draw(st.sampled_from(["break", "continue"])) if loop else f"movel({q})")
+        elif choice == 13:
+            out.append(f"movec({p}, {q}, a=1.2, v=0.1, r=0)")
+        elif choice in (14, 15):
+            then = draw(_ur_statements(depth - 1, loop))
+            other = draw(_ur_statements(depth - 1, loop)) if draw(st.booleans()) else []
+            out.append(f"if get_standard_digital_in({draw(st.integers(0, 3))}):")
+            out += ["  " + s for s in then]
+            if other:
+                out.append("else:")
+                out += ["  " + s for s in other]
+            out.append("end")
+        elif choice == 16:
+            out.append(f"while get_standard_digital_in({draw(st.integers(4, 7))}):")
+            out += ["  " + s for s in draw(_ur_statements(depth - 1, True))]
+            out.append("end")
+        else:
+            out.append("if n == 1:")
+            out += ["  " + s for s in draw(_ur_statements(depth - 1, loop))]
+            out.append("elif n == 2:")
+            out.append("  halt")
+            out.append("end")
+    return out
+
+
+@st.composite
+def urscript_programs(draw, depth: int = 2):
+    """(files, texts, None) of a random URScript program: pose variables declared at the top and
+    moved to in another order, functions with default and keyword arguments, if/elif/while/break/
+    continue, pose_trans frames (a feature), set_tcp in branches, get_inverse_kin, a function not
+    read."""
+    body = ["set_tcp(p[0, 0, 0.1, 0, 0, 0])"] + [f"global wp{k} = {_ur_pose(draw)}" for k in range(1, 5)]
+    body += ["global feat = p[0.02, -0.01, 0.005, 0, 0, 0.05]", "global n = 1"]
+    body += draw(_ur_statements(depth, False))
+    text = "def prog():\n" + UR_FUNCTIONS + "".join(f"  {s}\n" for s in body) + "end\n"
+    return ["u.script"], [text], None
+
+
+# ---------------------------------------------------------------------------------------- Fanuc LS
+LS_FRAMES = ("[uframe.1]\nxyzwpr = [1800.0, -100.0, 700.0, 0.0, 0.0, 30.0]\n"
+             "[uframe.2]\nxyzwpr = [1700.0, 150.0, 650.0, 5.0, -3.0, -20.0]\n"
+             "[utool.1]\nxyzwpr = [0.0, 0.0, 200.0, 0.0, 0.0, 0.0]\n"
+             "[utool.2]\nxyzwpr = [10.0, 0.0, 250.0, 0.0, 0.0, 0.0]\n")
+
+
+def _ls_position(draw, n: int) -> str:
+    x, y, z = 200 + draw(_coord), 100 + draw(_coord), 200 + draw(st.integers(-150, 200))
+    uf = draw(st.sampled_from([1, 1, 1, 2]))
+    return (f"P[{n}]{{\n   GP1:\n\tUF : {uf}, UT : 1,\t\tCONFIG : 'N U T, 0, 0, 0',\n"
+            f"\tX = {x:9.3f}  mm,\tY = {y + 0.5:9.3f}  mm,\tZ = {z:9.3f}  mm,\n"
+            f"\tW =   180.000 deg,\tP =     0.000 deg,\tR =     0.000 deg\n}};")
+
+
+@st.composite
+def _ls_statements(draw, depth: int, labels: list):
+    out = []
+    for _ in range(draw(st.integers(1, 4))):
+        choice = draw(st.integers(0, 16 if depth > 0 else 12))
+        k, j = draw(st.integers(1, 4)), draw(st.integers(1, 4))
+        if choice == 0:
+            out.append(f"L P[{k}] 100mm/sec FINE")
+        elif choice == 1:
+            out.append(f"J P[{k}] 50% CNT50")
+        elif choice == 2:
+            out.append(f"L P[{k}] 100mm/sec FINE Offset,PR[3]")
+        elif choice == 3:
+            out.append(f"PR[1]=P[{k}]")
+            if draw(st.booleans()):
+                out.append(f"PR[1,3]=PR[1,3]+{draw(st.integers(10, 80))}")
+        elif choice == 4:
+            out.append("L PR[1] 100mm/sec FINE")
+        elif choice == 5:
+            out += ["PR[3]=PR[3]-PR[3]", f"PR[3,1]={draw(st.integers(-20, 20))}", f"PR[3,3]={draw(st.integers(0, 40))}"]
+        elif choice == 6:
+            out.append(f"UFRAME_NUM={draw(st.sampled_from([1, 2]))}")
+        elif choice == 7:
+            out.append(f"UTOOL_NUM={draw(st.sampled_from([1, 2]))}")
+        elif choice == 8:
+            out.append(draw(st.sampled_from(["CALL GRIPPER", f"R[1]={draw(st.integers(0, 2))}", "PR[2]=PR[1]+PR[3]",
+                                             "L PR[2] 100mm/sec FINE"])))
+        elif choice == 9:
+            n = len(labels) + 1
+            labels.append(n)
+            out += [f"JMP LBL[{n}]", f"L P[{k}] 100mm/sec FINE", f"LBL[{n}]"]
+        elif choice == 10:
+            n = len(labels) + 1
+            labels.append(n)
+            out += [f"IF R[1]={draw(st.integers(0, 2))},JMP LBL[{n}]", f"L P[{k}] 100mm/sec FINE", f"LBL[{n}]"]
+        elif choice == 11:
+            out.append(f"L P[{k}] 100mm/sec FINE Offset")
+        elif choice == 12:
+            out.append(f"OFFSET CONDITION PR[{draw(st.sampled_from([1, 3]))}]")
+        elif choice in (13, 14):
+            then = draw(_ls_statements(depth - 1, labels))
+            other = draw(_ls_statements(depth - 1, labels)) if draw(st.booleans()) else []
+            out.append(f"IF (DI[{draw(st.integers(1, 4))}]=ON) THEN")
+            out += then
+            if other:
+                out.append("ELSE")
+                out += other
+            out.append("ENDIF")
+        elif choice == 15:
+            out.append("FOR R[5]=1 TO 2")
+            out += draw(_ls_statements(depth - 1, labels))
+            out.append("ENDFOR")
+        else:
+            a, b = len(labels) + 1, len(labels) + 2
+            labels += [a, b]
+            out += [f"SELECT R[1]=1,JMP LBL[{a}]", f"       =2,JMP LBL[{b}]", f"       ELSE,JMP LBL[{b}]",
+                    f"LBL[{a}]", f"L P[{j}] 100mm/sec FINE", f"LBL[{b}]"]
+    return out
+
+
+@st.composite
+def ls_programs(draw, depth: int = 2):
+    """(files, texts, [the frame file]) of a random LS program: P[n] and PR[n] copies with
+    offsets, Offset,PR[n], OFFSET CONDITION, UFRAME_NUM/UTOOL_NUM, LBL/JMP, IF/SELECT/FOR, CALL of
+    a program not given."""
+    labels: list = []
+    mn = ["UFRAME_NUM=1", "UTOOL_NUM=1", "R[1]=1"] + draw(_ls_statements(depth, labels))
+    lines = ["/PROG  T", "/ATTR", "OWNER\t\t= MNEDITOR;", f"LINE_COUNT\t= {len(mn)};", "/MN"]
+    lines += [f"{k:4d}:  {line} ;" for k, line in enumerate(mn, start=1)]
+    lines += ["/POS"] + [_ls_position(draw, n) for n in range(1, 5)] + ["/END", ""]
+    return ["t.ls"], ["\n".join(lines)], [LS_FRAMES]

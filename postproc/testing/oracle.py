@@ -53,6 +53,12 @@ def _at(motion) -> tuple | None:
     return None if loc is None else (loc.file, loc.line, loc.col)
 
 
+def _key(motion) -> tuple:
+    """A motion as the oracle tells rows apart: (its statement's place, its target's place)."""
+    site = motion.site
+    return (site.file, site.line, site.col), _at(motion)
+
+
 def _six(m: np.ndarray) -> np.ndarray:
     return fr.matrix_to_frame(m)
 
@@ -61,6 +67,7 @@ def _six(m: np.ndarray) -> np.ndarray:
 # coordinate (compensate._agreement), the numbers are written to ROUNDING_MM, the fixed point leaves
 # ~1e-6 mm: as a distance, √3 × (0.005 + 0.0005) + a margin
 TOL_MM = 0.01
+ANY = ("any",)  # (a predecessor place that stands for every one)
 
 
 def check(files, texts, dialect: str, model, config=None, active=None, seeds=range(4), tol_mm: float = TOL_MM,
@@ -70,6 +77,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
     from ..compensate import compensate_program
     from ..diagnostics import P231, P322, PostprocError
     from ..programs import read_program
+    from ..programs.analysis import analyse
     from ..programs.interpreter import Oracle, run
 
     out = Checked()
@@ -93,18 +101,29 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                 worst[(note.path, note.line, note.col)] = float(text)
             except ValueError:
                 pass
-    t = program.targets
-    # targets the analysis left with their frame not known: a motion after one has no known predecessor
-    blind = set(zip(t.file[t.frame < 0].tolist(), t.line[t.frame < 0].tolist(), t.col[t.frame < 0].tolist()))
-    # targets compensate reached from nothing known (Targets.prev -1, or a predecessor whose position
-    # is not known): the model's first-target rule
-    alone = set()
-    if t.prev is not None:
-        first = t.prev < 0
-        first[~first] = np.isnan(t.poses[t.prev[~first], :3]).any(axis=1)
-        alone = set(zip(t.file[first].tolist(), t.line[first].tolist(), t.col[first].tolist()))
     unit_a, dialect_a = lowered(files, texts, dialect, config, active)
     unit_b, dialect_b = lowered(files, new_texts, dialect, config, active)
+    # targets compensate reached from nothing known: Targets.prev -1, or a predecessor whose pose in
+    # the robot base is not known (its frame or its numbers): the model's first-target rule. Kept as
+    # pairs (the motion: its statement and its target's place; its predecessor's, or ANY where the
+    # analysis knew nothing before it): one declaration runs in several motions, each with its own
+    # predecessor (the rows and their statements: the analysis compensate read them from)
+    built = analyse(unit_a, dialect_a)
+    t = built.targets
+
+    def motion_of(i):
+        here = (int(t.file[i]), int(t.line[i]), int(t.col[i]))
+        site = built.sites[i] if i < len(built.sites) else None
+        return ((site.file, site.line, site.col) if site is not None else here), here
+
+    alone = set()
+    if t.prev is not None and len(t):
+        first = t.prev < 0
+        before = t.prev[~first]
+        first[~first] = np.isnan(t.poses[before, :3]).any(axis=1) | (t.frame[before] < 0)
+        for i in np.flatnonzero(first).tolist():
+            j = int(t.prev[i])
+            alone.add((motion_of(i), motion_of(j) if j >= 0 else ANY))
     entries = list(unit_a.entries)
     for seed in seeds:
         for entry in entries:
@@ -116,9 +135,10 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                 out.violations.append(f"seed {seed} {entry}: the compensated program runs another path")
                 continue
             prev = None
+            came = None  # (the predecessor motion: its statement and its target's place)
             for i, (ma, mb) in enumerate(zip(a, b)):
                 if ma.base is None or mb.base is None:
-                    prev = None
+                    prev = came = None
                     continue
                 out.motions += 1
                 p, c = _six(ma.base), _six(mb.base)
@@ -133,7 +153,8 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                     dev = float(np.linalg.norm(c[:3] - p[:3] - e))
                     if dev > allowed and where_ in with_point and not report.complete:
                         dev = 0.0  # (a run at an offset from its point, or the point: its P231 said so)
-                    if dev > allowed and _at(ma) in alone and model.wants_previous:
+                    if dev > allowed and ((_key(ma), came) in alone or (_key(ma), ANY) in alone) \
+                            and model.wants_previous:
                         e_alone = model.predict(c[None], c[None])[0]  # (nothing known before: itself)
                         dev = min(dev, float(np.linalg.norm(c[:3] - p[:3] - e_alone)))
                     if dev > allowed:
@@ -150,5 +171,5 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                             out.violations.append(
                                 f"seed {seed} {entry}: motion {i} at {files[ma.site.file]}:{ma.site.line} is left as "
                                 "written and compensate said every target was compensated (exit 0)")
-                prev = None if _at(ma) in blind else c
+                prev, came = c, _key(ma)
     return out

@@ -292,6 +292,11 @@ class Dialect:
         names = _XYZ + ORIENTATION_FIELDS[self.form]
         return tuple((k, number(target.fields.get(k))) for k in names)
 
+    def halts(self, an, st, move) -> str | None:
+        """Why the controller stops the program at ``move`` (an alarm) with the values a concrete
+        run has (the interpreter asks; the analysis does not): None, it moves. The default: never."""
+        return None
+
     def fill(self, target: Rec, cur, frame):
         """A target aggregate that leaves components out takes them from where the robot stands
         (``cur``, in the same frame): (the target, the names filled). The default: none."""

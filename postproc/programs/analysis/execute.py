@@ -562,6 +562,9 @@ class Analysis:
             target, filled = self.dialect.fill(target, _with_tool(st.cur, tool), frame)
         config = self.eval(s.config, st) if s.config is not None else None
         ext = self.eval(s.ext, st) if s.ext is not None else None
+        held = _unknown_tokens(target)
+        if held and self.rec is not None:  # (a target not known here that is a point's copy on some path)
+            self.rec.escape(held, self.loc, f"a target that is {_written(s.target) or 'a value'} on some path only")
         if self.rec is not None:
             self.rec.uses.append(Use(key, s, target, filled, frame, tool, st.last, _written(s.target), config, ext))
         st.last = frozenset([key])
@@ -855,6 +858,17 @@ class Analysis:
             self.write(target.base, new, st)
             return
         raise TypeError(f"not an assignable expression: {target!r}")
+
+
+def _unknown_tokens(v, out: set | None = None) -> set:
+    """The tokens the unknown parts of a value hold (``Top.tokens``: a join's)."""
+    out = set() if out is None else out
+    if isinstance(v, Top):
+        out |= v.tokens
+    elif isinstance(v, Rec):
+        for x in v.fields.values():
+            _unknown_tokens(x, out)
+    return out
 
 
 def _key_name(key: tuple) -> str:

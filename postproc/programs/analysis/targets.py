@@ -57,6 +57,9 @@ class Built:
     held: dict = field(default_factory=dict)
     named: bool = False
     extras: dict = field(default_factory=dict)
+    # each row's motion statement (its Loc; a MoveRun's row: None, the row's own place): which
+    # motion a row is where one declaration is the target of several (the property's oracle)
+    sites: list = field(default_factory=list)
 
 
 class _Rows:
@@ -120,6 +123,15 @@ class _Rows:
                 return {(f, int(a), int(b)) for a, b in sp if a >= 0}
             at += m
         return set()
+
+    def sites(self) -> list:
+        """Each row's motion statement (Loc; None: a MoveRun's row)."""
+        self.flush()
+        out: list = []
+        for p in self.parts:
+            site = p.get("site")
+            out.extend(site if isinstance(site, list) else [None] * len(p["line"]))
+        return out
 
     def extras(self) -> dict:
         """The dialect's per-row columns (``row_extras``), name → list over every row."""
@@ -366,7 +378,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         diagnostics.append(Diagnostic(_path(unit, loc.file), loc.line, loc.col, code, message))
     order = {path: k for k, path in enumerate(list(unit.files) + list(unit.config_names))}
     diagnostics.sort(key=lambda d: (order.get(d.path, len(order)), d.line, d.col))  # (in the order written)
-    return Built(targets, frames, diagnostics, notes, held, named, rows.extras())
+    return Built(targets, frames, diagnostics, notes, held, named, rows.extras(), rows.sites())
 
 
 def _is_tool_unset(use) -> bool:
@@ -482,6 +494,8 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
 
 def _same(a, b) -> bool:
     if isinstance(a, Mat) and isinstance(b, Mat):
+        return a == b
+    if isinstance(a, tuple) and isinstance(b, tuple):  # (tools: Six, equal by their numbers)
         return a == b
     return a is b
 

@@ -134,6 +134,22 @@ class LS(Dialect):
             return value
         return super().tool(an, value)
 
+    def halts(self, an, st, move) -> str | None:
+        """A position taught in UF n (UT n) run while another user (tool) frame number is selected:
+        the controller's frame check ($MCR.$UFRCHK, on by default) stops the program (INTP-250/252).
+        The analysis takes a position whose selected frame is not known in its own UF on this
+        ground."""
+        target = an.eval(move.target, st) if move.frame is not None else None
+        if not isinstance(target, Rec):
+            return None
+        for field, name in (("UF", "UFRAME_NUM"), ("UT", "UTOOL_NUM")):
+            own = _frame_no(target.fields.get(field))
+            _, selected = an.lookup(name, st)
+            active = _frame_no(selected) if not isinstance(selected, Top) else None
+            if own is not None and active is not None and own != active:
+                return f"{target.label or 'the position'} is taught in {field} {own} and {name}={active} is selected"
+        return None
+
     def row_extras(self, use, view) -> dict:
         config = use.target.fields.get("CONFIG") if isinstance(use.target, Rec) else None
         return {"config": config if isinstance(config, str) else ""}
