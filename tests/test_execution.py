@@ -238,3 +238,16 @@ def test_a_point_also_run_at_an_offset_is_compensated_for_itself_and_the_offset_
     # without the run at the point itself, the offset run owns the numbers (compensated for where it runs)
     alone, _, report2, _ = run(model, src.replace("  LIN XS1\n", ""), DAT)
     assert report2.complete and report2.moved == 0
+
+
+def test_a_partial_target_after_code_not_read_or_many_paths_holds_every_command_it_may_read(model):
+    # gripper() is not read: it may not move, and LIN {Z 900} then takes X/Y from XS1's command
+    src = "DEF t( )\n  LIN XS1\n  gripper()\n  LIN {Z 900.0}\n  LIN XS2\nEND\n"
+    new, dat, report, _ = run(model, src, DAT)
+    assert number(dat, "XS1", "X") == 2000.0 and P217 in {w.code for w in report.warnings}
+    # more ways in than the predecessors the model keeps apart: every command it may stand at is held
+    branches = "".join(f"  IF $IN[{i}] THEN\n    LIN {{X {1900 + 20 * i}.0,Y 0.0,Z 900.0,A 0.0,B 90.0,C 0.0}}\n  ENDIF\n"
+                       for i in range(1, 7))
+    src = "DEF t( )\n  LIN XS1\n" + branches + "  LIN {Z 950.0}\n  LIN XS2\nEND\n"
+    new, dat, report, _ = run(model, src, DAT)
+    assert number(dat, "XS1", "X") == 2000.0 and number(dat, "XS2", "X") != 1900.0

@@ -170,8 +170,10 @@ def test_edge_relative_moves_warn_and_break_the_chain():
     path = SAMPLES / "edge" / "rel_moves.src"  # (sets $BASE, not $TOOL: stated)
     p = krl.read([str(path)], [text_of(path)], active=STATED)
     assert len(p.targets) == 2
-    assert codes(p) == ["P210"] * 5
-    assert [d.line for d in p.diagnostics] == [5, 6, 7, 8, 9]
+    # LIN {X 210.0} after the relative moves takes Y/Z from where they left the robot: from the
+    # first LIN's command, whose numbers it reads at run time (held, P217)
+    assert codes(p) == ["P217"] + ["P210"] * 5
+    assert [d.line for d in p.diagnostics] == [4, 5, 6, 7, 8, 9]
     assert np.isnan(p.targets.poses[1, 1:]).all()  # LIN {X 210.0} after a relative move
 
 

@@ -49,22 +49,26 @@ class State:
     ``("M", module, name)`` module data, ``("L", activation, name)`` locals), ``last`` (the
     keys of the motions that may have run just before; None: not known), ``cur`` (where the
     robot stands, for a partial aggregate's missing components: (fields, frame value) of the
-    last target, None: not known), ``on`` (handlers switched on)."""
+    last target, None: not known), ``on`` (handlers switched on), ``stand`` (the keys of every
+    motion whose command the robot may stand at here: kept where ``last`` is not — past code not
+    read, which may not move, and many paths —, so that what a partial target reads at run time
+    is known to be read)."""
 
-    __slots__ = ("vars", "last", "cur", "on")
+    __slots__ = ("vars", "last", "cur", "on", "stand")
 
-    def __init__(self, vars_: dict, last=frozenset([START]), cur=None, on=frozenset()):
+    def __init__(self, vars_: dict, last=frozenset([START]), cur=None, on=frozenset(), stand=frozenset()):
         self.vars = vars_
         self.last = last
         self.cur = cur
         self.on = on
+        self.stand = stand
 
     def copy(self) -> "State":
-        return State(dict(self.vars), self.last, self.cur, self.on)
+        return State(dict(self.vars), self.last, self.cur, self.on, self.stand)
 
     def __eq__(self, other):
         return isinstance(other, State) and self.last == other.last and self.on == other.on \
-            and _same_cur(self.cur, other.cur) and self.vars == other.vars
+            and self.stand == other.stand and _same_cur(self.cur, other.cur) and self.vars == other.vars
 
 
 def _same_cur(a, b) -> bool:
@@ -98,7 +102,7 @@ def join_states(a: State | None, b: State | None, why: str, loc: Loc | None) -> 
         if len(last) > MAX_PREDS:
             last = None
     cur = a.cur if _same_cur(a.cur, b.cur) else None
-    return State(out, last, cur, a.on | b.on)
+    return State(out, last, cur, a.on | b.on, a.stand | b.stand)
 
 
 @dataclass
@@ -119,6 +123,7 @@ class Use:
     what: str
     config: object = None
     ext: object = None
+    stand: frozenset = frozenset()  # (State.stand before it)
 
 
 @dataclass
@@ -132,6 +137,7 @@ class RunUse:
     tool: object
     preds: frozenset | None
     cur: object
+    stand: frozenset = frozenset()  # (State.stand before it)
 
 
 @dataclass
@@ -551,7 +557,9 @@ class Analysis:
             if not s.relative:
                 target = self.eval(s.target, st)
             if self.rec is not None:
-                self.rec.uses.append(Use(key, s, target, (), None, None, st.last, ""))
+                self.rec.uses.append(Use(key, s, target, (), None, None, st.last, "", stand=st.stand))
+            # (a relative motion's end: where the robot stood plus the move)
+            st.stand = st.stand | {key} if s.relative else frozenset([key])
             st.last, st.cur = frozenset([key]), None
             return st
         target = self.eval(s.target, st)
@@ -566,8 +574,11 @@ class Analysis:
         if held and self.rec is not None:  # (a target not known here that is a point's copy on some path)
             self.rec.escape(held, self.loc, f"a target that is {_written(s.target) or 'a value'} on some path only")
         if self.rec is not None:
-            self.rec.uses.append(Use(key, s, target, filled, frame, tool, st.last, _written(s.target), config, ext))
+            self.rec.uses.append(Use(key, s, target, filled, frame, tool, st.last, _written(s.target), config, ext,
+                                     st.stand))
         st.last = frozenset([key])
+        if s.chain:
+            st.stand = frozenset([key])
         if s.chain:
             st.cur = (self.dialect.position(target), frame, tool) if isinstance(target, Rec) else None
         return st
@@ -580,8 +591,10 @@ class Analysis:
         frame = self.frame_value(s.frame, st)
         tool = self.tool_value(s.tool, st)
         if self.rec is not None:
-            self.rec.uses.append(RunUse(key, s, frame, tool, st.last, st.cur))
+            self.rec.uses.append(RunUse(key, s, frame, tool, st.last, st.cur, st.stand))
         st.last = frozenset([key])
+        if len(s):
+            st.stand = frozenset([key])
         st.cur = (*self.dialect.run_position(s, _with_tool(st.cur, tool), frame), tool)
         return st
 
@@ -773,7 +786,7 @@ class Analysis:
             if routine is not None:
                 out, value = self.call(routine, e.args, st, e)
                 if out is not None and out is not st:
-                    st.vars, st.last, st.cur, st.on = out.vars, out.last, out.cur, out.on
+                    st.vars, st.last, st.cur, st.on, st.stand = out.vars, out.last, out.cur, out.on, out.stand
                 return value if value is not None else Top(f"the value of {e.name}()", e.loc)
             self.dialect.unread(self, st, e, None)
             return Top(f"{e.name}() is not in the files read", e.loc)

@@ -266,7 +266,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                          "written", loc, True)
             continue
         if any(v is None for v in view.xyz) and isinstance(s.target, Agg):
-            _where_it_stands(rec, rows, key_row, use.preds, loc)
+            _where_it_stands(rec, rows, key_row, use.stand, loc)
         unknown_comp = next(((k, v) for k, v in zip("XYZABC", list(view.xyz) + list(view.orient)[:3])
                              if isinstance(v, Top)), None)
         if unknown_comp is not None:
@@ -402,12 +402,12 @@ def _twins_of(cols: dict, others: list, rows: _Rows, pending: dict) -> None:
             pending.setdefault(o, []).append(twin)
 
 
-def _where_it_stands(rec, rows: _Rows, key_row: dict, preds, loc) -> None:
+def _where_it_stands(rec, rows: _Rows, key_row: dict, stand, loc) -> None:
     """A partial target whose missing components are not known here (the robot may come from
     several places) takes them at run time from the command before it: that command's numbers
     are read by it — compensating them would move it too (they escape). A predecessor not emitted
     yet (a loop's back edge): when it is (``rows.later``)."""
-    for p in preds or ():
+    for p in stand:
         r = key_row.get(p)
         if r is None:
             rows.later.setdefault(p, []).append(loc)
@@ -458,7 +458,7 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
             pose[need[~ok], k] = start if start is not None else np.nan
             if start is None and (~ok).any() and k < 3:
                 loc = Loc(int(r["file"][need[~ok][0]]), int(r["line"][need[~ok][0]]), int(r["col"][need[~ok][0]]))
-                _where_it_stands(rec, rows, key_row, use.preds, loc)
+                _where_it_stands(rec, rows, key_row, use.stand, loc)
     primary, others, axes = prev_of(use.preds, use.key)
     rows.flush()
     prev = np.arange(rows.n - 1, rows.n - 1 + n, dtype=np.int32)
