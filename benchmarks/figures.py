@@ -1,6 +1,10 @@
-"""The README's benchmark figures against the results the benchmarks wrote.
+"""The benchmark figures of the README and the docs against the results the benchmarks wrote.
 
-    python benchmarks/figures.py [--update] [FILE.md ...]      (default: README.md, models/README.md)
+    python benchmarks/figures.py [--update] [--list] [FILE.md ...]
+
+Default: every Markdown file of the repository that holds a marker (README.md, docs/**.md,
+models/README.md, samples/**/README.md, ...; not .venv/, site/, build/ or other hidden and
+generated folders); --list prints them.
 
 A figure taken from a benchmark is written with a marker right after it, invisible in the
 rendered page: ``2,535<!-- fig fuzz.outputs -->`` = the value ``figures.outputs`` of
@@ -48,13 +52,33 @@ def figures(text: str) -> list[tuple[re.Match, str | None]]:
     return out
 
 
+SKIPPED = {"site", "build", "dist", "node_modules", "__pycache__"}  # generated folders (and hidden ones: .venv, .git)
+
+
+def marked_files(root: Path = ROOT) -> list[Path]:
+    """Every Markdown file below ``root`` that holds a figure marker, in path order."""
+    found = []
+    for path in sorted(root.rglob("*.md")):
+        parts = path.relative_to(root).parts[:-1]
+        if any(part.startswith(".") or part in SKIPPED or part.endswith(".egg-info") for part in parts):
+            continue
+        if "<!-- fig " in path.read_text(errors="replace"):
+            found.append(path)
+    return found
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("files", nargs="*", type=Path, default=[ROOT / "README.md", ROOT / "models" / "README.md"])
+    parser.add_argument("files", nargs="*", type=Path, help="default: every Markdown file that holds a marker")
     parser.add_argument("--update", action="store_true", help="write the results' values into the files")
+    parser.add_argument("--list", action="store_true", help="print the files checked, one a line, and stop")
     args = parser.parse_args(argv)
+    files = args.files or marked_files()
+    if args.list:
+        print("\n".join(str(p.relative_to(ROOT) if p.is_relative_to(ROOT) else p) for p in files))
+        return 0
     bad = 0
-    for path in args.files:
+    for path in files:
         text = path.read_text()
         found = figures(text)
         for m, shown in found:

@@ -142,3 +142,15 @@ def test_version_and_help_with_examples(capsys):
         text = parser.format_help()
         assert "examples:" in text.lower(), f"postproc {name} --help shows no examples"
         assert "-q, --quiet" in text and "-v, --verbose" in text, f"postproc {name} lacks -q/-v"
+
+
+def test_help_names_every_dialect_and_quotes_config_dat():
+    """`postproc --help` names every dialect it reads; compensate's examples quote '$config.dat'
+    (the shell would turn an unquoted $config.dat into .dat)."""
+    text = " ".join(build_parser().format_help().split())
+    for dialect in ("KUKA KRL", "ABB RAPID", "URScript", "FANUC LS", "pose lists"):
+        assert dialect in text, dialect
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    examples = sub.choices["compensate"].format_help().split("examples:", 1)[1]
+    configs = [line.split("--config", 1)[1].split()[0] for line in examples.splitlines() if "--config " in line]
+    assert configs and all(c.startswith("'") and c.endswith("$config.dat'") for c in configs), configs

@@ -1,11 +1,11 @@
-"""The one registry of diagnostic codes (``postproc.diagnostics.CODES``): the README's table is
-generated from it, ``postproc check --list-codes`` prints it, and every code the modules use
+"""The one registry of diagnostic codes (``postproc.diagnostics.CODES``): the docs' codes page
+(docs/codes.md) holds the table generated from it, ``postproc check --list-codes`` prints it, and every code the modules use
 is in it."""
 import io
 import re
 import tokenize
 
-from helpers import REPO
+from helpers import DOCS, REPO, pages
 
 from postproc import diagnostics
 from postproc.cli import main
@@ -27,17 +27,18 @@ def _codes_in_source() -> dict[str, list[str]]:
     return used
 
 
-def test_readme_table_is_the_registry():
-    readme = (REPO / "README.md").read_text()
-    found = GENERATED.search(readme)
-    assert found, "README has no generated code table"
+def test_the_codes_page_table_is_the_registry():
+    page = (DOCS / "codes.md").read_text()
+    found = GENERATED.search(page)
+    assert found, "docs/codes.md has no generated code table"
     assert found.group(1) == codes_table(markdown=True), \
-        "README's code table is stale: paste `postproc check --list-codes --markdown` over it"
+        "docs/codes.md's code table is stale: paste `postproc check --list-codes --markdown` over it"
 
 
-def test_every_code_the_readme_names_is_registered():
-    named = set(re.findall(r"\bP\d{3}\b", (REPO / "README.md").read_text()))
-    assert sorted(named - set(CODES)) == []
+def test_every_code_the_readme_and_the_docs_name_is_registered():
+    for name, text in pages().items():
+        named = set(re.findall(r"\bP\d{3}\b", text))
+        assert sorted(named - set(CODES)) == [], name
 
 
 def test_every_code_the_modules_use_is_registered():

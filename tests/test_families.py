@@ -1,5 +1,5 @@
 """A robot of each family (issue 25): each dialect's shipped sample compensates with its family's
-shipped model as the README's first commands say (the table's counts, exit codes and the
+shipped model as docs/getting-started.md's "A robot of each family" says (the table's counts, exit codes and the
 constructs left on purpose); the shipped descriptions and models say what they are; plan writes
 a FANUC measurement program whose CONFIG strings read back."""
 import re
@@ -13,8 +13,8 @@ from postproc.resources import model_path
 
 from helpers import REPO
 
-README = (REPO / "README.md").read_text()
-SECTION = README.split("### A robot of each family", 1)[1].split("\n## ", 1)[0]
+PAGE = (REPO / "docs" / "getting-started.md").read_text()
+SECTION = PAGE.split("\n## A robot of each family", 1)[1].split("\n## ", 1)[0]
 
 
 def _commands():
@@ -32,7 +32,7 @@ def _table():
     return out
 
 
-def test_the_readme_names_a_sample_and_a_model_for_every_dialect():
+def test_the_page_names_a_sample_and_a_model_for_every_dialect():
     table = _table()
     assert {p.split("/")[1] for p in table} == {"krl", "rapid", "fanuc", "urscript", "poses"}
     commands = _commands()
@@ -41,6 +41,14 @@ def test_the_readme_names_a_sample_and_a_model_for_every_dialect():
         assert argv[:2] == ["postproc", "compensate"] and argv[2] in table
         model = argv[argv.index("--model") + 1] if "--model" in argv else "default"
         assert model == table[argv[2]][0]
+
+
+def test_the_readme_tour_runs_the_pages_commands():
+    """The README's five-minute tour shows the family commands of that page, as they are."""
+    readme = (REPO / "README.md").read_text()
+    tour = [shlex.split(line.split("#", 1)[0]) for line in readme.splitlines()
+            if line.startswith("postproc compensate samples/") and "weld_cell" not in line]
+    assert len(tour) >= 4 and all(argv in _commands() for argv in tour)
 
 
 @pytest.mark.parametrize("argv", _commands(), ids=lambda a: a[2])

@@ -232,7 +232,7 @@ def test_ipa_series_d_excerpt(tmp_path):
 
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-NO_BROWSER = ("chromium not installed: the README's test command installs Debian's chromium with apt-get "
+NO_BROWSER = ("chromium not installed: scripts/install-browser installs Debian's chromium with apt-get "
               "where it may (root, or sudo without a password); else: sudo apt-get install chromium")
 
 
@@ -240,26 +240,33 @@ def _readme_test_command() -> str:
     from helpers import REPO
 
     text = (REPO / "README.md").read_text()
-    block = text.split("Install everything (simulator, training, reports, tests) and run the tests:")[1]
+    block = text.split("Install everything (simulator, training, reports, docs, tests) and run the tests:")[1]
     return block.split("```sh\n")[1].split("\n```")[0]
 
 
-def test_the_ci_runs_the_readme_test_command_which_provides_the_browser():
+def test_the_ci_provides_the_browser_then_runs_the_readme_test_command():
+    """A person types the README's command (no apt-get, no sudo in it); CI runs the browser
+    script first, with CI set (the browser test then fails instead of skipping), then exactly
+    that command."""
     from helpers import REPO
 
     command = _readme_test_command()
     assert "\n" not in command and command.endswith("python -m pytest -q")
+    assert "apt-get" not in command and "sudo" not in command and len(command) < 150
     ci = (REPO / ".ci" / "run").read_text().splitlines()
-    assert ci[-1] == command and 'export CI="${CI:-true}"' in ci  # (CI: the browser test fails, not skips)
-    assert "apt-get install -y -qq chromium" in command
+    assert ci[-1] == command and 'export CI="${CI:-true}"' in ci
+    assert "scripts/install-browser" in ci[:-1] and ci.index('export CI="${CI:-true}"') < ci.index("scripts/install-browser")
+    script = REPO / "scripts" / "install-browser"
+    assert os.access(script, os.X_OK) and "apt-get install -y -qq chromium" in script.read_text()
 
 
 @pytest.mark.parametrize("apt_works", [True, False])
-def test_the_browser_step_installs_chromium_with_apt_or_says_why_not(tmp_path, apt_works):
-    """The README command's first step under bash, with a PATH of stubs (no chromium, an
-    apt-get that records its arguments and succeeds as root would, or fails without root and
-    no sudo): it installs Debian's package, or says why not and lets the tests run."""
-    step, rest = _readme_test_command().split("; python -m venv", 1)
+def test_the_browser_script_installs_chromium_with_apt_or_says_why_not(tmp_path, apt_works):
+    """scripts/install-browser under bash, with a PATH of stubs (no chromium, an apt-get that
+    records its arguments and succeeds as root would, or fails without root and no sudo): it
+    installs Debian's package, or says why not and exits 0, so that the tests still run."""
+    from helpers import REPO
+
     bin_dir = tmp_path / "bin"
     bin_dir.mkdir()
     log = tmp_path / "apt.log"
@@ -267,9 +274,9 @@ def test_the_browser_step_installs_chromium_with_apt_or_says_why_not(tmp_path, a
     (bin_dir / "apt-get").chmod(0o755)
     (bin_dir / "env").symlink_to(shutil.which("env"))
     bash = shutil.which("bash")
-    run = subprocess.run([bash, "-euo", "pipefail", "-c", step + "; echo step-done"], capture_output=True, text=True,
-                         env={"PATH": str(bin_dir)}, timeout=30)
-    assert run.returncode == 0 and run.stdout.endswith("step-done\n")
+    run = subprocess.run([bash, "-euo", "pipefail", "-c", f"{bash} {REPO / 'scripts' / 'install-browser'}; echo step-done"],
+                         capture_output=True, text=True, env={"PATH": str(bin_dir)}, timeout=30)
+    assert run.returncode == 0 and run.stdout.endswith("step-done\n"), run.stdout + run.stderr
     calls = log.read_text().splitlines()
     if apt_works:
         assert calls == ["update -qq", "install -y -qq chromium"] and "no chromium" not in run.stdout

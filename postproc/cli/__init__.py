@@ -48,7 +48,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     builds only what it uses: `postproc compensate` starts faster)."""
     parser = argparse.ArgumentParser(
         prog="postproc",
-        description="Compensate industrial-robot positioning error in robot programs (KUKA KRL, pose lists).",
+        description="Compensate industrial-robot positioning error in robot programs (KUKA KRL, ABB RAPID, "
+        "Universal Robots URScript, FANUC LS, pose lists).",
         epilog="Exit codes: 0 ok, 1 findings (check) or a limit exceeded (verify/report --max-mean ...), 2 error (nothing written).",
         formatter_class=Formatter,
     )

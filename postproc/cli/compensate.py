@@ -5,11 +5,14 @@ import sys
 
 EXAMPLES = """examples:
   postproc compensate samples/krl/cam_pocket.src -o out/cam_pocket.src
-  postproc compensate weld_cell.src -o out/weld_cell.src --config KRC/R1/System/$config.dat
-  cam-post ... | postproc compensate - -o - > part.src          (filter: stdin → stdout)
-  postproc compensate poses.csv -o poses_comp.csv --model models/cell7.onnx --strict
-  postproc compensate backup/KRC/R1 -o out/R1        (a cell: every module, System/$config.dat found)
-  postproc compensate part.src -o out/part.src --robroot 0,0,2900,0,0,180   (a ceiling robot's $ROBROOT)
+  postproc compensate samples/krl/weld_cell.src -o out/weld_cell.src --config 'samples/krl/config/$config.dat'
+  postproc compensate samples/krl/backup/KRC/R1 -o out/R1     (a cell: every module, System/$config.dat found)
+  postproc compensate samples/rapid/cam_contour.prg --model irb6700 -o out/cam_contour.prg
+  postproc compensate samples/poses/drill_plate.csv -o out/drill_plate.csv --model models/default.onnx --strict
+  YOUR_CAM_POST | postproc compensate - -o - > YOUR_PROGRAM.src   (filter: stdin → stdout)
+  postproc compensate YOUR_PROGRAM.src -o out/YOUR_PROGRAM.src --robroot 0,0,2900,0,0,180   (a ceiling robot's $ROBROOT)
+(samples/ and models/ are shipped, YOUR_… are your own files; quote '$config.dat': unquoted, the shell
+expands $config)
 """
 
 

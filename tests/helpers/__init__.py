@@ -4,6 +4,14 @@ models the tests build are in :mod:`postproc.testing.models`."""
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent.parent
+DOCS = REPO / "docs"
+
+
+def pages() -> dict[str, str]:
+    """The pages a reader gets: README.md and every Markdown file of docs/ (the docs site), by
+    their path relative to the repository."""
+    found = [REPO / "README.md", *sorted(DOCS.rglob("*.md"))]
+    return {str(path.relative_to(REPO)): path.read_text() for path in found}
 
 
 def program_in_base(base, pose, label: str = ""):
