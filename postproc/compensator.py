@@ -380,7 +380,7 @@ class Compensator:
             results.append(np.empty((len(poses), 3)))
         if std:
             if not self.has_std:
-                raise PostprocError(f"the model has no output '{OUTPUT_STD}'", str(self.path), code="P306")
+                raise PostprocError(f"the model has no output '{OUTPUT_STD}'", str(self.path), code=P306)
             names.append(OUTPUT_STD)
             results.append(np.empty((len(poses), 1)))
 

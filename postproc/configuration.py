@@ -63,6 +63,7 @@ import numpy as np
 
 from . import frames
 from .robot import Robot
+from .diagnostics import P514
 
 __all__ = ["UNSTATED", "arm_status", "branch_table", "stated_joints", "controller_joints", "status_turn_of",
            "measurement_joints", "Stated", "stated_configuration", "ordered_joints", "parse_fanuc_config", "fanuc_configs",
@@ -866,11 +867,11 @@ def measurement_joints(description, data) -> tuple[np.ndarray | None, np.ndarray
         robot = Robot(description)
     except Exception as exc:  # an arm postproc.robot cannot solve in closed form
         raise PostprocError(f"s,t columns: no nominal IK of {description.name} ({exc}); give q1..q6 instead",
-                            path, code="P514") from None
+                            path, code=P514) from None
     q, found = stated_joints(robot, data.poses, data.status_turn[:, 0], data.status_turn[:, 1])
     if not found.any():
         raise PostprocError(f"no row's S/T has an IK solution on the nominal {description.name}: is this the robot "
-                            "of the data (--robot)?", path, int(data.lines[0]), 1, "P514")
+                            "of the data (--robot)?", path, int(data.lines[0]), 1, P514)
     if found.all():
         return q, found, []
     lines = data.lines[~found]

@@ -41,7 +41,7 @@ import sys
 from .compensate import (DEFAULT_MAX_CORRECTION_MM, Report, _config_texts, _model, backup_active, compensate_program,
                          load_program, output_paths, write_outputs)
 from .compensator import Compensator
-from .diagnostics import P109, P321, Diagnostic, PostprocError
+from .diagnostics import Diagnostic, P109, P111, P190, P191, P321, PostprocError
 from .programs import STAMP_PREFIX, ActiveFrames, companion_dat, read_program
 from .progress import ProgressBar, reporting
 from .rewrite import insert_stamp, stamp_line
@@ -60,7 +60,7 @@ STREAM_TARGETS = 8 * compensator.PREDICT_BATCH
 HEADER_BYTES = 1 << 20
 TAIL_BYTES = 1 << 16
 # the last checks, run per chunk: their errors are the stream's own
-GUARDS = ("P190", "P191")
+GUARDS = (P190, P191)
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)"
 _SEP = r"[ \t]*,[ \t]*"
@@ -301,7 +301,7 @@ def compensate_file(
     try:
         program = load_program(path, config, active=active)
     except PostprocError as exc:
-        if exc.code == "P111" and refusal is not None:
+        if exc.code == P111 and refusal is not None:
             raise refusal from None
         raise
     report = compensate_program(program, _model(model), **kwargs)

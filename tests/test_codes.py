@@ -63,3 +63,17 @@ def test_list_codes(capsys):
     assert out[0].split(None, 2) == ["P101", CODES["P101"].severity, CODES["P101"].meaning]
     assert main(["check", "--list-codes", "--markdown"]) == 0
     assert capsys.readouterr().out == codes_table(markdown=True)
+
+
+def test_modules_name_codes_from_the_registry_never_as_string_literals():
+    # (one rule in one place: a code is ``P123`` imported from postproc.diagnostics; a settings
+    # example in a docstring or comment is text, not a use)
+    literals = []
+    for path in sorted((REPO / "postproc").rglob("*.py")):
+        if path.name == "diagnostics.py":
+            continue
+        text = path.read_text()
+        for tok in tokenize.generate_tokens(io.StringIO(text).readline):
+            if tok.type == tokenize.STRING and re.fullmatch(r"[rbuf]*[\"']P\d{3}[\"']", tok.string):
+                literals.append(f"{path.relative_to(REPO)}:{tok.start[0]} {tok.string}")
+    assert literals == []

@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .model import MOTIONS, STAMP_PREFIX, ActiveFrames, Frame, Program, RobotRoot, Targets, TargetsBuilder
+from ..diagnostics import P222
 
 __all__ = ["ActiveFrames", "RobotRoot", "Frame", "Targets", "TargetsBuilder", "Program", "read_program", "dialect_of", "STAMP_PREFIX", "MOTIONS",
            "companion_dat", "lower"]
@@ -84,7 +85,7 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
         from ..diagnostics import PostprocError
 
         raise PostprocError(f"--base / --tool state the frames of KRL programs; a {dialect} program names its "
-                            "own at every target", files[0] if files else "", 0, 0, "P222")
+                            "own at every target", files[0] if files else "", 0, 0, P222)
     if dialect == "poses":
         from . import poses
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..diagnostics import Diagnostic
+from ..diagnostics import Diagnostic, P222
 
 __all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "ActiveFrames", "RobotRoot", "STAMP_PREFIX", "MOTIONS"]
 
@@ -129,7 +129,7 @@ class ActiveFrames:
         try:
             given = cls.of(base=base, tool=tool, robroot=robroot)
         except ValueError as exc:
-            raise PostprocError(str(exc), "--" + str(exc).split(":")[0], 0, 0, "P222") from None
+            raise PostprocError(str(exc), "--" + str(exc).split(":")[0], 0, 0, P222) from None
         if settings is None or given is None:
             return given or settings
         return cls(base=given.base if given.base is not None else settings.base,

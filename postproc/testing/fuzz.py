@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ..resources import sample_path
+from ..diagnostics import P190
 
 OFFSET = (0.3, -0.2, 0.1)  # mm, the constant-offset model's error in the robot base frame
 MESSAGE = re.compile(r"(?P<path>.+?):(?:(?P<line>\d+):(?P<col>\d+):)? (?P<code>P\d{3}) (?P<message>.+)")
@@ -447,7 +448,7 @@ class Fuzzer:
                 return Outcome("crash", f"exit 2 without one 'path:line:col: CODE message' line: {err[-300:]!r}")
             if left != existing:
                 return Outcome("wrong", f"exit 2 but the output directory changed: {sorted(left)}")
-            if m.group("code") == "P190":
+            if m.group("code") == P190:
                 return Outcome("caught", lines[0])
             return Outcome("error", f"{m.group('code')}")
         if code not in (0, 1):  # (1: written, with targets left as written)

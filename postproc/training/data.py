@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from ..diagnostics import PostprocError
+from ..diagnostics import P320, P505, P506, P509, P515, PostprocError
 from ..measurements import Measurements
 
 __all__ = [
@@ -43,7 +43,7 @@ def measured_tools(data: Measurements, tool: np.ndarray | None = None) -> np.nda
         try:
             sources.append(("the '# tool:' line", np.tile(parse_tool(data.meta["tool"]), (len(data), 1))))
         except PostprocError as exc:
-            raise PostprocError(f"'# tool: {data.meta['tool']}': {exc.message}", data.path, code="P320") from None
+            raise PostprocError(f"'# tool: {data.meta['tool']}': {exc.message}", data.path, code=P320) from None
     if tool is not None:
         sources.append(("--tool", np.tile(np.asarray(tool, float), (len(data), 1))))
     for (name, rows), (other, rows2) in zip(sources, sources[1:]):
@@ -51,7 +51,7 @@ def measured_tools(data: Measurements, tool: np.ndarray | None = None) -> np.nda
         if len(differ):
             i = differ[0]
             raise PostprocError(f"{other} says the tool is {rows2[i].tolist()}, {name} {rows[i].tolist()}: which "
-                                "TCP were the data measured with?", data.path, int(data.lines[i]), 1, "P320")
+                                "TCP were the data measured with?", data.path, int(data.lines[i]), 1, P320)
     return sources[0][1] if sources else None
 
 
@@ -72,12 +72,12 @@ def default_val_fraction(n: int, val_fraction: float | None = None) -> float:
 def split_indices(n: int, val_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Random (seeded) train / validation row indices; each side sorted (visiting order kept)."""
     if not 0.0 <= val_fraction < 1.0:
-        raise PostprocError(f"--val-fraction must be in [0, 1), got {val_fraction}", code="P506")
+        raise PostprocError(f"--val-fraction must be in [0, 1), got {val_fraction}", code=P506)
     n_val = int(round(n * val_fraction))
     if val_fraction > 0 and n_val == 0:
         n_val = 1
     if n - n_val < 1:
-        raise PostprocError(f"{n} rows leave no training points at --val-fraction {val_fraction}", code="P506")
+        raise PostprocError(f"{n} rows leave no training points at --val-fraction {val_fraction}", code=P506)
     order = np.random.default_rng(seed).permutation(n)
     return np.sort(order[n_val:]), np.sort(order[:n_val])
 
@@ -99,7 +99,7 @@ def check_size(n_train: int, n_weights: int, structure: str, path: str = "") -> 
             f"{n_train} training points are too few for structure {structure} ({n_weights} weights): "
             f"need at least {need} (3 per point ≥ weights); measure more points or use a smaller --hidden",
             path,
-            code="P505",
+            code=P505,
         )
 
 
@@ -123,7 +123,7 @@ def check_errors(positions: np.ndarray, measured: np.ndarray, lines: np.ndarray,
         i = int(np.argmax(size))
         raise PostprocError(f"uncompensated errors of {median:.4g} mm (median; line {lines[i]}: {size[i]:.4g} mm): "
                             f"the measured points are in another frame or unit: register them (--register, "
-                            f"'# frame: tracker') or convert to mm", path, int(lines[i]), 1, "P509")
+                            f"'# frame: tracker') or convert to mm", path, int(lines[i]), 1, P509)
     far = np.flatnonzero(size > 10.0 * median + 5.0)
     if not len(far):
         return []
@@ -148,7 +148,7 @@ def check_rotation_errors(rotation_errors: np.ndarray, lines: np.ndarray, path: 
         raise PostprocError(f"measured orientations a_meas,b_meas,c_meas are {median:.3g}° from the commanded ones "
                             f"(median; line {lines[i]}: {angle[i]:.3g}°): not a robot's orientation error but another "
                             "frame, the probe's own axes or radians: give the TCP's A,B,C in the frame of x_meas..z_meas "
-                            "(in degrees), or drop the columns", path, int(lines[i]), 1, "P515")
+                            "(in degrees), or drop the columns", path, int(lines[i]), 1, P515)
 
 
 def wrap_deg(angles: np.ndarray) -> np.ndarray:

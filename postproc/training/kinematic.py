@@ -52,7 +52,7 @@ import numpy as np
 import torch
 
 from .. import frames
-from ..diagnostics import PostprocError
+from ..diagnostics import P505, P508, PostprocError
 from ..robot import RobotDescription
 from . import batch_last as bl
 from .arm import Arm, at_tool, axis_rotations, choose_branch, coupling_pairs, make_ik, mc, mv, small_rotation
@@ -761,7 +761,7 @@ class KinematicModel(Estimator):
             raise PostprocError(
                 f"{len(poses)} training rows give {per_row * len(poses)} measured coordinates, fewer than the {n_par} "
                 f"parameters of {', '.join(groups)}: a model fitted on them would be worse than none; measure "
-                f"at least {-(-n_par // per_row)} poses", code="P505")
+                f"at least {-(-n_par // per_row)} poses", code=P505)
         self.use_previous_ = previous is not None  # the approach signs: backlash, and the residual nets' inputs
         q, s, tau, tcp, pose_t, poses, errors, nominal_rot, keep = self._prepare(poses, errors, previous, q_deg,
                                                                                 tools_t, at, previous_q_deg)
@@ -897,7 +897,7 @@ class KinematicModel(Estimator):
                     f"{len(bad)} of {len(poses)} poses are {what} the nominal {self.description.name} "
                     f"(IK {self.ik_.family} branch {list(self.ik_.branch)}; first: row {bad[0] + 1}, "
                     f"{np.round(poses[bad[0]], 3).tolist()}, {miss[bad[0]]:.3g} mm away): is this the robot "
-                    f"of the data (--robot)?", self.description.path, code="P508")
+                    f"of the data (--robot)?", self.description.path, code=P508)
             s = torch.zeros_like(q)
             if previous is not None:
                 prev = torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))

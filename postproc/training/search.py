@@ -25,7 +25,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from ..diagnostics import PostprocError
+from ..diagnostics import P505, PostprocError
 from .data import min_points, split_indices
 from .estimator import ErrorModel
 from .network import Structure
@@ -132,7 +132,7 @@ def search_structure(
         raise PostprocError(
             f"{len(fit_rows)} points are too few for any candidate structure (the smallest needs "
             f"{min(min_points(c.n_weights) for c in pool)} after the search's validation split)",
-            code="P505",
+            code=P505,
         )
     finalists = [(cand, k) for cand in screened[:keep] for k in range(final_seeds)]
     runs = iter(map_fn(task, [c.hidden for c, _ in finalists], [optimizer] * len(finalists),

@@ -63,7 +63,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..diagnostics import PostprocError
+from ..diagnostics import P317, P318, P505, PostprocError
 from ..robot import RobotDescription
 from .arm import make_ik
 from .hybrid import HybridModel, ResidualNet, learned_ranges
@@ -139,7 +139,7 @@ class Update:
                 "parameters": self.parameters}
 
 
-def _refuse(message: str, path: Path, code: str = "P317") -> PostprocError:
+def _refuse(message: str, path: Path, code: str = P317) -> PostprocError:
     return PostprocError(message, str(path), code=code)
 
 
@@ -202,11 +202,11 @@ def read_old_model(path: str | Path, description: RobotDescription) -> OldModel:
     if card.get("robot") != description.name:
         raise _refuse(f"--update: the model is of robot {card.get('robot')!r}, the description given is "
                       f"{description.name!r} ({description.path}): give the old model's description with --robot",
-                      path, "P318")
+                      path, P318)
     if found["nominal_sha256"] != nominal_digest(description):
         raise _refuse(f"--update: the description {description.path} is not the one the model was identified on "
                       f"(same name {description.name!r}, other nominal chain, flange, tool, masses or HOME): give "
-                      f"that description with --robot", path, "P318")
+                      f"that description with --robot", path, P318)
     groups = tuple(g for g in GROUPS if g in params)
     ripple = [(int(j) - 1, int(n)) for j, n in found["ripple"]]
     layout = Layout(groups, ripple)
@@ -222,7 +222,7 @@ def read_old_model(path: str | Path, description: RobotDescription) -> OldModel:
         raise _refuse(f"--update: the model card's identification is malformed ({exc})", path) from None
     except PostprocError as exc:
         raise _refuse(f"--update: the description {description.path} cannot solve the model's IK "
-                      f"({exc.message})", path, "P318") from None
+                      f"({exc.message})", path, P318) from None
     if len(theta) != layout.n or len(std) != layout.n or tau_mean.shape != (27,):
         raise _refuse(f"--update: the model card's identification is malformed ({len(theta)} values for "
                       f"{layout.n} parameters of {', '.join(groups)} + {len(ripple)} ripple orders)", path)
@@ -307,7 +307,7 @@ def update_model(old: OldModel, description: RobotDescription, poses: np.ndarray
     if 3 * len(poses) < free.sum():
         raise PostprocError(f"{len(poses)} rows give {3 * len(poses)} measured coordinates, fewer than the "
                             f"{int(free.sum())} parameters --update re-fits: measure at least {-(-int(free.sum()) // 3)} "
-                            f"poses (30 recommended)", code="P505")
+                            f"poses (30 recommended)", code=P505)
     errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
     target = errors
     if old.nets:  # the identification is re-fitted to what OLD's residual networks leave

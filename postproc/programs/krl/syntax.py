@@ -92,7 +92,7 @@ class SyntaxErrors:
         if isinstance(exc, MalformedNumber):
             bad = _BAD_NUMBER.match(self.lt, self.abs_pos(exc.pos) - self.la)
             raise PostprocError(f"syntax error: malformed number '{bad.group()}'", self.path, self.ln,
-                                self.col(exc.pos), "P101")
+                                self.col(exc.pos), P101)
         if isinstance(exc, UnexpectedToken) and exc.token.type != "$END":
             pos = exc.token.start_pos
             found = self.text[self.abs_pos(pos): self.abs_pos(exc.token.end_pos)] \
