@@ -76,11 +76,16 @@ class Module:
         written = np.asarray(written, bool)
         after = self.known | written
         target = {"file": file, "line": line, "motion": motion, "known": bool(after.all()),
-                  "delta": self.rot.T @ OFFSET if after.all() else None}
+                  "delta": self.rot.T @ OFFSET if after.all() else None,
+                  "took": self.last if not written.all() else None}  # (where its missing X/Y/Z come from)
         if not after.all() and self.last is not None:
             # (a partial target left as written takes its missing X/Y/Z from the command before it at
-            # run time: compensating that one would move it, so it is left too)
-            self.last["delta"] = None
+            # run time: compensating that one would move it, so it is left too — and so on back
+            # while the one left is itself partial)
+            left = self.last
+            while left is not None:
+                left["delta"] = None
+                left = left.get("took")
         if chain:
             self.known = after
             self.last = target
@@ -238,7 +243,7 @@ def statement(draw, m: Module, canonical: bool, in_spline: bool = False):
     elif kind == "rel":
         rel = draw(st.sampled_from(["LIN_REL {X 10.0}", "LIN_REL {Z -20.000} #TOOL", "PTP_REL {A1 5}",
                                     "SLIN_REL {Y 2.5}"]))
-        m.reset(stands=False)
+        m.reset()  # (it moves from the last command: a partial target after it reads that command too)
         m.line(0, indent + [("lit", rel)] + trailing(draw))
     elif kind in ("base", "basevar", "tool"):
         six = [draw(st.integers(-2000, 2000)) + draw(st.integers(0, 999)) / 1000 for _ in range(3)]
