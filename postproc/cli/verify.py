@@ -137,6 +137,15 @@ def _pair(args, description):
     from .compensate import stated_frames
 
     active = stated_frames(args)  # (as the program was compensated)
+    from ..external import units_of
+
+    units = units_of(description)
+    if units:  # the simulated cell's track / turntable: where the robot and the part really are
+        from dataclasses import replace
+
+        from ..programs import ActiveFrames
+
+        active = ActiveFrames(external=units) if active is None else replace(active, external=units)
     original = load_program(args.original, args.config, active=active)
     compensated = load_program(args.compensated, args.config, active=active)
     p_orig, ok_orig = robot_base_poses(original, _in_description(original, description))

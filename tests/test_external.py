@@ -1,0 +1,182 @@
+"""Robots on tracks and parts on turntables (postproc.external, issue 25): every target is
+compensated in the robot's own base at the external axis value it states and written back in the
+program's frame; where the unit's kinematics are not given, or the target does not state its
+axis, it is left as written with a located P225 — never a guess."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from postproc.compensate import compensate_text
+from postproc.compensator import load_model
+from postproc.diagnostics import PostprocError
+from postproc.external import ExternalUnit, parse_external, read_external
+from postproc.frames import frame_to_matrix, matrix_to_frame
+from postproc.programs import ActiveFrames, krl
+
+GAIN = np.diag([1e-3, 2e-3, -1e-3])  # a correction that varies over space: a frame bug shows
+TOOL = (300.0, 0.0, 75.0, 0.0, 0.0, 0.0)
+# a track along the world's Y, its root turned 90° about Z and raised: E1 moves the robot along world Y
+TRACK = ExternalUnit("KL", "prismatic", "E1", "robot", direction=(1.0, 0.0, 0.0), mount=(500.0, -1000.0, 200.0, 90.0, 0.0, 0.0))
+# a turntable 2.5 m in front of the robot, turning about its Z; the base sits on it, 300 mm off its axis
+TABLE = ExternalUnit("DKP", "rotary", "E1", "workpiece", direction=(0.0, 0.0, 1.0), mount=(2500.0, 0.0, 400.0, 0.0, 0.0, 0.0),
+                     machine_def=1)
+# robot-base poses inside the test model's envelope
+BASE_POSES = np.array([[1900.0, -200.0, 800.0, 0.0, 90.0, 0.0], [2100.0, 150.0, 950.0, 5.0, 88.0, -3.0],
+                       [2000.0, 400.0, 700.0, 0.0, 90.0, 0.0]])
+E1 = np.array([0.0, 1250.0, 3400.0])
+
+
+def _numbers(text: str) -> list[dict]:
+    """Each LIN aggregate's components as written."""
+    out = []
+    for agg in re.findall(r"LIN \{(?:E6POS: )?([^}]*)\}", text):
+        out.append({k: float(v) for k, v in re.findall(r"([A-Z]\d?) (-?[\d.]+)", agg)})
+    return out
+
+
+def _lin(pose, e1=None) -> str:
+    body = ",".join(f"{k} {v:.4f}" for k, v in zip("XYZABC", pose))
+    return f"  LIN {{E6POS: {body},E1 {e1:g}}}\n" if e1 is not None else f"  LIN {{{body}}}\n"
+
+
+def _track_program(extra: str = "") -> tuple[str, np.ndarray]:
+    """Targets in $BASE = $NULLFRAME (the world) whose robot-base poses are BASE_POSES at E1."""
+    world = frame_to_matrix(BASE_POSES)
+    world = TRACK.base_at(E1) @ world
+    poses = matrix_to_frame(world)
+    tool = ",".join(f"{k} {v:g}" for k, v in zip("XYZABC", TOOL))
+    src = "DEF t( )\n  $BASE = $NULLFRAME\n  $TOOL = {" + tool + "}\n"
+    src += "".join(_lin(p, e) for p, e in zip(poses, E1)) + extra + "END\n"
+    return src, poses
+
+
+def _expected(model_path, base_poses, to_program):
+    """The model's commands for the robot-base poses, back in the program's frame
+    (``to_program`` [N, 4, 4]: robot base ← the program's frame at each target)."""
+    model = load_model(model_path)
+    c = model.command(base_poses, tool=np.tile(TOOL, (len(base_poses), 1)))
+    cmd = frame_to_matrix(base_poses)
+    cmd[:, :3, 3] = c
+    return np.einsum("nij,njk->nik", np.linalg.inv(to_program), cmd)[:, :3, 3]
+
+
+def test_a_krl_track_target_is_compensated_in_the_robots_own_base_and_written_back_in_the_world(affine):
+    model = affine(gain=GAIN, tool={"name": "spindle", "frame": list(TOOL)})
+    src, poses = _track_program()
+    out, report = compensate_text(src, model, name="t.src", dialect="krl", active=ActiveFrames(external=(TRACK,)))
+    assert report.compensated == 3 and report.left == 0, report.warnings
+    got = _numbers(out)
+    expected = _expected(model, BASE_POSES, np.linalg.inv(TRACK.base_at(E1)))
+    np.testing.assert_allclose([[g["X"], g["Y"], g["Z"]] for g in got], expected, atol=6e-4)
+    # the external axis value and the orientation are as written
+    assert [g["E1"] for g in got] == E1.tolist()
+    np.testing.assert_allclose([[g["A"], g["B"], g["C"]] for g in got], poses[:, 3:], atol=6e-5)
+    # the same targets taken as fixed-robot ones would be other commands (the frame matters)
+    wrong = _expected(model, poses, np.eye(4)[None].repeat(3, 0))
+    assert np.abs(wrong - expected).max() > 0.05
+
+
+def test_without_the_tracks_kinematics_or_its_axis_the_target_is_left_located(affine):
+    model = affine(gain=GAIN, tool={"name": "spindle", "frame": list(TOOL)})
+    src, _ = _track_program(extra="  LIN {X 2000,Y 0,Z 900,A 0,B 90,C 0}\n")
+    # the machine data say the robot is on a track, but not its kinematics: every target P225, located
+    from postproc.programs import RobotRoot
+
+    rr = RobotRoot(None, "$machine.dat", "the robot is on an external kinematic ($EX_KIN ET1 #ERSYS)")
+    out, report = compensate_text(src, model, name="t.src", dialect="krl", active=ActiveFrames(robroot=rr))
+    assert report.compensated == 0 and out == src
+    assert {d.code for d in report.warnings} == {"P225"}
+    # with the kinematics, the target that states no E1 (its track position not known here) is the one left
+    out, report = compensate_text(src, model, name="t.src", dialect="krl", active=ActiveFrames(robroot=rr, external=(TRACK,)))
+    assert report.compensated == 3 and report.left == 1
+    (d,) = [d for d in report.warnings if d.code == "P225"]
+    assert d.line == 7 and "state no E1" in d.message
+    assert "  LIN {X 2000,Y 0,Z 900,A 0,B 90,C 0}" in out.splitlines()
+
+
+def test_the_track_of_a_backups_machine_data(tmp_path, affine):
+    from postproc.programs.krl.machine import robroot_of
+
+    mada = ("DECL EX_KIN $EX_KIN={ET1 #ERSYS,ET2 #NONE,ET3 #NONE,ET4 #NONE,ET5 #NONE,ET6 #NONE}\n"
+            "DECL ET_AX $ET1_AX={TR_A1 #E1,TR_A2 #NONE,TR_A3 #NONE}\n"
+            "$AXIS_TYPE[7]=1\n"
+            "FRAME $ERSYSROOT={X 500.0,Y -1000.0,Z 200.0,A 0.0,B 0.0,C 0.0}\n"
+            "FRAME $ET1_TA1KR={X 0.0,Y 0.0,Z 0.0,A 90.0,B 90.0,C 0.0}\n"
+            "FRAME $ET1_TFLA3={X 0.0,Y 0.0,Z 0.0,A -90.0,B 0.0,C 90.0}\n")
+    rr = robroot_of(mada, "$machine.dat")
+    unit = rr.unit
+    assert rr.frame is None and unit.type == "prismatic" and unit.axis == "E1" and unit.carries == "robot"
+    # the Z axis of $ET1_TA1KR (here world Y) is the direction of travel; TFLA3 turns the carriage back
+    np.testing.assert_allclose(unit.base_at(1000.0)[:3, 3], [500.0, 0.0, 200.0], atol=1e-9)
+    np.testing.assert_allclose(unit.base_at(0.0)[:3, :3], np.eye(3), atol=1e-12)
+    model = affine(gain=GAIN, tool={"name": "spindle", "frame": list(TOOL)})
+    src = ("DEF t( )\n  $BASE = $NULLFRAME\n  $TOOL = {X 300,Y 0,Z 75,A 0,B 0,C 0}\n"
+           "  LIN {E6POS: X 2500,Y 0,Z 1000,A 0,B 90,C 0,E1 1000}\nEND\n")
+    out, report = compensate_text(src, model, name="t.src", dialect="krl", active=ActiveFrames(robroot=rr))
+    assert report.compensated == 1
+    x, y, z = (_numbers(out)[0][k] for k in "XYZ")
+    expected = _expected(model, np.array([[2000.0, 0.0, 800.0, 0.0, 90.0, 0.0]]), np.linalg.inv(unit.base_at([1000.0])))
+    np.testing.assert_allclose([x, y, z], expected[0], atol=6e-4)
+    # what the machine data leave out is said, never guessed
+    rr = robroot_of(mada.replace("$AXIS_TYPE[7]=1\n", ""), "$machine.dat")
+    assert rr.unit is None and "no $AXIS_TYPE[7]" in rr.why and "--external" in rr.why
+
+
+CONFIG_TABLE = ("DEFDAT $CONFIG\n"
+                "DECL FRAME BASE_DATA[32]\n"
+                "BASE_DATA[1]={X 300.0,Y 0.0,Z 150.0,A 30.0,B 0.0,C 0.0}\n"
+                "DECL MACHINE_FRAME_DAT MACHINE_FRAME_DAT[32]\n"
+                "MACHINE_FRAME_DAT[1]={MACH_DEF_INDEX 1,PARENT[] \"WORLD\",GEOMETRY[] \" \"}\n"
+                "ENDDAT\n")
+
+
+def _table_program() -> tuple[str, np.ndarray]:
+    """Targets in BASE_DATA[1] on the turntable, whose robot-base poses are BASE_POSES at E1 (deg)."""
+    e = np.array([0.0, 90.0, -135.0])
+    base = TABLE.base_at(e) @ frame_to_matrix(np.array([300.0, 0.0, 150.0, 30.0, 0.0, 0.0]))
+    local = matrix_to_frame(np.linalg.inv(base) @ frame_to_matrix(BASE_POSES))
+    src = "DEF t( )\n  BAS(#BASE, 1)\n  $TOOL = {X 300,Y 0,Z 75,A 0,B 0,C 0}\n"
+    src += "".join(_lin(p, x) for p, x in zip(local, e)) + "END\n"
+    return src, base
+
+
+def test_a_krl_base_on_a_turntable_moves_with_its_axis(affine):
+    model = affine(gain=GAIN, tool={"name": "spindle", "frame": list(TOOL)})
+    src, base = _table_program()
+    active = ActiveFrames(robroot=None, external=(TABLE,))
+    p = krl.read(["t.src"], [src], config=[CONFIG_TABLE], active=active)
+    assert (p.targets.frame >= 0).all() and len(p.frames) == 3
+    for f, b in zip(p.frames, base):
+        np.testing.assert_allclose(f.base, b, atol=1e-9)
+    # compensated end to end (text in, text out)
+    from postproc.compensate import compensate_program
+
+    report = compensate_program(p, load_model(model))
+    got = _numbers(report.outputs["t.src"])
+    np.testing.assert_allclose([[g["X"], g["Y"], g["Z"]] for g in got], _expected(model, BASE_POSES, base), atol=6e-4)
+    # without the turntable's kinematics: P225 at the BAS that puts the base on it
+    p = krl.read(["t.src"], [src], config=[CONFIG_TABLE])
+    (d,) = p.diagnostics
+    assert d.code == "P225" and d.line == 2 and "MACHINE_DEF[1]" in d.message and "--external" in d.message
+
+
+def test_external_units_are_checked_where_they_are_written(tmp_path):
+    path = tmp_path / "units.toml"
+    path.write_text('[[external]]\ntype = "prismatic"\naxis = "E1"\ncarries = "robot"\n\n'
+                    '[[external]]\ntype = "linear"\naxis = "E2"\ncarries = "workpiece"\n')
+    with pytest.raises(PostprocError) as exc:
+        read_external(path)
+    assert exc.value.code == "P227" and exc.value.line == 7 and "prismatic or rotary" in str(exc.value)
+    with pytest.raises(PostprocError, match="axis must be"):
+        parse_external({"type": "rotary", "axis": "A7", "carries": "workpiece"})
+    with pytest.raises(PostprocError, match="two external units carry the robot"):
+        parse_external([{"type": "rotary", "axis": "E1", "carries": "robot"},
+                        {"type": "prismatic", "axis": "E2", "carries": "robot"}])
+    # a rotary unit turns about its direction by degrees
+    unit = parse_external({"type": "rotary", "axis": "e2", "carries": "workpiece", "direction": [0, 0, 2]})[0]
+    assert unit.axis == "E2"
+    np.testing.assert_allclose(unit.base_at(90.0)[:3, :3], [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-12)
