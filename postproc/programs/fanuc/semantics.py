@@ -51,8 +51,9 @@ class LS(Dialect):
     frame_names = ("UFRAME_NUM", "UTOOL_NUM")
     undeclared_hint = ""
 
-    def __init__(self, uframes: dict, utools: dict, registers=()):
+    def __init__(self, uframes: dict, utools: dict, registers=(), external: tuple = ()):
         super().__init__()
+        self.external = tuple(external or ())
         self.uframes = uframes
         self.utools = utools
         self.registers = set(registers)
