@@ -180,3 +180,94 @@ def test_external_units_are_checked_where_they_are_written(tmp_path):
     unit = parse_external({"type": "rotary", "axis": "e2", "carries": "workpiece", "direction": [0, 0, 2]})[0]
     assert unit.axis == "E2"
     np.testing.assert_allclose(unit.base_at(90.0)[:3, :3], [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-12)
+
+
+# ------------------------------------------------------------------------------------ RAPID
+
+def _rapid(poses, e1=None, wobj="") -> str:
+    q = __import__("postproc.frames", fromlist=["x"]).quaternion_from_rotation(
+        __import__("postproc.frames", fromlist=["x"]).rotation_from_abc(poses[:, 3:]))
+    lines = ["MODULE m",
+             "  PERS tooldata tS := [TRUE, [[300, 0, 75], [1, 0, 0, 0]], [10, [0, 0, 100], [1, 0, 0, 0], 0, 0, 0]];",
+             "  PERS wobjdata wT := [FALSE, FALSE, \"STN1\", [[300, 0, 150], [0.9659258263, 0, 0, 0.2588190451]], "
+             "[[0, 0, 0], [1, 0, 0, 0]]];",
+             "  PROC main()"]
+    for k, (p, qq) in enumerate(zip(poses, q)):
+        eax = f"{e1[k]:g}" if e1 is not None else "9E9"
+        lines.append(f"    MoveL [[{p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}], [{', '.join(f'{v:.9f}' for v in qq)}], "
+                     f"[0, 0, 0, 0], [{eax}, 9E9, 9E9, 9E9, 9E9, 9E9]], v100, fine, tS{wobj};")
+    return "\n".join(lines + ["  ENDPROC", "ENDMODULE", ""])
+
+
+def _rapid_xyz(text):
+    return np.array([[float(v) for v in m] for m in re.findall(r"MoveL \[\[([-\d.]+), ([-\d.]+), ([-\d.]+)\]", text)])
+
+
+def test_a_rapid_robtarget_on_a_track_is_compensated_in_the_robots_base(affine):
+    model = affine(gain=GAIN, tool={"name": "spindle", "frame": list(TOOL)})
+    world = matrix_to_frame(TRACK.base_at(E1) @ frame_to_matrix(BASE_POSES))
+    src = _rapid(world, E1)
+    # without the track's kinematics: each robtarget that uses eax_a is left, located
+    out, report = compensate_text(src, model, name="m.mod", dialect="rapid", force=True)
+    assert report.compensated == 0 and {d.code for d in report.warnings} == {"P225"}
+    out, report = compensate_text(src, model, name="m.mod", dialect="rapid", force=True,
+                                  active=ActiveFrames(external=(TRACK,)))
+    assert report.compensated == 3, report.warnings
+    np.testing.assert_allclose(_rapid_xyz(out), _expected(model, BASE_POSES, np.linalg.inv(TRACK.base_at(E1))),
+                               atol=6e-4)
+    assert out.count("9E9, 9E9, 9E9, 9E9, 9E9]]") == 3 and all(f"[{e:g}, 9E9" in out for e in E1)
+
+
+def test_a_rapid_work_object_coordinated_with_a_positioner(affine):
+    model = affine(gain=GAIN, tool={"name": "spindle", "frame": list(TOOL)})
+    unit = ExternalUnit("STN1", "rotary", "E1", "workpiece", direction=(0.0, 0.0, 1.0),
+                        mount=(2500.0, 0.0, 400.0, 0.0, 0.0, 0.0), mech_unit="STN1")
+    e = np.array([0.0, 90.0, -135.0])
+    on = unit.base_at(e) @ frame_to_matrix(np.array([300.0, 0.0, 150.0, 30.0, 0.0, 0.0]))
+    local = matrix_to_frame(np.linalg.inv(on) @ frame_to_matrix(BASE_POSES))
+    src = _rapid(local, e, wobj="\\WObj:=wT")
+    out, report = compensate_text(src, model, name="m.mod", dialect="rapid", force=True)
+    assert report.compensated == 0 and {d.code for d in report.warnings} == {"P225"}
+    # a unit stated for another mechanical unit: the work object's is still not known
+    other = ExternalUnit("STN2", "rotary", "E1", "workpiece", mech_unit="STN2")
+    out, report = compensate_text(src, model, name="m.mod", dialect="rapid", force=True,
+                                  active=ActiveFrames(external=(other,)))
+    assert report.compensated == 0 and any("STN1" in d.message for d in report.warnings if d.code == "P225")
+    out, report = compensate_text(src, model, name="m.mod", dialect="rapid", force=True,
+                                  active=ActiveFrames(external=(unit,)))
+    assert report.compensated == 3, report.warnings
+    np.testing.assert_allclose(_rapid_xyz(out), _expected(model, BASE_POSES, on), atol=6e-4)
+
+
+# ------------------------------------------------------------------------ the simulated cell
+
+def test_verify_runs_a_track_program_on_the_simulated_track(tmp_path, capsys):
+    """compensate with the track's kinematics, verify on a KR500 whose description carries the
+    track: as accurate as the fixed robot's program of the same robot-base poses."""
+    import json
+
+    from postproc.cli import main
+
+    repo = Path(__file__).resolve().parent.parent
+    track = tmp_path / "track.toml"
+    track.write_text('[[external]]\ntype = "prismatic"\naxis = "E1"\ncarries = "robot"\ndirection = [1, 0, 0]\n'
+                     'mount = [500, -1000, 200, 90, 0, 0]\n')
+    robot = tmp_path / "kr500_track.toml"
+    robot.write_text((repo / "models" / "kr500.toml").read_text() + "\n" + track.read_text())
+    src, _ = _track_program()
+    fixed = "DEF t( )\n  $BASE = $NULLFRAME\n  $TOOL = {X 300,Y 0,Z 75,A 0,B 0,C 0}\n" + \
+        "".join(_lin(p) for p in BASE_POSES) + "END\n"
+    after = {}
+    for name, text, extra, cell in (("fixed", fixed, [], repo / "models" / "kr500.toml"),
+                                    ("track", src, ["--external", str(track)], robot)):
+        (tmp_path / f"{name}.src").write_text(text)
+        assert main(["compensate", str(tmp_path / f"{name}.src"), "-o", str(tmp_path / "out" / f"{name}.src"),
+                     "-q", *extra]) in (0, 1)
+        capsys.readouterr()
+        assert main(["verify", str(tmp_path / f"{name}.src"), str(tmp_path / "out" / f"{name}.src"), "--robot",
+                     str(cell), "--json", "-q"]) == 0
+        v = json.loads(capsys.readouterr().out)
+        assert v["targets"] == v["compensated"] == 3
+        after[name] = v["after"]["mean"]
+        assert v["after"]["mean"] < 0.3 * v["before"]["mean"]
+    assert after["track"] <= 1.05 * after["fixed"]

@@ -316,7 +316,8 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         if not isinstance(s.target, Agg):
             named = True
         frame, covered = _moving_at(use.frame, view, use.what)
-        if view.moving is not None and not (covered and set(view.external or ()) <= covered):
+        if view.moving is not None and not (covered and set(view.external or ()) <= covered) \
+                and not (isinstance(frame, Top) and frame.code == P225):  # (a unit not given: that one's why)
             frame = view.moving
         ix, why, code = frame_index(frame, use.tool)
         aloc = view.loc or loc
