@@ -271,3 +271,44 @@ def test_verify_runs_a_track_program_on_the_simulated_track(tmp_path, capsys):
         after[name] = v["after"]["mean"]
         assert v["after"]["mean"] < 0.3 * v["before"]["mean"]
     assert after["track"] <= 1.05 * after["fixed"]
+
+
+# ---------------------------------------------------------------------------------- FANUC LS
+
+def _ls(poses, j1, group="GP2") -> str:
+    mn = "".join(f"{4 + k:4d}:L P[{k + 1}] 500mm/sec FINE    ;\n" for k in range(len(poses)))
+    pos = []
+    for k, (p, e) in enumerate(zip(poses, j1)):
+        x, y, z, a, b, c = p
+        gp1 = (f"   GP1:\n\tUF : 0, UT : 1,\t\tCONFIG : 'N U T, 0, 0, 0',\n"
+               f"\tX = {x:.3f} mm,\tY = {y:.3f} mm,\tZ = {z:.3f} mm,\n"
+               f"\tW = {c:.3f} deg,\tP = {b:.3f} deg,\tR = {a:.3f} deg")
+        if group == "E1":
+            gp1 += f",\n\tE1= {e:.3f} mm"
+        else:
+            gp1 += f"\n   GP2:\n\tUF : 0, UT : 1,\n\tJ1= {e:.3f} mm"
+        pos.append(f"P[{k + 1}]{{\n{gp1}\n}};\n")
+    return ("/PROG  TRK\n/ATTR\nDEFAULT_GROUP\t= 1,1,*,*,*;\n/MN\n   1:  UFRAME_NUM=0 ;\n   2:  UTOOL_NUM=1 ;\n"
+            "   3:  ! on the track ;\n" + mn + "/POS\n" + "".join(pos) + "/END\n")
+
+
+@pytest.mark.parametrize("group", ["GP2", "E1"])
+def test_a_fanuc_track_group_2_or_extended_axis(tmp_path, affine, group):
+    model = affine(gain=GAIN, tool={"name": "spindle", "frame": list(TOOL)})
+    unit = ExternalUnit("RAIL", "prismatic", "GP2.J1" if group == "GP2" else "E1", "robot", direction=(1.0, 0.0, 0.0),
+                        mount=(500.0, -1000.0, 200.0, 90.0, 0.0, 0.0))
+    world = matrix_to_frame(unit.base_at(E1) @ frame_to_matrix(BASE_POSES))
+    src = _ls(world, E1, group)
+    frames_file = tmp_path / "frames.toml"
+    frames_file.write_text("[utool.1]\nxyzwpr = [300, 0, 75, 0, 0, 0]\n")
+    out, report = compensate_text(src, model, name="trk.ls", dialect="fanuc", config=str(frames_file), force=True)
+    assert report.compensated == 0 and {d.code for d in report.warnings} == {"P225"}
+    # the track in the frame file ([[external]]) or given apart: the same commands
+    frames_file.write_text(frames_file.read_text() + f'\n[[external]]\ntype = "prismatic"\naxis = "{unit.axis}"\n'
+                           'carries = "robot"\ndirection = [1, 0, 0]\nmount = [500, -1000, 200, 90, 0, 0]\n')
+    out, report = compensate_text(src, model, name="trk.ls", dialect="fanuc", config=str(frames_file), force=True)
+    assert report.compensated == 3, report.warnings
+    xyz = np.array([[float(v) for v in m] for m in re.findall(
+        r"X =\s*(-?[\d.]+) mm,\s*Y =\s*(-?[\d.]+) mm,\s*Z =\s*(-?[\d.]+) mm", out)])
+    np.testing.assert_allclose(xyz, _expected(model, BASE_POSES, np.linalg.inv(unit.base_at(E1))), atol=6e-4)
+    assert all(f"= {e:.3f} mm" in out for e in E1)
