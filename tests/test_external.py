@@ -312,3 +312,18 @@ def test_a_fanuc_track_group_2_or_extended_axis(tmp_path, affine, group):
         r"X =\s*(-?[\d.]+) mm,\s*Y =\s*(-?[\d.]+) mm,\s*Z =\s*(-?[\d.]+) mm", out)])
     np.testing.assert_allclose(xyz, _expected(model, BASE_POSES, np.linalg.inv(unit.base_at(E1))), atol=6e-4)
     assert all(f"= {e:.3f} mm" in out for e in E1)
+
+
+def test_the_worked_example_of_the_docs():
+    """docs/EXTERNAL.md's track and its worked example hold."""
+    import tomllib
+
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "EXTERNAL.md").read_text()
+    block = re.search(r"```toml\n(.*?)```", doc, re.S).group(1)
+    track, table = parse_external(tomllib.loads(block)["external"])
+    assert (track.carries, table.carries, table.machine_def, table.mech_unit) == ("robot", "workpiece", 1, "STN1")
+    target = re.search(r"`LIN \{E6POS: ([^}]*)\}`", doc).group(1)
+    values = dict(re.findall(r"(\w+) (-?[\d.]+)", target))
+    pose = np.array([float(values[k]) for k in "XYZABC"])
+    seen = matrix_to_frame(np.linalg.inv(track.base_at(float(values["E1"]))) @ frame_to_matrix(pose))
+    np.testing.assert_allclose(seen, [2000, 0, 800, 0, 90, 0], atol=1e-9)
