@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -61,11 +62,17 @@ class ExternalUnit:
     mech_unit: str = ""
     source: str = field(default="", compare=False)
 
+    @cached_property
+    def _ends(self) -> tuple:
+        """(mount, flange) as 4×4, the unit direction."""
+        d = np.asarray(self.direction, float)
+        return (frame_to_matrix(np.asarray(self.mount, float)), frame_to_matrix(np.asarray(self.flange, float)),
+                d / np.linalg.norm(d))
+
     def joint(self, e) -> np.ndarray:
         """[..., 4, 4] the joint's motion at values ``e`` (mm or deg)."""
         e = np.asarray(e, float)
-        d = np.asarray(self.direction, float)
-        d = d / np.linalg.norm(d)
+        d = self._ends[2]
         t = np.broadcast_to(np.eye(4), e.shape + (4, 4)).copy()
         if self.type == "prismatic":
             t[..., :3, 3] = e[..., None] * d
@@ -77,8 +84,8 @@ class ExternalUnit:
 
     def base_at(self, e) -> np.ndarray:
         """[..., 4, 4] world ← what the unit carries, at axis values ``e``."""
-        return frame_to_matrix(np.asarray(self.mount, float)) @ self.joint(e) @ frame_to_matrix(
-            np.asarray(self.flange, float))
+        mount, flange, _ = self._ends
+        return mount @ self.joint(e) @ flange
 
     def describe(self) -> str:
         return f"{self.type} unit {self.name} (axis {self.axis}, carries the {self.carries}{self._from()})"
