@@ -23,7 +23,10 @@
   which only the program's own statements change); one started with ``RUN`` runs beside it and
   may change the registers at any time.
 * A position that moves other groups (``GP2``…) or extended axes (``E1``…) is reached with axes
-  postproc has no kinematics of (a track, a positioner: issue 25): left as written (P225).
+  postproc has no kinematics of (a track, a positioner): left as written (P225) — unless a track
+  that carries the robot is given (``--external`` or the frame file's ``[[external]]``, axis
+  ``E1`` or ``GP2.J1``) and it is the only axis the position moves: the user frames stand in the
+  world, the robot's base rides the track at the position's value (``_on_track``).
 """
 from __future__ import annotations
 

@@ -4,11 +4,13 @@
   :func:`frame_of` (``KRL.FRAME``); its tool ``$TOOL``. At a program's start they are what its
   user states (``ActiveFrames``: ``--base``/``--tool``/``--robroot``, a backup's machine data)
   or not set (P220/P221 at the targets that need them); $ROBROOT not known is the robot base =
-  world, said once (P224); on a track it is known only at run time (P225).
+  world, said once (P224). On a track whose kinematics are given (``--external``, the machine
+  data's $ERSYS kinematic: ``KRL.track``) $ROBROOT moves with it (``values.Moving``), known at
+  each target from the E1… it states; a track whose kinematics are not given: P225.
 * ``BAS(#BASE, n)`` is KSS's bas.src: ``$BASE = BASE_DATA[n]`` (n = 0: $NULLFRAME), on top of
-  it ``BASE_CORR`` where ``BASE_CORR_ON`` is TRUE, and not known where
-  ``MACHINE_FRAME_DAT[n].MACH_DEF_INDEX`` names an external kinematic (a turntable, a
-  positioner: the base moves with its axes). ``BAS(#TOOL, n)`` likewise with TOOL_DATA and
+  it ``BASE_CORR`` where ``BASE_CORR_ON`` is TRUE; where ``MACHINE_FRAME_DAT[n].MACH_DEF_INDEX``
+  names an external kinematic (a turntable, a positioner) the base moves with its axis: known at
+  each target where a unit with that ``machine_def`` is given (``KRL.positioner``), else P225. ``BAS(#TOOL, n)`` likewise with TOOL_DATA and
   MACHINE_TOOL_DAT. ``BAS(#PTP_PARAMS|#CP_PARAMS|#FRAMES, …)`` take both from ``FDAT_ACT``
   (TOOL_NO, BASE_NO; ``IPO_FRAME #TCP``: an external TCP, not supported). Variables the
   program and the files read do not declare (``BASE_CORR_ON``) are KSS's defaults (FALSE, 0).

@@ -14,12 +14,14 @@ S4/IRC5 (pages ``8-PDispOn``, ``8-PDispSet``, ``Offs``, ``RelTool``).
   coordinate system), the world frame taken as the robot base. A work object held by the
   robot (``robhold`` TRUE: a stationary tool) is not known statically (P201); one whose user
   frame a mechanical unit moves (``ufprog`` FALSE: coordinated with ``ufmec``) moves with that
-  unit's axes (P225).
+  unit's axis: known at each robtarget's ``eax_…`` where a unit with that ``mech_unit`` is given
+  (``--external``: postproc.external), else P225. A robot on a track (a unit that carries the
+  robot) sees every frame through the track at the robtarget's axis value.
 * A motion's tool (``RAPID.TOOL``) is its ``tooldata``'s ``tframe``; a stationary tool
   (``robhold`` FALSE) is not known (P203).
 * A robtarget that states an external axis (``eax_a … eax_f`` other than 9E9: a track, a
-  positioner coordinated with the robot) is left as written (P225): without that unit's
-  kinematics its pose in the robot's base is not known.
+  positioner coordinated with the robot) is left as written (P225) unless the units given cover
+  every axis it uses: without that unit's kinematics its pose in the robot's base is not known.
 * ``Offs(p, dx, dy, dz)`` is ``p`` displaced in the object frame: p's tokens + the offset;
   ``RelTool(p, dx, dy, dz \\Rx \\Ry \\Rz)`` displaced in the tool frame (``R(p.rot)·d``: p's
   tokens + that offset) and turned about x, then the new y, then the new z.
