@@ -327,3 +327,14 @@ def test_the_worked_example_of_the_docs():
     pose = np.array([float(values[k]) for k in "XYZABC"])
     seen = matrix_to_frame(np.linalg.inv(track.base_at(float(values["E1"]))) @ frame_to_matrix(pose))
     np.testing.assert_allclose(seen, [2000, 0, 800, 0, 90, 0], atol=1e-9)
+
+
+def test_frame_groups_are_the_rows_of_each_frame():
+    from postproc.frames import frame_groups
+
+    frame = np.array([2, -1, 0, 2, 5, 0, -1, 2])
+    groups = frame_groups(frame)
+    assert [f for f, _ in groups] == [0, 2, 5]
+    for f, rows in groups:
+        assert rows.tolist() == np.flatnonzero(frame == f).tolist()
+    assert frame_groups(np.array([-1, -1])) == []

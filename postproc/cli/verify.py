@@ -97,9 +97,11 @@ def execution(program, rows, sim) -> dict:
         raise PostprocError(f"{why[0]}: the simulated {sim.robot.name} cannot run this program",
                             program.files[t.file[r]], int(t.line[r]), int(t.col[r]), P309)
     tools = np.tile(sim.robot.tool, (len(rows), 1))
-    for f in np.unique(t.frame[rows]):
+    from ..frames import frame_groups
+
+    for f, here in frame_groups(t.frame[rows]):
         if program.frames[f].tool is not None:
-            tools[t.frame[rows] == f] = program.frames[f].tool
+            tools[here] = program.frames[f].tool
     options = {"config": stated, "tools": tools, "motions": t.motion[rows]}
     if t.prev is not None:  # (in execution order: each row after its predecessor, a row of these or none)
         at = np.full(len(t), -1)
