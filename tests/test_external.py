@@ -78,6 +78,12 @@ def test_a_krl_track_target_is_compensated_in_the_robots_own_base_and_written_ba
     # the same targets taken as fixed-robot ones would be other commands (the frame matters)
     wrong = _expected(model, poses, np.eye(4)[None].repeat(3, 0))
     assert np.abs(wrong - expected).max() > 0.05
+    # the envelope and the reach are the robot's own: in its base every target is inside; taken
+    # as a fixed robot's, the world's numbers are out of its reach (refused, P302)
+    assert not {"P301", "P302"} & {d.code for d in report.warnings}
+    with pytest.raises(PostprocError) as exc:
+        compensate_text(src, model, name="t.src", dialect="krl")
+    assert exc.value.code == "P302"
 
 
 def test_without_the_tracks_kinematics_or_its_axis_the_target_is_left_located(affine):
