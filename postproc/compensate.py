@@ -674,8 +674,7 @@ def _local_orientation(abc_base: np.ndarray, bases: list, frame_of: np.ndarray, 
     """The numbers (in the program's orientation ``form``) of commanded attitudes in the base,
     in each target's own frame, nearest the numbers as written (``frames.orientation_numbers``)."""
     out = abc_base.copy()
-    for f in np.unique(frame_of):
-        here = frame_of == f
+    for f, here in frames.frame_groups(frame_of):
         rot = bases[f][:3, :3]
         if not np.allclose(rot, np.eye(3), atol=1e-12):
             out[here] = frames.abc_from_rotation(rot.T @ frames.rotation_from_abc(abc_base[here]))
@@ -755,8 +754,7 @@ class _CommandStream:
                 # back into each target's own frame: only the rotation of its base applies to a shift
                 local = np.empty_like(correction)
                 frame_of = self._frame_of[start:end]
-                for f in frames.frames_used(frame_of):
-                    here = frame_of == f
+                for f, here in frames.frame_groups(frame_of):
                     local[here] = frames.rotate_vectors(frames.inverse(self._bases[f]), correction[here])
                 self.commanded[start:end] = commands[:, :3]
                 if self.joints is not None and q is not None:

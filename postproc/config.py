@@ -9,6 +9,7 @@
     iterations = 2                       # fixed-point iterations (default: the model's)
     robot = "KR500-sim"                  # refuse models trained on another robot (unless --force)
     robroot = "KRC/R1/Mada/$machine.dat" # KRL $ROBROOT where a program does not set it: X,Y,Z,A,B,C or machine data
+    external = "cell/track.toml"         # external units' kinematics ([[external]] tables: docs/EXTERNAL.md)
     ignore = ["P301"]                    # check: codes not reported
     fresh = [                            # compensated outputs kept in git beside their sources
       { source = "src/*.src", output = "out/*.src" },
@@ -35,7 +36,7 @@ __all__ = ["Config", "FreshPair", "find_config", "load_config", "CONFIG_NAME"]
 
 CONFIG_NAME = "postproc.toml"
 KEYS = ("model", "config", "strict", "max_correction", "iterations", "ignore", "fresh", "robot", "base", "tool",
-        "robroot")
+        "robroot", "external")
 PAIR_KEYS = ("source", "output", "model", "config")
 # a wildcard of a pair pattern; `**/` (any number of directories, also none) comes first
 _WILDCARD = re.compile(r"\*\*/|\*\*|\*|\?")
@@ -166,12 +167,20 @@ def parse_config(table: dict, path: Path) -> Config:
         if not isinstance(table["robot"], str) or not table["robot"].strip():
             raise _error("expected the robot's name, as in the model card (e.g. \"KR500-sim\")", path, "robot")
         cfg.robot = table["robot"].strip()
-    if "base" in table or "tool" in table or "robroot" in table:
+    if "base" in table or "tool" in table or "robroot" in table or "external" in table:
         from .programs.krl.machine import robroot_option
 
+        external = ()
+        if "external" in table:
+            if not isinstance(table["external"], str) or not table["external"].strip():
+                raise _error("expected the path of a TOML with [[external]] tables", path, "external")
+            from .external import read_external
+
+            external = read_external(root / table["external"])
         try:
             robroot = robroot_option(table.get("robroot"), root, label="robroot =")
-            cfg.active = ActiveFrames.of(base=table.get("base"), tool=table.get("tool"), robroot=robroot)
+            cfg.active = ActiveFrames.of(base=table.get("base"), tool=table.get("tool"), robroot=robroot,
+                                         external=external)
         except ValueError as exc:
             raise _error(str(exc), path, str(exc).split(":")[0]) from None
     if "ignore" in table:

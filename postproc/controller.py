@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import frames
 from .compensator import Compensator
 from .diagnostics import P309, P311, P313, P319, Diagnostic, PostprocError
 from .programs import Program
@@ -102,9 +103,9 @@ def _tools(program: Program, model: Compensator, description, rows: np.ndarray) 
     default_tool = np.asarray(card_tool if card_tool is not None else description.tool, float)
     tools = np.tile(default_tool, (len(rows), 1))
     t = program.targets
-    for f in np.unique(t.frame[rows]):
+    for f, here in frames.frame_groups(t.frame[rows]):
         if program.frames[f].tool is not None:
-            tools[t.frame[rows] == f] = program.frames[f].tool
+            tools[here] = program.frames[f].tool
     return tools
 
 

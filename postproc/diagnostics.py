@@ -80,9 +80,12 @@ P224 = _code("P224", "note", "(compensate -v, check) $ROBROOT not known (no --ro
              "not set by the program: robot base = world ($NULLFRAME) assumed, said once per program")
 P225 = _code("P225", "warning", "the robot's base or the target's frame moves with external axes (KRL: $ROBROOT on an "
              "external kinematic, $machine.dat $EX_KIN … #ERSYS, a base on a turntable; RAPID: a robtarget's eax_a…f in "
-             "use, a work object a mechanical unit moves): known only at run time, left as written")
+             "use, a work object a mechanical unit moves; LS: GP2 / extended axes) and its kinematics are not given "
+             "(--external, machine data), or the target does not state that axis: left as written")
 P226 = _code("P226", "error", "--robroot / settings robroot not X,Y,Z,A,B,C or a $machine.dat; a $machine.dat without "
              "$ROBROOT_C or with a malformed one; several machine data in one cell")
+P227 = _code("P227", "error", "an external unit's description (--external, the settings' external, a robot description's "
+             "[[external]], the machine data's $ETn_…) that is malformed or not one postproc can take")
 P230 = _code("P230", "warning", "one set of numbers the program executes more than once (in a loop, a routine called "
              "twice, after a branch, copied into another point) where the runs need different corrections (other "
              "frames, tools, offsets, approaches) or one of them is left as written: left as written at every run")

@@ -150,8 +150,7 @@ def robot_base_poses(program: Program, bases: list[np.ndarray] | None = None) ->
     t = program.targets
     out = np.full((len(t), 6), np.nan)
     resolved = t.frame >= 0
-    for f in frames.frames_used(t.frame[resolved]):
-        rows = np.flatnonzero(t.frame == f)
+    for f, rows in frames.frame_groups(t.frame):
         base = program.frames[f].base if bases is None else bases[f]
         out[rows, :3] = frames.transform_points(base, t.poses[rows, :3])
         known = rows[~np.isnan(t.poses[rows, 3:6]).any(axis=1)]

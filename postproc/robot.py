@@ -50,6 +50,7 @@ _SCHEMA: dict[str, dict[str, str]] = {
     "payload": {"mass": "num", "com": "vec:3"},
     "workspace": {"box": "vec:6", "attitude": "vec:3", "range": "num"},
     "errors": {},  # checked by postproc.simulator, which owns the error model
+    "external": {},  # [[external]]: a track / turntable (checked by postproc.external)
 }
 _REQUIRED = {"robot": ("name", "home"), "joint": ("name", "origin", "axis", "limits"), "flange": ("origin",),
              "tool": ("frame",)}
@@ -92,6 +93,8 @@ class RobotDescription:
     # cf1, cf4, cf6, cfx), "fanuc" (CONFIG 'F U T, t1, t4, t6'); "" = the description does not
     # say (KUKA S/T is still read, as postproc's mapping on any arm; confdata and CONFIG are not)
     configuration: str = ""
+    # the raw [[external]] tables: a track or a turntable beside the arm (postproc.external.units_of)
+    external: tuple = ()
     path: str = ""
     text: str = ""  # the file's text, to point at a key's line in messages
 
@@ -223,6 +226,8 @@ def _check_tables(doc: dict, fail_at) -> None:
             raise fail_at(table, code=P331)(f"unknown table [{table}] (known: {known})")
         if table == "joint" and not isinstance(body, list):
             raise fail_at(table, code=P331)("joints are an array of tables: write [[joint]]")
+        if table == "external":  # (a table or an array of tables: postproc.external checks them)
+            continue
         if table != "joint" and not isinstance(body, dict):
             raise fail_at(table, code=P331)(f"[{table}] must be a table")
 
@@ -300,9 +305,22 @@ def parse_description(text: str, path: str = "<robot>") -> RobotDescription:
         errors=dict(errors),
         controller_base=robot.get("controller_base", np.zeros(6)),
         configuration=form,
+        external=_external_tables(doc.get("external", ()), path),
         path=path,
         text=text,
     )
+
+
+def _external_tables(raw, path: str) -> tuple:
+    """The [[external]] tables as given (a table or an array of tables), checked by
+    postproc.external (P227 at the key)."""
+    if not raw:
+        return ()
+    tables = [raw] if isinstance(raw, dict) else list(raw)
+    from .external import parse_external
+
+    parse_external(tables, path)  # (malformed: refused where the description is read)
+    return tuple(tables)
 
 
 # --------------------------------------------------------------------------- kinematics

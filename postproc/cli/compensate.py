@@ -87,6 +87,11 @@ def add_frame_arguments(p, settings: bool = True) -> None:
                    "deg) or the backup's Mada/$machine.dat ($ROBROOT_C)" + default.format("robroot") + "; else the "
                    "machine data beside the System/$config.dat given, or in a backup directory; else robot base = "
                    "world is assumed and said once (P224)")
+    p.add_argument("--external", metavar="UNITS.toml",
+                   help="the nominal kinematics of the external units — a track that carries the robot, a turntable "
+                   "or positioner that carries the part — as [[external]] tables (docs/EXTERNAL.md)"
+                   + default.format("external") + "; a KRL backup's machine data give a KUKA track's. Without them, "
+                   "targets that move with such a unit are left as written (P225)")
 
 
 def stated_frames(args, settings=None):
@@ -102,7 +107,12 @@ def stated_frames(args, settings=None):
             robroot = robroot_option(args.robroot)
         except ValueError as exc:
             raise PostprocError(str(exc), "--robroot", 0, 0, P226) from None
-    return ActiveFrames.stated(args.base, args.tool, settings, robroot=robroot)
+    external = ()
+    if getattr(args, "external", None):
+        from ..external import read_external
+
+        external = read_external(args.external)
+    return ActiveFrames.stated(args.base, args.tool, settings, robroot=robroot, external=external)
 
 
 def run(args) -> int:

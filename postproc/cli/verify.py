@@ -97,9 +97,11 @@ def execution(program, rows, sim) -> dict:
         raise PostprocError(f"{why[0]}: the simulated {sim.robot.name} cannot run this program",
                             program.files[t.file[r]], int(t.line[r]), int(t.col[r]), P309)
     tools = np.tile(sim.robot.tool, (len(rows), 1))
-    for f in np.unique(t.frame[rows]):
+    from ..frames import frame_groups
+
+    for f, here in frame_groups(t.frame[rows]):
         if program.frames[f].tool is not None:
-            tools[t.frame[rows] == f] = program.frames[f].tool
+            tools[here] = program.frames[f].tool
     options = {"config": stated, "tools": tools, "motions": t.motion[rows]}
     if t.prev is not None:  # (in execution order: each row after its predecessor, a row of these or none)
         at = np.full(len(t), -1)
@@ -137,6 +139,15 @@ def _pair(args, description):
     from .compensate import stated_frames
 
     active = stated_frames(args)  # (as the program was compensated)
+    from ..external import units_of
+
+    units = units_of(description)
+    if units:  # the simulated cell's track / turntable: where the robot and the part really are
+        from dataclasses import replace
+
+        from ..programs import ActiveFrames
+
+        active = ActiveFrames(external=units) if active is None else replace(active, external=units)
     original = load_program(args.original, args.config, active=active)
     compensated = load_program(args.compensated, args.config, active=active)
     p_orig, ok_orig = robot_base_poses(original, _in_description(original, description))

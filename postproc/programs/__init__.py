@@ -79,6 +79,7 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
         program.active = active
         program.from_text = True
         return program
+    external = active.external if active is not None else ()  # (a track, a positioner: every dialect)
     if active is not None and not active.frames_stated:
         active = None  # (only $ROBROOT: the other dialects' targets are in the robot base by definition)
     if active is not None:
@@ -95,15 +96,19 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
     if dialect == "rapid":
         from . import rapid
 
-        program = rapid.read(files, texts, config=config)
+        program = rapid.read(files, texts, config=config, external=external)
         program.config = list(config) if config else None
+        if external:  # (read again as it was read: guards.check_round_trip)
+            program.active = ActiveFrames(external=external)
         program.from_text = True
         return program
     if dialect == "fanuc":
         from . import fanuc
 
-        program = fanuc.read(files, texts, frames=config)
+        program = fanuc.read(files, texts, frames=config, external=external)
         program.config = list(config) if config else None
+        if external:
+            program.active = ActiveFrames(external=external)
         program.from_text = True
         return program
     raise ValueError(f"unknown dialect {dialect!r}")
@@ -129,10 +134,13 @@ def lower(files: list[str], texts: list[str], dialect: str, config: list[str] | 
     reader = importlib.import_module(f".{module}", __name__)
     if not hasattr(reader, "lower"):
         raise NotImplementedError(f"the {dialect} reader does not lower to the motion IR yet")
+    external = active.external if active is not None else ()
     if dialect == "urscript":  # (its --tool: the TCP before the script's first set_tcp)
         return reader.lower(files, texts, active=active)
-    if active is not None and active.frames_stated:
+    if active is not None and (active.frames_stated or active.robroot is not None):
         raise ValueError(f"active frames are KRL's ($BASE/$TOOL at the start): not {dialect}")
     if dialect == "fanuc":  # (its frame file)
-        return reader.lower(files, texts, frames=config)
+        return reader.lower(files, texts, frames=config, external=external)
+    if external:
+        return reader.lower(files, texts, config=config, external=external)
     return reader.lower(files, texts, config=config)

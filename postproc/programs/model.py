@@ -43,6 +43,9 @@ class RobotRoot:
     frame: tuple | None
     label: str = ""
     why: str = ""
+    # a track whose kinematics the machine data give (``postproc.external.ExternalUnit``, carries
+    # the robot): $ROBROOT moves with it, known at each target that states its axis
+    unit: object = None
 
     @staticmethod
     def parse(value, label: str = "robroot") -> "RobotRoot":
@@ -67,6 +70,9 @@ class ActiveFrames:
     base: int | tuple | None = None
     tool: int | tuple | str | None = None
     robroot: RobotRoot | None = None
+    # the external units the user states (``--external``, settings ``external``, the simulated
+    # robot's [[external]]: postproc.external.ExternalUnit), for every dialect
+    external: tuple = ()
 
     @property
     def frames_stated(self) -> bool:
@@ -110,31 +116,34 @@ class ActiveFrames:
         return six
 
     @classmethod
-    def of(cls, base=None, tool=None, robroot=None) -> "ActiveFrames | None":
+    def of(cls, base=None, tool=None, robroot=None, external=()) -> "ActiveFrames | None":
         """From user values (strings, ints, lists; None = not stated; ``robroot`` a RobotRoot or
-        six numbers); None when none is."""
-        if base is None and tool is None and robroot is None:
+        six numbers; ``external`` ExternalUnits); None when none is."""
+        if base is None and tool is None and robroot is None and not external:
             return None
         if robroot is not None and not isinstance(robroot, RobotRoot):
             robroot = RobotRoot.parse(robroot, f"robroot {robroot}")
-        return cls(base=cls.parse(base, "base"), tool=cls.parse(tool, "tool"), robroot=robroot)
+        return cls(base=cls.parse(base, "base"), tool=cls.parse(tool, "tool"), robroot=robroot,
+                   external=tuple(external or ()))
 
     @classmethod
     def stated(cls, base=None, tool=None, settings: "ActiveFrames | None" = None,
-               robroot: RobotRoot | None = None) -> "ActiveFrames | None":
-        """The command line's ``--base`` / ``--tool`` / ``--robroot`` over the settings' (each on
-        its own); a value that is not N / X,Y,Z,A,B,C is refused: PostprocError P222."""
+               robroot: RobotRoot | None = None, external=()) -> "ActiveFrames | None":
+        """The command line's ``--base`` / ``--tool`` / ``--robroot`` / ``--external`` over the
+        settings' (each on its own); a value that is not N / X,Y,Z,A,B,C is refused:
+        PostprocError P222."""
         from ..diagnostics import PostprocError
 
         try:
-            given = cls.of(base=base, tool=tool, robroot=robroot)
+            given = cls.of(base=base, tool=tool, robroot=robroot, external=external)
         except ValueError as exc:
             raise PostprocError(str(exc), "--" + str(exc).split(":")[0], 0, 0, P222) from None
         if settings is None or given is None:
             return given or settings
         return cls(base=given.base if given.base is not None else settings.base,
                    tool=given.tool if given.tool is not None else settings.tool,
-                   robroot=given.robroot if given.robroot is not None else settings.robroot)
+                   robroot=given.robroot if given.robroot is not None else settings.robroot,
+                   external=given.external or settings.external)
 
 
 @dataclass

@@ -16,7 +16,7 @@ import numpy as np
 from ... import frames as fr
 from ...diagnostics import P215
 from ..ir import Assign, Call, Decl, Field, Invoke, Item, Loc, Name, walk
-from .values import Arr, Mat, Rec, Six, Taint, Tok, Top, number, taint, tokens_of
+from .values import Arr, Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, taint, tokens_of
 
 __all__ = ["Dialect", "PoseView", "ABC", "AXIS_TYPES"]
 
@@ -42,8 +42,13 @@ class PoseView:
     loc: Loc | None
     type: str = ""
     # the target's own robot base moves (an external axis it states: a track), a Top with why and
-    # code (P225): the target is left as written as with an unknown frame; None: it stands still
+    # code (P225): the target is left as written as with an unknown frame; None: it stands still.
+    # A frame that moves with a known external unit (``values.Moving``) over the axes the target
+    # states takes the place of this Top (``targets.build``)
     moving: object = None
+    # the external axis values the target states, by the unit's axis name (``E1``…``E6``,
+    # ``GP2.J1``…; postproc.external): a number, a Tok/Taint, a Top; only the axes in use
+    external: dict | None = None
 
 
 class Dialect:
@@ -177,7 +182,7 @@ class Dialect:
             return self.compose(an, args)
         if op == "inv":
             m = self.frame(an, args[0])
-            return m if isinstance(m, Top) else Mat(fr.inverse(m.m), f"INV_POS({m.label})", m.tokens)
+            return m if isinstance(m, Top) else frame_inverse(m, f"INV_POS({m.label})")
         logical = op in ("==", "<>", "!=", "<", "<=", ">", ">=", "and", "or", "xor", "not")
         if logical:
             for a in args:
@@ -196,14 +201,33 @@ class Dialect:
         *lefts, right = args
         m = np.eye(4)
         labels, toks = [], set()
+        moving = None
         for a in lefts:
             f = self.frame(an, a)
             if isinstance(f, Top):
                 return f
+            if isinstance(f, Moving) or moving is not None:  # (a frame on an external unit)
+                moving = frame_product(moving if moving is not None else Mat(m, "", frozenset(toks)), f)
+                if isinstance(moving, Top):
+                    return moving
+                continue
             m = m @ f.m
             labels.append(f.label)
             toks |= f.tokens
         view = self.view(right) if isinstance(right, Rec) else None
+        if moving is not None:
+            if view is not None and view.kind == "cart" and right.type not in ("FRAME",):
+                from ...diagnostics import P225
+
+                return Top(f"a pose composed with a frame on the {moving.unit.describe()}: its numbers depend on the "
+                           "unit's axis", an.loc, P225)
+            f = self.frame(an, right)
+            if isinstance(f, Top):
+                return f
+            out = frame_product(moving, f)
+            if not isinstance(out, Top):
+                out.label = ":".join(labels + [f.label])
+            return out
         if view is not None and view.kind == "cart" and right.type not in ("FRAME",):
             f = self.frame(an, right)
             if isinstance(f, Top):
@@ -216,12 +240,17 @@ class Dialect:
         f = self.frame(an, right)
         if isinstance(f, Top):
             return f
+        if isinstance(f, Moving):
+            out = frame_product(Mat(m, "", frozenset(toks)), f)
+            if not isinstance(out, Top):
+                out.label = ":".join(labels + [f.label])
+            return out
         return Mat(m @ f.m, ":".join(labels + [f.label]), frozenset(toks | f.tokens))
 
     def frame(self, an, value):
         """A value as a frame (robot base ← its coordinates): Mat, or Top with why; its tokens
         are read (they escape)."""
-        if isinstance(value, (Mat, Top)):
+        if isinstance(value, (Mat, Moving, Top)):
             if value.tokens:
                 an.consume(value, "a frame")
             return value
@@ -250,6 +279,10 @@ class Dialect:
         f = self.frame(an, value)
         if isinstance(f, Top):
             return f
+        if isinstance(f, Moving):
+            from ...diagnostics import P203
+
+            return Top(f"the tool is on the {f.unit.describe()}: a stationary tool", an.loc, P203)
         return Six(fr.matrix_to_frame(f.m), f.label)
 
     SCALARS = frozenset({"INT", "REAL", "BOOL", "CHAR", "NUM", "DNUM", "BYTE", "FLOAT"})

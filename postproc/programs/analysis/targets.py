@@ -22,7 +22,7 @@ from ...diagnostics import P201, P203, P211, P212, P214, P215, P217, P220, P221,
 from ..ir import MOTION_INDEX, Agg, Loc, Move
 from ..model import Frame, Targets
 from .execute import START, RunUse, Use
-from .values import Mat, Six, Taint, Tok, Top, number, same, tokens_of
+from .values import Mat, Moving, Six, Taint, Tok, Top, number, same, tokens_of
 
 __all__ = ["build", "Built"]
 
@@ -327,7 +327,11 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         file = next(iter(files)) if files else (view.loc.file if view.loc is not None else loc.file)
         if not isinstance(s.target, Agg):
             named = True
-        ix, why, code = frame_index(use.frame if view.moving is None else view.moving, use.tool)
+        frame, covered = _moving_at(use.frame, view, use.what)
+        if view.moving is not None and not (covered and set(view.external or ()) <= covered) \
+                and not (isinstance(frame, Top) and frame.code == P225):  # (a unit not given: that one's why)
+            frame = view.moving
+        ix, why, code = frame_index(frame, use.tool)
         aloc = view.loc or loc
         first = (_path(unit, aloc.file), aloc.line, aloc.col, use)
         if ix < 0:
@@ -381,6 +385,24 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
     return Built(targets, frames, diagnostics, notes, held, named, rows.extras(), rows.sites())
 
 
+def _moving_at(frame, view, what: str):
+    """A frame that moves with an external unit (``Moving``) at the axis value the target states:
+    (the frame, the axes it took); a target that does not state that axis as a known number:
+    Top (P225). Any other frame: (it, ())."""
+    if not isinstance(frame, Moving):
+        return frame, set()
+    unit = frame.unit
+    value = (view.external or {}).get(unit.axis)
+    e = number(value)
+    name = f"target {what}" if what else "the target"
+    if e is None or not np.isfinite(e):
+        why = value.why if isinstance(value, Top) else "not stated"
+        return Top(f"{name} moves with the {unit.describe()}, and its {unit.axis} is not known ({why})", None,
+                   P225), set()
+    label = f"{frame.label or 'frame'} at {unit.axis} {e:g}"
+    return Mat(frame.at(e), label, frame.tokens, frame.flags), {unit.axis}
+
+
 def _is_tool_unset(use) -> bool:
     tool = getattr(use, "tool", None)
     return isinstance(tool, Top) and tool.code == P221
@@ -430,7 +452,11 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
     if not n:
         key_row[use.key] = key_row.get(use.key, -1)
         return
-    ix, why, code = frame_index(use.frame, use.tool)
+    frame = use.frame
+    if isinstance(frame, Moving):  # (a run's rows carry no external axis values)
+        frame = Top(f"the targets of this run move with the {frame.unit.describe()} and state no "
+                    f"{frame.unit.axis}", None, P225)
+    ix, why, code = frame_index(frame, use.tool)
     if ix < 0:
         first = (_path(unit, int(r["file"][0])), int(r["line"][0]), int(r["col"][0]), use)
         at = first if why.code in (P220, P221) or why.loc is None else (_path(unit, why.loc.file), why.loc.line,

@@ -23,7 +23,8 @@ import numpy as np
 from ...diagnostics import P220, P221
 from ..ir import Loc
 
-__all__ = ["Top", "Tok", "Taint", "Rec", "Arr", "Mat", "Six", "join", "same", "tokens_of", "number", "is_number"]
+__all__ = ["Top", "Tok", "Taint", "Rec", "Arr", "Mat", "Moving", "Six", "join", "same", "tokens_of", "number", "is_number",
+           "frame_product", "frame_inverse"]
 
 
 class Top:
@@ -196,6 +197,66 @@ class Mat:
         return f"Mat({self.label or 'computed'})"
 
 
+class Moving:
+    """A frame that moves with an external unit's axis (``postproc.external.ExternalUnit``):
+    ``left · B(e)^(-1 if inverse) · right`` with B(e) = ``unit.base_at(e)``, known once a target
+    states e (``at``); ``label``, ``tokens`` as a Mat's."""
+
+    __slots__ = ("unit", "left", "right", "inverse", "label", "tokens", "flags", "_key")
+
+    def __init__(self, unit, left=None, right=None, inverse: bool = False, label: str = "",
+                 tokens: frozenset = frozenset(), flags: frozenset = frozenset()):
+        self.unit = unit
+        self.flags = flags
+        self.left = np.eye(4) if left is None else left
+        self.right = np.eye(4) if right is None else right
+        self.inverse = inverse
+        self.label = label
+        self.tokens = tokens
+        with np.errstate(over="ignore", invalid="ignore"):
+            self._key = (unit, inverse, np.round(self.left, 9).tobytes(), np.round(self.right, 9).tobytes())
+
+    def at(self, e: float) -> np.ndarray:
+        b = self.unit.base_at(e)
+        if self.inverse:
+            b = np.linalg.inv(b)
+        return self.left @ b @ self.right
+
+    def __eq__(self, other):
+        return isinstance(other, Moving) and other._key == self._key and other.tokens == self.tokens
+
+    def __hash__(self):
+        return hash(self._key)
+
+    def __repr__(self):
+        return f"Moving({self.unit.name}, {self.label or 'computed'})"
+
+
+def frame_product(a, b, label: str = ""):
+    """``a · b`` of two frames (Mat or Moving): a Mat, a Moving, or Top where both move (two
+    external units in one frame: not taken)."""
+    from ...diagnostics import P225
+
+    toks = a.tokens | b.tokens
+    if isinstance(a, Mat) and isinstance(b, Mat):
+        return Mat(a.m @ b.m, label, toks, a.flags | b.flags)
+    flags = a.flags | b.flags
+    if isinstance(a, Mat):
+        return Moving(b.unit, a.m @ b.left, b.right, b.inverse, label, toks, flags)
+    if isinstance(b, Mat):
+        return Moving(a.unit, a.left, a.right @ b.m, a.inverse, label, toks, flags)
+    if a.unit == b.unit and a.inverse != b.inverse and np.allclose(a.right @ b.left, np.eye(4), atol=1e-9):
+        return Mat(a.left @ b.right, label, toks, flags)  # (B(e)^-1 · B(e): the unit cancels)
+    return Top(f"{a.unit.describe()} and {b.unit.describe()} both move this frame: postproc takes one external "
+               "unit per frame", None, P225)
+
+
+def frame_inverse(a, label: str = ""):
+    if isinstance(a, Mat):
+        return Mat(np.linalg.inv(a.m), label, a.tokens, a.flags)
+    return Moving(a.unit, np.linalg.inv(a.right), np.linalg.inv(a.left), not a.inverse, label, a.tokens, a.flags)
+
+
 class Six(tuple):
     """Six numbers X,Y,Z,A,B,C (a tool), with the ``label`` it is named by in messages
     (``TOOL_DATA[1]``); equal by its numbers."""
@@ -234,7 +295,7 @@ def tokens_of(v, out: set | None = None) -> set:
     elif isinstance(v, Arr):
         for x in v.elems.values():
             tokens_of(x, out)
-    elif isinstance(v, (Mat, Top)):
+    elif isinstance(v, (Mat, Moving, Top)):
         out |= v.tokens
     return out
 

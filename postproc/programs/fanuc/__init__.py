@@ -76,7 +76,7 @@ def read_frames(text: str | None, path: str = "--frames") -> tuple[dict[int, np.
         raise PostprocError(f"frame file is not TOML: {exc.msg if hasattr(exc, 'msg') else exc}", path, line, col,
                             P118) from None
     for key in data:
-        if key not in ("uframe", "utool"):
+        if key not in ("uframe", "utool", "external"):
             raise PostprocError(f"frame file: unknown table [{key}] (expected [uframe.N] or [utool.N])", path, 0, 0,
                                 P118)
     for kind, out in (("uframe", uframes), ("utool", utools)):
@@ -109,22 +109,37 @@ def insert_stamp(text: str, stamp: str, newline: str) -> str:
     return head + f"{number:4d}:  {stamp} ;" + newline + text[body_end:]
 
 
-def lower(files: list[str], texts: list[str], frames: list[str] | None = None):
-    """The motion IR of an LS program and its dialect (what ``read`` analyses)."""
+def frame_file_units(text: str | None, path: str = "--frames") -> tuple:
+    """The ``[[external]]`` units of a frame file (a group-2 track, a positioner:
+    postproc.external), () where it has none."""
+    if not text or "external" not in text:
+        return ()
+    data = tomllib.loads(text)
+    if "external" not in data:
+        return ()
+    from ...external import _line_of, parse_external
+
+    return parse_external(data["external"], path, _line_of(text))
+
+
+def lower(files: list[str], texts: list[str], frames: list[str] | None = None, external: tuple = ()):
+    """The motion IR of an LS program and its dialect (what ``read`` analyses); ``external``:
+    the external units' kinematics (the frame file's ``[[external]]`` are added)."""
     if len(files) != 1:
         raise PostprocError("an LS program is one .ls file", files[0] if files else "<none>", 0, 0, P108)
     if frames and len(frames) > 1:
         raise PostprocError("one frame file (--frames) per LS program", files[0], 0, 0, P118)
     uframes, utools = read_frames(frames[0] if frames else None)
+    external = tuple(external or ()) or frame_file_units(frames[0] if frames else None)
     lowering = Lowering(files[0], texts[0])
     unit = lowering.lower()
-    return unit, LS(uframes, utools, lowering.registers)
+    return unit, LS(uframes, utools, lowering.registers, external=external)
 
 
-def read(files: list[str], texts: list[str], frames: list[str] | None = None) -> FanucProgram:
+def read(files: list[str], texts: list[str], frames: list[str] | None = None, external: tuple = ()) -> FanucProgram:
     """Read an LS program (one file); ``frames`` holds the text of the frame file (TOML).
     Raises PostprocError (P101 syntax, P118 position or frame file, P103) on bad input."""
-    unit, dialect = lower(files, texts, frames)
+    unit, dialect = lower(files, texts, frames, external)
     built = analyse(unit, dialect)
     text = texts[0]
     stamps = {}

@@ -234,6 +234,14 @@ class Lowering:
             items.append((which.upper(), Lit(float(tokens[v][0])) if isinstance(v, int) else Lit(v or "F")))
         if "config" in gp1:
             items.append(("CONFIG", Lit(tokens[gp1["config"]][0][1:-1])))
+        # the extended axes' and the other groups' values (a track's position: postproc.external)
+        for axis in list(gp1.get("ext", ())) + list(gp1.get("axes", {})):
+            ordinal, signed = gp1[axis] if axis in gp1 else gp1["axes"][axis]
+            if ordinal == "*":
+                items.append((axis, Unknown(f"P[{n}]'s {axis} is not taught (********)", P211)))
+            else:
+                value, s, e = self.number(tokens, ordinal, signed)
+                items.append((axis, Num(value, 0, s, e)))
         if others or gp1.get("ext"):
             what = ", ".join(([f"extended axes {', '.join(gp1['ext'])}"] if gp1.get("ext") else []) +
                              ([f"group{'s' if len(others) > 1 else ''} {', '.join(others)}"] if others else []))
@@ -929,10 +937,17 @@ def _analyse(tree, ordinal_at) -> tuple:
     'config': ordinal, 'units': {axis: unit}, 'ext': [E1…]} | None, the other groups' names)."""
     out = None
     others = []
+    axes: dict = {}  # the other groups' axes: "GP2.J1" → (ordinal | '*', signed) (a track's value)
     for group in tree.find_data("group"):
         name = str(group.children[0])
         if name != "GP1":
             others.append(name)
+            for item in group.children[1:]:
+                if item.data == "component":
+                    number = item.children[1].children[-1]
+                    axes[f"{name}.{item.children[0]}"] = ("*", False) if number.type == "STARS" else \
+                        (ordinal_at[number.start_pos], len(item.children[1].children) > 1
+                         and item.children[1].children[0] is not None)
             continue
         out = {"units": {}, "ext": []}
         for item in group.children[1:]:
@@ -956,6 +971,8 @@ def _analyse(tree, ordinal_at) -> tuple:
                 out["units"][axis] = str(unit) if unit is not None else ""
                 if axis.startswith("E"):
                     out["ext"].append(axis)
+    if out is not None:
+        out["axes"] = axes
     return out, tuple(others)
 
 

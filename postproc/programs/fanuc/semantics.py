@@ -23,16 +23,23 @@
   which only the program's own statements change); one started with ``RUN`` runs beside it and
   may change the registers at any time.
 * A position that moves other groups (``GP2``…) or extended axes (``E1``…) is reached with axes
-  postproc has no kinematics of (a track, a positioner: issue 25): left as written (P225).
+  postproc has no kinematics of (a track, a positioner): left as written (P225) — unless a track
+  that carries the robot is given (``--external`` or the frame file's ``[[external]]``, axis
+  ``E1`` or ``GP2.J1``) and it is the only axis the position moves: the user frames stand in the
+  world, the robot's base rides the track at the position's value (``_on_track``).
 """
 from __future__ import annotations
+
+import re
 
 import numpy as np
 
 from ... import frames as fr
 from ...diagnostics import P201, P203, P211, P215, P223, P225
 from ..analysis.dialect import Dialect, PoseView
-from ..analysis.values import Mat, Rec, Six, Taint, Tok, Top, number, tokens_of
+from ..analysis.values import Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, tokens_of
+
+_EXTERNAL = re.compile(r"^(?:E[1-9]|GP[2-9]\.J[1-9])$")
 
 __all__ = ["LS", "COMPONENTS"]
 
@@ -51,8 +58,12 @@ class LS(Dialect):
     frame_names = ("UFRAME_NUM", "UTOOL_NUM")
     undeclared_hint = ""
 
-    def __init__(self, uframes: dict, utools: dict, registers=()):
+    def __init__(self, uframes: dict, utools: dict, registers=(), external: tuple = ()):
         super().__init__()
+        self.external = tuple(external or ())
+        # a track that carries the robot (group 1's extended axis E1 or a group-2 axis GP2.J1): the
+        # user frames stand in the world, the robot's base rides on the track
+        self.track = next((u for u in self.external if u.carries == "robot"), None)
         self.uframes = uframes
         self.utools = utools
         self.registers = set(registers)
@@ -127,6 +138,8 @@ class LS(Dialect):
         v = super().view(value)
         if value.type == "JOINTS":
             v.kind = "axis"
+        if v.kind == "cart":  # (group 1's extended axes E1…, the other groups' GP2.J1…: postproc.external)
+            v.external = {k: x for k, x in value.fields.items() if _EXTERNAL.match(k)}
         return v
 
     def tool(self, an, value):
@@ -172,10 +185,12 @@ def uframe_of(an, st, args, call):
     key, moving = an.lookup("$MOVING", st)
     if key is not None and isinstance(moving, Top):  # (line tracking: every target moves with the conveyor)
         return moving
+    track = an.dialect.track
     if isinstance(target, Rec):
         ext = target.fields.get("EXT")
-        if isinstance(ext, str):
-            return Top(ext, an.loc, P225)
+        moved = {k for k in target.fields if _EXTERNAL.match(k)}
+        if isinstance(ext, str) and (track is None or moved != {track.axis}):
+            return Top(ext if track is None else f"{ext} (the track given is {track.axis})", an.loc, P225)
         uf = target.fields.get("UF")
         if uf is not None:
             n = _frame_no(uf)
@@ -186,13 +201,22 @@ def uframe_of(an, st, args, call):
             if active is not None and active != n:
                 return Top(f"the position is taught in UF {n} and UFRAME_NUM={active} is selected: the controller "
                            f"stops (user frame mismatch) or, with its frame check off, moves in UF {active}", an.loc, P201)
-            return _frame(an, st, f"UFRAME[{n}]")
+            return _on_track(an, _frame(an, st, f"UFRAME[{n}]"))
     if isinstance(selected, Top):
         return selected
     n = _frame_no(selected)
     if n is None:
         return Top("UFRAME_NUM is not a frame number", an.loc, P201)
-    return _frame(an, st, f"UFRAME[{n}]")
+    return _on_track(an, _frame(an, st, f"UFRAME[{n}]"))
+
+
+def _on_track(an, frame):
+    """A user frame (fixed in the world) seen from the robot's base on the track: the track at the
+    target's axis value, inverted, times the frame (postproc.external)."""
+    track = an.dialect.track
+    if track is None or isinstance(frame, Top):
+        return frame
+    return frame_product(frame_inverse(Moving(track, label="track")), frame, frame.label)
 
 
 def _frame(an, st, name):

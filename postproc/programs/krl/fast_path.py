@@ -15,6 +15,7 @@ from ..ir import MOTION_INDEX as _MOTION
 from .lower import _AXIS_KEYS, _KIND_OF, mark_brace as _mark_brace
 
 _COMP = {k: i for i, k in enumerate(("X", "Y", "Z", "A", "B", "C"))}
+_EXTERNAL_KEYS = frozenset(f"E{k}" for k in range(1, 7))
 
 
 class _Shape:
@@ -84,6 +85,8 @@ def _hot_aggregate(agg, shape):
     if typ is not None and typ not in ("POS", "E6POS"):
         return None
     if typ is None and (keys.keys() & _AXIS_KEYS or not keys.keys() & {"X", "Y", "Z"}):
+        return None
+    if keys.keys() & _EXTERNAL_KEYS:  # (E1…E6: a track's or a turntable's position, read by the analysis)
         return None
     slots, neg, gap, st = [-1] * 6, [False] * 6, [0] * 6, [-1, -1]
     for k, v in keys.items():

@@ -31,7 +31,7 @@ from ...diagnostics import P107, P226, P408, PostprocError, line_col
 from ..model import ActiveFrames, RobotRoot
 from .syntax import _NUM
 
-__all__ = ["MACHINE_NAME", "CUSTOM_NAME", "is_machine", "robroot_of", "read_machine", "found_machine", "beside_config",
+__all__ = ["MACHINE_NAME", "CUSTOM_NAME", "is_machine", "robroot_of", "ersys_unit", "read_machine", "found_machine", "beside_config",
            "with_machine", "robroot_option", "AccuracyModel", "accuracy_model", "backup_accuracy"]
 
 MACHINE_NAME = "$machine.dat"
@@ -64,9 +64,15 @@ def robroot_of(text: str, path: str) -> RobotRoot:
     track = _ERSYS.search(kin.group(1)) if kin else None
     if track:
         line, _ = line_col(text, kin.start())
-        return RobotRoot(None, path, f"the robot is on an external kinematic ($EX_KIN {track.group(1).upper()} "
-                         f"#ERSYS, {path}:{line}: a track): its $ROBROOT moves with that kinematic's axes and is "
-                         "known only at run time")
+        et = track.group(1).upper()
+        unit, missing = ersys_unit(text, path, et)
+        where = f"$EX_KIN {et} #ERSYS, {path}:{line}: a track"
+        if unit is not None:
+            return RobotRoot(None, path, f"the robot is on an external kinematic ({where}): its $ROBROOT moves with "
+                             f"{unit.axis}", unit)
+        return RobotRoot(None, path, f"the robot is on an external kinematic ({where}): its $ROBROOT moves with that "
+                         f"kinematic's axes, whose kinematics the machine data do not give ({missing}; give them with "
+                         "--external)")
     found = sorted(_ROBROOT.finditer(text), key=lambda m: m.group(1) is None)  # ($ROBROOT_C first)
     if not found:
         raise PostprocError("no $ROBROOT_C in this machine data: give --robroot X,Y,Z,A,B,C", path, 0, 0, P226)
@@ -86,6 +92,59 @@ def robroot_of(text: str, path: str) -> RobotRoot:
                             path, line, col, P226)
     line, _ = line_col(text, m.start())
     return RobotRoot(tuple(six[k] for k in "XYZABC"), f"$ROBROOT{m.group(1) or ''} of {path}:{line}")
+
+
+def _frame(text: str, name: str) -> tuple | None:
+    """The six numbers of ``FRAME <name>={X …,…}`` in machine data, None where absent or not six
+    numbers."""
+    m = re.search(r"^[ \t]*(?:DECL[ \t]+)?FRAME[ \t]+" + re.escape(name) + r"[ \t]*=[ \t]*\{([^}\r\n]*)\}", text,
+                  re.I | re.M)
+    if m is None:
+        return None
+    six: dict[str, float] = {}
+    for part in m.group(1).split(","):
+        c = _COMPONENT.fullmatch(part)
+        if c is None or c.group(1).upper() in six:
+            return None
+        six[c.group(1).upper()] = float(c.group(2))
+    return tuple(six[k] for k in "XYZABC") if len(six) == 6 else None
+
+
+def ersys_unit(text: str, path: str, et: str = "ET1"):
+    """The track ``et`` of machine data (``$EX_KIN {ET1 #ERSYS}``) as an ExternalUnit carrying
+    the robot: one axis (``$ET1_AX``'s TR_A1, TR_A2/TR_A3 #NONE) of ``$AXIS_TYPE[6+k]`` 1
+    (linear, mm) or 3/5 (rotational, deg), moving along / about the Z axis of ``$ET1_TA1KR``;
+    world ← robot base = ``$ERSYSROOT : $ET1_TA1KR : joint(E) : $ET1_TFLA3`` (KUKA's machine data
+    documentation, KR C2 "Machine Data" 2.1.4 $AXIS_TYPE and 2.2.x $ET1_…; docs/EXTERNAL.md).
+    (unit, None), or (None, what is missing) — never a guess."""
+    from ...external import ExternalUnit
+    from ...frames import compose, frame_to_matrix, matrix_to_frame
+
+    ax = re.search(r"^[ \t]*(?:DECL[ \t]+)?ET_AX[ \t]+\$" + et + r"_AX[ \t]*=[ \t]*\{([^}\r\n]*)\}", text, re.I | re.M)
+    if ax is None:
+        return None, f"no ${et}_AX"
+    axes = dict(re.findall(r"(TR_A[123])[ \t]+#(\w+)", ax.group(1).upper()))
+    first = axes.get("TR_A1", "NONE")
+    if not re.fullmatch(r"E[1-6]", first):
+        return None, f"${et}_AX names no external axis E1…E6 as TR_A1"
+    if any(axes.get(k, "NONE") != "NONE" for k in ("TR_A2", "TR_A3")):
+        return None, f"${et}_AX names more than one axis (postproc takes a one-axis track)"
+    k = int(first[1])
+    t = re.search(r"^[ \t]*\$AXIS_TYPE\[[ \t]*" + str(6 + k) + r"[ \t]*\][ \t]*=[ \t]*(\d+)", text, re.M)
+    kind = {"1": "prismatic", "3": "rotary", "5": "rotary"}.get(t.group(1)) if t else None
+    if kind is None:
+        return None, f"$AXIS_TYPE[{6 + k}] (the type of {first}) is not 1, 3 or 5" if t else f"no $AXIS_TYPE[{6 + k}]"
+    frames = {}
+    for name in ("$ERSYSROOT", f"${et}_TA1KR", f"${et}_TFLA3"):
+        f = _frame(text, name)
+        if f is None:
+            return None, f"no {name} frame"
+        frames[name] = f
+    mount = matrix_to_frame(compose(frame_to_matrix(frames["$ERSYSROOT"]), frame_to_matrix(frames[f"${et}_TA1KR"])))
+    line, _ = line_col(text, ax.start())
+    return ExternalUnit(name=et, type=kind, axis=first, carries="robot", direction=(0.0, 0.0, 1.0),
+                        mount=tuple(float(v) for v in mount), flange=frames[f"${et}_TFLA3"],
+                        source=f"{path}:{line}"), None
 
 
 def read_machine(path: str | Path) -> RobotRoot:

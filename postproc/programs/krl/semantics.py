@@ -4,11 +4,13 @@
   :func:`frame_of` (``KRL.FRAME``); its tool ``$TOOL``. At a program's start they are what its
   user states (``ActiveFrames``: ``--base``/``--tool``/``--robroot``, a backup's machine data)
   or not set (P220/P221 at the targets that need them); $ROBROOT not known is the robot base =
-  world, said once (P224); on a track it is known only at run time (P225).
+  world, said once (P224). On a track whose kinematics are given (``--external``, the machine
+  data's $ERSYS kinematic: ``KRL.track``) $ROBROOT moves with it (``values.Moving``), known at
+  each target from the E1… it states; a track whose kinematics are not given: P225.
 * ``BAS(#BASE, n)`` is KSS's bas.src: ``$BASE = BASE_DATA[n]`` (n = 0: $NULLFRAME), on top of
-  it ``BASE_CORR`` where ``BASE_CORR_ON`` is TRUE, and not known where
-  ``MACHINE_FRAME_DAT[n].MACH_DEF_INDEX`` names an external kinematic (a turntable, a
-  positioner: the base moves with its axes). ``BAS(#TOOL, n)`` likewise with TOOL_DATA and
+  it ``BASE_CORR`` where ``BASE_CORR_ON`` is TRUE; where ``MACHINE_FRAME_DAT[n].MACH_DEF_INDEX``
+  names an external kinematic (a turntable, a positioner) the base moves with its axis: known at
+  each target where a unit with that ``machine_def`` is given (``KRL.positioner``), else P225. ``BAS(#TOOL, n)`` likewise with TOOL_DATA and
   MACHINE_TOOL_DAT. ``BAS(#PTP_PARAMS|#CP_PARAMS|#FRAMES, …)`` take both from ``FDAT_ACT``
   (TOOL_NO, BASE_NO; ``IPO_FRAME #TCP``: an external TCP, not supported). Variables the
   program and the files read do not declare (``BASE_CORR_ON``) are KSS's defaults (FALSE, 0).
@@ -32,7 +34,7 @@ import numpy as np
 from ...diagnostics import P201, P203, P211, P215, P220, P221, P222, P223, P225, PostprocError
 from ...frames import frame_to_matrix
 from ..analysis.dialect import Dialect, PoseView
-from ..analysis.values import Arr, Mat, Rec, Six, Tok, Top, number
+from ..analysis.values import Arr, Mat, Moving, Rec, Six, Tok, Top, frame_inverse, frame_product, number
 from ..ir import Loc
 
 __all__ = ["KRL", "HARMLESS", "BUILTIN_FUNCTIONS"]
@@ -57,6 +59,7 @@ SYSTEM_HANDLERS = frozenset({"IR_STOPM"})
 STANDARD_AXIS = re.compile(r"^XHOME\d*$|^\$AXIS_\w+$|^\$H_AXIS\w*$", re.I)
 RUNTIME_POS = re.compile(r"^\$POS_\w+$", re.I)
 _XYZABC = ("X", "Y", "Z", "A", "B", "C")
+_EXTERNAL = tuple(f"E{k}" for k in range(1, 7))
 _FRAMES = ("$BASE", "$TOOL", "$ROBROOT")
 _EYE = np.eye(4)
 
@@ -89,6 +92,23 @@ class KRL(Dialect):
             self.procedures[name] = _harmless
         self.functions = {"KRL.EK": ek, "KRL.FRAME": frame_of, "KRL.SBASE": sbase, "KRL.STOOL2": stool2, "KRL.BUILTIN": builtin,
                           "KRL.IPO_BASE": ipo_base}
+
+    # ---------------------------------------------------------------- external units
+    def track(self):
+        """The unit that carries the robot (postproc.external): the one stated (--external),
+        else the machine data's $ERSYS kinematic; None: the robot stands still (or its track's
+        kinematics are not given: $ROBROOT not known, P225)."""
+        active = self.active
+        stated = next((u for u in getattr(active, "external", ()) if u.carries == "robot"), None)
+        if stated is not None:
+            return stated
+        robroot = getattr(active, "robroot", None)
+        return getattr(robroot, "unit", None)
+
+    def positioner(self, index: int):
+        """The unit stated for KUKA's ``MACHINE_DEF[index]`` (a turntable that carries a base), or None."""
+        return next((u for u in getattr(self.active, "external", ()) if u.carries == "workpiece"
+                     and u.machine_def == index), None)
 
     # ---------------------------------------------------------------- names
     def procedure(self, name: str):
@@ -173,6 +193,8 @@ class KRL(Dialect):
         v = super().view(value)
         if v.kind == "cart" and value.type in ("E6AXIS", "AXIS"):
             v.kind = "axis"
+        if v.kind == "cart":  # (E1…E6 of an E6POS: where a track or a turntable stands)
+            v.external = {k: value.fields[k] for k in _EXTERNAL if k in value.fields}
         if v.kind == "other" and self.strucs.get(value.type):
             v.kind = "other"
         return v
@@ -218,6 +240,14 @@ def frame_of(an, st, args, call):
     b = d.frame(an, base)
     if isinstance(b, Top):
         return _frame_top(b)
+    if isinstance(r, Moving) or isinstance(b, Moving):  # (a track, a base on a turntable: postproc.external)
+        out = frame_product(frame_inverse(r), b, b.label)
+        for x in lefts:
+            f = d.frame(an, x)
+            if isinstance(f, Top) or isinstance(out, Top):
+                return _frame_top(f if isinstance(f, Top) else out)
+            out = frame_product(out, f, f"{out.label}:{f.label}" if out.label else f.label)
+        return _frame_top(out) if isinstance(out, Top) else out
     m = b.m if r.m is _EYE or np.array_equal(r.m, _EYE) else np.linalg.inv(r.m) @ b.m
     label = b.label
     toks = r.tokens | b.tokens
@@ -225,6 +255,9 @@ def frame_of(an, st, args, call):
         f = d.frame(an, x)
         if isinstance(f, Top):
             return _frame_top(f)
+        if isinstance(f, Moving):
+            out = frame_product(Mat(m, label, toks, r.flags), f, f"{label}:{f.label}" if label else f.label)
+            return _frame_top(out) if isinstance(out, Top) else out
         m = m @ f.m
         label = f"{label}:{f.label}" if label else f.label
         toks |= f.tokens
@@ -287,9 +320,18 @@ def _base(an, st, n, via: str):
             return Top(f"MACHINE_FRAME_DAT[{n}] (is BASE_DATA[{n}] on an external kinematic?) is not known", an.loc,
                        P201)
     elif index > 0:
-        return Top(f"BASE_DATA[{n}] is on the external kinematic MACHINE_DEF[{index}] "
-                   "(MACHINE_FRAME_DAT[{}].MACH_DEF_INDEX {}): it moves with that unit's axes".format(n, index),
-                   an.loc, P225)
+        unit = an.dialect.positioner(index)
+        if unit is None:
+            return Top(f"BASE_DATA[{n}] is on the external kinematic MACHINE_DEF[{index}] "
+                       "(MACHINE_FRAME_DAT[{}].MACH_DEF_INDEX {}): it moves with that unit's axes, whose kinematics "
+                       "are not given (--external with machine_def = {})".format(n, index, index), an.loc, P225)
+        f = an.dialect.frame(an, frame)
+        if isinstance(f, Top):
+            return f
+        if _base_corr_on(an, st) is not False:
+            return Top(f"BASE_CORR on a base on the external kinematic MACHINE_DEF[{index}] is not supported", an.loc,
+                       P225)
+        return Moving(unit, None, f.m, False, f"MACHINE_DEF[{index}]:BASE_DATA[{n}]", f.tokens)
     key, on = an.lookup("BASE_CORR_ON", st)
     on = on if key is not None else False
     if on is True:
@@ -304,6 +346,11 @@ def _base(an, st, n, via: str):
     if on is not False:
         return Top("BASE_CORR_ON (a BASE_CORR on top of the base) is known only at run time", an.loc, P201)
     return frame
+
+
+def _base_corr_on(an, st):
+    key, on = an.lookup("BASE_CORR_ON", st)
+    return on if key is not None else False
 
 
 def _tool(an, st, n, via: str):
@@ -422,7 +469,10 @@ def start(an, st, args, loc):
     elif active is not None and active.tool is not None:
         tool = _stated(an, st, active.tool, "tool")
     robroot = None if active is None else active.robroot
-    if robroot is None:
+    track = d.track()
+    if track is not None:  # (the robot on a track: $ROBROOT moves with its axis, known at each target)
+        rr = Moving(track, label="$ROBROOT")
+    elif robroot is None:
         rr = Mat(_EYE, "", flags=frozenset([ASSUMED]))
     elif robroot.frame is None:
         rr = Top(f"$ROBROOT not statically known: {robroot.why} (state it with --robroot X,Y,Z,A,B,C if the track "

@@ -28,34 +28,37 @@ class RapidProgram(Program):
     confdata: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
 
 
-def read(files: list[str], texts: list[str], config: list[str] | None = None, accelerate: bool = True) -> RapidProgram:
+def read(files: list[str], texts: list[str], config: list[str] | None = None, accelerate: bool = True,
+         external: tuple = ()) -> RapidProgram:
     """Read RAPID module(s) ``files`` with contents ``texts`` as one task; ``config`` holds the
     texts of other modules (e.g. a .sys) whose data the motions may name and whose routines
     they may call (read-only: never rewritten). ``accelerate=False`` lowers every motion
     through its tree (no MoveRun of inline robtargets: the same result, slower; for tests).
+    ``external``: the external units' kinematics (postproc.external: a track, a positioner).
     Raises PostprocError (P1xx, with path:line:col) on bad input."""
     enabled = gc.isenabled()
     gc.disable()  # (many small objects, no cycles: the collector only costs time here)
     try:
-        return Reader(list(files), list(texts), list(config or []), accelerate).run()
+        return Reader(list(files), list(texts), list(config or []), accelerate, external).run()
     finally:
         if enabled:
             gc.enable()
 
 
 def lower(files: list[str], texts: list[str], config: list[str] | None = None,
-          accelerate: bool = True) -> tuple[Unit, RAPID]:
+          accelerate: bool = True, external: tuple = ()) -> tuple[Unit, RAPID]:
     """The motion IR of RAPID module(s) and their dialect (what ``read`` analyses)."""
-    reader = Reader(list(files), list(texts), list(config or []), accelerate)
+    reader = Reader(list(files), list(texts), list(config or []), accelerate, external)
     return reader.lower()
 
 
 class Reader:
-    def __init__(self, files, texts, config, accelerate: bool = True):
+    def __init__(self, files, texts, config, accelerate: bool = True, external: tuple = ()):
         if len(files) != len(texts):
             raise ValueError("files and texts differ in length")
         self.files, self.texts, self.config = files, texts, config
         self.accelerate = accelerate
+        self.external = tuple(external or ())
         self.config_names = ["--config" if len(config) == 1 else f"--config[{k}]" for k in range(len(config))]
 
     def lower(self) -> tuple[Unit, RAPID]:
@@ -79,7 +82,7 @@ class Reader:
         else:  # the routines nothing calls (the analysis runs the others nothing reached after them)
             called = set().union(*low.calls.values()) if low.calls else set()
             unit.entries = [k for k in routines if k not in called]
-        return unit, RAPID(readonly=low.readonly, consts=low.consts, written=low.written)
+        return unit, RAPID(readonly=low.readonly, consts=low.consts, written=low.written, external=self.external)
 
     def run(self) -> RapidProgram:
         unit, dialect = self.lower()

@@ -14,12 +14,14 @@ S4/IRC5 (pages ``8-PDispOn``, ``8-PDispSet``, ``Offs``, ``RelTool``).
   coordinate system), the world frame taken as the robot base. A work object held by the
   robot (``robhold`` TRUE: a stationary tool) is not known statically (P201); one whose user
   frame a mechanical unit moves (``ufprog`` FALSE: coordinated with ``ufmec``) moves with that
-  unit's axes (P225).
+  unit's axis: known at each robtarget's ``eax_…`` where a unit with that ``mech_unit`` is given
+  (``--external``: postproc.external), else P225. A robot on a track (a unit that carries the
+  robot) sees every frame through the track at the robtarget's axis value.
 * A motion's tool (``RAPID.TOOL``) is its ``tooldata``'s ``tframe``; a stationary tool
   (``robhold`` FALSE) is not known (P203).
 * A robtarget that states an external axis (``eax_a … eax_f`` other than 9E9: a track, a
-  positioner coordinated with the robot) is left as written (P225): without that unit's
-  kinematics its pose in the robot's base is not known.
+  positioner coordinated with the robot) is left as written (P225) unless the units given cover
+  every axis it uses: without that unit's kinematics its pose in the robot's base is not known.
 * ``Offs(p, dx, dy, dz)`` is ``p`` displaced in the object frame: p's tokens + the offset;
   ``RelTool(p, dx, dy, dz \\Rx \\Ry \\Rz)`` displaced in the tool frame (``R(p.rot)·d``: p's
   tokens + that offset) and turned about x, then the new y, then the new z.
@@ -41,7 +43,8 @@ import numpy as np
 from ... import frames as fr
 from ...diagnostics import P201, P203, P211, P215, P223, P225
 from ..analysis.dialect import Dialect, PoseView
-from ..analysis.values import Arr, Mat, Rec, Six, Taint, Tok, Top, number, taint, tokens_of
+from ..analysis.values import (Arr, Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, taint,
+                               tokens_of)
 
 __all__ = ["RAPID", "RECORDS", "INSTRUCTIONS", "FUNCTIONS", "UNUSED_AXIS", "wobj0", "tool0"]
 
@@ -178,8 +181,13 @@ class RAPID(Dialect):
     frame_names = ("C_PROGDISP",)
     undeclared_hint = "declared in a module not given? give it too, or with --config"
 
-    def __init__(self, readonly: set | None = None, consts: set | None = None, written: dict | None = None):
+    def __init__(self, readonly: set | None = None, consts: set | None = None, written: dict | None = None,
+                 external: tuple = ()):
         super().__init__()
+        # the external units' kinematics (postproc.external): a track that carries the robot's
+        # base (its robtargets' eax_… says where), positioners a work object is coordinated with
+        self.track = next((u for u in external if u.carries == "robot"), None)
+        self.mech_units = {u.mech_unit.upper(): u for u in external if u.carries == "workpiece" and u.mech_unit}
         self.readonly = set(readonly or ())
         self.consts = set(consts or ())
         self.written = written or {}  # canonical name → as the program writes it (messages)
@@ -272,6 +280,7 @@ class RAPID(Dialect):
             view = PoseView("cart", _parts(trans, _XYZ), _parts(rot, _Q), "quaternion", (-1, -1), value.loc, t)
             if t == "ROBTARGET":
                 view.moving = _moving(value)
+                view.external = _external(value)
             return view
         if t in ("JOINTTARGET", "ROBJOINT"):
             return PoseView("axis", [None] * 3, [None] * 4, "quaternion", (-1, -1), value.loc, t)
@@ -332,6 +341,20 @@ def _moving(target: Rec):
     return None
 
 
+def _external(target: Rec) -> dict:
+    """The external axes a robtarget uses (eax_a … eax_f not 9E9) as E1 … E6 (postproc.external)."""
+    extax = target.fields.get("EXTAX")
+    if not isinstance(extax, Rec):
+        return {}
+    out = {}
+    for k, name in enumerate(_EAX):
+        v = extax.fields.get(name)
+        x = number(v)
+        if v is not None and (x is None or abs(x) < UNUSED_AXIS):
+            out[f"E{k + 1}"] = v
+    return out
+
+
 def confdata(target) -> list:
     """cf1, cf4, cf6, cfx of a robtarget value (NaN where not a number)."""
     cf = target.fields.get("ROBCONF") if isinstance(target, Rec) else None
@@ -383,7 +406,15 @@ def frame_of(an, st, args, call):
             an.consume(result, "a work object's frame")
         return result
     result = _wobj_frame(an, wobj, label)
-    if isinstance(result, Mat):
+    if isinstance(result, (Mat, Moving)) and d.track is not None:  # (the robot's base rides on the track)
+        result = frame_product(frame_inverse(Moving(d.track, label="track")), result, result.label)
+    if isinstance(result, Moving):
+        p = d.frame(an, pdisp)
+        if isinstance(p, Top):
+            result = Top(f"the program displacement is not known ({p.why})", p.loc, P201)
+        elif not (p.m is _EYE or np.array_equal(p.m, _EYE)):
+            result = frame_product(result, p, f"{result.label}:PDisp")
+    elif isinstance(result, Mat):
         p = d.frame(an, pdisp)
         if isinstance(p, Top):
             result = Top(f"the program displacement is not known ({p.why})", p.loc, P201)
@@ -406,18 +437,25 @@ def _wobj_frame(an, w, label: str):
             return Top(f"work object {name} is held by the robot (robhold TRUE): a stationary-tool program", an.loc,
                        P201)
         return Top(f"work object {name}: its robhold is not known here", an.loc, P201)
+    d = an.dialect
+    moved = None
     if ufprog is not True:
         if ufprog is False:
             unit = ufmec if isinstance(ufmec, str) and ufmec.strip('"') else "a mechanical unit"
-            return Top(f"work object {name}'s user frame is moved by the mechanical unit {unit} (ufprog FALSE: "
-                       "coordinated): it moves with that unit's axes", an.loc, P225)
-        return Top(f"work object {name}: its ufprog is not known here", an.loc, P201)
-    d = an.dialect
+            moved = d.mech_units.get(unit.strip('"').upper())
+            if moved is None:
+                return Top(f"work object {name}'s user frame is moved by the mechanical unit {unit} (ufprog FALSE: "
+                           "coordinated): it moves with that unit's axes, whose kinematics are not given (--external "
+                           f"with mech_unit = {unit})", an.loc, P225)
+        else:
+            return Top(f"work object {name}: its ufprog is not known here", an.loc, P201)
     uf = d.frame(an, w.get("UFRAME"))
     of = d.frame(an, w.get("OFRAME"))
     for f, which in ((uf, "uframe"), (of, "oframe")):
         if isinstance(f, Top):
             return Top(f"work object {name}'s {which} is not known ({f.why})", f.loc or an.loc, P201)
+    if moved is not None:  # (the user frame on the unit: world ← uframe = the unit at its axis value · uframe)
+        return Moving(moved, None, uf.m @ of.m, False, label, uf.tokens | of.tokens)
     return Mat(uf.m @ of.m, label, uf.tokens | of.tokens)
 
 
