@@ -13,6 +13,7 @@ from contextvars import ContextVar
 from typing import Callable, Iterator
 
 DELAY_S = 2.0
+REFRESH_S = 0.1  # (tqdm's mininterval: the bar redrawn at most this often)
 
 _ON: ContextVar[bool] = ContextVar("postproc_progress", default=False)
 
@@ -37,7 +38,7 @@ class ProgressBar:
             from tqdm import tqdm
 
             self._bar = tqdm(total=total, desc=desc, unit=unit, unit_scale=scale, leave=False,
-                             dynamic_ncols=True, delay=DELAY_S)
+                             dynamic_ncols=True, delay=DELAY_S, mininterval=REFRESH_S, miniters=1)
 
     def update(self, n: int) -> None:
         if self._bar is not None:

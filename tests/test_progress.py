@@ -48,6 +48,7 @@ def _terminal(monkeypatch):
 
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
     monkeypatch.setattr(progress, "DELAY_S", 0.0)
+    monkeypatch.setattr(progress, "REFRESH_S", 0.0)  # (every update drawn: the last count shows)
 
 
 def test_compensate_counts_its_targets_on_a_terminal_and_nothing_with_q(tmp_path, capsys, monkeypatch):
