@@ -559,7 +559,7 @@ def compensate_program(
             selection = selection.without(np.flatnonzero(np.isin(selection.rows, moved_rows)), P231)
             selection, tied = group_rule(program, selection)  # (what the rows left take with them)
             warnings += tied
-            selection.order = execution_order(program, selection, selection.base_poses)
+            selection.order = execution_order(program, selection, selection.base_poses, model)
             continue
         written = agreed.written
         if len(agreed.settled):  # (runs that differ in their approach only: the middle command)

@@ -68,16 +68,9 @@ _FORM_CONTROLLERS = {"kuka": "KUKA", "abb": "ABB", "fanuc": "FANUC"}
 _DIALECT_NAMES = {"krl": "KRL", "rapid": "RAPID", "urscript": "URScript", "fanuc": "an LS program"}
 
 
-def family_mismatch(program: Program, model: Compensator) -> str | None:
-    """Why a model that takes joint angles does not fit the controller ``program`` is written
-    for (its dialect: KRL a KUKA's, RAPID an ABB's, URScript a Universal Robots', LS a FANUC's),
-    when the description of the model's robot names another (``[robot] configuration``, or a
-    UR-type arm); None where they agree or either is not known (a pose list, a model without
-    the ``joints`` input or without a description)."""
-    wanted = DIALECT_CONTROLLERS.get(program.dialect)
-    if wanted is None or not model.wants_joints:
-        return None
-    description = model_description(model)
+def controller_of(description) -> str | None:
+    """The controller family a robot description names (``[robot] configuration``, or a UR-type
+    arm: Universal Robots'); None where it does not say."""
     if description is None:
         return None
     own = _FORM_CONTROLLERS.get(description.configuration)
@@ -88,7 +81,21 @@ def family_mismatch(program: Program, model: Compensator) -> str | None:
             own = "Universal Robots" if Robot(description).family == "ur" else None
         except PostprocError:  # (an arm postproc has no closed-form IK for: unknown)
             own = None
-    if own is None or own == wanted:
+    return own
+
+
+def family_mismatch(program: Program, model: Compensator) -> str | None:
+    """Why a model that takes joint angles does not fit the controller ``program`` is written
+    for (its dialect: KRL a KUKA's, RAPID an ABB's, URScript a Universal Robots', LS a FANUC's),
+    when the description of the model's robot names another (``[robot] configuration``, or a
+    UR-type arm); None where they agree or either is not known (a pose list, a model without
+    the ``joints`` input or without a description)."""
+    if not model.wants_joints:
+        return None
+    description = model_description(model)
+    own = controller_of(description)
+    wanted = DIALECT_CONTROLLERS.get(program.dialect)
+    if wanted is None or own is None or own == wanted:
         return None
     name = _DIALECT_NAMES[program.dialect]
     return (f"the program is {name}, written for {wanted} controllers, and the model was trained on {model.robot}, "

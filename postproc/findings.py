@@ -370,11 +370,14 @@ def group_rule(program: Program, selection: Selection) -> tuple[Selection, list[
     return selection.without(out, P230), found
 
 
-def execution_order(program: Program, selection: Selection, poses: np.ndarray) -> Order | None:
+def execution_order(program: Program, selection: Selection, poses: np.ndarray,
+                    model: Compensator | None = None) -> Order | None:
     """The selected rows' predecessors in execution order (``Targets.prev``) as positions in the
     selection; a predecessor left as written is reached at its nominal pose (``poses``: every
-    row's in the robot base, NaN where not known: then nothing is known before the row). None
-    where it is row after row."""
+    row's in the robot base, NaN where not known: then nothing is known before the row); a row
+    after a joint motion to known axis values (``Targets.start``) is reached from where those
+    axes put the TCP on the model's robot (:func:`start_poses`, for a model that takes the
+    previous pose). None where it is row after row."""
     t = program.targets
     prev = getattr(t, "prev", None)
     rows = selection.rows
@@ -393,8 +396,47 @@ def execution_order(program: Program, selection: Selection, poses: np.ndarray) -
             fixed = np.full((len(rows), 6), np.nan)
             fixed[outside[known]] = base[known]
             out[outside[known]] = -2
+    start = start_poses(program, model, selection) if model is not None else None
+    if start is not None:
+        from_axes = np.flatnonzero((out == -1) & np.isfinite(start).all(axis=1))
+        if len(from_axes):
+            fixed = np.full((len(rows), 6), np.nan) if fixed is None else fixed
+            fixed[from_axes] = start[from_axes]
+            out[from_axes] = -2
     order = Order(out, fixed)
     return None if order.sequential else order
+
+
+def start_poses(program: Program, model: Compensator, selection: Selection) -> np.ndarray | None:
+    """[len(rows), 6] the TCP pose (the model's frame) the robot stands at before each selected
+    row that follows a joint motion to known axis values (``Targets.start``: ``PTP HOME``,
+    ``movej(home_q)``), by the nominal kinematics of the model's robot with the row's tool (the
+    model's where it takes none); NaN elsewhere. None: no such row, a model without a
+    ``previous_pose`` input, or no description of its robot."""
+    t = program.targets
+    start = getattr(t, "start", None)
+    if start is None or not model.wants_previous or not len(selection.rows):
+        return None
+    axes = start[selection.rows]
+    known = np.isfinite(axes).all(axis=1)
+    if not known.any():
+        return None
+    from .controller import DIALECT_CONTROLLERS, controller_of, model_description
+    from .robot import Robot
+
+    description = model_description(model)
+    # (axis values of another controller's arm give no pose on this one)
+    if description is None or controller_of(description) != DIALECT_CONTROLLERS.get(program.dialect):
+        return None
+    card_tool = model.tool.get("frame") if model.tool else None
+    default = np.asarray(card_tool if card_tool is not None else description.tool, float)
+    tools = selection.tool if selection.tool is not None else np.broadcast_to(default, (len(axes), 6))
+    out = np.full((len(axes), 6), np.nan)
+    rows = np.flatnonzero(known)
+    for tool in np.unique(tools[rows], axis=0):
+        same = rows[(tools[rows] == tool).all(axis=1)]
+        out[same] = Robot(description.replace(tool=np.asarray(tool, float))).fk(axes[same])
+    return out
 
 
 def frame_rule(program: Program, use: np.ndarray) -> list[Diagnostic]:
@@ -551,7 +593,7 @@ def select_with_findings(program: Program, model: Compensator, settings: Setting
         left[P218] = np.flatnonzero(unstated)
     selection = Selection(rows, poses[rows], left=left)
     out += reach_rule(program, model, settings, selection)
-    selection.order = execution_order(program, selection, poses)
+    selection.order = execution_order(program, selection, poses, model)
     if model.wants_joints or model.wants_tool:
         selection, found = configuration_rule(program, model, selection, settings.chain)
     else:
@@ -559,7 +601,7 @@ def select_with_findings(program: Program, model: Compensator, settings: Setting
     out += found
     selection, found = group_rule(program, selection)
     out += found
-    selection.order = execution_order(program, selection, poses)
+    selection.order = execution_order(program, selection, poses, model)
     selection.base_poses = poses
     out += envelope_rule(program, model, selection)
     return selection, out

@@ -251,3 +251,27 @@ def test_a_partial_target_after_code_not_read_or_many_paths_holds_every_command_
     src = "DEF t( )\n  LIN XS1\n" + branches + "  LIN {Z 950.0}\n  LIN XS2\nEND\n"
     new, dat, report, _ = run(model, src, DAT)
     assert number(dat, "XS1", "X") == 2000.0 and number(dat, "XS2", "X") != 1900.0
+
+
+def test_the_first_target_after_a_joint_motion_to_known_axes_comes_from_where_they_put_the_tcp(model):
+    # PTP to axis values, then LIN XS1: the robot comes from the TCP those axes give on the model's
+    # robot (its nominal kinematics, the model's tool), not from XS1 itself (the first-target rule)
+    from postproc.controller import model_description
+    from postproc.robot import Robot
+
+    axes = [0.0, -90.0, 90.0, 0.0, 60.0, 0.0]
+    src = ("DEF t( )\n  PTP {A1 0.0,A2 -90.0,A3 90.0,A4 0.0,A5 60.0,A6 0.0}\n  LIN XS1\nEND\n")
+    new, dat, report, _ = run(model, src, DAT)
+    assert report.complete and report.compensated == 1
+    description = model_description(model)
+    before = Robot(description).fk(np.array([axes]))[0]
+    p = np.array([2000.0, 0.0, 900.0, 0.0, 90.0, 0.0])
+    c = p.copy()
+    for _ in range(20):  # c = P + Ê(c) from where the axes put the TCP
+        c[:3] = p[:3] + model.predict(c[None], before[None])[0]
+    written = np.array([number(dat, "XS1", k) for k in "XYZ"])
+    np.testing.assert_allclose(written, c[:3], atol=6e-4)
+    itself = p.copy()
+    for _ in range(20):  # (the first-target rule would have given another command)
+        itself[:3] = p[:3] + model.predict(itself[None], itself[None])[0]
+    assert np.abs(itself[:3] - c[:3]).max() > 2e-3

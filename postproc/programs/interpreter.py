@@ -46,6 +46,7 @@ class Motion:
     tool: tuple | None
     loc: Loc | None = None
     token: tuple | None = None
+    axes: list | None = None  # (a joint motion: its six axis values where known, deg)
 
 
 class Oracle:
@@ -281,7 +282,11 @@ class Interpreter(Analysis):
     # ------------------------------------------------------------------ motions
     def move(self, s: Move, st: State) -> State:
         if s.joint or s.relative:
-            self.motions.append(Motion(s.loc, s.kind, None, None))
+            axes = None
+            if s.joint and not s.relative:
+                target = self.eval(s.target, st)
+                axes = self.dialect.axis_values(target) if isinstance(target, Rec) else None
+            self.motions.append(Motion(s.loc, s.kind, None, None, axes=axes))
             st.cur = None
             return st
         if self.dialect.halts(self, st, s):  # (the controller's alarm: the program stops here)

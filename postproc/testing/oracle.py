@@ -70,6 +70,24 @@ TOL_MM = 0.01
 ANY = ("any",)  # (a predecessor place that stands for every one)
 
 
+def _axes_pose(model, program=None):
+    """Axis values (deg) → the TCP pose [6] they give on the model's robot with the model's tool
+    (the nominal kinematics: where a joint motion leaves the robot); a function giving None where
+    the model takes no previous pose, takes a tool, or has no description."""
+    from ..controller import model_description
+    from ..robot import Robot
+
+    from ..controller import DIALECT_CONTROLLERS, controller_of
+
+    description = model_description(model) if model.wants_previous and not model.wants_tool else None
+    if description is None or program is None \
+            or controller_of(description) != DIALECT_CONTROLLERS.get(program.dialect):
+        return lambda axes: None
+    card_tool = model.tool.get("frame") if model.tool else None
+    robot = Robot(description.replace(tool=np.asarray(card_tool if card_tool is not None else description.tool, float)))
+    return lambda axes: robot.fk(np.asarray([axes], float))[0]
+
+
 def check(files, texts, dialect: str, model, config=None, active=None, seeds=range(4), tol_mm: float = TOL_MM,
           compensate_kwargs: dict | None = None) -> Checked:
     """Compensate ``texts`` with ``model`` (a Compensator) and check the property over the
@@ -103,6 +121,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                 pass
     unit_a, dialect_a = lowered(files, texts, dialect, config, active)
     unit_b, dialect_b = lowered(files, new_texts, dialect, config, active)
+    axes_pose = _axes_pose(model, program)
     # targets compensate reached from nothing known: Targets.prev -1, or a predecessor whose pose in
     # the robot base is not known (its frame or its numbers): the model's first-target rule. Kept as
     # pairs (the motion: its statement and its target's place; its predecessor's, or ANY where the
@@ -138,7 +157,9 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
             came = None  # (the predecessor motion: its statement and its target's place)
             for i, (ma, mb) in enumerate(zip(a, b)):
                 if ma.base is None or mb.base is None:
-                    prev = came = None
+                    # (a joint motion to known axis values: the robot comes from the TCP they give)
+                    prev = axes_pose(ma.axes) if ma.axes is not None and ma.axes == mb.axes else None
+                    came = None
                     continue
                 out.motions += 1
                 p, c = _six(ma.base), _six(mb.base)
