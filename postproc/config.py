@@ -26,7 +26,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .diagnostics import P610, PostprocError
+from .diagnostics import P610, PostprocError, toml_error
 from .programs.model import ActiveFrames
 
 # imported where used (a compensate without a settings file does not pay them): tomllib (_read_toml), difflib
@@ -225,11 +225,7 @@ def _read_toml(path: Path) -> dict:
     except OSError as exc:
         raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, P610) from None
     except tomllib.TOMLDecodeError as exc:
-        # tomllib puts "(at line L, column C)" in its message; keep it as the location
-        m = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
-        line, col = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
-        message = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(exc))
-        raise PostprocError(f"not valid TOML: {message}", str(path), line, col, P610) from None
+        raise toml_error(exc, str(path), P610) from None
 
 
 def _table(path: Path) -> dict | None:

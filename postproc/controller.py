@@ -9,6 +9,7 @@ angles on the nominal arm (P309, left as written) and attaches the inputs to it.
 """
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -50,15 +51,28 @@ def unseparated_mount_mm(model: Compensator, tools: np.ndarray) -> np.ndarray:
 def model_description(model: Compensator):
     """The robot description of the model's robot (the shipped ``models/*.toml`` whose
     [robot] name is the card's ``robot``), or None."""
+    return _description_named(model.robot.casefold()) if model.robot else None
+
+
+@functools.lru_cache(maxsize=None)
+def _description_named(name: str):
+    """(the shipped descriptions read once per process: a compensate asks several times)"""
     from .resources import model_path
     from .robot import load_description
 
     folder = model_path("kr500.toml").parent
     for path in sorted(folder.glob("*.toml")):
         description = load_description(path)
-        if model.robot and description.name.casefold() == model.robot.casefold():
+        if description.name.casefold() == name:
             return description
     return None
+
+
+def model_tool(model: Compensator, description) -> np.ndarray:
+    """The TCP on the flange the model's poses are of where a program says none: the card's
+    tool frame, else the description's."""
+    card_tool = model.tool.get("frame") if model.tool else None
+    return np.asarray(card_tool if card_tool is not None else description.tool, float)
 
 
 # the controller a program's dialect is written for (a pose list: any robot's), and the one a
@@ -106,9 +120,7 @@ def family_mismatch(program: Program, model: Compensator) -> str | None:
 def _tools(program: Program, model: Compensator, description, rows: np.ndarray) -> np.ndarray:
     """Each target's TCP on the flange [len(rows), 6]: the program's $TOOL where known, else
     the model's (its card), else the description's."""
-    card_tool = model.tool.get("frame") if model.tool else None
-    default_tool = np.asarray(card_tool if card_tool is not None else description.tool, float)
-    tools = np.tile(default_tool, (len(rows), 1))
+    tools = np.tile(model_tool(model, description), (len(rows), 1))
     t = program.targets
     for f, here in frames.frame_groups(t.frame[rows]):
         if program.frames[f].tool is not None:
@@ -177,8 +189,7 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
     if description is None:
         raise PostprocError(f"the model takes joint angles and postproc has no robot description for its robot "
                             f"{model.robot or '(none named)'}", str(model.path), 0, 0, P311)
-    card_tool = model.tool.get("frame") if model.tool else None
-    default_tool = np.asarray(card_tool if card_tool is not None else description.tool, float)
+    default_tool = model_tool(model, description)
     tools = _tools(program, model, description, rows)
     t = program.targets
     warnings: list[Diagnostic] = []

@@ -270,3 +270,12 @@ class LineIndex:
         starts = self._line_starts()
         k = starts.searchsorted(np.asarray(offsets, np.int64), "right") - 1
         return (k + 1).astype(np.int32), (np.asarray(offsets, np.int64) - starts[k] + 1).astype(np.int32)
+
+
+def toml_error(exc: Exception, path: str, code: str) -> "PostprocError":
+    """A TOML syntax error (tomllib's, which puts "(at line L, column C)" in its message) as a
+    located PostprocError with ``code``."""
+    m = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
+    line, col = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
+    message = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(exc))
+    return PostprocError(f"not valid TOML: {message}", str(path), line, col, code)

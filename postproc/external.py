@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .diagnostics import P227, PostprocError
+from .diagnostics import P227, PostprocError, toml_error
 from .frames import frame_to_matrix
 
 __all__ = ["ExternalUnit", "read_external", "parse_external", "units_of", "AXES", "TYPES", "CARRIES"]
@@ -194,9 +194,7 @@ def read_external(path: str | Path) -> tuple:
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        m = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
-        line, col = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
-        raise PostprocError(f"not valid TOML: {str(exc).split(' (at line')[0]}", str(path), line, col, P227) from None
+        raise toml_error(exc, str(path), P227) from None
     if "external" not in doc:
         raise PostprocError("no [[external]] table: nothing says the external unit's kinematics", str(path), 0, 0,
                             P227)

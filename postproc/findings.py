@@ -421,16 +421,15 @@ def start_poses(program: Program, model: Compensator, selection: Selection) -> n
     known = np.isfinite(axes).all(axis=1)
     if not known.any():
         return None
-    from .controller import DIALECT_CONTROLLERS, controller_of, model_description
+    from .controller import DIALECT_CONTROLLERS, controller_of, model_description, model_tool
     from .robot import Robot
 
     description = model_description(model)
     # (axis values of another controller's arm give no pose on this one)
     if description is None or controller_of(description) != DIALECT_CONTROLLERS.get(program.dialect):
         return None
-    card_tool = model.tool.get("frame") if model.tool else None
-    default = np.asarray(card_tool if card_tool is not None else description.tool, float)
-    tools = selection.tool if selection.tool is not None else np.broadcast_to(default, (len(axes), 6))
+    tools = selection.tool if selection.tool is not None else \
+        np.broadcast_to(model_tool(model, description), (len(axes), 6))
     out = np.full((len(axes), 6), np.nan)
     rows = np.flatnonzero(known)
     for tool in np.unique(tools[rows], axis=0):

@@ -71,7 +71,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
-from .diagnostics import P500, P610, PostprocError
+from .diagnostics import P500, P610, PostprocError, toml_error
 from .progress import ProgressBar
 
 STATE_FILE = "fleet-state.json"
@@ -178,12 +178,7 @@ def load_fleet(path: str | Path) -> list[RobotJob]:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        import re
-
-        m = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
-        line, col = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
-        message = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(exc))
-        raise PostprocError(f"not valid TOML: {message}", str(path), line, col, P610) from None
+        raise toml_error(exc, str(path), P610) from None
     base = path.resolve().parent  # (the client's: workers elsewhere get the files, not the paths)
 
     def bad(message: str, line: int) -> PostprocError:

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from . import frames
-from .diagnostics import P330, P331, P332, P333, PostprocError
+from .diagnostics import P330, P331, P332, P333, PostprocError, toml_error
 from .resources import model_path
 
 __all__ = ["CONFIGURATION_FORMS", "JointSpec", "RobotDescription", "load_description", "parse_description", "check_value", "Chain", "Robot",
@@ -213,9 +213,7 @@ def _toml(text: str, path: str) -> dict:
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        m = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
-        line, col = (int(m.group(1)), int(m.group(2))) if m else (0, 0)
-        raise PostprocError(f"not valid TOML: {str(exc).split(' (at line')[0]}", path, line, col, P330) from None
+        raise toml_error(exc, path, P330) from None
 
 
 def _check_tables(doc: dict, fail_at) -> None:

@@ -74,7 +74,7 @@ def _axes_pose(model, program=None):
     """Axis values (deg) → the TCP pose [6] they give on the model's robot with the model's tool
     (the nominal kinematics: where a joint motion leaves the robot); a function giving None where
     the model takes no previous pose, takes a tool, or has no description."""
-    from ..controller import model_description
+    from ..controller import model_description, model_tool
     from ..robot import Robot
 
     from ..controller import DIALECT_CONTROLLERS, controller_of
@@ -83,8 +83,7 @@ def _axes_pose(model, program=None):
     if description is None or program is None \
             or controller_of(description) != DIALECT_CONTROLLERS.get(program.dialect):
         return lambda axes: None
-    card_tool = model.tool.get("frame") if model.tool else None
-    robot = Robot(description.replace(tool=np.asarray(card_tool if card_tool is not None else description.tool, float)))
+    robot = Robot(description.replace(tool=model_tool(model, description)))
     return lambda axes: robot.fk(np.asarray([axes], float))[0]
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from ... import frames as fr
 from ...diagnostics import P215
-from ..ir import Assign, Call, Decl, Field, Invoke, Item, Loc, Name, walk
+from ..ir import Assign, Decl, Field, Invoke, Item, Loc, Name, walk
 from .values import Arr, Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, taint, tokens_of
 
 __all__ = ["Dialect", "PoseView", "ABC", "AXIS_TYPES"]

@@ -19,10 +19,10 @@ import numpy as np
 
 from ... import frames as fr
 from ...diagnostics import P201, P203, P211, P212, P214, P215, P217, P220, P221, P223, P224, P225, Diagnostic
-from ..ir import MOTION_INDEX, Agg, Loc, Move
+from ..ir import MOTION_INDEX, Agg, Loc
 from ..model import Frame, Targets
-from .execute import START, RunUse, Use
-from .values import Mat, Moving, Six, Taint, Tok, Top, number, same, tokens_of
+from .execute import START, RunUse
+from .values import Mat, Moving, Six, Tok, Top, number, tokens_of
 
 __all__ = ["build", "Built"]
 
@@ -285,7 +285,6 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                 pose[k] = v.value
                 spans[2 * k], spans[2 * k + 1] = v.token[1], v.token[2]
                 offset[k] = v.offset
-                tok_file = v.token[0]
             elif number(v) is not None:
                 pose[k] = number(v)
                 if "XYZ"[k] not in use.filled:
@@ -467,7 +466,7 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
     chain = r["chain"]
     if not written.all():
         ar = np.arange(n)
-        cur = dict(use.cur[0]) if use.cur is not None and _same(use.cur[1], use.frame) and same(use.cur[2], use.tool) else {}
+        cur = dict(use.cur[0]) if use.cur is not None and _same(use.cur[1], use.frame) and _same(use.cur[2], use.tool) else {}
         names = ("X", "Y", "Z", "A", "B", "C")
         for k in range(6):
             w = written[:, k]
