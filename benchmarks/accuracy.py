@@ -45,7 +45,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 from _common import cli as run_cli, krl_program  # noqa: E402
-from postproc.planning import read_pose_csv  # noqa: E402
+from postproc.calibration.planning import read_pose_csv  # noqa: E402
 
 EVAL_SEEDS = (101, 102, 103, 104, 105)
 DEFAULT_DATA = "/work/shared/datasets/ipa-robot-accuracy"
@@ -128,7 +128,7 @@ def real_part(methods: list[str], data_dir: str, work: Path) -> dict:
     print(f"\n== real: IPA {SERIES_C} (UR10 + laser tracker), train --register --val-fraction 0.2 --split-seed 0; "
           "held-out |E − Ê| (mm)", flush=True)
     print(f"{'method':<13} {'mean':>7} {'max':>7} {'train':>7}  {'uncomp. mean':>12} {'max':>7}  {'train s':>7}")
-    from postproc.compensator import load_model
+    from postproc.model.compensator import load_model
 
     for method in methods:
         train_opts, comp_opts = METHODS[method]
@@ -160,13 +160,13 @@ def real_few(src: Path, n: int) -> dict:
     scored on the same held-out 20 %: what fewer tracker points give on the real robot."""
     import torch
 
-    from postproc.datasets import read_ipa
-    from postproc.registration import register_measurements
-    from postproc.robot import load_description
-    from postproc.training import accuracy_card
-    from postproc.training.data import split_indices
-    from postproc.training.features import previous_poses
-    from postproc.training.hybrid import HybridModel
+    from postproc.measurements.datasets import read_ipa
+    from postproc.core.registration import register_measurements
+    from postproc.robot.description import load_description
+    from postproc.model.training import accuracy_card
+    from postproc.model.training.data import split_indices
+    from postproc.model.training.features import previous_poses
+    from postproc.model.training.hybrid import HybridModel
 
     torch.set_num_threads(1)
     series = read_ipa(src)

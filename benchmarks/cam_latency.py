@@ -8,7 +8,7 @@ interpreter (sys.executable; a pyenv/conda shim in front of it adds its own star
 
 * floor: `python -c pass`, `python -c "import numpy, onnxruntime"` and with lark (what any caller pays);
 * filter: `python -m postproc compensate - -o - -q` with the program on stdin, without and with
-  the session cache (postproc/session.py), and its ratio to the import floor with lark;
+  the session cache (postproc/model/session.py), and its ratio to the import floor with lark;
 * script: the `postproc` console script, same arguments;
 * API: `import postproc; m = postproc.load_model(); postproc.compensate_text(text, m)`;
 * warm API: per-call time of compensate_text with the model already loaded (CAM posts that
@@ -81,14 +81,14 @@ clock = time.process_time
 t0 = clock()
 import numpy, onnxruntime, lark
 t1 = clock()
-import postproc.cli.compensate, postproc.compensate, postproc.compensator, postproc.config, postproc.controller
-import postproc.configuration, postproc.session, postproc.programs.{reader}
-from postproc.compensate import compensate_program, parse_program_text
+import postproc.cli.compensate, postproc.compensation.pipeline, postproc.model.compensator, postproc.settings.file, postproc.compensation.inputs
+import postproc.robot.configuration, postproc.model.session, postproc.programs.{reader}
+from postproc.compensation.pipeline import compensate_program, parse_program_text
 t2 = clock()
-cfg = postproc.config.load_config(None)
+cfg = postproc.settings.file.load_config(None)
 program = parse_program_text(sys.stdin.read(), {name!r})
 t3 = clock()
-model = postproc.compensator.load_model({model!r})
+model = postproc.model.compensator.load_model({model!r})
 t4 = clock()
 report = compensate_program(program, model)
 t5 = clock()

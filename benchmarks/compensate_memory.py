@@ -1,4 +1,4 @@
-"""Peak memory of streaming compensate (postproc/streaming.py) on long CAM programs.
+"""Peak memory of streaming compensate (postproc/compensation/streaming.py) on long CAM programs.
 
     python benchmarks/compensate_memory.py [--targets 1000000 10000000] [--model models/default.onnx] [--compare]
 
@@ -17,7 +17,7 @@ import filecmp
 import tempfile
 from pathlib import Path
 
-from postproc.streaming import STREAM_BYTES
+from postproc.compensation.streaming import STREAM_BYTES
 from compensate_speed import REPO, in_memory, make_cam_program, regex_pass, run_cli
 
 def main() -> None:

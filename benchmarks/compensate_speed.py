@@ -115,7 +115,7 @@ def run_cli(args: list[str]) -> tuple[float, float]:
 # the in-memory path (compensate_file with stream=False: a .src above 8 MB streams by default,
 # benchmarks/compensate_memory.py), its peak RSS reported as by _CLI
 _IN_MEMORY = ("import atexit, sys\n"
-              "from postproc.streaming import compensate_file\n"
+              "from postproc.compensation.streaming import compensate_file\n"
               "atexit.register(lambda: sys.stderr.write('peak-kB ' + next(l.split()[1] for l in open('/proc/self/status')"
               " if l.startswith('VmHWM')) + '\\n'))\n"
               "compensate_file(sys.argv[1], sys.argv[2], sys.argv[3], stream=False)\n")

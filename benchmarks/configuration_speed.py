@@ -1,4 +1,4 @@
-"""Speed of the arm-configuration step (postproc.configuration): the joint angles the controller
+"""Speed of the arm-configuration step (postproc.robot.configuration): the joint angles the controller
 uses, for N targets of a LIN path (one S/T stated, the rest keep the configuration; also with every
 branch FK-checked up front, the way before the lazy check, and the ratio of the two) and for N
 targets that each state S/T, on the nominal KR500-sim; and the uncompensated error of the
@@ -14,10 +14,10 @@ import time
 import numpy as np
 from _common import record
 
-from postproc import configuration as cf
-from postproc.planning import latin_hypercube, plan_configurations
-from postproc.robot import Robot
-from postproc.simulator import SimulatedRobot
+from postproc.robot import configuration as cf
+from postproc.calibration.planning import latin_hypercube, plan_configurations
+from postproc.robot.arm import Robot
+from postproc.calibration.simulator import SimulatedRobot
 
 
 def main(n: int = 100_000) -> None:

@@ -14,7 +14,7 @@ Protocol (issue 11):
 * the hybrid model (``--robot models/ur10.toml``, the default method of ``postproc train``,
   seed 0) is fitted on 80 % of C (``split_indices(n, 0.2, 0)``, the split ``train`` makes),
   with C's joint angles q1..q6 and its visiting order, and exported to ONNX;
-* the ONNX file is run through ``postproc.compensator.Compensator.predict`` on every row of
+* the ONNX file is run through ``postproc.model.compensator.Compensator.predict`` on every row of
   B, D, A (and C's 20 % held out) with ``pose`` = the Goal, ``previous_pose`` = the row
   before it (the visiting order), ``joints`` = the row's q1..q6 (the configuration: the
   graph solves the Goal's IK on that branch): the figure ``compensate`` would reach.
@@ -53,14 +53,14 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 from _common import record  # noqa: E402  (benchmarks/ is on sys.path when a benchmark runs as a script)
-from postproc.training.card import arm_metadata  # noqa: E402
-from postproc.compensator import load_model  # noqa: E402
-from postproc.registration import register_measurements  # noqa: E402
-from postproc.robot import load_description  # noqa: E402
-from postproc.measurements import read_measurements  # noqa: E402
-from postproc.training.data import split_indices  # noqa: E402
-from postproc.training.features import previous_poses  # noqa: E402
-from postproc.training.hybrid import HybridModel  # noqa: E402
+from postproc.model.training.card import arm_metadata  # noqa: E402
+from postproc.model.compensator import load_model  # noqa: E402
+from postproc.core.registration import register_measurements  # noqa: E402
+from postproc.robot.description import load_description  # noqa: E402
+from postproc.measurements.csv import read_measurements  # noqa: E402
+from postproc.model.training.data import split_indices  # noqa: E402
+from postproc.model.training.features import previous_poses  # noqa: E402
+from postproc.model.training.hybrid import HybridModel  # noqa: E402
 
 DEFAULT_DATA = "/work/shared/datasets/ipa-robot-accuracy"
 SERIES = {"A": "Series_A/measurements_grid.csv", "B": "Series_B/measurements_joint_configurations.csv",
@@ -126,7 +126,7 @@ def updates(data: dict, trained: str, old_path: Path, description, n_rows: int, 
     series' other rows. The frame is the new campaign's own: the series' measured points are
     registered (Kabsch to the Goal) on the drawn rows alone, so nothing of the scored rows is
     used; the update's base group then takes what the rigid fit and the old base leave."""
-    from postproc.training.update import read_old_model, update_model
+    from postproc.model.training.update import read_old_model, update_model
 
     old = read_old_model(old_path, description)
     print(f"\n--update with {n_rows} random rows (frame registered on those rows only), scored on the other rows;"

@@ -2,7 +2,7 @@
 
     python benchmarks/dialect_read_speed.py [--targets 100000] [--dialect rapid|urscript|fanuc]
 
-Per program style: the time of ``postproc.programs.read_program`` (best of --repeat), the
+Per program style: the time of ``postproc.programs.io.read_program`` (best of --repeat), the
 targets per second, and the number of targets read (which must be --targets).
 """
 from __future__ import annotations
@@ -84,7 +84,7 @@ def main() -> None:
     parser.add_argument("--dialect", choices=sorted(STYLES), action="append")
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
-    from postproc.programs import read_program
+    from postproc.programs.io import read_program
 
     for dialect in args.dialect or sorted(STYLES):
         for style, make, name in STYLES[dialect]:

@@ -25,10 +25,10 @@ import numpy as np
 
 from _common import record
 from postproc.cli import main
-from postproc.compensator import load_model
-from postproc.descriptions import MM, calibrated_urdf, identified_geometry, nominal_urdf, ur_calibration
-from postproc.robot import load_description
-from postproc.training.fitting import fit
+from postproc.model.compensator import load_model
+from postproc.calibration.export import MM, calibrated_urdf, identified_geometry, nominal_urdf, ur_calibration
+from postproc.robot.description import load_description
+from postproc.model.training.fitting import fit
 
 GEOMETRIC = {"groups": ("placement", "base", "tool", "zero"), "ripple": []}
 IPA = Path(os.environ.get("POSTPROC_IPA_DATA", "/work/shared/datasets/ipa-robot-accuracy"))
@@ -37,8 +37,8 @@ IPA = Path(os.environ.get("POSTPROC_IPA_DATA", "/work/shared/datasets/ipa-robot-
 def refined_joints(description, poses: np.ndarray, q_deg: np.ndarray) -> np.ndarray:
     """The nominal IK's joint angles in float64: the graph's ``ik_joints`` (float32 deg, ~1e-7 rad)
     refined by Newton steps on the nominal FK to the poses themselves (the angles the graph used)."""
-    from postproc import frames
-    from postproc.robot import Robot
+    from postproc.core import frames
+    from postproc.robot.arm import Robot
 
     robot = Robot(description)
     target = frames.frame_to_matrix(poses)

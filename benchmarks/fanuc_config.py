@@ -27,12 +27,14 @@ import numpy as np
 
 from _common import load, record
 
-from postproc import configuration, frames
-from postproc.compensate import compensate_text, parse_program_text
-from postproc.compensator import load_model
-from postproc.planning import latin_hypercube, plan_configurations, round_poses
-from postproc.resources import model_path
-from postproc.simulator import SimulatedRobot
+from postproc.robot import configuration
+from postproc.core import frames
+from postproc.compensation.api import compensate_text
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.calibration.planning import latin_hypercube, plan_configurations, round_poses
+from postproc.core.resources import model_path
+from postproc.calibration.simulator import SimulatedRobot
 
 # the program's frame on the table, in the robot base: X,Y,Z,A,B,C
 FRAMES = {"fanuc": np.array([1650.0, 0.0, -450.0, -90.0, 0.0, 0.0]),

@@ -49,7 +49,7 @@ from pathlib import Path
 from statistics import median
 
 from postproc.cli import main
-from postproc.fleet import REPORT, TRAIN, RobotJob, _local_cluster, _run_cli, robot, run_fleet
+from postproc.fleet.jobs import REPORT, TRAIN, RobotJob, _local_cluster, _run_cli, robot, run_fleet
 
 from _common import load, record  # benchmarks/ is on sys.path when a benchmark runs as a script
 

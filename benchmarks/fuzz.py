@@ -29,7 +29,7 @@ def main() -> None:
     args = parser.parse_args()
     samples = corpus()
     if args.dialect:
-        from postproc.programs import dialect_of
+        from postproc.programs.io import dialect_of
 
         samples = [s for s in samples if dialect_of(s.name) == args.dialect]
     start = time.perf_counter()

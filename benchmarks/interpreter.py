@@ -19,7 +19,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 
 from _common import record
-from postproc.compensator import load_model
+from postproc.model.compensator import load_model
 from postproc.testing.generate import dialect_cases
 from postproc.testing.models import affine_model
 from postproc.testing.oracle import check

@@ -45,10 +45,10 @@ def first_order_after(base_csv: Path, model_path: str, out: Path) -> str:
     measured points are registered (rigid fit) to the positions the model predicts, P − Ê, as
     benchmarks/cross_series.py does — registered to the Goal instead, the model's constant part
     (the probe offset it identified on C) would come back as error."""
-    from postproc.compensator import load_model
-    from postproc.measurements import parse_measurements, write_measurements
-    from postproc.registration import apply_rigid, fit_rigid
-    from postproc.training.features import previous_poses
+    from postproc.model.compensator import load_model
+    from postproc.measurements.csv import parse_measurements, write_measurements
+    from postproc.core.registration import apply_rigid, fit_rigid
+    from postproc.model.training.features import previous_poses
 
     m = parse_measurements(base_csv.read_bytes(), str(base_csv), repeats=True)
     model = load_model(model_path)

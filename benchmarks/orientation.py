@@ -41,10 +41,10 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 
 from _common import cli  # noqa: E402
-from postproc.compensator import load_model  # noqa: E402
-from postproc.planning import read_pose_csv  # noqa: E402
-from postproc.measurements import read_measurements  # noqa: E402
-from postproc.training.features import previous_poses  # noqa: E402
+from postproc.model.compensator import load_model  # noqa: E402
+from postproc.calibration.planning import read_pose_csv  # noqa: E402
+from postproc.measurements.csv import read_measurements  # noqa: E402
+from postproc.model.training.features import previous_poses  # noqa: E402
 
 DEFAULT_DATA = "/work/shared/datasets/ipa-robot-accuracy"
 SERIES_C = "Series_C/measurements_random_poses.csv"
@@ -109,7 +109,7 @@ def transfer(model, data_dir: str, work: Path) -> dict:
     """The orientation model on the other series, each with its own registration and probe rotation."""
     from scipy.spatial.transform import Rotation
 
-    from postproc.frames import rotation_from_abc, rotation_vector
+    from postproc.core.frames import rotation_from_abc, rotation_vector
 
     out = {}
     for name, path in OTHERS.items():
@@ -129,7 +129,7 @@ def transfer(model, data_dir: str, work: Path) -> dict:
 
 
 def sim_part(seed: int, work: Path) -> dict:
-    from postproc.simulator import SimulatedRobot
+    from postproc.calibration.simulator import SimulatedRobot
 
     plan, test = work / "plan.csv", work / "test.csv"
     cli("plan", "-n", "1900", "--seed", "0", "-o", str(plan), "-q")
@@ -171,7 +171,7 @@ def sim_part(seed: int, work: Path) -> dict:
 def _angles(sim, targets: np.ndarray, commands: np.ndarray) -> np.ndarray:
     """Angle (deg) between each target's orientation and the one the robot reaches when
     commanded ``commands`` (no noise: the probe's noise is the description's)."""
-    from postproc.simulator import rotation_angle_deg
+    from postproc.calibration.simulator import rotation_angle_deg
 
     reached = sim.measure(commands, rng_seed=2, orientation=True)
     return rotation_angle_deg(targets[:, 3:6], reached[:, 3:6])

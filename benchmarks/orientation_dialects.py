@@ -30,9 +30,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 from _common import cli, load, record  # noqa: E402
-from postproc import frames  # noqa: E402
-from postproc.compensate import load_program  # noqa: E402
-from postproc.compensator import load_model  # noqa: E402
+from postproc.core import frames  # noqa: E402
+from postproc.programs.io import load_program  # noqa: E402
+from postproc.model.compensator import load_model  # noqa: E402
 
 USER_FRAME = np.array([100.0, -50.0, 20.0, 30.0, 10.0, -5.0])
 OBJECT_FRAME = np.array([10.0, 20.0, 30.0, 0.0, 0.0, 15.0])

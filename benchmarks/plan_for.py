@@ -36,9 +36,10 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from _common import cli, load, record  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
-from postproc import configuration  # noqa: E402
-from postproc.planning import latin_hypercube, plan_configurations  # noqa: E402
-from postproc.robot import Robot, load_description  # noqa: E402
+from postproc.robot import configuration  # noqa: E402
+from postproc.calibration.planning import latin_hypercube, plan_configurations  # noqa: E402
+from postproc.robot.arm import Robot
+from postproc.robot.description import load_description  # noqa: E402
 
 BOX = (1800.0, 2200.0, -400.0, 400.0, 700.0, 1100.0)
 

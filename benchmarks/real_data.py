@@ -7,11 +7,11 @@ DIR is $POSTPROC_IPA_DATA, default /work/shared/datasets/ipa-robot-accuracy (the
 robot-accuracy data: a UR10 measured with a laser tracker, Landgraf et al., IEEE CASE 2021,
 MIT licence; not shipped: samples/ipa/ holds a 150-row excerpt).
 
-Protocol: the file is read with postproc.datasets.read_ipa (the converter behind `postproc
-import ipa`); the rows are split 80 / 20 by postproc.training.data.split_indices(n, 0.2, seed=0)
+Protocol: the file is read with postproc.measurements.datasets.read_ipa (the converter behind `postproc
+import ipa`); the rows are split 80 / 20 by postproc.model.training.data.split_indices(n, 0.2, seed=0)
 (numpy default_rng(0).permutation; the first 20 % held out), the split `postproc train
 --val-fraction 0.2` makes. The tracker → base rigid transform is fitted on the training rows
-only (postproc.registration.register_measurements), E = P_goal − P_measured. Every predictor
+only (postproc.core.registration.register_measurements), E = P_goal − P_measured. Every predictor
 is fitted on the training rows and scored on the held-out rows: mean / max of |E − Ê| mm.
 
 Predictors:
@@ -43,10 +43,10 @@ from scipy.linalg import cho_factor, cho_solve  # noqa: E402
 from scipy.optimize import least_squares, minimize  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from postproc.datasets import read_ipa  # noqa: E402
-from postproc.frames import rotation_from_abc  # noqa: E402
-from postproc.registration import register_measurements  # noqa: E402
-from postproc.training.data import split_indices  # noqa: E402
+from postproc.measurements.datasets import read_ipa  # noqa: E402
+from postproc.core.frames import rotation_from_abc  # noqa: E402
+from postproc.core.registration import register_measurements  # noqa: E402
+from postproc.model.training.data import split_indices  # noqa: E402
 
 DEFAULT_DATA = "/work/shared/datasets/ipa-robot-accuracy"
 SERIES_C = "Series_C/measurements_random_poses.csv"

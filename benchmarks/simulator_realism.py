@@ -16,7 +16,7 @@ the paper's robot. Per simulated robot this prints:
   approach sign, compliance × gravity torque, ripple sin/cos of the known gear orders) fitted
   on the same 1900 rows: the proof that ≤ 0.10 mm is reachable on these robots.
 
-The network is postproc.training.ErrorModel (GPSO initial weights + backprop, the method)
+The network is postproc.model.training.ErrorModel (GPSO initial weights + backprop, the method)
 when that package is importable, else a plain torch MLP [20,10,5] trained with Adam on
 standardised inputs/outputs, full batch. torch.set_num_threads(1). Several training seeds
 per robot, because one training run can land in a poor local minimum.
@@ -33,11 +33,13 @@ import time
 import numpy as np
 import torch
 
-from postproc.planning import latin_hypercube
-from postproc.robot import load_description
-from postproc.robot import Chain
-from postproc.simulator import SimulatedRobot, approach_signs, small_transform
-from postproc.stats import table2
+from postproc.calibration.planning import latin_hypercube
+from postproc.robot.description import load_description
+from postproc.robot.kinematics.chain import Chain
+from postproc.calibration.simulator import SimulatedRobot
+from postproc.robot.approach import approach_signs
+from postproc.core.frames import small_transform
+from postproc.core.stats import table2
 
 
 def adam_mlp(poses: np.ndarray, errors: np.ndarray, seed: int, epochs: int = 3000):
@@ -68,7 +70,7 @@ def adam_mlp(poses: np.ndarray, errors: np.ndarray, seed: int, epochs: int = 300
 
 
 def method_mlp(poses: np.ndarray, errors: np.ndarray, seed: int):
-    from postproc.training import ErrorModel
+    from postproc.model.training import ErrorModel
 
     return ErrorModel(hidden=(20, 10, 5), method="gpso", seed=seed).fit(poses, errors).predict
 
@@ -149,9 +151,9 @@ def main() -> None:
     fit = adam_mlp if args.adam else method_mlp
     if not args.adam:
         try:
-            import postproc.training.estimator  # noqa: F401
+            import postproc.model.training.estimator  # noqa: F401
         except ImportError:
-            print("postproc.training not available: using the plain torch MLP")
+            print("postproc.model.training not available: using the plain torch MLP")
             fit = adam_mlp
     description = load_description()
     ws = description.workspace

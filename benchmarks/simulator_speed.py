@@ -46,7 +46,7 @@ def pin_gravity(robot, q_deg: np.ndarray) -> np.ndarray:
     """Pinocchio's gravity torques, one call per pose (the reference)."""
     import pinocchio as pin
 
-    from postproc.robot import pin_model
+    from postproc.robot.kinematics.reference import pin_model
 
     model = pin_model(robot.description)
     data = model.createData()
@@ -58,8 +58,9 @@ def main() -> None:
     parser.add_argument("-n", type=int, default=100_000, help="poses measured in-process (default 100000)")
     args = parser.parse_args()
 
-    from postproc.planning import latin_hypercube
-    from postproc.simulator import SimulatedRobot, approach_signs
+    from postproc.calibration.planning import latin_hypercube
+    from postproc.calibration.simulator import SimulatedRobot
+    from postproc.robot.approach import approach_signs
 
     print(f"in-process, {args.n} poses")
     sim = timed("SimulatedRobot() (build, calibrate)", SimulatedRobot, key="robot_s")

@@ -33,9 +33,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 from _common import cli, krl_program  # noqa: E402
-from postproc.training import ErrorModel  # noqa: E402
-from postproc.measurements import read_measurements  # noqa: E402
-from postproc.training.data import split_indices  # noqa: E402
+from postproc.model.training import ErrorModel  # noqa: E402
+from postproc.measurements.csv import read_measurements  # noqa: E402
+from postproc.model.training.data import split_indices  # noqa: E402
 
 PAPER = {  # Hu, Hua & Tian, Table 2 (mm): max, min, mean, std
     "uncompensated": (1.529, 0.124, 0.754, 0.340),
@@ -48,7 +48,7 @@ KEYS = ("max", "min", "mean", "std", "p95")  # (the paper has no p95: its column
 
 
 def _model_method(path: Path) -> str:
-    from postproc.compensator import load_model
+    from postproc.model.compensator import load_model
 
     return str(load_model(path).metadata.get("method", "?"))
 

@@ -21,11 +21,12 @@ from pathlib import Path
 import numpy as np
 
 from postproc.cli import main as cli
-from postproc.compensate import compensate_program, parse_program_text
-from postproc.compensator import load_model
-from postproc.planning import latin_hypercube, plan_csv_text
-from postproc.robot import Robot
-from postproc.simulator import SimulatedRobot
+from postproc.compensation.pipeline import compensate_program
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.calibration.planning import latin_hypercube, plan_csv_text
+from postproc.robot.arm import Robot
+from postproc.calibration.simulator import SimulatedRobot
 
 OTHER_TOOL = np.array([180.0, 30.0, 160.0, 0.0, 0.0, 0.0])
 LONGER = np.array([450.0, 0.0, 75.0, 0.0, 0.0, 0.0])  # the description's (300, 0, 75), 150 mm along A6
@@ -78,9 +79,9 @@ def main(n: int = 400) -> None:
 def speed(n: int = 100_000) -> None:
     import time
 
-    from postproc.training.export import onnx_bytes
-    from postproc.training.features import previous_poses
-    from postproc.training.hybrid import HybridModel, _WithJoints
+    from postproc.model.training.export import onnx_bytes
+    from postproc.model.training.features import previous_poses
+    from postproc.model.training.hybrid import HybridModel, _WithJoints
 
     sim = SimulatedRobot()
     robot = sim.robot

@@ -35,8 +35,8 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 from _common import ROOT, cli, record  # noqa: E402
-from postproc import frames  # noqa: E402
-from postproc.external import parse_external  # noqa: E402
+from postproc.core import frames  # noqa: E402
+from postproc.robot.external import parse_external  # noqa: E402
 
 TRACK = {"name": "TRACK", "type": "prismatic", "axis": "E1", "carries": "robot", "direction": [1.0, 0.0, 0.0],
          "mount": [-3000.0, 500.0, 0.0, 90.0, 0.0, 0.0]}
@@ -53,7 +53,7 @@ def toml(unit: dict) -> str:
 
 
 def poses(description: Path, n: int, seed: int) -> np.ndarray:
-    from postproc.robot import load_description
+    from postproc.robot.description import load_description
 
     d = load_description(description)
     box = np.asarray(d.workspace["box"], float)
@@ -143,7 +143,7 @@ def main(argv=None) -> int:
                                                 ("rapid", "irb6700.toml", "irb6700", ".mod")):
             description = ROOT / "models" / robot
             base = poses(description, args.targets, args.seed)
-            from postproc.robot import load_description
+            from postproc.robot.description import load_description
 
             tool = tuple(float(v) for v in load_description(description).tool)
             write = krl if dialect == "krl" else rapid
@@ -184,9 +184,9 @@ def main(argv=None) -> int:
             figures[dialect] = rows
             print(dialect, json.dumps(rows, indent=1))
         # FANUC: a group-2 track (GP2 J1); LS positions state their CONFIG
-        from postproc import configuration
-        from postproc.robot import load_description
-        from postproc.simulator import SimulatedRobot
+        from postproc.robot import configuration
+        from postproc.robot.description import load_description
+        from postproc.calibration.simulator import SimulatedRobot
 
         description = ROOT / "models" / "r2000ic.toml"
         sim = SimulatedRobot.from_file(description)

@@ -6,7 +6,7 @@
 Each (method, optimiser) is trained once per seed on the same 95 % / 5 % split (split seed
 0, as `postproc train`'s default) and scored on the held-out 5 %: mean / max of |E − Ê| mm,
 averaged over seeds, with the worst seed's mean and the time per fit. Without --data it uses
-the synthetic error field (postproc.training.synthetic, 2000 poses). Single thread.
+the synthetic error field (postproc.model.training.synthetic, 2000 poses). Single thread.
 """
 from __future__ import annotations
 
@@ -16,10 +16,10 @@ import time
 import numpy as np
 import torch
 
-from postproc.training import ErrorModel  # noqa: E402
-from postproc.measurements import read_measurements  # noqa: E402
-from postproc.training.data import split_indices  # noqa: E402
-from postproc.training.synthetic import synthetic_measurements  # noqa: E402
+from postproc.model.training import ErrorModel  # noqa: E402
+from postproc.measurements.csv import read_measurements  # noqa: E402
+from postproc.model.training.data import split_indices  # noqa: E402
+from postproc.model.training.synthetic import synthetic_measurements  # noqa: E402
 
 
 def main() -> None:

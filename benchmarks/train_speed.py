@@ -29,9 +29,9 @@ def run_cli(*args: str, **kw) -> subprocess.CompletedProcess:
 def make_data(folder: Path) -> tuple[Path, str]:
     data = folder / "measured.csv"
     try:
-        import postproc.simulator  # noqa: F401
+        import postproc.calibration.simulator  # noqa: F401
     except ImportError:
-        from postproc.training.synthetic import synthetic_measurements, to_csv
+        from postproc.model.training.synthetic import synthetic_measurements, to_csv
 
         data.write_text(to_csv(*synthetic_measurements(2000)))
         return data, "synthetic error field (no simulator), 2000 poses"

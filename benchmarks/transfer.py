@@ -51,14 +51,14 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 from _common import RESULTS, record  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
-from postproc.compensator import load_model  # noqa: E402
-from postproc.datasets import read_ipa  # noqa: E402
-from postproc.registration import register_measurements  # noqa: E402
-from postproc.robot import load_description  # noqa: E402
-from postproc.training.card import arm_metadata  # noqa: E402
-from postproc.training.data import split_indices  # noqa: E402
-from postproc.training.features import previous_poses  # noqa: E402
-from postproc.training.hybrid import HybridModel  # noqa: E402
+from postproc.model.compensator import load_model  # noqa: E402
+from postproc.measurements.datasets import read_ipa  # noqa: E402
+from postproc.core.registration import register_measurements  # noqa: E402
+from postproc.robot.description import load_description  # noqa: E402
+from postproc.model.training.card import arm_metadata  # noqa: E402
+from postproc.model.training.data import split_indices  # noqa: E402
+from postproc.model.training.features import previous_poses  # noqa: E402
+from postproc.model.training.hybrid import HybridModel  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_DATA = "/work/shared/datasets/ipa-robot-accuracy"
@@ -173,7 +173,7 @@ def part_random(data: dict, description, out: Path, seed: int, series: str = "BD
 
 def octants(q_deg: np.ndarray) -> np.ndarray:
     """Each row's octant of A1/A2/A3 (medians along each joint's arc), as training.blocked.folds."""
-    from postproc.compensator import joint_arcs
+    from postproc.model.compensator import joint_arcs
 
     arcs = joint_arcs(q_deg[:, :3])
     out = np.zeros(len(q_deg), int)
@@ -252,9 +252,9 @@ class _AsMeasurements:
 
 
 def part_flipped(out: Path) -> dict:
-    from postproc import configuration
-    from postproc.planning import latin_hypercube, plan_configurations
-    from postproc.simulator import SimulatedRobot
+    from postproc.robot import configuration
+    from postproc.calibration.planning import latin_hypercube, plan_configurations
+    from postproc.calibration.simulator import SimulatedRobot
 
     sim = SimulatedRobot()
     robot = sim.robot

@@ -38,7 +38,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402
 
-from postproc.training.uncertainty import parameter_covariance, position_std  # noqa: E402
+from postproc.model.training.uncertainty import parameter_covariance, position_std  # noqa: E402
 
 from _common import record  # noqa: E402  (benchmarks/ is on sys.path when a benchmark runs as a script)
 
@@ -59,11 +59,11 @@ def line(label: str, km, cov, residual: np.ndarray, std, seconds: float) -> str:
 
 
 def sim_part() -> None:
-    from postproc.planning import latin_hypercube
-    from postproc.robot import load_description
-    from postproc.simulator import SimulatedRobot
-    from postproc.training.features import previous_poses
-    from postproc.training.kinematic import KinematicModel
+    from postproc.calibration.planning import latin_hypercube
+    from postproc.robot.description import load_description
+    from postproc.calibration.simulator import SimulatedRobot
+    from postproc.model.training.features import previous_poses
+    from postproc.model.training.kinematic import KinematicModel
 
     d = load_description()
     sim = SimulatedRobot(d)
@@ -87,9 +87,9 @@ def sim_part() -> None:
 def _ipa_c(data: str):
     """IPA Series C registered on its training rows (80/20 split, seed 0): (series, train rows,
     validation rows, errors E [N, 3] mm), or None where the data set is not here."""
-    from postproc.datasets import read_ipa
-    from postproc.registration import register_measurements
-    from postproc.training.data import split_indices
+    from postproc.measurements.datasets import read_ipa
+    from postproc.core.registration import register_measurements
+    from postproc.model.training.data import split_indices
 
     source = Path(data) / "Series_C/measurements_random_poses.csv"
     if not source.exists():
@@ -103,9 +103,9 @@ def _ipa_c(data: str):
 
 
 def ipa_part(data: str) -> None:
-    from postproc.robot import load_description
-    from postproc.resources import model_path
-    from postproc.training.kinematic import KinematicModel
+    from postproc.robot.description import load_description
+    from postproc.core.resources import model_path
+    from postproc.model.training.kinematic import KinematicModel
 
     loaded = _ipa_c(data)
     if loaded is None:
@@ -115,7 +115,7 @@ def ipa_part(data: str) -> None:
     d = load_description(model_path("ur10.toml"))
     import torch
 
-    from postproc.training.arm import Arm
+    from postproc.robot.kinematics.twin import Arm
 
     with torch.no_grad():  # how far the nominal arm at the data's joint angles is from the pose (planner's IK)
         miss = Arm(d).frames(torch.as_tensor(np.radians(s.joints)))[2].numpy() - s.commanded[:, :3]
@@ -154,14 +154,14 @@ def _coverage(model, poses, previous, errors, joints=None) -> tuple[float, np.nd
 def onnx_part(data: str) -> None:
     import tempfile
 
-    from postproc.training.card import arm_metadata
-    from postproc.compensate import compensate_text
-    from postproc.compensator import OUTPUT_ERROR, OUTPUT_JOINTS, OUTPUT_STD, load_model
-    from postproc.planning import latin_hypercube
-    from postproc.robot import load_description
-    from postproc.simulator import SimulatedRobot
-    from postproc.training.features import previous_poses
-    from postproc.training.hybrid import HybridModel
+    from postproc.model.training.card import arm_metadata
+    from postproc.compensation.api import compensate_text
+    from postproc.model.compensator import OUTPUT_ERROR, OUTPUT_JOINTS, OUTPUT_STD, load_model
+    from postproc.calibration.planning import latin_hypercube
+    from postproc.robot.description import load_description
+    from postproc.calibration.simulator import SimulatedRobot
+    from postproc.model.training.features import previous_poses
+    from postproc.model.training.hybrid import HybridModel
 
     tmp = Path(tempfile.mkdtemp(prefix="uncertainty_"))
     d = load_description()
@@ -206,7 +206,7 @@ def onnx_part(data: str) -> None:
     if loaded is None:
         print(f"onnx ipa: skip, {Path(data) / 'Series_C'} not found")
         return
-    from postproc.resources import model_path
+    from postproc.core.resources import model_path
 
     s, train_idx, val_idx, errors = loaded
     ur = load_description(model_path("ur10.toml"))

@@ -12,7 +12,7 @@ is the fixed point c = P + Ê(c), started at c = P, iterated as often as the mod
 Every input but `pose` is optional (contract 2): an omitted `previous_pose` is the pose itself,
 an omitted `joints` / `tool` / `approach` / `previous_joints` is unknown. A caller that knows
 the controller's joint angles at each target feeds them as `joints` (deg) too. The contract's
-full text: postproc/compensator.py, README "Model contract".
+full text: postproc/model/compensator.py, README "Model contract".
 """
 import json
 import sys

@@ -5,7 +5,7 @@ Pinocchio: compensating needs only lark, numpy and onnxruntime.
 """
 from __future__ import annotations
 
-__version__ = "0.1.0"
+from .core.version import __version__
 
 __all__ = ["compensate_text", "compensate_file", "load_model", "PostprocError", "ActiveFrames", "__version__"]
 
@@ -13,15 +13,15 @@ __all__ = ["compensate_text", "compensate_file", "load_model", "PostprocError", 
 def __getattr__(name: str):
     # Lazy so that `import postproc` stays cheap for CLI start-up and CAM hooks.
     if name == "compensate_text":
-        from .compensate import compensate_text
+        from .compensation.api import compensate_text
 
         return compensate_text
     if name == "compensate_file":  # (in memory, or a chunk at a time for a long CAM program)
-        from .streaming import compensate_file
+        from .compensation.streaming import compensate_file
 
         return compensate_file
     if name == "load_model":
-        from .compensator import load_model
+        from .model.compensator import load_model
 
         return load_model
     if name == "ActiveFrames":  # compensate_text(..., active=ActiveFrames.of(base=0, tool="model", robroot="0,0,400,0,0,0"))
@@ -29,7 +29,7 @@ def __getattr__(name: str):
 
         return ActiveFrames
     if name == "PostprocError":
-        from .diagnostics import PostprocError
+        from .core.diagnostics import PostprocError
 
         return PostprocError
     raise AttributeError(name)

@@ -7,13 +7,14 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.compensate import compensate_text, parse_program_text
-from postproc.compensator import load_model
-from postproc.measurements import write_measurements
-from postproc.planning import latin_hypercube
-from postproc.simulator import SimulatedRobot
-from postproc.training.features import previous_poses
-from postproc.training.synthetic import synthetic_measurements, to_csv
+from postproc.compensation.api import compensate_text
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.measurements.csv import write_measurements
+from postproc.calibration.planning import latin_hypercube
+from postproc.calibration.simulator import SimulatedRobot
+from postproc.model.training.features import previous_poses
+from postproc.model.training.synthetic import synthetic_measurements, to_csv
 
 from helpers import REPO
 from postproc.programs import ActiveFrames
@@ -74,9 +75,9 @@ def test_compensated_program_lands_on_target(hybrid_model, sim):
 
 
 def test_onnx_graph_agrees_with_torch(measured_csv, tmp_path):
-    from postproc.robot import load_description
-    from postproc.measurements import read_measurements
-    from postproc.training.hybrid import HybridModel
+    from postproc.robot.description import load_description
+    from postproc.measurements.csv import read_measurements
+    from postproc.model.training.hybrid import HybridModel
 
     data = read_measurements(measured_csv)
     prev = previous_poses(data.poses)

@@ -12,7 +12,7 @@ import pytest
 
 import postproc
 from postproc.cli import SUBCOMMANDS, build_parser
-from postproc.compensator import load_model
+from postproc.model.compensator import load_model
 
 from helpers import REPO
 
@@ -66,7 +66,7 @@ def test_one_loaded_model_serves_every_call(affine, monkeypatch):
     def no_reload(*args, **kwargs):
         raise AssertionError("a loaded model must not be loaded again")
 
-    monkeypatch.setattr("postproc.compensate.load_model", no_reload)
+    monkeypatch.setattr("postproc.compensation.api.load_model", no_reload)
     outputs = {postproc.compensate_text(CSV, model, name="p.csv")[0] for _ in range(3)}
     assert len(outputs) == 1
 

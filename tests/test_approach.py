@@ -13,12 +13,12 @@ import re
 import numpy as np
 import pytest
 
-from postproc.compensator import load_model
-from postproc.planning import latin_hypercube
-from postproc.robot import load_description, parse_description
-from postproc.simulator import SimulatedRobot
-from postproc.training.features import previous_poses
-from postproc.training.hybrid import HybridModel
+from postproc.model.compensator import load_model
+from postproc.calibration.planning import latin_hypercube
+from postproc.robot.description import load_description, parse_description
+from postproc.calibration.simulator import SimulatedRobot
+from postproc.model.training.features import previous_poses
+from postproc.model.training.hybrid import HybridModel
 
 from helpers import REPO
 
@@ -37,7 +37,7 @@ def model(sim, tmp_path_factory):
     train = latin_hypercube(300, seed=1)
     hybrid = HybridModel(load_description(), residual="none", kinematic={"ripple": []}, seed=0)
     hybrid.fit(train, sim.true_error(train), previous_poses(train))
-    from postproc.training.card import arm_metadata
+    from postproc.model.training.card import arm_metadata
 
     path = hybrid.export_onnx(tmp_path_factory.mktemp("approach") / "backlash.onnx", name="backlash",
                               **arm_metadata(load_description()))
@@ -46,8 +46,8 @@ def model(sim, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def pocket():
-    from postproc.compensate import load_program
-    from postproc.findings import robot_base_poses
+    from postproc.programs.io import load_program
+    from postproc.programs.base_poses import robot_base_poses
 
     poses, ok = robot_base_poses(load_program(REPO / "samples" / "krl" / "cam_pocket.src"))
     poses = poses[ok][:900]
@@ -97,7 +97,7 @@ def test_every_command_lands_where_compensate_assumed(model, sim, pocket):
 
 
 def test_settling_is_the_same_chunk_by_chunk(model, pocket, monkeypatch):
-    import postproc.compensator as compensator
+    import postproc.model.compensator as compensator
 
     once = list(model.command_chunks(pocket))
     monkeypatch.setattr(model, "command_chunk", 128)  # (rows per chunk: the instance's)

@@ -9,7 +9,7 @@ import pytest
 
 pytest.importorskip("torch")
 
-from postproc.training.blocked import BlockedCV, folds  # noqa: E402
+from postproc.model.training.blocked import BlockedCV, folds  # noqa: E402
 
 
 def test_each_region_is_predicted_by_the_fit_without_it():
@@ -66,8 +66,8 @@ def test_train_reports_the_blocked_figures_and_what_it_chose(tmp_path, capsys):
     """The IPA Series C excerpt (150 rows, one arm configuration): the card carries the blocked
     held-out figures beside the random ones and the selection; train prints both."""
     from postproc.cli import main
-    from postproc.compensator import load_model
-    from postproc.resources import sample_path
+    from postproc.model.compensator import load_model
+    from postproc.core.resources import sample_path
 
     data = tmp_path / "c.csv"
     assert main(["import", "ipa", str(sample_path("ipa/series_c_excerpt.csv")), "-o", str(data), "--register",
@@ -95,11 +95,11 @@ def test_compliance_prior_is_scaled_by_the_torque_anywhere_in_the_joint_limits()
     (the tool hanging down) leave A5's compliance near 0 instead of free."""
     import torch
 
-    from postproc.planning import latin_hypercube
-    from postproc.robot import load_description
-    from postproc.simulator import SimulatedRobot
-    from postproc.training.features import previous_poses
-    from postproc.training.kinematic import PRIOR_RAD, KinematicModel, Layout
+    from postproc.calibration.planning import latin_hypercube
+    from postproc.robot.description import load_description
+    from postproc.calibration.simulator import SimulatedRobot
+    from postproc.model.training.features import previous_poses
+    from postproc.model.training.kinematic import PRIOR_RAD, KinematicModel, Layout
 
     d = load_description()
     sim = SimulatedRobot(d)

@@ -7,12 +7,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from postproc.check import check_files, check_fresh, check_program, failed, find_stamps, program_paths
+from postproc.compensation.check import check_files, check_fresh, check_program, failed, find_stamps, program_paths
 from postproc.cli import main
-from postproc.compensate import compensate_text, parse_program_text
-from postproc.compensator import load_model
-from postproc.config import load_config
-from postproc.diagnostics import PostprocError
+from postproc.compensation.api import compensate_text
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.settings.file import load_config
+from postproc.core.diagnostics import PostprocError
 from postproc.programs import STAMP_PREFIX, Program, TargetsBuilder
 
 from postproc.testing.models import DEFAULT_ENVELOPE, DEFAULT_REACH
@@ -284,12 +285,12 @@ def test_a_model_for_another_robot_is_a_finding(affine, tmp_path, capsys, monkey
 
 def test_cli_robot_option_uses_the_nominal_ik(affine, tmp_path, capsys):
     pytest.importorskip("pinocchio")
-    robot = pytest.importorskip("postproc.robot")
+    robot = pytest.importorskip("postproc.robot.arm")
     path = write(tmp_path / "p.csv", TEXT)
     _, ok = robot.Robot().ik(np.array(ROWS, float))
     far = {line for line, code in expected_codes() if code == "P302"}
     want = [line for line, reach in enumerate(ok, start=2) if not reach and line not in far]
-    from postproc.resources import model_path
+    from postproc.core.resources import model_path
 
     assert main(["check", str(path), "--model", str(affine()), "--robot", str(model_path("kr500.toml"))]) == 1
     got = [int(line.split(":")[1]) for line in capsys.readouterr().out.splitlines() if " P309 " in line]
@@ -372,7 +373,7 @@ def test_colour_only_on_a_terminal_without_no_color(affine, tmp_path, capsys, mo
 
 def test_check_runs_the_model_once_for_a_clean_program(tmp_path, monkeypatch):
     # the safety net (compensate_program) reuses check's commands instead of a second fixed point
-    from postproc.compensator import Compensator
+    from postproc.model.compensator import Compensator
 
     path = tmp_path / "p.csv"
     path.write_text("x,y,z,a,b,c\n2000,0,900,0,90,0\n2050,100,950,0,90,0\n")

@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from postproc.cli import install_command, missing_extra
+from postproc.core.extras import install_command, missing_extra
 
 from helpers import REPO
 

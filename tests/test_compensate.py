@@ -7,10 +7,12 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.compensate import compensate_program, compensate_text, robot_base_poses
-from postproc.compensator import load_model
+from postproc.compensation.pipeline import compensate_program
+from postproc.compensation.api import compensate_text
+from postproc.programs.base_poses import robot_base_poses
+from postproc.model.compensator import load_model
 from postproc.programs import ActiveFrames
-from postproc.diagnostics import PostprocError
+from postproc.core.diagnostics import PostprocError
 from postproc.programs import STAMP_PREFIX
 
 from helpers import REPO, program_in_base
@@ -169,7 +171,7 @@ def test_robot_base_keeps_the_written_attitude_when_the_base_does_not_rotate():
 
 def test_reader_says_when_targets_are_variables():
     # compensate reads a program with variables again before writing (guards.check_round_trip)
-    from postproc.compensate import load_program
+    from postproc.programs.io import load_program
 
     assert load_program(REPO / "samples/krl/cam_pocket.src").named_targets is False
     assert load_program(REPO / "samples/krl/weld_cell.src", REPO / "samples/krl/config/$config.dat").named_targets
@@ -220,7 +222,7 @@ def test_commands_in_chunks_equal_the_whole_program_fixed_point():
 
 
 def test_rewrite_overlapping_the_model_writes_what_one_pass_writes(monkeypatch):
-    import postproc.compensate as compensate
+    import postproc.compensation.commands as commands
     poses = _cam_path(500, seed=1)
     text = "DEF cam()\n" + "".join(
         "LIN {X %.3f,Y %.3f,Z %.3f,A %.3f,B %.3f,C %.3f} C_VEL\n" % tuple(p) for p in poses) + "END\n"
@@ -228,21 +230,21 @@ def test_rewrite_overlapping_the_model_writes_what_one_pass_writes(monkeypatch):
     whole, report = compensate_text(text, name="cam.src", active=stated)
     model = load_model()
     model.command_chunk = 16  # 32 model chunks
-    monkeypatch.setattr(compensate, "EDIT_CHUNK", 50)  # 30 rewrite chunks waiting on them
+    monkeypatch.setattr(commands, "EDIT_CHUNK", 50)  # 30 rewrite chunks waiting on them
     chunked, again = compensate_text(text, model, name="cam.src", active=stated)
     assert chunked == whole and again.max_correction_mm == report.max_correction_mm
     assert report.compensated == 500 and whole != text
 
 
 def test_a_guard_failing_in_a_late_chunk_names_the_worst_target(affine, monkeypatch):
-    import postproc.compensate as compensate
+    import postproc.compensation.commands as commands
     # E = 0.01·(x − 2000): 0 … 3 mm along the program, largest at its last line
     xs = np.linspace(2000, 2300, 200)
     text = "x,y,z,a,b,c\n" + "".join(f"{x:.3f},0,900,0,90,0\n" for x in xs)
     model = affine(gain=np.diag([1e-2, 0, 0]), centre=(2000.0, 0.0, 900.0))
     model = load_model(model)
     model.command_chunk = 8
-    monkeypatch.setattr(compensate, "EDIT_CHUNK", 6)
+    monkeypatch.setattr(commands, "EDIT_CHUNK", 6)
     with pytest.raises(PostprocError) as info:
         compensate_text(text, model, name="p.csv", max_correction_mm=2.0)
     assert (info.value.code, info.value.line) == ("P303", 201)
@@ -251,7 +253,8 @@ def test_a_guard_failing_in_a_late_chunk_names_the_worst_target(affine, monkeypa
 
 def test_shipped_model_outputs_the_controllers_joint_angles():
     # the graph's own IK, exported as ``joints``: the nominal robot's (Pinocchio model) IK
-    from postproc.robot import Robot, load_description
+    from postproc.robot.arm import Robot
+    from postproc.robot.description import load_description
 
     model = load_model()
     assert model.has_joints and model.envelope.joints.shape == (6, 2)
@@ -268,7 +271,7 @@ def _with_joint_ranges(tmp_path, ranges):
 
     import onnx
 
-    from postproc.resources import model_path
+    from postproc.core.resources import model_path
 
     graph = onnx.load(str(model_path()))
     prop = next(p for p in graph.metadata_props if p.key == "envelope")
@@ -281,7 +284,7 @@ def _with_joint_ranges(tmp_path, ranges):
 
 
 def test_targets_outside_the_trained_joint_ranges_warn(tmp_path):
-    from postproc.check import check_files
+    from postproc.compensation.check import check_files
 
     trained = load_model().envelope.joints.tolist()
     narrow = [list(r) for r in trained]

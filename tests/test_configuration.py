@@ -1,10 +1,11 @@
-"""S/T → joint angles (postproc.configuration) on the nominal KUKA-type and UR-type arms."""
+"""S/T → joint angles (postproc.robot.configuration) on the nominal KUKA-type and UR-type arms."""
 import numpy as np
 import pytest
 
-from postproc import configuration as cf
-from postproc.resources import model_path
-from postproc.robot import Robot, load_description
+from postproc.robot import configuration as cf
+from postproc.core.resources import model_path
+from postproc.robot.arm import Robot
+from postproc.robot.description import load_description
 
 
 @pytest.fixture(scope="module", params=["kr500.toml", "ur10.toml"])
@@ -104,7 +105,7 @@ def test_configuration_does_not_import_pinocchio_or_torch():
     import subprocess
     import sys
 
-    code = ("import sys, numpy as np; from postproc import configuration as cf; from postproc.robot import Robot;"
+    code = ("import sys, numpy as np; from postproc.robot import configuration as cf; from postproc.robot.arm import Robot;"
             "r = Robot(); cf.controller_joints(r, r.fk([[0, -90, 90, 0, 45, 0]]), [-1], [-1], [False]);"
             "print('pinocchio' in sys.modules, 'torch' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
@@ -115,7 +116,7 @@ def test_a_long_ptp_chain_from_home_takes_each_solution_nearest_the_previous_one
     """PTP without S from HOME over 120 targets, as verify runs a program: every target's
     angles are the solution nearest the previous target's (what it would pick on its own from
     there), however long the chain of choices that depend on each other."""
-    from postproc.planning import latin_hypercube
+    from postproc.calibration.planning import latin_hypercube
 
     robot = Robot()
     poses = latin_hypercube(120, seed=11)
@@ -162,7 +163,7 @@ def test_status_bits_above_the_arm_are_not_a_branch():
 def test_a_program_stating_status_bit_4_is_compensated_on_its_branch(tmp_path):
     """``S 18`` is branch 2 (bit 4 set): compensated with branch 2's joint angles, as ``S 2``
     (was an IndexError), with a model of the joints (its correction varies with them)."""
-    from postproc.compensate import compensate_text
+    from postproc.compensation.api import compensate_text
     from postproc.testing.models import joint_model
 
     robot = Robot()

@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 from postproc.testing.models import joint_model
-from postproc.compensate import compensate_text
-from postproc.compensator import load_model
-from postproc.robot import Robot
+from postproc.compensation.api import compensate_text
+from postproc.model.compensator import load_model
+from postproc.robot.arm import Robot
 
 GAIN = np.array([[0.3, -0.2, 0.5, 0.1, 0.4, -0.3],
                  [0.1, 0.4, -0.2, 0.3, -0.5, 0.2],
@@ -74,7 +74,8 @@ def _krl_xyz(text):
 
 
 def test_without_status_the_controllers_rule_decides(tmp_path, q_targets):
-    from postproc.compensate import compensate_program, parse_program_text
+    from postproc.compensation.pipeline import compensate_program
+    from postproc.programs.io import parse_program_text
 
     robot = Robot()
     model = load_model(joint_model(tmp_path / "j.onnx", GAIN))
@@ -124,7 +125,8 @@ def test_a_configuration_without_solution_is_left_as_written_with_p309(tmp_path,
 def test_a_model_with_a_tool_input_gets_each_targets_tool_and_takes_any_tool(tmp_path):
     import re
 
-    from postproc.compensate import compensate_program, parse_program_text
+    from postproc.compensation.pipeline import compensate_program
+    from postproc.programs.io import parse_program_text
 
     robot = Robot()
     tool_gain = np.array([[0.001, 0, 0, 0, 0, 0], [0, 0.002, 0, 0, 0, 0], [0, 0, -0.001, 0, 0, 0]])
@@ -159,8 +161,8 @@ ROT = np.array([[0.02, -0.01, 0.03, 0.01, -0.02, 0.015],
 
 def test_orientation_is_corrected_by_the_models_rotation_error(tmp_path, q_targets):
     from postproc.cli import main
-    from postproc.frames import rotation_from_abc
-    from postproc.simulator import small_transform
+    from postproc.core.frames import rotation_from_abc
+    from postproc.core.frames import small_transform
 
     robot = Robot()
     model_file = joint_model(tmp_path / "r.onnx", GAIN, rotation_gain=ROT)
@@ -193,8 +195,8 @@ def test_orientation_needs_a_model_with_rotation_error(tmp_path, q_targets, caps
 
 
 def test_ur_type_arm_targets_get_their_branch_joints(tmp_path):
-    from postproc.resources import model_path
-    from postproc.robot import load_description
+    from postproc.core.resources import model_path
+    from postproc.robot.description import load_description
 
     ur = Robot(load_description(model_path("ur10.toml")))
     model = load_model(joint_model(tmp_path / "ur.onnx", GAIN, robot="UR10",
@@ -209,7 +211,7 @@ def test_ur_type_arm_targets_get_their_branch_joints(tmp_path):
 
 
 def test_a_model_for_a_robot_without_description_is_refused(tmp_path, q_targets):
-    from postproc.diagnostics import PostprocError
+    from postproc.core.diagnostics import PostprocError
 
     model = load_model(joint_model(tmp_path / "x.onnx", GAIN, robot="KR1000-unknown"))
     with pytest.raises(PostprocError, match="P311"):
@@ -221,8 +223,9 @@ def test_a_model_without_the_joints_input_leaves_targets_in_another_configuratio
     # flips the wrist is another arm configuration, left as written with P313, never
     # compensated for the wrong joints; the same pose with the S/T of that branch is compensated
     from postproc.cli import main
-    from postproc.robot import Robot, load_description
-    from postproc.resources import model_path
+    from postproc.robot.arm import Robot
+    from postproc.robot.description import load_description
+    from postproc.core.resources import model_path
     from postproc.testing.models import affine_model
 
     robot = Robot(load_description(model_path("kr500.toml")))

@@ -20,13 +20,14 @@ import os
 import numpy as np
 import pytest
 
-from postproc import configuration as cf
+from postproc.robot import configuration as cf
 from postproc.cli import main
-from postproc.compensate import compensate_program, parse_program_text
-from postproc.compensator import load_model
-from postproc.planning import latin_hypercube, plan_configurations, plan_csv_text
-from postproc.robot import Robot
-from postproc.simulator import SimulatedRobot
+from postproc.compensation.pipeline import compensate_program
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.calibration.planning import latin_hypercube, plan_configurations, plan_csv_text
+from postproc.robot.arm import Robot
+from postproc.calibration.simulator import SimulatedRobot
 
 
 OTHER_TOOL = np.array([180.0, 30.0, 160.0, 0.0, 0.0, 0.0])

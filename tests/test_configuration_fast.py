@@ -3,10 +3,11 @@ results of the fully checked branch table, on random programs of both arm types.
 import numpy as np
 import pytest
 
-from postproc import configuration as cf
-from postproc import frames
-from postproc.resources import model_path
-from postproc.robot import Robot, load_description
+from postproc.robot import configuration as cf
+from postproc.core import frames
+from postproc.core.resources import model_path
+from postproc.robot.arm import Robot
+from postproc.robot.description import load_description
 
 
 @pytest.fixture(scope="module", params=["kr500.toml", "ur10.toml"])

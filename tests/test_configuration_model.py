@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 import torch
 
-from postproc import frames
-from postproc.compensator import load_model
-from postproc.robot import load_description
-from postproc.training.arm import Arm, make_ik
-from postproc.training.hybrid import HybridModel
-from postproc.training.kinematic import KinematicErrorModule, Layout
+from postproc.core import frames
+from postproc.model.compensator import load_model
+from postproc.robot.description import load_description
+from postproc.robot.kinematics.twin import Arm, make_ik
+from postproc.model.training.hybrid import HybridModel
+from postproc.model.training.kinematic import KinematicErrorModule, Layout
 
 KR500 = load_description()
 UR10 = load_description("models/ur10.toml")
@@ -179,15 +179,15 @@ def test_ur_ik_at_the_wrist_singularity_keeps_the_given_a6():
 
 
 def test_measurements_in_metres_are_refused_and_outliers_named():
-    from postproc.diagnostics import PostprocError
-    from postproc.training.data import check_errors
+    from postproc.core.diagnostics import PostprocError
+    from postproc.model.training.data import check_errors
 
     rng = np.random.default_rng(0)
     positions = rng.uniform(500, 2000, (50, 3))
     lines = np.arange(50) + 2
     with pytest.raises(PostprocError, match="x_meas, y_meas, z_meas are in metres") as err:
         check_errors(positions, positions / 1000.0, lines, "m.csv")
-    assert err.value.code == "P517"  # (the unit named: postproc.units, the one check)
+    assert err.value.code == "P517"  # (the unit named: postproc.core.units, the one check)
     with pytest.raises(PostprocError, match="another frame") as err:  # (not metres: another frame)
         check_errors(positions, positions + [300.0, -80.0, 20.0], lines, "m.csv")
     assert err.value.code == "P509"

@@ -7,12 +7,14 @@ another controller refused (P310)."""
 import numpy as np
 import pytest
 
-from postproc import configuration
-from postproc.compensate import compensate_text, parse_program_text
-from postproc.compensator import load_model
-from postproc.diagnostics import PostprocError
-from postproc.resources import model_path
-from postproc.robot import Robot, load_description
+from postproc.robot import configuration
+from postproc.compensation.api import compensate_text
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.core.diagnostics import PostprocError
+from postproc.core.resources import model_path
+from postproc.robot.arm import Robot
+from postproc.robot.description import load_description
 from postproc.testing.models import joint_model
 
 GAIN = np.array([[0.3, -0.2, 0.5, 0.1, 0.4, -0.3],
@@ -119,7 +121,7 @@ def _ls(poses, configs, motion="J"):
 
 
 def _rapid(poses, conf, tool):
-    from postproc import frames
+    from postproc.core import frames
 
     lines = ["MODULE cfg", f"PERS tooldata t1:=[TRUE,[[{tool[0]},{tool[1]},{tool[2]}],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];",
              "PROC main()"]

@@ -13,13 +13,13 @@ import pytest
 from helpers import REPO
 
 from postproc.cli import main
-from postproc.compensator import CONTRACT_VERSION, load_model
-from postproc.contract import OPTIONAL_INPUTS, upgrade
-from postproc.diagnostics import PostprocError
-from postproc.measurements import read_measurements
-from postproc.model_card import card_problems
+from postproc.model.compensator import CONTRACT_VERSION, load_model
+from postproc.model.contract import OPTIONAL_INPUTS, upgrade
+from postproc.core.diagnostics import PostprocError
+from postproc.measurements.csv import read_measurements
+from postproc.model.card import card_problems
 from postproc.testing.models import affine_model, joint_model
-from postproc.training.methods import METHODS
+from postproc.model.training.methods import METHODS
 
 SHIPPED = sorted((REPO / "models").glob("*.onnx"))
 TINY = ["--hidden", "4", "--epochs", "5", "--val-fraction", "0.1", "-q"]

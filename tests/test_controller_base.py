@@ -10,12 +10,13 @@ space, so evaluating it at the program's numbers instead (the bug this guards ag
 import numpy as np
 import pytest
 
-from postproc import frames
-from postproc.compensate import compensate_text, parse_program_text
-from postproc.compensator import load_model
-from postproc.robot import load_description
+from postproc.core import frames
+from postproc.compensation.api import compensate_text
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.robot.description import load_description
 from postproc.testing.models import affine_model
-from postproc.training.card import arm_metadata
+from postproc.model.training.card import arm_metadata
 
 from helpers import REPO
 
@@ -82,7 +83,7 @@ def test_a_pose_list_states_its_frame_where_the_model_is_not_in_the_controllers_
     controller's base, every row is left as written (P218); '# frame: model' takes them as the
     model's, '# frame: controller' through controller_base (as a URScript program's); a model in
     the controller's base needs no statement."""
-    from postproc.diagnostics import PostprocError
+    from postproc.core.diagnostics import PostprocError
 
     turned, plain = models
     rng = np.random.default_rng(4)

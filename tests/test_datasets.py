@@ -9,14 +9,14 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from postproc.cli import main
-from postproc.datasets import parse_ipa, read_ipa, rpy_to_abc
-from postproc.measurements import COLUMNS, read_metadata
-from postproc.diagnostics import PostprocError
-from postproc.frames import rotation_from_abc
-from postproc.registration import register_measurements
-from postproc.resources import sample_path
-from postproc.measurements import parse_measurements
-from postproc.training.data import split_indices
+from postproc.measurements.datasets import parse_ipa, read_ipa, rpy_to_abc
+from postproc.measurements.csv import COLUMNS, read_metadata
+from postproc.core.diagnostics import PostprocError
+from postproc.core.frames import rotation_from_abc
+from postproc.core.registration import register_measurements
+from postproc.core.resources import sample_path
+from postproc.measurements.csv import parse_measurements
+from postproc.model.training.data import split_indices
 
 EXCERPT = sample_path("ipa/series_c_excerpt.csv")
 

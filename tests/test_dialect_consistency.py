@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from postproc import frames
-from postproc.compensate import compensate_text, parse_program_text
-from postproc.compensator import load_model
+from postproc.core import frames
+from postproc.compensation.api import compensate_text
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
 
 BASE = np.array([1800.0, -300.0, 600.0, 90.0, 0.0, 0.0])  # X,Y,Z,A,B,C of the frame
 LOCAL = np.array([[100.0, 50.0, 320.5, 0.0, 90.0, 0.0],
@@ -132,7 +133,7 @@ def _family_program(kind, robot, q):
     """The poses of joint angles ``q`` [n, 6] as a program of ``kind`` that states each one's
     configuration in its controller's form (KRL: S/T, RAPID: confdata, LS: CONFIG), in a frame
     turned and shifted (BASE), PTP / MoveJ / J motions; with its config texts."""
-    from postproc import configuration
+    from postproc.robot import configuration
 
     poses = robot.fk(q)
     local = frames.matrix_to_frame(frames.inverse(frames.frame_to_matrix(BASE)) @ frames.frame_to_matrix(poses))
@@ -177,8 +178,9 @@ def test_stated_configurations_give_the_pose_lists_commands(tmp_path, kind, desc
     """The same poses, each in a stated arm configuration (both wrists, joints on other turns), as
     a program in the controller's form and as a pose list with the joint angles q1..q6: a model
     of the joints gives them the same commands (its correction differs from branch to branch)."""
-    from postproc.resources import model_path
-    from postproc.robot import Robot, load_description
+    from postproc.core.resources import model_path
+    from postproc.robot.arm import Robot
+    from postproc.robot.description import load_description
     from postproc.testing.models import joint_model
 
     robot = Robot(load_description(model_path(description)))

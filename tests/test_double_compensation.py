@@ -10,7 +10,7 @@ import pytest
 from helpers import REPO
 
 from postproc.cli import main
-from postproc.diagnostics import PostprocError
+from postproc.core.diagnostics import PostprocError
 from postproc.programs.krl.machine import accuracy_model, backup_accuracy
 
 GAIN = np.array([[1e-3, 2e-3, 0.0], [-2e-3, 0.0, 3e-3], [0.0, 1e-3, -2e-3]])

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from postproc.compensate import compensate_text
-from postproc.compensator import load_model
-from postproc.diagnostics import P212, P217, P231
+from postproc.compensation.api import compensate_text
+from postproc.model.compensator import load_model
+from postproc.core.diagnostics import P212, P217, P231
 from postproc.programs import ActiveFrames
 from postproc.testing.models import affine_model
 from postproc.testing.oracle import check
@@ -166,9 +166,10 @@ def test_a_joint_motion_to_known_axis_values_is_the_arm_configuration_a_target_a
     """PTP to axis values the program states (E6AXIS), then a LIN: the LIN keeps that arm
     configuration (wrist flipped or not), which a model of the joints corrects differently; the
     command is the pose list's with the joint angles of that configuration."""
-    from postproc.compensate import parse_program_text
-    from postproc.resources import model_path
-    from postproc.robot import Robot, load_description
+    from postproc.programs.io import parse_program_text
+    from postproc.core.resources import model_path
+    from postproc.robot.arm import Robot
+    from postproc.robot.description import load_description
     from postproc.testing.models import joint_model
 
     gain = np.array([[0.3, -0.2, 0.5, 0.1, 0.4, -0.3], [0.1, 0.4, -0.2, 0.3, -0.5, 0.2],
@@ -256,8 +257,8 @@ def test_a_partial_target_after_code_not_read_or_many_paths_holds_every_command_
 def test_the_first_target_after_a_joint_motion_to_known_axes_comes_from_where_they_put_the_tcp(model):
     # PTP to axis values, then LIN XS1: the robot comes from the TCP those axes give on the model's
     # robot (its nominal kinematics, the model's tool), not from XS1 itself (the first-target rule)
-    from postproc.controller import model_description
-    from postproc.robot import Robot
+    from postproc.compensation.inputs import model_description
+    from postproc.robot.arm import Robot
 
     axes = [0.0, -90.0, 90.0, 0.0, 60.0, 0.0]
     src = ("DEF t( )\n  PTP {A1 0.0,A2 -90.0,A3 90.0,A4 0.0,A5 60.0,A6 0.0}\n  LIN XS1\nEND\n")

@@ -10,13 +10,14 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from postproc import frames
+from postproc.core import frames
 from postproc.cli import main
-from postproc.compensator import load_model
-from postproc.descriptions import (MM, _origin, _xyz_rpy, calibrated_urdf, calibration_yaml, identified_geometry,
-                                   nominal_urdf, read_urdf)
-from postproc.diagnostics import PostprocError
-from postproc.robot import load_description
+from postproc.model.compensator import load_model
+from postproc.calibration.export import (
+    MM, _origin, _xyz_rpy, calibrated_urdf, calibration_yaml, identified_geometry, nominal_urdf, read_urdf,
+)
+from postproc.core.diagnostics import PostprocError
+from postproc.robot.description import load_description
 
 pin = pytest.importorskip("pinocchio")
 GEOMETRIC = {"groups": ("placement", "base", "tool", "zero"), "ripple": []}
@@ -26,7 +27,7 @@ GEOMETRIC = {"groups": ("placement", "base", "tool", "zero"), "ripple": []}
 def trained(tmp_path_factory):
     """A kinematic model of the simulated KR500 with only geometric groups (its Ê is P − the
     identified chain's FK at the nominal IK: nothing a URDF cannot hold) and a full hybrid one."""
-    from postproc.training.fitting import fit
+    from postproc.model.training.fitting import fit
 
     folder = tmp_path_factory.mktemp("export")
     assert main(["plan", "-n", "80", "--seed", "4", "-o", str(folder / "plan.csv"), "-q"]) == 0
@@ -52,8 +53,8 @@ def _targets(model, n=30, seed=5):
 def _refined(description, poses: np.ndarray, q_deg: np.ndarray) -> np.ndarray:
     """The nominal IK's joint angles in float64: the graph's ``ik_joints`` (float32 deg, ~1e-7 rad)
     refined by Newton steps on the nominal FK to the poses themselves (the angles the graph used)."""
-    from postproc import frames
-    from postproc.robot import Robot
+    from postproc.core import frames
+    from postproc.robot.arm import Robot
 
     robot = Robot(description)
     target = frames.frame_to_matrix(poses)
@@ -208,8 +209,8 @@ def test_a_network_model_has_nothing_to_export(tmp_path, affine):
 def test_the_ur_layout_holds_the_identified_joint_geometry(tmp_path):
     """A UR model: DH deltas (calibration.conf) whose DH chain is the identified joint geometry (in
     the base its first axis defines) to well below 1 µm; the nominal rows are UR's published DH."""
-    from postproc.descriptions import dh_transforms, ur_calibration
-    from postproc.training.fitting import fit
+    from postproc.calibration.export import dh_transforms, ur_calibration
+    from postproc.model.training.fitting import fit
 
     from helpers import REPO
 

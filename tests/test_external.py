@@ -1,4 +1,4 @@
-"""Robots on tracks and parts on turntables (postproc.external, issue 25): every target is
+"""Robots on tracks and parts on turntables (postproc.robot.external, issue 25): every target is
 compensated in the robot's own base at the external axis value it states and written back in the
 program's frame; where the unit's kinematics are not given, or the target does not state its
 axis, it is left as written with a located P225 — never a guess."""
@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from postproc.compensate import compensate_text
-from postproc.compensator import load_model
-from postproc.diagnostics import PostprocError
-from postproc.external import ExternalUnit, parse_external, read_external
-from postproc.frames import frame_to_matrix, matrix_to_frame
+from postproc.compensation.api import compensate_text
+from postproc.model.compensator import load_model
+from postproc.core.diagnostics import PostprocError
+from postproc.robot.external import ExternalUnit, parse_external, read_external
+from postproc.core.frames import frame_to_matrix, matrix_to_frame
 from postproc.programs import ActiveFrames, krl
 
 GAIN = np.diag([1e-3, 2e-3, -1e-3])  # a correction that varies over space: a frame bug shows
@@ -159,7 +159,7 @@ def test_a_krl_base_on_a_turntable_moves_with_its_axis(affine):
     for f, b in zip(p.frames, base):
         np.testing.assert_allclose(f.base, b, atol=1e-9)
     # compensated end to end (text in, text out)
-    from postproc.compensate import compensate_program
+    from postproc.compensation.pipeline import compensate_program
 
     report = compensate_program(p, load_model(model))
     got = _numbers(report.outputs["t.src"])
@@ -191,8 +191,8 @@ def test_external_units_are_checked_where_they_are_written(tmp_path):
 # ------------------------------------------------------------------------------------ RAPID
 
 def _rapid(poses, e1=None, wobj="") -> str:
-    q = __import__("postproc.frames", fromlist=["x"]).quaternion_from_rotation(
-        __import__("postproc.frames", fromlist=["x"]).rotation_from_abc(poses[:, 3:]))
+    q = __import__("postproc.core.frames", fromlist=["x"]).quaternion_from_rotation(
+        __import__("postproc.core.frames", fromlist=["x"]).rotation_from_abc(poses[:, 3:]))
     lines = ["MODULE m",
              "  PERS tooldata tS := [TRUE, [[300, 0, 75], [1, 0, 0, 0]], [10, [0, 0, 100], [1, 0, 0, 0], 0, 0, 0]];",
              "  PERS wobjdata wT := [FALSE, FALSE, \"STN1\", [[300, 0, 150], [0.9659258263, 0, 0, 0.2588190451]], "
@@ -336,7 +336,7 @@ def test_the_worked_example_of_the_docs():
 
 
 def test_frame_groups_are_the_rows_of_each_frame():
-    from postproc.frames import frame_groups
+    from postproc.core.frames import frame_groups
 
     frame = np.array([2, -1, 0, 2, 5, 0, -1, 2])
     groups = frame_groups(frame)

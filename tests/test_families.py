@@ -8,8 +8,8 @@ import shlex
 import pytest
 
 from postproc.cli import main
-from postproc.compensator import load_model
-from postproc.resources import model_path
+from postproc.model.compensator import load_model
+from postproc.core.resources import model_path
 
 from helpers import REPO
 
@@ -72,7 +72,7 @@ def test_each_sample_compensates_with_its_familys_model(tmp_path, capsys, monkey
 @pytest.mark.parametrize("name, robot, form", [("irb6700", "IRB6700-sim", "abb"), ("r2000ic", "R2000iC-sim", "fanuc"),
                                                ("ur10", "UR10", ""), ("default", "KR500-sim", "kuka")])
 def test_the_shipped_models_say_what_they_are(name, robot, form):
-    from postproc.controller import model_description
+    from postproc.compensation.inputs import model_description
 
     model = load_model(name)
     assert model.path == model_path(f"{name}.onnx") and model.path.stat().st_size <= 1_000_000
@@ -85,10 +85,12 @@ def test_plan_writes_a_fanuc_measurement_program_whose_config_reads_back(tmp_pat
     pytest.importorskip("scipy")
     import numpy as np
 
-    from postproc import configuration
-    from postproc.compensate import compensate_text, parse_program_text
-    from postproc.planning import read_plan_config, read_pose_csv
-    from postproc.robot import Robot, load_description
+    from postproc.robot import configuration
+    from postproc.compensation.api import compensate_text
+    from postproc.programs.io import parse_program_text
+    from postproc.calibration.planning import read_plan_config, read_pose_csv
+    from postproc.robot.arm import Robot
+    from postproc.robot.description import load_description
 
     plan, ls = tmp_path / "plan.csv", tmp_path / "meas.ls"
     assert main(["plan", "-n", "12", "--robot", str(model_path("r2000ic.toml")), "--wrist", "both", "-o", str(plan),

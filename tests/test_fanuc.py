@@ -11,14 +11,16 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from postproc import frames
-from postproc.check import check_program
-from postproc.compensate import compensate_text, parse_program_text
-from postproc.compensator import load_model
-from postproc.diagnostics import PostprocError
-from postproc.programs import MOTIONS, dialect_of
+from postproc.core import frames
+from postproc.compensation.check import check_program
+from postproc.compensation.api import compensate_text
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.core.diagnostics import PostprocError
+from postproc.programs import MOTIONS
+from postproc.programs.io import dialect_of
 from postproc.programs.fanuc import read_frames, wpr_to_abc
-from postproc.resources import sample_path
+from postproc.core.resources import sample_path
 
 OFFSET = np.array([0.3, -0.2, 0.1])
 GAIN = np.array([[2e-3, 0, 0], [0, -1e-3, 5e-4], [0, 0, 3e-3]])

@@ -7,11 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from postproc import frames
+from postproc.core import frames
 from postproc.cli import main
-from postproc.compensate import compensate_text, parse_program_text
-from postproc.compensator import load_model
-from postproc.diagnostics import PostprocError
+from postproc.compensation.api import compensate_text
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.core.diagnostics import PostprocError
 from postproc.programs.fanuc import read_frames
 
 FRAMES = """[uframe.1]

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.atomic import recover
+from postproc.core.atomic import recover
 
 from helpers import REPO
 
@@ -56,9 +56,9 @@ def cell(tmp_path, affine):
     from postproc.programs.krl import parser
 
     parser()  # built (and its lark cache written) before any OS call is made to fail
-    from postproc.compensator import load_model
+    from postproc.model.compensator import load_model
 
-    load_model(model)  # the model's session cache written (postproc.session) before any OS call is made to fail
+    load_model(model)  # the model's session cache written (postproc.model.session) before any OS call is made to fail
     return argv, out, old
 
 

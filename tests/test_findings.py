@@ -1,13 +1,15 @@
-"""The rules compensate and check share (postproc/findings.py): one list of findings,
+"""The rules compensate and check share (postproc/compensation/findings.py): one list of findings,
 compensate refusing on its errors and check reporting them all."""
 import numpy as np
 import pytest
 
-from postproc.check import check_program
-from postproc.compensate import compensate_program, parse_program_text
-from postproc.compensator import load_model
-from postproc.diagnostics import PostprocError
-from postproc.findings import MAX_LISTED, Settings, findings, run_model, select
+from postproc.compensation.check import check_program
+from postproc.compensation.pipeline import compensate_program
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.core.diagnostics import PostprocError
+from postproc.programs.locate import MAX_LISTED
+from postproc.compensation.findings import Settings, findings, run_model, select
 
 
 def csv(rows):

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.compensate import compensate_text
-from postproc.diagnostics import PostprocError
+from postproc.compensation.api import compensate_text
+from postproc.core.diagnostics import PostprocError
 
 from helpers import REPO, pages
 from postproc.testing.models import affine_model
@@ -18,8 +18,9 @@ README = (REPO / "README.md").read_text()
 
 def test_plan_is_bounded_and_streamed_in_chunks(capsys, tmp_path):
     pytest.importorskip("scipy")
-    from postproc import planning
-    from postproc.robot import Robot, load_description
+    from postproc.calibration import planning
+    from postproc.robot.arm import Robot
+    from postproc.robot.description import load_description
 
     assert main(["plan", "-n", str(planning.MAX_POSES + 1), "-o", str(tmp_path / "p.csv")]) == 2
     err = capsys.readouterr().err

@@ -17,7 +17,7 @@ pytest.importorskip("dask.distributed")
 pytest.importorskip("torch")
 
 from postproc.cli import main  # noqa: E402
-from postproc.resources import model_path  # noqa: E402
+from postproc.core.resources import model_path  # noqa: E402
 
 STARTUP_S = 60
 
@@ -67,7 +67,7 @@ def cluster(tmp_path):
 
 
 def test_fleet_on_an_external_scheduler_and_workers(cluster, tmp_path, monkeypatch, capsys):
-    from postproc.training.synthetic import synthetic_measurements, to_csv
+    from postproc.model.training.synthetic import synthetic_measurements, to_csv
 
     address, worker_folders = cluster
     here = tmp_path / "client"

@@ -17,7 +17,7 @@ class CrashOn(WorkerPlugin):
         self.name = name
 
     def setup(self, worker):
-        import postproc.fleet as fleet
+        import postproc.fleet.jobs as fleet
 
         real = getattr(fleet.train_robot, "real", fleet.train_robot)
 
@@ -34,8 +34,8 @@ def test_a_robot_that_kills_its_worker_fails_alone(tmp_path):
     import dask
     from dask.distributed import Client, LocalCluster
 
-    from postproc.fleet import RobotJob, run_fleet
-    from postproc.training.synthetic import synthetic_measurements, to_csv
+    from postproc.fleet.jobs import RobotJob, run_fleet
+    from postproc.model.training.synthetic import synthetic_measurements, to_csv
 
     poses, measured = synthetic_measurements(80, seed=2)
     (tmp_path / "a.csv").write_text(to_csv(poses, measured))

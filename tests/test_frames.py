@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from postproc import frames
+from postproc.core import frames
 
 
 def rz(deg):

@@ -31,8 +31,8 @@ def test_mutants_end_in_a_clean_output_or_a_clean_error():
 def test_the_checker_catches_a_wrong_output(tmp_path):
     """The round-trip check is what the fuzz relies on: it must reject outputs that are off."""
     from postproc.testing.models import affine_model
-    from postproc.compensate import compensate_text
-    from postproc.compensator import load_model
+    from postproc.compensation.api import compensate_text
+    from postproc.model.compensator import load_model
 
     model = load_model(affine_model(tmp_path / "m.onnx", offset=fuzz.OFFSET))
     text = "x,y,z,a,b,c\n2000.000,0.000,900.000,0,90,0\n2100.5,-5,950,0,90,0\n"

@@ -9,14 +9,14 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from postproc.resources import model_path  # noqa: E402
-from postproc.robot import load_description  # noqa: E402
-from postproc.training.arm import Arm, make_ik  # noqa: E402
-from postproc.training.features import previous_poses  # noqa: E402
-from postproc.training.kinematic import GROUPS, KinematicErrorModule, Layout, approach_signs, jacobian  # noqa: E402
-from postproc.training.network import rotation_matrices  # noqa: E402
-from postproc.training.kinematic import residual_variance  # noqa: E402
-from postproc.training.update import read_old_model  # noqa: E402
+from postproc.core.resources import model_path  # noqa: E402
+from postproc.robot.description import load_description  # noqa: E402
+from postproc.robot.kinematics.twin import Arm, make_ik  # noqa: E402
+from postproc.model.training.features import previous_poses  # noqa: E402
+from postproc.model.training.kinematic import GROUPS, KinematicErrorModule, Layout, approach_signs, jacobian  # noqa: E402
+from postproc.robot.kinematics.twin import rotation_matrices  # noqa: E402
+from postproc.model.training.kinematic import residual_variance  # noqa: E402
+from postproc.model.training.update import read_old_model  # noqa: E402
 
 ROWS = 400
 

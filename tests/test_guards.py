@@ -320,25 +320,25 @@ def test_malformed_number_is_refused_whichever_check_sees_it(tmp_path, capsys, a
 
 
 def test_formatter_bug_is_refused(run, affine, monkeypatch):
-    import postproc.compensate
+    import postproc.compensation.commands
 
-    real = postproc.compensate.format_many
+    real = postproc.compensation.commands.format_many
 
     def off_by_two_microns(tokens, values, unit=1.0):
         return real(tokens, values + np.where(np.arange(len(values)) == 4, 0.002, 0.0), unit)
 
-    monkeypatch.setattr(postproc.compensate, "format_many", off_by_two_microns)
+    monkeypatch.setattr(postproc.compensation.commands, "format_many", off_by_two_microns)
     refused(run(GOOD, affine(offset=(0.1, 0, 0))), run, "P190", run.src(), 3, 1,
             r"the number '100\.002' does not read back as the corrected 100\.0")
 
 
 def test_program_too_large_for_memory_is_refused_before_reading(run, affine, monkeypatch):
-    import postproc.guards
+    import postproc.programs.io
 
-    monkeypatch.setattr(postproc.guards, "_available_bytes", lambda: 1_000)  # 1 kB left
+    monkeypatch.setattr(postproc.programs.io, "_available_bytes", lambda: 1_000)  # 1 kB left
     refused(run(GOOD, affine()), run, "P111", run.src(),
             message=r"too large to compensate here: 0 MB of program needs about 0\.0 GB of memory, 0\.0 GB are available")
-    monkeypatch.setattr(postproc.guards, "_available_bytes", lambda: None)  # not known: go ahead
+    monkeypatch.setattr(postproc.programs.io, "_available_bytes", lambda: None)  # not known: go ahead
     assert run(GOOD, affine(), "-q")[0] == 0
 
 

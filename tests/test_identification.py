@@ -1,6 +1,6 @@
-"""Kinematic identification (postproc.training.kinematic) and the torch arm it runs on.
+"""Kinematic identification (postproc.model.training.kinematic) and the torch arm it runs on.
 
-The measurements come from code the identification does not share: postproc.robot's numpy
+The measurements come from code the identification does not share: postproc.robot.arm's numpy
 chain of a *perturbed* description (link lengths, joint zero offsets), and the simulator's
 own backlash / gear-ripple model with every other error switched off, all noise-free.
 """
@@ -14,11 +14,13 @@ import numpy as np
 import pytest
 import torch
 
-from postproc.planning import latin_hypercube
-from postproc.robot import Robot, load_description, parse_description
-from postproc.training.arm import Arm, KukaIK, UrIK, choose_branch
-from postproc.training.features import motion_signs, previous_joints, previous_poses
-from postproc.training.kinematic import KinematicModel
+from postproc.calibration.planning import latin_hypercube
+from postproc.robot.arm import Robot
+from postproc.robot.description import load_description, parse_description
+from postproc.robot.kinematics.twin import Arm, KukaIK, UrIK
+from postproc.model.training.kinematic import choose_branch
+from postproc.model.training.features import motion_signs, previous_joints, previous_poses
+from postproc.model.training.kinematic import KinematicModel
 
 from helpers import REPO
 
@@ -60,7 +62,7 @@ def test_ur_ik_inverts_the_forward_kinematics():
     arm = Arm(ur10)
     q = torch.as_tensor(np.random.default_rng(0).uniform(-math.pi, math.pi, (200, 6)))
     rot, _, tcp = arm.frames(q)
-    from postproc.frames import abc_from_rotation
+    from postproc.core.frames import abc_from_rotation
 
     pose = torch.cat([tcp, torch.as_tensor(abc_from_rotation((rot[:, -1] @ arm.end[:3, :3]).numpy()))], dim=1)
     ik, share = choose_branch(ur10, pose.numpy(), np.degrees(q.numpy()), family="ur")
@@ -131,7 +133,7 @@ def test_predicts_a_perturbed_robot_exactly(kr500, poses):
 
 def _sim_with(kr500, errors: str):
     """The simulator with only the errors given ([errors] table replaced, no noise)."""
-    from postproc.simulator import SimulatedRobot
+    from postproc.calibration.simulator import SimulatedRobot
 
     text = re.sub(r"\[errors\].*", "[errors]\nseed = 4\n" + errors, kr500.text, flags=re.S)
     return SimulatedRobot(parse_description(text, kr500.path))
@@ -156,8 +158,8 @@ def test_backlash_signs_follow_the_data_joints_across_a_wrist_flip(kr500):
     row the previous row is in the other configuration (A4, A6 about 180° away, A5 mirrored), so
     the approach directions come from the data's joint angles of that row, not from its pose
     solved on this row's branch."""
-    from postproc.planning import plan_configurations
-    from postproc.simulator import approach_signs
+    from postproc.calibration.planning import plan_configurations
+    from postproc.robot.approach import approach_signs
 
     sim = _sim_with(kr500, "backlash_deg = [0.015, 0.012, 0.012, 0.02, 0.02, 0.02]\nbacklash_spread = 0.2\n")
     train = latin_hypercube(300, seed=1)
@@ -193,7 +195,7 @@ def test_ripple_search_finds_the_gear_order(kr500):
 
 
 def test_poses_out_of_reach_are_refused(kr500):
-    from postproc.diagnostics import PostprocError
+    from postproc.core.diagnostics import PostprocError
 
     far = latin_hypercube(40, seed=0)
     far[:, 0] += 5000.0
@@ -204,7 +206,7 @@ def test_poses_out_of_reach_are_refused(kr500):
 
 def test_fewer_coordinates_than_parameters_are_refused(kr500):
     """A 2-row file would give a model worse than none: refused (P505), naming the rows needed."""
-    from postproc.diagnostics import PostprocError
+    from postproc.core.diagnostics import PostprocError
 
     with pytest.raises(PostprocError, match="at least 26 poses") as err:
         KinematicModel(kr500, ripple=[]).fit(latin_hypercube(2, seed=0), np.zeros((2, 3)))

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from helpers import REPO
 
-from postproc import frames
+from postproc.core import frames
 from postproc.cli import main
-from postproc.diagnostics import PostprocError
-from postproc.imports import read_reflectors, read_robodk, read_spatial_analyzer
-from postproc.measurements import read_measurements
+from postproc.core.diagnostics import PostprocError
+from postproc.measurements.trackers import read_reflectors, read_robodk, read_spatial_analyzer
+from postproc.measurements.csv import read_measurements
 
 SAMPLES = REPO / "samples" / "import"
 _spec = importlib.util.spec_from_file_location("make_samples", SAMPLES / "make_samples.py")
@@ -26,8 +26,8 @@ _spec.loader.exec_module(make)
 @pytest.fixture(scope="module")
 def truth():
     """What the simulator measured (robot base) for the samples' plan, in visiting order."""
-    from postproc.planning import latin_hypercube
-    from postproc.simulator import SimulatedRobot
+    from postproc.calibration.planning import latin_hypercube
+    from postproc.calibration.simulator import SimulatedRobot
 
     poses = latin_hypercube(make.N, seed=21)
     sim = SimulatedRobot.from_file(None, None)

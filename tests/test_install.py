@@ -54,7 +54,7 @@ def test_a_built_wheel_installs_outside_the_checkout_and_compensates(scratch):
     out = (work / "out" / "cam_pocket.src").read_text("latin-1")
     assert out != sample.read_text("latin-1") and "; postproc: compensated with model default " in out
 
-    where = run([bin_ / "python", "-c", "import postproc, postproc.resources as r; "
+    where = run([bin_ / "python", "-c", "import postproc, postproc.core.resources as r; "
                  "print(postproc.__file__); print(r.grammar_path('krl.lark')); print(r.model_path())"], work)
     package, grammar, model = where.stdout.split()
     for path in (package, grammar, model):

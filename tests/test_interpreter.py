@@ -10,11 +10,13 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 
-from postproc.compensator import load_model
-from postproc.programs import ActiveFrames, lower
+from postproc.model.compensator import load_model
+from postproc.programs import ActiveFrames
+from postproc.programs.io import lower
 from postproc.programs.interpreter import Oracle, run
-from postproc.testing.generate import LS_FRAMES, dialect_cases, krl_programs, ls_programs, rapid_programs, \
-    urscript_programs
+from postproc.testing.generate import (
+    LS_FRAMES, dialect_cases, krl_programs, ls_programs, rapid_programs, urscript_programs,
+)
 from postproc.testing.models import affine_model
 from postproc.testing.oracle import check
 
@@ -98,7 +100,7 @@ def test_a_point_copied_on_one_path_only_is_left_with_the_target_that_may_be_it(
     dat = ("DEFDAT t\n  DECL E6POS XP1={X 2100.0,Y 10.5,Z 900.0,A 0.0,B 90.0,C 0.0}\n"
            "  DECL E6POS XP2={X 1700.0,Y -300.5,Z 1100.0,A 0.0,B 90.0,C 0.0}\n"
            "  DECL E6POS XP3={X 2300.0,Y 300.5,Z 700.0,A 0.0,B 90.0,C 0.0}\nENDDAT\n")
-    from postproc.programs import read_program
+    from postproc.programs.io import read_program
 
     p = read_program(["t.src", "t.dat"], [src, dat], "krl", active=STATED)
     assert [(d.code, d.line) for d in p.diagnostics] == [("P212", 8), ("P217", 3)]

@@ -11,12 +11,14 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.datasets import read_ipa
-from postproc.measurements import write_measurements
-from postproc.diagnostics import PostprocError
-from postproc.iso9283 import (CYCLE_ORDER, IsoCube, cluster_poses, largest_cube, orientation_deviation,
-                              pose_figures, read_iso_result, pose_test_plan)
-from postproc.resources import model_path, sample_path
+from postproc.measurements.datasets import read_ipa
+from postproc.measurements.csv import write_measurements
+from postproc.core.diagnostics import PostprocError
+from postproc.acceptance.iso9283 import (
+    CYCLE_ORDER, IsoCube, cluster_poses, largest_cube, orientation_deviation, pose_figures, read_iso_result,
+    pose_test_plan,
+)
+from postproc.core.resources import model_path, sample_path
 
 IPA_EXCERPT = sample_path("ipa/series_d_excerpt.csv")
 
@@ -197,7 +199,7 @@ def test_a_pose_column_is_the_plans_and_must_name_one_pose_each(tmp_path):
         read_iso_result(tmp_path / "wrong.csv")
     assert err.value.code == "P503" and err.value.line == 8
     _write(tmp_path / "bare.csv", cmd, cmd[:, :3] + offset)
-    from postproc.iso9283 import iso_markdown
+    from postproc.acceptance.iso9283 import iso_markdown
 
     assert any("numbered by first appearance" in line for line in iso_markdown(read_iso_result(tmp_path / "bare.csv")))
 
@@ -206,7 +208,7 @@ def test_ipa_series_d_excerpt(tmp_path):
     """27 real rows (3 cycles of a 400 mm cube's centre and its 8 corners, commands jittered by
     ~0.1 mm between cycles): 9 poses of n = 3, row k with rows k + 9 and k + 18; AP and RP
     checked against a row-by-row computation here on the imported (base frame) file."""
-    from postproc.measurements import parse_measurements
+    from postproc.measurements.csv import parse_measurements
 
     out = tmp_path / "d.csv"
     assert main(["import", "ipa", str(IPA_EXCERPT), "-o", str(out), "--register", "--val-fraction", "0"]) == 0

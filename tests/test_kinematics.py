@@ -1,4 +1,4 @@
-"""One robot description, one reference FK: Pinocchio's model (postproc.robot.pin_model). The
+"""One robot description, one reference FK: Pinocchio's model (postproc.robot.kinematics.reference.pin_model). The
 derived kinematics — the numpy Chain (IK checks, simulator), the torch Arm (identification) and
 the batch-last FK the exported ONNX graph runs (training/batch_last.py) — and the vectorised gravity torques are checked against
 it on random joint angles over the joint ranges of both shipped descriptions and of a skewed
@@ -12,8 +12,12 @@ import warnings
 import numpy as np
 import pytest
 
-from postproc.robot import Chain, Robot, gravity_torques, load_description, pin_model
-from postproc.resources import model_path
+from postproc.robot.kinematics.chain import Chain
+from postproc.robot.arm import Robot
+from postproc.robot.kinematics.gravity import gravity_torques
+from postproc.robot.description import load_description
+from postproc.robot.kinematics.reference import pin_model
+from postproc.core.resources import model_path
 
 pin = pytest.importorskip("pinocchio")
 torch = pytest.importorskip("torch")
@@ -94,7 +98,7 @@ def test_the_robots_fk_is_pinocchios():
 
 
 def test_the_torch_arm_is_pinocchios_fk(case):
-    from postproc.training.arm import Arm, mc
+    from postproc.robot.kinematics.twin import Arm, mc
 
     d, q = case
     arm = Arm(d)
@@ -113,7 +117,7 @@ class _Exported(torch.nn.Module):
         self.arm = arm
 
     def forward(self, q):
-        from postproc.training import batch_last as bl
+        from postproc.robot.kinematics import batch_last as bl
 
         arm = self.arm
         f = bl.frames(bl.joint_turns(arm.placements, arm.axes), arm.placements[:, :3, 3], q.t(), arm.end[:3, 3])
@@ -126,8 +130,8 @@ class _Exported(torch.nn.Module):
 def test_the_onnx_graph_is_pinocchios_fk_and_gravity(case):
     import onnxruntime
 
-    from postproc.training.arm import Arm
-    from postproc.training.export import OPSET
+    from postproc.robot.kinematics.twin import Arm
+    from postproc.model.training.export import OPSET
 
     d, q = case
     buffer = io.BytesIO()
@@ -147,7 +151,7 @@ def test_the_onnx_graph_is_pinocchios_fk_and_gravity(case):
 
 @pytest.mark.parametrize("payload", [True, False], ids=["payload", "unloaded"])
 def test_gravity_torques_are_pinocchios(case, payload):
-    from postproc.training.arm import Arm
+    from postproc.robot.kinematics.twin import Arm
 
     d, q = case
     expected = reference_gravity(d, q, payload)
@@ -159,7 +163,7 @@ def test_gravity_torques_are_pinocchios(case, payload):
 
 @pytest.mark.parametrize("name", ["kr500", "ur10"])
 def test_the_robots_gravity_torques_are_pinocchios(name, monkeypatch):
-    import postproc.robot
+    import postproc.robot.kinematics.gravity
 
     d = DESCRIPTIONS[name]
     robot = Robot(d)
@@ -167,6 +171,6 @@ def test_the_robots_gravity_torques_are_pinocchios(name, monkeypatch):
     for payload in (True, False):
         assert_torques(robot.gravity_torques(q, payload=payload), reference_gravity(d, q, payload))
     whole = robot.gravity_torques(q)
-    monkeypatch.setattr(postproc.robot, "GRAVITY_ROWS", 7)  # many poses: a block at a time, same figures
+    monkeypatch.setattr(postproc.robot.kinematics.gravity, "GRAVITY_ROWS", 7)  # many poses: a block at a time, same figures
     np.testing.assert_array_equal(robot.gravity_torques(q), whole)
     assert not np.allclose(whole, robot.gravity_torques(q, payload=False))  # the payload's weight counts

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from postproc.diagnostics import PostprocError
+from postproc.core.diagnostics import PostprocError
 from postproc.programs import ActiveFrames, MOTIONS, STAMP_PREFIX, krl
 
 # These programs are about other semantics than the active frames: they state them as the
@@ -640,7 +640,7 @@ def test_accelerated_read_checks_the_block_structure(tail, line_of, message):
 def test_planning_measurement_program_reads_back():
     """The measurement programs postproc writes (planning.py) read back: the N poses plus
     the approach/retreat points, all in $NULLFRAME with the robot's tool."""
-    from postproc.planning import krl_measurement_program
+    from postproc.calibration.planning import krl_measurement_program
 
     class StubRobot:  # what krl_measurement_program asks of a robot, without Pinocchio
         name, tool_name, tool = "stub", "probe", np.array([0.0, 0.0, 150.0, 0.0, 0.0, 0.0])

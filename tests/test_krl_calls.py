@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from postproc.frames import frame_to_matrix
+from postproc.core.frames import frame_to_matrix
 from postproc.programs import ActiveFrames, krl
 
 # These programs are about other semantics than the active frames: they state them as the

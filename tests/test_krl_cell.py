@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from postproc.diagnostics import PostprocError
-from postproc.frames import frame_to_matrix
+from postproc.core.diagnostics import PostprocError
+from postproc.core.frames import frame_to_matrix
 from postproc.programs import ActiveFrames, krl
 
 # These programs are about other semantics than the active frames: they state them as the

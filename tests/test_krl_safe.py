@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.compensate import compensate_text
-from postproc.diagnostics import PostprocError
-from postproc.frames import frame_to_matrix
+from postproc.compensation.api import compensate_text
+from postproc.core.diagnostics import PostprocError
+from postproc.core.frames import frame_to_matrix
 from postproc.programs import ActiveFrames, krl
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples" / "krl"
@@ -140,7 +140,7 @@ def test_the_stated_frames_hold_when_the_output_is_read_again(affine):
 
 
 def test_other_dialects_refuse_stated_frames():
-    from postproc.programs import read_program
+    from postproc.programs.io import read_program
 
     with pytest.raises(PostprocError) as e:
         read_program(["p.csv"], ["x,y,z\n1,2,3\n"], "poses", active=ActiveFrames(base=0))

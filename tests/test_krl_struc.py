@@ -70,7 +70,7 @@ def test_a_struc_member_of_axis_type_is_not_a_target():
 def test_converter_output_in_a_cell_with_config():
     from pathlib import Path
 
-    from postproc.frames import frame_to_matrix
+    from postproc.core.frames import frame_to_matrix
 
     config = (Path(__file__).resolve().parent.parent / "samples" / "krl" / "config" / "$config.dat").read_bytes()
     main = src(f"FOR counter = 1 TO {N}").replace("BAS(#BASE, 0)", "BAS(#BASE, 2)\n  BAS(#TOOL, 2)")

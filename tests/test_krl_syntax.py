@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from postproc.diagnostics import PostprocError
+from postproc.core.diagnostics import PostprocError
 from postproc.programs import krl
 from postproc.programs.krl.syntax import parser
 
@@ -89,8 +89,8 @@ def test_invalid_krl_is_located(line, col):
 
 @pytest.mark.parametrize("names", [("statements.src", "statements.dat"), ("handlers.src",)])
 def test_zero_model_keeps_the_bytes(affine, names):
-    from postproc.compensate import compensate_program
-    from postproc.compensator import load_model
+    from postproc.compensation.pipeline import compensate_program
+    from postproc.model.compensator import load_model
     from postproc.programs import STAMP_PREFIX
 
     def values(text):  # numbers are rewritten in the writer's style (≥ 3 decimals), same value

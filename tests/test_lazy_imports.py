@@ -18,8 +18,8 @@ spec.loader.exec_module(fake_cam_post)
 
 # optional extras and the parts of postproc that a compensate of one program never needs
 NEVER = ("torch", "scipy", "pinocchio", "pin", "matplotlib", "onnx", "dask", "distributed", "tqdm", "pandas",
-         "sklearn", "difflib", "postproc.training", "postproc.report", "postproc.simulator", "postproc.certificate",
-         "postproc.measurements", "postproc.planning", "postproc.fleet", "postproc.cell", "postproc.check",
+         "sklearn", "difflib", "postproc.model.training", "postproc.acceptance.report", "postproc.calibration.simulator", "postproc.acceptance.certificate",
+         "postproc.measurements.csv", "postproc.calibration.planning", "postproc.fleet.jobs", "postproc.compensation.cell", "postproc.compensation.check",
          "postproc.testing")
 OTHER_DIALECTS = ("postproc.programs.poses", "postproc.programs.rapid", "postproc.programs.urscript",
                   "postproc.programs.fanuc")
@@ -61,7 +61,7 @@ def test_krl_compensate_imports_only_what_it_uses(tmp_path, source):
         out = (tmp_path / "out.src").read_text(encoding="latin-1")
     assert moved_targets(text, out) == 12  # every target compensated
     assert "postproc.programs.krl" in modules and "onnxruntime" in modules
-    assert unneeded(modules, OTHER_DIALECTS + (("postproc.streaming",) if source == "stdin" else ())) == []
+    assert unneeded(modules, OTHER_DIALECTS + (("postproc.compensation.streaming",) if source == "stdin" else ())) == []
 
 
 def test_pose_list_compensate_does_not_import_the_krl_reader(tmp_path):
@@ -71,4 +71,4 @@ def test_pose_list_compensate_does_not_import_the_krl_reader(tmp_path):
     assert moved_targets(text, out) == 12
     assert "postproc.programs.poses" in modules
     assert unneeded(modules, ("postproc.programs.krl", "postproc.programs.rapid", "postproc.programs.urscript",
-                              "postproc.programs.fanuc", "postproc.streaming")) == []
+                              "postproc.programs.fanuc", "postproc.compensation.streaming")) == []

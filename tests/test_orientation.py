@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.compensator import load_model
-from postproc.planning import read_pose_csv
-from postproc.simulator import SimulatedRobot
-from postproc.measurements import read_measurements
+from postproc.model.compensator import load_model
+from postproc.calibration.planning import read_pose_csv
+from postproc.calibration.simulator import SimulatedRobot
+from postproc.measurements.csv import read_measurements
 
 
 def _cli(*args) -> int:
@@ -86,8 +86,9 @@ def test_krl_orientation_matches_the_pose_list_in_a_turned_base(simulated):
     """A KRL program's A/B/C are located and corrected as a pose list's (they were refused,
     P312): the same targets in a shifted and turned $BASE, compensated with --orientation, land
     on the pose list's commands once taken back to the robot base — position and orientation."""
-    from postproc import frames
-    from postproc.compensate import compensate_text, parse_program_text
+    from postproc.core import frames
+    from postproc.compensation.api import compensate_text
+    from postproc.programs.io import parse_program_text
 
     d = simulated
     model = load_model(d / "m.onnx")
@@ -112,8 +113,9 @@ def test_krl_orientation_matches_the_pose_list_in_a_turned_base(simulated):
 def test_krl_named_targets_in_the_dat_get_their_orientation_too(simulated):
     """E6POS variables in the .dat (the round-trip guard reads the written module again, A/B/C
     included) are corrected as the pose list's targets."""
-    from postproc import frames
-    from postproc.compensate import compensate_text, parse_program_text
+    from postproc.core import frames
+    from postproc.compensation.api import compensate_text
+    from postproc.programs.io import parse_program_text
 
     d = simulated
     model = load_model(d / "m.onnx")
@@ -135,7 +137,7 @@ def test_krl_named_targets_in_the_dat_get_their_orientation_too(simulated):
 def test_fanuc_ls_locates_w_p_r_in_a_b_c_order():
     """An LS position's orientation tokens, in A, B, C order (A = R, B = P, C = W): what
     --orientation rewrites, each corrected angle into its own token."""
-    from postproc.compensate import parse_program_text
+    from postproc.programs.io import parse_program_text
 
     pos = ("P[1]{\n   GP1:\n\tUF : 0, UT : 1,\t\tCONFIG : 'N U T, 0, 0, 0',\n\tX =   2000.000  mm,\tY =   -10.500  mm,"
            "\tZ =   900.000  mm,\n\tW =   -4.250 deg,\tP =    97.125 deg,\tR =  -  9.500 deg\n};")
@@ -188,8 +190,8 @@ def test_orientation_in_radians_is_refused_with_its_line(simulated, capsys):
 
 
 def test_status_turn_columns_become_the_stated_joint_angles(tmp_path, capsys):
-    from postproc.configuration import measurement_joints
-    from postproc.robot import load_description
+    from postproc.robot.configuration import measurement_joints
+    from postproc.robot.description import load_description
 
     assert _cli("plan", "-n", 40, "--seed", 2, "--wrist", "both", "-o", tmp_path / "plan.csv", "-q") == 0
     assert _cli("measure", tmp_path / "plan.csv", "-o", tmp_path / "m.csv", "-q") == 0
@@ -217,8 +219,8 @@ def test_status_turn_columns_become_the_stated_joint_angles(tmp_path, capsys):
 
 
 def test_measurement_columns_are_checked_where_they_are_wrong():
-    from postproc.diagnostics import PostprocError
-    from postproc.measurements import parse_measurements
+    from postproc.core.diagnostics import PostprocError
+    from postproc.measurements.csv import parse_measurements
 
     head = "x,y,z,a,b,c,x_meas,y_meas,z_meas"
     row = "2000,0,900,0,90,0,2000.1,0,900"
@@ -235,7 +237,7 @@ def test_measurement_columns_are_checked_where_they_are_wrong():
 
 
 def test_ipa_import_with_registration_writes_the_tcp_orientation(tmp_path):
-    from postproc.resources import sample_path
+    from postproc.core.resources import sample_path
 
     src = sample_path("ipa/series_c_excerpt.csv")
     assert _cli("import", "ipa", src, "-o", tmp_path / "base.csv", "--register", "-q") == 0

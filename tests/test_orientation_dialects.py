@@ -14,11 +14,12 @@ import os
 import numpy as np
 import pytest
 
-from postproc import frames
-from postproc.compensate import compensate_text, parse_program_text
-from postproc.compensator import load_model
-from postproc.diagnostics import PostprocError
-from postproc.rewrite import ORIENTATION_DECIMALS, decimal_range
+from postproc.core import frames
+from postproc.compensation.api import compensate_text
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.core.diagnostics import PostprocError
+from postproc.programs.rewrite import ORIENTATION_DECIMALS, decimal_range
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
@@ -72,10 +73,10 @@ def _turn_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _confdata(model, targets: np.ndarray) -> list[str]:
     """The confdata of the joint angles each target (robot base) takes as a pose list's row
     (findings.select: the model's ``joints``): RAPID states them (configuration.abb_confdata)."""
-    from postproc import configuration
-    from postproc.controller import model_description
-    from postproc.findings import select
-    from postproc.robot import Robot
+    from postproc.robot import configuration
+    from postproc.compensation.inputs import model_description
+    from postproc.compensation.findings import select
+    from postproc.robot.arm import Robot
 
     rows = "x,y,z,a,b,c\n" + "".join(",".join(f"{v:.9f}" for v in p) + "\n" for p in targets)
     q = select(parse_program_text(rows, "targets.csv"), model).joints
@@ -272,7 +273,7 @@ def test_the_fewest_decimals_leave_less_than_the_stated_rotation(form, bound_deg
 def test_the_round_trip_guard_reads_the_orientation_back(abb, ur):
     """guards.check_round_trip compares the orientation's numbers read again with those meant
     (RAPID's q1..q4, URScript's rx,ry,rz): one number off by more than its rounding is P191."""
-    from postproc.guards import check_round_trip
+    from postproc.compensation.guards import check_round_trip
 
     mod = ("MODULE m\n  PERS tooldata t1:=[TRUE,[[0,0,180.5],[1,0,0,0]],[5,[0,0,100],[1,0,0,0],0,0,0]];\n"
            "  CONST robtarget p1:=[[1900,0,700],[0.0087265,0,0.9999619,0],[0,0,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];\n"
@@ -311,14 +312,14 @@ def test_a_target_without_its_orientation_is_still_p312_at_its_line(model):
 def test_a_quaternion_written_wrong_is_refused_before_writing(abb, monkeypatch):
     """A formatter that writes a quaternion number 2e-6 off (4× its rounding): P190 at the
     target, nothing returned — the orientation's new tokens are checked like X/Y/Z."""
-    import postproc.compensate
+    import postproc.compensation.commands
 
-    real = postproc.compensate.format_many
+    real = postproc.compensation.commands.format_many
 
     def off(tokens, values, unit=1.0):  # (RAPID: only the quaternion is written like metres)
         return real(tokens, values + (0.002 if unit == 1000.0 else 0.0), unit)
 
-    monkeypatch.setattr(postproc.compensate, "format_many", off)
+    monkeypatch.setattr(postproc.compensation.commands, "format_many", off)
     model = abb
     mod = ("MODULE m\n  PERS tooldata t1:=[TRUE,[[0,0,180.5],[1,0,0,0]],[5,[0,0,100],[1,0,0,0],0,0,0]];\n  PROC main()\n"
            "    MoveL [[1900,0,700],[0.0087265,0,0.9999619,0],[0,0,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]], v100, "

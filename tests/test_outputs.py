@@ -1,12 +1,13 @@
-"""The one output-path rule (postproc.outputs), through every subcommand that writes a file:
+"""The one output-path rule (postproc.core.outputs), through every subcommand that writes a file:
 checked before the work, P110, exit 2, nothing written; -o equal to the input refused."""
 import os
 
 import pytest
 
 from postproc.cli import main
-from postproc.diagnostics import PostprocError
-from postproc.outputs import check_outputs, check_program_outputs
+from postproc.core.diagnostics import PostprocError
+from postproc.core.outputs import check_outputs
+from postproc.programs.io import check_program_outputs
 
 from helpers import REPO
 
@@ -32,7 +33,7 @@ def plan(tmp_path):
 @pytest.fixture
 def never_read(monkeypatch):
     """The work must not start: reading the data fails the test."""
-    import postproc.measurements as measurements
+    import postproc.measurements.csv as measurements
 
     def fail(*a, **k):
         raise AssertionError("read the data before checking the output path")
@@ -102,14 +103,14 @@ def test_missing_folders_are_created_and_unwritable_ones_refused(tmp_path):
 
 def test_train_creates_a_missing_folder_like_plan_and_compensate(tmp_path):
     """The export used to refuse a missing folder (P500) after the fit; now one rule creates it."""
-    from postproc.training.export import write_atomic
+    from postproc.model.training.export import write_atomic
 
     path = write_atomic(tmp_path / "new" / "deeper" / "m.onnx", b"bytes")
     assert path.read_bytes() == b"bytes"
 
 
 def test_a_write_that_fails_is_p110_not_an_internal_error(tmp_path, monkeypatch):
-    from postproc import atomic, outputs
+    from postproc.core import atomic, outputs
 
     def full(outputs):
         raise OSError(28, "No space left on device", str(tmp_path / "x.csv"))

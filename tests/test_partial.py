@@ -6,12 +6,14 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.compensate import compensate_text, load_program, parse_program_text
-from postproc.compensator import load_model
-from postproc.findings import robot_base_poses
+from postproc.compensation.api import compensate_text
+from postproc.programs.io import load_program, parse_program_text
+from postproc.model.compensator import load_model
+from postproc.programs.base_poses import robot_base_poses
 
 from helpers import REPO
 from postproc.programs import ActiveFrames
+from postproc.core.diagnostics import PostprocError
 
 # made-up programs that set no $BASE/$TOOL: stated, as a user would (--base 0 --tool model)
 STATED = ActiveFrames(base=0, tool="model")
@@ -57,7 +59,7 @@ def test_weld_cell_partial_target_lands_as_if_written_in_full(tmp_path):
     """Through the simulator (`postproc verify`'s robot, no noise): the partial target of
     weld_cell.src (line 114) lands as close as the same target written in full."""
     from postproc.cli.verify import _fill
-    from postproc.simulator import SimulatedRobot
+    from postproc.calibration.simulator import SimulatedRobot
 
     krl = REPO / "samples/krl"
     config = str(krl / "config" / "$config.dat")
@@ -92,9 +94,9 @@ def test_the_last_checks_accept_the_inserted_components_and_catch_a_wrong_one(af
     out, report = compensate_text(src, model, name="m.src", dat_text=dat, active=STATED)
     assert report.complete and parse_program_text(out, "m.src", dat_text=report.outputs["m.dat"], active=STATED).named_targets
     assert re.search(r"LIN \{X 2000\.\d{3},Y -?0\.\d{3},Z 950\.\d{3}\}", out)
-    import postproc.compensate as compensate
+    import postproc.programs.rewrite as rewrite
 
-    monkeypatch.setattr(compensate, "format_like", lambda token, value: format(value + 0.01, ".3f"))
-    with pytest.raises(compensate.PostprocError) as info:
+    monkeypatch.setattr(rewrite, "format_like", lambda token, value: format(value + 0.01, ".3f"))
+    with pytest.raises(PostprocError) as info:
         compensate_text(src, model, name="m.src", dat_text=dat, active=STATED)
     assert (info.value.code, info.value.line) == ("P190", 3)

@@ -6,11 +6,12 @@ the default one) is benchmarks/plan_for.py's."""
 import numpy as np
 import pytest
 
-from postproc import configuration
+from postproc.robot import configuration
 from postproc.cli import main
-from postproc.compensator import joint_arcs, widened_arcs
-from postproc.planning import latin_hypercube, plan_configurations, read_plan_config, read_pose_csv
-from postproc.robot import Robot, load_description
+from postproc.model.compensator import joint_arcs, widened_arcs
+from postproc.calibration.planning import latin_hypercube, plan_configurations, read_plan_config, read_pose_csv
+from postproc.robot.arm import Robot
+from postproc.robot.description import load_description
 
 pytest.importorskip("torch")
 

@@ -2,11 +2,12 @@
 import numpy as np
 import pytest
 
-from postproc import frames
+from postproc.core import frames
 from postproc.cli import main
-from postproc.compensate import load_program, robot_base_poses
-from postproc.diagnostics import PostprocError
-from postproc.planning import DEFAULT_BOX, latin_hypercube, parse_pose_csv, read_pose_csv
+from postproc.programs.io import load_program
+from postproc.programs.base_poses import robot_base_poses
+from postproc.core.diagnostics import PostprocError
+from postproc.calibration.planning import DEFAULT_BOX, latin_hypercube, parse_pose_csv, read_pose_csv
 
 
 def test_latin_hypercube_is_one_point_per_stratum_in_every_dimension():
@@ -70,18 +71,18 @@ def test_measure_writes_the_training_csv_in_visiting_order(tmp_path):
                                                  [1800, -200, 1000, 0, 95, 5]])
     assert np.all(np.linalg.norm(table[:, 6:9] - table[:, :3], axis=1) < 3)
     # the probe's orientation: near the commanded, written as the program writes it (B 95, not 85)
-    from postproc.frames import rotation_from_abc
+    from postproc.core.frames import rotation_from_abc
 
     relative = rotation_from_abc(table[:, 3:6]).swapaxes(-1, -2) @ rotation_from_abc(table[:, 9:12])
     angle = np.degrees(np.arccos(np.clip((np.trace(relative, axis1=1, axis2=2) - 1) / 2, -1, 1)))
     assert np.all((angle > 1e-3) & (angle < 1.0))
     assert np.abs(table[:, 10] - table[:, 4]).max() < 1.0
     # the controller's joint angles: the nominal FK gives the commanded pose back
-    from postproc.robot import Robot
+    from postproc.robot.arm import Robot
 
     np.testing.assert_allclose(Robot().fk(table[:, 12:18])[:, :3], table[:, :3], atol=1e-3)
     # the training reader takes it as it is
-    from postproc.measurements import read_measurements
+    from postproc.measurements.csv import read_measurements
 
     assert len(read_measurements(out)) == 3
 
@@ -109,7 +110,7 @@ def test_pose_csv_reader_ignores_extra_columns_and_comments():
 
 
 def test_plan_with_both_wrists_is_measured_in_its_configurations(tmp_path):
-    from postproc.robot import Robot
+    from postproc.robot.arm import Robot
 
     plan, out, src = tmp_path / "plan.csv", tmp_path / "m.csv", tmp_path / "meas.src"
     assert main(["plan", "-n", "40", "--wrist", "both", "-o", str(plan), "--krl", str(src), "-q"]) == 0
@@ -134,7 +135,8 @@ def test_measure_with_another_tool_records_it(tmp_path):
     assert main(["measure", str(plan), "-o", str(out), "--tool", "150,20,250,0,0,0", "-q"]) == 0
     # (after the lines that say the data are the simulator's: '# simulated: KR500-sim', '# robot_seed: 8')
     assert out.read_text().splitlines()[:3] == ["# simulated: KR500-sim", "# robot_seed: 8", "# tool: 150,20,250,0,0,0"]
-    from postproc.robot import Robot, load_description
+    from postproc.robot.arm import Robot
+    from postproc.robot.description import load_description
 
     table = np.loadtxt(out, delimiter=",", skiprows=4)
     arm = Robot(load_description().replace(tool=np.array([150.0, 20, 250, 0, 0, 0])))

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from postproc.diagnostics import PostprocError
-from postproc.programs import read_program
+from postproc.core.diagnostics import PostprocError
+from postproc.programs.io import read_program
 
 from helpers import REPO
 

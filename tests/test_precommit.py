@@ -15,8 +15,8 @@ import sys
 
 import pytest
 
-from postproc.streaming import compensate_file
-from postproc.compensator import load_model
+from postproc.compensation.streaming import compensate_file
+from postproc.model.compensator import load_model
 
 from helpers import REPO
 from postproc.testing.models import DEFAULT_REACH, affine_model

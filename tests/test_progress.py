@@ -6,7 +6,7 @@ import sys
 import pytest
 
 from postproc.cli import main
-from postproc.progress import stages
+from postproc.core.progress import stages
 
 
 def test_stages_show_each_stage_then_clear_the_line(capsys):
@@ -44,7 +44,7 @@ def test_plan_and_measure_off_a_terminal_print_no_bar(tmp_path, capsys, quiet):
 
 def _terminal(monkeypatch):
     """stderr as a terminal and no delay before a bar shows (the run here is short)."""
-    import postproc.progress as progress
+    import postproc.core.progress as progress
 
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
     monkeypatch.setattr(progress, "DELAY_S", 0.0)
@@ -68,7 +68,7 @@ def test_compensate_counts_its_targets_on_a_terminal_and_nothing_with_q(tmp_path
 
 
 def test_ctrl_c_exits_130_with_nothing_written(tmp_path, capsys, monkeypatch):
-    import postproc.compensate as compensate
+    import postproc.compensation.pipeline as compensate
 
     src = tmp_path / "cam.src"
     src.write_text("DEF cam( )\n  LIN {X 2000,Y 0,Z 900,A 0,B 90,C 0}\nEND\n")

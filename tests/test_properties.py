@@ -27,8 +27,9 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from postproc.compensate import compensate_text, parse_program_text
-from postproc.compensator import load_model
+from postproc.compensation.api import compensate_text
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
 from postproc.programs import STAMP_PREFIX, ActiveFrames
 
 OFFSET = np.array([0.3, -0.2, 0.1])
@@ -407,7 +408,8 @@ def test_offset_model_moves_exactly_the_target_numbers_by_the_offset_in_their_ba
         after = parse_program_text(*texts[:1], "prog.src", dat_text=texts[1], active=STATED)
         known = [g["delta"] is not None for g in targets]
         moved = after.targets.poses[known, :3] - before.targets.poses[known, :3]
-        assert np.allclose(moved, [g["delta"] for g in targets if g["delta"] is not None], atol=5e-4 + 1e-9)
+        deltas = np.array([g["delta"] for g in targets if g["delta"] is not None], float).reshape(-1, 3)
+        assert np.allclose(moved, deltas, atol=5e-4 + 1e-9)
         assert aggregates_without_xyz(texts[0]) == aggregates_without_xyz(src)
         return
     for parts, text in ((src_parts, texts[0]), (dat_parts, texts[1])):

@@ -11,12 +11,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from postproc.compensate import compensate_text, parse_program_text
-from postproc.compensator import load_model
-from postproc.diagnostics import PostprocError
-from postproc.programs import MOTIONS, dialect_of
-from postproc.frames import rotation_from_quaternion as quaternion_matrix
-from postproc.resources import sample_path
+from postproc.compensation.api import compensate_text
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.core.diagnostics import PostprocError
+from postproc.programs import MOTIONS
+from postproc.programs.io import dialect_of
+from postproc.core.frames import rotation_from_quaternion as quaternion_matrix
+from postproc.core.resources import sample_path
 
 EAX = "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]"
 

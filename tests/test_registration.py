@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from postproc.diagnostics import PostprocError
-from postproc.registration import apply_rigid, fit_rigid, register_measurements, residuals, transform_matrix
+from postproc.core.diagnostics import PostprocError
+from postproc.core.registration import apply_rigid, fit_rigid, register_measurements, residuals, transform_matrix
 
 
 def _rotation_angle(r1: np.ndarray, r2: np.ndarray) -> float:

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.compensator import load_model
-from postproc.diagnostics import PostprocError
+from postproc.model.compensator import load_model
+from postproc.core.diagnostics import PostprocError
 
 pytest.importorskip("matplotlib")
 
@@ -109,7 +109,7 @@ def test_report_numbers_plots_and_model_card(affine, tmp_path, capsys):
 
 
 def test_figures_say_what_on_which_data_with_units_and_a_colour_bar(affine, tmp_path):
-    from postproc.report import DPI, MIN_WIDTH_PX, make_figures, read_report_data
+    from postproc.acceptance.report import DPI, MIN_WIDTH_PX, make_figures, read_report_data
 
     poses, error, _ = measurement(n=60)
     csv = write_csv(tmp_path / "cell7.csv", poses, poses[:, :3] - error)
@@ -177,7 +177,7 @@ def test_bad_input_is_located(affine, tmp_path, capsys):
     bad.write_text("x,y,z,a,b,c,x_meas,y_meas,z_meas\n1,2,3,0,90,0,1,2,nan\n")
     assert main(["report", str(bad), "--model", str(affine()), "-o", str(tmp_path / "r")]) == 2
     assert capsys.readouterr().err.startswith(f"{bad}:2:")
-    from postproc.report import read_report_data
+    from postproc.acceptance.report import read_report_data
 
     poses, error, _ = measurement(5)
     with pytest.raises(PostprocError, match="nothing to compare"):
@@ -185,7 +185,7 @@ def test_bad_input_is_located(affine, tmp_path, capsys):
 
 
 def test_matplotlib_is_imported_only_to_draw():
-    code = "import sys, postproc.report, postproc.cli.report; print('matplotlib' in sys.modules)"
+    code = "import sys, postproc.acceptance.report, postproc.cli.report; print('matplotlib' in sys.modules)"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.stdout.strip() == "False", done.stderr
 
@@ -208,7 +208,7 @@ def test_after_from_a_measurement_of_the_compensated_program(affine, tmp_path):
     # rows of another program (or another order) are refused, located in the after file
     write_csv(tmp_path / "shuffled.csv", commands[::-1], reached[::-1])
     with pytest.raises(PostprocError) as info:
-        from postproc.report import read_report_data
+        from postproc.acceptance.report import read_report_data
 
         read_report_data(before, None, tmp_path / "shuffled.csv")
     assert (info.value.code, info.value.line) == ("P503", 3) and "row 1" in info.value.message

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.compensate import compensate_text
+from postproc.compensation.api import compensate_text
 from postproc.programs import STAMP_PREFIX
 
 from helpers import REPO
@@ -97,9 +97,9 @@ def test_only_files_that_changed_are_stamped(tmp_path, affine):
     assert report.changed == ["m.src"] and report.complete and report.codes == []
     assert report.outputs["m.dat"] == dat and STAMP_PREFIX in text
     # and check accepts the pair (the unstamped .dat is no P404)
-    from postproc.check import check_program
-    from postproc.compensate import parse_program_text
-    from postproc.compensator import load_model
+    from postproc.compensation.check import check_program
+    from postproc.programs.io import parse_program_text
+    from postproc.model.compensator import load_model
 
     program = parse_program_text(text, "m.src", dat_text=dat, active=STATED)
     assert [d.code for d in check_program(program, load_model(affine(gain=GAIN)))] == ["P224"]  # (a note only)

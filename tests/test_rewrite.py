@@ -3,8 +3,8 @@ import os
 import numpy as np
 import pytest
 
-from postproc.atomic import write_atomic
-from postproc.rewrite import apply_edits, format_like, format_many, insert_stamp
+from postproc.core.atomic import write_atomic
+from postproc.programs.rewrite import apply_edits, format_like, format_many, insert_stamp
 
 
 @pytest.mark.parametrize(

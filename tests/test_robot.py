@@ -4,11 +4,12 @@ import math
 import numpy as np
 import pytest
 
-from postproc import frames
-from postproc.diagnostics import PostprocError
-from postproc.planning import latin_hypercube
-from postproc.robot import Robot, load_description, parse_description
-from postproc.resources import model_path
+from postproc.core import frames
+from postproc.core.diagnostics import PostprocError
+from postproc.calibration.planning import latin_hypercube
+from postproc.robot.arm import Robot
+from postproc.robot.description import load_description, parse_description
+from postproc.core.resources import model_path
 
 # KR 500-class datasheet dimensions the description is built from (mm)
 A1_A2_OFFSET, BASE_HEIGHT, UPPER_ARM, FOREARM, FOREARM_OFFSET, WRIST_TO_FLANGE = 500, 1045, 1300, 1025, -55, 290

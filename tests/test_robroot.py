@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.diagnostics import PostprocError
-from postproc.frames import compose, frame_to_matrix, inverse, matrix_to_frame
+from postproc.core.diagnostics import PostprocError
+from postproc.core.frames import compose, frame_to_matrix, inverse, matrix_to_frame
 from postproc.programs.krl.machine import robroot_of
-from postproc.streaming import compensate_stream
+from postproc.compensation.streaming import compensate_stream
 
 # a correction that varies over space: where the targets are in the model matters
 GAIN = np.array([[1e-3, 2e-3, 0.0], [-2e-3, 0.0, 3e-3], [0.0, 1e-3, -2e-3]])

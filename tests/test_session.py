@@ -1,11 +1,11 @@
-"""Sessions from the cached optimised graph (postproc.session) give the outputs of a fresh
+"""Sessions from the cached optimised graph (postproc.model.session) give the outputs of a fresh
 session bit for bit, and a cache file that is not the one written for this model is not used."""
 import numpy as np
 import pytest
 
-from postproc import session as ps
-from postproc.resources import model_path
-from postproc.robot import Robot
+from postproc.model import session as ps
+from postproc.core.resources import model_path
+from postproc.robot.arm import Robot
 
 
 def _feeds(sess, n=500, seed=0):
@@ -109,7 +109,7 @@ def test_a_graph_cut_to_some_outputs_gives_their_numbers_bit_for_bit(tmp_path, m
 
 
 def test_a_large_predict_runs_the_cut_graph_with_the_same_numbers():
-    from postproc.compensator import load_model
+    from postproc.model.compensator import load_model
 
     model = load_model()
     feeds = _feeds(model.session, n=3000, seed=2)

@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.diagnostics import PostprocError
-from postproc.planning import latin_hypercube, plan_csv_text
-from postproc.robot import load_description
-from postproc.simulator import SimulatedRobot, approach_signs
-from postproc.stats import table2
+from postproc.core.diagnostics import PostprocError
+from postproc.calibration.planning import latin_hypercube, plan_csv_text
+from postproc.robot.description import load_description
+from postproc.calibration.simulator import SimulatedRobot
+from postproc.robot.approach import approach_signs
+from postproc.core.stats import table2
 
 PAPER = {"max": 1.5, "min": 0.1, "mean": 0.754, "std": 0.34}  # Hu, Hua & Tian, Table 2, uncompensated
 
@@ -155,7 +156,7 @@ def test_verify_runs_a_program_with_its_own_tool(tmp_path, capsys):
 
 
 def test_verify_reports_orientation_and_a_perfect_orientation_correction_removes_it():
-    from postproc import frames
+    from postproc.core import frames
 
     sim = SimulatedRobot()
     poses = latin_hypercube(60, seed=4)

@@ -1,14 +1,15 @@
-"""Streaming compensate (postproc/streaming.py): the same bytes and refusals as the in-memory path,
+"""Streaming compensate (postproc/compensation/streaming.py): the same bytes and refusals as the in-memory path,
 a chunk of targets at a time (chunks made small here: COMMAND_CHUNK, the unit both paths batch by)."""
 import numpy as np
 import pytest
 
 from postproc.testing.models import affine_model, joint_model
-from postproc import compensator, streaming
+from postproc.model import compensator
+from postproc.compensation import streaming
 from postproc.cli import main
-from postproc.streaming import compensate_file
-from postproc.diagnostics import PostprocError
-from postproc.robot import Robot
+from postproc.compensation.streaming import compensate_file
+from postproc.core.diagnostics import PostprocError
+from postproc.robot.arm import Robot
 
 GAIN = np.array([[0.3, -0.2, 0.5, 0.1, 0.4, -0.3],
                  [0.1, 0.4, -0.2, 0.3, -0.5, 0.2],
@@ -83,9 +84,9 @@ def test_streaming_writes_the_in_memory_bytes(tmp_path, small_chunks, name, newl
 
 
 def test_a_guard_failing_in_a_late_chunk_leaves_nothing_and_is_located(tmp_path, small_chunks, monkeypatch):
-    from postproc import compensate
+    from postproc.compensation import commands
 
-    real = compensate.format_many
+    real = commands.format_many
     calls = []
 
     def broken(tokens, values, unit=1.0):
@@ -95,7 +96,7 @@ def test_a_guard_failing_in_a_late_chunk_leaves_nothing_and_is_located(tmp_path,
             out[0] = f"{float(out[0]) + 1:.3f}"
         return out
 
-    monkeypatch.setattr(compensate, "format_many", broken)
+    monkeypatch.setattr(commands, "format_many", broken)
     src = tmp_path / "cam.src"
     text = cam_program(60)
     src.write_text(text)
@@ -167,7 +168,7 @@ def test_chunks_smaller_than_the_models_write_the_same_bytes(tmp_path, monkeypat
 
 
 def test_a_chunks_error_stands_where_the_program_is_too_large_for_memory(tmp_path, small_chunks, monkeypatch):
-    from postproc import compensate
+    from postproc.programs import io
 
     def too_large(paths):
         raise PostprocError("too large", str(paths[0]), 0, 0, "P111")
@@ -176,7 +177,7 @@ def test_a_chunks_error_stands_where_the_program_is_too_large_for_memory(tmp_pat
     src = tmp_path / "cam.src"
     text = cam_program(60, extra={50: far})
     src.write_text(text)
-    monkeypatch.setattr(compensate, "check_memory", too_large)
+    monkeypatch.setattr(io, "check_memory", too_large)
     with pytest.raises(PostprocError) as err:
         compensate_file(src, tmp_path / "out.src", stream=False)
     assert err.value.code == "P111"

@@ -6,17 +6,18 @@ import os
 import numpy as np
 import pytest
 
-from postproc.compensate import compensate_program, parse_program_text
-from postproc.compensator import load_model
-from postproc.controller import unseparated_mount_mm
-from postproc.diagnostics import PostprocError
-from postproc.planning import latin_hypercube
-from postproc.simulator import SimulatedRobot
-from postproc.measurements import TOOL_COLUMNS, parse_measurements
-from postproc.training.data import measured_tools
-from postproc.training.features import previous_poses
-from postproc.training.hybrid import HybridModel
-from postproc.training.kinematic import unseparated_mount
+from postproc.compensation.pipeline import compensate_program
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.compensation.inputs import unseparated_mount_mm
+from postproc.core.diagnostics import PostprocError
+from postproc.calibration.planning import latin_hypercube
+from postproc.calibration.simulator import SimulatedRobot
+from postproc.measurements.csv import TOOL_COLUMNS, parse_measurements
+from postproc.model.training.data import measured_tools
+from postproc.model.training.features import previous_poses
+from postproc.model.training.hybrid import HybridModel
+from postproc.model.training.kinematic import unseparated_mount
 
 OTHER_TOOL = np.array([180.0, 30.0, 160.0, 0.0, 0.0, 0.0])
 LONGER = np.array([450.0, 0.0, 75.0, 0.0, 0.0, 0.0])
@@ -125,8 +126,8 @@ def test_a_one_tool_model_takes_any_tool_and_warns_p319_where_the_lever_arm_chan
 def test_the_ik_pose_of_another_tool_is_the_same_flange_pose_with_the_description_tool():
     import torch
 
-    from postproc import frames
-    from postproc.training.arm import at_tool
+    from postproc.core import frames
+    from postproc.robot.kinematics.twin import at_tool
 
     rng = np.random.default_rng(0)
     poses = np.c_[rng.uniform(-1000, 1000, (6, 3)), rng.uniform(-180, 180, (6, 3))]
@@ -152,9 +153,9 @@ def test_train_refuses_a_tool_option_that_contradicts_the_data_before_fitting(tm
 
 def test_plan_and_measure_with_three_tools_give_a_krl_program_and_data_with_each_rows_tool(tmp_path):
     from postproc.cli import main
-    from postproc.compensate import load_program
-    from postproc.planning import read_plan_tools
-    from postproc.measurements import read_measurements
+    from postproc.programs.io import load_program
+    from postproc.calibration.planning import read_plan_tools
+    from postproc.measurements.csv import read_measurements
 
     tools = [SimulatedRobot().robot.tool, LONGER, SIDEWAYS]
     args = sum((["--tool", ",".join(f"{v:g}" for v in t)] for t in tools), [])
@@ -168,7 +169,7 @@ def test_plan_and_measure_with_three_tools_give_a_krl_program_and_data_with_each
     text = src.read_text()
     assert text.count("HALT") == 2
     t = program.targets
-    from postproc.planning import read_pose_csv
+    from postproc.calibration.planning import read_pose_csv
 
     planned = read_pose_csv(plan)[0]
     at_pose = np.abs(t.poses[:, None, :3] - planned[None, :, :3]).max(axis=2) < 1e-6  # [targets, plan rows]

@@ -1,4 +1,4 @@
-"""The training API: ``postproc.training.fit`` → ``TrainedModel`` (export, card, estimator) on
+"""The training API: ``postproc.model.training.fit`` → ``TrainedModel`` (export, card, estimator) on
 data measured on the simulated robot, and the estimators' scikit-learn conventions
 (``estimator.Estimator``: parameters from the constructor's signature, fit returns self,
 fitted state ends in ``_``)."""
@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.compensator import load_model
-from postproc.measurements import read_measurements, write_measurements
-from postproc.planning import latin_hypercube
-from postproc.simulator import SimulatedRobot
-from postproc.training import ErrorModel, TrainedModel, fit
-from postproc.training.estimator import Estimator
-from postproc.training.features import previous_poses
-from postproc.training.hybrid import HybridModel
-from postproc.training.kinematic import KinematicModel
+from postproc.model.compensator import load_model
+from postproc.measurements.csv import read_measurements, write_measurements
+from postproc.calibration.planning import latin_hypercube
+from postproc.calibration.simulator import SimulatedRobot
+from postproc.model.training import ErrorModel, TrainedModel, fit
+from postproc.model.training.estimator import Estimator
+from postproc.model.training.features import previous_poses
+from postproc.model.training.hybrid import HybridModel
+from postproc.model.training.kinematic import KinematicModel
 
 TINY = {"hidden": (6,), "epochs": 10, "population": 6, "generations": 3}  # a GPSO-DNN fitted in well under a second
 
@@ -78,7 +78,7 @@ def test_the_cli_writes_what_fit_exports(measured, tmp_path):
 
 
 def test_fit_refuses_what_train_refuses(measured):
-    from postproc.diagnostics import PostprocError
+    from postproc.core.diagnostics import PostprocError
 
     with pytest.raises(PostprocError, match="P317"):
         fit(measured, "gpso", update="old.onnx")
@@ -97,7 +97,7 @@ def test_fit_refuses_what_train_refuses(measured):
 
 @pytest.mark.parametrize("cls", [ErrorModel, HybridModel, KinematicModel])
 def test_parameters_are_the_constructor_signature(cls):
-    from postproc.robot import load_description
+    from postproc.robot.description import load_description
 
     args = {"description": load_description()} if cls is not ErrorModel else {}
     model = cls(**args)

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.compensator import load_model
-from postproc.measurements import parse_measurements
-from postproc.training.synthetic import synthetic_measurements, to_csv
+from postproc.model.compensator import load_model
+from postproc.measurements.csv import parse_measurements
+from postproc.model.training.synthetic import synthetic_measurements, to_csv
 
 HEADER = "x,y,z,a,b,c,x_meas,y_meas,z_meas"
 FAST = ["--method", "gpso", "--hidden", "8,4", "--epochs", "15"]  # the GPSO-DNN path (default: hybrid)

@@ -1,4 +1,4 @@
-"""Measurement CSV reading and checking (postproc.training.data): no torch needed."""
+"""Measurement CSV reading and checking (postproc.model.training.data): no torch needed."""
 from __future__ import annotations
 
 import hashlib
@@ -6,10 +6,10 @@ import hashlib
 import numpy as np
 import pytest
 
-from postproc.diagnostics import PostprocError
-from postproc.measurements import parse_measurements, read_measurements
-from postproc.training.data import check_size, envelope_of, min_points, split_indices
-from postproc.training.synthetic import synthetic_measurements, to_csv
+from postproc.core.diagnostics import PostprocError
+from postproc.measurements.csv import parse_measurements, read_measurements
+from postproc.model.training.data import check_size, envelope_of, min_points, split_indices
+from postproc.model.training.synthetic import synthetic_measurements, to_csv
 
 HEADER = "x,y,z,a,b,c,x_meas,y_meas,z_meas"
 

@@ -5,18 +5,11 @@ import numpy as np
 import pytest
 import torch
 
-from postproc.training import baselines
-from postproc.training.gpso import (
-    C1,
-    C2,
-    arithmetic_crossover,
-    better_half,
-    child_velocities,
-    gpso,
-    inertia_schedule,
-    pso_velocity,
+from postproc.model.training import baselines
+from postproc.model.training.gpso import (
+    C1, C2, arithmetic_crossover, better_half, child_velocities, gpso, inertia_schedule, pso_velocity,
 )
-from postproc.training.network import Structure, forward
+from postproc.model.training.network import Structure, forward
 
 
 def _gen(seed: int = 0) -> torch.Generator:
@@ -128,7 +121,7 @@ def test_searches_are_reproducible_from_the_generator():
 
 
 def test_written_out_jacobian_equals_torch_func():
-    from postproc.training.network import jacobian
+    from postproc.model.training.network import jacobian
 
     s = Structure((7, 5, 4))
     g = _gen(10)

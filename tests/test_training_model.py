@@ -9,12 +9,12 @@ import onnxruntime as ort
 import pytest
 import torch
 
-from postproc.compensator import load_model
-from postproc.diagnostics import PostprocError
-from postproc.training import ErrorModel
-from postproc.training.data import split_indices
-from postproc.training.search import format_table, search_structure
-from postproc.training.synthetic import synthetic_measurements
+from postproc.model.compensator import load_model
+from postproc.core.diagnostics import PostprocError
+from postproc.model.training import ErrorModel
+from postproc.model.training.data import split_indices
+from postproc.model.training.search import format_table, search_structure
+from postproc.model.training.synthetic import synthetic_measurements
 
 # small budgets: the point is behaviour, not the method's full figures (benchmarks/ has those)
 SMALL = dict(generations=8, epochs=25)
@@ -117,7 +117,7 @@ def test_float64_internal_export(fitted, data, tmp_path):
 
 
 def test_export_creates_a_missing_folder_and_refuses_a_directory(fitted, tmp_path):
-    # one output rule (postproc.outputs) for every subcommand: missing folders are created
+    # one output rule (postproc.core.outputs) for every subcommand: missing folders are created
     assert fitted.export_onnx(tmp_path / "absent" / "m.onnx").stat().st_size > 1000
     (tmp_path / "dir.onnx").mkdir()
     with pytest.raises(PostprocError) as info:
@@ -145,7 +145,7 @@ def test_structure_search_on_a_few_candidates(data):
 
 
 def test_search_candidates_cover_the_methods_grid_families():
-    from postproc.training.search import candidates
+    from postproc.model.training.search import candidates
 
     c = candidates()
     assert len(c) == len(set(c)) == 150
@@ -164,7 +164,7 @@ def test_torch_stays_single_threaded_only_during_fit(data):
 def test_prediction_depends_on_the_rotation_not_on_its_abc_triple(fitted, data, tmp_path):
     # compensate (like a controller) may hand the model (A+180, 180−B, C+180) for (A, B, C):
     # the same rotation, so it must get the same Ê — also in the exported graph
-    from postproc import frames
+    from postproc.core import frames
 
     poses = data[0][:50]
     alt = poses.copy()
@@ -181,7 +181,7 @@ def test_prediction_depends_on_the_rotation_not_on_its_abc_triple(fitted, data, 
 def test_envelope_of_a_tool_pointing_down_holds_its_poses_in_either_abc_triple(tmp_path):
     # the default robot's working attitude is B = 90: half of its poses have B > 90, which
     # compensate re-expresses as (A+180, 180−B, C+180); the model card's envelope must still hold them
-    from postproc import frames
+    from postproc.core import frames
 
     rng = np.random.default_rng(0)
     poses = np.column_stack([rng.uniform(1700, 2300, 400), rng.uniform(-600, 600, 400), rng.uniform(500, 1300, 400),

@@ -5,14 +5,14 @@ import pytest
 
 pytest.importorskip("torch")
 
-from postproc.planning import latin_hypercube  # noqa: E402
-from postproc.robot import load_description  # noqa: E402
-from postproc.simulator import SimulatedRobot  # noqa: E402
+from postproc.calibration.planning import latin_hypercube  # noqa: E402
+from postproc.robot.description import load_description  # noqa: E402
+from postproc.calibration.simulator import SimulatedRobot  # noqa: E402
 import torch  # noqa: E402
 
-from postproc.training.features import inside_ranges, previous_poses  # noqa: E402
-from postproc.training.kinematic import KinematicModel  # noqa: E402
-from postproc.training.uncertainty import MAX_STD_FACTOR, parameter_covariance, position_std  # noqa: E402
+from postproc.model.training.features import inside_ranges, previous_poses  # noqa: E402
+from postproc.model.training.kinematic import KinematicModel  # noqa: E402
+from postproc.model.training.uncertainty import MAX_STD_FACTOR, parameter_covariance, position_std  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -53,13 +53,13 @@ def test_model_std_grows_outside_the_training_box(fitted):
 def exported(fitted, tmp_path_factory):
     """The identified arm as a contract graph with error_std (a hybrid model without networks,
     one gear-ripple order, so the ripple terms' uncertainty is in the graph too)."""
-    from postproc.training.hybrid import HybridModel
+    from postproc.model.training.hybrid import HybridModel
 
     sim, _ = fitted
     train = latin_hypercube(200, seed=1)
     hm = HybridModel(load_description(), residual="none", kinematic={"ripple": [(0, 36)]}).fit(
         train, train[:, :3] - sim.measure(train, rng_seed=0), previous_poses(train))
-    from postproc.training.card import arm_metadata
+    from postproc.model.training.card import arm_metadata
 
     card = {"identified": {**hm.describe(), "identifiability": hm.kinematic_.identifiability()}}  # (as train's)
     path = hm.export_onnx(tmp_path_factory.mktemp("std") / "std.onnx", name="std", **arm_metadata(load_description()),
@@ -67,7 +67,7 @@ def exported(fitted, tmp_path_factory):
     return sim, hm, load_model(path)
 
 
-from postproc.compensator import load_model  # noqa: E402
+from postproc.model.compensator import load_model  # noqa: E402
 
 
 def test_exported_error_std_is_position_std_and_calibrated(exported):
@@ -101,10 +101,10 @@ def test_exported_error_std_is_position_std_and_calibrated(exported):
 
 
 def test_compensate_and_check_warn_where_the_std_exceeds_the_bound(exported):
-    from postproc.check import check_program
-    from postproc.compensate import compensate_text
-    from postproc.diagnostics import PostprocError
-    from postproc.compensate import parse_program_text
+    from postproc.compensation.check import check_program
+    from postproc.compensation.api import compensate_text
+    from postproc.core.diagnostics import PostprocError
+    from postproc.programs.io import parse_program_text
 
     _, _, model = exported
     inside = latin_hypercube(4, box=(1800, 2200, -300, 300, 700, 1100), seed=2)
@@ -137,7 +137,7 @@ def test_compensate_and_check_warn_where_the_std_exceeds_the_bound(exported):
 def test_models_without_error_std_are_not_checked(tmp_path):
     from postproc.testing.models import affine_model
 
-    from postproc.compensate import compensate_text
+    from postproc.compensation.api import compensate_text
 
     model = load_model(affine_model(tmp_path / "m.onnx", gain=np.eye(3) * 1e-3))
     assert not model.has_std and model.max_std_mm is None
@@ -169,7 +169,7 @@ def test_report_and_certificate_show_the_uncertainty_and_what_the_data_could_not
     assert 0 < alone < ident["parameters"] and f"{alone} of them the data does not determine alone" in md
     assert "| base.x |" not in md and "error_std" in md
     # the accuracy report states the std at its poses and how many of their residuals it covers
-    from postproc.measurements import write_measurements
+    from postproc.measurements.csv import write_measurements
 
     held = latin_hypercube(150, seed=9)
     write_measurements(d / "held.csv", held, sim.measure(held, rng_seed=3))
@@ -186,7 +186,7 @@ def test_report_and_certificate_show_the_uncertainty_and_what_the_data_could_not
 
 
 def _exported_std(hm, path):
-    from postproc.training.card import arm_metadata
+    from postproc.model.training.card import arm_metadata
 
     return load_model(hm.export_onnx(path, name="std", **arm_metadata(hm.description)))
 
@@ -196,7 +196,7 @@ def test_a_planners_joint_angles_do_not_inflate_the_exported_std(fitted, tmp_pat
     the pose's exact IK, ~0.1 mm at the TCP, as IPA's): the fit evaluates the arm at those, the
     graph at the pose's IK, so that miss is no error a compensation leaves. The std is of what
     the graph leaves: calibrated, and the same as without the angles."""
-    from postproc.training.hybrid import HybridModel
+    from postproc.model.training.hybrid import HybridModel
 
     sim, km = fitted
     train = latin_hypercube(200, seed=1)
@@ -220,11 +220,11 @@ def test_two_sigma_covers_90_to_98_percent_of_held_out_ipa_rows(tmp_path):
     identified on 80 % of the rows (as `train`), the exported std scored on the other 20 %."""
     from helpers import REPO
 
-    from postproc.datasets import read_ipa
-    from postproc.registration import register_measurements
-    from postproc.resources import model_path
-    from postproc.training.data import split_indices
-    from postproc.training.hybrid import HybridModel
+    from postproc.measurements.datasets import read_ipa
+    from postproc.core.registration import register_measurements
+    from postproc.core.resources import model_path
+    from postproc.model.training.data import split_indices
+    from postproc.model.training.hybrid import HybridModel
 
     s = read_ipa(REPO / "samples" / "ipa" / "series_c_excerpt.csv")
     train, held = split_indices(len(s), 0.2, 0)

@@ -1,13 +1,13 @@
-"""Positions in metres are refused once, naming the unit (P517, postproc/units.py): a pose list
+"""Positions in metres are refused once, naming the unit (P517, postproc/core/units.py): a pose list
 compensate or check reads, a measurement CSV train reads, and a fleet's robot (it trains through
 train); a demonstration model says what it is (P340), once."""
 import numpy as np
 import pytest
 
 from postproc.cli import main
-from postproc.compensate import compensate_text
-from postproc.diagnostics import PostprocError
-from postproc.units import unit_problem
+from postproc.compensation.api import compensate_text
+from postproc.core.diagnostics import PostprocError
+from postproc.core.units import unit_problem
 
 ROWS = np.array([[1850.0, -400.0, 900.0, 0.0, 90.0, 0.0], [1913.158, -273.684, 991.234, 2.0, 88.0, -1.0],
                  [2018.421, -63.158, 1090.61, -1.0, 91.0, 0.5], [2100.0, 150.0, 1000.0, 0.0, 90.0, 0.0]])
@@ -75,7 +75,7 @@ def test_a_measurement_csv_in_metres_is_refused_by_train_and_fleet(measured, cap
     assert main(["train", str(d / "m.csv"), "-o", str(d / "m.onnx"), "--method", "kinematic"]) == 2
     err = capsys.readouterr().err
     assert f"{d / 'm.csv'}:4:1: P517" in err and "metres" in err and not (d / "m.onnx").exists()
-    from postproc.fleet import RobotJob, read_inputs, train_robot
+    from postproc.fleet.jobs import RobotJob, read_inputs, train_robot
 
     job = RobotJob("metres", d / "m.csv", method="kinematic")
     result = train_robot(job, read_inputs(job))
@@ -86,7 +86,7 @@ def test_a_model_of_simulated_data_says_it_is_a_demonstration_model(measured, ca
     pytest.importorskip("torch")
     d = measured
     assert main(["train", str(d / "mm.csv"), "-o", str(d / "mm.onnx"), "--method", "kinematic", "-q"]) == 0
-    from postproc.compensator import load_model
+    from postproc.model.compensator import load_model
 
     model = load_model(d / "mm.onnx")
     assert model.metadata["demonstration"] == {"robot": "KR500-sim", "robot_seed": 8}

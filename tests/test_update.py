@@ -1,4 +1,4 @@
-"""Re-calibration (``train --update``, postproc.training.update) on simulated campaigns.
+"""Re-calibration (``train --update``, postproc.model.training.update) on simulated campaigns.
 
 A simulated robot is measured (300 rows) and identified; then the same robot is re-mastered
 (A2, A3, A5 zero offsets) and the tracker set up again (the base moves by a small rigid
@@ -15,13 +15,15 @@ import torch
 import pytest
 
 from postproc.cli import main
-from postproc.compensator import load_model
-from postproc.planning import latin_hypercube
-from postproc.robot import Chain, load_description
-from postproc.simulator import SimulatedRobot, small_transform
-from postproc.training.features import previous_poses
-from postproc.training.hybrid import HybridModel
-from postproc.training.update import read_old_model, update_model
+from postproc.model.compensator import load_model
+from postproc.calibration.planning import latin_hypercube
+from postproc.robot.kinematics.chain import Chain
+from postproc.robot.description import load_description
+from postproc.calibration.simulator import SimulatedRobot
+from postproc.core.frames import small_transform
+from postproc.model.training.features import previous_poses
+from postproc.model.training.hybrid import HybridModel
+from postproc.model.training.update import read_old_model, update_model
 
 from helpers import REPO
 
@@ -59,7 +61,7 @@ def kr500():
 @pytest.fixture(scope="module")
 def old(kr500, tmp_path_factory):
     """(path, fitted model) of the first campaign: 300 rows, with a residual network."""
-    from postproc.training.card import arm_metadata
+    from postproc.model.training.card import arm_metadata
 
     poses, errors = _campaign(SimulatedRobot(kr500, seed=3), 300, 1)
     model = HybridModel(kr500, residual="always", ensemble=1, epochs=40, kinematic={"max_ripple": 6}).fit(
@@ -182,7 +184,7 @@ def test_update_refuses_an_older_card(kr500, old, tmp_path):
             prop.value = json.dumps(card)
     older = tmp_path / "older.onnx"
     onnx.save(model, older)
-    from postproc.diagnostics import PostprocError
+    from postproc.core.diagnostics import PostprocError
 
     with pytest.raises(PostprocError) as info:
         read_old_model(older, kr500)
@@ -199,7 +201,7 @@ def test_update_refuses_too_few_rows_at_the_data(old, kr500, tmp_path, capsys):
 
 
 def test_update_refuses_the_same_name_with_another_geometry(old, kr500):
-    from postproc.diagnostics import PostprocError
+    from postproc.core.diagnostics import PostprocError
 
     path, _ = old
     other = kr500.replace(tool=kr500.tool + np.array([0.0, 0.0, 50.0, 0.0, 0.0, 0.0]))
@@ -213,7 +215,7 @@ def test_update_reads_back_every_residual_network(kr500, tmp_path):
     """An ensemble of residual networks fitted on the same rows shares its standardisation: the
     exporter keeps those equal tensors once, under the first network's name; every network is
     read back whole (was: P317 "network 1 cannot be read back")."""
-    from postproc.training.card import arm_metadata
+    from postproc.model.training.card import arm_metadata
 
     poses, errors = _campaign(SimulatedRobot(kr500, seed=4), 200, 2)
     model = HybridModel(kr500, residual="always", ensemble=2, epochs=20, kinematic={"max_ripple": 4}).fit(
@@ -253,7 +255,7 @@ TOOL_TURN_RAD = np.array([0.004, -0.003, 0.006])  # the probe mounted again, tur
 
 def _oriented_campaign(sim: SimulatedRobot, n: int, seed: int):
     """(poses, position errors, orientation errors deg) measured by a 6-DOF probe."""
-    from postproc.frames import rotation_error_deg
+    from postproc.core.frames import rotation_error_deg
 
     poses = latin_hypercube(n, seed=seed)
     measured = sim.measure(poses, rng_seed=seed, orientation=True)
@@ -265,7 +267,7 @@ def test_update_refits_the_orientation_where_the_new_rows_measure_it(kr500, tmp_
     again, turned: 30 rows with orientations give a model that keeps ``rotation_error`` and
     predicts the new orientation error (OLD's is off by the probe's turn), with the probe's turn
     among what moved; the same rows without orientations give a model without that output."""
-    from postproc.training.card import arm_metadata
+    from postproc.model.training.card import arm_metadata
 
     sim = SimulatedRobot(kr500, seed=4)
     poses, errors, turns = _oriented_campaign(sim, 300, 1)
@@ -307,7 +309,7 @@ def test_update_refits_the_placements_where_the_new_rows_ask_for_it(kr500, old, 
     """A robot whose geometry moved (A3's frame shifted 0.4 mm and turned 0.4 mrad, as another
     joint region's effective geometry does): the GCV on the 30 new rows chooses to re-fit the
     joint placements, and the held-out error is well below the 15-parameter update's."""
-    from postproc.training import update as module
+    from postproc.model.training import update as module
 
     path, _ = old
     sim = _changed(SimulatedRobot(kr500, seed=3))

@@ -11,13 +11,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from postproc import frames
-from postproc.compensate import compensate_text, parse_program_text
-from postproc.compensator import load_model
-from postproc.diagnostics import PostprocError
-from postproc.programs import MOTIONS, ActiveFrames, dialect_of
-from postproc.resources import sample_path
-from postproc.rewrite import format_many
+from postproc.core import frames
+from postproc.compensation.api import compensate_text
+from postproc.programs.io import parse_program_text
+from postproc.model.compensator import load_model
+from postproc.core.diagnostics import PostprocError
+from postproc.programs import MOTIONS, ActiveFrames
+from postproc.programs.io import dialect_of
+from postproc.core.resources import sample_path
+from postproc.programs.rewrite import format_many
 
 OFFSET = np.array([0.3, -0.2, 0.1])
 GAIN = np.array([[2e-3, 0, 0], [0, -1e-3, 5e-4], [0, 0, 3e-3]])
@@ -91,7 +93,7 @@ def test_tool_follows_set_tcp_in_text_order_on_the_straight_line():
 
 @pytest.mark.parametrize("stated, expected", [("model", None), ("0,0,150,0,0,0", (0, 0, 150, 0, 0, 0))])
 def test_the_tcp_before_the_first_set_tcp_may_be_stated(stated, expected):
-    from postproc.programs import read_program
+    from postproc.programs.io import read_program
 
     text = script("movel(p[0.1,0,0.3,0,3.1416,0])", "movel(p[0.2,0,0.3,0,3.1416,0])", "set_tcp(p[0,0,0.1,0,0,0])",
                   "movel(p[0.3,0,0.3,0,3.1416,0])")
@@ -254,7 +256,7 @@ def test_constant_offset_is_the_change_in_metres_and_the_stamp_is_a_comment(mode
 def test_check_reports_warnings_and_a_second_compensation(models, tmp_path):
     import yaml
 
-    from postproc.check import check_program
+    from postproc.compensation.check import check_program
 
     text = script("movel(p[0.5000, -0.2500, 0.3000, 0, 3.1416, 0])",
                   "movel(pose_add(get_actual_tcp_pose(), p[0,0,0.1,0,0,0]))")

@@ -10,7 +10,7 @@ import pytest
 from helpers import REPO
 
 from postproc.cli import main
-from postproc.verdict import verdict_problems
+from postproc.acceptance.verdict import verdict_problems
 
 MODEL = REPO / "models" / "default.onnx"
 

@@ -14,8 +14,9 @@ import importlib
 import os
 import sys
 
-from .. import __version__
-from ..diagnostics import EXIT_ERROR, EXIT_INTERRUPTED, PostprocError
+from ..core.diagnostics import EXIT_ERROR, EXIT_INTERRUPTED, PostprocError
+from ..core.extras import missing_extra
+from ..core.version import __version__
 
 # (module, one-line help) in the order `postproc --help` lists them
 SUBCOMMANDS = [
@@ -77,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return EXIT_ERROR
-    from ..progress import reporting
+    from ..core.progress import reporting
 
     try:
         with reporting(show_progress(args)):
@@ -108,36 +109,6 @@ def _internal_error(exc: Exception, args) -> int:
         raise exc
     print(f"postproc: internal error: {type(exc).__name__}: {exc} (run with -v for details)", file=sys.stderr)
     return EXIT_ERROR
-
-
-# optional dependencies: the module a subcommand imports -> the extra that installs it
-EXTRA_OF_MODULE = {"pinocchio": "sim", "torch": "train", "onnx": "train", "matplotlib": "report", "jsonschema": "report",
-                   "dask": "fleet",
-                   "distributed": "fleet"}
-# modules in more than one extra: the subcommand says which one
-EXTRA_OF_COMMAND = {"plan": "sim", "measure": "sim", "verify": "sim", "train": "train", "import": "train",
-                    "report": "report", "export": "train", "model": "train"}
-OPTIONAL_MODULES = set(EXTRA_OF_MODULE) | {"scipy", "tqdm"}
-
-
-def install_command(extra: str) -> str:
-    """The command that installs ``extra`` (postproc is on no package index: from its checkout)."""
-    pip = f"pip install -e '.[{extra}]'"
-    if extra in ("train", "all"):  # the CPU build first, or the extra pulls a multi-GB CUDA one
-        pip = f"pip install torch==2.13.0 && {pip}"
-    return pip
-
-
-def missing_extra(exc: ModuleNotFoundError, command: str | None) -> str | None:
-    """What to install when an optional dependency is missing, or None (not an optional one: a bug)."""
-    root = (exc.name or "").split(".")[0]
-    if root not in OPTIONAL_MODULES:
-        return None
-    extra = EXTRA_OF_MODULE.get(root) or EXTRA_OF_COMMAND.get(command or "")
-    if extra is None:
-        return None
-    return (f"needs the '{extra}' extra (module '{root}' is not installed); in the postproc checkout run: "
-            f"{install_command(extra)}")
 
 
 def use_color(stream=sys.stderr) -> bool:

@@ -63,10 +63,11 @@ def _robot(value: str):
 
     if not (value.lower().endswith(".toml") or Path(value).is_file()):
         return value, None
-    from ..diagnostics import PostprocError
+    from ..core.diagnostics import PostprocError
 
     try:
-        from ..robot import Robot, load_description
+        from ..robot.arm import Robot
+        from ..robot.description import load_description
 
         robot = Robot(load_description(value))
     except ImportError as exc:
@@ -86,7 +87,7 @@ def _paint(line: str, severity: str, color: bool) -> str:
 
 def _settings(args):
     """The settings file with the options over it: (config, codes to ignore)."""
-    from ..config import load_config
+    from ..settings.file import load_config
     from .compensate import stated_frames
 
     cfg = load_config(args.settings)
@@ -107,7 +108,7 @@ def _settings(args):
 
 def _options(args, cfg) -> dict:
     """The options of check_files from the settings (and --robot: a name or a description)."""
-    from ..compensate import DEFAULT_MAX_CORRECTION_MM
+    from ..compensation.findings import DEFAULT_MAX_CORRECTION_MM
 
     options = dict(iterations=cfg.iterations, max_correction_mm=cfg.max_correction_mm or DEFAULT_MAX_CORRECTION_MM,
                    max_std_mm=args.max_std)
@@ -132,9 +133,9 @@ def _summary(findings, strict: bool) -> str:
 
 
 def run(args) -> int:
-    from ..check import check_files, check_fresh, failed
-    from ..compensator import load_model
-    from ..diagnostics import EXIT_ERROR, EXIT_FINDINGS, EXIT_OK, codes_table
+    from ..compensation.check import check_files, check_fresh, failed
+    from ..core.diagnostics import EXIT_ERROR, EXIT_FINDINGS, EXIT_OK, codes_table
+    from ..model.compensator import load_model
     from . import use_color
 
     if args.list_codes:

@@ -96,7 +96,7 @@ def add_frame_arguments(p, settings: bool = True) -> None:
 
 def stated_frames(args, settings=None):
     """``ActiveFrames`` of ``--base`` / ``--tool`` / ``--robroot`` over the settings' (P222 / P226)."""
-    from ..diagnostics import P226, PostprocError
+    from ..core.diagnostics import P226, PostprocError
     from ..programs import ActiveFrames
 
     robroot = None
@@ -109,7 +109,7 @@ def stated_frames(args, settings=None):
             raise PostprocError(str(exc), "--robroot", 0, 0, P226) from None
     external = ()
     if getattr(args, "external", None):
-        from ..external import read_external
+        from ..robot.external import read_external
 
         external = read_external(args.external)
     return ActiveFrames.stated(args.base, args.tool, settings, robroot=robroot, external=external)
@@ -118,10 +118,11 @@ def stated_frames(args, settings=None):
 def run(args) -> int:
     from pathlib import Path
 
-    from ..compensate import DEFAULT_MAX_CORRECTION_MM, compensate_program, load_program
-    from ..config import load_config
-    from ..diagnostics import EXIT_FINDINGS, EXIT_OK
-    from ..outputs import check_program_outputs
+    from ..compensation.findings import DEFAULT_MAX_CORRECTION_MM
+    from ..compensation.pipeline import compensate_program
+    from ..core.diagnostics import EXIT_FINDINGS, EXIT_OK
+    from ..programs.io import check_program_outputs, load_program
+    from ..settings.file import load_config
 
     inputs = args.input
     cell = len(inputs) > 1 or Path(inputs[0]).is_dir()
@@ -143,29 +144,30 @@ def run(args) -> int:
         fill_partial=args.fill_partial,
     )
     if cell:
-        from ..cell import compensate_cell, find_cell
-        from ..compensator import load_model
+        from ..compensation.cell import compensate_cell
+        from ..model.compensator import load_model
+        from ..programs.cell import find_cell
 
         config = [args.config] if isinstance(args.config, str) else args.config
         report = compensate_cell(find_cell(inputs, config, active), args.output, load_model(args.model), **kwargs)
     elif inputs[0] == "-":
-        from ..compensator import load_model
+        from ..model.compensator import load_model
 
         program = load_program("-", args.config, args.dialect, active=active)
         report = compensate_program(program, load_model(args.model), **kwargs)
         if args.output != "-":
-            from ..compensate import write_outputs
+            from ..compensation.pipeline import write_outputs
 
             write_outputs([(Path(args.output), report.outputs[program.files[0]])])
         else:
             sys.stdout.buffer.write(report.outputs[program.files[0]].encode("latin-1"))
             sys.stdout.buffer.flush()
     else:
-        from ..streaming import compensate_file
+        from ..compensation.streaming import compensate_file
 
         report = compensate_file(inputs[0], args.output, args.model, config=args.config, active=active, **kwargs)
     if not args.quiet:
-        from ..diagnostics import P340
+        from ..core.diagnostics import P340
 
         for w in report.warnings + [n for n in report.notes if args.verbose or n.code == P340]:
             print(w.format(), file=sys.stderr)

@@ -46,17 +46,23 @@ def add_parser(sub, common, formatter) -> None:
 def run(args) -> int:
     from pathlib import Path
 
-    from .. import outputs
-    from ..diagnostics import P308, PostprocError
-    from ..robot import load_description
+    from ..core import outputs
+    from ..core.diagnostics import P308, PostprocError
+    from ..robot.description import load_description
 
     wanted = [p for p in (args.output, args.yaml, args.json, args.ur) if p]
     if not wanted:
         raise PostprocError("nothing to write: give -o CALIBRATED.urdf, --yaml, --json and/or --ur", code=P308)
     targets = outputs.check_outputs(wanted, [args.model, args.urdf, args.robot])
     description = load_description(args.robot)
-    from ..descriptions import (calibrated_urdf, calibration_yaml, identified_geometry, nominal_urdf,
-                                parameters_json, ur_calibration)
+    from ..calibration.export import (
+        calibrated_urdf,
+        calibration_yaml,
+        identified_geometry,
+        nominal_urdf,
+        parameters_json,
+        ur_calibration,
+    )
 
     if args.nominal:
         if args.yaml or args.json or args.ur or not args.output:
@@ -65,7 +71,7 @@ def run(args) -> int:
         return 0
     if args.model is None:
         raise PostprocError("give MODEL.onnx (or --nominal)", code=P308)
-    from ..compensator import load_model
+    from ..model.compensator import load_model
 
     model = load_model(args.model)
     geometry = identified_geometry(model, description)
@@ -74,7 +80,7 @@ def run(args) -> int:
         try:
             text = Path(path).read_text(encoding="utf-8")
         except OSError as exc:
-            from ..diagnostics import P107
+            from ..core.diagnostics import P107
 
             raise PostprocError(f"cannot read: {exc.strerror}", path, code=P107) from None
     else:

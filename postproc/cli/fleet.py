@@ -39,7 +39,7 @@ def add_parser(sub, common, formatter) -> None:
 
 
 def run(args) -> int:
-    from ..fleet import fleet_table, load_fleet, run_fleet
+    from ..fleet.jobs import fleet_table, load_fleet, run_fleet
 
     jobs = load_fleet(args.fleet)
     results = run_fleet(jobs, args.output, address=args.address, workers=args.workers, force=args.force)

@@ -86,15 +86,17 @@ def run(args) -> int:
     import os
 
     import numpy as np
-
     import scipy.spatial  # noqa: F401  (angle conversions; missing: postproc.cli names the extra to install)
-    from ..datasets import read_ipa
-    from ..measurements import write_measurements
-    from ..outputs import check_outputs
+
+    from ..core.outputs import check_outputs
+    from ..measurements.csv import write_measurements
+    from ..measurements.datasets import read_ipa
 
     check_outputs([args.output], [args.src])
-    from ..registration import register_measurements
-    from ..training.data import split_indices  # numpy only; the same draw as `train`
+    from ..core.registration import register_measurements
+    from ..model.training.data import (
+        split_indices,  # numpy only; the same draw as `train`
+    )
 
     series = read_ipa(args.src, branch=args.abc)
     extra = {f"q{i + 1}": series.joints[:, i] for i in range(6)}
@@ -114,7 +116,7 @@ def run(args) -> int:
             "tracker_to_base": " ".join(f"{v:.9g}" for v in transform[:3].ravel()),
         }
         if series.measured_rotation is not None:
-            from ..datasets import probe_orientation
+            from ..measurements.datasets import probe_orientation
 
             abc, probe, rms_deg = probe_orientation(series.commanded[:, 3:], transform[:3, :3] @ series.measured_rotation,
                                                     ~held)
@@ -134,14 +136,14 @@ def run(args) -> int:
 
 
 def run_tool(args) -> int:
-    """spatialanalyzer / robodk / reflectors: ``postproc.imports`` → the measurement CSV (with
+    """spatialanalyzer / robodk / reflectors: ``postproc.measurements.trackers`` → the measurement CSV (with
     ``--register``: tracker → base fitted on the rows outside ``--val-fraction``)."""
     import numpy as np
 
-    from .. import imports
-    from ..diagnostics import P308, P513, PostprocError
-    from ..measurements import write_measurements
-    from ..outputs import check_outputs
+    from ..core.diagnostics import P308, P513, PostprocError
+    from ..core.outputs import check_outputs
+    from ..measurements import trackers as imports
+    from ..measurements.csv import write_measurements
 
     if args.format == "spatialanalyzer" and not args.poses:
         raise PostprocError("spatialanalyzer needs --poses PLAN.csv: the commanded poses the points were measured at",
@@ -150,7 +152,7 @@ def run_tool(args) -> int:
     if args.format == "spatialanalyzer":
         data = imports.read_spatial_analyzer(args.src, args.poses)
     elif args.format == "robodk":
-        from ..robot import load_description
+        from ..robot.description import load_description
 
         tool = None
         if args.tool:
@@ -167,10 +169,10 @@ def run_tool(args) -> int:
     orientation = data.orientation
     summary = ""
     if args.register:
-        from .. import frames
-        from ..registration import register_measurements
-        from ..simulator import nearest_triple
-        from ..training.data import split_indices
+        from ..core import frames
+        from ..core.frames import nearest_triple
+        from ..core.registration import register_measurements
+        from ..model.training.data import split_indices
 
         if data.frame == "base":
             raise PostprocError("--register: the file states frame: base, its points are in the robot base already",

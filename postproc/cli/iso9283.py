@@ -1,6 +1,6 @@
 """The ISO 9283 routes of ``postproc plan --iso9283`` and ``postproc report --iso9283``:
-argument mapping and output only (the test lives in postproc/iso9283.py, the certificate in
-postproc/certificate.py)."""
+argument mapping and output only (the test lives in postproc/acceptance/iso9283.py, the certificate in
+postproc/acceptance/certificate.py)."""
 from __future__ import annotations
 
 import sys
@@ -9,10 +9,10 @@ import sys
 def run_plan(args, description, box, attitude) -> int:
     from pathlib import Path
 
-    from ..atomic import write_atomic
-    from ..iso9283 import IsoCube, iso_plan_csv_text, iso_test
-    from ..planning import krl_measurement_program, round_poses
-    from ..robot import Robot
+    from ..acceptance.iso9283 import IsoCube, iso_plan_csv_text, iso_test
+    from ..calibration.planning import krl_measurement_program, round_poses
+    from ..core.atomic import write_atomic
+    from ..robot.arm import Robot
 
     robot = Robot(description)
 
@@ -39,8 +39,8 @@ def run_plan(args, description, box, attitude) -> int:
 
 
 def run_report(args, model) -> int:
-    from ..certificate import write_certificate
-    from ..iso9283 import read_iso_result
+    from ..acceptance.certificate import write_certificate
+    from ..acceptance.iso9283 import read_iso_result
 
     result = read_iso_result(args.measured, args.after)
     files = write_certificate(result, args.output, model)

@@ -52,12 +52,18 @@ def run(args) -> int:
 
     import numpy as np
 
-    from ..diagnostics import P320, P335, PostprocError
-    from ..measurements import TOOL_COLUMNS, measurement_csv
-    from ..planning import parse_tool, read_plan_config, read_plan_labels, read_plan_tools, read_pose_csv, tool_parts
-    from ..progress import stages
-    from ..outputs import check_outputs, write
-    from ..simulator import SimulatedRobot
+    from ..calibration.planning import (
+        read_plan_config,
+        read_plan_labels,
+        read_plan_tools,
+        read_pose_csv,
+        tool_parts,
+    )
+    from ..calibration.simulator import SimulatedRobot
+    from ..core.diagnostics import P320, P335, PostprocError
+    from ..core.outputs import check_outputs, write
+    from ..core.progress import stages
+    from ..measurements.csv import TOOL_COLUMNS, measurement_csv, parse_tool
     from . import show_progress
 
     check_outputs([args.output], [args.plan, args.robot or "-"])

@@ -39,8 +39,8 @@ def add_parser(sub, common, formatter) -> None:
 
 
 def run_info(args) -> int:
-    from ..compensator import load_model
-    from ..model_card import card_lines, card_problems, interface_lines
+    from ..model.card import card_lines, card_problems, interface_lines
+    from ..model.compensator import load_model
 
     model = load_model(args.model)
     try:
@@ -60,9 +60,9 @@ def run_info(args) -> int:
 
 
 def run_upgrade(args) -> int:
-    from .. import outputs
-    from ..compensator import load_model
-    from ..contract import upgrade
+    from ..core import outputs
+    from ..model.compensator import load_model
+    from ..model.contract import upgrade
 
     target = outputs.check_outputs([args.output], [args.model])[0]
     old = load_model(args.model)

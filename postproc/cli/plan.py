@@ -80,12 +80,24 @@ def run(args) -> int:
 
     import numpy as np
 
-    from ..diagnostics import P335, P512, PostprocError
-    from ..planning import DEFAULT_ATTITUDE, DEFAULT_BOX, DEFAULT_RANGE, krl_measurement_program, latin_hypercube, \
-        parse_tool, plan_configurations, plan_csv_chunks, reachable, round_poses, tool_parts
-    from ..progress import stages
-    from ..outputs import check_outputs, write
-    from ..robot import Robot, load_description
+    from ..calibration.planning import (
+        DEFAULT_ATTITUDE,
+        DEFAULT_BOX,
+        DEFAULT_RANGE,
+        krl_measurement_program,
+        latin_hypercube,
+        plan_configurations,
+        plan_csv_chunks,
+        reachable,
+        round_poses,
+        tool_parts,
+    )
+    from ..core.diagnostics import P335, P512, PostprocError
+    from ..core.outputs import check_outputs, write
+    from ..core.progress import stages
+    from ..measurements.csv import parse_tool
+    from ..robot.arm import Robot
+    from ..robot.description import load_description
     from . import show_progress
 
     check_outputs([args.output, args.krl or "-", args.ls or "-"], [args.robot or "-"])
@@ -146,7 +158,7 @@ def run(args) -> int:
             outputs.append((src, krl_measurement_program(poses, src.stem, robot, wait_s=args.wait, comment=comment,
                                                                   config=config, tools=rows)))
         if args.ls is not None:
-            from ..planning import ls_measurement_program
+            from ..calibration.planning import ls_measurement_program
 
             ls = Path(args.ls)
             outputs.append((ls, ls_measurement_program(poses, ls.stem, robot, wait_s=args.wait, config=config,
@@ -167,11 +179,17 @@ def _run_for(args, description) -> int:
 
     import numpy as np
 
-    from ..diagnostics import P512, PostprocError
-    from ..outputs import check_outputs, write
-    from ..plan_for import listed, coverage, plan_for, program_targets, read_data
-    from ..planning import krl_measurement_program, plan_csv_chunks
-    from ..robot import Robot
+    from ..calibration.plan_for import (
+        coverage,
+        listed,
+        plan_for,
+        program_targets,
+        read_data,
+    )
+    from ..calibration.planning import krl_measurement_program, plan_csv_chunks
+    from ..core.diagnostics import P512, PostprocError
+    from ..core.outputs import check_outputs, write
+    from ..robot.arm import Robot
 
     if args.iso9283 or args.tool or args.wrist:
         raise PostprocError("--for takes the configurations and tools from the programs: leave out --iso9283, --tool "

@@ -43,7 +43,7 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--after", metavar="AFTER.csv",
                    help="measurement of the compensated program (same rows, same order): the measured 'after'")
     p.add_argument("--title", default="Positioning accuracy", help="heading of report.md")
-    from ..verdict import add_limit_arguments
+    from ..acceptance.verdict import add_limit_arguments
 
     add_limit_arguments(p)
     p.add_argument("--iso9283", action="store_true",
@@ -53,15 +53,15 @@ def add_parser(sub, common, formatter) -> None:
 
 
 def run(args) -> int:
-    from ..compensator import load_model
-    from ..config import load_config
-    from ..report import read_report_data, write_report
-
     import matplotlib  # noqa: F401  (only to fail early: postproc.cli names the extra to install)
-    from ..verdict import Limits
+
+    from ..acceptance.report import read_report_data, write_report
+    from ..acceptance.verdict import Limits
+    from ..model.compensator import load_model
+    from ..settings.file import load_config
 
     if args.iso9283 and Limits.of(args).stated:
-        from ..diagnostics import P308, PostprocError
+        from ..core.diagnostics import P308, PostprocError
 
         raise PostprocError("--max-mean/--max-p95/--max-max/--max-orientation-mean hold the report's Table 2, not the "
                             "ISO 9283 pose test's AP/RP: give them without --iso9283", code=P308)
@@ -69,13 +69,13 @@ def run(args) -> int:
         from .iso9283 import run_report
 
         return run_report(args, load_model(args.model) if args.model else None)
-    from ..verdict import Limits, failed_lines, model_entry, verdict
+    from ..acceptance.verdict import Limits, failed_lines, model_entry, verdict
 
     limits = Limits.of(args)
     model = load_model(args.model or load_config().model)
     data = read_report_data(args.measured, model, args.after)
     files = write_report(data, args.output, args.title)
-    from ..report import summary as _summary
+    from ..acceptance.report import summary as _summary
 
     numbers = _summary(data)
     angles = numbers["orientation_deg"]
@@ -87,12 +87,12 @@ def run(args) -> int:
     import json
     from pathlib import Path
 
-    from ..outputs import write
+    from ..core.outputs import write
 
     files["verdict"] = Path(args.output) / "verdict.json"
     write([(files["verdict"], json.dumps(document, indent=2) + "\n")])
     if not args.quiet:
-        from ..report import summary
+        from ..acceptance.report import summary
 
         numbers = summary(data)
         before, after = numbers["table2_mm"]["before"], numbers["table2_mm"]["after"]
@@ -106,7 +106,7 @@ def run(args) -> int:
                           "not known (the model has no rotation_error output / the after data no a_meas,b_meas,c_meas)")
             print(f"postproc report: orientation error mean {b['mean']:.4f}° → {after_text}", file=sys.stderr)
         if data.trained_on:
-            from ..report import TRAINED_ON
+            from ..acceptance.report import TRAINED_ON
 
             print(f"postproc report: warning: {TRAINED_ON}", file=sys.stderr)
         if data.outside_envelope:

@@ -1,12 +1,16 @@
 """``postproc train``: measurement CSV → a compensator ONNX file. The arguments map to
-``postproc.training.fit`` (training/fitting.py), which fits and makes the model card; this
+``postproc.model.training.fit`` (training/fitting.py), which fits and makes the model card; this
 module writes the model and prints what the fit found."""
 from __future__ import annotations
 
 import argparse
 import sys
 
-from ..training.methods import IDENTIFIED, METHODS, OPTIMIZERS  # (no numpy, no torch: see EXAMPLES)
+from ..model.training.methods import (  # (no numpy, no torch: see EXAMPLES)
+    IDENTIFIED,
+    METHODS,
+    OPTIMIZERS,
+)
 
 EXAMPLES = """\
 Data: a CSV with the header x,y,z,a,b,c,x_meas,y_meas,z_meas (mm, deg, robot base frame):
@@ -117,9 +121,9 @@ def _params(args) -> dict:
 def run(args) -> int:
     from functools import partial
 
-    from ..fleet import task_map
-    from ..outputs import check_outputs
-    from ..training.fitting import fit
+    from ..core.outputs import check_outputs
+    from ..fleet.jobs import task_map
+    from ..model.training.fitting import fit
 
     check_outputs([args.output], [args.data, args.robot or "-", args.update or "-"])  # before the fit, not after it
     trained = fit(args.data, args.method, args.robot, tool=args.tool, val_fraction=args.val_fraction,
@@ -127,7 +131,7 @@ def run(args) -> int:
                   search=args.search, search_engine=partial(task_map, args.scheduler), name=args.name,
                   **_params(args))
     if trained.search is not None and not args.quiet:
-        from ..training.search import format_table
+        from ..model.training.search import format_table
 
         print(format_table(trained.search))
     trained.export(args.output)

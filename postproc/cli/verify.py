@@ -41,7 +41,7 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--seed", type=int, default=0, metavar="S", help="measurement noise seed (default 0)")
     p.add_argument("--no-noise", action="store_true", help="exact positions: no tracker noise, no repeatability")
     p.add_argument("--json", action="store_true", help="print the figures as JSON on stdout")
-    from ..verdict import add_limit_arguments
+    from ..acceptance.verdict import add_limit_arguments
 
     add_limit_arguments(p)
     p.add_argument("--verdict", metavar="VERDICT.json", help="write the pass/fail verdict (limits, checks, figures, "
@@ -56,7 +56,7 @@ def _fill(poses, program, attitude, name: str):
     orientation before any is known takes the working attitude. Returns (poses, notes)."""
     import numpy as np
 
-    from ..diagnostics import P213, PostprocError
+    from ..core.diagnostics import P213, PostprocError
 
     notes = []
     out = poses.copy()
@@ -87,8 +87,8 @@ def execution(program, rows, sim) -> dict:
     unknown) — the options of SimulatedRobot.verify. Both runs use the ORIGINAL's."""
     import numpy as np
 
-    from ..configuration import stated_configuration
-    from ..diagnostics import P309, PostprocError
+    from ..core.diagnostics import P309, PostprocError
+    from ..robot.configuration import stated_configuration
 
     t = program.targets
     stated, unmapped, why = stated_configuration(program, sim.description, rows)
@@ -97,7 +97,7 @@ def execution(program, rows, sim) -> dict:
         raise PostprocError(f"{why[0]}: the simulated {sim.robot.name} cannot run this program",
                             program.files[t.file[r]], int(t.line[r]), int(t.col[r]), P309)
     tools = np.tile(sim.robot.tool, (len(rows), 1))
-    from ..frames import frame_groups
+    from ..core.frames import frame_groups
 
     for f, here in frame_groups(t.frame[rows]):
         if program.frames[f].tool is not None:
@@ -119,7 +119,7 @@ def _in_description(program, description):
     '# frame: controller' taken as they are (as findings.model_bases does for a model)."""
     import numpy as np
 
-    from ..frames import frame_to_matrix
+    from ..core.frames import frame_to_matrix
 
     base = frame_to_matrix(np.asarray(description.controller_base, float))
     if not program.in_controller_base or np.array_equal(base, np.eye(4)):
@@ -133,13 +133,13 @@ def _pair(args, description):
     many were skipped, notes); P601 where they are not one program."""
     import numpy as np
 
-    from ..compensate import load_program, robot_base_poses
-    from ..diagnostics import P601, PostprocError
-
+    from ..core.diagnostics import P601, PostprocError
+    from ..programs.base_poses import robot_base_poses
+    from ..programs.io import load_program
     from .compensate import stated_frames
 
     active = stated_frames(args)  # (as the program was compensated)
-    from ..external import units_of
+    from ..robot.external import units_of
 
     units = units_of(description)
     if units:  # the simulated cell's track / turntable: where the robot and the part really are
@@ -171,7 +171,7 @@ def _check_reach(sim, programs, rows, options) -> None:
     """P335 at the first target of either program the simulated robot cannot reach."""
     import numpy as np
 
-    from ..diagnostics import P335, PostprocError
+    from ..core.diagnostics import P335, PostprocError
 
     for program, poses, label in programs:
         ok = sim.reachable_in(poses, **options)
@@ -203,8 +203,8 @@ def run(args) -> int:
 
     import numpy as np
 
-    from ..diagnostics import EXIT_FINDINGS
-    from ..simulator import SimulatedRobot
+    from ..calibration.simulator import SimulatedRobot
+    from ..core.diagnostics import EXIT_FINDINGS
 
     sim = SimulatedRobot.from_file(args.robot, args.robot_seed)
     original, compensated, p_orig, p_comp, rows, skipped, notes = _pair(args, sim.description)
@@ -214,17 +214,17 @@ def run(args) -> int:
     notes += n1 + n2
     options = execution(original, rows, sim)
     _check_reach(sim, ((original, p_orig, "ORIGINAL"), (compensated, p_comp, "COMPENSATED")), rows, options)
-    from ..verdict import Limits, failed_lines, model_entry, verdict
+    from ..acceptance.verdict import Limits, failed_lines, model_entry, verdict
 
     limits = Limits.of(args)
     if args.verdict:
-        from ..outputs import check_outputs
+        from ..core.outputs import check_outputs
 
         check_outputs([args.verdict], [args.original, args.compensated])
     result = sim.verify(p_orig, p_comp, rng_seed=args.seed, noise=not args.no_noise, **options)
     model = None
     if args.model:
-        from ..compensator import load_model
+        from ..model.compensator import load_model
 
         model = load_model(args.model)
     document = verdict("verify", limits, {"before": result["before"], "after": result["after"],
@@ -246,7 +246,7 @@ def run(args) -> int:
     }
     # the targets COMPENSATED changes (the others were left as written and keep their error)
     changed = np.abs(p_comp[:, :3] - p_orig[:, :3]).max(axis=1) > 1e-6
-    from ..stats import table2
+    from ..core.stats import table2
 
     figures["compensated"] = int(changed.sum())
     figures["after_compensated"] = table2(result["errors_after"][changed])
@@ -256,7 +256,7 @@ def run(args) -> int:
     if args.verdict:
         from pathlib import Path
 
-        from ..outputs import write
+        from ..core.outputs import write
 
         write([(Path(args.verdict), json.dumps(document, indent=2) + "\n")])
     if not args.quiet:

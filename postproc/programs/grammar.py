@@ -7,8 +7,7 @@ from functools import lru_cache
 
 from lark import Lark
 
-from ..resources import grammar_path
-
+from ..core.resources import grammar_path
 
 # a number as the line-based dialects (RAPID, URScript) write it, unsigned (a sign is an operator)
 NUM = r"(?<![\w.])(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])"
@@ -40,7 +39,12 @@ def lalr_parser(grammar: str, start: str) -> Lark:
 def unexpected(parse, text: str, end: str = "end of line") -> tuple[int, str] | None:
     """Parse ``text`` as written to locate a syntax error: (offset in ``text``, what was found
     there, e.g. ``"'}'"`` or ``end``) from lark's error, or None where it parses."""
-    from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
+    from lark.exceptions import (
+        UnexpectedCharacters,
+        UnexpectedEOF,
+        UnexpectedInput,
+        UnexpectedToken,
+    )
 
     try:
         parse(text)

@@ -22,11 +22,27 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import frames as fr
+from ..core import frames as fr
 from .analysis.execute import Analysis, Recorder, State, _Activation
 from .analysis.values import Arr, Mat, Rec, Six, Top, number
-from .ir import (Agg, Assign, Exit, Continue, Goto, Halt, If, Invoke, Label, Loc, Loop, Move, MoveRun, Name, Return,
-                 Switch)
+from .ir import (
+    Agg,
+    Assign,
+    Continue,
+    Exit,
+    Goto,
+    Halt,
+    If,
+    Invoke,
+    Label,
+    Loc,
+    Loop,
+    Move,
+    MoveRun,
+    Name,
+    Return,
+    Switch,
+)
 
 __all__ = ["Interpreter", "Oracle", "Motion", "run"]
 

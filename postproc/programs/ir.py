@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .model import MOTIONS
+from ..robot.conventions import MOTIONS
 
 MOTION_INDEX = {m: i for i, m in enumerate(MOTIONS)}
 

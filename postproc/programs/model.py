@@ -6,15 +6,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..diagnostics import Diagnostic, P222
+from ..core.diagnostics import P222, Diagnostic
 
-__all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "ActiveFrames", "RobotRoot", "STAMP_PREFIX", "MOTIONS"]
+__all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "ActiveFrames", "RobotRoot", "STAMP_PREFIX"]
 
 # The one line postproc adds to a file it compensated (after the dialect's comment marker).
 STAMP_PREFIX = "postproc: compensated with model"
-
-# Motion kinds, stored per target as an index into this tuple.
-MOTIONS = ("LIN", "PTP", "CIRC-aux", "CIRC-end", "SLIN", "SPTP", "SCIRC-aux", "SCIRC-end", "SPL", "row")
 
 
 @dataclass(frozen=True)
@@ -43,7 +40,7 @@ class RobotRoot:
     frame: tuple | None
     label: str = ""
     why: str = ""
-    # a track whose kinematics the machine data give (``postproc.external.ExternalUnit``, carries
+    # a track whose kinematics the machine data give (``postproc.robot.external.ExternalUnit``, carries
     # the robot): $ROBROOT moves with it, known at each target that states its axis
     unit: object = None
 
@@ -71,7 +68,7 @@ class ActiveFrames:
     tool: int | tuple | str | None = None
     robroot: RobotRoot | None = None
     # the external units the user states (``--external``, settings ``external``, the simulated
-    # robot's [[external]]: postproc.external.ExternalUnit), for every dialect
+    # robot's [[external]]: postproc.robot.external.ExternalUnit), for every dialect
     external: tuple = ()
 
     @property
@@ -132,7 +129,7 @@ class ActiveFrames:
         """The command line's ``--base`` / ``--tool`` / ``--robroot`` / ``--external`` over the
         settings' (each on its own); a value that is not N / X,Y,Z,A,B,C is refused:
         PostprocError P222."""
-        from ..diagnostics import PostprocError
+        from ..core.diagnostics import PostprocError
 
         try:
             given = cls.of(base=base, tool=tool, robroot=robroot, external=external)

@@ -21,9 +21,11 @@ from operator import itemgetter
 import numpy as np
 from lark import Lark, UnexpectedInput
 
-from ..diagnostics import P101, P103, P104, P105, PostprocError
-from ..resources import grammar_path
-from . import MOTIONS, STAMP_PREFIX, Frame, Program, Targets
+from ..core.diagnostics import P101, P103, P104, P105, PostprocError
+from ..core.resources import grammar_path
+from ..robot.conventions import MOTIONS
+from .model import STAMP_PREFIX, Frame, Program, Targets
+from .text import _newline
 
 COLUMNS = ("x", "y", "z", "a", "b", "c")
 CONFIG = ("s", "t")
@@ -64,11 +66,6 @@ def _fields(line: str, path: str, lineno: int, offset: int) -> list:
         raise PostprocError(f"cannot read this record: unexpected {line[exc.pos_in_stream:exc.pos_in_stream + 10]!r}",
                             path, lineno, col, P101) from None
     return [(None, None) if f is None else (f.data, f.children[0]) for f in tree.children]
-
-
-def _newline(text: str) -> str:
-    crlf = text.count("\r\n")
-    return "\r\n" if crlf and crlf >= text.count("\n") - crlf else "\n"
 
 
 def _header(body: str, path: str, lineno: int, lead: int) -> tuple[dict[str, int], int]:
@@ -465,8 +462,6 @@ def _unit(files: list[str], texts: list[str], read: Targets):
     unit.routines["ROWS"] = Routine("ROWS", (), [run], Loc(0, 1, 1))
     unit.entries = ["ROWS"]
     return unit, _PoseList()
-
-
 
 
 def _pose_list_dialect():

@@ -38,8 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..resources import sample_path
-from ..diagnostics import P190
+from ..core.diagnostics import P190
+from ..core.resources import sample_path
 
 OFFSET = (0.3, -0.2, 0.1)  # mm, the constant-offset model's error in the robot base frame
 MESSAGE = re.compile(r"(?P<path>.+?):(?:(?P<line>\d+):(?P<col>\d+):)? (?P<code>P\d{3}) (?P<message>.+)")
@@ -223,7 +223,7 @@ class Outcome:
 
 
 def _run_inprocess(argv: list[str], timeout: float) -> tuple[int | str, str]:
-    from postproc.cli import main
+    from ..cli import main
 
     def alarm(signum, frame):
         raise Hang()
@@ -313,8 +313,9 @@ def check_output(files: list[str], texts: list[str], outputs: list[str], model, 
     """Why ``outputs`` is not the mutant ``texts`` compensated by a constant-offset model
     (None when it is). ``files`` are the mutant's file names (messages and dialect),
     ``config`` the $config.dat texts it was compensated with."""
-    from postproc import frames
-    from postproc.programs import STAMP_PREFIX, dialect_of, read_program
+    from ..core import frames
+    from ..programs import STAMP_PREFIX
+    from ..programs.io import dialect_of, read_program
 
     dialect = dialect_of(files[0])
     before = read_program(files, texts, dialect, config=config)
@@ -408,8 +409,8 @@ class Fuzzer:
     """Runs mutants of the corpus in a scratch directory and classifies each outcome."""
 
     def __init__(self, work: Path, timeout: float = 10.0, offset=OFFSET):
+        from ..model.compensator import load_model
         from .models import affine_model
-        from postproc.compensator import load_model
 
         self.work = work
         # no tool frame in the model card: the corpus programs use several tools (P304 otherwise)

@@ -262,7 +262,7 @@ def _ur_statements(draw, depth: int, loop: bool):
         elif choice == 10:
             out.append(f"movel(pose_trans(feat, p[0.0, 0.0, {draw(st.integers(-50, 0)) / 1000}, 0, 0, 0]))")
         elif choice == 11:
-            out.append(f"movej([0.1, -1.2, 1.4, -1.8, -1.5708, 0.0], a=1.4, v=1.05)")
+            out.append("movej([0.1, -1.2, 1.4, -1.8, -1.5708, 0.0], a=1.4, v=1.05)")
         elif choice == 12:
             out.append(draw(st.sampled_from(["break", "continue"])) if loop else f"movel({q})")
         elif choice == 13:

@@ -13,8 +13,8 @@ import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
-from postproc.compensator import contract_metadata
-from postproc.contract import with_defaults
+from ..model.compensator import contract_metadata
+from ..model.contract import with_defaults
 
 DEFAULT_ENVELOPE = {"box": [1700, 2300, -600, 600, 500, 1300], "attitude": [0, 90, 0], "range": 10}
 DEFAULT_REACH = {"center": [500, 0, 1045], "radius_min": 300, "radius_max": 2700}

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import frames as fr
+from ..core import frames as fr
 
 __all__ = ["check", "Checked", "lowered"]
 
@@ -42,7 +42,7 @@ class Checked:
 
 def lowered(files, texts, dialect: str, config=None, active=None):
     """(Unit, Dialect) of a program (``programs.lower``)."""
-    from ..programs import lower
+    from ..programs.io import lower
 
     return lower(list(files), list(texts), dialect, config=config, active=active)
 
@@ -74,10 +74,9 @@ def _axes_pose(model, program=None):
     """Axis values (deg) → the TCP pose [6] they give on the model's robot with the model's tool
     (the nominal kinematics: where a joint motion leaves the robot); a function giving None where
     the model takes no previous pose, takes a tool, or has no description."""
-    from ..controller import model_description, model_tool
-    from ..robot import Robot
-
-    from ..controller import DIALECT_CONTROLLERS, controller_of
+    from ..compensation.inputs import model_description, model_tool
+    from ..robot.arm import Robot
+    from ..robot.conventions import DIALECT_CONTROLLERS, controller_of
 
     description = model_description(model) if model.wants_previous and not model.wants_tool else None
     if description is None or program is None \
@@ -91,11 +90,11 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
           compensate_kwargs: dict | None = None) -> Checked:
     """Compensate ``texts`` with ``model`` (a Compensator) and check the property over the
     oracles of ``seeds`` (see the module text)."""
-    from ..compensate import compensate_program
-    from ..diagnostics import P231, P322, PostprocError
-    from ..programs import read_program
+    from ..compensation.pipeline import compensate_program
+    from ..core.diagnostics import P231, P322, PostprocError
     from ..programs.analysis import analyse
     from ..programs.interpreter import Oracle, run
+    from ..programs.io import read_program
 
     out = Checked()
     program = read_program(list(files), list(texts), dialect, config=config, active=active)

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from postproc import frames
-from postproc.planning import latin_hypercube
-from postproc.simulator import SimulatedRobot
+from postproc.core import frames
+from postproc.calibration.planning import latin_hypercube
+from postproc.calibration.simulator import SimulatedRobot
 
 HERE = Path(__file__).resolve().parent
 N = 40

@@ -19,7 +19,7 @@ def program_in_base(base, pose, label: str = ""):
     ``base`` (X,Y,Z,A,B,C or a 4x4 matrix, which may hold what no reader would accept)."""
     import numpy as np
 
-    from postproc import frames
+    from postproc.core import frames
     from postproc.programs import Frame, Program, TargetsBuilder
 
     text = "x,y,z\n" + ",".join(f"{v:.3f}" for v in pose[:3]) + "\n"

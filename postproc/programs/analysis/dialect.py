@@ -13,10 +13,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ... import frames as fr
-from ...diagnostics import P215
+from ...core import frames as fr
+from ...core.diagnostics import P215
 from ..ir import Assign, Decl, Field, Invoke, Item, Loc, Name, walk
-from .values import Arr, Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, taint, tokens_of
+from .values import (
+    Arr,
+    Mat,
+    Moving,
+    Rec,
+    Six,
+    Taint,
+    Tok,
+    Top,
+    frame_inverse,
+    frame_product,
+    number,
+    taint,
+    tokens_of,
+)
 
 __all__ = ["Dialect", "PoseView", "ABC", "AXIS_TYPES"]
 
@@ -47,7 +61,7 @@ class PoseView:
     # states takes the place of this Top (``targets.build``)
     moving: object = None
     # the external axis values the target states, by the unit's axis name (``E1``…``E6``,
-    # ``GP2.J1``…; postproc.external): a number, a Tok/Taint, a Top; only the axes in use
+    # ``GP2.J1``…; postproc.robot.external): a number, a Tok/Taint, a Top; only the axes in use
     external: dict | None = None
 
 
@@ -217,7 +231,7 @@ class Dialect:
         view = self.view(right) if isinstance(right, Rec) else None
         if moving is not None:
             if view is not None and view.kind == "cart" and right.type not in ("FRAME",):
-                from ...diagnostics import P225
+                from ...core.diagnostics import P225
 
                 return Top(f"a pose composed with a frame on the {moving.unit.describe()}: its numbers depend on the "
                            "unit's axis", an.loc, P225)
@@ -280,7 +294,7 @@ class Dialect:
         if isinstance(f, Top):
             return f
         if isinstance(f, Moving):
-            from ...diagnostics import P203
+            from ...core.diagnostics import P203
 
             return Top(f"the tool is on the {f.unit.describe()}: a stationary tool", an.loc, P203)
         return Six(fr.matrix_to_frame(f.m), f.label)

@@ -30,9 +30,39 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ..ir import (Agg, Assign, Async, AsyncSwitch, Call, Continue, Decl, Eval, Exit, Field, Goto, Halt, Havoc, If, Invoke,
-                  Item, Label, Lit, Loc, Loop, Move, MoveRun, Name, Note, Num, Op, Return, Routine, Switch, Unit,
-                  Unknown)
+from ..ir import (
+    Agg,
+    Assign,
+    Async,
+    AsyncSwitch,
+    Call,
+    Continue,
+    Decl,
+    Eval,
+    Exit,
+    Field,
+    Goto,
+    Halt,
+    Havoc,
+    If,
+    Invoke,
+    Item,
+    Label,
+    Lit,
+    Loc,
+    Loop,
+    Move,
+    MoveRun,
+    Name,
+    Note,
+    Num,
+    Op,
+    Return,
+    Routine,
+    Switch,
+    Unit,
+    Unknown,
+)
 from .values import Arr, Mat, Rec, Taint, Tok, Top, join, number, same, taint, tokens_of
 
 __all__ = ["Analysis", "Recorder", "Use", "RunUse", "State", "START"]

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...diagnostics import P220, P221
+from ...core.diagnostics import P220, P221
 from ..ir import Loc
 
 __all__ = ["Top", "Tok", "Taint", "Rec", "Arr", "Mat", "Moving", "Six", "join", "same", "tokens_of", "number", "is_number",
@@ -198,7 +198,7 @@ class Mat:
 
 
 class Moving:
-    """A frame that moves with an external unit's axis (``postproc.external.ExternalUnit``):
+    """A frame that moves with an external unit's axis (``postproc.robot.external.ExternalUnit``):
     ``left · B(e)^(-1 if inverse) · right`` with B(e) = ``unit.base_at(e)``, known once a target
     states e (``at``); ``label``, ``tokens`` as a Mat's."""
 
@@ -235,7 +235,7 @@ class Moving:
 def frame_product(a, b, label: str = ""):
     """``a · b`` of two frames (Mat or Moving): a Mat, a Moving, or Top where both move (two
     external units in one frame: not taken)."""
-    from ...diagnostics import P225
+    from ...core.diagnostics import P225
 
     toks = a.tokens | b.tokens
     if isinstance(a, Mat) and isinstance(b, Mat):

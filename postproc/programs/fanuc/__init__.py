@@ -34,11 +34,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...diagnostics import P108, P118, PostprocError
-from ...frames import frame_to_matrix
+from ...core.diagnostics import P108, P118, PostprocError
+from ...core.frames import frame_to_matrix
 from ..analysis import analyse
 from ..model import STAMP_PREFIX, Program
-from ..poses import _newline
+from ..text import _newline
 from .lower import TOKEN_RE, Lowering, parser
 from .semantics import LS
 
@@ -111,13 +111,13 @@ def insert_stamp(text: str, stamp: str, newline: str) -> str:
 
 def frame_file_units(text: str | None, path: str = "--frames") -> tuple:
     """The ``[[external]]`` units of a frame file (a group-2 track, a positioner:
-    postproc.external), () where it has none."""
+    postproc.robot.external), () where it has none."""
     if not text or "external" not in text:
         return ()
     data = tomllib.loads(text)
     if "external" not in data:
         return ()
-    from ...external import _line_of, parse_external
+    from ...robot.external import _line_of, parse_external
 
     return parse_external(data["external"], path, _line_of(text))
 

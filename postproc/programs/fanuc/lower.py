@@ -19,10 +19,48 @@ import re
 from lark import Token
 from lark.exceptions import UnexpectedInput
 
-from ...diagnostics import P101, P103, P118, P201, P203, P210, P211, P215, P225, LineIndex, PostprocError
+from ...core.diagnostics import (
+    P101,
+    P103,
+    P118,
+    P201,
+    P203,
+    P210,
+    P211,
+    P215,
+    P225,
+    LineIndex,
+    PostprocError,
+)
 from ..grammar import lalr_parser, unexpected
-from ..ir import (Agg, Assign, Async, Call, Decl, Eval, Field, Goto, Halt, Havoc, If, Invoke, Label, Lit, Loc, Loop, Move,
-                  Name, Note, Num, Op, Return, Routine, Switch, Unit, Unknown)
+from ..ir import (
+    Agg,
+    Assign,
+    Async,
+    Call,
+    Decl,
+    Eval,
+    Field,
+    Goto,
+    Halt,
+    Havoc,
+    If,
+    Invoke,
+    Label,
+    Lit,
+    Loc,
+    Loop,
+    Move,
+    Name,
+    Note,
+    Num,
+    Op,
+    Return,
+    Routine,
+    Switch,
+    Unit,
+    Unknown,
+)
 from .semantics import COMPONENTS
 
 __all__ = ["Lowering", "parser", "TOKEN_RE", "HARMLESS"]
@@ -234,7 +272,7 @@ class Lowering:
             items.append((which.upper(), Lit(float(tokens[v][0])) if isinstance(v, int) else Lit(v or "F")))
         if "config" in gp1:
             items.append(("CONFIG", Lit(tokens[gp1["config"]][0][1:-1])))
-        # the extended axes' and the other groups' values (a track's position: postproc.external)
+        # the extended axes' and the other groups' values (a track's position: postproc.robot.external)
         for axis in list(gp1.get("ext", ())) + list(gp1.get("axes", {})):
             ordinal, signed = gp1[axis] if axis in gp1 else gp1["axes"][axis]
             if ordinal == "*":

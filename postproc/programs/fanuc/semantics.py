@@ -34,10 +34,22 @@ import re
 
 import numpy as np
 
-from ... import frames as fr
-from ...diagnostics import P201, P203, P211, P215, P223, P225
+from ...core import frames as fr
+from ...core.diagnostics import P201, P203, P211, P215, P223, P225
 from ..analysis.dialect import Dialect, PoseView
-from ..analysis.values import Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, tokens_of
+from ..analysis.values import (
+    Mat,
+    Moving,
+    Rec,
+    Six,
+    Taint,
+    Tok,
+    Top,
+    frame_inverse,
+    frame_product,
+    number,
+    tokens_of,
+)
 
 _EXTERNAL = re.compile(r"^(?:E[1-9]|GP[2-9]\.J[1-9])$")
 
@@ -138,7 +150,7 @@ class LS(Dialect):
         v = super().view(value)
         if value.type == "JOINTS":
             v.kind = "axis"
-        if v.kind == "cart":  # (group 1's extended axes E1…, the other groups' GP2.J1…: postproc.external)
+        if v.kind == "cart":  # (group 1's extended axes E1…, the other groups' GP2.J1…: postproc.robot.external)
             v.external = {k: x for k, x in value.fields.items() if _EXTERNAL.match(k)}
         return v
 
@@ -212,7 +224,7 @@ def uframe_of(an, st, args, call):
 
 def _on_track(an, frame):
     """A user frame (fixed in the world) seen from the robot's base on the track: the track at the
-    target's axis value, inverted, times the frame (postproc.external)."""
+    target's axis value, inverted, times the frame (postproc.robot.external)."""
     track = an.dialect.track
     if track is None or isinstance(frame, Top):
         return frame

@@ -4,11 +4,9 @@ are opened and closed by the lowering (``lower.py``)."""
 from __future__ import annotations
 
 import numpy as np
-from lark import Token, Tree
 
-from ...diagnostics import P101, P104, P105, PostprocError
+from ...core.diagnostics import P101, P104, P105, PostprocError
 from .fast_path import _Shape
-from .lower import first_pos as _first_pos
 
 
 class Blocks:

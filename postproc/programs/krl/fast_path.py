@@ -8,11 +8,12 @@ import numpy as np
 from lark import Token, Tree
 from lark.exceptions import UnexpectedInput
 
-from ...diagnostics import P103, PostprocError, line_col
-from ..model import STAMP_PREFIX
-from .syntax import SHAPE_RE, _FOLD, _MALFORMED, _NUM, MalformedNumber, parser
+from ...core.diagnostics import P103, PostprocError, line_col
 from ..ir import MOTION_INDEX as _MOTION
-from .lower import _AXIS_KEYS, _KIND_OF, mark_brace as _mark_brace
+from ..model import STAMP_PREFIX
+from .lower import _AXIS_KEYS, _KIND_OF
+from .lower import mark_brace as _mark_brace
+from .syntax import _FOLD, _MALFORMED, _NUM, SHAPE_RE, MalformedNumber, parser
 
 _COMP = {k: i for i, k in enumerate(("X", "Y", "Z", "A", "B", "C"))}
 _EXTERNAL_KEYS = frozenset(f"E{k}" for k in range(1, 7))

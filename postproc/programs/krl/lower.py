@@ -13,10 +13,38 @@ from __future__ import annotations
 import numpy as np
 from lark import Token, Tree
 
-from ...diagnostics import P101, P210, P211
+from ...core.diagnostics import P101, P210, P211
 from .. import ir
-from ..ir import (Agg, Assign, Async, AsyncSwitch, Call, Decl, Eval, Exit, Field, Goto, Halt, If, Invoke, Item,
-                  Label, Lit, Loc, Loop, Move, MoveRun, Name, Note, Num, Op, Param, Return, Routine, Switch, Unknown)
+from ..ir import (
+    Agg,
+    Assign,
+    Async,
+    AsyncSwitch,
+    Call,
+    Decl,
+    Eval,
+    Exit,
+    Field,
+    Goto,
+    If,
+    Invoke,
+    Item,
+    Label,
+    Lit,
+    Loc,
+    Loop,
+    Move,
+    MoveRun,
+    Name,
+    Note,
+    Num,
+    Op,
+    Param,
+    Return,
+    Routine,
+    Switch,
+    Unknown,
+)
 from .semantics import BUILTIN_FUNCTIONS
 
 _KIND_OF = {"PTP": "PTP", "LIN": "LIN", "SPTP": "SPTP", "SLIN": "SLIN", "SPL": "SPL"}
@@ -593,6 +621,6 @@ def _resolved(body: list, runs: dict) -> list:
     return out
 
 
-from ...diagnostics import P201 as P201_CODE  # noqa: E402
+from ...core.diagnostics import P201 as P201_CODE  # noqa: E402
 
 _ = P101

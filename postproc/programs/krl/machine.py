@@ -27,7 +27,7 @@ import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from ...diagnostics import P107, P226, P408, PostprocError, line_col
+from ...core.diagnostics import P107, P226, P408, PostprocError, line_col
 from ..model import ActiveFrames, RobotRoot
 from .syntax import _NUM
 
@@ -117,8 +117,8 @@ def ersys_unit(text: str, path: str, et: str = "ET1"):
     world ← robot base = ``$ERSYSROOT : $ET1_TA1KR : joint(E) : $ET1_TFLA3`` (KUKA's machine data
     documentation, KR C2 "Machine Data" 2.1.4 $AXIS_TYPE and 2.2.x $ET1_…; docs/EXTERNAL.md).
     (unit, None), or (None, what is missing) — never a guess."""
-    from ...external import ExternalUnit
-    from ...frames import compose, frame_to_matrix, matrix_to_frame
+    from ...core.frames import compose, frame_to_matrix, matrix_to_frame
+    from ...robot.external import ExternalUnit
 
     ax = re.search(r"^[ \t]*(?:DECL[ \t]+)?ET_AX[ \t]+\$" + et + r"_AX[ \t]*=[ \t]*\{([^}\r\n]*)\}", text, re.I | re.M)
     if ax is None:

@@ -3,20 +3,20 @@
 from __future__ import annotations
 
 import gc
-from pathlib import PurePath
 from bisect import bisect_left
+from pathlib import PurePath
 
 from lark import Token, Tree
 
-from ...diagnostics import P101, P104, P105, Diagnostic, PostprocError
+from ...core.diagnostics import P101, P104, P105, Diagnostic, PostprocError
 from ..analysis import analyse
 from ..ir import Invoke, Loc, Unit, walk
-from ..model import ActiveFrames, Program, STAMP_PREFIX
+from ..model import STAMP_PREFIX, ActiveFrames, Program
 from .blocks import Blocks
-from .fast_path import FastPath, _HotRows, _Shape, _analyse, _name_paths
+from .fast_path import FastPath, _analyse, _HotRows, _name_paths, _Shape
 from .lower import Lowering
 from .semantics import KRL
-from .syntax import SHAPE_RE, SyntaxErrors, _BLANK, _PLACEHOLDER
+from .syntax import _BLANK, _PLACEHOLDER, SHAPE_RE, SyntaxErrors
 
 BOM = "\xef\xbb\xbf"  # a UTF-8 byte order mark, as the latin-1 text holds it
 

@@ -31,10 +31,32 @@ import re
 
 import numpy as np
 
-from ...diagnostics import P201, P203, P211, P215, P220, P221, P222, P223, P225, PostprocError
-from ...frames import frame_to_matrix
+from ...core.diagnostics import (
+    P201,
+    P203,
+    P211,
+    P215,
+    P220,
+    P221,
+    P222,
+    P223,
+    P225,
+    PostprocError,
+)
+from ...core.frames import frame_to_matrix
 from ..analysis.dialect import Dialect, PoseView
-from ..analysis.values import Arr, Mat, Moving, Rec, Six, Tok, Top, frame_inverse, frame_product, number
+from ..analysis.values import (
+    Arr,
+    Mat,
+    Moving,
+    Rec,
+    Six,
+    Tok,
+    Top,
+    frame_inverse,
+    frame_product,
+    number,
+)
 from ..ir import Loc
 
 __all__ = ["KRL", "HARMLESS", "BUILTIN_FUNCTIONS"]
@@ -95,7 +117,7 @@ class KRL(Dialect):
 
     # ---------------------------------------------------------------- external units
     def track(self):
-        """The unit that carries the robot (postproc.external): the one stated (--external),
+        """The unit that carries the robot (postproc.robot.external): the one stated (--external),
         else the machine data's $ERSYS kinematic; None: the robot stands still (or its track's
         kinematics are not given: $ROBROOT not known, P225)."""
         active = self.active
@@ -240,7 +262,7 @@ def frame_of(an, st, args, call):
     b = d.frame(an, base)
     if isinstance(b, Top):
         return _frame_top(b)
-    if isinstance(r, Moving) or isinstance(b, Moving):  # (a track, a base on a turntable: postproc.external)
+    if isinstance(r, Moving) or isinstance(b, Moving):  # (a track, a base on a turntable: postproc.robot.external)
         out = frame_product(frame_inverse(r), b, b.label)
         for x in lefts:
             f = d.frame(an, x)

@@ -6,9 +6,8 @@ import re
 from lark import Lark
 from lark.exceptions import UnexpectedCharacters, UnexpectedToken
 
-from ...diagnostics import P101, PostprocError
-from ...resources import grammar_path
-
+from ...core.diagnostics import P101, PostprocError
+from ...core.resources import grammar_path
 
 # A number token: what the grammar's NUMBER matches (same look-arounds), so that the k-th
 # match of a line is the k-th NUMBER the parser sees (or a digit string inside a comment

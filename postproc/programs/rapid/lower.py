@@ -34,15 +34,52 @@ from dataclasses import dataclass, field
 import numpy as np
 from lark import Token, Tree
 
-from ...diagnostics import P102, P201, P211, PostprocError
-from ... import frames as fr
-from ..ir import (Agg, Assign, Async, AsyncSwitch, Call, Decl, Eval, Field, Goto, Halt, If, Invoke, Item, Label, Lit,
-                  Loc, Loop, Move, MoveRun, Name, Note, Num, Op, Param, Return, Routine, Stmt, Switch, Unit, Unknown,
-                  walk)
-from ..model import MOTIONS
-from .semantics import FUNCTIONS, INSTRUCTIONS, RECORDS, RUNTIME_POSITION, SCALARS, UNUSED_AXIS
-from ..grammar import BLANKS, NUM
-from .syntax import STRING_RE, TOKEN_RE, Source, misread
+from ...core import frames as fr
+from ...core.diagnostics import P102, P201, P211, PostprocError
+from ...robot.conventions import MOTIONS
+from ..grammar import BLANKS, NUM, TOKEN_RE
+from ..ir import (
+    Agg,
+    Assign,
+    Async,
+    AsyncSwitch,
+    Call,
+    Decl,
+    Eval,
+    Field,
+    Goto,
+    Halt,
+    If,
+    Invoke,
+    Item,
+    Label,
+    Lit,
+    Loc,
+    Loop,
+    Move,
+    MoveRun,
+    Name,
+    Note,
+    Num,
+    Op,
+    Param,
+    Return,
+    Routine,
+    Stmt,
+    Switch,
+    Unit,
+    Unknown,
+    walk,
+)
+from .semantics import (
+    FUNCTIONS,
+    INSTRUCTIONS,
+    RECORDS,
+    RUNTIME_POSITION,
+    SCALARS,
+    UNUSED_AXIS,
+)
+from .syntax import STRING_RE, Source, misread
 
 __all__ = ["Lowering", "MOTIONS_OF", "MOTION_OF"]
 

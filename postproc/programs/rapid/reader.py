@@ -8,11 +8,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...diagnostics import P103, P104, PostprocError
+from ...core.diagnostics import P103, P104, PostprocError
 from ..analysis import analyse
 from ..ir import Call, Invoke, Unit, walk
 from ..model import STAMP_PREFIX, Program
-from ..poses import _newline  # a file's newline: \r\n if at least half its line ends are
+from ..text import _newline  # a file's newline: \r\n if at least half its line ends are
 from .lower import Lowering
 from .semantics import RAPID
 from .syntax import scan
@@ -34,7 +34,7 @@ def read(files: list[str], texts: list[str], config: list[str] | None = None, ac
     texts of other modules (e.g. a .sys) whose data the motions may name and whose routines
     they may call (read-only: never rewritten). ``accelerate=False`` lowers every motion
     through its tree (no MoveRun of inline robtargets: the same result, slower; for tests).
-    ``external``: the external units' kinematics (postproc.external: a track, a positioner).
+    ``external``: the external units' kinematics (postproc.robot.external: a track, a positioner).
     Raises PostprocError (P1xx, with path:line:col) on bad input."""
     enabled = gc.isenabled()
     gc.disable()  # (many small objects, no cycles: the collector only costs time here)

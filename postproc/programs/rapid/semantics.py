@@ -15,7 +15,7 @@ S4/IRC5 (pages ``8-PDispOn``, ``8-PDispSet``, ``Offs``, ``RelTool``).
   robot (``robhold`` TRUE: a stationary tool) is not known statically (P201); one whose user
   frame a mechanical unit moves (``ufprog`` FALSE: coordinated with ``ufmec``) moves with that
   unit's axis: known at each robtarget's ``eax_…`` where a unit with that ``mech_unit`` is given
-  (``--external``: postproc.external), else P225. A robot on a track (a unit that carries the
+  (``--external``: postproc.robot.external), else P225. A robot on a track (a unit that carries the
   robot) sees every frame through the track at the robtarget's axis value.
 * A motion's tool (``RAPID.TOOL``) is its ``tooldata``'s ``tframe``; a stationary tool
   (``robhold`` FALSE) is not known (P203).
@@ -40,11 +40,24 @@ import math
 
 import numpy as np
 
-from ... import frames as fr
-from ...diagnostics import P201, P203, P211, P215, P223, P225
+from ...core import frames as fr
+from ...core.diagnostics import P201, P203, P211, P215, P223, P225
 from ..analysis.dialect import Dialect, PoseView
-from ..analysis.values import (Arr, Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, taint,
-                               tokens_of)
+from ..analysis.values import (
+    Arr,
+    Mat,
+    Moving,
+    Rec,
+    Six,
+    Taint,
+    Tok,
+    Top,
+    frame_inverse,
+    frame_product,
+    number,
+    taint,
+    tokens_of,
+)
 
 __all__ = ["RAPID", "RECORDS", "INSTRUCTIONS", "FUNCTIONS", "UNUSED_AXIS", "wobj0", "tool0"]
 
@@ -184,7 +197,7 @@ class RAPID(Dialect):
     def __init__(self, readonly: set | None = None, consts: set | None = None, written: dict | None = None,
                  external: tuple = ()):
         super().__init__()
-        # the external units' kinematics (postproc.external): a track that carries the robot's
+        # the external units' kinematics (postproc.robot.external): a track that carries the robot's
         # base (its robtargets' eax_… says where), positioners a work object is coordinated with
         self.track = next((u for u in external if u.carries == "robot"), None)
         self.mech_units = {u.mech_unit.upper(): u for u in external if u.carries == "workpiece" and u.mech_unit}
@@ -342,7 +355,7 @@ def _moving(target: Rec):
 
 
 def _external(target: Rec) -> dict:
-    """The external axes a robtarget uses (eax_a … eax_f not 9E9) as E1 … E6 (postproc.external)."""
+    """The external axes a robtarget uses (eax_a … eax_f not 9E9) as E1 … E6 (postproc.robot.external)."""
     extax = target.fields.get("EXTAX")
     if not isinstance(extax, Rec):
         return {}

@@ -16,7 +16,7 @@ import numpy as np
 from lark import Token, Tree
 from lark.exceptions import UnexpectedInput
 
-from ...diagnostics import P101, LineIndex, PostprocError, line_col
+from ...core.diagnostics import P101, LineIndex, PostprocError, line_col
 from ..grammar import TOKEN_RE, exact_key, lalr_parser, shape_key, unexpected
 
 __all__ = ["parser", "Shape", "Exact", "Source", "scan", "misread", "TOKEN_RE", "STRING_RE"]

@@ -30,10 +30,10 @@ import re
 
 import numpy as np
 
-from ...diagnostics import P108, P222, PostprocError
+from ...core.diagnostics import P108, P222, PostprocError
 from ..analysis import analyse
 from ..model import STAMP_PREFIX, ActiveFrames, Program
-from ..poses import _newline
+from ..text import _newline
 from .lower import MOTION_OF, SCRIPT, UNIT_MM, Lowering, parser
 from .semantics import UR
 

@@ -33,8 +33,8 @@ import math
 
 import numpy as np
 
-from ... import frames as fr
-from ...diagnostics import P201, P203, P211, P215, P221, P222, P223, PostprocError
+from ...core import frames as fr
+from ...core.diagnostics import P201, P203, P211, P215, P221, P222, P223, PostprocError
 from ..analysis.dialect import Dialect, PoseView
 from ..analysis.values import Mat, Rec, Six, Taint, Tok, Top, number, taint, tokens_of
 

@@ -1,0 +1,415 @@
+"""Checks of robot programs for ``postproc check`` and the pre-commit hooks.
+
+Everything here returns :class:`~postproc.core.diagnostics.Diagnostic` lists; nothing prints.
+A program is checked for what would make ``postproc compensate`` (with the same model and
+settings) refuse or warn, plus what only matters once programs are kept in a repository:
+
+* syntax errors (the dialect reader's ``P1xx``), the reader's warnings (``P2xx``) and notes
+  (``P224``: robot base = world assumed, once per program; never a failure);
+* targets the nominal robot cannot reach (``P302``, the model's ``reach``; ``P309`` with an
+  IK reachability test), outside the training envelope (``P301``), not finite (``P103``),
+  with a position or orientation that is not known (``P212``, ``P213``), a $TOOL that is not
+  the model's (``P304``) or a model trained on another robot (``P310``), corrections the
+  model makes NaN (``P305``) or implausibly large (``P303``), one set of numbers the runs of
+  which need other numbers (``P230``): the rules of :mod:`postproc.compensation.findings`, which compensate
+  applies too;
+  then, if none is an error, the last checks before writing (``P190``, ``P191``);
+* stamps: compensated with a model other than the configured one (``P402``), compensated
+  twice (``P403``), a .src and .dat that do not come from one compensation (``P404``; a
+  file without targets that compensate changes carries no stamp, and needs none);
+* freshness of configured source → output pairs (``P405`` stale, ``P406`` output missing,
+  ``P407`` output without source), by compensating the source in memory and comparing
+  bytes: git checkouts scramble mtimes, so they prove nothing.
+"""
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..core.atomic import write_atomic
+from ..core.diagnostics import (
+    P230,
+    P322,
+    P401,
+    P402,
+    P403,
+    P404,
+    P405,
+    P406,
+    P407,
+    Diagnostic,
+    PostprocError,
+    line_col,
+)
+from ..model.compensator import Compensator, load_model
+from ..programs import STAMP_PREFIX, Program
+from ..programs.io import companion_dat, load_program
+from ..settings.file import Config
+from .findings import (
+    DEFAULT_MAX_CORRECTION_MM,
+    Settings,
+    findings,
+    run_model,
+    select,
+    std_bound,
+)
+from .pipeline import compensate_program, output_paths, rewrite_program
+
+__all__ = [
+    "Stamp",
+    "find_stamps",
+    "check_program",
+    "check_file",
+    "check_files",
+    "check_fresh",
+    "program_paths",
+    "failed",
+]
+
+# "path:line:col" of a stamp; the name may hold spaces, the hash is the last word
+_STAMP = re.compile(
+    # (Fanuc LS: a numbered remark '  7:  ! postproc: … ;')
+    r"^[ \t]*(?:\d+:[ \t]*)?(?:;|#|//|!)[ \t]*" + re.escape(STAMP_PREFIX) + r"[ \t]+(?P<name>.*?)[ \t]+"
+    r"(?P<sha>[0-9a-fA-F]{6,64})[ \t]*;?[ \t]*\r?$",
+    re.M,
+)
+
+
+@dataclass(frozen=True)
+class Stamp:
+    """One ``; postproc: compensated with model <name> <sha256[:12]>`` line."""
+
+    file: int  # index into Program.files
+    line: int
+    col: int
+    name: str
+    sha: str
+
+    def same_model(self, model: Compensator) -> bool:
+        return self.name == model.name and model.sha256.startswith(self.sha.lower())
+
+
+def find_stamps(program: Program) -> list[Stamp]:
+    """Every stamp line in every file of the program, in file and line order."""
+    out = []
+    for index, text in enumerate(program.texts):
+        for m in _STAMP.finditer(text):
+            line, _ = line_col(text, m.start())
+            indent = len(m.group()) - len(m.group().lstrip(" \t"))
+            out.append(Stamp(index, line, indent + 1, m.group("name"), m.group("sha")))
+    return out
+
+
+def failed(diagnostics: Iterable[Diagnostic], strict: bool = False) -> bool:
+    """Whether the findings fail a check: any error, and under ``strict`` any warning too (a
+    note, e.g. P224's assumption, never)."""
+    return any(d.severity == "error" or (strict and d.severity != "note") for d in diagnostics)
+
+
+# --------------------------------------------------------------------------- one program
+
+
+def _stamp_findings(program: Program, model: Compensator, selection) -> list[Diagnostic]:
+    stamps = find_stamps(program)
+    out: list[Diagnostic] = []
+    first: dict[int, Stamp] = {}
+    for s in stamps:
+        path = program.files[s.file]
+        if s.file in first:
+            f = first[s.file]
+            out.append(Diagnostic(path, s.line, s.col, P403,
+                                  f"compensated twice: a second stamp (the first is on line {f.line}, "
+                                  f"model {f.name} {f.sha})", "error"))
+            continue
+        first[s.file] = s
+        if not s.same_model(model):
+            what = ("another version of model " + s.name) if s.name == model.name else f"model {s.name}"
+            out.append(Diagnostic(path, s.line, s.col, P402,
+                                  f"compensated with {what} {s.sha}, not the configured {model.name} "
+                                  f"{model.sha256[:12]}", "error"))
+    if first and len(program.files) > 1:
+        # one compensation stamps every file of a module (its .src/.sub and .dat: one stem in
+        # one folder) with the same line (a file without a target compensate would change is
+        # not stamped: it did not change); the modules of a cell are compared each on its own
+        changes = set(program.targets.file[selection.rows].tolist())
+        modules: dict[tuple[str, str], list[int]] = {}
+        for i, name in enumerate(program.files):
+            path = Path(name)
+            modules.setdefault((str(path.parent), path.stem.casefold()), []).append(i)
+        for members in modules.values():
+            keys = {i: (first[i].name, first[i].sha) if i in first else None for i in members
+                    if i in first or i in changes}
+            if len(set(keys.values())) <= 1:
+                continue
+            for i, key in keys.items():
+                others = [program.files[j] for j, k in keys.items() if k != key]
+                where = (first[i].line, first[i].col) if i in first else (1, 1)
+                state = f"stamped {key[0]} {key[1]}" if key else "not stamped"
+                out.append(Diagnostic(program.files[i], *where, P404,
+                                      f"{state}, unlike {', '.join(others)}: the files of this module do not "
+                                      "come from one compensation", "error"))
+    return out
+
+
+def check_program(
+    program: Program,
+    model: Compensator,
+    *,
+    iterations: int | None = None,
+    max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
+    max_std_mm: float | None = None,
+    robot: str | None = None,
+    reachable: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> list[Diagnostic]:
+    """Every finding about a parsed program (see the module docstring), in no particular order.
+
+    ``robot`` is the robot the program is for (a model trained on another is ``P310``);
+    ``reachable`` optionally maps robot-base poses [N, 6] to a bool mask [N] (e.g. IK of
+    the nominal robot); targets it rejects are ``P309`` errors. The rules are compensate's
+    (:func:`postproc.compensation.findings.findings`); when none is an error, the program is rewritten in
+    memory from the same commands, so that the last checks before writing (P190, P191) are
+    findings too: a clean check means compensate succeeds.
+    """
+    settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot,
+                        reachable=reachable, max_std_mm=max_std_mm)
+    selection = select(program, model, settings)
+    commands = run_model(model, selection, iterations, std=std_bound(model, settings) is not None)
+    # a stamp is the stamp rules' business here (P402-P404), not "already compensated"
+    out = list(program.diagnostics) + program.notes
+    out += [d for d in findings(program, commands, model, settings) if d.code != P401]
+    out += _stamp_findings(program, model, selection)
+    if not failed(out):
+        t = program.targets
+        try:
+            if t.group is not None and (t.group >= 0).any():
+                # numbers run more than once: compensate's own agreement of the runs (P230, P322),
+                # which needs its rounds (the model again without the groups that disagree)
+                report = compensate_program(program, model, iterations=iterations, robot=robot,
+                                            max_correction_mm=max_correction_mm, max_std_mm=max_std_mm)
+                said = {(d.path, d.line, d.col, d.code) for d in out}
+                out += [d for d in report.warnings + report.notes if d.code in (P230, P322)
+                        and (d.path, d.line, d.col, d.code) not in said]
+            else:
+                rewrite_program(program, commands, model)
+        except PostprocError as exc:
+            out.append(exc.diagnostic())
+    return out
+
+
+# --------------------------------------------------------------------------- files
+
+
+def _owner(path: Path) -> Path:
+    """The .src a .dat belongs to (same stem, any case, same folder), else the path itself."""
+    if path.suffix.lower() != ".dat" or not path.parent.is_dir():
+        return path
+    stem = path.stem.lower()
+    for candidate in sorted(path.parent.iterdir()):
+        if candidate.suffix.lower() == ".src" and candidate.stem.lower() == stem and candidate.is_file():
+            return candidate
+    return path
+
+
+def program_paths(paths: Iterable[str | Path]) -> list[Path]:
+    """The programs to read for these files: a .dat is read with its .src; no program twice."""
+    seen: dict[Path, None] = {}
+    for p in paths:
+        seen.setdefault(_owner(Path(p)), None)
+    return list(seen)
+
+
+def check_file(
+    path: str | Path,
+    model: Compensator,
+    *,
+    config: str | Path | list | None = None,
+    active=None,
+    **options,
+) -> list[Diagnostic]:
+    """Read and check one program (a .src reads its .dat too); a syntax error is a finding.
+    ``active``: the $BASE/$TOOL stated where a KRL program does not set them (``ActiveFrames``)."""
+    try:
+        program = load_program(path, config, active=active)
+    except PostprocError as exc:
+        return [exc.diagnostic()]
+    return check_program(program, model, **options)
+
+
+def _data_list_findings(path: Path) -> list[Diagnostic]:
+    """A data list without a DEF ($config.dat, a PUBLIC points list): not a program, but its
+    syntax is checked (read as the configuration of an empty module)."""
+    from ..programs.io import read_program
+    from ..programs.text import read_text as _read
+
+    try:
+        read_program([str(path.with_suffix(".src"))], ["DEF empty()\nEND\n"], "krl", config=[_read(path)])
+    except PostprocError as exc:
+        d = exc.diagnostic()
+        return [replace(d, path=str(path))]
+    return []
+
+
+def check_files(
+    paths: Iterable[str | Path],
+    model: Compensator,
+    *,
+    config: str | Path | list | None = None,
+    ignore: Iterable[str] = (),
+    active=None,
+    **options,
+) -> list[Diagnostic]:
+    """Check the programs these files belong to, as one cell: directories are searched for
+    programs of every dialect but pose lists (KRL; RAPID, URScript and Fanuc LS files by their
+    suffix: a directory holds measurement CSVs and notes too), a ``$config.dat`` among them is
+    the configuration of the others (unless ``config`` is given), a data list without a DEF is
+    checked for syntax only; findings sorted by path, line, column."""
+    from ..programs.cell import KRL, is_config
+    from ..programs.io import FANUC_SUFFIXES, RAPID_SUFFIXES, URSCRIPT_SUFFIXES
+    from ..programs.krl.machine import found_machine, is_machine, with_machine
+
+    suffixes = set(KRL) | RAPID_SUFFIXES | URSCRIPT_SUFFIXES | FANUC_SUFFIXES
+
+    def in_directory(d: Path) -> list[Path]:  # (one walk; KRL's machine data is not a program)
+        return sorted(q for q in d.rglob("*") if q.suffix.lower() in suffixes and q.is_file() and not is_machine(q))
+
+    ignored = set(ignore)
+    files: list[Path] = []
+    machines: list[Path] = []  # the robot's machine data ($ROBROOT), not a program
+    for p in map(Path, paths):
+        files += in_directory(p) if p.is_dir() else [p] * (not is_machine(p))
+        machines += found_machine(p) if p.is_dir() else [p] * is_machine(p)
+    try:
+        active = with_machine(active, machines=machines)
+    except PostprocError as exc:
+        return [exc.diagnostic()]
+    configs = [f for f in files if is_config(f)]
+    if config is None and configs:
+        config = [str(c) for c in configs]
+    out: list[Diagnostic] = []
+    owners = program_paths(files)
+    krl = [p for p in owners if p.suffix.lower() in KRL]
+    if len(krl) > 1:  # a cell: read as one, as compensate does (globals, calls across modules)
+        out += [d for d in _cell_findings(krl, model, config, active, **options) if d.code not in ignored]
+        owners = [p for p in owners if p.suffix.lower() not in KRL]
+    for path in owners:
+        if path.suffix.lower() == ".dat" and (is_config(path) or _data_list(path)):
+            found = _data_list_findings(path)
+        else:
+            found = check_file(path, model, config=config, active=active, **options)
+        out += [d for d in found if d.code not in ignored]
+    return sorted(out, key=lambda d: (d.path, d.line, d.col, d.code))
+
+
+def _cell_findings(owners: list[Path], model: Compensator, config, active=None, **options) -> list[Diagnostic]:
+    """The findings of KRL modules and data lists checked as one cell (``cell.find_cell``:
+    each module with its .dat, one reader call, ``$config.dat`` among them or ``config``)."""
+    from ..programs.cell import find_cell
+
+    paths = list(owners) + [d for d in (companion_dat(p) for p in owners if p.suffix.lower() != ".dat") if d]
+    try:
+        program = find_cell(paths, config, active).read()
+    except PostprocError as exc:
+        return [exc.diagnostic()]
+    return check_program(program, model, **options)
+
+
+def _data_list(path: Path) -> bool:
+    """A .dat (with no .src beside it) that holds no DEF: a data list, not a program."""
+    try:
+        text = path.read_bytes().decode("latin-1")
+    except OSError:
+        return False
+    return re.search(r"^[ \t]*(?:GLOBAL[ \t]+)?DEF(?:FCT)?[ \t]", text, re.I | re.M) is None
+
+
+# --------------------------------------------------------------------------- freshness
+
+
+def _shown(path: Path) -> str:
+    """A path relative to the current directory when it is below it (as git and ruff show it)."""
+    try:
+        return os.path.relpath(path) if Path(path).resolve().is_relative_to(Path.cwd().resolve()) else str(path)
+    except ValueError:  # another drive
+        return str(path)
+
+
+def _first_difference(expected: str, actual: str) -> int:
+    n = min(len(expected), len(actual))
+    if expected[:n] == actual[:n]:
+        return n
+    a, b = np.frombuffer(expected[:n].encode("latin-1"), np.uint8), np.frombuffer(actual[:n].encode("latin-1"), np.uint8)
+    return int(np.argmax(a != b))
+
+
+def _stale(program: Program, report, targets: list[Path], shown_src: str, model: Compensator) -> list[Diagnostic]:
+    """P406 for each output of ``program`` missing, P405 for each whose bytes are not the new
+    texts of ``report`` (at the first differing byte)."""
+    stale: list[Diagnostic] = []
+    for target, name in zip(targets, program.files):
+        expected = report.outputs[name]
+        if not target.is_file():
+            stale.append(Diagnostic(shown_src, 0, 0, P406, f"no compensated output {_shown(target)}", "error"))
+            continue
+        actual = target.read_bytes().decode("latin-1")
+        if actual != expected:
+            line, col = line_col(actual, _first_difference(expected, actual))
+            stale.append(Diagnostic(
+                _shown(target), line, col, P405,
+                f"stale: compensating {_shown(Path(name))} with {model.name} "
+                f"{model.sha256[:12]} gives other bytes from here on (`postproc check --fresh --fix` rewrites it)", "error"))
+    return stale
+
+
+def check_fresh(
+    cfg: Config,
+    model: Compensator,
+    *,
+    fix: bool = False,
+    ignore: Iterable[str] = (),
+) -> tuple[list[Diagnostic], list[Path]]:
+    """Compare every configured output with its source compensated in memory.
+
+    ``model`` is the configured model (pairs may name their own). With ``fix`` stale and
+    missing outputs are written (atomically, with their .dat) instead of reported.
+    Returns the findings and the files written.
+    """
+    if not cfg.fresh:  # nothing to compare: not an error (a cell that only wants postproc-check)
+        return [], []
+    ignored = set(ignore)
+    models: dict[Path | None, Compensator] = {None: model}
+    found: list[Diagnostic] = []
+    written: list[Path] = []
+    for pair in cfg.fresh:
+        if pair.model not in models:
+            models[pair.model] = load_model(pair.model)
+        pair_model = models[pair.model]
+        config = pair.config if pair.config is not None else cfg.config
+        for source, output in pair.matches():
+            shown_src, shown_out = _shown(source), _shown(output)
+            try:
+                program = load_program(source, list(config) if config else None, active=cfg.active)
+                report = compensate_program(
+                    program, pair_model, iterations=cfg.iterations, strict=cfg.strict, robot=cfg.robot,
+                    max_correction_mm=cfg.max_correction_mm or DEFAULT_MAX_CORRECTION_MM,
+                )
+            except PostprocError as exc:
+                d = exc.diagnostic()
+                found.append(Diagnostic(_shown(Path(d.path)) if d.path else shown_src, d.line, d.col, d.code,
+                                        f"{d.message} (while compensating it for {shown_out})", "error"))
+                continue
+            targets = output_paths(program, output)
+            stale = _stale(program, report, targets, shown_src, pair_model)
+            if stale and fix:
+                write_atomic([(t, report.outputs[f]) for t, f in zip(targets, program.files)])
+                written += targets
+            else:
+                found += stale
+        found += [Diagnostic(_shown(p), 0, 0, P407, f"no source matches '{pair.source}' for this output",
+                             "warning") for p in pair.orphans()]
+    found = [d for d in found if d.code not in ignored]
+    return sorted(found, key=lambda d: (d.path, d.line, d.col, d.code)), written

@@ -1,0 +1,221 @@
+"""What the controller will use at each target besides its pose: the joint angles of its
+arm configuration (S/T, the controller's rules for targets without them, or a pose list's
+``q1..q6``) and its tool (the active ``$TOOL``). Only models with the contract inputs
+``joints`` / ``tool`` need them (``Compensator.wants_joints`` / ``wants_tool``).
+
+One stage between ``findings.select`` (which targets the model takes, in the robot base)
+and the model: it narrows the selection by the targets whose configuration has no joint
+angles on the nominal arm (P309, left as written) and attaches the inputs to it.
+"""
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+import numpy as np
+
+from ..core import frames
+from ..core.diagnostics import P309, P311, P313, P319, Diagnostic, PostprocError
+from ..model.compensator import Compensator
+from ..programs import Program
+from ..robot.conventions import _DIALECT_NAMES, DIALECT_CONTROLLERS, controller_of
+
+__all__ = [
+    "model_description", "controller_inputs", "family_mismatch", "configuration_mismatch", "unseparated_mount_mm",
+    "JOINT_TOLERANCE_DEG", "MOUNT_ROTATION_DEG", "TOOL_WARNING_MM",
+]
+
+# A target's stated configuration (S/T) is the model's when the joint angles agree to this.
+JOINT_TOLERANCE_DEG = 1.0
+# P319: the tool mount's rotation (with the A6 mastering about its axis) assumed at most, where
+# the model's data could not separate it (card ``tool.unseparated``), and the extra error at
+# another TCP from it that is worth a warning
+MOUNT_ROTATION_DEG = 0.1
+TOOL_WARNING_MM = 0.1
+
+
+def unseparated_mount_mm(model: Compensator, tools: np.ndarray) -> np.ndarray:
+    """[n] mm: what the part of the tool mount's rotation the model's data could not separate
+    (card ``tool.unseparated``, unit directions in the flange frame) may add at each TCP
+    ``tools`` [n, 6], for a rotation of MOUNT_ROTATION_DEG: θ·max |u × (t − t₀)| over unit u
+    in their span (t₀ the model's own TCP). Zero for models that do not say (no tool input)."""
+    card = model.tool or {}
+    apart = np.asarray(card.get("unseparated", []), float).reshape(-1, 3)
+    if not len(apart) or card.get("frame") is None or not len(tools):
+        return np.zeros(len(tools))
+    tools = np.asarray(tools, float)
+    if len(tools) > 1 and (tools == tools[0]).all():  # (one $TOOL for the whole program: one value)
+        return np.repeat(unseparated_mount_mm(model, tools[:1]), len(tools))
+    lever = tools[:, :3] - np.asarray(card["frame"], float)[:3]
+    turned = np.cross(apart[None, :, :], lever[:, None, :])  # [n, k, 3]
+    return np.radians(MOUNT_ROTATION_DEG) * np.linalg.norm(turned, ord=2, axis=(1, 2))  # largest singular value
+
+
+def model_description(model: Compensator):
+    """The robot description of the model's robot (the shipped ``models/*.toml`` whose
+    [robot] name is the card's ``robot``), or None."""
+    return _description_named(model.robot.casefold()) if model.robot else None
+
+
+@functools.lru_cache(maxsize=None)
+def _description_named(name: str):
+    """(the shipped descriptions read once per process: a compensate asks several times)"""
+    from ..core.resources import model_path
+    from ..robot.description import load_description
+
+    folder = model_path("kr500.toml").parent
+    for path in sorted(folder.glob("*.toml")):
+        description = load_description(path)
+        if description.name.casefold() == name:
+            return description
+    return None
+
+
+def model_tool(model: Compensator, description) -> np.ndarray:
+    """The TCP on the flange the model's poses are of where a program says none: the card's
+    tool frame, else the description's."""
+    card_tool = model.tool.get("frame") if model.tool else None
+    return np.asarray(card_tool if card_tool is not None else description.tool, float)
+
+
+def family_mismatch(program: Program, model: Compensator) -> str | None:
+    """Why a model that takes joint angles does not fit the controller ``program`` is written
+    for (its dialect: KRL a KUKA's, RAPID an ABB's, URScript a Universal Robots', LS a FANUC's),
+    when the description of the model's robot names another (``[robot] configuration``, or a
+    UR-type arm); None where they agree or either is not known (a pose list, a model without
+    the ``joints`` input or without a description)."""
+    if not model.wants_joints:
+        return None
+    description = model_description(model)
+    own = controller_of(description)
+    wanted = DIALECT_CONTROLLERS.get(program.dialect)
+    if wanted is None or own is None or own == wanted:
+        return None
+    name = _DIALECT_NAMES[program.dialect]
+    return (f"the program is {name}, written for {wanted} controllers, and the model was trained on {model.robot}, "
+            f"an arm of {own}'s (its description {Path(description.path).name}): compensate with a model of this "
+            "program's robot")
+
+
+def _tools(program: Program, model: Compensator, description, rows: np.ndarray) -> np.ndarray:
+    """Each target's TCP on the flange [len(rows), 6]: the program's $TOOL where known, else
+    the model's (its card), else the description's."""
+    tools = np.tile(model_tool(model, description), (len(rows), 1))
+    t = program.targets
+    for f, here in frames.frame_groups(t.frame[rows]):
+        if program.frames[f].tool is not None:
+            tools[here] = program.frames[f].tool
+    return tools
+
+
+def configuration_mismatch(program: Program, model: Compensator, rows: np.ndarray, sel: np.ndarray,
+                           collect) -> tuple[np.ndarray, list[Diagnostic]]:
+    """For a model *without* the ``joints`` input: a mask of the targets whose stated S/T put
+    the arm in other joint angles than those the model evaluates (its own IK's, output
+    ``ik_joints``/``joints``; without that output the nominal IK nearest HOME, the branch the
+    training plans take), to be left as written, and their P313 warnings. Without a robot
+    description for the model's robot every target that states S/T is left (it cannot be
+    checked). Targets that state no S/T keep the model's branch."""
+    config = program.targets.config
+    stated = (config[rows] >= 0).any(axis=1) if config is not None else np.zeros(len(rows), bool)
+    if not stated.any():
+        return np.zeros(len(rows), bool), []
+    from ..robot import (
+        configuration,  # (only here: a program without S/T does not pay their import)
+    )
+    from ..robot.arm import Robot
+
+    description = model_description(model)
+    if description is None:
+        return stated, collect(program, rows[stated], P313, "the target states S/T and postproc has no robot "
+                               f"description for the model's robot {model.robot or '(none named)'} to check that the "
+                               "model evaluates that arm configuration: left as it is")
+    at = np.flatnonzero(stated)
+    poses, tools = sel[at], _tools(program, model, description, rows[at])
+    status, turn = (np.asarray(config[rows[at], k], int) for k in (0, 1))
+    wanted = np.full((len(at), 6), np.nan)
+    mine = np.full((len(at), 6), np.nan)
+    for tool in np.unique(tools, axis=0):
+        here = (tools == tool).all(axis=1)
+        robot = Robot(description.replace(tool=tool))
+        wanted[here], _ = configuration.stated_joints(robot, poses[here], status[here], turn[here])
+        if not model.has_joints:
+            mine[here], _ = robot.ik(poses[here], robot.home_q)
+    if model.has_joints:
+        _, mine = model.predict(poses, with_joints=True)
+    with np.errstate(invalid="ignore"):
+        differ = ~(np.abs(wanted - mine) <= JOINT_TOLERANCE_DEG).all(axis=1)
+    bad = np.zeros(len(rows), bool)
+    bad[at[differ]] = True
+    return bad, collect(program, rows[bad], P313, "the target's S/T put the arm in another configuration than "
+                        "the one this model evaluates (a model without the 'joints' input knows one branch): "
+                        "left as it is")
+
+
+def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, sel: np.ndarray,
+                      collect, chain=None, order=None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, list[Diagnostic]]:
+    """The model's ``joints`` / ``tool`` inputs for targets ``rows`` at base poses ``sel``:
+    (rows kept, their poses, joint angles [n, 6] deg or None, TCPs [n, 6] or None, warnings).
+    Targets whose configuration has no joint angles on the nominal arm, or is stated in a form
+    the model's description cannot say (``configuration.stated_configuration``), are left as
+    written (P309). The tool is the program's $TOOL where known, else the model's (its card); where
+    its lever arm is so far from the measured TCPs' that the mount rotation the model could not
+    separate may add TOOL_WARNING_MM or more, a P319 warning says how much (the target is
+    compensated). ``collect`` makes the located warnings (findings.collect). ``chain`` (a
+    ``compensator.Chain``, streaming compensate): the rules continue from the part before's last
+    target (its ``origin``: the program's start position) and leave this part's last in it."""
+    from ..robot import configuration
+    from ..robot.arm import Robot
+
+    description = model_description(model)
+    if description is None:
+        raise PostprocError(f"the model takes joint angles and postproc has no robot description for its robot "
+                            f"{model.robot or '(none named)'}", str(model.path), 0, 0, P311)
+    default_tool = model_tool(model, description)
+    tools = _tools(program, model, description, rows)
+    t = program.targets
+    warnings: list[Diagnostic] = []
+    q = None
+    stated = None
+    if model.wants_joints:
+        stated, unmapped, why = configuration.stated_configuration(program, description, rows)
+        if unmapped.any():
+            warnings += collect(program, rows[unmapped], P309, lambda i: why[i] + ": left as it is")
+            keep = ~unmapped
+            rows, sel, tools, stated = rows[keep], sel[keep], tools[keep], stated.take(keep)
+            order = None  # (rows dropped: the order of the rest is made again by findings)
+    if model.wants_joints and len(rows):
+        robot = Robot(description.replace(tool=default_tool))
+        first = robot if np.array_equal(tools[0], default_tool) else Robot(description.replace(tool=tools[0]))
+        if chain is not None and chain.joints is not None:
+            start = chain.origin
+        else:
+            start, _ = first.ik(sel[:1], robot.home_q)
+            if model.has_joints and np.isfinite(start).all():  # the branch of the model's own IK
+                _, own = model.predict(sel[:1], joints=start, tool=tools[:1] if model.wants_tool else None,
+                                       with_joints=True)
+                start = own if own is not None and np.isfinite(own).all() else start
+            if chain is not None:
+                chain.origin = start
+        q, ok = configuration.target_joints(robot, t, rows, sel, tools,
+                                            start[0] if np.isfinite(start).all() else None, chain, stated, order)
+        changes = configuration.linear_changes(robot, t, rows, stated, q, order) & ok
+        if changes.any():
+            warnings += collect(program, rows[changes], P309, "a linear motion cannot change the arm configuration, and "
+                                "the one this target states is not the one its motion keeps: the controller stops "
+                                "(ConfL\\On, FANUC) or keeps its own (ConfL\\Off), which the program does not say: left as it is")
+            keep = ~changes
+            rows, sel, q, tools, ok = rows[keep], sel[keep], q[keep], tools[keep], ok[keep]
+        if not ok.all():
+            warnings += collect(program, rows[~ok], P309, "no joint angles for this target in its arm configuration "
+                                "(S/T, or the one its motion keeps) on the nominal robot: left as it is")
+            rows, sel, q, tools = rows[ok], sel[ok], q[ok], tools[ok]
+    if model.wants_tool:
+        extra = unseparated_mount_mm(model, tools)
+        far = np.flatnonzero(extra >= TOOL_WARNING_MM)
+        warnings += collect(program, rows[far], P319, lambda i: (
+            f"the $TOOL {[round(float(v), 3) for v in tools[far[i]]]} has another lever arm than the tools the model "
+            f"was measured with ({len(model.tool.get('measured', []))}): the tool mount's rotation they could not "
+            f"separate may add up to {extra[far[i]]:.2f} mm here (at {MOUNT_ROTATION_DEG}°); measure with this tool, "
+            "or with two or three tools"))
+    return rows, sel, q, (tools if model.wants_tool else None), warnings

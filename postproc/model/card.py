@@ -1,0 +1,124 @@
+"""The model card as others read it: its JSON Schema, and a compensator described in words.
+
+``schemas/model_card.schema.json`` (JSON Schema 2020-12, in the package) writes down the card
+(``metadata_props``, values JSON-decoded, as ``Compensator.metadata`` holds them; the keys'
+authoritative text is ``compensator.py``'s). It is versioned with the contract: its ``$id`` ends
+in the contract version it describes, ``postproc_contract`` is one of the versions this postproc
+reads; ``load_model`` refuses a newer one naming it. ``card_problems`` checks a card against it
+(the ``jsonschema`` package: ``postproc[report]``/``[test]``; ``postproc model info`` says when it
+is not installed). ``interface_lines`` / ``card_lines``: what ``postproc model info`` prints.
+"""
+from __future__ import annotations
+
+import json
+from functools import cache
+
+from ..core.resources import schema_path
+from .compensator import (
+    INPUT_POSE,
+    OUTPUT_ERROR,
+    OUTPUT_JOINTS,
+    OUTPUT_ROTATION,
+    OUTPUT_STD,
+    Compensator,
+    contract_version,
+)
+
+__all__ = ["SCHEMA_PATH", "schema", "card_problems", "interface_lines", "card_lines"]
+
+SCHEMA_PATH = schema_path("model_card.schema.json")
+
+_OUTPUTS = {
+    OUTPUT_ERROR: "E = P_target - P_actual, mm (robot base frame)",
+    OUTPUT_JOINTS: "the nominal IK's joint angles of pose, deg, wrapped to [-180, 180)",
+    "joints": "the nominal IK's joint angles of pose, deg (contract 1's name of ik_joints)",
+    OUTPUT_ROTATION: "rotation vector nominal -> actual, deg (base frame)",
+    OUTPUT_STD: "std of a coordinate of E - Ê at the target, mm",
+}
+
+
+@cache
+def schema() -> dict:
+    return json.loads(SCHEMA_PATH.read_text(encoding="utf-8"))
+
+
+def card_problems(card: dict) -> list[str]:
+    """What in ``card`` (a decoded model card) the schema does not allow: "key.path: message"
+    per problem, [] when it is valid. Needs ``jsonschema``."""
+    import jsonschema
+
+    validator = jsonschema.Draft202012Validator(schema())
+    return [f"{'.'.join(map(str, e.absolute_path)) or '(card)'}: {e.message}"
+            for e in sorted(validator.iter_errors(card), key=lambda e: list(map(str, e.absolute_path)))]
+
+
+def interface_lines(model: Compensator) -> list[str]:
+    """The graph's inputs and outputs in words: name, shape, required or optional (and what an
+    omitted input means)."""
+    from .contract import DEFAULT_MEANING
+
+    lines = ["inputs (float32):"]
+    for node in (*model.session.get_inputs(), *model.session.get_overridable_initializers()):
+        if node.name == INPUT_POSE:
+            how = "required: X,Y,Z mm, A,B,C deg (KUKA R = Rz(A)·Ry(B)·Rx(C)), robot base frame"
+        elif node.name in model.defaults:
+            how = f"optional, omitted = {DEFAULT_MEANING.get(node.name, 'its default')}"
+        else:
+            how = "required by this graph (a contract-1 file: feed every input; `postproc model upgrade` makes it optional)"
+        lines.append(f"  {node.name} [N, 6]: {how}")
+    lines.append("outputs (float32):")
+    for node in model.session.get_outputs():
+        width = node.shape[1] if len(node.shape) == 2 else "?"
+        lines.append(f"  {node.name} [N, {width}]: {_OUTPUTS.get(node.name, '')}".rstrip(": "))
+    return lines
+
+
+def _fmt(values, digits: int = 1) -> str:
+    return ", ".join(f"{float(v):.{digits}f}" for v in values)
+
+
+def card_lines(model: Compensator) -> list[str]:
+    """The model card in words, one fact a line."""
+    card = model.metadata
+    lines = [f"name: {model.name}", f"file: {model.path} (sha256 {model.sha256})",
+             f"contract: {contract_version(card)}"]
+    for key in ("robot", "method", "structure"):
+        if card.get(key):
+            lines.append(f"{key}: {card[key]}")
+    tool = model.tool
+    if tool:
+        frame = f" = {{{_fmt(tool['frame'], 3)}}} on the flange" if tool.get("frame") is not None else ""
+        lines.append(f"tool: {tool.get('name', '')}{frame}" + (f"; valid for {tool['valid']}" if tool.get("valid") else ""))
+    env = model.envelope
+    if env is not None:
+        b = env.box
+        lines.append(f"envelope: X {b[0]:.1f}…{b[1]:.1f}, Y {b[2]:.1f}…{b[3]:.1f}, Z {b[4]:.1f}…{b[5]:.1f} mm; "
+                     f"A,B,C {_fmt(env.attitude)} ± {env.range:g}° (per component)")
+        if env.joints is not None:
+            lines.append("trained joint arcs (deg): " + "; ".join(f"A{j + 1} {lo:.1f}…{hi:.1f}"
+                                                                  for j, (lo, hi) in enumerate(env.joints)))
+    reach = card.get("reach")
+    if isinstance(reach, dict):
+        lines.append(f"reach: {reach.get('radius_min', 0):g}…{reach['radius_max']:g} mm from ({_fmt(reach['center'])})")
+    if card.get("controller_base") is not None:
+        lines.append(f"controller base in the model's frame: {{{_fmt(card['controller_base'], 3)}}}")
+    acc = card.get("accuracy")
+    if isinstance(acc, dict) and acc.get("val_mean_mm") is not None:
+        before = (f" (uncompensated {acc['val_uncompensated_mean_mm']:.3f} mm)"
+                  if acc.get("val_uncompensated_mean_mm") is not None else "")
+        lines.append(f"held-out |E - Ê|: mean {acc['val_mean_mm']:.3f} mm, max {acc.get('val_max_mm') or 0:.3f} mm "
+                     f"over {acc.get('n_val', '?')} rows{before}; trained on {acc.get('n_train', '?')} rows")
+    lines.append(f"iterations: {model.default_iterations} (c = P + Ê(c) from c0 = P)")
+    if model.max_std_mm is not None:
+        lines.append(f"uncertainty: error_std bound {model.max_std_mm:g} mm (P336)")
+    ident = card.get("identified")
+    if isinstance(ident, dict) and isinstance(ident.get("parameters"), dict):
+        groups = ident["parameters"]
+        lines.append(f"identified: {sum(len(v) for v in groups.values())} parameters ({', '.join(groups)}); "
+                     "`postproc export` writes them as URDF / YAML / JSON")
+    update = card.get("update")
+    if isinstance(update, dict):
+        lines.append(f"re-calibrated from {update.get('from', '?')} on {update.get('rows', '?')} rows")
+    if card.get("data_sha256"):
+        lines.append(f"data sha256: {card['data_sha256']}")
+    return lines

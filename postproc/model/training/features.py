@@ -1,0 +1,73 @@
+"""Inputs beyond the pose: the visiting order's approach directions and joint-space features.
+
+A measurement log keeps the order in which the robot visited its poses, and a program's order
+is known: so the direction each joint last moved in before reaching a target is available.
+Lost motion (backlash) makes the error depend on it, which no function of the pose alone can
+learn. ``previous_poses`` gives each row the pose commanded just before it (the contract's
+optional ``previous_pose`` input), ``motion_signs`` the sign of each joint's last motion.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+
+from ...robot.kinematics.twin import wrapped_step
+
+__all__ = ["previous_poses", "previous_joints", "motion_signs", "wrap_angles", "inside_ranges", "joint_features"]
+
+
+def previous_poses(poses: np.ndarray, first: np.ndarray | None = None) -> np.ndarray:
+    """[N, 6] the pose visited before each row (rows in visiting order); the first row's is
+    ``first`` (e.g. HOME's pose) or the row itself (no motion known), as ``compensate`` does."""
+    poses = np.asarray(poses, dtype=float).reshape(-1, 6)
+    head = poses[:1] if first is None else np.asarray(first, dtype=float).reshape(1, 6)
+    return np.vstack([head, poses[:-1]]) if len(poses) else poses.copy()
+
+
+def previous_joints(q_deg: np.ndarray | None) -> np.ndarray | None:
+    """[N, 6] the joint angles (deg) the arm stood at before each row (rows in visiting order,
+    ``q_deg`` the data's q1..q6); the first row's is unknown (NaN: it came from HOME). Where
+    consecutive rows are in different configurations (a plan with ``--wrist both``) these, not
+    the previous pose solved on the row's own branch, give the joints' true approach directions."""
+    if q_deg is None:
+        return None
+    q_deg = np.asarray(q_deg, dtype=float).reshape(-1, 6)
+    return np.vstack([np.full((min(len(q_deg), 1), 6), np.nan), q_deg[:-1]])
+
+
+def wrap_angles(q: torch.Tensor) -> torch.Tensor:
+    """Angles (rad) wrapped to [−π, π): the IK does not unwrap turns, nor do the joint ranges."""
+    return torch.remainder(q + math.pi, 2 * math.pi) - math.pi
+
+
+def inside_ranges(q: torch.Tensor, ranges: torch.Tensor) -> torch.Tensor:
+    """1.0 / 0.0 [N]: every joint angle of q [N, 6] rad (any turn) on its arc ``ranges`` [6, 2]
+    rad (from lo counterclockwise to hi, ``compensator.joint_arcs``, widened)."""
+    return (torch.remainder(q - ranges[:, 0], 2 * math.pi) <= ranges[:, 1] - ranges[:, 0]).all(dim=1).to(q.dtype)
+
+
+def motion_signs(q: torch.Tensor, q_previous: torch.Tensor, fill: bool = False, eps: float = 1e-9) -> torch.Tensor:
+    """Sign (+1 / −1, 0 = did not move) of each joint's step q_previous → q, [N, J].
+
+    With ``fill`` (a whole visiting sequence, rows in order) a joint that did not move keeps its
+    last sign: what the joint really remembers. A model fed one (pose, previous_pose) pair at
+    a time cannot know that, and takes 0 (the middle of the lost motion) instead.
+    """
+    step = wrapped_step(q, q_previous)
+    sign = torch.where(torch.abs(step) > eps, torch.sign(step), torch.zeros_like(step))
+    if fill and len(sign):
+        idx = torch.arange(len(sign))[:, None].expand_as(sign)
+        last = torch.where(sign != 0, idx, torch.zeros_like(idx))
+        last = torch.cummax(last, dim=0).values
+        sign = torch.gather(sign, 0, last)
+    return sign
+
+
+def joint_features(q: torch.Tensor, signs: torch.Tensor | None = None) -> torch.Tensor:
+    """sin, cos of each joint angle (periodic: the IK does not unwrap turns) [+ approach signs]."""
+    parts = [torch.sin(q), torch.cos(q)]
+    if signs is not None:
+        parts.append(signs)
+    return torch.cat(parts, dim=1)

@@ -1,0 +1,400 @@
+"""``fit``: measurements → a fitted error model and its model card (``postproc train`` is
+this function, its arguments mapped and its PostprocError mapped to exit codes).
+
+    trained = fit("measured.csv", method="hybrid", robot="models/kr500.toml", seed=0)
+    trained.model                   # the fitted estimator (HybridModel or ErrorModel)
+    trained.card["accuracy"]        # the model card that export writes
+    trained.export("cell3.onnx")    # the contract ONNX file, as `postproc train -o cell3.onnx`
+
+The steps: read and check the rows (measurements.py, training/data.py), hold out
+``val_fraction`` of them (drawn with ``split_seed``), ``register`` a tracker's measurements to
+the base frame on the training rows, then fit
+
+* an identified method (``methods.IDENTIFIED``): ``HybridModel`` on the robot's nominal
+  description (``robot``: its .toml file; default the shipped models/kr500.toml) with the
+  visiting order's approach directions (unless ``pose_only``), the data's joint angles, tools
+  and orientations; or, with ``update=OLD.onnx``, OLD re-calibrated on these rows
+  (training/update.py);
+* a pose-only network (``methods.NETWORKS``): ``ErrorModel``, its hidden layers first searched
+  with ``search`` (training/search.py, candidates run by ``search_engine``);
+
+score it on the held-out rows and assemble the card (training/card.py: robot, reach, tool,
+iterations). ``**params`` are the estimator's constructor parameters (``hidden``, ``epochs``,
+``seed``, ``progress``; ``optimizer`` of the networks; see HybridModel / ErrorModel).
+Messages name train's options (``--update``, ``--method``): they are the same whether the CLI
+or a script calls. torch is imported only to fit.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ...core.diagnostics import P317, P320, P507, P508, P516, PostprocError
+from .card import (
+    arm_metadata,
+    card_iterations,
+    demonstration_metadata,
+    robot_metadata,
+    tool_metadata,
+    tool_name,
+)
+from .methods import IDENTIFIED, METHODS, NETWORKS
+
+__all__ = ["fit", "TrainedModel", "SETTINGS", "ORIENTATION"]
+
+# the identified methods' HybridModel parameters (over its defaults; **params over these);
+# dnn-joints: no identification, only the networks on the joint angles (+ approach signs)
+SETTINGS = {"hybrid": {"residual": "auto"}, "kinematic": {"residual": "none"},
+            "dnn-joints": {"residual": "always", "hidden": (64, 64), "kinematic": {"groups": (), "ripple": []}}}
+# the methods that fit measured orientations (a_meas,b_meas,c_meas) too; the others the position only
+ORIENTATION = ("hybrid", "kinematic")
+
+
+@dataclass
+class TrainedModel:
+    """What ``fit`` made: the fitted estimator, its model card, the rows it was fitted on and
+    scored on (indices into the data), what it has to say (``notes``: warnings and what it did,
+    one line each) and, where they apply, the fixed point's settling (networks), the
+    re-calibration (``update.Update``) and the structure search (``search.SearchResult``)."""
+
+    model: object
+    card: dict  # the contract metadata export writes; "name" None: the file's stem
+    train_rows: np.ndarray
+    val_rows: np.ndarray
+    notes: list[str] = field(default_factory=list)
+    settled: int | None = None
+    update: object | None = None
+    search: object | None = None
+
+    def export(self, path: str | Path) -> Path:
+        """Write the contract ONNX file with the card (atomically), as ``postproc train -o``."""
+        card = dict(self.card)
+        card["name"] = card["name"] or Path(path).stem
+        return self.model.export_onnx(path, **card)
+
+
+@dataclass
+class _Rows:
+    """The data as fit uses it: the file's rows, its name in messages, each row's tool, the
+    split, E and the orientation errors (after registration)."""
+
+    data: object  # measurements.Measurements
+    source: str
+    tools: np.ndarray | None
+    train: np.ndarray
+    val: np.ndarray
+    notes: list[str] = field(default_factory=list)
+    errors: np.ndarray | None = None
+    rotation_errors: np.ndarray | None = None
+
+
+def fit(measurements, method: str = "hybrid", robot=None, *, tool=None, val_fraction: float | None = None,
+        split_seed: int = 0, register: bool = False, pose_only: bool = False, update=None, search: bool = False,
+        search_engine=None, name: str | None = None, **params) -> TrainedModel:
+    """Fit ``method`` to ``measurements`` (a ``measurements.Measurements`` or a CSV's path).
+
+    robot: a RobotDescription, its .toml file or a name (networks: only for the card).
+    tool: X,Y,Z,A,B,C (text or 6 numbers) the data were measured with, where the file does not
+        say (``# tool:``, tool_x..tool_c; a contradiction is refused, P320).
+    val_fraction, split_seed: the held-out rows (None: ``data.default_val_fraction``, 5 %, none
+        below 100 rows: every row fitted, which ``notes`` says). register: the measured columns are a tracker's.
+    pose_only: identified methods without the visiting order (no backlash).
+    update: OLD.onnx to re-calibrate (identified methods). search: search the networks' hidden
+        layers; search_engine: a callable giving a context manager that yields the candidates'
+        ``map`` (``fleet.task_map``; None: in place). name: the card's name (None: the file's stem).
+    Raises PostprocError (P3xx/P5xx) on data, options or a robot it cannot use."""
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r} ({'|'.join(METHODS)})")
+    if update and method not in IDENTIFIED:
+        raise PostprocError(f"--update re-fits an identified model: --method {method} identifies none "
+                            f"(use hybrid or kinematic, or leave --method out)", str(update), code=P317)
+    if method in IDENTIFIED and (search or params.get("optimizer") is not None):
+        given = " and ".join(o for o, v in (("--search", search), ("--optimizer", params.get("optimizer"))) if v)
+        raise PostprocError(f"{given} applies to the pose-only networks ({', '.join(NETWORKS)}); --method {method} "
+                            "identifies the robot's parameters (its residual networks have a fixed recipe: --hidden, "
+                            "--epochs): leave it out", code=P516)
+    rows = _split(measurements, tool, val_fraction, split_seed)
+    # a robot description is read before the long part, so that a typo fails fast
+    # (identified methods read it themselves: it is the model, and may be an arm postproc.robot.arm cannot solve)
+    robot_meta = {} if method in IDENTIFIED else robot_metadata(robot)
+    _measured(rows, register, method)
+    if method in IDENTIFIED:
+        return _identified(rows, method, _description(robot), pose_only, update, name, params)
+    return _network(rows, method, robot_meta, search, search_engine, name, params)
+
+
+def _split(measurements, tool, val_fraction: float, split_seed: int) -> _Rows:
+    from ...measurements.csv import Measurements, parse_tool, read_measurements
+    from .data import (
+        ALL_ROWS_BELOW,
+        default_val_fraction,
+        measured_tools,
+        split_indices,
+    )
+
+    if isinstance(measurements, Measurements):
+        data, source = measurements, measurements.path
+    else:
+        data, source = read_measurements(measurements), str(measurements)
+    if isinstance(tool, str):
+        tool = parse_tool(tool)
+    tools = measured_tools(data, None if tool is None else np.asarray(tool, dtype=np.float64))
+    train, val = split_indices(len(data), default_val_fraction(len(data), val_fraction), split_seed)
+    notes = []
+    if val_fraction is None and not len(val):
+        notes.append(f"every one of the {len(data)} rows fitted, none held out for validation (fewer than "
+                     f"{ALL_ROWS_BELOW} rows; --val-fraction F holds some out)")
+    return _Rows(data, source, tools, train, val, notes)
+
+
+def _measured(rows: _Rows, register: bool, method: str) -> None:
+    """E (and the orientation errors) of the rows, in the base frame (``register``: a
+    tracker's measurements moved there on the training rows), checked."""
+    from .data import check_errors, check_rotation_errors
+
+    data = rows.data
+    poses, measured = data.poses, data.measured
+    frame = data.meta.get("frame", "base").lower()
+    if register:
+        from ...core.registration import register_measurements
+
+        mask = np.zeros(len(data), dtype=bool)
+        mask[rows.train] = True
+        measured, transform, rms = register_measurements(poses[:, :3], measured, mask)
+        rows.notes.append(f"registered tracker → base on {len(rows.train)} training rows (rms {rms:.3f} mm)")
+        if data.orientation is not None:  # the probe's orientation turns with the tracker frame
+            from ...core.frames import abc_from_rotation, rotation_from_abc
+
+            data = replace(data, orientation=abc_from_rotation(transform[:3, :3] @ rotation_from_abc(data.orientation)))
+    elif frame != "base":
+        raise PostprocError(f"measured columns are in the {frame}'s frame ('# frame: {frame}'): train with --register",
+                            rows.source, code=P507)
+    if data.holdout is not None and len(rows.val) and not data.holdout[rows.val].all():
+        seen = int((~data.holdout[rows.val]).sum())
+        rows.notes.append(
+            f"warning: {seen} validation row(s) were used by the file's registration (holdout = 0): "
+            "the validation figures are optimistic; use the import's --split-seed and a smaller --val-fraction"
+        )
+    rows.notes += check_errors(poses[:, :3], measured, data.lines, rows.source)
+    rotation_errors = data.rotation_errors
+    if rotation_errors is not None:
+        check_rotation_errors(rotation_errors, data.lines, rows.source)
+        if method not in ORIENTATION:
+            rows.notes.append(f"warning: --method {method} fits the position only: a_meas,b_meas,c_meas not used "
+                              "(the model has no rotation_error output; compensate --orientation refuses it)")
+    rows.data, rows.errors, rows.rotation_errors = data, poses[:, :3] - measured, rotation_errors
+
+
+def _several_tools(rows: _Rows) -> int:
+    """How many TCPs the rows were measured with, if more than one (else 0)."""
+    n = 0 if rows.tools is None else len(np.unique(rows.tools, axis=0))
+    return n if n > 1 else 0
+
+
+def _require_one_tool(rows: _Rows, method: str) -> None:
+    """Refuse (P320) data of several tools for a method that learns one TCP's error."""
+    if _several_tools(rows):
+        raise PostprocError(f"--method {method} learns the error of one tool, the data have "
+                            f"{_several_tools(rows)}: train --method hybrid (a physical model)", rows.source, code=P320)
+
+
+def _take(values: np.ndarray | None, rows: np.ndarray) -> np.ndarray | None:
+    return None if values is None else values[rows]
+
+
+# -- identified methods ------------------------------------------------------------------------
+
+
+def _description(robot):
+    """The nominal description an identified method starts from: ``robot`` (a description or
+    its .toml), else the shipped default (a name other than the default's: P508)."""
+    from ...robot.description import RobotDescription, load_description
+
+    if isinstance(robot, RobotDescription):
+        return robot
+    if robot and Path(robot).suffix == ".toml":
+        return load_description(robot)
+    default = load_description()
+    if robot and robot != default.name:
+        raise PostprocError(f"--method hybrid identifies the robot's kinematics: give its description file "
+                            f"(--robot FILE.toml), not the name {robot!r}; or use --method gpso", code=P508)
+    return default
+
+
+@dataclass
+class _Inputs:
+    """The identified model's inputs of every row: the pose visited before (None: no visiting
+    order), the joint angles (None: not in the data) and those of the row visited before."""
+
+    previous: np.ndarray | None
+    q_deg: np.ndarray | None
+    q_previous: np.ndarray | None
+
+
+def _identified(rows: _Rows, method: str, description, pose_only: bool, update, name, params) -> TrainedModel:
+    from ...robot.configuration import measurement_joints
+    from .features import previous_joints, previous_poses
+    from .hybrid import HybridModel
+
+    rotation_errors = rows.rotation_errors if method in ORIENTATION else None
+    if rotation_errors is not None and _several_tools(rows):
+        rows.notes.append("warning: the orientation is fitted from data of one tool: with several tools "
+                          "(tool_x..tool_c) a_meas,b_meas,c_meas are not used (no rotation_error output)")
+        rotation_errors = None
+    if method == "dnn-joints":
+        _require_one_tool(rows, method)
+    poses = rows.data.poses
+    # rows in visiting order (the first came from HOME): the approach direction of each joint
+    previous = None if pose_only else previous_poses(poses)
+    q_deg, stated, warnings = measurement_joints(description, rows.data)
+    rows.notes += warnings
+    if not stated.all():  # (the visiting order stays the file's: previous poses computed above)
+        rows.train, rows.val = rows.train[stated[rows.train]], rows.val[stated[rows.val]]
+    # where the arm really stood before each row (its configuration may differ from the row's)
+    inputs = _Inputs(previous, q_deg, None if previous is None else previous_joints(q_deg))
+    t = rows.train
+    refit = None
+    if update:
+        refit = _update(rows, description, update, q_deg, rotation_errors)
+        model = refit.model
+        if rotation_errors is not None and not model.orientation:
+            rows.notes.append(f"warning: --update: {update} fitted no orientation, so a_meas,b_meas,c_meas are not "
+                              "used (the updated model has no rotation_error output)")
+            rotation_errors = None
+        elif refit.old.lever is not None and rotation_errors is None:
+            rows.notes.append(f"warning: --update: {update} fitted the orientation, these rows measured none "
+                              "(a_meas,b_meas,c_meas): the updated model has no rotation_error output "
+                              "(compensate --orientation needs it)")
+    else:
+        model = HybridModel(description, **{**SETTINGS[method], **params})
+        try:
+            model.fit(poses[t], rows.errors[t], _take(previous, t), _take(q_deg, t), _take(rows.tools, t),
+                      _take(rotation_errors, t), _take(inputs.q_previous, t))
+        except PostprocError as exc:  # (the estimator knows rows, not files: its findings are the data's)
+            if not exc.path:
+                exc.path = str(getattr(rows.data, "path", "") or "")
+            raise
+    card = _identified_card(model, description, rows, inputs, rotation_errors, refit, name)
+    return TrainedModel(model, card, rows.train, rows.val, rows.notes, update=refit)
+
+
+def _update(rows: _Rows, description, old_path, q_deg: np.ndarray | None, rotation_errors: np.ndarray | None):
+    """OLD's identification re-fitted on the training rows (``update.Update``), with their
+    orientation errors where OLD fitted the orientation."""
+    from .features import previous_poses
+    from .update import read_old_model, update_model
+
+    if rows.tools is not None and not np.allclose(rows.tools, description.tool):
+        raise PostprocError("--update re-fits a model at the tool it was measured with; these rows name "
+                            "other tools (# tool: / tool_x..tool_c / --tool): train a new model", rows.source,
+                            code=P317)
+    old = read_old_model(old_path, description)
+    poses, t = rows.data.poses, rows.train
+    try:
+        return update_model(old, description, poses[t], rows.errors[t], _take(previous_poses(poses), t),
+                            _take(q_deg, t), rotation_errors=_take(rotation_errors, t))
+    except PostprocError as exc:
+        exc.path = exc.path or rows.source  # too few rows: say which file
+        raise
+
+
+def _identified_card(model, description, rows: _Rows, inputs: _Inputs, rotation_errors, refit, name) -> dict:
+    """The card of a fitted or updated HybridModel (+ notes on rows left out, another IK branch)."""
+    from .estimator import accuracy_card
+
+    data, train, val = rows.data, rows.train, rows.val
+    if len(model.dropped_):
+        lines = data.lines[train][model.dropped_]
+        rows.notes.append(f"warning: {len(lines)} training row(s) left out, out of reach of the nominal "
+                          f"{description.name} or singular (or their q1..q6 not of that pose): line(s) "
+                          f"{', '.join(str(int(n)) for n in lines[:10])}{' ...' if len(lines) > 10 else ''}")
+    ident = model.kinematic_.identifiability() if model.kinematic_.layout_.n and refit is None else None
+    share = model.kinematic_.branch_share_
+    if share == share and share < 0.99:  # (NaN: no joint angles to compare with)
+        rows.notes.append(f"warning: {100 * (1 - share):.1f} % of the training rows were reached on another IK "
+                          f"branch than {list(model.kinematic_.ik_.branch)}: the model assumes that one everywhere")
+    poses = data.poses
+    predicted = model.predict(poses[val], _take(inputs.previous, val), _take(inputs.q_deg, val),
+                              _take(rows.tools, val), _take(inputs.q_previous, val))
+    accuracy = accuracy_card(rows.errors[val], predicted, model.train_stats_["mean"], len(train))
+    blocked = model.kinematic_.blocked_figures()
+    if blocked is not None:  # beside the random held-out rows': each region predicted without it
+        accuracy["blocked"] = blocked
+    if model.orientation and len(val):
+        from ...core.stats import table2
+
+        before = np.linalg.norm(rotation_errors[val], axis=1)
+        after = np.linalg.norm(rotation_errors[val] - model.predict_rotation(
+            poses[val], _take(inputs.previous, val), _take(inputs.q_deg, val)), axis=1)
+        accuracy["val_rotation_deg"] = {"uncompensated": table2(before), "residual": table2(after)}
+    found = model.describe()
+    found["identifiability"] = ident
+    metadata = {
+        "name": name,
+        "data_sha256": data.sha256,
+        "accuracy": accuracy,
+        "iterations": card_iterations(model.fixed_point_iterations(poses[train])),
+        "identified": found,
+    }
+    if refit is not None:
+        metadata["update"] = refit.card()
+    metadata.update(arm_metadata(description))
+    metadata.update(demonstration_metadata(data.meta))
+    if rows.tools is not None or model.kinematic_.layout_.n:
+        own = model.description_.tool
+        same = np.allclose(own, description.tool)
+        metadata["tool"] = model.tool_card(description.tool_name if same else tool_name(own))
+    return model.card(**metadata)
+
+
+# -- pose-only networks ------------------------------------------------------------------------
+
+
+def _network(rows: _Rows, method: str, robot_meta: dict, search: bool, search_engine, name, params) -> TrainedModel:
+    from .data import check_size, envelope_of
+    from .estimator import ErrorModel, accuracy_card
+    from .network import Structure, parse_hidden
+
+    if rows.tools is not None:  # a pose → error map learns one TCP's error
+        _require_one_tool(rows, method)
+        robot_meta["tool"] = tool_metadata(rows.tools[0])
+    model = ErrorModel(method=method, **params)
+    poses, errors, train, val = rows.data.poses, rows.errors, rows.train, rows.val
+    found = _search(model, rows, search_engine) if search else None
+    if found is not None:
+        model.set_params(hidden=found.best)
+    structure = Structure(parse_hidden(model.hidden))
+    check_size(len(train), structure.n_params, str(structure), rows.source)
+    model.fit(poses[train], errors[train])
+    accuracy = accuracy_card(errors[val], model.predict(poses[val]), model.train_stats_["mean"], len(train))
+    # c = P + Ê(c): iterations after which one more moves no training command by > 0.001 mm
+    settled = model.fixed_point_iterations(poses[train])
+    metadata = {
+        "name": name,
+        "robot": "",
+        "envelope": envelope_of(poses),
+        "data_sha256": rows.data.sha256,
+        "accuracy": accuracy,
+        "iterations": card_iterations(settled),
+    }
+    metadata.update(robot_meta)
+    metadata.update(demonstration_metadata(rows.data.meta))
+    return TrainedModel(model, model.card(**metadata), train, val, rows.notes, settled=settled, search=found)
+
+
+def _search(model, rows: _Rows, search_engine):
+    """The structure search (``search.SearchResult``) for ``model``'s method on the training rows."""
+    from contextlib import nullcontext
+
+    from .search import search_structure
+
+    t = rows.train
+    try:
+        with (search_engine() if search_engine is not None else nullcontext(None)) as map_fn:
+            return search_structure(rows.data.poses[t], rows.errors[t], model.method, model.optimizer, model.epochs,
+                                    model.seed, progress=model.progress, map_fn=map_fn)
+    except PostprocError as exc:
+        exc.path = exc.path or rows.source  # too few points for every candidate: say which file
+        raise

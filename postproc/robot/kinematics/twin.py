@@ -1,0 +1,438 @@
+"""A robot arm in torch: forward kinematics, gravity torques and the closed-form inverse
+kinematics of the nominal arm — the pieces of the kinematic error model (``kinematic.py``)
+that are fitted here and run inside the exported ONNX graph.
+
+Everything is float64 and vectorised over poses; the only loop is over the six joints.
+ONNX Runtime has no float64 Atan / Acos kernel, so the IK evaluates those two functions in
+float32 (``_atan2`` / ``_acos``): a joint angle off by 1e-7 rad moves the *error* the model
+predicts by ~1e-7 mm, because the error is the difference of two chains evaluated at the
+same angles (nominal minus identified), not a position.
+
+Two IK families, one branch each (the branch the controller uses over the data, see
+``choose_branch``): ``KukaIK`` (A1 about ±Z, A2/A3/A5 about ±Y, A4/A6 about ±X with a
+spherical wrist: postproc.robot.arm's geometry, same formulas) and ``UrIK`` (Universal-Robots
+type: three parallel shoulder/elbow/wrist-1 axes and an offset wrist).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+
+from ...core import frames
+from ...core.diagnostics import PostprocError
+from ...core.frames import abc_entries
+from ..description import RobotDescription
+from .gravity import GRAVITY, gravity_from_points, holding_torques
+from .ik import ur_geometry
+
+__all__ = [
+    "coupling_pairs", "Arm", "axis_rotations", "mc", "mv", "turn_columns", "turn_rows", "small_rotation",
+    "pose_matrices", "at_tool", "KukaIK", "UrIK", "make_ik", "GRAVITY", "wrapped_step", "rotation_matrices",
+]
+
+MM = 1e-3
+
+
+def _t(value) -> torch.Tensor:
+    return torch.as_tensor(np.asarray(value, dtype=np.float64))
+
+
+def axis_rotations(axes: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
+    """Rotations about unit ``axes`` [J, 3] by ``q`` [N, J] rad → [N, J, 3, 3] (Rodrigues)."""
+    zero = torch.zeros_like(axes[:, 0])
+    k = torch.stack([zero, -axes[:, 2], axes[:, 1], axes[:, 2], zero, -axes[:, 0], -axes[:, 1], axes[:, 0], zero],
+                    dim=-1).reshape(-1, 3, 3)
+    aat = axes[:, :, None] * axes[:, None, :]
+    s, c = torch.sin(q)[..., None, None], torch.cos(q)[..., None, None]
+    eye = torch.eye(3, dtype=q.dtype)
+    return c * eye + s * k + (1.0 - c) * aat
+
+
+# Batched 3x3 products are written out so that the exported graph avoids onnxruntime's
+# MatMul over millions of tiny matrices (13 ms per product for 1e5 poses): a product with a
+# constant is one GEMM over all rows (2 ms), a turn about a coordinate axis mixes two columns.
+
+
+def mc(a: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+    """[..., 3, 3] @ constant [3, 3]: one GEMM over all rows."""
+    return (a.reshape(-1, 3) @ c).reshape(a.shape)
+
+
+def mv(a: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """[..., 3, 3] @ [..., 3] (v batched or constant)."""
+    if v.dim() == 1:  # (Mul + ReduceSum: faster in onnxruntime than a MatMul with a vector)
+        return (a * v).sum(-1)
+    return (a @ v[..., None])[..., 0]
+
+
+def _axis_index(axis: torch.Tensor) -> tuple[int, float] | None:
+    """(k, sign) if ``axis`` is ±e_k, else None."""
+    a = axis.detach().numpy() if isinstance(axis, torch.Tensor) else np.asarray(axis)
+    k = int(np.argmax(np.abs(a)))
+    return (k, float(np.sign(a[k]))) if abs(abs(a[k]) - 1.0) < 1e-12 else None
+
+
+def turn_columns(x: torch.Tensor, axis: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
+    """x @ R(axis, q) for x [N, 3, 3], q [N]: about a coordinate axis two columns mix; else
+    Rodrigues, c·x + s·x[a]× + (1 − c)·(x a) aᵀ, with products by constants only."""
+    c, s = torch.cos(q)[:, None], torch.sin(q)[:, None]
+    aligned = _axis_index(axis)
+    if aligned is None:
+        k = torch.stack([torch.zeros_like(axis[0]), -axis[2], axis[1], axis[2], torch.zeros_like(axis[0]), -axis[0],
+                         -axis[1], axis[0], torch.zeros_like(axis[0])]).reshape(3, 3)
+        return c[..., None] * x + s[..., None] * mc(x, k) + (1 - c)[..., None] * mv(x, axis)[..., None] * axis
+    k, sign = aligned
+    s = sign * s
+    i, j = [(1, 2), (2, 0), (0, 1)][k]  # R_k mixes columns i, j: (x_i c + x_j s, −x_i s + x_j c)
+    cols = list(x.unbind(-1))
+    cols[i], cols[j] = cols[i] * c + cols[j] * s, cols[j] * c - cols[i] * s
+    return torch.stack(cols, dim=-1)
+
+
+def turn_rows(x: torch.Tensor, k: int, q: torch.Tensor) -> torch.Tensor:
+    """R_k(q)ᵀ @ x for x [N, 3, 3], q [N]: undo a turn about coordinate axis k from the left."""
+    c, s = torch.cos(q)[:, None], torch.sin(q)[:, None]
+    i, j = [(1, 2), (2, 0), (0, 1)][k]
+    rows = list(x.unbind(-2))
+    rows[i], rows[j] = rows[i] * c + rows[j] * s, rows[j] * c - rows[i] * s
+    return torch.stack(rows, dim=-2)
+
+
+def small_rotation(rotvec: torch.Tensor) -> torch.Tensor:
+    """[..., 3] rotation vectors → [..., 3, 3]; exact Rodrigues, smooth (and differentiable) at 0."""
+    theta2 = (rotvec * rotvec).sum(-1, keepdim=True)[..., None]
+    theta = torch.sqrt(theta2 + 1e-300)
+    # sin θ/θ and (1 − cos θ)/θ² by their series below 1e-4 rad (exact to 1e-17 there)
+    small = theta < 1e-4
+    a = torch.where(small, 1.0 - theta2 / 6.0, torch.sin(theta) / theta)
+    b = torch.where(small, 0.5 - theta2 / 24.0, (1.0 - torch.cos(theta)) / torch.where(small, 1.0, theta2))
+    x, y, z = rotvec.unbind(-1)
+    zero = torch.zeros_like(x)
+    k = torch.stack([zero, -z, y, z, zero, -x, -y, x, zero], dim=-1).reshape(*rotvec.shape[:-1], 3, 3)
+    return torch.eye(3, dtype=rotvec.dtype) + a * k + b * (k @ k)
+
+
+def pose_matrices(pose) -> tuple[torch.Tensor, torch.Tensor]:
+    """Poses [N, 6] (mm, KUKA A,B,C deg) → rotations [N, 3, 3] and positions [N, 3]; a pair
+    (rotations, positions) passes through (``at_tool``'s result: the IK takes either)."""
+    if isinstance(pose, tuple):
+        return pose
+    return rotation_matrices(pose[:, 3:6]), pose[:, 0:3]
+
+
+_AXES = torch.eye(3, dtype=torch.float64)
+
+
+def at_tool(pose: torch.Tensor, tool: torch.Tensor, tool0: torch.Tensor):
+    """The pose of TCP ``tool0`` [6] on the flange that puts the TCP ``tool`` [N, 6] at ``pose``
+    [N, 6]: the same flange pose, P·T⁻¹·T₀, as (rotations [N, 3, 3], positions [N, 3]) for the
+    IK of a description whose tool is T₀. Rows of ``tool`` with a NaN are T₀ (pose unchanged)."""
+    tool = torch.where(torch.isnan(tool), tool0.expand_as(tool), tool)
+    r_p, p_p = pose_matrices(pose)
+    r_0 = rotation_matrices(tool0[None, 3:6])[0]
+    # R_P·R_Tᵀ = R_P·Rx(−C)·Ry(−B)·Rz(−A): three turns about coordinate axes (column mixes)
+    back = r_p
+    for k, angle in ((0, tool[:, 5]), (1, tool[:, 4]), (2, tool[:, 3])):
+        back = turn_columns(back, _AXES[k], angle * (-math.pi / 180.0))
+    return mc(back, r_0), p_p + mv(back, tool0[:3] - tool[:, :3])
+
+
+def _atan2(y: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    return torch.atan2(y.float(), x.float()).to(y.dtype)
+
+
+def _acos(x: torch.Tensor) -> torch.Tensor:
+    return torch.acos(x.float()).to(x.dtype)
+
+
+class Arm:
+    """The nominal arm of a robot description as float64 tensors (mm, rad, kg).
+
+    Joint j's frame at q is ``placements[j]`` (in its parent) turned by q_j about ``axes[j]``;
+    the TCP is ``end`` (flange · tool) in the last joint's frame. Link masses and centres of
+    mass are the description's; the payload rides on the last joint at the flange.
+    """
+
+    def __init__(self, description: RobotDescription):
+        d = self.description = description
+        self.placements = _t(d.placements)
+        self.axes = _t(d.axes)
+        self.flange = _t(d.flange_matrix)
+        self.tool = _t(d.tool_matrix)
+        self.end = self.flange @ self.tool
+        self.tool0 = _t(d.tool)  # the description's TCP on the flange, X,Y,Z,A,B,C
+        self.masses = _t(d.masses)
+        self.coms = _t(d.coms)
+        self.payload_mass = float(d.payload_mass)
+        self.payload_com = _t(d.payload_com_in_last)  # in the last joint's frame
+        self.home_q = _t(np.radians(d.home_q))
+
+    def frames(self, q: torch.Tensor, placements: torch.Tensor | None = None, end: torch.Tensor | None = None,
+               base: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Joint rotations [N, J, 3, 3], joint origins [N, J, 3] and TCP positions [N, 3] (mm)
+        at q [N, J] rad, for the nominal chain or one with other ``placements`` / ``end`` (a
+        [4, 4] transform, or per-row TCP positions [N, 3] in the last joint's frame) / ``base``."""
+        placements = self.placements if placements is None else placements
+        end = self.end if end is None else end
+        n = q.shape[0]
+        if base is None:
+            r = torch.eye(3, dtype=q.dtype).expand(n, 3, 3)
+            p = torch.zeros(n, 3, dtype=q.dtype)
+        else:
+            r = base[:3, :3].expand(n, 3, 3)
+            p = base[:3, 3].expand(n, 3)
+        rs, ps = [], []
+        eye = torch.eye(3, dtype=q.dtype)
+        for j in range(self.axes.shape[0]):  # six joints, every pose at once
+            m = placements[j]
+            p = p + mv(r, m[:3, 3])
+            if m.requires_grad or not torch.equal(m[:3, :3], eye):  # (the nominal placements are pure offsets)
+                r = mc(r, m[:3, :3])
+            r = turn_columns(r, self.axes[j], q[:, j])
+            rs.append(r)
+            ps.append(p)
+        # ``end`` [4, 4], or each row's TCP position in the last joint's frame [N, 3] (tools)
+        tcp = p + mv(r, end if end.shape[-1] == 3 else end[:3, 3])
+        return torch.stack(rs, dim=1), torch.stack(ps, dim=1), tcp
+
+    def tcp(self, q: torch.Tensor, **chain) -> torch.Tensor:
+        """TCP positions [N, 3] mm at q [N, J] rad."""
+        return self.frames(q, **chain)[2]
+
+    def _points(self, rotations: torch.Tensor, origins: torch.Tensor) -> tuple[list, list]:
+        """Each link's centre of mass [N, 3] (mm) and each joint's axis [N, 3] in the base frame."""
+        count = range(len(self.axes))
+        return ([origins[:, j] + mv(rotations[:, j], self.coms[j]) for j in count],
+                [mv(rotations[:, j], self.axes[j]) for j in count])
+
+    def gravity_torques(self, rotations: torch.Tensor, origins: torch.Tensor) -> torch.Tensor:
+        """Joint torques [N, J] (Nm) that hold the arm against gravity, from the joint frames of
+        :meth:`frames`: postproc.robot.kinematics.gravity.gravity_from_points, the simulator's formula."""
+        payload = origins[:, -1] + mv(rotations[:, -1], self.payload_com)
+        return torch.stack(gravity_from_points(origins.unbind(1), *self._points(rotations, origins), self.masses,
+                                               self.payload_mass, payload), dim=1)
+
+    def torque_terms(self, rotations: torch.Tensor, origins: torch.Tensor) -> torch.Tensor:
+        """[N, J + J(J+1)/2]: the gravity torques of :meth:`gravity_torques`, then each link's
+        own share of them, τ_ji for i ≥ j (pairs in ``coupling_pairs`` order): the regressors
+        of a compliance whose link masses and lever arms are not known (only their directions)."""
+        total = self.gravity_torques(rotations, origins)
+        j_idx, i_idx = coupling_pairs(len(self.axes))
+        centres, omega = (torch.stack(points, 1) for points in self._points(rotations, origins))
+        weights = self.masses.clone()
+        weights[-1] = weights[-1] + self.payload_mass
+        lever = (centres[:, i_idx] - origins[:, j_idx]) * MM * weights[i_idx][:, None]  # [N, P, 3]
+        return torch.cat([total, holding_torques(omega[:, j_idx], lever)], dim=1)
+
+
+def coupling_pairs(n: int = 6) -> tuple[list[int], list[int]]:
+    """(joint j, link i) pairs with i ≥ j: which link's weight turns which joint."""
+    pairs = [(j, i) for j in range(n) for i in range(j, n)]
+    return [j for j, _ in pairs], [i for _, i in pairs]
+
+
+# --------------------------------------------------------------------------- IK
+
+
+class KukaIK(torch.nn.Module):
+    """Closed-form IK of a KUKA-type arm for one branch (shoulder, elbow, wrist flip ∈ ±1):
+    postproc.robot.arm's formulas in torch. pose [N, 6] → q [N, 6] rad (turns not unwrapped:
+    everything downstream is periodic in q)."""
+
+    family = "kuka"
+
+    def __init__(self, description: RobotDescription, branch: tuple[float, float, float] = (1.0, 1.0, 1.0)):
+        super().__init__()
+        from .ik import _IkGeometry
+
+        g = _IkGeometry(description)  # checks the geometry (P333 for other arms)
+        self.branch = tuple(float(b) for b in branch)
+        for name, value in (("s", g.s), ("p1", g.p1), ("L2", g.L2), ("flange0", g.flange0), ("c0", g.c0),
+                            ("inv_tool", g.inv_tool)):
+            self.register_buffer(name, _t(value))
+        self.a1, self.d1, self.l2, self.l3 = float(g.a1), float(g.d1), float(g.l2), float(g.l3)
+        self.al2, self.al3 = float(g.al2), float(g.al3)
+
+    def branch_of(self, pose: torch.Tensor, q_in: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Per-row branch signs (shoulder, elbow, flip) [N] of joint angles ``q_in`` [N, 6] rad
+        at ``pose``; rows with a NaN take this module's branch. Read from the angles the
+        closed form gives on each branch: A1 = φ (shoulder +) or φ + π, A3 = α3 − α2 ∓ γ0
+        (elbow), sin A5 of the flip's sign."""
+        s = self.s
+        c = self._wrist_centre(pose)[0]
+        phi = _atan2(c[:, 1], c[:, 0])
+        return _branch_signs(self.branch, q_in, [
+            torch.cos(phi - s[0] * q_in[:, 0]),
+            torch.sin(self.al3 - self.al2 - s[2] * q_in[:, 2]),
+            torch.sin(s[4] * q_in[:, 4])])
+
+    def _wrist_centre(self, pose: torch.Tensor):
+        r_tcp, p_tcp = pose_matrices(pose)
+        r_all = mc(r_tcp, self.inv_tool[:3, :3] @ self.flange0[:3, :3].T)
+        p_fl = p_tcp + mv(r_tcp, self.inv_tool[:3, 3])
+        return p_fl - mv(r_all, self.flange0[:3, 3] - self.c0) - self.p1, r_all
+
+    def forward(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
+        """q [N, 6] rad on this module's branch, or per row on the branch of ``q_in`` [N, 6] rad
+        (NaN rows: this module's branch)."""
+        shoulder, elbow, flip = self.branch if q_in is None else self.branch_of(pose, q_in)
+        s = self.s
+        c, r_all = self._wrist_centre(pose)
+        phi = _atan2(c[:, 1], c[:, 0])
+        r_xy = torch.sqrt(c[:, 0] ** 2 + c[:, 1] ** 2)
+        th1 = phi + (1.0 - shoulder) * (math.pi / 2)
+        u = shoulder * r_xy - self.a1
+        w = c[:, 2] - self.d1
+        kappa = (u * u + w * w - self.l2**2 - self.l3**2) / (2 * self.l2 * self.l3)
+        gamma0 = _acos(torch.clamp(kappa, -1.0, 1.0))
+        th3 = self.al3 - self.al2 - elbow * gamma0
+        ang = self.al3 - th3
+        w2x = self.L2[0] + self.l3 * torch.cos(ang)
+        w2y = self.L2[1] + self.l3 * torch.sin(ang)
+        th2 = _atan2(w2y, w2x) - _atan2(w, u)
+        # (Rz(th1)·Ry(th2 + th3))ᵀ · r_all = Rx(α) Ry(β) Rx(γ)
+        rw = turn_rows(turn_rows(r_all, 2, th1), 1, th2 + th3)
+        sbeta = flip * torch.sqrt(rw[:, 0, 1] ** 2 + rw[:, 0, 2] ** 2)
+        beta = _atan2(sbeta, rw[:, 0, 0])
+        alpha = _atan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
+        gam = _atan2(flip * rw[:, 0, 1], flip * rw[:, 0, 2])
+        # A5 ≈ 0: only A4 + A6 is defined; A4 stays at 0 (HOME), A6 takes the sum
+        singular = torch.abs(sbeta) < 1e-10
+        alpha = torch.where(singular, torch.zeros_like(alpha), alpha)
+        gam = torch.where(singular, _atan2(rw[:, 2, 1], rw[:, 1, 1]), gam)
+        return torch.stack([s[0] * th1, s[1] * th2, s[2] * th3, s[3] * alpha, s[4] * beta, s[5] * gam], dim=1)
+
+    @staticmethod
+    def branches() -> list[tuple[float, float, float]]:
+        return [(sh, el, fl) for sh in (1.0, -1.0) for el in (1.0, -1.0) for fl in (1.0, -1.0)]
+
+
+class UrIK(torch.nn.Module):
+    """Closed-form IK of a Universal-Robots-type arm for one branch (shoulder, wrist, elbow ∈ ±1).
+
+    The description must have its joint frames parallel to the base at q = 0 (pure offsets, as
+    models/ur10.toml): A1 about ±Z; A2, A3, A4 about one horizontal axis ±Y; A5 about ±Z;
+    A6 about ±Y; links of A2 → A3 → A4 along X in the plane of A1 (the arm stretched at q = 0).
+    It is mapped on the standard DH form (d1, a2, a3, d4, d5, d6) of Hawkins' solution.
+    """
+
+    family = "ur"
+
+    def __init__(self, description: RobotDescription, branch: tuple[float, float, float] = (1.0, 1.0, 1.0)):
+        super().__init__()
+        o, s = ur_geometry(description)
+        self.branch = tuple(float(b) for b in branch)
+        self.register_buffer("s", _t(s))
+        # the chain at q = 0 in the base frame: A2 at height z2, upper arm and forearm along X,
+        # the wrist offsets along Y (y5 = A4 → A5) and Z (z6 = A5 → A6), then the flange
+        self.z0 = float(o[0, 2] + o[1, 2])
+        self.a2, self.a3 = float(o[2, 0]), float(o[3, 0])
+        self.y4 = float(o[4, 1])  # A4 → A5 along the shoulder axis
+        self.z5 = float(o[5, 2])  # A5 → A6 along Z
+        end = description.flange_matrix @ description.tool_matrix
+        self.register_buffer("end", _t(end))  # TCP in the A6 frame (parallel to the base at q = 0)
+        self.register_buffer("inv_end", _t(frames.inverse(end)))
+
+    def branch_of(self, pose: torch.Tensor, q_in: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Per-row branch signs (shoulder, wrist, elbow) [N] of joint angles ``q_in`` [N, 6] rad
+        at ``pose``; rows with a NaN take this module's branch. From the closed form: ψ − t1 =
+        lateral (shoulder +, cos ≥ 0) or π − lateral; sin t5 and sin t3 carry the wrist and
+        elbow signs."""
+        r_tcp, p_tcp = pose_matrices(pose)
+        p6 = p_tcp + mv(r_tcp, self.inv_end[:3, 3])
+        psi = _atan2(p6[:, 1], p6[:, 0])
+        t = q_in * self.s
+        return _branch_signs(self.branch, q_in, [torch.cos(psi - t[:, 0]), torch.sin(t[:, 4]), torch.sin(t[:, 2])])
+
+    def forward(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
+        """q [N, 6] rad on this module's branch, or per row on the branch of ``q_in`` [N, 6] rad
+        (NaN rows: this module's branch)."""
+        shoulder, wrist, elbow = self.branch if q_in is None else self.branch_of(pose, q_in)
+        r_tcp, p_tcp = pose_matrices(pose)
+        # the A6 frame: origin on the A6 axis, rotation R6 = Rz(t1)·Ry(t2+t3+t4)·Rz(t5)·Ry(t6)
+        # with t_j = s_j·q_j (every joint frame parallel to the base at q = 0)
+        r6 = mc(r_tcp, self.inv_end[:3, :3])
+        p6 = p_tcp + mv(r_tcp, self.inv_end[:3, 3])
+        # t1: every joint origin from A2 to A6 lies in the plane y4 off the A1 axis along the
+        # shoulder axis ŷ1 = Rz(t1)·e_y, so −sin t1·x6 + cos t1·y6 = y4, i.e. ρ·sin(ψ − t1) = y4
+        rho = torch.sqrt(p6[:, 0] ** 2 + p6[:, 1] ** 2)
+        psi = _atan2(p6[:, 1], p6[:, 0])
+        lateral = torch.asin(torch.clamp(self.y4 / rho, -1.0, 1.0).float()).to(rho.dtype)
+        t1 = psi - shoulder * lateral - (1.0 - shoulder) * (math.pi / 2)
+        c1, s1 = torch.cos(t1), torch.sin(t1)
+        # t5: the A6 axis a6 = R6·e_y is ŷ1 turned by t5 about the A5 axis: cos t5 = ŷ1·a6 and
+        # |sin t5| = |ŷ1 × a6| (both in float64: an acos near 1 in float32 loses the small angles)
+        a6 = r6[:, :, 1]
+        cos5 = -s1 * a6[:, 0] + c1 * a6[:, 1]
+        abs_sin5 = torch.sqrt(a6[:, 2] ** 2 + (c1 * a6[:, 0] + s1 * a6[:, 1]) ** 2)
+        t5 = wrist * _atan2(abs_sin5, cos5)
+        # R' = Rz(−t1)·R6 = Ry(a)·Rz(t5)·Ry(t6): row 1 = sin t5·(cos t6, ·, sin t6),
+        # column 1 = (−cos a·sin t5, ·, sin a·sin t5), a = t2 + t3 + t4
+        rp = turn_rows(r6, 2, t1)
+        sin5 = wrist * abs_sin5
+        # (t1 comes from float32 atan2: sin t5 carries ~1e-7 of noise, which the ratios below
+        # divide by; within 1e-3 rad of the singularity the sum a ± t6 is the better-known one, and
+        # the sign of t5 is a guess: the other sign with the same sum is as good to 1e-3 rad)
+        singular = abs_sin5 < 1e-3
+        safe5 = torch.where(singular, torch.ones_like(sin5), sin5)
+        t6 = _atan2(rp[:, 1, 2] / safe5, rp[:, 1, 0] / safe5)
+        t234 = _atan2(rp[:, 2, 1] / safe5, -rp[:, 0, 1] / safe5)
+        # wrist singular (A5 at 0 or 180°): only a ± t6 is defined, R' = Ry(a + t6) or Ry(a − t6)·Rz(π);
+        # A6 keeps the controller's angle where given (else the ratio's) and a takes the rest
+        keep6 = t6 if q_in is None else torch.where(torch.isnan(q_in[:, 5]), t6, q_in[:, 5] * self.s[5])
+        up = cos5 > 0
+        total = torch.where(up, _atan2(rp[:, 0, 2], rp[:, 0, 0]), _atan2(rp[:, 0, 2], -rp[:, 0, 0]))
+        t6 = torch.where(singular, keep6, t6)
+        t234 = torch.where(singular, torch.where(up, total - keep6, total + keep6), t234)
+        # A5's origin p5 = p6 − z5·Rz(t1)·Ry(a)·e_z; in the arm plane (along Rz(t1)·e_x and −Z,
+        # from A2) the links A2 → A3 → A4 are the planar arm u = a2·c2 + a3·c23, w = a2·s2 + a3·s23
+        c234, s234 = torch.cos(t234), torch.sin(t234)
+        p5 = p6 - self.z5 * torch.stack([c1 * s234, s1 * s234, c234], dim=1)
+        u = c1 * p5[:, 0] + s1 * p5[:, 1]
+        w = self.z0 - p5[:, 2]
+        kappa = (u * u + w * w - self.a2**2 - self.a3**2) / (2 * self.a2 * self.a3)
+        t3 = elbow * _acos(torch.clamp(kappa, -1.0, 1.0))
+        t2 = _atan2(w, u) - _atan2(self.a3 * torch.sin(t3), self.a2 + self.a3 * torch.cos(t3))
+        t4 = t234 - t2 - t3
+        return torch.stack([t1, t2, t3, t4, t5, t6], dim=1) * self.s
+
+    @staticmethod
+    def branches() -> list[tuple[float, float, float]]:
+        return [(sh, wr, el) for sh in (1.0, -1.0) for wr in (1.0, -1.0) for el in (1.0, -1.0)]
+
+
+def _branch_signs(default, q_in: torch.Tensor, indicators: list[torch.Tensor]) -> tuple[torch.Tensor, ...]:
+    """±1 [N] per indicator (its sign; 0 counts as +), ``default`` where ``q_in`` has a NaN."""
+    known = ~torch.isnan(q_in).any(dim=1)
+    return tuple(torch.where(known & ~torch.isnan(v), torch.where(v < 0, -torch.ones_like(v), torch.ones_like(v)),
+                             torch.full_like(v, float(d))) for v, d in zip(indicators, default))
+
+
+def make_ik(description: RobotDescription, family: str | None = None, branch=(1.0, 1.0, 1.0)) -> torch.nn.Module:
+    """The IK module of a description: ``family`` "kuka" or "ur", or None = the first that fits."""
+    if family in (None, "kuka"):
+        try:
+            return KukaIK(description, branch)
+        except PostprocError as kuka:
+            if family == "kuka":
+                raise
+            try:
+                return UrIK(description, branch)
+            except PostprocError as ur:
+                raise PostprocError(f"no closed-form IK for this arm: {kuka.message}; or {ur.message}",
+                                    ur.path, ur.line, ur.col, ur.code) from None
+    return UrIK(description, branch)
+
+
+def wrapped_step(q: torch.Tensor, q_previous: torch.Tensor) -> torch.Tensor:
+    """q − q_previous wrapped to (−π, π]: the IK does not unwrap turns."""
+    return torch.remainder(q - q_previous + math.pi, 2 * math.pi) - math.pi
+
+
+def rotation_matrices(abc_deg: torch.Tensor) -> torch.Tensor:
+    """[N, 3] KUKA A,B,C (deg) → [N, 3, 3] R = Rz(A)·Ry(B)·Rx(C) (as postproc.core.frames, in torch)."""
+    a, b, c = (abc_deg * (math.pi / 180.0)).unbind(dim=1)
+    rows = abc_entries(torch.cos(a), torch.sin(a), torch.cos(b), torch.sin(b), torch.cos(c), torch.sin(c))
+    return torch.stack(rows, dim=1).reshape(-1, 3, 3)
