@@ -134,14 +134,15 @@ def test_bad_input_is_located(text, line, col, code):
     assert (exc.value.line, exc.value.col, exc.value.code) == (line, col, code), str(exc.value)
 
 
-@pytest.mark.parametrize("frames_text, message", [
-    ("[uframe.1\n", "not TOML"), ("[uframe.1]\nxyzwpr = [1, 2, 3]\n", "six finite"),
-    ("[uframes.1]\nxyzwpr = [0, 0, 0, 0, 0, 0]\n", "unknown table"),
+@pytest.mark.parametrize("frames_text, message, line", [
+    ("[uframe.1\n", "not valid TOML", 1), ("[uframe.2]\nxyzwpr = [0, 0, 0, 0, 0, 0]\n[uframe.1]\nxyzwpr = [1, 2, 3]\n",
+                                          "six finite", 3),
+    ("# frames\n[uframes.1]\nxyzwpr = [0, 0, 0, 0, 0, 0]\n", "unknown table", 2),
 ])
-def test_bad_frame_file_is_refused(frames_text, message):
+def test_bad_frame_file_is_refused_at_its_line(frames_text, message, line):
     with pytest.raises(PostprocError, match=message) as exc:
         read_frames(frames_text)
-    assert exc.value.code == "P118"
+    assert (exc.value.code, exc.value.line) == ("P118", line)
 
 
 @pytest.fixture(scope="module")

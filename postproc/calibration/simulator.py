@@ -46,10 +46,11 @@ from ..core import frames
 from ..core.diagnostics import P331, P335, PostprocError
 from ..core.frames import nearest_triple, small_transform
 from ..core.stats import table2
+from ..core.toml import check_value
 from ..robot import configuration
 from ..robot.approach import approach_signs, ordered_approach_signs
 from ..robot.arm import Robot
-from ..robot.description import RobotDescription, check_value, load_description
+from ..robot.description import RobotDescription, load_description
 from ..robot.kinematics.chain import Chain
 
 __all__ = ["ErrorSpec", "SimulatedRobot", "table2", "rotation_angle_deg"]

@@ -2,19 +2,17 @@
 from __future__ import annotations
 
 import dataclasses
-import math
-import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..core import frames
-from ..core.diagnostics import P330, P331, P332, P333, PostprocError, toml_error
+from ..core.diagnostics import P330, P331, P332, P333, PostprocError
 from ..core.resources import model_path
+from ..core.toml import check_value, key_line, parse_toml, read_toml
 
-__all__ = ['CONFIGURATION_FORMS', 'JointSpec', 'RobotDescription', 'load_description', 'parse_description', 'check_value']
+__all__ = ["CONFIGURATION_FORMS", "JointSpec", "RobotDescription", "load_description", "parse_description"]
 
 
 # the forms a controller states an arm configuration in ([robot] configuration; postproc.robot.configuration)
@@ -83,7 +81,7 @@ class RobotDescription:
 
     def locate(self, table: str, key: str | None = None, index: int = 0) -> int:
         """1-based line of ``key`` in ``[table]`` (the ``index``-th ``[[table]]``), 0 if not found."""
-        return _locate(self.text, table, key, index)
+        return key_line(self.text, table, key, index)
 
     def error(self, message: str, table: str, key: str | None = None, code: str = P332) -> PostprocError:
         """A PostprocError pointing at ``key`` of ``[table]`` in the description file."""
@@ -136,64 +134,12 @@ class RobotDescription:
         return (self.flange_matrix @ np.r_[self.payload_com, 1.0])[:3]
 
 
-def _locate(text: str, table: str, key: str | None, index: int = 0) -> int:
-    current, seen = None, {}
-    for number, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        head = re.match(r"^\[\[?\s*([A-Za-z0-9_.-]+)\s*\]\]?", line)
-        if head:
-            current = head.group(1)
-            seen[current] = seen.get(current, -1) + 1
-            if key is None and current == table and seen[current] == index:
-                return number
-            continue
-        if key is not None and current == table and seen.get(table) == index:
-            if re.match(rf"^{re.escape(key)}\s*=", line):
-                return number
-    return 0
-
-
-def check_value(kind: str, value, where: str, fail) -> object:
-    """``value`` as ``kind`` ("str", "int", "num" or "vec:n"), else raise ``fail(message)``."""
-    if kind == "str":
-        if not isinstance(value, str):
-            raise fail(f"{where} must be text, got {value!r}")
-        return value
-    if kind == "int":
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise fail(f"{where} must be an integer, got {value!r}")
-        return value
-    if kind == "num":
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise fail(f"{where} must be a finite number, got {value!r}")
-        return float(value)
-    n = int(kind.split(":")[1])
-    ok = isinstance(value, list) and len(value) == n and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
-    if not ok:
-        raise fail(f"{where} must be a list of {n} finite numbers, got {value!r}")
-    return np.asarray(value, dtype=float)
-
-
 def load_description(path: str | Path | None = None) -> RobotDescription:
     """Read a robot description (default ``models/kr500.toml``); PostprocError (P33x) with
     file:line on unknown keys, missing keys or bad values."""
     path = Path(path) if path is not None else model_path("kr500.toml")
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except OSError as exc:
-        raise PostprocError(f"cannot read robot description: {exc.strerror or exc}", str(path),
-                            code=P330) from exc
-    except UnicodeDecodeError as exc:
-        raise PostprocError(f"robot description is not UTF-8 text: {exc.reason}", str(path), code=P330) from exc
-    return parse_description(text, str(path))
-
-
-def _toml(text: str, path: str) -> dict:
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise toml_error(exc, path, P330) from None
+    text, doc = read_toml(path, P330, "robot description")
+    return parse_description(text, str(path), doc)
 
 
 def _check_tables(doc: dict, fail_at) -> None:
@@ -224,12 +170,12 @@ def _joint_spec(j: dict, fail) -> JointSpec:
                      j.get("inertia"))
 
 
-def parse_description(text: str, path: str = "<robot>") -> RobotDescription:
-    """Parse the text of a robot description (see :func:`load_description`)."""
-    doc = _toml(text, path)
+def parse_description(text: str, path: str = "<robot>", doc: dict | None = None) -> RobotDescription:
+    """Parse the text of a robot description (see :func:`load_description`; ``doc``: its TOML, parsed)."""
+    doc = parse_toml(text, path, P330) if doc is None else doc
 
     def fail_at(table: str, key: str | None = None, index: int = 0, code: str = P332):
-        return lambda message: PostprocError(message, path, _locate(text, table, key, index) or 1, 1, code)
+        return lambda message: PostprocError(message, path, key_line(text, table, key, index) or 1, 1, code)
 
     _check_tables(doc, fail_at)
 

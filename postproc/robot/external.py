@@ -31,8 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.diagnostics import P227, PostprocError, toml_error
+from ..core.diagnostics import P227, PostprocError
 from ..core.frames import frame_to_matrix
+from ..core.toml import check_value, key_line, read_toml
 
 __all__ = ["ExternalUnit", "read_external", "parse_external", "units_of", "AXES", "TYPES", "CARRIES"]
 
@@ -94,29 +95,10 @@ class ExternalUnit:
         return f"; {self.source}" if self.source else ""
 
 
-def _check(kind: str, value, what: str, fail):
-    if kind == "str":
-        if not isinstance(value, str):
-            raise fail(f"{what} must be a string")
-        return value
-    if kind == "int":
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise fail(f"{what} must be an integer")
-        return value
-    n = int(kind.split(":")[1])
-    if not isinstance(value, list) or len(value) != n or any(isinstance(v, bool) or not isinstance(v, (int, float))
-                                                            for v in value):
-        raise fail(f"{what} must be {n} numbers")
-    out = tuple(float(v) for v in value)
-    if not all(np.isfinite(out)):
-        raise fail(f"{what} must be finite numbers")
-    return out
-
-
-def parse_external(tables, path: str = "--external", line_of=None) -> tuple:
+def parse_external(tables, path: str = "--external", text: str = "") -> tuple:
     """``[[external]]`` tables (a dict or a list of dicts, as TOML gives them) → ExternalUnits;
-    PostprocError (P227) at the table's key for anything malformed. ``line_of(index, key)``:
-    the 1-based line of a key (0 not known)."""
+    PostprocError (P227) at the table's key for anything malformed (located in ``text``, the
+    file's TOML, where given)."""
     if isinstance(tables, dict):
         tables = [tables]
     if not isinstance(tables, list):
@@ -124,7 +106,7 @@ def parse_external(tables, path: str = "--external", line_of=None) -> tuple:
     units = []
     for i, t in enumerate(tables):
         def fail(message, key=None, i=i):
-            line = line_of(i, key) if line_of is not None else 0
+            line = key_line(text, "external", key, i)
             return PostprocError(f"[[external]] {i + 1}: {message}", path, line, 1 if line else 0, P227)
 
         if not isinstance(t, dict):
@@ -133,7 +115,8 @@ def parse_external(tables, path: str = "--external", line_of=None) -> tuple:
         for key, value in t.items():
             if key not in _KEYS:
                 raise fail(f"unknown key '{key}' (known: {', '.join(_KEYS)})", key)
-            values[key] = _check(_KEYS[key], value, key, lambda m, key=key: fail(m, key))
+            checked = check_value(_KEYS[key], value, key, lambda m, key=key: fail(m, key))
+            values[key] = tuple(checked.tolist()) if isinstance(checked, np.ndarray) else checked
         for key in ("type", "axis", "carries"):
             if key not in values:
                 raise fail(f"needs '{key}' ({' or '.join(TYPES) if key == 'type' else AXES if key == 'axis' else ' or '.join(CARRIES)})")
@@ -149,7 +132,7 @@ def parse_external(tables, path: str = "--external", line_of=None) -> tuple:
         if np.linalg.norm(d) < 1e-9:
             raise fail("direction must not be zero", "direction")
         values.setdefault("name", f"{values['type']} {axis}")
-        line = line_of(i, None) if line_of is not None else 0
+        line = key_line(text, "external", None, i)
         units.append(ExternalUnit(**values, source=f"{path}:{line}" if line else path))
     axes = [u.axis for u in units]
     dup = next((a for a in axes if axes.count(a) > 1), None)
@@ -161,44 +144,15 @@ def parse_external(tables, path: str = "--external", line_of=None) -> tuple:
     return tuple(units)
 
 
-def _line_of(text: str):
-    """line_of(index, key) for ``[[external]]`` tables in ``text``."""
-    heads = [m.start() for m in re.finditer(r"^[ \t]*\[\[?[ \t]*external[ \t]*\]\]?", text, re.M)]
-
-    def line_of(i, key):
-        if i >= len(heads):
-            return 0
-        start = heads[i]
-        if key is not None:
-            end = heads[i + 1] if i + 1 < len(heads) else len(text)
-            m = re.search(rf"^[ \t]*{re.escape(key)}[ \t]*=", text[start:end], re.M)
-            if m:
-                start += m.start()
-        return text.count("\n", 0, start) + 1
-
-    return line_of
-
-
 def read_external(path: str | Path) -> tuple:
     """The ``[[external]]`` units of a TOML file (``--external``; a frames file or settings
     file may hold them too); PostprocError P227 where the file cannot be read or is malformed."""
-    import tomllib
-
     path = Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except OSError as exc:
-        raise PostprocError(f"cannot read: {exc.strerror or exc}", str(path), 0, 0, P227) from None
-    except UnicodeDecodeError as exc:
-        raise PostprocError(f"not UTF-8 text: {exc.reason}", str(path), 0, 0, P227) from None
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise toml_error(exc, str(path), P227) from None
+    text, doc = read_toml(path, P227)
     if "external" not in doc:
         raise PostprocError("no [[external]] table: nothing says the external unit's kinematics", str(path), 0, 0,
                             P227)
-    return parse_external(doc["external"], str(path), _line_of(text))
+    return parse_external(doc["external"], str(path), text)
 
 
 def units_of(description) -> tuple:
@@ -207,4 +161,4 @@ def units_of(description) -> tuple:
     raw = getattr(description, "external", ())
     if not raw:
         return ()
-    return parse_external(list(raw), description.path or "<robot>", _line_of(description.text or ""))
+    return parse_external(list(raw), description.path or "<robot>", description.text or "")

@@ -29,13 +29,13 @@ Semantics (tests/test_fanuc.py and tests/test_fanuc_ir.py show each on a small p
 from __future__ import annotations
 
 import re
-import tomllib
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ...core.diagnostics import P108, P118, PostprocError
 from ...core.frames import frame_to_matrix
+from ...core.toml import check_value, key_line, parse_toml
 from ..analysis import analyse
 from ..model import STAMP_PREFIX, Program
 from ..text import _newline
@@ -69,25 +69,24 @@ def read_frames(text: str | None, path: str = "--frames") -> tuple[dict[int, np.
     utools: dict[int, tuple] = {0: (0.0,) * 6}
     if text is None:
         return uframes, utools
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        line, col = getattr(exc, "lineno", 0), getattr(exc, "colno", 0)
-        raise PostprocError(f"frame file is not TOML: {exc.msg if hasattr(exc, 'msg') else exc}", path, line, col,
-                            P118) from None
+    data = parse_toml(text, path, P118)
     for key in data:
         if key not in ("uframe", "utool", "external"):
-            raise PostprocError(f"frame file: unknown table [{key}] (expected [uframe.N] or [utool.N])", path, 0, 0,
-                                P118)
+            line = key_line(text, key) or key_line(text, None, key)
+            raise PostprocError(f"frame file: unknown table [{key}] (expected [uframe.N] or [utool.N])", path, line,
+                                1 if line else 0, P118)
     for kind, out in (("uframe", uframes), ("utool", utools)):
         for number, entry in data.get(kind, {}).items():
-            value = entry.get("xyzwpr") if isinstance(entry, dict) else None
-            ok = number.isdigit() and 1 <= int(number) <= 61 and isinstance(value, list) and len(value) == 6 and \
-                all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
-            if not ok or not np.isfinite(np.array(value, float)).all():
-                raise PostprocError(f"frame file: [{kind}.{number}] needs xyzwpr = [x, y, z, w, p, r] (six finite "
-                                    "numbers, mm and deg) and a number 1…61", path, 0, 0, P118)
-            xyzabc = np.concatenate([np.array(value[:3], float), wpr_to_abc(np.array(value[3:], float))])
+            line = key_line(text, f"{kind}.{number}")
+
+            def bad(_message, kind=kind, number=number, line=line):
+                return PostprocError(f"frame file: [{kind}.{number}] needs xyzwpr = [x, y, z, w, p, r] (six finite "
+                                     "numbers, mm and deg) and a number 1…61", path, line, 1 if line else 0, P118)
+
+            if not (number.isdigit() and 1 <= int(number) <= 61 and isinstance(entry, dict)):
+                raise bad("")
+            value = check_value("vec:6", entry.get("xyzwpr"), "xyzwpr", bad)
+            xyzabc = np.concatenate([value[:3], wpr_to_abc(value[3:])])
             out[int(number)] = frame_to_matrix(xyzabc) if kind == "uframe" else tuple(float(v) for v in xyzabc)
     return uframes, utools
 
@@ -114,12 +113,12 @@ def frame_file_units(text: str | None, path: str = "--frames") -> tuple:
     postproc.robot.external), () where it has none."""
     if not text or "external" not in text:
         return ()
-    data = tomllib.loads(text)
+    data = parse_toml(text, path, P118)
     if "external" not in data:
         return ()
-    from ...robot.external import _line_of, parse_external
+    from ...robot.external import parse_external
 
-    return parse_external(data["external"], path, _line_of(text))
+    return parse_external(data["external"], path, text)
 
 
 def lower(files: list[str], texts: list[str], frames: list[str] | None = None, external: tuple = ()):
