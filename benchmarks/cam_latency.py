@@ -83,9 +83,10 @@ import numpy, onnxruntime, lark
 t1 = clock()
 import postproc.cli.compensate, postproc.compensation.pipeline, postproc.model.compensator, postproc.settings.file, postproc.compensation.inputs
 import postproc.robot.configuration, postproc.model.session, postproc.programs.{reader}
-from postproc.compensation.pipeline import compensate_program, parse_program_text
+from postproc.compensation.pipeline import compensate_program
+from postproc.programs.io import parse_program_text
 t2 = clock()
-cfg = postproc.settings.file.load_config(None)
+cfg = postproc.settings.file.load_settings(None)
 program = parse_program_text(sys.stdin.read(), {name!r})
 t3 = clock()
 model = postproc.model.compensator.load_model({model!r})

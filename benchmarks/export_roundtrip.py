@@ -29,6 +29,7 @@ from postproc.model.compensator import load_model
 from postproc.calibration.export import MM, calibrated_urdf, identified_geometry, nominal_urdf, ur_calibration
 from postproc.robot.description import load_description
 from postproc.model.training.fitting import fit
+from postproc.settings import Settings
 
 GEOMETRIC = {"groups": ("placement", "base", "tool", "zero"), "ripple": []}
 IPA = Path(os.environ.get("POSTPROC_IPA_DATA", "/work/shared/datasets/ipa-robot-accuracy"))
@@ -79,7 +80,7 @@ def main_() -> None:
         folder = Path(tmp)
         assert main(["plan", "-n", "1000", "--seed", "11", "-o", str(folder / "plan.csv"), "-q"]) == 0
         assert main(["measure", str(folder / "plan.csv"), "-o", str(folder / "m.csv"), "-q"]) == 0
-        path = fit(str(folder / "m.csv"), method="kinematic", pose_only=True, kinematic=GEOMETRIC).export(
+        path = fit(str(folder / "m.csv"), Settings().override(method="kinematic", pose_only=True), kinematic=GEOMETRIC).export(
             folder / "geo.onnx")
         model = load_model(path)
         description = load_description()
@@ -110,8 +111,7 @@ def main_() -> None:
             assert main(["import", "ipa", str(series), "-o", str(folder / "ipa.csv"), "--register", "-q",
                          "--val-fraction", "0"]) == 0
             ur10 = Path(__file__).resolve().parent.parent / "models" / "ur10.toml"
-            ur_model = load_model(fit(str(folder / "ipa.csv"), method="kinematic", robot=str(ur10), pose_only=True,
-                                      kinematic=GEOMETRIC).export(folder / "ur.onnx"))
+            ur_model = load_model(fit(str(folder / "ipa.csv"), Settings().override(method="kinematic", robot=str(ur10), pose_only=True), kinematic=GEOMETRIC).export(folder / "ur.onnx"))
             _, ur = ur_calibration(identified_geometry(ur_model, load_description(ur10)))
             figures["ur"] = {"rows": "Series C, all", "dh_residual_mm": ur["residual_mm"],
                              "largest_delta_d_m": float(np.abs(ur["delta"][:, 1]).max() / MM)}

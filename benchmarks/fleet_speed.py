@@ -42,6 +42,7 @@ History (same machine, 2 cores shared with up to 7 other developers; 1-min load 
 """
 import argparse
 import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -49,7 +50,9 @@ from pathlib import Path
 from statistics import median
 
 from postproc.cli import main
-from postproc.fleet.jobs import REPORT, TRAIN, RobotJob, _local_cluster, _run_cli, robot, run_fleet
+from postproc.fleet.cluster import REPORT, TRAIN, _local_cluster, run_fleet
+from postproc.fleet.jobs import RobotJob
+from postproc.fleet.tasks import robot
 
 from _common import load, record  # benchmarks/ is on sys.path when a benchmark runs as a script
 
@@ -117,9 +120,12 @@ def main_(argv=None):
     def in_a_row(k):
         out = d / f"seq{k}"
         out.mkdir()
+        env = {**os.environ, "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", "1")}
         for j in jobs:
-            code, err = _run_cli(j.train_argv(out / f"{j.name}.onnx"))
-            assert code == 0, err
+            argv = ["train", str(j.data), "-o", str(out / f"{j.name}.onnx"), "--name", j.name, "--method", j.method,
+                    *j.args]
+            done = subprocess.run([sys.executable, "-m", "postproc", *argv], capture_output=True, text=True, env=env)
+            assert done.returncode == 0, done.stderr
 
     def fleet(k):
         results = run_fleet(jobs, d / f"fleet{k}", force=True)

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 from .core.version import __version__
 
-__all__ = ["compensate_text", "compensate_file", "load_model", "PostprocError", "ActiveFrames", "__version__"]
+__all__ = ["compensate_text", "compensate_file", "load_model", "Settings", "load_settings", "PostprocError",
+           "ActiveFrames", "__version__"]
 
 
 def __getattr__(name: str):
@@ -28,6 +29,10 @@ def __getattr__(name: str):
         from .programs.model import ActiveFrames
 
         return ActiveFrames
+    if name in ("Settings", "load_settings"):  # compensate_text(..., settings=load_settings()) or its options as keywords
+        from . import settings
+
+        return getattr(settings, name)
     if name == "PostprocError":
         from .core.diagnostics import PostprocError
 

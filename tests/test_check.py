@@ -12,7 +12,7 @@ from postproc.cli import main
 from postproc.compensation.api import compensate_text
 from postproc.programs.io import parse_program_text
 from postproc.model.compensator import load_model
-from postproc.settings.file import load_config
+from postproc.settings import Settings, load_settings
 from postproc.core.diagnostics import PostprocError
 from postproc.programs import STAMP_PREFIX, Program, TargetsBuilder
 
@@ -64,7 +64,7 @@ def test_reach_and_envelope_findings_point_at_their_rows(affine, tmp_path):
 def test_model_nan_and_implausible_corrections(affine, tmp_path):
     path = write(tmp_path / "p.csv", "x,y,z,a,b,c\n2000,0,900,0,90,0\n")
     assert [d.code for d in check_files([path], load_model(affine(offset=(6.0, 0, 0))))] == ["P303"]
-    assert check_files([path], load_model(affine(offset=(6.0, 0, 0))), max_correction_mm=7.0) == []
+    assert check_files([path], load_model(affine(offset=(6.0, 0, 0))), Settings().override(max_correction_mm=7.0)) == []
     assert [d.code for d in check_files([path], load_model(affine(offset=(float("nan"), 0, 0))))] == ["P305"]
 
 
@@ -154,29 +154,30 @@ def test_settings_from_pyproject_or_postproc_toml(tmp_path):
           '[[tool.postproc.fresh]]\nsource = "src/**/*.src"\noutput = "out/**/*_c.src"\n')
     sub = tmp_path / "src" / "deep"
     sub.mkdir(parents=True)
-    cfg = load_config(start=sub)
+    cfg = load_settings(start=sub)
     assert cfg.path == tmp_path / "pyproject.toml"
-    assert (cfg.model, cfg.config, cfg.strict, cfg.max_correction_mm, cfg.ignore) == (
-        tmp_path / "m/cell.onnx", (tmp_path / "KRC/$config.dat",), True, 3.0, ("P301",))
+    assert (cfg.model, cfg.reading.config, cfg.rules.strict, cfg.rules.max_correction_mm, cfg.check.ignore) == (
+        tmp_path / "m/cell.onnx", (tmp_path / "KRC/$config.dat",), True, 3.0, {"P301"})
     for name in ("src/a.src", "src/deep/er/b.src", "src/c.dat"):
         write(tmp_path / name, "x")
-    assert [(s.relative_to(tmp_path).as_posix(), o.relative_to(tmp_path).as_posix()) for s, o in cfg.fresh[0].matches()] \
+    assert [(s.relative_to(tmp_path).as_posix(), o.relative_to(tmp_path).as_posix()) for s, o in cfg.check.fresh[0].matches()] \
         == [("src/a.src", "out/a_c.src"), ("src/deep/er/b.src", "out/deep/er/b_c.src")]
     # postproc.toml in a nearer folder wins, keys at its top level
     write(sub / "postproc.toml", 'iterations = 3\n')
-    assert (load_config(start=sub).iterations, load_config(start=sub).model) == (3, None)
+    assert (load_settings(start=sub).rules.iterations, load_settings(start=sub).model) == (3, None)
 
 
 @pytest.mark.parametrize("text, message, line", [
-    ("modle = 'x.onnx'\n", "unknown setting 'modle' in postproc.toml; did you mean 'model'?", 0),
-    ("strict = 1\n", "expected true or false (key 'strict')", 0),
-    ("fresh = [{ source = 'src/*.src', output = 'out/x.src' }]\n", "same wildcards", 0),
+    ("modle = 'x.onnx'\n", "unknown setting 'modle' in postproc.toml; did you mean 'model'?", 1),
+    ("model = 'x.onnx'\nstrict = 1\n", "strict must be true or false, not 1", 2),
+    ("fresh = [{ source = 'src/*.src', output = 'out/x.src' }]\n", "same wildcards", 1),
+    ("iterations = 3\nmax_correction = -1\n", "max_correction must be a positive number of mm, not -1", 2),
     ("model = \n", "not valid TOML", 1),
 ])
 def test_bad_settings_are_located(tmp_path, text, message, line):
     write(tmp_path / "postproc.toml", text)
     with pytest.raises(PostprocError) as info:
-        load_config(tmp_path / "postproc.toml")
+        load_settings(tmp_path / "postproc.toml")
     assert message in info.value.message and info.value.code == "P610" and info.value.line == line
 
 
@@ -200,7 +201,7 @@ def cell(tmp_path, affine, monkeypatch):
 
 
 def test_fresh_outputs_are_clean_whatever_their_mtimes(cell):
-    cfg = load_config()
+    cfg = load_settings()
     past = time.time() - 3600
     for out in (cell / "out").iterdir():
         os.utime(out, (past, past))  # outputs older than their sources: still fresh
@@ -212,7 +213,7 @@ def test_stale_missing_and_orphan_outputs(cell, capsys):
     source.write_text(source.read_text().replace("2150,50,950", "2150,50,951"))
     (cell / "out" / "a.csv").unlink()
     write(cell / "out" / "c.csv", "x,y,z\n1,2,3\n")
-    cfg = load_config()
+    cfg = load_settings()
     found, written = check_fresh(cfg, load_model(cfg.model))
     # the stale output is located at its first differing byte: row 2's z (line 4 after the stamp)
     assert [(d.path, d.line, d.code, d.severity) for d in found] == [
@@ -231,7 +232,7 @@ def test_stale_missing_and_orphan_outputs(cell, capsys):
 
 def test_fresh_reports_a_source_that_cannot_be_compensated(cell):
     write(cell / "src" / "d.csv", "x,y,z,a,b,c\n5000,0,900,0,90,0\n")
-    found, _ = check_fresh(load_config(), load_model(cell / "cell.onnx"))
+    found, _ = check_fresh(load_settings(), load_model(cell / "cell.onnx"))
     assert [(d.path, d.line, d.code) for d in found] == [(os.path.join("src", "d.csv"), 2, "P302")]
     assert "while compensating it for out" in found[0].message
 
@@ -338,7 +339,7 @@ def test_krl_module_stamps_and_freshness(affine, tmp_path, monkeypatch):
     assert [d.code for d in check_files([out_src], model)] == ["P224"]  # (a note: robot base = world assumed)
     # an edited .dat makes the output .dat stale, located at the changed number
     write(tmp_path / "src" / "weld.dat", DAT.replace("Y -100.0", "Y -101.0"))
-    found, _ = check_fresh(load_config(), model)
+    found, _ = check_fresh(load_settings(), model)
     assert [(d.path, d.line, d.code) for d in found] == [(os.path.join("out", "weld.dat"), 6, "P405")]
     # the uncompensated .dat copied over the compensated one: a mixed module
     write(out_dat, DAT)

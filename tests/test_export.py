@@ -18,6 +18,7 @@ from postproc.calibration.export import (
 )
 from postproc.core.diagnostics import PostprocError
 from postproc.robot.description import load_description
+from postproc.settings import Settings
 
 pin = pytest.importorskip("pinocchio")
 GEOMETRIC = {"groups": ("placement", "base", "tool", "zero"), "ripple": []}
@@ -32,7 +33,7 @@ def trained(tmp_path_factory):
     folder = tmp_path_factory.mktemp("export")
     assert main(["plan", "-n", "80", "--seed", "4", "-o", str(folder / "plan.csv"), "-q"]) == 0
     assert main(["measure", str(folder / "plan.csv"), "-o", str(folder / "m.csv"), "-q"]) == 0
-    geometric = fit(str(folder / "m.csv"), method="kinematic", pose_only=True, val_fraction=0.1, kinematic=GEOMETRIC)
+    geometric = fit(str(folder / "m.csv"), Settings().override(method="kinematic", pose_only=True, val_fraction=0.1), kinematic=GEOMETRIC)
     path = geometric.export(folder / "geometric.onnx")
     full = folder / "full.onnx"
     assert main(["train", str(folder / "m.csv"), "-o", str(full), "--method", "kinematic", "-q",
@@ -218,8 +219,7 @@ def test_the_ur_layout_holds_the_identified_joint_geometry(tmp_path):
     assert main(["import", "ipa", str(REPO / "samples" / "ipa" / "series_c_excerpt.csv"), "-o", str(data),
                  "--register", "-q"]) == 0
     ur10 = REPO / "models" / "ur10.toml"
-    path = fit(str(data), method="kinematic", robot=str(ur10), pose_only=True, val_fraction=0.1,
-               kinematic=GEOMETRIC).export(tmp_path / "ur.onnx")
+    path = fit(str(data), Settings().override(method="kinematic", robot=str(ur10), pose_only=True, val_fraction=0.1), kinematic=GEOMETRIC).export(tmp_path / "ur.onnx")
     conf = tmp_path / "calibration.conf"
     assert main(["export", str(path), "--robot", str(ur10), "--ur", str(conf), "-q"]) == 0
     text = conf.read_text()

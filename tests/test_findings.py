@@ -9,7 +9,8 @@ from postproc.programs.io import parse_program_text
 from postproc.model.compensator import load_model
 from postproc.core.diagnostics import PostprocError
 from postproc.programs.locate import MAX_LISTED
-from postproc.compensation.findings import Settings, findings, run_model, select
+from postproc.compensation.findings import findings, run_model, select
+from postproc.settings import Settings
 
 
 def csv(rows):
@@ -47,6 +48,6 @@ def test_the_largest_correction_is_named_first(affine):
     program = parse_program_text(csv([(2000, 0, 900), (2100, 0, 900), (2290, 0, 900)]), "p.csv")
     model = load_model(affine(offset=(5.0, 0, 0), gain=np.diag([0.01, 0, 0])))
     with pytest.raises(PostprocError) as info:
-        compensate_program(program, model, iterations=1)
+        compensate_program(program, model, Settings().override(iterations=1))
     assert (info.value.code, info.value.line) == ("P303", 4) and "correction of 7.900 mm" in info.value.message
-    assert [(d.code, d.line) for d in check_program(program, model, iterations=1)] == [("P303", 4), ("P303", 3)]
+    assert [(d.code, d.line) for d in check_program(program, model, Settings().override(iterations=1))] == [("P303", 4), ("P303", 3)]

@@ -12,7 +12,8 @@ pytest.importorskip("dask.distributed")
 pytest.importorskip("pinocchio")
 pytest.importorskip("torch")
 
-from postproc.fleet.jobs import fleet_table, load_fleet  # noqa: E402
+from postproc.fleet.jobs import load_fleet  # noqa: E402
+from postproc.fleet.table import fleet_table  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -83,7 +84,7 @@ def test_fleet_table_formats_escape_their_cells():
 
 
 def test_moved_parameters_against_the_previous_card():
-    from postproc.fleet.jobs import moved_parameters
+    from postproc.fleet.tasks import moved_parameters
 
     new = {"identified": {"offset_mm": [1.0, 2.0], "backlash_deg": 0.1, "ripple": [[1, 2]]}}
     old = {"identified": {"offset_mm": [1.0, 2.0], "backlash_deg": 0.2, "ripple": [[1, 2]]}}
@@ -121,9 +122,9 @@ def test_local_cluster_trains_where_onnxruntime_never_is(tmp_path):
     the card and writes the report with it."""
     from dask.distributed import Client
 
-    from postproc.fleet.jobs import (
-        REPORT, TRAIN, RobotJob, _local_cluster, read_inputs, report_robot, train_robot, write_outputs,
-    )
+    from postproc.fleet.cluster import REPORT, TRAIN, _local_cluster
+    from postproc.fleet.jobs import RobotJob, read_inputs
+    from postproc.fleet.tasks import report_robot, train_robot, write_outputs
     from postproc.model.training.synthetic import synthetic_measurements, to_csv
 
     def libraries(dask_worker):  # (a local function: sent by value, this module, which imports torch, is not)

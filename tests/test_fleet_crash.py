@@ -17,7 +17,7 @@ class CrashOn(WorkerPlugin):
         self.name = name
 
     def setup(self, worker):
-        import postproc.fleet.jobs as fleet
+        import postproc.fleet.tasks as fleet
 
         real = getattr(fleet.train_robot, "real", fleet.train_robot)
 
@@ -34,7 +34,8 @@ def test_a_robot_that_kills_its_worker_fails_alone(tmp_path):
     import dask
     from dask.distributed import Client, LocalCluster
 
-    from postproc.fleet.jobs import RobotJob, run_fleet
+    from postproc.fleet.cluster import run_fleet
+    from postproc.fleet.jobs import RobotJob
     from postproc.model.training.synthetic import synthetic_measurements, to_csv
 
     poses, measured = synthetic_measurements(80, seed=2)

@@ -11,7 +11,7 @@ SEARCH = dict(structures=[(3,), (4,), (3, 3)], keep=2, final_seeds=1, epochs=10,
 
 def _search_in_a_task(poses, errors):
     """What a fleet's robot does with train --search: the search from inside a task."""
-    from postproc.fleet.jobs import task_map
+    from postproc.fleet.tasks import task_map
     from postproc.model.training.search import search_structure
 
     with task_map() as map_fn:
@@ -22,7 +22,7 @@ def _search_in_a_task(poses, errors):
 def test_structure_search_runs_its_candidates_as_tasks_on_the_cluster():
     from dask.distributed import Client, LocalCluster, get_task_stream
 
-    from postproc.fleet.jobs import task_map
+    from postproc.fleet.tasks import task_map
     from postproc.model.training.search import search_structure
     from postproc.model.training.synthetic import synthetic_measurements
 

@@ -351,7 +351,7 @@ def test_robot_from_the_settings(run, affine, tmp_path):
     assert run(GOOD, model, "--settings", str(settings), "--robot", "KR500-sim", "-q")[0] == 0
     assert run(GOOD, model, "--settings", str(settings), "--force", "-q")[0] == 0
     settings.write_text("robot = 500\n")
-    refused(run(GOOD, model, "--settings", str(settings)), run, "P610", settings, message="expected the robot's name")
+    refused(run(GOOD, model, "--settings", str(settings)), run, "P610", settings, 1, 1, message="expected the robot's name")
 
 
 def test_non_finite_frame_or_float32_overflow_is_refused(tmp_path, capsys, run, affine):

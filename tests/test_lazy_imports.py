@@ -19,7 +19,7 @@ spec.loader.exec_module(fake_cam_post)
 # optional extras and the parts of postproc that a compensate of one program never needs
 NEVER = ("torch", "scipy", "pinocchio", "pin", "matplotlib", "onnx", "dask", "distributed", "tqdm", "pandas",
          "sklearn", "difflib", "postproc.model.training", "postproc.acceptance.report", "postproc.calibration.simulator", "postproc.acceptance.certificate",
-         "postproc.measurements.csv", "postproc.calibration.planning", "postproc.fleet.jobs", "postproc.compensation.cell", "postproc.compensation.check",
+         "postproc.measurements.csv", "postproc.calibration.planning", "postproc.fleet", "postproc.compensation.cell", "postproc.compensation.check",
          "postproc.testing")
 OTHER_DIALECTS = ("postproc.programs.poses", "postproc.programs.rapid", "postproc.programs.urscript",
                   "postproc.programs.fanuc")

@@ -58,7 +58,7 @@ def test_no_fill_partial_refuses_with_the_target_located(tmp_path, affine, capsy
 def test_weld_cell_partial_target_lands_as_if_written_in_full(tmp_path):
     """Through the simulator (`postproc verify`'s robot, no noise): the partial target of
     weld_cell.src (line 114) lands as close as the same target written in full."""
-    from postproc.cli.verify import _fill
+    from postproc.acceptance.verify import _fill
     from postproc.calibration.simulator import SimulatedRobot
 
     krl = REPO / "samples/krl"

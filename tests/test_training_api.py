@@ -20,6 +20,7 @@ from postproc.model.training.estimator import Estimator
 from postproc.model.training.features import previous_poses
 from postproc.model.training.hybrid import HybridModel
 from postproc.model.training.kinematic import KinematicModel
+from postproc.settings import Settings
 
 TINY = {"hidden": (6,), "epochs": 10, "population": 6, "generations": 3}  # a GPSO-DNN fitted in well under a second
 
@@ -36,7 +37,7 @@ def measured(tmp_path_factory):
 @pytest.fixture(scope="module")
 def kinematic(measured, tmp_path_factory):
     """The identification alone fitted by ``fit`` and exported."""
-    trained = fit(measured, "kinematic", val_fraction=0.1, seed=0)
+    trained = fit(measured, Settings().override(method="kinematic", val_fraction=0.1, seed=0))
     return trained, trained.export(tmp_path_factory.mktemp("kin") / "kin.onnx")
 
 
@@ -62,7 +63,7 @@ def test_fit_exports_the_card_and_a_graph_that_predicts_as_the_estimator(kinemat
 def test_fit_takes_measurements_or_a_path_and_leaves_them_as_they_were(measured):
     data = read_measurements(measured)
     before = data.measured.copy()
-    a, b = fit(data, "gpso", **TINY), fit(measured, "gpso", **TINY)
+    a, b = fit(data, Settings().override(method="gpso"), **TINY), fit(measured, Settings().override(method="gpso"), **TINY)
     assert _json(a.card) == _json(b.card)
     np.testing.assert_array_equal(a.model.params_, b.model.params_)
     np.testing.assert_array_equal(data.measured, before)
@@ -73,7 +74,7 @@ def test_the_cli_writes_what_fit_exports(measured, tmp_path):
     cli = tmp_path / "cli.onnx"
     assert main(["train", str(measured), "-o", str(cli), "-q", "--method", "plain", "--hidden", "5,3", "--epochs", "8",
                  "--seed", "3", "--robot", "KR500-sim", "--name", "m"]) == 0
-    api = fit(measured, "plain", "KR500-sim", name="m", hidden=(5, 3), epochs=8, seed=3).export(tmp_path / "api.onnx")
+    api = fit(measured, Settings().override(method="plain", robot="KR500-sim", name="m", hidden=(5, 3), epochs=8, seed=3)).export(tmp_path / "api.onnx")
     assert cli.read_bytes() == api.read_bytes()
 
 
@@ -81,18 +82,18 @@ def test_fit_refuses_what_train_refuses(measured):
     from postproc.core.diagnostics import PostprocError
 
     with pytest.raises(PostprocError, match="P317"):
-        fit(measured, "gpso", update="old.onnx")
+        fit(measured, Settings().override(method="gpso", update="old.onnx"))
     with pytest.raises(PostprocError, match="P508"):
-        fit(measured, "hybrid", robot="UR5")
+        fit(measured, Settings().override(method="hybrid", robot="UR5"))
     with pytest.raises(TypeError):
-        fit(measured, "gpso", ensemble=3)  # a HybridModel parameter, not ErrorModel's
+        fit(measured, Settings().override(method="gpso"), ensemble=3)  # a HybridModel parameter, not ErrorModel's
     with pytest.raises(ValueError, match="unknown method"):
-        fit(measured, "svm")
+        fit(measured, Settings().override(method="svm"))
     # the networks' options on an identified method: refused, not ignored (P516)
     with pytest.raises(PostprocError, match="P516.*--search"):
-        fit(measured, "hybrid", search=True)
+        fit(measured, Settings().override(method="hybrid", search=True))
     with pytest.raises(PostprocError, match="P516.*--optimizer"):
-        fit(measured, "kinematic", optimizer="adam")
+        fit(measured, Settings().override(method="kinematic", optimizer="adam"))
 
 
 @pytest.mark.parametrize("cls", [ErrorModel, HybridModel, KinematicModel])
@@ -127,7 +128,7 @@ def test_a_clone_by_params_fits_the_same_and_fitted_state_ends_in_underscore(mea
     data = read_measurements(measured)
     t = trained.train_rows
     poses, errors = data.poses[t], data.errors[t]
-    network = fit(data, "gpso", val_fraction=0.1, **TINY)  # (the same split as the kinematic fixture's)
+    network = fit(data, Settings().override(method="gpso", val_fraction=0.1), **TINY)  # (the same split as the kinematic fixture's)
     np.testing.assert_array_equal(network.train_rows, t)
     for model, args in ((network.model, ()), (trained.model, (previous_poses(data.poses)[t],))):
         clone = type(model)(**model.get_params())

@@ -68,6 +68,7 @@ def exported(fitted, tmp_path_factory):
 
 
 from postproc.model.compensator import load_model  # noqa: E402
+from postproc.settings import Settings
 
 
 def test_exported_error_std_is_position_std_and_calibrated(exported):
@@ -113,7 +114,7 @@ def test_compensate_and_check_warn_where_the_std_exceeds_the_bound(exported):
     text = "x,y,z,a,b,c\n" + "".join(",".join(f"{v:.3f}" for v in p) + "\n" for p in poses)
     program = parse_program_text(text, "p.csv")
     # each target's std as the rule sees it (message), all listed under a bound below every one
-    listed = [d for d in check_program(program, model, max_std_mm=1e-6) if d.code == "P336"]
+    listed = [d for d in check_program(program, model, Settings().override(max_std_mm=1e-6)) if d.code == "P336"]
     std = np.array([float(d.message.split(" is ")[1].split(" mm")[0]) for d in sorted(listed, key=lambda d: d.line)])
     assert len(std) == len(poses) and std[2] > model.max_std_mm > std[[0, 1, 3, 4]].max()
     out, report = compensate_text(text, model, name="p.csv")
@@ -127,9 +128,9 @@ def test_compensate_and_check_warn_where_the_std_exceeds_the_bound(exported):
         compensate_text(plain, model, name="p.csv", strict=True, max_std_mm=float(std.min()) / 2)
     assert exc.value.diagnostic().code == "P336"
     # --max-std: the caller's bound wins; check finds the same
-    codes = [d.code for d in check_program(program, model, max_std_mm=float(std.min()) / 2)]
+    codes = [d.code for d in check_program(program, model, Settings().override(max_std_mm=float(std.min()) / 2))]
     assert codes.count("P336") == len(poses)
-    assert "P336" not in [d.code for d in check_program(program, model, max_std_mm=float(std.max()) * 2)]
+    assert "P336" not in [d.code for d in check_program(program, model, Settings().override(max_std_mm=float(std.max()) * 2))]
     with pytest.raises(PostprocError):
         compensate_text(text, model, name="p.csv", max_std_mm=float("nan"))
 

@@ -75,7 +75,8 @@ def test_a_measurement_csv_in_metres_is_refused_by_train_and_fleet(measured, cap
     assert main(["train", str(d / "m.csv"), "-o", str(d / "m.onnx"), "--method", "kinematic"]) == 2
     err = capsys.readouterr().err
     assert f"{d / 'm.csv'}:4:1: P517" in err and "metres" in err and not (d / "m.onnx").exists()
-    from postproc.fleet.jobs import RobotJob, read_inputs, train_robot
+    from postproc.fleet.jobs import RobotJob, read_inputs
+    from postproc.fleet.tasks import train_robot
 
     job = RobotJob("metres", d / "m.csv", method="kinematic")
     result = train_robot(job, read_inputs(job))

@@ -13,52 +13,16 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import dataclass
 from pathlib import Path
 
 from ..core.diagnostics import P308, PostprocError
 from ..core.resources import schema_path
+from ..settings import LIMITS, Acceptance
 
-__all__ = ["VERDICT_VERSION", "SCHEMA_PATH", "Limits", "verdict", "verdict_problems", "add_limit_arguments"]
+__all__ = ["VERDICT_VERSION", "SCHEMA_PATH", "verdict", "verdict_problems", "model_entry", "failed_lines"]
 
 VERDICT_VERSION = 1
 SCHEMA_PATH = schema_path("verdict.schema.json")
-# limit option → (the figure it bounds, unit)
-LIMITS = {"max_mean": ("after.mean", "mm"), "max_p95": ("after.p95", "mm"), "max_max": ("after.max", "mm"),
-          "max_orientation_mean": ("orientation_after.mean", "deg")}
-
-
-@dataclass(frozen=True)
-class Limits:
-    max_mean: float | None = None
-    max_p95: float | None = None
-    max_max: float | None = None
-    max_orientation_mean: float | None = None
-
-    def __post_init__(self):
-        for name in LIMITS:
-            value = getattr(self, name)
-            if value is not None and not (isinstance(value, int | float) and value > 0 and value < float("inf")):
-                raise PostprocError(f"--{name.replace('_', '-')} must be a positive number, not {value}", code=P308)
-
-    @classmethod
-    def of(cls, args) -> "Limits":
-        return cls(**{name: getattr(args, name, None) for name in LIMITS})
-
-    @property
-    def stated(self) -> dict:
-        return {name: getattr(self, name) for name in LIMITS if getattr(self, name) is not None}
-
-
-def add_limit_arguments(p) -> None:
-    """``--max-mean`` / ``--max-p95`` / ``--max-max`` / ``--max-orientation-mean`` (verify, report)."""
-    p.add_argument("--max-mean", type=float, metavar="MM", help="fail (exit 1) if the mean error after exceeds MM")
-    p.add_argument("--max-p95", type=float, metavar="MM", help="fail if the error's 95th percentile after exceeds MM")
-    p.add_argument("--max-max", type=float, metavar="MM", help="fail if the largest error after exceeds MM")
-    p.add_argument("--max-orientation-mean", type=float, metavar="DEG",
-                   help="fail if the mean orientation error after exceeds DEG")
-
-
 def _figure(figures: dict, path: str):
     value = figures
     for key in path.split("."):
@@ -73,7 +37,7 @@ def file_sha256(path) -> str | None:
         return None
 
 
-def verdict(kind: str, limits: Limits, figures: dict, model: dict | None, inputs: dict) -> dict:
+def verdict(kind: str, limits: Acceptance, figures: dict, model: dict | None, inputs: dict) -> dict:
     """The verdict document (module text). ``figures``: at least ``before`` / ``after`` Table 2
     (mm) and, where known, ``orientation_before`` / ``orientation_after`` (deg); ``model``: name,
     sha256, contract (None: no model, e.g. verify's programs alone); ``inputs``: role → path."""

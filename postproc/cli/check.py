@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import sys
 
+from .settings import ROBOT_HELP, add, add_settings_file, settings_of
+
 EXAMPLES = """examples:
   postproc check src/*.src out/*.src             syntax, reach, envelope, stamps of these programs
   postproc check KRC/R1                          a cell: every module, with its System/$config.dat
@@ -21,8 +23,6 @@ exit: 0 clean (warnings only, unless --strict), 1 findings, 2 usage or internal 
 
 
 def add_parser(sub, common, formatter) -> None:
-    from .compensate import add_frame_arguments
-
     p = sub.add_parser(
         "check",
         parents=[common],
@@ -36,43 +36,19 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("files", nargs="*", metavar="FILE", help="programs (.src/.dat, .mod/.prg/.sys, .script, .ls, .csv/.txt) or directories (searched for every "
                    "dialect's programs but pose lists), checked as one cell: a .dat is checked with its .src, a $config.dat among them configures the others, a data list "
                    "without DEF is checked for syntax")
-    p.add_argument("--model", metavar="M", help="the configured ONNX model (default: settings, else models/default.onnx)")
-    p.add_argument("--config", "--frames", metavar="CONFIG_DAT", action="append",
-                   help="$config.dat with BASE_DATA / TOOL_DATA (repeatable); for a Fanuc .ls: the frame file (TOML, UF/UT)")
-    p.add_argument("--settings", metavar="TOML", help="pyproject.toml or postproc.toml to read (default: searched upwards)")
+    add_settings_file(p)
     p.add_argument("--fresh", action="store_true", help="check the configured source → output pairs")
     p.add_argument("--fix", action="store_true", help="with --fresh: rewrite stale or missing outputs")
-    p.add_argument("--strict", action="store_true", default=None, help="warnings are findings too (exit 1)")
-    p.add_argument("--ignore", metavar="CODES", default="", help="comma-separated codes not to report, e.g. P301,P213")
-    p.add_argument("--max-correction", type=float, metavar="MM", help="corrections above this are findings (default 5 mm)")
-    p.add_argument("--max-std", type=float, metavar="MM", help="warn (P336) where the model's own std (output "
-                   "error_std) exceeds this (default: the model card's; models without error_std: no check)")
-    p.add_argument("--iterations", type=int, metavar="K", help="fixed-point iterations (default: the model's)")
-    add_frame_arguments(p)
+    add(p, "model", "config", "strict", "ignore", "max_correction_mm", "max_std_mm", "iterations", "base", "tool",
+        "robroot", "external", "robot",
+        helps={"model": "the configured ONNX model (default: settings, else models/default.onnx)",
+               "strict": "warnings are findings too (exit 1)",
+               "max_correction_mm": "corrections above this are findings (default 5 mm)",
+               "robot": ROBOT_HELP + " (default: settings 'robot'): a model trained on another is a finding; with a "
+               "description file also the nominal robot's IK reachability (P309)"})
     p.add_argument("--list-codes", action="store_true", help="print every diagnostic code (code, severity, meaning) and exit")
     p.add_argument("--markdown", action="store_true", help="with --list-codes: as a Markdown table (the README's)")
-    p.add_argument("--robot", metavar="NAME|FILE.toml",
-                   help="the robot the programs are for (default: settings 'robot'): a model trained on another is "
-                   "a finding; with a description file also the nominal robot's IK reachability (needs Pinocchio)")
     p.set_defaults(run=run)
-
-
-def _robot(value: str):
-    """(robot name, reachability test or None) for --robot NAME or --robot FILE.toml."""
-    from pathlib import Path
-
-    if not (value.lower().endswith(".toml") or Path(value).is_file()):
-        return value, None
-    from ..core.diagnostics import PostprocError
-
-    try:
-        from ..robot.arm import Robot
-        from ..robot.description import load_description
-
-        robot = Robot(load_description(value))
-    except ImportError as exc:
-        raise PostprocError(f"--robot FILE.toml needs Pinocchio (pip install 'postproc[sim]'): {exc}", value) from None
-    return robot.name, lambda poses: robot.ik(poses)[1]
 
 
 def _paint(line: str, severity: str, color: bool) -> str:
@@ -83,39 +59,6 @@ def _paint(line: str, severity: str, color: bool) -> str:
     code, _, message = rest.partition(" ")
     tint = "\033[31m" if severity == "error" else "\033[33m"
     return f"\033[1m{head}\033[0m{sep}{tint}{code}\033[0m {message}"
-
-
-def _settings(args):
-    """The settings file with the options over it: (config, codes to ignore)."""
-    from ..settings.file import load_config
-    from .compensate import stated_frames
-
-    cfg = load_config(args.settings)
-    if args.model:
-        cfg.model = args.model
-    if args.config:
-        cfg.config = tuple(args.config)
-    if args.strict is not None:
-        cfg.strict = True
-    if args.max_correction is not None:
-        cfg.max_correction_mm = args.max_correction
-    if args.iterations is not None:
-        cfg.iterations = args.iterations
-    cfg.active = stated_frames(args, cfg.active)  # (--fresh compensates with them too)
-    ignore = set(cfg.ignore) | {c.strip().upper() for c in args.ignore.split(",") if c.strip()}
-    return cfg, ignore
-
-
-def _options(args, cfg) -> dict:
-    """The options of check_files from the settings (and --robot: a name or a description)."""
-    from ..compensation.findings import DEFAULT_MAX_CORRECTION_MM
-
-    options = dict(iterations=cfg.iterations, max_correction_mm=cfg.max_correction_mm or DEFAULT_MAX_CORRECTION_MM,
-                   max_std_mm=args.max_std)
-    if args.robot:  # (into the settings too: --fresh compensates for the same robot)
-        cfg.robot, options["reachable"] = _robot(args.robot)
-    options["robot"] = cfg.robot
-    return options
 
 
 def _summary(findings, strict: bool) -> str:
@@ -133,9 +76,9 @@ def _summary(findings, strict: bool) -> str:
 
 
 def run(args) -> int:
+    from ..compensation.api import model_of
     from ..compensation.check import check_files, check_fresh, failed
     from ..core.diagnostics import EXIT_ERROR, EXIT_FINDINGS, EXIT_OK, codes_table
-    from ..model.compensator import load_model
     from . import use_color
 
     if args.list_codes:
@@ -147,34 +90,33 @@ def run(args) -> int:
     if args.fix and not args.fresh:
         print("postproc check: --fix works with --fresh only", file=sys.stderr)
         return EXIT_ERROR
-    cfg, ignore = _settings(args)
-    model = load_model(cfg.model)
+    settings = settings_of(args)
+    model = model_of(settings.model)
     if args.verbose:
         print(f"postproc check: model {model.name} {model.sha256[:12]} ({model.path}); settings "
-              f"{cfg.path or 'none'}", file=sys.stderr)
-    options = _options(args, cfg)
+              f"{settings.path or 'none'}", file=sys.stderr)
 
     findings = []
     if args.files:
-        findings += check_files(args.files, model, config=list(cfg.config) if cfg.config else None, ignore=ignore,
-                                active=cfg.active, **options)
+        findings += check_files(args.files, model, settings)
     written = []
     if args.fresh:
-        if not cfg.fresh and not args.quiet:
-            print(f"postproc check: no fresh pairs configured ({cfg.path or 'no postproc.toml / pyproject.toml'}): "
+        if not settings.check.fresh and not args.quiet:
+            print(f"postproc check: no fresh pairs configured ({settings.path or 'no postproc.toml / pyproject.toml'}): "
                   "no compensated outputs to compare (add fresh = [{ source = \"src/*.src\", output = \"out/*.src\" }] "
                   "under [tool.postproc])", file=sys.stderr)
-        fresh, written = check_fresh(cfg, model, fix=args.fix, ignore=ignore)
+        fresh, written = check_fresh(settings, model, fix=args.fix)
         findings += fresh
     findings = list(dict.fromkeys(findings))  # (a note of the model, P340, said once for every program)
 
+    strict = settings.rules.strict
     color = use_color(sys.stdout)
     for d in findings:
-        if args.quiet and d.severity != "error" and (not cfg.strict or d.severity == "note"):
+        if args.quiet and d.severity != "error" and (not strict or d.severity == "note"):
             continue
         print(_paint(d.format(), d.severity, color))
     for path in written:
         print(f"postproc check: rewrote {path}", file=sys.stderr)
     if not args.quiet:
-        print(_summary(findings, cfg.strict), file=sys.stderr)
-    return EXIT_FINDINGS if failed(findings, cfg.strict) else EXIT_OK
+        print(_summary(findings, strict), file=sys.stderr)
+    return EXIT_FINDINGS if failed(findings, strict) else EXIT_OK

@@ -39,7 +39,9 @@ def add_parser(sub, common, formatter) -> None:
 
 
 def run(args) -> int:
-    from ..fleet.jobs import fleet_table, load_fleet, run_fleet
+    from ..fleet.cluster import run_fleet
+    from ..fleet.jobs import load_fleet
+    from ..fleet.table import fleet_table
 
     jobs = load_fleet(args.fleet)
     results = run_fleet(jobs, args.output, address=args.address, workers=args.workers, force=args.force)

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import sys
 
+from .settings import add, add_settings_file, settings_of
+
 EXAMPLES = """examples:
   postproc report measured.csv --model models/cell7.onnx -o report/
   postproc report before.csv --after after.csv --model models/cell7.onnx -o report/
@@ -39,13 +41,12 @@ def add_parser(sub, common, formatter) -> None:
     )
     p.add_argument("measured", metavar="MEASURED.csv", help="measurement CSV (x,y,z,a,b,c,x_meas,y_meas,z_meas[,x_after,...])")
     p.add_argument("-o", "--output", metavar="DIR", required=True, help="folder to write the report into (created)")
-    p.add_argument("--model", metavar="M", help="ONNX compensator (default: [tool.postproc] model, else the shipped one)")
+    add_settings_file(p)
+    add(p, "model", helps={"model": "ONNX compensator (default: settings 'model', else the shipped one)"})
     p.add_argument("--after", metavar="AFTER.csv",
                    help="measurement of the compensated program (same rows, same order): the measured 'after'")
     p.add_argument("--title", default="Positioning accuracy", help="heading of report.md")
-    from ..acceptance.verdict import add_limit_arguments
-
-    add_limit_arguments(p)
+    add(p, "max_mean", "max_p95", "max_max", "max_orientation_mean")
     p.add_argument("--iso9283", action="store_true",
                    help="ISO 9283 pose test: cluster rows to their poses, AP/RP per pose before (and --after) "
                    "compensation; writes iso9283.json and the certificate (certificate.md/.html/.png)")
@@ -56,11 +57,13 @@ def run(args) -> int:
     import matplotlib  # noqa: F401  (only to fail early: postproc.cli names the extra to install)
 
     from ..acceptance.report import read_report_data, write_report
-    from ..acceptance.verdict import Limits
     from ..model.compensator import load_model
-    from ..settings.file import load_config
 
-    if args.iso9283 and Limits.of(args).stated:
+    from ..settings import LIMITS
+
+    settings = settings_of(args)
+    limits = settings.acceptance
+    if args.iso9283 and any(getattr(args, name) is not None for name in LIMITS):  # (a file's: for Table 2 reports)
         from ..core.diagnostics import P308, PostprocError
 
         raise PostprocError("--max-mean/--max-p95/--max-max/--max-orientation-mean hold the report's Table 2, not the "
@@ -69,10 +72,9 @@ def run(args) -> int:
         from .iso9283 import run_report
 
         return run_report(args, load_model(args.model) if args.model else None)
-    from ..acceptance.verdict import Limits, failed_lines, model_entry, verdict
+    from ..acceptance.verdict import failed_lines, model_entry, verdict
 
-    limits = Limits.of(args)
-    model = load_model(args.model or load_config().model)
+    model = load_model(settings.model)
     data = read_report_data(args.measured, model, args.after)
     files = write_report(data, args.output, args.title)
     from ..acceptance.report import summary as _summary

@@ -3,14 +3,10 @@
 module writes the model and prints what the fit found."""
 from __future__ import annotations
 
-import argparse
 import sys
 
-from ..model.training.methods import (  # (no numpy, no torch: see EXAMPLES)
-    IDENTIFIED,
-    METHODS,
-    OPTIMIZERS,
-)
+from ..model.training.methods import IDENTIFIED, METHODS, OPTIMIZERS  # (no numpy, no torch: see EXAMPLES)
+from .settings import ROBOT_HELP, add, settings_of
 
 EXAMPLES = """\
 Data: a CSV with the header x,y,z,a,b,c,x_meas,y_meas,z_meas (mm, deg, robot base frame):
@@ -41,26 +37,6 @@ Examples:
 """
 
 
-def _hidden(text: str) -> tuple[int, ...]:
-    try:
-        values = tuple(int(v) for v in text.replace(" ", "").split(",") if v)
-    except ValueError:
-        values = ()
-    if not values or any(v < 1 for v in values):
-        raise argparse.ArgumentTypeError(f"expected positive layer widths like 20,10,5, got {text!r}")
-    return values
-
-
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
-
-
 def add_parser(sub, common, formatter) -> None:
     p = sub.add_parser(
         "train",
@@ -73,63 +49,26 @@ def add_parser(sub, common, formatter) -> None:
     )
     p.add_argument("data", metavar="DATA.csv", help="measurement CSV")
     p.add_argument("-o", "--output", required=True, metavar="MODEL.onnx", help="model file to write")
-    p.add_argument("--method", choices=METHODS, default="hybrid", help="the model (default hybrid; see below)")
-    p.add_argument("--hidden", type=_hidden, default=None, metavar="W,W,...",
-                   help="hidden layer widths (default 20,10,5; hybrid's residual networks 32,32)")
-    p.add_argument("--optimizer", choices=OPTIMIZERS, default=None, help="backprop optimiser (default lm)")
-    p.add_argument("--search", action="store_true", help="search the hidden layers first (1-6 layers of 3-16 nodes; minutes)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="--search: fit the candidates as tasks on this Dask scheduler (postproc[fleet]; in a fleet: its own)")
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the training's random draws (default 0)")
-    p.add_argument("--split-seed", type=int, default=0, metavar="S", help="seed of the validation draw (default 0)")
-    p.add_argument("--val-fraction", type=float, default=None, metavar="F",
-                   help="rows held out for validation (default 0.05; none below 100 rows: each row counts in a small fit)")
-    p.add_argument("--epochs", type=_positive, default=None, metavar="N",
-                   help="backprop epochs at most (default 500; hybrid's residual networks 1500)")
-    p.add_argument("--name", help="model name for the metadata (default: the output file's stem)")
-    p.add_argument("--robot", metavar="NAME|FILE.toml", help="robot name, or its description file (adds reach and tool; "
-                   "hybrid/kinematic: the nominal description to identify, default models/kr500.toml)")
-    p.add_argument("--tool", metavar="X,Y,Z,A,B,C",
-                   help="the TCP on the flange the data were measured with (default: the CSV's '# tool:' line or "
-                   "tool_x..tool_c columns, else the robot description's tool)")
-    p.add_argument("--pose-only", action="store_true",
-                   help="hybrid/kinematic: ignore the visiting order (no backlash; the model takes the pose only)")
-    p.add_argument("--update", metavar="OLD.onnx",
-                   help="re-calibrate: re-fit OLD's base, joint zero offsets and tool on these rows (from as few as 30), "
-                        "with OLD's values as prior; everything else is OLD's (its structure: --hidden, --epochs, "
-                        "--pose-only do not apply); prints what moved")
-    p.add_argument(
-        "--register",
-        action="store_true",
-        help="measured columns are in a tracker's frame: fit the rigid tracker → base transform on the training rows",
-    )
+    add(p, "method", "hidden", "optimizer", "search", "scheduler", "seed", "split_seed", "val_fraction", "epochs",
+        "name", "robot", "tcp", "pose_only", "update", "register",
+        helps={"robot": ROBOT_HELP + " (adds reach and tool to the card; hybrid/kinematic: the nominal description to "
+               "identify, default models/kr500.toml)"},
+        choices={"method": METHODS, "optimizer": OPTIMIZERS})
     p.set_defaults(run=run)
-
-
-def _params(args) -> dict:
-    """The estimator's parameters among train's arguments (those given; --optimizer for an
-    identified method too, which ``training.fit`` refuses, P516)."""
-    from . import show_progress
-
-    params = {"seed": args.seed, "progress": show_progress(args)}
-    for key in ("hidden", "epochs", "optimizer"):
-        if getattr(args, key) is not None:
-            params[key] = getattr(args, key)
-    return params
 
 
 def run(args) -> int:
     from functools import partial
 
     from ..core.outputs import check_outputs
-    from ..fleet.jobs import task_map
+    from ..fleet.tasks import task_map
     from ..model.training.fitting import fit
+    from . import show_progress
 
-    check_outputs([args.output], [args.data, args.robot or "-", args.update or "-"])  # before the fit, not after it
-    trained = fit(args.data, args.method, args.robot, tool=args.tool, val_fraction=args.val_fraction,
-                  split_seed=args.split_seed, register=args.register, pose_only=args.pose_only, update=args.update,
-                  search=args.search, search_engine=partial(task_map, args.scheduler), name=args.name,
-                  **_params(args))
+    settings = settings_of(args)
+    t = settings.training
+    check_outputs([args.output], [args.data, settings.robot or "-", t.update or "-"])  # before the fit, not after it
+    trained = fit(args.data, settings, progress=show_progress(args), search_engine=partial(task_map, t.scheduler))
     if trained.search is not None and not args.quiet:
         from ..model.training.search import format_table
 
@@ -138,7 +77,7 @@ def run(args) -> int:
     if not args.quiet:
         for note in trained.notes:
             print(note, file=sys.stderr)
-        (_print_identified if args.method in IDENTIFIED else _print_network)(args, trained)
+        (_print_identified if t.method in IDENTIFIED else _print_network)(args, trained)
         print(f"postproc train: wrote {args.output}", file=sys.stderr)
     return 0
 

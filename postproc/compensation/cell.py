@@ -24,13 +24,14 @@ from pathlib import Path
 from ..core.diagnostics import P110, PostprocError
 from ..model.compensator import Compensator
 from ..programs.cell import Cell
+from ..settings import Settings
 from .pipeline import Report, compensate_program, write_outputs
 
 __all__ = ["compensate_cell"]
 
 
-def compensate_cell(cell: Cell, out_dir: str | Path, model: Compensator, **options) -> Report:
-    """Compensate every module of ``cell`` (``options`` as for ``compensate_program``) and
+def compensate_cell(cell: Cell, out_dir: str | Path, model: Compensator, settings: Settings = Settings()) -> Report:
+    """Compensate every module of ``cell`` (``settings`` as for ``compensate_program``) and
     write all its files below ``out_dir`` at their paths relative to ``cell.root``, all or
     none. Nothing is written if any module is refused (the first refusal is raised)."""
     out_dir = Path(out_dir)
@@ -43,7 +44,7 @@ def compensate_cell(cell: Cell, out_dir: str | Path, model: Compensator, **optio
     if not cell.files:
         return Report(model=model.name, model_sha256=model.sha256)
     program = cell.read()
-    report = compensate_program(program, model, **options)
+    report = compensate_program(program, model, settings)
     outputs: list[tuple[Path, str | bytes]] = [(out_dir / Path(name).resolve().relative_to(cell.root), text)
                                                for name, text in report.outputs.items()]
     write_outputs(outputs)

@@ -49,10 +49,8 @@ from ..core.diagnostics import (
 from ..model.compensator import Compensator, load_model
 from ..programs import STAMP_PREFIX, Program
 from ..programs.io import companion_dat, load_program
-from ..settings.file import Config
+from ..settings import Settings
 from .findings import (
-    DEFAULT_MAX_CORRECTION_MM,
-    Settings,
     findings,
     run_model,
     select,
@@ -159,29 +157,24 @@ def _stamp_findings(program: Program, model: Compensator, selection) -> list[Dia
 def check_program(
     program: Program,
     model: Compensator,
+    settings: Settings = Settings(),
     *,
-    iterations: int | None = None,
-    max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
-    max_std_mm: float | None = None,
-    robot: str | None = None,
     reachable: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> list[Diagnostic]:
     """Every finding about a parsed program (see the module docstring), in no particular order.
 
-    ``robot`` is the robot the program is for (a model trained on another is ``P310``);
+    ``settings.robot`` is the robot the program is for (a model trained on another is ``P310``);
     ``reachable`` optionally maps robot-base poses [N, 6] to a bool mask [N] (e.g. IK of
     the nominal robot); targets it rejects are ``P309`` errors. The rules are compensate's
     (:func:`postproc.compensation.findings.findings`); when none is an error, the program is rewritten in
     memory from the same commands, so that the last checks before writing (P190, P191) are
     findings too: a clean check means compensate succeeds.
     """
-    settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot,
-                        reachable=reachable, max_std_mm=max_std_mm)
-    selection = select(program, model, settings)
-    commands = run_model(model, selection, iterations, std=std_bound(model, settings) is not None)
+    selection = select(program, model, settings, reachable=reachable)
+    commands = run_model(model, selection, settings.rules.iterations, std=std_bound(model, settings) is not None)
     # a stamp is the stamp rules' business here (P402-P404), not "already compensated"
     out = list(program.diagnostics) + program.notes
-    out += [d for d in findings(program, commands, model, settings) if d.code != P401]
+    out += [d for d in findings(program, commands, model, settings, reachable=reachable) if d.code != P401]
     out += _stamp_findings(program, model, selection)
     if not failed(out):
         t = program.targets
@@ -189,8 +182,9 @@ def check_program(
             if t.group is not None and (t.group >= 0).any():
                 # numbers run more than once: compensate's own agreement of the runs (P230, P322),
                 # which needs its rounds (the model again without the groups that disagree)
-                report = compensate_program(program, model, iterations=iterations, robot=robot,
-                                            max_correction_mm=max_correction_mm, max_std_mm=max_std_mm)
+                # (the check's settings: not strict, no --force; what compensate itself would find)
+                rules = replace(settings.rules, strict=False, force=False)
+                report = compensate_program(program, model, replace(settings, rules=rules), reachable=reachable)
                 said = {(d.path, d.line, d.col, d.code) for d in out}
                 out += [d for d in report.warnings + report.notes if d.code in (P230, P322)
                         and (d.path, d.line, d.col, d.code) not in said]
@@ -226,18 +220,18 @@ def program_paths(paths: Iterable[str | Path]) -> list[Path]:
 def check_file(
     path: str | Path,
     model: Compensator,
+    settings: Settings = Settings(),
     *,
-    config: str | Path | list | None = None,
-    active=None,
-    **options,
+    reachable: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> list[Diagnostic]:
-    """Read and check one program (a .src reads its .dat too); a syntax error is a finding.
-    ``active``: the $BASE/$TOOL stated where a KRL program does not set them (``ActiveFrames``)."""
+    """Read and check one program (a .src reads its .dat too) as ``settings.reading`` says; a
+    syntax error is a finding."""
+    reading = settings.reading
     try:
-        program = load_program(path, config, active=active)
+        program = load_program(path, reading.config_list, reading.dialect, reading.active)
     except PostprocError as exc:
         return [exc.diagnostic()]
-    return check_program(program, model, **options)
+    return check_program(program, model, settings, reachable=reachable)
 
 
 def _data_list_findings(path: Path) -> list[Diagnostic]:
@@ -257,17 +251,16 @@ def _data_list_findings(path: Path) -> list[Diagnostic]:
 def check_files(
     paths: Iterable[str | Path],
     model: Compensator,
+    settings: Settings = Settings(),
     *,
-    config: str | Path | list | None = None,
-    ignore: Iterable[str] = (),
-    active=None,
-    **options,
+    reachable: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> list[Diagnostic]:
     """Check the programs these files belong to, as one cell: directories are searched for
     programs of every dialect but pose lists (KRL; RAPID, URScript and Fanuc LS files by their
     suffix: a directory holds measurement CSVs and notes too), a ``$config.dat`` among them is
-    the configuration of the others (unless ``config`` is given), a data list without a DEF is
-    checked for syntax only; findings sorted by path, line, column."""
+    the configuration of the others (unless ``settings.reading.config`` is given), a data list
+    without a DEF is checked for syntax only; the codes of ``settings.check.ignore`` are not
+    reported; findings sorted by path, line, column."""
     from ..programs.cell import KRL, is_config
     from ..programs.io import FANUC_SUFFIXES, RAPID_SUFFIXES, URSCRIPT_SUFFIXES
     from ..programs.krl.machine import found_machine, is_machine, with_machine
@@ -277,7 +270,8 @@ def check_files(
     def in_directory(d: Path) -> list[Path]:  # (one walk; KRL's machine data is not a program)
         return sorted(q for q in d.rglob("*") if q.suffix.lower() in suffixes and q.is_file() and not is_machine(q))
 
-    ignored = set(ignore)
+    ignored = settings.check.ignore
+    active = settings.reading.active
     files: list[Path] = []
     machines: list[Path] = []  # the robot's machine data ($ROBROOT), not a program
     for p in map(Path, paths):
@@ -288,34 +282,35 @@ def check_files(
     except PostprocError as exc:
         return [exc.diagnostic()]
     configs = [f for f in files if is_config(f)]
-    if config is None and configs:
-        config = [str(c) for c in configs]
+    if settings.reading.config is None and configs:
+        settings = replace(settings, reading=replace(settings.reading, config=tuple(configs)))
+    settings = replace(settings, reading=replace(settings.reading, active=active))
     out: list[Diagnostic] = []
     owners = program_paths(files)
     krl = [p for p in owners if p.suffix.lower() in KRL]
     if len(krl) > 1:  # a cell: read as one, as compensate does (globals, calls across modules)
-        out += [d for d in _cell_findings(krl, model, config, active, **options) if d.code not in ignored]
+        out += [d for d in _cell_findings(krl, model, settings, reachable) if d.code not in ignored]
         owners = [p for p in owners if p.suffix.lower() not in KRL]
     for path in owners:
         if path.suffix.lower() == ".dat" and (is_config(path) or _data_list(path)):
             found = _data_list_findings(path)
         else:
-            found = check_file(path, model, config=config, active=active, **options)
+            found = check_file(path, model, settings, reachable=reachable)
         out += [d for d in found if d.code not in ignored]
     return sorted(out, key=lambda d: (d.path, d.line, d.col, d.code))
 
 
-def _cell_findings(owners: list[Path], model: Compensator, config, active=None, **options) -> list[Diagnostic]:
+def _cell_findings(owners: list[Path], model: Compensator, settings: Settings, reachable=None) -> list[Diagnostic]:
     """The findings of KRL modules and data lists checked as one cell (``cell.find_cell``:
     each module with its .dat, one reader call, ``$config.dat`` among them or ``config``)."""
     from ..programs.cell import find_cell
 
     paths = list(owners) + [d for d in (companion_dat(p) for p in owners if p.suffix.lower() != ".dat") if d]
     try:
-        program = find_cell(paths, config, active).read()
+        program = find_cell(paths, settings.reading.config_list, settings.reading.active).read()
     except PostprocError as exc:
         return [exc.diagnostic()]
-    return check_program(program, model, **options)
+    return check_program(program, model, settings, reachable=reachable)
 
 
 def _data_list(path: Path) -> bool:
@@ -366,37 +361,34 @@ def _stale(program: Program, report, targets: list[Path], shown_src: str, model:
 
 
 def check_fresh(
-    cfg: Config,
+    settings: Settings,
     model: Compensator,
     *,
     fix: bool = False,
-    ignore: Iterable[str] = (),
 ) -> tuple[list[Diagnostic], list[Path]]:
-    """Compare every configured output with its source compensated in memory.
+    """Compare every output of ``settings.check.fresh`` with its source compensated in memory
+    (with these settings, as ``postproc compensate`` would).
 
     ``model`` is the configured model (pairs may name their own). With ``fix`` stale and
     missing outputs are written (atomically, with their .dat) instead of reported.
     Returns the findings and the files written.
     """
-    if not cfg.fresh:  # nothing to compare: not an error (a cell that only wants postproc-check)
+    if not settings.check.fresh:  # nothing to compare: not an error (a cell that only wants postproc-check)
         return [], []
-    ignored = set(ignore)
+    ignored = settings.check.ignore
     models: dict[Path | None, Compensator] = {None: model}
     found: list[Diagnostic] = []
     written: list[Path] = []
-    for pair in cfg.fresh:
+    for pair in settings.check.fresh:
         if pair.model not in models:
             models[pair.model] = load_model(pair.model)
         pair_model = models[pair.model]
-        config = pair.config if pair.config is not None else cfg.config
+        reading = settings.reading if pair.config is None else replace(settings.reading, config=pair.config)
         for source, output in pair.matches():
             shown_src, shown_out = _shown(source), _shown(output)
             try:
-                program = load_program(source, list(config) if config else None, active=cfg.active)
-                report = compensate_program(
-                    program, pair_model, iterations=cfg.iterations, strict=cfg.strict, robot=cfg.robot,
-                    max_correction_mm=cfg.max_correction_mm or DEFAULT_MAX_CORRECTION_MM,
-                )
+                program = load_program(source, reading.config_list, active=reading.active)
+                report = compensate_program(program, pair_model, replace(settings, reading=reading))
             except PostprocError as exc:
                 d = exc.diagnostic()
                 found.append(Diagnostic(_shown(Path(d.path)) if d.path else shown_src, d.line, d.col, d.code,

@@ -27,6 +27,7 @@ returned for them.
 """
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -46,7 +47,6 @@ from ..core.diagnostics import (
     P303,
     P304,
     P305,
-    P308,
     P309,
     P310,
     P313,
@@ -65,39 +65,14 @@ from ..model.compensator import Compensator, Inside, Order
 from ..programs import Program
 from ..programs.base_poses import robot_base_poses
 from ..programs.locate import collect, where
+from ..robot.description import is_description_file, load_description, robot_name
+from ..settings import Settings
 
 __all__ = [
-    "Settings", "Selection", "Commands", "select", "findings", "static_findings", "command_findings",
+    "Selection", "Commands", "select", "findings", "static_findings", "command_findings",
     "dead_band_notes", "model_bases", "pose_frame_rule", "std_bound", "tool_mismatch", "robot_mismatch",
-    "DEFAULT_MAX_CORRECTION_MM", "demonstration_rule", "unit_rule",
+    "demonstration_rule", "unit_rule",
 ]
-
-# An error model that predicts more than this is wrong, not the robot (guard, --max-correction).
-DEFAULT_MAX_CORRECTION_MM = 5.0
-
-
-@dataclass(frozen=True)
-class Settings:
-    """What the rules depend on besides the program and the model."""
-
-    iterations: int | None = None
-    max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM
-    robot: str | None = None  # the robot the program is for (P310)
-    force: bool = False  # lifts P401, P408, P409, P304, P310
-    fill_partial: bool = True  # False: a partial aggregate is refused (P216), not filled in
-    reachable: Callable[[np.ndarray], np.ndarray] | None = None  # robot-base poses → bool mask (P309)
-    chain: object = None  # compensator.Chain: a part of a program after the parts before (streaming compensate)
-    max_std_mm: float | None = None  # bound on the model's error_std (P336); None: the card's; inf: none
-
-    def __post_init__(self):
-        bound = self.max_correction_mm
-        if not (isinstance(bound, int | float) and 0 < bound < math.inf):
-            # NaN would switch the bound off silently: every comparison with it is False
-            raise PostprocError(f"--max-correction must be a positive number of mm, not {bound}", code=P308)
-        std = self.max_std_mm
-        if std is not None and not (isinstance(std, int | float) and std > 0):  # (NaN: not > 0)
-            raise PostprocError(f"--max-std must be a positive number of mm, not {std}", code=P308)
-
 
 @dataclass
 class Selection:
@@ -215,7 +190,7 @@ def missing_xyz(program: Program, rows: np.ndarray) -> np.ndarray:
 
 def stamp_rule(program: Program, settings: Settings) -> list[Diagnostic]:
     """P401: a stamped program is compensated already."""
-    if not program.stamps or settings.force:
+    if not program.stamps or settings.rules.force:
         return []
     index, stamp = next(iter(program.stamps.items()))
     text = program.texts[index] if index < len(program.texts) else ""
@@ -229,7 +204,7 @@ def accuracy_rule(program: Program, settings: Settings) -> list[Diagnostic]:
     own absolute-accuracy model (``$ABS_ACCUR``): the controller corrects the positioning error
     itself, postproc's correction would be a second one. P409 (a warning) where that model is
     suppressed for now. Located at the machine data's line (``programs.krl.machine``)."""
-    if settings.force or program.dialect != "krl":
+    if settings.rules.force or program.dialect != "krl":
         return []
     from ..programs.krl.machine import backup_accuracy
 
@@ -251,13 +226,13 @@ def accuracy_rule(program: Program, settings: Settings) -> list[Diagnostic]:
 
 def fit_rule(program: Program, model: Compensator, settings: Settings) -> list[Diagnostic]:
     """P304 a model for another tool, P310 for another robot."""
-    if settings.force:
+    if settings.rules.force:
         return []
     out = []
     mismatch = None if model.wants_tool else tool_mismatch(program, model)  # (a model with a tool input: any)
     if mismatch:
         out.append(Diagnostic(program.files[0], 1, 1, P304, mismatch + "; use --force to compensate anyway", "error"))
-    mismatch = robot_mismatch(settings.robot, model, program)
+    mismatch = robot_mismatch(robot_name(settings.robot), model, program)
     if mismatch:
         out.append(Diagnostic(str(model.path), 0, 0, P310, mismatch + "; use --force to compensate anyway", "error"))
     return out
@@ -455,7 +430,7 @@ def known_rule(program: Program, model: Compensator, settings: Settings, poses: 
             poses[no_attitude, 3:6] = nominal
             out += collect(program, rows, P213,
                            f"orientation not known: the model's nominal attitude {list(map(float, nominal))} is assumed")
-    if not settings.fill_partial:
+    if not settings.rules.fill_partial:
         rows = np.flatnonzero(use)
         partial = rows[missing_xyz(program, rows).any(axis=1)]
         out += collect(program, partial, P216, "partial aggregate: the controller takes its missing X/Y/Z from the "
@@ -472,13 +447,27 @@ def finite_rule(program: Program, poses: np.ndarray, use: np.ndarray) -> list[Di
                    "model's float32)", "error")
 
 
-def reach_rule(program: Program, model: Compensator, settings: Settings, selection: Selection) -> list[Diagnostic]:
-    """P302 beyond the model's reach; P309 no IK solution (``settings.reachable``)."""
+@functools.lru_cache(maxsize=8)
+def nominal_reach(robot: str | None) -> Callable[[np.ndarray], np.ndarray] | None:
+    """Where ``--robot`` is a description file: its nominal robot's IK reach (robot-base poses →
+    bool mask, P309); a robot given by its name: None (its name is all the rules use)."""
+    if not robot or not is_description_file(robot):
+        return None
+    from ..robot.arm import Robot
+
+    nominal = Robot(load_description(robot))
+    return lambda poses: nominal.ik(poses)[1]
+
+
+def reach_rule(program: Program, model: Compensator, selection: Selection,
+               reachable: Callable[[np.ndarray], np.ndarray] | None = None) -> list[Diagnostic]:
+    """P302 beyond the model's reach; P309 no IK solution (``reachable``: robot-base poses → a
+    bool mask, the nominal robot's IK)."""
     rows, sel = selection.rows, selection.poses
     far = model.beyond_reach(sel[:, :3])
     out = collect(program, rows[far], P302, "target beyond the robot's reach: no model can compensate there", "error")
-    if settings.reachable is not None and len(sel):
-        no_ik = ~np.asarray(settings.reachable(sel), bool) & ~far
+    if reachable is not None and len(sel):
+        no_ik = ~np.asarray(reachable(sel), bool) & ~far
         out += collect(program, rows[no_ik], P309, "the nominal robot has no IK solution for this target", "error")
     return out
 
@@ -500,7 +489,7 @@ def output_rule(program: Program, settings: Settings, commands: Commands) -> lis
     size = np.linalg.norm(commands.commanded - commands.selection.poses[:, :3], axis=1)
     bad = ~np.isfinite(size)
     out = collect(program, rows[bad], P305, "the model returns NaN or inf at this target", "error")
-    bound = settings.max_correction_mm
+    bound = settings.rules.max_correction_mm
     large = np.flatnonzero(~bad & (size > bound))
     large = large[np.argsort(-size[large], kind="stable")]
     out += collect(program, rows[large], P303, lambda i: f"correction of {size[large[i]]:.3f} mm exceeds the bound "
@@ -523,14 +512,14 @@ def joints_rule(program: Program, model: Compensator, commands: Commands) -> lis
 def std_bound(model: Compensator, settings: Settings) -> float | None:
     """The bound :func:`std_rule` holds ``error_std`` to (None: no check, e.g. a model without
     that output): what the model run must supply (``Commands.std``)."""
-    bound = settings.max_std_mm if settings.max_std_mm is not None else model.max_std_mm
+    bound = settings.rules.max_std_mm if settings.rules.max_std_mm is not None else model.max_std_mm
     return bound if model.has_std and bound is not None and math.isfinite(bound) else None
 
 
 def std_rule(program: Program, model: Compensator, settings: Settings, commands: Commands) -> list[Diagnostic]:
     """P336 (a warning): the model's own std at a target (output ``error_std`` at its command,
     each reached from the previous one's: ``Compensator.command_std``) above
-    ``settings.max_std_mm`` or, without it, the card's ``uncertainty.max_std_mm``: the training
+    ``settings.rules.max_std_mm`` or, without it, the card's ``uncertainty.max_std_mm``: the training
     data did not pin the model down there. A model without ``error_std`` states nothing: no
     finding. The numbers come with the commands (``Commands.std``: onnxruntime computes only the
     outputs asked for, and the run that settles the approach at the commands asks for it too);
@@ -553,8 +542,15 @@ def std_rule(program: Program, model: Compensator, settings: Settings, commands:
 # --------------------------------------------------------------------------- all
 
 
-def select_with_findings(program: Program, model: Compensator, settings: Settings) -> tuple[Selection, list[Diagnostic]]:
-    """The targets the model takes, and every finding that needs no model output."""
+def select_with_findings(program: Program, model: Compensator, settings: Settings, *,
+                         reachable: Callable[[np.ndarray], np.ndarray] | None = None,
+                         chain=None) -> tuple[Selection, list[Diagnostic]]:
+    """The targets the model takes, and every finding that needs no model output. Besides the
+    settings: ``reachable`` (robot-base poses → bool mask, P309; default: the IK of the nominal
+    robot where ``settings.robot`` is its description file) and ``chain`` (a
+    ``compensator.Chain``: a part of a program after the parts before, streaming)."""
+    if reachable is None:
+        reachable = nominal_reach(settings.robot)
     out = (stamp_rule(program, settings) + accuracy_rule(program, settings) + fit_rule(program, model, settings))
     out += demonstration_rule(model)
     in_metres = unit_rule(program, model)
@@ -574,10 +570,10 @@ def select_with_findings(program: Program, model: Compensator, settings: Setting
     if unstated.any():
         left[P218] = np.flatnonzero(unstated)
     selection = Selection(rows, poses[rows], left=left)
-    out += reach_rule(program, model, settings, selection)
+    out += reach_rule(program, model, selection, reachable)
     selection.order = execution_order(program, selection, poses, model)
     if model.wants_joints or model.wants_tool:
-        selection, found = configuration_rule(program, model, selection, settings.chain)
+        selection, found = configuration_rule(program, model, selection, chain)
     else:
         selection, found = stated_configuration_rule(program, model, selection)
     out += found
@@ -618,15 +614,17 @@ def configuration_rule(program: Program, model: Compensator, selection: Selectio
     return Selection(rows, poses, q, tool, left), found
 
 
-def select(program: Program, model: Compensator, settings: Settings = Settings()) -> Selection:
+def select(program: Program, model: Compensator, settings: Settings = Settings(), *, reachable=None,
+           chain=None) -> Selection:
     """The targets the model takes (known position, finite), robot-base poses with the
-    nominal attitude filled in."""
-    return select_with_findings(program, model, settings)[0]
+    nominal attitude filled in (``reachable``, ``chain``: as :func:`select_with_findings`)."""
+    return select_with_findings(program, model, settings, reachable=reachable, chain=chain)[0]
 
 
-def static_findings(program: Program, model: Compensator, settings: Settings) -> list[Diagnostic]:
+def static_findings(program: Program, model: Compensator, settings: Settings, *, reachable=None,
+                    chain=None) -> list[Diagnostic]:
     """Every finding that needs no model output."""
-    return select_with_findings(program, model, settings)[1]
+    return select_with_findings(program, model, settings, reachable=reachable, chain=chain)[1]
 
 
 def dead_band_notes(program: Program, commands: Commands) -> list[Diagnostic]:
@@ -653,10 +651,11 @@ def command_findings(program: Program, commands: Commands, model: Compensator, s
             + std_rule(program, model, settings, commands))
 
 
-def findings(program: Program, commands: Commands | None, model: Compensator, settings: Settings) -> list[Diagnostic]:
+def findings(program: Program, commands: Commands | None, model: Compensator, settings: Settings, *,
+             reachable=None) -> list[Diagnostic]:
     """Every finding of these rules about ``program`` (the reader's warnings are not
     repeated). ``commands`` None: only those that need no model output."""
-    out = static_findings(program, model, settings)
+    out = static_findings(program, model, settings, reachable=reachable)
     if commands is not None:
         out += command_findings(program, commands, model, settings)
     return out

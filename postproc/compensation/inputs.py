@@ -9,7 +9,6 @@ angles on the nominal arm (P309, left as written) and attaches the inputs to it.
 """
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 
 import numpy as np
@@ -54,21 +53,9 @@ def unseparated_mount_mm(model: Compensator, tools: np.ndarray) -> np.ndarray:
 def model_description(model: Compensator):
     """The robot description of the model's robot (the shipped ``models/*.toml`` whose
     [robot] name is the card's ``robot``), or None."""
-    return _description_named(model.robot.casefold()) if model.robot else None
+    from ..robot.description import shipped_description
 
-
-@functools.lru_cache(maxsize=None)
-def _description_named(name: str):
-    """(the shipped descriptions read once per process: a compensate asks several times)"""
-    from ..core.resources import model_path
-    from ..robot.description import load_description
-
-    folder = model_path("kr500.toml").parent
-    for path in sorted(folder.glob("*.toml")):
-        description = load_description(path)
-        if description.name.casefold() == name:
-            return description
-    return None
+    return shipped_description(model.robot) if model.robot else None
 
 
 def model_tool(model: Compensator, description) -> np.ndarray:

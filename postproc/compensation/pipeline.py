@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -35,32 +36,27 @@ from ..core.diagnostics import (
 from ..core.outputs import check_outputs, write
 from ..model.compensator import Chain, Compensator, Inside
 from ..programs import STAMP_PREFIX, Program
-from ..programs.base_poses import robot_base_poses
 from ..programs.locate import where
 from ..programs.rewrite import insert_stamp, stamp_line
+from ..settings import Settings
 from .agreement import _agreement
 from .commands import _CommandStream, _rewrite
 from .findings import (
-    DEFAULT_MAX_CORRECTION_MM,
     Commands,
     Selection,
-    Settings,
     command_findings,
     dead_band_notes,
     execution_order,
     group_rule,
     missing_xyz,
     outside_envelope,
-    robot_mismatch,
     select_with_findings,
     std_bound,
-    tool_mismatch,
 )
 from .guards import check_round_trip
 
 __all__ = [
-    "Report", "robot_base_poses", "compensate_program", "rewrite_program", "DEFAULT_MAX_CORRECTION_MM",
-    "write_outputs", "tool_mismatch", "robot_mismatch",
+    "Report", "compensate_program", "rewrite_program", "write_outputs", "output_paths",
 ]
 
 
@@ -230,35 +226,30 @@ def _raise_first(found: list[Diagnostic], strict: bool) -> None:
 def compensate_program(
     program: Program,
     model: Compensator,
+    settings: Settings = Settings(),
     *,
-    iterations: int | None = None,
-    strict: bool = False,
-    force: bool = False,
-    max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
-    max_std_mm: float | None = None,
-    robot: str | None = None,
-    fill_partial: bool = True,
-    orientation: bool = False,
-    _chain: Chain | None = None,
-    _stamp: bool = True,
+    chain: Chain | None = None,
+    stamp: bool = True,
+    reachable: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> Report:
     """Compensate every resolvable target of ``program``; the new texts are in ``Report.outputs``
     (a file in which no target was compensated is returned as it was, without a stamp). With
-    ``orientation`` the orientation is corrected too (A/B/C; RAPID's q1..q4, URScript's rx,ry,rz:
+    ``settings.rules.orientation`` the orientation is corrected too (A/B/C; RAPID's q1..q4, URScript's rx,ry,rz:
     ``Program.orientation``), with the model's ``rotation_error`` (P306 without it).
 
     Raises PostprocError for what must not be written: every error of
     :func:`postproc.compensation.findings.findings` (double compensation, a model for another robot or
     tool, unless ``force``; targets beyond reach, NaN or implausibly large corrections;
-    partial aggregates with ``fill_partial=False``), under ``strict`` any warning, and
+    partial aggregates with ``fill_partial`` off), under ``strict`` any warning, and
     whatever the last checks (guards.py) refuse. Targets left as written (frame or position
     not known) are counted in ``Report.left`` / ``Report.left_codes``.
-    (``_chain``, ``_stamp``: streaming compensate, a part of a program continuing the parts
-    before it, the texts returned unstamped.)
+    (``chain``, ``stamp``: streaming compensate, a part of a program continuing the parts
+    before it, the texts returned unstamped; ``reachable``: robot-base poses → bool mask, the
+    nominal robot's IK, P309.)
     """
-    settings = Settings(iterations=iterations, max_correction_mm=max_correction_mm, robot=robot, force=force,
-                        fill_partial=fill_partial, chain=_chain, max_std_mm=max_std_mm)
-    selection, found = select_with_findings(program, model, settings)
+    rules = settings.rules
+    strict, orientation, iterations = rules.strict, rules.orientation, rules.iterations
+    selection, found = select_with_findings(program, model, settings, reachable=reachable, chain=chain)
     model_notes = [d for d in found if d.severity == "note"]  # (P340: said once, not a warning)
     found = [d for d in found if d.severity != "note"]
     warnings = list(program.diagnostics) + found
@@ -273,8 +264,8 @@ def compensate_program(
     # thread, chunk by chunk, while this one rewrites the numbers of the chunks already done.
     approach_notes: list[Diagnostic] = []
     for attempt in range(MAX_ROUNDS):
-        stream = _CommandStream(model, selection, report.iterations, program, max_correction_mm,
-                                orientation=orientation, chain=_chain, std=std_bound(model, settings) is not None)
+        stream = _CommandStream(model, selection, report.iterations, program, rules.max_correction_mm,
+                                orientation=orientation, chain=chain, std=std_bound(model, settings) is not None)
         outputs = _rewrite(program, selection, stream)
         commanded, new_xyz, joints = stream.result()
         # the runs of one set of numbers (a loop, a routine called twice, copies) must agree
@@ -309,7 +300,7 @@ def compensate_program(
     if offset is not None:  # (the numbers read again are the tokens + what the program adds to them)
         written = written.copy()
         written[:, :3] += offset[selection.rows]
-    outputs = _finish(program, model, selection, outputs, written, stamp=_stamp)
+    outputs = _finish(program, model, selection, outputs, written, stamp=stamp)
 
     size = np.linalg.norm(commanded - selection.poses[:, :3], axis=1)
     left = _left_codes(program, selection)

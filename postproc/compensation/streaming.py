@@ -40,7 +40,7 @@ from ..core.diagnostics import P109, P111, P190, P191, P321, Diagnostic, Postpro
 from ..core.progress import ProgressBar, reporting
 from ..model import compensator
 from ..model.compensator import Compensator
-from ..programs import STAMP_PREFIX, ActiveFrames
+from ..programs import STAMP_PREFIX
 from ..programs.io import (
     _config_texts,
     backup_active,
@@ -49,8 +49,8 @@ from ..programs.io import (
     read_program,
 )
 from ..programs.rewrite import insert_stamp, stamp_line
-from .api import _model
-from .findings import DEFAULT_MAX_CORRECTION_MM
+from ..settings import Settings
+from .api import model_of, settings_of
 from .pipeline import Report, compensate_program, output_paths, write_outputs
 
 __all__ = ["STREAM_BYTES", "Fallback", "compensate_stream", "streams"]
@@ -191,28 +191,27 @@ def compensate_stream(
     path: str | Path,
     out: str | Path,
     model: compensator.Compensator | str | Path | None = None,
+    settings: Settings = Settings(),
     *,
-    config: str | Path | None = None,
-    active: ActiveFrames | None = None,
     chunk: int | None = None,
-    **kwargs,
 ) -> Report:
     """Compensate ``path`` into ``out`` a chunk of ``chunk`` targets at a time (default
     STREAM_TARGETS, or the model's ``command_chunk`` when smaller or for a model that settles
     the approach: the same numbers as the in-memory path; other sizes may differ in the
-    float32 model's last bits); ``kwargs`` as ``compensate_program``. Raises
+    float32 model's last bits), with ``settings`` as ``compensate_program``. Raises
     :class:`Fallback` (nothing at ``out``) for what it does not carry exactly (module text),
     PostprocError for the errors of the last checks (located in the whole file) and of the write.
     ``Report.outputs`` is empty: the new text is only in the file."""
     path = Path(path)
-    if path.suffix.lower() != ".src" or companion_dat(path) is not None or kwargs.get("orientation"):
+    if path.suffix.lower() != ".src" or companion_dat(path) is not None or settings.rules.orientation:
         raise Fallback("not a lone .src")
-    model = _model(model)
+    model = model_of(model)
     if chunk is None:
         chunk = model.command_chunk if model.settles else min(model.command_chunk, STREAM_TARGETS)
     size = chunk
+    config = settings.reading.config_list
     configs = _config_texts(config)
-    active = backup_active(config, active)
+    active = backup_active(config, settings.reading.active)
     name = str(path)
     try:
         fh = path.open("rb")
@@ -231,7 +230,7 @@ def compensate_stream(
             try:
                 with reporting(False):  # (the file's bar, not one per chunk)
                     program = read_program([name], [header + body + tail], "krl", config=configs, active=active)
-                    report = compensate_program(program, model, _chain=chain, _stamp=False, **kwargs)
+                    report = compensate_program(program, model, settings, chain=chain, stamp=False)
             except PostprocError as exc:
                 if exc.code in GUARDS:
                     raise _relocated(exc, header_lines, offset) from None
@@ -278,40 +277,33 @@ def compensate_file(
     out: str | Path,
     model: Compensator | str | Path | None = None,
     *,
-    config: str | Path | None = None,
-    active: ActiveFrames | None = None,
-    iterations: int | None = None,
-    strict: bool = False,
-    force: bool = False,
-    max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM,
-    max_std_mm: float | None = None,
-    robot: str | None = None,
-    fill_partial: bool = True,
-    orientation: bool = False,
+    settings: Settings | None = None,
     stream: bool | None = None,
+    **options,
 ) -> Report:
     """Compensate a program file (with its .dat) into ``out`` (its .dat beside it).
     Nothing is written unless everything succeeded; the files are replaced atomically.
-    ``stream`` (default: a KRL .src larger than ``STREAM_BYTES``): a chunk of
+    ``settings`` and ``options`` as :func:`postproc.compensate_text` (``config``, ``active``,
+    ``strict``, …). ``stream`` (default: a KRL .src larger than ``STREAM_BYTES``): a chunk of
     targets at a time, in memory bounded by the chunk (this module; the same bytes;
     programs it does not carry exactly are compensated in memory); ``Report.outputs`` is then
     empty."""
-    kwargs = dict(iterations=iterations, strict=strict, force=force, max_correction_mm=max_correction_mm,
-                  max_std_mm=max_std_mm, robot=robot, fill_partial=fill_partial, orientation=orientation)
+    settings = settings_of(settings, options)
+    reading = settings.reading
     refusal = None  # (a chunk's error: raised where the program is too large for the in-memory path)
-    if streams(path, out, orientation) if stream is None else stream:
-        model = _model(model)
+    if streams(path, out, settings.rules.orientation) if stream is None else stream:
+        model = model_of(model)
         try:
-            return compensate_stream(path, out, model, config=config, active=active, **kwargs)
+            return compensate_stream(path, out, model, settings)
         except Fallback as fallback:
             refusal = fallback.error
     try:
-        program = load_program(path, config, active=active)
+        program = load_program(path, reading.config_list, reading.dialect, reading.active)
     except PostprocError as exc:
         if exc.code == P111 and refusal is not None:
             raise refusal from None
         raise
-    report = compensate_program(program, _model(model), **kwargs)
+    report = compensate_program(program, model_of(model), settings)
     if str(out) == "-":
         if len(program.files) > 1:
             raise PostprocError("a program with a .dat cannot be written to standard output; give -o FILE",

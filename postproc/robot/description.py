@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -12,7 +13,8 @@ from ..core.diagnostics import P330, P331, P332, P333, PostprocError
 from ..core.resources import model_path
 from ..core.toml import check_value, key_line, parse_toml, read_toml
 
-__all__ = ["CONFIGURATION_FORMS", "JointSpec", "RobotDescription", "load_description", "parse_description"]
+__all__ = ["CONFIGURATION_FORMS", "JointSpec", "RobotDescription", "load_description", "parse_description",
+           "is_description_file", "shipped_description", "robot_name", "robot_description"]
 
 
 # the forms a controller states an arm configuration in ([robot] configuration; postproc.robot.configuration)
@@ -245,3 +247,59 @@ def _external_tables(raw, path: str) -> tuple:
 
     parse_external(tables, path)  # (malformed: refused where the description is read)
     return tuple(tables)
+
+
+# --------------------------------------------------------------------------- the robot, by name or file
+
+
+def is_description_file(value) -> bool:
+    """Whether ``--robot VALUE`` names a description file (a .toml, or a file that exists)
+    rather than a robot by its name."""
+    text = str(value)
+    return text.lower().endswith(".toml") or Path(text).is_file()
+
+
+@functools.lru_cache(maxsize=None)
+def shipped_description(name: str) -> RobotDescription | None:
+    """The shipped description (``models/*.toml``) whose [robot] name or file stem is ``name``
+    (any case), or None; each read once per process."""
+    folder = model_path("kr500.toml").parent
+    wanted = name.casefold()
+    for path in sorted(folder.glob("*.toml")):
+        if path.stem.casefold() == wanted:
+            return load_description(path)
+    for path in sorted(folder.glob("*.toml")):
+        description = load_description(path)
+        if description.name.casefold() == wanted:
+            return description
+    return None
+
+
+def robot_name(value) -> str | None:
+    """The name of the robot ``--robot VALUE`` means (one meaning everywhere): a description
+    file's [robot] name, a shipped description's by its file stem, else VALUE itself."""
+    if value is None:
+        return None
+    if is_description_file(value):
+        return load_description(value).name
+    shipped = shipped_description(str(value)) if str(value).casefold() in _shipped_stems() else None
+    return shipped.name if shipped is not None else str(value)
+
+
+def robot_description(value, default: str | None = "kr500.toml") -> RobotDescription:
+    """The description of the robot ``--robot VALUE`` means: its file, or the shipped one of
+    that name or file stem; None: ``default`` (a shipped file). P330 for a name no shipped
+    description has."""
+    if value is None:
+        return load_description(model_path(default) if default else None)
+    if is_description_file(value):
+        return load_description(value)
+    found = shipped_description(str(value))
+    if found is None:
+        raise PostprocError(f"no robot description named {value!r}: give its description file (FILE.toml), or a "
+                            f"shipped robot ({', '.join(sorted(_shipped_stems()))})", str(value), 0, 0, P330)
+    return found
+
+
+def _shipped_stems() -> set[str]:
+    return {p.stem.casefold() for p in model_path("kr500.toml").parent.glob("*.toml")}

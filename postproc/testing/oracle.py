@@ -87,9 +87,9 @@ def _axes_pose(model, program=None):
 
 
 def check(files, texts, dialect: str, model, config=None, active=None, seeds=range(4), tol_mm: float = TOL_MM,
-          compensate_kwargs: dict | None = None) -> Checked:
-    """Compensate ``texts`` with ``model`` (a Compensator) and check the property over the
-    oracles of ``seeds`` (see the module text)."""
+          settings=None) -> Checked:
+    """Compensate ``texts`` with ``model`` (a Compensator; ``settings``: a Settings, default the
+    defaults) and check the property over the oracles of ``seeds`` (see the module text)."""
     from ..compensation.pipeline import compensate_program
     from ..core.diagnostics import P231, P322, PostprocError
     from ..programs.analysis import analyse
@@ -99,7 +99,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
     out = Checked()
     program = read_program(list(files), list(texts), dialect, config=config, active=active)
     try:
-        report = compensate_program(program, model, **(compensate_kwargs or {}))
+        report = compensate_program(program, model, *([settings] if settings is not None else []))
     except PostprocError:
         out.exit_code = 2  # nothing written: nothing to check
         return out

@@ -76,16 +76,10 @@ def robot_metadata(robot) -> dict:
         return {}
     if not isinstance(robot, (str, Path)):
         return arm_metadata(robot)
-    path, name = Path(robot), str(robot)
-    try:
-        from ...robot.description import load_description
-    except ImportError:  # robot description support (pin) not installed: the name only
-        return {"robot": name}
-    if path.suffix == ".toml":
-        description = load_description(path)
-    else:
-        default = load_description()
-        if default.name != name:
-            return {"robot": name}  # an unknown robot: record its name, claim no reach
-        description = default
+    from ...robot.description import is_description_file, load_description, shipped_description
+
+    name = str(robot)
+    description = load_description(robot) if is_description_file(robot) else shipped_description(name)
+    if description is None:
+        return {"robot": name}  # an unknown robot: record its name, claim no reach
     return arm_metadata(description)

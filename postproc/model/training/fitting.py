@@ -1,7 +1,7 @@
 """``fit``: measurements → a fitted error model and its model card (``postproc train`` is
 this function, its arguments mapped and its PostprocError mapped to exit codes).
 
-    trained = fit("measured.csv", method="hybrid", robot="models/kr500.toml", seed=0)
+    trained = fit("measured.csv", Settings().override(method="hybrid", robot="models/kr500.toml", seed=0))
     trained.model                   # the fitted estimator (HybridModel or ErrorModel)
     trained.card["accuracy"]        # the model card that export writes
     trained.export("cell3.onnx")    # the contract ONNX file, as `postproc train -o cell3.onnx`
@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ...core.diagnostics import P317, P320, P507, P508, P516, PostprocError
+from ...settings import Settings
 from .card import (
     arm_metadata,
     card_iterations,
@@ -90,21 +91,30 @@ class _Rows:
     rotation_errors: np.ndarray | None = None
 
 
-def fit(measurements, method: str = "hybrid", robot=None, *, tool=None, val_fraction: float | None = None,
-        split_seed: int = 0, register: bool = False, pose_only: bool = False, update=None, search: bool = False,
-        search_engine=None, name: str | None = None, **params) -> TrainedModel:
-    """Fit ``method`` to ``measurements`` (a ``measurements.Measurements`` or a CSV's path).
+def fit(measurements, settings: Settings = Settings(), *, progress: bool = False, search_engine=None,
+        **params) -> TrainedModel:
+    """Fit ``settings.training.method`` to ``measurements`` (a ``measurements.Measurements`` or a
+    CSV's path), with the settings whole:
 
-    robot: a RobotDescription, its .toml file or a name (networks: only for the card).
-    tool: X,Y,Z,A,B,C (text or 6 numbers) the data were measured with, where the file does not
-        say (``# tool:``, tool_x..tool_c; a contradiction is refused, P320).
-    val_fraction, split_seed: the held-out rows (None: ``data.default_val_fraction``, 5 %, none
-        below 100 rows: every row fitted, which ``notes`` says). register: the measured columns are a tracker's.
-    pose_only: identified methods without the visiting order (no backlash).
-    update: OLD.onnx to re-calibrate (identified methods). search: search the networks' hidden
-        layers; search_engine: a callable giving a context manager that yields the candidates'
-        ``map`` (``fleet.task_map``; None: in place). name: the card's name (None: the file's stem).
+    ``settings.robot``: the robot — its description file or a shipped robot's name (the nominal
+    description the identified methods start from, default models/kr500.toml), or any name
+    (networks: only for the card; a RobotDescription object too, for library callers).
+    ``settings.training``: ``tcp`` (X,Y,Z,A,B,C the data were measured with, where the file does
+    not say: ``# tool:``, tool_x..tool_c; a contradiction is refused, P320), ``val_fraction`` and
+    ``split_seed`` (the held-out rows; None: ``data.default_val_fraction``, 5 %, none below 100
+    rows: every row fitted, which ``notes`` says), ``register`` (the measured columns are a
+    tracker's), ``pose_only`` (identified methods without the visiting order), ``update`` (OLD.onnx
+    to re-calibrate), ``search`` (search the networks' hidden layers), ``name`` (the card's;
+    None: the file's stem), ``seed``, ``hidden``, ``epochs``, ``optimizer``.
+    ``progress``: bars on stderr; ``search_engine``: a callable giving a context manager that
+    yields the candidates' ``map`` (``fleet.task_map``; None: in place); ``params``: further
+    constructor parameters of the estimator (not settings: e.g. HybridModel's ``kinematic``).
     Raises PostprocError (P3xx/P5xx) on data, options or a robot it cannot use."""
+    t = settings.training
+    method, robot, tool, update, search, name = t.method, settings.robot, t.tcp, t.update, t.search, t.name
+    params = {"seed": t.seed, "progress": progress,
+              **{k: v for k, v in (("hidden", t.hidden), ("epochs", t.epochs), ("optimizer", t.optimizer)) if v is not None},
+              **params}
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r} ({'|'.join(METHODS)})")
     if update and method not in IDENTIFIED:
@@ -115,13 +125,13 @@ def fit(measurements, method: str = "hybrid", robot=None, *, tool=None, val_frac
         raise PostprocError(f"{given} applies to the pose-only networks ({', '.join(NETWORKS)}); --method {method} "
                             "identifies the robot's parameters (its residual networks have a fixed recipe: --hidden, "
                             "--epochs): leave it out", code=P516)
-    rows = _split(measurements, tool, val_fraction, split_seed)
+    rows = _split(measurements, tool, t.val_fraction, t.split_seed)
     # a robot description is read before the long part, so that a typo fails fast
     # (identified methods read it themselves: it is the model, and may be an arm postproc.robot.arm cannot solve)
     robot_meta = {} if method in IDENTIFIED else robot_metadata(robot)
-    _measured(rows, register, method)
+    _measured(rows, t.register, method)
     if method in IDENTIFIED:
-        return _identified(rows, method, _description(robot), pose_only, update, name, params)
+        return _identified(rows, method, _description(robot), t.pose_only, update, name, params)
     return _network(rows, method, robot_meta, search, search_engine, name, params)
 
 
@@ -210,17 +220,19 @@ def _take(values: np.ndarray | None, rows: np.ndarray) -> np.ndarray | None:
 def _description(robot):
     """The nominal description an identified method starts from: ``robot`` (a description or
     its .toml), else the shipped default (a name other than the default's: P508)."""
-    from ...robot.description import RobotDescription, load_description
+    from ...robot.description import RobotDescription, is_description_file, load_description, shipped_description
 
     if isinstance(robot, RobotDescription):
         return robot
-    if robot and Path(robot).suffix == ".toml":
+    if not robot:
+        return load_description()
+    if is_description_file(robot):
         return load_description(robot)
-    default = load_description()
-    if robot and robot != default.name:
+    found = shipped_description(str(robot))
+    if found is None:
         raise PostprocError(f"--method hybrid identifies the robot's kinematics: give its description file "
                             f"(--robot FILE.toml), not the name {robot!r}; or use --method gpso", code=P508)
-    return default
+    return found
 
 
 @dataclass

@@ -99,7 +99,7 @@ def search_structure(
     """Search structures on (poses, errors); returns the winner and every candidate's scores.
 
     ``map_fn(fn, *iterables)`` runs the fits, results in order (default: the built-in ``map``,
-    one after another here; ``postproc.fleet.jobs.task_map`` gives one whose calls are tasks on a
+    one after another here; ``postproc.fleet.cluster.task_map`` gives one whose calls are tasks on a
     cluster). Every fit is seeded, so where it runs does not change the result."""
     map_fn = map_fn or map
     fit_rows, val_rows = split_indices(len(poses), val_fraction, seed)
