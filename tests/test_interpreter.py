@@ -58,12 +58,13 @@ def test_the_interpreter_follows_out_parameters_and_code_not_read():
 
 
 def test_the_interpreter_starts_programs_activates_routines_and_binds_arguments_as_the_analysis_does():
-    """One activation for both engines (issue 31): the program's start, a routine's activation
-    and a call's binding are the analysis's; the interpreter replaces how statements run only."""
+    """One activation for both engines (issue 31): the program's start, a routine's activation,
+    a call's binding and which variables code not read touches are the analysis's; the
+    interpreter replaces how statements run and the values it gives."""
     from postproc.programs.analysis.execute import Analysis
     from postproc.programs.interpreter import Interpreter
 
-    for name in ("declare_data", "start", "routine", "call", "invoke", "lookup", "write"):
+    for name in ("declare_data", "start", "routine", "call", "invoke", "havoc", "lookup", "write"):
         assert getattr(Interpreter, name) is getattr(Analysis, name), name
     # KRL: OUT copied back, IN copied in (the callee's assignment to it stays its own)
     src = ("DEF t( )\n  DECL E6POS P\n  DECL REAL D\n  P = {X 100,Y 0,Z 0,A 0,B 0,C 0}\n  D = 5\n  Lift(P, D)\n"

@@ -10,13 +10,14 @@ run both and check that every executed target is either commanded at P + Ê for 
 nominal pose P (reached from the motion that really ran before it) or was left as written — and
 that the product did not exit 0 where one was left.
 
-The interpreter is the analysis (``execute.Analysis``) with concrete control flow: it shares
+The interpreter is the analysis (``execute.Analysis``) with concrete control flow. It shares
 its evaluation (values, the dialect's builtins), how a program starts and a routine is
-activated (``declare_data``, ``start``, ``routine``) and the binding of a call's arguments
-(``call``: copy-in, copy-back of OUT / by-reference parameters, defaults, the callee's scope),
-and replaces how statements run (``straight``, ``body``): each routine's statements are
-compiled to a flat list with jumps (``_compile``), run one path, with the oracle's answers
-where a value is not known.
+activated (``declare_data``, ``start``, ``routine``), the binding of a call's arguments
+(``call``: copy-in, copy-back of OUT / by-reference parameters, defaults, the callee's scope)
+and which variables code not read touches (``havoc``). It replaces how statements run
+(``straight``, ``body``: each routine's statements compiled to a flat list with jumps,
+``_compile``, run one path), the values code not read leaves (``unseen``: the world's) and what
+a motion records, with the oracle's answers where a value is not known.
 """
 from __future__ import annotations
 
@@ -256,15 +257,10 @@ class Interpreter(Analysis):
         out = self.stmt(s, st)
         return out if out is not None else st
 
-    def havoc(self, st: State, names, why: str, loc) -> State:
-        """Code not read runs: the oracle gives what it touches new values (frames: a frame of
-        the world's; numbers, flags, poses: the world's)."""
-        keys = self.dialect.touched(self, st, names)
-        for k in keys:
-            v = st.vars.get(k)
-            st.vars[k] = self._world(v, self.here)
-        st.last, st.cur = None, None
-        return st
+    def unseen(self, v, top):
+        """Code not read ran (``Analysis.havoc``): the oracle gives what it touches new values
+        (frames: a frame of the world's; numbers, flags, poses: the world's)."""
+        return self._world(v, self.here)
 
     def _world(self, v, site):
         if isinstance(v, bool):

@@ -727,15 +727,19 @@ class Analysis:
 
     def havoc(self, st: State, names, why: str, loc: Loc | None) -> State:
         """Code not seen runs here: ``names`` (None: every global and frame the dialect says such
-        code may touch) become unknown, and where the robot stands."""
+        code may touch) get what ``unseen`` says, and where the robot stands is not known (the
+        interpreter's too: it gives the world's values)."""
         top = Top(why, loc)
         keys = self.dialect.touched(self, st, names)
         for k in keys:
-            v = st.vars.get(k)
-            # (it may still hold what it held: its tokens stay with the unknown)
-            st.vars[k] = top.carrying(v) if not isinstance(v, Arr) else Arr({}, top.carrying(v), v.type)
+            st.vars[k] = self.unseen(st.vars.get(k), top)
         st.last, st.cur = None, None
         return st
+
+    def unseen(self, v, top: Top):
+        """What a variable holding ``v`` holds after code not read ran: unknown for ``top``'s
+        reason (it may still hold what it held: its tokens stay with the unknown)."""
+        return top.carrying(v) if not isinstance(v, Arr) else Arr({}, top.carrying(v), v.type)
 
     # ------------------------------------------------------------------ handlers
     def async_decl(self, s: Async, st: State) -> State:
