@@ -56,6 +56,28 @@ def test_the_interpreter_follows_out_parameters_and_code_not_read():
     assert [m.base[:3, 3].tolist() for m in motions(src, 1)] != [m.base[:3, 3].tolist() for m in motions(src, 5)]
 
 
+
+def test_the_interpreter_starts_programs_activates_routines_and_binds_arguments_as_the_analysis_does():
+    """One activation for both engines (issue 31): the program's start, a routine's activation,
+    a call's binding and which variables code not read touches are the analysis's; the
+    interpreter replaces how statements run and the values it gives."""
+    from postproc.programs.analysis.execute import Analysis
+    from postproc.programs.interpreter import Interpreter
+
+    for name in ("declare_data", "start", "routine", "call", "invoke", "havoc", "lookup", "write"):
+        assert getattr(Interpreter, name) is getattr(Analysis, name), name
+    # KRL: OUT copied back, IN copied in (the callee's assignment to it stays its own)
+    src = ("DEF t( )\n  DECL E6POS P\n  DECL REAL D\n  P = {X 100,Y 0,Z 0,A 0,B 0,C 0}\n  D = 5\n  Lift(P, D)\n"
+           "  LIN P\n  P.X = D\n  LIN P\nEND\n"
+           "DEF Lift(Q:OUT, E:IN)\n  DECL E6POS Q\n  DECL REAL E\n  Q.Z = Q.Z + E * 60\n  E = 99\nEND\n")
+    assert [m.base[:3, 3].tolist() for m in motions(src)] == [[100, 0, 300], [5, 0, 300]]
+    # URScript: a default and keyword arguments
+    text = "\n".join(["def prog():", "  def go(target, lift=0.05):",
+                      "    movel(pose_trans(target, p[0, 0, -lift, 0, 0, 0]))", "  end",
+                      "  go(p[0.1, 0.2, 0.3, 0, 0, 0])", "  go(lift=0.1, target=p[0.4, 0.2, 0.3, 0, 0, 0])", "end", ""])
+    unit, dialect = lower(["u.script"], [text], "urscript", active=ActiveFrames(tool="model"))
+    np.testing.assert_allclose([m.base[:3, 3] for m in run(unit, dialect, Oracle(0))], [[100, 200, 250], [400, 200, 200]])
+
 @settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(krl_programs())
 def test_never_silently_wrong_on_random_krl_programs(model, program):

@@ -10,24 +10,27 @@ run both and check that every executed target is either commanded at P + Ê for 
 nominal pose P (reached from the motion that really ran before it) or was left as written — and
 that the product did not exit 0 where one was left.
 
-The interpreter shares the analysis's evaluation (``execute.Analysis``: values, the dialect's
-builtins, calls with copy-in/copy-out) and replaces its control flow: each routine's statements
-are compiled to a flat list with jumps (``_compile``), run one path, with the oracle's answers
-where a value is not known.
+The interpreter is the analysis (``execute.Analysis``) with concrete control flow. It shares
+its evaluation (values, the dialect's builtins), how a program starts and a routine is
+activated (``declare_data``, ``start``, ``routine``), the binding of a call's arguments
+(``call``: copy-in, copy-back of OUT / by-reference parameters, defaults, the callee's scope)
+and which variables code not read touches (``havoc``). It replaces how statements run
+(``straight``, ``body``: each routine's statements compiled to a flat list with jumps,
+``_compile``, run one path), the values code not read leaves (``unseen``: the world's) and what
+a motion records, with the oracle's answers where a value is not known.
 """
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..core import frames as fr
-from .analysis.execute import Analysis, Recorder, State, _Activation
+from .analysis.execute import Analysis, Recorder, State
 from .analysis.values import Arr, Mat, Rec, Six, Top, number
 from .ir import (
     Agg,
-    Assign,
     Continue,
     Exit,
     Goto,
@@ -139,100 +142,90 @@ class Interpreter(Analysis):
     def run(self) -> list[Motion]:
         self.oracle.reset()
         self.rec = Recorder()  # (escapes and notes are not wanted; the analysis's code records into it)
-        st = State(dict(self.dialect.initial(self.unit)))
-        top = _Activation(None, ("data",), "")
-        self.act = top
-        for module, stmts in self.unit.data:
-            top.module = module
-            for k, s in enumerate(stmts):
-                self._here = ("data", module, k)
-                st = self.simple(s, st)
+        st = self.declare_data()
         name = self.entry or (self.unit.entries[0] if self.unit.entries else None)
         if name is None:
             return []
-        routine = self.unit.routines[name]
-        self.act = _Activation(None, ("prologue", name), routine.module)
-        for s in self.unit.prologue:
-            st = self.simple(s, st)
-        self.dialect.enter(self, st, routine)
         try:
-            self.routine(routine, st, (name,), ())
+            self.start(name, st)
         except _Halt:
             pass
         return self.motions
 
+    def straight(self, stmts, st: State, where: tuple | None) -> State:
+        """The data (``where``: ("data", module): each statement a place the oracle is asked
+        at) and the prologue (None: asked where the data left off), one statement after another."""
+        for k, s in enumerate(stmts):
+            if where is not None:
+                self._here = where + (k,)
+            st = self.simple(s, st)
+        return st
+
     # ------------------------------------------------------------------ routines: flat code
-    def routine(self, routine, st: State, scope: tuple, args_out: tuple):
-        self.reached.add(routine.name)
-        saved = self.act
-        act = _Activation(routine, scope, routine.module)
-        self.act = act
-        self.stack = self.stack + (routine.name,)
-        try:
-            code, labels = self.code.get(routine.name) or self.code.setdefault(routine.name, _compile(routine.body))
-            value = None
-            pc = 0
-            while pc < len(code):
-                self._here = (routine.name, pc)
-                self.steps += 1
-                if self.steps > MAX_STEPS:
-                    raise _Halt
-                op = code[pc]
-                kind = op[0]
-                if kind == "S":
-                    self.loc = getattr(op[1], "loc", self.loc)
-                    st = self.simple(op[1], st)
-                    pc += 1
-                elif kind == "JMP":
-                    pc = op[1] if isinstance(op[1], int) else labels[op[1]]
-                elif kind == "BR":  # (cond, jump when it is ``op[3]``)
-                    _, cond, target, when, site = op
-                    pc = target if self.truth(cond, st, site) == when else pc + 1
-                elif kind == "LOOP":  # an unknown loop condition: the oracle, a bounded number of times
-                    _, cond, target, when, site = op
-                    pc = target if self.truth(cond, st, site, loop=True) == when else pc + 1
-                elif kind == "SET":
-                    self.loc = op[3]
-                    self.write(Name(op[1]), number(self.eval(op[2], st)), st)
-                    pc += 1
-                elif kind == "STEP":
-                    _, var, step, site = op
-                    self.loc = site
-                    _, v = self.lookup(var, st)
-                    self.write(Name(var), number(v) + number(self.eval(step, st)), st)
-                    pc += 1
-                elif kind == "FOR?":
-                    _, var, stop, step, target, site = op
-                    _, v = self.lookup(var, st)
-                    hi, by = number(self.eval(stop, st)), number(self.eval(step, st))
-                    if hi is None or by is None:
-                        go = self.oracle.boolean(self.here) if self.oracle.whole(self.here) else False
-                    else:
-                        go = number(v) <= hi if by > 0 else number(v) >= hi
-                    pc = pc + 1 if go else target
-                elif kind == "SW":
-                    _, subject, cases, default, site = op
-                    v = self.eval(subject, st)
-                    pc = default
-                    if isinstance(v, Top):
-                        choice = self.oracle.whole(self.here) % (len(cases) + 1)
-                        pc = cases[choice][1] if choice < len(cases) else default
-                    else:
-                        for values, target in cases:
-                            if any(_equal(self.eval(x, st), v) for x in values):
-                                pc = target
-                                break
-                elif kind == "RET":
-                    value = self.eval(op[1], st) if op[1] is not None else None
-                    break
-                elif kind == "HALT":
-                    raise _Halt
-                else:  # pragma: no cover
-                    raise TypeError(kind)
-            return st, value
-        finally:
-            self.stack = self.stack[:-1]
-            self.act = saved
+    def body(self, routine, st: State, act):
+        """A routine's flat code (``_compile``) run one path: (state at its end or RETURN, the
+        value returned)."""
+        code, labels = self.code.get(routine.name) or self.code.setdefault(routine.name, _compile(routine.body))
+        value = None
+        pc = 0
+        while pc < len(code):
+            self._here = (routine.name, pc)
+            self.steps += 1
+            if self.steps > MAX_STEPS:
+                raise _Halt
+            op = code[pc]
+            kind = op[0]
+            if kind == "S":
+                self.loc = getattr(op[1], "loc", self.loc)
+                st = self.simple(op[1], st)
+                pc += 1
+            elif kind == "JMP":
+                pc = op[1] if isinstance(op[1], int) else labels[op[1]]
+            elif kind == "BR":  # (cond, jump when it is ``op[3]``)
+                _, cond, target, when, site = op
+                pc = target if self.truth(cond, st, site) == when else pc + 1
+            elif kind == "LOOP":  # an unknown loop condition: the oracle, a bounded number of times
+                _, cond, target, when, site = op
+                pc = target if self.truth(cond, st, site, loop=True) == when else pc + 1
+            elif kind == "SET":
+                self.loc = op[3]
+                self.write(Name(op[1]), number(self.eval(op[2], st)), st)
+                pc += 1
+            elif kind == "STEP":
+                _, var, step, site = op
+                self.loc = site
+                _, v = self.lookup(var, st)
+                self.write(Name(var), number(v) + number(self.eval(step, st)), st)
+                pc += 1
+            elif kind == "FOR?":
+                _, var, stop, step, target, site = op
+                _, v = self.lookup(var, st)
+                hi, by = number(self.eval(stop, st)), number(self.eval(step, st))
+                if hi is None or by is None:
+                    go = self.oracle.boolean(self.here) if self.oracle.whole(self.here) else False
+                else:
+                    go = number(v) <= hi if by > 0 else number(v) >= hi
+                pc = pc + 1 if go else target
+            elif kind == "SW":
+                _, subject, cases, default, site = op
+                v = self.eval(subject, st)
+                pc = default
+                if isinstance(v, Top):
+                    choice = self.oracle.whole(self.here) % (len(cases) + 1)
+                    pc = cases[choice][1] if choice < len(cases) else default
+                else:
+                    for values, target in cases:
+                        if any(_equal(self.eval(x, st), v) for x in values):
+                            pc = target
+                            break
+            elif kind == "RET":
+                value = self.eval(op[1], st) if op[1] is not None else None
+                break
+            elif kind == "HALT":
+                raise _Halt
+            else:  # pragma: no cover
+                raise TypeError(kind)
+        return st, value
 
     def truth(self, cond, st, site, loop: bool = False) -> bool:
         v = self.eval(cond, st) if cond is not None else True
@@ -264,15 +257,10 @@ class Interpreter(Analysis):
         out = self.stmt(s, st)
         return out if out is not None else st
 
-    def havoc(self, st: State, names, why: str, loc) -> State:
-        """Code not read runs: the oracle gives what it touches new values (frames: a frame of
-        the world's; numbers, flags, poses: the world's)."""
-        keys = self.dialect.touched(self, st, names)
-        for k in keys:
-            v = st.vars.get(k)
-            st.vars[k] = self._world(v, self.here)
-        st.last, st.cur = None, None
-        return st
+    def unseen(self, v, top):
+        """Code not read ran (``Analysis.havoc``): the oracle gives what it touches new values
+        (frames: a frame of the world's; numbers, flags, poses: the world's)."""
+        return self._world(v, self.here)
 
     def _world(self, v, site):
         if isinstance(v, bool):
@@ -289,10 +277,6 @@ class Interpreter(Analysis):
             return self.oracle.frame(site)
         if isinstance(v, Arr):
             return Arr({k: self._world(x, site) for k, x in v.elems.items()}, v.default, v.type)
-        return v
-
-    def eval(self, e, st: State):
-        v = super().eval(e, st)
         return v
 
     # ------------------------------------------------------------------ motions
@@ -387,10 +371,6 @@ class Interpreter(Analysis):
         if any(k not in out for k in names):
             return None
         return np.array([float(out[k]) for k in names])
-
-    def frame_value(self, expr, st):
-        v = super().frame_value(expr, st)
-        return v
 
     def tool_value(self, expr, st):
         v = super().tool_value(expr, st)
@@ -530,6 +510,3 @@ def _compile(body: list):
 def run(unit, dialect, oracle: Oracle | None = None, entry: str | None = None) -> list[Motion]:
     """The motions a run of ``unit`` commands (see :class:`Interpreter`)."""
     return Interpreter(unit, dialect, oracle, entry).run()
-
-
-_ = (Assign, field)

@@ -242,13 +242,7 @@ class Analysis:
     def run(self) -> Recorder:
         rec = Recorder()
         self.rec = rec
-        st = State(dict(self.dialect.initial(self.unit)))
-        top = _Activation(None, ("data",), "")
-        self.act = top
-        for module, stmts in self.unit.data:
-            top.module = module
-            st = self.block(stmts, st) or st
-        start = st
+        start = self.declare_data()
         entries = list(self.unit.entries)
         done = set()
         while True:
@@ -256,45 +250,77 @@ class Analysis:
                 if name in done:
                     continue
                 done.add(name)
-                routine = self.unit.routines[name]
                 entry = start.copy()
                 entry.last = frozenset([START])
-                self.act = _Activation(None, ("prologue", name), routine.module)
-                entry = self.block(self.unit.prologue, entry)
-                self.dialect.enter(self, entry, routine)
-                self.routine(routine, entry, (name,), ())
+                self.start(name, entry)
             rest = [n for n in self.unit.routines if n not in self.reached and n not in done]
             if not rest:
                 break
             entries = rest  # routines no entry reaches: the controller may start them too
         return rec
 
-    # ------------------------------------------------------------------ routines
-    def routine(self, routine: Routine, st: State, scope: tuple, args_out: tuple):
-        """Run ``routine`` from ``st`` (its parameters already bound in ``st`` under ``scope``):
-        (state after it, return value)."""
+    # ------------------------------------------------------------------ activations
+    # How a program starts and a routine is activated, for the analysis and the interpreter
+    # alike (``programs.interpreter`` inherits these and ``call``): the scopes ``("data",)``,
+    # ``("prologue", entry)``, ``(entry,)`` and a call's ``path + (id(site),)``, the module
+    # a routine's names resolve in, the call stack. What differs is how statements run: each
+    # engine's ``straight`` (the data, the prologue) and ``body`` (a routine's statements).
+    def declare_data(self) -> State:
+        """The state the entries start from: the dialect's initial variables, then the unit's
+        data run module by module (activation ``("data",)``, in that module)."""
+        st = State(dict(self.dialect.initial(self.unit)))
+        top = _Activation(None, ("data",), "")
+        self.act = top
+        for module, stmts in self.unit.data:
+            top.module = module
+            st = self.straight(stmts, st, ("data", module))
+        return st
+
+    def start(self, name: str, st: State):
+        """The controller starts entry ``name`` from ``st``: the unit's prologue (activation
+        ``("prologue", name)``, in the entry's module), the dialect's rule for an entry
+        (``Dialect.enter``), then the routine in scope ``(name,)``: (state after it, value)."""
+        routine = self.unit.routines[name]
+        self.act = _Activation(None, ("prologue", name), routine.module)
+        st = self.straight(self.unit.prologue, st, None)
+        self.dialect.enter(self, st, routine)
+        return self.routine(routine, st, (name,))
+
+    def straight(self, stmts, st: State, where: tuple | None) -> State:
+        """Statements outside any routine (``where`` ("data", module): that module's data;
+        None: the prologue): the state after them (where no path gets past them: the state
+        before them)."""
+        return self.block(stmts, st) or st
+
+    def routine(self, routine: Routine, st: State, scope: tuple):
+        """Run ``routine`` from ``st`` (its parameters already bound in ``st`` under ``scope``,
+        ``call``) in an activation of its own: (state after it, return value)."""
         self.reached.add(routine.name)
         saved = self.act
         act = _Activation(routine, scope, routine.module)
         self.act = act
         self.stack = self.stack + (routine.name,)
         try:
-            has_goto = self.gotos.get(routine.name)
-            if has_goto is None:
-                has_goto = self.gotos[routine.name] = _has_goto(routine.body)
-            if not has_goto:
-                out = self.block(routine.body, st)
-            else:
-                out = self._with_jumps(routine.body, st, act)
-            value = None
-            for s, v in act.returns:
-                out = join_states(out, s, f"{routine.name} returns from several places", routine.loc)
-                value = v if value is None else join(value, v, f"{routine.name} returns different values",
-                                                     routine.loc)
-            return out, value
+            return self.body(routine, st, act)
         finally:
             self.stack = self.stack[:-1]
             self.act = saved
+
+    def body(self, routine: Routine, st: State, act: _Activation):
+        """A routine's statements from ``st`` in activation ``act``: (state after it, return
+        value), its returns joined (the analysis: every path; the interpreter: the one run)."""
+        has_goto = self.gotos.get(routine.name)
+        if has_goto is None:
+            has_goto = self.gotos[routine.name] = _has_goto(routine.body)
+        if not has_goto:
+            out = self.block(routine.body, st)
+        else:
+            out = self._with_jumps(routine.body, st, act)
+        value = None
+        for s, v in act.returns:
+            out = join_states(out, s, f"{routine.name} returns from several places", routine.loc)
+            value = v if value is None else join(value, v, f"{routine.name} returns different values", routine.loc)
+        return out, value
 
     def _with_jumps(self, body, st: State, act: _Activation):
         """A body with GOTOs: passes until the state at every label is the join of all the
@@ -651,7 +677,12 @@ class Analysis:
 
     def call(self, routine: Routine, args, st: State, site) -> tuple:
         """(state after the call, its value) of ``routine(args)`` at ``site`` (an Invoke or a
-        Call expression)."""
+        Call expression) — the one binding of arguments to parameters, the interpreter's too.
+        ``args`` stand in their parameters' places (a lowering puts keyword and optional
+        arguments there, None where one is left out: its ``default`` evaluated at the call, else
+        unknown); each is evaluated in the caller (copy-in); a parameter not passed "in" whose
+        argument is a variable, a field or an element is copied back to it after the call; the
+        callee's locals (scope ``path + (id(site),)``) are dropped."""
         loc = site.loc
         if len(self.stack) >= MAX_DEPTH or routine.name in self.stack:
             why = f"{routine.name}() called at line {loc.line if loc else 0} recurses" if routine.name in self.stack \
@@ -673,7 +704,7 @@ class Analysis:
             bound[("L", scope, p.name)] = value
         st.vars.update(bound)
         before = {k: v for k, v in st.vars.items() if k[0] == "G"}
-        out, value = self.routine(routine, st, scope, tuple(back))
+        out, value = self.routine(routine, st, scope)
         if out is None:
             return None, value
         self._relocate(before, out, getattr(site, "name", routine.name), loc)
@@ -696,15 +727,19 @@ class Analysis:
 
     def havoc(self, st: State, names, why: str, loc: Loc | None) -> State:
         """Code not seen runs here: ``names`` (None: every global and frame the dialect says such
-        code may touch) become unknown, and where the robot stands."""
+        code may touch) get what ``unseen`` says, and where the robot stands is not known (the
+        interpreter's too: it gives the world's values)."""
         top = Top(why, loc)
         keys = self.dialect.touched(self, st, names)
         for k in keys:
-            v = st.vars.get(k)
-            # (it may still hold what it held: its tokens stay with the unknown)
-            st.vars[k] = top.carrying(v) if not isinstance(v, Arr) else Arr({}, top.carrying(v), v.type)
+            st.vars[k] = self.unseen(st.vars.get(k), top)
         st.last, st.cur = None, None
         return st
+
+    def unseen(self, v, top: Top):
+        """What a variable holding ``v`` holds after code not read ran: unknown for ``top``'s
+        reason (it may still hold what it held: its tokens stay with the unknown)."""
+        return top.carrying(v) if not isinstance(v, Arr) else Arr({}, top.carrying(v), v.type)
 
     # ------------------------------------------------------------------ handlers
     def async_decl(self, s: Async, st: State) -> State:
