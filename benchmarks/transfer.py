@@ -173,7 +173,7 @@ def part_random(data: dict, description, out: Path, seed: int, series: str = "BD
 
 def octants(q_deg: np.ndarray) -> np.ndarray:
     """Each row's octant of A1/A2/A3 (medians along each joint's arc), as training.blocked.folds."""
-    from postproc.model.compensator import joint_arcs
+    from postproc.model.envelope import joint_arcs
 
     arcs = joint_arcs(q_deg[:, :3])
     out = np.zeros(len(q_deg), int)

@@ -156,7 +156,8 @@ def onnx_part(data: str) -> None:
 
     from postproc.model.training.card import arm_metadata
     from postproc.compensation.api import compensate_text
-    from postproc.model.compensator import OUTPUT_ERROR, OUTPUT_JOINTS, OUTPUT_STD, load_model
+    from postproc.model.contract import OUTPUT_ERROR, OUTPUT_JOINTS, OUTPUT_STD
+    from postproc.model.compensator import load_model
     from postproc.calibration.planning import latin_hypercube
     from postproc.robot.description import load_description
     from postproc.calibration.simulator import SimulatedRobot

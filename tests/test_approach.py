@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from postproc.model.compensator import load_model
+from postproc.model.settle import Inside
 from postproc.calibration.planning import latin_hypercube
 from postproc.robot.description import load_description, parse_description
 from postproc.calibration.simulator import SimulatedRobot
@@ -97,7 +98,6 @@ def test_every_command_lands_where_compensate_assumed(model, sim, pocket):
 
 
 def test_settling_is_the_same_chunk_by_chunk(model, pocket, monkeypatch):
-    import postproc.model.compensator as compensator
 
     once = list(model.command_chunks(pocket))
     monkeypatch.setattr(model, "command_chunk", 128)  # (rows per chunk: the instance's)
@@ -105,7 +105,7 @@ def test_settling_is_the_same_chunk_by_chunk(model, pocket, monkeypatch):
     assert [start for start, _, _ in chunks] == list(range(0, len(pocket), 128))
     # (the same up to float32 rows computed in other batches: ~1e-4 mm)
     assert np.abs(np.vstack([c for _, c, _ in chunks]) - once[0][1]).max() < 1e-3
-    inside = compensator.Inside.join([c.inside for c in chunks])
+    inside = Inside.join([c.inside for c in chunks])
     assert np.array_equal(inside.rows, once[0].inside.rows) and np.allclose(inside.worst_mm, once[0].inside.worst_mm, atol=1e-3)
 
 

@@ -13,7 +13,8 @@ import pytest
 from helpers import REPO
 
 from postproc.cli import main
-from postproc.model.compensator import CONTRACT_VERSION, load_model
+from postproc.model.contract import CONTRACT_VERSION
+from postproc.model.compensator import load_model
 from postproc.model.contract import OPTIONAL_INPUTS, upgrade
 from postproc.core.diagnostics import PostprocError
 from postproc.measurements.csv import read_measurements

@@ -5,7 +5,7 @@ learned parts (``features.inside_ranges`` on ``hybrid.learned_ranges``) decide a
 import numpy as np
 import torch
 
-from postproc.model.compensator import Envelope, joint_arcs, widened_arcs
+from postproc.model.envelope import Envelope, joint_arcs, widened_arcs
 from postproc.model.training.features import inside_ranges
 from postproc.model.training.hybrid import learned_ranges
 

@@ -8,7 +8,7 @@ import pytest
 
 from postproc.robot import configuration
 from postproc.cli import main
-from postproc.model.compensator import joint_arcs, widened_arcs
+from postproc.model.envelope import joint_arcs, widened_arcs
 from postproc.calibration.planning import latin_hypercube, plan_configurations, read_plan_config, read_pose_csv
 from postproc.robot.arm import Robot
 from postproc.robot.description import load_description

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..core.diagnostics import P107, PostprocError
 from ..core.stats import table2
-from ..model.identified import _SCALE, PARAMETER_NAMES
+from ..model.identified import UNIT_SCALE, PARAMETER_NAMES
 from .iso9283 import IsoResult, iso_summary
 from .report import identifiability_lines, model_card
 
@@ -89,7 +89,7 @@ def _parameter_rows(identified: dict) -> tuple[list[list[str]], str]:
         if s is None:  # (an older card: no std of the ripple amplitudes)
             untested += 1
             continue
-        scale = _SCALE.get(unit, 1.0)
+        scale = UNIT_SCALE.get(unit, 1.0)
         z = abs(v) / s if s else (math.inf if v else 0.0)
         if z > MOVED_SIGMAS:
             found.append((z, [name, f"{v * scale:.5g} {unit}", f"{s * scale:.2g} {unit}"]))

@@ -152,12 +152,7 @@ def iso_test(box, attitude, reachable=None, cube: IsoCube | None = None,
 def iso_plan_csv_text(poses: np.ndarray, pose_numbers: np.ndarray) -> str:
     """The plan CSV (x,y,z,a,b,c as planning writes them) with two more columns: ``pose``
     (1…5 = P1…P5) and ``cycle`` (1…n). Readers of plans ignore the extra columns."""
-    from ..calibration.planning import (
-        DEG_DECIMALS,
-        MM_DECIMALS,
-        POSE_COLUMNS,
-        round_poses,
-    )
+    from ..calibration.planning import DEG_DECIMALS, MM_DECIMALS, POSE_COLUMNS, round_poses
 
     pose_numbers = np.asarray(pose_numbers, int)
     cycle = np.cumsum(pose_numbers == pose_numbers[0])
@@ -320,9 +315,7 @@ class IsoResult:
 
 def _orientation_columns(data: bytes, lines: np.ndarray, path: str) -> np.ndarray | None:
     """``a_meas,b_meas,c_meas`` at the rows of file ``lines``, if the header names all three."""
-    from .report import (
-        _optional_columns,  # the one reader of optional column groups (x_after.. too)
-    )
+    from .report import _optional_columns
 
     found = _optional_columns(data, path, ORIENTATION_COLUMNS)
     if found is None:
@@ -394,9 +387,7 @@ def read_iso_result(path: str | Path, after: str | Path | None = None,
     result = IsoResult(str(path), hashlib.sha256(data).hexdigest(), labels, before, m.measured - m.poses[:, :3],
                        meta=m.meta)
     if after is not None:
-        from .report import (
-            _reached_after,  # the one check that a re-measurement belongs row by row
-        )
+        from .report import _reached_after
 
         after = Path(after)
         after_data, am = _read(after)

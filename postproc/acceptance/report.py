@@ -30,9 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.diagnostics import P107, P305, P500, P501, P502, P503, PostprocError
-from ..core.stats import (
-    table2,  # max, min, mean, std (ddof 1): the method's Table 2 figures
-)
+from ..core.stats import table2
 from ..model.compensator import Compensator
 
 __all__ = [
@@ -141,9 +139,7 @@ def model_card(model: Compensator) -> dict:
 
 
 def _read(path: Path, repeats: bool = False):
-    from ..measurements.csv import (
-        parse_measurements,  # numpy only; the one reader of this format
-    )
+    from ..measurements.csv import parse_measurements
 
     try:
         data = path.read_bytes()

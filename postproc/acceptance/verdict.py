@@ -65,7 +65,7 @@ def verdict(kind: str, limits: Acceptance, figures: dict, model: dict | None, in
 
 
 def model_entry(model) -> dict | None:
-    from ..model.compensator import contract_version
+    from ..model.contract import contract_version
 
     if model is None:
         return None

@@ -360,7 +360,7 @@ def calibration_yaml(offsets: dict, model_name: str = "") -> str:
 
 def parameters_json(model, geometry: Geometry | None = None) -> dict:
     """The identified parameters with their std, named and in units (``certificate.PARAMETER_NAMES``)."""
-    from ..model.identified import _SCALE, PARAMETER_NAMES
+    from ..model.identified import UNIT_SCALE, PARAMETER_NAMES
 
     ident = model.metadata.get("identified") or {}
     params = ident.get("parameters") or {}
@@ -371,7 +371,7 @@ def parameters_json(model, geometry: Geometry | None = None) -> dict:
         std = stds.get(group) or [None] * len(values)
         for k, (v, s) in enumerate(zip(values, std)):
             unit = units[k % len(units)]
-            scale = _SCALE.get(unit, 1.0)
+            scale = UNIT_SCALE.get(unit, 1.0)
             rows.append({"group": group, "name": f"{group}.{names[k]}" if names and k < len(names) else f"{group}[{k}]",
                          "value": v * scale, "std": None if s is None else s * scale, "unit": unit,
                          "geometric": group not in NOT_GEOMETRIC})

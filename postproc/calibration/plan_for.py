@@ -141,7 +141,7 @@ def _candidates(robot, joints: np.ndarray, tool: np.ndarray, status: int, rng, c
     back) clear of the wrist singularity."""
     from scipy.stats import qmc
 
-    from ..model.compensator import joint_arcs, widened_arcs
+    from ..model.envelope import joint_arcs, widened_arcs
     from ..robot import configuration
 
     arm = type(robot)(robot.description.replace(tool=tool))
@@ -283,7 +283,7 @@ def coverage(targets: ProgramTargets, description, data_joints: np.ndarray, data
     """The targets the existing data does not cover (P337, warning, one per target: ``listed``
     gives a file's first few and a count): an arm configuration or a tool the data has no rows of, or a
     joint outside the data's arcs in that configuration (widened as P301 widens a model's)."""
-    from ..model.compensator import joint_arcs, widened_arcs
+    from ..model.envelope import joint_arcs, widened_arcs
     from ..robot.arm import Robot
 
     robot = Robot(description)

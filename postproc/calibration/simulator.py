@@ -230,10 +230,7 @@ class SimulatedRobot:
         the base frame the tracker registration gives: the rigid motion that best fits the
         real robot's positions to the commanded ones over the workspace (as a measurement
         campaign sets its frame up), then the drawn registration error on top of it."""
-        from ..core.registration import (  # numpy only (scipy.spatial costs 0.2 s to import)
-            fit_rigid,
-            transform_matrix,
-        )
+        from ..core.registration import fit_rigid, transform_matrix
 
         r, k = self.robot, self.scale
         nominal = r.chain

@@ -56,12 +56,7 @@ def run(args) -> int:
     targets = outputs.check_outputs(wanted, [args.model, args.urdf, args.robot])
     description = load_description(args.robot)
     from ..calibration.export import (
-        calibrated_urdf,
-        calibration_yaml,
-        identified_geometry,
-        nominal_urdf,
-        parameters_json,
-        ur_calibration,
+        calibrated_urdf, calibration_yaml, identified_geometry, nominal_urdf, parameters_json, ur_calibration,
     )
 
     if args.nominal:

@@ -94,9 +94,7 @@ def run(args) -> int:
 
     check_outputs([args.output], [args.src])
     from ..core.registration import register_measurements
-    from ..model.training.data import (
-        split_indices,  # numpy only; the same draw as `train`
-    )
+    from ..model.training.data import split_indices
 
     series = read_ipa(args.src, branch=args.abc)
     extra = {f"q{i + 1}": series.joints[:, i] for i in range(6)}

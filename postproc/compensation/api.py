@@ -9,7 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..model.compensator import Compensator, load_model
-from ..programs.io import STDIN, _config_texts, backup_active, parse_program_text
+from ..programs.io import STDIN, config_texts, backup_active, parse_program_text
 from ..settings import Settings
 from .pipeline import Report, compensate_program
 
@@ -47,7 +47,7 @@ def compensate_text(
     """
     settings = settings_of(settings, options)
     reading = settings.reading
-    program = parse_program_text(text, name, reading.dialect, dat_text, _config_texts(reading.config_list),
+    program = parse_program_text(text, name, reading.dialect, dat_text, config_texts(reading.config_list),
                                  backup_active(reading.config_list, reading.active))
     report = compensate_program(program, model_of(model), settings)
     return report.outputs[program.files[0]], report

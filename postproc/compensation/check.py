@@ -33,29 +33,13 @@ import numpy as np
 
 from ..core.atomic import write_atomic
 from ..core.diagnostics import (
-    P230,
-    P322,
-    P401,
-    P402,
-    P403,
-    P404,
-    P405,
-    P406,
-    P407,
-    Diagnostic,
-    PostprocError,
-    line_col,
+    P230, P322, P401, P402, P403, P404, P405, P406, P407, Diagnostic, PostprocError, line_col,
 )
 from ..model.compensator import Compensator, load_model
 from ..programs import STAMP_PREFIX, Program
 from ..programs.io import companion_dat, load_program
 from ..settings import Settings
-from .findings import (
-    findings,
-    run_model,
-    select,
-    std_bound,
-)
+from .findings import findings, run_model, select, std_bound
 from .pipeline import compensate_program, output_paths, rewrite_program
 
 __all__ = [

@@ -8,15 +8,10 @@ import numpy as np
 
 from ..core import frames
 from ..core.progress import ProgressBar
-from ..model.compensator import Chain, Compensator
+from ..model.settle import Chain
+from ..model.compensator import Compensator
 from ..programs import Program
-from ..programs.rewrite import (
-    ORIENTATION_DECIMALS,
-    check_disjoint,
-    fill_partial,
-    format_many,
-    splice,
-)
+from ..programs.rewrite import ORIENTATION_DECIMALS, check_disjoint, fill_partial, format_many, splice
 from .findings import Commands, Selection, model_bases
 from .guards import ROUNDING_MM, check_inserted, check_numbers
 

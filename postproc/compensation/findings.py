@@ -35,33 +35,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.diagnostics import (
-    P103,
-    P212,
-    P213,
-    P216,
-    P218,
-    P230,
-    P231,
-    P301,
-    P302,
-    P303,
-    P304,
-    P305,
-    P309,
-    P310,
-    P313,
-    P321,
-    P336,
-    P340,
-    P401,
-    P408,
-    P409,
-    P517,
-    Diagnostic,
-    PostprocError,
-    line_col,
+    P103, P212, P213, P216, P218, P230, P231, P301, P302, P303, P304, P305, P309, P310, P313, P321, P336, P340, P401,
+    P408, P409, P517, Diagnostic, PostprocError, line_col,
 )
-from ..model.compensator import Compensator, Inside, Order
+from ..model.compensator import Compensator
+from ..model.settle import Inside, Order
 from ..programs import Program
 from ..programs.base_poses import robot_base_poses
 from ..programs.locate import collect, where

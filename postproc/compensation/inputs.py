@@ -107,9 +107,7 @@ def configuration_mismatch(program: Program, model: Compensator, rows: np.ndarra
     stated = (config[rows] >= 0).any(axis=1) if config is not None else np.zeros(len(rows), bool)
     if not stated.any():
         return np.zeros(len(rows), bool), []
-    from ..robot import (
-        configuration,  # (only here: a program without S/T does not pay their import)
-    )
+    from ..robot import configuration
     from ..robot.arm import Robot
 
     description = model_description(model)

@@ -15,26 +15,12 @@ from pathlib import Path
 import numpy as np
 
 from ..core.diagnostics import (
-    LEFT_AS_WRITTEN,
-    P201,
-    P203,
-    P212,
-    P220,
-    P221,
-    P224,
-    P225,
-    P230,
-    P231,
-    P306,
-    P312,
-    P321,
-    P322,
-    P340,
-    Diagnostic,
+    LEFT_AS_WRITTEN, P201, P203, P212, P220, P221, P224, P225, P230, P231, P306, P312, P321, P322, P340, Diagnostic,
     PostprocError,
 )
 from ..core.outputs import check_outputs, write
-from ..model.compensator import Chain, Compensator, Inside
+from ..model.settle import Chain, Inside
+from ..model.compensator import Compensator
 from ..programs import STAMP_PREFIX, Program
 from ..programs.locate import where
 from ..programs.rewrite import insert_stamp, stamp_line
@@ -42,16 +28,8 @@ from ..settings import Settings
 from .agreement import _agreement
 from .commands import _CommandStream, _rewrite
 from .findings import (
-    Commands,
-    Selection,
-    command_findings,
-    dead_band_notes,
-    execution_order,
-    group_rule,
-    missing_xyz,
-    outside_envelope,
-    select_with_findings,
-    std_bound,
+    Commands, Selection, command_findings, dead_band_notes, execution_order, group_rule, missing_xyz,
+    outside_envelope, select_with_findings, std_bound,
 )
 from .guards import check_round_trip
 

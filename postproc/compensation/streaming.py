@@ -40,14 +40,9 @@ from ..core.diagnostics import P109, P111, P190, P191, P321, Diagnostic, Postpro
 from ..core.progress import ProgressBar, reporting
 from ..model import compensator
 from ..model.compensator import Compensator
+from ..model.settle import Chain
 from ..programs import STAMP_PREFIX
-from ..programs.io import (
-    _config_texts,
-    backup_active,
-    companion_dat,
-    load_program,
-    read_program,
-)
+from ..programs.io import config_texts, backup_active, companion_dat, load_program, read_program
 from ..programs.rewrite import insert_stamp, stamp_line
 from ..settings import Settings
 from .api import model_of, settings_of
@@ -210,7 +205,7 @@ def compensate_stream(
         chunk = model.command_chunk if model.settles else min(model.command_chunk, STREAM_TARGETS)
     size = chunk
     config = settings.reading.config_list
-    configs = _config_texts(config)
+    configs = config_texts(config)
     active = backup_active(config, settings.reading.active)
     name = str(path)
     try:
@@ -221,7 +216,7 @@ def compensate_stream(
         source = _Source(fh, size)
         header = source.header
         header_lines = header.count("\n")
-        chain = compensator.Chain()
+        chain = Chain()
         total = Report(model=model.name, model_sha256=model.sha256)
         corrections = 0.0
 

@@ -14,13 +14,13 @@ import json
 from functools import cache
 
 from ..core.resources import schema_path
-from .compensator import (
+from .compensator import Compensator
+from .contract import (
     INPUT_POSE,
     OUTPUT_ERROR,
     OUTPUT_JOINTS,
     OUTPUT_ROTATION,
     OUTPUT_STD,
-    Compensator,
     contract_version,
 )
 

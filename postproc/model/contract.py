@@ -23,19 +23,34 @@ carry so that a caller with onnxruntime alone can run it feeding only ``pose`` (
 """
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
-from .compensator import (
-    CONTRACT_VERSION,
-    INPUT_APPROACH,
-    INPUT_JOINTS,
-    INPUT_POSE,
-    INPUT_PREVIOUS,
-    INPUT_PREVIOUS_JOINTS,
-    INPUT_TOOL,
-)
+from ..settings import MAX_ITERATIONS
 
-__all__ = ["OPTIONAL_INPUTS", "DEFAULT_MEANING", "with_defaults", "upgrade", "optional_inputs"]
+__all__ = [
+    "OPTIONAL_INPUTS", "DEFAULT_MEANING", "with_defaults", "upgrade", "optional_inputs", "CONTRACT_VERSION",
+    "CONTRACT_VERSIONS", "INPUT_POSE", "INPUT_PREVIOUS", "INPUT_JOINTS", "INPUT_TOOL", "INPUT_APPROACH",
+    "INPUT_PREVIOUS_JOINTS", "OUTPUT_ERROR", "OUTPUT_JOINTS", "LEGACY_OUTPUT_JOINTS", "OUTPUT_ROTATION", "OUTPUT_STD",
+    "contract_version", "contract_metadata",
+]
+
+CONTRACT_VERSION = "2"
+# the contract versions this postproc reads: 1 (every input a graph takes required), 2 (the
+# optional inputs carry defaults: contract.py); a newer file is refused naming its version
+CONTRACT_VERSIONS = ("1", "2")
+INPUT_POSE = "pose"
+INPUT_PREVIOUS = "previous_pose"
+OUTPUT_ERROR = "error"
+INPUT_JOINTS = "joints"
+INPUT_TOOL = "tool"
+INPUT_PREVIOUS_JOINTS = "previous_joints"
+OUTPUT_JOINTS = "ik_joints"
+LEGACY_OUTPUT_JOINTS = "joints"  # (the output's name before the ``joints`` input existed)
+OUTPUT_ROTATION = "rotation_error"
+OUTPUT_STD = "error_std"
+INPUT_APPROACH = "approach"
 
 # the optional inputs and what an omitted one means (the contract's NaN rows)
 DEFAULT_MEANING = {
@@ -116,3 +131,115 @@ def upgrade(data: bytes) -> bytes:
     with_defaults(model)
     onnx.checker.check_model(model)
     return model.SerializeToString()
+
+
+
+
+def _json_or_text(value: str):
+    try:
+        return json.loads(value)
+    except (ValueError, TypeError):
+        return value
+
+
+def _interface_problems(inputs: dict, outputs: dict, joints_output: str) -> list[str]:
+    """What makes a session's inputs and outputs (name → node) not the contract's: names,
+    shapes ([N, k] with a free batch size), float32."""
+    problems = []
+    if INPUT_POSE not in inputs:
+        problems.append(f"no input '{INPUT_POSE}' (has {sorted(inputs)})")
+    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, INPUT_APPROACH, INPUT_PREVIOUS_JOINTS}
+    if extra:
+        problems.append(f"unexpected inputs {sorted(extra)}")
+    if OUTPUT_ERROR not in outputs:
+        problems.append(f"no output '{OUTPUT_ERROR}' (has {sorted(outputs)})")
+    if INPUT_APPROACH in inputs and INPUT_PREVIOUS not in inputs:
+        problems.append(f"input '{INPUT_APPROACH}' without '{INPUT_PREVIOUS}'")
+    for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6), (INPUT_JOINTS, 6), (INPUT_TOOL, 6),
+                           (INPUT_APPROACH, 6), (INPUT_PREVIOUS_JOINTS, 6)):
+        if name in inputs and (len(inputs[name].shape) != 2 or inputs[name].shape[1] not in (expected, None, "6")
+                               or isinstance(inputs[name].shape[0], int)):
+            problems.append(f"input '{name}' has shape {inputs[name].shape}, expected [N, {expected}]")
+    if OUTPUT_ERROR in outputs and (len(outputs[OUTPUT_ERROR].shape) != 2 or outputs[OUTPUT_ERROR].shape[1] not in (3, None)):
+        problems.append(f"output '{OUTPUT_ERROR}' has shape {outputs[OUTPUT_ERROR].shape}, expected [N, 3]")
+    if joints_output in outputs and (len(outputs[joints_output].shape) != 2
+                                     or outputs[joints_output].shape[1] not in (6, None)):
+        problems.append(f"output '{joints_output}' has shape {outputs[joints_output].shape}, expected [N, 6]")
+    if OUTPUT_ROTATION in outputs and (len(outputs[OUTPUT_ROTATION].shape) != 2
+                                       or outputs[OUTPUT_ROTATION].shape[1] not in (3, None)):
+        problems.append(f"output '{OUTPUT_ROTATION}' has shape {outputs[OUTPUT_ROTATION].shape}, expected [N, 3]")
+    if OUTPUT_STD in outputs and (len(outputs[OUTPUT_STD].shape) != 2 or outputs[OUTPUT_STD].shape[1] not in (1, None)):
+        problems.append(f"output '{OUTPUT_STD}' has shape {outputs[OUTPUT_STD].shape}, expected [N, 1]")
+    for node in (*inputs.values(), *outputs.values()):
+        if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, INPUT_APPROACH, INPUT_PREVIOUS_JOINTS,
+                         OUTPUT_ERROR, joints_output, OUTPUT_ROTATION, OUTPUT_STD) and node.type != "tensor(float)":
+            problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
+    return problems
+
+
+def contract_version(meta: dict) -> str:
+    """The contract version of a model card (``postproc_contract``; a file without one, made by
+    other tools, is read as version 1)."""
+    value = meta.get("postproc_contract", "1")
+    return str(value) if not isinstance(value, float) else f"{value:g}"
+
+
+def _version_problem(meta: dict) -> str | None:
+    version = contract_version(meta)
+    if version in CONTRACT_VERSIONS:
+        return None
+    newer = version.isdigit() and int(version) > int(CONTRACT_VERSIONS[-1])
+    return (f"model contract version {version!r} (metadata postproc_contract) is "
+            + ("newer than this postproc reads" if newer else "not a contract version")
+            + f" (it reads {', '.join(CONTRACT_VERSIONS)}){': update postproc' if newer else ''}")
+
+
+def _numbers(value, n: int) -> bool:
+    """``value`` is a list of ``n`` finite numbers."""
+    try:
+        return isinstance(value, list) and len(value) == n and bool(np.isfinite(np.asarray(value, float)).all())
+    except (TypeError, ValueError):
+        return False
+
+
+def _metadata_problem(meta: dict) -> str | None:
+    """What is wrong with the parts of a model card that ``compensate`` relies on, if anything."""
+    env = meta.get("envelope")
+    if env is not None:
+        if not (isinstance(env, dict) and _numbers(env.get("box"), 6) and _numbers(env.get("attitude"), 3)
+                and _numbers([env.get("range")], 1) and env["range"] >= 0):
+            return "'envelope' needs box [x0,x1,y0,y1,z0,z1], attitude [A,B,C] and range ≥ 0"
+        if any(lo > hi for lo, hi in zip(env["box"][0::2], env["box"][1::2])):
+            return f"'envelope' box {env['box']} has a lower bound above its upper bound"
+        joints = env.get("joints")
+        if joints is not None and not (isinstance(joints, list) and len(joints) == 6
+                                       and all(_numbers(r, 2) and r[0] <= r[1] for r in joints)):
+            return "'envelope' joints must be six [lo, hi] ranges (deg)"
+    reach = meta.get("reach")
+    if reach is not None and not (isinstance(reach, dict) and _numbers(reach.get("center"), 3)
+                                  and _numbers([reach.get("radius_max"), reach.get("radius_min", 0.0)], 2)
+                                  and reach["radius_max"] > 0):
+        return "'reach' needs center [x,y,z], radius_max > 0 and optionally radius_min"
+    if meta.get("controller_base") is not None and not _numbers(meta["controller_base"], 6):
+        return "'controller_base' must be [X,Y,Z,A,B,C]"
+    tool = meta.get("tool")
+    if isinstance(tool, dict) and tool.get("frame") is not None and not _numbers(tool["frame"], 6):
+        return "'tool' frame must be [X,Y,Z,A,B,C]"
+    card = meta.get("uncertainty")
+    if card is not None and not (isinstance(card, dict) and _numbers([card.get("max_std_mm")], 1)
+                                 and card["max_std_mm"] > 0):
+        return "'uncertainty' needs max_std_mm > 0"
+    iterations = meta.get("iterations")
+    if iterations is not None and not (isinstance(iterations, int) and 1 <= iterations <= MAX_ITERATIONS):
+        return f"'iterations' must be a whole number from 1 to {MAX_ITERATIONS}, not {iterations!r}"
+    return None
+
+
+def contract_metadata(**fields) -> dict[str, str]:
+    """metadata_props for a compensator: structured values JSON-encoded, contract stamped."""
+    out = {"postproc_contract": CONTRACT_VERSION}
+    for key, value in fields.items():
+        if value is None:
+            continue
+        out[key] = value if isinstance(value, str) else json.dumps(value, default=float)
+    return out

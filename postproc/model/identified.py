@@ -26,4 +26,4 @@ PARAMETER_NAMES = {
 }
 
 
-_SCALE = {"deg": math.degrees(1.0), "mm": 1.0, "deg/kNm": math.degrees(1.0) * 1e3}  # from rad, mm, rad/Nm
+UNIT_SCALE = {"deg": math.degrees(1.0), "mm": 1.0, "deg/kNm": math.degrees(1.0) * 1e3}  # from rad, mm, rad/Nm

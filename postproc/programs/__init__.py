@@ -10,15 +10,7 @@ from __future__ import annotations
 
 from ..robot.conventions import MOTIONS
 from .io import companion_dat, dialect_of, load_program, lower, read_program
-from .model import (
-           STAMP_PREFIX,
-           ActiveFrames,
-           Frame,
-           Program,
-           RobotRoot,
-           Targets,
-           TargetsBuilder,
-)
+from .model import STAMP_PREFIX, ActiveFrames, Frame, Program, RobotRoot, Targets, TargetsBuilder
 
 __all__ = ["ActiveFrames", "RobotRoot", "Frame", "Targets", "TargetsBuilder", "Program", "STAMP_PREFIX", "MOTIONS",
            "read_program", "load_program", "dialect_of", "companion_dat", "lower"]

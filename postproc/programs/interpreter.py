@@ -29,23 +29,7 @@ import numpy as np
 from ..core import frames as fr
 from .analysis.execute import Analysis, Recorder, State
 from .analysis.values import Arr, Mat, Rec, Six, Top, number
-from .ir import (
-    Agg,
-    Continue,
-    Exit,
-    Goto,
-    Halt,
-    If,
-    Invoke,
-    Label,
-    Loc,
-    Loop,
-    Move,
-    MoveRun,
-    Name,
-    Return,
-    Switch,
-)
+from .ir import Agg, Continue, Exit, Goto, Halt, If, Invoke, Label, Loc, Loop, Move, MoveRun, Name, Return, Switch
 
 __all__ = ["Interpreter", "Oracle", "Motion", "run"]
 

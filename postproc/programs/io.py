@@ -8,7 +8,7 @@ from pathlib import Path
 from ..core.diagnostics import P108, P111, P222, PostprocError
 from ..core.outputs import check_outputs
 from .model import ActiveFrames, Program
-from .text import _decode, read_text
+from .text import decode, read_text
 
 __all__ = [
     "load_program", "parse_program_text", "read_program", "dialect_of", "companion_dat", "lower",
@@ -43,7 +43,7 @@ def parse_program_text(
     return read_program(files, texts, dialect, config=config_texts, active=active)
 
 
-def _config_texts(config: str | Path | list | None) -> list[str] | None:
+def config_texts(config: str | Path | list | None) -> list[str] | None:
     if config is None:
         return None
     paths = config if isinstance(config, list | tuple) else [config]
@@ -70,7 +70,7 @@ def load_program(path: str | Path, config: str | Path | None = None, dialect: st
     if dialect in (None, "krl"):
         active = backup_active(config, active)
     if str(path) == "-":
-        return parse_program_text(_decode(sys.stdin.buffer.read(), STDIN), STDIN, dialect, None, _config_texts(config),
+        return parse_program_text(decode(sys.stdin.buffer.read(), STDIN), STDIN, dialect, None, config_texts(config),
                                   active)
     path = Path(path)
     if dialect is None:
@@ -84,7 +84,7 @@ def load_program(path: str | Path, config: str | Path | None = None, dialect: st
     if dat is not None:
         files.append(str(dat))
         texts.append(read_text(dat))
-    return read_program(files, texts, dialect, config=_config_texts(config), active=active)
+    return read_program(files, texts, dialect, config=config_texts(config), active=active)
 
 
 def check_program_outputs(program: str | Path, output: str | Path, *, in_place: bool = False) -> list[Path]:

@@ -25,7 +25,7 @@ from ..core.diagnostics import P101, P103, P104, P105, PostprocError
 from ..core.resources import grammar_path
 from ..robot.conventions import MOTIONS
 from .model import STAMP_PREFIX, Frame, Program, Targets
-from .text import _newline
+from .text import newline
 
 COLUMNS = ("x", "y", "z", "a", "b", "c")
 CONFIG = ("s", "t")
@@ -428,7 +428,7 @@ def read(files: list[str], texts: list[str], fast: bool = True, _lowered: bool =
         dialect="poses",
         in_controller_base=stated,
         stamps=stamps,
-        newlines=[_newline(text)],
+        newlines=[newline(text)],
         comment="#",
     )
 

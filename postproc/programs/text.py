@@ -6,7 +6,7 @@ from pathlib import Path
 from ..core.diagnostics import P105, P106, P107, PostprocError
 
 
-def _decode(data: bytes, path: str) -> str:
+def decode(data: bytes, path: str) -> str:
     if not data.strip():
         raise PostprocError("empty file", path, 1, 1, P105)
     if b"\x00" in data[:65536]:
@@ -24,9 +24,9 @@ def read_text(path: str | Path) -> str:
         raise PostprocError("no such file", str(path), 0, 0, P107) from None
     except OSError as exc:
         raise PostprocError(f"cannot read: {exc.strerror}", str(path), 0, 0, P107) from None
-    return _decode(data, str(path))
+    return decode(data, str(path))
 
 
-def _newline(text: str) -> str:
+def newline(text: str) -> str:
     crlf = text.count("\r\n")
     return "\r\n" if crlf and crlf >= text.count("\n") - crlf else "\n"

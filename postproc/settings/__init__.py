@@ -14,17 +14,8 @@ reading the settings file).
 """
 from .file import SETTINGS_NAME, find_settings, load_settings, read_settings
 from .sections import (
-    DEFAULT_MAX_CORRECTION_MM,
-    LIMITS,
-    MAX_ITERATIONS,
-    OPTIONS,
-    Acceptance,
-    Check,
-    FreshPair,
-    Reading,
-    Rules,
-    Settings,
-    Training,
+    DEFAULT_MAX_CORRECTION_MM, LIMITS, MAX_ITERATIONS, OPTIONS, Acceptance, Check, FreshPair, Reading, Rules,
+    Settings, Training,
 )
 
 __all__ = [

@@ -13,7 +13,7 @@ import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
-from ..model.compensator import contract_metadata
+from ..model.contract import contract_metadata
 from ..model.contract import with_defaults
 
 DEFAULT_ENVELOPE = {"box": [1700, 2300, -600, 600, 500, 1300], "attitude": [0, 90, 0], "range": 10}

@@ -53,7 +53,7 @@ def folds(q_rad: np.ndarray, branches: np.ndarray) -> list[tuple[str, np.ndarray
     that holds the rows: ``compensator.joint_arcs``), and "configurations", the IK branch
     ``branches`` [N, 3] (±1: shoulder, elbow, wrist), where at least two of them hold
     ``MIN_SHARE`` of the rows each. Each row is held out once per way."""
-    from ..compensator import joint_arcs
+    from ..envelope import joint_arcs
 
     q_deg = np.degrees(np.asarray(q_rad, float))
     arcs = joint_arcs(q_deg[:, :3])
@@ -95,7 +95,7 @@ class BlockedCV:
 
     def __init__(self, jac: np.ndarray, r: np.ndarray, theta: np.ndarray, fold: np.ndarray, q_rad: np.ndarray,
                  ripple_joint: np.ndarray | None = None, ripple_order: np.ndarray | None = None):
-        from ..compensator import joint_arcs, widened_arcs
+        from ..envelope import joint_arcs, widened_arcs
 
         n = len(fold)
         self.per_row = len(r) // n

@@ -18,7 +18,7 @@ import onnx
 import torch
 
 from ...core import outputs
-from ..compensator import (
+from ..contract import (
     INPUT_APPROACH,
     INPUT_JOINTS,
     INPUT_POSE,
@@ -30,8 +30,8 @@ from ..compensator import (
     OUTPUT_ROTATION,
     OUTPUT_STD,
     contract_metadata,
+    with_defaults,
 )
-from ..contract import with_defaults
 
 __all__ = ["export_onnx", "onnx_bytes", "write_atomic", "OPSET"]
 

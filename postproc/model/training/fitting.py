@@ -220,7 +220,12 @@ def _take(values: np.ndarray | None, rows: np.ndarray) -> np.ndarray | None:
 def _description(robot):
     """The nominal description an identified method starts from: ``robot`` (a description or
     its .toml), else the shipped default (a name other than the default's: P508)."""
-    from ...robot.description import RobotDescription, is_description_file, load_description, shipped_description
+    from ...robot.description import (
+        RobotDescription,
+        is_description_file,
+        load_description,
+        shipped_description,
+    )
 
     if isinstance(robot, RobotDescription):
         return robot

@@ -23,7 +23,7 @@ import torch
 
 from ...core.progress import stages
 from ...robot.description import RobotDescription
-from ..compensator import joint_arcs, widened_arcs
+from ..envelope import joint_arcs, widened_arcs
 from .data import envelope_of
 from .estimator import Estimator, _one_thread, residual_stats
 from .export import onnx_bytes, write_atomic

@@ -17,19 +17,7 @@ from ...core import frames as fr
 from ...core.diagnostics import P215
 from ..ir import Assign, Decl, Field, Invoke, Item, Loc, Name, walk
 from .values import (
-    Arr,
-    Mat,
-    Moving,
-    Rec,
-    Six,
-    Taint,
-    Tok,
-    Top,
-    frame_inverse,
-    frame_product,
-    number,
-    taint,
-    tokens_of,
+    Arr, Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, taint, tokens_of,
 )
 
 __all__ = ["Dialect", "PoseView", "ABC", "AXIS_TYPES"]

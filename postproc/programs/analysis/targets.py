@@ -18,21 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...core import frames as fr
-from ...core.diagnostics import (
-    P201,
-    P203,
-    P211,
-    P212,
-    P214,
-    P215,
-    P217,
-    P220,
-    P221,
-    P223,
-    P224,
-    P225,
-    Diagnostic,
-)
+from ...core.diagnostics import P201, P203, P211, P212, P214, P215, P217, P220, P221, P223, P224, P225, Diagnostic
 from ..ir import MOTION_INDEX, Agg, Loc
 from ..model import Frame, Targets
 from .execute import START, RunUse

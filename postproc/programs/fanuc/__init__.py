@@ -38,7 +38,7 @@ from ...core.frames import frame_to_matrix
 from ...core.toml import check_value, key_line, parse_toml
 from ..analysis import analyse
 from ..model import STAMP_PREFIX, Program
-from ..text import _newline
+from ..text import newline
 from .lower import TOKEN_RE, Lowering, parser
 from .semantics import LS
 
@@ -148,6 +148,6 @@ def read(files: list[str], texts: list[str], frames: list[str] | None = None, ex
     configs = [c or "" for c in built.extras.get("config", [])] or [""] * len(built.targets)
     program = FanucProgram(files=[files[0]], texts=[text], targets=built.targets, frames=built.frames,
                            diagnostics=unit.diagnostics + built.diagnostics, notes=built.notes, dialect="fanuc",
-                           stamps=stamps, newlines=[_newline(text)], comment="!", named_targets=True, configs=configs)
+                           stamps=stamps, newlines=[newline(text)], comment="!", named_targets=True, configs=configs)
     program.held = built.held
     return program

@@ -19,47 +19,11 @@ import re
 from lark import Token
 from lark.exceptions import UnexpectedInput
 
-from ...core.diagnostics import (
-    P101,
-    P103,
-    P118,
-    P201,
-    P203,
-    P210,
-    P211,
-    P215,
-    P225,
-    LineIndex,
-    PostprocError,
-)
+from ...core.diagnostics import P101, P103, P118, P201, P203, P210, P211, P215, P225, LineIndex, PostprocError
 from ..grammar import lalr_parser, unexpected
 from ..ir import (
-    Agg,
-    Assign,
-    Async,
-    Call,
-    Decl,
-    Eval,
-    Field,
-    Goto,
-    Halt,
-    Havoc,
-    If,
-    Invoke,
-    Label,
-    Lit,
-    Loc,
-    Loop,
-    Move,
-    Name,
-    Note,
-    Num,
-    Op,
-    Return,
-    Routine,
-    Switch,
-    Unit,
-    Unknown,
+    Agg, Assign, Async, Call, Decl, Eval, Field, Goto, Halt, Havoc, If, Invoke, Label, Lit, Loc, Loop, Move, Name,
+    Note, Num, Op, Return, Routine, Switch, Unit, Unknown,
 )
 from .semantics import COMPONENTS
 

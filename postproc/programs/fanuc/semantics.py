@@ -37,19 +37,7 @@ import numpy as np
 from ...core import frames as fr
 from ...core.diagnostics import P201, P203, P211, P215, P223, P225
 from ..analysis.dialect import Dialect, PoseView
-from ..analysis.values import (
-    Mat,
-    Moving,
-    Rec,
-    Six,
-    Taint,
-    Tok,
-    Top,
-    frame_inverse,
-    frame_product,
-    number,
-    tokens_of,
-)
+from ..analysis.values import Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, tokens_of
 
 _EXTERNAL = re.compile(r"^(?:E[1-9]|GP[2-9]\.J[1-9])$")
 

@@ -16,34 +16,8 @@ from lark import Token, Tree
 from ...core.diagnostics import P101, P210, P211
 from .. import ir
 from ..ir import (
-    Agg,
-    Assign,
-    Async,
-    AsyncSwitch,
-    Call,
-    Decl,
-    Eval,
-    Exit,
-    Field,
-    Goto,
-    If,
-    Invoke,
-    Item,
-    Label,
-    Lit,
-    Loc,
-    Loop,
-    Move,
-    MoveRun,
-    Name,
-    Note,
-    Num,
-    Op,
-    Param,
-    Return,
-    Routine,
-    Switch,
-    Unknown,
+    Agg, Assign, Async, AsyncSwitch, Call, Decl, Eval, Exit, Field, Goto, If, Invoke, Item, Label, Lit, Loc, Loop,
+    Move, MoveRun, Name, Note, Num, Op, Param, Return, Routine, Switch, Unknown,
 )
 from .semantics import BUILTIN_FUNCTIONS
 

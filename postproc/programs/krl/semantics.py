@@ -31,32 +31,10 @@ import re
 
 import numpy as np
 
-from ...core.diagnostics import (
-    P201,
-    P203,
-    P211,
-    P215,
-    P220,
-    P221,
-    P222,
-    P223,
-    P225,
-    PostprocError,
-)
+from ...core.diagnostics import P201, P203, P211, P215, P220, P221, P222, P223, P225, PostprocError
 from ...core.frames import frame_to_matrix
 from ..analysis.dialect import Dialect, PoseView
-from ..analysis.values import (
-    Arr,
-    Mat,
-    Moving,
-    Rec,
-    Six,
-    Tok,
-    Top,
-    frame_inverse,
-    frame_product,
-    number,
-)
+from ..analysis.values import Arr, Mat, Moving, Rec, Six, Tok, Top, frame_inverse, frame_product, number
 from ..ir import Loc
 
 __all__ = ["KRL", "HARMLESS", "BUILTIN_FUNCTIONS"]

@@ -39,46 +39,10 @@ from ...core.diagnostics import P102, P201, P211, PostprocError
 from ...robot.conventions import MOTIONS
 from ..grammar import BLANKS, NUM, TOKEN_RE
 from ..ir import (
-    Agg,
-    Assign,
-    Async,
-    AsyncSwitch,
-    Call,
-    Decl,
-    Eval,
-    Field,
-    Goto,
-    Halt,
-    If,
-    Invoke,
-    Item,
-    Label,
-    Lit,
-    Loc,
-    Loop,
-    Move,
-    MoveRun,
-    Name,
-    Note,
-    Num,
-    Op,
-    Param,
-    Return,
-    Routine,
-    Stmt,
-    Switch,
-    Unit,
-    Unknown,
-    walk,
+    Agg, Assign, Async, AsyncSwitch, Call, Decl, Eval, Field, Goto, Halt, If, Invoke, Item, Label, Lit, Loc, Loop,
+    Move, MoveRun, Name, Note, Num, Op, Param, Return, Routine, Stmt, Switch, Unit, Unknown, walk,
 )
-from .semantics import (
-    FUNCTIONS,
-    INSTRUCTIONS,
-    RECORDS,
-    RUNTIME_POSITION,
-    SCALARS,
-    UNUSED_AXIS,
-)
+from .semantics import FUNCTIONS, INSTRUCTIONS, RECORDS, RUNTIME_POSITION, SCALARS, UNUSED_AXIS
 from .syntax import STRING_RE, Source, misread
 
 __all__ = ["Lowering", "MOTIONS_OF", "MOTION_OF"]

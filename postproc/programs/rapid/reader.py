@@ -12,7 +12,7 @@ from ...core.diagnostics import P103, P104, PostprocError
 from ..analysis import analyse
 from ..ir import Call, Invoke, Unit, walk
 from ..model import STAMP_PREFIX, Program
-from ..text import _newline  # a file's newline: \r\n if at least half its line ends are
+from ..text import newline  # a file's newline: \r\n if at least half its line ends are
 from .lower import Lowering
 from .semantics import RAPID
 from .syntax import scan
@@ -99,7 +99,7 @@ class Reader:
         program = RapidProgram(
             files=list(self.files), texts=list(self.texts), targets=t, frames=built.frames,
             diagnostics=list(unit.diagnostics) + built.diagnostics, notes=built.notes, dialect="rapid",
-            stamps=stamps, newlines=[_newline(x) for x in self.texts], comment="!", named_targets=built.named,
+            stamps=stamps, newlines=[newline(x) for x in self.texts], comment="!", named_targets=built.named,
             confdata=confdata, orientation="quaternion")
         program.held = built.held
         return program

@@ -44,19 +44,7 @@ from ...core import frames as fr
 from ...core.diagnostics import P201, P203, P211, P215, P223, P225
 from ..analysis.dialect import Dialect, PoseView
 from ..analysis.values import (
-    Arr,
-    Mat,
-    Moving,
-    Rec,
-    Six,
-    Taint,
-    Tok,
-    Top,
-    frame_inverse,
-    frame_product,
-    number,
-    taint,
-    tokens_of,
+    Arr, Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, taint, tokens_of,
 )
 
 __all__ = ["RAPID", "RECORDS", "INSTRUCTIONS", "FUNCTIONS", "UNUSED_AXIS", "wobj0", "tool0"]

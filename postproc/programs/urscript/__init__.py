@@ -33,7 +33,7 @@ import numpy as np
 from ...core.diagnostics import P108, P222, PostprocError
 from ..analysis import analyse
 from ..model import STAMP_PREFIX, ActiveFrames, Program
-from ..text import _newline
+from ..text import newline
 from .lower import MOTION_OF, SCRIPT, UNIT_MM, Lowering, parser
 from .semantics import UR
 
@@ -66,7 +66,7 @@ def read(files: list[str], texts: list[str], active: ActiveFrames | None = None)
         stamps[0] = m.group().strip()
     program = Program(files=[files[0]], texts=[text], targets=built.targets, frames=built.frames,
                       diagnostics=unit.diagnostics + built.diagnostics, notes=built.notes, dialect="urscript",
-                      stamps=stamps, newlines=[_newline(text)], comment="#", named_targets=built.named,
+                      stamps=stamps, newlines=[newline(text)], comment="#", named_targets=built.named,
                       unit=UNIT_MM, orientation="rotvec")
     program.held = built.held
     qnear = built.extras.get("qnear")

@@ -21,33 +21,8 @@ from lark.exceptions import UnexpectedInput
 from ...core.diagnostics import P101, P102, P103, P117, LineIndex, PostprocError
 from ..grammar import TOKEN_RE, exact_key, lalr_parser, shape_key, unexpected
 from ..ir import (
-    Agg,
-    Assign,
-    Async,
-    AsyncSwitch,
-    Call,
-    Continue,
-    Decl,
-    Eval,
-    Exit,
-    Field,
-    Halt,
-    Havoc,
-    If,
-    Invoke,
-    Item,
-    Lit,
-    Loc,
-    Loop,
-    Move,
-    Name,
-    Num,
-    Op,
-    Param,
-    Return,
-    Routine,
-    Unit,
-    Unknown,
+    Agg, Assign, Async, AsyncSwitch, Call, Continue, Decl, Eval, Exit, Field, Halt, Havoc, If, Invoke, Item, Lit,
+    Loc, Loop, Move, Name, Num, Op, Param, Return, Routine, Unit, Unknown,
 )
 from .semantics import JOINT_VALUES, MATH, is_builtin
 
