@@ -6,6 +6,12 @@ Each subcommand lives in its own module here with ``add_parser(subparsers)`` and
 
 Exit codes: 0 done / clean, 1 findings (``check``) or a gate exceeded (``verify
 --max-mean``), 2 bad input, usage or internal error (nothing written).
+
+The CLI maps arguments and exit codes only: ``settings`` turns a subcommand's flags (and the
+settings file) into the one :class:`~postproc.settings.Settings` (every flag of a setting is
+declared there once); each subcommand module (``compensate``, ``check``, ``plan``, ``measure``,
+``verify``, ``train``, ``import_data``, ``report``, ``fleet``, ``model``, ``export``, and
+``iso9283``'s routes of plan and report) calls a use case of the packages below and prints.
 """
 from __future__ import annotations
 

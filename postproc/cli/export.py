@@ -4,6 +4,8 @@ from __future__ import annotations
 import json
 import sys
 
+from .settings import ROBOT_HELP, add
+
 EXAMPLES = """examples:
   postproc export cell3.onnx --robot models/kr500.toml -o cell3.urdf               (the description's own URDF, calibrated)
   postproc export ur10.onnx --robot models/ur10.toml --urdf ur10_nominal.urdf -o ur10_calibrated.urdf
@@ -29,8 +31,7 @@ def add_parser(sub, common, formatter) -> None:
         epilog=EXAMPLES,
     )
     p.add_argument("model", metavar="MODEL.onnx", nargs="?", help="the compensator (hybrid or kinematic)")
-    p.add_argument("--robot", metavar="FILE.toml", help="the robot description the model was identified on "
-                   "(default models/kr500.toml)")
+    add(p, "robot", helps={"robot": ROBOT_HELP + ": the one the model was identified on (default models/kr500.toml)"})
     p.add_argument("--urdf", metavar="NOMINAL.urdf", help="the nominal URDF to calibrate (default: the description's)")
     p.add_argument("--tip", metavar="LINK", help="the URDF's last link of the arm (default: the deepest after six "
                    "revolute joints)")
@@ -48,15 +49,20 @@ def run(args) -> int:
 
     from ..core import outputs
     from ..core.diagnostics import P308, PostprocError
-    from ..robot.description import load_description
+    from ..robot.description import robot_description
 
     wanted = [p for p in (args.output, args.yaml, args.json, args.ur) if p]
     if not wanted:
         raise PostprocError("nothing to write: give -o CALIBRATED.urdf, --yaml, --json and/or --ur", code=P308)
     targets = outputs.check_outputs(wanted, [args.model, args.urdf, args.robot])
-    description = load_description(args.robot)
+    description = robot_description(args.robot)
     from ..calibration.export import (
-        calibrated_urdf, calibration_yaml, identified_geometry, nominal_urdf, parameters_json, ur_calibration,
+        calibrated_urdf,
+        calibration_yaml,
+        identified_geometry,
+        nominal_urdf,
+        parameters_json,
+        ur_calibration,
     )
 
     if args.nominal:

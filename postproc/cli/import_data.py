@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import sys
 
+from .settings import ROBOT_HELP, add
+
 EXAMPLES = """\
 Formats:
   ipa              IPA robot-accuracy data (UR10 + laser tracker, Landgraf et al. 2021): ';'-separated,
@@ -53,8 +55,8 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("format", choices=["ipa", "spatialanalyzer", "robodk", "reflectors"], help="format of SRC")
     p.add_argument("src", metavar="SRC", help="the measurement file")
     p.add_argument("--poses", metavar="PLAN.csv", help="spatialanalyzer: the commanded poses (x,y,z,a,b,c [, name])")
-    p.add_argument("--robot", metavar="FILE.toml", help="robodk: the robot description whose nominal FK gives the "
-                   "commanded poses (default models/kr500.toml)")
+    add(p, "robot", helps={"robot": ROBOT_HELP + " (robodk: the one whose nominal FK gives the commanded poses; default "
+                           "models/kr500.toml)"})
     p.add_argument("--tool", metavar="X,Y,Z,A,B,C", help="robodk: the TCP on the flange (default: the description's)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.csv", help="measurement CSV to write")
     p.add_argument(
@@ -150,7 +152,7 @@ def run_tool(args) -> int:
     if args.format == "spatialanalyzer":
         data = imports.read_spatial_analyzer(args.src, args.poses)
     elif args.format == "robodk":
-        from ..robot.description import load_description
+        from ..robot.description import robot_description
 
         tool = None
         if args.tool:
@@ -160,7 +162,7 @@ def run_tool(args) -> int:
                 tool = np.zeros(0)
             if tool.shape != (6,) or not np.isfinite(tool).all():
                 raise PostprocError(f"--tool {args.tool!r}: expected X,Y,Z,A,B,C", code=P308)
-        data = imports.read_robodk(args.src, load_description(args.robot), tool)
+        data = imports.read_robodk(args.src, robot_description(args.robot), tool)
     else:
         data = imports.read_reflectors(args.src)
     measured, extra, metadata = data.measured, dict(data.extra), dict(data.metadata)

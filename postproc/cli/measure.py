@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import sys
 
+from .settings import ROBOT_HELP, add
+
 EXAMPLES = """examples:
   postproc measure plan.csv -o measured.csv                  (the default, calibrated robot)
   postproc measure plan.csv -o measured_s3.csv --robot-seed 3 --seed 1
@@ -37,7 +39,7 @@ def add_parser(sub, common, formatter) -> None:
     )
     p.add_argument("plan", metavar="PLAN_CSV", help="poses to visit, in order (header with x,y,z,a,b,c)")
     p.add_argument("-o", "--output", metavar="MEASURED_CSV", required=True, help="measurement CSV to write")
-    p.add_argument("--robot", metavar="FILE", help="robot description with [errors] (default models/kr500.toml)")
+    add(p, "robot", helps={"robot": ROBOT_HELP + ", with [errors] (default models/kr500.toml)"})
     p.add_argument("--robot-seed", type=int, metavar="S",
                    help="draw another robot (default: the file's calibrated one)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="measurement noise seed (default 0)")
@@ -52,12 +54,19 @@ def run(args) -> int:
 
     import numpy as np
 
-    from ..calibration.planning import read_plan_config, read_plan_labels, read_plan_tools, read_pose_csv, tool_parts
+    from ..calibration.planning import (
+        read_plan_config,
+        read_plan_labels,
+        read_plan_tools,
+        read_pose_csv,
+        tool_parts,
+    )
     from ..calibration.simulator import SimulatedRobot
     from ..core.diagnostics import P320, P335, PostprocError
     from ..core.outputs import check_outputs, write
     from ..core.progress import stages
     from ..measurements.csv import TOOL_COLUMNS, measurement_csv, parse_tool
+    from ..robot.description import robot_description
     from . import show_progress
 
     check_outputs([args.output], [args.plan, args.robot or "-"])
@@ -69,7 +78,7 @@ def run(args) -> int:
         labels = read_plan_labels(args.plan)
         given = [parse_tool(t) for t in args.tool or []]
         stage("draw robot")
-        sim = SimulatedRobot.from_file(args.robot, args.robot_seed)
+        sim = SimulatedRobot(robot_description(args.robot), args.robot_seed)
         tools = read_plan_tools(args.plan)
         if tools is not None and given:
             raise PostprocError("the plan names each row's tool (tool_x..tool_c): --tool would contradict it",

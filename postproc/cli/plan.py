@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import sys
 
+from .settings import ROBOT_HELP, add
+
 EXAMPLES = """examples:
   postproc plan -n 2000 --seed 0 -o plan.csv --krl measure.src
   postproc plan -n 2000 --robot models/r2000ic.toml --wrist both -o plan.csv --ls measure.ls   (FANUC: CONFIG strings)
@@ -40,7 +42,7 @@ def add_parser(sub, common, formatter) -> None:
                    help="position box in the robot base frame, mm")
     p.add_argument("--attitude", type=float, nargs=3, metavar=("A", "B", "C"), help="working attitude, deg")
     p.add_argument("--range", type=float, metavar="DEG", help="± range of each of A, B, C around the attitude")
-    p.add_argument("--robot", metavar="FILE", help="robot description (default models/kr500.toml)")
+    add(p, "robot", helps={"robot": ROBOT_HELP + " (default models/kr500.toml)"})
     p.add_argument("-o", "--output", metavar="PLAN_CSV", required=True, help="plan CSV to write")
     p.add_argument("--krl", metavar="SRC", help="also write a KRL measurement program (.src, module named after it)")
     p.add_argument("--ls", metavar="LS", help="also write a FANUC LS measurement program (.ls, program named after it): "
@@ -81,19 +83,27 @@ def run(args) -> int:
     import numpy as np
 
     from ..calibration.planning import (
-        DEFAULT_ATTITUDE, DEFAULT_BOX, DEFAULT_RANGE, krl_measurement_program, latin_hypercube, plan_configurations,
-        plan_csv_chunks, reachable, round_poses, tool_parts,
+        DEFAULT_ATTITUDE,
+        DEFAULT_BOX,
+        DEFAULT_RANGE,
+        krl_measurement_program,
+        latin_hypercube,
+        plan_configurations,
+        plan_csv_chunks,
+        reachable,
+        round_poses,
+        tool_parts,
     )
     from ..core.diagnostics import P335, P512, PostprocError
     from ..core.outputs import check_outputs, write
     from ..core.progress import stages
     from ..measurements.csv import parse_tool
     from ..robot.arm import Robot
-    from ..robot.description import load_description
+    from ..robot.description import robot_description
     from . import show_progress
 
     check_outputs([args.output, args.krl or "-", args.ls or "-"], [args.robot or "-"])
-    description = load_description(args.robot)
+    description = robot_description(args.robot)
     tools = [parse_tool(t) for t in args.tool or []]
     if tools:
         description = description.replace(tool=tools[0], tool_name=f"$TOOL {args.tool[0]}")
@@ -171,7 +181,13 @@ def _run_for(args, description) -> int:
 
     import numpy as np
 
-    from ..calibration.plan_for import coverage, listed, plan_for, program_targets, read_data
+    from ..calibration.plan_for import (
+        coverage,
+        listed,
+        plan_for,
+        program_targets,
+        read_data,
+    )
     from ..calibration.planning import krl_measurement_program, plan_csv_chunks
     from ..core.diagnostics import P512, PostprocError
     from ..core.outputs import check_outputs, write

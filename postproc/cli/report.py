@@ -58,7 +58,6 @@ def run(args) -> int:
 
     from ..acceptance.report import read_report_data, write_report
     from ..model.compensator import load_model
-
     from ..settings import LIMITS
 
     settings = settings_of(args)
