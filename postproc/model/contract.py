@@ -133,8 +133,6 @@ def upgrade(data: bytes) -> bytes:
     return model.SerializeToString()
 
 
-
-
 def _json_or_text(value: str):
     try:
         return json.loads(value)
