@@ -27,8 +27,7 @@ from _common import record
 from postproc.cli import main
 from postproc.model.compensator import load_model
 from postproc.core.frames import MM
-from postproc.calibration.export import calibrated_urdf, identified_geometry, ur_calibration
-from postproc.robot.urdf import nominal_urdf
+from postproc.calibration.export import calibrated_urdf, identified_geometry, nominal_urdf, ur_calibration
 from postproc.robot.description import load_description
 from postproc.model.training.fitting import fit
 from postproc.settings import Settings

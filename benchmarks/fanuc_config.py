@@ -3,7 +3,7 @@ simulated robot as accurately as the same targets as a pose list (issue 25's gat
 
 FANUC: fresh Latin-hypercube targets in the R-2000iC-class workspace (models/r2000ic.toml), half
 of them in the flipped wrist (as `postproc plan --wrist both` draws them), written as an LS
-program whose positions state `CONFIG : 'F U T, t1, t4, t6'` (conventions.fanuc_configs of their
+program whose positions state `CONFIG : 'F U T, t1, t4, t6'` (configuration.fanuc_configs of their
 joint angles) in a user frame turned and shifted on the table (UF 1, the frame file), J motions;
 the same targets in the robot base as a pose list with the configuration in postproc's portable
 form (s,t columns); and, as the control, that pose list without s,t (the model evaluated on the
@@ -28,7 +28,6 @@ import numpy as np
 from _common import load, record
 
 from postproc.robot import configuration
-from postproc.robot import conventions
 from postproc.core import frames
 from postproc.compensation.api import compensate_text
 from postproc.programs.io import parse_program_text
@@ -98,7 +97,7 @@ def pose_list(poses: np.ndarray, st: np.ndarray | None) -> str:
     return "x,y,z,a,b,c,s,t\n" + "\n".join(rows) + "\n"
 
 
-def _run(sim, model, text, name, config=None, seed=0, run_as: conventions.Stated | None = None) -> dict:
+def _run(sim, model, text, name, config=None, seed=0, run_as: configuration.Stated | None = None) -> dict:
     """Compensate ``text`` and run original and compensated on ``sim`` in their stated
     configurations (``run_as``: in these instead — the robot's, where the program did not say)."""
     import tempfile
@@ -118,7 +117,7 @@ def _run(sim, model, text, name, config=None, seed=0, run_as: conventions.Stated
     base = lambda p: frames.matrix_to_frame(  # noqa: E731  (each target in the robot base)
         np.stack([p.frames[f].base for f in p.targets.frame]) @ frames.frame_to_matrix(p.targets.poses))
     rows = np.arange(len(before.targets))
-    stated, unmapped, _ = conventions.stated_configuration(before, sim.description, rows)
+    stated, unmapped, _ = configuration.stated_configuration(before, sim.description, rows)
     assert not unmapped.any()
     stated = stated if run_as is None else run_as
     tools = np.tile(sim.robot.tool, (len(rows), 1))
@@ -133,22 +132,22 @@ def family(kind: str, n: int, seed: int) -> dict:
     sim = SimulatedRobot.from_file(model_path(description))
     model = load_model(model_path(model_file))
     poses, q = _targets(sim, n, seed)
-    st = np.stack(conventions.status_turn_of(sim.robot, q), axis=1)
+    st = np.stack(configuration.status_turn_of(sim.robot, q), axis=1)
     tool = sim.robot.tool
     if kind == "fanuc":
-        configs = conventions.fanuc_configs(sim.robot, q)
+        configs = configuration.fanuc_configs(sim.robot, q)
         text, frames_text = fanuc_program(poses, configs, FRAMES[kind], tool)
         program = _run(sim, model, text, "bench.ls", frames_text)
         forms = sorted(set(c.split(",")[0] for c in configs))
     else:
-        conf = conventions.abb_confdata(sim.robot, q)
+        conf = configuration.abb_confdata(sim.robot, q)
         program = _run(sim, model, rapid_program(poses, conf, FRAMES[kind], tool), "bench.mod")
         forms = sorted({f"cfx {int(c)}" for c in conf[:, 3]})
     listed = _run(sim, model, pose_list(poses, st), "bench.csv")
     ratio = program["after"]["mean"] / listed["after"]["mean"]
     # the control: the model not told the configuration (each row on the branch nearest HOME)
     # while the robot runs the one the program states: what reading the form is worth
-    blind = _run(sim, model, pose_list(poses, None), "bench.csv", run_as=conventions.Stated(st[:, 0], st[:, 1]))
+    blind = _run(sim, model, pose_list(poses, None), "bench.csv", run_as=configuration.Stated(st[:, 0], st[:, 1]))
     flipped = int((q[:, 4] <= 0).sum() if kind == "fanuc" else (q[:, 4] < 0).sum())
     print(f"{kind}: {len(poses)} targets ({', '.join(forms)}; {flipped} with J5 ≤ 0 / < 0), robot {sim.robot.name} "
           f"seed {sim.seed}, model {model_file}")

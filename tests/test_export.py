@@ -14,8 +14,9 @@ from postproc.core import frames
 from postproc.cli import main
 from postproc.model.compensator import load_model
 from postproc.core.frames import MM
-from postproc.robot.urdf import _origin, _xyz_rpy, nominal_urdf, read_urdf
-from postproc.calibration.export import calibrated_urdf, calibration_yaml, identified_geometry
+from postproc.calibration.export import (
+    _origin, _xyz_rpy, calibrated_urdf, calibration_yaml, identified_geometry, nominal_urdf, read_urdf,
+)
 from postproc.core.diagnostics import PostprocError
 from postproc.robot.description import load_description
 from postproc.settings import Settings
@@ -210,8 +211,7 @@ def test_a_network_model_has_nothing_to_export(tmp_path, affine):
 def test_the_ur_layout_holds_the_identified_joint_geometry(tmp_path):
     """A UR model: DH deltas (calibration.conf) whose DH chain is the identified joint geometry (in
     the base its first axis defines) to well below 1 µm; the nominal rows are UR's published DH."""
-    from postproc.robot.kinematics.dh import dh_chain
-    from postproc.calibration.export import ur_calibration
+    from postproc.calibration.export import dh_transforms, ur_calibration
     from postproc.model.training.fitting import fit
 
     from helpers import REPO
@@ -237,7 +237,7 @@ def test_the_ur_layout_holds_the_identified_joint_geometry(tmp_path):
     chain = geometry.tcp(np.degrees(q))  # (base and TCP: take them out)
     flange = (np.linalg.inv(ur["mounting"]) @ np.linalg.inv(controller) @ np.linalg.inv(geometry.base) @ chain
               @ np.linalg.inv(geometry.end) @ load_description(ur10).flange_matrix)
-    dh = dh_chain(ur["nominal_dh"] + ur["delta"]).transforms(q)
+    dh = dh_transforms(ur["nominal_dh"] + ur["delta"], q)
     assert np.abs(dh[:, :3, 3] - flange[:, :3, 3]).max() < 1e-3
     # a KUKA-type arm is no DH chain in its base (A1 turns about -Z): refused
     kuka = tmp_path / "k.conf"

@@ -119,7 +119,7 @@ def execution(program, rows, sim) -> dict:
     stated_configuration; a form the description cannot say is P309, refused), motion kinds
     (configuration.execution_kinds) and $TOOL (the simulated robot's tool where the program's is
     unknown) — the options of SimulatedRobot.verify. Both runs use the ORIGINAL's."""
-    from ..robot.conventions import stated_configuration
+    from ..robot.configuration import stated_configuration
 
     t = program.targets
     stated, unmapped, why = stated_configuration(program, sim.description, rows)

@@ -39,14 +39,9 @@ import numpy as np
 from ..core import frames
 from ..core.diagnostics import P317, P533, PostprocError
 from ..core.frames import MM
-from ..robot.kinematics.chain import Chain
-from ..robot.kinematics.dh import dh_chain, dh_parameters
-from ..robot.urdf import UrdfChain, _origin, _xyz_rpy, read_urdf
 
-__all__ = [
-    "Geometry", "identified_geometry", "calibrated_urdf", "calibration_yaml", "parameters_json", "NOT_GEOMETRIC",
-    "ur_calibration",
-]
+__all__ = ["Geometry", "identified_geometry", "nominal_urdf", "UrdfChain", "read_urdf", "calibrated_urdf",
+           "calibration_yaml", "parameters_json", "NOT_GEOMETRIC", "dh_parameters", "dh_transforms", "ur_calibration"]
 
 NOT_GEOMETRIC = ("compliance", "coupling", "backlash", "ripple")
 # a URDF joint is the description's joint when its frame change leaves the axis within this (rad,
@@ -70,6 +65,8 @@ class Geometry:
 
     def tcp(self, q_deg: np.ndarray, nominal: bool = False) -> np.ndarray:
         """[N, 4, 4] the TCP (in the base's frame) at joint angles [N, 6] deg."""
+        from ..robot.kinematics.chain import Chain
+
         if nominal:
             chain = Chain(self.nominal_placements, self.description.axes, self.nominal_end)
         else:
@@ -111,6 +108,131 @@ def identified_geometry(model, description) -> Geometry:
 
 
 # --------------------------------------------------------------------------- URDF
+
+
+def _xyz_rpy(m: np.ndarray) -> tuple[str, str]:
+    """URDF origin attributes (m, rad; rpy: R = Rz(y)·Ry(p)·Rx(r), KUKA's A,B,C = y,p,r) of [4, 4] mm."""
+    abc = np.radians(frames.abc_from_rotation(m[:3, :3]))
+    return (" ".join(f"{v * MM:.12g}" for v in m[:3, 3]), " ".join(f"{v:.15g}" for v in abc[::-1]))
+
+
+def _origin(element) -> np.ndarray:
+    o = element.find("origin")
+    xyz = [float(v) for v in (o.get("xyz", "0 0 0") if o is not None else "0 0 0").split()]
+    rpy = [float(v) for v in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split()]
+    return frames.frame_to_matrix(np.r_[np.asarray(xyz) / MM, np.degrees(rpy[::-1])])
+
+
+def nominal_urdf(description) -> str:
+    """A URDF of ``description``'s kinematic chain (no visuals): links ``base_link``, ``link_1..6``,
+    ``flange``, ``tcp``; joints ``joint_1..6`` (the description's origins and axes, limits) and fixed
+    ``flange_joint`` / ``tcp_joint``."""
+    robot = ET.Element("robot", name=description.name)
+    ET.SubElement(robot, "link", name="base_link")
+    parent = "base_link"
+    for j, (spec, placement) in enumerate(zip(description.joints, description.placements), 1):
+        child = f"link_{j}"
+        ET.SubElement(robot, "link", name=child)
+        joint = ET.SubElement(robot, "joint", name=f"joint_{j}", type="revolute")
+        xyz, rpy = _xyz_rpy(placement)
+        ET.SubElement(joint, "origin", xyz=xyz, rpy=rpy)
+        ET.SubElement(joint, "parent", link=parent)
+        ET.SubElement(joint, "child", link=child)
+        ET.SubElement(joint, "axis", xyz=" ".join(f"{v:.15g}" for v in spec.axis))
+        lo, hi = np.radians(spec.limits)
+        ET.SubElement(joint, "limit", lower=f"{lo:.9g}", upper=f"{hi:.9g}", effort="1000", velocity="2")
+        parent = child
+    for name, child, m in (("flange_joint", "flange", description.flange_matrix),
+                           ("tcp_joint", "tcp", description.tool_matrix)):
+        ET.SubElement(robot, "link", name=child)
+        joint = ET.SubElement(robot, "joint", name=name, type="fixed")
+        xyz, rpy = _xyz_rpy(m)
+        ET.SubElement(joint, "origin", xyz=xyz, rpy=rpy)
+        ET.SubElement(joint, "parent", link=parent)
+        ET.SubElement(joint, "child", link=child)
+        parent = child
+    ET.indent(robot)
+    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+
+
+@dataclass
+class UrdfChain:
+    """A URDF's arm: the XML tree, its six movable joints from the root to the tip, the fixed
+    joints between (``fixed[j]``: those before movable joint j, ``fixed[6]``: after the last, up
+    to the tip)."""
+
+    tree: ET.Element
+    joints: list
+    fixed: list
+    path: str
+
+    def axis(self, j: int) -> np.ndarray:
+        a = self.joints[j].find("axis")
+        v = np.array([float(x) for x in (a.get("xyz") if a is not None else "1 0 0").split()])
+        return v / np.linalg.norm(v)
+
+    def zero_frames(self, origins: list[np.ndarray] | None = None) -> tuple[list[np.ndarray], np.ndarray]:
+        """Each movable joint's frame at q = 0 in the root link's [6][4, 4] (mm), and the tip's."""
+        out, m = [], np.eye(4)
+        for j in range(6):
+            for f in self.fixed[j]:
+                m = m @ _origin(f)
+            m = m @ (origins[j] if origins is not None else _origin(self.joints[j]))
+            out.append(m)
+        for f in self.fixed[6]:
+            m = m @ _origin(f)
+        return out, m
+
+
+def read_urdf(text: str, path: str = "<urdf>", tip: str | None = None) -> UrdfChain:
+    """The arm of a URDF: the path of joints from the root link to ``tip`` (default: the deepest
+    link with six movable joints above it); P533 for a URDF without one such chain."""
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        line, col = exc.position
+        raise PostprocError(f"not XML: {exc}", path, line, col + 1, P533) from None
+    if root.tag != "robot":
+        raise PostprocError(f"not a URDF: the root element is <{root.tag}>, not <robot>", path, 1, 1, P533)
+    by_child = {}
+    for joint in root.findall("joint"):
+        child, parent = joint.find("child"), joint.find("parent")
+        if child is None or parent is None:
+            raise PostprocError(f"joint {joint.get('name')!r} has no parent or child", path, 0, 0, P533)
+        by_child[child.get("link")] = joint
+    links = [link.get("name") for link in root.findall("link")]
+
+    def chain_to(link: str) -> list:
+        out = []
+        while link in by_child:
+            joint = by_child[link]
+            out.append(joint)
+            link = joint.find("parent").get("link")
+        return out[::-1]
+
+    def movable(chain) -> list:
+        return [j for j in chain if j.get("type") in ("revolute", "continuous")]
+
+    if tip is None:
+        candidates = [(len(chain_to(link)), link) for link in links if len(movable(chain_to(link))) == 6]
+        if not candidates:
+            raise PostprocError("no chain of six revolute joints from the root link", path, 0, 0, P533)
+        tip = max(candidates)[1]
+    elif tip not in links:
+        raise PostprocError(f"no link {tip!r}", path, 0, 0, P533)
+    chain = chain_to(tip)
+    moving = movable(chain)
+    if len(moving) != 6 or any(j.get("type") not in ("revolute", "continuous", "fixed") for j in chain):
+        raise PostprocError(f"the chain to {tip!r} has {len(moving)} revolute joints (and "
+                            f"{sum(j.get('type') not in ('revolute', 'continuous', 'fixed') for j in chain)} of "
+                            "other kinds): a six-axis arm has six", path, 0, 0, P533)
+    fixed, k = [[] for _ in range(7)], 0
+    for joint in chain:
+        if joint.get("type") == "fixed":
+            fixed[k].append(joint)
+        else:
+            k += 1
+    return UrdfChain(root, moving, fixed, path)
 
 
 def _lines_fit(a_dirs, a_points, u_dirs, u_points) -> np.ndarray:
@@ -238,7 +360,7 @@ def calibration_yaml(offsets: dict, model_name: str = "") -> str:
 
 def parameters_json(model, geometry: Geometry | None = None) -> dict:
     """The identified parameters with their std, named and in units (``certificate.PARAMETER_NAMES``)."""
-    from ..model.identified import PARAMETER_NAMES, UNIT_SCALE
+    from ..model.identified import UNIT_SCALE, PARAMETER_NAMES
 
     ident = model.metadata.get("identified") or {}
     params = ident.get("parameters") or {}
@@ -267,6 +389,76 @@ def parameters_json(model, geometry: Geometry | None = None) -> dict:
 # --------------------------------------------------------------------------- UR (DH)
 
 
+def _chain_lines(placements, axes, end, base) -> tuple[list, np.ndarray]:
+    """The joint axis lines (point, direction) at q = 0 and the end frame, in ``base``'s frame."""
+    m, lines = base.copy(), []
+    for placement, axis in zip(placements, axes):
+        m = m @ placement
+        lines.append((m[:3, 3].copy(), m[:3, :3] @ axis))
+    return lines, m @ end
+
+
+def dh_parameters(lines: list, end: np.ndarray, parallel: float = 1e-12) -> np.ndarray:
+    """[6, 4] standard DH rows (θ offset rad, d mm, a mm, α rad) of a chain whose joint axes at
+    q = 0 are ``lines`` [(point, direction)] × 6 and whose end frame (DH frame 6, its z along the
+    last axis) is ``end`` [4, 4], all in the DH base frame (z_0 = the first axis). Each row i
+    goes from frame i−1 to frame i on the common normal of axes i and i+1 (x_i along it, turned
+    the way x_{i−1} points); parallel axes (|z_{i−1} × z_i| ≤ ``parallel``) take d = 0, the last
+    row ends at ``end``'s origin with its x."""
+    o, x, z = np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    targets = [(p, w / np.linalg.norm(w)) for p, w in lines[1:]] + [(end[:3, 3], end[:3, 2])]
+    rows = []
+    for i, (p, w) in enumerate(targets):
+        last = i == len(targets) - 1
+        n = np.cross(z, w)
+        if np.linalg.norm(n) > parallel:
+            r = p - o
+            b = z @ w
+            s_, t_ = (z @ r - b * (w @ r)) / (1 - b * b), (b * (z @ r) - w @ r) / (1 - b * b)
+            foot, new_o = o + s_ * z, p + t_ * w
+            new_x = n / np.linalg.norm(n)
+            d = s_
+        else:
+            if last:  # the end frame's origin on its line: d along the axis, a across
+                d = (p - o) @ z
+                foot, new_o = o + d * z, p
+            else:
+                d, foot = 0.0, o
+                new_o = p + ((o - p) @ w) * w
+            v = new_o - foot
+            if last:  # DH frame 6 is the end frame: its x (what is left across is no DH row's)
+                new_x = end[:3, 0] - (end[:3, 0] @ w) * w
+                new_x = new_x / np.linalg.norm(new_x)
+            elif np.linalg.norm(v) > 1e-9:
+                new_x = v / np.linalg.norm(v)
+            else:
+                new_x = x
+        if new_x @ x < 0:
+            new_x = -new_x
+        a = (new_o - foot) @ new_x
+        alpha = math.atan2(np.cross(z, w) @ new_x, z @ w)
+        theta = math.atan2(np.cross(x, new_x) @ z, x @ new_x)
+        rows.append((theta, d, a, alpha))
+        o, x, z = new_o, new_x, w
+    return np.array(rows)
+
+
+def dh_transforms(dh: np.ndarray, q_rad: np.ndarray) -> np.ndarray:
+    """[N, 4, 4] the DH chain's end (mm) at joint angles [N, 6] rad."""
+    q_rad = np.atleast_2d(q_rad)
+    out = np.repeat(np.eye(4)[None], len(q_rad), axis=0)
+    for i, (theta, d, a, alpha) in enumerate(dh):
+        t = theta + q_rad[:, i]
+        ct, st, ca, sa = np.cos(t), np.sin(t), math.cos(alpha), math.sin(alpha)
+        m = np.zeros((len(q_rad), 4, 4))
+        m[:, 0, 0], m[:, 0, 1], m[:, 0, 2], m[:, 0, 3] = ct, -st * ca, st * sa, a * ct
+        m[:, 1, 0], m[:, 1, 1], m[:, 1, 2], m[:, 1, 3] = st, ct * ca, -ct * sa, a * st
+        m[:, 2, 1], m[:, 2, 2], m[:, 2, 3] = sa, ca, d
+        m[:, 3, 3] = 1.0
+        out = out @ m
+    return out
+
+
 def ur_calibration(geometry: Geometry, model_name: str = "", samples: int = 200) -> tuple[str, dict]:
     """The UR controller's calibration layout of ``geometry`` (module text): (the text of a
     ``calibration.conf``, {"dh", "nominal_dh", "delta", "residual_mm"}); P533 for an arm whose
@@ -279,10 +471,12 @@ def ur_calibration(geometry: Geometry, model_name: str = "", samples: int = 200)
     q = rng.uniform(-np.pi, np.pi, (samples, 6))
 
     def rows(placements, base):
-        chain = Chain(placements, d.axes, d.flange_matrix, base)
-        dh = dh_parameters(*chain.axis_lines())
-        reference = chain.transforms(q)
-        return dh, float(np.linalg.norm(dh_chain(dh).transforms(q)[:, :3, 3] - reference[:, :3, 3], axis=1).max())
+        from ..robot.kinematics.chain import Chain
+
+        lines, flange = _chain_lines(placements, d.axes, d.flange_matrix, base)
+        dh = dh_parameters(lines, flange)
+        reference = Chain(placements, d.axes, d.flange_matrix, base).transforms(q)
+        return dh, float(np.linalg.norm(dh_transforms(dh, q)[:, :3, 3] - reference[:, :3, 3], axis=1).max())
 
     nominal, nominal_off = rows(geometry.nominal_placements, to_dh)
     if nominal_off > 1e-6:
@@ -290,7 +484,7 @@ def ur_calibration(geometry: Geometry, model_name: str = "", samples: int = 200)
                             "off): the UR calibration layout does not apply", code=P533)
     # a robot's base frame is its first axis: the identified one (z along it, through the point of it
     # nearest the nominal origin, x the nominal x across it); how far that moved is the mounting's
-    p1, w1 = Chain(geometry.placements[:1], d.axes[:1], np.eye(4), to_dh).axis_lines()[0][0]
+    p1, w1 = _chain_lines(geometry.placements[:1], d.axes[:1], np.eye(4), to_dh)[0][0]
     w1 = w1 / np.linalg.norm(w1)
     mounting = np.eye(4)
     x = np.array([1.0, 0.0, 0.0]) - w1[0] * w1

@@ -27,7 +27,7 @@ Vectorised throughout: IK/FK and gravity torques (from the joint frames) in nump
 poses, backlash signs from ``np.diff`` with a forward fill; Pinocchio is not needed.
 
 Arm configuration and tools: a command may carry its Status/Turn (``config`` [N, 2], -1 = not
-stated, or a ``conventions.Stated``: what a program states in its controller's form; the
+stated, or a ``configuration.Stated``: what a program states in its controller's form; the
 controller's rules of :mod:`postproc.robot.configuration` for the rest, from HOME) or its joint angles, and its own TCP on the flange (``tools`` [N, 6], default the description's
 tool). The drawn tool error is a mount error on the flange: for the description's tool T₀ the
 real TCP is flange·T₀·E, for another tool T it is flange·(T₀·E·T₀⁻¹)·T, the same physical
@@ -47,7 +47,7 @@ from ..core.diagnostics import P331, P335, PostprocError
 from ..core.frames import nearest_triple, small_transform
 from ..core.stats import table2
 from ..core.toml import check_value
-from ..robot import configuration, conventions
+from ..robot import configuration
 from ..robot.approach import approach_signs, ordered_approach_signs
 from ..robot.arm import Robot
 from ..robot.description import RobotDescription, load_description
@@ -384,15 +384,15 @@ class SimulatedRobot:
                 and (tools is None or np.allclose(tools, self.robot.tool)):
             return self._ik(poses)  # (the plain case, cached)
         n = len(poses)
-        if isinstance(config, conventions.Stated):  # (a program's stated forms: S/T, confdata, CONFIG)
+        if isinstance(config, configuration.Stated):  # (a program's stated forms: S/T, confdata, CONFIG)
             stated = config
         else:
-            config = np.full((n, 2), conventions.UNSTATED) if config is None else np.asarray(config, int)
-            stated = conventions.Stated(config[:, 0], config[:, 1])
+            config = np.full((n, 2), configuration.UNSTATED) if config is None else np.asarray(config, int)
+            stated = configuration.Stated(config[:, 0], config[:, 1])
         if motions is None:
             ptp, alone = np.zeros(n, bool), np.ones(n, bool)
         else:
-            ptp, alone = conventions.execution_kinds(motions)
+            ptp, alone = configuration.execution_kinds(motions)
         if prev is not None or axes is not None:
             prev = np.arange(-1, n - 1) if prev is None else np.asarray(prev)
             return configuration.ordered_joints(self.robot, poses, stated, ptp, self.robot.home_q, tools, alone, prev,

@@ -54,7 +54,13 @@ def run(args) -> int:
 
     import numpy as np
 
-    from ..calibration.planning import read_plan_config, read_plan_labels, read_plan_tools, read_pose_csv, tool_parts
+    from ..calibration.planning import (
+        read_plan_config,
+        read_plan_labels,
+        read_plan_tools,
+        read_pose_csv,
+        tool_parts,
+    )
     from ..calibration.simulator import SimulatedRobot
     from ..core.diagnostics import P320, P335, PostprocError
     from ..core.outputs import check_outputs, write

@@ -83,8 +83,16 @@ def run(args) -> int:
     import numpy as np
 
     from ..calibration.planning import (
-        DEFAULT_ATTITUDE, DEFAULT_BOX, DEFAULT_RANGE, krl_measurement_program, latin_hypercube, plan_configurations,
-        plan_csv_chunks, reachable, round_poses, tool_parts,
+        DEFAULT_ATTITUDE,
+        DEFAULT_BOX,
+        DEFAULT_RANGE,
+        krl_measurement_program,
+        latin_hypercube,
+        plan_configurations,
+        plan_csv_chunks,
+        reachable,
+        round_poses,
+        tool_parts,
     )
     from ..core.diagnostics import P335, P512, PostprocError
     from ..core.outputs import check_outputs, write
@@ -173,7 +181,13 @@ def _run_for(args, description) -> int:
 
     import numpy as np
 
-    from ..calibration.plan_for import coverage, listed, plan_for, program_targets, read_data
+    from ..calibration.plan_for import (
+        coverage,
+        listed,
+        plan_for,
+        program_targets,
+        read_data,
+    )
     from ..calibration.planning import krl_measurement_program, plan_csv_chunks
     from ..core.diagnostics import P512, PostprocError
     from ..core.outputs import check_outputs, write

@@ -5,7 +5,11 @@ from __future__ import annotations
 
 import sys
 
-from ..model.training.methods import IDENTIFIED, METHODS, OPTIMIZERS
+from ..model.training.methods import (  # (no numpy, no torch: see EXAMPLES)
+    IDENTIFIED,
+    METHODS,
+    OPTIMIZERS,
+)
 from .settings import ROBOT_HELP, add, settings_of
 
 EXAMPLES = """\

@@ -142,14 +142,14 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
     """The model's ``joints`` / ``tool`` inputs for targets ``rows`` at base poses ``sel``:
     (rows kept, their poses, joint angles [n, 6] deg or None, TCPs [n, 6] or None, warnings).
     Targets whose configuration has no joint angles on the nominal arm, or is stated in a form
-    the model's description cannot say (``conventions.stated_configuration``), are left as
+    the model's description cannot say (``configuration.stated_configuration``), are left as
     written (P309). The tool is the program's $TOOL where known, else the model's (its card); where
     its lever arm is so far from the measured TCPs' that the mount rotation the model could not
     separate may add TOOL_WARNING_MM or more, a P319 warning says how much (the target is
     compensated). ``collect`` makes the located warnings (findings.collect). ``chain`` (a
     ``compensator.Chain``, streaming compensate): the rules continue from the part before's last
     target (its ``origin``: the program's start position) and leave this part's last in it."""
-    from ..robot import configuration, conventions
+    from ..robot import configuration
     from ..robot.arm import Robot
 
     description = model_description(model)
@@ -163,7 +163,7 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
     q = None
     stated = None
     if model.wants_joints:
-        stated, unmapped, why = conventions.stated_configuration(program, description, rows)
+        stated, unmapped, why = configuration.stated_configuration(program, description, rows)
         if unmapped.any():
             warnings += collect(program, rows[unmapped], P309, lambda i: why[i] + ": left as it is")
             keep = ~unmapped

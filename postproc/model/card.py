@@ -15,7 +15,14 @@ from functools import cache
 
 from ..core.resources import schema_path
 from .compensator import Compensator
-from .contract import INPUT_POSE, OUTPUT_ERROR, OUTPUT_JOINTS, OUTPUT_ROTATION, OUTPUT_STD, contract_version
+from .contract import (
+    INPUT_POSE,
+    OUTPUT_ERROR,
+    OUTPUT_JOINTS,
+    OUTPUT_ROTATION,
+    OUTPUT_STD,
+    contract_version,
+)
 
 __all__ = ["SCHEMA_PATH", "schema", "card_problems", "interface_lines", "card_lines"]
 

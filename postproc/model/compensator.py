@@ -132,9 +132,21 @@ from ..core.diagnostics import P306, P307, P308, PostprocError
 from ..core.resources import model_path
 from ..settings import MAX_ITERATIONS
 from .contract import (
-    INPUT_APPROACH, INPUT_JOINTS, INPUT_POSE, INPUT_PREVIOUS, INPUT_PREVIOUS_JOINTS, INPUT_TOOL,
-    LEGACY_OUTPUT_JOINTS, OUTPUT_ERROR, OUTPUT_JOINTS, OUTPUT_ROTATION, OUTPUT_STD, _interface_problems,
-    _json_or_text, _metadata_problem, _version_problem,
+    INPUT_APPROACH,
+    INPUT_JOINTS,
+    INPUT_POSE,
+    INPUT_PREVIOUS,
+    INPUT_PREVIOUS_JOINTS,
+    INPUT_TOOL,
+    LEGACY_OUTPUT_JOINTS,
+    OUTPUT_ERROR,
+    OUTPUT_JOINTS,
+    OUTPUT_ROTATION,
+    OUTPUT_STD,
+    _interface_problems,
+    _json_or_text,
+    _metadata_problem,
+    _version_problem,
 )
 from .envelope import Envelope
 from .settle import Chain, CommandChunk, Order, _corrected_attitude, _Settle

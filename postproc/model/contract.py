@@ -133,6 +133,8 @@ def upgrade(data: bytes) -> bytes:
     return model.SerializeToString()
 
 
+
+
 def _json_or_text(value: str):
     try:
         return json.loads(value)

@@ -1,8 +1,21 @@
-"""The nominal robot of a description: its forward kinematics (``kinematics.chain``), gravity
-torques (``kinematics.gravity``), the controller's inverse kinematics (``kinematics.ik``: every
-branch, the one a Status states, the nearest), KUKA's Status and Turn of joint angles, and
-Pinocchio's model as the reference (built on first use: ``kinematics.reference``). Units mm and
-degrees; Pinocchio's metres and radians stay in ``reference``.
+"""The nominal robot: a description file (TOML) → its kinematic chain, vectorised FK, gravity
+torques and analytic IK; ``pin.Model`` as the reference.
+
+A description (``models/kr500.toml`` is the example) lists the joints of a serial 6R arm with
+their origins (a pure offset at q = 0 for the robots postproc ships), axes, limits and link
+masses, then the flange, the tool (TCP), the payload, the workspace and optionally an
+``[errors]`` table that :mod:`postproc.calibration.simulator` reads. Units at every public interface
+are mm and degrees; Pinocchio works in metres and radians, converted here at the boundary.
+
+One description → chain construction (:class:`RobotDescription`'s ``placements``, ``axes``,
+``flange_matrix``, ``tool_matrix``, ``masses``, ``coms``): Pinocchio's model (built lazily with
+``addJoint`` / ``appendBodyToJoint`` / ``addFrame``) is the reference FK and gravity; the
+forward kinematics of many poses at once is numpy (:class:`Chain`, products of per-joint
+transforms over all poses in one go), the gravity torques :func:`gravity_from_points` of its
+joint frames (numpy here, torch in training/arm.py); tests/test_kinematics.py checks both,
+and the torch/ONNX FK, against ``pin.framesForwardKinematics`` / ``computeGeneralizedGravity``.
+The inverse kinematics is the controller's: closed form for the KUKA-type arm with a
+spherical wrist (8 branches), choosing per pose the branch nearest to a reference configuration.
 """
 from __future__ import annotations
 
@@ -12,6 +25,7 @@ import numpy as np
 
 from ..core import frames
 from ..core.diagnostics import PostprocError
+from ..core.frames import MM
 from .description import RobotDescription, load_description
 from .kinematics.chain import Chain
 from .kinematics.gravity import gravity_torques
@@ -19,6 +33,15 @@ from .kinematics.ik import SHOULDER_MM, _IkGeometry, _UrIkGeometry
 from .kinematics.reference import pin_model
 
 __all__ = ["Robot"]
+
+
+# --------------------------------------------------------------------------- reading
+
+
+# --------------------------------------------------------------------------- kinematics
+
+
+# --------------------------------------------------------------------------- gravity
 
 
 class Robot:
@@ -68,8 +91,11 @@ class Robot:
 
     def _build_model(self) -> None:
         """The pin.Model, built once on first use (only checks need it)."""
+        import pinocchio as pin
+
         self._model = pin_model(self.description)
         self._data = self._model.createData()
+        self._pin = pin
 
     @property
     def model(self):
@@ -96,9 +122,16 @@ class Robot:
 
     def pin_fk(self, q_deg: np.ndarray, frame: str = "tcp") -> np.ndarray:
         """The reference FK, Pinocchio's (one call per pose; for checks, not for bulk work)."""
-        from .kinematics.reference import pin_fk
-
-        return pin_fk(self.model, self.data, q_deg, frame)
+        model, data = self.model, self.data
+        pin = self._pin
+        fid = model.getFrameId(frame)
+        q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
+        out = np.zeros((len(q), 4, 4))
+        for i, qi in enumerate(q):
+            pin.framesForwardKinematics(model, data, qi)
+            m = data.oMf[fid]
+            out[i, :3, :3], out[i, :3, 3], out[i, 3, 3] = m.rotation, m.translation / MM, 1.0
+        return out
 
     # ---------------------------------------------------------------- gravity
     def gravity_torques(self, q_deg: np.ndarray, payload: bool = True) -> np.ndarray:

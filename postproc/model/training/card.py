@@ -76,7 +76,11 @@ def robot_metadata(robot) -> dict:
         return {}
     if not isinstance(robot, (str, Path)):
         return arm_metadata(robot)
-    from ...robot.description import is_description_file, load_description, shipped_description
+    from ...robot.description import (
+        is_description_file,
+        load_description,
+        shipped_description,
+    )
 
     name = str(robot)
     description = load_description(robot) if is_description_file(robot) else shipped_description(name)

@@ -19,8 +19,18 @@ import torch
 
 from ...core import outputs
 from ..contract import (
-    INPUT_APPROACH, INPUT_JOINTS, INPUT_POSE, INPUT_PREVIOUS, INPUT_PREVIOUS_JOINTS, INPUT_TOOL, OUTPUT_ERROR,
-    OUTPUT_JOINTS, OUTPUT_ROTATION, OUTPUT_STD, contract_metadata, with_defaults,
+    INPUT_APPROACH,
+    INPUT_JOINTS,
+    INPUT_POSE,
+    INPUT_PREVIOUS,
+    INPUT_PREVIOUS_JOINTS,
+    INPUT_TOOL,
+    OUTPUT_ERROR,
+    OUTPUT_JOINTS,
+    OUTPUT_ROTATION,
+    OUTPUT_STD,
+    contract_metadata,
+    with_defaults,
 )
 
 __all__ = ["export_onnx", "onnx_bytes", "write_atomic", "OPSET"]

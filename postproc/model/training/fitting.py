@@ -33,7 +33,14 @@ import numpy as np
 
 from ...core.diagnostics import P317, P320, P507, P508, P516, PostprocError
 from ...settings import Settings
-from .card import arm_metadata, card_iterations, demonstration_metadata, robot_metadata, tool_metadata, tool_name
+from .card import (
+    arm_metadata,
+    card_iterations,
+    demonstration_metadata,
+    robot_metadata,
+    tool_metadata,
+    tool_name,
+)
 from .methods import IDENTIFIED, METHODS, NETWORKS
 
 __all__ = ["fit", "TrainedModel", "SETTINGS", "ORIENTATION"]
@@ -130,7 +137,12 @@ def fit(measurements, settings: Settings = Settings(), *, progress: bool = False
 
 def _split(measurements, tool, val_fraction: float, split_seed: int) -> _Rows:
     from ...measurements.csv import Measurements, parse_tool, read_measurements
-    from .data import ALL_ROWS_BELOW, default_val_fraction, measured_tools, split_indices
+    from .data import (
+        ALL_ROWS_BELOW,
+        default_val_fraction,
+        measured_tools,
+        split_indices,
+    )
 
     if isinstance(measurements, Measurements):
         data, source = measurements, measurements.path
@@ -208,7 +220,12 @@ def _take(values: np.ndarray | None, rows: np.ndarray) -> np.ndarray | None:
 def _description(robot):
     """The nominal description an identified method starts from: ``robot`` (a description or
     its .toml), else the shipped default (a name other than the default's: P508)."""
-    from ...robot.description import RobotDescription, is_description_file, load_description, shipped_description
+    from ...robot.description import (
+        RobotDescription,
+        is_description_file,
+        load_description,
+        shipped_description,
+    )
 
     if isinstance(robot, RobotDescription):
         return robot

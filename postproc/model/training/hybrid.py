@@ -28,7 +28,12 @@ from .data import envelope_of
 from .estimator import Estimator, _one_thread, residual_stats
 from .export import onnx_bytes, write_atomic
 from .features import inside_ranges, joint_features, previous_poses, wrap_angles
-from .kinematic import KinematicErrorModule, KinematicModel, nominal_digest, unseparated_mount
+from .kinematic import (
+    KinematicErrorModule,
+    KinematicModel,
+    nominal_digest,
+    unseparated_mount,
+)
 
 __all__ = ["HybridModel", "HybridModule", "ResidualNet"]
 

@@ -56,7 +56,16 @@ from ...core.diagnostics import P505, P508, PostprocError
 from ...robot.description import RobotDescription
 from ...robot.kinematics import batch_last as bl
 from ...robot.kinematics.twin import (
-    Arm, _t, at_tool, axis_rotations, coupling_pairs, make_ik, mc, mv, rotation_matrices, small_rotation,
+    Arm,
+    _t,
+    at_tool,
+    axis_rotations,
+    coupling_pairs,
+    make_ik,
+    mc,
+    mv,
+    rotation_matrices,
+    small_rotation,
     wrapped_step,
 )
 from .estimator import Estimator

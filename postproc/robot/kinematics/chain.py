@@ -53,13 +53,6 @@ class Chain:
         rs, ps = zip(*self._walk(q_rad))
         return np.stack(rs).transpose(3, 0, 1, 2), np.stack(ps).transpose(2, 0, 1)
 
-    def axis_lines(self) -> tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray]:
-        """The joint axes at q = 0 as lines (a point: the joint's origin, a unit direction) in the
-        reference frame, and the end frame there (DH rows are made from them: ``dh.py``)."""
-        rotations, origins = self.joints(np.zeros((1, len(self.axes))))
-        lines = [(origins[0, j], rotations[0, j] @ self.axes[j]) for j in range(len(self.axes))]
-        return lines, self.transforms(np.zeros((1, len(self.axes))))[0]
-
     def transforms(self, q_rad: np.ndarray) -> np.ndarray:
         """[N, 4, 4] end frames for configurations [N, J] (radians)."""
         q_rad = np.atleast_2d(np.asarray(q_rad, float))

@@ -6,7 +6,7 @@ import numpy as np
 from ...core.frames import MM
 from ..description import RobotDescription
 
-__all__ = ["pin_model", "pin_fk"]
+__all__ = ['pin_model']
 
 
 def _pin_inertia(pin, mass: float, com_mm: np.ndarray, inertia: np.ndarray | None):
@@ -40,18 +40,3 @@ def pin_model(description: RobotDescription):
     fid = model.addFrame(pin.Frame("flange", parent, flange, pin.FrameType.OP_FRAME))
     model.addFrame(pin.Frame("tcp", parent, fid, flange * _se3(pin, d.tool_matrix), pin.FrameType.OP_FRAME))
     return model
-
-
-def pin_fk(model, data, q_deg: np.ndarray, frame: str = "tcp") -> np.ndarray:
-    """[N, 4, 4] (mm) the frame ``frame`` of Pinocchio's ``model`` at joint angles [N, 6] deg:
-    the reference forward kinematics (one call per pose; for checks, not for bulk work)."""
-    import pinocchio as pin
-
-    fid = model.getFrameId(frame)
-    q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
-    out = np.zeros((len(q), 4, 4))
-    for i, qi in enumerate(q):
-        pin.framesForwardKinematics(model, data, qi)
-        m = data.oMf[fid]
-        out[i, :3, :3], out[i, :3, 3], out[i, 3, 3] = m.rotation, m.translation / MM, 1.0
-    return out

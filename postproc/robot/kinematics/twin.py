@@ -25,20 +25,13 @@ from ...core.diagnostics import PostprocError
 from ...core.frames import MM, abc_entries
 from ..description import RobotDescription
 from .gravity import GRAVITY, gravity_from_points, holding_torques
-from .ik import (
-    kuka_elbow,
-    kuka_shoulder,
-    kuka_wrist,
-    ur_elbow,
-    ur_geometry,
-    ur_shoulder,
-    ur_wrist,
-)
+from .ik import kuka_elbow, kuka_shoulder, kuka_wrist, ur_elbow, ur_geometry, ur_shoulder, ur_wrist
 
 __all__ = [
     "coupling_pairs", "Arm", "axis_rotations", "mc", "mv", "turn_columns", "turn_rows", "small_rotation",
     "pose_matrices", "at_tool", "KukaIK", "UrIK", "make_ik", "GRAVITY", "wrapped_step", "rotation_matrices",
 ]
+
 
 
 def _t(value) -> torch.Tensor:
