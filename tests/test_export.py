@@ -13,9 +13,8 @@ import pytest
 from postproc.core import frames
 from postproc.cli import main
 from postproc.model.compensator import load_model
-from postproc.core.frames import MM
 from postproc.calibration.export import (
-    _origin, _xyz_rpy, calibrated_urdf, calibration_yaml, identified_geometry, nominal_urdf, read_urdf,
+    MM, _origin, _xyz_rpy, calibrated_urdf, calibration_yaml, identified_geometry, nominal_urdf, read_urdf,
 )
 from postproc.core.diagnostics import PostprocError
 from postproc.robot.description import load_description
@@ -87,7 +86,7 @@ def _pin_tcp(urdf_text: str, q_deg: np.ndarray, frame: str = "postproc_tcp", tmp
         pin.framesForwardKinematics(model, data, q)
         out.append(data.oMf[fid].homogeneous.copy())
     out = np.array(out)
-    out[:, :3, 3] /= MM  # (m → mm)
+    out[:, :3, 3] *= MM
     return out
 
 
@@ -127,7 +126,7 @@ def test_robot_calibration_offsets_give_the_same_urdf(trained, tmp_path):
         v = {k: float(values[f"{name}_{k}"]) for k in "xyzabc"}
         offset = np.eye(4)
         offset[:3, :3] = frames.rotation_from_rotvec(np.array([v["a"], v["b"], v["c"]]))
-        offset[:3, 3] = np.array([v["x"], v["y"], v["z"]]) / MM
+        offset[:3, 3] = np.array([v["x"], v["y"], v["z"]]) * MM
         np.testing.assert_allclose(_origin(joint) @ offset, want[name], atol=1e-6)
     assert "compliance, coupling, backlash" in calibrated  # the comment names what a URDF cannot hold
 

@@ -38,11 +38,11 @@ import numpy as np
 
 from ..core import frames
 from ..core.diagnostics import P317, P533, PostprocError
-from ..core.frames import MM
 
 __all__ = ["Geometry", "identified_geometry", "nominal_urdf", "UrdfChain", "read_urdf", "calibrated_urdf",
            "calibration_yaml", "parameters_json", "NOT_GEOMETRIC", "dh_parameters", "dh_transforms", "ur_calibration"]
 
+MM = 1000.0  # mm per m
 NOT_GEOMETRIC = ("compliance", "coupling", "backlash", "ripple")
 # a URDF joint is the description's joint when its frame change leaves the axis within this (rad,
 # mm) — the URDF's own rounding of its numbers is far below
@@ -113,14 +113,14 @@ def identified_geometry(model, description) -> Geometry:
 def _xyz_rpy(m: np.ndarray) -> tuple[str, str]:
     """URDF origin attributes (m, rad; rpy: R = Rz(y)·Ry(p)·Rx(r), KUKA's A,B,C = y,p,r) of [4, 4] mm."""
     abc = np.radians(frames.abc_from_rotation(m[:3, :3]))
-    return (" ".join(f"{v * MM:.12g}" for v in m[:3, 3]), " ".join(f"{v:.15g}" for v in abc[::-1]))
+    return (" ".join(f"{v / MM:.12g}" for v in m[:3, 3]), " ".join(f"{v:.15g}" for v in abc[::-1]))
 
 
 def _origin(element) -> np.ndarray:
     o = element.find("origin")
     xyz = [float(v) for v in (o.get("xyz", "0 0 0") if o is not None else "0 0 0").split()]
     rpy = [float(v) for v in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split()]
-    return frames.frame_to_matrix(np.r_[np.asarray(xyz) / MM, np.degrees(rpy[::-1])])
+    return frames.frame_to_matrix(np.r_[np.asarray(xyz) * MM, np.degrees(rpy[::-1])])
 
 
 def nominal_urdf(description) -> str:
@@ -351,7 +351,7 @@ def calibration_yaml(offsets: dict, model_name: str = "") -> str:
              "_x/_y/_z m, _a/_b/_c rotation vector rad; zero offsets inside the joints' frame offsets)"]
     for name, m in offsets.items():
         rv = frames.rotvec_from_rotation(m[:3, :3])
-        for axis, v in zip("xyz", m[:3, 3] * MM):
+        for axis, v in zip("xyz", m[:3, 3] / MM):
             lines.append(f"{name}_{axis}: {v:.12g}")
         for axis, v in zip("abc", rv):
             lines.append(f"{name}_{axis}: {v:.12g}")

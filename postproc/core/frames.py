@@ -18,7 +18,6 @@ __all__ = [
     "transform_points", "rotate_vectors", "rotation_vector", "rotation_error_deg", "frames_used", "frame_groups",
     "rotation_from_quaternion", "quaternion_from_rotation", "rotation_from_rotvec", "rotvec_from_rotation",
     "ORIENTATION_NAMES", "orientation_rotation", "orientation_numbers", "small_transform", "axis_rotations",
-    "rotation_angle_deg", "nearest_triple", "abc_entries", "MM",
 ]
 
 
@@ -291,10 +290,3 @@ def axis_rotations(axes: np.ndarray, q_rad: np.ndarray) -> np.ndarray:
     aat = axes[..., :, None] * axes[..., None, :]
     s, c = np.sin(q_rad)[..., None, None], np.cos(q_rad)[..., None, None]
     return c * np.eye(3) + s * k + (1.0 - c) * aat
-
-
-def rotation_angle_deg(abc_a: np.ndarray, abc_b: np.ndarray) -> np.ndarray:
-    """The angle [N] (deg) of the rotation between two orientations given as A,B,C [N, 3]."""
-    relative = rotation_from_abc(abc_a).swapaxes(-1, -2) @ rotation_from_abc(abc_b)
-    cos = (np.trace(relative, axis1=-2, axis2=-1) - 1.0) / 2.0
-    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))

@@ -1,16 +1,4 @@
-"""The controller's inverse kinematics, closed form, one per arm family (KUKA-type, UR-type).
-
-Each family's formulas are written once, over an array namespace (:class:`Ops`: numpy here,
-torch in ``twin.TorchOps``): ``kuka_shoulder`` / ``kuka_elbow`` / ``kuka_wrist`` and
-``ur_shoulder`` / ``ur_wrist`` / ``ur_elbow`` solve one branch (shoulder, elbow, wrist flip
-given as ±1, a number or a row of them). The numpy geometry classes (:class:`_IkGeometry`,
-:class:`_UrIkGeometry`: the controller's IK of ``robot.arm.Robot``, every branch with its
-reach) and the torch modules (``twin.KukaIK``, ``twin.UrIK``: one branch inside the exported
-graph) run the same functions; what differs is only the backend's arithmetic — the torch
-namespace evaluates atan2 / acos / asin in float32 (onnxruntime has no float64 kernel for them)
-— and the wrist singularity's tolerance (1e-10 in float64, 1e-3 where an angle comes from
-float32).
-"""
+"""The controller's inverse kinematics, closed form, one per arm family (KUKA-type, UR-type)."""
 from __future__ import annotations
 
 import math
@@ -22,129 +10,6 @@ from ...core import frames
 from ...core.diagnostics import P333, PostprocError
 from ..description import RobotDescription
 from .chain import Chain
-
-
-class Ops:
-    """The numpy namespace of the IK formulas (``twin.TorchOps`` is torch's)."""
-
-    atan2 = staticmethod(np.arctan2)
-    acos = staticmethod(np.arccos)
-    asin = staticmethod(np.arcsin)
-    sqrt = staticmethod(np.sqrt)
-    cos = staticmethod(np.cos)
-    sin = staticmethod(np.sin)
-    abs = staticmethod(np.abs)
-    clip = staticmethod(np.clip)
-    where = staticmethod(np.where)
-    ones_like = staticmethod(np.ones_like)
-    isnan = staticmethod(np.isnan)
-
-    @staticmethod
-    def stack(parts) -> np.ndarray:
-        return np.stack(parts, axis=-1)
-
-    @staticmethod
-    def turn_rows(x: np.ndarray, k: int, q: np.ndarray) -> np.ndarray:
-        """R_k(q)ᵀ @ x for x [N, 3, 3], q [N]: undo a turn about coordinate axis k from the left."""
-        c, s = np.cos(q)[:, None], np.sin(q)[:, None]
-        i, j = [(1, 2), (2, 0), (0, 1)][k]
-        out = x.copy()
-        out[:, i], out[:, j] = x[:, i] * c + x[:, j] * s, x[:, j] * c - x[:, i] * s
-        return out
-
-
-NUMPY = Ops()
-
-
-# --------------------------------------------------------------------------- KUKA-type
-
-
-def kuka_shoulder(ops, g, c, shoulder):
-    """A1 of wrist centres ``c`` [N, 3] (relative to A1's origin) on the ``shoulder`` branch
-    (+1 in front of the A1 axis, −1 over the top), and the arm plane's coordinates of the wrist
-    centre from A2: (θ1, u, w, reach [N] bool, γ0: the elbow's opening)."""
-    phi = ops.atan2(c[:, 1], c[:, 0])
-    r_xy = ops.sqrt(c[:, 0] * c[:, 0] + c[:, 1] * c[:, 1])
-    th1 = phi + (1.0 - shoulder) * (math.pi / 2)
-    u = shoulder * r_xy - g.a1
-    w = c[:, 2] - g.d1
-    kappa = (u * u + w * w - g.l2**2 - g.l3**2) / (2 * g.l2 * g.l3)
-    return th1, u, w, ops.abs(kappa) <= 1.0 + 1e-12, ops.acos(ops.clip(kappa, -1.0, 1.0))
-
-
-def kuka_elbow(ops, g, u, w, gamma0, elbow):
-    """A2, A3 (θ2, θ3, rad, before the axis signs) of the ``elbow`` branch (±1)."""
-    th3 = g.al3 - g.al2 - elbow * gamma0
-    ang = g.al3 - th3  # the forearm's direction before A2's turn
-    th2 = ops.atan2(g.L2[1] + g.l3 * ops.sin(ang), g.L2[0] + g.l3 * ops.cos(ang)) - ops.atan2(w, u)
-    return th2, th3
-
-
-def kuka_wrist(ops, g, th1, th2, th3, r_all, flip, a4):
-    """The six joint angles [N, 6] (rad, not wrapped) of an arm branch (θ1, θ2, θ3) and wrist
-    ``flip`` (±1), ``r_all`` [N, 3, 3] the product of the six axis rotations; at a wrist
-    singularity (A5 = 0: only A4 + A6 is defined) A4 is ``a4`` [N] (rad)."""
-    s = g.s
-    rw = ops.turn_rows(ops.turn_rows(r_all, 2, th1), 1, th2 + th3)  # (Rz(θ1)·Ry(θ2+θ3))ᵀ·R = Rx(α) Ry(β) Rx(γ)
-    sbeta = flip * ops.sqrt(rw[:, 0, 1] * rw[:, 0, 1] + rw[:, 0, 2] * rw[:, 0, 2])
-    beta = ops.atan2(sbeta, rw[:, 0, 0])
-    alpha = ops.atan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
-    gam = ops.atan2(flip * rw[:, 0, 1], flip * rw[:, 0, 2])
-    singular = ops.abs(sbeta) < 1e-10
-    alpha = ops.where(singular, s[3] * a4, alpha)
-    gam = ops.where(singular, ops.atan2(rw[:, 2, 1], rw[:, 1, 1]) - alpha, gam)
-    return ops.stack([s[0] * th1, s[1] * th2, s[2] * th3, s[3] * alpha, s[4] * beta, s[5] * gam])
-
-
-# --------------------------------------------------------------------------- UR-type
-
-
-def ur_shoulder(ops, g, p6, shoulder):
-    """A1 of A6 origins ``p6`` [N, 3] on the ``shoulder`` branch: every joint origin from A2 to
-    A6 lies y4 off the A1 axis along the shoulder axis Rz(t1)·e_y, so ρ·sin(ψ − t1) = y4.
-    (t1, cos t1, sin t1, reach [N] bool)."""
-    rho = ops.sqrt(p6[:, 0] * p6[:, 0] + p6[:, 1] * p6[:, 1])
-    psi = ops.atan2(p6[:, 1], p6[:, 0])
-    ratio = g.y4 / rho
-    lateral = ops.asin(ops.clip(ratio, -1.0, 1.0))
-    t1 = psi - shoulder * lateral - (1.0 - shoulder) * (math.pi / 2)
-    return t1, ops.cos(t1), ops.sin(t1), ops.abs(ratio) <= 1.0
-
-
-def ur_wrist(ops, g, r6, t1, c1, s1, wrist, keep6, tolerance):
-    """A5, A6 and the sum A2 + A3 + A4 (t5, t6, t234) of the ``wrist`` branch (±1); R6 [N, 3, 3]
-    the A6 frame's rotation = Rz(t1)·Ry(t234)·Rz(t5)·Ry(t6). Within ``tolerance`` of the wrist
-    singularity (sin t5 = 0: only t234 ± t6 is defined) A6 is ``keep6`` [N] (rad, before its
-    axis sign; None or NaN rows: the ratio's value) and t234 the rest."""
-    a6 = r6[:, :, 1]  # the A6 axis: the shoulder axis turned by t5 about A5
-    cos5 = -s1 * a6[:, 0] + c1 * a6[:, 1]
-    abs_sin5 = ops.sqrt(a6[:, 2] * a6[:, 2] + (c1 * a6[:, 0] + s1 * a6[:, 1]) ** 2)
-    t5 = wrist * ops.atan2(abs_sin5, cos5)
-    rp = ops.turn_rows(r6, 2, t1)  # Rz(−t1)·R6 = Ry(t234)·Rz(t5)·Ry(t6)
-    singular = abs_sin5 < tolerance
-    safe5 = ops.where(singular, ops.ones_like(abs_sin5), wrist * abs_sin5)
-    t6 = ops.atan2(rp[:, 1, 2] / safe5, rp[:, 1, 0] / safe5)
-    t234 = ops.atan2(rp[:, 2, 1] / safe5, -rp[:, 0, 1] / safe5)
-    up = cos5 > 0  # R' = Ry(t234 + t6) (t5 = 0) or Ry(t234 − t6)·Rz(π) (t5 = π)
-    total = ops.where(up, ops.atan2(rp[:, 0, 2], rp[:, 0, 0]), ops.atan2(rp[:, 0, 2], -rp[:, 0, 0]))
-    keep6 = t6 if keep6 is None else ops.where(ops.isnan(keep6), t6, keep6)
-    t6 = ops.where(singular, keep6, t6)
-    t234 = ops.where(singular, ops.where(up, total - keep6, total + keep6), t234)
-    return t5, t6, t234
-
-
-def ur_elbow(ops, g, p6, c1, s1, t234, elbow):
-    """A2, A3, A4 (t2, t3, t4) of the ``elbow`` branch (±1) and its reach [N] bool: A5's origin
-    p5 = p6 − z5·Rz(t1)·Ry(t234)·e_z; in the arm plane the links A2 → A3 → A4 are the planar
-    arm u = a2·c2 + a3·c23, w = a2·s2 + a3·s23."""
-    c234, s234 = ops.cos(t234), ops.sin(t234)
-    u = c1 * (p6[:, 0] - g.z5 * c1 * s234) + s1 * (p6[:, 1] - g.z5 * s1 * s234)
-    w = g.z0 - (p6[:, 2] - g.z5 * c234)
-    kappa = (u * u + w * w - g.a2**2 - g.a3**2) / (2 * g.a2 * g.a3)
-    t3 = elbow * ops.acos(ops.clip(kappa, -1.0, 1.0))
-    t2 = ops.atan2(w, u) - ops.atan2(g.a3 * ops.sin(t3), g.a2 + g.a3 * ops.cos(t3))
-    return t2, t3, t234 - t2 - t3, ops.abs(kappa) <= 1.0 + 1e-12
-
 
 # the wrist centre this far (mm) off the A1 axis or more: S bit 0 is the IK's shoulder branch
 SHOULDER_MM = 1e-3
@@ -201,17 +66,40 @@ class _IkGeometry:
     def _arms(self, c: np.ndarray) -> Iterator[tuple[float, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
         """The 4 arm branches (A1-A3) of wrist centres [N, 3], in ``branches``' order: (shoulder,
         elbow, reach mask, the elbow's opening γ0, θ1, θ2, θ3) [N] each (rad)."""
+        # A1: the wrist centre's azimuth, in front of the A1 axis or over the top (behind)
+        phi = np.arctan2(c[:, 1], c[:, 0])
+        r_xy = np.hypot(c[:, 0], c[:, 1])
         for shoulder in (1.0, -1.0):
-            th1, u, w, reach_ok, gamma0 = kuka_shoulder(NUMPY, self, c, shoulder)
+            th1 = phi if shoulder > 0 else phi + np.pi
+            u = shoulder * r_xy - self.a1
+            w = c[:, 2] - self.d1
+            dist2 = u * u + w * w
+            kappa = (dist2 - self.l2**2 - self.l3**2) / (2 * self.l2 * self.l3)
+            reach_ok = np.abs(kappa) <= 1.0 + 1e-12
+            gamma0 = np.arccos(np.clip(kappa, -1.0, 1.0))
             for elbow in (1.0, -1.0):
-                th2, th3 = kuka_elbow(NUMPY, self, u, w, gamma0, elbow)
+                # angle between upper arm and forearm vectors in the arm plane
+                th3 = self.al3 - self.al2 - elbow * gamma0
+                ang = self.al3 - th3  # direction of the forearm vector before A2's rotation
+                w2 = np.stack([self.L2[0] + self.l3 * np.cos(ang), self.L2[1] + self.l3 * np.sin(ang)], axis=-1)
+                th2 = np.arctan2(w2[:, 1], w2[:, 0]) - np.arctan2(w, u)
                 yield shoulder, elbow, reach_ok, gamma0, th1, th2, th3
 
     def _wrist(self, th1: np.ndarray, th2: np.ndarray, th3: np.ndarray, r_all: np.ndarray, flip,
                ref: np.ndarray) -> np.ndarray:
-        """Principal joint angles [N, 6] (rad) of an arm branch and wrist ``flip`` (±1, or [N]);
-        at a wrist singularity A4 stays at the reference ``ref`` [N, 6] (rad)."""
-        q = kuka_wrist(NUMPY, self, th1, th2, th3, r_all, flip, ref[:, 3])
+        """Principal joint angles [N, 6] (rad) of an arm branch and wrist ``flip`` (±1, or [N])."""
+        s = self.s
+        q123 = np.stack([s[0] * th1, s[1] * th2, s[2] * th3], axis=-1)
+        rw = _rz_ry(th1, th2 + th3).swapaxes(-1, -2) @ r_all  # = Rx(α) Ry(β) Rx(γ)
+        sb = flip * np.hypot(rw[:, 0, 1], rw[:, 0, 2])
+        beta = np.arctan2(sb, rw[:, 0, 0])
+        alpha = np.arctan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
+        gam = np.arctan2(flip * rw[:, 0, 1], flip * rw[:, 0, 2])
+        singular = np.abs(sb) < 1e-10  # A5 ≈ 0: only A4 + A6 is defined; keep A4 at the reference
+        if singular.any():
+            alpha = np.where(singular, s[3] * ref[:, 3], alpha)
+            gam = np.where(singular, np.arctan2(rw[:, 2, 1], rw[:, 1, 1]) - alpha, gam)
+        q = np.concatenate([q123, np.stack([s[3] * alpha, s[4] * beta, s[5] * gam], axis=-1)], axis=-1)
         return (q + np.pi) % (2 * np.pi) - np.pi
 
     def branches(self, t_tcp: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -271,7 +159,7 @@ class _IkGeometry:
 
 def ur_geometry(description) -> tuple[np.ndarray, np.ndarray]:
     """The joint origins [6, 6] and axis signs [6] of a UR-type description (the one check of
-    the geometry the closed-form UR IK needs, numpy and torch); P333
+    the geometry the closed-form UR IK needs, numpy here and torch in training/arm.py); P333
     for another geometry."""
     o, axes = description.origins, description.axes
     want = [2, 1, 1, 1, 2, 1]
@@ -288,8 +176,8 @@ def ur_geometry(description) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _UrIkGeometry:
-    """Closed-form IK of a Universal-Robots-type arm (as ``models/ur10.toml``; numpy, all 8 branches;
-    ``twin.UrIK`` runs the same formulas in torch): A1 about ±Z; A2 = A3 = A4 about ±Y; A5 about ±Z; A6
+    """Closed-form IK of a Universal-Robots-type arm (as ``models/ur10.toml``; the numpy twin of
+    training.arm.UrIK, all 8 branches): A1 about ±Z; A2 = A3 = A4 about ±Y; A5 about ±Z; A6
     about ±Y; A2 above A1, A3 and A4 along X from it, A5 beside A4 (Y), A6 below A5 (Z)."""
 
     family = "ur"
@@ -309,16 +197,51 @@ class _UrIkGeometry:
         """As :meth:`_IkGeometry.branches`; at the wrist singularity (A5 = 0) A6 keeps the reference."""
         t6 = t_tcp @ self.inv_end
         r6, p6 = t6[:, :3, :3], t6[:, :3, 3]
-        keep6 = self.s[5] * ref[:, 5]
-        branches, valid = [], []
+        rho = np.hypot(p6[:, 0], p6[:, 1])
+        psi = np.arctan2(p6[:, 1], p6[:, 0])
         with np.errstate(divide="ignore", invalid="ignore"):
-            for shoulder in (1.0, -1.0):
-                t1, c1, s1, lateral_ok = ur_shoulder(NUMPY, self, p6, shoulder)
-                for wrist in (1.0, -1.0):
-                    t5, t6a, t234 = ur_wrist(NUMPY, self, r6, t1, c1, s1, wrist, keep6, 1e-10)
-                    for elbow in (1.0, -1.0):
-                        t2, t3, t4, reach_ok = ur_elbow(NUMPY, self, p6, c1, s1, t234, elbow)
-                        branches.append(np.stack([t1, t2, t3, t4, t5, t6a], axis=1) * self.s)
-                        valid.append(lateral_ok & reach_ok)
+            ratio = self.y4 / rho
+        lateral_ok = np.abs(ratio) <= 1.0
+        lateral = np.arcsin(np.clip(ratio, -1.0, 1.0))
+        branches, valid = [], []
+        for shoulder in (1.0, -1.0):
+            t1 = psi - lateral if shoulder > 0 else psi - np.pi + lateral
+            c1, s1 = np.cos(t1), np.sin(t1)
+            # R' = Rz(−t1)·R6 = Ry(t2 + t3 + t4)·Rz(t5)·Ry(t6)
+            rp = np.einsum("nij,njk->nik", _rz_ry(-t1, np.zeros_like(t1)), r6)
+            cos5 = np.clip(rp[:, 1, 1], -1.0, 1.0)
+            for wrist in (1.0, -1.0):
+                t5 = wrist * np.arccos(cos5)
+                sin5 = np.sin(t5)
+                singular = np.abs(sin5) < 1e-10
+                safe = np.where(singular, 1.0, sin5)
+                t6a = np.arctan2(rp[:, 1, 2] / safe, rp[:, 1, 0] / safe)
+                t234 = np.arctan2(rp[:, 2, 1] / safe, -rp[:, 0, 1] / safe)
+                if singular.any():  # R' = Ry(t234 + t6) (t5 = 0) or Ry(t234 − t6)·Rz(π) (t5 = π)
+                    t6a = np.where(singular, self.s[5] * ref[:, 5], t6a)
+                    total = np.arctan2(rp[:, 0, 2], rp[:, 0, 0] * np.sign(cos5))
+                    t234 = np.where(singular, total - np.sign(cos5) * t6a, t234)
+                c234, s234 = np.cos(t234), np.sin(t234)
+                p5 = p6 - self.z5 * np.stack([c1 * s234, s1 * s234, c234], axis=1)
+                u = c1 * p5[:, 0] + s1 * p5[:, 1]
+                w = self.z0 - p5[:, 2]
+                kappa = (u * u + w * w - self.a2**2 - self.a3**2) / (2 * self.a2 * self.a3)
+                reach_ok = lateral_ok & (np.abs(kappa) <= 1.0 + 1e-12)
+                for elbow in (1.0, -1.0):
+                    t3 = elbow * np.arccos(np.clip(kappa, -1.0, 1.0))
+                    t2 = np.arctan2(w, u) - np.arctan2(self.a3 * np.sin(t3), self.a2 + self.a3 * np.cos(t3))
+                    t4 = t234 - t2 - t3
+                    branches.append(np.stack([t1, t2, t3, t4, t5, t6a], axis=1) * self.s)
+                    valid.append(reach_ok)
         q_all = (np.stack(branches) + np.pi) % (2 * np.pi) - np.pi
         return q_all, np.stack(valid)
+
+
+def _rz_ry(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rz(a)·Ry(b) for angle arrays [N] (radians) → [N, 3, 3]."""
+    ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+    r = np.empty(a.shape + (3, 3))
+    r[..., 0, 0], r[..., 0, 1], r[..., 0, 2] = ca * cb, -sa, ca * sb
+    r[..., 1, 0], r[..., 1, 1], r[..., 1, 2] = sa * cb, ca, sa * sb
+    r[..., 2, 0], r[..., 2, 1], r[..., 2, 2] = -sb, 0.0, cb
+    return r

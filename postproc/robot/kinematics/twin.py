@@ -22,16 +22,17 @@ import torch
 
 from ...core import frames
 from ...core.diagnostics import PostprocError
-from ...core.frames import MM, abc_entries
+from ...core.frames import abc_entries
 from ..description import RobotDescription
 from .gravity import GRAVITY, gravity_from_points, holding_torques
-from .ik import kuka_elbow, kuka_shoulder, kuka_wrist, ur_elbow, ur_geometry, ur_shoulder, ur_wrist
+from .ik import ur_geometry
 
 __all__ = [
     "coupling_pairs", "Arm", "axis_rotations", "mc", "mv", "turn_columns", "turn_rows", "small_rotation",
     "pose_matrices", "at_tool", "KukaIK", "UrIK", "make_ik", "GRAVITY", "wrapped_step", "rotation_matrices",
 ]
 
+MM = 1e-3
 
 
 def _t(value) -> torch.Tensor:
@@ -144,35 +145,6 @@ def _atan2(y: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
 
 def _acos(x: torch.Tensor) -> torch.Tensor:
     return torch.acos(x.float()).to(x.dtype)
-
-
-def _asin(x: torch.Tensor) -> torch.Tensor:
-    return torch.asin(x.float()).to(x.dtype)
-
-
-class TorchOps:
-    """The torch namespace of the IK formulas (``ik.Ops`` is numpy's): atan2, acos and asin in
-    float32 (module text), rotations about coordinate axes by row mixing (``turn_rows``)."""
-
-    atan2 = staticmethod(_atan2)
-    acos = staticmethod(_acos)
-    asin = staticmethod(_asin)
-    sqrt = staticmethod(torch.sqrt)
-    cos = staticmethod(torch.cos)
-    sin = staticmethod(torch.sin)
-    abs = staticmethod(torch.abs)
-    clip = staticmethod(torch.clamp)
-    where = staticmethod(torch.where)
-    ones_like = staticmethod(torch.ones_like)
-    isnan = staticmethod(torch.isnan)
-    turn_rows = staticmethod(turn_rows)
-
-    @staticmethod
-    def stack(parts) -> torch.Tensor:
-        return torch.stack(parts, dim=-1)
-
-
-TORCH = TorchOps()
 
 
 class Arm:
@@ -304,13 +276,33 @@ class KukaIK(torch.nn.Module):
 
     def forward(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
         """q [N, 6] rad on this module's branch, or per row on the branch of ``q_in`` [N, 6] rad
-        (NaN rows: this module's branch); at a wrist singularity A4 stays at 0 (HOME), A6 takes
-        the sum. ``ik.kuka_*``: the formulas of the numpy IK, in torch."""
+        (NaN rows: this module's branch)."""
         shoulder, elbow, flip = self.branch if q_in is None else self.branch_of(pose, q_in)
+        s = self.s
         c, r_all = self._wrist_centre(pose)
-        th1, u, w, _, gamma0 = kuka_shoulder(TORCH, self, c, shoulder)
-        th2, th3 = kuka_elbow(TORCH, self, u, w, gamma0, elbow)
-        return kuka_wrist(TORCH, self, th1, th2, th3, r_all, flip, torch.zeros_like(th1))
+        phi = _atan2(c[:, 1], c[:, 0])
+        r_xy = torch.sqrt(c[:, 0] ** 2 + c[:, 1] ** 2)
+        th1 = phi + (1.0 - shoulder) * (math.pi / 2)
+        u = shoulder * r_xy - self.a1
+        w = c[:, 2] - self.d1
+        kappa = (u * u + w * w - self.l2**2 - self.l3**2) / (2 * self.l2 * self.l3)
+        gamma0 = _acos(torch.clamp(kappa, -1.0, 1.0))
+        th3 = self.al3 - self.al2 - elbow * gamma0
+        ang = self.al3 - th3
+        w2x = self.L2[0] + self.l3 * torch.cos(ang)
+        w2y = self.L2[1] + self.l3 * torch.sin(ang)
+        th2 = _atan2(w2y, w2x) - _atan2(w, u)
+        # (Rz(th1)·Ry(th2 + th3))ᵀ · r_all = Rx(α) Ry(β) Rx(γ)
+        rw = turn_rows(turn_rows(r_all, 2, th1), 1, th2 + th3)
+        sbeta = flip * torch.sqrt(rw[:, 0, 1] ** 2 + rw[:, 0, 2] ** 2)
+        beta = _atan2(sbeta, rw[:, 0, 0])
+        alpha = _atan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
+        gam = _atan2(flip * rw[:, 0, 1], flip * rw[:, 0, 2])
+        # A5 ≈ 0: only A4 + A6 is defined; A4 stays at 0 (HOME), A6 takes the sum
+        singular = torch.abs(sbeta) < 1e-10
+        alpha = torch.where(singular, torch.zeros_like(alpha), alpha)
+        gam = torch.where(singular, _atan2(rw[:, 2, 1], rw[:, 1, 1]), gam)
+        return torch.stack([s[0] * th1, s[1] * th2, s[2] * th3, s[3] * alpha, s[4] * beta, s[5] * gam], dim=1)
 
     @staticmethod
     def branches() -> list[tuple[float, float, float]]:
@@ -356,17 +348,54 @@ class UrIK(torch.nn.Module):
 
     def forward(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
         """q [N, 6] rad on this module's branch, or per row on the branch of ``q_in`` [N, 6] rad
-        (NaN rows: this module's branch). ``ik.ur_*``: the formulas of the numpy IK, in torch;
-        within 1e-3 rad of the wrist singularity (sin t5 carries the float32 atan2's ~1e-7 of
-        noise, which the wrist's ratios divide by) A6 keeps the controller's angle where given."""
+        (NaN rows: this module's branch)."""
         shoulder, wrist, elbow = self.branch if q_in is None else self.branch_of(pose, q_in)
         r_tcp, p_tcp = pose_matrices(pose)
-        r6 = mc(r_tcp, self.inv_end[:3, :3])  # the A6 frame: R6 = Rz(t1)·Ry(t2+t3+t4)·Rz(t5)·Ry(t6)
+        # the A6 frame: origin on the A6 axis, rotation R6 = Rz(t1)·Ry(t2+t3+t4)·Rz(t5)·Ry(t6)
+        # with t_j = s_j·q_j (every joint frame parallel to the base at q = 0)
+        r6 = mc(r_tcp, self.inv_end[:3, :3])
         p6 = p_tcp + mv(r_tcp, self.inv_end[:3, 3])
-        t1, c1, s1, _ = ur_shoulder(TORCH, self, p6, shoulder)
-        keep6 = None if q_in is None else q_in[:, 5] * self.s[5]
-        t5, t6, t234 = ur_wrist(TORCH, self, r6, t1, c1, s1, wrist, keep6, 1e-3)
-        t2, t3, t4, _ = ur_elbow(TORCH, self, p6, c1, s1, t234, elbow)
+        # t1: every joint origin from A2 to A6 lies in the plane y4 off the A1 axis along the
+        # shoulder axis ŷ1 = Rz(t1)·e_y, so −sin t1·x6 + cos t1·y6 = y4, i.e. ρ·sin(ψ − t1) = y4
+        rho = torch.sqrt(p6[:, 0] ** 2 + p6[:, 1] ** 2)
+        psi = _atan2(p6[:, 1], p6[:, 0])
+        lateral = torch.asin(torch.clamp(self.y4 / rho, -1.0, 1.0).float()).to(rho.dtype)
+        t1 = psi - shoulder * lateral - (1.0 - shoulder) * (math.pi / 2)
+        c1, s1 = torch.cos(t1), torch.sin(t1)
+        # t5: the A6 axis a6 = R6·e_y is ŷ1 turned by t5 about the A5 axis: cos t5 = ŷ1·a6 and
+        # |sin t5| = |ŷ1 × a6| (both in float64: an acos near 1 in float32 loses the small angles)
+        a6 = r6[:, :, 1]
+        cos5 = -s1 * a6[:, 0] + c1 * a6[:, 1]
+        abs_sin5 = torch.sqrt(a6[:, 2] ** 2 + (c1 * a6[:, 0] + s1 * a6[:, 1]) ** 2)
+        t5 = wrist * _atan2(abs_sin5, cos5)
+        # R' = Rz(−t1)·R6 = Ry(a)·Rz(t5)·Ry(t6): row 1 = sin t5·(cos t6, ·, sin t6),
+        # column 1 = (−cos a·sin t5, ·, sin a·sin t5), a = t2 + t3 + t4
+        rp = turn_rows(r6, 2, t1)
+        sin5 = wrist * abs_sin5
+        # (t1 comes from float32 atan2: sin t5 carries ~1e-7 of noise, which the ratios below
+        # divide by; within 1e-3 rad of the singularity the sum a ± t6 is the better-known one, and
+        # the sign of t5 is a guess: the other sign with the same sum is as good to 1e-3 rad)
+        singular = abs_sin5 < 1e-3
+        safe5 = torch.where(singular, torch.ones_like(sin5), sin5)
+        t6 = _atan2(rp[:, 1, 2] / safe5, rp[:, 1, 0] / safe5)
+        t234 = _atan2(rp[:, 2, 1] / safe5, -rp[:, 0, 1] / safe5)
+        # wrist singular (A5 at 0 or 180°): only a ± t6 is defined, R' = Ry(a + t6) or Ry(a − t6)·Rz(π);
+        # A6 keeps the controller's angle where given (else the ratio's) and a takes the rest
+        keep6 = t6 if q_in is None else torch.where(torch.isnan(q_in[:, 5]), t6, q_in[:, 5] * self.s[5])
+        up = cos5 > 0
+        total = torch.where(up, _atan2(rp[:, 0, 2], rp[:, 0, 0]), _atan2(rp[:, 0, 2], -rp[:, 0, 0]))
+        t6 = torch.where(singular, keep6, t6)
+        t234 = torch.where(singular, torch.where(up, total - keep6, total + keep6), t234)
+        # A5's origin p5 = p6 − z5·Rz(t1)·Ry(a)·e_z; in the arm plane (along Rz(t1)·e_x and −Z,
+        # from A2) the links A2 → A3 → A4 are the planar arm u = a2·c2 + a3·c23, w = a2·s2 + a3·s23
+        c234, s234 = torch.cos(t234), torch.sin(t234)
+        p5 = p6 - self.z5 * torch.stack([c1 * s234, s1 * s234, c234], dim=1)
+        u = c1 * p5[:, 0] + s1 * p5[:, 1]
+        w = self.z0 - p5[:, 2]
+        kappa = (u * u + w * w - self.a2**2 - self.a3**2) / (2 * self.a2 * self.a3)
+        t3 = elbow * _acos(torch.clamp(kappa, -1.0, 1.0))
+        t2 = _atan2(w, u) - _atan2(self.a3 * torch.sin(t3), self.a2 + self.a3 * torch.cos(t3))
+        t4 = t234 - t2 - t3
         return torch.stack([t1, t2, t3, t4, t5, t6], dim=1) * self.s
 
     @staticmethod
