@@ -18,6 +18,7 @@ __all__ = [
     "transform_points", "rotate_vectors", "rotation_vector", "rotation_error_deg", "frames_used", "frame_groups",
     "rotation_from_quaternion", "quaternion_from_rotation", "rotation_from_rotvec", "rotvec_from_rotation",
     "ORIENTATION_NAMES", "orientation_rotation", "orientation_numbers", "small_transform", "axis_rotations",
+    "nearest_rotation",
 ]
 
 
@@ -263,6 +264,13 @@ def nearest_triple(abc: np.ndarray, ref: np.ndarray) -> np.ndarray:
         out.append(ref + (t - ref + 180.0) % 360.0 - 180.0)
     far = [np.abs(t - ref).max(axis=1) for t in out]
     return np.where((far[1] < far[0])[:, None], out[1], out[0])
+
+
+def nearest_rotation(m: np.ndarray) -> np.ndarray:
+    """The rotation nearest a [3, 3] matrix (Frobenius): its SVD's U·diag(1, 1, ±1)·Vᵀ, the sign
+    making it proper (Kabsch's fit of directions, a chordal mean of rotations)."""
+    u, _, vt = np.linalg.svd(m)
+    return u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))]) @ vt
 
 
 def abc_entries(ca, sa, cb, sb, cc, sc) -> list:
