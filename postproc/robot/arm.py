@@ -25,12 +25,11 @@ import numpy as np
 
 from ..core import frames
 from ..core.diagnostics import PostprocError
-from ..core.frames import MM
 from .description import RobotDescription, load_description
 from .kinematics.chain import Chain
 from .kinematics.gravity import gravity_torques
 from .kinematics.ik import SHOULDER_MM, _IkGeometry, _UrIkGeometry
-from .kinematics.reference import pin_model
+from .kinematics.reference import pin_fk, pin_model
 
 __all__ = ["Robot"]
 
@@ -91,11 +90,8 @@ class Robot:
 
     def _build_model(self) -> None:
         """The pin.Model, built once on first use (only checks need it)."""
-        import pinocchio as pin
-
         self._model = pin_model(self.description)
         self._data = self._model.createData()
-        self._pin = pin
 
     @property
     def model(self):
@@ -121,17 +117,8 @@ class Robot:
         return frames.matrix_to_frame(self.fk_matrix(q_deg))
 
     def pin_fk(self, q_deg: np.ndarray, frame: str = "tcp") -> np.ndarray:
-        """The reference FK, Pinocchio's (one call per pose; for checks, not for bulk work)."""
-        model, data = self.model, self.data
-        pin = self._pin
-        fid = model.getFrameId(frame)
-        q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
-        out = np.zeros((len(q), 4, 4))
-        for i, qi in enumerate(q):
-            pin.framesForwardKinematics(model, data, qi)
-            m = data.oMf[fid]
-            out[i, :3, :3], out[i, :3, 3], out[i, 3, 3] = m.rotation, m.translation / MM, 1.0
-        return out
+        """The reference FK, Pinocchio's (:func:`~postproc.robot.kinematics.reference.pin_fk`; for checks)."""
+        return pin_fk(self.model, self.data, q_deg, frame)
 
     # ---------------------------------------------------------------- gravity
     def gravity_torques(self, q_deg: np.ndarray, payload: bool = True) -> np.ndarray:
