@@ -24,11 +24,10 @@ import math
 import numpy as np
 
 from ..core import frames
-from ..core.diagnostics import PostprocError
 from .description import RobotDescription, load_description
 from .kinematics.chain import Chain
 from .kinematics.gravity import gravity_torques
-from .kinematics.ik import SHOULDER_MM, _IkGeometry, _UrIkGeometry
+from .kinematics.ik import SHOULDER_MM, KukaGeometry, UrGeometry, geometry_of
 from .kinematics.reference import pin_fk, pin_model
 
 __all__ = ["Robot"]
@@ -64,16 +63,7 @@ class Robot:
         self.flange_chain = Chain.of(d, tool=False)
         self.tool_matrix = d.tool_matrix
         self.chain = Chain.of(d)
-        try:
-            self._solver: _IkGeometry | _UrIkGeometry = _IkGeometry(d)
-            self._kuka_error: PostprocError | None = None
-        except PostprocError as kuka:
-            try:
-                self._solver = _UrIkGeometry(d)
-            except PostprocError as ur:
-                raise PostprocError(f"no closed-form IK for this arm: {kuka.message}; or {ur.message}",
-                                    ur.path, ur.line, ur.col, ur.code) from None
-            self._kuka_error = kuka
+        self._solver: KukaGeometry | UrGeometry = geometry_of(d)
         self._model = None
 
     @property
@@ -82,11 +72,9 @@ class Robot:
         return self._solver.family
 
     @property
-    def _ik(self) -> "_IkGeometry":
-        """The KUKA-type geometry (training.arm.KukaIK reads its dimensions); P333 for other arms."""
-        if self._kuka_error is not None:
-            raise self._kuka_error
-        return self._solver
+    def _ik(self) -> KukaGeometry:
+        """The KUKA-type geometry (:meth:`reach` reads its dimensions); P333 for other arms."""
+        return self._solver if self._solver.family == "kuka" else KukaGeometry(self.description)
 
     def _build_model(self) -> None:
         """The pin.Model, built once on first use (only checks need it)."""
