@@ -44,7 +44,7 @@ import numpy as np
 
 from ..core import frames
 from ..core.diagnostics import P331, P335, PostprocError
-from ..core.frames import nearest_triple, small_transform
+from ..core.frames import nearest_triple, rotation_angle_deg, small_transform
 from ..core.stats import table2
 from ..core.toml import check_value
 from ..robot import configuration
@@ -53,7 +53,7 @@ from ..robot.arm import Robot
 from ..robot.description import RobotDescription, load_description
 from ..robot.kinematics.chain import Chain
 
-__all__ = ["ErrorSpec", "SimulatedRobot", "table2", "rotation_angle_deg"]
+__all__ = ["ErrorSpec", "SimulatedRobot", "table2"]
 
 CALIBRATION_POSES = 2000
 CALIBRATION_SEED = 0
@@ -159,13 +159,6 @@ def _workspace_poses(workspace: dict, n: int, seed: int) -> np.ndarray | None:
     strata = np.argsort(rng.random((n, 6)), axis=0)
     unit = (strata + rng.random((n, 6))) / n
     return lo + unit * (hi - lo)
-
-
-def rotation_angle_deg(abc_a: np.ndarray, abc_b: np.ndarray) -> np.ndarray:
-    """The angle [N] (deg) of the rotation between two orientations given as A,B,C [N, 3]."""
-    relative = frames.rotation_from_abc(abc_a).swapaxes(-1, -2) @ frames.rotation_from_abc(abc_b)
-    cos = (np.trace(relative, axis1=-2, axis2=-1) - 1.0) / 2.0
-    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
 class SimulatedRobot:

@@ -16,13 +16,12 @@ from __future__ import annotations
 
 import torch
 
-from ...core.frames import abc_entries
+from ...core.frames import MM, abc_entries
 from .gravity import gravity_from_points, holding_torques
 
 __all__ = ["const_mat", "mat", "mat_t", "mat_vec", "const_vec", "cross", "unit_crosses", "abc_rotations", "joint_turns",
            "Frames", "frames", "torque_terms"]
 
-MM = 1e-3
 _NEXT, _PREV = [1, 2, 0], [2, 0, 1]
 
 

@@ -59,22 +59,11 @@ class Ops:
         self.__dict__.update(functions)
 
 
-def _rz_ry(a: np.ndarray, b: np.ndarray | None) -> np.ndarray:
-    """Rz(a)·Ry(b) for angle arrays [N] (radians; b None: 0) → [N, 3, 3]."""
-    ca, sa = np.cos(a), np.sin(a)
-    cb, sb = (1.0, 0.0) if b is None else (np.cos(b), np.sin(b))
-    r = np.empty(a.shape + (3, 3))
-    r[..., 0, 0], r[..., 0, 1], r[..., 0, 2] = ca * cb, -sa, ca * sb
-    r[..., 1, 0], r[..., 1, 1], r[..., 1, 2] = sa * cb, ca, sa * sb
-    r[..., 2, 0], r[..., 2, 1], r[..., 2, 2] = -sb, 0.0, cb
-    return r
-
-
 NUMPY = Ops(atan2=np.arctan2, acos=np.arccos, asin=np.arcsin, sqrt=np.sqrt, hypot=np.hypot, cos=np.cos, sin=np.sin,
             abs=np.abs, clip=np.clip, where=np.where, isnan=np.isnan, zeros_like=np.zeros_like,
             ones_like=np.ones_like, stack=lambda arrays, axis: np.stack(arrays, axis=axis),
             mc=lambda r, c: r @ c, mv=lambda r, v: r @ v,
-            unturn=lambda x, a, b=None: _rz_ry(a, b).swapaxes(-1, -2) @ x)
+            unturn=lambda x, a, b=None: frames.rotation_zy(a, b).swapaxes(-1, -2) @ x)
 
 
 def _wrap(q):

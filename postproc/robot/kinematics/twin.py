@@ -26,7 +26,7 @@ import math
 import numpy as np
 import torch
 
-from ...core.frames import abc_entries
+from ...core.frames import MM, abc_entries
 from ..description import RobotDescription
 from .gravity import GRAVITY, gravity_from_points, holding_torques
 from .ik import (
@@ -49,9 +49,9 @@ from .ik import (
 __all__ = [
     "coupling_pairs", "Arm", "axis_rotations", "mc", "mv", "turn_columns", "turn_rows", "small_rotation",
     "pose_matrices", "at_tool", "KukaIK", "UrIK", "make_ik", "GRAVITY", "wrapped_step", "rotation_matrices", "TORCH",
+    "small_transform", "axial", "rotation_log",
 ]
 
-MM = 1e-3
 
 
 def _t(value) -> torch.Tensor:
@@ -131,6 +131,32 @@ def small_rotation(rotvec: torch.Tensor) -> torch.Tensor:
     zero = torch.zeros_like(x)
     k = torch.stack([zero, -z, y, z, zero, -x, -y, x, zero], dim=-1).reshape(*rotvec.shape[:-1], 3, 3)
     return torch.eye(3, dtype=rotvec.dtype) + a * k + b * (k @ k)
+
+
+def small_transform(rotvec: torch.Tensor, offset: torch.Tensor) -> torch.Tensor:
+    """[..., 4, 4] rigid transforms from rotation vectors [..., 3] and offsets [..., 3]
+    (postproc.core.frames.small_transform in torch, differentiable)."""
+    r = small_rotation(rotvec)
+    top = torch.cat([r, offset[..., :, None]], dim=-1)
+    bottom = torch.zeros(*top.shape[:-2], 1, 4, dtype=top.dtype)
+    bottom[..., 0, 3] = 1.0
+    return torch.cat([top, bottom], dim=-2)
+
+
+def axial(m: torch.Tensor, batch_last: bool = False) -> torch.Tensor:
+    """The axial vector of m − mᵀ, (m21 − m12, m02 − m20, m10 − m01) = 2·sin θ·axis of rotations
+    [N, 3, 3] → [N, 3] (``batch_last``: [3, 3, N] → [3, N], the exported graph's layout)."""
+    if batch_last:
+        return torch.stack([m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]])
+    return torch.stack([m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]], dim=1)
+
+
+def rotation_log(m: torch.Tensor, batch_last: bool = False) -> torch.Tensor:
+    """Rotations within a few degrees of I [N, 3, 3] → rotation vectors [N, 3] rad (``batch_last``:
+    [3, 3, N] → [3, N]): the axial vector v = sin θ·axis scaled by asin|v|/|v| ≈ 1 + |v|²/6 (exact
+    to 1e-8 relative at 1°; no acos: ONNX-friendly, smooth at 0)."""
+    v = 0.5 * axial(m, batch_last)
+    return v * (1.0 + (v * v).sum(0 if batch_last else 1, keepdim=True) / 6.0)
 
 
 def pose_matrices(pose) -> tuple[torch.Tensor, torch.Tensor]:
