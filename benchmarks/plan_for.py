@@ -60,7 +60,7 @@ def programs(folder: Path, n: int) -> None:
     (folder / "default.src").write_text(_krl(poses[:n], config[:n], robot.tool, "default"))
     rest = poses[n:]
     q, found = configuration.stated_joints(robot, rest, config[n:, 0] ^ 4, np.full(len(rest), -1))
-    s, t = configuration.status_turn_of(robot, q[found][:n])
+    s, t = conventions.status_turn_of(robot, q[found][:n])
     (folder / "flipped.src").write_text(_krl(rest[found][:n], np.c_[s, t], robot.tool, "flipped"))
 
 

@@ -47,7 +47,7 @@ from ..core.diagnostics import P331, P335, PostprocError
 from ..core.frames import nearest_triple, rotation_angle_deg, small_transform
 from ..core.stats import table2
 from ..core.toml import check_value
-from ..robot import configuration
+from ..robot import configuration, conventions
 from ..robot.approach import approach_signs, ordered_approach_signs
 from ..robot.arm import Robot
 from ..robot.description import RobotDescription, load_description
@@ -390,12 +390,12 @@ class SimulatedRobot:
         if isinstance(config, configuration.Stated):  # (a program's stated forms: S/T, confdata, CONFIG)
             stated = config
         else:
-            config = np.full((n, 2), configuration.UNSTATED) if config is None else np.asarray(config, int)
+            config = np.full((n, 2), conventions.UNSTATED) if config is None else np.asarray(config, int)
             stated = configuration.Stated(config[:, 0], config[:, 1])
         if motions is None:
             ptp, alone = np.zeros(n, bool), np.ones(n, bool)
         else:
-            ptp, alone = configuration.execution_kinds(motions)
+            ptp, alone = conventions.execution_kinds(motions)
         if prev is not None or axes is not None:
             prev = np.arange(-1, n - 1) if prev is None else np.asarray(prev)
             return configuration.ordered_joints(self.robot, poses, stated, ptp, self.robot.home_q, tools, alone, prev,
