@@ -1,21 +1,17 @@
-"""The nominal robot: a description file (TOML) → its kinematic chain, vectorised FK, gravity
-torques and analytic IK; ``pin.Model`` as the reference.
+"""The nominal robot (:class:`Robot`): a description's FK, gravity torques and the controller's
+inverse kinematics, in mm and degrees at every public interface.
 
-A description (``models/kr500.toml`` is the example) lists the joints of a serial 6R arm with
-their origins (a pure offset at q = 0 for the robots postproc ships), axes, limits and link
-masses, then the flange, the tool (TCP), the payload, the workspace and optionally an
-``[errors]`` table that :mod:`postproc.calibration.simulator` reads. Units at every public interface
-are mm and degrees; Pinocchio works in metres and radians, converted here at the boundary.
-
-One description → chain construction (:class:`RobotDescription`'s ``placements``, ``axes``,
-``flange_matrix``, ``tool_matrix``, ``masses``, ``coms``): Pinocchio's model (built lazily with
-``addJoint`` / ``appendBodyToJoint`` / ``addFrame``) is the reference FK and gravity; the
-forward kinematics of many poses at once is numpy (:class:`Chain`, products of per-joint
-transforms over all poses in one go), the gravity torques :func:`gravity_from_points` of its
-joint frames (numpy here, torch in training/arm.py); tests/test_kinematics.py checks both,
-and the torch/ONNX FK, against ``pin.framesForwardKinematics`` / ``computeGeneralizedGravity``.
-The inverse kinematics is the controller's: closed form for the KUKA-type arm with a
-spherical wrist (8 branches), choosing per pose the branch nearest to a reference configuration.
+A description (``models/kr500.toml`` is the example; :mod:`postproc.robot.description`) lists
+the joints of a serial 6R arm; everything here is built from its arrays, in
+:mod:`postproc.robot.kinematics`: the forward kinematics of many poses at once is the numpy
+:class:`~postproc.robot.kinematics.chain.Chain`, the gravity torques
+:func:`~postproc.robot.kinematics.gravity.gravity_torques` of its joint frames, the inverse
+kinematics the closed form of the arm's family (:mod:`postproc.robot.kinematics.ik`: KUKA-type
+with a spherical wrist, or UR-type; 8 branches), each pose solved on the branch nearest a
+reference configuration, each joint on its 360° turn nearest it within the limits.
+Pinocchio's model (``model``, ``data``, :meth:`Robot.pin_fk`:
+:mod:`postproc.robot.kinematics.reference`, built on first use) is the reference the checks
+compare with; no product path computes with it.
 """
 from __future__ import annotations
 
@@ -31,15 +27,6 @@ from .kinematics.ik import SHOULDER_MM, KukaGeometry, UrGeometry, geometry_of
 from .kinematics.reference import pin_fk, pin_model
 
 __all__ = ["Robot"]
-
-
-# --------------------------------------------------------------------------- reading
-
-
-# --------------------------------------------------------------------------- kinematics
-
-
-# --------------------------------------------------------------------------- gravity
 
 
 class Robot:
