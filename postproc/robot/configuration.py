@@ -52,10 +52,6 @@ BLOCK = 8192
 # pose written with 3 decimals moves its joint angles by ~1e-3°, and a compensated command
 # (S and T left as written) by ~0.1° (a target taught at A6 −0.01° is commanded at +0.01°).
 SIGN_TOLERANCE_DEG = 0.5
-# passes over the program for PTP targets that switch branch: each pass settles at least the
-# next target in program order, so a program of n targets needs at most n + 1; usually a few
-# (a chain of choices that each depend on the one before — a wrist flip early in a long PTP
-# program — settles one target per pass: 20 passes, the old cap, left such targets wrong)
 
 
 def _wrap(deg: np.ndarray) -> np.ndarray:
@@ -422,6 +418,10 @@ def _rules(robot: Robot, branches: _Branches, status: np.ndarray, turn: np.ndarr
         picks.append((best, np.flatnonzero(free_ptp)))
         branch[free_ptp] = np.where(ok_guess, _status_of(robot, q_guess, best, sure), UNSTATED)
     q = found = None
+    # passes over the program for PTP targets that switch branch: each pass settles at least the
+    # next target in program order, so a program of n targets needs at most n + 1; usually a few
+    # (a chain of choices that each depend on the one before — a wrist flip early in a long PTP
+    # program — settles one target per pass: 20 passes, the old cap, left such targets wrong)
     for _ in range(n + 1):
         filled = _forward_fill(branch, start_s)
         picks.append((filled, np.arange(n)))
