@@ -40,7 +40,8 @@ import numpy as np
 from ..core import frames
 from ..core.diagnostics import P514
 from .arm import Robot
-from .conventions import TURN_JOINTS, UNSTATED, _abb_branch, arm_status, execution_kinds, parse_fanuc_config, status_turn_of
+from .conventions import (TURN_JOINTS, UNSTATED, _abb_branch, arm_status, execution_kinds, parse_fanuc_config,
+                          status_turn_of)
 
 __all__ = ["branch_table", "stated_joints", "controller_joints", "measurement_joints", "Stated", "stated_configuration",
            "target_joints", "ordered_joints", "linear_changes"]
