@@ -36,7 +36,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from _common import cli, load, record  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
-from postproc.robot import configuration  # noqa: E402
+from postproc.robot import configuration, conventions  # noqa: E402
 from postproc.calibration.planning import latin_hypercube, plan_configurations  # noqa: E402
 from postproc.robot.arm import Robot
 from postproc.robot.description import load_description  # noqa: E402
