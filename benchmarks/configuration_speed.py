@@ -15,6 +15,7 @@ import numpy as np
 from _common import record
 
 from postproc.robot import configuration as cf
+from postproc.robot import conventions as cv
 from postproc.calibration.planning import latin_hypercube, plan_configurations
 from postproc.robot.arm import Robot
 from postproc.calibration.simulator import SimulatedRobot
@@ -27,7 +28,7 @@ def main(n: int = 100_000) -> None:
     q = np.clip(q, robot.limits[:, 0] + 1, robot.limits[:, 1] - 1)
     poses = robot.fk(q)
     s, t = robot.status_turn(q)
-    unstated = np.full(n, cf.UNSTATED)
+    unstated = np.full(n, cv.UNSTATED)
     s0, t0 = unstated.copy(), unstated.copy()
     s0[0], t0[0] = s[0], t[0]
     start = time.perf_counter()
@@ -49,7 +50,7 @@ def main(n: int = 100_000) -> None:
     sim = SimulatedRobot()
     plan = latin_hypercube(2000, seed=5)
     home, ok_home = plan_configurations(sim.robot, plan, "home")
-    flipped, ok_flip = cf.stated_joints(sim.robot, plan, home[:, 0] ^ 4, np.full(len(plan), cf.UNSTATED))
+    flipped, ok_flip = cf.stated_joints(sim.robot, plan, home[:, 0] ^ 4, np.full(len(plan), cv.UNSTATED))
     keep = ok_home & ok_flip
     plan, flipped = plan[keep], flipped[keep]
     tool = np.array([180.0, 30.0, 160.0, 0, 0, 0])

@@ -26,7 +26,9 @@ import numpy as np
 from _common import record
 from postproc.cli import main
 from postproc.model.compensator import load_model
-from postproc.calibration.export import MM, calibrated_urdf, identified_geometry, nominal_urdf, ur_calibration
+from postproc.calibration.export import calibrated_urdf, identified_geometry, ur_calibration
+from postproc.core.frames import MM
+from postproc.robot.urdf import nominal_urdf
 from postproc.robot.description import load_description
 from postproc.model.training.fitting import fit
 from postproc.settings import Settings
@@ -70,7 +72,7 @@ def pin_tcp(text: str, q_deg: np.ndarray, frame: str, folder: Path) -> np.ndarra
     out = []
     for q in np.radians(q_deg):
         pin.framesForwardKinematics(model, data, q)
-        out.append(data.oMf[fid].translation * MM)
+        out.append(data.oMf[fid].translation / MM)
     return np.array(out)
 
 
@@ -114,7 +116,7 @@ def main_() -> None:
             ur_model = load_model(fit(str(folder / "ipa.csv"), Settings().override(method="kinematic", robot=str(ur10), pose_only=True), kinematic=GEOMETRIC).export(folder / "ur.onnx"))
             _, ur = ur_calibration(identified_geometry(ur_model, load_description(ur10)))
             figures["ur"] = {"rows": "Series C, all", "dh_residual_mm": ur["residual_mm"],
-                             "largest_delta_d_m": float(np.abs(ur["delta"][:, 1]).max() / MM)}
+                             "largest_delta_d_m": float(np.abs(ur["delta"][:, 1]).max() * MM)}
             print(f"UR layout (IPA Series C): the DH chain is {ur['residual_mm']:.2e} mm from the identified joint "
                   "geometry at most", file=sys.stderr)
 

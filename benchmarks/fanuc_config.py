@@ -3,7 +3,7 @@ simulated robot as accurately as the same targets as a pose list (issue 25's gat
 
 FANUC: fresh Latin-hypercube targets in the R-2000iC-class workspace (models/r2000ic.toml), half
 of them in the flipped wrist (as `postproc plan --wrist both` draws them), written as an LS
-program whose positions state `CONFIG : 'F U T, t1, t4, t6'` (configuration.fanuc_configs of their
+program whose positions state `CONFIG : 'F U T, t1, t4, t6'` (conventions.fanuc_configs of their
 joint angles) in a user frame turned and shifted on the table (UF 1, the frame file), J motions;
 the same targets in the robot base as a pose list with the configuration in postproc's portable
 form (s,t columns); and, as the control, that pose list without s,t (the model evaluated on the
@@ -27,7 +27,7 @@ import numpy as np
 
 from _common import load, record
 
-from postproc.robot import configuration
+from postproc.robot import configuration, conventions
 from postproc.core import frames
 from postproc.compensation.api import compensate_text
 from postproc.programs.io import parse_program_text
@@ -132,15 +132,15 @@ def family(kind: str, n: int, seed: int) -> dict:
     sim = SimulatedRobot.from_file(model_path(description))
     model = load_model(model_path(model_file))
     poses, q = _targets(sim, n, seed)
-    st = np.stack(configuration.status_turn_of(sim.robot, q), axis=1)
+    st = np.stack(conventions.status_turn_of(sim.robot, q), axis=1)
     tool = sim.robot.tool
     if kind == "fanuc":
-        configs = configuration.fanuc_configs(sim.robot, q)
+        configs = conventions.fanuc_configs(sim.robot, q)
         text, frames_text = fanuc_program(poses, configs, FRAMES[kind], tool)
         program = _run(sim, model, text, "bench.ls", frames_text)
         forms = sorted(set(c.split(",")[0] for c in configs))
     else:
-        conf = configuration.abb_confdata(sim.robot, q)
+        conf = conventions.abb_confdata(sim.robot, q)
         program = _run(sim, model, rapid_program(poses, conf, FRAMES[kind], tool), "bench.mod")
         forms = sorted({f"cfx {int(c)}" for c in conf[:, 3]})
     listed = _run(sim, model, pose_list(poses, st), "bench.csv")

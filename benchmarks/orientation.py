@@ -171,7 +171,7 @@ def sim_part(seed: int, work: Path) -> dict:
 def _angles(sim, targets: np.ndarray, commands: np.ndarray) -> np.ndarray:
     """Angle (deg) between each target's orientation and the one the robot reaches when
     commanded ``commands`` (no noise: the probe's noise is the description's)."""
-    from postproc.calibration.simulator import rotation_angle_deg
+    from postproc.core.frames import rotation_angle_deg
 
     reached = sim.measure(commands, rng_seed=2, orientation=True)
     return rotation_angle_deg(targets[:, 3:6], reached[:, 3:6])

@@ -36,7 +36,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from _common import cli, load, record  # noqa: E402  (benchmarks/ is on sys.path when run as a script)
-from postproc.robot import configuration  # noqa: E402
+from postproc.robot import configuration, conventions  # noqa: E402
 from postproc.calibration.planning import latin_hypercube, plan_configurations  # noqa: E402
 from postproc.robot.arm import Robot
 from postproc.robot.description import load_description  # noqa: E402
@@ -60,7 +60,7 @@ def programs(folder: Path, n: int) -> None:
     (folder / "default.src").write_text(_krl(poses[:n], config[:n], robot.tool, "default"))
     rest = poses[n:]
     q, found = configuration.stated_joints(robot, rest, config[n:, 0] ^ 4, np.full(len(rest), -1))
-    s, t = configuration.status_turn_of(robot, q[found][:n])
+    s, t = conventions.status_turn_of(robot, q[found][:n])
     (folder / "flipped.src").write_text(_krl(rest[found][:n], np.c_[s, t], robot.tool, "flipped"))
 
 

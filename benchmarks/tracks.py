@@ -184,14 +184,14 @@ def main(argv=None) -> int:
             figures[dialect] = rows
             print(dialect, json.dumps(rows, indent=1))
         # FANUC: a group-2 track (GP2 J1); LS positions state their CONFIG
-        from postproc.robot import configuration
+        from postproc.robot import conventions
         from postproc.robot.description import load_description
         from postproc.calibration.simulator import SimulatedRobot
 
         description = ROOT / "models" / "r2000ic.toml"
         sim = SimulatedRobot.from_file(description)
         base = np.round(poses(description, args.targets, args.seed), 3)
-        configs = configuration.fanuc_configs(sim.robot, sim.joint_angles(base))
+        configs = conventions.fanuc_configs(sim.robot, sim.joint_angles(base))
         tool = tuple(float(v) for v in load_description(description).tool)
         frames_file = work / "frames.toml"
         rows = {}

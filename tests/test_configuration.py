@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from postproc.robot import configuration as cf
+from postproc.robot import conventions as cv
 from postproc.core.resources import model_path
 from postproc.robot.arm import Robot
 from postproc.robot.description import load_description
@@ -40,7 +41,7 @@ def test_other_branches_are_other_joint_angles_of_the_same_pose(arm):
     poses = arm.fk(q)
     status, _ = arm.status_turn(q)
     flipped = status ^ 4  # the other wrist
-    got, ok = cf.stated_joints(arm, poses, flipped, np.full(len(q), cf.UNSTATED))
+    got, ok = cf.stated_joints(arm, poses, flipped, np.full(len(q), cv.UNSTATED))
     assert ok.mean() > 0.5
     assert (arm.status_turn(got[ok])[0] == flipped[ok]).all()
     assert np.abs(got[ok] - q[ok]).max(axis=1).min() > 1.0  # really another configuration
@@ -64,8 +65,8 @@ def test_lin_keeps_the_stated_configuration_and_moves_continuously(arm):
     lo, hi = arm.limits[:, 0], arm.limits[:, 1]
     path = path[((path >= lo) & (path <= hi)).all(axis=1)]
     status, turn = arm.status_turn(path[:1])
-    s = np.full(len(path), cf.UNSTATED)
-    t = np.full(len(path), cf.UNSTATED)
+    s = np.full(len(path), cv.UNSTATED)
+    t = np.full(len(path), cv.UNSTATED)
     s[0], t[0] = status[0], turn[0]
     got, ok = cf.controller_joints(arm, arm.fk(path), s, t, np.zeros(len(path), bool))
     assert ok.all()
@@ -81,13 +82,13 @@ def test_ptp_without_status_takes_the_solution_nearest_the_previous_axis_positio
     b = a + np.array([5.0, 3.0, -4.0, 2.0, -3.0, 4.0])
     poses = robot.fk(np.vstack([a, b]))
     s, t = robot.status_turn(a[None])
-    got, ok = cf.controller_joints(robot, poses, [s[0], cf.UNSTATED], [t[0], cf.UNSTATED], [True, True])
+    got, ok = cf.controller_joints(robot, poses, [s[0], cv.UNSTATED], [t[0], cv.UNSTATED], [True, True])
     assert ok.all()
     np.testing.assert_allclose(got[1], b, atol=1e-6)
     # without anything stated the start position decides: from HOME the other wrist (A4 ≈ −10°)
-    got, ok = cf.controller_joints(robot, poses, [cf.UNSTATED] * 2, [cf.UNSTATED] * 2, [True, True])
+    got, ok = cf.controller_joints(robot, poses, [cv.UNSTATED] * 2, [cv.UNSTATED] * 2, [True, True])
     assert (robot.status_turn(got)[0] & 4 == 0).all()
-    got, ok = cf.controller_joints(robot, poses, [cf.UNSTATED] * 2, [cf.UNSTATED] * 2, [True, True], initial_q=a)
+    got, ok = cf.controller_joints(robot, poses, [cv.UNSTATED] * 2, [cv.UNSTATED] * 2, [True, True], initial_q=a)
     np.testing.assert_allclose(got, np.vstack([a, b]), atol=1e-6)
 
 
@@ -96,7 +97,7 @@ def test_unreachable_targets_are_not_found_and_the_motion_restarts_after_them():
     q = np.array([[0.0, -90.0, 90.0, 0.0, 45.0, 0.0], [5.0, -85.0, 85.0, 5.0, 40.0, 5.0]])
     poses = robot.fk(q)
     poses = np.vstack([poses[:1], [[9000.0, 0, 0, 0, 0, 0]], poses[1:]])
-    got, ok = cf.controller_joints(robot, poses, [cf.UNSTATED] * 3, [cf.UNSTATED] * 3, [False] * 3)
+    got, ok = cf.controller_joints(robot, poses, [cv.UNSTATED] * 3, [cv.UNSTATED] * 3, [False] * 3)
     assert ok.tolist() == [True, False, True]
     np.testing.assert_allclose(got[[0, 2]], q, atol=1e-6)
 
@@ -122,11 +123,11 @@ def test_a_long_ptp_chain_from_home_takes_each_solution_nearest_the_previous_one
     poses = latin_hypercube(120, seed=11)
     poses = poses[robot.ik(poses)[1]]
     n = len(poses)
-    unstated = np.full(n, cf.UNSTATED)
+    unstated = np.full(n, cv.UNSTATED)
     q, ok = cf.controller_joints(robot, poses, unstated, unstated, np.ones(n, bool), robot.home_q)
     assert ok.all()
     previous = np.vstack([robot.home_q, q[:-1]])
-    one = np.full(1, cf.UNSTATED)
+    one = np.full(1, cv.UNSTATED)
     alone = np.vstack([cf.controller_joints(robot, poses[i:i + 1], one, one, np.ones(1, bool), previous[i])[0]
                        for i in range(n)])
     np.testing.assert_allclose(q, alone, atol=1e-6)

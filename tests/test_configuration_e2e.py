@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from postproc.robot import configuration as cf
+from postproc.robot import conventions as cv
 from postproc.cli import main
 from postproc.compensation.pipeline import compensate_program
 from postproc.programs.io import parse_program_text
@@ -86,13 +87,13 @@ def _accuracy(sim, model, cases_wanted):
     # programs over fresh poses: the training configuration, the flipped wrist, another tool
     targets = latin_hypercube(120, seed=11)
     home, ok_home = plan_configurations(robot, targets, "home")
-    flipped, ok_flip = cf.stated_joints(robot, targets, home[:, 0] ^ 4, np.full(len(targets), cf.UNSTATED))
+    flipped, ok_flip = cf.stated_joints(robot, targets, home[:, 0] ^ 4, np.full(len(targets), cv.UNSTATED))
     arm = Robot(robot.description.replace(tool=OTHER_TOOL))
     tool_q, ok_tool = arm.ik(targets)
     keep = ok_home & ok_flip & ok_tool
     targets = targets[keep]
-    flipped_config = np.stack(cf.status_turn_of(robot, flipped[keep]), axis=1)
-    tool_config = np.stack(cf.status_turn_of(arm, tool_q[keep]), axis=1)
+    flipped_config = np.stack(cv.status_turn_of(robot, flipped[keep]), axis=1)
+    tool_config = np.stack(cv.status_turn_of(arm, tool_q[keep]), axis=1)
     cases = {
         "training": (_pose_list(targets, home[keep]), "t.csv", robot.tool),
         "flipped": (_pose_list(targets, flipped_config), "f.csv", robot.tool),

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from postproc.robot import configuration as cf
+from postproc.robot import conventions as cv
 from postproc.core import frames
 from postproc.core.resources import model_path
 from postproc.robot.arm import Robot
@@ -32,8 +33,8 @@ def _program(robot, n, seed):
         poses[rows] = Robot(robot.description.replace(tool=t)).fk(q[rows])
     poses[rng.random(n) < 0.03] = [9000.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # unreachable
     s, t = robot.status_turn(q)
-    s = np.where(rng.random(n) < 0.2, s, cf.UNSTATED)
-    t = np.where((s >= 0) & (rng.random(n) < 0.5), t, cf.UNSTATED)
+    s = np.where(rng.random(n) < 0.2, s, cv.UNSTATED)
+    t = np.where((s >= 0) & (rng.random(n) < 0.5), t, cv.UNSTATED)
     return poses, s, t, rng.random(n) < 0.3, tools, rng.random(n) < 0.05
 
 
@@ -102,7 +103,7 @@ def _stated_one_by_one(robot, poses, s, t, tools):
 
 def test_stated_joints_equals_a_target_by_target_reference(arm):
     poses, s, t, _, tools, _ = _program(arm, 300, 11)
-    s[::3] = cf.UNSTATED  # both groups: S stated (one branch) and not (nearest HOME of all 8)
+    s[::3] = cv.UNSTATED  # both groups: S stated (one branch) and not (nearest HOME of all 8)
     got = cf.stated_joints(arm, poses, s, t, tools=tools)
     want = _stated_one_by_one(arm, poses, s, t, tools)
     assert want[1].mean() > 0.5
@@ -149,7 +150,7 @@ def test_nearest_choices_by_the_nearest_arm_equal_the_full_comparison(arm, ptp):
     q[:30, 4] = 0.0  # wrist singular: all 8 solved there
     poses = robot.fk(q)
     n = len(poses)
-    none = np.full(n, cf.UNSTATED)
+    none = np.full(n, cv.UNSTATED)
     args = (poses, none, none, np.full(n, ptp), None, None, np.full(n, not ptp))
     fast = cf.controller_joints(robot, *args)
     ref = cf.controller_joints(robot, *args, check_all=True)

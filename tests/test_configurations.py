@@ -7,7 +7,7 @@ another controller refused (P310)."""
 import numpy as np
 import pytest
 
-from postproc.robot import configuration
+from postproc.robot import configuration, conventions
 from postproc.compensation.api import compensate_text
 from postproc.programs.io import parse_program_text
 from postproc.model.compensator import load_model
@@ -51,15 +51,15 @@ def _fanuc_stated(texts):
     n = len(texts)
     stated = configuration.Stated(np.full(n, -1), np.full(n, -1), np.full((n, 6, 2), np.nan))
     for i, text in enumerate(texts):
-        stated.status[i], turns = configuration.parse_fanuc_config(text)
-        for t, j in zip(turns, configuration.TURN_JOINTS):
+        stated.status[i], turns = conventions.parse_fanuc_config(text)
+        for t, j in zip(turns, conventions.TURN_JOINTS):
             stated.windows[i, j] = (360.0 * t - 180.0, 360.0 * t + 180.0)
     return stated
 
 
 def test_fanuc_config_both_ways_in_every_branch_and_turn(fanuc):
     q, poses = _drawn(fanuc)
-    texts = configuration.fanuc_configs(fanuc, q)
+    texts = conventions.fanuc_configs(fanuc, q)
     letters = {t.split(",")[0] for t in texts}
     assert letters == {f"{f} {u} {s}" for f in "NF" for u in "UD" for s in "TB"}  # all 8 branches
     turns = np.array([[int(v) for v in t.split(",")[1:]] for t in texts])
@@ -73,38 +73,38 @@ def test_fanuc_config_both_ways_in_every_branch_and_turn(fanuc):
 def test_fanuc_letters_are_the_geometry(fanuc):
     # the tool-down pose of J4 = 0 is J5 = -90 on a FANUC: no flip, elbow up, in front
     down = np.array([[10.0, 20.0, -10.0, 0.0, -90.0, 30.0]])
-    assert configuration.fanuc_configs(fanuc, down) == ["N U T, 0, 0, 0"]
+    assert conventions.fanuc_configs(fanuc, down) == ["N U T, 0, 0, 0"]
     # the same pose with the wrist turned over (J4 + 180, J5 = +90, J6 + 180): flipped, J6 one turn on
     over = down + [0, 0, 0, 180.0, 180.0, 180.0]
     np.testing.assert_allclose(fanuc.fk(over), fanuc.fk(down), atol=1e-6)
-    assert configuration.fanuc_configs(fanuc, over) == ["F U T, 0, 1, 1"]  # (J4 = 180: its next turn)
+    assert conventions.fanuc_configs(fanuc, over) == ["F U T, 0, 1, 1"]  # (J4 = 180: its next turn)
     # J1 and J4 past -180: turn -1; the arm leaning back over its base: B; the elbow folded under: D
-    assert configuration.fanuc_configs(fanuc, [[-181.0, -50.0, 20.0, -190.0, -40.0, 0.0]]) == ["N U B, -1, -1, 0"]
-    assert configuration.fanuc_configs(fanuc, [[0.0, -55.0, -120.0, 0.0, -60.0, 0.0]]) == ["N D T, 0, 0, 0"]
-    assert configuration.fanuc_turn(np.array([179.9, 180.0, 539.9, -179.9, -180.0, -539.9, -540.0])).tolist() == [0, 1, 1, 0, -1, -1, -2]
+    assert conventions.fanuc_configs(fanuc, [[-181.0, -50.0, 20.0, -190.0, -40.0, 0.0]]) == ["N U B, -1, -1, 0"]
+    assert conventions.fanuc_configs(fanuc, [[0.0, -55.0, -120.0, 0.0, -60.0, 0.0]]) == ["N D T, 0, 0, 0"]
+    assert conventions.fanuc_turn(np.array([179.9, 180.0, 539.9, -179.9, -180.0, -539.9, -540.0])).tolist() == [0, 1, 1, 0, -1, -1, -2]
 
 
 @pytest.mark.parametrize("text, expected", [("N U T, 0, 0, 0", (6, [0, 0, 0])), ("F D B, -1, 1, 0", (1, [-1, 1, 0])),
                                             (" n u t ,0,0,0", (6, [0, 0, 0])), ("N U T", (6, [-999, -999, -999])),
                                             ("N, 0, 0, 0", None), ("N U T, 0, 0", None), ("X U T, 0, 0, 0", None)])
 def test_parse_fanuc_config(text, expected):
-    got = configuration.parse_fanuc_config(text)
+    got = conventions.parse_fanuc_config(text)
     assert (got is None) if expected is None else (got[0] == expected[0] and got[1].tolist() == expected[1])
 
 
 def test_abb_confdata_both_ways_in_every_branch_and_quadrant(abb):
     q, poses = _drawn(abb, seed=1)
-    conf = configuration.abb_confdata(abb, q)
+    conf = conventions.abb_confdata(abb, q)
     assert set(conf[:, 3].tolist()) == set(range(8))  # every cfx
     for k in range(3):
         assert {-2, -1, 0, 1} <= set(conf[:, k].tolist())
-    status, windows, good = configuration._abb_branch(conf)
+    status, windows, good = conventions._abb_branch(conf)
     assert good.all()
     back, ok = _read_back(abb, poses, configuration.Stated(status, np.full(len(q), -1), windows))
     assert ok.all()
     np.testing.assert_allclose(back, q, atol=1e-6)
     # the calibration position with the tool down: [0, 0, 0, 0]; the wrist turned over: axis 5 negative
-    assert configuration.abb_confdata(abb, [[0, 0, 0, 0, 90, 0], [0, 0, 0, 180, -90, 180]]).tolist() == \
+    assert conventions.abb_confdata(abb, [[0, 0, 0, 0, 90, 0], [0, 0, 0, 180, -90, 180]]).tolist() == \
         [[0, 0, 0, 0], [0, 2, 2, 1]]
 
 
@@ -152,7 +152,7 @@ def test_an_ls_program_reaches_the_model_with_its_config_joints(tmp_path, fanuc,
     frames_file = tmp_path / "frames.toml"
     frames_file.write_text("[utool.1]\nxyzwpr = [%g, %g, %g, 0, 0, 0]\n" % tuple(tool[:3]))
     poses = fanuc.fk(q)
-    text = _ls(poses, configuration.fanuc_configs(fanuc, q))
+    text = _ls(poses, conventions.fanuc_configs(fanuc, q))
     model = load_model(joint_model(tmp_path / "j.onnx", GAIN, robot="R2000iC-sim",
                                    tool={"name": "UT 1", "frame": tool.tolist()}))
     out, report = compensate_text(text, model, name="t.ls", config=frames_file)
@@ -166,7 +166,7 @@ def test_an_ls_program_reaches_the_model_with_its_config_joints(tmp_path, fanuc,
 def test_a_rapid_module_reaches_the_model_with_its_confdata_joints(tmp_path, abb, workspace_q):
     q = workspace_q["abb"]
     poses = abb.fk(q)
-    text = _rapid(poses, configuration.abb_confdata(abb, q), abb.tool)
+    text = _rapid(poses, conventions.abb_confdata(abb, q), abb.tool)
     model = load_model(joint_model(tmp_path / "j.onnx", GAIN, robot="IRB6700-sim",
                                    tool={"name": "tSpindle", "frame": abb.tool.tolist()}))
     out, report = compensate_text(text, model, name="t.mod")
@@ -204,7 +204,7 @@ def test_a_linear_motion_that_states_another_branch_is_left_as_written(tmp_path,
     left as written (P309), the others compensated; as MoveJ the same target is reached."""
     q = workspace_q["abb"][:2]  # one pose, two wrists
     poses = abb.fk(q)
-    conf = configuration.abb_confdata(abb, q)
+    conf = conventions.abb_confdata(abb, q)
     model = load_model(joint_model(tmp_path / "j.onnx", GAIN, robot="IRB6700-sim",
                                    tool={"name": "tSpindle", "frame": abb.tool.tolist()}))
     text = _rapid(poses, conf, abb.tool)

@@ -133,7 +133,7 @@ def _family_program(kind, robot, q):
     """The poses of joint angles ``q`` [n, 6] as a program of ``kind`` that states each one's
     configuration in its controller's form (KRL: S/T, RAPID: confdata, LS: CONFIG), in a frame
     turned and shifted (BASE), PTP / MoveJ / J motions; with its config texts."""
-    from postproc.robot import configuration
+    from postproc.robot import conventions
 
     poses = robot.fk(q)
     local = frames.matrix_to_frame(frames.inverse(frames.frame_to_matrix(BASE)) @ frames.frame_to_matrix(poses))
@@ -145,7 +145,7 @@ def _family_program(kind, robot, q):
         lines += ["PTP {X %.4f,Y %.4f,Z %.4f,A %.4f,B %.4f,C %.4f,S %d,T %d}" % (*p, a, b) for p, a, b in zip(local, s, t)]
         return "\n".join(lines + ["END", ""]), "cons.src", None
     if kind == "rapid":
-        conf = configuration.abb_confdata(robot, q)
+        conf = conventions.abb_confdata(robot, q)
         bq = ",".join(f"{v:.12f}" for v in _quat(BASE[3:]))
         lines = ["MODULE cons", f"PERS tooldata t1:=[TRUE,[[{tool[0]},{tool[1]},{tool[2]}],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];",
                  f"PERS wobjdata w1:=[FALSE,TRUE,\"\",[[{BASE[0]:.3f},{BASE[1]:.3f},{BASE[2]:.3f}],[{bq}]],"
@@ -155,7 +155,7 @@ def _family_program(kind, robot, q):
             lines.append(f"MoveJ [[{p[0]:.4f},{p[1]:.4f},{p[2]:.4f}],[{qs}],[{c[0]},{c[1]},{c[2]},{c[3]}],"
                          "[9E9,9E9,9E9,9E9,9E9,9E9]],v100,z1,t1\\WObj:=w1;")
         return "\n".join(lines + ["ENDPROC", "ENDMODULE", ""]), "cons.mod", None
-    configs = configuration.fanuc_configs(robot, q)
+    configs = conventions.fanuc_configs(robot, q)
     mn = [f"{k:4d}:J P[{k}] 100% FINE    ;" for k in range(1, len(q) + 1)]
     pos = [f"P[{k}]{{\n   GP1:\n\tUF : 3, UT : 2,\t\tCONFIG : '{c}',\n"
            f"\tX = {p[0]:10.4f}  mm,\tY = {p[1]:10.4f}  mm,\tZ = {p[2]:10.4f}  mm,\n"

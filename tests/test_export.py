@@ -13,9 +13,9 @@ import pytest
 from postproc.core import frames
 from postproc.cli import main
 from postproc.model.compensator import load_model
-from postproc.calibration.export import (
-    MM, _origin, _xyz_rpy, calibrated_urdf, calibration_yaml, identified_geometry, nominal_urdf, read_urdf,
-)
+from postproc.calibration.export import calibrated_urdf, calibration_yaml, identified_geometry
+from postproc.core.frames import MM
+from postproc.robot.urdf import nominal_urdf, origin_of, read_urdf, xyz_rpy
 from postproc.core.diagnostics import PostprocError
 from postproc.robot.description import load_description
 from postproc.settings import Settings
@@ -86,7 +86,7 @@ def _pin_tcp(urdf_text: str, q_deg: np.ndarray, frame: str = "postproc_tcp", tmp
         pin.framesForwardKinematics(model, data, q)
         out.append(data.oMf[fid].homogeneous.copy())
     out = np.array(out)
-    out[:, :3, 3] *= MM
+    out[:, :3, 3] /= MM
     return out
 
 
@@ -118,7 +118,7 @@ def test_robot_calibration_offsets_give_the_same_urdf(trained, tmp_path):
     nominal = nominal_urdf(load_description())
     calibrated, offsets = calibrated_urdf(nominal, geometry)
     values = dict(line.split(": ") for line in calibration_yaml(offsets).splitlines()[1:])
-    want = {j.get("name"): _origin(j) for j in ET.fromstring(calibrated).findall("joint")}
+    want = {j.get("name"): origin_of(j) for j in ET.fromstring(calibrated).findall("joint")}
     for joint in ET.fromstring(nominal).findall("joint"):
         name = joint.get("name")
         if f"{name}_x" not in values:
@@ -126,8 +126,8 @@ def test_robot_calibration_offsets_give_the_same_urdf(trained, tmp_path):
         v = {k: float(values[f"{name}_{k}"]) for k in "xyzabc"}
         offset = np.eye(4)
         offset[:3, :3] = frames.rotation_from_rotvec(np.array([v["a"], v["b"], v["c"]]))
-        offset[:3, 3] = np.array([v["x"], v["y"], v["z"]]) * MM
-        np.testing.assert_allclose(_origin(joint) @ offset, want[name], atol=1e-6)
+        offset[:3, 3] = np.array([v["x"], v["y"], v["z"]]) / MM
+        np.testing.assert_allclose(origin_of(joint) @ offset, want[name], atol=1e-6)
     assert "compliance, coupling, backlash" in calibrated  # the comment names what a URDF cannot hold
 
 
@@ -148,7 +148,7 @@ def _foreign(description, seed=7) -> str:
         origin = (previous if j == 0 else np.linalg.inv(cs[j - 1])) @ placement @ c
         previous = None
         joint = ET.SubElement(robot, "joint", name=f"j{j}", type="revolute")
-        xyz, rpy = _xyz_rpy(origin)
+        xyz, rpy = xyz_rpy(origin)
         ET.SubElement(joint, "origin", xyz=xyz, rpy=rpy)
         ET.SubElement(joint, "parent", link=parent)
         ET.SubElement(joint, "child", link=f"l{j}")
@@ -158,7 +158,7 @@ def _foreign(description, seed=7) -> str:
         parent = f"l{j}"
     for name, m in (("flange", np.linalg.inv(cs[5]) @ description.flange_matrix), ("tool0", description.tool_matrix)):
         joint = ET.SubElement(robot, "joint", name=f"{name}_joint", type="fixed")
-        xyz, rpy = _xyz_rpy(m)
+        xyz, rpy = xyz_rpy(m)
         ET.SubElement(joint, "origin", xyz=xyz, rpy=rpy)
         ET.SubElement(joint, "parent", link=parent)
         ET.SubElement(joint, "child", link=name)
@@ -210,7 +210,8 @@ def test_a_network_model_has_nothing_to_export(tmp_path, affine):
 def test_the_ur_layout_holds_the_identified_joint_geometry(tmp_path):
     """A UR model: DH deltas (calibration.conf) whose DH chain is the identified joint geometry (in
     the base its first axis defines) to well below 1 µm; the nominal rows are UR's published DH."""
-    from postproc.calibration.export import dh_transforms, ur_calibration
+    from postproc.calibration.export import ur_calibration
+    from postproc.robot.kinematics.dh import dh_transforms
     from postproc.model.training.fitting import fit
 
     from helpers import REPO

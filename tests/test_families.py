@@ -85,7 +85,7 @@ def test_plan_writes_a_fanuc_measurement_program_whose_config_reads_back(tmp_pat
     pytest.importorskip("scipy")
     import numpy as np
 
-    from postproc.robot import configuration
+    from postproc.robot import configuration, conventions
     from postproc.compensation.api import compensate_text
     from postproc.programs.io import parse_program_text
     from postproc.calibration.planning import read_plan_config, read_pose_csv
@@ -102,7 +102,7 @@ def test_plan_writes_a_fanuc_measurement_program_whose_config_reads_back(tmp_pat
     frames_file = tmp_path / "frames.toml"
     frames_file.write_text("[utool.1]\nxyzwpr = [0, 0, 300, 0, 0, 0]\n")
     program = parse_program_text(ls.read_text(), "meas.ls", config_texts=[frames_file.read_text()])
-    assert program.configs == configuration.fanuc_configs(robot, q)
+    assert program.configs == conventions.fanuc_configs(robot, q)
     assert {c[0] for c in program.configs} == {"N", "F"}  # (both wrists)
     np.testing.assert_allclose(program.targets.poses[:, :3], poses[:, :3], atol=1e-9)
     _, report = compensate_text(ls.read_text(), "r2000ic", name="meas.ls", config=frames_file)

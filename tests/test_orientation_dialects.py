@@ -72,8 +72,8 @@ def _turn_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _confdata(model, targets: np.ndarray) -> list[str]:
     """The confdata of the joint angles each target (robot base) takes as a pose list's row
-    (findings.select: the model's ``joints``): RAPID states them (configuration.abb_confdata)."""
-    from postproc.robot import configuration
+    (findings.select: the model's ``joints``): RAPID states them (conventions.abb_confdata)."""
+    from postproc.robot import conventions
     from postproc.compensation.inputs import model_description
     from postproc.compensation.findings import select
     from postproc.robot.arm import Robot
@@ -82,7 +82,7 @@ def _confdata(model, targets: np.ndarray) -> list[str]:
     q = select(parse_program_text(rows, "targets.csv"), model).joints
     assert q is not None and len(q) == len(targets)
     robot = Robot(model_description(model).replace(tool=np.asarray(model.metadata["tool"]["frame"], float)))
-    return [",".join(str(v) for v in c) for c in configuration.abb_confdata(robot, q)]
+    return [",".join(str(v) for v in c) for c in conventions.abb_confdata(robot, q)]
 
 
 def _rapid_module(model, local: np.ndarray, quaternions: list[str], uframe, oframe, conf: list[str]) -> str:

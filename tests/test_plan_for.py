@@ -6,7 +6,7 @@ the default one) is benchmarks/plan_for.py's."""
 import numpy as np
 import pytest
 
-from postproc.robot import configuration
+from postproc.robot import configuration, conventions
 from postproc.cli import main
 from postproc.model.envelope import joint_arcs, widened_arcs
 from postproc.calibration.planning import latin_hypercube, plan_configurations, read_plan_config, read_pose_csv
@@ -35,7 +35,7 @@ def programs(tmp_path_factory):
     poses, config = poses[ok], config[ok]
     (d / "default.src").write_text(_krl(poses[:30], config[:30], robot.tool, "default"))
     q, found = configuration.stated_joints(robot, poses[30:60], config[30:60, 0] ^ 4, np.full(30, -1))
-    s, t = configuration.status_turn_of(robot, q[found])
+    s, t = conventions.status_turn_of(robot, q[found])
     (d / "flipped.src").write_text(_krl(poses[30:60][found], np.c_[s, t], robot.tool, "flipped"))
     q_default, _ = configuration.stated_joints(robot, poses[:30], config[:30, 0], config[:30, 1])
     return d, robot, {2: q_default, 6: q[found]}

@@ -201,16 +201,9 @@ def orientation_deviation(commanded_abc: np.ndarray, attained_abc: np.ndarray) -
     base X, Y, Z axes (rotation vector of R_attained·R_commandᵀ). For the small deviations of a
     pose test these are the a, b, c deviations about the base axes, and they stay defined at
     B = ±90°, where KUKA's A and C (and so ā − a_c) are not."""
-    from ..core.frames import rotation_from_abc
+    from ..core.frames import rotation_error_deg
 
-    r = rotation_from_abc(np.asarray(attained_abc, float)) @ np.swapaxes(
-        rotation_from_abc(np.asarray(commanded_abc, float)), 1, 2)
-    vee = np.stack([r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0], r[:, 1, 0] - r[:, 0, 1]], axis=1) / 2.0
-    sin = np.linalg.norm(vee, axis=1)
-    angle = np.arctan2(sin, (np.trace(r, axis1=1, axis2=2) - 1.0) / 2.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        scale = np.where(sin > 1e-12, angle / sin, 1.0)
-    return np.degrees(vee * scale[:, None])
+    return rotation_error_deg(np.asarray(commanded_abc, float), np.asarray(attained_abc, float))
 
 
 # --------------------------------------------------------------------------- figures

@@ -117,7 +117,7 @@ def execution(program, rows, sim) -> dict:
     """How the controller runs targets ``rows`` of ``program``: their stated configuration (S/T,
     RAPID confdata, FANUC CONFIG on the simulated robot's description: configuration.
     stated_configuration; a form the description cannot say is P309, refused), motion kinds
-    (configuration.execution_kinds) and $TOOL (the simulated robot's tool where the program's is
+    (conventions.execution_kinds) and $TOOL (the simulated robot's tool where the program's is
     unknown) — the options of SimulatedRobot.verify. Both runs use the ORIGINAL's."""
     from ..robot.configuration import stated_configuration
 

@@ -38,15 +38,15 @@ import numpy as np
 
 from ..core import frames
 from ..core.diagnostics import P317, P533, PostprocError
+from ..core.frames import MM
+from ..robot.kinematics.chain import Chain
+from ..robot.kinematics.dh import axis_lines, dh_parameters, dh_transforms
+from ..robot.urdf import mapping, origin_of, read_urdf, set_origin, xyz_rpy
 
-__all__ = ["Geometry", "identified_geometry", "nominal_urdf", "UrdfChain", "read_urdf", "calibrated_urdf",
-           "calibration_yaml", "parameters_json", "NOT_GEOMETRIC", "dh_parameters", "dh_transforms", "ur_calibration"]
+__all__ = ["Geometry", "identified_geometry", "calibrated_urdf", "calibration_yaml", "parameters_json", "NOT_GEOMETRIC",
+           "ur_calibration"]
 
-MM = 1000.0  # mm per m
 NOT_GEOMETRIC = ("compliance", "coupling", "backlash", "ripple")
-# a URDF joint is the description's joint when its frame change leaves the axis within this (rad,
-# mm) — the URDF's own rounding of its numbers is far below
-MATCH_RAD, MATCH_MM = 1e-6, 1e-3
 
 
 @dataclass
@@ -65,8 +65,6 @@ class Geometry:
 
     def tcp(self, q_deg: np.ndarray, nominal: bool = False) -> np.ndarray:
         """[N, 4, 4] the TCP (in the base's frame) at joint angles [N, 6] deg."""
-        from ..robot.kinematics.chain import Chain
-
         if nominal:
             chain = Chain(self.nominal_placements, self.description.axes, self.nominal_end)
         else:
@@ -110,210 +108,36 @@ def identified_geometry(model, description) -> Geometry:
 # --------------------------------------------------------------------------- URDF
 
 
-def _xyz_rpy(m: np.ndarray) -> tuple[str, str]:
-    """URDF origin attributes (m, rad; rpy: R = Rz(y)·Ry(p)·Rx(r), KUKA's A,B,C = y,p,r) of [4, 4] mm."""
-    abc = np.radians(frames.abc_from_rotation(m[:3, :3]))
-    return (" ".join(f"{v / MM:.12g}" for v in m[:3, 3]), " ".join(f"{v:.15g}" for v in abc[::-1]))
-
-
-def _origin(element) -> np.ndarray:
-    o = element.find("origin")
-    xyz = [float(v) for v in (o.get("xyz", "0 0 0") if o is not None else "0 0 0").split()]
-    rpy = [float(v) for v in (o.get("rpy", "0 0 0") if o is not None else "0 0 0").split()]
-    return frames.frame_to_matrix(np.r_[np.asarray(xyz) * MM, np.degrees(rpy[::-1])])
-
-
-def nominal_urdf(description) -> str:
-    """A URDF of ``description``'s kinematic chain (no visuals): links ``base_link``, ``link_1..6``,
-    ``flange``, ``tcp``; joints ``joint_1..6`` (the description's origins and axes, limits) and fixed
-    ``flange_joint`` / ``tcp_joint``."""
-    robot = ET.Element("robot", name=description.name)
-    ET.SubElement(robot, "link", name="base_link")
-    parent = "base_link"
-    for j, (spec, placement) in enumerate(zip(description.joints, description.placements), 1):
-        child = f"link_{j}"
-        ET.SubElement(robot, "link", name=child)
-        joint = ET.SubElement(robot, "joint", name=f"joint_{j}", type="revolute")
-        xyz, rpy = _xyz_rpy(placement)
-        ET.SubElement(joint, "origin", xyz=xyz, rpy=rpy)
-        ET.SubElement(joint, "parent", link=parent)
-        ET.SubElement(joint, "child", link=child)
-        ET.SubElement(joint, "axis", xyz=" ".join(f"{v:.15g}" for v in spec.axis))
-        lo, hi = np.radians(spec.limits)
-        ET.SubElement(joint, "limit", lower=f"{lo:.9g}", upper=f"{hi:.9g}", effort="1000", velocity="2")
-        parent = child
-    for name, child, m in (("flange_joint", "flange", description.flange_matrix),
-                           ("tcp_joint", "tcp", description.tool_matrix)):
-        ET.SubElement(robot, "link", name=child)
-        joint = ET.SubElement(robot, "joint", name=name, type="fixed")
-        xyz, rpy = _xyz_rpy(m)
-        ET.SubElement(joint, "origin", xyz=xyz, rpy=rpy)
-        ET.SubElement(joint, "parent", link=parent)
-        ET.SubElement(joint, "child", link=child)
-        parent = child
-    ET.indent(robot)
-    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
-
-
-@dataclass
-class UrdfChain:
-    """A URDF's arm: the XML tree, its six movable joints from the root to the tip, the fixed
-    joints between (``fixed[j]``: those before movable joint j, ``fixed[6]``: after the last, up
-    to the tip)."""
-
-    tree: ET.Element
-    joints: list
-    fixed: list
-    path: str
-
-    def axis(self, j: int) -> np.ndarray:
-        a = self.joints[j].find("axis")
-        v = np.array([float(x) for x in (a.get("xyz") if a is not None else "1 0 0").split()])
-        return v / np.linalg.norm(v)
-
-    def zero_frames(self, origins: list[np.ndarray] | None = None) -> tuple[list[np.ndarray], np.ndarray]:
-        """Each movable joint's frame at q = 0 in the root link's [6][4, 4] (mm), and the tip's."""
-        out, m = [], np.eye(4)
-        for j in range(6):
-            for f in self.fixed[j]:
-                m = m @ _origin(f)
-            m = m @ (origins[j] if origins is not None else _origin(self.joints[j]))
-            out.append(m)
-        for f in self.fixed[6]:
-            m = m @ _origin(f)
-        return out, m
-
-
-def read_urdf(text: str, path: str = "<urdf>", tip: str | None = None) -> UrdfChain:
-    """The arm of a URDF: the path of joints from the root link to ``tip`` (default: the deepest
-    link with six movable joints above it); P533 for a URDF without one such chain."""
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as exc:
-        line, col = exc.position
-        raise PostprocError(f"not XML: {exc}", path, line, col + 1, P533) from None
-    if root.tag != "robot":
-        raise PostprocError(f"not a URDF: the root element is <{root.tag}>, not <robot>", path, 1, 1, P533)
-    by_child = {}
-    for joint in root.findall("joint"):
-        child, parent = joint.find("child"), joint.find("parent")
-        if child is None or parent is None:
-            raise PostprocError(f"joint {joint.get('name')!r} has no parent or child", path, 0, 0, P533)
-        by_child[child.get("link")] = joint
-    links = [link.get("name") for link in root.findall("link")]
-
-    def chain_to(link: str) -> list:
-        out = []
-        while link in by_child:
-            joint = by_child[link]
-            out.append(joint)
-            link = joint.find("parent").get("link")
-        return out[::-1]
-
-    def movable(chain) -> list:
-        return [j for j in chain if j.get("type") in ("revolute", "continuous")]
-
-    if tip is None:
-        candidates = [(len(chain_to(link)), link) for link in links if len(movable(chain_to(link))) == 6]
-        if not candidates:
-            raise PostprocError("no chain of six revolute joints from the root link", path, 0, 0, P533)
-        tip = max(candidates)[1]
-    elif tip not in links:
-        raise PostprocError(f"no link {tip!r}", path, 0, 0, P533)
-    chain = chain_to(tip)
-    moving = movable(chain)
-    if len(moving) != 6 or any(j.get("type") not in ("revolute", "continuous", "fixed") for j in chain):
-        raise PostprocError(f"the chain to {tip!r} has {len(moving)} revolute joints (and "
-                            f"{sum(j.get('type') not in ('revolute', 'continuous', 'fixed') for j in chain)} of "
-                            "other kinds): a six-axis arm has six", path, 0, 0, P533)
-    fixed, k = [[] for _ in range(7)], 0
-    for joint in chain:
-        if joint.get("type") == "fixed":
-            fixed[k].append(joint)
-        else:
-            k += 1
-    return UrdfChain(root, moving, fixed, path)
-
-
-def _lines_fit(a_dirs, a_points, u_dirs, u_points) -> np.ndarray:
-    """B [4, 4] mapping the description's joint axis lines (directions, points [6, 3], base) onto
-    the URDF's (root link): rotation from the directions (Kabsch), shift from point-on-line."""
-    h = np.asarray(u_dirs).T @ np.asarray(a_dirs)
-    u, _, vt = np.linalg.svd(h)
-    r = u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))]) @ vt
-    rows, rhs = [], []
-    for a_p, u_d, u_p in zip(a_points, u_dirs, u_points):
-        perp = np.eye(3) - np.outer(u_d, u_d)
-        rows.append(perp)
-        rhs.append(perp @ (u_p - r @ a_p))
-    t = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
-    out = np.eye(4)
-    out[:3, :3], out[:3, 3] = r, t
-    return out
-
-
-def _mapping(chain: UrdfChain, description) -> tuple[np.ndarray, list[np.ndarray]]:
-    """(B, [C_j]) with U_j(0) = B · F_j · C_j; P533 where the URDF's joint j is not the
-    description's."""
-    urdf_frames, _ = chain.zero_frames()
-    f = []
-    m = np.eye(4)
-    for placement in description.placements:
-        m = m @ placement
-        f.append(m)
-    a_dirs = [fj[:3, :3] @ a for fj, a in zip(f, description.axes)]
-    u_dirs = [uj[:3, :3] @ chain.axis(j) for j, uj in enumerate(urdf_frames)]
-    # B from the first three joints' lines (two axes that are not parallel fix it), so that a joint
-    # further out that is not the description's is named as the first one that does not match
-    b = _lines_fit(a_dirs[:3], [fj[:3, 3] for fj in f[:3]], u_dirs[:3], [uj[:3, 3] for uj in urdf_frames[:3]])
-    cs = []
-    for j, (fj, uj) in enumerate(zip(f, urdf_frames)):
-        c = np.linalg.inv(b @ fj) @ uj
-        a = description.axes[j]
-        turned = c[:3, :3] @ chain.axis(j)
-        off_axis = np.linalg.norm(c[:3, 3] - (c[:3, 3] @ a) * a)
-        if np.linalg.norm(turned - a) > MATCH_RAD * 1e3 or off_axis > MATCH_MM * 1e3:
-            name = chain.joints[j].get("name")
-            raise PostprocError(f"URDF joint {name!r} is not {description.name}'s joint {description.joints[j].name} "
-                                f"(its axis is {math.degrees(np.arccos(np.clip(turned @ a, -1, 1))):.3g}° and "
-                                f"{off_axis:.3g} mm off the description's at q = 0: another joint zero, direction or "
-                                "length)", chain.path, 0, 0, P533)
-        cs.append(c)
-    return b, cs
-
-
 def calibrated_urdf(text: str, geometry: Geometry, path: str = "<urdf>", tip: str | None = None,
                     model_name: str = "") -> tuple[str, dict]:
     """The nominal URDF ``text`` with ``geometry``'s corrections (module text); (the calibrated
     URDF's text, {joint name: offset [4, 4] mm, the correction origin⁻¹·origin'})."""
     chain = read_urdf(text, path, tip)
     d = geometry.description
-    b, cs = _mapping(chain, d)
+    b, cs = mapping(chain, d)
     # the calibrated URDF's joint frames at q = 0, in the root link: B · base' · W'_j(0) · C_j
-    w, new_frames = geometry.base.copy(), []
-    for placement, c in zip(geometry.placements, cs):
-        w = w @ placement
-        new_frames.append(b @ w @ c)
+    identified, _ = Chain(geometry.placements, d.axes, np.eye(4), geometry.base).zero_frames()
+    new_frames = [b @ w @ c for w, c in zip(identified, cs)]
     offsets, parent = {}, np.eye(4)
     for j, joint in enumerate(chain.joints):
         for f in chain.fixed[j]:
-            parent = parent @ _origin(f)
+            parent = parent @ origin_of(f)
         origin = np.linalg.inv(parent) @ new_frames[j]
-        offsets[joint.get("name")] = np.linalg.inv(_origin(joint)) @ origin
-        _set_origin(joint, origin)
+        offsets[joint.get("name")] = np.linalg.inv(origin_of(joint)) @ origin
+        set_origin(joint, origin)
         parent = new_frames[j]
     c6 = cs[5]
     tcp_in_last = np.linalg.inv(c6) @ geometry.end  # the identified TCP in the URDF's last link
     correction = np.linalg.inv(c6) @ geometry.end @ np.linalg.inv(geometry.nominal_end) @ c6
     if chain.fixed[6]:  # the flange's fixed joint carries the identified TCP correction
         first = chain.fixed[6][0]
-        origin = correction @ _origin(first)
-        offsets[first.get("name")] = np.linalg.inv(_origin(first)) @ origin
-        _set_origin(first, origin)
+        origin = correction @ origin_of(first)
+        offsets[first.get("name")] = np.linalg.inv(origin_of(first)) @ origin
+        set_origin(first, origin)
     last_link = chain.joints[5].find("child").get("link")
     ET.SubElement(chain.tree, "link", name="postproc_tcp")
     joint = ET.SubElement(chain.tree, "joint", name="postproc_tcp_joint", type="fixed")
-    xyz, rpy = _xyz_rpy(tcp_in_last)
+    xyz, rpy = xyz_rpy(tcp_in_last)
     ET.SubElement(joint, "origin", xyz=xyz, rpy=rpy)
     ET.SubElement(joint, "parent", link=last_link)
     ET.SubElement(joint, "child", link="postproc_tcp")
@@ -321,14 +145,6 @@ def calibrated_urdf(text: str, geometry: Geometry, path: str = "<urdf>", tip: st
     chain.tree.insert(0, comment)
     ET.indent(chain.tree)
     return '<?xml version="1.0"?>\n' + ET.tostring(chain.tree, encoding="unicode") + "\n", offsets
-
-
-def _set_origin(joint, m: np.ndarray) -> None:
-    o = joint.find("origin")
-    if o is None:
-        o = ET.SubElement(joint, "origin")
-    o.set("xyz", _xyz_rpy(m)[0])
-    o.set("rpy", _xyz_rpy(m)[1])
 
 
 def _comment(geometry: Geometry, model_name: str) -> str:
@@ -351,7 +167,7 @@ def calibration_yaml(offsets: dict, model_name: str = "") -> str:
              "_x/_y/_z m, _a/_b/_c rotation vector rad; zero offsets inside the joints' frame offsets)"]
     for name, m in offsets.items():
         rv = frames.rotvec_from_rotation(m[:3, :3])
-        for axis, v in zip("xyz", m[:3, 3] / MM):
+        for axis, v in zip("xyz", m[:3, 3] * MM):
             lines.append(f"{name}_{axis}: {v:.12g}")
         for axis, v in zip("abc", rv):
             lines.append(f"{name}_{axis}: {v:.12g}")
@@ -389,76 +205,6 @@ def parameters_json(model, geometry: Geometry | None = None) -> dict:
 # --------------------------------------------------------------------------- UR (DH)
 
 
-def _chain_lines(placements, axes, end, base) -> tuple[list, np.ndarray]:
-    """The joint axis lines (point, direction) at q = 0 and the end frame, in ``base``'s frame."""
-    m, lines = base.copy(), []
-    for placement, axis in zip(placements, axes):
-        m = m @ placement
-        lines.append((m[:3, 3].copy(), m[:3, :3] @ axis))
-    return lines, m @ end
-
-
-def dh_parameters(lines: list, end: np.ndarray, parallel: float = 1e-12) -> np.ndarray:
-    """[6, 4] standard DH rows (θ offset rad, d mm, a mm, α rad) of a chain whose joint axes at
-    q = 0 are ``lines`` [(point, direction)] × 6 and whose end frame (DH frame 6, its z along the
-    last axis) is ``end`` [4, 4], all in the DH base frame (z_0 = the first axis). Each row i
-    goes from frame i−1 to frame i on the common normal of axes i and i+1 (x_i along it, turned
-    the way x_{i−1} points); parallel axes (|z_{i−1} × z_i| ≤ ``parallel``) take d = 0, the last
-    row ends at ``end``'s origin with its x."""
-    o, x, z = np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
-    targets = [(p, w / np.linalg.norm(w)) for p, w in lines[1:]] + [(end[:3, 3], end[:3, 2])]
-    rows = []
-    for i, (p, w) in enumerate(targets):
-        last = i == len(targets) - 1
-        n = np.cross(z, w)
-        if np.linalg.norm(n) > parallel:
-            r = p - o
-            b = z @ w
-            s_, t_ = (z @ r - b * (w @ r)) / (1 - b * b), (b * (z @ r) - w @ r) / (1 - b * b)
-            foot, new_o = o + s_ * z, p + t_ * w
-            new_x = n / np.linalg.norm(n)
-            d = s_
-        else:
-            if last:  # the end frame's origin on its line: d along the axis, a across
-                d = (p - o) @ z
-                foot, new_o = o + d * z, p
-            else:
-                d, foot = 0.0, o
-                new_o = p + ((o - p) @ w) * w
-            v = new_o - foot
-            if last:  # DH frame 6 is the end frame: its x (what is left across is no DH row's)
-                new_x = end[:3, 0] - (end[:3, 0] @ w) * w
-                new_x = new_x / np.linalg.norm(new_x)
-            elif np.linalg.norm(v) > 1e-9:
-                new_x = v / np.linalg.norm(v)
-            else:
-                new_x = x
-        if new_x @ x < 0:
-            new_x = -new_x
-        a = (new_o - foot) @ new_x
-        alpha = math.atan2(np.cross(z, w) @ new_x, z @ w)
-        theta = math.atan2(np.cross(x, new_x) @ z, x @ new_x)
-        rows.append((theta, d, a, alpha))
-        o, x, z = new_o, new_x, w
-    return np.array(rows)
-
-
-def dh_transforms(dh: np.ndarray, q_rad: np.ndarray) -> np.ndarray:
-    """[N, 4, 4] the DH chain's end (mm) at joint angles [N, 6] rad."""
-    q_rad = np.atleast_2d(q_rad)
-    out = np.repeat(np.eye(4)[None], len(q_rad), axis=0)
-    for i, (theta, d, a, alpha) in enumerate(dh):
-        t = theta + q_rad[:, i]
-        ct, st, ca, sa = np.cos(t), np.sin(t), math.cos(alpha), math.sin(alpha)
-        m = np.zeros((len(q_rad), 4, 4))
-        m[:, 0, 0], m[:, 0, 1], m[:, 0, 2], m[:, 0, 3] = ct, -st * ca, st * sa, a * ct
-        m[:, 1, 0], m[:, 1, 1], m[:, 1, 2], m[:, 1, 3] = st, ct * ca, -ct * sa, a * st
-        m[:, 2, 1], m[:, 2, 2], m[:, 2, 3] = sa, ca, d
-        m[:, 3, 3] = 1.0
-        out = out @ m
-    return out
-
-
 def ur_calibration(geometry: Geometry, model_name: str = "", samples: int = 200) -> tuple[str, dict]:
     """The UR controller's calibration layout of ``geometry`` (module text): (the text of a
     ``calibration.conf``, {"dh", "nominal_dh", "delta", "residual_mm"}); P533 for an arm whose
@@ -471,11 +217,9 @@ def ur_calibration(geometry: Geometry, model_name: str = "", samples: int = 200)
     q = rng.uniform(-np.pi, np.pi, (samples, 6))
 
     def rows(placements, base):
-        from ..robot.kinematics.chain import Chain
-
-        lines, flange = _chain_lines(placements, d.axes, d.flange_matrix, base)
-        dh = dh_parameters(lines, flange)
-        reference = Chain(placements, d.axes, d.flange_matrix, base).transforms(q)
+        chain = Chain(placements, d.axes, d.flange_matrix, base)
+        dh = dh_parameters(*axis_lines(chain))
+        reference = chain.transforms(q)
         return dh, float(np.linalg.norm(dh_transforms(dh, q)[:, :3, 3] - reference[:, :3, 3], axis=1).max())
 
     nominal, nominal_off = rows(geometry.nominal_placements, to_dh)
@@ -484,7 +228,7 @@ def ur_calibration(geometry: Geometry, model_name: str = "", samples: int = 200)
                             "off): the UR calibration layout does not apply", code=P533)
     # a robot's base frame is its first axis: the identified one (z along it, through the point of it
     # nearest the nominal origin, x the nominal x across it); how far that moved is the mounting's
-    p1, w1 = _chain_lines(geometry.placements[:1], d.axes[:1], np.eye(4), to_dh)[0][0]
+    p1, w1 = axis_lines(Chain(geometry.placements[:1], d.axes[:1], np.eye(4), to_dh))[0][0]
     w1 = w1 / np.linalg.norm(w1)
     mounting = np.eye(4)
     x = np.array([1.0, 0.0, 0.0]) - w1[0] * w1

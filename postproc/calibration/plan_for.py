@@ -111,13 +111,13 @@ def program_targets(paths, description) -> ProgramTargets:
 def _groups(robot, joints: np.ndarray, tools: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each row's group (0…G−1: arm configuration = Status bits 0–2, × tool) and the groups' keys
     [G, 7] (status, tool)."""
-    from ..robot import configuration
+    from ..robot import conventions
 
     status = np.empty(len(joints), int)
     for tool in np.unique(tools, axis=0):
         here = (tools == tool).all(axis=1)
         arm = type(robot)(robot.description.replace(tool=tool))
-        status[here] = configuration.status_turn_of(arm, joints[here])[0] & 7
+        status[here] = conventions.status_turn_of(arm, joints[here])[0] & 7
     keys, group = np.unique(np.c_[status, tools], axis=0, return_inverse=True)
     return group.ravel(), keys
 
@@ -142,7 +142,7 @@ def _candidates(robot, joints: np.ndarray, tool: np.ndarray, status: int, rng, c
     from scipy.stats import qmc
 
     from ..model.envelope import joint_arcs, widened_arcs
-    from ..robot import configuration
+    from ..robot import configuration, conventions
 
     arm = type(robot)(robot.description.replace(tool=tool))
     arcs = widened_arcs(joint_arcs(joints))
@@ -158,7 +158,7 @@ def _candidates(robot, joints: np.ndarray, tool: np.ndarray, status: int, rng, c
     clear = np.abs(np.mod(q[:, 4] + 180.0, 360.0) - 180.0) >= WRIST_CLEAR_DEG
     q = q[inside & clear]
     poses = arm.fk(q)
-    s, t = configuration.status_turn_of(arm, q)
+    s, t = conventions.status_turn_of(arm, q)
     back, found = configuration.stated_joints(arm, poses, s, t)
     same = found & (np.abs(np.mod(back - q + 180.0, 360.0) - 180.0).max(axis=1) < 1e-3) & ((s & 7) == status)
     return q[same], poses[same]
@@ -224,7 +224,7 @@ def plan_for(targets: ProgramTargets, description, n: int, seed: int = 0,
              data_joints: np.ndarray | None = None, data_tools: np.ndarray | None = None) -> PlanFor:
     """``n`` measurement poses for the programs' ``targets`` (see the module text); the rows of
     existing data (their joint angles [M, 6] deg and tools [M, 6]) count in the design."""
-    from ..robot import configuration
+    from ..robot import conventions
     from ..robot.arm import Robot
 
     if n < 1:
@@ -274,7 +274,7 @@ def plan_for(targets: ProgramTargets, description, n: int, seed: int = 0,
     for tool in np.unique(cand_t[order], axis=0):
         here = (cand_t[order] == tool).all(axis=1)
         arm = Robot(description.replace(tool=tool))
-        config[here] = np.stack(configuration.status_turn_of(arm, q[here]), axis=1)
+        config[here] = np.stack(conventions.status_turn_of(arm, q[here]), axis=1)
     return PlanFor(cand_p[order], config, cand_t[order], cand_g[order], keys, counts,
                    (float(start), float(np.linalg.slogdet(info)[1])))
 

@@ -151,18 +151,18 @@ def plan_configurations(robot, poses: np.ndarray, wrist: str = "home") -> tuple[
     configuration is approached from the other and from itself alike. (Alternating row by
     row would tie A5's approach direction to the configuration, and A5's backlash to its
     zero offset: a mirrored A5 turns the offset's sign as a reversed approach does.)"""
-    from ..robot import configuration
+    from ..robot import configuration, conventions
 
     if wrist not in WRIST_CHOICES:
         raise PostprocError(f"--wrist must be one of {', '.join(WRIST_CHOICES)}, not {wrist!r}", code=P512)
     q, ok = robot.ik(poses)
-    status, turn = configuration.status_turn_of(robot, q)
+    status, turn = conventions.status_turn_of(robot, q)
     if wrist == "both":
         odd = (np.arange(len(poses)) // 2 % 2 == 1) & ok
         flipped, found = configuration.stated_joints(robot, poses[odd], status[odd] ^ 4,
-                                                     np.full(int(odd.sum()), configuration.UNSTATED))
+                                                     np.full(int(odd.sum()), conventions.UNSTATED))
         rows = np.flatnonzero(odd)[found]
-        s_f, t_f = configuration.status_turn_of(robot, flipped[found])
+        s_f, t_f = conventions.status_turn_of(robot, flipped[found])
         status[rows], turn[rows] = s_f, t_f
     return np.stack([status, turn], axis=1), ok
 
@@ -375,12 +375,12 @@ def ls_measurement_program(poses: np.ndarray, name: str, robot, wait_s: float = 
                            done_in: int = 1, config: np.ndarray | None = None, comment: str = "") -> str:
     """A FANUC LS program (one .ls, UF 0 = the robot's world, UT 1 = the plan's tool) that
     measures ``poses`` in order: J to each pose in the configuration it states, ``CONFIG : 'F U T,
-    t1, t4, t6'`` (``configuration.fanuc_configs`` of its joint angles: the S/T of ``config`` [N,
+    t1, t4, t6'`` (``conventions.fanuc_configs`` of its joint angles: the S/T of ``config`` [N,
     2], else the branch nearest HOME — what ``measure`` simulates), settle ``wait_s``, DO
     ``trigger_out`` on, wait for DI ``done_in``. ``robot`` (a :class:`postproc.robot.arm.Robot` of a
     FANUC-type description) gives the joint angles and the TCP UT 1 must hold (the caller says it:
     the program cannot set a tool frame's values); poses are W, P, R = C, B, A."""
-    from ..robot import configuration
+    from ..robot import configuration, conventions
 
     if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,35}", name):
         raise PostprocError(f"'{name}' is not an LS program name (a letter, then letters, digits, _): name the .ls "
@@ -393,7 +393,7 @@ def ls_measurement_program(poses: np.ndarray, name: str, robot, wait_s: float = 
         q, ok = configuration.stated_joints(robot, poses, config[:, 0], config[:, 1])
     if not ok.all():
         raise PostprocError(f"pose {int(np.flatnonzero(~ok)[0]) + 1} is out of reach in its configuration", code=P335)
-    configs = configuration.fanuc_configs(robot, q)
+    configs = conventions.fanuc_configs(robot, q)
     comment = (comment or f"postproc plan, {len(poses)} poses").encode("ascii", "replace").decode()[:30]
     mn = ["UFRAME_NUM=0 ;", "UTOOL_NUM=1 ;", "! UT 1: the plan's TCP ;"]
     for k in range(1, len(poses) + 1):

@@ -44,16 +44,16 @@ import numpy as np
 
 from ..core import frames
 from ..core.diagnostics import P331, P335, PostprocError
-from ..core.frames import nearest_triple, small_transform
+from ..core.frames import nearest_triple, rotation_angle_deg, small_transform
 from ..core.stats import table2
 from ..core.toml import check_value
-from ..robot import configuration
+from ..robot import configuration, conventions
 from ..robot.approach import approach_signs, ordered_approach_signs
 from ..robot.arm import Robot
 from ..robot.description import RobotDescription, load_description
 from ..robot.kinematics.chain import Chain
 
-__all__ = ["ErrorSpec", "SimulatedRobot", "table2", "rotation_angle_deg"]
+__all__ = ["ErrorSpec", "SimulatedRobot", "table2"]
 
 CALIBRATION_POSES = 2000
 CALIBRATION_SEED = 0
@@ -159,13 +159,6 @@ def _workspace_poses(workspace: dict, n: int, seed: int) -> np.ndarray | None:
     strata = np.argsort(rng.random((n, 6)), axis=0)
     unit = (strata + rng.random((n, 6))) / n
     return lo + unit * (hi - lo)
-
-
-def rotation_angle_deg(abc_a: np.ndarray, abc_b: np.ndarray) -> np.ndarray:
-    """The angle [N] (deg) of the rotation between two orientations given as A,B,C [N, 3]."""
-    relative = frames.rotation_from_abc(abc_a).swapaxes(-1, -2) @ frames.rotation_from_abc(abc_b)
-    cos = (np.trace(relative, axis1=-2, axis2=-1) - 1.0) / 2.0
-    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
 class SimulatedRobot:
@@ -394,12 +387,12 @@ class SimulatedRobot:
         if isinstance(config, configuration.Stated):  # (a program's stated forms: S/T, confdata, CONFIG)
             stated = config
         else:
-            config = np.full((n, 2), configuration.UNSTATED) if config is None else np.asarray(config, int)
+            config = np.full((n, 2), conventions.UNSTATED) if config is None else np.asarray(config, int)
             stated = configuration.Stated(config[:, 0], config[:, 1])
         if motions is None:
             ptp, alone = np.zeros(n, bool), np.ones(n, bool)
         else:
-            ptp, alone = configuration.execution_kinds(motions)
+            ptp, alone = conventions.execution_kinds(motions)
         if prev is not None or axes is not None:
             prev = np.arange(-1, n - 1) if prev is None else np.asarray(prev)
             return configuration.ordered_joints(self.robot, poses, stated, ptp, self.robot.home_q, tools, alone, prev,

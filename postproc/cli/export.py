@@ -56,14 +56,9 @@ def run(args) -> int:
         raise PostprocError("nothing to write: give -o CALIBRATED.urdf, --yaml, --json and/or --ur", code=P308)
     targets = outputs.check_outputs(wanted, [args.model, args.urdf, args.robot])
     description = robot_description(args.robot)
-    from ..calibration.export import (
-        calibrated_urdf,
-        calibration_yaml,
-        identified_geometry,
-        nominal_urdf,
-        parameters_json,
-        ur_calibration,
-    )
+    from ..calibration.export import (calibrated_urdf, calibration_yaml, identified_geometry, parameters_json,
+                                      ur_calibration)
+    from ..robot.urdf import nominal_urdf
 
     if args.nominal:
         if args.yaml or args.json or args.ur or not args.output:

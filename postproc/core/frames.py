@@ -18,6 +18,7 @@ __all__ = [
     "transform_points", "rotate_vectors", "rotation_vector", "rotation_error_deg", "frames_used", "frame_groups",
     "rotation_from_quaternion", "quaternion_from_rotation", "rotation_from_rotvec", "rotvec_from_rotation",
     "ORIENTATION_NAMES", "orientation_rotation", "orientation_numbers", "small_transform", "axis_rotations",
+    "nearest_rotation", "rotation_zy", "rotation_angle_deg", "nearest_triple", "abc_entries", "MM",
 ]
 
 
@@ -57,6 +58,18 @@ def rotation_from_abc(abc: np.ndarray) -> np.ndarray:
     r[..., 2, 0] = -sb
     r[..., 2, 1] = cb * sc
     r[..., 2, 2] = cb * cc
+    return r
+
+
+def rotation_zy(a: np.ndarray, b: np.ndarray | None = None) -> np.ndarray:
+    """Rz(a)·Ry(b) for angle arrays [N] (radians; b None: Rz(a) alone) → [N, 3, 3]: A1's and
+    the arm's turn of the closed-form IKs (postproc.robot.kinematics.ik)."""
+    ca, sa = np.cos(a), np.sin(a)
+    cb, sb = (1.0, 0.0) if b is None else (np.cos(b), np.sin(b))
+    r = np.empty(np.shape(a) + (3, 3))
+    r[..., 0, 0], r[..., 0, 1], r[..., 0, 2] = ca * cb, -sa, ca * sb
+    r[..., 1, 0], r[..., 1, 1], r[..., 1, 2] = sa * cb, ca, sa * sb
+    r[..., 2, 0], r[..., 2, 1], r[..., 2, 2] = -sb, 0.0, cb
     return r
 
 
@@ -130,6 +143,13 @@ def rotation_vector(r: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"):
         scale = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 1.0)
     return v * scale[..., None]
+
+
+def rotation_angle_deg(abc_a: np.ndarray, abc_b: np.ndarray) -> np.ndarray:
+    """The angle [N] (deg) of the rotation between two orientations given as A,B,C [N, 3]."""
+    relative = rotation_from_abc(abc_a).swapaxes(-1, -2) @ rotation_from_abc(abc_b)
+    cos = (np.trace(relative, axis1=-2, axis2=-1) - 1.0) / 2.0
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
 def rotation_error_deg(nominal_abc: np.ndarray, actual_abc: np.ndarray) -> np.ndarray:
@@ -265,10 +285,19 @@ def nearest_triple(abc: np.ndarray, ref: np.ndarray) -> np.ndarray:
     return np.where((far[1] < far[0])[:, None], out[1], out[0])
 
 
+def nearest_rotation(m: np.ndarray) -> np.ndarray:
+    """The rotation nearest a [3, 3] matrix (Frobenius): its SVD's U·diag(1, 1, ±1)·Vᵀ, the sign
+    making it proper (Kabsch's fit of directions, a chordal mean of rotations)."""
+    u, _, vt = np.linalg.svd(m)
+    return u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))]) @ vt
+
+
 def abc_entries(ca, sa, cb, sb, cc, sc) -> list:
     """The nine entries (row by row) of R = Rz(A)·Ry(B)·Rx(C) from the cosines and sines of
-    A, B, C: the one formula of the torch rotations (``rotation_matrices``, and the exported
-    graph's batch-last ``batch_last.abc_rotations``)."""
+    A, B, C (arrays or tensors): the one formula of the torch rotations (the twin's
+    ``rotation_matrices`` and the exported graph's batch-last ``batch_last.abc_rotations``);
+    :func:`rotation_from_abc` writes the same entries in place (numpy: no nine temporaries,
+    ~15% faster on 300k rows)."""
     return [
         ca * cb, ca * sb * sc - sa * cc, ca * sb * cc + sa * sc,
         sa * cb, sa * sb * sc + ca * cc, sa * sb * cc - ca * sc,
@@ -276,7 +305,7 @@ def abc_entries(ca, sa, cb, sb, cc, sc) -> list:
     ]  # fmt: skip
 
 
-MM = 1e-3  # mm → m
+MM = 1e-3  # mm → m: the one unit factor (its inverse, m → mm, is 1 / MM: x / MM)
 
 
 def axis_rotations(axes: np.ndarray, q_rad: np.ndarray) -> np.ndarray:

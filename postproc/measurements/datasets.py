@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.diagnostics import P500, P501, P502, P503, PostprocError
+from ..core.frames import MM
 
 __all__ = [
     "IpaSeries",
@@ -178,7 +179,7 @@ def parse_ipa(text: str, path: str = "<text>", branch: str = "nearest") -> IpaSe
     values, wanted, has_rotation, line_no = _ipa_table(text, path)
     col = {name: values[:, i] for i, name in enumerate(wanted)}
     goal = np.stack([col[name] for name in IPA_GOAL], axis=1)
-    commanded = np.concatenate([goal[:, :3] * 1000.0, rpy_to_abc(goal[:, 3:], branch)], axis=1)
+    commanded = np.concatenate([goal[:, :3] / MM, rpy_to_abc(goal[:, 3:], branch)], axis=1)
     joints = np.degrees(np.stack([col[name] for name in IPA_JOINTS], axis=1))
     measured = np.stack([col[name] for name in IPA_MEASURED], axis=1)
     rotation = None
@@ -217,12 +218,11 @@ def probe_orientation(commanded_abc: np.ndarray, measured_rotation: np.ndarray,
     frame), ``mask`` [N] the rows to estimate the probe's fixed rotation on the flange from
     (the registration's). Returns (A,B,C [N, 3] deg of R_measured·R_probeᵀ, R_probe [3, 3],
     rms deg of the masked rows' orientation error after it)."""
-    from ..core.frames import abc_from_rotation, rotation_from_abc, rotation_vector
+    from ..core.frames import abc_from_rotation, nearest_rotation, rotation_from_abc, rotation_vector
 
     goal = rotation_from_abc(commanded_abc)
     relative = np.swapaxes(goal, 1, 2) @ measured_rotation  # R_goalᵀ·R_measured: the probe on the TCP + error
-    u, _, vt = np.linalg.svd(relative[np.asarray(mask, bool)].mean(axis=0))
-    probe = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt  # the nearest rotation to the mean
+    probe = nearest_rotation(relative[np.asarray(mask, bool)].mean(axis=0))  # the nearest rotation to the mean
     tcp = measured_rotation @ probe.T
     angle = np.linalg.norm(rotation_vector(tcp @ np.swapaxes(goal, 1, 2)), axis=1)
     rms = float(np.degrees(np.sqrt(np.mean(angle[np.asarray(mask, bool)] ** 2))))

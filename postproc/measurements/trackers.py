@@ -41,11 +41,12 @@ from pathlib import Path
 import numpy as np
 
 from ..core.diagnostics import P500, P501, P502, P503, P530, P531, P532, PostprocError
+from ..core.frames import MM
 
 __all__ = ["FORMATS", "Imported", "read_spatial_analyzer", "read_robodk", "read_reflectors", "REFLECTOR_TOLERANCE_MM"]
 
 FORMATS = ("spatialanalyzer", "robodk", "reflectors")
-LENGTHS = {"mm": 1.0, "m": 1000.0, "in": 25.4, "inch": 25.4}
+LENGTHS = {"mm": 1.0, "m": 1 / MM, "in": 25.4, "inch": 25.4}
 ANGLES = {"deg": 1.0, "rad": 180.0 / np.pi}
 FRAMES = ("tracker", "base")
 REFLECTOR_TOLERANCE_MM = 0.5

@@ -1,21 +1,17 @@
-"""The nominal robot: a description file (TOML) → its kinematic chain, vectorised FK, gravity
-torques and analytic IK; ``pin.Model`` as the reference.
+"""The nominal robot (:class:`Robot`): a description's FK, gravity torques and the controller's
+inverse kinematics, in mm and degrees at every public interface.
 
-A description (``models/kr500.toml`` is the example) lists the joints of a serial 6R arm with
-their origins (a pure offset at q = 0 for the robots postproc ships), axes, limits and link
-masses, then the flange, the tool (TCP), the payload, the workspace and optionally an
-``[errors]`` table that :mod:`postproc.calibration.simulator` reads. Units at every public interface
-are mm and degrees; Pinocchio works in metres and radians, converted here at the boundary.
-
-One description → chain construction (:class:`RobotDescription`'s ``placements``, ``axes``,
-``flange_matrix``, ``tool_matrix``, ``masses``, ``coms``): Pinocchio's model (built lazily with
-``addJoint`` / ``appendBodyToJoint`` / ``addFrame``) is the reference FK and gravity; the
-forward kinematics of many poses at once is numpy (:class:`Chain`, products of per-joint
-transforms over all poses in one go), the gravity torques :func:`gravity_from_points` of its
-joint frames (numpy here, torch in training/arm.py); tests/test_kinematics.py checks both,
-and the torch/ONNX FK, against ``pin.framesForwardKinematics`` / ``computeGeneralizedGravity``.
-The inverse kinematics is the controller's: closed form for the KUKA-type arm with a
-spherical wrist (8 branches), choosing per pose the branch nearest to a reference configuration.
+A description (``models/kr500.toml`` is the example; :mod:`postproc.robot.description`) lists
+the joints of a serial 6R arm; everything here is built from its arrays, in
+:mod:`postproc.robot.kinematics`: the forward kinematics of many poses at once is the numpy
+:class:`~postproc.robot.kinematics.chain.Chain`, the gravity torques
+:func:`~postproc.robot.kinematics.gravity.gravity_torques` of its joint frames, the inverse
+kinematics the closed form of the arm's family (:mod:`postproc.robot.kinematics.ik`: KUKA-type
+with a spherical wrist, or UR-type; 8 branches), each pose solved on the branch nearest a
+reference configuration, each joint on its 360° turn nearest it within the limits.
+Pinocchio's model (``model``, ``data``, :meth:`Robot.pin_fk`:
+:mod:`postproc.robot.kinematics.reference`, built on first use) is the reference the checks
+compare with; no product path computes with it.
 """
 from __future__ import annotations
 
@@ -24,24 +20,13 @@ import math
 import numpy as np
 
 from ..core import frames
-from ..core.diagnostics import PostprocError
-from ..core.frames import MM
 from .description import RobotDescription, load_description
 from .kinematics.chain import Chain
 from .kinematics.gravity import gravity_torques
-from .kinematics.ik import SHOULDER_MM, _IkGeometry, _UrIkGeometry
-from .kinematics.reference import pin_model
+from .kinematics.ik import SHOULDER_MM, KukaGeometry, UrGeometry, geometry_of
+from .kinematics.reference import pin_fk, pin_model
 
 __all__ = ["Robot"]
-
-
-# --------------------------------------------------------------------------- reading
-
-
-# --------------------------------------------------------------------------- kinematics
-
-
-# --------------------------------------------------------------------------- gravity
 
 
 class Robot:
@@ -65,16 +50,7 @@ class Robot:
         self.flange_chain = Chain.of(d, tool=False)
         self.tool_matrix = d.tool_matrix
         self.chain = Chain.of(d)
-        try:
-            self._solver: _IkGeometry | _UrIkGeometry = _IkGeometry(d)
-            self._kuka_error: PostprocError | None = None
-        except PostprocError as kuka:
-            try:
-                self._solver = _UrIkGeometry(d)
-            except PostprocError as ur:
-                raise PostprocError(f"no closed-form IK for this arm: {kuka.message}; or {ur.message}",
-                                    ur.path, ur.line, ur.col, ur.code) from None
-            self._kuka_error = kuka
+        self._solver: KukaGeometry | UrGeometry = geometry_of(d)
         self._model = None
 
     @property
@@ -83,19 +59,14 @@ class Robot:
         return self._solver.family
 
     @property
-    def _ik(self) -> "_IkGeometry":
-        """The KUKA-type geometry (training.arm.KukaIK reads its dimensions); P333 for other arms."""
-        if self._kuka_error is not None:
-            raise self._kuka_error
-        return self._solver
+    def _ik(self) -> KukaGeometry:
+        """The KUKA-type geometry (:meth:`reach` reads its dimensions); P333 for other arms."""
+        return self._solver if self._solver.family == "kuka" else KukaGeometry(self.description)
 
     def _build_model(self) -> None:
         """The pin.Model, built once on first use (only checks need it)."""
-        import pinocchio as pin
-
         self._model = pin_model(self.description)
         self._data = self._model.createData()
-        self._pin = pin
 
     @property
     def model(self):
@@ -121,17 +92,8 @@ class Robot:
         return frames.matrix_to_frame(self.fk_matrix(q_deg))
 
     def pin_fk(self, q_deg: np.ndarray, frame: str = "tcp") -> np.ndarray:
-        """The reference FK, Pinocchio's (one call per pose; for checks, not for bulk work)."""
-        model, data = self.model, self.data
-        pin = self._pin
-        fid = model.getFrameId(frame)
-        q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
-        out = np.zeros((len(q), 4, 4))
-        for i, qi in enumerate(q):
-            pin.framesForwardKinematics(model, data, qi)
-            m = data.oMf[fid]
-            out[i, :3, :3], out[i, :3, 3], out[i, 3, 3] = m.rotation, m.translation / MM, 1.0
-        return out
+        """The reference FK, Pinocchio's (:func:`~postproc.robot.kinematics.reference.pin_fk`; for checks)."""
+        return pin_fk(self.model, self.data, q_deg, frame)
 
     # ---------------------------------------------------------------- gravity
     def gravity_torques(self, q_deg: np.ndarray, payload: bool = True) -> np.ndarray:

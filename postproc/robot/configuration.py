@@ -1,20 +1,9 @@
 """Arm configuration: which joint angles the controller will use for each Cartesian target.
 
 A pose has up to 8 closed-form solutions (shoulder, elbow, wrist) and, for joints that turn
-more than 360°, several turns of each. KUKA's Status and Turn pick one
-(``../shared/KRL-NOTES.md``; KSS manual, "Status and Turn"):
-
-* S bit 0: the wrist point behind the A1 axis (overhead area), bit 1: A3 at or beyond the
-  stretched-arm angle (elbow), bit 2: A5 ≤ 0 (wrist flip); the higher bits say nothing of the
-  arm's configuration (real points state ``S 18``, ``'B00010110'``: bit 4 set), so only bits 0–2
-  pick a branch (:func:`arm_status`, the one place a Status becomes a branch index);
-* T bit i set ⇔ A(i+1) < 0 (which turn of each joint); bits 6 and up (external axes) are not
-  the arm's.
-
-For a UR-type arm (``models/ur10.toml``, no S/T on its controller) postproc uses the same bits
-for the same geometric facts (:meth:`postproc.robot.arm.Robot.status_turn`): bit 0 = A6's origin
-behind the shoulder-pan axis (UR "shoulder left/right"), bit 1 = the elbow branch (elbow
-joint ≥ 0), bit 2 = wrist-2 ≤ 0 (wrist up/down, taken in (−180°, 180°]); T as KUKA's.
+more than 360°, several turns of each. A program states which one in its controller's form —
+KUKA's Status and Turn, ABB's confdata, FANUC's CONFIG (the forms, their bits and strings:
+:mod:`postproc.robot.conventions`) — or leaves it to the controller's rules.
 
 Targets without S/T follow the controller, in program order:
 
@@ -32,31 +21,18 @@ each joint's sign (the turn inside the limits with that sign). Targets whose con
 no solution (the pose unreachable on that branch, within the limits) come back NaN with
 ``ok`` False: the caller leaves them as written.
 
-The other controllers' forms (docs/CONFIGURATIONS.md, with the sources) map on the same
-branch table, for a description that says its controller states them (``[robot]
-configuration``):
+ABB's and FANUC's forms map on the same branch table for a description that says its
+controller states them (``[robot] configuration``): the branch in S numbering plus a turn
+*window* for each joint the form states. :func:`stated_configuration` reads a program's stated
+forms into :class:`Stated` (branch, T, turn windows, and the rows whose form the description
+cannot say: left as written, P309); the other way, joint angles → the strings / numbers a
+program states, is ``conventions.fanuc_configs`` / ``conventions.abb_confdata``.
 
-* ABB RAPID ``confdata [cf1, cf4, cf6, cfx]`` (``"abb"``): cfx 0…7 = 4·(wrist centre behind
-  axis 1) + 2·(wrist centre behind the lower arm, i.e. the elbow down) + (axis 5 negative);
-  cf1, cf4, cf6 the quadrant of axes 1, 4, 6 (⌊q/90°⌋), a *window* [90·cf, 90·cf + 90°] each
-  joint's turn is taken in;
-* FANUC ``CONFIG : 'F U T, t1, t4, t6'`` (``"fanuc"``): N/F no flip / flip (F: J5 > 0 in
-  FANUC's joint angles, the wrist bent the other way than in the tool-down pose J4 = 0,
-  J5 = −90°), U/D the elbow up / down, T/B the wrist centre in front of / behind the J1 axis;
-  t1, t4, t6 the turn numbers of J1, J4, J6 (0: −180° < q < 180°, 1: 180° ≤ q < 540°, −1:
-  −540° < q ≤ −180°), windows as cf's.
-
-Both ways: :func:`stated_configuration` (a program's stated forms → :class:`Stated`: branch,
-T, turn windows, and the rows whose form the description cannot say: left as written, P309),
-:func:`fanuc_configs` / :func:`abb_confdata` (joint angles → the strings / numbers a program
-states, as plan and the benchmarks write them).
-
-numpy only: the nominal arm is :class:`postproc.robot.arm.Robot`'s numpy kinematics (Pinocchio is
-imported by robot.py only for gravity and checks).
+numpy only: the nominal arm is :class:`postproc.robot.arm.Robot`'s numpy kinematics (Pinocchio
+only for the reference checks, postproc.robot.kinematics.reference).
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,13 +40,12 @@ import numpy as np
 from ..core import frames
 from ..core.diagnostics import P514
 from .arm import Robot
+from .conventions import (TURN_JOINTS, UNSTATED, _abb_branch, arm_status, execution_kinds, parse_fanuc_config,
+                          status_turn_of)
 
-__all__ = ["UNSTATED", "arm_status", "branch_table", "stated_joints", "controller_joints", "status_turn_of",
-           "measurement_joints", "Stated", "stated_configuration", "ordered_joints", "parse_fanuc_config", "fanuc_configs",
-           "fanuc_turn", "abb_confdata", "FORM_NAMES", "linear_changes"]
+__all__ = ["branch_table", "stated_joints", "controller_joints", "measurement_joints", "Stated", "stated_configuration",
+           "target_joints", "ordered_joints", "linear_changes"]
 
-UNSTATED = -1  # S or T not written for a target
-ARM_BITS = 0b111  # S bits 0-2: shoulder, elbow, wrist (the branch); the others are not the arm's
 # rows per numpy pass over the branches: [8, BLOCK, 6] float64 (3 MB) stays in cache (~1.5x
 # faster than one pass over a long program's table; the same numbers)
 BLOCK = 8192
@@ -78,17 +53,6 @@ BLOCK = 8192
 # pose written with 3 decimals moves its joint angles by ~1e-3°, and a compensated command
 # (S and T left as written) by ~0.1° (a target taught at A6 −0.01° is commanded at +0.01°).
 SIGN_TOLERANCE_DEG = 0.5
-# passes over the program for PTP targets that switch branch: each pass settles at least the
-# next target in program order, so a program of n targets needs at most n + 1; usually a few
-# (a chain of choices that each depend on the one before — a wrist flip early in a long PTP
-# program — settles one target per pass: 20 passes, the old cap, left such targets wrong)
-
-
-def arm_status(status) -> np.ndarray:
-    """S as written [N] → the arm branch it states [N] (bits 0–2; UNSTATED stays): never index
-    the branch table with an S unmasked (``S 18`` is branch 2 with bit 4 set)."""
-    status = np.asarray(status, int)
-    return np.where(status >= 0, status & ARM_BITS, UNSTATED)
 
 
 def _wrap(deg: np.ndarray) -> np.ndarray:
@@ -299,14 +263,6 @@ def _turn_for_sign(robot: Robot, q: np.ndarray, turn: np.ndarray) -> np.ndarray:
     return best
 
 
-def status_turn_of(robot: Robot, q_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(S, T) [N] of joint angles [N, 6] (NaN rows: UNSTATED)."""
-    q = np.atleast_2d(np.asarray(q_deg, float))
-    bad = ~np.isfinite(q).all(axis=1)
-    s, t = robot.status_turn(np.nan_to_num(q))
-    return np.where(bad, UNSTATED, s), np.where(bad, UNSTATED, t)
-
-
 def stated_joints(robot: Robot, poses: np.ndarray, status: np.ndarray, turn: np.ndarray,
                   reference: np.ndarray | None = None, tools: np.ndarray | None = None,
                   check_all: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -463,6 +419,10 @@ def _rules(robot: Robot, branches: _Branches, status: np.ndarray, turn: np.ndarr
         picks.append((best, np.flatnonzero(free_ptp)))
         branch[free_ptp] = np.where(ok_guess, _status_of(robot, q_guess, best, sure), UNSTATED)
     q = found = None
+    # passes over the program for PTP targets that switch branch: each pass settles at least the
+    # next target in program order, so a program of n targets needs at most n + 1; usually a few
+    # (a chain of choices that each depend on the one before — a wrist flip early in a long PTP
+    # program — settles one target per pass: 20 passes, the old cap, left such targets wrong)
     for _ in range(n + 1):
         filled = _forward_fill(branch, start_s)
         picks.append((filled, np.arange(n)))
@@ -559,17 +519,6 @@ def _continue_turns(robot: Robot, table: np.ndarray, ok: np.ndarray, branch: np.
     return q, found
 
 
-# --------------------------------------------------------------------------- other controllers' forms
-
-# the forms a description's [robot] configuration names, as messages name them
-FORM_NAMES = {"kuka": "KUKA S/T", "abb": "ABB confdata", "fanuc": "FANUC CONFIG"}
-# the joints whose quadrant (ABB cf1, cf4, cf6) or turn number (FANUC t1, t4, t6) a form states
-TURN_JOINTS = (0, 3, 5)
-# 'F U T, 0, 0, 0': flip, elbow, front/back, the turn numbers of J1, J4, J6 (optional)
-_FANUC_CONFIG = re.compile(r"\s*([NF])\s*([UD])\s*([TB])\s*(?:,\s*([-+]?\d+)\s*,\s*([-+]?\d+)\s*,\s*([-+]?\d+)\s*)?$",
-                           re.IGNORECASE)
-
-
 def _turn_in_window(robot: Robot, q: np.ndarray, windows: np.ndarray) -> np.ndarray:
     """Each joint of ``q`` [..., 6] (deg) on the turn (q + k·360°, within the limits) nearest its
     window ``windows`` [..., 6, 2] (inside it where one is; ties: nearest its middle); NaN where
@@ -590,6 +539,9 @@ def _turn_in_window(robot: Robot, q: np.ndarray, windows: np.ndarray) -> np.ndar
     return np.where(np.isfinite(w_lo), best, q)
 
 
+# --------------------------------------------------------------------------- what a program states
+
+
 @dataclass
 class Stated:
     """The arm configuration targets state, mapped on a description's branch table: ``status``
@@ -607,61 +559,6 @@ class Stated:
     @classmethod
     def unstated(cls, n: int) -> "Stated":
         return cls(np.full(n, UNSTATED), np.full(n, UNSTATED))
-
-
-def fanuc_turn(q_deg: np.ndarray) -> np.ndarray:
-    """FANUC's turn number of joint angles (deg): 0 for −180° < q < 180°, k for the k-th turn
-    beyond (180° ≤ q < 540°: 1; −540° < q ≤ −180°: −1), as RoboDK's FANUC post writes it."""
-    q = np.asarray(q_deg, float)
-    return np.where(q >= 0, np.floor((q + 180.0) / 360.0), -np.floor((180.0 - q) / 360.0)).astype(int)
-
-
-def parse_fanuc_config(text: str) -> tuple[int, np.ndarray] | None:
-    """A FANUC CONFIG string 'F U T, t1, t4, t6' → (the branch it states, S numbering; the turn
-    numbers of J1, J4, J6 [3], −999 where not written), None if it is not of that form. S bit 0 =
-    B (the wrist centre behind the J1 axis), bit 1 = U (elbow up: A3 beyond the stretched arm),
-    bit 2 = N (J5 ≤ 0 in FANUC's joint angles: the tool-down wrist of J4 = 0 is J5 = −90°)."""
-    m = _FANUC_CONFIG.match(text)
-    if m is None:
-        return None
-    flip, elbow, side = (g.upper() for g in m.groups()[:3])
-    status = (side == "B") | (elbow == "U") << 1 | (flip == "N") << 2
-    turns = np.array([int(g) if g is not None else -999 for g in m.groups()[3:]])
-    return int(status), turns
-
-
-def fanuc_configs(robot: Robot, q_deg: np.ndarray) -> list[str]:
-    """The FANUC CONFIG strings ('N U T, 0, 0, 0') of joint angles [N, 6] deg (NaN rows: '')."""
-    q = np.atleast_2d(np.asarray(q_deg, float))
-    status, _ = status_turn_of(robot, q)
-    turns = fanuc_turn(np.nan_to_num(q[:, list(TURN_JOINTS)]))
-    return ["" if st < 0 else f"{'N' if st & 4 else 'F'} {'U' if st & 2 else 'D'} {'B' if st & 1 else 'T'}, "
-            f"{t[0]}, {t[1]}, {t[2]}" for st, t in zip(status.tolist(), turns.tolist())]
-
-
-def abb_confdata(robot: Robot, q_deg: np.ndarray) -> np.ndarray:
-    """ABB confdata [N, 4] (cf1, cf4, cf6, cfx) of joint angles [N, 6] deg: the quadrants
-    ⌊q/90°⌋ of axes 1, 4, 6 and cfx = 4·(wrist centre behind axis 1) + 2·(behind the lower arm)
-    + (axis 5 negative)."""
-    q = np.atleast_2d(np.asarray(q_deg, float))
-    status, _ = status_turn_of(robot, q)
-    quadrants = np.floor(q[:, list(TURN_JOINTS)] / 90.0)
-    cfx = 4 * (status & 1) + 2 * (1 - ((status >> 1) & 1)) + ((status >> 2) & 1)
-    return np.c_[quadrants, cfx].astype(int)
-
-
-def _abb_branch(conf: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """confdata [n, 4] → (the branch, S numbering [n], windows [n, 6, 2], rows well formed [n])."""
-    conf = np.asarray(conf, float)
-    whole = np.isfinite(conf).all(axis=1) & (conf == np.round(conf)).all(axis=1)
-    cfx = np.where(whole, conf[:, 3], -1).astype(int)
-    good = whole & (cfx >= 0) & (cfx <= 7)
-    status = np.where(good, ((cfx >> 2) & 1) | ((1 - ((cfx >> 1) & 1)) << 1) | ((cfx & 1) << 2), UNSTATED)
-    windows = np.full((len(conf), 6, 2), np.nan)
-    for k, j in enumerate(TURN_JOINTS):
-        windows[good, j, 0] = 90.0 * conf[good, k]
-        windows[good, j, 1] = 90.0 * conf[good, k] + 90.0
-    return status, windows, good
 
 
 def stated_configuration(program, description, rows: np.ndarray) -> tuple[Stated, np.ndarray, list[str]]:
@@ -738,27 +635,6 @@ def _shown(conf: np.ndarray) -> str:
 
 
 # --------------------------------------------------------------------------- targets of a program
-
-# Motions that take the solution nearest the current axis position when no S is stated; the
-# others (LIN, CIRC, SLIN, SCIRC, SPL) keep the configuration.
-_NEAREST = ("PTP", "SPTP")
-# A pose list's rows are poses reached one by one as `measure` reaches a plan's: without s,t,
-# each on the branch nearest HOME (the simulator's and today's models' choice).
-_INDEPENDENT = ("row",)
-
-
-def execution_kinds(motion: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(PTP-like, independent) masks [N] of motion kinds (indices into programs.MOTIONS)."""
-    from .conventions import MOTIONS
-
-    motion = np.asarray(motion, np.intp)
-    kinds = np.zeros((2, len(MOTIONS)), bool)  # (a lookup, not np.isin: its sort of 10^6 rows)
-    kinds[0, [MOTIONS.index(m) for m in _NEAREST]] = True
-    kinds[1, [MOTIONS.index(m) for m in _INDEPENDENT]] = True
-    known = (motion >= 0) & (motion < len(MOTIONS))
-    at = np.where(known, motion, 0)
-    return kinds[0][at] & known, kinds[1][at] & known
-
 
 def target_joints(robot: Robot, targets, rows: np.ndarray, poses: np.ndarray, tools: np.ndarray | None = None,
                   initial_q: np.ndarray | None = None, chain=None,

@@ -93,8 +93,8 @@ class RobotDescription:
         """A copy with some fields changed (e.g. ``payload_mass=0``)."""
         return dataclasses.replace(self, **changes)
 
-    # The one description → chain construction: the numpy Chain, the torch Arm
-    # (training/arm.py) and the pin.Model are all built from these arrays.
+    # The one description → chain construction: the numpy Chain (kinematics/chain.py), the torch
+    # Arm (kinematics/twin.py) and the pin.Model (kinematics/reference.py) are all built from these arrays.
     @property
     def origins(self) -> np.ndarray:
         """[J, 6] each joint's frame in its parent at q = 0 (X,Y,Z mm, A,B,C deg)."""

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.diagnostics import P227, PostprocError
-from ..core.frames import frame_to_matrix
+from ..core.frames import axis_rotations, frame_to_matrix
 from ..core.toml import check_value, key_line, read_toml
 
 __all__ = ["ExternalUnit", "read_external", "parse_external", "units_of", "AXES", "TYPES", "CARRIES"]
@@ -78,9 +78,7 @@ class ExternalUnit:
         if self.type == "prismatic":
             t[..., :3, 3] = e[..., None] * d
             return t
-        th = np.radians(e)[..., None, None]
-        k = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
-        t[..., :3, :3] = np.eye(3) + np.sin(th) * k + (1 - np.cos(th)) * (k @ k)
+        t[..., :3, :3] = axis_rotations(d[None], np.radians(e)[..., None])[..., 0, :, :]
         return t
 
     def base_at(self, e) -> np.ndarray:

@@ -64,8 +64,10 @@ from ...robot.kinematics.twin import (
     make_ik,
     mc,
     mv,
+    rotation_log,
     rotation_matrices,
     small_rotation,
+    small_transform,
     wrapped_step,
 )
 from .estimator import Estimator
@@ -197,15 +199,6 @@ def unseparated_mount(tcps: np.ndarray) -> np.ndarray:
     return vt[sv <= 1e-3 * max(float(np.abs(d).max()), 1.0)]
 
 
-def _rigid(rotvec: torch.Tensor, offset: torch.Tensor) -> torch.Tensor:
-    """[..., 4, 4] from rotation vectors [..., 3] and offsets [..., 3]."""
-    r = small_rotation(rotvec)
-    top = torch.cat([r, offset[..., :, None]], dim=-1)
-    bottom = torch.zeros(*top.shape[:-2], 1, 4, dtype=top.dtype)
-    bottom[..., 0, 3] = 1.0
-    return torch.cat([top, bottom], dim=-2)
-
-
 def identified_end(arm: Arm, p: dict[str, torch.Tensor], tcp: torch.Tensor) -> torch.Tensor:
     """The identified TCP positions in the last joint's frame for TCP positions ``tcp`` [..., 3]
     on the flange: flange · (Rot(mount)·t + the tool shift), the shift fixed to the flange
@@ -218,15 +211,15 @@ def identified_end(arm: Arm, p: dict[str, torch.Tensor], tcp: torch.Tensor) -> t
 def identified_chain(arm: Arm, p: dict[str, torch.Tensor], tools: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
     """The identified arm's placements, end (TCP) and base as tensors (differentiable in p);
     with ``tools`` [N, 3] (each row's TCP position on the flange) the end is per row [N, 3]."""
-    placements = arm.placements @ _rigid(p["placement"][:, :3], p["placement"][:, 3:])
+    placements = arm.placements @ small_transform(p["placement"][:, :3], p["placement"][:, 3:])
     if tools is None:
         end = torch.cat([torch.cat([arm.end[:3, :3], identified_end(arm, p, arm.tool[:3, 3])[:, None]], 1),
                          arm.end[3:]], 0)
         if "tool_rotation" in p:  # the TCP frame turned about its own axes (moves no TCP: orientation data only)
-            end = end @ _rigid(p["tool_rotation"], torch.zeros(3, dtype=end.dtype))
+            end = end @ small_transform(p["tool_rotation"], torch.zeros(3, dtype=end.dtype))
     else:  # (per-row TCP positions: position only, no orientation is fitted with several tools)
         end = identified_end(arm, p, tools)
-    base = _rigid(p["base"][:3], p["base"][3:])
+    base = small_transform(p["base"][:3], p["base"][3:])
     return {"placements": placements, "end": end, "base": base}
 
 
@@ -347,14 +340,6 @@ def _joint_columns(layout: Layout, q: torch.Tensor, signs: torch.Tensor, tau: to
                                                s[:, :, ripple_joint] * rows * torch.cos(phase)[:, None, :]],
                                               dim=-1).reshape(q.shape[0], 3, -1)  # (traced: not len(q))
     return out
-
-
-def rotation_log(m: torch.Tensor) -> torch.Tensor:
-    """[N, 3, 3] rotations within a few degrees of I → rotation vectors [N, 3] rad: the
-    antisymmetric part's axial vector v = sin θ·axis scaled by asin|v|/|v| ≈ 1 + |v|²/6 (exact to
-    1e-8 relative at 1°; no acos: ONNX-friendly, smooth at 0)."""
-    v = 0.5 * torch.stack([m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]], dim=1)
-    return v * (1.0 + (v * v).sum(1, keepdim=True) / 6.0)
 
 
 def previous_branch(q_in: torch.Tensor | None, q_previous: torch.Tensor | None) -> torch.Tensor | None:
@@ -552,8 +537,7 @@ class KinematicErrorModule(torch.nn.Module):
                 abc = torch.where(torch.isnan(tool[:, 3:6]), self.tool0[3:6], tool[:, 3:6])
                 reached = bl.mat(bl.mat(last, c["tool_turn"][:, :, None]), bl.abc_rotations(abc))
             m = bl.mat_t(bl.const_mat(self.base[:3, :3], reached), bl.abc_rotations(pose[:, 3:6]))
-            v = 0.5 * torch.stack([m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]])  # (rotation_log)
-            turned = v * (1.0 + (v * v).sum(0, keepdim=True) / 6.0)
+            turned = rotation_log(m, batch_last=True)
             out.append((turned + self.base[:3, :3] @ (omega * dq[:, None, :]).sum(0)).t())
         if uncertainty is not None:
             rows = learned if learned is not None and len(self.layout.ripple) else None

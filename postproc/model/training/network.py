@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ...robot.kinematics.twin import rotation_matrices
+from ...core.frames import nearest_rotation
+from ...robot.kinematics.twin import axial, rotation_matrices
 
 __all__ = [
     "Structure", "Scaling", "forward", "jacobian", "ErrorNet", "parse_hidden", "pose_features", "mean_rotation",
@@ -130,16 +131,14 @@ def pose_features(pose: torch.Tensor, centre: torch.Tensor) -> torch.Tensor:
     programmed A,B,C in the other triple; a model of raw A,B,C would then see another input.)
     """
     m = centre.T @ rotation_matrices(pose[:, 3:6])
-    dev = torch.stack([m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]], dim=1)
+    dev = axial(m)
     return torch.cat([pose[:, 0:3], dev * (90.0 / math.pi)], dim=1)  # ½·(…)·180/π
 
 
 def mean_rotation(abc_deg: np.ndarray) -> np.ndarray:
     """The chordal mean of the rotations of A,B,C rows: the mean matrix projected onto SO(3)."""
     r = torch.as_tensor(np.asarray(abc_deg, dtype=np.float64).reshape(-1, 3))
-    u, _, vt = np.linalg.svd(rotation_matrices(r).mean(dim=0).numpy())
-    d = np.sign(np.linalg.det(u @ vt))
-    return u @ np.diag([1.0, 1.0, d]) @ vt
+    return nearest_rotation(rotation_matrices(r).mean(dim=0).numpy())
 
 
 @dataclass

@@ -19,7 +19,7 @@ active), #SUPPRESSED (suppressed for now by ``$SUPPRESS_ABS_ACCUR``), #NONE (no 
 KSS 5.x and older as a BOOL (TRUE = on). A robot whose controller corrects its positioning error
 itself must not get postproc's correction too (``findings.accuracy_rule``: P408, P409 where
 suppressed). A Status bit marking points taught with that model is *not* used: KUKA's
-documentation found defines S bits 0–2 only (``configuration.arm_status``).
+documentation found defines S bits 0–2 only (``robot.conventions.arm_status``).
 """
 from __future__ import annotations
 

@@ -19,6 +19,7 @@ from lark import Token, Tree
 from lark.exceptions import UnexpectedInput
 
 from ...core.diagnostics import P101, P102, P103, P117, LineIndex, PostprocError
+from ...core.frames import MM
 from ..grammar import TOKEN_RE, exact_key, lalr_parser, shape_key, unexpected
 from ..ir import (
     Agg, Assign, Async, AsyncSwitch, Call, Continue, Decl, Eval, Exit, Field, Halt, Havoc, If, Invoke, Item, Lit,
@@ -28,7 +29,7 @@ from .semantics import JOINT_VALUES, MATH, is_builtin
 
 __all__ = ["Lowering", "parser", "UNIT_MM", "MOTION_OF", "SCRIPT"]
 
-UNIT_MM = 1000.0  # URScript poses are in metres
+UNIT_MM = 1 / MM  # URScript poses are in metres: mm per unit
 SCRIPT = "<script>"  # the routine of a script's top-level statements
 # strings, comments, and a quote that opens no string on its line
 _HIDE = re.compile(r'"[^"\n]*"|\'[^\'\n]*\'|#.*|["\']')

@@ -8,7 +8,7 @@ over all rows, with N innermost: a product with a constant matrix is one GEMM (`
 a product of two per-row rotations one broadcast Mul + ReduceSum (``mat``), a joint's turn the
 constant placement times Rodrigues written as P0 + cos q·P1 + sin q·P2 with constant P's (no
 Concat/Slice/Unsqueeze per column, no batched 3×3 MatMul, which onnxruntime runs as one tiny
-GEMM per row). The same quantities as ``arm.Arm.frames`` / ``Arm.torque_terms`` /
+GEMM per row). The same quantities as ``twin.Arm.frames`` / ``Arm.torque_terms`` /
 ``kinematic.error_at`` / ``kinematic.jacobian`` (tests/test_kinematics.py, tests/test_hybrid*.py:
 to rounding), which the fit keeps in the [N, …] layout its least squares stacks.
 """
@@ -16,13 +16,12 @@ from __future__ import annotations
 
 import torch
 
-from ...core.frames import abc_entries
+from ...core.frames import MM, abc_entries
 from .gravity import gravity_from_points, holding_torques
 
 __all__ = ["const_mat", "mat", "mat_t", "mat_vec", "const_vec", "cross", "unit_crosses", "abc_rotations", "joint_turns",
            "Frames", "frames", "torque_terms"]
 
-MM = 1e-3
 _NEXT, _PREV = [1, 2, 0], [2, 0, 1]
 
 
@@ -65,7 +64,7 @@ def unit_crosses(v: torch.Tensor) -> torch.Tensor:
 
 
 def abc_rotations(abc_deg: torch.Tensor) -> torch.Tensor:
-    """[N, 3] KUKA A,B,C (deg) → [3, 3, N] R = Rz(A)·Ry(B)·Rx(C) (``network.abc_entries``)."""
+    """[N, 3] KUKA A,B,C (deg) → [3, 3, N] R = Rz(A)·Ry(B)·Rx(C) (``core.frames.abc_entries``)."""
     rad = abc_deg.t() * (torch.pi / 180.0)
     cos, sin = torch.cos(rad), torch.sin(rad)
     rows = abc_entries(cos[0], sin[0], cos[1], sin[1], cos[2], sin[2])
@@ -128,7 +127,7 @@ def frames(turns: torch.Tensor, offsets: torch.Tensor, q: torch.Tensor, end: tor
 
 def torque_terms(arm, f: Frames) -> torch.Tensor:
     """[6 + 21, N]: ``Arm.torque_terms`` (the gravity torques, then each link's share τ_ji, i ≥ j,
-    in ``coupling_pairs`` order) of the frames ``f``: ``robot.gravity_from_points`` /
+    in ``coupling_pairs`` order) of the frames ``f``: ``gravity.gravity_from_points`` /
     ``holding_torques``, the one gravity formula, on [N, …] views of the batch-last frames."""
     from .twin import coupling_pairs
 

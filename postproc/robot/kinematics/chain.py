@@ -53,6 +53,14 @@ class Chain:
         rs, ps = zip(*self._walk(q_rad))
         return np.stack(rs).transpose(3, 0, 1, 2), np.stack(ps).transpose(2, 0, 1)
 
+    def zero_frames(self) -> tuple[np.ndarray, np.ndarray]:
+        """The joint frames [J, 4, 4] at q = 0 (each after its turn) and the end frame [4, 4]."""
+        zero = np.zeros((1, len(self.axes)))
+        rotations, origins = self.joints(zero)
+        out = np.zeros((len(self.axes), 4, 4))
+        out[:, :3, :3], out[:, :3, 3], out[:, 3, 3] = rotations[0], origins[0], 1.0
+        return out, self.transforms(zero)[0]
+
     def transforms(self, q_rad: np.ndarray) -> np.ndarray:
         """[N, 4, 4] end frames for configurations [N, J] (radians)."""
         q_rad = np.atleast_2d(np.asarray(q_rad, float))

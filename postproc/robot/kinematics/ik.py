@@ -1,4 +1,26 @@
-"""The controller's inverse kinematics, closed form, one per arm family (KUKA-type, UR-type)."""
+"""The controller's inverse kinematics, closed form, one per arm family (KUKA-type, UR-type),
+written once for numpy and torch alike.
+
+Each family's formulas are functions of an *array namespace* ``xp`` (:class:`Ops`: the few
+operations they use — trigonometry, ``where``, ``stack``, products of per-row rotations with
+constants, a turn of rows) and of a *geometry* ``g`` (the arm's constants, by attribute):
+
+* numpy: :data:`NUMPY` and the geometry classes themselves (:class:`KukaGeometry`,
+  :class:`UrGeometry`, numpy constants): :class:`postproc.robot.arm.Robot` solves all 8
+  branches of many poses at once (``branches``), FK-checked by its caller;
+* torch: ``postproc.robot.kinematics.twin`` (``TORCH``, ``KukaIK``, ``UrIK``: torch modules
+  holding the same constants as buffers, :meth:`KukaGeometry.constants`) solves one branch per
+  row, differentiable and exported with ``torch.onnx`` inside the models' graphs.
+
+This module never imports torch (the numpy path must not load it: tests/test_lazy_imports.py).
+What the two namespaces do differently is numerics, not formulas: torch evaluates atan2 /
+acos / asin in float32 (ONNX Runtime has no float64 kernel of them; twin.py's docstring says
+why the model's error does not mind), and therefore calls the UR wrist singular within
+``UR_SINGULAR_TORCH`` rad of it (1e-3: a float32 t1 leaves ~1e-7 of noise in sin t5, which the
+A6 ratio divides by) where numpy, in float64, does within ``UR_SINGULAR`` (1e-10, the FK check's
+scale). At a singular wrist numpy keeps A4 (KUKA) / A6 (UR) at a reference configuration's,
+torch at 0 (KUKA) / the controller's given angle or the ratio's (UR): the callers pass it.
+"""
 from __future__ import annotations
 
 import math
@@ -11,13 +33,105 @@ from ...core.diagnostics import P333, PostprocError
 from ..description import RobotDescription
 from .chain import Chain
 
+__all__ = ["Ops", "NUMPY", "KukaGeometry", "UrGeometry", "geometry_of", "kuka_wrist_centre", "kuka_shoulder",
+           "kuka_elbow", "kuka_wrist", "ur_wrist_frame", "ur_shoulder", "ur_wrist", "ur_elbow_plane", "ur_elbow",
+           "SHOULDER_MM", "UR_SINGULAR", "UR_SINGULAR_TORCH"]
+
 # the wrist centre this far (mm) off the A1 axis or more: S bit 0 is the IK's shoulder branch
 SHOULDER_MM = 1e-3
+# |sin A5| below this: the UR wrist is singular (only A4 + A2 + A3 ± A6 is defined), float64 / float32 trigonometry
+UR_SINGULAR, UR_SINGULAR_TORCH = 1e-10, 1e-3
+# |sin A5| below this: the KUKA wrist is singular (only A4 + A6 is defined)
+KUKA_SINGULAR = 1e-10
+HALF_PI = math.pi / 2
 
 
-class _IkGeometry:
+class Ops:
+    """An array namespace for the IK formulas: elementwise ``atan2``, ``acos``, ``asin``,
+    ``sqrt``, ``hypot``, ``cos``, ``sin``, ``abs``, ``clip``, ``where``, ``isnan``,
+    ``zeros_like``, ``ones_like``; ``stack(arrays, axis)``; ``mc(r, c)`` per-row rotations [N, 3, 3]
+    times a constant [3, 3], ``mv(r, v)`` times a constant vector [3] → [N, 3]; ``unturn(x, a, b)``
+    = (Rz(a)·Ry(b))ᵀ·x for x [N, 3, 3] and angles [N] (b None: Rz(a)ᵀ·x), the turns of A1 and of
+    the arm (A2 + A3 ...) undone from the left (numpy: one product of the two turns, torch: row
+    mixes, no batched 3×3 product in the graph)."""
+
+    def __init__(self, **functions):
+        self.__dict__.update(functions)
+
+
+NUMPY = Ops(atan2=np.arctan2, acos=np.arccos, asin=np.arcsin, sqrt=np.sqrt, hypot=np.hypot, cos=np.cos, sin=np.sin,
+            abs=np.abs, clip=np.clip, where=np.where, isnan=np.isnan, zeros_like=np.zeros_like,
+            ones_like=np.ones_like, stack=lambda arrays, axis: np.stack(arrays, axis=axis),
+            mc=lambda r, c: r @ c, mv=lambda r, v: r @ v,
+            unturn=lambda x, a, b=None: frames.rotation_zy(a, b).swapaxes(-1, -2) @ x)
+
+
+def _wrap(q):
+    """Angles (rad) to (−π, π]."""
+    return (q + np.pi) % (2 * np.pi) - np.pi
+
+
+# --------------------------------------------------------------------------- KUKA-type
+
+
+def kuka_wrist_centre(xp: Ops, g, r_tcp, p_tcp):
+    """(the product of the six axis rotations [N, 3, 3], the wrist centre relative to A1's
+    origin [N, 3]) of TCP rotations [N, 3, 3] and positions [N, 3]: the flange from the TCP
+    (``tool_offset``: the TCP → flange shift in the TCP frame), the wrist centre (A5's origin,
+    on the A4 and A6 axes) ``wrist_offset`` behind it in the flange's turned frame at q = 0."""
+    r_all = xp.mc(r_tcp, g.wrist_turn)
+    p_flange = p_tcp + xp.mv(r_tcp, g.tool_offset)
+    return r_all, p_flange - xp.mv(r_all, g.wrist_offset) - g.p1
+
+
+def kuka_shoulder(xp: Ops, g, c, shoulder):
+    """A1 of a shoulder branch (±1: the wrist centre in front of the A1 axis, or over the top)
+    and the arm plane's triangle: (θ1, u, w — the wrist centre from A2 in the arm plane —,
+    κ = cos of the elbow's opening (|κ| > 1: out of reach), γ0 the opening) [N] each."""
+    phi = xp.atan2(c[:, 1], c[:, 0])
+    r_xy = xp.hypot(c[:, 0], c[:, 1])
+    th1 = phi + (1.0 - shoulder) * HALF_PI
+    u = shoulder * r_xy - g.a1
+    w = c[:, 2] - g.d1
+    kappa = (u * u + w * w - g.l2**2 - g.l3**2) / (2 * g.l2 * g.l3)
+    return th1, u, w, kappa, xp.acos(xp.clip(kappa, -1.0, 1.0))
+
+
+def kuka_elbow(xp: Ops, g, u, w, gamma0, elbow):
+    """(θ2, θ3) [N] of an elbow branch (±1) of the arm plane's triangle (:func:`kuka_shoulder`)."""
+    th3 = g.al3 - g.al2 - elbow * gamma0
+    ang = g.al3 - th3  # direction of the forearm vector before A2's rotation
+    w2x = g.L2[0] + g.l3 * xp.cos(ang)
+    w2y = g.L2[1] + g.l3 * xp.sin(ang)
+    return xp.atan2(w2y, w2x) - xp.atan2(w, u), th3
+
+
+def kuka_wrist(xp: Ops, g, th1, th2, th3, r_all, flip, a4=None):
+    """Joint angles [N, 6] (rad, not wrapped) of an arm branch (θ1..θ3) and wrist ``flip`` (±1, or
+    [N]): (Rz(θ1)·Ry(θ2 + θ3))ᵀ·R = Rx(α)·Ry(β)·Rx(γ). At a wrist singularity (A5 = 0, where only
+    A4 + A6 is defined) A4 is ``a4`` [N] (rad, already in joint signs; None: 0) and A6 the rest."""
+    s = g.s
+    rw = xp.unturn(r_all, th1, th2 + th3)
+    sb = flip * xp.hypot(rw[:, 0, 1], rw[:, 0, 2])
+    beta = xp.atan2(sb, rw[:, 0, 0])
+    alpha = xp.atan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
+    gam = xp.atan2(flip * rw[:, 0, 1], flip * rw[:, 0, 2])
+    singular = xp.abs(sb) < KUKA_SINGULAR
+    alpha = xp.where(singular, xp.zeros_like(alpha) if a4 is None else a4, alpha)
+    gam = xp.where(singular, xp.atan2(rw[:, 2, 1], rw[:, 1, 1]) - alpha, gam)
+    return xp.stack([s[0] * th1, s[1] * th2, s[2] * th3, s[3] * alpha, s[4] * beta, s[5] * gam], 1)
+
+
+class KukaGeometry:
     """Closed-form IK of a KUKA-type arm: A1 about ±Z, A2/A3 about ±Y, spherical wrist
-    A4 (±X) · A5 (±Y) · A6 (±X); joint frames parallel to the base at q = 0."""
+    A4 (±X) · A5 (±Y) · A6 (±X); joint frames parallel to the base at q = 0. The constants of
+    the formulas above (numpy), P333 for another geometry; all 8 branches of many poses."""
+
+    family = "kuka"
+    wrist_index = 4  # the wrist point of S bit 0: A5's origin (the wrist centre)
+    # the constants the formulas read: arrays (torch: buffers), numbers
+    ARRAYS = ("s", "p1", "L2", "wrist_turn", "wrist_offset", "tool_offset")
+    NUMBERS = ("a1", "d1", "l2", "l3", "al2", "al3")
 
     def __init__(self, d: RobotDescription):
         flange_chain, tool_matrix = Chain.of(d, tool=False), d.tool_matrix
@@ -32,23 +146,26 @@ class _IkGeometry:
                 d.path, d.locate("joint", None, 0), 1, P333)
         self.s = np.array([axes[j, want[j]] for j in range(6)])  # axis signs
         self.p1 = o[0, :3]
-        self.a1, self.d1 = o[1, 0], o[1, 2]
+        self.a1, self.d1 = float(o[1, 0]), float(o[1, 2])
         self.L2 = np.array([o[2, 0], o[2, 2]])
         self.L3 = np.array([o[3, 0] + o[4, 0], o[3, 2] + o[4, 2]])
         self.l2, self.l3 = float(np.linalg.norm(self.L2)), float(np.linalg.norm(self.L3))
         self.al2, self.al3 = math.atan2(self.L2[1], self.L2[0]), math.atan2(self.L3[1], self.L3[0])
         self.c0 = flange_chain.joints(np.zeros((1, 6)))[1][0, 4]  # wrist centre = A5's origin, on the A4 and A6 axes
-        self.flange0 = flange_chain.transforms(np.zeros((1, 6)))[0]
-        self.tcp0 = (self.flange0 @ tool_matrix)[:3, 3]
-        self.inv_tool = frames.inverse(tool_matrix)
+        flange0 = flange_chain.transforms(np.zeros((1, 6)))[0]
+        self.tcp0 = (flange0 @ tool_matrix)[:3, 3]
+        inv_tool = frames.inverse(tool_matrix)
+        self.wrist_turn = inv_tool[:3, :3] @ flange0[:3, :3].T  # TCP rotation → product of the axis rotations
+        self.tool_offset = inv_tool[:3, 3]  # TCP → flange, in the TCP frame
+        self.wrist_offset = flange0[:3, 3] - self.c0  # wrist centre → flange at q = 0
 
-    family = "kuka"
-    wrist_index = 4  # the wrist point of S bit 0: A5's origin (the wrist centre)
+    def constants(self) -> dict:
+        """{name: value} of the constants the formulas read (:data:`ARRAYS`, :data:`NUMBERS`)."""
+        return {name: getattr(self, name) for name in self.ARRAYS + self.NUMBERS}
 
     def wrist_radius(self, t_tcp: np.ndarray) -> np.ndarray:
         """[N] distance (mm) of the wrist centre of TCP transforms [N, 4, 4] from the A1 axis."""
-        t_fl = t_tcp @ self.inv_tool
-        c = t_fl[:, :3, 3] - t_fl[:, :3, :3] @ self.flange0[:3, :3].T @ (self.flange0[:3, 3] - self.c0) - self.p1
+        c = self._wrist_centre(t_tcp)[1]
         return np.hypot(c[:, 0], c[:, 1])
 
     @property
@@ -57,50 +174,24 @@ class _IkGeometry:
         return self.al3 - self.al2
 
     def _wrist_centre(self, t_tcp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(product of the six axis rotations [N, 3, 3], wrist centre relative to A1's origin [N, 3])."""
-        t_fl = t_tcp @ self.inv_tool
-        r_all = t_fl[:, :3, :3] @ self.flange0[:3, :3].T  # product of the six axis rotations
-        c = t_fl[:, :3, 3] - r_all @ (self.flange0[:3, 3] - self.c0)
-        return r_all, c - self.p1
+        """:func:`kuka_wrist_centre` of TCP transforms [N, 4, 4]."""
+        return kuka_wrist_centre(NUMPY, self, t_tcp[:, :3, :3], t_tcp[:, :3, 3])
 
-    def _arms(self, c: np.ndarray) -> Iterator[tuple[float, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    def _arms(self, c: np.ndarray) -> Iterator[tuple]:
         """The 4 arm branches (A1-A3) of wrist centres [N, 3], in ``branches``' order: (shoulder,
         elbow, reach mask, the elbow's opening γ0, θ1, θ2, θ3) [N] each (rad)."""
-        # A1: the wrist centre's azimuth, in front of the A1 axis or over the top (behind)
-        phi = np.arctan2(c[:, 1], c[:, 0])
-        r_xy = np.hypot(c[:, 0], c[:, 1])
         for shoulder in (1.0, -1.0):
-            th1 = phi if shoulder > 0 else phi + np.pi
-            u = shoulder * r_xy - self.a1
-            w = c[:, 2] - self.d1
-            dist2 = u * u + w * w
-            kappa = (dist2 - self.l2**2 - self.l3**2) / (2 * self.l2 * self.l3)
+            th1, u, w, kappa, gamma0 = kuka_shoulder(NUMPY, self, c, shoulder)
             reach_ok = np.abs(kappa) <= 1.0 + 1e-12
-            gamma0 = np.arccos(np.clip(kappa, -1.0, 1.0))
             for elbow in (1.0, -1.0):
-                # angle between upper arm and forearm vectors in the arm plane
-                th3 = self.al3 - self.al2 - elbow * gamma0
-                ang = self.al3 - th3  # direction of the forearm vector before A2's rotation
-                w2 = np.stack([self.L2[0] + self.l3 * np.cos(ang), self.L2[1] + self.l3 * np.sin(ang)], axis=-1)
-                th2 = np.arctan2(w2[:, 1], w2[:, 0]) - np.arctan2(w, u)
+                th2, th3 = kuka_elbow(NUMPY, self, u, w, gamma0, elbow)
                 yield shoulder, elbow, reach_ok, gamma0, th1, th2, th3
 
     def _wrist(self, th1: np.ndarray, th2: np.ndarray, th3: np.ndarray, r_all: np.ndarray, flip,
                ref: np.ndarray) -> np.ndarray:
-        """Principal joint angles [N, 6] (rad) of an arm branch and wrist ``flip`` (±1, or [N])."""
-        s = self.s
-        q123 = np.stack([s[0] * th1, s[1] * th2, s[2] * th3], axis=-1)
-        rw = _rz_ry(th1, th2 + th3).swapaxes(-1, -2) @ r_all  # = Rx(α) Ry(β) Rx(γ)
-        sb = flip * np.hypot(rw[:, 0, 1], rw[:, 0, 2])
-        beta = np.arctan2(sb, rw[:, 0, 0])
-        alpha = np.arctan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
-        gam = np.arctan2(flip * rw[:, 0, 1], flip * rw[:, 0, 2])
-        singular = np.abs(sb) < 1e-10  # A5 ≈ 0: only A4 + A6 is defined; keep A4 at the reference
-        if singular.any():
-            alpha = np.where(singular, s[3] * ref[:, 3], alpha)
-            gam = np.where(singular, np.arctan2(rw[:, 2, 1], rw[:, 1, 1]) - alpha, gam)
-        q = np.concatenate([q123, np.stack([s[3] * alpha, s[4] * beta, s[5] * gam], axis=-1)], axis=-1)
-        return (q + np.pi) % (2 * np.pi) - np.pi
+        """Principal joint angles [N, 6] (rad) of an arm branch and wrist ``flip`` (±1, or [N]);
+        A4 at the reference ``ref`` [N, 6] (rad) where the wrist is singular."""
+        return _wrap(kuka_wrist(NUMPY, self, th1, th2, th3, r_all, flip, self.s[3] * ref[:, 3]))
 
     def branches(self, t_tcp: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The 8 closed-form solutions [8, N, 6] (rad, principal angles) of TCP transforms
@@ -157,91 +248,140 @@ class _IkGeometry:
         return self._wrist(th[0], th[1], th[2], r_all, flip, ref), reach, sure
 
 
-def ur_geometry(description) -> tuple[np.ndarray, np.ndarray]:
-    """The joint origins [6, 6] and axis signs [6] of a UR-type description (the one check of
-    the geometry the closed-form UR IK needs, numpy here and torch in training/arm.py); P333
-    for another geometry."""
-    o, axes = description.origins, description.axes
-    want = [2, 1, 1, 1, 2, 1]
-    ok = np.allclose(o[:, 3:], 0.0) and all(abs(abs(axes[j, want[j]]) - 1.0) < 1e-12 for j in range(6))
-    ok = ok and np.allclose(axes[1], axes[2]) and np.allclose(axes[1], axes[3])
-    ok = ok and np.allclose(o[1, :2], 0.0) and np.allclose(o[2:4, 1:], 0.0) and np.allclose(o[4, [0, 2]], 0.0)
-    ok = ok and np.allclose(o[5, :2], 0.0) and np.allclose(o[0, :2], 0.0)
-    if not ok:
-        raise PostprocError(
-            "the UR-type IK needs joint origins without rotation, axes A1 ±Z, A2 = A3 = A4 ±Y, A5 ±Z, A6 ±Y, "
-            "A2 above A1, A3 and A4 along X from it, A5 beside A4 (Y), A6 below/above A5 (Z)",
-            description.path, description.locate("joint", None, 0), 1, P333)
-    return o, np.array([axes[j, want[j]] for j in range(6)])
+# --------------------------------------------------------------------------- UR-type
 
 
-class _UrIkGeometry:
-    """Closed-form IK of a Universal-Robots-type arm (as ``models/ur10.toml``; the numpy twin of
-    training.arm.UrIK, all 8 branches): A1 about ±Z; A2 = A3 = A4 about ±Y; A5 about ±Z; A6
-    about ±Y; A2 above A1, A3 and A4 along X from it, A5 beside A4 (Y), A6 below A5 (Z)."""
+def ur_wrist_frame(xp: Ops, g, r_tcp, p_tcp):
+    """The A6 frame (rotation [N, 3, 3], origin [N, 3] on the A6 axis) of TCP rotations and
+    positions: R6 = Rz(t1)·Ry(t2+t3+t4)·Rz(t5)·Ry(t6) with t_j = s_j·q_j (every joint frame
+    parallel to the base at q = 0)."""
+    return xp.mc(r_tcp, g.inv_end[:3, :3]), p_tcp + xp.mv(r_tcp, g.inv_end[:3, 3])
+
+
+def ur_shoulder(xp: Ops, g, p6, shoulder):
+    """(t1 [N] of a shoulder branch (±1), y4/ρ [N]: |y4/ρ| > 1 is out of reach). Every joint
+    origin from A2 to A6 lies in the plane y4 off the A1 axis along the shoulder axis
+    ŷ1 = Rz(t1)·e_y, so −sin t1·x6 + cos t1·y6 = y4, i.e. ρ·sin(ψ − t1) = y4."""
+    rho = xp.hypot(p6[:, 0], p6[:, 1])
+    psi = xp.atan2(p6[:, 1], p6[:, 0])
+    ratio = g.y4 / rho
+    lateral = xp.asin(xp.clip(ratio, -1.0, 1.0))
+    return psi - shoulder * lateral - (1.0 - shoulder) * HALF_PI, ratio
+
+
+def ur_wrist(xp: Ops, g, r6, t1, wrist, singular_below: float, keep6=None):
+    """(t5, t6, a = t2 + t3 + t4, cos t1, sin t1) [N] of a wrist branch (±1) on shoulder angle
+    ``t1``. The A6 axis a6 = R6·e_y is ŷ1 turned by t5 about the A5 axis: cos t5 = ŷ1·a6 and
+    |sin t5| = |ŷ1 × a6|; R' = Rz(−t1)·R6 = Ry(a)·Rz(t5)·Ry(t6): row 1 = sin t5·(cos t6, ·,
+    sin t6), column 1 = (−cos a·sin t5, ·, sin a·sin t5). Within ``singular_below`` of
+    |sin t5| = 0 only a ± t6 is defined (R' = Ry(a + t6) or Ry(a − t6)·Rz(π)): A6 keeps
+    ``keep6`` [N] (rad, in joint signs; its NaN rows and None: the ratio's) and a takes the rest."""
+    c1, s1 = xp.cos(t1), xp.sin(t1)
+    a6 = r6[:, :, 1]
+    cos5 = -s1 * a6[:, 0] + c1 * a6[:, 1]
+    abs_sin5 = xp.sqrt(a6[:, 2] ** 2 + (c1 * a6[:, 0] + s1 * a6[:, 1]) ** 2)
+    t5 = wrist * xp.atan2(abs_sin5, cos5)
+    rp = xp.unturn(r6, t1)
+    sin5 = wrist * abs_sin5
+    singular = abs_sin5 < singular_below
+    safe5 = xp.where(singular, xp.ones_like(sin5), sin5)
+    t6 = xp.atan2(rp[:, 1, 2] / safe5, rp[:, 1, 0] / safe5)
+    t234 = xp.atan2(rp[:, 2, 1] / safe5, -rp[:, 0, 1] / safe5)
+    keep = t6 if keep6 is None else xp.where(xp.isnan(keep6), t6, keep6)
+    up = cos5 > 0
+    total = xp.where(up, xp.atan2(rp[:, 0, 2], rp[:, 0, 0]), xp.atan2(rp[:, 0, 2], -rp[:, 0, 0]))
+    t6 = xp.where(singular, keep, t6)
+    t234 = xp.where(singular, xp.where(up, total - keep, total + keep), t234)
+    return t5, t6, t234, c1, s1
+
+
+def ur_elbow_plane(xp: Ops, g, p6, t234, c1, s1):
+    """(u, w, κ) [N]: A5's origin p5 = p6 − z5·Rz(t1)·Ry(a)·e_z in the arm plane (along
+    Rz(t1)·e_x and −Z, from A2), where the links A2 → A3 → A4 are the planar arm
+    u = a2·c2 + a3·c23, w = a2·s2 + a3·s23; κ = cos t3 (|κ| > 1: out of reach)."""
+    c234, s234 = xp.cos(t234), xp.sin(t234)
+    p5x = p6[:, 0] - g.z5 * (c1 * s234)
+    p5y = p6[:, 1] - g.z5 * (s1 * s234)
+    p5z = p6[:, 2] - g.z5 * c234
+    u = c1 * p5x + s1 * p5y
+    w = g.z0 - p5z
+    return u, w, (u * u + w * w - g.a2**2 - g.a3**2) / (2 * g.a2 * g.a3)
+
+
+def ur_elbow(xp: Ops, g, u, w, kappa, elbow):
+    """(t2, t3) [N] of an elbow branch (±1) of the planar arm (:func:`ur_elbow_plane`)."""
+    t3 = elbow * xp.acos(xp.clip(kappa, -1.0, 1.0))
+    return xp.atan2(w, u) - xp.atan2(g.a3 * xp.sin(t3), g.a2 + g.a3 * xp.cos(t3)), t3
+
+
+class UrGeometry:
+    """Closed-form IK of a Universal-Robots-type arm (as ``models/ur10.toml``): A1 about ±Z;
+    A2 = A3 = A4 about ±Y; A5 about ±Z; A6 about ±Y; A2 above A1, A3 and A4 along X from it, A5
+    beside A4 (Y), A6 below A5 (Z) — the standard DH form (d1, a2, a3, d4, d5, d6) of Hawkins'
+    solution. The constants of the formulas above (numpy), P333 for another geometry; all 8
+    branches of many poses."""
 
     family = "ur"
     wrist_index = 5  # the wrist point of S bit 0: A6's origin (on the A6 axis)
     stretched = 0.0  # θ3 with the forearm in line with the upper arm
+    ARRAYS = ("s", "inv_end")
+    NUMBERS = ("z0", "a2", "a3", "y4", "z5")
 
     def __init__(self, d: RobotDescription):
-        flange_chain, tool_matrix = Chain.of(d, tool=False), d.tool_matrix
-        o, self.s = ur_geometry(d)
+        o, axes = d.origins, d.axes
+        want = [2, 1, 1, 1, 2, 1]
+        ok = np.allclose(o[:, 3:], 0.0) and all(abs(abs(axes[j, want[j]]) - 1.0) < 1e-12 for j in range(6))
+        ok = ok and np.allclose(axes[1], axes[2]) and np.allclose(axes[1], axes[3])
+        ok = ok and np.allclose(o[1, :2], 0.0) and np.allclose(o[2:4, 1:], 0.0) and np.allclose(o[4, [0, 2]], 0.0)
+        ok = ok and np.allclose(o[5, :2], 0.0) and np.allclose(o[0, :2], 0.0)
+        if not ok:
+            raise PostprocError(
+                "the UR-type IK needs joint origins without rotation, axes A1 ±Z, A2 = A3 = A4 ±Y, A5 ±Z, A6 ±Y, "
+                "A2 above A1, A3 and A4 along X from it, A5 beside A4 (Y), A6 below/above A5 (Z)",
+                d.path, d.locate("joint", None, 0), 1, P333)
+        self.s = np.array([axes[j, want[j]] for j in range(6)])  # axis signs
+        # the chain at q = 0 in the base frame: A2 at height z0, upper arm and forearm along X,
+        # the wrist offsets along Y (y4 = A4 → A5) and Z (z5 = A5 → A6), then the flange
         self.z0 = float(o[0, 2] + o[1, 2])
         self.a2, self.a3 = float(o[2, 0]), float(o[3, 0])
         self.y4 = float(o[4, 1])  # A4 → A5 along the shoulder axis
         self.z5 = float(o[5, 2])  # A5 → A6 along Z
-        self.inv_end = frames.inverse(flange_chain.end @ tool_matrix)  # A6 frame from the TCP
+        self.inv_end = frames.inverse(d.flange_matrix @ d.tool_matrix)  # A6 frame from the TCP
+
+    constants = KukaGeometry.constants
 
     def branches(self, t_tcp: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """As :meth:`_IkGeometry.branches`; at the wrist singularity (A5 = 0) A6 keeps the reference."""
-        t6 = t_tcp @ self.inv_end
-        r6, p6 = t6[:, :3, :3], t6[:, :3, 3]
-        rho = np.hypot(p6[:, 0], p6[:, 1])
-        psi = np.arctan2(p6[:, 1], p6[:, 0])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = self.y4 / rho
-        lateral_ok = np.abs(ratio) <= 1.0
-        lateral = np.arcsin(np.clip(ratio, -1.0, 1.0))
+        """As :meth:`KukaGeometry.branches`; at the wrist singularity (A5 = 0) A6 keeps the reference."""
+        r6, p6 = ur_wrist_frame(NUMPY, self, t_tcp[:, :3, :3], t_tcp[:, :3, 3])
+        keep6 = self.s[5] * ref[:, 5]
         branches, valid = [], []
         for shoulder in (1.0, -1.0):
-            t1 = psi - lateral if shoulder > 0 else psi - np.pi + lateral
-            c1, s1 = np.cos(t1), np.sin(t1)
-            # R' = Rz(−t1)·R6 = Ry(t2 + t3 + t4)·Rz(t5)·Ry(t6)
-            rp = np.einsum("nij,njk->nik", _rz_ry(-t1, np.zeros_like(t1)), r6)
-            cos5 = np.clip(rp[:, 1, 1], -1.0, 1.0)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t1, ratio = ur_shoulder(NUMPY, self, p6, shoulder)
+            lateral_ok = np.abs(ratio) <= 1.0
             for wrist in (1.0, -1.0):
-                t5 = wrist * np.arccos(cos5)
-                sin5 = np.sin(t5)
-                singular = np.abs(sin5) < 1e-10
-                safe = np.where(singular, 1.0, sin5)
-                t6a = np.arctan2(rp[:, 1, 2] / safe, rp[:, 1, 0] / safe)
-                t234 = np.arctan2(rp[:, 2, 1] / safe, -rp[:, 0, 1] / safe)
-                if singular.any():  # R' = Ry(t234 + t6) (t5 = 0) or Ry(t234 − t6)·Rz(π) (t5 = π)
-                    t6a = np.where(singular, self.s[5] * ref[:, 5], t6a)
-                    total = np.arctan2(rp[:, 0, 2], rp[:, 0, 0] * np.sign(cos5))
-                    t234 = np.where(singular, total - np.sign(cos5) * t6a, t234)
-                c234, s234 = np.cos(t234), np.sin(t234)
-                p5 = p6 - self.z5 * np.stack([c1 * s234, s1 * s234, c234], axis=1)
-                u = c1 * p5[:, 0] + s1 * p5[:, 1]
-                w = self.z0 - p5[:, 2]
-                kappa = (u * u + w * w - self.a2**2 - self.a3**2) / (2 * self.a2 * self.a3)
+                t5, t6, t234, c1, s1 = ur_wrist(NUMPY, self, r6, t1, wrist, UR_SINGULAR, keep6)
+                u, w, kappa = ur_elbow_plane(NUMPY, self, p6, t234, c1, s1)
                 reach_ok = lateral_ok & (np.abs(kappa) <= 1.0 + 1e-12)
                 for elbow in (1.0, -1.0):
-                    t3 = elbow * np.arccos(np.clip(kappa, -1.0, 1.0))
-                    t2 = np.arctan2(w, u) - np.arctan2(self.a3 * np.sin(t3), self.a2 + self.a3 * np.cos(t3))
-                    t4 = t234 - t2 - t3
-                    branches.append(np.stack([t1, t2, t3, t4, t5, t6a], axis=1) * self.s)
+                    t2, t3 = ur_elbow(NUMPY, self, u, w, kappa, elbow)
+                    branches.append(np.stack([t1, t2, t3, t234 - t2 - t3, t5, t6], axis=1) * self.s)
                     valid.append(reach_ok)
-        q_all = (np.stack(branches) + np.pi) % (2 * np.pi) - np.pi
-        return q_all, np.stack(valid)
+        return _wrap(np.stack(branches)), np.stack(valid)
 
 
-def _rz_ry(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Rz(a)·Ry(b) for angle arrays [N] (radians) → [N, 3, 3]."""
-    ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
-    r = np.empty(a.shape + (3, 3))
-    r[..., 0, 0], r[..., 0, 1], r[..., 0, 2] = ca * cb, -sa, ca * sb
-    r[..., 1, 0], r[..., 1, 1], r[..., 1, 2] = sa * cb, ca, sa * sb
-    r[..., 2, 0], r[..., 2, 1], r[..., 2, 2] = -sb, 0.0, cb
-    return r
+def geometry_of(description: RobotDescription, family: str | None = None) -> KukaGeometry | UrGeometry:
+    """The closed-form IK geometry of a description: ``family`` "kuka" or "ur", or None = the
+    first that fits (P333 naming both where neither does)."""
+    if family == "ur":
+        return UrGeometry(description)
+    try:
+        return KukaGeometry(description)
+    except PostprocError as kuka:
+        if family == "kuka":
+            raise
+        try:
+            return UrGeometry(description)
+        except PostprocError as ur:
+            raise PostprocError(f"no closed-form IK for this arm: {kuka.message}; or {ur.message}",
+                                ur.path, ur.line, ur.col, ur.code) from None

@@ -1,4 +1,9 @@
-"""Pinocchio's model of a description: the reference FK and gravity, for tests and checks."""
+"""Pinocchio's model of a description: the reference FK and gravity, for tests and checks only.
+
+:func:`pin_model` builds it from the same arrays as :class:`~postproc.robot.kinematics.chain.Chain`
+(metres inside); :func:`pin_fk` is its FK of a frame, one Pinocchio call per pose. The numpy
+Chain, the torch twin and the exported graph's batch-last FK are checked against it
+(tests/test_kinematics.py); no product code path computes with it."""
 from __future__ import annotations
 
 import numpy as np
@@ -6,7 +11,7 @@ import numpy as np
 from ...core.frames import MM
 from ..description import RobotDescription
 
-__all__ = ['pin_model']
+__all__ = ['pin_model', 'pin_fk']
 
 
 def _pin_inertia(pin, mass: float, com_mm: np.ndarray, inertia: np.ndarray | None):
@@ -40,3 +45,19 @@ def pin_model(description: RobotDescription):
     fid = model.addFrame(pin.Frame("flange", parent, flange, pin.FrameType.OP_FRAME))
     model.addFrame(pin.Frame("tcp", parent, fid, flange * _se3(pin, d.tool_matrix), pin.FrameType.OP_FRAME))
     return model
+
+
+def pin_fk(model, data, q_deg: np.ndarray, frame: str = "tcp") -> np.ndarray:
+    """The reference FK: transforms [N, 4, 4] (mm) of ``frame`` ("tcp", "flange") of ``model``
+    (:func:`pin_model`; ``data`` its ``pin.Data``) at joint angles [N, 6] (deg), one
+    ``pin.framesForwardKinematics`` per pose (for checks, not for bulk work)."""
+    import pinocchio as pin
+
+    fid = model.getFrameId(frame)
+    q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
+    out = np.zeros((len(q), 4, 4))
+    for i, qi in enumerate(q):
+        pin.framesForwardKinematics(model, data, qi)
+        m = data.oMf[fid]
+        out[i, :3, :3], out[i, :3, 3], out[i, 3, 3] = m.rotation, m.translation / MM, 1.0
+    return out

@@ -1,17 +1,23 @@
-"""A robot arm in torch: forward kinematics, gravity torques and the closed-form inverse
-kinematics of the nominal arm — the pieces of the kinematic error model (``kinematic.py``)
-that are fitted here and run inside the exported ONNX graph.
+"""The torch twin of the nominal arm: forward kinematics, gravity torques and the closed-form
+inverse kinematics — the pieces of the kinematic error model (``model.training.kinematic``)
+that are fitted in torch (autograd) and run inside the exported ONNX graph; and the torch
+rotation helpers (``rotation_matrices``, ``small_rotation``, ``small_transform``,
+``rotation_log``, ``axis_rotations``, ``turn_columns`` / ``turn_rows``: the numpy ones are
+postproc.core.frames').
 
 Everything is float64 and vectorised over poses; the only loop is over the six joints.
-ONNX Runtime has no float64 Atan / Acos kernel, so the IK evaluates those two functions in
-float32 (``_atan2`` / ``_acos``): a joint angle off by 1e-7 rad moves the *error* the model
-predicts by ~1e-7 mm, because the error is the difference of two chains evaluated at the
-same angles (nominal minus identified), not a position.
+:class:`Arm` is the torch FK ([N, …] layout, the fit's); the exported graph's own layout is
+``batch_last`` (the same quantities, tests/test_kinematics.py). The IK is not written here:
+``KukaIK`` and ``UrIK`` run postproc.robot.kinematics.ik's formulas (the numpy Robot's too) on
+the array namespace ``TORCH``. ONNX Runtime has no float64 Atan / Acos / Asin kernel, so that
+namespace evaluates them in float32 (``_atan2`` / ``_acos`` / ``_asin``): a joint angle off by
+1e-7 rad moves the *error* the model predicts by ~1e-7 mm, because the error is the
+difference of two chains evaluated at the same angles (nominal minus identified), not a position.
 
 Two IK families, one branch each (the branch the controller uses over the data, see
 ``choose_branch``): ``KukaIK`` (A1 about ±Z, A2/A3/A5 about ±Y, A4/A6 about ±X with a
-spherical wrist: postproc.robot.arm's geometry, same formulas) and ``UrIK`` (Universal-Robots
-type: three parallel shoulder/elbow/wrist-1 axes and an offset wrist).
+spherical wrist) and ``UrIK`` (Universal-Robots type: three parallel shoulder/elbow/wrist-1
+axes and an offset wrist); ``make_ik`` picks the description's.
 """
 from __future__ import annotations
 
@@ -20,19 +26,32 @@ import math
 import numpy as np
 import torch
 
-from ...core import frames
-from ...core.diagnostics import PostprocError
-from ...core.frames import abc_entries
+from ...core.frames import MM, abc_entries
 from ..description import RobotDescription
 from .gravity import GRAVITY, gravity_from_points, holding_torques
-from .ik import ur_geometry
+from .ik import (
+    UR_SINGULAR_TORCH,
+    KukaGeometry,
+    Ops,
+    UrGeometry,
+    geometry_of,
+    kuka_elbow,
+    kuka_shoulder,
+    kuka_wrist,
+    kuka_wrist_centre,
+    ur_elbow,
+    ur_elbow_plane,
+    ur_shoulder,
+    ur_wrist,
+    ur_wrist_frame,
+)
 
 __all__ = [
     "coupling_pairs", "Arm", "axis_rotations", "mc", "mv", "turn_columns", "turn_rows", "small_rotation",
-    "pose_matrices", "at_tool", "KukaIK", "UrIK", "make_ik", "GRAVITY", "wrapped_step", "rotation_matrices",
+    "pose_matrices", "at_tool", "KukaIK", "UrIK", "make_ik", "GRAVITY", "wrapped_step", "rotation_matrices", "TORCH",
+    "small_transform", "axial", "rotation_log",
 ]
 
-MM = 1e-3
 
 
 def _t(value) -> torch.Tensor:
@@ -114,6 +133,32 @@ def small_rotation(rotvec: torch.Tensor) -> torch.Tensor:
     return torch.eye(3, dtype=rotvec.dtype) + a * k + b * (k @ k)
 
 
+def small_transform(rotvec: torch.Tensor, offset: torch.Tensor) -> torch.Tensor:
+    """[..., 4, 4] rigid transforms from rotation vectors [..., 3] and offsets [..., 3]
+    (postproc.core.frames.small_transform in torch, differentiable)."""
+    r = small_rotation(rotvec)
+    top = torch.cat([r, offset[..., :, None]], dim=-1)
+    bottom = torch.zeros(*top.shape[:-2], 1, 4, dtype=top.dtype)
+    bottom[..., 0, 3] = 1.0
+    return torch.cat([top, bottom], dim=-2)
+
+
+def axial(m: torch.Tensor, batch_last: bool = False) -> torch.Tensor:
+    """The axial vector of m − mᵀ, (m21 − m12, m02 − m20, m10 − m01) = 2·sin θ·axis of rotations
+    [N, 3, 3] → [N, 3] (``batch_last``: [3, 3, N] → [3, N], the exported graph's layout)."""
+    if batch_last:
+        return torch.stack([m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]])
+    return torch.stack([m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]], dim=1)
+
+
+def rotation_log(m: torch.Tensor, batch_last: bool = False) -> torch.Tensor:
+    """Rotations within a few degrees of I [N, 3, 3] → rotation vectors [N, 3] rad (``batch_last``:
+    [3, 3, N] → [3, N]): the axial vector v = sin θ·axis scaled by asin|v|/|v| ≈ 1 + |v|²/6 (exact
+    to 1e-8 relative at 1°; no acos: ONNX-friendly, smooth at 0)."""
+    v = 0.5 * axial(m, batch_last)
+    return v * (1.0 + (v * v).sum(0 if batch_last else 1, keepdim=True) / 6.0)
+
+
 def pose_matrices(pose) -> tuple[torch.Tensor, torch.Tensor]:
     """Poses [N, 6] (mm, KUKA A,B,C deg) → rotations [N, 3, 3] and positions [N, 3]; a pair
     (rotations, positions) passes through (``at_tool``'s result: the IK takes either)."""
@@ -139,12 +184,22 @@ def at_tool(pose: torch.Tensor, tool: torch.Tensor, tool0: torch.Tensor):
     return mc(back, r_0), p_p + mv(back, tool0[:3] - tool[:, :3])
 
 
+def _unturn(x: torch.Tensor, a: torch.Tensor, b: torch.Tensor | None = None) -> torch.Tensor:
+    """(Rz(a)·Ry(b))ᵀ·x = Ry(b)ᵀ·Rz(a)ᵀ·x for x [N, 3, 3] (b None: Rz(a)ᵀ·x): two row mixes."""
+    x = turn_rows(x, 2, a)
+    return x if b is None else turn_rows(x, 1, b)
+
+
 def _atan2(y: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     return torch.atan2(y.float(), x.float()).to(y.dtype)
 
 
 def _acos(x: torch.Tensor) -> torch.Tensor:
     return torch.acos(x.float()).to(x.dtype)
+
+
+def _asin(x: torch.Tensor) -> torch.Tensor:
+    return torch.asin(x.float()).to(x.dtype)
 
 
 class Arm:
@@ -235,25 +290,41 @@ def coupling_pairs(n: int = 6) -> tuple[list[int], list[int]]:
 
 # --------------------------------------------------------------------------- IK
 
+# the IK formulas' array namespace in torch (postproc.robot.kinematics.ik: one implementation per
+# arm family for numpy and torch); atan2, acos, asin in float32 for ONNX Runtime
+TORCH = Ops(atan2=_atan2, acos=_acos, asin=_asin, sqrt=torch.sqrt, hypot=lambda x, y: torch.sqrt(x**2 + y**2),
+            cos=torch.cos, sin=torch.sin, abs=torch.abs, clip=torch.clamp, where=torch.where, isnan=torch.isnan,
+            zeros_like=torch.zeros_like, ones_like=torch.ones_like,
+            stack=lambda tensors, axis: torch.stack(tensors, dim=axis), mc=mc, mv=mv, unturn=_unturn)
 
-class KukaIK(torch.nn.Module):
+
+class _ClosedForm(torch.nn.Module):
+    """A closed-form IK for one branch: the geometry's constants (``ARRAYS`` as float64 buffers,
+    ``NUMBERS`` as floats) under the names the formulas of postproc.robot.kinematics.ik read."""
+
+    def __init__(self, geometry, branch: tuple[float, float, float]):
+        super().__init__()
+        self.branch = tuple(float(b) for b in branch)
+        for name, value in geometry.constants().items():
+            if name in geometry.ARRAYS:
+                self.register_buffer(name, _t(value))
+            else:
+                setattr(self, name, float(value))
+
+    @staticmethod
+    def branches() -> list[tuple[float, float, float]]:
+        return [(a, b, c) for a in (1.0, -1.0) for b in (1.0, -1.0) for c in (1.0, -1.0)]
+
+
+class KukaIK(_ClosedForm):
     """Closed-form IK of a KUKA-type arm for one branch (shoulder, elbow, wrist flip ∈ ±1):
-    postproc.robot.arm's formulas in torch. pose [N, 6] → q [N, 6] rad (turns not unwrapped:
-    everything downstream is periodic in q)."""
+    postproc.robot.kinematics.ik's formulas in torch. pose [N, 6] → q [N, 6] rad (turns not
+    unwrapped: everything downstream is periodic in q); at a wrist singularity A4 = 0 (HOME)."""
 
     family = "kuka"
 
     def __init__(self, description: RobotDescription, branch: tuple[float, float, float] = (1.0, 1.0, 1.0)):
-        super().__init__()
-        from .ik import _IkGeometry
-
-        g = _IkGeometry(description)  # checks the geometry (P333 for other arms)
-        self.branch = tuple(float(b) for b in branch)
-        for name, value in (("s", g.s), ("p1", g.p1), ("L2", g.L2), ("flange0", g.flange0), ("c0", g.c0),
-                            ("inv_tool", g.inv_tool)):
-            self.register_buffer(name, _t(value))
-        self.a1, self.d1, self.l2, self.l3 = float(g.a1), float(g.d1), float(g.l2), float(g.l3)
-        self.al2, self.al3 = float(g.al2), float(g.al3)
+        super().__init__(KukaGeometry(description), branch)  # (checks the geometry: P333 for other arms)
 
     def branch_of(self, pose: torch.Tensor, q_in: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Per-row branch signs (shoulder, elbow, flip) [N] of joint angles ``q_in`` [N, 6] rad
@@ -261,87 +332,39 @@ class KukaIK(torch.nn.Module):
         closed form gives on each branch: A1 = φ (shoulder +) or φ + π, A3 = α3 − α2 ∓ γ0
         (elbow), sin A5 of the flip's sign."""
         s = self.s
-        c = self._wrist_centre(pose)[0]
+        c = kuka_wrist_centre(TORCH, self, *pose_matrices(pose))[1]
         phi = _atan2(c[:, 1], c[:, 0])
         return _branch_signs(self.branch, q_in, [
             torch.cos(phi - s[0] * q_in[:, 0]),
             torch.sin(self.al3 - self.al2 - s[2] * q_in[:, 2]),
             torch.sin(s[4] * q_in[:, 4])])
 
-    def _wrist_centre(self, pose: torch.Tensor):
-        r_tcp, p_tcp = pose_matrices(pose)
-        r_all = mc(r_tcp, self.inv_tool[:3, :3] @ self.flange0[:3, :3].T)
-        p_fl = p_tcp + mv(r_tcp, self.inv_tool[:3, 3])
-        return p_fl - mv(r_all, self.flange0[:3, 3] - self.c0) - self.p1, r_all
-
     def forward(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
         """q [N, 6] rad on this module's branch, or per row on the branch of ``q_in`` [N, 6] rad
         (NaN rows: this module's branch)."""
         shoulder, elbow, flip = self.branch if q_in is None else self.branch_of(pose, q_in)
-        s = self.s
-        c, r_all = self._wrist_centre(pose)
-        phi = _atan2(c[:, 1], c[:, 0])
-        r_xy = torch.sqrt(c[:, 0] ** 2 + c[:, 1] ** 2)
-        th1 = phi + (1.0 - shoulder) * (math.pi / 2)
-        u = shoulder * r_xy - self.a1
-        w = c[:, 2] - self.d1
-        kappa = (u * u + w * w - self.l2**2 - self.l3**2) / (2 * self.l2 * self.l3)
-        gamma0 = _acos(torch.clamp(kappa, -1.0, 1.0))
-        th3 = self.al3 - self.al2 - elbow * gamma0
-        ang = self.al3 - th3
-        w2x = self.L2[0] + self.l3 * torch.cos(ang)
-        w2y = self.L2[1] + self.l3 * torch.sin(ang)
-        th2 = _atan2(w2y, w2x) - _atan2(w, u)
-        # (Rz(th1)·Ry(th2 + th3))ᵀ · r_all = Rx(α) Ry(β) Rx(γ)
-        rw = turn_rows(turn_rows(r_all, 2, th1), 1, th2 + th3)
-        sbeta = flip * torch.sqrt(rw[:, 0, 1] ** 2 + rw[:, 0, 2] ** 2)
-        beta = _atan2(sbeta, rw[:, 0, 0])
-        alpha = _atan2(flip * rw[:, 1, 0], -flip * rw[:, 2, 0])
-        gam = _atan2(flip * rw[:, 0, 1], flip * rw[:, 0, 2])
-        # A5 ≈ 0: only A4 + A6 is defined; A4 stays at 0 (HOME), A6 takes the sum
-        singular = torch.abs(sbeta) < 1e-10
-        alpha = torch.where(singular, torch.zeros_like(alpha), alpha)
-        gam = torch.where(singular, _atan2(rw[:, 2, 1], rw[:, 1, 1]), gam)
-        return torch.stack([s[0] * th1, s[1] * th2, s[2] * th3, s[3] * alpha, s[4] * beta, s[5] * gam], dim=1)
-
-    @staticmethod
-    def branches() -> list[tuple[float, float, float]]:
-        return [(sh, el, fl) for sh in (1.0, -1.0) for el in (1.0, -1.0) for fl in (1.0, -1.0)]
+        r_all, c = kuka_wrist_centre(TORCH, self, *pose_matrices(pose))
+        th1, u, w, _, gamma0 = kuka_shoulder(TORCH, self, c, shoulder)
+        th2, th3 = kuka_elbow(TORCH, self, u, w, gamma0, elbow)
+        return kuka_wrist(TORCH, self, th1, th2, th3, r_all, flip)
 
 
-class UrIK(torch.nn.Module):
-    """Closed-form IK of a Universal-Robots-type arm for one branch (shoulder, wrist, elbow ∈ ±1).
-
-    The description must have its joint frames parallel to the base at q = 0 (pure offsets, as
-    models/ur10.toml): A1 about ±Z; A2, A3, A4 about one horizontal axis ±Y; A5 about ±Z;
-    A6 about ±Y; links of A2 → A3 → A4 along X in the plane of A1 (the arm stretched at q = 0).
-    It is mapped on the standard DH form (d1, a2, a3, d4, d5, d6) of Hawkins' solution.
-    """
+class UrIK(_ClosedForm):
+    """Closed-form IK of a Universal-Robots-type arm for one branch (shoulder, wrist, elbow ∈ ±1):
+    postproc.robot.kinematics.ik's formulas in torch (the description's joint frames parallel to
+    the base at q = 0, as models/ur10.toml). At the wrist singularity A6 keeps the given angle."""
 
     family = "ur"
 
     def __init__(self, description: RobotDescription, branch: tuple[float, float, float] = (1.0, 1.0, 1.0)):
-        super().__init__()
-        o, s = ur_geometry(description)
-        self.branch = tuple(float(b) for b in branch)
-        self.register_buffer("s", _t(s))
-        # the chain at q = 0 in the base frame: A2 at height z2, upper arm and forearm along X,
-        # the wrist offsets along Y (y5 = A4 → A5) and Z (z6 = A5 → A6), then the flange
-        self.z0 = float(o[0, 2] + o[1, 2])
-        self.a2, self.a3 = float(o[2, 0]), float(o[3, 0])
-        self.y4 = float(o[4, 1])  # A4 → A5 along the shoulder axis
-        self.z5 = float(o[5, 2])  # A5 → A6 along Z
-        end = description.flange_matrix @ description.tool_matrix
-        self.register_buffer("end", _t(end))  # TCP in the A6 frame (parallel to the base at q = 0)
-        self.register_buffer("inv_end", _t(frames.inverse(end)))
+        super().__init__(UrGeometry(description), branch)
 
     def branch_of(self, pose: torch.Tensor, q_in: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Per-row branch signs (shoulder, wrist, elbow) [N] of joint angles ``q_in`` [N, 6] rad
         at ``pose``; rows with a NaN take this module's branch. From the closed form: ψ − t1 =
         lateral (shoulder +, cos ≥ 0) or π − lateral; sin t5 and sin t3 carry the wrist and
         elbow signs."""
-        r_tcp, p_tcp = pose_matrices(pose)
-        p6 = p_tcp + mv(r_tcp, self.inv_end[:3, 3])
+        _, p6 = ur_wrist_frame(TORCH, self, *pose_matrices(pose))
         psi = _atan2(p6[:, 1], p6[:, 0])
         t = q_in * self.s
         return _branch_signs(self.branch, q_in, [torch.cos(psi - t[:, 0]), torch.sin(t[:, 4]), torch.sin(t[:, 2])])
@@ -350,57 +373,12 @@ class UrIK(torch.nn.Module):
         """q [N, 6] rad on this module's branch, or per row on the branch of ``q_in`` [N, 6] rad
         (NaN rows: this module's branch)."""
         shoulder, wrist, elbow = self.branch if q_in is None else self.branch_of(pose, q_in)
-        r_tcp, p_tcp = pose_matrices(pose)
-        # the A6 frame: origin on the A6 axis, rotation R6 = Rz(t1)·Ry(t2+t3+t4)·Rz(t5)·Ry(t6)
-        # with t_j = s_j·q_j (every joint frame parallel to the base at q = 0)
-        r6 = mc(r_tcp, self.inv_end[:3, :3])
-        p6 = p_tcp + mv(r_tcp, self.inv_end[:3, 3])
-        # t1: every joint origin from A2 to A6 lies in the plane y4 off the A1 axis along the
-        # shoulder axis ŷ1 = Rz(t1)·e_y, so −sin t1·x6 + cos t1·y6 = y4, i.e. ρ·sin(ψ − t1) = y4
-        rho = torch.sqrt(p6[:, 0] ** 2 + p6[:, 1] ** 2)
-        psi = _atan2(p6[:, 1], p6[:, 0])
-        lateral = torch.asin(torch.clamp(self.y4 / rho, -1.0, 1.0).float()).to(rho.dtype)
-        t1 = psi - shoulder * lateral - (1.0 - shoulder) * (math.pi / 2)
-        c1, s1 = torch.cos(t1), torch.sin(t1)
-        # t5: the A6 axis a6 = R6·e_y is ŷ1 turned by t5 about the A5 axis: cos t5 = ŷ1·a6 and
-        # |sin t5| = |ŷ1 × a6| (both in float64: an acos near 1 in float32 loses the small angles)
-        a6 = r6[:, :, 1]
-        cos5 = -s1 * a6[:, 0] + c1 * a6[:, 1]
-        abs_sin5 = torch.sqrt(a6[:, 2] ** 2 + (c1 * a6[:, 0] + s1 * a6[:, 1]) ** 2)
-        t5 = wrist * _atan2(abs_sin5, cos5)
-        # R' = Rz(−t1)·R6 = Ry(a)·Rz(t5)·Ry(t6): row 1 = sin t5·(cos t6, ·, sin t6),
-        # column 1 = (−cos a·sin t5, ·, sin a·sin t5), a = t2 + t3 + t4
-        rp = turn_rows(r6, 2, t1)
-        sin5 = wrist * abs_sin5
-        # (t1 comes from float32 atan2: sin t5 carries ~1e-7 of noise, which the ratios below
-        # divide by; within 1e-3 rad of the singularity the sum a ± t6 is the better-known one, and
-        # the sign of t5 is a guess: the other sign with the same sum is as good to 1e-3 rad)
-        singular = abs_sin5 < 1e-3
-        safe5 = torch.where(singular, torch.ones_like(sin5), sin5)
-        t6 = _atan2(rp[:, 1, 2] / safe5, rp[:, 1, 0] / safe5)
-        t234 = _atan2(rp[:, 2, 1] / safe5, -rp[:, 0, 1] / safe5)
-        # wrist singular (A5 at 0 or 180°): only a ± t6 is defined, R' = Ry(a + t6) or Ry(a − t6)·Rz(π);
-        # A6 keeps the controller's angle where given (else the ratio's) and a takes the rest
-        keep6 = t6 if q_in is None else torch.where(torch.isnan(q_in[:, 5]), t6, q_in[:, 5] * self.s[5])
-        up = cos5 > 0
-        total = torch.where(up, _atan2(rp[:, 0, 2], rp[:, 0, 0]), _atan2(rp[:, 0, 2], -rp[:, 0, 0]))
-        t6 = torch.where(singular, keep6, t6)
-        t234 = torch.where(singular, torch.where(up, total - keep6, total + keep6), t234)
-        # A5's origin p5 = p6 − z5·Rz(t1)·Ry(a)·e_z; in the arm plane (along Rz(t1)·e_x and −Z,
-        # from A2) the links A2 → A3 → A4 are the planar arm u = a2·c2 + a3·c23, w = a2·s2 + a3·s23
-        c234, s234 = torch.cos(t234), torch.sin(t234)
-        p5 = p6 - self.z5 * torch.stack([c1 * s234, s1 * s234, c234], dim=1)
-        u = c1 * p5[:, 0] + s1 * p5[:, 1]
-        w = self.z0 - p5[:, 2]
-        kappa = (u * u + w * w - self.a2**2 - self.a3**2) / (2 * self.a2 * self.a3)
-        t3 = elbow * _acos(torch.clamp(kappa, -1.0, 1.0))
-        t2 = _atan2(w, u) - _atan2(self.a3 * torch.sin(t3), self.a2 + self.a3 * torch.cos(t3))
-        t4 = t234 - t2 - t3
-        return torch.stack([t1, t2, t3, t4, t5, t6], dim=1) * self.s
-
-    @staticmethod
-    def branches() -> list[tuple[float, float, float]]:
-        return [(sh, wr, el) for sh in (1.0, -1.0) for wr in (1.0, -1.0) for el in (1.0, -1.0)]
+        r6, p6 = ur_wrist_frame(TORCH, self, *pose_matrices(pose))
+        t1, _ = ur_shoulder(TORCH, self, p6, shoulder)
+        keep6 = None if q_in is None else q_in[:, 5] * self.s[5]
+        t5, t6, t234, c1, s1 = ur_wrist(TORCH, self, r6, t1, wrist, UR_SINGULAR_TORCH, keep6)
+        t2, t3 = ur_elbow(TORCH, self, *ur_elbow_plane(TORCH, self, p6, t234, c1, s1), elbow)
+        return torch.stack([t1, t2, t3, t234 - t2 - t3, t5, t6], dim=1) * self.s
 
 
 def _branch_signs(default, q_in: torch.Tensor, indicators: list[torch.Tensor]) -> tuple[torch.Tensor, ...]:
@@ -412,18 +390,8 @@ def _branch_signs(default, q_in: torch.Tensor, indicators: list[torch.Tensor]) -
 
 def make_ik(description: RobotDescription, family: str | None = None, branch=(1.0, 1.0, 1.0)) -> torch.nn.Module:
     """The IK module of a description: ``family`` "kuka" or "ur", or None = the first that fits."""
-    if family in (None, "kuka"):
-        try:
-            return KukaIK(description, branch)
-        except PostprocError as kuka:
-            if family == "kuka":
-                raise
-            try:
-                return UrIK(description, branch)
-            except PostprocError as ur:
-                raise PostprocError(f"no closed-form IK for this arm: {kuka.message}; or {ur.message}",
-                                    ur.path, ur.line, ur.col, ur.code) from None
-    return UrIK(description, branch)
+    kind = geometry_of(description, family).family
+    return (KukaIK if kind == "kuka" else UrIK)(description, branch)
 
 
 def wrapped_step(q: torch.Tensor, q_previous: torch.Tensor) -> torch.Tensor:
