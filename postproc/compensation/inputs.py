@@ -14,9 +14,10 @@ from pathlib import Path
 import numpy as np
 
 from ..core import frames
-from ..core.diagnostics import P309, P311, P313, P319, Diagnostic, PostprocError
+from ..core.diagnostics import P309, P311, P313, P314, P319, Diagnostic, PostprocError
 from ..model.compensator import Compensator
 from ..programs import Program
+from ..programs.locate import where
 from ..robot.conventions import _DIALECT_NAMES, DIALECT_CONTROLLERS, controller_of
 
 __all__ = [
@@ -103,8 +104,11 @@ def configuration_mismatch(program: Program, model: Compensator, rows: np.ndarra
     training plans take), to be left as written, and their P313 warnings. Without a robot
     description for the model's robot every target that states S/T is left (it cannot be
     checked). Targets that state no S/T keep the model's branch."""
+    from ..robot.conventions import ignored_status_turn
+
     config = program.targets.config
     stated = (config[rows] >= 0).any(axis=1) if config is not None else np.zeros(len(rows), bool)
+    stated &= ~ignored_status_turn(program, rows)  # (a KRL LIN's S/T: not read, the configuration is kept)
     if not stated.any():
         return np.zeros(len(rows), bool), []
     from ..robot import configuration
@@ -135,6 +139,40 @@ def configuration_mismatch(program: Program, model: Compensator, rows: np.ndarra
     return bad, collect(program, rows[bad], P313, "the target's S/T put the arm in another configuration than "
                         "the one this model evaluates (a model without the 'joints' input knows one branch): "
                         "left as it is")
+
+
+def _kept_notes(program: Program, robot, rows: np.ndarray, q: np.ndarray, ok: np.ndarray) -> list[Diagnostic]:
+    """P314 (notes): KRL LIN/CIRC targets whose written S/T state another configuration than the
+    one the robot keeps there (the branch, S bits 0–2, or a joint's sign, T, other than that of
+    ``q``: the joint angles of the kept configuration), which they are compensated for."""
+    from ..robot import conventions
+    from ..robot.configuration import SIGN_TOLERANCE_DEG
+
+    ignored = conventions.ignored_status_turn(program, rows) & ok
+    if not ignored.any():
+        return []
+    at = np.flatnonzero(ignored)
+    written = np.asarray(program.targets.config[rows[at]], int)
+    kept_s, kept_t = conventions.status_turn_of(robot, q[at])
+    near_zero = (np.abs(q[at]) < SIGN_TOLERANCE_DEG).astype(int) << np.arange(6)  # (either sign fits)
+    near_zero = near_zero.sum(axis=1)
+    other_s = (written[:, 0] >= 0) & (conventions.arm_status(written[:, 0]) != kept_s)
+    other_t = (written[:, 1] >= 0) & (((written[:, 1] ^ kept_t) & 0b111111 & ~near_zero) != 0)
+    differ = other_s | other_t
+    if not differ.any():
+        return []
+    shown = at[differ]
+    kept = [(int(kept_s[i]), int(kept_t[i])) for i in np.flatnonzero(differ)]
+    written_st = [tuple(int(v) for v in written[i]) for i in np.flatnonzero(differ)]
+
+    def text(i):
+        (s, t), (ws, wt) = kept[i], written_st[i]
+        said = ", ".join(x for x in (f"S {ws}" if ws >= 0 else "", f"T {wt}" if wt >= 0 else "") if x)
+        return (f"a LIN or CIRC keeps the arm configuration the robot is in (the controller reads S/T on PTP only): "
+                f"it runs this target in S {s}, T {t}, not the {said} written here, and it is compensated for the one "
+                f"it runs (the S/T stay as written)")
+
+    return [Diagnostic(*where(program, int(rows[r])), P314, text(k), "note") for k, r in enumerate(shown)]
 
 
 def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, sel: np.ndarray,
@@ -184,6 +222,7 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
                 chain.origin = start
         q, ok = configuration.target_joints(robot, t, rows, sel, tools,
                                             start[0] if np.isfinite(start).all() else None, chain, stated, order)
+        warnings += _kept_notes(program, robot, rows, q, ok)
         changes = configuration.linear_changes(robot, t, rows, stated, q, order) & ok
         if changes.any():
             warnings += collect(program, rows[changes], P309, "a linear motion cannot change the arm configuration, and "

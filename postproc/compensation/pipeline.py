@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from ..core.diagnostics import (
-    LEFT_AS_WRITTEN, P201, P203, P212, P220, P221, P224, P225, P230, P231, P306, P312, P321, P322, P340, Diagnostic,
+    LEFT_AS_WRITTEN, P201, P203, P212, P220, P221, P224, P225, P230, P231, P306, P312,
+    P314, P321, P322, P340, Diagnostic,
     PostprocError,
 )
 from ..core.outputs import check_outputs, write
@@ -91,6 +92,10 @@ class Report:
         dead_band = sum(n.code == P321 for n in self.notes)
         if dead_band:
             details += f", {dead_band} in a joint's backlash dead band (P321, -v)"
+        kept = sum(n.code == P314 for n in self.notes)
+        if kept:
+            details += (f", {kept} LIN/CIRC run{'s' * (kept == 1)} in the configuration kept, not the S/T written "
+                        "(P314, -v)")
         approaches = sum(n.code == P322 for n in self.notes)
         if approaches:
             details += f", {approaches} reached from several places (P322, -v)"

@@ -106,6 +106,9 @@ P310 = _code("P310", "error", "the model was trained on another robot than the c
 P311 = _code("P311", "error", "a model with a joints input for a robot postproc has no description of")
 P312 = _code("P312", "error", "--orientation where a target does not write all of its orientation's numbers (A/B/C, q1..q4, rx,ry,rz) or the reader does not locate them")
 P313 = _code("P313", "warning", "the target's S/T is another arm configuration than the model evaluates: left as written")
+P314 = _code("P314", "note", "(compensate -v, check) a KRL LIN or CIRC writes S/T the controller does not read: the "
+             "robot runs it in the configuration it is in, another than the S/T written, and it is compensated for "
+             "that one (the S/T stay as written)")
 P317 = _code("P317", "error", "train --update: the old model has no identification to re-fit (a DNN/gpso model, an "
              "older card), --method is not hybrid/kinematic, or the new rows name other tools")
 P318 = _code("P318", "error", "train --update: the old model is of another robot description than --robot (name or "

@@ -39,6 +39,7 @@ import numpy as np
 
 from ..core import frames
 from ..core.diagnostics import P514
+from . import conventions
 from .arm import Robot
 from .conventions import (TURN_JOINTS, UNSTATED, _abb_branch, arm_status, execution_kinds, parse_fanuc_config,
                           status_turn_of)
@@ -565,8 +566,9 @@ def stated_configuration(program, description, rows: np.ndarray) -> tuple[Stated
     """What targets ``rows`` of a program state of their arm configuration, mapped on the branch
     table of ``description`` (a RobotDescription): (:class:`Stated`, a mask [n] of the rows whose
     stated form the description cannot say or that is malformed — left as written, P309 —, and
-    the reason of each of those, in order). KUKA's S/T (``Targets.config``) is read on any arm;
-    ABB's confdata (``RapidProgram.confdata``) only for a description whose ``configuration`` is
+    the reason of each of those, in order). KUKA's S/T (``Targets.config``) is read on any arm,
+    on the motions that read it (a KRL LIN or CIRC keeps the configuration the robot is in: its
+    S/T count as not stated, ``conventions.ignored_status_turn``); ABB's confdata (``RapidProgram.confdata``) only for a description whose ``configuration`` is
     "abb", FANUC's CONFIG (``FanucProgram.configs``) only for "fanuc": never a guess."""
     rows = np.asarray(rows, int)
     n = len(rows)
@@ -575,6 +577,8 @@ def stated_configuration(program, description, rows: np.ndarray) -> tuple[Stated
         stated = Stated.unstated(n)
     else:
         stated = Stated(np.asarray(config[rows, 0], int), np.asarray(config[rows, 1], int))
+        ignored = conventions.ignored_status_turn(program, rows)  # (KRL's LIN, CIRC: the configuration kept)
+        stated.status[ignored], stated.turn[ignored] = UNSTATED, UNSTATED
     unmapped = np.zeros(n, bool)
     why: list[str] = []
     form = getattr(description, "configuration", "")
