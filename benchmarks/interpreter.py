@@ -7,6 +7,12 @@ paths (``postproc.testing.oracle.check``). Prints per dialect how many programs,
 targets were looked at and the violations; writes benchmarks/results/interpreter.json.
 
     python benchmarks/interpreter.py --dialect all --examples 200 --seeds 4
+    python benchmarks/interpreter.py --joints      (KRL with S/T on PTP and CP motions, a model of the joints)
+
+``--joints``: KRL programs whose points and literal targets write S/T (a LIN's the controller
+ignores, a PTP's it reads), compensated with a model E = G·sin(q) of the controller's joint
+angles; the check evaluates it at the configuration the controller really runs on each path
+(results: interpreter_joints.json).
 """
 from __future__ import annotations
 
@@ -20,15 +26,20 @@ from hypothesis import HealthCheck, given, settings
 
 from _common import record
 from postproc.model.compensator import load_model
-from postproc.testing.generate import dialect_cases
-from postproc.testing.models import affine_model
+from postproc.testing.generate import dialect_cases, krl_programs
+from postproc.testing.models import affine_model, joint_model
 from postproc.testing.oracle import check
 
 DIALECTS = ("krl", "rapid", "urscript", "fanuc")
+# E = G·sin(q), mm: each coordinate of the correction a function of some joints (--joints)
+JOINT_GAIN = np.array([[0.0, 0.3, 0.0, 0.4, 0.0, 0.5], [0.2, 0.0, 0.0, 0.0, 0.6, 0.0], [0.0, 0.0, 0.3, 0.0, 0.0, 0.4]])
 
 
-def bench(dialect: str, model, examples: int, seeds: int, depth: int, dump: str | None = None) -> dict:
+def bench(dialect: str, model, examples: int, seeds: int, depth: int, dump: str | None = None,
+          configurations: bool = False) -> dict:
     programs, active = dialect_cases(dialect, depth)
+    if configurations:
+        programs = krl_programs(depth, configurations=True)
     totals = dict(programs=0, paths=0, motions=0, compensated=0, untouched=0, refused=0, violations=0)
     found: list = []
     t0 = time.perf_counter()
@@ -74,7 +85,16 @@ def main() -> None:
     parser.add_argument("--previous-gain", type=float, default=5e-5,
                         help="how much the model's correction depends on where the robot comes from (mm per mm): "
                              "larger makes a wrong predecessor show (5e-4: 0.1 mm over 200 mm)")
+    parser.add_argument("--joints", action="store_true",
+                        help="KRL with S/T, a model of the controller's joint angles (module text)")
     args = parser.parse_args()
+    if args.joints:
+        with tempfile.TemporaryDirectory() as tmp:
+            model = load_model(joint_model(Path(tmp) / "j.onnx", JOINT_GAIN,
+                                           tool={"name": "spindle", "frame": [300, 0, 75, 0, 0, 0]}))
+        results = {"krl": bench("krl", model, args.examples, args.seeds, args.depth, args.dump, configurations=True)}
+        record("interpreter_joints", dict(dialects=results, examples=args.examples, seeds=args.seeds, depth=args.depth))
+        return
     gain = np.array([[2e-3, 5e-4, 0.0], [0.0, 1.5e-3, 4e-4], [3e-4, 0.0, 2.5e-3]])
     with tempfile.TemporaryDirectory() as tmp:
         model = load_model(affine_model(Path(tmp) / "m.onnx", offset=(0.2, -0.1, 0.15), gain=gain,

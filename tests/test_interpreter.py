@@ -17,7 +17,7 @@ from postproc.programs.interpreter import Oracle, run
 from postproc.testing.generate import (
     LS_FRAMES, dialect_cases, krl_programs, ls_programs, rapid_programs, urscript_programs,
 )
-from postproc.testing.models import affine_model
+from postproc.testing.models import affine_model, joint_model
 from postproc.testing.oracle import check
 
 STATED = ActiveFrames(base=0, tool="model")
@@ -84,6 +84,25 @@ def test_never_silently_wrong_on_random_krl_programs(model, program):
     files, texts, config = program
     checked = check(files, texts, "krl", model, config=config, active=STATED, seeds=range(3))
     assert checked.violations == [], "\n".join(checked.violations) + "\n" + texts[0]
+
+
+@pytest.fixture(scope="module")
+def joints(tmp_path_factory):
+    """E = G·sin(q): a model of the controller's joint angles (the configuration decides it)."""
+    gain = np.array([[0.0, 0.3, 0.0, 0.4, 0.0, 0.5], [0.2, 0.0, 0.0, 0.0, 0.6, 0.0], [0.0, 0.0, 0.3, 0.0, 0.0, 0.4]])
+    path = tmp_path_factory.mktemp("j") / "j.onnx"
+    return load_model(joint_model(path, gain, tool={"name": "spindle", "frame": [300, 0, 75, 0, 0, 0]}))
+
+
+@settings(max_examples=20, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(krl_programs(configurations=True))
+def test_never_silently_wrong_where_the_controller_keeps_or_reads_the_configuration(joints, program):
+    """KRL points and literal targets writing S/T (a PTP's read, a LIN's not: the robot keeps the
+    configuration it is in), a model of the joints: every executed target at P + Ê(q) for the q
+    the controller really runs on its path (issue 39)."""
+    files, texts, config = program
+    checked = check(files, texts, "krl", joints, config=config, active=STATED, seeds=range(3))
+    assert checked.violations == [], "\n".join(checked.violations) + "\n" + texts[0] + texts[1]
 
 
 def _property(model, program, dialect):

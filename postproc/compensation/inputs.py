@@ -141,6 +141,17 @@ def configuration_mismatch(program: Program, model: Compensator, rows: np.ndarra
                         "left as it is")
 
 
+def first_joints(model: Compensator, robot, pose: np.ndarray, tool: np.ndarray | None = None) -> np.ndarray:
+    """[1, 6] deg: the axis position compensate assumes before a program's first target (what
+    the robot was doing before the program is not in it): the branch the model's own IK gives
+    that target (its ``ik_joints`` output), else the nominal IK nearest HOME (NaN: none)."""
+    start, _ = robot.ik(pose, robot.home_q)
+    if model.has_joints and np.isfinite(start).all():  # the branch of the model's own IK
+        _, own = model.predict(pose, joints=start, tool=tool, with_joints=True)
+        start = own if own is not None and np.isfinite(own).all() else start
+    return start
+
+
 def _kept_notes(program: Program, robot, rows: np.ndarray, q: np.ndarray, ok: np.ndarray) -> list[Diagnostic]:
     """P314 (notes): KRL LIN/CIRC targets whose written S/T state another configuration than the
     one the robot keeps there (the branch, S bits 0–2, or a joint's sign, T, other than that of
@@ -213,11 +224,7 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
         if chain is not None and chain.joints is not None:
             start = chain.origin
         else:
-            start, _ = first.ik(sel[:1], robot.home_q)
-            if model.has_joints and np.isfinite(start).all():  # the branch of the model's own IK
-                _, own = model.predict(sel[:1], joints=start, tool=tools[:1] if model.wants_tool else None,
-                                       with_joints=True)
-                start = own if own is not None and np.isfinite(own).all() else start
+            start = first_joints(model, first, sel[:1], tools[:1] if model.wants_tool else None)
             if chain is not None:
                 chain.origin = start
         q, ok = configuration.target_joints(robot, t, rows, sel, tools,

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core import frames as fr
+from ..robot.conventions import MOTIONS
 from .analysis.execute import Analysis, Recorder, State
 from .analysis.values import Arr, Mat, Rec, Six, Top, number
 from .ir import Agg, Continue, Exit, Goto, Halt, If, Invoke, Label, Loc, Loop, Move, MoveRun, Name, Return, Switch
@@ -50,6 +51,8 @@ class Motion:
     loc: Loc | None = None
     token: tuple | None = None
     axes: list | None = None  # (a joint motion: its six axis values where known, deg)
+    motion: str = ""  # the motion kind (robot.conventions.MOTIONS: a run's row its own)
+    config: tuple = (-1, -1)  # the configuration its target writes: KRL's (S, T), -1 not written
 
 
 class Oracle:
@@ -290,7 +293,8 @@ class Interpreter(Analysis):
         if view is not None and view.xyz and hasattr(view.xyz[0], "token"):
             token = view.xyz[0].token[:2]
         self.motions.append(Motion(s.loc, s.kind, m, tool if not isinstance(tool, Top) else None,
-                                   view.loc if view is not None else None, token))
+                                   view.loc if view is not None else None, token, motion=s.kind,
+                                   config=tuple(view.config) if view is not None and view.config else (-1, -1)))
         if s.chain:
             st.cur = (m, frame, tool) if m is not None else None
         return st
@@ -342,7 +346,9 @@ class Interpreter(Analysis):
             if isinstance(frame, Mat) and six is not None and np.isfinite(six).all():
                 m = frame.m @ fr.frame_to_matrix(six)
             token = (int(r["file"][i]), int(r["spans"][i, 0])) if r["spans"][i, 0] >= 0 else None
-            self.motions.append(Motion(site, "row", m, tool if not isinstance(tool, Top) else None, site, token))
+            self.motions.append(Motion(site, "row", m, tool if not isinstance(tool, Top) else None, site, token,
+                                       motion=MOTIONS[int(r["motion"][i])],
+                                       config=tuple(int(v) for v in r["config"][i])))
             if r["chain"][i]:
                 st.cur = (m, frame, tool) if m is not None else None
         return st

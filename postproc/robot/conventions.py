@@ -97,19 +97,19 @@ _INDEPENDENT = ("row",)
 # Motions on which KUKA's controller does not read Status and Turn: a CP motion (LIN, CIRC and
 # their spline forms, SPL) keeps the configuration the robot is in (KSS manual, "Status and
 # Turn": "only taken into account for PTP motions"), whatever its aggregate writes.
-_KUKA_KEEPS = ("LIN", "CIRC-aux", "CIRC-end", "SLIN", "SCIRC-aux", "SCIRC-end", "SPL")
+KUKA_KEEPS = ("LIN", "CIRC-aux", "CIRC-end", "SLIN", "SCIRC-aux", "SCIRC-end", "SPL")
 
 
 def ignored_status_turn(program, rows: np.ndarray) -> np.ndarray:
     """[n] bool: the rows of ``rows`` whose S or T the controller does not read — in a KRL
-    program, the targets of CP motions (``_KUKA_KEEPS``) that write them. The arm runs them in
+    program, the targets of CP motions (``KUKA_KEEPS``) that write them. The arm runs them in
     the configuration it is in; what they write is kept in the text, never used."""
     rows = np.asarray(rows, int)
     config = getattr(program.targets, "config", None)
     if program.dialect != "krl" or config is None or not len(rows):
         return np.zeros(len(rows), bool)
     keeps = np.zeros(len(MOTIONS), bool)
-    keeps[[MOTIONS.index(m) for m in _KUKA_KEEPS]] = True
+    keeps[[MOTIONS.index(m) for m in KUKA_KEEPS]] = True
     motion = np.asarray(program.targets.motion)[rows].astype(np.intp)
     known = (motion >= 0) & (motion < len(MOTIONS))
     return known & keeps[np.where(known, motion, 0)] & (np.asarray(config)[rows] >= 0).any(axis=1)

@@ -23,14 +23,26 @@ SUBS = ("DEF lift(P:OUT)\n  DECL E6POS P\n  P.Z = P.Z + 120\nEND\n"
 _coord = st.integers(-300, 300)
 
 
-def _point(draw, name: str) -> str:
+def _point(draw, name: str, configurations: bool = False) -> str:
     x, y, z = draw(_coord), draw(_coord), draw(st.integers(-200, 250))
-    return f"DECL E6POS {name}={{X {2000 + x}.0,Y {y}.5,Z {900 + z}.0,A 0.0,B 90.0,C 0.0}}"
+    return f"DECL E6POS {name}={{X {2000 + x}.0,Y {y}.5,Z {900 + z}.0,A 0.0,B 90.0,C 0.0{_st(draw, configurations)}}}"
+
+
+def _st(draw, configurations: bool) -> str:
+    """``,S s,T t`` (or S alone, or nothing) where ``configurations``: the arm branches every
+    generated pose has on the KR500 (S 2, S 6: the wrist either way; with bit 4, which says
+    nothing of the arm), turns of the wrist joints."""
+    if not configurations or not draw(st.booleans()):
+        return ""
+    s = draw(st.sampled_from([2, 6, 18, 22]))
+    t = draw(st.sampled_from([None, 0, 8, 32, 40, 58]))
+    return f",S {s}" + (f",T {t}" if t is not None else "")
 
 
 @st.composite
-def _statements(draw, depth: int, labels: list):
+def _statements(draw, depth: int, labels: list, configurations: bool = False):
     out = []
+    cf = configurations
     for _ in range(draw(st.integers(1, 4))):
         k = draw(st.integers(1, 4))
         choice = draw(st.integers(0, 15 if depth > 0 else 10))
@@ -40,7 +52,8 @@ def _statements(draw, depth: int, labels: list):
             out.append(f"PTP XP{k}")
         elif choice == 2:
             x, y, z = draw(_coord), draw(_coord), draw(st.integers(-150, 200))
-            out.append(f"LIN {{X {2000 + x}.25,Y {y}.75,Z {900 + z}.5,A 0.0,B 90.0,C 0.0}}")
+            motion = "PTP" if cf and draw(st.booleans()) else "LIN"
+            out.append(f"{motion} {{X {2000 + x}.25,Y {y}.75,Z {900 + z}.5,A 0.0,B 90.0,C 0.0{_st(draw, cf)}}}")
         elif choice == 3:
             out.append(f"LIN {{Z {900 + draw(st.integers(-100, 150))}.0}}")
         elif choice == 4:
@@ -64,8 +77,8 @@ def _statements(draw, depth: int, labels: list):
             out.append(f"LIN XP{k}")
             out.append(f"{label}:")
         elif choice in (11, 12):
-            then = draw(_statements(depth - 1, labels))
-            other = draw(_statements(depth - 1, labels)) if draw(st.booleans()) else []
+            then = draw(_statements(depth - 1, labels, cf))
+            other = draw(_statements(depth - 1, labels, cf)) if draw(st.booleans()) else []
             out.append(f"IF $IN[{k}] THEN")
             out += ["  " + s for s in then]
             if other:
@@ -74,11 +87,11 @@ def _statements(draw, depth: int, labels: list):
             out.append("ENDIF")
         elif choice == 13:
             out.append("FOR I = 1 TO 2")
-            out += ["  " + s for s in draw(_statements(depth - 1, labels))]
+            out += ["  " + s for s in draw(_statements(depth - 1, labels, cf))]
             out.append("ENDFOR")
         elif choice == 14:
             out.append(f"WHILE $IN[{k + 4}]")
-            out += ["  " + s for s in draw(_statements(depth - 1, labels))]
+            out += ["  " + s for s in draw(_statements(depth - 1, labels, cf))]
             out.append("ENDWHILE")
         else:
             out.append(f"SWITCH nB\nCASE 1\n  LIN XP{k}\nCASE 2\n  BAS(#BASE, 1)\nDEFAULT\n  LIN XP{draw(st.integers(1, 4))}"
@@ -87,12 +100,14 @@ def _statements(draw, depth: int, labels: list):
 
 
 @st.composite
-def krl_programs(draw, depth: int = 2):
-    """(files, texts, config texts) of a random KRL module (see the module text)."""
+def krl_programs(draw, depth: int = 2, configurations: bool = False):
+    """(files, texts, config texts) of a random KRL module (see the module text); with
+    ``configurations`` its points and literal targets write S/T (``_st``) and some literal
+    targets are PTPs: a LIN's S/T the controller does not read, a PTP's it does."""
     labels: list = []
-    body = ["BAS(#BASE, 0)", "nB = 1"] + draw(_statements(depth, labels))
+    body = ["BAS(#BASE, 0)", "nB = 1"] + draw(_statements(depth, labels, configurations))
     src = ("DEF t( )\n  DECL INT nB, I\n  EXT gripper()\n" + "".join(f"  {s}\n" for s in body) + "END\n" + SUBS)
-    dat = ("DEFDAT t\n" + "".join(f"  {_point(draw, f'XP{i}')}\n" for i in range(1, 5)) +
+    dat = ("DEFDAT t\n" + "".join(f"  {_point(draw, f'XP{i}', configurations)}\n" for i in range(1, 5)) +
            "  DECL FRAME XF={X 20.0,Y 10.0,Z -5.0,A 3.0,B 0.0,C 0.0}\nENDDAT\n")
     return ["t.src", "t.dat"], [src, dat], [CONFIG]
 

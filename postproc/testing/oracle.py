@@ -16,6 +16,12 @@ What compensate assumes where nothing is known before a target (the program's fi
 axis motion, after a target left with its frame not known): the model's own rule for a target
 with no predecessor (``previous_pose`` itself); the check assumes the same there.
 
+A model that takes the controller's joint angles (``joints``) is evaluated at the configuration
+the controller really runs along each path (:func:`_controller`): KUKA's rules on the path's
+commands — S/T read on PTP, a LIN or CIRC keeping the configuration it is in, a PTP without S/T
+nearest the current axes — from the axes a joint motion left, else from the position compensate
+assumes before a program's first target (``compensation.inputs.first_joints``).
+
 Returned: the violations found (empty: the property holds), and how many paths and motions were
 looked at. Used by ``tests/test_interpreter.py`` (a fast profile) and ``benchmarks/interpreter.py``.
 """
@@ -86,6 +92,51 @@ def _axes_pose(model, program=None):
     return lambda axes: robot.fk(np.asarray([axes], float))[0]
 
 
+def _controller(model, program):
+    """For a KRL program and a model with the ``joints`` input (and without ``tool``: its tool
+    the program's, as the generated programs run with ``--tool model``): a function of a path's
+    motions → the joint angles [n, 6] deg the controller runs each commanded Cartesian motion in
+    (NaN: none, or not a Cartesian motion); None where the check has no such model."""
+    from ..compensation.inputs import first_joints, model_description, model_tool
+    from ..robot import configuration, conventions
+    from ..robot.arm import Robot
+
+    description = model_description(model) if model.wants_joints and not model.wants_tool else None
+    if description is None or program.dialect != "krl":
+        return None
+    robot = Robot(description.replace(tool=model_tool(model, description)))
+    keeps = set(conventions.KUKA_KEEPS)
+
+    def joints(motions) -> np.ndarray:
+        q = np.full((len(motions), 6), np.nan)
+        run: list[int] = []
+        start = None
+
+        def flush():
+            if not run:
+                return
+            poses = np.array([_six(motions[i].base) for i in run])
+            config = np.array([(-1, -1) if motions[i].motion in keeps else motions[i].config for i in run], int)
+            ptp = np.array([motions[i].motion in ("PTP", "SPTP") for i in run])
+            initial = start if start is not None else first_joints(model, robot, poses[:1])[0]
+            if not np.isfinite(initial).all():
+                return
+            got, found = configuration.controller_joints(robot, poses, config[:, 0], config[:, 1], ptp,
+                                                         np.asarray(initial, float))
+            q[[i for i, f in zip(run, found) if f]] = got[found]
+
+        for i, m in enumerate(motions):
+            if m.base is None:  # (a joint motion: the axes it leaves, where known; else what compensate assumes)
+                flush()
+                run, start = [], (np.asarray(m.axes, float) if m.axes is not None else None)
+                continue
+            run.append(i)
+        flush()
+        return q
+
+    return joints
+
+
 def check(files, texts, dialect: str, model, config=None, active=None, seeds=range(4), tol_mm: float = TOL_MM,
           settings=None) -> Checked:
     """Compensate ``texts`` with ``model`` (a Compensator; ``settings``: a Settings, default the
@@ -120,6 +171,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
     unit_a, dialect_a = lowered(files, texts, dialect, config, active)
     unit_b, dialect_b = lowered(files, new_texts, dialect, config, active)
     axes_pose = _axes_pose(model, program)
+    controller = _controller(model, program)
     # targets compensate reached from nothing known: Targets.prev -1, or a predecessor whose pose in
     # the robot base is not known (its frame or its numbers): the model's first-target rule. Kept as
     # pairs (the motion: its statement and its target's place; its predecessor's, or ANY where the
@@ -153,6 +205,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                 continue
             prev = None
             came = None  # (the predecessor motion: its statement and its target's place)
+            q_run = controller(b) if controller is not None else None
             for i, (ma, mb) in enumerate(zip(a, b)):
                 if ma.base is None or mb.base is None:
                     # (a joint motion to known axis values: the robot comes from the TCP they give)
@@ -162,7 +215,14 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                 out.motions += 1
                 p, c = _six(ma.base), _six(mb.base)
                 previous = prev if prev is not None else c
-                e = model.predict(c[None], previous[None] if model.wants_previous else None)[0]
+                q = None if q_run is None else q_run[i][None]
+                if q is not None and not np.isfinite(q).all():
+                    q = None  # (no configuration the controller can run: compensate must leave it)
+                    if np.abs(c[:3] - p[:3]).max() > 1e-6:
+                        out.violations.append(f"seed {seed} {entry}: motion {i} at {files[ma.site.file]}:"
+                                              f"{ma.site.line} is compensated and the controller has no joint "
+                                              "angles for it")
+                e = model.predict(c[None], previous[None] if model.wants_previous else None, joints=q)[0]
                 moved = np.abs(c[:3] - p[:3]).max() > 1e-6
                 if moved:
                     out.compensated += 1
@@ -183,7 +243,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                             f"P + Ê (allowed {allowed:.4f})")
                 else:
                     e0 = model.predict(p[None], (prev if prev is not None else p)[None] if model.wants_previous
-                                       else None)[0]
+                                       else None, joints=q)[0]
                     if np.linalg.norm(e0) > tol_mm:
                         out.untouched += 1
                         if report.complete:
