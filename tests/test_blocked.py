@@ -62,6 +62,7 @@ def test_regions_are_octants_and_whole_arm_configurations():
     assert len(np.bincount(dict(folds(q, branches))["configurations"])) == 3
 
 
+@pytest.mark.slow
 def test_train_reports_the_blocked_figures_and_what_it_chose(tmp_path, capsys):
     """The IPA Series C excerpt (150 rows, one arm configuration): the card carries the blocked
     held-out figures beside the random ones and the selection; train prints both."""

@@ -110,6 +110,7 @@ def _accuracy(sim, model, cases_wanted):
     return after
 
 
+@pytest.mark.slow
 def test_a_flipped_wrist_with_s_t_is_compensated_as_well_as_the_training_configuration(trained):
     sim, model = trained
     after = _accuracy(sim, model, ["training", "flipped"])

@@ -37,9 +37,27 @@ def cell(tmp_path_factory):
     return d
 
 
-def test_fleet_trains_each_robot_and_the_bad_one_fails_alone(cell, capsys):
+@pytest.fixture(scope="module")
+def first_run(cell):
+    """(exit code, output folder) of the fleet's first run, on the local cluster the command starts
+    (one robot trained at a time); its r1 model is a previous model below."""
     out = cell / "out"
-    assert main(["fleet", str(cell / "fleet.toml"), "-o", str(out), "--format", "csv"]) == 1
+    return main(["fleet", str(cell / "fleet.toml"), "-o", str(out), "--format", "csv", "--workers", "1"]), out
+
+
+@pytest.fixture(scope="module")
+def scheduler():
+    """The address of a cluster the later runs share (its workers import their libraries once)."""
+    from postproc.fleet.cluster import _local_cluster
+
+    with _local_cluster(1) as cluster:
+        yield cluster.scheduler_address
+
+
+@pytest.mark.slow
+def test_fleet_trains_each_robot_and_the_bad_one_fails_alone(cell, first_run, scheduler, capsys):
+    code, out = first_run
+    assert code == 1
     rows = {line.split(",")[0]: line.split(",") for line in (out / "fleet.csv").read_text().splitlines()[1:]}
     assert set(rows) == {"r1", "r2", "bad"}
     for s in ("r1", "r2"):
@@ -58,7 +76,7 @@ def test_fleet_trains_each_robot_and_the_bad_one_fails_alone(cell, capsys):
     # rerun: the good robots are skipped, the bad one is tried again; fix it and it passes
     capsys.readouterr()
     (cell / "bad.csv").write_text((cell / "r2.csv").read_text())
-    assert main(["fleet", str(cell / "fleet.toml"), "-o", str(out)]) == 0
+    assert main(["fleet", str(cell / "fleet.toml"), "-o", str(out), "--scheduler", scheduler]) == 0
     table = capsys.readouterr().out
     assert table.count("(unchanged)") == 2 and "| bad |" in table
 
@@ -92,19 +110,20 @@ def test_moved_parameters_against_the_previous_card():
     assert moved_parameters(new, None) == []
 
 
-def test_fleet_previous_model_is_updated(cell, capsys):
+@pytest.mark.slow
+def test_fleet_previous_model_is_updated(cell, first_run, scheduler, capsys):
     """A robot with a ``previous`` model is re-calibrated from it (train --update): its card
     says so and the fleet table lists what moved; a previous model with nothing identified
     fails that robot alone (P317)."""
     out = cell / "upd"
-    assert main(["train", str(cell / "r1.csv"), "-o", str(cell / "old1.onnx"), "--method", "kinematic", "-q"]) == 0
+    old1 = first_run[1] / "r1" / "model.onnx"  # r1 identified by the fleet's first run (kinematic)
     assert main(["train", str(cell / "r1.csv"), "-o", str(cell / "dnn.onnx"), "--method", "plain", "--epochs", "5",
                  "--hidden", "4", "-q"]) == 0
     (cell / "update.toml").write_text(
         '[defaults]\nmethod = "kinematic"\nargs = ["--val-fraction", "0.2"]\n\n'
-        '[[robot]]\nname = "r1"\ndata = "r1.csv"\nprevious = "old1.onnx"\n\n'
+        f'[[robot]]\nname = "r1"\ndata = "r1.csv"\nprevious = "{old1.as_posix()}"\n\n'
         '[[robot]]\nname = "r2"\ndata = "r2.csv"\nprevious = "dnn.onnx"\n')
-    assert main(["fleet", str(cell / "update.toml"), "-o", str(out), "--format", "csv"]) == 1
+    assert main(["fleet", str(cell / "update.toml"), "-o", str(out), "--format", "csv", "--scheduler", scheduler]) == 1
     rows = {line.split(",")[0]: line for line in (out / "fleet.csv").read_text().splitlines()[1:]}
     card = json.loads((out / "r1" / "model-card.json").read_text())
     # (the data measured the orientation, which old1 fitted: the probe's turn is re-fitted too)
@@ -116,6 +135,7 @@ def test_fleet_previous_model_is_updated(cell, capsys):
     assert "P317" in rows["r2"]
 
 
+@pytest.mark.slow
 def test_local_cluster_trains_where_onnxruntime_never_is(tmp_path):
     """The local cluster: training workers (no more than robots), which never import onnxruntime
     (it slows torch's ONNX export) and run torch on one thread, and a report worker that reads

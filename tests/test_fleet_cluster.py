@@ -66,6 +66,7 @@ def cluster(tmp_path):
         log.close()
 
 
+@pytest.mark.slow
 def test_fleet_on_an_external_scheduler_and_workers(cluster, tmp_path, monkeypatch, capsys):
     from postproc.model.training.synthetic import synthetic_measurements, to_csv
 

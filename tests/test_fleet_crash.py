@@ -30,6 +30,7 @@ class CrashOn(WorkerPlugin):
         fleet.train_robot = train_robot
 
 
+@pytest.mark.slow
 def test_a_robot_that_kills_its_worker_fails_alone(tmp_path):
     import dask
     from dask.distributed import Client, LocalCluster

@@ -48,6 +48,7 @@ def simulated(tmp_path_factory):
     return d
 
 
+@pytest.mark.slow
 def test_orientation_compensation_reaches_the_simulated_targets(simulated):
     d = simulated
     model = load_model(d / "m.onnx")

@@ -71,16 +71,24 @@ def old(kr500, tmp_path_factory):
     return path, model
 
 
+@pytest.fixture(scope="module")
+def remastered(kr500, old):
+    """(robot, poses, errors, update): the robot re-mastered with a new tracker set-up, 30 rows of
+    it and OLD updated from them (the update two tests look at)."""
+    sim = _changed(SimulatedRobot(kr500, seed=3))
+    poses, errors = _campaign(sim, 30, 7)
+    return sim, poses, errors, update_model(read_old_model(old[0], kr500), kr500, poses, errors, previous_poses(poses))
+
+
 def _mean(errors, predicted):
     return float(np.linalg.norm(errors - predicted, axis=1).mean())
 
 
-def test_update_recovers_remastering_and_a_new_tracker_from_30_rows(kr500, old):
-    path, model = old
-    sim = _changed(SimulatedRobot(kr500, seed=3))
-    poses, errors = _campaign(sim, 30, 7)
+@pytest.mark.slow
+def test_update_recovers_remastering_and_a_new_tracker_from_30_rows(kr500, old, remastered):
+    _, model = old
+    sim, _, _, update = remastered
     held, held_errors = _campaign(sim, 300, 8)
-    update = update_model(read_old_model(path, kr500), kr500, poses, errors, previous_poses(poses))
     prev = previous_poses(held)
     full_poses, full_errors = _campaign(sim, 300, 9)
     full = HybridModel(kr500, **SETTINGS).fit(full_poses, full_errors, previous_poses(full_poses))
@@ -120,9 +128,10 @@ def test_update_on_an_unchanged_robot_moves_nothing(kr500, old):
     assert _mean(held_errors, update.model.predict(held, prev)) < 1.2 * _mean(held_errors, model.predict(held, prev))
 
 
-def test_train_update_cli_writes_the_moved_parameters(kr500, old, tmp_path, capsys):
+@pytest.mark.slow
+def test_train_update_cli_writes_the_moved_parameters(old, remastered, tmp_path, capsys):
     path, _ = old
-    poses, errors = _campaign(_changed(SimulatedRobot(kr500, seed=3)), 30, 7)
+    _, poses, errors, _ = remastered
     data = _csv(tmp_path / "new.csv", poses, errors)
     out = tmp_path / "new.onnx"
     assert main(["train", str(data), "-o", str(out), "--update", str(path), "--val-fraction", "0"]) == 0
@@ -229,16 +238,14 @@ def test_update_reads_back_every_residual_network(kr500, tmp_path):
             assert torch.allclose(mine(x), read(x), atol=1e-6)
 
 
-def test_an_updated_model_keeps_stating_its_uncertainty(kr500, old, tmp_path):
+def test_an_updated_model_keeps_stating_its_uncertainty(old, remastered, tmp_path):
     """OLD with ``error_std``: the update exports it too, from OLD's covariance of what it kept
     and the re-fit's of what it moved, at the new rows' residual level — so compensate's P336
     bound goes on holding after a re-calibration (was: the output was dropped)."""
     path, _ = old
     before = load_model(path)
     assert before.has_std
-    sim = _changed(SimulatedRobot(kr500, seed=3))
-    poses, errors = _campaign(sim, 30, 7)
-    update = update_model(read_old_model(path, kr500), kr500, poses, errors, previous_poses(poses))
+    sim, _, _, update = remastered
     new = load_model(update.model.export_onnx(tmp_path / "new.onnx", name="new"))
     assert new.has_std and new.max_std_mm is not None
     held = latin_hypercube(200, seed=9)
@@ -262,6 +269,7 @@ def _oriented_campaign(sim: SimulatedRobot, n: int, seed: int):
     return poses, poses[:, :3] - measured[:, :3], rotation_error_deg(poses[:, 3:], measured[:, 3:])
 
 
+@pytest.mark.slow
 def test_update_refits_the_orientation_where_the_new_rows_measure_it(kr500, tmp_path):
     """OLD fitted position and orientation; the robot is re-mastered and its probe mounted
     again, turned: 30 rows with orientations give a model that keeps ``rotation_error`` and
