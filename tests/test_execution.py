@@ -234,6 +234,8 @@ def test_a_point_also_run_at_an_offset_is_compensated_for_itself_and_the_offset_
     new, dat, report, checked = run(model, src, DAT)
     assert (report.compensated, report.moved, report.left) == (2, 1, 0) and not report.complete
     assert [w.code for w in report.warnings] == [P231] and report.warnings[0].line == 2  # at XS1's declaration
+    assert "1 motion to it at an offset (Offs/RelTool, a copy with a component changed; at t.src:6)" in \
+        report.warnings[0].message  # the motion involved, named (LIN XA)
     assert "1 motion at an offset moved with the point's correction (P231)" in report.summary()
     assert number(dat, "XS1", "X") != 2000.0 and checked.compensated >= 2  # (the property held: run() checks)
     # without the run at the point itself, the offset run owns the numbers (compensated for where it runs)

@@ -367,6 +367,9 @@ def test_offs_approach_runs_move_with_the_point_compensated_for_itself(model):
     assert (report.compensated, report.moved, report.left) == (1, 1, 0) and not report.complete
     (w,) = [w for w in report.warnings if w.code == "P231"]
     assert w.line == 2 and "up to" in w.message
+    offs = [i + 1 for i, line in enumerate(text.splitlines()) if "Offs(pPick" in line]
+    assert len(offs) == 2 and "2 motions to it at an offset" in w.message  # the approach and the retract,
+    assert f"at m.mod:{offs[0]}, m.mod:{offs[1]})" in w.message              # each named at its line
     _, base = in_base(text)
     _, new = in_base(out)
     point = np.flatnonzero(np.abs(base[:, 2] - 500) < 1e-9)[0]

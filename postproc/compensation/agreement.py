@@ -7,7 +7,7 @@ import numpy as np
 
 from ..core.diagnostics import P230, P231, P322, Diagnostic
 from ..programs import Program
-from ..programs.locate import collect, where
+from ..programs.locate import collect, motion_at, where
 from ..programs.rewrite import ORIENTATION_DECIMALS
 from .findings import Selection
 
@@ -142,6 +142,9 @@ def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, comm
                       np.asarray(middles, float).reshape(-1, 3), notes, moved)
 
 
+MAX_PLACES = 5  # motions named in one message before "and N more"
+
+
 def _owned(program: Program, selection: Selection, groups: np.ndarray, entries) -> tuple:
     """Of the ``groups`` whose runs disagree, those whose runs at the point itself (no offset
     added: ``Targets.offset`` zero) agree among themselves while runs at an offset (``Offs(p, 0, 0,
@@ -184,10 +187,12 @@ def _owned(program: Program, selection: Selection, groups: np.ndarray, entries) 
             continue
         off = members[~own]
         moved.extend(off.tolist())
-        n = len({tuple(np.round(t.offset[rows[i]], 6)) for i in off.tolist()})
+        places = list(dict.fromkeys(motion_at(program, int(rows[i])) for i in off.tolist()))
+        n = len(places)
+        listed = ", ".join(places[:MAX_PLACES]) + (f" and {len(places) - MAX_PLACES} more" if len(places) > MAX_PLACES else "")
         warnings += collect(program, rows[off[:1]], P231, (
             f"this point's numbers are compensated for the motions to the point itself; {n} motion"
-            f"{'s' if n != 1 else ''} to it at an offset (Offs/RelTool, a copy with a component changed) move"
+            f"{'s' if n != 1 else ''} to it at an offset (Offs/RelTool, a copy with a component changed; at {listed}) move"
             f"{'' if n != 1 else 's'} with that correction, up to {worst:.3f} mm from {'their' if n != 1 else 'its'} "
             f"own: not compensated"))
     return np.asarray(keep, int), np.asarray(moved, int), warnings

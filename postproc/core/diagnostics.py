@@ -90,7 +90,8 @@ P230 = _code("P230", "warning", "one set of numbers the program executes more th
              "frames, tools, offsets, approaches) or one of them is left as written: left as written at every run")
 P231 = _code("P231", "warning", "a point the program also moves to at an offset (RAPID Offs/RelTool, a KRL copy with a "
              "component changed): its numbers are compensated for the motions to the point itself, and the motions at "
-             "an offset move with that correction, not their own (how far off is said): those are not compensated")
+             "an offset move with that correction, not their own (which motions, at their path:line, and how far off is "
+             "said): those are not compensated")
 # P3xx: the model, its envelope and the robot
 P301 = _code("P301", "warning", "target outside the model's training envelope (error with --strict)")
 P302 = _code("P302", "error", "target beyond the nominal robot's reach (model metadata 'reach')")

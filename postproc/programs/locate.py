@@ -8,7 +8,7 @@ import numpy as np
 from ..core.diagnostics import Diagnostic
 from .model import Program
 
-__all__ = ['collect', 'MAX_LISTED']
+__all__ = ['collect', 'motion_at', 'MAX_LISTED']
 
 
 # Findings of one kind listed one by one before the next one sums up the rest.
@@ -18,6 +18,17 @@ MAX_LISTED = 20
 def where(program: Program, row: int) -> tuple[str, int, int]:
     t = program.targets
     return program.files[t.file[row]], int(t.line[row]), int(t.col[row])
+
+
+def motion_at(program: Program, row: int) -> str:
+    """``path:line`` of the motion statement of target ``row`` (``Program.sites``; the row's own
+    place where the reader gave none)."""
+    sites = program.sites
+    site = sites[row] if len(sites) == len(program.targets) else None
+    if site is None or not 0 <= site.file < len(program.files):
+        path, line, _ = where(program, row)
+        return f"{path}:{line}"
+    return f"{program.files[site.file]}:{site.line}"
 
 
 def collect(program: Program, rows: np.ndarray, code: str, message: str | Callable[[int], str],

@@ -297,3 +297,6 @@ class Program:
     # rows the analysis leaves as written, by the code that says why (P217: a target whose numbers
     # something else reads too); each was warned at its line
     held: dict = field(default_factory=dict)
+    # each target row's motion statement (ir.Loc; None: the row's own place), where one point is
+    # the target of several motions: messages about such a point name the motions involved
+    sites: list = field(default_factory=list)

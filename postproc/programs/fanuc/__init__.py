@@ -149,5 +149,5 @@ def read(files: list[str], texts: list[str], frames: list[str] | None = None, ex
     program = FanucProgram(files=[files[0]], texts=[text], targets=built.targets, frames=built.frames,
                            diagnostics=unit.diagnostics + built.diagnostics, notes=built.notes, dialect="fanuc",
                            stamps=stamps, newlines=[newline(text)], comment="!", named_targets=True, configs=configs)
-    program.held = built.held
+    program.held, program.sites = built.held, built.sites
     return program

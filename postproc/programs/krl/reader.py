@@ -141,7 +141,7 @@ class Reader(FastPath, Lowering, Blocks, SyntaxErrors):
                           named_targets=built.named, notes=built.notes,
                           diagnostics=self.diagnostics + built.diagnostics, dialect="krl", stamps=stamps,
                           newlines=newlines, comment=";")
-        program.held = built.held
+        program.held, program.sites = built.held, built.sites
         return program
 
     def warn(self, path, line, col, code, msg):

@@ -101,7 +101,7 @@ class Reader:
             diagnostics=list(unit.diagnostics) + built.diagnostics, notes=built.notes, dialect="rapid",
             stamps=stamps, newlines=[newline(x) for x in self.texts], comment="!", named_targets=built.named,
             confdata=confdata, orientation="quaternion")
-        program.held = built.held
+        program.held, program.sites = built.held, built.sites
         return program
 
 

@@ -68,7 +68,7 @@ def read(files: list[str], texts: list[str], active: ActiveFrames | None = None)
                       diagnostics=unit.diagnostics + built.diagnostics, notes=built.notes, dialect="urscript",
                       stamps=stamps, newlines=[newline(text)], comment="#", named_targets=built.named,
                       unit=UNIT_MM, orientation="rotvec")
-    program.held = built.held
+    program.held, program.sites = built.held, built.sites
     qnear = built.extras.get("qnear")
     if qnear is not None and any(qnear):
         # get_inverse_kin(p, qnear): the branch nearest qnear, which postproc does not map to joint angles
