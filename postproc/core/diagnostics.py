@@ -39,7 +39,8 @@ def _code(code: str, severity: str, meaning: str) -> str:
 # P1xx: syntax and structure of an input, reading and writing files
 P101 = _code("P101", "error", "syntax error")
 P102 = _code("P102", "error", "structure error: a block, module or routine not opened or not closed where it must be")
-P103 = _code("P103", "error", "a target (or its frame) that is not a finite number, or beyond float32")
+P103 = _code("P103", "error", "a target (or its frame) that is not a finite number, or beyond float32; a KRL data list's "
+             "initial value that is no constant (a name such as NaN, a function call)")
 P104 = _code("P104", "error", "not a program of this kind: no DEF / MODULE, a header without x,y,z, a wrong number of fields")
 P105 = _code("P105", "error", "an empty program or pose list; ;FOLD without ;ENDFOLD (or the reverse) is a warning")
 P106 = _code("P106", "error", "a binary file (NUL bytes), not a robot program")

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from lark import Token, Tree
 
-from ...core.diagnostics import P101, P210, P211
+from ...core.diagnostics import P101, P103, P210, P211
 from .. import ir
 from ..ir import (
     Agg, Assign, Async, AsyncSwitch, Call, Decl, Eval, Exit, Field, Goto, If, Invoke, Item, Label, Lit, Loc, Loop,
@@ -192,12 +192,30 @@ class Lowering:
                 init = c.children[-1] if len(c.children) > 1 and c.children[-1] is not dims else None
                 value = None
                 if init is not None:
+                    if self.blocks and self.blocks[-1][0] == "DEFDAT" and self.role != "config":
+                        self.constant_only(init, written)
                     value = self.expr(init)
                     if isinstance(value, Agg) and not value.type and typ:
                         value = Agg(value.kind, value.items, value.loc, typ, value.form)
                 if scope == "global" and self.role == "config":
                     self.config_globals.add(name)
                 self.emit(Decl(name, typ, () if dims is not None else None, value, scope, self.here(), written))
+
+    def constant_only(self, init, declared: str) -> None:
+        """A data list's initial values are constants (numbers, strings, bits, #enum values, TRUE,
+        FALSE, aggregates of them): the controller does not load a .dat whose declaration names a
+        variable or calls a function (``Y NaN`` included: KRL has no NaN constant). Refused here,
+        at the name (P103), not read as a value the program sets at run time."""
+        for sub in init.iter_subtrees_topdown():
+            if sub.data == "name" and str(sub.children[0]).upper() not in ("TRUE", "FALSE"):
+                what = f"'{sub.children[0]}', which is no constant"
+            elif sub.data == "fcall":
+                what = f"a call of {sub.children[0]}"
+            else:
+                continue
+            self.err(f"{declared}'s initial value in this data list holds {what}: a data list's values are "
+                     "constants (numbers, strings, #enum values, TRUE/FALSE), and the controller does not load "
+                     "it as written", first_pos(sub), P103)
 
     def s_struc_decl(self, node):
         """``STRUC name type field, field, type field``: the member types (upper case)."""
