@@ -52,7 +52,7 @@ P111 = _code("P111", "error", "a program too large for this machine's memory")
 P112 = _code("P112", "error", "several $config.dat in one cell: give --config")
 P117 = _code("P117", "error", "a URScript pose p[…] that has not six components (x, y, z, rx, ry, rz)")
 P118 = _code("P118", "error", "Fanuc LS: a malformed frame file (--frames), a Cartesian position without X, Y, Z, W, P, R "
-             "or with other units than mm/deg")
+             "or with other units than mm/deg, or one in the RX, RY, RZ, RW, RP, RR form (not read)")
 P190 = _code("P190", "error", "last check before writing: a span or new number that does not read back (a postproc bug)")
 P191 = _code("P191", "error", "last check before writing: the new text does not read again as the same program (a postproc bug)")
 # P2xx: frames and targets not statically known (the target is left as written)

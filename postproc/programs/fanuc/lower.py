@@ -215,6 +215,14 @@ class Lowering:
         name = f"P[{n}]"
         if gp1 is None:
             return Decl(name, "POS", None, Agg("record", (), loc, "NOGP1"), "local", loc, name)
+        rform = [a for a in gp1 if len(a) == 2 and a[0] == "R" and a[1] in "XYZWPR"]
+        if rform:
+            ordinal = gp1[rform[0]][0]
+            raise self.error(tokens[ordinal].start() if isinstance(ordinal, int) else start, (
+                f"{name} is written in the RX, RY, RZ, RW, RP, RR form, which postproc does not read: no FANUC "
+                "document it could check says in which frame and angles these numbers are, so they cannot be "
+                "compensated safely; save the positions in the Cartesian X, Y, Z, W, P, R form (or J1…J6) and "
+                "give the program again"), P118)
         if "X" not in gp1:
             return Decl(name, "JOINTS", None, Agg("record", (), loc, "JOINTS"), "local", loc, name)
         if problem is not None:

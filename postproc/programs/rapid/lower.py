@@ -928,6 +928,10 @@ class Lowering:
             return Lit(str(node))
         d = node.data
         u = self.u
+        if d == "conditional":
+            arg, par = (str(c) for c in node.children)
+            return Unknown(f"\\{arg}?{par} passes {arg} on only where the caller got its optional {par}: "
+                           "whether it did is known at run time")
         if d == "number":
             s, e = u.span(node.children[0])
             return Num(float(u.src.code[s:e]), self.fi, s, e)
@@ -1194,6 +1198,9 @@ def _split(args) -> tuple:
             kids = kids[1:]
         for opt in kids:
             if opt is None:
+                continue
+            if opt.data == "conditional":  # (\Arg?Par: a value the lowering reads as a run-time one)
+                options.append((str(opt.children[0]), opt))
                 continue
             options.append((str(opt.children[0]), opt.children[1] if len(opt.children) > 1 else None))
     return positional, options

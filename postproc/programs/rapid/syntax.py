@@ -143,7 +143,13 @@ def _units(code: str, path: str, text: str):
                 word = _FIRST_WORD.match(line)
                 if ";" not in line and ((word and word.group(1).upper() in _BLOCK_WORDS) or _LABEL.match(line)):
                     start = offset + len(line) - len(line.lstrip())
-                    yield start, start + len(line.strip())
+                    depth = line.count("(") - line.count(")")
+                    while depth > 0 and end < n:  # a routine head whose parameters go on over lines
+                        nl = code.find("\n", end + 1)
+                        more = code[end + 1:n if nl < 0 else nl]
+                        depth += more.count("(") - more.count(")")
+                        end = n if nl < 0 else nl
+                    yield start, start + len(code[start:end].rstrip())
                 else:
                     pending = offset
         if pending >= 0:
