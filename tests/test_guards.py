@@ -290,8 +290,8 @@ def test_position_used_as_a_frame_is_not_compensated(tmp_path, capsys, affine):
     model = affine(offset=(0.3, -0.2, 0.1), tool={"name": "any"})
     code, err, written = krl_run(tmp_path, capsys, *KRL_FRAME_VARIABLE, model)
     assert code == 1 and written == ["cell.dat", "cell.src"]
-    assert err.startswith(f"{tmp_path / 'cell.dat'}:2:16: P217 this target's numbers are read at "
-                          f"{tmp_path / 'cell.src'}:4 too (a frame)")
+    assert err.startswith(f"{tmp_path / 'cell.dat'}:2:16: P217 this target's numbers (moved to at "
+                          f"{tmp_path / 'cell.src'}:2) are read at {tmp_path / 'cell.src'}:4 too (a frame)")  # each line
     dat = (tmp_path / "out" / "cell.dat").read_text()
     assert "XP1={X 1900.0,Y 0.0,Z 900.0," in dat and "XP2={X 9.900,Y 19.800,Z 30.300," in dat
     # the same with XP1 as the tool

@@ -185,6 +185,7 @@ def test_one_robtarget_in_two_frames_is_left_with_p230(affine):
                               tool={"name": "any"}))
     out, report = compensate_text(text, model, name="m.mod")
     assert [(w.code, w.line) for w in report.warnings] == [("P230", 2)]  # at p1's numbers
+    assert "the motions at m.mod:6, m.mod:7)" in report.warnings[0].message  # each run's motion, named
     assert report.compensated == 1 and report.left_codes == {"P230": 1}
     assert f"{rt(1800, 2, 900)};" in out and f"{rt(1900, 50, 950)};" not in out
 

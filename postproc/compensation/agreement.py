@@ -136,13 +136,25 @@ def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, comm
         said = drop[np.sort(once)]
         warnings += collect(program, rows[said], P230, lambda i: (
             "this target runs more than once (a loop, a routine called twice, after a branch, or a point copied "
-            "into another) and the runs need corrections up to {:.3f} mm apart (other frames, tools, offsets, arm "
-            "configurations or approaches): no one set of numbers is right for all, left as written".format(worst_of[int(group[said[i]])])))
+            "into another{}) and the runs need corrections up to {:.3f} mm apart (other frames, tools, offsets, arm "
+            "configurations or approaches): no one set of numbers is right for all, left as written".format(
+                _motions(program, rows[drop[group[drop] == group[said[i]]]]), worst_of[int(group[said[i]])])))
     return _Agreement(drop, warnings, written, np.asarray(settled, int),
                       np.asarray(middles, float).reshape(-1, 3), notes, moved)
 
 
 MAX_PLACES = 5  # motions named in one message before "and N more"
+
+
+def _listed(places: list[str]) -> str:
+    return ", ".join(places[:MAX_PLACES]) + (f" and {len(places) - MAX_PLACES} more" if len(places) > MAX_PLACES else "")
+
+
+def _motions(program: Program, target_rows) -> str:
+    """'; the motions at path:line, …' of the rows' motion statements ('' where they all stand at
+    one place: the message's own location says it)."""
+    places = list(dict.fromkeys(motion_at(program, int(r)) for r in np.asarray(target_rows).tolist()))
+    return f"; the motions at {_listed(places)}" if len(places) > 1 else ""
 
 
 def _owned(program: Program, selection: Selection, groups: np.ndarray, entries) -> tuple:
@@ -189,7 +201,7 @@ def _owned(program: Program, selection: Selection, groups: np.ndarray, entries) 
         moved.extend(off.tolist())
         places = list(dict.fromkeys(motion_at(program, int(rows[i])) for i in off.tolist()))
         n = len(places)
-        listed = ", ".join(places[:MAX_PLACES]) + (f" and {len(places) - MAX_PLACES} more" if len(places) > MAX_PLACES else "")
+        listed = _listed(places)
         warnings += collect(program, rows[off[:1]], P231, (
             f"this point's numbers are compensated for the motions to the point itself; {n} motion"
             f"{'s' if n != 1 else ''} to it at an offset (Offs/RelTool, a copy with a component changed; at {listed}) move"

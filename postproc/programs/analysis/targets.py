@@ -366,7 +366,8 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         what = _WHAT.get(code)
         msg = why if code in (P220, P221, P225) or what is None else f"{what} not statically known ({why})"
         diagnostics.append(Diagnostic(path, line, col, code, f"{msg}: {n} target(s) left as written"))
-    held = _groups(unit, targets, rec, diagnostics)
+    sites = rows.sites()
+    held = _groups(unit, targets, rec, diagnostics, sites)
     notes = []
     if assumed:
         taken = np.flatnonzero(np.isin(targets.frame, list(assumed)))
@@ -381,7 +382,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         diagnostics.append(Diagnostic(_path(unit, loc.file), loc.line, loc.col, code, message))
     order = {path: k for k, path in enumerate(list(unit.files) + list(unit.config_names))}
     diagnostics.sort(key=lambda d: (order.get(d.path, len(order)), d.line, d.col))  # (in the order written)
-    return Built(targets, frames, diagnostics, notes, held, named, rows.extras(), rows.sites())
+    return Built(targets, frames, diagnostics, notes, held, named, rows.extras(), sites)
 
 
 def _moving_at(frame, view, what: str):
@@ -586,10 +587,11 @@ def _twins(t: Targets) -> np.ndarray:
     return twin
 
 
-def _groups(unit, t: Targets, rec, diagnostics: list) -> dict:
+def _groups(unit, t: Targets, rec, diagnostics: list, sites: list) -> dict:
     """``Targets.group``: rows that share any X/Y/Z token are one group (id: its first row; -1
     alone). A group with a token something else reads (``rec.escapes``) is held: P217 at each
-    row, the rows returned as held (code → rows)."""
+    row (naming the motions to it where they stand elsewhere: ``sites``, each row's motion
+    statement), the rows returned as held (code → rows)."""
     n = len(t)
     group = np.full(n, -1, np.int32)
     t.group = group
@@ -640,7 +642,13 @@ def _groups(unit, t: Targets, rec, diagnostics: list) -> dict:
             continue
         wloc, why = rec.escapes[token]
         at = f" at {_path(unit, wloc.file)}:{wloc.line}" if wloc is not None else ""
+        here = (t.file[rows] == t.file[i]) & (t.line[rows] == t.line[i]) & (t.col[rows] == t.col[i])
+        motions = list(dict.fromkeys(
+            f"{_path(unit, site.file)}:{site.line}" for site in (sites[k] if k < len(sites) else None
+                                                                 for k in rows[here].tolist())
+            if site is not None and (site.file, site.line) != (int(t.file[i]), int(t.line[i]))))
+        moved = f" (moved to at {', '.join(motions[:5])}{' and more' if len(motions) > 5 else ''})" if motions else ""
         diagnostics.append(Diagnostic(_path(unit, int(t.file[i])), int(t.line[i]), int(t.col[i]), P217,
-                                      f"this target's numbers are read{at} too ({why}): compensating them would change "
-                                      "that as well; left as written"))
+                                      f"this target's numbers{moved} are read{at} too ({why}): compensating them would "
+                                      "change that as well; left as written"))
     return {P217: rows}
