@@ -182,15 +182,18 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                 assumed.add(ix)
         return ix, None, None
 
-    def count(top, code, n, first):
+    def count(top, code, n, first, places=()):
+        """One finding per cause, at its first place; ``places``: the left targets' motions
+        (path:line), named in it."""
         if isinstance(top, Top) and top.code in (P220,) and _is_tool_unset(first[3]):
             top = Top(NEITHER_SET, None, P220)
-        key = (code, top.why)  # (one finding per cause, at its first place)
+        key = (code, top.why)
         entry = unknown.get(key)
         if entry is None:
-            unknown[key] = [n, first[:3], top.loc]
+            unknown[key] = [n, first[:3], top.loc, dict.fromkeys(places)]
         else:
             entry[0] += n
+            entry[3].update(dict.fromkeys(places))
 
     def prev_of(preds, key=None):
         """(the primary predecessor row, the others, the axis values the robot stands at before
@@ -335,7 +338,8 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         first = (_path(unit, aloc.file), aloc.line, aloc.col, use)
         if ix < 0:
             count(why, code, 1, first if why.code in (P220, P221) else (_path(unit, why.loc.file), why.loc.line,
-                                                                        why.loc.col, use) if why.loc else first)
+                                                                        why.loc.col, use) if why.loc else first,
+                  (f"{_path(unit, loc.file)}:{loc.line}",))
         primary, others, axes = prev_of(use.preds, use.key)
         cols = dict(pose=pose, spans=spans, abc=abc_spans, worient=written_orient, file=file, line=aloc.line,
                     col=aloc.col, frame=ix, motion=MOTION_INDEX[s.kind], config=view.config, offset=offset,
@@ -358,14 +362,17 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             rows.add_one(twin)
     rows.flush()
     targets = _columns(rows, k_orient, form)
-    for (code, why), (n, first, wloc) in unknown.items():
+    for (code, why), (n, first, wloc, places) in unknown.items():
         if wloc is not None and code not in (P220, P221):
             path, line, col = _path(unit, wloc.file), wloc.line, wloc.col
         else:
             path, line, col = first
         what = _WHAT.get(code)
         msg = why if code in (P220, P221, P225) or what is None else f"{what} not statically known ({why})"
-        diagnostics.append(Diagnostic(path, line, col, code, f"{msg}: {n} target(s) left as written"))
+        motions = list(places)
+        listed = "" if motions == [f"{path}:{line}"] or not motions else (
+            f" (at {', '.join(motions[:MAX_NAMED])}{' and more' if len(motions) > MAX_NAMED else ''})")
+        diagnostics.append(Diagnostic(path, line, col, code, f"{msg}: {n} target(s) left as written{listed}"))
     sites = rows.sites()
     held = _groups(unit, targets, rec, diagnostics, sites)
     notes = []
@@ -461,7 +468,7 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
         first = (_path(unit, int(r["file"][0])), int(r["line"][0]), int(r["col"][0]), use)
         at = first if why.code in (P220, P221) or why.loc is None else (_path(unit, why.loc.file), why.loc.line,
                                                                          why.loc.col, use)
-        count(why, code, n, at)
+        count(why, code, n, at, [f"{first[0]}:{int(x)}" for x in dict.fromkeys(r["line"][:MAX_NAMED + 1].tolist())])
     pose = r["pose"].copy()
     written = r["written"]
     chain = r["chain"]
@@ -587,6 +594,9 @@ def _twins(t: Targets) -> np.ndarray:
     return twin
 
 
+MAX_NAMED = 5  # the targets' motions named in one finding before "and more"
+
+
 def _groups(unit, t: Targets, rec, diagnostics: list, sites: list) -> dict:
     """``Targets.group``: rows that share any X/Y/Z token are one group (id: its first row; -1
     alone). A group with a token something else reads (``rec.escapes``) is held: P217 at each
@@ -647,7 +657,7 @@ def _groups(unit, t: Targets, rec, diagnostics: list, sites: list) -> dict:
             f"{_path(unit, site.file)}:{site.line}" for site in (sites[k] if k < len(sites) else None
                                                                  for k in rows[here].tolist())
             if site is not None and (site.file, site.line) != (int(t.file[i]), int(t.line[i]))))
-        moved = f" (moved to at {', '.join(motions[:5])}{' and more' if len(motions) > 5 else ''})" if motions else ""
+        moved = f" (moved to at {', '.join(motions[:MAX_NAMED])}{' and more' if len(motions) > MAX_NAMED else ''})" if motions else ""
         diagnostics.append(Diagnostic(_path(unit, int(t.file[i])), int(t.line[i]), int(t.col[i]), P217,
                                       f"this target's numbers{moved} are read{at} too ({why}): compensating them would "
                                       "change that as well; left as written"))
