@@ -30,3 +30,26 @@ def test_a_frame_a_call_may_change_names_the_motions_it_leaves(tmp_path):
     # at the call (the cause), with the two motions it leaves named at their lines
     assert (w.line, w.col) == (5, 3) and "2 target(s) left as written (at t.src:6, t.src:8)" in w.message
     assert report.compensated == 1
+
+
+def test_a_point_run_from_two_places_names_both_motions(tmp_path):
+    """P322 (commanded at the middle of its runs' approaches) says which motions run the point."""
+    from postproc.testing.models import affine_model
+
+    model = load_model(affine_model(tmp_path / "p.onnx", offset=(0.2, -0.1, 0.3), gain=np.diag([1e-3, -2e-3, 1e-3]),
+                                    previous_gain=3e-5, tool={"name": "any"}))  # runs 0.006 mm apart
+    e6 = ",A 0.0,B 90.0,C 0.0,S 2,T 35,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}"
+    src = ("DEF t( )\n  $BASE = $NULLFRAME\n"
+           "  LIN XA\n"                                              # 3
+           "  LIN XP1\n"                                             # 4
+           "  LIN XB\n"                                              # 5
+           "  LIN XP1\n"                                             # 6
+           "END\n")
+    dat = ("DEFDAT t\n"
+           f"  DECL E6POS XP1={{X 2000.0,Y 0.0,Z 900.0{e6}\n"
+           f"  DECL E6POS XA={{X 1900.0,Y 0.0,Z 900.0{e6}\n"
+           f"  DECL E6POS XB={{X 2100.0,Y 0.0,Z 900.0{e6}\n"
+           "ENDDAT\n")
+    out, report = compensate_text(src, model, name="t.src", dat_text=dat, active=ActiveFrames(tool="model"))
+    (note,) = [n for n in report.notes if n.code == "P322"]
+    assert note.line == 2 and "the motions at t.src:4, t.src:6" in note.message

@@ -120,7 +120,8 @@ def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, comm
         middles.extend([mid] * len(members))
         first = int(members[0])
         notes.append(Diagnostic(*where(program, int(rows[first])), P322,
-                                f"this target runs {len(members)} times from other places (after a branch, in a loop) "
+                                f"this target runs {len(members)} times from other places (after a branch, in a loop"
+                                f"{_motions(program, rows[members])}) "
                                 f"and the runs need commands up to {2 * worst:.3f} mm apart (the approach): commanded "
                                 f"at the middle, at most {worst:.3f} mm from each run's own", "note"))
     other = np.setdiff1d(bad_groups, approach)
