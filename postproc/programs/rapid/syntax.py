@@ -28,7 +28,7 @@ _BLOCK_WORDS = {"MODULE", "ENDMODULE", "PROC", "ENDPROC", "FUNC", "ENDFUNC", "TR
                 "IF", "ELSEIF", "ELSE", "ENDIF", "FOR", "ENDFOR", "WHILE", "ENDWHILE", "TEST", "CASE",
                 "DEFAULT", "ENDTEST", "ERROR", "UNDO", "BACKWARD", "RECORD", "ENDRECORD"}
 _FIRST_WORD = re.compile(r"[ \t]*([A-Za-z_]\w*)", re.ASCII)
-_LABEL = re.compile(r"[ \t]*[A-Za-z_]\w*[ \t]*:[ \t]*$", re.ASCII)
+_LABEL = re.compile(r"[ \t]*[A-Za-z_]\w*[ \t]*:[ \t\r]*$", re.ASCII)  # (\r: a CRLF file's line)
 # a UTF-8 byte order mark at the start of a file (as latin-1 reads its bytes, or decoded)
 BOMS = ("\xef\xbb\xbf", "\ufeff")
 

@@ -1,0 +1,39 @@
+"""RAPID read as the free-form language it is (issue 36; what is done so far): a GOTO label on a line
+of its own in a file saved with CRLF line endings, and a routine head whose parameters go on over
+lines (issue 34's `\\tasks tasksScan{*}` head: tests/test_controller_syntax.py)."""
+from __future__ import annotations
+
+import numpy as np
+
+from postproc.compensation.api import compensate_text
+from postproc.model.compensator import load_model
+from postproc.programs.io import parse_program_text
+
+EAX = "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]"
+LINES = ["MODULE Spindle",
+         f"  CONST robtarget p1:=[[1800,100,500],[0,0,1,0],[0,0,0,0],{EAX}];",
+         f"  CONST robtarget p2:=[[1850,120,520],[0,0,1,0],[0,0,0,0],{EAX}];",
+         "  PROC main()",
+         "    VAR num n:=0;",
+         "  again:",
+         "    MoveJ p1,v1000,fine,tool0;",
+         "    MoveL p2,v100,fine,tool0;",
+         "    n:=n+1;",
+         "    IF n<3 GOTO again;",
+         "  ENDPROC",
+         "ENDMODULE", ""]
+
+
+def test_a_label_in_a_crlf_file_reads_as_in_an_lf_one(tmp_path):
+    from postproc.testing.models import affine_model
+
+    model = load_model(affine_model(tmp_path / "m.onnx", offset=(0.3, -0.2, 0.1), gain=np.diag([2e-3, -1e-3, 3e-3]),
+                                    reach=None, envelope=None, tool={"name": "any"}))
+    lf, crlf = "\n".join(LINES), "\r\n".join(LINES)
+    a, b = parse_program_text(lf, "spindle.mod"), parse_program_text(crlf, "spindle.mod")
+    assert not [d for d in b.diagnostics if d.code == "P101"]
+    assert np.array_equal(a.targets.poses, b.targets.poses) and len(b.targets) >= 2
+    out_lf, rep_lf = compensate_text(lf, model, name="spindle.mod")
+    out_crlf, rep_crlf = compensate_text(crlf, model, name="spindle.mod")
+    assert rep_crlf.compensated == rep_lf.compensated == 2
+    assert out_crlf.replace("\r\n", "\n") == out_lf and out_crlf.count("\r\n") == crlf.count("\r\n") + 1  # (+ the stamp)
