@@ -37,3 +37,69 @@ def test_a_label_in_a_crlf_file_reads_as_in_an_lf_one(tmp_path):
     out_crlf, rep_crlf = compensate_text(crlf, model, name="spindle.mod")
     assert rep_crlf.compensated == rep_lf.compensated == 2
     assert out_crlf.replace("\r\n", "\n") == out_lf and out_crlf.count("\r\n") == crlf.count("\r\n") + 1  # (+ the stamp)
+
+
+SPLIT = ["MODULE M",
+         f"  CONST robtarget p1:=[[1800,100,500],[0,0,1,0],[0,0,0,0],{EAX}];",
+         "  PROC main()",
+         "    VAR num x:=1;",
+         "    VAR num i;",
+         "    IF x=1 THEN",
+         "      MoveL Offs(p1,0,0,10),v100,fine,tool0;",
+         "    ENDIF",
+         "    IF x=2 THEN",
+         "      MoveL p1,v100,fine,tool0;",
+         "    ELSE",
+         "      WaitTime 0.1;",
+         "    ENDIF",
+         "    FOR i FROM 1 TO 3 DO",
+         "      MoveL Offs(p1,0,0,30),v100,fine,tool0;",
+         "    ENDFOR",
+         "    TEST x",
+         "    CASE 1:",
+         "      MoveL Offs(p1,0,0,40),v100,fine,tool0;",
+         "    DEFAULT:",
+         "      MoveL Offs(p1,0,0,50),v100,fine,tool0;",
+         "    ENDTEST",
+         "    MoveL p1,v100,fine,tool0;",
+         "  ENDPROC",
+         "ENDMODULE", ""]
+JOINED = ["MODULE M",
+          f"  CONST robtarget p1:=[[1800,100,500],[0,0,1,0],[0,0,0,0],{EAX}];",
+          "  PROC main()",
+          "    VAR num x:=1;",
+          "    VAR num i;",
+          "    IF x=1 THEN MoveL Offs(p1,0,0,10),v100,fine,tool0;",
+          "    ENDIF",
+          "    IF x=2 THEN",
+          "      MoveL p1,v100,fine,tool0;",
+          "    ELSE WaitTime 0.1;",
+          "    ENDIF",
+          "    FOR i FROM 1 TO 3 DO MoveL Offs(p1,0,0,30),v100,fine,tool0; ENDFOR",
+          "    TEST x",
+          "    CASE 1: MoveL Offs(p1,0,0,40),v100,fine,tool0;",
+          "    DEFAULT: MoveL Offs(p1,0,0,50),v100,fine,tool0;",
+          "    ENDTEST",
+          "    MoveL p1,v100,fine,tool0;",
+          "  ENDPROC",
+          "ENDMODULE", ""]
+
+
+def test_statements_on_the_line_of_then_else_do_and_case_read_as_on_their_own_lines(tmp_path):
+    """(issue 36, item 2) The same program with each statement on its own line and with statements
+    joined onto the line of THEN, ELSE, DO, CASE …: and DEFAULT: (ENDFOR after the loop's statement):
+    the same targets, frames and findings, and the same numbers written."""
+    from postproc.testing.models import affine_model
+
+    model = load_model(affine_model(tmp_path / "m.onnx", offset=(0.3, -0.2, 0.1), gain=np.diag([2e-3, -1e-3, 3e-3]),
+                                    reach=None, envelope=None, tool={"name": "any"}))
+    split, joined = "\n".join(SPLIT), "\n".join(JOINED)
+    a, b = parse_program_text(split, "m.mod"), parse_program_text(joined, "m.mod")
+    assert not [d for d in b.diagnostics if d.code == "P101"]
+    assert len(a.targets) == len(b.targets) >= 4 and np.array_equal(a.targets.poses, b.targets.poses)
+    out_a, rep_a = compensate_text(split, model, name="m.mod")
+    out_b, rep_b = compensate_text(joined, model, name="m.mod")
+    assert rep_a.compensated == rep_b.compensated > 0
+    assert sorted(w.code for w in rep_a.warnings) == sorted(w.code for w in rep_b.warnings)
+    numbers = lambda text: [line.split("=", 1)[1] for line in text.splitlines() if "robtarget p1" in line]  # noqa: E731
+    assert numbers(out_a) == numbers(out_b) and numbers(out_a) != numbers(split)

@@ -28,6 +28,13 @@ _BLOCK_WORDS = {"MODULE", "ENDMODULE", "PROC", "ENDPROC", "FUNC", "ENDFUNC", "TR
                 "IF", "ELSEIF", "ELSE", "ENDIF", "FOR", "ENDFOR", "WHILE", "ENDWHILE", "TEST", "CASE",
                 "DEFAULT", "ENDTEST", "ERROR", "UNDO", "BACKWARD", "RECORD", "ENDRECORD"}
 _FIRST_WORD = re.compile(r"[ \t]*([A-Za-z_]\w*)", re.ASCII)
+# a compound statement's head followed on its line by a statement (IF x THEN MoveL …;): the head
+# ends after its THEN, DO, ELSE or a CASE's ':'
+_THEN = re.compile(r"\bTHEN\b", re.I | re.A)
+_DO = re.compile(r"\bDO\b", re.I | re.A)
+_CASE = re.compile(r":(?!=)")
+_HEAD_END = {"IF": _THEN, "ELSEIF": _THEN, "WHILE": _DO, "FOR": _DO, "ELSE": re.compile(r"\bELSE\b", re.I | re.A),
+             "CASE": _CASE, "DEFAULT": _CASE}
 _LABEL = re.compile(r"[ \t]*[A-Za-z_]\w*[ \t]*:[ \t\r]*$", re.ASCII)  # (\r: a CRLF file's line)
 # a UTF-8 byte order mark at the start of a file (as latin-1 reads its bytes, or decoded)
 BOMS = ("\xef\xbb\xbf", "\ufeff")
@@ -141,7 +148,13 @@ def _units(code: str, path: str, text: str):
             line = code[offset:end]
             if line.strip():
                 word = _FIRST_WORD.match(line)
-                if ";" not in line and ((word and word.group(1).upper() in _BLOCK_WORDS) or _LABEL.match(line)):
+                first = word.group(1).upper() if word else ""
+                head_end = _HEAD_END[first].search(line) if ";" in line and first in _HEAD_END else None
+                if head_end is not None and line[head_end.end():].strip():
+                    start = offset + len(line) - len(line.lstrip())
+                    yield start, offset + head_end.end()
+                    pending = offset + head_end.end()  # (the statements after it on its line)
+                elif ";" not in line and (first in _BLOCK_WORDS or _LABEL.match(line)):
                     start = offset + len(line) - len(line.lstrip())
                     depth = line.count("(") - line.count(")")
                     while depth > 0 and end < n:  # a routine head whose parameters go on over lines
@@ -158,8 +171,15 @@ def _units(code: str, path: str, text: str):
                 yield pending, semi + 1
                 pending = semi + 1
                 semi = code.find(";", pending, end)
-            if not code[pending:end].strip():
+            rest = code[pending:end]
+            if not rest.strip():
                 pending = -1
+            elif semi < 0 and pending > offset:  # (statements on this line, then ENDIF/ENDFOR/ELSE … after them)
+                word = _FIRST_WORD.match(rest)
+                if word and word.group(1).upper() in _BLOCK_WORDS:
+                    lead = pending + len(rest) - len(rest.lstrip())
+                    yield lead, lead + len(rest.strip())
+                    pending = -1
         offset = end + 1
     if pending >= 0:
         lead = pending + len(code[pending:]) - len(code[pending:].lstrip())
