@@ -103,3 +103,70 @@ def test_statements_on_the_line_of_then_else_do_and_case_read_as_on_their_own_li
     assert sorted(w.code for w in rep_a.warnings) == sorted(w.code for w in rep_b.warnings)
     numbers = lambda text: [line.split("=", 1)[1] for line in text.splitlines() if "robtarget p1" in line]  # noqa: E731
     assert numbers(out_a) == numbers(out_b) and numbers(out_a) != numbers(split)
+
+
+ONE_LINE = ["MODULE M",
+            f"  CONST robtarget p1:=[[1800,100,500],[0,0,1,0],[0,0,0,0],{EAX}];",
+            "  FUNC num CalcSpeed(num Vg_init, num ratio, num maxIter)",
+            "    RETURN Vg_init * ratio;",
+            "  ENDFUNC",
+            "  PROC main()",
+            "    VAR num x:=1;",
+            "    VAR num i:=0;",
+            "    VAR num v;",
+            "    v := CalcSpeed(100, 2, 5);",
+            "    IF x=1 MoveL Offs(p1,0,0,10),v100,fine,tool0;",
+            "    WHILE (i < 2) AND (x = 1) DO",
+            "      MoveL Offs(p1,0,0,20),v100,fine,tool0;",
+            "      i := i + 1;",
+            "    ENDWHILE",
+            "    IF (x = 1) AND (i = 2) THEN",
+            "      MoveL p1,v100,fine,tool0;",
+            "    ENDIF",
+            "  ENDPROC",
+            "ENDMODULE", ""]
+OVER_LINES = ["MODULE M",
+              f"  CONST robtarget p1:=[[1800,100,500],[0,0,1,0],[0,0,0,0],{EAX}];",
+              "  FUNC num CalcSpeed(",
+              "    num Vg_init,",
+              "    num ratio,",
+              "    num maxIter)",
+              "    RETURN Vg_init * ratio;",
+              "  ENDFUNC",
+              "  PROC main()",
+              "    VAR num x:=1;",
+              "    VAR num i:=0;",
+              "    VAR num v;",
+              "    v := CalcSpeed(100, 2, 5);",
+              "    IF x=1",
+              "      MoveL Offs(p1,0,0,10),v100,fine,tool0;",
+              "    WHILE (i < 2) AND",
+              "          (x = 1) DO",
+              "      MoveL Offs(p1,0,0,20),v100,fine,tool0;",
+              "      i := i + 1;",
+              "    ENDWHILE",
+              "    IF (x = 1)",
+              "       AND (i = 2) THEN MoveL p1,v100,fine,tool0;",
+              "    ENDIF",
+              "  ENDPROC",
+              "ENDMODULE", ""]
+
+
+def test_routine_heads_compact_ifs_and_conditions_over_several_lines(tmp_path):
+    """(issue 36, items 5 and 6) A FUNC head whose parameters go on over lines, a compact IF whose
+    statement is on the next line, WHILE and IF conditions continued on the next line: the same
+    targets, findings and numbers as the program on one line each."""
+    from postproc.testing.models import affine_model
+
+    model = load_model(affine_model(tmp_path / "m.onnx", offset=(0.3, -0.2, 0.1), gain=np.diag([2e-3, -1e-3, 3e-3]),
+                                    reach=None, envelope=None, tool={"name": "any"}))
+    one, over = "\n".join(ONE_LINE), "\n".join(OVER_LINES)
+    a, b = parse_program_text(one, "m.mod"), parse_program_text(over, "m.mod")
+    assert not [d for d in b.diagnostics if d.code == "P101"]
+    assert len(a.targets) == len(b.targets) >= 3 and np.array_equal(a.targets.poses, b.targets.poses)
+    out_a, rep_a = compensate_text(one, model, name="m.mod")
+    out_b, rep_b = compensate_text(over, model, name="m.mod")
+    assert rep_a.compensated == rep_b.compensated > 0
+    assert sorted(w.code for w in rep_a.warnings) == sorted(w.code for w in rep_b.warnings)
+    numbers = lambda text: [line.split("=", 1)[1] for line in text.splitlines() if "robtarget p1" in line]  # noqa: E731
+    assert numbers(out_a) == numbers(out_b) and numbers(out_a) != numbers(one)

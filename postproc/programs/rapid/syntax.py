@@ -35,6 +35,7 @@ _DO = re.compile(r"\bDO\b", re.I | re.A)
 _CASE = re.compile(r":(?!=)")
 _HEAD_END = {"IF": _THEN, "ELSEIF": _THEN, "WHILE": _DO, "FOR": _DO, "ELSE": re.compile(r"\bELSE\b", re.I | re.A),
              "CASE": _CASE, "DEFAULT": _CASE}
+_CONDITIONS = {"IF", "ELSEIF", "WHILE", "FOR"}
 _LABEL = re.compile(r"[ \t]*[A-Za-z_]\w*[ \t]*:[ \t\r]*$", re.ASCII)  # (\r: a CRLF file's line)
 # a UTF-8 byte order mark at the start of a file (as latin-1 reads its bytes, or decoded)
 BOMS = ("\xef\xbb\xbf", "\ufeff")
@@ -149,13 +150,25 @@ def _units(code: str, path: str, text: str):
             if line.strip():
                 word = _FIRST_WORD.match(line)
                 first = word.group(1).upper() if word else ""
-                head_end = _HEAD_END[first].search(line) if ";" in line and first in _HEAD_END else None
-                if head_end is not None and line[head_end.end():].strip():
-                    start = offset + len(line) - len(line.lstrip())
+                start = offset + len(line) - len(line.lstrip())
+                if first in _CONDITIONS:
+                    # IF/ELSEIF/WHILE/FOR: a head up to its THEN or DO, over lines where the condition
+                    # goes on; none before the next ';': a compact IF (IF cond statement;), over lines or not
+                    head_end = _HEAD_END[first].search(code, offset)
+                    semi = code.find(";", offset)
+                    if head_end is not None and (semi < 0 or head_end.start() < semi):
+                        yield start, head_end.end()
+                        nl = code.find("\n", head_end.end())
+                        end = n if nl < 0 else nl
+                        if code[head_end.end():end].strip():
+                            pending = head_end.end()  # (the statements after it on its line)
+                    else:
+                        pending = offset
+                elif (head_end := _HEAD_END[first].search(line) if ";" in line and first in _HEAD_END else None) \
+                        and line[head_end.end():].strip():
                     yield start, offset + head_end.end()
-                    pending = offset + head_end.end()  # (the statements after it on its line)
+                    pending = offset + head_end.end()  # (ELSE, CASE …:, DEFAULT: and a statement after it)
                 elif ";" not in line and (first in _BLOCK_WORDS or _LABEL.match(line)):
-                    start = offset + len(line) - len(line.lstrip())
                     depth = line.count("(") - line.count(")")
                     while depth > 0 and end < n:  # a routine head whose parameters go on over lines
                         nl = code.find("\n", end + 1)
