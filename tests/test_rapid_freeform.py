@@ -170,3 +170,37 @@ def test_routine_heads_compact_ifs_and_conditions_over_several_lines(tmp_path):
     assert sorted(w.code for w in rep_a.warnings) == sorted(w.code for w in rep_b.warnings)
     numbers = lambda text: [line.split("=", 1)[1] for line in text.splitlines() if "robtarget p1" in line]  # noqa: E731
     assert numbers(out_a) == numbers(out_b) and numbers(out_a) != numbers(one)
+
+
+def test_editor_placeholders_are_read_and_what_depends_on_them_is_said(tmp_path):
+    """(issue 36, item 4) RobotStudio's placeholders: a module holding <SMT>, <EXP>, <ARG> is read; a
+    target whose value or frame depends on one is left as written and said at its line; the others
+    are compensated."""
+    from postproc.testing.models import affine_model
+
+    model = load_model(affine_model(tmp_path / "m.onnx", offset=(0.3, -0.2, 0.1), gain=np.diag([2e-3, -1e-3, 3e-3]),
+                                    reach=None, envelope=None, tool={"name": "any"}))
+    text = "\n".join([
+        "MODULE Ph",                                                         # 1
+        f"  CONST robtarget p1:=[[1800,100,500],[0,0,1,0],[0,0,0,0],{EAX}];",  # 2
+        f"  CONST robtarget p3:=[[1700,50,600],[0,0,1,0],[0,0,0,0],{EAX}];",   # 3
+        "  VAR robtarget p2;",                                               # 4
+        "  PROC r()",                                                        # 5
+        "    <SMT>",                                                         # 6
+        "  ENDPROC",                                                         # 7
+        "  PROC main()",                                                     # 8
+        "    MoveL p1,v100,fine,tool0;",                                     # 9
+        "    p2 := <EXP>;",                                                  # 10
+        "    MoveL p2,v100,fine,tool0;",                                     # 11
+        "    r;",                                                            # 12
+        "    MoveL p3,v100,fine,tool0;",                                     # 13
+        "  ENDPROC",                                                         # 14
+        "ENDMODULE", ""])
+    p = parse_program_text(text, "ph.mod")
+    assert not [d for d in p.diagnostics if d.code in ("P101", "P102")]
+    out, report = compensate_text(text, model, name="ph.mod")
+    said = {(w.code, w.line): w.message for w in report.warnings}
+    assert report.compensated == 1  # p1, before anything depends on a placeholder
+    assert "<EXP>" in said[("P211", 11)]  # p2's value is the placeholder's
+    (frame,) = [m for (code, line), m in said.items() if code == "P201"]
+    assert "<SMT> at line 6" in frame and "ph.mod:13" in frame  # what r's <SMT> does is not known: p3 left

@@ -40,7 +40,7 @@ from ...robot.conventions import MOTIONS
 from ..grammar import BLANKS, NUM, TOKEN_RE
 from ..ir import (
     Agg, Assign, Async, AsyncSwitch, Call, Decl, Eval, Field, Goto, Halt, If, Invoke, Item, Label, Lit, Loc, Loop,
-    Move, MoveRun, Name, Note, Num, Op, Param, Return, Routine, Stmt, Switch, Unit, Unknown, walk,
+    Move, MoveRun, Name, Note, Num, Op, Param, Return, Routine, Stmt, Switch, Unit, Unknown, walk, Havoc,
 )
 from .semantics import FUNCTIONS, INSTRUCTIONS, RECORDS, RUNTIME_POSITION, SCALARS, UNUSED_AXIS
 from .syntax import STRING_RE, Source, misread
@@ -568,6 +568,14 @@ class Lowering:
         self._in_routine(u)
         self.emit(Goto(u.text(tree.children[-1]).upper(), self.here(u)))
 
+    def s_placeholder(self, u, tree):
+        """RobotStudio's statement placeholder (``<SMT>``): a statement not written yet — what it
+        will do is not known (the values and frames after it are not known either)."""
+        self._in_routine(u)
+        loc = self.here(u)
+        self.emit(Havoc(None, f"the editor's placeholder {tree.children[0]} at line {loc.line} stands for a "
+                              "statement not written yet", loc))
+
     def s_compact_if(self, u, tree):
         self._in_routine(u)
         node = If(self.expr(tree.children[1]), [], [], self.here(u))
@@ -928,6 +936,8 @@ class Lowering:
             return Lit(str(node))
         d = node.data
         u = self.u
+        if d == "placeholder":
+            return Unknown(f"the editor's placeholder {node.children[0]} stands for a value not written yet")
         if d == "conditional":
             arg, par = (str(c) for c in node.children)
             return Unknown(f"\\{arg}?{par} passes {arg} on only where the caller got its optional {par}: "

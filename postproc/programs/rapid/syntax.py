@@ -36,6 +36,7 @@ _CASE = re.compile(r":(?!=)")
 _HEAD_END = {"IF": _THEN, "ELSEIF": _THEN, "WHILE": _DO, "FOR": _DO, "ELSE": re.compile(r"\bELSE\b", re.I | re.A),
              "CASE": _CASE, "DEFAULT": _CASE}
 _CONDITIONS = {"IF", "ELSEIF", "WHILE", "FOR"}
+_PLACEHOLDER = re.compile(r"[ \t]*<[A-Z]{2,5}>[ \t\r]*$")  # (RobotStudio's <SMT> on a line of its own)
 _LABEL = re.compile(r"[ \t]*[A-Za-z_]\w*[ \t]*:[ \t\r]*$", re.ASCII)  # (\r: a CRLF file's line)
 # a UTF-8 byte order mark at the start of a file (as latin-1 reads its bytes, or decoded)
 BOMS = ("\xef\xbb\xbf", "\ufeff")
@@ -168,7 +169,7 @@ def _units(code: str, path: str, text: str):
                         and line[head_end.end():].strip():
                     yield start, offset + head_end.end()
                     pending = offset + head_end.end()  # (ELSE, CASE …:, DEFAULT: and a statement after it)
-                elif ";" not in line and (first in _BLOCK_WORDS or _LABEL.match(line)):
+                elif ";" not in line and (first in _BLOCK_WORDS or _LABEL.match(line) or _PLACEHOLDER.match(line)):
                     depth = line.count("(") - line.count(")")
                     while depth > 0 and end < n:  # a routine head whose parameters go on over lines
                         nl = code.find("\n", end + 1)
