@@ -204,3 +204,64 @@ def test_editor_placeholders_are_read_and_what_depends_on_them_is_said(tmp_path)
     assert "<EXP>" in said[("P211", 11)]  # p2's value is the placeholder's
     (frame,) = [m for (code, line), m in said.items() if code == "P201"]
     assert "<SMT> at line 6" in frame and "ph.mod:13" in frame  # what r's <SMT> does is not known: p3 left
+
+
+def _named_program(by_name: bool) -> str:
+    def call(positional: str, named: str) -> str:
+        return named if by_name else positional
+    return "\n".join([
+        "MODULE Named",
+        f"  CONST robtarget p1:=[[1800,100,500],[0,0,1,0],[0,0,0,0],{EAX}];",
+        f"  CONST robtarget p2:=[[1850,120,520],[0,0,1,0],[0,0,0,0],{EAX}];",
+        f"  CONST robtarget p3:=[[1700,60,560],[0,0,1,0],[0,0,0,0],{EAX}];",
+        "  PERS tooldata tSpindle:=[TRUE,[[0,0,150],[1,0,0,0]],[5,[0,0,50],[1,0,0,0],0,0,0]];",
+        "  TASK PERS wobjdata wobj1:=[FALSE,TRUE,\"\",[[500,0,0],[0.9659258,0,0,0.2588190]],[[0,0,0],[1,0,0,0]]];",
+        "  PROC Place(robtarget Where, tooldata T)",
+        "    " + call("MoveL Where,v100,fine,T\\WObj:=wobj1;", "MoveL ToPoint:=Where,Speed:=v100,Zone:=fine,Tool:=T\\WObj:=wobj1;"),
+        "  ENDPROC",
+        "  PROC main()",
+        "    " + call("MoveL p1,v100,fine,tSpindle;", "MoveL ToPoint:=p1,Speed:=v100,Zone:=fine,Tool:=tSpindle;"),
+        "    " + call("MoveJ p2,v100,z10,tSpindle\\WObj:=wobj1;", "MoveJ p2,v100,Zone:=z10,Tool:=tSpindle\\WObj:=wobj1;"),
+        "    " + call("Place p3, tSpindle;", "Place T:=tSpindle, Where:=p3;"),
+        "  ENDPROC",
+        "ENDMODULE", ""])
+
+
+def test_required_arguments_given_by_name_are_compensated_as_the_positional_form(tmp_path):
+    """(issue 36, item 3) MoveL ToPoint:=…, Speed:=…, Zone:=…, Tool:=… and a routine's arguments
+    given by name: the same targets in the same frames with the same tools as the positional form,
+    and the same numbers written."""
+    from postproc.testing.models import affine_model
+
+    model = load_model(affine_model(tmp_path / "m.onnx", offset=(0.3, -0.2, 0.1), gain=np.diag([2e-3, -1e-3, 3e-3]),
+                                    reach=None, envelope=None, tool={"name": "any"}))
+    positional, by_name = _named_program(False), _named_program(True)
+    a, b = parse_program_text(positional, "named.mod"), parse_program_text(by_name, "named.mod")
+    assert not [d for d in b.diagnostics if d.code == "P101"] and len(a.targets) == len(b.targets) == 3
+    assert np.array_equal(a.targets.poses, b.targets.poses) and np.array_equal(a.targets.frame, b.targets.frame)
+    assert [f.base.tolist() for f in a.frames] == [f.base.tolist() for f in b.frames]
+    assert [None if f.tool is None else f.tool.tolist() for f in a.frames] == \
+        [None if f.tool is None else f.tool.tolist() for f in b.frames]
+    out_a, rep_a = compensate_text(positional, model, name="named.mod")
+    out_b, rep_b = compensate_text(by_name, model, name="named.mod")
+    assert rep_a.compensated == rep_b.compensated == 3
+    numbers = lambda text: [line.split(":=", 1)[1] for line in text.splitlines() if "CONST robtarget" in line]  # noqa: E731
+    assert numbers(out_a) == numbers(out_b) and numbers(out_a) != numbers(positional)
+
+
+def test_an_argument_given_by_a_name_postproc_cannot_place_leaves_the_target_and_says_why():
+    text = "\n".join([
+        "MODULE N",
+        f"  CONST robtarget p1:=[[1800,100,500],[0,0,1,0],[0,0,0,0],{EAX}];",
+        "  VAR robtarget p9;",
+        "  PROC main()",
+        "    MoveL p1,v100,fine,tool0;",
+        "    ArcL ToPoint:=p1,Speed:=v100,Seam:=sm1,Weld:=wd1,Weave:=wv1,Zone:=fine,Tool:=tool0;",  # 6
+        "    p9 := CalcRobT(jTemp, Tool:=tool0\\WObj:=wobj0);",                                    # 7
+        "    MoveL p9,v100,fine,tool0;",                                                          # 8
+        "  ENDPROC",
+        "ENDMODULE", ""])
+    p = parse_program_text(text, "n.mod")
+    said = {(d.code, d.line): d.message for d in p.diagnostics}
+    assert "ArcL is given ToPoint:=" in said[("P211", 6)]
+    assert any(line == 8 and "CalcRobT() is given Tool:= by name" in m for (code, line), m in said.items())

@@ -660,8 +660,14 @@ class Lowering:
         written = u.text(tree.children[0])
         name = written.upper()
         args = [c for c in tree.children[1:] if c is not None]
-        positional, options = _split(args)
+        named: list = []
+        positional, options = _split(args, named)
         loc = self.here(u)
+        if named:
+            positional, options, unplaced = _place(name, positional, named, options, self.resolve(name) is not None)
+            if unplaced:
+                self._by_name_unknown(u, name, written, positional, options, unplaced, loc)
+                return
         if name == "RETURN":
             self.emit(Return(self.expr(positional[0], self.sig.rtype) if positional else None, loc))
         elif name == "RAISE":
@@ -735,6 +741,24 @@ class Lowering:
             self.calls.setdefault(self.routine.name if self.routine is not None else "", set()).add(key)
         return key
 
+    def _by_name_unknown(self, u, name, written, positional, options, unplaced, loc):
+        """An instruction given a required argument by a name postproc cannot place (no parameter
+        names of it are known): its targets are left as written, what it may set is unknown."""
+        why = (f"{written} is given {', '.join(k + ':=' for k in unplaced)} by name, and postproc does not know "
+               f"which of {written}'s arguments that is")
+        spec = MOTIONS_OF.get(name)
+        if spec is not None:
+            self.emit(Note(P211, f"{why}: left as written", loc, True))
+            for _, kind in spec.targets:
+                self.emit(Move(kind, Unknown(why), loc, joint=spec.joint, relative=True))
+            return
+        exprs = tuple(self.expr(a) for a in positional if a is not None) + \
+            tuple(self.expr(v) for _, v in options if v is not None)
+        self.emit(Invoke(written, exprs, loc))  # (not a routine of the files read: what it may change, unknown)
+        for _, value in options:
+            if value is not None and _assignable(value):
+                self.emit(Assign(self.expr(value), Unknown(why), loc))
+
     def bind(self, key: str, positional, options) -> tuple:
         """A call's arguments in the order of the routine's parameters (None: not passed);
         optional parameters by name, a switch passed as TRUE."""
@@ -744,8 +768,8 @@ class Lowering:
         required = [k for k, p in enumerate(params) if not p[3]]
         for k, node in zip(required, positional):
             out[k] = self.argument(node, params[k][1])
-        for opt, value in options:
-            k = next((k for k, p in enumerate(params) if p[3] and p[0] == opt.upper()), None)
+        for opt, value in options:  # (and required arguments given by name: Speed:=v100)
+            k = next((k for k, p in enumerate(params) if p[0] == opt.upper()), None)
             if k is None:
                 continue
             out[k] = Lit(True) if value is None else self.argument(value, params[k][1])
@@ -1050,11 +1074,15 @@ class Lowering:
         written = u.text(node.children[0])
         name = written.upper()
         args = [c for c in node.children[1:] if c is not None]
-        positional, options = _split(args)
+        named: list = []
+        positional, options = _split(args, named)
         loc = self.here(u, node)
         key = self.resolve(name)
         if key is not None:
-            return Call(key, self.bind(key, positional, options), loc)
+            return Call(key, self.bind(key, positional, options + named), loc)
+        if named:
+            return Unknown(f"{written}() is given {', '.join(k + ':=' for k, _ in named)} by name, and postproc "
+                           f"does not place arguments of {written}() by name")
         if name in RUNTIME_POSITION:
             return Unknown(f"{written}() is where the robot is at run time", P211)
         if name == "OFFS":
@@ -1198,11 +1226,56 @@ def _decl_parts(tree):
     return storage, type_tok, name_tok, dims, init, local
 
 
-def _split(args) -> tuple:
-    """A call's ``arg`` trees → (positional expression trees, [(option name, value tree | None)])."""
+# the required parameters of the motion instructions, in order (ABB's RAPID instructions
+# reference): a required argument given by name goes to its place
+_MOVE = ("TOPOINT", "SPEED", "ZONE", "TOOL")
+_CIRC = ("CIRPOINT", "TOPOINT", "SPEED", "ZONE", "TOOL")
+PARAMETERS: dict[str, tuple] = {"MOVEABSJ": ("TOJOINTPOS", "SPEED", "ZONE", "TOOL"),
+                                "TRIGGL": ("TOPOINT", "SPEED", "TRIGG_1", "ZONE", "TOOL"),
+                                "TRIGGJ": ("TOPOINT", "SPEED", "TRIGG_1", "ZONE", "TOOL"),
+                                "TRIGGC": ("CIRPOINT", "TOPOINT", "SPEED", "TRIGG_1", "ZONE", "TOOL")}
+for _stem, _params in (("MOVEL", _MOVE), ("MOVEJ", _MOVE), ("MOVEC", _CIRC)):
+    PARAMETERS[_stem] = _params
+    PARAMETERS[_stem + "DO"] = PARAMETERS[_stem + "GO"] = PARAMETERS[_stem + "AO"] = _params + ("SIGNAL", "VALUE")
+    PARAMETERS[_stem + "SYNC"] = _params + ("PROCNAME",)
+
+
+def _place(name: str, positional: list, named: list, options: list, routine: bool) -> tuple:
+    """(positional, options, names not placed) with the required arguments given by name put in
+    place: an instruction's by :data:`PARAMETERS`, a routine's of the files read by its
+    parameters' names (``bind`` reads them with the options)."""
+    if routine:
+        return positional, options + named, []
+    order = PARAMETERS.get(name)
+    if order is None:
+        return positional, options, [k for k, _ in named]
+    out = list(positional)
+    for key, value in named:
+        if key.upper() not in order:
+            return positional, options, [key]
+        k = order.index(key.upper())
+        out.extend([None] * (k + 1 - len(out)))
+        if out[k] is not None:
+            return positional, options, [key]
+        out[k] = value
+    return out, options, []
+
+
+def _split(args, named: list | None = None) -> tuple:
+    """A call's ``arg`` trees → (positional expression trees, [(option name, value tree | None)]);
+    a required argument given by name (``Tool:=tool0``) goes to ``named`` [(NAME, value tree)]
+    where given, else with the options (bound by name like them: ``Lowering.bind``)."""
     positional, options = [], []
     for arg in args:
         kids = arg.children
+        if arg.data == "named":
+            (named if named is not None else options).append((str(kids[0]), kids[1]))  # (as written)
+            kids = kids[2:]
+            for opt in kids:
+                if opt is not None:
+                    options.append((str(opt.children[0]), opt if opt.data == "conditional" else
+                                    opt.children[1] if len(opt.children) > 1 else None))
+            continue
         if kids and not (isinstance(kids[0], Tree) and kids[0].data == "option"):
             positional.append(kids[0])
             kids = kids[1:]
