@@ -36,6 +36,7 @@ _CASE = re.compile(r":(?!=)")
 _HEAD_END = {"IF": _THEN, "ELSEIF": _THEN, "WHILE": _DO, "FOR": _DO, "ELSE": re.compile(r"\bELSE\b", re.I | re.A),
              "CASE": _CASE, "DEFAULT": _CASE}
 _CONDITIONS = {"IF", "ELSEIF", "WHILE", "FOR"}
+_LABEL_HEAD = re.compile(r"[ \t]*[A-Za-z_]\w*[ \t]*:(?!=)")  # (a label with a statement after it on its line)
 _PLACEHOLDER = re.compile(r"[ \t]*<[A-Z]{2,5}>[ \t\r]*$")  # (RobotStudio's <SMT> on a line of its own)
 _LABEL = re.compile(r"[ \t]*[A-Za-z_]\w*[ \t]*:[ \t\r]*$", re.ASCII)  # (\r: a CRLF file's line)
 # a UTF-8 byte order mark at the start of a file (as latin-1 reads its bytes, or decoded)
@@ -165,7 +166,8 @@ def _units(code: str, path: str, text: str):
                             pending = head_end.end()  # (the statements after it on its line)
                     else:
                         pending = offset
-                elif (head_end := _HEAD_END[first].search(line) if ";" in line and first in _HEAD_END else None) \
+                elif (head_end := _HEAD_END[first].search(line) if first in _HEAD_END else
+                      _LABEL_HEAD.match(line) if first not in _BLOCK_WORDS else None) \
                         and line[head_end.end():].strip():
                     yield start, offset + head_end.end()
                     pending = offset + head_end.end()  # (ELSE, CASE …:, DEFAULT: and a statement after it)
