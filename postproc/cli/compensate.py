@@ -48,6 +48,20 @@ def add_parser(sub, common, formatter) -> None:
     p.set_defaults(run=run)
 
 
+def joints_text(model) -> str | None:
+    """What ``compensate -v`` says of a model whose ``joints`` input decides the arm configuration
+    (model.card.configuration_text) and what compensate feeds it; None for other models."""
+    from ..model.card import configuration_text
+
+    text = configuration_text(model)
+    if text is None:
+        return None
+    return (f"model {model.name}: {text}. compensate feeds it each target's joint angles: the program's own where "
+            "it writes them (axis values, a pose list's q1..q6), else those of the configuration its S/T state, else "
+            "of the one the controller keeps there (a KRL LIN/CIRC, a target without S/T: that of the motion before "
+            "it; before the program's first, the model's own branch); a target without any is left as written (P309)")
+
+
 def run(args) -> int:
     from pathlib import Path
 
@@ -62,15 +76,15 @@ def run(args) -> int:
         check_program_outputs(inputs[0], args.output, in_place=args.in_place)
     settings = settings_of(args)
     reading = settings.reading
+    model = model_of(settings.model)
     if cell:
         from ..compensation.cell import compensate_cell
         from ..programs.cell import find_cell
 
-        report = compensate_cell(find_cell(inputs, reading.config_list, reading.active), args.output,
-                                 model_of(settings.model), settings)
+        report = compensate_cell(find_cell(inputs, reading.config_list, reading.active), args.output, model, settings)
     elif inputs[0] == "-":
         program = load_program("-", reading.config_list, reading.dialect, reading.active)
-        report = compensate_program(program, model_of(settings.model), settings)
+        report = compensate_program(program, model, settings)
         if args.output != "-":
             from ..compensation.pipeline import write_outputs
 
@@ -81,8 +95,12 @@ def run(args) -> int:
     else:
         from ..compensation.streaming import compensate_file
 
-        report = compensate_file(inputs[0], args.output, settings.model, settings=settings)
+        report = compensate_file(inputs[0], args.output, model, settings=settings)
     if not args.quiet:
+        if args.verbose:
+            said = joints_text(model)
+            if said:
+                print(f"postproc: {said}", file=sys.stderr)
         for w in report.warnings + [n for n in report.notes if args.verbose or n.code == P340]:
             print(w.format(), file=sys.stderr)
         print(f"postproc: {report.summary()}", file=sys.stderr)
