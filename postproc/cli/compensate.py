@@ -76,15 +76,15 @@ def run(args) -> int:
         check_program_outputs(inputs[0], args.output, in_place=args.in_place)
     settings = settings_of(args)
     reading = settings.reading
-    model = model_of(settings.model)
     if cell:
         from ..compensation.cell import compensate_cell
         from ..programs.cell import find_cell
 
-        report = compensate_cell(find_cell(inputs, reading.config_list, reading.active), args.output, model, settings)
+        report = compensate_cell(find_cell(inputs, reading.config_list, reading.active), args.output,
+                                 model_of(settings.model), settings)
     elif inputs[0] == "-":
         program = load_program("-", reading.config_list, reading.dialect, reading.active)
-        report = compensate_program(program, model, settings)
+        report = compensate_program(program, model_of(settings.model), settings)
         if args.output != "-":
             from ..compensation.pipeline import write_outputs
 
@@ -95,10 +95,10 @@ def run(args) -> int:
     else:
         from ..compensation.streaming import compensate_file
 
-        report = compensate_file(inputs[0], args.output, model, settings=settings)
+        report = compensate_file(inputs[0], args.output, settings.model, settings=settings)
     if not args.quiet:
-        if args.verbose:
-            said = joints_text(model)
+        if args.verbose:  # (the model loaded again: its session from the cache, session.py)
+            said = joints_text(model_of(settings.model))
             if said:
                 print(f"postproc: {said}", file=sys.stderr)
         for w in report.warnings + [n for n in report.notes if args.verbose or n.code == P340]:
