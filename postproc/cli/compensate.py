@@ -57,9 +57,10 @@ def joints_text(model) -> str | None:
     if text is None:
         return None
     return (f"model {model.name}: {text}. compensate feeds it each target's joint angles: the program's own where "
-            "it writes them (axis values, a pose list's q1..q6), else those of the configuration its S/T state, else "
-            "of the one the controller keeps there (a KRL LIN/CIRC, a target without S/T: that of the motion before "
-            "it; before the program's first, the model's own branch); a target without any is left as written (P309)")
+            "it writes them (a pose list's q1..q6), else those of the configuration its S/T state, else of the one "
+            "the controller keeps there (a KRL LIN/CIRC, a target without S/T: that of the motion before it or of the "
+            "axis values a joint motion left; before the program's first, the model's own branch); a target without "
+            "any is left as written (P309)")
 
 
 def run(args) -> int:
