@@ -97,7 +97,7 @@ def test_onnx_round_trip_matches_torch_and_meets_the_contract(fitted, data, tmp_
     comp = load_model(path)
     assert comp.name == "synthetic" and comp.robot == "KR500-sim"
     assert comp.metadata["structure"] == "6-20-10-5-3" and comp.metadata["method"] == "GPSO-DNN + lm"
-    assert comp.metadata["iterations"] == 2 and comp.metadata["postproc_contract"] == 2
+    assert comp.metadata["iterations"] == 2 and comp.metadata["postproc_contract"] == 3
     assert comp.metadata["data_sha256"] == "ab" * 32 and comp.metadata["accuracy"]["val_mean_mm"] == 0.1
     env = comp.envelope
     assert env is not None and not env.outside(poses[train]).any()

@@ -48,6 +48,21 @@ def add_parser(sub, common, formatter) -> None:
     p.set_defaults(run=run)
 
 
+def joints_text(model) -> str | None:
+    """What ``compensate -v`` says of a model whose ``joints`` input decides the arm configuration
+    (model.card.configuration_text) and what compensate feeds it; None for other models."""
+    from ..model.card import configuration_text
+
+    text = configuration_text(model)
+    if text is None:
+        return None
+    return (f"model {model.name}: {text}. compensate feeds it each target's joint angles: the program's own where "
+            "it writes them (a pose list's q1..q6), else those of the configuration its S/T state, else of the one "
+            "the controller keeps there (a KRL LIN/CIRC, a target without S/T: that of the motion before it or of the "
+            "axis values a joint motion left; before the program's first, the model's own branch); a target without "
+            "any is left as written (P309)")
+
+
 def run(args) -> int:
     from pathlib import Path
 
@@ -83,6 +98,10 @@ def run(args) -> int:
 
         report = compensate_file(inputs[0], args.output, settings.model, settings=settings)
     if not args.quiet:
+        if args.verbose:  # (the model loaded again: its session from the cache, session.py)
+            said = joints_text(model_of(settings.model))
+            if said:
+                print(f"postproc: {said}", file=sys.stderr)
         for w in report.warnings + [n for n in report.notes if args.verbose or n.code == P340]:
             print(w.format(), file=sys.stderr)
         print(f"postproc: {report.summary()}", file=sys.stderr)

@@ -7,12 +7,14 @@ import sys
 EXAMPLES = """examples:
   postproc model info models/default.onnx             inputs, outputs, the card in words
   postproc model info m.onnx --json                    the card (metadata, JSON-decoded) on stdout
-  postproc model upgrade old.onnx -o new.onnx          a contract-1 file: every optional input made optional
+  postproc model upgrade old.onnx -o new.onnx          a contract-1 or -2 file brought to contract 3
 
 `info` checks the card against the model card's JSON Schema (postproc/schemas/model_card.schema.json;
-needs the jsonschema package) and exits 1 if it does not hold. `upgrade` keeps the graph's nodes
-and numbers; it adds each optional input's default (NaN rows; previous_pose: the pose itself),
-so that onnxruntime runs the model with `pose` alone.
+needs the jsonschema package) and exits 1 if it does not hold; for a model with a joints input it says
+that joints decides the arm configuration. `upgrade` keeps the graph's nodes and numbers; it makes
+each optional input an ONNX optional input with its default (NaN rows; previous_pose: the pose
+itself), so that onnxruntime runs the model with `pose` alone, lists every input in get_inputs()
+and opens it without a warning.
 """
 
 
@@ -32,7 +34,7 @@ def add_parser(sub, common, formatter) -> None:
     info.add_argument("--json", action="store_true", help="print the card as JSON on stdout instead")
     info.set_defaults(run=run_info)
     up = actions.add_parser("upgrade", parents=[common], formatter_class=formatter,
-                            help="write MODEL.onnx with this contract's optional-input defaults")
+                            help="write MODEL.onnx with this contract's optional inputs (contract 3)")
     up.add_argument("model", metavar="MODEL.onnx")
     up.add_argument("-o", "--output", required=True, metavar="NEW.onnx")
     up.set_defaults(run=run_upgrade)

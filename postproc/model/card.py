@@ -6,7 +6,9 @@ authoritative text is ``compensator.py``'s). It is versioned with the contract: 
 in the contract version it describes, ``postproc_contract`` is one of the versions this postproc
 reads; ``load_model`` refuses a newer one naming it. ``card_problems`` checks a card against it
 (the ``jsonschema`` package: ``postproc[report]``/``[test]``; ``postproc model info`` says when it
-is not installed). ``interface_lines`` / ``card_lines``: what ``postproc model info`` prints.
+is not installed). ``interface_lines`` / ``card_lines``: what ``postproc model info`` prints;
+``configuration_text``: that a model's ``joints`` input decides the arm configuration (``model
+info``, ``compensate -v``).
 """
 from __future__ import annotations
 
@@ -24,7 +26,7 @@ from .contract import (
     contract_version,
 )
 
-__all__ = ["SCHEMA_PATH", "schema", "card_problems", "interface_lines", "card_lines"]
+__all__ = ["SCHEMA_PATH", "schema", "card_problems", "interface_lines", "card_lines", "configuration_text"]
 
 SCHEMA_PATH = schema_path("model_card.schema.json")
 
@@ -52,20 +54,43 @@ def card_problems(card: dict) -> list[str]:
             for e in sorted(validator.iter_errors(card), key=lambda e: list(map(str, e.absolute_path)))]
 
 
+def configuration_text(model: Compensator) -> str | None:
+    """For a model that takes ``joints``: that this input decides the arm configuration the
+    model evaluates, and what it takes without it (the branch it identified); None for others."""
+    if not model.wants_joints:
+        return None
+    ident = model.metadata.get("identified")
+    branch = ""
+    if isinstance(ident, dict) and ident.get("ik_branch") is not None:
+        signs = ", ".join(f"{float(b):+g}" for b in ident["ik_branch"])
+        branch = f" ({ident.get('ik_family') or 'IK'} branch [{signs}])"
+    return ("the input joints decides the arm configuration: the model solves each pose on the branch (shoulder, "
+            "elbow, wrist) of the joint angles fed there; where joints is left out, or a row is NaN, on the branch it "
+            f"identified from its training data{branch}, and a target the robot reaches in another configuration then "
+            "gets the correction of the wrong one")
+
+
 def interface_lines(model: Compensator) -> list[str]:
     """The graph's inputs and outputs in words: name, shape, required or optional (and what an
-    omitted input means)."""
+    omitted input means); for a model with ``joints``, that it decides the arm configuration."""
     from .contract import DEFAULT_MEANING
 
     lines = ["inputs (float32):"]
+    overridable = {node.name for node in model.session.get_overridable_initializers()}
     for node in (*model.session.get_inputs(), *model.session.get_overridable_initializers()):
         if node.name == INPUT_POSE:
             how = "required: X,Y,Z mm, A,B,C deg (KUKA R = Rz(A)·Ry(B)·Rx(C)), robot base frame"
         elif node.name in model.defaults:
             how = f"optional, omitted = {DEFAULT_MEANING.get(node.name, 'its default')}"
+            if node.name in overridable:
+                how += (" (a contract-2 file: onnxruntime lists it in get_overridable_initializers(), not "
+                        "get_inputs(), and warns at each session; `postproc model upgrade` makes it an ONNX optional input)")
         else:
             how = "required by this graph (a contract-1 file: feed every input; `postproc model upgrade` makes it optional)"
         lines.append(f"  {node.name} [N, 6]: {how}")
+    configuration = configuration_text(model)
+    if configuration:
+        lines.append(f"  {configuration}")
     lines.append("outputs (float32):")
     for node in model.session.get_outputs():
         width = node.shape[1] if len(node.shape) == 2 else "?"

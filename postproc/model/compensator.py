@@ -1,15 +1,21 @@
 """The compensator: one ONNX file that maps commanded TCP poses to positioning errors.
 
-Contract (version 2), shared by ``train`` (which writes it) and ``compensate`` (which runs it),
+Contract (version 3), shared by ``train`` (which writes it) and ``compensate`` (which runs it),
 and the interface of any other program that runs the file (onnxruntime alone: ``examples/``,
 ``docs/INTEGRATION.md``):
 
-* every input but ``pose`` is optional in the ONNX sense: the graph carries a default for it
-  (an initializer of the same name, float32 [1, 6] NaN, broadcast to ``pose``'s rows:
-  ``contract.with_defaults``), so a caller that omits it gets its NaN meaning below, and an
-  omitted ``previous_pose`` (or a row of it with a NaN) is the pose itself; contract-1 files
-  (``postproc_contract`` "1") have the same inputs without defaults (``postproc model upgrade``
-  adds them); ``Compensator`` feeds every input the graph takes either way;
+* every input but ``pose`` is optional in the ONNX sense: a graph input of ONNX optional type,
+  ``optional(tensor(float))`` [N, 6], that onnxruntime lists in ``get_inputs()`` beside
+  ``pose`` (C/C++/C#: the session's inputs, type ``ONNX_TYPE_OPTIONAL``) and that a caller feeds
+  a plain float32 tensor or leaves out; the graph carries its default (float32 [1, 6] NaN,
+  broadcast to ``pose``'s rows: ``contract.with_defaults``), so a caller that omits it gets its
+  NaN meaning below, and an omitted ``previous_pose`` (or a row of it with a NaN) is the pose
+  itself. A plain ``onnxruntime.InferenceSession(file)`` opens it without a warning.
+  Contract-2 files (``postproc_contract`` "2") carry the same defaults as initializers of the
+  inputs' names (onnxruntime lists those in ``get_overridable_initializers()`` only and warns
+  at each session), contract-1 files have the same inputs without defaults; ``postproc model
+  upgrade`` brings both to this contract, ``Compensator`` feeds every input the graph takes
+  whichever it is;
 * input ``pose``: float32 [N, 6] = X, Y, Z (mm), A, B, C (deg) in the robot base frame;
 * optional input ``previous_pose``: float32 [N, 6], the pose commanded just before each
   target (program order), for models that learn direction-dependent error (backlash);
@@ -20,7 +26,10 @@ and the interface of any other program that runs the file (onnxruntime alone: ``
   target (from its S/T, or a measurement's q1..q6); a row of NaN = unknown. The model uses
   them as the *configuration*: it solves the nominal IK of ``pose`` on the branch those
   angles are on (shoulder / elbow / wrist read from them) and evaluates its identified arm
-  there; NaN rows take the branch the model identified from its training data. So the fixed
+  there; NaN rows (and a caller that leaves ``joints`` out) take the branch the model
+  identified from its training data (the card's ``identified.ik_branch``), which for a target
+  in another configuration is the correction of the wrong arm (``postproc model info`` and
+  ``compensate -v`` say so for a model with ``joints``). So the fixed
   point below stays right: the caller passes the joints of the *target* P once, and every
   iteration's command c (a few mm from P) is solved on that branch — q(c), not q(P).
   ``Compensator`` feeds NaN when the caller has none;
@@ -71,7 +80,7 @@ and the interface of any other program that runs the file (onnxruntime alone: ``
   commands (in the run the approach settling makes there: ``command_chunks(std=True)``), and
   only to hold the targets to ``--max-std`` (P336);
 * ``metadata_props`` (values JSON-encoded where structured; JSON Schema
-  ``postproc/schemas/model_card.schema.json``, ``model_card.py``): ``postproc_contract`` "2" (a
+  ``postproc/schemas/model_card.schema.json``, ``card.py``): ``postproc_contract`` "3" (a
   newer version is refused naming it),
   ``name``, ``robot``, ``tool`` {"name", "frame", optional "measured": [[X,Y,Z,A,B,C], ...]
   the TCPs of the data, "unseparated": [[x,y,z], ...] unit directions (flange frame) of the
@@ -160,10 +169,11 @@ PREDICT_BATCH = 2048
 # program streams in 215 MB (65,536: 420 MB, over issue 13's 300 MB) at the same speed; the
 # settling's chunk borders move, which changed 2 of 200,000 coordinates by 0.001 mm (last digit)
 COMMAND_CHUNK = 1 << 14
-# A ``predict`` of at least this many rows that asks for fewer outputs than the graph has runs a
-# session of the graph cut to them (session.py: onnxruntime runs every node whichever outputs
-# are asked; the fixed-point iterations need no ``error_std``: 3.3 against 6.5 µs per row for
-# the shipped model, the same numbers); smaller ones keep the start-up of one session
+# A ``predict`` of at least this many rows runs a session of the graph cut to the outputs it
+# asks for (session.py: onnxruntime runs every node whichever outputs are asked; the fixed-point
+# iterations need no ``error_std``: 3.3 against 6.5 µs per row for the shipped model, the same
+# numbers), its optional inputs plain tensors (no If: ~5 %); smaller ones keep the start-up of
+# one session
 CUT_ROWS = 8192
 # More fixed-point iterations than this is a typo or a hostile model card, not a method (a hang).
 
@@ -186,7 +196,7 @@ class Compensator:
     has_std: bool = False  # the graph also outputs ``error_std``
     wants_approach: bool = False  # the graph takes fixed approach signs (``approach``)
     settle: bool = True  # settle the commands on their approach where the model can (False: the plain fixed point)
-    defaults: tuple = ()  # the inputs a caller may omit (their default initializers: contract 2, contract.py)
+    defaults: tuple = ()  # the inputs a caller may omit (contract 3: of optional type; 2: with initializers; contract.py)
 
     @property
     def settles(self) -> bool:
@@ -346,9 +356,9 @@ class Compensator:
 
     def _session_for(self, names: list[str], rows: int):
         """The session to run ``names`` on ``rows`` rows: the whole graph's, or for a large run
-        that asks for fewer outputs than it has, one of the graph cut to them (made once per
-        output set from the bytes loaded; the whole graph's where it cannot be cut)."""
-        if rows < self.cut_rows or not self.data or len(names) >= len(self.session.get_outputs()):
+        one of the graph cut to them (made once per output set from the bytes loaded, its
+        optional inputs plain tensors: session.py; the whole graph's where it cannot be cut)."""
+        if rows < self.cut_rows or not self.data:
             return self.session
         key = tuple(names)
         if key not in self._cut:
@@ -548,8 +558,10 @@ def load_model(path: str | Path | None = None) -> Compensator:
         session = inference_session(data)  # (the graph optimised once per model: session.py)
     except Exception as exc:  # onnxruntime raises its own exception types
         raise PostprocError(f"not an ONNX model: {str(exc).splitlines()[0][:200]}", str(path), code=P306) from exc
-    # (an optional input with its default initializer is an "overridable initializer" to onnxruntime)
-    inputs = {i.name: i for i in (*session.get_inputs(), *session.get_overridable_initializers())}
+    # (an optional input: of ONNX optional type, contract 3; contract 2's, an input with its default
+    # initializer, is an "overridable initializer" to onnxruntime)
+    overridable = session.get_overridable_initializers()
+    inputs = {i.name: i for i in (*session.get_inputs(), *overridable)}
     outputs = {o.name: o for o in session.get_outputs()}
     joints_output = OUTPUT_JOINTS if OUTPUT_JOINTS in outputs or INPUT_JOINTS in inputs else LEGACY_OUTPUT_JOINTS
     problems = _interface_problems(inputs, outputs, joints_output)
@@ -577,7 +589,8 @@ def load_model(path: str | Path | None = None) -> Compensator:
         has_rotation=OUTPUT_ROTATION in outputs,
         has_std=OUTPUT_STD in outputs,
         wants_approach=INPUT_APPROACH in inputs,
-        defaults=tuple(i.name for i in session.get_overridable_initializers()),
+        defaults=tuple([i.name for i in session.get_inputs() if i.type.startswith("optional(")]
+                       + [i.name for i in overridable]),
     )
 
 

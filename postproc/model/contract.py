@@ -1,21 +1,37 @@
 """The contract's graph side: every optional input optional in the ONNX sense, and the versions.
 
 The contract's text is ``compensator.py``'s module docstring; this module holds what a graph must
-carry so that a caller with onnxruntime alone can run it feeding only ``pose`` (issue 27):
+carry so that a caller with onnxruntime alone can run it feeding only ``pose`` (issue 27), finds
+every input it may feed with the standard API and opens it without a warning (issue 34):
 
 * each optional input (``previous_pose``, ``joints``, ``tool``, ``approach``,
-  ``previous_joints``) a graph takes is also an initializer of the same name, float32 [1, 6] NaN
-  (ONNX: a graph input with an initializer is optional; onnxruntime uses the initializer when
-  the caller omits the input, ``InferenceSession.get_overridable_initializers``), broadcast to
-  the rows of ``pose`` (``Expand`` to ``Shape(pose)``) before the graph reads it, so an omitted
-  input is a NaN row per target = "unknown", the contract's meaning of NaN for each;
+  ``previous_joints``) a graph takes is a graph input of ONNX optional type,
+  ``optional(tensor(float))`` [N, 6] (IR 8, opset ≥ 15): onnxruntime lists it in
+  ``get_inputs()`` (C API: ``SessionGetInputTypeInfo`` says ``ONNX_TYPE_OPTIONAL``) and takes a
+  plain float tensor for it or nothing. The graph reads it through
+  ``If(OptionalHasElement(x))``: the fed tensor, else ``x__default`` (an initializer, float32
+  [1, 6] NaN), broadcast to the rows of ``pose`` (``Expand`` to ``Shape(pose)``) before the graph
+  reads it, so an omitted input is a NaN row per target = "unknown", the contract's meaning of
+  NaN for each;
 * ``previous_pose``: a row with a NaN is the pose itself (the contract's "nothing is known
   before it", what ``Compensator`` feeds for the first target), chosen row by row in the graph;
-* ``postproc_contract`` "2" in ``metadata_props``: the graphs of contract 1 (written before
-  this) take the same inputs but require all of them; ``Compensator`` feeds every input either
-  way and reads both. ``upgrade`` turns a contract-1 file into a contract-2 one (the same nodes
-  and numbers for a caller feeding every input); a file of a newer contract than
+* ``postproc_contract`` "3" in ``metadata_props``. Contract 1 (written before issue 27) takes
+  the same inputs but requires all of them; contract 2 (issue 27 to 34) gives each optional
+  input its default as an initializer of the input's name (ONNX: a graph input with an
+  initializer is optional), which onnxruntime lists only in ``get_overridable_initializers()``
+  and warns about at every session ("Initializer … appears in graph inputs and will not be
+  treated as constant value/weight"): a caller reading ``get_inputs()`` never saw ``joints``.
+  ``Compensator`` feeds every input either way and reads all three. ``upgrade`` turns a
+  contract-1 or -2 file into a contract-3 one (the same nodes and numbers for a caller feeding
+  every input; the graph's own nodes untouched); a file of a newer contract than
   ``CONTRACT_VERSIONS`` is refused by ``compensator.load_model`` naming its version.
+
+Why this form (onnxruntime 1.32, measured): a graph input of optional type is the one form in
+which an input may be omitted from the feed and is still in ``get_inputs()``; an initializer
+of the input's name is what the warning is about (graph.cc warns for every such input, at the
+default log level), and a plain tensor input is required. The ``If`` costs ~5 % of a run of
+the shipped model's graph for a caller of the file; ``Compensator``'s large runs use a graph
+without it (``session._fed``: it feeds every input).
 
 ``with_defaults`` is the one function every exported graph goes through: ``training/export.py``
 (hybrid, kinematic, dnn-joints and the pose-only networks), ``postproc.testing.models``, and
@@ -36,10 +52,11 @@ __all__ = [
     "contract_version", "contract_metadata",
 ]
 
-CONTRACT_VERSION = "2"
+CONTRACT_VERSION = "3"
 # the contract versions this postproc reads: 1 (every input a graph takes required), 2 (the
-# optional inputs carry defaults: contract.py); a newer file is refused naming its version
-CONTRACT_VERSIONS = ("1", "2")
+# optional inputs' defaults initializers of their names), 3 (the optional inputs of ONNX optional
+# type: module text); a newer file is refused naming its version
+CONTRACT_VERSIONS = ("1", "2", "3")
 INPUT_POSE = "pose"
 INPUT_PREVIOUS = "previous_pose"
 OUTPUT_ERROR = "error"
@@ -62,50 +79,104 @@ DEFAULT_MEANING = {
 }
 OPTIONAL_INPUTS = tuple(DEFAULT_MEANING)
 _SUFFIX = "__given"  # the name the graph reads an optional input by once broadcast
+_VALUE = "__value"  # an optional input's tensor: the caller's where fed, else the default
+_DEFAULT = "__default"  # its default, float32 [1, 6] (NaN)
+MIN_OPSET = 15  # ONNX's optional type and its operators (OptionalHasElement, OptionalGetElement)
+
+
+def _is_optional(value_info) -> bool:
+    return value_info.type.HasField("optional_type")
 
 
 def optional_inputs(model) -> list[str]:
-    """The contract inputs of ``model`` (onnx.ModelProto) that already have a default initializer."""
+    """The contract inputs of ``model`` (onnx.ModelProto) that a caller may already omit: of
+    ONNX optional type (contract 3) or with a default initializer of the same name (contract 2)."""
     inits = {i.name for i in model.graph.initializer}
-    return [i.name for i in model.graph.input if i.name in OPTIONAL_INPUTS and i.name in inits]
+    return [i.name for i in model.graph.input
+            if i.name in OPTIONAL_INPUTS and (_is_optional(i) or i.name in inits)]
+
+
+def _rename_reads(graph, old: str, new: str, skip=()) -> None:
+    """Every node of ``graph`` (and of its subgraphs) but ``skip`` that reads ``old`` reads ``new``."""
+    from onnx import AttributeProto
+
+    for node in graph.node:
+        if any(node is s for s in skip):
+            continue
+        for k, value in enumerate(node.input):
+            if value == old:
+                node.input[k] = new
+        for attr in node.attribute:
+            if attr.type == AttributeProto.GRAPH:
+                _rename_reads(attr.g, old, new)
+            elif attr.type == AttributeProto.GRAPHS:
+                for sub in attr.graphs:
+                    _rename_reads(sub, old, new)
 
 
 def with_defaults(model):
-    """``model`` (onnx.ModelProto, changed in place and returned) with a default for each optional
-    input it takes (module text) and ``postproc_contract`` set to this contract. Idempotent."""
-    from onnx import helper, numpy_helper
+    """``model`` (onnx.ModelProto, changed in place and returned) with each optional input it
+    takes of ONNX optional type and its default in the graph (module text), ``postproc_contract``
+    set to this contract. A graph of contract 1 (the inputs required) or 2 (defaults as
+    initializers of the inputs' names) is brought to it with its nodes and numbers. Idempotent."""
+    from onnx import TensorProto, helper, numpy_helper
 
     graph = model.graph
     names = {i.name for i in graph.input}
     if INPUT_POSE not in names:
         raise ValueError(f"the graph has no input '{INPUT_POSE}'")
-    have = set(optional_inputs(model))
-    todo = [n for n in OPTIONAL_INPUTS if n in names and n not in have]
-    if model.ir_version < 4:  # (an input with an initializer is optional from IR 4 on)
-        model.ir_version = 4
+    opset = next((o for o in model.opset_import if o.domain in ("", "ai.onnx")), None)
+    if opset is None or opset.version < MIN_OPSET:
+        raise ValueError(f"the graph's opset {opset.version if opset else '(none)'} has no optional inputs "
+                         f"(ONNX opset {MIN_OPSET} or later)")
+    model.ir_version = max(model.ir_version, 8)  # (optional types: IR 8 on)
+    inits = {i.name: i for i in graph.initializer}
+    todo = [i for i in graph.input if i.name in OPTIONAL_INPUTS and not _is_optional(i)]
     nodes = []
     shape = f"{INPUT_POSE}{_SUFFIX}_shape"
-    if todo:
+    if todo and not any(shape in n.output for n in graph.node):
         nodes.append(helper.make_node("Shape", [INPUT_POSE], [shape], name="postproc_default_shape"))
-    for name in todo:
-        given = name + _SUFFIX
-        for node in graph.node:  # the graph reads the broadcast value
-            for k, value in enumerate(node.input):
-                if value == name:
-                    node.input[k] = given
+    for value_info in todo:
+        name = value_info.name
         for out in graph.output:  # (an input passed straight through: not in the contract's graphs)
             if out.name == name:
                 raise ValueError(f"input '{name}' is also a graph output")
-        graph.initializer.append(numpy_helper.from_array(np.full((1, 6), np.nan, np.float32), name))
-        if name == INPUT_PREVIOUS:
-            wide, ones, total, unknown = (f"{name}{_SUFFIX}_{s}" for s in ("wide", "ones", "sum", "unknown"))
-            graph.initializer.append(numpy_helper.from_array(np.ones((6, 1), np.float32), ones))
-            nodes += [helper.make_node("Expand", [name, shape], [wide], name=f"postproc_default_{name}"),
-                      helper.make_node("MatMul", [wide, ones], [total]),  # NaN where the row has one
-                      helper.make_node("IsNaN", [total], [unknown]),
-                      helper.make_node("Where", [unknown, INPUT_POSE, wide], [given])]
-        else:
-            nodes.append(helper.make_node("Expand", [name, shape], [given], name=f"postproc_default_{name}"))
+        default, chosen = name + _DEFAULT, name + _VALUE
+        if name in inits:  # contract 2: its default is the initializer of its name, broadcast already
+            old = inits[name]
+            graph.initializer.remove(old)
+            value = numpy_helper.to_array(old)
+        else:  # contract 1: broadcast to pose's rows (previous_pose: a row with a NaN is the pose)
+            value = np.full((1, 6), np.nan, np.float32)
+            given = name + _SUFFIX
+            _rename_reads(graph, name, given)
+            if name == INPUT_PREVIOUS:
+                wide, ones, total, unknown = (f"{name}{_SUFFIX}_{s}" for s in ("wide", "ones", "sum", "unknown"))
+                graph.initializer.append(numpy_helper.from_array(np.ones((6, 1), np.float32), ones))
+                nodes += [helper.make_node("Expand", [chosen, shape], [wide], name=f"postproc_default_{name}"),
+                          helper.make_node("MatMul", [wide, ones], [total]),  # NaN where the row has one
+                          helper.make_node("IsNaN", [total], [unknown]),
+                          helper.make_node("Where", [unknown, INPUT_POSE, wide], [given])]
+            else:
+                nodes.append(helper.make_node("Expand", [chosen, shape], [given], name=f"postproc_default_{name}"))
+        graph.initializer.append(numpy_helper.from_array(np.asarray(value, np.float32), default))
+        # the value the graph reads: the caller's tensor where fed, else the default
+        fed, unfed, has = (f"{name}{s}" for s in ("__fed", "__unfed", "__has"))
+        out_type = [helper.make_tensor_value_info(v, TensorProto.FLOAT, [None, 6]) for v in (fed, unfed)]
+        choose = [helper.make_node("OptionalHasElement", [name], [has], name=f"postproc_has_{name}"),
+                  helper.make_node("If", [has], [chosen], name=f"postproc_default_or_{name}",
+                                   then_branch=helper.make_graph(
+                                       [helper.make_node("OptionalGetElement", [name], [fed])],
+                                       f"{name}_fed", [], [out_type[0]]),
+                                   else_branch=helper.make_graph(
+                                       [helper.make_node("Identity", [default], [unfed])],
+                                       f"{name}_omitted", [], [out_type[1]]))]
+        _rename_reads(graph, name, chosen)
+        nodes[:0] = choose
+        tensor = value_info.type.tensor_type
+        optional = helper.make_optional_type_proto(helper.make_tensor_type_proto(tensor.elem_type, None))
+        optional.optional_type.elem_type.tensor_type.shape.CopyFrom(tensor.shape)
+        value_info.type.CopyFrom(optional)
     if nodes:
         rest = list(graph.node)
         del graph.node[:]
@@ -123,8 +194,9 @@ def _set_meta(model, key: str, value: str) -> None:
 
 
 def upgrade(data: bytes) -> bytes:
-    """An older compensator's bytes (contract 1: every input required) as this contract's: the
-    same graph with ``with_defaults`` (the same numbers for a caller feeding every input)."""
+    """An older compensator's bytes (contract 1: every input required; 2: the defaults
+    initializers of the inputs' names) as this contract's: the same graph with
+    ``with_defaults`` (the same numbers for a caller feeding every input)."""
     import onnx
 
     model = onnx.load_from_string(data)
@@ -173,6 +245,8 @@ def _interface_problems(inputs: dict, outputs: dict, joints_output: str) -> list
     for node in (*inputs.values(), *outputs.values()):
         if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, INPUT_APPROACH, INPUT_PREVIOUS_JOINTS,
                          OUTPUT_ERROR, joints_output, OUTPUT_ROTATION, OUTPUT_STD) and node.type != "tensor(float)":
+            if node.type == "optional(tensor(float))" and node.name in OPTIONAL_INPUTS and node in inputs.values():
+                continue  # (an optional input, contract 3)
             problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")
     return problems
 

@@ -22,7 +22,9 @@ onnxruntime runs every node of a graph whichever outputs a run asks for, so the 
 iterations, which need ``error`` (and ``ik_joints``) only, paid for the ``error_std`` Jacobian
 too. The cut keeps the nodes those outputs need (the ``onnx`` package: ``_cut``) and is cached
 like the whole graph, keyed by the model's bytes and the outputs; the numbers are the whole
-graph's bit for bit (tests/test_session.py). Every session of the process draws on one CPU arena
+graph's bit for bit (tests/test_session.py). It takes every optional input (contract 3: ONNX
+optional type) as a plain tensor, which ``Compensator`` always feeds: the ``If`` choosing the
+fed value or the default is an ``Identity`` there (``_fed``; the If cost ~5 % of a run). Every session of the process draws on one CPU arena
 registered with onnxruntime's environment (``session.use_env_allocators``): with one arena per
 session the cut graphs added ~85 MB to a streamed 1M-target program's peak (202 → 287 MB; one
 arena: 241 MB), for the same speed.
@@ -79,13 +81,14 @@ def _key(ort, data: bytes, outputs: tuple[str, ...] | None = None) -> str:
     h.update(f"\0onnxruntime {ort.__version__}\0threads {_THREADS}\0level all\0cpu".encode())
     if outputs is not None:
         h.update("\0outputs".join(["", *outputs]).encode())
+        h.update(b"\0fed")  # (the cut graph takes its optional inputs as tensors: _fed)
     return h.hexdigest()
 
 
 def inference_session(data: bytes, outputs: tuple[str, ...] | None = None):
     """An ``onnxruntime.InferenceSession`` (CPU) of the model ``data``; raises what ORT raises
     for a model it cannot load. With ``outputs``: of the graph cut to what they need, or None
-    where it cannot be cut here (no ``onnx`` package, a graph with subgraphs)."""
+    where it cannot be cut here (no ``onnx`` package)."""
     import onnxruntime as ort
 
     folder = cache_dir()
@@ -138,22 +141,20 @@ def _keep(written: Path, cached: Path, digest: Path) -> None:
 
 def _cut(data: bytes, outputs: tuple[str, ...]) -> bytes | None:
     """The model ``data`` with only the graph outputs ``outputs`` and the nodes and initializers
-    they need (every input kept); None without the ``onnx`` package or for a graph whose nodes
-    carry subgraphs (their outer names are not followed here)."""
+    they need (every input kept, each optional one as a plain tensor: ``_fed``); None without
+    the ``onnx`` package."""
     try:
         import onnx
     except ImportError:
         return None
     model = onnx.load_from_string(data)
     graph = model.graph
-    subgraphs = (onnx.AttributeProto.GRAPH, onnx.AttributeProto.GRAPHS)
-    if any(a.type in subgraphs for node in graph.node for a in node.attribute):
-        return None
+    _fed(onnx, graph)
     needed, keep = set(outputs), []
     for node in reversed(graph.node):
         if any(name in needed for name in node.output):
             keep.append(node)
-            needed.update(name for name in node.input if name)
+            needed.update(_reads(onnx, node))
     kept_outputs = [o for o in graph.output if o.name in outputs]
     if len(kept_outputs) != len(set(outputs)):
         return None
@@ -164,3 +165,55 @@ def _cut(data: bytes, outputs: tuple[str, ...]) -> bytes | None:
     graph.output.extend(kept_outputs)
     graph.initializer.extend(initializers)
     return model.SerializeToString()
+
+
+def _fed(onnx, graph) -> None:
+    """``graph`` (changed in place) taking each of its optional inputs (ONNX optional type,
+    contract 3) as a plain tensor: ``Compensator`` feeds every input the graph takes, so the
+    ``If`` that chooses between the fed value and the default (``contract.with_defaults``)
+    becomes an ``Identity`` of the input, its ``then`` branch (~5 % of a run of the shipped
+    model's graph; the same numbers). A graph that reads an optional input otherwise is left
+    as it is."""
+    optional = {value.name: value for value in graph.input if value.type.HasField("optional_type")}
+    if not optional:
+        return
+    has = {node.output[0]: node.input[0] for node in graph.node
+           if node.op_type == "OptionalHasElement" and list(node.input) == [node.input[0]] and node.input[0] in optional}
+
+    def chooses(node) -> str | None:  # the input an If of contract 3 chooses a value for
+        if node.op_type != "If" or node.input[0] not in has:
+            return None
+        then = next((a.g for a in node.attribute if a.name == "then_branch"), None)
+        name = has[node.input[0]]
+        if (then is None or len(then.node) != 1 or then.node[0].op_type != "OptionalGetElement"
+                or list(then.node[0].input) != [name] or [o.name for o in then.output] != list(then.node[0].output)):
+            return None
+        return name
+
+    nodes = []
+    for node in graph.node:
+        if node.op_type == "OptionalHasElement" and node.output[0] in has:
+            continue
+        name = chooses(node)
+        nodes.append(node if name is None else onnx.helper.make_node("Identity", [name], list(node.output), name=node.name))
+    if any((name in optional and node.op_type != "Identity") or name in has
+           for node in nodes for name in _reads(onnx, node)):
+        return  # (an optional input read otherwise: the graph as it is)
+    del graph.node[:]
+    graph.node.extend(nodes)
+    for value in optional.values():
+        tensor = onnx.TypeProto()
+        tensor.CopyFrom(value.type.optional_type.elem_type)
+        value.type.CopyFrom(tensor)
+
+
+def _reads(onnx, node) -> set[str]:
+    """The names ``node`` reads: its inputs and, for a node with subgraphs (contract 3's ``If``
+    of an optional input), every name its subgraphs' nodes read (outer ones among them)."""
+    names = {name for name in node.input if name}
+    for attr in node.attribute:
+        graphs = [attr.g] if attr.type == onnx.AttributeProto.GRAPH else list(attr.graphs)
+        for sub in graphs:
+            for inner in sub.node:
+                names |= _reads(onnx, inner)
+    return names

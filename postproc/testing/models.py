@@ -3,7 +3,8 @@
 ``affine_model(offset, gain)`` predicts E = offset + gain · (xyz − centre): zero, constant
 and position-dependent models with the full contract metadata. Each optional input has its
 default (``contract.with_defaults``), as in every exported graph; ``defaults=False`` writes a
-file as contract 1 did (every input required).
+file as contract 1 did (every input required), ``as_contract_2`` rewrites a file as contract 2
+did (each optional input's default an initializer of its name, which onnxruntime warns about).
 """
 from __future__ import annotations
 
@@ -146,3 +147,31 @@ def joint_model(path: Path, gain: np.ndarray, tool_gain: np.ndarray | None = Non
                              envelope=extra_meta.pop("envelope", None), reach=DEFAULT_REACH,
                              method="joint-test", **extra_meta)
     return _save(model, meta, path, defaults)
+
+
+def as_contract_2(path: Path, out: Path | None = None) -> Path:
+    """The contract-3 model file ``path`` rewritten (to ``out``, default in place) as contract 2
+    wrote it: each optional input a plain tensor input with an initializer of its name (its
+    default), read by the same broadcast nodes; the same numbers for any feed."""
+    from ..model.contract import _DEFAULT, _VALUE, _rename_reads, _set_meta
+
+    model = onnx.load(path)
+    graph = model.graph
+    optional = [i for i in graph.input if i.type.HasField("optional_type")]
+    drop = {f"postproc_has_{i.name}" for i in optional} | {f"postproc_default_or_{i.name}" for i in optional}
+    nodes = [n for n in graph.node if n.name not in drop]
+    del graph.node[:]
+    graph.node.extend(nodes)
+    for value in optional:
+        name = value.name
+        _rename_reads(graph, name + _VALUE, name)
+        default = next(i for i in graph.initializer if i.name == name + _DEFAULT)
+        default.name = name
+        tensor = onnx.TypeProto()
+        tensor.CopyFrom(value.type.optional_type.elem_type)
+        value.type.CopyFrom(tensor)
+    _set_meta(model, "postproc_contract", "2")
+    onnx.checker.check_model(model)
+    out = Path(path if out is None else out)
+    onnx.save(model, out)
+    return out
