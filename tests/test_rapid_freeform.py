@@ -265,3 +265,37 @@ def test_an_argument_given_by_a_name_postproc_cannot_place_leaves_the_target_and
     said = {(d.code, d.line): d.message for d in p.diagnostics}
     assert "ArcL is given ToPoint:=" in said[("P211", 6)]
     assert any(line == 8 and "CalcRobT() is given Tool:= by name" in m for (code, line), m in said.items())
+
+
+def test_statements_after_end_words_labels_and_whole_routines_on_one_line(tmp_path):
+    """Free-form to the end: a statement after ENDIF on its line, a label after a statement, TEST
+    with its CASEs on one line, a routine and the whole module on one line — all read as the same
+    program laid out one statement a line."""
+    from postproc.testing.models import affine_model
+
+    model = load_model(affine_model(tmp_path / "m.onnx", offset=(0.3, -0.2, 0.1), gain=np.diag([2e-3, -1e-3, 3e-3]),
+                                    reach=None, envelope=None, tool={"name": "any"}))
+    p1 = f"CONST robtarget p1:=[[1800,100,500],[0,0,1,0],[0,0,0,0],{EAX}];"
+    p2 = f"CONST robtarget p2:=[[1850,120,520],[0,0,1,0],[0,0,0,0],{EAX}];"
+    lines = ["MODULE M (SYSMODULE, NOSTEPIN)", p1, p2, "PROC r()", "<SMT>", "ENDPROC", "PROC main()", "VAR num n:=1;",
+             "IF n=1 THEN", "MoveL p1,v100,fine,tool0;", "ENDIF", "MoveL p2,v100,fine,tool0;",
+             "again:", "MoveL Offs(p1,0,0,10),v100,fine,tool0;", "TEST n", "CASE 1:", "MoveL Offs(p2,0,0,10),v100,fine,tool0;",
+             "DEFAULT:", "MoveL p1,v100,fine,tool0;", "ENDTEST", "ENDPROC", "ENDMODULE", ""]
+    text = "\n".join(lines)
+    flat = " ".join(lines[:-1]) + "\n"  # the whole module on one line
+    mixed = "\n".join(["MODULE M (SYSMODULE, NOSTEPIN)", p1, p2, "PROC r() <SMT> ENDPROC", "PROC main()",
+                       "VAR num n:=1;", "IF n=1 THEN MoveL p1,v100,fine,tool0; ENDIF MoveL p2,v100,fine,tool0; again:",
+                       "MoveL Offs(p1,0,0,10),v100,fine,tool0;",
+                       "TEST n CASE 1: MoveL Offs(p2,0,0,10),v100,fine,tool0; DEFAULT: MoveL p1,v100,fine,tool0; ENDTEST",
+                       "ENDPROC ENDMODULE", ""])
+    a = parse_program_text(text, "m.mod")
+    assert len(a.targets) >= 4
+    out_a, rep_a = compensate_text(text, model, name="m.mod")
+    for other in (flat, mixed):
+        b = parse_program_text(other, "m.mod")
+        assert not [d for d in b.diagnostics if d.code in ("P101", "P102")]
+        assert np.array_equal(a.targets.poses, b.targets.poses)
+        out_b, rep_b = compensate_text(other, model, name="m.mod")
+        assert rep_b.compensated == rep_a.compensated > 0 and rep_b.left_codes == rep_a.left_codes
+        assert parse_program_text(out_b, "m.mod").targets.poses.tolist() == \
+            parse_program_text(out_a, "m.mod").targets.poses.tolist()

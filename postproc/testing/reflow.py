@@ -5,7 +5,8 @@ with only whitespace, line endings and argument names changed:
 * :func:`crlf`: CRLF line endings (a controller's backup);
 * :func:`join_heads`: a statement joined onto the line of the THEN, ELSE, DO or label before it;
 * :func:`break_lists`: argument lists, aggregates and routine headers broken after each comma;
-* :func:`by_name`: the required arguments of MoveL/MoveJ/MoveC/MoveAbsJ given by name.
+* :func:`by_name`: the required arguments of MoveL/MoveJ/MoveC/MoveAbsJ given by name;
+* :func:`flat`: the whole module on one line.
 
 Strings and comments are left alone (a line holding either is not changed by the last three).
 """
@@ -13,7 +14,7 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["crlf", "join_heads", "break_lists", "by_name", "LAYOUTS", "top_level_split"]
+__all__ = ["crlf", "join_heads", "break_lists", "by_name", "flat", "LAYOUTS", "top_level_split"]
 
 _HEAD = re.compile(r"(?:\bTHEN|\bELSE|\bDO|^[ \t]*[A-Za-z_]\w*[ \t]*:)[ \t]*$", re.I)
 _BLOCK = re.compile(r"[ \t]*(MODULE|ENDMODULE|PROC|ENDPROC|FUNC|ENDFUNC|TRAP|ENDTRAP|LOCAL|IF|ELSEIF|ELSE|ENDIF|FOR|"
@@ -94,8 +95,16 @@ def by_name(text: str) -> str:
     return "\n".join(out)
 
 
+def flat(text: str) -> str:
+    """The whole module on one line (where it holds no comment, which would run to its end)."""
+    if "!" in text:
+        return text
+    return " ".join(line.strip() for line in text.replace("\r\n", "\n").split("\n") if line.strip()) + "\n"
+
+
 def _all(text: str) -> str:
     return crlf(break_lists(by_name(join_heads(text))))
 
 
-LAYOUTS = {"crlf": crlf, "join_heads": join_heads, "break_lists": break_lists, "by_name": by_name, "all": _all}
+LAYOUTS = {"crlf": crlf, "join_heads": join_heads, "break_lists": break_lists, "by_name": by_name, "flat": flat,
+           "all": _all}

@@ -27,18 +27,11 @@ STRING_RE = re.compile(r'"[^"\n]*"')
 _BLOCK_WORDS = {"MODULE", "ENDMODULE", "PROC", "ENDPROC", "FUNC", "ENDFUNC", "TRAP", "ENDTRAP", "LOCAL",
                 "IF", "ELSEIF", "ELSE", "ENDIF", "FOR", "ENDFOR", "WHILE", "ENDWHILE", "TEST", "CASE",
                 "DEFAULT", "ENDTEST", "ERROR", "UNDO", "BACKWARD", "RECORD", "ENDRECORD"}
-_FIRST_WORD = re.compile(r"[ \t]*([A-Za-z_]\w*)", re.ASCII)
-# a compound statement's head followed on its line by a statement (IF x THEN MoveL …;): the head
-# ends after its THEN, DO, ELSE or a CASE's ':'
+# the words that end a head where it is written: THEN, DO, a CASE's ':'
 _THEN = re.compile(r"\bTHEN\b", re.I | re.A)
 _DO = re.compile(r"\bDO\b", re.I | re.A)
 _CASE = re.compile(r":(?!=)")
-_HEAD_END = {"IF": _THEN, "ELSEIF": _THEN, "WHILE": _DO, "FOR": _DO, "ELSE": re.compile(r"\bELSE\b", re.I | re.A),
-             "CASE": _CASE, "DEFAULT": _CASE}
-_CONDITIONS = {"IF", "ELSEIF", "WHILE", "FOR"}
-_LABEL_HEAD = re.compile(r"[ \t]*[A-Za-z_]\w*[ \t]*:(?!=)")  # (a label with a statement after it on its line)
-_PLACEHOLDER = re.compile(r"[ \t]*<[A-Z]{2,5}>[ \t\r]*$")  # (RobotStudio's <SMT> on a line of its own)
-_LABEL = re.compile(r"[ \t]*[A-Za-z_]\w*[ \t]*:[ \t\r]*$", re.ASCII)  # (\r: a CRLF file's line)
+_CASE_WORD = re.compile(r"\b(?:CASE|DEFAULT)\b", re.I | re.A)
 # a UTF-8 byte order mark at the start of a file (as latin-1 reads its bytes, or decoded)
 BOMS = ("\xef\xbb\xbf", "\ufeff")
 
@@ -139,67 +132,97 @@ def _blank(code: str, path: str, text: str) -> str:
     return code
 
 
-def _units(code: str, path: str, text: str):
-    """(start, end) of each unit of ``code``."""
-    pending = -1
-    offset = 0
+# ---- the free-form unit cutter (issue 36): a unit is a statement up to its ';' or a block's head
+_WORD = re.compile(r"[A-Za-z_]\w*", re.ASCII)
+_SPACE = re.compile(r"\s*")
+_ALONE = {"ELSE", "ENDIF", "ENDFOR", "ENDWHILE", "ENDTEST", "ENDPROC", "ENDFUNC", "ENDTRAP", "ENDMODULE",
+          "ENDRECORD", "UNDO", "BACKWARD"}
+_NAMED = {"TRAP", "RECORD"}  # (the head: the word and the name after it)
+_UNTIL = {"IF": _THEN, "ELSEIF": _THEN, "WHILE": _DO, "FOR": _DO}
+_LABEL_AT = re.compile(r"([A-Za-z_]\w*)[ \t]*:(?!=)", re.ASCII)
+_PLACEHOLDER_AT = re.compile(r"<[A-Z]{2,5}>")
+
+
+def _after_parens(code: str, at: int) -> int | None:
+    """The end of the parenthesised list opening at ``at`` (over lines), None where it does not close."""
+    depth = 0
+    for k in range(at, len(code)):
+        ch = code[k]
+        if ch == "(":
+            depth += 1
+        elif ch == ")":
+            depth -= 1
+            if depth == 0:
+                return k + 1
+        elif ch == ";":
+            return None
+    return None
+
+
+def _head_end(code: str, at: int) -> int | None:
+    """Where the block head starting at ``at`` ends (MODULE m, PROC p(…), IF … THEN, ELSE, CASE …:,
+    a label, RobotStudio's <SMT> …), None where a statement starts there."""
+    if code.startswith("<", at):
+        m = _PLACEHOLDER_AT.match(code, at)
+        return m.end() if m else None
+    word = _WORD.match(code, at)
+    if word is None:
+        return None
+    w, end = word.group().upper(), word.end()
+    if w == "LOCAL":
+        nxt = _WORD.match(code, _SPACE.match(code, end).end())
+        if nxt is None or nxt.group().upper() not in ("PROC", "FUNC", "TRAP", "RECORD"):
+            return None  # (LOCAL CONST …: a declaration)
+        return _head_end(code, nxt.start())
+    if w in _ALONE:
+        return end
+    if w in _UNTIL:
+        semi = code.find(";", end)
+        m = _UNTIL[w].search(code, end, len(code) if semi < 0 else semi)
+        return m.end() if m else None  # (no THEN before the ';': a compact IF, a statement)
+    if w in ("CASE", "DEFAULT"):
+        m = _CASE.search(code, end)
+        return m.end() if m else None
+    if w == "TEST":  # (TEST and its expression: to its first CASE/DEFAULT or the end of its line)
+        nl = code.find("\n", end)
+        stop = len(code) if nl < 0 else nl
+        case = _CASE_WORD.search(code, end, stop)
+        return len(code[:case.start() if case else stop].rstrip())
+    if w in ("PROC", "FUNC"):
+        paren = code.find("(", end)
+        return None if paren < 0 else _after_parens(code, paren)
+    if w in _NAMED or w == "MODULE":
+        name = _WORD.match(code, _SPACE.match(code, end).end())
+        if name is None:
+            return end
+        after = _SPACE.match(code, name.end()).end()
+        if w == "MODULE" and code.startswith("(", after):
+            return _after_parens(code, after) or name.end()
+        return name.end()
+    if w == "ERROR":
+        after = _SPACE.match(code, end).end()
+        return (_after_parens(code, after) or end) if code.startswith("(", after) else end
+    m = _LABEL_AT.match(code, at)
+    if m and m.group(1).upper() not in _BLOCK_WORDS:
+        return m.end()
+    return None
+
+
+def _units(code: str, path: str, src: "Source"):
+    """(start, end) of each unit of ``code`` (comments and strings blanked): the text is free-form,
+    line breaks are whitespace — a head ends where its grammar says (THEN, DO, ':', ')', its name),
+    a statement at its ';'."""
     n = len(code)
-    while offset < n:
-        nl = code.find("\n", offset)
-        end = n if nl < 0 else nl
-        if pending < 0:
-            line = code[offset:end]
-            if line.strip():
-                word = _FIRST_WORD.match(line)
-                first = word.group(1).upper() if word else ""
-                start = offset + len(line) - len(line.lstrip())
-                if first in _CONDITIONS:
-                    # IF/ELSEIF/WHILE/FOR: a head up to its THEN or DO, over lines where the condition
-                    # goes on; none before the next ';': a compact IF (IF cond statement;), over lines or not
-                    head_end = _HEAD_END[first].search(code, offset)
-                    semi = code.find(";", offset)
-                    if head_end is not None and (semi < 0 or head_end.start() < semi):
-                        yield start, head_end.end()
-                        nl = code.find("\n", head_end.end())
-                        end = n if nl < 0 else nl
-                        if code[head_end.end():end].strip():
-                            pending = head_end.end()  # (the statements after it on its line)
-                    else:
-                        pending = offset
-                elif (head_end := _HEAD_END[first].search(line) if first in _HEAD_END else
-                      _LABEL_HEAD.match(line) if first not in _BLOCK_WORDS else None) \
-                        and line[head_end.end():].strip():
-                    yield start, offset + head_end.end()
-                    pending = offset + head_end.end()  # (ELSE, CASE …:, DEFAULT: and a statement after it)
-                elif ";" not in line and (first in _BLOCK_WORDS or _LABEL.match(line) or _PLACEHOLDER.match(line)):
-                    depth = line.count("(") - line.count(")")
-                    while depth > 0 and end < n:  # a routine head whose parameters go on over lines
-                        nl = code.find("\n", end + 1)
-                        more = code[end + 1:n if nl < 0 else nl]
-                        depth += more.count("(") - more.count(")")
-                        end = n if nl < 0 else nl
-                    yield start, start + len(code[start:end].rstrip())
-                else:
-                    pending = offset
-        if pending >= 0:
-            semi = code.find(";", max(pending, offset), end)
-            while semi >= 0:
-                yield pending, semi + 1
-                pending = semi + 1
-                semi = code.find(";", pending, end)
-            rest = code[pending:end]
-            if not rest.strip():
-                pending = -1
-            elif semi < 0 and pending > offset:  # (statements on this line, then ENDIF/ENDFOR/ELSE … after them)
-                word = _FIRST_WORD.match(rest)
-                if word and word.group(1).upper() in _BLOCK_WORDS:
-                    lead = pending + len(rest) - len(rest.lstrip())
-                    yield lead, lead + len(rest.strip())
-                    pending = -1
-        offset = end + 1
-    if pending >= 0:
-        lead = pending + len(code[pending:]) - len(code[pending:].lstrip())
-        raise PostprocError("statement not ended by ';'", path, *line_col(text, lead), P101)
+    at = _SPACE.match(code, 0).end()
+    while at < n:
+        end = _head_end(code, at)
+        if end is None:
+            semi = code.find(";", at)
+            if semi < 0:
+                raise PostprocError("statement not ended by ';'", path, *src.locate(at), P101)
+            end = semi + 1
+        yield at, end
+        at = _SPACE.match(code, end).end()
 
 
 def scan(fi: int, path: str, text: str, shapes: dict, exact: dict) -> Source:
@@ -208,7 +231,7 @@ def scan(fi: int, path: str, text: str, shapes: dict, exact: dict) -> Source:
     src = Source(fi, path, text)
     code = src.code = _blank(text, path, text)
     units = src.units
-    for start, end in _units(code, path, text):
+    for start, end in _units(code, path, src):
         piece = code[start:end]
         key = exact_key(piece)
         entry = exact.get(key)
