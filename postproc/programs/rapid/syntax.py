@@ -1,8 +1,10 @@
 """RAPID text → units → shapes (the syntax of ``grammars/rapid.lark``).
 
-A module is cut into *units*: a statement up to its ``;``, or a line that opens or closes a
-block (``MODULE``, ``PROC``, ``IF … THEN``, ``ENDIF``, a label …), with ``!`` comments and the
-insides of strings blanked out (same length: offsets stay those of the file). Each distinct
+A module is cut into *units* by position, as the free-form language it is (line breaks are
+whitespace): a statement up to its ``;``, or a block's head where its grammar ends it
+(``MODULE m (…)``, ``PROC p(…)`` over lines or not, ``IF … THEN``, ``WHILE … DO``, ``CASE …:``,
+``ELSE``, ``ENDIF``, a label, RobotStudio's ``<SMT>`` …: ``_head_end``), with ``!`` comments and
+the insides of strings blanked out (same length: offsets stay those of the file). Each distinct
 unit *shape* — numbers → ``0``, the digits ending a name → ``0``, blanks collapsed — is parsed
 once; the tree of a shape holds for every unit of that shape, whose names, numbers and
 strings are read from the unit's own text by their ordinals (``Shape.ordinal_at``).
