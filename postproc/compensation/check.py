@@ -166,8 +166,9 @@ def check_program(
             if t.group is not None and (t.group >= 0).any():
                 # numbers run more than once: compensate's own agreement of the runs (P230, P322),
                 # which needs its rounds (the model again without the groups that disagree)
-                # (the check's settings: not strict, no --force; what compensate itself would find)
-                rules = replace(settings.rules, strict=False, force=False)
+                # (the check's settings: not strict; forced, because a stamp is the stamp rules' business
+                # here and every other finding --force lifts is the rules' above: only P230/P322 are taken)
+                rules = replace(settings.rules, strict=False, force=True)
                 report = compensate_program(program, model, replace(settings, rules=rules), reachable=reachable)
                 said = {(d.path, d.line, d.col, d.code) for d in out}
                 out += [d for d in report.warnings + report.notes if d.code in (P230, P322)
