@@ -104,8 +104,12 @@ def read_plan_tools(path: str | Path) -> np.ndarray | None:
 
 
 def plan_csv_chunks(poses: np.ndarray, config: np.ndarray | None = None, chunk: int = CHUNK,
-                    tools: np.ndarray | None = None):
-    """:func:`plan_csv_text` in pieces of ``chunk`` rows (for a writer that streams them)."""
+                    tools: np.ndarray | None = None, metadata: dict[str, str] | None = None):
+    """:func:`plan_csv_text` in pieces of ``chunk`` rows (for a writer that streams them), after
+    ``# key: value`` lines (``metadata``: what shapes the measurement and is not a column, e.g. the
+    ``tool`` of a plan measured with one tool other than the description's)."""
+    if metadata:
+        yield "".join(f"# {key}: {value}\n" for key, value in metadata.items())
     fmt = [f"%.{MM_DECIMALS}f"] * 3 + [f"%.{DEG_DECIMALS}f"] * 3
     header = list(POSE_COLUMNS)
     if config is not None:

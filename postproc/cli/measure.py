@@ -65,7 +65,7 @@ def run(args) -> int:
     from ..core.diagnostics import P320, P335, PostprocError
     from ..core.outputs import check_outputs, write
     from ..core.progress import stages
-    from ..measurements.csv import TOOL_COLUMNS, measurement_csv, parse_tool
+    from ..measurements.csv import TOOL_COLUMNS, measurement_csv, parse_tool, read_metadata
     from ..robot.description import robot_description
     from . import show_progress
 
@@ -77,6 +77,13 @@ def run(args) -> int:
         config = read_plan_config(args.plan)
         labels = read_plan_labels(args.plan)
         given = [parse_tool(t) for t in args.tool or []]
+        planned = read_metadata(args.plan).get("tool")  # (plan --tool with one tool: '# tool: X,Y,Z,A,B,C')
+        if planned is not None:
+            tool = parse_tool(planned)
+            if given and not (len(given) == 1 and np.allclose(given[0], tool)):
+                raise PostprocError(f"the plan is measured with the tool {planned} ('# tool:' line): --tool "
+                                    f"{' '.join(args.tool)} would contradict it", args.plan, 1, 1, P320)
+            given = [tool]
         stage("draw robot")
         sim = SimulatedRobot(robot_description(args.robot), args.robot_seed)
         tools = read_plan_tools(args.plan)

@@ -152,7 +152,9 @@ def run(args) -> int:
                 f"(first: pose {bad[0] + 1} = {poses[bad[0]].tolist()}); shrink --box or --range, or move the box",
                 description.path, code=P335)
         stage("write")
-        outputs = [(Path(args.output), plan_csv_chunks(poses, config, tools=rows))]
+        # (one tool: said in the plan, so that measure simulates the tool the program measures with)
+        meta = {"tool": ",".join(f"{v:g}" for v in tools[0])} if len(tools) == 1 else None
+        outputs = [(Path(args.output), plan_csv_chunks(poses, config, tools=rows, metadata=meta))]
         if args.krl is not None:
             src = Path(args.krl)
             comment = (f"Latin hypercube seed {args.seed}, box {list(map(float, box))}, "
@@ -203,7 +205,8 @@ def _run_for(args, description) -> int:
     plan = plan_for(targets, description, n, args.seed, data_q, data_tools)
     several = len(np.unique(plan.tools, axis=0)) > 1
     tools = plan.tools if several else None
-    outputs = [(Path(args.output), plan_csv_chunks(plan.poses, plan.config, tools=tools))]
+    meta = {"tool": ",".join(f"{v:g}" for v in plan.tools[0])} if not several and len(plan.tools) else None
+    outputs = [(Path(args.output), plan_csv_chunks(plan.poses, plan.config, tools=tools, metadata=meta))]
     robot = Robot(description if several else description.replace(tool=plan.tools[0]))
     if args.krl is not None:
         src = Path(args.krl)
