@@ -323,3 +323,28 @@ def test_certificate_html_renders_offline_in_a_headless_browser(tmp_path):
     assert dark[:60].sum() > 1000  # "Calibration certificate — ISO 9283 pose test"
     lines = dark[:plots - 40].any(axis=1).astype(int)
     assert (np.diff(lines) == 1).sum() >= 20
+
+
+def test_a_certificate_of_simulated_data_or_a_demonstration_model_says_so_on_its_face(tmp_path, affine):
+    """(issue 38, item 7) The ISO 9283 certificate built from the simulator's measurements or with a
+    demonstration model says so in its title, a notice before everything else and the first row of
+    its table (Markdown and HTML); from real-looking data and a model of no simulated robot, none."""
+    d = tmp_path
+    assert main(["plan", "--iso9283", "--cycles", "3", "-o", str(d / "plan.csv"), "-q"]) == 0
+    assert main(["measure", str(d / "plan.csv"), "-o", str(d / "sim.csv"), "-q"]) == 0
+    assert main(["report", "--iso9283", str(d / "sim.csv"), "--model", str(model_path()),
+                 "-o", str(d / "demo"), "-q"]) == 0
+    md, page = (d / "demo" / "certificate.md").read_text(), (d / "demo" / "certificate.html").read_text()
+    title = md.splitlines()[0]
+    assert title.endswith("— SIMULATED DATA") and md.splitlines()[2].startswith("> **Not a certificate of a real robot")
+    assert "measurements are simulated" in md and "demonstration model of a simulated robot (KR500-sim)" in md
+    assert "| status |" in md and 'class="notice"' in page and "SIMULATED DATA</h1>" in page
+    # the same rows without the simulator's lines, and a model of no simulated robot: a certificate as before
+    real = "".join(line for line in (d / "sim.csv").read_text().splitlines(True)
+                   if not line.startswith(("# simulated", "# robot_seed")))
+    (d / "real.csv").write_text(real)
+    assert main(["report", "--iso9283", str(d / "real.csv"), "--model", str(affine(offset=(0.1, 0, 0))),
+                 "-o", str(d / "real"), "-q"]) == 0
+    md = (d / "real" / "certificate.md").read_text()
+    assert md.splitlines()[0] == "# Calibration certificate — ISO 9283 pose test"
+    assert "Not a certificate of a real robot" not in md and "| status |" not in md

@@ -148,8 +148,9 @@ def _f(v, digits: int = 3) -> str:
 
 def certificate_blocks(result: IsoResult, card: dict | None = None, date: str | None = None,
                        plot: str | None = PLOT) -> list[tuple]:
-    """The certificate's content as blocks: ("h1"|"h2"|"p", text), ("table", header, rows),
-    ("img", file, caption)."""
+    """The certificate's content as blocks: ("h1"|"h2"|"p"|"notice", text), ("table", header, rows),
+    ("img", file, caption). Simulated measurements or a demonstration model: said in the title,
+    a notice before everything else and the first row of the table."""
     card = card or {}
     meta = result.meta or {}
     date = date or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
@@ -170,7 +171,24 @@ def certificate_blocks(result: IsoResult, card: dict | None = None, date: str | 
                                                                     if meta.get("registration") else "")],
         ["date of issue", date],
     ]
-    blocks: list[tuple] = [("h1", "Calibration certificate — ISO 9283 pose test"), ("table", ["", ""], identity)]
+    # what this certificate is not: on its face, in its title and before anything else
+    caveats = []
+    if meta.get("simulated"):
+        seed = f", robot seed {meta['robot_seed']}" if meta.get("robot_seed") else ""
+        caveats.append(f"the measurements are simulated (postproc measure: the simulated {meta['simulated']}{seed}), "
+                       "not taken on a robot")
+    demo = card.get("demonstration")
+    if isinstance(demo, dict):
+        caveats.append(f"the model is a demonstration model of a simulated robot ({demo.get('robot', 'simulated')}), "
+                       "not a calibration of this robot")
+    title = "Calibration certificate — ISO 9283 pose test"
+    if caveats:
+        title += " — " + ("SIMULATED DATA" if meta.get("simulated") else "DEMONSTRATION MODEL")
+        identity.insert(0, ["status", "; ".join(caveats)])
+    blocks: list[tuple] = [("h1", title)]
+    if caveats:
+        blocks.append(("notice", "Not a certificate of a real robot: " + "; ".join(caveats) + "."))
+    blocks.append(("table", ["", ""], identity))
 
     order = np.argsort(-b.ap, kind="stable")[:MAX_POSE_ROWS] if len(b) > MAX_POSE_ROWS else np.arange(len(b))
     header = ["pose", "n", "X, Y, Z (mm)", "AP before", "RP before"] + (["AP after", "RP after"] if a else [])
@@ -248,6 +266,8 @@ def render_markdown(blocks: list[tuple]) -> str:
             out += [f"## {block[1]}", ""]
         elif kind == "p":
             out += [block[1], ""]
+        elif kind == "notice":
+            out += [f"> **{block[1]}**", ""]
         elif kind == "table":
             header, rows = block[1], block[2]
             out.append("| " + " | ".join(_md_cell(h) for h in header) + " |")
@@ -262,7 +282,8 @@ def render_markdown(blocks: list[tuple]) -> str:
 CSS = """body{font-family:DejaVu Sans,Arial,sans-serif;max-width:1100px;margin:24px auto;color:#111;font-size:14px}
 h1{font-size:22px;border-bottom:2px solid #333;padding-bottom:6px}h2{font-size:16px;margin-top:18px}
 table{border-collapse:collapse;margin:6px 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}
-td:first-child,th:first-child{text-align:left}table.kv td{text-align:left}img{max-width:100%}p{margin:6px 0}"""
+td:first-child,th:first-child{text-align:left}table.kv td{text-align:left}img{max-width:100%}p{margin:6px 0}
+p.notice{border:3px solid #b00;background:#fee;color:#700;font-weight:bold;padding:8px;font-size:16px}"""
 
 
 def render_html(blocks: list[tuple], folder: Path) -> str:
@@ -273,6 +294,8 @@ def render_html(blocks: list[tuple], folder: Path) -> str:
         kind = block[0]
         if kind in ("h1", "h2", "p"):
             out.append(f"<{kind}>{html.escape(block[1])}</{kind}>")
+        elif kind == "notice":
+            out.append(f'<p class="notice">{html.escape(block[1])}</p>')
         elif kind == "table":
             header, rows = block[1], block[2]
             out.append("<table>" if any(header) else '<table class="kv">')
