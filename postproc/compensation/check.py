@@ -333,7 +333,8 @@ def _stale(program: Program, report, targets: list[Path], shown_src: str, model:
     for target, name in zip(targets, program.files):
         expected = report.outputs[name]
         if not target.is_file():
-            stale.append(Diagnostic(shown_src, 0, 0, P406, f"no compensated output {_shown(target)}", "error"))
+            stale.append(Diagnostic(shown_src, 0, 0, P406, f"no compensated output {_shown(target)} (`postproc check "
+                                    "--fresh --fix` writes it)", "error"))
             continue
         actual = target.read_bytes().decode("latin-1")
         if actual != expected:

@@ -461,8 +461,10 @@ def envelope_rule(program: Program, model: Compensator, selection: Selection) ->
                    "target outside the model's training envelope")
 
 
-def output_rule(program: Program, settings: Settings, commands: Commands) -> list[Diagnostic]:
-    """P305 the model returns NaN or inf; P303 a correction above the bound (worst first)."""
+def output_rule(program: Program, settings: Settings, commands: Commands, model: Compensator | None = None
+                ) -> list[Diagnostic]:
+    """P305 the model returns NaN or inf; P303 a correction above the bound (worst first), saying
+    whether the target is outside the data the model was trained on (it extrapolates there)."""
     rows = commands.selection.rows
     size = np.linalg.norm(commands.commanded - commands.selection.poses[:, :3], axis=1)
     bad = ~np.isfinite(size)
@@ -470,8 +472,12 @@ def output_rule(program: Program, settings: Settings, commands: Commands) -> lis
     bound = settings.rules.max_correction_mm
     large = np.flatnonzero(~bad & (size > bound))
     large = large[np.argsort(-size[large], kind="stable")]
+    outside = outside_envelope(model, commands.selection) if model is not None else np.zeros(len(rows), bool)
     out += collect(program, rows[large], P303, lambda i: f"correction of {size[large[i]]:.3f} mm exceeds the bound "
-                   f"of {bound} mm: the model is wrong here", "error")
+                   f"of {bound} mm: " + ("the target is outside the data the model was trained on (P301), where it "
+                                         "extrapolates: measure the robot there, or keep the target inside"
+                                         if outside[large[i]] else "the model is wrong here, inside its training data"),
+                   "error")
     return out
 
 
@@ -625,7 +631,7 @@ def dead_band_notes(program: Program, commands: Commands) -> list[Diagnostic]:
 
 def command_findings(program: Program, commands: Commands, model: Compensator, settings: Settings) -> list[Diagnostic]:
     """Every finding about the model's commands for the selected targets."""
-    return (output_rule(program, settings, commands) + joints_rule(program, model, commands)
+    return (output_rule(program, settings, commands, model) + joints_rule(program, model, commands)
             + std_rule(program, model, settings, commands))
 
 

@@ -80,8 +80,9 @@ def family_mismatch(program: Program, model: Compensator) -> str | None:
     if wanted is None or own is None or own == wanted:
         return None
     name = _DIALECT_NAMES[program.dialect]
+    owner = f"{own}'" if own.endswith("s") else f"{own}'s"  # (Universal Robots', KUKA's)
     return (f"the program is {name}, written for {wanted} controllers, and the model was trained on {model.robot}, "
-            f"an arm of {own}'s (its description {Path(description.path).name}): compensate with a model of this "
+            f"an arm of {owner} (its description {Path(description.path).name}): compensate with a model of this "
             "program's robot")
 
 

@@ -244,18 +244,18 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             code = target.code if target.code in (P211, P214, P215, P217, P223) else P211
             if target.code and target.code not in (P201, P203, P220, P221, P225):
                 code = target.code
-            what = use.what or "the target"
+            what = f"target {use.what}" if use.what else "the target"
             if code == P215:
                 hint = f" ({dialect.undeclared_hint})" if dialect.undeclared_hint else ""
-                msg = f"target {what}: {target.why}{hint}: left as written"
+                msg = f"{what}: {target.why}{hint}: left as written"
             elif code == P223:
-                msg = f"target {what} is not known here ({target.why}, switched on): left as written"
+                msg = f"{what} is not known here ({target.why}, switched on): left as written"
             else:
-                msg = f"target {what} not statically known ({target.why}): left as written"
+                msg = f"{what} not statically known ({target.why}): left as written"
             rec.note(code, msg, loc, True)
             continue
         if not hasattr(target, "fields"):
-            rec.note(P211, f"target {use.what or ''} is not a position: left as written", loc, True)
+            rec.note(P211, f"{_target(use)} is not a position: left as written", loc, True)
             continue
         view = dialect.view(target)
         if view.kind == "axis" and not s.relative:
@@ -263,7 +263,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             if axes is not None:
                 key_axes[use.key] = tuple(axes)
         if view.kind != "cart":
-            rec.escape(tokens_of(target), loc, f"target {use.what or ''} (not a Cartesian target) reads them")
+            rec.escape(tokens_of(target), loc, f"{_target(use)} (not a Cartesian target) reads them")
             if view.kind == "other" and use.what and not isinstance(s.target, Agg):
                 rec.note(P211, f"target {use.what} has type {target.type or 'unknown'}, not a position: left as "
                          "written", loc, True)
@@ -274,10 +274,10 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                              if isinstance(v, Top)), None)
         if unknown_comp is not None:
             k, v = unknown_comp
-            rec.note(P212, f"target {use.what or 'the target'}: its {k} is not known here ({v.why}): left as written",
+            rec.note(P212, f"{_target(use)}: its {k} is not known here ({v.why}): left as written",
                      loc, True)
             # (it runs with the numbers it does hold: compensating them for another run would move it)
-            rec.escape(tokens_of(target), loc, f"target {use.what or ''} left as written reads them")
+            rec.escape(tokens_of(target), loc, f"{_target(use)} left as written reads them")
             continue
         pose = [_NAN] * 6
         spans = [-1] * 12
@@ -294,19 +294,19 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                     computed.append("XYZ"[k])
         files = {v.token[0] for v in view.xyz if isinstance(v, Tok)}
         if computed:
-            rec.escape(tokens_of(target), loc, f"target {use.what or ''} is computed from them")
-            rec.note(P214, f"target {use.what or 'the target'}: its {'/'.join(computed)} "
+            rec.escape(tokens_of(target), loc, f"{_target(use)} is computed from them")
+            rec.note(P214, f"{_target(use)}: its {'/'.join(computed)} "
                      f"{'is' if len(computed) == 1 else 'are'} computed at run time from other values, not a number "
                      "of the program: left as written", loc, True)
             continue
         if any(f < 0 for f in files):  # (a configuration text is read, never written)
-            rec.note(P211, f"target {use.what or 'the target'}: its numbers stand in {_path(unit, min(files))}, which "
+            rec.note(P211, f"{_target(use)}: its numbers stand in {_path(unit, min(files))}, which "
                      "is read only: left as written", loc, True)
             continue
         if len(files) > 1:
-            rec.note(P214, f"target {use.what or 'the target'}: its X/Y/Z come from numbers in several files: left "
+            rec.note(P214, f"{_target(use)}: its X/Y/Z come from numbers in several files: left "
                      "as written", loc, True)
-            rec.escape(tokens_of(target), loc, f"target {use.what or ''} left as written reads them")
+            rec.escape(tokens_of(target), loc, f"{_target(use)} left as written reads them")
             continue
         orient = view.orient
         nums = [number(v) for v in orient]
@@ -592,6 +592,11 @@ def _twins(t: Targets) -> np.ndarray:
     twin[firsts[mask]] = lead[mask]
     del head
     return twin
+
+
+def _target(use) -> str:
+    """"target XP1" (as the program names it), or "the target" (an aggregate written in the motion)."""
+    return f"target {use.what}" if use.what else "the target"
 
 
 MAX_NAMED = 5  # the targets' motions named in one finding before "and more"

@@ -67,6 +67,7 @@ class Lowering:
     # ------------------------------------------------------------ blocks and emission
     def begin_file(self) -> None:
         self.blocks: list = []  # (kind, line, col, detail): the structure check
+        self.end_like: list = []  # (word, line) of calls named END… inside a block: a misspelt closer?
         self.bodies: list = []  # the statement lists being filled (innermost last)
         self.nodes: list = []  # the IR node of each open block (If, Switch, Loop, Routine…)
         self.spline: list = []  # (base, tool) expressions of open SPLINE … WITH blocks
@@ -99,7 +100,9 @@ class Lowering:
         if not self.blocks or self.blocks[-1][0] not in kinds:
             if self.blocks:
                 kind, line, _, _ = self.blocks[-1]
-                self.err(f"{word} does not close {kind} (line {line})", first_pos(node) or 0)
+                typo = next((f" ({w} at line {at}: {_CLOSER.get(kind, 'END' + kind)}, misspelt?)" for w, at in reversed(self.end_like)
+                             if at > line), "")
+                self.err(f"{word} does not close {kind} (line {line}){typo}", first_pos(node) or 0)
             self.err(f"{word} without {' / '.join(sorted(kinds))}", first_pos(node) or 0)
         return self.blocks.pop()
 
@@ -402,7 +405,11 @@ class Lowering:
     def s_call(self, node):
         self.emit(self.call_stmt(node))
 
-    s_bare_call = s_call
+    def s_bare_call(self, node):
+        name = str(node.children[0])
+        if name.upper().startswith("END") and self.blocks:  # (ENDFRO: a call, to the grammar)
+            self.end_like.append((name, self.ln))
+        self.s_call(node)
 
     def call_stmt(self, node) -> Invoke:
         name = str(node.children[0])  # (as written: messages name it so; the dialect resolves it case-blind)

@@ -1,0 +1,72 @@
+"""Messages a new user reads on the first day (issue 38, item 8), each naming the one cause and the
+fix: an aggregate written in the motion is "the target" (not "target the target"); a misspelt closer
+is named; "Universal Robots'"; P406 names the fix P405 names; P303 says whether the target is
+outside the model's data."""
+from __future__ import annotations
+
+import numpy as np
+
+from postproc.cli import main
+from postproc.compensation.api import compensate_text
+from postproc.core.diagnostics import PostprocError
+from postproc.model.compensator import load_model
+from postproc.programs import ActiveFrames, krl
+
+import pytest
+
+
+def test_an_aggregate_in_the_motion_is_the_target(affine):
+    p = krl.read(["t.src"], ["DEF t( )\n  DECL REAL v\n  $BASE = $NULLFRAME\n  LIN {X 2000,Y v,Z 900,A 0,B 90,C 0}\nEND\n"])
+    (d,) = [d for d in p.diagnostics if d.code == "P212"]
+    assert d.message.startswith("the target: its Y is not known here") and "target the target" not in d.message
+
+
+def test_a_misspelt_closer_is_named():
+    with pytest.raises(PostprocError) as info:
+        krl.read(["t.src"], ["DEF t( )\n  DECL INT i\n  FOR i = 1 TO 3\n    LIN {X 2000,Y 0,Z 900,A 0,B 90,C 0}\n"
+                             "  ENDFRO\nEND\n"])
+    assert info.value.code == "P101" and "ENDFRO at line 5: ENDFOR, misspelt?" in str(info.value)
+
+
+def test_another_family_is_named_in_good_english(tmp_path, capsys):
+    (tmp_path / "u.src").write_text("DEF u( )\n  LIN {X 500,Y 0,Z 400,A 0,B 90,C 0}\nEND\n")
+    from postproc.core.resources import model_path
+
+    main(["check", str(tmp_path / "u.src"), "--model", str(model_path("ur10.onnx"))])
+    printed = capsys.readouterr()
+    text = printed.out + printed.err
+    assert "an arm of Universal Robots' (its description ur10.toml)" in text and "Robots's" not in text
+
+
+def test_a_missing_output_names_the_fix(tmp_path, capsys, affine):
+    model = affine(offset=(0.1, 0.0, 0.0), tool={"name": "any"})
+    (tmp_path / "src").mkdir()
+    (tmp_path / "src" / "a.src").write_text("DEF a( )\n  $BASE = $NULLFRAME\n  $TOOL = $NULLFRAME\n"
+                                            "  LIN {X 2000,Y 0,Z 900,A 0,B 90,C 0}\nEND\n")
+    (tmp_path / "postproc.toml").write_text(f'model = "{model.as_posix()}"\n'
+                                            'fresh = [{ source = "src/*.src", output = "out/*.src" }]\n')
+    import os
+
+    here = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        assert main(["check", "--fresh"]) == 1
+        printed = capsys.readouterr()
+        assert "P406 no compensated output" in printed.out + printed.err
+        assert "`postproc check --fresh --fix` writes it" in printed.out + printed.err
+        assert main(["check", "--fresh", "--fix"]) == 0 and (tmp_path / "out" / "a.src").is_file()
+    finally:
+        os.chdir(here)
+
+
+def test_a_correction_too_large_says_whether_the_target_is_outside_the_models_data(tmp_path):
+    from postproc.testing.models import affine_model
+
+    # E grows 10 mm per metre from the envelope's centre: 8 mm at 800 mm from it
+    model = load_model(affine_model(tmp_path / "m.onnx", gain=np.eye(3) * 0.01, tool={"name": "any"}, reach=None))
+    inside = "  LIN {X 2000,Y 580,Z 1290,A 0,B 90,C 0}\n"   # in the box, 7.1 mm
+    outside = "  LIN {X 2000,Y 0,Z 1800,A 0,B 90,C 0}\n"    # above the box, 9 mm
+    for line, says in ((inside, "inside its training data"), (outside, "outside the data the model was trained on")):
+        with pytest.raises(PostprocError) as info:
+            compensate_text(f"DEF t( )\n{line}END\n", model, name="t.src", active=ActiveFrames(base=0, tool="model"))
+        assert info.value.code == "P303" and says in str(info.value), str(info.value)
