@@ -70,3 +70,20 @@ def test_a_correction_too_large_says_whether_the_target_is_outside_the_models_da
         with pytest.raises(PostprocError) as info:
             compensate_text(f"DEF t( )\n{line}END\n", model, name="t.src", active=ActiveFrames(base=0, tool="model"))
         assert info.value.code == "P303" and says in str(info.value), str(info.value)
+
+
+@pytest.mark.parametrize("first, what, suffixes", [
+    ("MODULE Weld", "an ABB RAPID module", ".mod, .prg, .sys"),
+    ("DEF t( )", "a KUKA KRL program", ".src, .dat"),
+    ("/PROG  WELD", "a FANUC LS program", ".ls"),
+    ("def main():", "a URScript program", ".script")])
+def test_a_program_saved_with_a_pose_lists_suffix_is_named(first, what, suffixes):
+    """A RAPID module saved as .txt used to be "P104 header has no column x, y, z": now its dialect
+    and the suffix to give it."""
+    from postproc.programs.io import parse_program_text
+
+    with pytest.raises(PostprocError) as info:
+        parse_program_text(first + "\n  MoveL p1, v100, fine, tool0;\nENDMODULE\n", "weld.txt")
+    assert info.value.code == "P104" and (info.value.line, info.value.col) == (1, 1)
+    assert f"reads like {what}'s first line" in str(info.value) and suffixes in str(info.value)
+    assert "a .txt is read as a pose list" in str(info.value)

@@ -121,6 +121,9 @@ def test_a_one_tool_model_takes_any_tool_and_warns_p319_where_the_lever_arm_chan
         report = compensate_program(parse_program_text(_krl(targets, tool), "part.src"), onnx_model)
         assert report.compensated == len(targets)
         assert ("P319" in report.codes) == warned, report.warnings[:2]
+        if warned:  # said once for the tool, not once per target (issue 38, item 8)
+            (said,) = [w for w in report.warnings if w.code == "P319"]
+            assert f"at the {len(targets)} targets with this tool" in said.message
 
 
 def test_the_ik_pose_of_another_tool_is_the_same_flange_pose_with_the_description_tool():

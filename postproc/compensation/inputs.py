@@ -245,9 +245,15 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
     if model.wants_tool:
         extra = unseparated_mount_mm(model, tools)
         far = np.flatnonzero(extra >= TOOL_WARNING_MM)
-        warnings += collect(program, rows[far], P319, lambda i: (
-            f"the $TOOL {[round(float(v), 3) for v in tools[far[i]]]} has another lever arm than the tools the model "
-            f"was measured with ({len(model.tool.get('measured', []))}): the tool mount's rotation they could not "
-            f"separate may add up to {extra[far[i]]:.2f} mm here (at {MOUNT_ROTATION_DEG}°); measure with this tool, "
-            "or with two or three tools"))
+        if len(far):  # (said once per tool, at its first target: the same words for each would repeat)
+            _, first, which = np.unique(tools[far], axis=0, return_index=True, return_inverse=True)
+            for k in np.argsort(first).tolist():
+                mine = far[which.reshape(-1) == k]
+                n = len(mine)
+                warnings += collect(program, rows[far[first[k]]:far[first[k]] + 1], P319, (
+                    f"the $TOOL {[round(float(v), 3) for v in tools[far[first[k]]]]} has another lever arm than the "
+                    f"tools the model was measured with ({len(model.tool.get('measured', []))}): the tool mount's "
+                    f"rotation they could not separate may add up to {extra[mine].max():.2f} mm "
+                    f"{'here' if n == 1 else f'at the {n} targets with this tool (from here on)'} "
+                    f"(at {MOUNT_ROTATION_DEG}°); measure with this tool, or with two or three tools"))
     return rows, sel, q, (tools if model.wants_tool else None), warnings

@@ -17,6 +17,7 @@ import functools
 import math
 import re
 from operator import itemgetter
+from pathlib import Path
 
 import numpy as np
 from lark import Lark, UnexpectedInput
@@ -68,12 +69,33 @@ def _fields(line: str, path: str, lineno: int, offset: int) -> list:
     return [(None, None) if f is None else (f.data, f.children[0]) for f in tree.children]
 
 
+# the first line of a program of another dialect, saved with a pose list's suffix (.txt, .csv)
+_OTHER_DIALECTS = ((re.compile(r"def\s+\w+\s*\([^)]*\)\s*:"), "a URScript program", ".script"),  # (before KRL's DEF)
+                   (re.compile(r"(?:MODULE|%%%)\b", re.I), "an ABB RAPID module", ".mod, .prg, .sys"),
+                   (re.compile(r"(?:&ACCESS|&REL|(?:GLOBAL\s+)?DEF(?:DAT|FCT)?)\b", re.I), "a KUKA KRL program", ".src, .dat"),
+                   (re.compile(r"/PROG\b", re.I), "a FANUC LS program", ".ls"))
+
+
+def _not_another_dialect(body: str, path: str, lineno: int, lead: int) -> None:
+    """P104 naming the dialect where a pose list's first line is a program's first line."""
+    for pattern, what, suffixes in _OTHER_DIALECTS:
+        if pattern.match(body):
+            raise PostprocError(f"not a pose list: this line reads like {what}'s first line; give the file its "
+                                f"dialect's suffix ({suffixes}): a {Path(path).suffix or 'file without a suffix'} "
+                                "is read as a pose list", path, lineno, lead + 1, P104)
+
+
 def _header(body: str, path: str, lineno: int, lead: int) -> tuple[dict[str, int], int]:
     """The header line: column name → field index, and the number of fields."""
-    fields = _fields(body, path, lineno, lead)
+    try:
+        fields = _fields(body, path, lineno, lead)
+    except PostprocError:
+        _not_another_dialect(body, path, lineno, lead)
+        raise
     names = [str(tok).lower() if kind == "word" else "" for kind, tok in fields]
     missing = [c for c in COLUMNS[:3] if c not in names]
     if missing:
+        _not_another_dialect(body, path, lineno, lead)
         raise PostprocError(f"header has no column {', '.join(missing)} (needs x,y,z[,a,b,c])",
                             path, lineno, lead + 1, P104)
     columns = {c: names.index(c) for c in _ALL if c in names}
