@@ -87,3 +87,11 @@ def test_a_program_saved_with_a_pose_lists_suffix_is_named(first, what, suffixes
     assert info.value.code == "P104" and (info.value.line, info.value.col) == (1, 1)
     assert f"reads like {what}'s first line" in str(info.value) and suffixes in str(info.value)
     assert "a .txt is read as a pose list" in str(info.value)
+
+
+def test_an_unknown_base_and_tool_are_both_named():
+    """P201 named BASE_DATA but not an equally unknown TOOL_DATA: the finding names both causes."""
+    p = krl.read(["t.src"], ["DEF t( )\n  $BASE = BASE_DATA[1]\n  $TOOL = TOOL_DATA[1]\n"
+                             "  LIN {X 2000,Y 0,Z 900,A 0,B 90,C 0}\nEND\n"])
+    (d,) = [d for d in p.diagnostics if d.code == "P201"]
+    assert "BASE_DATA" in d.message and "the tool is not known either: TOOL_DATA" in d.message

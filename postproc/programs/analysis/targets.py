@@ -171,6 +171,11 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         """Program.frames index of (base Mat, tool) or (-1, the Top that leaves it, its code)."""
         for value, code in ((base, P201), (tool, P203)):
             if isinstance(value, Top):
+                if value is base and isinstance(tool, Top) and (value.code or code) == P201 \
+                        and tool.code in (None, P203) and tool.why != base.why:
+                    # (both unknown: the finding is the base's, and names the tool's cause too)
+                    value = Top(f"{base.why}; the tool is not known either: {tool.why}", base.loc, base.code,
+                                base.tokens)
                 return -1, value, value.code or code
         key = (base._key, None if tool is None else tuple(round(x, 9) for x in tool))
         ix = frame_ix.get(key)
