@@ -95,3 +95,22 @@ def test_an_unknown_base_and_tool_are_both_named():
                              "  LIN {X 2000,Y 0,Z 900,A 0,B 90,C 0}\nEND\n"])
     (d,) = [d for d in p.diagnostics if d.code == "P201"]
     assert "BASE_DATA" in d.message and "the tool is not known either: TOOL_DATA" in d.message
+
+
+def test_a_configuration_no_joint_angles_reach_names_one_that_does(tmp_path, capsys):
+    """(issue 38, item 4) P309 for a point whose S/T no joint angles reach says the joint angles of a
+    configuration that reaches it and the S/T that state it; writing those, the target compensates."""
+    import re
+
+    src = ("DEF t( )\n  $BASE = $NULLFRAME\n  $TOOL = {X 300,Y 0,Z 75,A 0,B 0,C 0}\n"
+           "  PTP {X 2000,Y 0,Z 900,A 0,B 90,C 0,S 6,T 35}\n  LIN {X 2010,Y 0,Z 900,A 0,B 90,C 0}\nEND\n")
+    (tmp_path / "t.src").write_text(src)
+    assert main(["compensate", str(tmp_path / "t.src"), "-o", str(tmp_path / "o1" / "t.src")]) == 1
+    err = capsys.readouterr().err
+    said = re.search(r"t\.src:4:7: P309 .*another configuration reaches it: joint angles \(([^)]*)\) deg, "
+                     r"which S (\d+) T (\d+) states", err)
+    assert said, err
+    fixed = src.replace("S 6,T 35", f"S {said.group(2)},T {said.group(3)}")
+    (tmp_path / "t.src").write_text(fixed)
+    assert main(["compensate", str(tmp_path / "t.src"), "-o", str(tmp_path / "o2" / "t.src")]) == 0
+    assert "P309" not in capsys.readouterr().err

@@ -86,6 +86,38 @@ def family_mismatch(program: Program, model: Compensator) -> str | None:
             "program's robot")
 
 
+def _reachable_instead(description, poses: np.ndarray, tools: np.ndarray) -> list[str]:
+    """For P309's targets that no joint angles reach in the configuration they state: the way
+    forward — the joint angles of the configuration nearest HOME that reaches the pose, and the
+    numbers that state it in the controller's form (KUKA S/T, ABB confdata, FANUC CONFIG)."""
+    from ..robot import conventions
+    from ..robot.arm import Robot
+
+    out = [""] * len(poses)
+    if not len(poses):
+        return out
+    _, first, which = np.unique(tools, axis=0, return_index=True, return_inverse=True)
+    for k in range(len(first)):
+        idx = np.flatnonzero(which.reshape(-1) == k)
+        arm = Robot(description.replace(tool=tools[first[k]]))
+        q, ok = arm.ik(poses[idx])
+        for j, row in enumerate(idx.tolist()):
+            if not ok[j]:
+                out[row] = "; no configuration reaches it on the nominal robot (out of reach or the joint limits)"
+                continue
+            one = q[j:j + 1]
+            if description.configuration == "abb":
+                stated = f"confdata [{','.join(str(int(v)) for v in conventions.abb_confdata(arm, one)[0])}]"
+            elif description.configuration == "fanuc":
+                stated = f"CONFIG '{conventions.fanuc_configs(arm, one)[0]}'"
+            else:
+                s, t = conventions.status_turn_of(arm, one)
+                stated = f"S {int(s[0])} T {int(t[0])}"
+            out[row] = (f"; another configuration reaches it: joint angles ({', '.join(f'{v:.1f}' for v in q[j])}) deg, "
+                        f"which {stated} states")
+    return out
+
+
 def _tools(program: Program, model: Compensator, description, rows: np.ndarray) -> np.ndarray:
     """Each target's TCP on the flange [len(rows), 6]: the program's $TOOL where known, else
     the model's (its card), else the description's."""
@@ -239,8 +271,10 @@ def controller_inputs(program: Program, model: Compensator, rows: np.ndarray, se
             keep = ~changes
             rows, sel, q, tools, ok = rows[keep], sel[keep], q[keep], tools[keep], ok[keep]
         if not ok.all():
-            warnings += collect(program, rows[~ok], P309, "no joint angles for this target in its arm configuration "
-                                "(S/T, or the one its motion keeps) on the nominal robot: left as it is")
+            instead = _reachable_instead(description, sel[~ok], tools[~ok])
+            warnings += collect(program, rows[~ok], P309, lambda i: "no joint angles for this target in its arm "
+                                "configuration (S/T, or the one its motion keeps) on the nominal robot: left as it is"
+                                + instead[i])
             rows, sel, q, tools = rows[ok], sel[ok], q[ok], tools[ok]
     if model.wants_tool:
         extra = unseparated_mount_mm(model, tools)
