@@ -4,6 +4,7 @@ lines (issue 34's `\\tasks tasksScan{*}` head: tests/test_controller_syntax.py).
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from postproc.compensation.api import compensate_text
 from postproc.model.compensator import load_model
@@ -24,11 +25,29 @@ LINES = ["MODULE Spindle",
          "ENDMODULE", ""]
 
 
-def test_a_label_in_a_crlf_file_reads_as_in_an_lf_one(tmp_path):
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    """A correction that varies over space, for any tool."""
     from postproc.testing.models import affine_model
 
-    model = load_model(affine_model(tmp_path / "m.onnx", offset=(0.3, -0.2, 0.1), gain=np.diag([2e-3, -1e-3, 3e-3]),
-                                    reach=None, envelope=None, tool={"name": "any"}))
+    return load_model(affine_model(tmp_path_factory.mktemp("freeform") / "m.onnx", offset=(0.3, -0.2, 0.1),
+                                   gain=np.diag([2e-3, -1e-3, 3e-3]), reach=None, envelope=None, tool={"name": "any"}))
+
+
+def _reads_the_same(first: str, second: str, model, at_least: int) -> None:
+    """One program in two layouts: the same targets, findings and numbers written (p1's, moved)."""
+    a, b = parse_program_text(first, "m.mod"), parse_program_text(second, "m.mod")
+    assert not [d for d in b.diagnostics if d.code == "P101"]
+    assert len(a.targets) == len(b.targets) >= at_least and np.array_equal(a.targets.poses, b.targets.poses)
+    out_a, rep_a = compensate_text(first, model, name="m.mod")
+    out_b, rep_b = compensate_text(second, model, name="m.mod")
+    assert rep_a.compensated == rep_b.compensated > 0
+    assert sorted(w.code for w in rep_a.warnings) == sorted(w.code for w in rep_b.warnings)
+    numbers = lambda text: [line.split("=", 1)[1] for line in text.splitlines() if "robtarget p1" in line]  # noqa: E731
+    assert numbers(out_a) == numbers(out_b) and numbers(out_a) != numbers(first)
+
+
+def test_a_label_in_a_crlf_file_reads_as_in_an_lf_one(model):
     lf, crlf = "\n".join(LINES), "\r\n".join(LINES)
     a, b = parse_program_text(lf, "spindle.mod"), parse_program_text(crlf, "spindle.mod")
     assert not [d for d in b.diagnostics if d.code == "P101"]
@@ -85,24 +104,12 @@ JOINED = ["MODULE M",
           "ENDMODULE", ""]
 
 
-def test_statements_on_the_line_of_then_else_do_and_case_read_as_on_their_own_lines(tmp_path):
+def test_statements_on_the_line_of_then_else_do_and_case_read_as_on_their_own_lines(model):
     """(issue 36, item 2) The same program with each statement on its own line and with statements
     joined onto the line of THEN, ELSE, DO, CASE …: and DEFAULT: (ENDFOR after the loop's statement):
     the same targets, frames and findings, and the same numbers written."""
-    from postproc.testing.models import affine_model
-
-    model = load_model(affine_model(tmp_path / "m.onnx", offset=(0.3, -0.2, 0.1), gain=np.diag([2e-3, -1e-3, 3e-3]),
-                                    reach=None, envelope=None, tool={"name": "any"}))
     split, joined = "\n".join(SPLIT), "\n".join(JOINED)
-    a, b = parse_program_text(split, "m.mod"), parse_program_text(joined, "m.mod")
-    assert not [d for d in b.diagnostics if d.code == "P101"]
-    assert len(a.targets) == len(b.targets) >= 4 and np.array_equal(a.targets.poses, b.targets.poses)
-    out_a, rep_a = compensate_text(split, model, name="m.mod")
-    out_b, rep_b = compensate_text(joined, model, name="m.mod")
-    assert rep_a.compensated == rep_b.compensated > 0
-    assert sorted(w.code for w in rep_a.warnings) == sorted(w.code for w in rep_b.warnings)
-    numbers = lambda text: [line.split("=", 1)[1] for line in text.splitlines() if "robtarget p1" in line]  # noqa: E731
-    assert numbers(out_a) == numbers(out_b) and numbers(out_a) != numbers(split)
+    _reads_the_same(split, joined, model, 4)
 
 
 ONE_LINE = ["MODULE M",
@@ -152,34 +159,18 @@ OVER_LINES = ["MODULE M",
               "ENDMODULE", ""]
 
 
-def test_routine_heads_compact_ifs_and_conditions_over_several_lines(tmp_path):
+def test_routine_heads_compact_ifs_and_conditions_over_several_lines(model):
     """(issue 36, items 5 and 6) A FUNC head whose parameters go on over lines, a compact IF whose
     statement is on the next line, WHILE and IF conditions continued on the next line: the same
     targets, findings and numbers as the program on one line each."""
-    from postproc.testing.models import affine_model
-
-    model = load_model(affine_model(tmp_path / "m.onnx", offset=(0.3, -0.2, 0.1), gain=np.diag([2e-3, -1e-3, 3e-3]),
-                                    reach=None, envelope=None, tool={"name": "any"}))
     one, over = "\n".join(ONE_LINE), "\n".join(OVER_LINES)
-    a, b = parse_program_text(one, "m.mod"), parse_program_text(over, "m.mod")
-    assert not [d for d in b.diagnostics if d.code == "P101"]
-    assert len(a.targets) == len(b.targets) >= 3 and np.array_equal(a.targets.poses, b.targets.poses)
-    out_a, rep_a = compensate_text(one, model, name="m.mod")
-    out_b, rep_b = compensate_text(over, model, name="m.mod")
-    assert rep_a.compensated == rep_b.compensated > 0
-    assert sorted(w.code for w in rep_a.warnings) == sorted(w.code for w in rep_b.warnings)
-    numbers = lambda text: [line.split("=", 1)[1] for line in text.splitlines() if "robtarget p1" in line]  # noqa: E731
-    assert numbers(out_a) == numbers(out_b) and numbers(out_a) != numbers(one)
+    _reads_the_same(one, over, model, 3)
 
 
-def test_editor_placeholders_are_read_and_what_depends_on_them_is_said(tmp_path):
+def test_editor_placeholders_are_read_and_what_depends_on_them_is_said(model):
     """(issue 36, item 4) RobotStudio's placeholders: a module holding <SMT>, <EXP>, <ARG> is read; a
     target whose value or frame depends on one is left as written and said at its line; the others
     are compensated."""
-    from postproc.testing.models import affine_model
-
-    model = load_model(affine_model(tmp_path / "m.onnx", offset=(0.3, -0.2, 0.1), gain=np.diag([2e-3, -1e-3, 3e-3]),
-                                    reach=None, envelope=None, tool={"name": "any"}))
     text = "\n".join([
         "MODULE Ph",                                                         # 1
         f"  CONST robtarget p1:=[[1800,100,500],[0,0,1,0],[0,0,0,0],{EAX}];",  # 2
@@ -227,14 +218,10 @@ def _named_program(by_name: bool) -> str:
         "ENDMODULE", ""])
 
 
-def test_required_arguments_given_by_name_are_compensated_as_the_positional_form(tmp_path):
+def test_required_arguments_given_by_name_are_compensated_as_the_positional_form(model):
     """(issue 36, item 3) MoveL ToPoint:=…, Speed:=…, Zone:=…, Tool:=… and a routine's arguments
     given by name: the same targets in the same frames with the same tools as the positional form,
     and the same numbers written."""
-    from postproc.testing.models import affine_model
-
-    model = load_model(affine_model(tmp_path / "m.onnx", offset=(0.3, -0.2, 0.1), gain=np.diag([2e-3, -1e-3, 3e-3]),
-                                    reach=None, envelope=None, tool={"name": "any"}))
     positional, by_name = _named_program(False), _named_program(True)
     a, b = parse_program_text(positional, "named.mod"), parse_program_text(by_name, "named.mod")
     assert not [d for d in b.diagnostics if d.code == "P101"] and len(a.targets) == len(b.targets) == 3
@@ -267,14 +254,10 @@ def test_an_argument_given_by_a_name_postproc_cannot_place_leaves_the_target_and
     assert any(line == 8 and "CalcRobT() is given Tool:= by name" in m for (code, line), m in said.items())
 
 
-def test_statements_after_end_words_labels_and_whole_routines_on_one_line(tmp_path):
+def test_statements_after_end_words_labels_and_whole_routines_on_one_line(model):
     """Free-form to the end: a statement after ENDIF on its line, a label after a statement, TEST
     with its CASEs on one line, a routine and the whole module on one line — all read as the same
     program laid out one statement a line."""
-    from postproc.testing.models import affine_model
-
-    model = load_model(affine_model(tmp_path / "m.onnx", offset=(0.3, -0.2, 0.1), gain=np.diag([2e-3, -1e-3, 3e-3]),
-                                    reach=None, envelope=None, tool={"name": "any"}))
     p1 = f"CONST robtarget p1:=[[1800,100,500],[0,0,1,0],[0,0,0,0],{EAX}];"
     p2 = f"CONST robtarget p2:=[[1850,120,520],[0,0,1,0],[0,0,0,0],{EAX}];"
     lines = ["MODULE M (SYSMODULE, NOSTEPIN)", p1, p2, "PROC r()", "<SMT>", "ENDPROC", "PROC main()", "VAR num n:=1;",

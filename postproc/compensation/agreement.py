@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.diagnostics import P230, P231, P322, Diagnostic
+from ..core.diagnostics import P230, P231, P322, Diagnostic, listed
 from ..programs import Program
 from ..programs.locate import collect, motion_at, where
 from ..programs.rewrite import ORIENTATION_DECIMALS
@@ -144,18 +144,11 @@ def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, comm
                       np.asarray(middles, float).reshape(-1, 3), notes, moved)
 
 
-MAX_PLACES = 5  # motions named in one message before "and N more"
-
-
-def _listed(places: list[str]) -> str:
-    return ", ".join(places[:MAX_PLACES]) + (f" and {len(places) - MAX_PLACES} more" if len(places) > MAX_PLACES else "")
-
-
 def _motions(program: Program, target_rows) -> str:
     """'; the motions at path:line, …' of the rows' motion statements ('' where they all stand at
     one place: the message's own location says it)."""
     places = list(dict.fromkeys(motion_at(program, int(r)) for r in np.asarray(target_rows).tolist()))
-    return f"; the motions at {_listed(places)}" if len(places) > 1 else ""
+    return f"; the motions at {listed(places)}" if len(places) > 1 else ""
 
 
 def _owned(program: Program, selection: Selection, groups: np.ndarray, entries) -> tuple:
@@ -202,10 +195,10 @@ def _owned(program: Program, selection: Selection, groups: np.ndarray, entries) 
         moved.extend(off.tolist())
         places = list(dict.fromkeys(motion_at(program, int(rows[i])) for i in off.tolist()))
         n = len(places)
-        listed = _listed(places)
+        named = listed(places)
         warnings += collect(program, rows[off[:1]], P231, (
             f"this point's numbers are compensated for the motions to the point itself; {n} motion"
-            f"{'s' if n != 1 else ''} to it at an offset (Offs/RelTool, a copy with a component changed; at {listed}) move"
+            f"{'s' if n != 1 else ''} to it at an offset (Offs/RelTool, a copy with a component changed; at {named}) move"
             f"{'' if n != 1 else 's'} with that correction, up to {worst:.3f} mm from {'their' if n != 1 else 'its'} "
             f"own: not compensated"))
     return np.asarray(keep, int), np.asarray(moved, int), warnings

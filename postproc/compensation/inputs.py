@@ -93,28 +93,27 @@ def _reachable_instead(description, poses: np.ndarray, tools: np.ndarray) -> lis
     from ..robot import conventions
     from ..robot.arm import Robot
 
-    out = [""] * len(poses)
+    out = ["; no configuration reaches it on the nominal robot (out of reach or the joint limits)"] * len(poses)
     if not len(poses):
         return out
     _, first, which = np.unique(tools, axis=0, return_index=True, return_inverse=True)
-    for k in range(len(first)):
+    for k in range(len(first)):  # (one IK call per tool, one conversion of all its rows)
         idx = np.flatnonzero(which.reshape(-1) == k)
         arm = Robot(description.replace(tool=tools[first[k]]))
         q, ok = arm.ik(poses[idx])
-        for j, row in enumerate(idx.tolist()):
-            if not ok[j]:
-                out[row] = "; no configuration reaches it on the nominal robot (out of reach or the joint limits)"
-                continue
-            one = q[j:j + 1]
-            if description.configuration == "abb":
-                stated = f"confdata [{','.join(str(int(v)) for v in conventions.abb_confdata(arm, one)[0])}]"
-            elif description.configuration == "fanuc":
-                stated = f"CONFIG '{conventions.fanuc_configs(arm, one)[0]}'"
-            else:
-                s, t = conventions.status_turn_of(arm, one)
-                stated = f"S {int(s[0])} T {int(t[0])}"
-            out[row] = (f"; another configuration reaches it: joint angles ({', '.join(f'{v:.1f}' for v in q[j])}) deg, "
-                        f"which {stated} states")
+        idx, q = idx[ok], q[ok]
+        if not len(idx):
+            continue
+        if description.configuration == "abb":
+            stated = [f"confdata [{','.join(str(int(v)) for v in c)}]" for c in conventions.abb_confdata(arm, q)]
+        elif description.configuration == "fanuc":
+            stated = [f"CONFIG '{c}'" for c in conventions.fanuc_configs(arm, q)]
+        else:
+            s, t = conventions.status_turn_of(arm, q)
+            stated = [f"S {int(a)} T {int(b)}" for a, b in zip(s, t)]
+        for row, angles, words in zip(idx.tolist(), q, stated):
+            out[row] = (f"; another configuration reaches it: joint angles ({', '.join(f'{v:.1f}' for v in angles)}) "
+                        f"deg, which {words} states")
     return out
 
 

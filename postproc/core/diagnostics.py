@@ -239,6 +239,16 @@ class PostprocError(Exception):
         return self.diagnostic().format()
 
 
+# places (path:line) a message names before "and N more"
+MAX_PLACES = 5
+
+
+def listed(places: list[str]) -> str:
+    """``a.src:3, a.src:7 and 4 more``: the first MAX_PLACES places a message names, then how many others."""
+    more = len(places) - MAX_PLACES
+    return ", ".join(places[:MAX_PLACES]) + (f" and {more} more" if more > 0 else "")
+
+
 def line_col(text: str, offset: int) -> tuple[int, int]:
     """1-based (line, column) of a character offset in ``text``."""
     line = text.count("\n", 0, offset) + 1

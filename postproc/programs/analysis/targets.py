@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...core import frames as fr
-from ...core.diagnostics import P201, P203, P211, P212, P214, P215, P217, P220, P221, P223, P224, P225, Diagnostic
+from ...core.diagnostics import P201, P203, P211, P212, P214, P215, P217, P220, P221, P223, P224, P225, Diagnostic, listed
 from ..ir import MOTION_INDEX, Agg, Loc
 from ..model import Frame, Targets
 from .execute import START, RunUse
@@ -249,7 +249,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             code = target.code if target.code in (P211, P214, P215, P217, P223) else P211
             if target.code and target.code not in (P201, P203, P220, P221, P225):
                 code = target.code
-            what = f"target {use.what}" if use.what else "the target"
+            what = _target(use)
             if code == P215:
                 hint = f" ({dialect.undeclared_hint})" if dialect.undeclared_hint else ""
                 msg = f"{what}: {target.why}{hint}: left as written"
@@ -375,9 +375,8 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         what = _WHAT.get(code)
         msg = why if code in (P220, P221, P225) or what is None else f"{what} not statically known ({why})"
         motions = list(places)
-        listed = "" if motions == [f"{path}:{line}"] or not motions else (
-            f" (at {', '.join(motions[:MAX_NAMED])}{' and more' if len(motions) > MAX_NAMED else ''})")
-        diagnostics.append(Diagnostic(path, line, col, code, f"{msg}: {n} target(s) left as written{listed}"))
+        at = "" if motions == [f"{path}:{line}"] or not motions else f" (at {listed(motions)})"
+        diagnostics.append(Diagnostic(path, line, col, code, f"{msg}: {n} target(s) left as written{at}"))
     sites = rows.sites()
     held = _groups(unit, targets, rec, diagnostics, sites)
     notes = []
@@ -473,7 +472,7 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
         first = (_path(unit, int(r["file"][0])), int(r["line"][0]), int(r["col"][0]), use)
         at = first if why.code in (P220, P221) or why.loc is None else (_path(unit, why.loc.file), why.loc.line,
                                                                          why.loc.col, use)
-        count(why, code, n, at, [f"{first[0]}:{int(x)}" for x in dict.fromkeys(r["line"][:MAX_NAMED + 1].tolist())])
+        count(why, code, n, at, [f"{first[0]}:{int(x)}" for x in np.unique(r["line"]).tolist()])
     pose = r["pose"].copy()
     written = r["written"]
     chain = r["chain"]
@@ -604,9 +603,6 @@ def _target(use) -> str:
     return f"target {use.what}" if use.what else "the target"
 
 
-MAX_NAMED = 5  # the targets' motions named in one finding before "and more"
-
-
 def _groups(unit, t: Targets, rec, diagnostics: list, sites: list) -> dict:
     """``Targets.group``: rows that share any X/Y/Z token are one group (id: its first row; -1
     alone). A group with a token something else reads (``rec.escapes``) is held: P217 at each
@@ -667,7 +663,7 @@ def _groups(unit, t: Targets, rec, diagnostics: list, sites: list) -> dict:
             f"{_path(unit, site.file)}:{site.line}" for site in (sites[k] if k < len(sites) else None
                                                                  for k in rows[here].tolist())
             if site is not None and (site.file, site.line) != (int(t.file[i]), int(t.line[i]))))
-        moved = f" (moved to at {', '.join(motions[:MAX_NAMED])}{' and more' if len(motions) > MAX_NAMED else ''})" if motions else ""
+        moved = f" (moved to at {listed(motions)})" if motions else ""
         diagnostics.append(Diagnostic(_path(unit, int(t.file[i])), int(t.line[i]), int(t.col[i]), P217,
                                       f"this target's numbers{moved} are read{at} too ({why}): compensating them would "
                                       "change that as well; left as written"))

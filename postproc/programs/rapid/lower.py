@@ -1271,12 +1271,7 @@ def _split(args, named: list | None = None) -> tuple:
         if arg.data == "named":
             (named if named is not None else options).append((str(kids[0]), kids[1]))  # (as written)
             kids = kids[2:]
-            for opt in kids:
-                if opt is not None:
-                    options.append((str(opt.children[0]), opt if opt.data == "conditional" else
-                                    opt.children[1] if len(opt.children) > 1 else None))
-            continue
-        if kids and not (isinstance(kids[0], Tree) and kids[0].data == "option"):
+        elif kids and not (isinstance(kids[0], Tree) and kids[0].data == "option"):
             positional.append(kids[0])
             kids = kids[1:]
         for opt in kids:

@@ -46,6 +46,11 @@ KUKA_SINGULAR = 1e-10
 HALF_PI = math.pi / 2
 
 
+
+def _along(origins: np.ndarray, axes: np.ndarray, want: list[int]) -> bool:
+    """The joint origins carry no rotation and joint j turns about base axis ``want[j]`` (±1)."""
+    return bool(np.allclose(origins[:, 3:], 0.0) and np.allclose(np.abs(axes[np.arange(6), want]), 1.0, rtol=0, atol=1e-12))
+
 class Ops:
     """An array namespace for the IK formulas: elementwise ``atan2``, ``acos``, ``asin``,
     ``sqrt``, ``hypot``, ``cos``, ``sin``, ``abs``, ``clip``, ``where``, ``isnan``,
@@ -137,14 +142,13 @@ class KukaGeometry:
         flange_chain, tool_matrix = Chain.of(d, tool=False), d.tool_matrix
         o, axes = d.origins, d.axes
         want = [2, 1, 1, 0, 1, 0]  # which base axis each joint turns about
-        ok = np.allclose(o[:, 3:], 0.0) and all(abs(abs(axes[j, want[j]]) - 1.0) < 1e-12 for j in range(6))
-        ok = ok and np.allclose(o[1:, 1], 0.0) and np.allclose(o[4:6, 2], 0.0)
+        ok = _along(o, axes, want) and np.allclose(o[1:, 1], 0.0) and np.allclose(o[4:6, 2], 0.0)
         if not ok:
             raise PostprocError(
                 "the analytic IK needs a KUKA-type arm: joint origins without rotation, axes A1 ±Z, A2/A3/A5 ±Y, "
                 "A4/A6 ±X, all origins after A1 in the XZ plane and A4, A5, A6 on one line (spherical wrist)",
                 d.path, d.locate("joint", None, 0), 1, P333)
-        self.s = np.array([axes[j, want[j]] for j in range(6)])  # axis signs
+        self.s = axes[np.arange(6), want]  # axis signs
         self.p1 = o[0, :3]
         self.a1, self.d1 = float(o[1, 0]), float(o[1, 2])
         self.L2 = np.array([o[2, 0], o[2, 2]])
@@ -330,8 +334,7 @@ class UrGeometry:
     def __init__(self, d: RobotDescription):
         o, axes = d.origins, d.axes
         want = [2, 1, 1, 1, 2, 1]
-        ok = np.allclose(o[:, 3:], 0.0) and all(abs(abs(axes[j, want[j]]) - 1.0) < 1e-12 for j in range(6))
-        ok = ok and np.allclose(axes[1], axes[2]) and np.allclose(axes[1], axes[3])
+        ok = _along(o, axes, want) and np.allclose(axes[1], axes[2]) and np.allclose(axes[1], axes[3])
         ok = ok and np.allclose(o[1, :2], 0.0) and np.allclose(o[2:4, 1:], 0.0) and np.allclose(o[4, [0, 2]], 0.0)
         ok = ok and np.allclose(o[5, :2], 0.0) and np.allclose(o[0, :2], 0.0)
         if not ok:
@@ -339,7 +342,7 @@ class UrGeometry:
                 "the UR-type IK needs joint origins without rotation, axes A1 ±Z, A2 = A3 = A4 ±Y, A5 ±Z, A6 ±Y, "
                 "A2 above A1, A3 and A4 along X from it, A5 beside A4 (Y), A6 below/above A5 (Z)",
                 d.path, d.locate("joint", None, 0), 1, P333)
-        self.s = np.array([axes[j, want[j]] for j in range(6)])  # axis signs
+        self.s = axes[np.arange(6), want]  # axis signs
         # the chain at q = 0 in the base frame: A2 at height z0, upper arm and forearm along X,
         # the wrist offsets along Y (y4 = A4 → A5) and Z (z5 = A5 → A6), then the flange
         self.z0 = float(o[0, 2] + o[1, 2])
