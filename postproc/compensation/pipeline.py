@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.diagnostics import (
-    LEFT_AS_WRITTEN, P201, P203, P212, P220, P221, P224, P225, P230, P231, P306, P312,
+    INCOMPLETE, LEFT_AS_WRITTEN, P201, P203, P212, P220, P221, P224, P225, P230, P231, P232, P306, P312,
     P314, P321, P322, P340, Diagnostic,
     PostprocError,
 )
@@ -72,9 +72,15 @@ class Report:
         return sorted({d.code for d in self.warnings} | set(self.left_codes))
 
     @property
+    def unread(self) -> int:
+        """Calls to code that was not read (``diagnostics.INCOMPLETE``: P232), one per call."""
+        return sum(d.code in INCOMPLETE for d in self.warnings)
+
+    @property
     def complete(self) -> bool:
-        """Every Cartesian target was compensated (the CLI's exit 0)."""
-        return self.left == 0 and self.moved == 0
+        """Every Cartesian target was compensated and every routine the program calls was read
+        (the CLI's exit 0)."""
+        return self.left == 0 and self.moved == 0 and self.unread == 0
 
     def summary(self) -> str:
         """``17 of 19 compensated, 2 left as written: P201 ×2; model …`` (one line)."""
@@ -85,6 +91,9 @@ class Report:
         if self.moved:
             head += (f", {self.moved} motion{'s' if self.moved != 1 else ''} at an offset moved with the point's "
                      f"correction ({P231})")
+        if self.unread:
+            head += (f", {self.unread} call{'s' * (self.unread != 1)} to a routine not read ({P232}): its targets "
+                     "and what it changes are not known")
         details = (f"model {self.model}, max correction {self.max_correction_mm:.3f} mm, mean "
                    f"{self.mean_correction_mm:.3f} mm, {self.iterations} iteration{'s' if self.iterations != 1 else ''}")
         if self.warnings:

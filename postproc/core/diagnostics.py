@@ -53,6 +53,8 @@ P112 = _code("P112", "error", "several $config.dat in one cell: give --config")
 P117 = _code("P117", "error", "a URScript pose p[…] that has not six components (x, y, z, rx, ry, rz)")
 P118 = _code("P118", "error", "Fanuc LS: a malformed frame file (--frames), a Cartesian position without X, Y, Z, W, P, R "
              "or with other units than mm/deg, or one in the RX, RY, RZ, RW, RP, RR form (not read)")
+P119 = _code("P119", "error", "files of several robot families given as one run (KRL, RAPID, URScript, Fanuc LS): one run "
+             "is one robot's programs; or a file given that no reader takes (a controller backup's file of an unknown kind)")
 P190 = _code("P190", "error", "last check before writing: a span or new number that does not read back (a postproc bug)")
 P191 = _code("P191", "error", "last check before writing: the new text does not read again as the same program (a postproc bug)")
 # P2xx: frames and targets not statically known (the target is left as written)
@@ -93,6 +95,16 @@ P231 = _code("P231", "warning", "a point the program also moves to at an offset 
              "component changed): its numbers are compensated for the motions to the point itself, and the motions at "
              "an offset move with that correction, not their own (which motions, at their path:line, and how far off is "
              "said): those are not compensated")
+P232 = _code("P232", "warning", "a call to a routine in none of the files read (not an instruction postproc knows): "
+             "it may move to the global targets, and change the tools and frames, it can see (the message names them); "
+             "the run is not complete (compensate exits 1)")
+P233 = _code("P233", "warning", "a tool, work object, frame or target that a routine of the task changes (an assignment, "
+             "an argument to a VAR/PERS/INOUT parameter, an instruction that sets it) in a routine the program's entry "
+             "does not run (the pendant, an event routine or another task can): a run-time value, its targets left as "
+             "written")
+P234 = _code("P234", "note", "a value a backup's system files give (Fanuc posreg.va, numreg.va, sysframe.va; RAPID "
+             "SYSPAR): used as the controller had it when the backup was taken (the note names the register and the "
+             "file); settings 'registers = \"runtime\"' makes registers run-time values")
 # P3xx: the model, its envelope and the robot
 P301 = _code("P301", "warning", "target outside the model's training envelope (error with --strict)")
 P302 = _code("P302", "error", "target beyond the nominal robot's reach (model metadata 'reach')")
@@ -186,7 +198,11 @@ P610 = _code("P610", "error", "bad settings (unknown key, bad value, bad TOML)")
 
 # Reader warnings whose target never became a row of Targets: each one is a Cartesian
 # target left as written (compensate counts them and exits 1; one place for the rule).
-LEFT_AS_WRITTEN = frozenset({P210, P211, P212, P214, P215, P217, P223})
+LEFT_AS_WRITTEN = frozenset({P210, P211, P212, P214, P215, P217, P223, P233})
+
+# Warnings that make a run incomplete although no target was left on their account: code the
+# program runs that postproc did not read (compensate exits 1, the summary says how many).
+INCOMPLETE = frozenset({P232})
 
 
 def codes_table(markdown: bool = False) -> str:
