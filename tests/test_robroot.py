@@ -129,9 +129,10 @@ def test_a_robot_on_a_track_is_left_as_written(backup, model, tmp_path, capsys):
     (backup / "Mada" / "$machine.dat").write_text(machine(kin="#ERSYS"))
     assert compensate(backup, "-o", tmp_path / "cell", "--model", model) == 1
     err = capsys.readouterr().err
-    (warning, summary) = err.splitlines()
+    (warning, summary, *files) = err.splitlines()
     assert warning.startswith(f"{backup / 'Program' / 'job.src'}:4:7: P225") and "ET1 #ERSYS" in warning
     assert "4 left as written: P225 ×4" in summary
+    assert f"postproc:   {tmp_path / 'cell' / 'Program' / 'job.src'}: 0 of 4 compensated, 4 left as written" in files
     assert (tmp_path / "cell" / "Program" / "job.src").read_text() == (backup / "Program" / "job.src").read_text()
     # the track parked where the user says: stated, compensated
     assert compensate(backup, "-o", tmp_path / "cell2", "--model", model, "--robroot", ",".join(map(str, ROBROOT))) == 0

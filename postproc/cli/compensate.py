@@ -105,5 +105,8 @@ def run(args) -> int:
         for w in report.warnings + [n for n in report.notes if args.verbose or n.code == P340]:
             print(w.format(), file=sys.stderr)
         print(f"postproc: {report.summary()}", file=sys.stderr)
+        if len(report.written) > 1:  # (a cell: what each file written holds)
+            for line in report.files_summary():
+                print(f"postproc:   {line}", file=sys.stderr)
     # like `ruff --fix` with findings left: the output is written, but not everything was done
     return EXIT_OK if report.complete else EXIT_FINDINGS

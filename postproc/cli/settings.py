@@ -41,6 +41,10 @@ ARGUMENTS: dict[str, tuple[tuple[str, ...], dict]] = {
         "the nominal kinematics of the external units — a track that carries the robot, a turntable or positioner "
         "that carries the part — as [[external]] tables (docs/EXTERNAL.md){default}; a KRL backup's machine data "
         "give a KUKA track's. Without them, targets that move with such a unit are left as written (P225)"))),
+    "registers": (("--registers",), dict(choices=["backup", "runtime"], help=(
+        "a controller backup's registers (Fanuc posreg.va / numreg.va): 'backup' uses the values the backup holds "
+        "where no program read writes the register, and says so (P234); 'runtime' makes them run-time values "
+        "(a PLC, vision or KAREL writes them){default}"))),
     "iterations": (("--iterations",), dict(metavar="K", help=(
         "fixed-point iterations c ← P + Ê(c) (default: the model's)"))),
     "max_correction_mm": (("--max-correction",), dict(metavar="MM", help=(

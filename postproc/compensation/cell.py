@@ -1,5 +1,10 @@
-"""A robot cell as one unit: a set of KRL files or a controller backup directory
-(``KRC/R1/``) → its modules (.src/.sub with their .dat), its data lists without a DEF, its
+"""A robot cell as one unit: the files of one robot's programs or a controller backup directory
+(``programs.cell``: a KRL cell or ``KRC/R1/``, a RAPID task or backup of tasks, a Fanuc LS
+backup, several URScript programs or pose lists), each of its programs compensated on its own,
+all written together (one atomic write, nothing if one is refused), the output tree mirroring
+the input's; the report says per file what was compensated and left (``Report.files_summary``).
+
+KRL: a cell or backup (``KRC/R1/``) → its modules (.src/.sub with their .dat), its data lists without a DEF, its
 ``$config.dat``; compensated together and written together (one atomic write of every
 file, the journal of ``atomic.write_atomic``), the output tree mirroring the input's.
 
@@ -43,9 +48,10 @@ def compensate_cell(cell: Cell, out_dir: str | Path, model: Compensator, setting
                             P110)
     if not cell.files:
         return Report(model=model.name, model_sha256=model.sha256)
-    program = cell.read()
-    report = compensate_program(program, model, settings)
+    programs = cell.read_all(settings.reading.config_list, settings.reading.registers)
+    report = Report.merged([compensate_program(program, model, settings) for program in programs])
     outputs: list[tuple[Path, str | bytes]] = [(out_dir / Path(name).resolve().relative_to(cell.root), text)
                                                for name, text in report.outputs.items()]
     write_outputs(outputs)
+    report.written = [(name, str(path)) for name, (path, _) in zip(report.outputs, outputs)]
     return report

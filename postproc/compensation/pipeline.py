@@ -61,6 +61,50 @@ class Report:
     notes: list[Diagnostic] = field(default_factory=list)  # P224, P321 (printed with -v), P340 (printed)
     outputs: dict[str, str] = field(default_factory=dict)
     changed: list[str] = field(default_factory=list)
+    # each file of the program → (targets compensated, targets left as written) in it
+    per_file: dict[str, tuple[int, int]] = field(default_factory=dict)
+    written: list[tuple[str, str]] = field(default_factory=list)  # (input file, the path written for it)
+
+    @classmethod
+    def merged(cls, reports: list[Report]) -> Report:
+        """One report for the programs of a cell (each compensated on its own)."""
+        if len(reports) == 1:
+            return reports[0]
+        out = cls(model=reports[0].model if reports else "", model_sha256=reports[0].model_sha256 if reports else "")
+        for r in reports:
+            out.targets += r.targets
+            out.compensated += r.compensated
+            out.left += r.left
+            out.moved += r.moved
+            out.outside_envelope += r.outside_envelope
+            for code, n in r.left_codes.items():
+                out.left_codes[code] = out.left_codes.get(code, 0) + n
+            out.iterations = max(out.iterations, r.iterations)
+            out.max_correction_mm = max(out.max_correction_mm, r.max_correction_mm)
+            out.warnings += r.warnings
+            out.notes += r.notes
+            out.outputs.update(r.outputs)
+            out.changed += r.changed
+            out.per_file.update(r.per_file)
+        weights = [r.compensated for r in reports]
+        if sum(weights):
+            out.mean_correction_mm = sum(r.mean_correction_mm * w for r, w in zip(reports, weights)) / sum(weights)
+        out.warnings = list(dict.fromkeys(out.warnings))
+        out.notes = list(dict.fromkeys(out.notes))
+        return out
+
+    def files_summary(self) -> list[str]:
+        """One line per file written: ``OUT: 12 of 14 compensated, 2 left as written`` (or
+        ``written unchanged``), for a run of several files."""
+        lines = []
+        for source, path in self.written:
+            done, left = self.per_file.get(source, (0, 0))
+            if done + left == 0:
+                said = "no Cartesian target" + ("" if source in self.changed else ", written unchanged")
+            else:
+                said = f"{done} of {done + left} compensated" + (f", {left} left as written" if left else "")
+            lines.append(f"{path}: {said}")
+        return lines
 
     @property
     def skipped(self) -> int:  # (the name before ``left``)
@@ -309,7 +353,27 @@ def compensate_program(
     report.notes = list(dict.fromkeys(program.notes + model_notes + dead_band_notes(program, commands) + approach_notes))
     report.changed = [program.files[i] for i in sorted(set(program.targets.file[selection.rows].tolist()))]
     report.outputs = dict(zip(program.files, outputs))
+    report.per_file = _per_file(program, selection)
     return report
+
+
+def _per_file(program: Program, selection: Selection) -> dict[str, tuple[int, int]]:
+    """Each file → (targets compensated, targets left as written), counted as the summary counts
+    them: a target's rows by its first run's file; a reader's warning of a target that never
+    became a row (LEFT_AS_WRITTEN) at the file it names."""
+    t = program.targets
+    first = _firsts(program)
+    done = _compensated_classes(program, selection)
+    files = np.asarray(t.file, int)
+    n = len(program.files)
+    compensated = np.bincount(files[first & done], minlength=n)
+    left = np.bincount(files[first & ~done], minlength=n)
+    held = getattr(program, "held", {}) or {}
+    index = {name: i for i, name in enumerate(program.files)}
+    for d in program.diagnostics:
+        if d.code in LEFT_AS_WRITTEN and d.code not in held and d.path in index:
+            left[index[d.path]] += 1
+    return {name: (int(compensated[i]), int(left[i])) for i, name in enumerate(program.files)}
 
 
 def rewrite_program(program: Program, commands: Commands, model: Compensator) -> dict[str, str]:

@@ -144,15 +144,18 @@ def companion_dat(src: Path) -> Path | None:
 
 
 def read_program(files: list[str], texts: list[str], dialect: str, config: list[str] | None = None,
-                 active: ActiveFrames | None = None) -> Program:
+                 active: ActiveFrames | None = None, data: dict[str, str] | None = None, task: str | None = None,
+                 registers: str = "backup") -> Program:
     """Parse a program made of ``files`` (for KRL: the .src first, then its .dat if any)
     with contents ``texts``. ``config`` optionally holds ``$config.dat`` text(s) that give
     BASE_DATA / TOOL_DATA (for RAPID: other modules' tooldata / wobjdata; for Fanuc LS: the frame
     file, TOML, of --frames). ``active``: the $BASE / $TOOL in force where a KRL program has not
     set them, and the TCP of a URScript program before its first set_tcp (``tool`` only; the
     other dialects name theirs at every target and refuse it, P222; its ``robroot``, KRL's
-    $ROBROOT, they do not need: their targets are in the robot base). Raises
-    PostprocError (with file:line:col) on bad input."""
+    $ROBROOT, they do not need: their targets are in the robot base). ``data``: a backup's
+    system files read with the program (path → text: Fanuc .va, RAPID SYSPAR .cfg), ``task``
+    the RAPID task's name, ``registers`` ("backup" or "runtime": settings.reading.registers).
+    Raises PostprocError (with file:line:col) on bad input."""
     if dialect == "krl":
         from . import krl
 
@@ -185,7 +188,8 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
     if dialect == "rapid":
         from . import rapid
 
-        program = rapid.read(files, texts, config=config, external=external)
+        backup = {"syspar": data, "task": task} if data or task else {}
+        program = rapid.read(files, texts, config=config, external=external, **backup)
         program.config = list(config) if config else None
         if external:  # (read again as it was read: guards.check_round_trip)
             program.active = ActiveFrames(external=external)
@@ -194,7 +198,8 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
     if dialect == "fanuc":
         from . import fanuc
 
-        program = fanuc.read(files, texts, frames=config, external=external)
+        backup = {"va": data, "registers": registers} if data else {}
+        program = fanuc.read(files, texts, frames=config, external=external, **backup)
         program.config = list(config) if config else None
         if external:
             program.active = ActiveFrames(external=external)

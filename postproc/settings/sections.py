@@ -42,11 +42,14 @@ class Reading:
     """How programs are read: ``config`` ($config.dat files with BASE_DATA / TOOL_DATA; RAPID
     modules whose data are read; a FANUC LS frame file), ``dialect`` (None: by the file's
     suffix), ``active`` (the $BASE / $TOOL / $ROBROOT / external units a program runs in where it
-    does not set them itself)."""
+    does not set them itself), ``registers`` (a controller backup's register values: "backup"
+    uses them where no program read writes the register, "runtime" makes every register a
+    run-time value — cells where a PLC, vision or KAREL writes them)."""
 
     config: tuple[Path, ...] | None = None
     dialect: str | None = None
     active: ActiveFrames | None = None
+    registers: str = "backup"
 
     @property
     def config_list(self) -> list[str] | None:
@@ -324,6 +327,12 @@ def _dialect(value, settings, source):
     return value
 
 
+def _registers(value, settings, source):
+    if value not in ("backup", "runtime"):
+        raise ValueError(f"must be 'backup' or 'runtime', not {value!r}")
+    return value
+
+
 def _codes(value, settings, source):
     items = [c.strip() for c in value.split(",")] if isinstance(value, str) else value
     if not isinstance(items, Iterable):
@@ -485,6 +494,7 @@ OPTIONS: dict[str, Option] = _options(
     ("tool",             "reading",    "active",             "--tool",                "tool",            _frame("tool"), P222),
     ("robroot",          "reading",    "active",             "--robroot",             "robroot",         _robroot, P226),
     ("external",         "reading",    "active",             "--external",            "external",        _external),
+    ("registers",        "reading",    "registers",          "--registers",           "registers",       _registers),
     ("iterations",       "rules",      "iterations",         "--iterations",          "iterations",      _iterations),
     ("strict",           "rules",      "strict",             "--strict",              "strict",          _bool),
     ("force",            "rules",      "force",              "--force",               None,              _bool),
