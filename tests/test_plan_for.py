@@ -86,3 +86,50 @@ def test_plan_for_names_the_targets_the_data_does_not_cover(programs, capsys):
     assert main(["plan", "--data", str(d / "only_m.csv"), "-o", str(d / "x.csv")]) == 2
     assert main(["plan", "--for", str(d / "default.src"), "--wrist", "both", "-o", str(d / "x.csv")]) == 2
     assert not (d / "x.csv").exists()
+
+
+def _plan_rows(path):
+    return [line for line in path.read_text().splitlines() if not line.startswith("#")]
+
+
+def test_plan_for_takes_a_kuka_cell_as_compensate_does(tmp_path, capsys):
+    """A normal KUKA cell (issue 38, item 3): the directory, the .src with --config, and the .src,
+    its .dat and $config.dat given together are one program with the same targets, so one plan."""
+    import shutil
+
+    from helpers import REPO
+
+    krl = REPO / "samples/krl"
+    cell = tmp_path / "R1"
+    (cell / "Program").mkdir(parents=True)
+    (cell / "System").mkdir()
+    for name in ("weld_cell.src", "weld_cell.dat"):
+        shutil.copy(krl / name, cell / "Program" / name)
+    shutil.copy(krl / "config" / "$config.dat", cell / "System" / "$config.dat")
+    src, dat, config = cell / "Program/weld_cell.src", cell / "Program/weld_cell.dat", cell / "System/$config.dat"
+    runs = {"directory": [str(cell)], "config": [str(src), "--config", str(config)],
+            "files": [str(src), str(dat), str(config)]}
+    plans = {}
+    for name, given in runs.items():
+        out = tmp_path / f"{name}.csv"
+        assert main(["plan", "--for", *given, "-n", "24", "-o", str(out)]) == 0, name
+        plans[name] = _plan_rows(out)
+        assert "targets of 1 program(s)" in capsys.readouterr().err
+    assert plans["directory"] == plans["config"] == plans["files"]
+    # the module alone: its BASE_DATA and TOOL_DATA are in no file read, nothing to plan for (said)
+    assert main(["plan", "--for", str(src), "-n", "24", "-o", str(tmp_path / "alone.csv")]) == 2
+    assert "P512" in capsys.readouterr().err
+
+
+def test_plan_for_takes_the_frames_a_program_does_not_set_as_compensate_does(tmp_path, capsys):
+    """--base and --tool state the $BASE/$TOOL of a KRL program that does not set them (as
+    compensate takes them): the plan's tool column is the one stated."""
+    src = tmp_path / "bare.src"
+    src.write_text("DEF bare()\n" + "".join(
+        f"  PTP {{X {x:.1f},Y {y:.1f},Z 900.0,A 0,B 90,C 0}}\n" for x in (1900, 2000, 2100) for y in (-200, 0, 200))
+        + "END\n")
+    assert main(["plan", "--for", str(src), "-n", "12", "-o", str(tmp_path / "none.csv")]) == 2  # (P220: not known)
+    capsys.readouterr()
+    out = tmp_path / "stated.csv"
+    assert main(["plan", "--for", str(src), "-n", "12", "-o", str(out), "--base", "0", "--tool", "250,0,60,0,0,0"]) == 0
+    assert "# tool: 250,0,60,0,0,0" in out.read_text()

@@ -63,14 +63,13 @@ class ProgramTargets:
         return len(self.poses)
 
 
-def program_targets(paths, description) -> ProgramTargets:
-    """Read the programs at ``paths`` (any dialect the readers read) through the public API and
-    give each target's pose, joint angles and tool (see the module text). Targets whose frame is
+def program_targets(programs, description) -> ProgramTargets:
+    """The targets of ``programs`` (read as compensate reads them: ``programs.cell.load_programs``):
+    each target's pose, joint angles and tool (see the module text). Targets whose frame is
     not known, that leave a coordinate out, or whose configuration the nominal arm cannot take
     are skipped, each said once (P337, note)."""
     from ..core import frames
     from ..programs.base_poses import robot_base_poses
-    from ..programs.io import load_program
     from ..programs.locate import where
     from ..robot import configuration
     from ..robot.arm import Robot
@@ -78,8 +77,7 @@ def program_targets(paths, description) -> ProgramTargets:
     robot = Robot(description)
     controller = frames.frame_to_matrix(np.asarray(description.controller_base, float))
     poses, joints, tools, places, skipped = [], [], [], [], []
-    for path in paths:
-        program = load_program(path)
+    for program in programs:
         bases = [controller @ f.base for f in program.frames]
         base_poses, resolved = robot_base_poses(program, bases)
         t = program.targets
@@ -103,7 +101,7 @@ def program_targets(paths, description) -> ProgramTargets:
         places += [where(program, int(r)) for r in rows]
     if not places:
         raise PostprocError("no target of the programs has a known frame and joint angles: nothing to plan for",
-                            str(paths[0]) if paths else "", code=P512)
+                            programs[0].files[0] if programs else "", code=P512)
     return ProgramTargets(np.concatenate(poses), np.concatenate(joints), np.round(np.concatenate(tools), TOOL_DECIMALS),
                           places, skipped)
 

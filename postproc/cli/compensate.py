@@ -10,6 +10,9 @@ EXAMPLES = """examples:
   postproc compensate samples/krl/weld_cell.src -o out/weld_cell.src --config 'samples/krl/config/$config.dat'
   postproc compensate samples/krl/backup/KRC/R1 -o out/R1     (a cell: every module, System/$config.dat found)
   postproc compensate samples/rapid/cam_contour.prg --model irb6700 -o out/cam_contour.prg
+  postproc compensate YOUR_BACKUP/ --model irb6700 -o out/BACKUP     (an ABB backup: RAPID/TASKn, SYSPAR read)
+  postproc compensate Data.mod Main.mod --model irb6700 -o out/task   (RAPID modules given together: one task)
+  postproc compensate samples/fanuc/backup --model r2000ic -o out/fanuc   (a Fanuc backup: every .ls, its .va)
   postproc compensate samples/poses/drill_plate.csv -o out/drill_plate.csv --model models/default.onnx --strict
   YOUR_CAM_POST | postproc compensate - -o - > YOUR_PROGRAM.src   (filter: stdin → stdout)
   postproc compensate YOUR_PROGRAM.src -o out/YOUR_PROGRAM.src --robroot 0,0,2900,0,0,180   (a ceiling robot's $ROBROOT)
@@ -34,8 +37,11 @@ def add_parser(sub, common, formatter) -> None:
     )
     p.add_argument("input", metavar="IN", nargs="+",
                    help="program (.src with its .dat beside it, .mod/.prg/.sys, .script, .ls, .csv/.txt pose list) or - for "
-                   "stdin (with --dialect); or a cell: "
-                   "several KRL files or a directory (a controller backup KRC/R1/), compensated as one unit")
+                   "stdin (with --dialect); or a cell: several files of one robot or a directory (a controller backup: "
+                   "KUKA KRC/R1/, ABB with RAPID/TASKn/ and SYSPAR/, Fanuc with its .ls and .va files), compensated as "
+                   "one unit: KRL modules with their data lists and $config.dat, the RAPID modules of a task, every "
+                   ".ls; each URScript program and pose list on its own. Every file given is read or the run refuses; "
+                   "programs of two robot families are refused (P119)")
     p.add_argument("-o", "--output", metavar="OUT", required=True,
                    help="where to write (its .dat goes beside it); - for stdout; for a cell a directory (OUTDIR), "
                    "the input's tree mirrored below it")

@@ -42,7 +42,8 @@ def add_parser(sub, common, formatter) -> None:
                    help="position box in the robot base frame, mm")
     p.add_argument("--attitude", type=float, nargs=3, metavar=("A", "B", "C"), help="working attitude, deg")
     p.add_argument("--range", type=float, metavar="DEG", help="± range of each of A, B, C around the attitude")
-    add(p, "robot", helps={"robot": ROBOT_HELP + " (default models/kr500.toml)"})
+    add(p, "robot", "config", "base", "robroot", "external", "registers",
+        helps={"robot": ROBOT_HELP + " (default models/kr500.toml)"})
     p.add_argument("-o", "--output", metavar="PLAN_CSV", required=True, help="plan CSV to write")
     p.add_argument("--krl", metavar="SRC", help="also write a KRL measurement program (.src, module named after it)")
     p.add_argument("--ls", metavar="LS", help="also write a FANUC LS measurement program (.ls, program named after it): "
@@ -55,7 +56,8 @@ def add_parser(sub, common, formatter) -> None:
                    help="the TCP on the flange the plan is measured with (default the description's [tool]): $TOOL "
                    "of the KRL program and the reach check; two or three times: the plan in as many consecutive "
                    "parts, one tool each (columns tool_x..tool_c; KRL: HOME and HALT to change the tool between "
-                   "them), data that separate the tool mount's rotation (README: Any tool)")
+                   "them), data that separate the tool mount's rotation (README: Any tool); with --for: the $TOOL of "
+                   "programs that do not set it, as compensate takes it")
     p.add_argument("--wait", type=float, default=1.0, metavar="S",
                    help="settling time before each measurement (default 1 s)")
     progs = p.add_argument_group("a plan for the programs that will run (instead of the Latin hypercube)")
@@ -195,12 +197,19 @@ def _run_for(args, description) -> int:
     from ..core.outputs import check_outputs, write
     from ..robot.arm import Robot
 
-    if args.iso9283 or args.tool or args.wrist:
-        raise PostprocError("--for takes the configurations and tools from the programs: leave out --iso9283, --tool "
-                            "and --wrist", code=P512)
+    from ..programs.cell import load_programs
+    from .settings import settings_of
+
+    if args.iso9283 or args.wrist or (args.tool and len(args.tool) > 1):
+        raise PostprocError("--for takes the configurations and tools from the programs: leave out --iso9283 and "
+                            "--wrist, and give --tool once (the $TOOL of programs that do not set it, as compensate "
+                            "takes it)", code=P512)
     check_outputs([args.output, args.krl or "-"], [*args.programs, args.data or "-"])
     n = 300 if args.poses is None else args.poses
-    targets = program_targets(args.programs, description)
+    reading = settings_of(args, **({"tool": args.tool[0]} if args.tool else {})).reading
+    programs = load_programs(args.programs, reading.config_list, reading.active, reading.registers, families=True)
+    targets = program_targets(programs, description)
+    modules = sum(not f.lower().endswith(".dat") for program in programs for f in program.files)  # (KRL: not .dat)
     data_q, data_tools = read_data(args.data, description) if args.data else (None, None)
     plan = plan_for(targets, description, n, args.seed, data_q, data_tools)
     several = len(np.unique(plan.tools, axis=0)) > 1
@@ -210,7 +219,7 @@ def _run_for(args, description) -> int:
     robot = Robot(description if several else description.replace(tool=plan.tools[0]))
     if args.krl is not None:
         src = Path(args.krl)
-        comment = f"for {len(args.programs)} program(s), {len(targets)} targets, seed {args.seed}"
+        comment = f"for {modules} program(s), {len(targets)} targets, seed {args.seed}"
         outputs.append((src, krl_measurement_program(plan.poses, src.stem, robot, wait_s=args.wait, comment=comment,
                                                     config=plan.config, tools=tools)))
     write(outputs)
@@ -223,7 +232,7 @@ def _run_for(args, description) -> int:
                            f"poses for {int(c)} targets" for g, (k, c) in enumerate(zip(plan.keys, plan.targets_per_group)))
         uncovered = len(coverage_rows)
         print(f"postproc: {' + '.join(str(p) for p, _ in outputs)}: {len(plan.poses)} poses for {len(targets)} targets "
-              f"of {len(args.programs)} program(s) ({groups}); log det of the identification's information "
+              f"of {modules} program(s) ({groups}); log det of the identification's information "
               f"{plan.log_det[0]:.1f} -> {plan.log_det[1]:.1f}"
               + (f"; {uncovered} target(s) the data does not cover (P337)" if args.data else ""), file=sys.stderr)
     return 0

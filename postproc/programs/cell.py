@@ -29,7 +29,7 @@ from .krl.machine import found_machine, is_machine, with_machine
 from .model import ActiveFrames, Program
 from .text import read_text
 
-__all__ = ['Cell', 'Part', 'find_cell', 'is_config', 'CONFIG_NAME', 'FAMILY_NAMES']
+__all__ = ['Cell', 'Part', 'find_cell', 'find_cells', 'load_programs', 'is_config', 'CONFIG_NAME', 'FAMILY_NAMES']
 
 
 CONFIG_NAME = "$config.dat"
@@ -343,3 +343,16 @@ def find_cell(paths: list[str | Path], config: list[str | Path] | None = None,
                             "robot's programs, compensated with its model; give each robot's files in a run of its "
                             "own", str(cells[1].files[0]), 0, 0, P119)
     return cells[0]
+
+
+def load_programs(paths: list[str | Path], config: list[str] | None = None, active: ActiveFrames | None = None,
+                  registers: str = "backup", *, families: bool = False) -> list[Program]:
+    """The programs of these files and directories as ``compensate`` reads them: one file alone
+    (a .src with its .dat beside it) with ``io.load_program``, else the cells of
+    :func:`find_cells` (``families``: several robot families allowed, else refused, P119)."""
+    from .io import load_program
+
+    if len(paths) == 1 and not Path(paths[0]).is_dir():
+        return [load_program(paths[0], config, None, active)]
+    cells = find_cells(paths, config, active) if families else [find_cell(paths, config, active)]
+    return [program for cell in cells for program in cell.read_all(config, registers)]
