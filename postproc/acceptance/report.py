@@ -70,6 +70,7 @@ class ReportData:
     source: str = ""
     source_sha256: str = ""
     model_card: dict = field(default_factory=dict)  # the model's metadata + file, sha256
+    orientation_corrected: bool = False  # the model corrects the orientation (rotation_error, compensate --orientation)
     outside_envelope: int = 0
     rotation_before: np.ndarray | None = None  # [N, 3] deg, commanded → measured (a_meas..c_meas)
     rotation_after: np.ndarray | None = None  # [N, 3] deg, r − r̂ (first order) or target → measured after
@@ -220,6 +221,7 @@ def read_report_data(path: str | Path, model: Compensator | None = None, after: 
         source=str(path),
         source_sha256=hashlib.sha256(data).hexdigest(),
         model_card=model_card(model) if model is not None else {},
+        orientation_corrected=bool(model is not None and model.has_rotation),
         outside_envelope=int(envelope.outside(m.poses).sum()) if envelope is not None else 0,
         rotation_before=rotation_before,
         rotation_after=rotation_after,
@@ -410,7 +412,8 @@ def summary(data: ReportData) -> dict:
         "outside_envelope": data.outside_envelope,
         "orientation_deg": None if data.rotation_before is None else {
             "before": table2(np.linalg.norm(data.rotation_before, axis=1)),
-            "after": None if data.rotation_after is None else table2(np.linalg.norm(data.rotation_after, axis=1))},
+            "after": None if data.rotation_after is None else table2(np.linalg.norm(data.rotation_after, axis=1)),
+            "corrected": data.orientation_corrected},
         "trained_on_these_rows": data.trained_on,
         "vector_scale": _vector_scale(data),
         "vector_rows": vector_rows(len(data)).tolist(),
@@ -487,6 +490,10 @@ def write_markdown(data: ReportData, numbers: dict, figures: dict[str, Path], pa
                              "a_meas,b_meas,c_meas | | | |")
             else:
                 lines.append(f"| {label} | {row['max']:.4f} | {row['min']:.4f} | {row['mean']:.4f} | {row['std']:.4f} |")
+        if not angles.get("corrected", True):
+            lines += ["", "The orientation was not corrected: the model corrects the position only (a model with a "
+                      "rotation_error output and `compensate --orientation` correct it too), so the orientation "
+                      "error after is the robot's own."]
     if data.after_kind == "first-order":
         lines.append("\"After\" is E − Ê at the measured poses: what compensation leaves to first order, "
                      "not a measurement of the compensated robot.")

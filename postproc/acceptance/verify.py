@@ -82,6 +82,8 @@ def verify(original: str, compensated: str, settings: Settings, *, robot_seed: i
     # the targets COMPENSATED changes (the others were left as written and keep their error)
     changed = np.abs(p_comp[:, :3] - p_orig[:, :3]).max(axis=1) > 1e-6
     figures["compensated"] = int(changed.sum())
+    # position only (compensate without --orientation): the orientation as written, its error unchanged
+    figures["orientation_corrected"] = bool(len(p_comp) and np.abs(p_comp[:, 3:6] - p_orig[:, 3:6]).max() > 1e-6)
     figures["after_compensated"] = table2(result["errors_after"][changed])
     if limits.stated:
         figures.update(limits.stated)

@@ -74,7 +74,7 @@ def run(args) -> int:
 
     from ..compensation.api import model_of
     from ..compensation.pipeline import compensate_program
-    from ..core.diagnostics import EXIT_FINDINGS, EXIT_OK, P340
+    from ..core.diagnostics import EXIT_FINDINGS, EXIT_OK, P323, P340
     from ..programs.io import check_program_outputs, load_program
 
     inputs = args.input
@@ -108,7 +108,7 @@ def run(args) -> int:
             said = joints_text(model_of(settings.model))
             if said:
                 print(f"postproc: {said}", file=sys.stderr)
-        for w in report.warnings + [n for n in report.notes if args.verbose or n.code == P340]:
+        for w in report.warnings + [n for n in report.notes if args.verbose or n.code in (P340, P323)]:
             print(w.format(), file=sys.stderr)
         print(f"postproc: {report.summary()}", file=sys.stderr)
         if len(report.written) > 1:  # (a cell: what each file written holds)

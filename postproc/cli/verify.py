@@ -49,7 +49,7 @@ def add_parser(sub, common, formatter) -> None:
     p.set_defaults(run=run)
 
 
-def _print_table(result: dict, n: int, sim, noise: bool) -> None:
+def _print_table(result: dict, n: int, sim, noise: bool, orientation_corrected: bool = True) -> None:
     which = "default robot" if sim.is_default else "drawn robot"
     print(f"Positioning error (mm) of {n} targets on {sim.robot.name}, seed {sim.seed} ({which})"
           f"{'' if noise else ', no noise'}")
@@ -57,7 +57,9 @@ def _print_table(result: dict, n: int, sim, noise: bool) -> None:
     for label in ("before", "after"):
         s = result[label]
         print(f"{label:12s}{s['max']:9.3f}{s['min']:9.3f}{s['mean']:9.3f}{s['std']:9.3f}{s['p95']:9.3f}")
-    print("Orientation error (deg)")
+    print("Orientation error (deg)" + ("" if orientation_corrected else
+          ": not corrected — COMPENSATED keeps every orientation as written (position only; compensate "
+          "--orientation corrects it with a model that has rotation_error)"))
     for label in ("before", "after"):
         s = result["orientation_" + label]
         print(f"{label:12s}{s['max']:9.4f}{s['min']:9.4f}{s['mean']:9.4f}{s['std']:9.4f}{s['p95']:9.4f}")
@@ -90,7 +92,7 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(figures, indent=2))
     else:
-        _print_table(result, found.targets, found.sim, figures["noise"])
+        _print_table(result, found.targets, found.sim, figures["noise"], figures["orientation_corrected"])
     if not args.quiet:
         gate = "" if not settings.acceptance.stated else (
             f"; FAILED: {'; '.join(failed_lines(document))}" if not found.passed else "; within the limits stated")

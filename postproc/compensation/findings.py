@@ -519,8 +519,10 @@ def std_rule(program: Program, model: Compensator, settings: Settings, commands:
                                 order=sel.order)
     high = np.flatnonzero(std > bound)
     high = high[np.argsort(-std[high], kind="stable")]
-    return collect(program, sel.rows[high], P336, lambda i: f"the model's std at this target is {std[high[i]]:.3f} "
-                   f"mm, above {bound:g} mm (--max-std): its training data did not pin it down here")
+    digits = max(3, 1 - int(np.floor(np.log10(bound))) + 2) if bound > 0 else 3  # (0.0455 > 0.0455, not 0.045 > 0.0455)
+    return collect(program, sel.rows[high], P336, lambda i: f"the model's std at this target is "
+                   f"{std[high[i]]:.{digits}f} mm, above {bound:.{digits}f} mm (--max-std): its training data did not "
+                   "pin it down here")
 
 
 # --------------------------------------------------------------------------- all

@@ -15,10 +15,11 @@ from pathlib import Path
 import numpy as np
 
 from ..core.diagnostics import (
-    INCOMPLETE, LEFT_AS_WRITTEN, P201, P203, P212, P220, P221, P224, P225, P230, P231, P232, P306, P312,
+    INCOMPLETE, LEFT_AS_WRITTEN, P201, P203, P212, P220, P221, P224, P225, P230, P231, P232, P306, P323, P312,
     P314, P321, P322, P340, Diagnostic,
     PostprocError,
 )
+from ..core import frames
 from ..core.outputs import check_outputs, write
 from ..model.settle import Chain, Inside
 from ..model.compensator import Compensator
@@ -336,6 +337,8 @@ def compensate_program(
     if offset is not None:  # (the numbers read again are the tokens + what the program adds to them)
         written = written.copy()
         written[:, :3] += offset[selection.rows]
+    if orientation and program.orientation == "abc":
+        model_notes = model_notes + _gimbal_notes(program, selection.rows, written[:, 3:6])
     outputs = _finish(program, model, selection, outputs, written, stamp=stamp)
 
     size = np.linalg.norm(commanded - selection.poses[:, :3], axis=1)
@@ -355,6 +358,34 @@ def compensate_program(
     report.outputs = dict(zip(program.files, outputs))
     report.per_file = _per_file(program, selection)
     return report
+
+
+# a triple changed by this many degrees (A or C) for a rotation this many times smaller: near B = ±90°
+GIMBAL_DEG, GIMBAL_RATIO = 1.0, 5.0
+
+
+def _gimbal_notes(program: Program, rows: np.ndarray, new_abc: np.ndarray) -> list[Diagnostic]:
+    """P323, once per file: targets whose new A,B,C differ from those written by much more than
+    the rotation between them (near B = ±90°, where A and C turn about one axis: a 0.3°
+    correction can read as 7° on A and C in a diff). The triple written is still the nearest."""
+    old = program.targets.written_orientation(rows)
+    ok = np.isfinite(old).all(axis=1) & np.isfinite(new_abc).all(axis=1)
+    change = np.abs((new_abc - old + 180.0) % 360.0 - 180.0).max(axis=1)
+    angle = np.full(len(rows), np.inf)
+    angle[ok] = frames.rotation_angle_deg(old[ok], new_abc[ok])
+    odd = np.flatnonzero(ok & (change > GIMBAL_DEG) & (change > GIMBAL_RATIO * angle))
+    out = []
+    files = program.targets.file[rows[odd]]
+    for f in np.unique(files):
+        here = odd[files == f]
+        first = int(here[np.argmin(program.targets.line[rows[here]])])
+        out.append(Diagnostic(*where(program, int(rows[first])), P323,
+                              f"{len(here)} target{'s' * (len(here) != 1)} near B = ±90° in this file (the first "
+                              f"here, B {old[first, 1]:.2f}°): A and C change by up to {change[here].max():.2f}° for a "
+                              f"rotation of at most {angle[here].max():.3f}° — near B = ±90° A and C turn about one "
+                              "axis, so the A,B,C triple nearest the one written moves them far; the rotation written "
+                              "is the one the model asks for", "note"))
+    return out
 
 
 def _per_file(program: Program, selection: Selection) -> dict[str, tuple[int, int]]:

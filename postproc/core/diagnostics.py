@@ -136,6 +136,9 @@ P321 = _code("P321", "note", "(compensate -v, models with an approach input) a j
 P322 = _code("P322", "note", "(compensate -v, models with a previous_pose input) a target the program reaches from "
              "several places (after a branch, in a loop): its runs need slightly other commands (the approach), "
              "compensated with the one of the smallest worst case over them")
+P323 = _code("P323", "note", "(compensate --orientation) targets near B = ±90° (gimbal lock: A and C turn about one "
+             "axis there): the A,B,C triple nearest the one written changes A and C by much more than the rotation it "
+             "corrects (both are said, once per file, at its first such target)")
 P330 = _code("P330", "error", "a robot description that cannot be read or is not TOML")
 P331 = _code("P331", "error", "a robot description with an unknown or misplaced table or key")
 P332 = _code("P332", "error", "a robot description with a bad value")
