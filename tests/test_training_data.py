@@ -130,3 +130,33 @@ def test_joint_columns_are_read_with_the_file_and_are_optional():
     data = parse_measurements((head + rows.replace(",40,-1", ",nan,-1")).encode())
     assert data.joints is None and len(data) == 2
     assert parse_measurements(b"x,y,z,a,b,c,x_meas,y_meas,z_meas\n1,2,3,0,90,0,1,2,3\n").joints is None
+
+
+def test_s_t_columns_are_solved_for_the_datas_tool_not_the_descriptions(tmp_path):
+    """Issue 32: a KUKA measurement file with s,t and no q1..q6, trained with --tool: the joint
+    angles are the IK of that TCP (before: of the description's, P508 'not where the joint
+    angles put …'), and the model is the one the file's own q1..q6 give."""
+    from postproc.cli import main
+    from postproc.model.compensator import load_model
+
+    def cli(*args):
+        return main([str(a) for a in args])
+
+    assert cli("plan", "-n", 120, "--seed", 3, "--tool", "250,0,0,0,0,0", "--wrist", "home", "-o",
+               tmp_path / "plan.csv", "-q") == 0
+    assert cli("measure", tmp_path / "plan.csv", "-o", tmp_path / "m.csv", "-q") == 0
+    lines = (tmp_path / "m.csv").read_text().splitlines()
+    at = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    header = lines[at].split(",")
+    keep = [i for i, name in enumerate(header) if name not in {f"q{k}" for k in range(1, 7)}]
+    (tmp_path / "st.csv").write_text("\n".join(
+        [line for line in lines[:at] if not line.startswith("# tool")]
+        + [",".join(f for i, f in enumerate(line.split(",")) if i in keep) for line in lines[at:]]) + "\n")
+    assert cli("train", tmp_path / "st.csv", "--tool", "250,0,0,0,0,0", "-o", tmp_path / "st.onnx",
+               "--method", "kinematic", "-q") == 0
+    assert cli("train", tmp_path / "m.csv", "-o", tmp_path / "q.onnx", "--method", "kinematic", "-q") == 0
+    poses = np.array([[float(v) for v in line.split(",")[:6]] for line in lines[at + 1:]])
+    from_st = load_model(tmp_path / "st.onnx").predict(poses)
+    from_q = load_model(tmp_path / "q.onnx").predict(poses)
+    assert np.abs(from_st - from_q).max() < 0.05  # mm: the same joint angles, the same identification
+    assert np.linalg.norm(from_q, axis=1).mean() > 0.3  # (a correction that varies, not zero)

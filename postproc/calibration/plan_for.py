@@ -339,7 +339,7 @@ def read_data(path: str | Path, description) -> tuple[np.ndarray, np.ndarray | N
 
     data = read_measurements(path)
     tools = measured_tools(data)
-    q, keep, _ = configuration.measurement_joints(description, data)
+    q, keep, _ = configuration.measurement_joints(description, data, tools)
     if q is None:
         q, ok = Robot(description).ik(data.poses, description.home_q)
         keep = ok

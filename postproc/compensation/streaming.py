@@ -308,4 +308,5 @@ def compensate_file(
         return report
     targets = output_paths(program, Path(out))
     write_outputs([(p, report.outputs[f]) for p, f in zip(targets, program.files)])
+    report.written = [(f, str(p)) for p, f in zip(targets, program.files)]
     return report

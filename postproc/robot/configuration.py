@@ -731,9 +731,11 @@ def linear_changes(robot: Robot, targets, rows: np.ndarray, stated: Stated, q: n
     return out
 
 
-def measurement_joints(description, data) -> tuple[np.ndarray | None, np.ndarray, list[str]]:
+def measurement_joints(description, data, tools: np.ndarray | None = None) -> tuple[np.ndarray | None, np.ndarray,
+                                                                                    list[str]]:
     """The joint angles [N, 6] deg of a measurement file's rows (``measurements.Measurements``):
-    its q1..q6, or from its s,t columns the nominal IK on the stated branch (``stated_joints``);
+    its q1..q6, or from its s,t columns the nominal IK on the stated branch (``stated_joints``)
+    for each row's TCP (``tools`` [N, 6], the data's tool; None: the description's);
     None without either. Also a mask of the rows to keep and warnings: rows whose S/T has no
     solution on the nominal arm (out of reach on that branch) are left out, named by their
     lines (P514); none solvable, or an arm without the closed-form IK, is refused (P514)."""
@@ -748,7 +750,16 @@ def measurement_joints(description, data) -> tuple[np.ndarray | None, np.ndarray
     except Exception as exc:  # an arm postproc.robot.arm cannot solve in closed form
         raise PostprocError(f"s,t columns: no nominal IK of {description.name} ({exc}); give q1..q6 instead",
                             path, code=P514) from None
-    q, found = stated_joints(robot, data.poses, data.status_turn[:, 0], data.status_turn[:, 1])
+    if tools is None:
+        q, found = stated_joints(robot, data.poses, data.status_turn[:, 0], data.status_turn[:, 1])
+    else:  # (each tool's rows solved for that TCP: the flange stands elsewhere for another tool)
+        q, found = np.full((len(data), 6), np.nan), np.zeros(len(data), bool)
+        kinds, which = np.unique(np.round(np.asarray(tools, float), 9), axis=0, return_inverse=True)
+        for k, tool in enumerate(kinds):
+            rows = np.flatnonzero(which.reshape(-1) == k)
+            arm = robot if np.allclose(tool, description.tool) else Robot(description.replace(tool=np.array(tool, float)))
+            q[rows], found[rows] = stated_joints(arm, data.poses[rows], data.status_turn[rows, 0],
+                                                 data.status_turn[rows, 1])
     if not found.any():
         raise PostprocError(f"no row's S/T has an IK solution on the nominal {description.name}: is this the robot "
                             "of the data (--robot)?", path, int(data.lines[0]), 1, P514)

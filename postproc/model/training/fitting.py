@@ -265,7 +265,7 @@ def _identified(rows: _Rows, method: str, description, pose_only: bool, update, 
     poses = rows.data.poses
     # rows in visiting order (the first came from HOME): the approach direction of each joint
     previous = None if pose_only else previous_poses(poses)
-    q_deg, stated, warnings = measurement_joints(description, rows.data)
+    q_deg, stated, warnings = measurement_joints(description, rows.data, rows.tools)
     rows.notes += warnings
     if not stated.all():  # (the visiting order stays the file's: previous poses computed above)
         rows.train, rows.val = rows.train[stated[rows.train]], rows.val[stated[rows.val]]
