@@ -53,3 +53,33 @@ def test_a_point_run_from_two_places_names_both_motions(tmp_path):
     out, report = compensate_text(src, model, name="t.src", dat_text=dat, active=ActiveFrames(tool="model"))
     (note,) = [n for n in report.notes if n.code == "P322"]
     assert note.line == 2 and "the motions at t.src:4, t.src:6" in note.message
+
+
+def test_p230_names_the_one_cause_that_applies_and_its_remedy(tmp_path):
+    """Issue 38, item 5: a two-point FOR loop leaves its first point because its runs come from
+    other places (the start, the loop's last point) — said, with where each run comes from and
+    what works; a point run in two bases says the bases, not the approach."""
+    from postproc.testing.models import affine_model
+
+    model = load_model(affine_model(tmp_path / "a.onnx", offset=(0.2, -0.1, 0.3), gain=np.diag([1e-3, -2e-3, 1e-3]),
+                                    previous_gain=2e-3, tool={"name": "any"}))  # the approach matters: 0.1 mm and more
+    loop = ("DEF t( )\n  DECL INT I\n  $BASE = $NULLFRAME\n"
+            "  PTP {A1 0,A2 -90,A3 90,A4 0,A5 0,A6 0}\n"              # 4
+            "  FOR I = 1 TO 2\n"
+            "    LIN {X 1900,Y 100,Z 1000,A 0,B 90,C 0}\n"            # 6
+            "    LIN {X 2100,Y -200,Z 1100,A 0,B 90,C 0}\n"           # 7
+            "  ENDFOR\nEND\n")
+    _, report = compensate_text(loop, model, name="t.src", active=ActiveFrames(tool="model"))
+    (w,) = [w for w in report.warnings if w.code == "P230"]
+    assert w.line == 6 and "its runs come from other places (from the program's start or a joint motion, from t.src:7" \
+        in w.message and "approach it the same way in every run" in w.message
+    assert "other frames" not in w.message
+    bases = ("DEF t( )\n  $BASE = $NULLFRAME\n"
+             "  LIN XP1\n"
+             "  $BASE = {X 10,Y 20,Z 0,A 5,B 0,C 0}\n"
+             "  LIN XP1\n"
+             "END\n")
+    dat = "DEFDAT t\n  DECL E6POS XP1={X 2000.0,Y 0.0,Z 900.0,A 0.0,B 90.0,C 0.0,S 2,T 35}\nENDDAT\n"
+    _, report = compensate_text(bases, model, name="t.src", dat_text=dat, active=ActiveFrames(tool="model"))
+    (w,) = [w for w in report.warnings if w.code == "P230"]
+    assert "its runs are in other frames (bases)" in w.message and "give each frame its own point" in w.message

@@ -135,13 +135,47 @@ def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, comm
         places = np.stack([t.file[rows[drop]], t.line[rows[drop]], t.col[rows[drop]]], axis=1)
         _, once = np.unique(places, axis=0, return_index=True)  # (one warning per target, not per run)
         said = drop[np.sort(once)]
-        warnings += collect(program, rows[said], P230, lambda i: (
-            "this target runs more than once (a loop, a routine called twice, after a branch, or a point copied "
-            "into another{}) and the runs need corrections up to {:.3f} mm apart (other frames, tools, offsets, arm "
-            "configurations or approaches): no one set of numbers is right for all, left as written".format(
-                _motions(program, rows[drop[group[drop] == group[said[i]]]]), worst_of[int(group[said[i]])])))
+        def message(i):
+            members = drop[group[drop] == group[said[i]]]
+            motions = _motions(program, rows[members])
+            return ("this target runs more than once{} and the runs need corrections up to {:.3f} mm apart: {}; no "
+                    "one set of numbers is right for all, left as written — {}".format(
+                        f" ({motions[2:]})" if motions else "", worst_of[int(group[said[i]])],
+                        *_cause(program, selection, members)))
+
+        warnings += collect(program, rows[said], P230, message)
     return _Agreement(drop, warnings, written, np.asarray(settled, int),
                       np.asarray(middles, float).reshape(-1, 3), notes, moved)
+
+
+def _cause(program: Program, selection: Selection, members: np.ndarray) -> tuple[str, str]:
+    """Why the runs (positions ``members`` in the selection) of one set of numbers need other
+    corrections, the one cause that applies, and the remedy that works for it."""
+    t = program.targets
+    r = selection.rows[members]
+    if (t.frame[r] != t.frame[r[0]]).any():
+        return ("its runs are in other frames (bases)", "give each frame its own point")
+    if selection.tool is not None and (selection.tool[members] != selection.tool[members[0]]).any():
+        return ("its runs are made with other tools", "give each tool its own point")
+    if not ((t.poses[r] == t.poses[r[0]]) | (np.isnan(t.poses[r]) & np.isnan(t.poses[r[0]]))).all():
+        return ("the point is copied into other points with other numbers (or moved to with other components)",
+                "give each use its own point")
+    if selection.joints is not None and not np.allclose(selection.joints[members], selection.joints[members[0]],
+                                                        atol=1e-6, equal_nan=True):
+        return ("its runs are made in other arm configurations", "state the configuration (S/T) at the point")
+    prev = getattr(t, "prev", None)
+    if prev is None:
+        return ("its runs come from other places (the approach, which the model corrects)",
+                "approach it the same way in every run")
+    come = []
+    for row in r.tolist():
+        p = int(prev[row])
+        come.append(f"from {motion_at(program, p)}" if p >= 0 else "from the program's start or a joint motion")
+    come = list(dict.fromkeys(come))
+    return (f"its runs come from other places ({', '.join(come[:3])}{' …' * (len(come) > 3)}: the approach, which the "
+            "model corrects as the robot's backlash needs)",
+            "approach it the same way in every run (a point before it that every run passes, e.g. the loop's "
+            "last point moved before the loop too), or give each run its own point")
 
 
 def _motions(program: Program, target_rows) -> str:
