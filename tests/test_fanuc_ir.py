@@ -163,12 +163,16 @@ def test_offsets_known_and_not(model, frames_file):
     text = program(mn, P4 + [pos(5, 500.0)])
     p = read(text)
     # Offset: PR[2] (the OFFSET CONDITION's) known: P[1] + (0, -50, 0); PR[3] not known (P211); Tool_Offset:
-    # computed in the tool frame (P214); INC: relative (P210); a vision offset (P211)
-    assert p.targets.line.tolist() == [record_line(mn, 1)] and p.targets.offset.tolist() == [[0, -50, 0]]
-    assert found(p) == [("P211", 10), ("P214", 11), ("P210", 12), ("P211", 13)]
+    # the shift in P[2]'s tool frame (W = 180: Y turned to -Y), P[2] + (0, 50, 0) in UF 1; INC: relative (P210);
+    # a vision offset (P211)
+    assert p.targets.line.tolist() == [record_line(mn, 1), record_line(mn, 2)]
+    assert np.allclose(p.targets.offset, [[0, -50, 0], [0, 50, 0]])
+    assert found(p) == [("P211", 10), ("P210", 12), ("P211", 13)]
     out, report = compensate_text(text, model, name="t.ls", iterations=1, max_correction_mm=50, config=frames_file)
-    assert report.compensated == 1 and report.left == 4
-    assert np.allclose(read(out).targets.poses[0, :3], commanded_in_uf1([100, -30, 30]), atol=6e-4)
+    assert report.compensated == 2 and report.left == 3
+    again = read(out).targets.poses
+    assert np.allclose(again[0, :3], commanded_in_uf1([100, -30, 30]), atol=6e-4)
+    assert np.allclose(again[1, :3], commanded_in_uf1([200, 70, 30]), atol=6e-4)
 
 
 def test_a_frame_built_from_a_position_and_the_frames_a_program_sets():

@@ -1,5 +1,6 @@
-"""Fanuc LS reader: the ASCII form of a TP program (.ls) → the motion IR (``lower.py``) → the
-analysis (``programs.analysis`` with LS's ``semantics.py``) → FanucProgram.
+"""Fanuc LS reader: the ASCII form of TP programs (.ls) → the motion IR (``lower.py``) → the
+analysis (``programs.analysis`` with LS's ``semantics.py``) → FanucProgram; a backup's cell data
+(``backup.py``: the frames of sysframe.va, the registers of posreg.va and numreg.va).
 
 Semantics (tests/test_fanuc.py and tests/test_fanuc_ir.py show each on a small program):
 
@@ -7,7 +8,8 @@ Semantics (tests/test_fanuc.py and tests/test_fanuc_ir.py show each on a small p
   end, ``A``) with their options, registers ``R[n]`` and position registers ``PR[n]``
   (``PR[n]=P[m]``, ``PR[n,k]=…``, ``PR[i]=PR[j]+PR[k]``), ``UFRAME_NUM``/``UTOOL_NUM``,
   ``UFRAME[n]=PR[m]``, labels and jumps (``JMP LBL[n]``, ``IF …,JMP LBL[n]``), ``IF … THEN``,
-  ``SELECT``, ``FOR``/``ENDFOR``, ``CALL`` (a program not read), ``RUN``, ``END``, ``ABORT``,
+  ``SELECT``, ``FOR``/``ENDFOR``, ``CALL`` (of a program read with it: it runs; of one not read:
+  what it changes is not known), ``RUN``, ``END``, ``ABORT``,
   ``PAUSE``, ``WAIT``; each executed motion to a Cartesian position is a row, in execution order
   (a position moved to several times: a row each, its numbers written once where all agree);
 * a target's numbers are those of a ``/POS`` record ``P[n]`` (group GP1, ``X = … mm``, W, P, R in
@@ -21,6 +23,10 @@ Semantics (tests/test_fanuc.py and tests/test_fanuc_ir.py show each on a small p
   translated to joint angles for a model that takes them by ``configuration.stated_configuration``
   (a description whose controller states FANUC configurations; else P309); a joint
   representation is no target;
+* several .ls files are one unit (a backup's programs); a backup's .va files give the frames and
+  the registers no TP program read sets, each use said (P234; ``registers="runtime"``: none);
+* ``Tool_Offset,PR[n]`` with the register known: the shift in the position's tool frame (its
+  X, Y, Z rewritten, its W, P, R computed);
 * left as written, located: a position not taught (``********``, P212), without a record (P215),
   moving other groups or extended axes (a track: P225), moved to with ``INC`` (P210), a vision
   offset or a register known only at run time (P211), one whose numbers another instruction reads
@@ -33,12 +39,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...core.diagnostics import P108, P118, PostprocError
+from ...core.diagnostics import P101, P108, P118, P234, Diagnostic, PostprocError
 from ...core.frames import frame_to_matrix
 from ...core.toml import check_value, key_line, parse_toml
 from ..analysis import analyse
+from ..ir import Assign, Async, Field, Invoke, Loop, Name, Unit, walk
 from ..model import STAMP_PREFIX, Program
 from ..text import newline
+from .backup import read_backup, serve
 from .lower import TOKEN_RE, Lowering, parser
 from .semantics import LS
 
@@ -50,9 +58,13 @@ _STAMP = re.compile(r"^[ \t]*\d+:[ \t]*!.*" + re.escape(STAMP_PREFIX) + r".*$", 
 
 @dataclass
 class FanucProgram(Program):
-    """An LS Program, plus each row's CONFIG string as written ('N U T, 0, 0, 0'; '' none)."""
+    """An LS Program, plus each row's CONFIG string as written ('N U T, 0, 0, 0'; '' none), and
+    the backup's .va files and register setting it was read with."""
 
     configs: list[str] = field(default_factory=list)
+    # what it was read with (to read it again the same way): a backup's .va files, "backup" / "runtime"
+    va: dict | None = None
+    registers: str = "backup"
 
 
 def wpr_to_abc(wpr: np.ndarray) -> np.ndarray:
@@ -121,33 +133,97 @@ def frame_file_units(text: str | None, path: str = "--frames") -> tuple:
     return parse_external(data["external"], path, text)
 
 
-def lower(files: list[str], texts: list[str], frames: list[str] | None = None, external: tuple = ()):
-    """The motion IR of an LS program and its dialect (what ``read`` analyses); ``external``:
-    the external units' kinematics (the frame file's ``[[external]]`` are added)."""
-    if len(files) != 1:
-        raise PostprocError("an LS program is one .ls file", files[0] if files else "<none>", 0, 0, P108)
+def _written(unit, lowerings) -> tuple[dict, dict]:
+    """The registers and frames the programs read set (name → "path:line" of the first place),
+    and the kinds one of them sets with an index known at run time (kind → "path:line")."""
+    written: dict = {}
+    for k, lw in enumerate(lowerings):
+        routine = unit.routines[lw.name]
+        for s in walk(routine.body):
+            name = None
+            if isinstance(s, Assign):
+                target = s.target.base if isinstance(s.target, Field) else s.target
+                name = target.name if isinstance(target, Name) else None
+            elif isinstance(s, Loop) and s.var:
+                name = s.var
+            if name and name.startswith(("R[", "PR[", "UFRAME[", "UTOOL[")):
+                written.setdefault(name, f"{lw.path}:{s.loc.line}")
+    indirect: dict = {}
+    for lw in lowerings:
+        for kind, line in lw.indirect.items():
+            indirect.setdefault(kind, f"{lw.path}:{line}")
+    return written, indirect
+
+
+def lower(files: list[str], texts: list[str], frames: list[str] | None = None, external: tuple = (),
+          va: dict[str, str] | None = None, registers: str = "backup"):
+    """The motion IR of an LS program and its dialect (what ``read`` analyses): the programs of
+    ``files`` (.ls) as one unit — a ``CALL`` of one of them runs it —, started where none of the
+    others calls them. ``external``: the external units' kinematics (the frame file's
+    ``[[external]]`` are added); ``va``: a backup's .va files (path → text: sysframe.va,
+    posreg.va, numreg.va are read, ``backup.py``); ``registers``: "backup" (a register no TP
+    program read sets holds the backup's value) or "runtime" (registers are run-time values)."""
+    if not files:
+        raise PostprocError("no .ls file given", "<none>", 0, 0, P108)
     if frames and len(frames) > 1:
         raise PostprocError("one frame file (--frames) per LS program", files[0], 0, 0, P118)
+    if registers not in ("backup", "runtime"):
+        raise ValueError(f"registers is 'backup' or 'runtime', not {registers!r}")
     uframes, utools = read_frames(frames[0] if frames else None)
     external = tuple(external or ()) or frame_file_units(frames[0] if frames else None)
-    lowering = Lowering(files[0], texts[0])
-    unit = lowering.lower()
-    return unit, LS(uframes, utools, lowering.registers, external=external)
+    names = [_program_name(t) for t in texts]
+    programs = frozenset(n for n in names if n)
+    unit = Unit("fanuc", list(files), list(texts))
+    lowerings, first = [], {}
+    for k, (path, text) in enumerate(zip(files, texts)):
+        lowering = Lowering(path, text, k, programs)
+        part = lowering.lower()
+        name = lowering.name
+        if name in first:
+            raise PostprocError(f"program {name} is in two files read ({first[name]} and {path})", path, 1, 1, P101)
+        first[name] = path
+        unit.routines[name] = part.routines[name]
+        unit.diagnostics += part.diagnostics
+        lowerings.append(lowering)
+    called = {s.name for r in unit.routines.values() for s in walk(r.body) if isinstance(s, Invoke)}
+    called |= {s.action.name for r in unit.routines.values() for s in walk(r.body)
+               if isinstance(s, Async) and isinstance(s.action, Invoke)}
+    unit.entries = [lw.name for lw in lowerings if lw.name not in called] or [lowerings[0].name]
+    used = set().union(*(lw.registers for lw in lowerings))
+    cell = None
+    found = read_backup(va)
+    if found is not None:
+        cell = serve(found, *_written(unit, lowerings), registers, uframes, utools)
+        unit.config_names, unit.config_texts = cell.config_names, cell.config_texts
+    return unit, LS(uframes, utools, used, external=external, cell=cell)
 
 
-def read(files: list[str], texts: list[str], frames: list[str] | None = None, external: tuple = ()) -> FanucProgram:
-    """Read an LS program (one file); ``frames`` holds the text of the frame file (TOML).
-    Raises PostprocError (P101 syntax, P118 position or frame file, P103) on bad input."""
-    unit, dialect = lower(files, texts, frames, external)
+def _program_name(text: str) -> str:
+    m = re.match(r"\s*/PROG[ \t]+([^\s;]+)", text)
+    return m.group(1).upper() if m else ""
+
+
+def read(files: list[str], texts: list[str], frames: list[str] | None = None, external: tuple = (),
+         va: dict[str, str] | None = None, registers: str = "backup") -> FanucProgram:
+    """Read an LS program: one .ls file, or several read as one (a backup's TP programs: a
+    ``CALL`` of one of them is followed); ``frames`` holds the text of the frame file (TOML);
+    ``va`` a backup's .va files (path → text) whose frames and registers the programs use
+    (each use of a register's or frame's backup value is said, P234, among the notes);
+    ``registers`` "backup" or "runtime" (``lower``). Raises PostprocError (P101 syntax, P118
+    position, frame file or .va file, P103) on bad input."""
+    unit, dialect = lower(files, texts, frames, external, va, registers)
     built = analyse(unit, dialect)
-    text = texts[0]
     stamps = {}
-    m = _STAMP.search(text)
-    if m:
-        stamps[0] = m.group().strip()
+    for k, text in enumerate(texts):
+        m = _STAMP.search(text)
+        if m:
+            stamps[k] = m.group().strip()
     configs = [c or "" for c in built.extras.get("config", [])] or [""] * len(built.targets)
-    program = FanucProgram(files=[files[0]], texts=[text], targets=built.targets, frames=built.frames,
-                           diagnostics=unit.diagnostics + built.diagnostics, notes=built.notes, dialect="fanuc",
-                           stamps=stamps, newlines=[newline(text)], comment="!", named_targets=True, configs=configs)
+    found = unit.diagnostics + built.diagnostics
+    said = [Diagnostic(d.path, d.line, d.col, d.code, d.message, "note") for d in found if d.code == P234]
+    program = FanucProgram(files=list(files), texts=list(texts), targets=built.targets, frames=built.frames,
+                           diagnostics=[d for d in found if d.code != P234], notes=built.notes + said,
+                           dialect="fanuc", stamps=stamps, newlines=[newline(t) for t in texts], comment="!",
+                           named_targets=True, configs=configs, va=dict(va) if va else None, registers=registers)
     program.held, program.sites = built.held, built.sites
     return program

@@ -113,9 +113,13 @@ class _Unknown(Exception):
 class Lowering:
     """An LS program → ``Unit`` (``lower()``); ``registers``: the R[…]/PR[…] names it uses."""
 
-    def __init__(self, path: str, text: str):
+    def __init__(self, path: str, text: str, file: int = 0, programs=frozenset()):
         self.path, self.text = path, text
         self.index = LineIndex(text)
+        self.file = file  # its index among the files read (Loc.file, Num.file)
+        self.programs = frozenset(programs)  # the programs read with it (a CALL to one is followed)
+        # "R", "PR", "UFRAME", "UTOOL" → the line where the program sets one with an index known at run time
+        self.indirect: dict = {}
         self.shapes: dict = {}
         self.registers: set = set()
         self.assigned: set = set()  # the registers and frames the program sets (other programs may read them)
@@ -126,7 +130,7 @@ class Lowering:
         return PostprocError(message, self.path, *self.index.line_col(at), code)
 
     def loc(self, at: int) -> Loc:
-        return Loc(0, *self.index.line_col(at))
+        return Loc(self.file, *self.index.line_col(at))
 
     # ------------------------------------------------------------------ sections
     def sections(self) -> dict[str, tuple[int, int]]:
@@ -238,7 +242,7 @@ class Lowering:
             value, s, e = self.number(tokens, ordinal, signed)
             if not abs(value) < float("inf"):
                 raise self.error(start, "a position's component is not a finite number", P103)
-            items.append((field, Num(value, 0, s, e)))
+            items.append((field, Num(value, self.file, s, e)))
         for which in ("uf", "ut"):
             v = gp1.get(which)
             items.append((which.upper(), Lit(float(tokens[v][0])) if isinstance(v, int) else Lit(v or "F")))
@@ -251,7 +255,7 @@ class Lowering:
                 items.append((axis, Unknown(f"P[{n}]'s {axis} is not taught (********)", P211)))
             else:
                 value, s, e = self.number(tokens, ordinal, signed)
-                items.append((axis, Num(value, 0, s, e)))
+                items.append((axis, Num(value, self.file, s, e)))
         if others or gp1.get("ext"):
             what = ", ".join(([f"extended axes {', '.join(gp1['ext'])}"] if gp1.get("ext") else []) +
                              ([f"group{'s' if len(others) > 1 else ''} {', '.join(others)}"] if others else []))
@@ -281,7 +285,7 @@ class Lowering:
         end = self.loc(sections["MN"][1])
         body.append(_Publish(end, "the program's end"))
         body[:] = _finished(body, self.labels, sorted(self.assigned))
-        routine = Routine(self.name, (), body, Loc(0, 1, 1), function=False)
+        routine = Routine(self.name, (), body, Loc(self.file, 1, 1), function=False)
         self.unit.routines[self.name] = routine
         self.unit.entries = [self.name]
         return self.unit
@@ -518,7 +522,8 @@ class Lowering:
                         raise _Unknown("CALL's arguments not closed")
                     args.append(self.expr(t))
                     t.accept(",")
-            body.append(_Publish(loc, f"CALL {name}"))
+            if name not in self.programs:  # (one read with it: the analysis follows what it reads)
+                body.append(_Publish(loc, f"CALL {name}"))
             body.append(Invoke(name, tuple(args), loc))
         elif w == "RUN":
             t.take()
@@ -579,6 +584,9 @@ class Lowering:
             body.append(Eval(value, loc))
             if "FRAME" in w or "TOOL" in w or "GROUP" in w:  # ($MNUFRAMENUM[1], $MNUFRAME[1,2] …)
                 body.append(Havoc(None, f"{first} is set at line {loc.line}", loc))
+                for kind in ("UFRAME", "UTOOL"):  # (any user frame / tool: a backup's sysframe.va is not what runs)
+                    if kind[1:] in w and "NUM" not in w:
+                        self.indirect.setdefault(kind, loc.line)
             return
         if w in _IO and t.peek(1)[1] == "[":
             t.take()
@@ -595,6 +603,7 @@ class Lowering:
         if isinstance(root, Name):
             self.assigned.add(root.name)
         if isinstance(target, Havoc):
+            self.indirect.setdefault(w, loc.line)
             body.append(Eval(value, loc))
             body.append(Havoc(tuple(sorted(n for n in self.registers if n.startswith(w + "["))),
                               f"{w}[…] is set with an index known at run time at line {loc.line}", loc))
@@ -811,6 +820,8 @@ class Lowering:
                     store = None
                     if sub.accept(","):
                         store = self.ref(sub)
+                        if isinstance(store, Havoc):  # (PR[R[n]]=LPOS: a register an index known at run time names)
+                            self.indirect.setdefault("PR", loc.line)
                         sub.expect("=")
                         sub.take()
                     out["skip"] = (label, store)

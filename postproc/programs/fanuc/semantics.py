@@ -16,12 +16,18 @@
   one component (1…6: X, Y, Z, W, P, R).
 * ``Offset,PR[n]`` (or the ``OFFSET CONDITION`` register) shifts the target by the register's
   X, Y, Z in the position's user frame: a target + constant offset where the register is known
-  and turns nothing; ``Tool_Offset`` shifts it in the tool frame (computed); anything else about
-  an offset is known only at run time.
-* A program called (``CALL``) is not read: the registers and the selected frame numbers are not
-  known after it (the frame file's ``UFRAME[n]``/``UTOOL[n]`` are the cell's configuration,
-  which only the program's own statements change); one started with ``RUN`` runs beside it and
-  may change the registers at any time.
+  and turns nothing; ``Tool_Offset`` shifts it in the tool frame at the position (pose · offset:
+  its X, Y, Z + the register's X, Y, Z turned by the position's orientation, a constant offset;
+  the orientation computed); a register that moves extended axes, and anything else about an
+  offset, is known only at run time.
+* A program called (``CALL``) that is among the files read runs there; one not read: the
+  registers and the selected frame numbers are not known after it (the frame file's
+  ``UFRAME[n]``/``UTOOL[n]`` are the cell's configuration, which only the program's own
+  statements change); one started with ``RUN`` runs beside it and may change the registers at
+  any time.
+* A backup's cell data (``cell``: ``backup.Served``) gives the frames and registers that are not
+  in the state (``undeclared``): sysframe.va's frames, posreg.va's / numreg.va's registers that
+  no TP program read sets; each use is said once per register and program file (P234).
 * A position that moves other groups (``GP2``…) or extended axes (``E1``…) is reached with axes
   postproc has no kinematics of (a track, a positioner): left as written (P225) — unless a track
   that carries the robot is given (``--external`` or the frame file's ``[[external]]``, axis
@@ -35,7 +41,7 @@ import re
 import numpy as np
 
 from ...core import frames as fr
-from ...core.diagnostics import P201, P203, P211, P215, P223, P225
+from ...core.diagnostics import P201, P203, P211, P215, P223, P225, P234
 from ..analysis.dialect import Dialect, PoseView
 from ..analysis.values import Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, tokens_of
 
@@ -58,8 +64,12 @@ class LS(Dialect):
     frame_names = ("UFRAME_NUM", "UTOOL_NUM")
     undeclared_hint = ""
 
-    def __init__(self, uframes: dict, utools: dict, registers=(), external: tuple = ()):
+    def __init__(self, uframes: dict, utools: dict, registers=(), external: tuple = (), cell=None):
         super().__init__()
+        # a backup's cell data (``backup.Served``): the values of frames and registers not set in
+        # the program's state, each use said once per file (P234)
+        self.cell = cell
+        self.noted: set = set()
         self.external = tuple(external or ())
         # a track that carries the robot (group 1's extended axis E1 or a group-2 axis GP2.J1): the
         # user frames stand in the world, the robot's base rides on the track
@@ -85,10 +95,23 @@ class LS(Dialect):
         return out
 
     def undeclared(self, an, name: str):
+        cell = self.cell
+        if cell is not None:
+            if name in cell.values:
+                note = cell.notes.get(name)
+                if note is not None and an.rec is not None and an.loc is not None and \
+                        (an.loc.file, name) not in self.noted:  # (once per register and program file)
+                    self.noted.add((an.loc.file, name))
+                    an.rec.note(P234, note, an.loc, False)
+                return cell.values[name]
+            if name in cell.why:
+                why, code = cell.why[name]
+                return Top(why, an.loc, code)
+        also = " nor in sysframe.va" if cell is not None and cell.frames else ""
         if name.startswith("UFRAME["):
-            return Top(f"user frame UF {name[7:-1]} is not in the frame file (--frames)", an.loc, P201)
+            return Top(f"user frame UF {name[7:-1]} is not in the frame file (--frames){also}", an.loc, P201)
         if name.startswith("UTOOL["):
-            return Top(f"tool frame UT {name[6:-1]} is not in the frame file (--frames)", an.loc, P203)
+            return Top(f"tool frame UT {name[6:-1]} is not in the frame file (--frames){also}", an.loc, P203)
         if name.startswith("P["):
             return Top(f"{name} has no record in /POS", an.loc, P215)
         if name.startswith(("R[", "PR[")):
@@ -285,6 +308,11 @@ def _known_shift(an, reg, what: str):
     nums = [number(x) for x in values]
     if None in nums:
         return Top(f"{what} is not fully known", an.loc, P211)
+    moved = [k for k, x in reg.fields.items() if _EXTERNAL.match(k) and number(x) != 0.0]
+    if moved:  # (how the controller adds an offset to a track's axis is not read here)
+        unset = [k for k in moved if number(reg.fields[k]) is None]
+        return Top(f"{what}'s {', '.join(unset)} not known" if unset else
+                   f"{what} moves the extended axes {', '.join(moved)} too", an.loc, P211)
     return nums
 
 
@@ -312,26 +340,34 @@ def offset(an, st, args, call):
 
 
 def tool_offset(an, st, args, call):
-    """``Tool_Offset,PR[n]``: the target shifted in its tool frame: computed from its orientation
-    (known, not rewritable), or known only at run time."""
+    """``Tool_Offset,PR[n]``: the target moved by the register in its tool frame, as the controller
+    moves it (the offset is in the tool coordinate system at the position: pose · offset). Its
+    X, Y, Z are the position's plus R·t (R the position's orientation, t the register's X, Y, Z): a
+    constant added to the position's own numbers, which are rewritten; its orientation R·R_offset
+    is computed (not rewritten: --orientation refuses it, P312, since a new W, P, R would turn the
+    shift). A register that is all zero moves nothing; one not known: known only at run time."""
     target, reg = args
-    an.consume(target, "a Tool_Offset motion's position")
     an.consume(reg, "a Tool_Offset")
     if isinstance(target, Top):
         return target
     nums = _known_shift(an, reg, "the Tool_Offset register")
     if isinstance(nums, Top):
+        an.consume(target, "a Tool_Offset motion's position")
         return nums
+    if all(abs(x) < 1e-12 for x in nums):
+        return target
     if not isinstance(target, Rec) or None in [number(target.fields.get(k)) for k in _POSE]:
+        an.consume(target, "a Tool_Offset motion's position")
         return Top("a Tool_Offset of a position not fully known", an.loc, P211)
     p = fr.frame_to_matrix(np.array([number(target.fields[k]) for k in _POSE], float))
     m = p @ fr.frame_to_matrix(np.array(nums, float))
-    six = fr.matrix_to_frame(m)
-    toks = tokens_of(target) | tokens_of(reg)
     fields = dict(target.fields)
-    for k, x in zip(_POSE, six):
-        fields[k] = Taint(float(x), frozenset(toks)) if toks else float(x)
-    return Rec(target.type, fields, None, target.label)
+    for k, d in zip(("X", "Y", "Z"), np.round(m[:3, 3] - p[:3, 3], 9)):
+        fields[k] = an.dialect.operate(an, "+", [fields[k], float(d)])
+    toks = frozenset().union(*(tokens_of(target.fields[k]) for k in ("A", "B", "C")))
+    for k, x in zip(("A", "B", "C"), fr.matrix_to_frame(m)[3:]):
+        fields[k] = Taint(float(x), toks) if toks else float(x)
+    return Rec(target.type, fields, target.loc, target.label)
 
 
 def indirect(an, st, args, call):
