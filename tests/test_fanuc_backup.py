@@ -7,12 +7,12 @@ with the commands an affine model (a correction that varies over space) gives.""
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from postproc.compensation import guards
 from postproc.compensation.api import settings_of
 from postproc.compensation.pipeline import compensate_program
 from postproc.core.diagnostics import PostprocError
@@ -243,21 +243,13 @@ def model(tmp_path_factory):
     return load_model(path)
 
 
-def test_the_backup_compensates_as_the_same_programs_with_a_frame_file(model, monkeypatch):
+def test_the_backup_compensates_as_the_same_programs_with_a_frame_file(model):
     """The commands of the backup read with sysframe.va equal those of the programs read with the same
     frames in a frame file, and each equals c = P + E(P) composed by hand (one iteration)."""
     reading = {}
-
-    def again(paths, texts, dialect, config=None, active=None, **_):  # (read again as it was read)
-        program = fanuc.read(paths, texts, frames=config, va=reading["va"])
-        program.config = config
-        return program
-
-    monkeypatch.setattr(guards, "read_program", again)
     settings = settings_of(None, {"iterations": 1, "max_correction_mm": 50.0})
     reports = []
     for options in ({"va": va()}, {"va": va(("posreg.va", "numreg.va")), "frames": [toml()]}):
-        reading["va"] = options["va"]
         program = fanuc.read(*files(), **options)
         program.config = options.get("frames")
         reports.append(compensate_program(program, model, settings))
@@ -273,3 +265,25 @@ def test_the_backup_compensates_as_the_same_programs_with_a_frame_file(model, mo
     block = re.search(r"P\[1\]\{(.*?)\};", new[new.index("/POS"):], re.S).group(1)
     got = np.array([float(re.search(k + r"\s*=\s*(-?[\d.]+)", block).group(1)) for k in "XYZ"])
     assert np.allclose(got, local - (target[:3, 3] - xyz), atol=6e-4)
+
+
+def test_the_backup_directory_through_the_cli_is_one_run_mirrored(model, tmp_path, capsys):
+    """`postproc compensate BACKUP/ -o OUT`: every .ls with the .va files (programs.cell), the
+    outputs as the API's, the .va files read and not written, a line per file written."""
+    from postproc.cli import main
+
+    out = tmp_path / "out"
+    assert main(["compensate", str(SAMPLE), "-o", str(out), "--model", str(model.path), "--iterations", "1",
+                 "--max-correction", "50", "--max-std", "inf"]) == 1  # (SERVICE's PR[20]: run-time, left)
+    err = capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in SAMPLE.glob("*.ls"))
+    settings = settings_of(None, {"iterations": 1, "max_correction_mm": 50.0})
+    report = compensate_program(fanuc.read(*files(), va=va()), model, settings)
+    for name, text in report.outputs.items():
+        assert (out / Path(name).name).read_text() == text
+    assert "P234" not in err or "-v" in err  # (notes: printed with -v)
+    assert sum(line.startswith("postproc:   ") for line in err.splitlines()) == len(list(SAMPLE.glob("*.ls")))
+    # registers = runtime: the Tool_Offset motions are left too
+    assert main(["compensate", str(SAMPLE), "-o", str(tmp_path / "rt"), "--model", str(model.path), "--iterations",
+                 "1", "--max-correction", "50", "--max-std", "inf", "--registers", "runtime"]) == 1
+    assert "P211" in capsys.readouterr().err

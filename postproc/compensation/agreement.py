@@ -174,8 +174,8 @@ def _cause(program: Program, selection: Selection, members: np.ndarray) -> tuple
     come = list(dict.fromkeys(come))
     return (f"its runs come from other places ({', '.join(come[:3])}{' …' * (len(come) > 3)}: the approach, which the "
             "model corrects as the robot's backlash needs)",
-            "approach it the same way in every run (a point before it that every run passes, e.g. the loop's "
-            "last point moved before the loop too), or give each run its own point")
+            "approach it the same way in every run (a point before it that every run passes), or give each run "
+            "its own point")
 
 
 def _motions(program: Program, target_rows) -> str:

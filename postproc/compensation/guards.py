@@ -127,7 +127,11 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
     written, with their ``new_xyz``."""
     a = program.targets
     try:
-        again = read_program(program.files, texts, program.dialect, config=program.config, active=program.active)
+        # (read as it was read: a backup's system files, the RAPID task, the registers setting)
+        data = getattr(program, "va", None) or getattr(program, "syspar", None)
+        again = read_program(program.files, texts, program.dialect, config=program.config, active=program.active,
+                             data=data or None, task=getattr(program, "task", None),
+                             registers=getattr(program, "registers", "backup"))
     except PostprocError as exc:
         raise PostprocError(f"refusing to write: the compensated text does not read again ({exc.message})",
                             exc.path, exc.line, exc.col, P191) from None
