@@ -246,7 +246,6 @@ def model(tmp_path_factory):
 def test_the_backup_compensates_as_the_same_programs_with_a_frame_file(model):
     """The commands of the backup read with sysframe.va equal those of the programs read with the same
     frames in a frame file, and each equals c = P + E(P) composed by hand (one iteration)."""
-    reading = {}
     settings = settings_of(None, {"iterations": 1, "max_correction_mm": 50.0})
     reports = []
     for options in ({"va": va()}, {"va": va(("posreg.va", "numreg.va")), "frames": [toml()]}):
