@@ -350,8 +350,9 @@ def test_variable_given_an_aggregate_in_the_src():
 def test_not_statically_known_targets_warn(lines, why):
     p = read(module(*lines))
     assert len(p.targets) == 0
-    assert codes(p) == ["P211"] and why in p.diagnostics[0].message
-    assert p.diagnostics[0].line == len(lines) + 1
+    left = [d for d in p.diagnostics if d.code != "P232"]  # (a call of shift(), not read: P232 at it)
+    assert [d.code for d in left] == ["P211"] and why in left[0].message
+    assert left[0].line == len(lines) + 1
 
 
 def test_a_component_assigned_a_number_is_that_numbers_target():
@@ -407,7 +408,7 @@ SURROUNDING = [
 def test_surrounding_statements_parse(stmt):
     p = read(module(stmt))
     assert len(p.targets) == 0
-    assert set(codes(p)) <= {"P210"}
+    assert set(codes(p)) <= {"P210", "P232"}  # (P232: a call of a routine not read, my_sub, f, INI)
 
 
 def test_headers_folds_def_variants():

@@ -71,7 +71,7 @@ def test_a_local_def_of_another_module_is_not_visible():
     lib = "DEF lib( )\nEND\n" + MOVE_SETTINGS  # MoveSettings is local to lib.src (no GLOBAL)
     src = "DEF t( )\n  MoveSettings(2, 1, 0.2)\n  LIN {X 10,Y 20,Z 30,A 0,B 0,C 0}\nEND\n"
     p = read(("t.src", src), ("lib.src", lib))
-    assert p.targets.frame.tolist() == [-1] and diags(p) == [("P201", 2)]
+    assert p.targets.frame.tolist() == [-1] and diags(p) == [("P201", 2), ("P232", 2)]
     p = read(("t.src", src), ("lib.src", lib.replace("DEF MoveSettings", "GLOBAL DEF MoveSettings")))
     assert p.targets.frame.tolist() == [0] and diags(p) == []
 
@@ -88,7 +88,7 @@ def test_a_call_to_code_not_read_makes_the_frames_unknown_at_the_call():
            "END\n")
     p = read(("t.src", src))
     assert p.targets.frame.tolist() == [0, -1, -1, -1]
-    assert diags(p) == [("P201", 4), ("P203", 4)]
+    assert diags(p) == [("P201", 4), ("P203", 4), ("P232", 4)]
     assert "gripper_open" in p.diagnostics[0].message and "2 target" in p.diagnostics[0].message
     assert "1 target" in p.diagnostics[1].message
 
@@ -151,7 +151,7 @@ def test_calls_on_the_fast_path_equal_the_line_by_line_read():
     fast, slow = read(("t.src", src)), read(("t.src", src), accelerate=False)
     for k in ("poses", "spans", "line", "col", "frame", "config"):
         assert np.array_equal(getattr(fast.targets, k), getattr(slow.targets, k), equal_nan=k == "poses"), k
-    assert diags(fast) == diags(slow) == [("P201", 4003)]  # (one reason per target: the base first)
+    assert diags(fast) == diags(slow) == [("P201", 4003), ("P232", 4003)]  # (one reason per target: the base first)
     f = fast.targets.frame
     assert (f[:2000] == 0).all() and (f[2000:4000] == 1).all() and (f[4000:] == -1).all()
 

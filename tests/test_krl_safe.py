@@ -286,7 +286,7 @@ def test_a_function_in_an_expression_is_followed_like_a_call():
            "DEFFCT INT SetB(k:IN)\n  INT k\n  " + B10 + "\n  RETURN k\nENDFCT\n")
     p = krl.read(["t.src"], [src], active=STATED)
     assert bases(p) == [0.0, 10.0, None]  # ABS is KRL's own; Ready() is not in the files read
-    assert codes(p) == [("P201", 6, 12)] and "Ready() called at line 6" in p.diagnostics[0].message
+    assert codes(p) == [("P201", 6, 12), ("P232", 6, 12)] and "Ready() called at line 6" in p.diagnostics[0].message
     # in a callee too, and in a loop's condition
     src = ("DEF t( )\n  helper()\n  " + P + "\nEND\nDEF helper( )\n  IF SetB(1) > 0 THEN\n  ENDIF\nEND\n"
            "DEFFCT INT SetB(k:IN)\n  INT k\n  " + B10 + "\n  RETURN k\nENDFCT\n")

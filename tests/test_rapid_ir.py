@@ -255,7 +255,8 @@ def test_a_late_bound_call_is_code_not_read(model):
     p = rapid.read(["m.mod"], [text])
     # the routine named at run time may set any global: the work object too
     assert p.targets.frame.tolist() == [0, -1]
-    assert [d.code for d in p.diagnostics] == ["P201"] and "run time" in p.diagnostics[0].message
+    assert [d.code for d in p.diagnostics] == ["P201", "P232"] and "run time" in p.diagnostics[0].message
+    assert "late binding" in p.diagnostics[1].message  # (the call: a routine not read, P232)
 
 
 def test_a_trap_that_assigns_a_point_leaves_it_while_connected():
@@ -333,8 +334,9 @@ def test_config_modules_are_read_only_data_and_their_routines_are_read_where_cal
     # unused is not called: no target of the program. Code not read (gripperOpen) may change the
     # program displacement (and every global but the --config modules' data): p1 after it is left
     assert p.targets.frame.tolist() == [0, -1] and len(p.targets) == 2
-    assert [(d.code, d.path, d.line) for d in p.diagnostics] == [("P201", "m.mod", 6), ("P211", "--config", 4)]
-    assert "gripperOpen()" in p.diagnostics[0].message and "read only" in p.diagnostics[1].message
+    assert [(d.code, d.path, d.line) for d in p.diagnostics] == [("P201", "m.mod", 6), ("P232", "m.mod", 6),
+                                                             ("P211", "--config", 4)]
+    assert "gripperOpen()" in p.diagnostics[0].message and "read only" in p.diagnostics[2].message
 
 
 def test_components_of_a_robtarget_copied_offset_and_read_in_a_condition(model):

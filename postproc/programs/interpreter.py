@@ -244,6 +244,11 @@ class Interpreter(Analysis):
         out = self.stmt(s, st)
         return out if out is not None else st
 
+    def run_time(self, key, value):
+        """Data that code the entry does not run may change (``Analysis.run_time``): this run is one
+        where that code did not run — the value the program gives it."""
+        return value
+
     def unseen(self, v, top):
         """Code not read ran (``Analysis.havoc``): the oracle gives what it touches new values
         (frames: a frame of the world's; numbers, flags, poses: the world's)."""

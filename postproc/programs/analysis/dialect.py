@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core import frames as fr
-from ...core.diagnostics import P215
+from ...core.diagnostics import P215, P232, listed
 from ..ir import Assign, Decl, Field, Invoke, Item, Loc, Name, walk
 from .values import (
     Arr, Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, taint, tokens_of,
@@ -63,6 +63,12 @@ class Dialect:
     implicit_arrays = False  # an element assigned to an undeclared name makes it an array (LS registers)
     # what a target name declared in none of the files read may be (P215's message)
     undeclared_hint = "a global of a data list or $config.dat not given?"
+    # a call to a routine not read says so (P232: the run is not complete); the declared types of
+    # the globals such a routine may move to or change, named in that message (``visible``)
+    incomplete = True
+    visible_types: frozenset = frozenset()
+    # what such a routine may change, in P232's words
+    visible_what = "the global targets, tools and frames"
 
     def axis_values(self, value) -> list | None:
         """The six arm axis values (deg, the controller's convention) of a joint motion's target
@@ -77,6 +83,10 @@ class Dialect:
         self.procedures: dict = {}
         self.functions: dict = {}
         self.async_routines: set = set()
+        # scope key → Top: data that code the entry does not run changes (a routine run from the
+        # pendant, an event routine, another task): a run-time value wherever it is read (P233)
+        self.runtime: dict = {}
+        self._incomplete: dict = {}  # a call site's Loc → its P232 message (one per site)
 
     # ---------------------------------------------------------------- state
     def initial(self, unit) -> dict:
@@ -121,6 +131,8 @@ class Dialect:
         where the robot stands is not known after it."""
         name = site.name.split(".")[-1]
         loc = site.loc
+        if why is None:
+            self.not_read(an, st, site, f"{name}()")
         why = why or f"{name}() called at line {loc.line if loc else 0} is not in the files read"
         names = []
         for a in site.args:
@@ -135,6 +147,31 @@ class Dialect:
                 names.append(root.name)
         an.havoc(st, tuple(names), why, loc)
         return an.havoc(st, None, why, loc)
+
+    def not_read(self, an, st, site, what: str) -> None:
+        """P232 at a call to a routine not read (``what``: how the message names it): the run is not
+        complete — it may move the robot to the globals it can see and change them (named: the
+        ``visible`` ones). One message per call site however often it runs (the first said)."""
+        loc = site.loc
+        if not self.incomplete or loc is None or an.rec is None:
+            return
+        message = self._incomplete.get(loc)
+        if message is None:
+            names = self.visible(an, st, site)
+            seen = f": {listed(names)}" if names else ""
+            message = self._incomplete[loc] = (
+                f"{what} is in none of the files read and is not an instruction postproc knows: it may move the "
+                f"robot, and change {self.visible_what} it can see{seen}; what it does is not known, the run is not "
+                "complete")
+        an.rec.note(P232, message, loc, False)
+
+    def visible(self, an, st, site) -> list:
+        """The globals a routine not read can see that matter (declared with a type of
+        ``visible_types``), as written, in the order declared."""
+        if not self.visible_types:
+            return []
+        return [an.written_names.get(k, k[-1]) for k, (t, _) in an.types.items()
+                if k[0] == "G" and t.upper() in self.visible_types]
 
     def procedure(self, name: str):
         """The builtin procedure called ``name`` (None: not a builtin)."""

@@ -205,6 +205,7 @@ class Analysis:
         self.act: _Activation | None = None
         self.budget = UNROLL_BUDGET
         self.types: dict = {}  # scope key → (type, is array)
+        self.written_names: dict = {}  # scope key → the name as declared (messages)
         self.gotos: dict = {}  # routine name → has a Goto
         self.handlers: dict = {}  # handler id → (Async statement, write set, why)
         self.reached: set = set()  # routines analysed
@@ -245,7 +246,16 @@ class Analysis:
         for module, stmts in self.unit.data:
             top.module = module
             st = self.straight(stmts, st, ("data", module))
+        for key in self.dialect.runtime:
+            if key in st.vars:
+                st.vars[key] = self.run_time(key, st.vars[key])
         return st
+
+    def run_time(self, key: tuple, value):
+        """What variable ``key`` holds when code the entry does not run may change it at any moment
+        (``Dialect.runtime``): not known, for that reason (P233); it may still hold ``value``
+        (its tokens stay with it). The interpreter keeps ``value`` (a run where that code did not run)."""
+        return self.dialect.runtime[key].carrying(value)
 
     def start(self, name: str, st: State):
         """The controller starts entry ``name`` from ``st``: the unit's prologue (activation
@@ -407,6 +417,8 @@ class Analysis:
         else:
             key = ("L", act.scope, s.name)
         self.types[key] = (s.type, s.dims is not None)
+        if key[0] != "L":
+            self.written_names[key] = s.written or s.name
         if s.init is not None:
             value = self.eval(s.init, st)
             if isinstance(value, Tok) and self.dialect.scalar(s.type):
@@ -868,6 +880,8 @@ class Analysis:
                 value = Rec(self.types[key][0], value.fields, value.loc)
             elif isinstance(value, Tok) and self.dialect.scalar(self.types.get(key, ("", False))[0]):
                 value = taint(value.value, value)  # (a scalar variable's number: not a target's own token)
+            if key in self.dialect.runtime:
+                value = self.run_time(key, value)
             st.vars[key] = value
             return
         if kind is Field:

@@ -18,7 +18,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...core import frames as fr
-from ...core.diagnostics import P201, P203, P211, P212, P214, P215, P217, P220, P221, P223, P224, P225, Diagnostic, listed
+from ...core.diagnostics import (
+    P201, P203, P211, P212, P214, P215, P217, P220, P221, P223, P224, P225, P233, Diagnostic, listed,
+)
 from ..ir import MOTION_INDEX, Agg, Loc
 from ..model import Frame, Targets
 from .execute import START, RunUse
@@ -334,6 +336,11 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         file = next(iter(files)) if files else (view.loc.file if view.loc is not None else loc.file)
         if not isinstance(s.target, Agg):
             named = True
+        changed = _changed_elsewhere(use.frame, use.tool)
+        if changed is not None:  # (a frame or tool code the entry does not run changes: one finding a motion)
+            rec.note(P233, f"{_target(use)} is left as written: {changed.why}", loc, True)
+            rec.escape(tokens_of(target), loc, f"{_target(use)} left as written (P233) reads them")
+            continue
         frame, covered = _moving_at(use.frame, view, use.what)
         if view.moving is not None and not (covered and set(view.external or ()) <= covered) \
                 and not (isinstance(frame, Top) and frame.code == P225):  # (a unit not given: that one's why)
@@ -414,6 +421,14 @@ def _moving_at(frame, view, what: str):
     return Mat(frame.at(e), label, frame.tokens, frame.flags), {unit.axis}
 
 
+def _changed_elsewhere(frame, tool):
+    """The Top (P233) of a frame or tool that code the entry does not run changes, else None."""
+    for v in (frame, tool):
+        if isinstance(v, Top) and v.code == P233:
+            return v
+    return None
+
+
 def _is_tool_unset(use) -> bool:
     tool = getattr(use, "tool", None)
     return isinstance(tool, Top) and tool.code == P221
@@ -464,6 +479,16 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
         key_row[use.key] = key_row.get(use.key, -1)
         return
     frame = use.frame
+    changed = _changed_elsewhere(frame, use.tool)
+    if changed is not None:  # (each row a motion left: P233 at each, their numbers read by it)
+        key_row[use.key] = -1
+        spans = r["spans"]
+        for i in range(n):
+            at = Loc(int(r["file"][i]), int(r["line"][i]), int(r["col"][i]))
+            rec.note(P233, f"the target is left as written: {changed.why}", at, True)
+            rec.escape({(at.file, int(spans[i, 2 * k]), int(spans[i, 2 * k + 1])) for k in range(3)
+                        if spans[i, 2 * k] >= 0}, at, "a target left as written (P233) reads them")
+        return
     if isinstance(frame, Moving):  # (a run's rows carry no external axis values)
         frame = Top(f"the targets of this run move with the {frame.unit.describe()} and state no "
                     f"{frame.unit.axis}", None, P225)

@@ -79,6 +79,8 @@ class KRL(Dialect):
     form = "abc"
     frame_names = _FRAMES
     implicit_arrays = True
+    visible_types = frozenset({"E6POS", "POS", "FRAME", "E6AXIS", "AXIS"})
+    visible_what = "$BASE, $TOOL and the global points and frames"
 
     def __init__(self, active=None, config: bool = False, modules: dict | None = None, strucs: dict | None = None):
         super().__init__()

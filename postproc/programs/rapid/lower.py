@@ -119,6 +119,8 @@ class _Sig:
     module: str
     handler: bool = False
     locals: dict = field(default_factory=dict)  # NAME → (type, dims)
+    written: str = ""  # the name as declared (messages)
+    at: tuple = ()  # (path, line) of its head
 
 
 @dataclass
@@ -226,9 +228,17 @@ class Lowering:
                 key = f"{module}::{upper}" if local else upper
                 if local:
                     self.local_routines.setdefault(module, set()).add(upper)
-                sig = _Sig(key, params, rtype, module)
-                if not config or key not in self.sigs:
-                    self.sigs[key] = sig
+                line, col = u.at()
+                first = self.sigs.get(key)
+                if first is not None:
+                    # (a task holds one routine of a global name, one of a LOCAL name per module: the
+                    # controller refuses to load the second)
+                    where = "in the task" if not local else f"in module {module}"
+                    raise PostprocError(f"routine {name} is declared twice {where}: here and at {first.at[0]}:"
+                                        f"{first.at[1]} (RAPID loads a task with one routine of a name)", src.path,
+                                        line, col, P102)
+                sig = _Sig(key, params, rtype, module, written=name, at=(src.path, line))
+                self.sigs[key] = sig
                 for pname, ptype, _, _, pdims in params:
                     sig.locals[pname] = (ptype, () if pdims else None)
                 continue
@@ -682,6 +692,8 @@ class Lowering:
             self.emit(Halt(loc))
         elif name in ("STOP", "BREAK"):
             pass  # (a pause: the operator's start goes on with the next statement)
+        elif name == "CALLBYVAR" and self.resolve(name) is None:  # (CallByVar "proc", n: proc<n>, late bound)
+            self.emit(Invoke("%late%", tuple(self.expr(a) for a in positional), loc))
         elif name in MOTIONS_OF:
             self.motion(u, name, written, positional, options)
         elif name in ("PDISPON", "PDISPSET", "PDISPOFF"):
@@ -1148,6 +1160,146 @@ class Lowering:
                 for a in stmts[k + 1:]:
                     if isinstance(a, Assign) and self.element_inits.get(id(a)) == s.name:
                         a.value = Unknown(why, P211)
+
+
+    # ================================================================ what code the entry does not run changes
+    def changed_outside(self, entries: list) -> dict:
+        """The data (scope key ``("G", NAME)`` / ``("M", MODULE, NAME)``, not CONST) that a routine
+        the entries do not reach changes — a routine the pendant, an event routine or another task
+        can run at any moment — and the routines that routine calls: key → (name as written, what
+        changes it, where (Loc), the routine (as written)), the first found. A change: an
+        assignment (an instruction that sets an argument is lowered to one), an argument to a
+        VAR/PERS/INOUT parameter of a routine read, any argument of a routine not read (RAPID
+        passes by reference). TRAPs connected by the code the entries run are reached (CONNECT)."""
+        routines = dict(self.config_routines)
+        routines.update(self.unit.routines)
+        reached, todo = set(), [k for k in entries if k in routines]
+        while todo:
+            k = todo.pop()
+            if k in reached:
+                continue
+            reached.add(k)
+            todo.extend(self.calls.get(k, ()))
+        roots = [k for k in routines if k not in reached]
+        if not roots:
+            return {}
+        outside, todo = {}, list(roots)
+        while todo:  # (each routine run outside the entry's flow: from the root that reaches it)
+            k = todo.pop(0)
+            root = outside.setdefault(k, k if k in roots else None)
+            for c in self.calls.get(k, ()):
+                if c in routines and c not in outside:
+                    outside[c] = root
+                    todo.append(c)
+        out: dict = {}
+        for key, root in outside.items():
+            r = routines[key]
+            sig = self.sigs.get(key)
+            for name, what, loc in self._changes(r, sig):
+                scope = self._scope_of(name, r.module, sig)
+                if scope is None or scope in out:
+                    continue
+                info = self.globals.get(name) if scope[0] == "G" else self.module_data.get((r.module, name))
+                if info is None or info[2] == "CONST" or info[0] in _NOT_RUNTIME:
+                    continue
+                rsig = self.sigs.get(root) if root is not None else sig
+                out[scope] = (self.written.get(name, name), what, loc, r, (rsig.written if rsig else "") or root)
+        return out
+
+    def _scope_of(self, name: str, module: str, sig) -> tuple | None:
+        if sig is not None and name in sig.locals:
+            return None
+        if (module, name) in self.module_data:
+            return ("M", module, name)
+        if name in self.globals:
+            return ("G", name)
+        return None
+
+    def _changes(self, r, sig):
+        """(NAME, what changes it, Loc) of each change a routine's statements make to a variable."""
+        for s in walk(r.body):
+            if isinstance(s, Assign):
+                root, _ = _path(s.target)
+                if root is not None:
+                    why = getattr(s.value, "why", "") if isinstance(s.value, Unknown) else ""
+                    what = why[7:].split(" ")[0] if why.startswith("set by ") else "an assignment"
+                    yield root, what, s.loc
+            for e in _exprs_of(s):
+                for c in _calls_in(e):
+                    yield from self._passed(c, s.loc)
+            if isinstance(s, Invoke):
+                yield from self._passed(s, s.loc)
+
+    def _passed(self, call, loc):
+        """The variables a call may change: its by-reference arguments (a routine read), every
+        argument (a routine or function not read)."""
+        name = call.name
+        if name.startswith("RAPID."):
+            return
+        sig = self.sigs.get(name)
+        written = (sig.written if sig is not None else "") or ("a routine named at run time" if name == "%late%"
+                                                               else name)
+        for k, a in enumerate(call.args):
+            if a is None or (sig is not None and (k >= len(sig.params) or sig.params[k][2] != "ref")):
+                continue
+            root, _ = _path(a)
+            if root is not None:
+                yield root, written, loc
+
+
+# the types of data whose change by other code matters to no target (speeds, zones, loads,
+# strings, interrupt numbers, I/O and clocks)
+_NOT_RUNTIME = frozenset({"STRING", "SPEEDDATA", "ZONEDATA", "LOADDATA", "INTNUM", "IODEV", "CLOCK", "ERRNUM",
+                          "SIGNALDI", "SIGNALDO", "SIGNALAI", "SIGNALAO", "SIGNALGI", "SIGNALGO", "TRIGGDATA",
+                          "STOPPOINTDATA", "BYTE"})
+
+
+def _exprs_of(s) -> tuple:
+    """The expressions a statement holds at its own level (not those of nested statements)."""
+    kind = type(s)
+    if kind is Assign:
+        return (s.target, s.value)
+    if kind is Move:
+        return (s.target, s.frame, s.tool, s.config, s.ext)
+    if kind is Eval:
+        return (s.expr,)
+    if kind is If:
+        return (s.cond,)
+    if kind is Loop:
+        return (s.start, s.stop, s.step, s.cond)
+    if kind is Switch:
+        return (s.subject,) + tuple(v for values, _ in s.cases for v in values)
+    if kind is Return:
+        return (s.value,)
+    if kind is Decl:
+        return (s.init,) + tuple(s.dims or ())
+    if kind is Invoke:
+        return tuple(s.args)
+    if kind is Goto:
+        return (s.cond,)
+    return ()
+
+
+def _calls_in(e):
+    """Every Call inside an expression."""
+    if e is None:
+        return
+    kind = type(e)
+    if kind is Call:
+        yield e
+        for a in e.args:
+            yield from _calls_in(a)
+    elif kind in (Field, Item):
+        yield from _calls_in(e.base)
+        if kind is Item:
+            for x in e.index:
+                yield from _calls_in(x)
+    elif kind is Op:
+        for a in e.args:
+            yield from _calls_in(a)
+    elif kind is Agg:
+        for _, v in e.items:
+            yield from _calls_in(v)
 
 
 # ------------------------------------------------------------------------------- helpers

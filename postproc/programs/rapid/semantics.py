@@ -32,7 +32,15 @@ S4/IRC5 (pages ``8-PDispOn``, ``8-PDispSet``, ``Offs``, ``RelTool``).
 * ``EOffsOn``/``EOffsSet``/``EOffsOff`` offset the external axes only: a target that uses
   none (every ``eax`` 9E9) is where it was; one that uses one is left already (P225).
 * Code not read (a routine of a module not given) may change every global that is not a
-  constant nor data of a ``--config`` module (read-only), and the displacement.
+  constant nor data of a ``--config`` module (read-only), and the displacement; a call to it is
+  said (P232, ``Dialect.not_read``), naming the global robtargets, tooldata and wobjdata.
+* Data that a routine ``main`` does not run changes (``runtime``: the pendant, an event routine,
+  an unconnected TRAP, another task may run it at any moment) is a run-time value wherever it is
+  read: the targets in such a frame or with such a tool are left at each motion (P233).
+* The world is the robot base unless the system parameters say otherwise (``base``, from
+  MOC.cfg: ``syspar.py``): a base frame B makes every frame B⁻¹ · uframe · oframe · displacement;
+  a base a unit moves (``base_frame_coordinated``) leaves every target (P225) unless
+  ``--external`` gives that unit.
 """
 from __future__ import annotations
 
@@ -41,7 +49,7 @@ import math
 import numpy as np
 
 from ...core import frames as fr
-from ...core.diagnostics import P201, P203, P211, P215, P223, P225
+from ...core.diagnostics import P201, P203, P211, P215, P223, P225, P233
 from ..analysis.dialect import Dialect, PoseView
 from ..analysis.values import (
     Arr, Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, taint, tokens_of,
@@ -181,10 +189,17 @@ class RAPID(Dialect):
     form = "quaternion"
     frame_names = ("C_PROGDISP",)
     undeclared_hint = "declared in a module not given? give it too, or with --config"
+    visible_types = frozenset({"ROBTARGET", "TOOLDATA", "WOBJDATA"})
+    visible_what = "the global targets, tools and work objects"
 
     def __init__(self, readonly: set | None = None, consts: set | None = None, written: dict | None = None,
-                 external: tuple = ()):
+                 external: tuple = (), runtime: dict | None = None, base=None):
         super().__init__()
+        self.runtime = dict(runtime or {})  # (data a routine main does not run changes: P233)
+        # the robot's base in the world (``syspar.Robot``, MOC.cfg): None the world itself; a Mat
+        # robot base ← world; a Top that leaves every target (a base a unit moves, not given)
+        self.base = base
+        self.units: dict = {}  # the mechanical units the system parameters declare: NAME → (path, line)
         # the external units' kinematics (postproc.robot.external): a track that carries the robot's
         # base (its robtargets' eax_… says where), positioners a work object is coordinated with
         self.track = next((u for u in external if u.carries == "robot"), None)
@@ -247,6 +262,7 @@ class RAPID(Dialect):
         at run time."""
         if why is None and site.name == "%late%":
             line = site.loc.line if site.loc else 0
+            self.not_read(an, st, site, "a routine named at run time (late binding: %…%, CallByVar)")
             why = f"a routine named at run time (late binding, line {line}) is not known here"
         return super().unread(an, st, site, why)
 
@@ -389,9 +405,15 @@ def _builtin(an, st, args, call):
 
 
 def _frame_top(top: Top, code=P201) -> Top:
-    if top.code in (P201, P203, P225):
+    if top.code in (P201, P203, P225, P233):
         return top
     return Top(top.why, top.loc, code)
+
+
+def _kept(top: Top, code: str) -> str:
+    """The code a frame or tool left by ``top`` says: P233 where a routine main does not run changes
+    what it is made of, else ``code``."""
+    return P233 if top.code == P233 else code
 
 
 def frame_of(an, st, args, call):
@@ -406,19 +428,21 @@ def frame_of(an, st, args, call):
         if isinstance(result, Mat) and result.tokens:
             an.consume(result, "a work object's frame")
         return result
-    result = _wobj_frame(an, wobj, label)
+    result = _wobj_frame(an, wobj, label) if not isinstance(d.base, Top) else d.base
+    if isinstance(result, (Mat, Moving)) and isinstance(d.base, Mat):  # (robot base ← world, MOC.cfg)
+        result = frame_product(d.base, result, result.label)
     if isinstance(result, (Mat, Moving)) and d.track is not None:  # (the robot's base rides on the track)
         result = frame_product(frame_inverse(Moving(d.track, label="track")), result, result.label)
     if isinstance(result, Moving):
         p = d.frame(an, pdisp)
         if isinstance(p, Top):
-            result = Top(f"the program displacement is not known ({p.why})", p.loc, P201)
+            result = Top(f"the program displacement is not known ({p.why})", p.loc, _kept(p, P201))
         elif not (p.m is _EYE or np.array_equal(p.m, _EYE)):
             result = frame_product(result, p, f"{result.label}:PDisp")
     elif isinstance(result, Mat):
         p = d.frame(an, pdisp)
         if isinstance(p, Top):
-            result = Top(f"the program displacement is not known ({p.why})", p.loc, P201)
+            result = Top(f"the program displacement is not known ({p.why})", p.loc, _kept(p, P201))
         elif not (p.m is _EYE or np.array_equal(p.m, _EYE)):
             result = Mat(result.m @ p.m, f"{result.label}:PDisp", result.tokens | p.tokens)
     d._frames[key] = (wobj, pdisp, result)
@@ -445,7 +469,9 @@ def _wobj_frame(an, w, label: str):
             unit = ufmec if isinstance(ufmec, str) and ufmec.strip('"') else "a mechanical unit"
             moved = d.mech_units.get(unit.strip('"').upper())
             if moved is None:
-                return Top(f"work object {name}'s user frame is moved by the mechanical unit {unit} (ufprog FALSE: "
+                declared = d.units.get(unit.strip('"').upper())
+                at = f", declared at {declared[0]}:{declared[1]}" if declared else ""
+                return Top(f"work object {name}'s user frame is moved by the mechanical unit {unit}{at} (ufprog FALSE: "
                            "coordinated): it moves with that unit's axes, whose kinematics are not given (--external "
                            f"with mech_unit = {unit})", an.loc, P225)
         else:
@@ -454,7 +480,7 @@ def _wobj_frame(an, w, label: str):
     of = d.frame(an, w.get("OFRAME"))
     for f, which in ((uf, "uframe"), (of, "oframe")):
         if isinstance(f, Top):
-            return Top(f"work object {name}'s {which} is not known ({f.why})", f.loc or an.loc, P201)
+            return Top(f"work object {name}'s {which} is not known ({f.why})", f.loc or an.loc, _kept(f, P201))
     if moved is not None:  # (the user frame on the unit: world ← uframe = the unit at its axis value · uframe)
         return Moving(moved, None, uf.m @ of.m, False, label, uf.tokens | of.tokens)
     return Mat(uf.m @ of.m, label, uf.tokens | of.tokens)
@@ -474,7 +500,8 @@ def tool_value(an, value, label: str):
         return hit[1]
     name = label or "the tool"
     if isinstance(value, Top):
-        result = Top(f"tool {name}: {value.why}" if label and label not in value.why else value.why, value.loc, P203)
+        result = Top(f"tool {name}: {value.why}" if label and label not in value.why else value.why, value.loc,
+                     _kept(value, P203))
     elif not isinstance(value, Rec) or value.type not in ("TOOLDATA", ""):
         result = Top(f"tool {name} is not a tooldata", an.loc, P203)
     elif value.get("ROBHOLD") is not True:
@@ -482,7 +509,8 @@ def tool_value(an, value, label: str):
                      an.loc, P203)
     else:
         f = d.frame(an, value.get("TFRAME"))
-        result = Top(f"tool {name}'s tframe is not known ({f.why})", f.loc or an.loc, P203) if isinstance(f, Top) \
+        result = Top(f"tool {name}'s tframe is not known ({f.why})", f.loc or an.loc, _kept(f, P203)) \
+            if isinstance(f, Top) \
             else Six(fr.matrix_to_frame(f.m), label)
     d._tools[key] = (value, result)
     return result

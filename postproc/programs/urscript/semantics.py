@@ -95,6 +95,7 @@ class UR(Dialect):
     form = "rotvec"
     frame_names = ("$TCP", "$CONVEYOR", "$PATH_OFFSET", "$FORCE")
     undeclared_hint = ""
+    visible_what = "the TCP and every global"
 
     def __init__(self, active=None, programs=(), threads=()):
         super().__init__()
