@@ -189,3 +189,55 @@ def test_a_file_no_reader_takes_and_binary_tp_programs_are_refused(tmp_path, cap
     (empty / "readme.txt").write_text("nothing here")
     assert compensate(empty, "-o", tmp_path / "out3") == 2
     assert "P107 no programs here" in capsys.readouterr().err
+
+
+SYS_CFG = """SYS:CFG_1.0:6:0::
+#
+CAB_TASKS:
+
+      -Name "T_ROB1" -Type "NORMAL" -UseMechanicalUnitGroup "rob1" -MotionTask
+
+      -Name "T_ROB2" -Type "NORMAL" -UseMechanicalUnitGroup "rob2" -MotionTask
+"""
+MOC_CFG = """MOC:CFG_1.0:6:0::
+#
+MECHANICAL_UNIT:
+
+      -name "TRACK_1" -use_single_0 "TRACK_1"
+#
+MECHANICAL_UNIT_GROUP:
+
+      -name "rob1" -robot "ROB_1"
+
+      -name "rob2" -robot "ROB_2" -mech_unit_1 "TRACK_1"
+#
+ROBOT:
+
+      -name "ROB_1" -use_robot_type "ROB1_6700" -base_frame_pos_x 0.2
+
+      -name "ROB_2" -use_robot_type "ROB2_6700" -base_frame_coordinated "TRACK_1"
+"""
+
+
+def test_a_multimove_backup_reads_each_tasks_robot_from_its_system_parameters(model, tmp_path, capsys):
+    """A backup of two motion tasks with SYSPAR: T_ROB1's robot stands 200 mm along the world's x
+    (its targets compensated in its own base), T_ROB2's base rides a track (every target left,
+    MOC.cfg's line named); one output tree, a line per file."""
+    backup = backup_tree(tmp_path / "BACKUP", WELD.read_text())
+    (backup / "SYSPAR").mkdir()
+    (backup / "SYSPAR" / "SYS.cfg").write_text(SYS_CFG)
+    (backup / "SYSPAR" / "MOC.cfg").write_text(MOC_CFG)
+    out = tmp_path / "out"
+    assert compensate(backup, "-o", out, "--model", model) == 1
+    err = capsys.readouterr().err
+    assert f"{backup / 'SYSPAR' / 'MOC.cfg'}:17" in err and "P225" in err and "TRACK_1" in err
+    two = robtargets((out / "RAPID/TASK2/PROGMOD/Data.mod").read_text())
+    assert two == robtargets((backup / "RAPID/TASK2/PROGMOD/Data.mod").read_text())  # (left as written)
+    # T_ROB1: the same as the task alone with the world shifted by its base frame
+    one = robtargets((out / "RAPID/TASK1/PROGMOD/Data.mod").read_text())
+    plain = tmp_path / "plain"
+    backup_tree(plain, WELD.read_text())
+    assert compensate(plain, "-o", tmp_path / "plain_out", "--model", model) == 1
+    unshifted = robtargets((tmp_path / "plain_out/RAPID/TASK1/PROGMOD/Data.mod").read_text())
+    assert one["pHome"] != unshifted["pHome"]  # (pHome is in wobj0: the world, 200 mm from this robot's base)
+    assert not (out / "SYSPAR").exists()  # (system parameters: read, not written)

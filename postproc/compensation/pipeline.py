@@ -101,7 +101,7 @@ class Report:
         for source, path in self.written:
             done, left = self.per_file.get(source, (0, 0))
             if done + left == 0:
-                said = "no Cartesian target" + ("" if source in self.changed else ", written unchanged")
+                said = "no target's numbers in it" + ("" if source in self.changed else ", written unchanged")
             else:
                 said = f"{done} of {done + left} compensated" + (f", {left} left as written" if left else "")
             lines.append(f"{path}: {said}")
