@@ -60,7 +60,7 @@ def test_rapid_modules_given_together_are_one_task(task, model, tmp_path, capsys
     out = tmp_path / "out"
     assert compensate(task / "Data.mod", task / "Main.mod", "-o", out, "--model", model) == 1
     err = capsys.readouterr().err
-    summary = next(line for line in err.splitlines() if line.startswith("postproc: "))
+    summary = err.splitlines()[-1]
     assert summary.split(";")[0] == next(line for line in err_alone.splitlines()
                                          if line.startswith("postproc: ")).split(";")[0]
     assert not summary.startswith("postproc: 0 of 0")

@@ -129,7 +129,7 @@ def test_a_robot_on_a_track_is_left_as_written(backup, model, tmp_path, capsys):
     (backup / "Mada" / "$machine.dat").write_text(machine(kin="#ERSYS"))
     assert compensate(backup, "-o", tmp_path / "cell", "--model", model) == 1
     err = capsys.readouterr().err
-    (warning, summary, *files) = err.splitlines()
+    (warning, *files, summary) = err.splitlines()
     assert warning.startswith(f"{backup / 'Program' / 'job.src'}:4:7: P225") and "ET1 #ERSYS" in warning
     assert "4 left as written: P225 ×4" in summary
     assert f"postproc:   {tmp_path / 'cell' / 'Program' / 'job.src'}: 0 of 4 compensated, 4 left as written" in files

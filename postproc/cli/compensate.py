@@ -110,9 +110,9 @@ def run(args) -> int:
                 print(f"postproc: {said}", file=sys.stderr)
         for w in report.warnings + [n for n in report.notes if args.verbose or n.code in (P340, P323)]:
             print(w.format(), file=sys.stderr)
-        print(f"postproc: {report.summary()}", file=sys.stderr)
-        if len(report.written) > 1:  # (a cell: what each file written holds)
+        if len(report.written) > 1:  # (several files: what each file written holds; the summary stays last)
             for line in report.files_summary():
                 print(f"postproc:   {line}", file=sys.stderr)
+        print(f"postproc: {report.summary()}", file=sys.stderr)
     # like `ruff --fix` with findings left: the output is written, but not everything was done
     return EXIT_OK if report.complete else EXIT_FINDINGS
