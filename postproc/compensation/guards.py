@@ -127,11 +127,8 @@ def check_round_trip(program: Program, texts: list[str], rows: np.ndarray, new_x
     written, with their ``new_xyz``."""
     a = program.targets
     try:
-        # (read as it was read: a backup's system files, the RAPID task, the registers setting)
-        data = getattr(program, "va", None) or getattr(program, "syspar", None)
         again = read_program(program.files, texts, program.dialect, config=program.config, active=program.active,
-                             data=data or None, task=getattr(program, "task", None),
-                             registers=getattr(program, "registers", "backup"))
+                             **program.read_with)
     except PostprocError as exc:
         raise PostprocError(f"refusing to write: the compensated text does not read again ({exc.message})",
                             exc.path, exc.line, exc.col, P191) from None

@@ -209,9 +209,10 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
 
 
 def lower(files: list[str], texts: list[str], dialect: str, config: list[str] | None = None,
-          active: ActiveFrames | None = None):
+          active: ActiveFrames | None = None, data: dict[str, str] | None = None, task: str | None = None,
+          registers: str = "backup"):
     """The motion IR of a program and its dialect's meaning: (``ir.Unit``, ``analysis.Dialect``)
-    — what ``read_program`` analyses, and what ``interpreter.run`` executes."""
+    — what ``read_program`` analyses (with the same arguments), and what ``interpreter.run`` executes."""
     if dialect == "krl":
         from .krl.reader import lower as krl_lower
 
@@ -233,10 +234,12 @@ def lower(files: list[str], texts: list[str], dialect: str, config: list[str] | 
         return reader.lower(files, texts, active=active)
     if active is not None and (active.frames_stated or active.robroot is not None):
         raise ValueError(f"active frames are KRL's ($BASE/$TOOL at the start): not {dialect}")
-    if dialect == "fanuc":  # (its frame file)
-        return reader.lower(files, texts, frames=config, external=external)
-    if external:
-        return reader.lower(files, texts, config=config, external=external)
+    if dialect == "fanuc":  # (its frame file, a backup's .va files)
+        backup = {"va": data, "registers": registers} if data else {}
+        return reader.lower(files, texts, frames=config, external=external, **backup)
+    backup = {"syspar": data, "task": task} if data or task else {}
+    if external or backup:
+        return reader.lower(files, texts, config=config, external=external, **backup)
     return reader.lower(files, texts, config=config)
 
 

@@ -281,6 +281,9 @@ class Program:
     config: list[str] | None = None  # the $config.dat texts it was read with (to read it again)
     active: ActiveFrames | None = None  # the $BASE/$TOOL/$ROBROOT stated for it (to read it again)
     from_text: bool = False  # made by read_program: its texts, read again, give it again
+    # the rest of what read_program read it with (to read it again): a backup's system files
+    # (``data``: path → text), the RAPID task's name (``task``), the ``registers`` setting
+    read_with: dict = field(default_factory=dict)
     # some targets are variables (declared or assigned aggregates), whose numbers other
     # statements may read too (e.g. as a frame); False: every target is an inline aggregate
     named_targets: bool = True

@@ -46,11 +46,12 @@ class Checked:
     exit_code: int = 0
 
 
-def lowered(files, texts, dialect: str, config=None, active=None):
-    """(Unit, Dialect) of a program (``programs.lower``)."""
+def lowered(files, texts, dialect: str, config=None, active=None, **read_with):
+    """(Unit, Dialect) of a program (``programs.lower``; ``read_with``: a backup's system files
+    ``data``, the RAPID ``task``, the ``registers`` setting, as ``Program.read_with``)."""
     from ..programs.io import lower
 
-    return lower(list(files), list(texts), dialect, config=config, active=active)
+    return lower(list(files), list(texts), dialect, config=config, active=active, **read_with)
 
 
 def _at(motion) -> tuple | None:
@@ -138,9 +139,10 @@ def _controller(model, program):
 
 
 def check(files, texts, dialect: str, model, config=None, active=None, seeds=range(4), tol_mm: float = TOL_MM,
-          settings=None) -> Checked:
+          settings=None, **read_with) -> Checked:
     """Compensate ``texts`` with ``model`` (a Compensator; ``settings``: a Settings, default the
-    defaults) and check the property over the oracles of ``seeds`` (see the module text)."""
+    defaults) and check the property over the oracles of ``seeds`` (see the module text);
+    ``read_with``: ``data`` (a backup's system files), ``task``, ``registers`` (``read_program``'s)."""
     from ..compensation.pipeline import compensate_program
     from ..core.diagnostics import P231, P322, PostprocError
     from ..programs.analysis import analyse
@@ -148,7 +150,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
     from ..programs.io import read_program
 
     out = Checked()
-    program = read_program(list(files), list(texts), dialect, config=config, active=active)
+    program = read_program(list(files), list(texts), dialect, config=config, active=active, **read_with)
     try:
         report = compensate_program(program, model, *([settings] if settings is not None else []))
     except PostprocError:
@@ -168,8 +170,8 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                 worst[(note.path, note.line, note.col)] = float(text)
             except ValueError:
                 pass
-    unit_a, dialect_a = lowered(files, texts, dialect, config, active)
-    unit_b, dialect_b = lowered(files, new_texts, dialect, config, active)
+    unit_a, dialect_a = lowered(files, texts, dialect, config, active, **read_with)
+    unit_b, dialect_b = lowered(files, new_texts, dialect, config, active, **read_with)
     axes_pose = _axes_pose(model, program)
     controller = _controller(model, program)
     # targets compensate reached from nothing known: Targets.prev -1, or a predecessor whose pose in

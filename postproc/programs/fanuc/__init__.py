@@ -58,13 +58,9 @@ _STAMP = re.compile(r"^[ \t]*\d+:[ \t]*!.*" + re.escape(STAMP_PREFIX) + r".*$", 
 
 @dataclass
 class FanucProgram(Program):
-    """An LS Program, plus each row's CONFIG string as written ('N U T, 0, 0, 0'; '' none), and
-    the backup's .va files and register setting it was read with."""
+    """An LS Program, plus each row's CONFIG string as written ('N U T, 0, 0, 0'; '' none)."""
 
     configs: list[str] = field(default_factory=list)
-    # what it was read with (to read it again the same way): a backup's .va files, "backup" / "runtime"
-    va: dict | None = None
-    registers: str = "backup"
 
 
 def wpr_to_abc(wpr: np.ndarray) -> np.ndarray:
@@ -224,6 +220,8 @@ def read(files: list[str], texts: list[str], frames: list[str] | None = None, ex
     program = FanucProgram(files=list(files), texts=list(texts), targets=built.targets, frames=built.frames,
                            diagnostics=[d for d in found if d.code != P234], notes=built.notes + said,
                            dialect="fanuc", stamps=stamps, newlines=[newline(t) for t in texts], comment="!",
-                           named_targets=True, configs=configs, va=dict(va) if va else None, registers=registers)
+                           named_targets=True, configs=configs)
     program.held, program.sites = built.held, built.sites
+    if va:  # (read again as it was read: guards.check_round_trip)
+        program.read_with = {"data": dict(va), "registers": registers}
     return program

@@ -29,9 +29,6 @@ class RapidProgram(Program):
 
     # [N, 4] cf1, cf4, cf6, cfx per target row (NaN where not a number), aligned with the rows
     confdata: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
-    # what it was read with (to read it again the same way): a backup's SYSPAR texts, the task's name
-    syspar: dict | None = None
-    task: str | None = None
 
 
 def read(files: list[str], texts: list[str], config: list[str] | None = None, accelerate: bool = True,
@@ -71,7 +68,7 @@ class Reader:
         self.accelerate = accelerate
         self.external = tuple(external or ())
         self.config_names = ["--config" if len(config) == 1 else f"--config[{k}]" for k in range(len(config))]
-        self.syspar, self.task = syspar, task
+        self.syspar, self.task = syspar, task  # (what the program says it was read with: read_with)
         self.robot = robot_of(syspar, task)
         self.notes: list = []  # (P234: what the system parameters gave)
 
@@ -184,7 +181,7 @@ class Reader:
             stamps=stamps, newlines=[newline(x) for x in self.texts], comment="!", named_targets=built.named,
             confdata=confdata, orientation="quaternion")
         program.held, program.sites = built.held, built.sites
-        program.syspar, program.task = self.syspar, self.task
+        program.read_with = {k: v for k, v in (("data", self.syspar), ("task", self.task)) if v}
         return program
 
 
