@@ -241,3 +241,18 @@ def test_a_multimove_backup_reads_each_tasks_robot_from_its_system_parameters(mo
     unshifted = robtargets((tmp_path / "plain_out/RAPID/TASK1/PROGMOD/Data.mod").read_text())
     assert one["pHome"] != unshifted["pHome"]  # (pHome is in wobj0: the world, 200 mm from this robot's base)
     assert not (out / "SYSPAR").exists()  # (system parameters: read, not written)
+
+
+def test_modules_beside_a_backups_tasks_are_each_read_alone(model, tmp_path, capsys):
+    """A backup's HOME/ may hold copies of modules no task loads: each is read alone (two copies
+    declaring the same routine are not one task), compensated or left as it says, written too."""
+    backup = backup_tree(tmp_path / "BACKUP", WELD.read_text())
+    (backup / "HOME").mkdir()
+    for name in ("old.mod", "older.mod"):
+        shutil.copy(WELD, backup / "HOME" / name)
+    out = tmp_path / "out"
+    assert compensate(backup, "-o", out, "--model", model) == 1
+    alone = tmp_path / "alone.mod"
+    assert compensate(WELD, "-o", alone, "--model", model) == 1
+    assert (out / "HOME/old.mod").read_bytes() == (out / "HOME/older.mod").read_bytes() == alone.read_bytes()
+    assert "P102" not in capsys.readouterr().err

@@ -196,11 +196,16 @@ def _left_codes(program: Program, selection: Selection) -> Counter:
         by_rule += n
     if left.sum() > unknown_frame + by_rule:
         codes[P212] = int(left.sum()) - unknown_frame - by_rule
-    held = getattr(program, "held", {}) or {}
-    for d in program.diagnostics:
-        if d.code in LEFT_AS_WRITTEN and d.code not in held:  # (held rows: counted as rows above)
-            codes[d.code] += 1
+    for d in _reader_left(program):
+        codes[d.code] += 1
     return codes
+
+
+def _reader_left(program: Program) -> list[Diagnostic]:
+    """The reader's warnings each of which is a target left that never became a row
+    (``LEFT_AS_WRITTEN``; a held row's code is counted with the rows)."""
+    held = getattr(program, "held", {}) or {}
+    return [d for d in program.diagnostics if d.code in LEFT_AS_WRITTEN and d.code not in held]
 
 
 def _classes(program: Program) -> np.ndarray:
@@ -399,10 +404,9 @@ def _per_file(program: Program, selection: Selection) -> dict[str, tuple[int, in
     n = len(program.files)
     compensated = np.bincount(files[first & done], minlength=n)
     left = np.bincount(files[first & ~done], minlength=n)
-    held = getattr(program, "held", {}) or {}
     index = {name: i for i, name in enumerate(program.files)}
-    for d in program.diagnostics:
-        if d.code in LEFT_AS_WRITTEN and d.code not in held and d.path in index:
+    for d in _reader_left(program):
+        if d.path in index:
             left[index[d.path]] += 1
     return {name: (int(compensated[i]), int(left[i])) for i, name in enumerate(program.files)}
 

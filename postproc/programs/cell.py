@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..core.diagnostics import P107, P108, P112, P119, PostprocError
-from .io import FANUC_SUFFIXES, RAPID_SUFFIXES, URSCRIPT_SUFFIXES, dialect_of, read_program
+from .io import FANUC_SUFFIXES, RAPID_SUFFIXES, URSCRIPT_SUFFIXES, dialect_of, load_program, read_program
 from .krl.machine import found_machine, is_machine, with_machine
 from .model import ActiveFrames, Program
 from .text import read_text
@@ -302,8 +302,14 @@ def _parts(family: str, files: list[Path], found: _Found) -> list[Part]:
         for f in unique:
             tasks.setdefault(_task_of(f), []).append(f)
         names = _task_names(found)
-        return [Part("rapid", modules, system, None if folder is None else names.get(folder.name.upper(), folder.name))
-                for folder, modules in tasks.items()]
+        parts = [Part("rapid", modules, system, names.get(folder.name.upper(), folder.name))
+                 for folder, modules in tasks.items() if folder is not None]
+        loose = tasks.get(None, [])
+        # beside a backup's tasks, a module in no RAPID/TASKn folder (its HOME/, a copy) is loaded by no
+        # task: read alone; without tasks, the modules given are one task
+        if not parts:
+            return [Part("rapid", loose, system)] if loose else []
+        return parts + [Part("rapid", [f], system) for f in loose]
     if family == "fanuc":
         return [Part("fanuc", unique, system)]
     return [Part(family, [f]) for f in unique]  # (URScript, pose lists: each file is a program)
@@ -350,8 +356,6 @@ def load_programs(paths: list[str | Path], config: list[str] | None = None, acti
     """The programs of these files and directories as ``compensate`` reads them: one file alone
     (a .src with its .dat beside it) with ``io.load_program``, else the cells of
     :func:`find_cells` (``families``: several robot families allowed, else refused, P119)."""
-    from .io import load_program
-
     if len(paths) == 1 and not Path(paths[0]).is_dir():
         return [load_program(paths[0], config, None, active)]
     cells = find_cells(paths, config, active) if families else [find_cell(paths, config, active)]
