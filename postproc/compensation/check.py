@@ -33,12 +33,12 @@ import numpy as np
 
 from ..core.atomic import write_atomic
 from ..core.diagnostics import (
-    P107, P108,
+    P107,
     P230, P322, P401, P402, P403, P404, P405, P406, P407, Diagnostic, PostprocError, line_col,
 )
 from ..model.compensator import Compensator, load_model
 from ..programs import STAMP_PREFIX, Program
-from ..programs.io import companion_dat, dialect_of, load_program
+from ..programs.io import companion_dat, load_program
 from ..settings import Settings
 from .findings import findings, run_model, select, std_bound
 from .pipeline import compensate_program, output_paths, rewrite_program
@@ -273,28 +273,13 @@ def check_files(
     settings = replace(settings, reading=replace(settings.reading, active=active))
     out: list[Diagnostic] = []
     krl_files = [f for f in files if f.suffix.lower() in KRL]
-    others = []
-    for p in map(Path, paths):  # (a file that cannot be read is a finding of its own; the others are checked)
-        if p.is_dir():
-            others.append(p)
-        elif p.suffix.lower() not in KRL and not is_machine(p):
-            try:
-                if not p.is_file():
-                    raise PostprocError("no such file", str(p), 0, 0, P107)
-                if p.suffix.lower() not in (".va", ".cfg"):
-                    dialect_of(p)
-            except ValueError as exc:
-                out.append(PostprocError(str(exc), str(p), 0, 0, P108).diagnostic())
-                continue
-            except PostprocError as exc:
-                out.append(exc.diagnostic())
-                continue
-            others.append(p)
+    others = [p for p in map(Path, paths) if p.is_dir() or (p.suffix.lower() not in KRL and not is_machine(p))]
     if others:  # RAPID tasks, Fanuc LS programs with their backup's files, URScript, pose lists (programs.cell)
         from ..programs.cell import find_cells
 
-        try:
-            cells = [c for c in find_cells(others, settings.reading.config, active) if c.dialect != "krl"]
+        try:  # (a file that cannot be read is a finding of its own; the others are checked)
+            cells = [c for c in find_cells(others, settings.reading.config, active, unreadable=out)
+                     if c.dialect != "krl"]
         except PostprocError as exc:
             if exc.code != P107 or not krl_files:  # (a directory of KRL files only: read below)
                 out.append(exc.diagnostic())

@@ -212,7 +212,9 @@ def _system_file(path: Path) -> bool:
     return suffix == ".va" or (suffix == ".cfg" and path.parent.name.casefold() == "syspar")
 
 
-def _gather(paths: list[str | Path], poses: bool = True) -> _Found:
+def _gather(paths: list[str | Path], unreadable: list | None = None) -> _Found:
+    """What the paths hold; a file given that cannot be read (no such file, a kind no reader takes)
+    is refused, or with ``unreadable`` a list its finding goes into and the others are gathered."""
     found = _Found()
     given_system: list[Path] = []
 
@@ -235,23 +237,26 @@ def _gather(paths: list[str | Path], poses: bool = True) -> _Found:
                     add(q, PROGRAM_SUFFIXES[suffix])
                 elif suffix == ".tp":
                     found.tp.append(q)
-        elif p.is_file():
-            if is_machine(p):
-                found.machines.append(p)
-            elif _system_file(p) or p.suffix.lower() in SYSTEM_FILES:
-                found.system.append(p)
-                given_system.append(p)
-            else:
+        elif is_machine(p) and p.is_file():
+            found.machines.append(p)
+        elif (_system_file(p) or p.suffix.lower() in SYSTEM_FILES) and p.is_file():
+            found.system.append(p)
+            given_system.append(p)
+        else:
+            try:
+                if not p.is_file():
+                    raise PostprocError("no such file or directory", str(p), 0, 0, P107)
                 try:
                     family = dialect_of(p)
                 except ValueError as exc:
                     raise PostprocError(f"{exc}: every file given is read, or the run refuses", str(p), 0, 0,
                                         P108) from None
-                if family == "poses" and not poses:
-                    raise PostprocError("a pose list: check reads programs", str(p), 0, 0, P108)
-                add(p, family)
-        else:
-            raise PostprocError("no such file or directory", str(p), 0, 0, P107)
+            except PostprocError as exc:
+                if unreadable is None:
+                    raise
+                unreadable.append(exc.diagnostic())
+                continue
+            add(p, family)
     for p in given_system:
         family = SYSTEM_FILES[p.suffix.lower()]
         if found.programs and family not in found.programs:
@@ -316,11 +321,15 @@ def _parts(family: str, files: list[Path], found: _Found) -> list[Part]:
 
 
 def find_cells(paths: list[str | Path], config: list[str | Path] | None = None, active: ActiveFrames | None = None,
-               *, poses: bool = True) -> list[Cell]:
+               *, unreadable: list | None = None) -> list[Cell]:
     """The cells these files and directories hold, one per robot family (``check`` reads a
     repository of several robots' programs). Every program file given or found is in one of
-    them; a file no reader takes is refused (P108), so is a directory without programs (P107)."""
-    found = _gather(paths, poses=poses)
+    them; a file no reader takes is refused (P108), so is a directory without programs (P107);
+    ``unreadable``: a list the findings of files given that cannot be read go into instead."""
+    said = len(unreadable) if unreadable is not None else 0
+    found = _gather(paths, unreadable)
+    if not found.programs and unreadable is not None and len(unreadable) > said:
+        return []  # (every file given was unreadable: each said)
     if not found.programs:
         kinds = "KRL .src/.sub/.dat, RAPID .mod/.modx/.prg/.sys, URScript .script, Fanuc .ls"
         raise PostprocError(f"no programs here ({kinds}; pose lists are given by name)",

@@ -29,7 +29,7 @@ from pathlib import PurePath
 import numpy as np
 
 from ...core.diagnostics import P118, P201, P203, P211, PostprocError
-from ...core.frames import frame_to_matrix, matrix_to_frame
+from ...core.frames import frame_to_matrix, matrix_to_frame, rotation_vector
 from ..analysis.values import Mat, Rec, Six, Tok, Top
 
 __all__ = ["KINDS", "VaPosition", "VaNumber", "Backup", "Served", "parse_va", "read_backup", "serve", "va_kind"]
@@ -329,7 +329,7 @@ def serve(backup: Backup | None, written: dict, indirect: dict, registers: str, 
             m = frame_to_matrix(xyzabc)
             if n in given:
                 other = given[n] if kind == "UFRAME" else frame_to_matrix(np.array(given[n], float))
-                turn = np.degrees(np.arccos(np.clip((np.trace(other[:3, :3].T @ m[:3, :3]) - 1) / 2, -1, 1)))
+                turn = np.degrees(np.linalg.norm(rotation_vector(other[:3, :3].T @ m[:3, :3])))
                 if np.linalg.norm(other[:3, 3] - m[:3, 3]) > AGREE or turn > AGREE:
                     del given[n]
                     six = matrix_to_frame(other)
