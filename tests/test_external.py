@@ -344,3 +344,23 @@ def test_frame_groups_are_the_rows_of_each_frame():
     for f, rows in groups:
         assert rows.tolist() == np.flatnonzero(frame == f).tolist()
     assert frame_groups(np.array([-1, -1])) == []
+
+
+def test_check_reads_a_rapid_track_program_with_its_external_units_as_compensate(affine):
+    """check of RAPID modules (programs.cell's parts) takes --external as compensate does: the
+    track's targets are no P225 once its kinematics are given."""
+    from postproc.compensation.check import check_files
+    from postproc.settings import Settings
+
+    import tempfile
+    from pathlib import Path
+
+    model = load_model(affine(gain=GAIN, tool={"name": "spindle", "frame": list(TOOL)}))
+    world = matrix_to_frame(TRACK.base_at(E1) @ frame_to_matrix(BASE_POSES))
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "m.mod"
+        path.write_text(_rapid(world, E1))
+        plain = Settings().override(force=True)
+        assert "P225" in {f.code for f in check_files([path], model, plain)}
+        stated = plain.override(active=ActiveFrames(external=(TRACK,)))
+        assert "P225" not in {f.code for f in check_files([path], model, stated)}

@@ -287,7 +287,7 @@ def check_files(
         for cell in cells:
             for part in cell.parts:
                 try:
-                    program = part.read(settings.reading.config_list, None, settings.reading.registers)
+                    program = part.read(settings.reading.config_list, cell.active, settings.reading.registers)
                 except PostprocError as exc:
                     out.append(exc.diagnostic())
                     continue

@@ -63,12 +63,17 @@ class Part:
     task: str | None = None
 
     def read(self, config: list[str] | None = None, active: ActiveFrames | None = None,
-             registers: str = "backup") -> Program:
-        data = {str(p): read_text(p) for p in self.system} or None
-        texts = [read_text(f) for f in self.files]
-        return read_program([str(f) for f in self.files], texts, self.dialect,
-                            config=[read_text(Path(c)) for c in config] if config else None, active=active,
-                            data=data, task=self.task, registers=registers)
+             registers: str = "backup", *, texts: dict[Path, str] | None = None) -> Program:
+        """The part's program; ``config`` paths read-only (--config); ``texts``: files already
+        read (path → text: a backup's system files, read once for all its tasks)."""
+        texts = {} if texts is None else texts
+        for p in self.system + [Path(c) for c in config or []]:
+            if p not in texts:
+                texts[p] = read_text(p)
+        return read_program([str(f) for f in self.files], [read_text(f) for f in self.files], self.dialect,
+                            config=[texts[Path(c)] for c in config] if config else None, active=active,
+                            data={str(p): texts[p] for p in self.system} or None, task=self.task,
+                            registers=registers)
 
 
 @dataclass
@@ -97,12 +102,9 @@ class Cell:
 
     def read(self) -> Program:
         """Every file of a KRL cell as one Program, in one reader call; a ``$config.dat`` from
-        outside the cell is read as configuration only."""
+        outside the cell is read as configuration only (the other families: ``read_all``)."""
         if self.dialect != "krl":
-            programs = self.read_all()
-            if len(programs) != 1:
-                raise ValueError(f"a cell of {len(programs)} programs: read_all")
-            return programs[0]
+            raise ValueError(f"a {self.dialect} cell is read with read_all")
         files = self.files
         outside = [read_text(c) for c in self.config if not self.inside(c)] or None
         return read_program([str(f) for f in files], [read_text(f) for f in files], "krl", config=outside,
@@ -113,7 +115,8 @@ class Cell:
         (``config``: the RAPID modules / Fanuc frame file given with --config, read-only)."""
         if self.dialect == "krl":
             return [self.read()] if self.files else []
-        return [part.read(config, self.active, registers) for part in self.parts]
+        texts: dict[Path, str] = {}
+        return [part.read(config, self.active, registers, texts=texts) for part in self.parts]
 
 
 def krl_files(directory: Path) -> list[Path]:
@@ -204,6 +207,7 @@ class _Found:
     dirs: list[Path] = field(default_factory=list)
     files: list[Path] = field(default_factory=list)  # every program file, in the order found
     tp: list[Path] = field(default_factory=list)  # Fanuc binary TP programs found in directories
+    backinfo: list[Path] = field(default_factory=list)  # an ABB backup's BACKINFO/backinfo.txt
 
 
 def _system_file(path: Path) -> bool:
@@ -237,6 +241,8 @@ def _gather(paths: list[str | Path], unreadable: list | None = None) -> _Found:
                     add(q, PROGRAM_SUFFIXES[suffix])
                 elif suffix == ".tp":
                     found.tp.append(q)
+                elif q.name.casefold() == "backinfo.txt":
+                    found.backinfo.append(q)
         elif is_machine(p) and p.is_file():
             found.machines.append(p)
         elif (_system_file(p) or p.suffix.lower() in SYSTEM_FILES) and p.is_file():
@@ -291,11 +297,9 @@ def _task_of(path: Path) -> Path | None:
 def _task_names(found: _Found) -> dict[str, str]:
     """``TASK1`` → ``T_ROB1``, as the backups' ``BACKINFO/backinfo.txt`` say."""
     names: dict[str, str] = {}
-    for d in found.dirs:
-        for info in d.rglob("*"):
-            if info.name.casefold() == "backinfo.txt" and info.is_file():
-                for m in _BACKINFO_TASK.finditer(read_text(info)):
-                    names.setdefault(m.group(1).upper(), m.group(2))
+    for info in found.backinfo:
+        for m in _BACKINFO_TASK.finditer(read_text(info)):
+            names.setdefault(m.group(1).upper(), m.group(2))
     return names
 
 
