@@ -114,3 +114,19 @@ def test_a_configuration_no_joint_angles_reach_names_one_that_does(tmp_path, cap
     (tmp_path / "t.src").write_text(fixed)
     assert main(["compensate", str(tmp_path / "t.src"), "-o", str(tmp_path / "o2" / "t.src")]) == 0
     assert "P309" not in capsys.readouterr().err
+
+
+def test_p201_counts_targets_as_the_summary_does(affine):
+    """Issue 38, item 8: a target run in a loop is one target in P201's count, as in the summary
+    (it said one per run: '6 target(s)' where the summary said 3 left)."""
+    model = load_model(affine(gain=np.diag([1e-3, 2e-3, -1e-3]), tool={"name": "any"}))
+    src = ("DEF t( )\n  DECL INT I\n  BAS(#BASE, 3)\n"
+           "  FOR I = 1 TO 2\n"
+           "    LIN {X 2000,Y 0,Z 900,A 0,B 90,C 0}\n"
+           "    LIN {X 2010,Y 0,Z 900,A 0,B 90,C 0}\n"
+           "  ENDFOR\n"
+           "  LIN {X 2020,Y 0,Z 900,A 0,B 90,C 0}\n"
+           "END\n")
+    _, report = compensate_text(src, model, name="t.src", active=ActiveFrames(tool="model"))
+    (w,) = [w for w in report.warnings if w.code == "P201"]
+    assert report.left == 3 and "3 target(s) left as written" in w.message

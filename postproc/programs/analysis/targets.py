@@ -189,17 +189,18 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                 assumed.add(ix)
         return ix, None, None
 
-    def count(top, code, n, first, places=()):
-        """One finding per cause, at its first place; ``places``: the left targets' motions
-        (path:line), named in it."""
+    def count(top, code, targets, first, places=()):
+        """One finding per cause, at its first place; ``targets`` [k, 3] (file, line, col) of the
+        left targets (a target run twice is one: counted as the summary counts); ``places``: the
+        left targets' motions (path:line), named in it."""
         if isinstance(top, Top) and top.code in (P220,) and _is_tool_unset(first[3]):
             top = Top(NEITHER_SET, None, P220)
         key = (code, top.why)
         entry = unknown.get(key)
         if entry is None:
-            unknown[key] = [n, first[:3], top.loc, dict.fromkeys(places)]
+            unknown[key] = [[targets], first[:3], top.loc, dict.fromkeys(places)]
         else:
-            entry[0] += n
+            entry[0].append(targets)
             entry[3].update(dict.fromkeys(places))
 
     def prev_of(preds, key=None):
@@ -349,9 +350,9 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
         aloc = view.loc or loc
         first = (_path(unit, aloc.file), aloc.line, aloc.col, use)
         if ix < 0:
-            count(why, code, 1, first if why.code in (P220, P221) else (_path(unit, why.loc.file), why.loc.line,
-                                                                        why.loc.col, use) if why.loc else first,
-                  (f"{_path(unit, loc.file)}:{loc.line}",))
+            at = first if why.code in (P220, P221) or why.loc is None else (
+                _path(unit, why.loc.file), why.loc.line, why.loc.col, use)
+            count(why, code, np.array([[aloc.file, aloc.line, aloc.col]]), at, (f"{_path(unit, loc.file)}:{loc.line}",))
         primary, others, axes = prev_of(use.preds, use.key)
         cols = dict(pose=pose, spans=spans, abc=abc_spans, worient=written_orient, file=file, line=aloc.line,
                     col=aloc.col, frame=ix, motion=MOTION_INDEX[s.kind], config=view.config, offset=offset,
@@ -374,7 +375,8 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             rows.add_one(twin)
     rows.flush()
     targets = _columns(rows, k_orient, form)
-    for (code, why), (n, first, wloc, places) in unknown.items():
+    for (code, why), (left, first, wloc, places) in unknown.items():
+        n = len(np.unique(np.concatenate(left).astype(np.int64), axis=0))
         if wloc is not None and code not in (P220, P221):
             path, line, col = _path(unit, wloc.file), wloc.line, wloc.col
         else:
@@ -497,7 +499,8 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
         first = (_path(unit, int(r["file"][0])), int(r["line"][0]), int(r["col"][0]), use)
         at = first if why.code in (P220, P221) or why.loc is None else (_path(unit, why.loc.file), why.loc.line,
                                                                          why.loc.col, use)
-        count(why, code, n, at, [f"{first[0]}:{int(x)}" for x in np.unique(r["line"]).tolist()])
+        count(why, code, np.stack([r["file"], r["line"], r["col"]], axis=1), at,
+              [f"{first[0]}:{int(x)}" for x in np.unique(r["line"]).tolist()])
     pose = r["pose"].copy()
     written = r["written"]
     chain = r["chain"]
