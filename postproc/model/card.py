@@ -26,7 +26,8 @@ from .contract import (
     contract_version,
 )
 
-__all__ = ["SCHEMA_PATH", "schema", "card_problems", "interface_lines", "card_lines", "configuration_text"]
+__all__ = ["SCHEMA_PATH", "schema", "card_problems", "interface_lines", "card_lines", "configuration_text",
+           "load_lines"]
 
 SCHEMA_PATH = schema_path("model_card.schema.json")
 
@@ -73,7 +74,7 @@ def configuration_text(model: Compensator) -> str | None:
 def interface_lines(model: Compensator) -> list[str]:
     """The graph's inputs and outputs in words: name, shape, required or optional (and what an
     omitted input means); for a model with ``joints``, that it decides the arm configuration."""
-    from .contract import DEFAULT_MEANING
+    from .contract import DEFAULT_MEANING, INPUT_WIDTH
 
     lines = ["inputs (float32):"]
     overridable = {node.name for node in model.session.get_overridable_initializers()}
@@ -87,7 +88,7 @@ def interface_lines(model: Compensator) -> list[str]:
                         "get_inputs(), and warns at each session; `postproc model upgrade` makes it an ONNX optional input)")
         else:
             how = "required by this graph (a contract-1 file: feed every input; `postproc model upgrade` makes it optional)"
-        lines.append(f"  {node.name} [N, 6]: {how}")
+        lines.append(f"  {node.name} [N, {INPUT_WIDTH.get(node.name, 6)}]: {how}")
     configuration = configuration_text(model)
     if configuration:
         lines.append(f"  {configuration}")
@@ -95,6 +96,37 @@ def interface_lines(model: Compensator) -> list[str]:
     for node in model.session.get_outputs():
         width = node.shape[1] if len(node.shape) == 2 else "?"
         lines.append(f"  {node.name} [N, {width}]: {_OUTPUTS.get(node.name, '')}".rstrip(": "))
+    return lines
+
+
+def _load(row) -> str:
+    mass, *com = (float(v) for v in row)
+    return f"{mass:g} kg at ({', '.join(f'{c:g}' for c in com)}) mm"
+
+
+def load_lines(model: Compensator) -> list[str]:
+    """The loads the model was measured with and what it does with another one, in words."""
+    loads, measured, ref = model.loads, model.measured_loads, model.reference_load
+    if not loads and not model.takes_load:
+        return []
+    lines = []
+    if len(measured):
+        rows = loads.get("rows")
+        counts = (f" ({', '.join(str(r) for r in rows)} rows)" if isinstance(rows, list) and len(rows) == len(measured)
+                  else "")
+        lines.append(f"loads measured: {'; '.join(_load(r) for r in measured)}{counts} "
+                     "(mass, centre of mass in the flange frame)")
+    else:
+        lines.append("loads measured: not stated")
+    if model.takes_load:
+        k = float(loads.get("extrapolate", 1.0))
+        top = k * measured[:, 0].max() if len(measured) else float("nan")
+        lines.append(f"load-aware: input load [N, 4] (the error at each target's payload); a NaN row = "
+                     f"{_load(ref) if ref is not None else 'the reference load'}; reaches 0…{top:g} kg "
+                     f"({k:g} × the largest measured mass)")
+    elif len(measured):
+        lines.append("load-blind: no input load; the error at any other load than "
+                     + ("the one" if len(measured) == 1 else "those") + " measured is not modelled")
     return lines
 
 
@@ -133,6 +165,7 @@ def card_lines(model: Compensator) -> list[str]:
                   if acc.get("val_uncompensated_mean_mm") is not None else "")
         lines.append(f"held-out |E - Ê|: mean {acc['val_mean_mm']:.3f} mm, max {acc.get('val_max_mm') or 0:.3f} mm "
                      f"over {acc.get('n_val', '?')} rows{before}; trained on {acc.get('n_train', '?')} rows")
+    lines.extend(load_lines(model))
     lines.append(f"iterations: {model.default_iterations} (c = P + Ê(c) from c0 = P)")
     if model.max_std_mm is not None:
         lines.append(f"uncertainty: error_std bound {model.max_std_mm:g} mm (P336)")

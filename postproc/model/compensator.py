@@ -51,6 +51,15 @@ and the interface of any other program that runs the file (onnxruntime alone: ``
   branch): a change of configuration or turn between two targets (A4 from 179° to −179°
   turns 358°, not 2°) decides the approach direction, which the poses alone do not show.
   ``Compensator.command`` feeds the previous row's ``joints`` (the first row's: NaN);
+* optional input ``load``: float32 [N, 4] = the payload the robot carries at each target:
+  mass (kg) and its centre of mass cx, cy, cz (mm, in the flange frame); a row with a NaN (and
+  a caller that leaves ``load`` out) = the model's reference load (the card's
+  ``loads.reference``: the load a load-blind model would assume). For load-aware models
+  (``train`` on data with ``load_mass`` columns at more than one load): the compliance terms
+  take each target's gravity torque with that load on the flange, a physical model that
+  extrapolates to loads between and beyond those measured; ``Compensator.load_reach`` says
+  where (the card's ``loads.extrapolate``). Models without it (``takes_load`` False) are the
+  error at the load(s) their data was measured with;
 * output ``error``: float32 [N, 3] mm, E = P_target − P_actual; normalisation lives inside
   the graph;
 * optional output ``ik_joints``: float32 [N, 6] deg, the controller's joint angles (nominal IK,
@@ -107,6 +116,12 @@ and the interface of any other program that runs the file (onnxruntime alone: ``
   "moved"}]}; optional ``uncertainty`` {"max_std_mm" (the bound on ``error_std``
   compensate and check apply without ``--max-std``: uncertainty.MAX_STD_FACTOR × the
   identification's residual std), "residual_std_mm"} beside ``error_std``; optional ``transfer`` (benchmarks/cross_series.py: figures on other series);
+  optional ``loads`` {"measured": [[mass, cx, cy, cz], ...] the distinct loads of the data (kg,
+  mm in the flange frame), "rows": [n, ...] the rows at each, "reference": [mass, cx, cy, cz]
+  (what a NaN row of ``load`` means; for a model without ``load`` the load it assumes),
+  "extrapolate": k (a load-aware model reaches masses 0…k × the largest measured, centres of
+  mass up to k × the farthest measured or "com_mm"), "aware": bool}; a card without ``loads``
+  says nothing of the load (``measured_loads`` empty);
   optional ``demonstration`` {"robot", "robot_seed"}: trained on data ``postproc measure``
   simulated, a demonstration model of a simulated robot (compensate and check say so, P340).
 
@@ -143,6 +158,7 @@ from ..settings import MAX_ITERATIONS
 from .contract import (
     INPUT_APPROACH,
     INPUT_JOINTS,
+    INPUT_LOAD,
     INPUT_POSE,
     INPUT_PREVIOUS,
     INPUT_PREVIOUS_JOINTS,
@@ -195,6 +211,7 @@ class Compensator:
     has_rotation: bool = False  # the graph also outputs ``rotation_error``
     has_std: bool = False  # the graph also outputs ``error_std``
     wants_approach: bool = False  # the graph takes fixed approach signs (``approach``)
+    wants_load: bool = False  # the graph takes the payload at each target (``load``)
     settle: bool = True  # settle the commands on their approach where the model can (False: the plain fixed point)
     defaults: tuple = ()  # the inputs a caller may omit (contract 3: of optional type; 2: with initializers; contract.py)
 
@@ -272,6 +289,68 @@ class Compensator:
         return float(card["max_std_mm"]) if self.has_std and isinstance(card, dict) and "max_std_mm" in card else None
 
     @property
+    def takes_load(self) -> bool:
+        """The graph takes the payload at each target (input ``load``): a load-aware model."""
+        return self.wants_load
+
+    @property
+    def loads(self) -> dict:
+        """The card's ``loads`` ({} where it has none; see the contract)."""
+        loads = self.metadata.get("loads")
+        return loads if isinstance(loads, dict) else {}
+
+    @property
+    def measured_loads(self) -> np.ndarray:
+        """The loads the model's data was measured with [K, 4] (mass kg, centre of mass cx, cy,
+        cz mm in the flange frame: the card's ``loads.measured``); [0, 4] where the card does
+        not say."""
+        rows = self.loads.get("measured")
+        try:
+            out = np.asarray(rows, float).reshape(-1, 4)
+        except (TypeError, ValueError):
+            return np.empty((0, 4))
+        return out if np.isfinite(out).all() else np.empty((0, 4))
+
+    @property
+    def reference_load(self) -> np.ndarray | None:
+        """[4]: the load a NaN row of ``load`` stands for (the card's ``loads.reference``), None
+        where the card does not say."""
+        ref = self.loads.get("reference")
+        try:
+            ref = np.asarray(ref, float).reshape(4)
+        except (TypeError, ValueError):
+            return None
+        return ref if np.isfinite(ref).all() else None
+
+    def load_reach(self, load: np.ndarray) -> np.ndarray:
+        """[N] bool: True where the model can compensate a target carrying ``load`` [N, 4] (mass
+        kg, centre of mass mm; a row with a NaN is the reference load: True). A load-aware model
+        (``takes_load``) reaches the masses in [0, ``loads.extrapolate`` × the largest measured
+        mass] (and a centre of mass no farther from the flange than ``loads.extrapolate`` × the
+        farthest measured, at least ``loads.com_mm``: the card's rule, from benchmarks/loads.py);
+        a model without ``load`` input reaches only the loads it was measured with (within
+        ``loads.mass_tolerance_kg``, default 1 kg, and 10 mm); a model whose card states no loads
+        reaches the NaN rows only."""
+        load = np.asarray(load, float).reshape(-1, 4)
+        unknown = np.isnan(load).any(axis=1)
+        measured = self.measured_loads
+        if not len(measured):
+            return unknown
+        mass, com = load[:, 0], np.linalg.norm(load[:, 1:], axis=1)
+        with np.errstate(invalid="ignore"):
+            if self.takes_load:
+                k = float(self.loads.get("extrapolate", 1.0))
+                top = k * measured[:, 0].max()
+                far = max(k * np.linalg.norm(measured[:, 1:], axis=1).max(), float(self.loads.get("com_mm", 0.0)))
+                ok = (mass >= 0) & (mass <= top + 1e-9) & ((com <= far + 1e-9) | (mass == 0))
+            else:
+                tol = float(self.loads.get("mass_tolerance_kg", 1.0))
+                near = ((np.abs(mass[:, None] - measured[None, :, 0]) <= tol)
+                        & (np.linalg.norm(load[:, None, 1:] - measured[None, :, 1:], axis=2) <= 10.0))
+                ok = near.any(axis=1) | (mass == 0) & (measured[:, 0] == 0).any()
+        return unknown | ok
+
+    @property
     def default_iterations(self) -> int:
         try:
             return max(1, int(self.metadata.get("iterations", 2)))
@@ -289,7 +368,8 @@ class Compensator:
 
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None, joints=None,
                 tool: np.ndarray | None = None, with_joints: bool = False, rotation: bool = False,
-                approach: np.ndarray | None = None, previous_joints: np.ndarray | None = None, std: bool = False):
+                approach: np.ndarray | None = None, previous_joints: np.ndarray | None = None, std: bool = False,
+                load: np.ndarray | None = None):
         """Ê for poses [N, 6] (robot base frame) → [N, 3] mm (float64). ``joints`` [N, 6] deg:
         the controller's joint angles at each pose (its configuration; NaN rows unknown), fed
         to a model with that input, ignored by others; ``tool`` [N, 6]: the TCP on the flange
@@ -300,10 +380,13 @@ class Compensator:
         With ``rotation``: the rotation error [N, 3] deg is returned last. ``approach`` [N, 6]:
         approach signs to assume (NaN: from ``previous``), for a model with that input;
         ``previous_joints`` [N, 6] deg: the joint angles at the target before each pose (NaN
-        rows unknown). With ``std`` (a model with ``error_std``): that [N] mm is returned last."""
+        rows unknown). With ``std`` (a model with ``error_std``): that [N] mm is returned last.
+        ``load`` [N, 4] (or [4] for every row): the payload at each pose (mass kg, centre of mass
+        cx, cy, cz mm in the flange frame; NaN rows: the model's reference load), fed to a model
+        with that input (``takes_load``), ignored by others."""
         if isinstance(joints, bool):
             joints, with_joints = None, joints
-        inputs = self._inputs(poses, previous, joints, tool, approach, previous_joints)
+        inputs = self._inputs(poses, previous, joints, tool, approach, previous_joints, load)
         poses = inputs[INPUT_POSE]
         names = [OUTPUT_ERROR, self.joints_output] if with_joints and self.has_joints else [OUTPUT_ERROR]
         results = [np.empty((len(poses), 3)), np.empty((len(poses), 6))][:len(names)]
@@ -371,10 +454,11 @@ class Compensator:
             self._cut[key] = cut if cut is not None else self.session
         return self._cut[key]
 
-    def _inputs(self, poses, previous, joints, tool, approach=None, previous_joints=None) -> dict[str, np.ndarray]:
-        """The model's inputs, float32 [N, 6] each: ``pose``; ``previous_pose`` (the pose itself
-        where not given), ``joints``, ``tool``, ``approach`` and ``previous_joints`` (NaN where
-        not given) for a model that takes them."""
+    def _inputs(self, poses, previous, joints, tool, approach=None, previous_joints=None,
+                load=None) -> dict[str, np.ndarray]:
+        """The model's inputs, float32 [N, 6] each (``load`` [N, 4]): ``pose``; ``previous_pose``
+        (the pose itself where not given), ``joints``, ``tool``, ``approach``, ``previous_joints``
+        and ``load`` (NaN where not given) for a model that takes them."""
         poses = np.ascontiguousarray(poses, dtype=np.float32).reshape(-1, 6)
         inputs = {INPUT_POSE: poses}
         if self.wants_previous:
@@ -386,23 +470,27 @@ class Compensator:
             if wanted:
                 inputs[name] = (np.full(poses.shape, np.nan, np.float32) if value is None
                                 else np.ascontiguousarray(np.broadcast_to(np.asarray(value, np.float32), poses.shape)))
+        if self.wants_load:
+            shape = (len(poses), 4)
+            inputs[INPUT_LOAD] = (np.full(shape, np.nan, np.float32) if load is None
+                                  else np.ascontiguousarray(np.broadcast_to(np.asarray(load, np.float32), shape)))
         return inputs
 
     def command(self, poses: np.ndarray, iterations: int | None = None, joints=None, tool=None,
-                with_joints: bool = False):
+                with_joints: bool = False, load=None):
         """Commanded positions [N, 3] so that the robot lands on ``poses[:, :3]``: c = P + Ê(c).
         ``joints`` [N, 6] deg: the controller's joint angles at the *targets* (their
         configuration; every iteration's command is solved on that branch by the model, see
         the contract); ``tool`` [N, 6]: the TCP on the flange. With ``with_joints``: (commands,
         the targets' joint angles [N, 6] deg or None; see ``predict``). The rows are in program
         order: for a model with ``previous_pose`` each target comes from the previous row's
-        command."""
+        command. ``load`` [N, 4]: the payload at each target (see ``predict``)."""
         if isinstance(joints, bool):
             joints, with_joints = None, joints
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         out = np.empty((len(poses), 3))
         q = np.empty((len(poses), 6)) if with_joints and self.has_joints else None
-        for start, commands, q_part in self.command_chunks(poses, iterations, joints, tool, with_joints):
+        for start, commands, q_part in self.command_chunks(poses, iterations, joints, tool, with_joints, load=load):
             out[start:start + len(commands)] = commands
             if q is not None:
                 q[start:start + len(commands)] = q_part
@@ -411,7 +499,7 @@ class Compensator:
     def command_chunks(self, poses: np.ndarray, iterations: int | None = None, joints=None, tool=None,
                        with_joints: bool = False, orientation: bool = False,
                        chain: "Chain | None" = None, std: bool = False,
-                       order: "Order | None" = None) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+                       order: "Order | None" = None, load=None) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         """``command`` chunk by chunk (``command_chunk`` rows) in row order: yields (first row,
         commands [n, 3], the targets' joint angles [n, 6] deg if ``with_joints`` and the model
         has them, else None), the same numbers as one ``command`` call (each chunk takes its
@@ -427,7 +515,9 @@ class Compensator:
         settling makes at the commands anyway (a model that settles), else one more run.
         ``order``: the rows' predecessors in execution order (:class:`Order`; None: each row's is
         the row before): a program's targets after a branch, in a loop, or after a motion whose
-        target is no row come from another command than the row before's (one chunk of all rows)."""
+        target is no row come from another command than the row before's (one chunk of all rows).
+        ``load`` [N, 4] (or [4]): the payload at each target (NaN rows: the model's reference
+        load), fed to a model that takes it (``takes_load``) at every iteration."""
         if isinstance(joints, bool):
             joints, with_joints = None, joints
         if std and not self.has_std:
@@ -440,16 +530,17 @@ class Compensator:
             raise PostprocError(f"--iterations must be between 1 and {MAX_ITERATIONS}", code=P308)
         poses = np.asarray(poses, dtype=float).reshape(-1, 6)
         rows = [None if v is None else np.broadcast_to(np.asarray(v, float), poses.shape) for v in (joints, tool)]
+        load = None if load is None or not self.wants_load else np.broadcast_to(np.asarray(load, float), (len(poses), 4))
         if order is not None and not order.sequential:
-            return self._ordered(poses, iterations, with_joints, *rows, orientation, std, order)
-        return self._chunks(poses, iterations, with_joints, *rows, orientation, chain, std)
+            return self._ordered(poses, iterations, with_joints, *rows, orientation, std, order, load)
+        return self._chunks(poses, iterations, with_joints, *rows, orientation, chain, std, load)
 
     def command_std(self, commands: np.ndarray, before: np.ndarray | None = None, joints=None, tool=None,
-                    previous_joints=None, order: "Order | None" = None) -> np.ndarray:
+                    previous_joints=None, order: "Order | None" = None, load=None) -> np.ndarray:
         """The model's ``error_std`` [N] mm at commands [N, 6] (program order), each reached from
         the command before it (``previous_pose``; the first row's: ``before`` [6], the command
         of the target before them, None: the row itself), its approach as the graph computes it
-        (``approach`` NaN). ``joints``, ``tool``, ``previous_joints``: as ``predict``."""
+        (``approach`` NaN). ``joints``, ``tool``, ``previous_joints``, ``load``: as ``predict``."""
         commands = np.asarray(commands, float).reshape(-1, 6)
         previous = None
         if self.wants_previous and order is not None and not order.sequential:
@@ -457,14 +548,17 @@ class Compensator:
         elif self.wants_previous:
             head = commands[:1] if before is None else np.asarray(before, float).reshape(1, 6)
             previous = np.vstack([head, commands[:-1]])
-        return self.predict(commands, previous, joints=joints, tool=tool, previous_joints=previous_joints, std=True)[1]
+        return self.predict(commands, previous, joints=joints, tool=tool, previous_joints=previous_joints, std=True,
+                            load=load)[1]
 
     def _ordered(self, poses: np.ndarray, iterations: int, with_joints: bool, joints: np.ndarray | None,
-                 tool: np.ndarray | None, orientation: bool, std: bool, order: Order):
+                 tool: np.ndarray | None, orientation: bool, std: bool, order: Order, load: np.ndarray | None = None):
         """``command_chunks`` for rows in an :class:`Order` that is not row after row: one chunk,
         each row's previous command its predecessor's (the same fixed-point iteration)."""
         settle = _Settle(self, iterations, orientation, std, order) if self.settles else None
         given = {"joints": joints, "tool": tool}
+        if load is not None:
+            given["load"] = load
         if self.wants_previous_joints and joints is not None:
             given["previous_joints"] = order.take(np.asarray(joints, float))
         trial = poses.copy()
@@ -491,7 +585,8 @@ class Compensator:
 
     def _chunks(self, poses: np.ndarray, iterations: int, with_joints: bool, joints: np.ndarray | None,
                 tool: np.ndarray | None, orientation: bool = False,
-                chain: "Chain | None" = None, std: bool = False) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
+                chain: "Chain | None" = None, std: bool = False,
+                load: np.ndarray | None = None) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         chunk = self.command_chunk
         chain = Chain() if chain is None else chain
         settle = _Settle(self, iterations, orientation, std) if self.settles else None
@@ -501,6 +596,8 @@ class Compensator:
             part = poses[start:start + chunk]
             given = {"joints": None if joints is None else joints[start:start + chunk],
                      "tool": None if tool is None else tool[start:start + chunk]}
+            if load is not None:
+                given["load"] = load[start:start + chunk]
             if self.wants_previous_joints and joints is not None:
                 # the controller's angles at the target before each one (the first's: unknown)
                 head = np.full((1, 6), np.nan) if start == 0 else joints[start - 1:start]
@@ -589,6 +686,7 @@ def load_model(path: str | Path | None = None) -> Compensator:
         has_rotation=OUTPUT_ROTATION in outputs,
         has_std=OUTPUT_STD in outputs,
         wants_approach=INPUT_APPROACH in inputs,
+        wants_load=INPUT_LOAD in inputs,
         defaults=tuple([i.name for i in session.get_inputs() if i.type.startswith("optional(")]
                        + [i.name for i in overridable]),
     )

@@ -5,12 +5,12 @@ carry so that a caller with onnxruntime alone can run it feeding only ``pose`` (
 every input it may feed with the standard API and opens it without a warning (issue 34):
 
 * each optional input (``previous_pose``, ``joints``, ``tool``, ``approach``,
-  ``previous_joints``) a graph takes is a graph input of ONNX optional type,
-  ``optional(tensor(float))`` [N, 6] (IR 8, opset ≥ 15): onnxruntime lists it in
+  ``previous_joints``, ``load``) a graph takes is a graph input of ONNX optional type,
+  ``optional(tensor(float))`` [N, 6] (``load``: [N, 4], ``INPUT_WIDTH``; IR 8, opset ≥ 15): onnxruntime lists it in
   ``get_inputs()`` (C API: ``SessionGetInputTypeInfo`` says ``ONNX_TYPE_OPTIONAL``) and takes a
   plain float tensor for it or nothing. The graph reads it through
   ``If(OptionalHasElement(x))``: the fed tensor, else ``x__default`` (an initializer, float32
-  [1, 6] NaN), broadcast to the rows of ``pose`` (``Expand`` to ``Shape(pose)``) before the graph
+  [1, 6] NaN, [1, 4] for ``load``), broadcast to the rows of ``pose`` (``Expand`` to ``Shape(pose)``) before the graph
   reads it, so an omitted input is a NaN row per target = "unknown", the contract's meaning of
   NaN for each;
 * ``previous_pose``: a row with a NaN is the pose itself (the contract's "nothing is known
@@ -48,7 +48,7 @@ from ..settings import MAX_ITERATIONS
 __all__ = [
     "OPTIONAL_INPUTS", "DEFAULT_MEANING", "with_defaults", "upgrade", "optional_inputs", "CONTRACT_VERSION",
     "CONTRACT_VERSIONS", "INPUT_POSE", "INPUT_PREVIOUS", "INPUT_JOINTS", "INPUT_TOOL", "INPUT_APPROACH",
-    "INPUT_PREVIOUS_JOINTS", "OUTPUT_ERROR", "OUTPUT_JOINTS", "LEGACY_OUTPUT_JOINTS", "OUTPUT_ROTATION", "OUTPUT_STD",
+    "INPUT_PREVIOUS_JOINTS", "INPUT_LOAD", "INPUT_WIDTH", "OUTPUT_ERROR", "OUTPUT_JOINTS", "LEGACY_OUTPUT_JOINTS", "OUTPUT_ROTATION", "OUTPUT_STD",
     "contract_version", "contract_metadata",
 ]
 
@@ -68,6 +68,9 @@ LEGACY_OUTPUT_JOINTS = "joints"  # (the output's name before the ``joints`` inpu
 OUTPUT_ROTATION = "rotation_error"
 OUTPUT_STD = "error_std"
 INPUT_APPROACH = "approach"
+INPUT_LOAD = "load"  # (mass kg, centre of mass cx, cy, cz mm in the flange frame) [N, 4]
+# the columns of each input ([N, 6] unless here)
+INPUT_WIDTH = {INPUT_LOAD: 4}
 
 # the optional inputs and what an omitted one means (the contract's NaN rows)
 DEFAULT_MEANING = {
@@ -76,11 +79,12 @@ DEFAULT_MEANING = {
     INPUT_APPROACH: "NaN rows: the approach signs from previous_pose",
     INPUT_TOOL: "NaN rows: the model's own tool (card tool.frame)",
     INPUT_PREVIOUS_JOINTS: "NaN rows: unknown (previous_pose solved on the target's branch)",
+    INPUT_LOAD: "NaN rows: the load the model was measured with (its reference, card loads.reference)",
 }
 OPTIONAL_INPUTS = tuple(DEFAULT_MEANING)
 _SUFFIX = "__given"  # the name the graph reads an optional input by once broadcast
 _VALUE = "__value"  # an optional input's tensor: the caller's where fed, else the default
-_DEFAULT = "__default"  # its default, float32 [1, 6] (NaN)
+_DEFAULT = "__default"  # its default, float32 [1, width] (NaN)
 MIN_OPSET = 15  # ONNX's optional type and its operators (OptionalHasElement, OptionalGetElement)
 
 
@@ -147,7 +151,7 @@ def with_defaults(model):
             graph.initializer.remove(old)
             value = numpy_helper.to_array(old)
         else:  # contract 1: broadcast to pose's rows (previous_pose: a row with a NaN is the pose)
-            value = np.full((1, 6), np.nan, np.float32)
+            value = np.full((1, INPUT_WIDTH.get(name, 6)), np.nan, np.float32)
             given = name + _SUFFIX
             _rename_reads(graph, name, given)
             if name == INPUT_PREVIOUS:
@@ -158,11 +162,23 @@ def with_defaults(model):
                           helper.make_node("IsNaN", [total], [unknown]),
                           helper.make_node("Where", [unknown, INPUT_POSE, wide], [given])]
             else:
-                nodes.append(helper.make_node("Expand", [chosen, shape], [given], name=f"postproc_default_{name}"))
+                rows = shape
+                if INPUT_WIDTH.get(name, 6) != 6:  # (pose's rows, this input's columns)
+                    rows = f"{name}{_SUFFIX}_shape"
+                    graph.initializer.append(numpy_helper.from_array(np.array([INPUT_WIDTH[name]], np.int64),
+                                                                     f"{name}{_SUFFIX}_width"))
+                    nodes += [helper.make_node("Slice", [shape, f"{name}{_SUFFIX}_zero", f"{name}{_SUFFIX}_one"],
+                                               [f"{name}{_SUFFIX}_rows"]),
+                              helper.make_node("Concat", [f"{name}{_SUFFIX}_rows", f"{name}{_SUFFIX}_width"], [rows],
+                                               axis=0)]
+                    graph.initializer.extend([numpy_helper.from_array(np.array([0], np.int64), f"{name}{_SUFFIX}_zero"),
+                                              numpy_helper.from_array(np.array([1], np.int64), f"{name}{_SUFFIX}_one")])
+                nodes.append(helper.make_node("Expand", [chosen, rows], [given], name=f"postproc_default_{name}"))
         graph.initializer.append(numpy_helper.from_array(np.asarray(value, np.float32), default))
         # the value the graph reads: the caller's tensor where fed, else the default
         fed, unfed, has = (f"{name}{s}" for s in ("__fed", "__unfed", "__has"))
-        out_type = [helper.make_tensor_value_info(v, TensorProto.FLOAT, [None, 6]) for v in (fed, unfed)]
+        out_type = [helper.make_tensor_value_info(v, TensorProto.FLOAT, [None, INPUT_WIDTH.get(name, 6)])
+                    for v in (fed, unfed)]
         choose = [helper.make_node("OptionalHasElement", [name], [has], name=f"postproc_has_{name}"),
                   helper.make_node("If", [has], [chosen], name=f"postproc_default_or_{name}",
                                    then_branch=helper.make_graph(
@@ -220,7 +236,8 @@ def _interface_problems(inputs: dict, outputs: dict, joints_output: str) -> list
     problems = []
     if INPUT_POSE not in inputs:
         problems.append(f"no input '{INPUT_POSE}' (has {sorted(inputs)})")
-    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, INPUT_APPROACH, INPUT_PREVIOUS_JOINTS}
+    extra = set(inputs) - {INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, INPUT_APPROACH, INPUT_PREVIOUS_JOINTS,
+                           INPUT_LOAD}
     if extra:
         problems.append(f"unexpected inputs {sorted(extra)}")
     if OUTPUT_ERROR not in outputs:
@@ -228,8 +245,8 @@ def _interface_problems(inputs: dict, outputs: dict, joints_output: str) -> list
     if INPUT_APPROACH in inputs and INPUT_PREVIOUS not in inputs:
         problems.append(f"input '{INPUT_APPROACH}' without '{INPUT_PREVIOUS}'")
     for name, expected in ((INPUT_POSE, 6), (INPUT_PREVIOUS, 6), (INPUT_JOINTS, 6), (INPUT_TOOL, 6),
-                           (INPUT_APPROACH, 6), (INPUT_PREVIOUS_JOINTS, 6)):
-        if name in inputs and (len(inputs[name].shape) != 2 or inputs[name].shape[1] not in (expected, None, "6")
+                           (INPUT_APPROACH, 6), (INPUT_PREVIOUS_JOINTS, 6), (INPUT_LOAD, 4)):
+        if name in inputs and (len(inputs[name].shape) != 2 or inputs[name].shape[1] not in (expected, None, str(expected))
                                or isinstance(inputs[name].shape[0], int)):
             problems.append(f"input '{name}' has shape {inputs[name].shape}, expected [N, {expected}]")
     if OUTPUT_ERROR in outputs and (len(outputs[OUTPUT_ERROR].shape) != 2 or outputs[OUTPUT_ERROR].shape[1] not in (3, None)):
@@ -244,7 +261,7 @@ def _interface_problems(inputs: dict, outputs: dict, joints_output: str) -> list
         problems.append(f"output '{OUTPUT_STD}' has shape {outputs[OUTPUT_STD].shape}, expected [N, 1]")
     for node in (*inputs.values(), *outputs.values()):
         if node.name in (INPUT_POSE, INPUT_PREVIOUS, INPUT_JOINTS, INPUT_TOOL, INPUT_APPROACH, INPUT_PREVIOUS_JOINTS,
-                         OUTPUT_ERROR, joints_output, OUTPUT_ROTATION, OUTPUT_STD) and node.type != "tensor(float)":
+                         INPUT_LOAD, OUTPUT_ERROR, joints_output, OUTPUT_ROTATION, OUTPUT_STD) and node.type != "tensor(float)":
             if node.type == "optional(tensor(float))" and node.name in OPTIONAL_INPUTS and node in inputs.values():
                 continue  # (an optional input, contract 3)
             problems.append(f"'{node.name}' is {node.type}, expected tensor(float) (float32)")

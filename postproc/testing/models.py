@@ -1,7 +1,9 @@
 """Small ONNX compensators built with onnx.helper, for tests and benchmarks (no torch needed).
 
 ``affine_model(offset, gain)`` predicts E = offset + gain · (xyz − centre): zero, constant
-and position-dependent models with the full contract metadata. Each optional input has its
+and position-dependent models with the full contract metadata; with ``load_gain`` a
+load-aware one (optional input ``load`` [N, 4] and the card's ``loads``), whose error grows
+with the payload's mass and varies over space. Each optional input has its
 default (``contract.with_defaults``), as in every exported graph; ``defaults=False`` writes a
 file as contract 1 did (every input required), ``as_contract_2`` rewrites a file as contract 2
 did (each optional input's default an initializer of its name, which onnxruntime warns about).
@@ -49,12 +51,18 @@ def affine_model(
     method: str = "affine-test",
     defaults: bool = True,
     previous_gain=None,
+    load_gain=None,
+    load_offset=(0.0, 0.0, 0.0),
+    loads: dict | None = None,
     **extra_meta,
 ) -> Path:
     """E = offset + gain · (xyz − centre) [+ previous_gain · (xyz − previous xyz): a model whose
     correction depends on where the robot comes from (the approach), for tests of execution
     order; ``previous_gain`` a number (times the identity) or [3, 3]; it implies
-    ``previous_input``]."""
+    ``previous_input``] [+ (m − m_ref) · (load_offset + load_gain · (xyz − centre)) / 100 with m
+    the ``load``'s mass (kg; a row with a NaN: m_ref, the card's ``loads.reference`` mass):
+    ``load_gain`` a number (times the identity) or [3, 3] implies the ``load`` input; ``loads``
+    the card's ``loads`` (default measured at 0 and 300 kg, reference 300 kg, extrapolate 2)]."""
     if previous_gain is not None and not np.any(previous_gain):
         previous_gain = None
     if previous_gain is not None:
@@ -86,6 +94,25 @@ def affine_model(
                       helper.make_node("MatMul", ["step", "prevT"], ["plin"]),
                       helper.make_node("Add", ["base_error", "plin"], ["error"])]
             inits.append(numpy_helper.from_array(previous_gain.T.astype(np.float32), "prevT"))
+    if load_gain is not None:
+        load_gain = np.asarray(load_gain, float) * (np.eye(3) if np.ndim(load_gain) == 0 else 1.0)
+        loads = loads or {"measured": [[0, 0, 0, 0], [300, 0, 0, 250]], "reference": [300, 0, 0, 250],
+                          "extrapolate": 2.0}
+        extra_meta["loads"] = loads
+        nodes[-1] = helper.make_node("Add", [nodes[-1].input[0], nodes[-1].input[1]], ["plain_error"])
+        inputs.append(helper.make_tensor_value_info("load", TensorProto.FLOAT, ["N", 4]))
+        nodes += [helper.make_node("Slice", ["load", "s0", "ax1", "ax1"], ["mass"]),  # [N, 1]
+                  helper.make_node("ReduceSum", ["load", "ax1"], ["load_sum"], keepdims=1),
+                  helper.make_node("IsNaN", ["load_sum"], ["load_unknown"]),
+                  helper.make_node("Where", ["load_unknown", "ref_mass", "mass"], ["m"]),
+                  helper.make_node("Sub", ["m", "ref_mass"], ["dm"]),
+                  helper.make_node("MatMul", ["dx", "loadT"], ["load_lin"]),
+                  helper.make_node("Add", ["load_lin", "load_offset"], ["load_per_kg"]),
+                  helper.make_node("Mul", ["dm", "load_per_kg"], ["load_error"]),
+                  helper.make_node("Add", ["plain_error", "load_error"], ["error"])]
+        inits += [numpy_helper.from_array(np.array([[loads["reference"][0]]], np.float32), "ref_mass"),
+                  numpy_helper.from_array((load_gain.T / 100).astype(np.float32), "loadT"),
+                  numpy_helper.from_array((np.asarray(load_offset, float) / 100).astype(np.float32), "load_offset")]
     graph = helper.make_graph(
         nodes, "affine", inputs, [helper.make_tensor_value_info("error", TensorProto.FLOAT, ["N", 3])], inits
     )
