@@ -18,7 +18,11 @@ the commanded TCP pose and the measured TCP position, one row per visited pose. 
 learns E = P_target − P_measured. Optional columns: a_meas,b_meas,c_meas (a 6-DOF probe's
 TCP orientation: hybrid/kinematic then fit the orientation error too and the model outputs
 rotation_error, for compensate --orientation), q1..q6 (the controller's joint angles) or,
-without them, s,t (KUKA Status/Turn: the joint angles of that configuration). `--val-fraction` of the rows (drawn with --split-seed;
+without them, s,t (KUKA Status/Turn: the joint angles of that configuration), campaign (the
+measurement set-up of each row: a tracker placement, a day). Several files given together are
+one fit of several campaigns, each file its own (with its own '# frame:' / '# tool:' lines):
+each campaign gets its own tracker → base frame in the identification, the robot's parameters
+are shared, and the model predicts in the first campaign's frame. `--val-fraction` of the rows (drawn with --split-seed;
 default 5 %, none below 100 rows) are held out and only scored on.
 
 Methods: hybrid (the default: the robot's kinematics, compliance, backlash and gear ripple
@@ -36,6 +40,7 @@ Examples:
   postproc train measured.csv -o models/cell3.onnx --robot models/kr500.toml --name cell3
   postproc train measured.csv -o m.onnx --method gpso --seed 1
   postproc train ipa.csv --register --robot models/ur10.toml -o ur10.onnx --val-fraction 0.2
+  postproc train day1.csv day2.csv --register --robot models/ur10.toml -o ur10.onnx  # two set-ups, one fit
   postproc train measured.csv -o m.onnx --search        # pick the hidden layers first (minutes)
   postproc train new30.csv -o new.onnx --update old.onnx --robot models/ur10.toml  # re-calibrate
 """
@@ -51,7 +56,8 @@ def add_parser(sub, common, formatter) -> None:
         "CSV and export it as a compensator.",
         epilog=EXAMPLES,
     )
-    p.add_argument("data", metavar="DATA.csv", help="measurement CSV")
+    p.add_argument("data", metavar="DATA.csv", nargs="+",
+                   help="measurement CSV; several: one fit, each file a measurement campaign (its own tracker frame)")
     p.add_argument("-o", "--output", required=True, metavar="MODEL.onnx", help="model file to write")
     add(p, "method", "hidden", "optimizer", "search", "scheduler", "seed", "split_seed", "val_fraction", "epochs",
         "name", "robot", "tcp", "pose_only", "update", "register",
@@ -71,8 +77,9 @@ def run(args) -> int:
 
     settings = settings_of(args)
     t = settings.training
-    check_outputs([args.output], [args.data, settings.robot or "-", t.update or "-"])  # before the fit, not after it
-    trained = fit(args.data, settings, progress=show_progress(args), search_engine=partial(task_map, t.scheduler))
+    check_outputs([args.output], [*args.data, settings.robot or "-", t.update or "-"])  # before the fit, not after it
+    data = args.data[0] if len(args.data) == 1 else list(args.data)
+    trained = fit(data, settings, progress=show_progress(args), search_engine=partial(task_map, t.scheduler))
     if trained.search is not None and not args.quiet:
         from ..model.training.search import format_table
 
@@ -92,7 +99,7 @@ def _print_network(args, trained) -> None:
     structure = model.structure_
     print(f"model     {args.output}  ({model.label}, structure {structure}, {structure.n_params} weights, "
           f"{model.fit_seconds_['total']:.1f} s, backprop stopped: {model.stopped_} after {len(model.losses_)} epochs)")
-    print(f"data      {args.data}: {len(trained.train_rows)} training rows, {len(trained.val_rows)} validation rows; "
+    print(f"data      {' + '.join(args.data)}: {len(trained.train_rows)} training rows, {len(trained.val_rows)} validation rows; "
           f"fixed point settles after {trained.settled} iteration(s), model card says {card['iterations']}")
     print_figures(card["accuracy"], model.train_stats_)
 
@@ -125,7 +132,16 @@ def _print_identified(args, trained) -> None:
         print(f"select    blocked CV over joint-space regions ({ways}, each held out): "
               f"{'left out ' + ', '.join(chosen['dropped']) if chosen['dropped'] else 'every physical group kept'}"
               + (f"; {ripple['kept']} of {ripple['searched']} ripple orders kept" if ripple.get("searched") else ""))
-    print(f"data      {args.data}: {len(trained.train_rows)} training rows, {len(trained.val_rows)} validation rows")
+    print(f"data      {' + '.join(args.data)}: {len(trained.train_rows)} training rows, {len(trained.val_rows)} "
+          "validation rows")
+    for c in card.get("campaigns") or []:
+        f = c.get("frame")
+        frame = ("the model's own frame (reference)" if f is None or f["reference"] else
+                 "frame " + ", ".join(f"{v:+.4f}±{e:.4f}°" for v, e in zip(f["rotation_deg"], f["rotation_std_deg"]))
+                 + "; " + ", ".join(f"{v:+.3f}±{e:.3f}" for v, e in zip(f["offset_mm"], f["offset_std_mm"])) + " mm")
+        reg = c.get("registration")
+        print(f"campaign  {c['name']}: {c['train_rows']} training rows; "
+              + (f"registered (rms {reg['rms_mm']:.3f} mm); " if reg else "") + frame)
     print_figures(accuracy, model.train_stats_)
     if "val_rotation_deg" in accuracy:
         r = accuracy["val_rotation_deg"]

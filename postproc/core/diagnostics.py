@@ -74,7 +74,7 @@ P218 = _code("P218", "warning", "a pose list that does not state its frame (# fr
 P220 = _code("P220", "warning", "$BASE (or both $BASE and $TOOL) not set before the target and not stated with --base: "
              "left as written")
 P221 = _code("P221", "warning", "$TOOL not set before the target and not stated with --tool: left as written")
-P222 = _code("P222", "error", "--base / --tool not N, X,Y,Z,A,B,C (or model for the tool), naming a BASE_DATA[n] / "
+P222 = _code("P222", "error", "--load not MASS[,CX,CY,CZ] (a mass ≥ 0); --base / --tool not N, X,Y,Z,A,B,C (or model for the tool), naming a BASE_DATA[n] / "
              "TOOL_DATA[n] not in the $config.dat given, or given for a pose list / RAPID program")
 P223 = _code("P223", "warning", "a point an INTERRUPT handler switched on may assign (INTERRUPT DECL … DO P = … / a DEF "
              "that assigns it): left as written")
@@ -105,6 +105,12 @@ P233 = _code("P233", "warning", "a tool, work object, frame or target that a rou
 P234 = _code("P234", "note", "a value a backup's system files give (Fanuc posreg.va, numreg.va, sysframe.va; RAPID "
              "SYSPAR): used as the controller had it when the backup was taken (the note names the register and the "
              "file); settings 'registers = \"runtime\"' makes registers run-time values")
+P235 = _code("P235", "warning", "the payload at a target is not statically known (a load set by code not read, from "
+             "a run-time value, LOAD_DATA without $config.dat, a Fanuc PAYLOAD[n] without its schedule, branches that "
+             "leave it different) and the model takes the load: left as written, said at the cause naming the motions; "
+             "state it with --load or settings 'load' where the program sets none")
+P236 = _code("P236", "note", "the program sets payloads but the model does not take a load: every target is compensated "
+             "for the load the model was measured with (said once, naming where the program sets them)")
 # P3xx: the model, its envelope and the robot
 P301 = _code("P301", "warning", "target outside the model's training envelope (error with --strict)")
 P302 = _code("P302", "error", "target beyond the nominal robot's reach (model metadata 'reach')")
@@ -148,6 +154,10 @@ P336 = _code("P336", "warning", "the model's error_std (its stated uncertainty) 
              "(default: the card's uncertainty.max_std_mm); an error under --strict")
 P337 = _code("P337", "warning", "plan --for: a program target the measurement data (--data) does not cover (its arm "
              "configuration, its tool, or a joint outside the data's arcs); as a note: targets not planned for")
+P338 = _code("P338", "warning", "a target's payload differs from every load the model was measured with by more than it "
+             "can extrapolate (the card's loads): left as written")
+P339 = _code("P339", "note", "the model takes a load and the program does not set the payload before these targets: "
+             "compensated for the load the model was measured with (its reference); state it with --load")
 P340 = _code("P340", "note", "(compensate, check) the model is a demonstration model of a simulated robot (its card's "
              "'demonstration'): it knows nothing of a real robot; train one for yours")
 # P4xx: stamps and compensated outputs
@@ -187,6 +197,11 @@ P516 = _code("P516", "error", "a training option the method does not have (--sea
 P517 = _code("P517", "error", "positions in another unit than mm: a pose list or measurement CSV whose every x, y, z "
              "lies within ±5 for a robot that reaches metres (metres), or whose uncompensated errors are ~1/1000 of "
              "any robot's")
+P518 = _code("P518", "error", "registered rows that do not fit one tracker frame (rigid fit residual far above a robot's "
+             "error): the data hold several set-ups; name them (a 'campaign' column, or each campaign's file given "
+             "to train)")
+P519 = _code("P519", "error", "campaigns the training cannot use: a campaign too small to register (fewer than 6 rows), "
+             "a pose-only network (one frame) or --update (its rows are one new campaign) given several")
 P530 = _code("P530", "error", "an imported measurement file that does not state its units or its frame (no silent "
              "metres): a 'units:' / 'frame:' line or units in the header")
 P531 = _code("P531", "error", "three-reflector measurements: the reflectors' places on the TCP frame missing or not "

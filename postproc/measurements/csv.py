@@ -17,7 +17,11 @@ orientation, same frame as x_meas..z_meas; all three or none, P501), ``q1..q6`` 
 controller's joint angles), ``s,t`` (KUKA Status/Turn integers, used when q1..q6 are absent:
 ``postproc.robot.configuration`` turns them into joint angles), ``pose,cycle`` (a plan's labels of
 each row, whole numbers ≥ 1: ``postproc plan --iso9283`` names the ISO 9283 poses P1…P5 so, and
-``postproc measure`` carries them into its output: ``Measurements.labels``).
+``postproc measure`` carries them into its output: ``Measurements.labels``), ``campaign`` (a name
+per row: the measurement set-up — tracker placement, day — it was measured in; each campaign
+gets its own tracker → base frame in the fit: ``Measurements.campaigns``). Several files given
+to one ``train`` are one data set of several campaigns (``combine_measurements``: each file a
+campaign, or its own ``campaign`` column's, with its own ``# key: value`` lines).
 
 Codes: P500 unreadable/empty, P501 missing or misnamed column, P502 a value that is not a
 finite number, P503 wrong number of fields, P504 duplicate pose.
@@ -45,7 +49,7 @@ from ..core.diagnostics import P500, P501, P502, P503, P504, P512, PostprocError
 __all__ = [
     "POSE_COLUMNS", "MEAS_COLUMNS", "COLUMNS", "TOOL_COLUMNS", "ORIENTATION_COLUMNS", "STATUS_TURN_COLUMNS",
     "LABEL_COLUMNS", "Measurements", "read_measurements", "parse_measurements", "parse_rows", "label_columns",
-    "read_metadata", "measurement_csv", "write_measurements", "parse_tool",
+    "read_metadata", "measurement_csv", "write_measurements", "parse_tool", "CAMPAIGN_COLUMN", "combine_measurements",
 ]
 
 POSE_COLUMNS = ("x", "y", "z", "a", "b", "c")
@@ -57,6 +61,8 @@ STATUS_TURN_COLUMNS = ("s", "t")
 # a plan's labels of each row, carried by ``postproc measure``: the ISO 9283 pose (1…5 = P1…P5 as
 # the plan names them) and the cycle (1…n)
 LABEL_COLUMNS = ("pose", "cycle")
+# the measurement set-up (campaign) of each row: any name (a tracker placement, a day)
+CAMPAIGN_COLUMN = "campaign"
 
 
 @dataclass
@@ -75,6 +81,9 @@ class Measurements:
     orientation: np.ndarray | None = None  # [N, 3] measured A,B,C (deg) from 'a_meas'..'c_meas', if there
     status_turn: np.ndarray | None = None  # [N, 2] int S, T from 's','t' (only without q1..q6)
     labels: dict[str, np.ndarray] = field(default_factory=dict)  # LABEL_COLUMNS present: [N] int each
+    campaigns: np.ndarray | None = None  # [N] str: each row's campaign (set-up), None: one campaign
+    # each campaign's file and '# key: value' lines: {name: {"path": str, "meta": dict}} (with ``campaigns``)
+    campaign_files: dict = field(default_factory=dict)
 
     @property
     def errors(self) -> np.ndarray:
@@ -137,15 +146,80 @@ def parse_measurements(data: bytes, path: str = "<data>", repeats: bool = False)
     orientation = _orientation_columns(lines, first, header, path)
     status_turn = _status_turn_columns(lines, first, header, path) if joints is None else None
     labels = label_columns(lines, first, header, path)
+    campaigns = _campaign_column(lines, first, header, path)
     # the same pose in another arm configuration (joint angles a degree or more apart) or
     # with another tool is another measurement, not a repeat
     key = table[:, :6] if joints is None else np.c_[table[:, :6], np.round(joints)]
     key = key if tools is None else np.c_[key, tools]
+    if campaigns is not None:  # (the same pose measured in two set-ups is two measurements)
+        key = np.c_[key, np.unique(campaigns, return_inverse=True)[1]]
     if not repeats:
         _check_duplicates(key, line_numbers, path)
     holdout = table[:, 9] != 0 if table.shape[1] > 9 else None
+    files = {} if campaigns is None else {str(c): {"path": path, "meta": dict(meta)} for c in dict.fromkeys(campaigns)}
     return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout, joints,
-                        tools, orientation, status_turn, labels)
+                        tools, orientation, status_turn, labels, campaigns, files)
+
+
+def _campaign_column(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:
+    """Each row's campaign name [N] str from the ``campaign`` column (any text but empty: P502)."""
+    if CAMPAIGN_COLUMN not in header:
+        return None
+    k = header.index(CAMPAIGN_COLUMN)
+    names = []
+    for number in range(first + 2, len(lines) + 1):
+        raw = lines[number - 1]
+        if not raw.strip() or raw.strip().startswith("#"):
+            continue
+        fields = raw.split(",")
+        name = fields[k].strip() if k < len(fields) else ""
+        if not name:
+            raise PostprocError("column 'campaign': empty: name the set-up each row was measured in", path, number,
+                                _field_starts(raw)[k] + 1 if k < len(fields) else 1, P502)
+        names.append(name)
+    return np.asarray(names, dtype=object)
+
+
+def combine_measurements(parts: Sequence[Measurements]) -> Measurements:
+    """Several measurement files as one data set of several campaigns: each file's rows are its
+    campaign (named after the file; a file with a ``campaign`` column keeps its names, after the
+    file's), with the file's own ``# key: value`` lines (``campaign_files``). Columns that only some
+    files have are left out (joint angles, orientations, S/T, labels); tools: each file's
+    ``tool_x..tool_c`` or ``# tool:`` line, all or none (P320 otherwise)."""
+    from ..core.diagnostics import P320
+
+    if len(parts) == 1:
+        return parts[0]
+    stems = [Path(p.path).stem for p in parts]
+    names = stems if len(set(stems)) == len(stems) else [p.path for p in parts]
+    campaigns, files = [], {}
+    for name, part in zip(names, parts):
+        if part.campaigns is None:
+            campaigns.append(np.full(len(part), name, dtype=object))
+            files[name] = {"path": part.path, "meta": dict(part.meta)}
+        else:
+            own = np.asarray([f"{name}:{c}" for c in part.campaigns], dtype=object)
+            campaigns.append(own)
+            files.update({f"{name}:{c}": v for c, v in part.campaign_files.items()})
+    tools = [p.tools if p.tools is not None else (np.tile(parse_tool(p.meta["tool"]), (len(p), 1))
+                                                 if "tool" in p.meta else None) for p in parts]
+    if any(t is None for t in tools) and not all(t is None for t in tools):
+        given = ", ".join(p.path for p, t in zip(parts, tools) if t is not None)
+        raise PostprocError(f"{given} name the TCP their rows were measured with (tool_x..tool_c or '# tool:'), "
+                            "the other files do not: give every file's tool or none", parts[0].path, code=P320)
+
+    def joined(values):
+        return None if any(v is None for v in values) else np.concatenate(values)
+
+    sha = hashlib.sha256("".join(p.sha256 for p in parts).encode()).hexdigest()
+    meta = {k: v for k, v in parts[0].meta.items() if all(p.meta.get(k) == v for p in parts)}
+    meta.pop("frame", None)  # (each campaign's own: campaign_files)
+    meta.pop("tool", None)
+    return Measurements(np.concatenate([p.poses for p in parts]), np.concatenate([p.measured for p in parts]),
+                        np.concatenate([p.lines for p in parts]), sha, " + ".join(p.path for p in parts), meta,
+                        joined([p.holdout for p in parts]), joined([p.joints for p in parts]), joined(tools),
+                        joined([p.orientation for p in parts]), joined([p.status_turn for p in parts]), {},
+                        np.concatenate(campaigns), files)
 
 
 def _tool_columns(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:

@@ -4,7 +4,8 @@ errors, the envelope of the data.
 
 Codes: P320 tool sources that disagree (``measured_tools``), P505 too few points for the
 network, P506 a split that leaves a side empty, P509 errors no robot makes (another frame or
-unit: ``check_errors``; positions in metres, P517, ``postproc.core.units``), P515 orientation errors no robot makes (``check_rotation_errors``).
+unit: ``check_errors``; positions in metres, P517, ``postproc.core.units``), P518 registered rows that
+do not fit one frame (several set-ups not named as campaigns: ``check_errors`` with ``registered``), P515 orientation errors no robot makes (``check_rotation_errors``).
 
 numpy only: no torch here, so bad data is reported before torch is even loaded.
 """
@@ -14,7 +15,7 @@ import math
 
 import numpy as np
 
-from ...core.diagnostics import P320, P505, P506, P509, P515, PostprocError
+from ...core.diagnostics import P320, P505, P506, P509, P515, P518, PostprocError
 from ...measurements.csv import Measurements
 
 __all__ = [
@@ -108,9 +109,13 @@ def check_size(n_train: int, n_weights: int, structure: str, path: str = "") -> 
 FRAME_ERROR_MM = 50.0
 
 
-def check_errors(positions: np.ndarray, measured: np.ndarray, lines: np.ndarray, path: str = "") -> list[str]:
-    """Refuse (P509) errors E = positions − measured [N, 3] that no robot makes — median |E| above FRAME_ERROR_MM:
-    another frame or unit; return warnings naming the rows (file lines) whose |E| is far
+def check_errors(positions: np.ndarray, measured: np.ndarray, lines: np.ndarray, path: str = "",
+                 registered: bool = False, campaign: str | None = None) -> list[str]:
+    """Refuse errors E = positions − measured [N, 3] that no robot makes — median |E| above FRAME_ERROR_MM:
+    another frame or unit (P509: register them, or convert); where the rows were ``registered``
+    already (one rigid fit of them all), several set-ups in one file (P518: name the campaigns;
+    ``campaign``: the campaign these rows are, whose set-up they do not fit); return warnings
+    naming the rows (file lines) whose |E| is far
     above the others' (more than 10 × the median + 5 mm): a mis-measured point or a
     wrong row."""
     from ...core.units import check_unit
@@ -119,6 +124,15 @@ def check_errors(positions: np.ndarray, measured: np.ndarray, lines: np.ndarray,
     check_unit(positions, path, int(lines[0]) if len(lines) else 0, errors=errors, measured=measured)  # (P517: metres)
     size = np.linalg.norm(errors, axis=1)
     median = float(np.median(size)) if len(size) else 0.0
+    if median > FRAME_ERROR_MM and registered:  # (the rigid fit of them all did not bring them onto the commands)
+        i = int(np.argmax(size))
+        rms = float(np.sqrt(np.mean(size**2)))
+        what = f"campaign {campaign!r}'s rows do" if campaign else "the rows do"
+        name = ("split it: each set-up its own campaign name" if campaign else
+                "name them with a 'campaign' column or give each campaign's file to train (train a.csv c.csv ...)")
+        raise PostprocError(f"{what} not fit one tracker frame (rigid fit residual {rms:.4g} mm rms, {median:.4g} mm "
+                            f"median; line {lines[i]}: {size[i]:.4g} mm): the measurements hold several set-ups: {name}",
+                            path, int(lines[i]), 1, P518)
     if median > FRAME_ERROR_MM:  # (not metres: postproc.core.units said so above)
         i = int(np.argmax(size))
         raise PostprocError(f"uncompensated errors of {median:.4g} mm (median; line {lines[i]}: {size[i]:.4g} mm): "

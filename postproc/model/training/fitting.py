@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...core.diagnostics import P317, P320, P507, P508, P516, PostprocError
+from ...core.diagnostics import P317, P320, P507, P508, P516, P519, PostprocError
 from ...settings import Settings
 from .card import (
     arm_metadata,
@@ -89,12 +89,15 @@ class _Rows:
     notes: list[str] = field(default_factory=list)
     errors: np.ndarray | None = None
     rotation_errors: np.ndarray | None = None
+    campaigns: np.ndarray | None = None  # [N] int: each row's campaign (index into campaign_names), None: one
+    campaign_names: list[str] = field(default_factory=list)
+    registrations: dict = field(default_factory=dict)  # campaign name → (tracker → base [4, 4], rms mm)
 
 
 def fit(measurements, settings: Settings = Settings(), *, progress: bool = False, search_engine=None,
         **params) -> TrainedModel:
-    """Fit ``settings.training.method`` to ``measurements`` (a ``measurements.Measurements`` or a
-    CSV's path), with the settings whole:
+    """Fit ``settings.training.method`` to ``measurements`` (a ``measurements.Measurements``, a
+    CSV's path, or a list of them: each file a measurement campaign), with the settings whole:
 
     ``settings.robot``: the robot — its description file or a shipped robot's name (the nominal
     description the identified methods start from, default models/kr500.toml), or any name
@@ -126,6 +129,11 @@ def fit(measurements, settings: Settings = Settings(), *, progress: bool = False
                             "identifies the robot's parameters (its residual networks have a fixed recipe: --hidden, "
                             "--epochs): leave it out", code=P516)
     rows = _split(measurements, tool, t.val_fraction, t.split_seed)
+    if len(rows.campaign_names) > 1 and (method not in IDENTIFIED or update):
+        what = "--update re-fits OLD on one new campaign" if update else f"--method {method} learns in one frame"
+        raise PostprocError(f"the data hold {len(rows.campaign_names)} campaigns ({', '.join(rows.campaign_names)}): "
+                            f"{what}; give one campaign's rows, or train --method hybrid on them all",
+                            rows.source, code=P519)
     # a robot description is read before the long part, so that a typo fails fast
     # (identified methods read it themselves: it is the model, and may be an arm postproc.robot.arm cannot solve)
     robot_meta = {} if method in IDENTIFIED else robot_metadata(robot)
@@ -136,7 +144,7 @@ def fit(measurements, settings: Settings = Settings(), *, progress: bool = False
 
 
 def _split(measurements, tool, val_fraction: float, split_seed: int) -> _Rows:
-    from ...measurements.csv import Measurements, parse_tool, read_measurements
+    from ...measurements.csv import Measurements, combine_measurements, parse_tool, read_measurements
     from .data import (
         ALL_ROWS_BELOW,
         default_val_fraction,
@@ -144,7 +152,11 @@ def _split(measurements, tool, val_fraction: float, split_seed: int) -> _Rows:
         split_indices,
     )
 
-    if isinstance(measurements, Measurements):
+    if isinstance(measurements, (list, tuple)):  # several files: each its campaign
+        parts = [m if isinstance(m, Measurements) else read_measurements(m) for m in measurements]
+        data = combine_measurements(parts)
+        source = data.path
+    elif isinstance(measurements, Measurements):
         data, source = measurements, measurements.path
     else:
         data, source = read_measurements(measurements), str(measurements)
@@ -156,7 +168,13 @@ def _split(measurements, tool, val_fraction: float, split_seed: int) -> _Rows:
     if val_fraction is None and not len(val):
         notes.append(f"every one of the {len(data)} rows fitted, none held out for validation (fewer than "
                      f"{ALL_ROWS_BELOW} rows; --val-fraction F holds some out)")
-    return _Rows(data, source, tools, train, val, notes)
+    rows = _Rows(data, source, tools, train, val, notes)
+    if data.campaigns is not None:
+        names, codes = np.unique(data.campaigns.astype(str), return_inverse=True)
+        order = list(dict.fromkeys(data.campaigns.astype(str)))  # (file order: the first is the reference frame)
+        rank = np.array([order.index(n) for n in names])
+        rows.campaigns, rows.campaign_names = rank[codes], order
+    return rows
 
 
 def _measured(rows: _Rows, register: bool, method: str) -> None:
@@ -167,7 +185,9 @@ def _measured(rows: _Rows, register: bool, method: str) -> None:
     data = rows.data
     poses, measured = data.poses, data.measured
     frame = data.meta.get("frame", "base").lower()
-    if register:
+    if rows.campaigns is not None:
+        measured = _campaigns_measured(rows, register)
+    elif register:
         from ...core.registration import register_measurements
 
         mask = np.zeros(len(data), dtype=bool)
@@ -187,7 +207,8 @@ def _measured(rows: _Rows, register: bool, method: str) -> None:
             f"warning: {seen} validation row(s) were used by the file's registration (holdout = 0): "
             "the validation figures are optimistic; use the import's --split-seed and a smaller --val-fraction"
         )
-    rows.notes += check_errors(poses[:, :3], measured, data.lines, rows.source)
+    if rows.campaigns is None:
+        rows.notes += check_errors(poses[:, :3], measured, data.lines, rows.source, registered=register)
     rotation_errors = data.rotation_errors
     if rotation_errors is not None:
         check_rotation_errors(rotation_errors, data.lines, rows.source)
@@ -195,6 +216,49 @@ def _measured(rows: _Rows, register: bool, method: str) -> None:
             rows.notes.append(f"warning: --method {method} fits the position only: a_meas,b_meas,c_meas not used "
                               "(the model has no rotation_error output; compensate --orientation refuses it)")
     rows.data, rows.errors, rows.rotation_errors = data, poses[:, :3] - measured, rotation_errors
+
+
+# fewest rows of a campaign (its training rows) a rigid registration of its own is fitted on
+MIN_CAMPAIGN_ROWS = 6
+
+
+def _campaigns_measured(rows: _Rows, register: bool) -> np.ndarray:
+    """The measured points of data of several campaigns, each campaign's in the base frame:
+    registered on its own training rows where ``register`` and its file does not say
+    '# frame: base' (a campaign's file saying '# frame: tracker' without ``register``: P507), each
+    campaign's errors checked alone (P509/P518 at its own file)."""
+    from ...core.registration import register_measurements
+    from .data import check_errors
+
+    data = rows.data
+    poses, measured = data.poses, data.measured.copy()
+    train = np.zeros(len(data), bool)
+    train[rows.train] = True
+    for k, name in enumerate(rows.campaign_names):
+        mine = rows.campaigns == k
+        info = data.campaign_files.get(name, {"path": rows.source, "meta": data.meta})
+        path, frame = info["path"], info["meta"].get("frame", "base" if not register else "tracker").lower()
+        fit_rows = mine & train
+        if register and frame != "base":
+            if fit_rows.sum() < MIN_CAMPAIGN_ROWS:
+                raise PostprocError(f"campaign {name!r} has {int(fit_rows.sum())} training rows: a frame of its own "
+                                    f"needs at least {MIN_CAMPAIGN_ROWS} (measure more, or leave it out)", path,
+                                    int(data.lines[np.flatnonzero(mine)[0]]), 1, P519)
+            moved, transform, rms = register_measurements(poses[mine, :3], measured[mine], fit_rows[mine])
+            measured[mine] = moved
+            rows.registrations[name] = (transform, rms)
+            rows.notes.append(f"campaign {name}: registered tracker → base on its {int(fit_rows.sum())} training rows "
+                              f"(rms {rms:.3f} mm)")
+        elif frame != "base":
+            raise PostprocError(f"campaign {name!r}: measured columns are in the {frame}'s frame ('# frame: {frame}'): "
+                                "train with --register", path, code=P507)
+        rows.notes += check_errors(poses[mine, :3], measured[mine], data.lines[mine], path, registered=register,
+                                   campaign=name)
+    if data.orientation is not None and len(rows.campaign_names) > 1:
+        rows.notes.append("warning: several campaigns: the orientation is not fitted (a_meas,b_meas,c_meas not used; "
+                          "no rotation_error output)")
+        rows.data = replace(data, orientation=None)
+    return measured
 
 
 def _several_tools(rows: _Rows) -> int:
@@ -288,11 +352,13 @@ def _identified(rows: _Rows, method: str, description, pose_only: bool, update, 
         model = HybridModel(description, **{**SETTINGS[method], **params})
         try:
             model.fit(poses[t], rows.errors[t], _take(previous, t), _take(q_deg, t), _take(rows.tools, t),
-                      _take(rotation_errors, t), _take(inputs.q_previous, t))
+                      _take(rotation_errors, t), _take(inputs.q_previous, t), campaigns=_take(rows.campaigns, t))
         except PostprocError as exc:  # (the estimator knows rows, not files: its findings are the data's)
             if not exc.path:
                 exc.path = str(getattr(rows.data, "path", "") or "")
             raise
+        if model.kinematic_.campaign_frames_ is not None:  # (every row in the frame the model predicts in)
+            rows.errors = model.kinematic_.to_base(poses, rows.errors, rows.campaigns)
     card = _identified_card(model, description, rows, inputs, rotation_errors, refit, name)
     return TrainedModel(model, card, rows.train, rows.val, rows.notes, update=refit)
 
@@ -357,6 +423,8 @@ def _identified_card(model, description, rows: _Rows, inputs: _Inputs, rotation_
     }
     if refit is not None:
         metadata["update"] = refit.card()
+    if rows.campaigns is not None:
+        metadata["campaigns"] = _campaigns_card(model.kinematic_, rows)
     metadata.update(arm_metadata(description))
     metadata.update(demonstration_metadata(data.meta))
     if rows.tools is not None or model.kinematic_.layout_.n:
@@ -364,6 +432,35 @@ def _identified_card(model, description, rows: _Rows, inputs: _Inputs, rotation_
         same = np.allclose(own, description.tool)
         metadata["tool"] = model.tool_card(description.tool_name if same else tool_name(own))
     return model.card(**metadata)
+
+
+def _campaigns_card(km, rows: _Rows) -> list[dict]:
+    """The card's ``campaigns``: each campaign's name, file, rows, and its tracker → base frame —
+    the registration (rotation vector deg, offset mm; rms) and the identification's refinement of
+    it (the first campaign's is the model's own base: none), with its std."""
+    out = []
+    frames = km.campaign_frames_
+    codes = [] if frames is None else list(km.campaign_codes_)
+    for k, name in enumerate(rows.campaign_names):
+        info = rows.data.campaign_files.get(name, {})
+        entry = {"name": name, "file": info.get("path", rows.source), "rows": int((rows.campaigns == k).sum()),
+                 "train_rows": int((rows.campaigns[rows.train] == k).sum())}
+        if name in rows.registrations:
+            transform, rms = rows.registrations[name]
+            from ...core.frames import rotation_vector
+
+            entry["registration"] = {"rotation_deg": [round(float(v), 6) for v in np.degrees(
+                rotation_vector(transform[:3, :3]))], "offset_mm": [round(float(v), 4) for v in transform[:3, 3]],
+                "rms_mm": round(float(rms), 4)}
+        if k in codes:
+            i = codes.index(k)
+            f, sd = frames[i], km.campaign_std_[i]
+            entry["frame"] = {"reference": i == 0, "rotation_deg": [round(float(v), 6) for v in np.degrees(f[:3])],
+                              "offset_mm": [round(float(v), 4) for v in f[3:]],
+                              "rotation_std_deg": [round(float(v), 6) for v in np.degrees(sd[:3])],
+                              "offset_std_mm": [round(float(v), 4) for v in sd[3:]]}
+        out.append(entry)
+    return out
 
 
 # -- pose-only networks ------------------------------------------------------------------------

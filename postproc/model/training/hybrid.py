@@ -116,7 +116,7 @@ class HybridModule(torch.nn.Module):
                          q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None,
                          rotation: bool = False, approach: torch.Tensor | None = None,
                          q_previous: torch.Tensor | None = None,
-                         uncertainty: bool = False) -> tuple[torch.Tensor, ...]:
+                         uncertainty: bool = False, load: torch.Tensor | None = None) -> tuple[torch.Tensor, ...]:
         """(Ê [N, 3], the controller's joint angles q [N, 6] rad) in the dtype of ``pose``;
         ``q_in`` [N, 6] rad picks each row's IK branch (NaN rows: the identified branch);
         ``tool`` [N, 6] each row's TCP on the flange (NaN rows: the model's own). With
@@ -124,7 +124,8 @@ class HybridModule(torch.nn.Module):
         are of the position only). ``approach`` [N, 6] fixes the approach signs (NaN: from
         ``previous_pose``); ``q_previous`` [N, 6] rad the controller's angles at the target
         before (NaN rows: unknown). With ``uncertainty`` (and ``covariance`` set): + the std of
-        E − Ê [N, 1] mm last (``uncertainty.error_std``)."""
+        E − Ê [N, 1] mm last (``uncertainty.error_std``). ``load`` [N, 4]: each row's load (mass
+        kg, centre of mass mm on the flange; NaN rows: the reference) for a load-aware model."""
         dtype = pose.dtype
         pose = pose.to(torch.float64)
         prev = previous_pose.to(torch.float64) if previous_pose is not None else None
@@ -134,7 +135,7 @@ class HybridModule(torch.nn.Module):
         q_previous = q_previous.to(torch.float64) if q_previous is not None else None
         error, q, signs, learned, *turned = self.kinematic.parts(
             pose, prev, q_in, self.joint_range, tool, rotation, approach, q_previous,
-            (self.covariance, self.sigma2) if uncertainty else None)
+            (self.covariance, self.sigma2) if uncertainty else None, load=load)
         if len(self.nets):
             features = joint_features(q, signs if self.uses_previous else None)
             error = error + learned[:, None] * torch.stack([net(features) for net in self.nets]).mean(dim=0)
@@ -145,15 +146,21 @@ class HybridModule(torch.nn.Module):
 
     def forward(self, pose: torch.Tensor, previous_pose: torch.Tensor | None = None,
                 q_in: torch.Tensor | None = None, tool: torch.Tensor | None = None,
-                q_previous: torch.Tensor | None = None) -> torch.Tensor:
-        return self.error_and_joints(pose, previous_pose, q_in, tool, q_previous=q_previous)[0]
+                q_previous: torch.Tensor | None = None, load: torch.Tensor | None = None) -> torch.Tensor:
+        return self.error_and_joints(pose, previous_pose, q_in, tool, q_previous=q_previous, load=load)[0]
+
+    @property
+    def load_aware(self) -> bool:
+        """The identified arm's torques take each target's load (the graph's ``load`` input)."""
+        return self.kinematic.load_aware
 
 
 class _WithJoints(torch.nn.Module):
     """The exported graph: inputs ``pose`` [, ``previous_pose``], ``joints`` (deg, NaN rows:
     unknown) [, ``approach`` (with ``previous_pose``: the approach signs compensate settles,
     NaN = from ``previous_pose``)] [, ``tool`` (NaN rows: the model's own)] [,
-    ``previous_joints`` (deg, NaN rows: unknown; with ``previous_pose``)]; outputs ``error`` and
+    ``previous_joints`` (deg, NaN rows: unknown; with ``previous_pose``)] [, ``load`` ([N, 4], NaN
+    rows: the reference load; a load-aware model)]; outputs ``error`` and
     ``joints`` (deg, wrapped to [−180, 180)), so that compensate can check the joint ranges of
     the envelope with onnxruntime alone, and, when the orientation was identified from measured
     orientations, ``rotation_error`` (deg), and, with ``uncertainty``, ``error_std`` (mm, last)."""
@@ -165,6 +172,7 @@ class _WithJoints(torch.nn.Module):
         self.tool = tool
         self.previous_joints = previous_joints and module.uses_previous
         self.uncertainty = uncertainty
+        self.load = module.load_aware
 
     def forward(self, pose: torch.Tensor, *rest: torch.Tensor):
         rest = list(rest)  # (previous_pose,) joints, (approach,) (tool,) (previous_joints,): onnx_bytes' order
@@ -174,8 +182,9 @@ class _WithJoints(torch.nn.Module):
         approach = rest.pop(0) if self.module.uses_previous else None
         tool = rest.pop(0) if self.tool else None
         q_previous = rest.pop(0) * to_rad if self.previous_joints else None
+        load = rest.pop(0) if self.load else None
         error, q, *turned = self.module.error_and_joints(pose, previous_pose, joints, tool, self.module.orientation,
-                                                         approach, q_previous, self.uncertainty)
+                                                         approach, q_previous, self.uncertainty, load)
         std = [turned.pop()] if self.uncertainty else []
         return (error, wrap_angles(q) * (180.0 / math.pi), *(t * (180.0 / math.pi) for t in turned), *std)
 
@@ -240,7 +249,8 @@ class HybridModel(Estimator):
 
     def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
             q_deg: np.ndarray | None = None, tools: np.ndarray | None = None,
-            rotation_errors: np.ndarray | None = None, previous_q_deg: np.ndarray | None = None) -> "HybridModel":
+            rotation_errors: np.ndarray | None = None, previous_q_deg: np.ndarray | None = None,
+            campaigns: np.ndarray | None = None, loads: np.ndarray | None = None) -> "HybridModel":
         """Fit to commanded poses [N, 6], errors E = P − P_measured [N, 3], the pose visited before
         each row [N, 6] (None: visiting order unknown, no backlash), the controller's joint
         angles [N, 6] if the data has them, the TCP on the flange each row was measured with
@@ -248,7 +258,11 @@ class HybridModel(Estimator):
         it has those (``KinematicModel.fit``: then the graph outputs ``rotation_error``; one tool
         only); ``previous_q_deg``: the joint angles of the row visited before (see
         ``KinematicModel.fit``). The first row's tool becomes the model's own (``description_``:
-        the description with that tool; the card's ``tool``)."""
+        the description with that tool; the card's ``tool``). ``campaigns`` [N] int: each row's
+        measurement campaign, each with its own frame in the identification (``KinematicModel.fit``);
+        the model predicts in the first campaign's frame, its rows' errors moved there. ``loads``
+        [N, 4]: the load each row was measured with (mass kg, centre of mass mm on the flange): a
+        load-aware model (``KinematicModel.fit``; the graph's ``load`` input, the card's ``loads``)."""
         if self.residual not in ("auto", "always", "none"):
             raise ValueError(f"residual must be auto, always or none, not {self.residual!r}")
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
@@ -260,7 +274,11 @@ class HybridModel(Estimator):
             t0 = time.perf_counter()
             stage(names[0])
             self.kinematic_ = KinematicModel(self.description_, **(self.kinematic or {})).fit(
-                poses, errors, previous, q_deg, tools, rotation_errors, previous_q_deg)
+                poses, errors, previous, q_deg, tools, rotation_errors, previous_q_deg, campaigns=campaigns,
+                loads=loads)
+            errors = self.kinematic_.to_base(poses, errors, campaigns)
+            if self.kinematic_.campaign_frames_ is not None:
+                rotation_errors = None  # (position only with several campaigns)
             t1 = time.perf_counter()
             stage(names[1])
             self.nets_ = self._fit_residual(self.kinematic_.train_residual_)
@@ -268,13 +286,14 @@ class HybridModel(Estimator):
         arcs = joint_arcs(np.degrees(self.kinematic_.train_q_))  # the trained joints' arcs
         joint_range = [[math.floor(a * 1e3) / 1e3, math.ceil(b * 1e3) / 1e3] for a, b in arcs]
         self._finish(poses, errors, previous, q_deg, joint_range, tools=tools, rotation_errors=rotation_errors,
-                     previous_q_deg=previous_q_deg)
+                     previous_q_deg=previous_q_deg, loads=loads)
         self.fit_seconds_ = {"kinematic": t1 - t0, "residual": t2 - t1, "total": t2 - t0}
         return self
 
     def _finish(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None, q_deg: np.ndarray | None,
                 joint_range: list, envelope: dict | None = None, tools: np.ndarray | None = None,
-                rotation_errors: np.ndarray | None = None, previous_q_deg: np.ndarray | None = None) -> None:
+                rotation_errors: np.ndarray | None = None, previous_q_deg: np.ndarray | None = None,
+                loads: np.ndarray | None = None) -> None:
         """The graph from ``kinematic_`` and ``nets_``, with the trained ``joint_range`` [6][2]
         deg (the learned parts' validity) and the position ``envelope`` (default: of the rows);
         the training figures on the rows the identification kept (each row's ``tools``, and
@@ -288,19 +307,21 @@ class HybridModel(Estimator):
         tools = None if tools is None else tools[keep]
         if previous_q_deg is not None:
             previous_q_deg = np.asarray(previous_q_deg, dtype=np.float64).reshape(-1, 6)[keep]
+        loads = None if loads is None else np.asarray(loads, dtype=np.float64).reshape(-1, 4)[keep]
         self.joint_range_ = joint_range
         self.module_ = HybridModule(self.kinematic_.module_, self.nets_, learned_ranges(joint_range)).eval()
         self.envelope_ = envelope_of(poses) if envelope is None else envelope
         self.n_train_ = len(poses)
-        fitted = self.predict(poses, previous, q_deg, tools, previous_q_deg)
+        fitted = self.predict(poses, previous, q_deg, tools, previous_q_deg, loads=loads)
         self.train_stats_ = residual_stats(errors - fitted)
         # what the identified arm leaves at the rows evaluated as the graph does (at the IK of the
         # poses): the σ of error_std (uncertainty.parameter_covariance's residual)
-        arm = self.predict(poses, previous, q_deg, tools, previous_q_deg, arm_only=True) if self.nets_ else fitted
+        arm = (self.predict(poses, previous, q_deg, tools, previous_q_deg, arm_only=True, loads=loads) if self.nets_
+               else fitted)
         self.identified_residual_ = errors - arm
         # what the learned parts (ripple orders, residual networks) explain at the training rows,
         # per coordinate: the variance error_std adds where the graph leaves them out
-        physical = self.predict(poses, previous, q_deg, tools, previous_q_deg, physical_only=True)
+        physical = self.predict(poses, previous, q_deg, tools, previous_q_deg, physical_only=True, loads=loads)
         self.learned_var_ = float(np.mean((fitted - physical) ** 2))
         self.train_rotation_stats_ = None
         if self.orientation:
@@ -382,7 +403,7 @@ class HybridModel(Estimator):
     def predict(self, poses: np.ndarray, previous: np.ndarray | None = None,
                 joints: np.ndarray | None = None, tools: np.ndarray | None = None,
                 previous_joints: np.ndarray | None = None, arm_only: bool = False,
-                physical_only: bool = False) -> np.ndarray:
+                physical_only: bool = False, loads: np.ndarray | None = None) -> np.ndarray:
         """Ê [N, 3] mm for poses [N, 6], the poses visited before them (None: unknown), the
         controller's joint angles [N, 6] deg (None / NaN rows: unknown), which pick each row's
         IK branch (as the exported graph's ``joints`` input), and each row's TCP on the flange
@@ -390,7 +411,9 @@ class HybridModel(Estimator):
         [N, 6] deg at the poses visited before (None / NaN rows: unknown; ``previous_joints``).
         ``arm_only``: the identified arm's part alone (without the residual networks);
         ``physical_only``: its physical groups alone (as outside the trained joint arcs: no ripple
-        orders, no networks)."""
+        orders, no networks). ``loads`` [N, 4] (or [4]): each row's load, mass kg and centre of
+        mass mm on the flange (None / NaN rows: the reference load; the graph's ``load`` input);
+        ignored by a model that is not load-aware."""
         self._check_fitted()
         pose = torch.as_tensor(np.asarray(poses, dtype=np.float64).reshape(-1, 6))
         prev = None if previous is None else torch.as_tensor(np.asarray(previous, dtype=np.float64).reshape(-1, 6))
@@ -398,14 +421,16 @@ class HybridModel(Estimator):
         tool = None if tools is None else torch.as_tensor(np.asarray(tools, dtype=np.float64).reshape(-1, 6))
         q_prev = (None if previous_joints is None
                   else torch.as_tensor(np.radians(np.asarray(previous_joints, dtype=np.float64).reshape(-1, 6))))
+        load = (None if loads is None
+                else torch.as_tensor(np.broadcast_to(np.asarray(loads, dtype=np.float64), (len(pose), 4)).copy()))
         with torch.no_grad():
             if arm_only or physical_only:
                 m = self.module_
                 ranges = m.joint_range
                 if physical_only:  # (arcs that hold no angle: every row outside)
                     ranges = torch.stack([ranges[:, 0], ranges[:, 0] - 1.0], dim=1)
-                return m.kinematic.parts(pose, prev, q_in, ranges, tool, q_previous=q_prev)[0].numpy()
-            return self.module_(pose, prev, q_in, tool, q_prev).numpy()
+                return m.kinematic.parts(pose, prev, q_in, ranges, tool, q_previous=q_prev, load=load)[0].numpy()
+            return self.module_(pose, prev, q_in, tool, q_prev, load).numpy()
 
     @property
     def orientation(self) -> bool:
@@ -555,6 +580,9 @@ class HybridModel(Estimator):
         envelope = dict(self.envelope_)
         envelope["joints"] = self.joint_range_
         meta = {"method": self.label, "structure": self.structure, "envelope": envelope, "iterations": 2}
+        loads = self.loads_card()
+        if loads is not None:
+            meta["loads"] = loads
         if self._uncertainty():
             from .uncertainty import MAX_STD_FACTOR
 
@@ -582,7 +610,20 @@ class HybridModel(Estimator):
         return write_atomic(path, onnx_bytes(graph, meta, self.uses_previous, joints=True, joints_input=True,
                                              approach_input=self.uses_previous, tool_input=tool,
                                              previous_joints_input=graph.previous_joints, rotation=self.orientation,
-                                             std=std))
+                                             std=std, load_input=graph.load))
+
+    def loads_card(self) -> dict | None:
+        """The card's ``loads`` of a load-aware model (the data's loads: ``measured``, ``rows``,
+        ``reference``, ``extrapolate``), None for one fitted without loads."""
+        km = self.kinematic_
+        if getattr(km, "load_reference_", None) is None or not km.layout_.n:
+            return None
+        from .features import LOAD_EXTRAPOLATE
+
+        return {"measured": [[round(float(v), 6) for v in row] for row in km.measured_loads_],
+                "rows": [int(n) for n in km.load_rows_],
+                "reference": [round(float(v), 6) for v in km.load_reference_],
+                "extrapolate": LOAD_EXTRAPOLATE, "aware": True}
 
     def _uncertainty(self) -> bool:
         """Put the identification's parameter covariance into the graph (output ``error_std``):

@@ -25,7 +25,12 @@ from 0.55 to 0.52 mm mean):
   leave the rotation about the line between their TCPs, three not on a line none;
 * ``zero``: joint zero offsets (6);
 * ``compliance``: δq_j = c_j·τ_j(q), τ the gravity torques of the arm (masses in the robot
-  description) — joint stiffness;
+  description) — joint stiffness; with data measured at known loads (``fit``'s ``loads``: mass,
+  centre of mass on the flange per row) τ takes each row's load in place of the description's
+  payload, its torque exact from the mass and centre (``Arm.torque_terms``): the model is then
+  load-aware (``load_reference_``; the graph's ``load`` input), and being physical it carries the
+  stiffness it identified to loads between and beyond those measured (the compliance group is
+  then always kept: it is what carries the load);
 * ``backlash``: δq_j = −b_j·s_j, s_j the sign of joint j's motion from the previous pose
   (the visiting order) — lost motion; only when the order is known (``previous``);
 * ``ripple``: δq_j += a·sin(n·q_j) + b·cos(n·q_j) for (joint, order) pairs — gear
@@ -106,6 +111,10 @@ SIGN_DEADBAND = 2e-6
 # and unmodelled error), within LEVER_RANGE
 LEVER_MM = 1000.0
 LEVER_RANGE = (10.0, 10000.0)
+# the prior's unit sizes of a campaign's frame (rows measured in another tracker set-up: ``fit``'s
+# ``campaigns``), each after its own rigid registration: 10 mrad, 10 mm — a weak prior, the
+# frames are the data's to fix
+CAMPAIGN_RAD, CAMPAIGN_MM = 1e-2, 10.0
 
 
 def nominal_digest(description: RobotDescription) -> str:
@@ -319,6 +328,30 @@ def residual_variance(jac: torch.Tensor, covariance: torch.Tensor, sigma2: torch
     return sigma2 + ((jac @ covariance) * jac).sum(dim=-1).clamp(min=0.0)
 
 
+def campaign_frames(tcp: torch.Tensor, jac: torch.Tensor, sens: torch.Tensor, frames: torch.Tensor,
+                    rows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The identified TCPs [N, 3] seen in each row's campaign frame: R(ω_k)·tcp + t_k for the rows
+    of campaign k ≥ 1 (``rows`` [N, K − 1] one-hot; ``frames`` [6(K − 1)] rotation vectors rad and
+    offsets mm), with the Jacobian [N, 3, P] turned and the frames' columns [N, 3, 6(K − 1)]
+    appended (e_i × R·tcp, e_i; as the base group's, at θ), and the joint sensitivities [N, 3, 6]
+    turned."""
+    per_row = rows @ frames.reshape(-1, 6)  # [N, 6] (the first campaign's rows: 0)
+    turn = small_rotation(per_row[:, :3])  # [N, 3, 3]
+    turned = mv(turn, tcp)
+    n = tcp.shape[0]
+    eye = torch.eye(3, dtype=tcp.dtype)
+    cross = torch.linalg.cross(eye[None].expand(n, 3, 3), turned[:, None, :].expand(n, 3, 3)).transpose(1, 2)
+    cols = torch.cat([cross, eye.expand(n, 3, 3)], dim=2)  # [N, 3, 6]
+    cols = (cols[:, :, None, :] * rows[:, None, :, None]).reshape(n, 3, -1)
+    return turned + per_row[:, 3:], torch.cat([turn @ jac, cols], dim=2), turn @ sens
+
+
+def to_first_frame(measured: torch.Tensor, per_row: torch.Tensor) -> torch.Tensor:
+    """Measured points [N, 3] of rows in campaign frames (``per_row`` [N, 6]: each row's frame,
+    rotation vector rad and offset mm, as ``campaign_frames``) in the first campaign's: R(ω)ᵀ(m − t)."""
+    return mv(small_rotation(per_row[:, :3]).transpose(1, 2), measured - per_row[:, 3:])
+
+
 def _joint_columns(layout: Layout, q: torch.Tensor, signs: torch.Tensor, tau: torch.Tensor,
                    ripple_joint: torch.Tensor, ripple_order: torch.Tensor,
                    ripple_rows: torch.Tensor | None = None) -> dict:
@@ -407,9 +440,14 @@ class KinematicErrorModule(torch.nn.Module):
     """
 
     def __init__(self, arm: Arm, ik: torch.nn.Module, layout: Layout, theta: np.ndarray, use_previous: bool,
-                 tau_mean: np.ndarray | None = None):
+                 tau_mean: np.ndarray | None = None, load_reference: np.ndarray | None = None):
         super().__init__()
         self.arm, self.ik, self.layout, self.use_previous = arm, ik, layout, use_previous
+        # a load-aware model: the torques take each row's load (mass kg, centre of mass mm on the
+        # flange), a NaN row this one (None: the description's payload, not an input)
+        self.load_aware = load_reference is not None
+        self.register_buffer("load_reference", None if load_reference is None else torch.as_tensor(
+            np.asarray(load_reference, dtype=np.float64).reshape(4)))
         self.orientation = False  # the orientation part was identified from measured orientations
         self.register_buffer("theta", torch.as_tensor(np.asarray(theta, dtype=np.float64)))
         self.register_buffer("ripple_joint", torch.tensor([j for j, _ in layout.ripple], dtype=torch.long))
@@ -450,6 +488,18 @@ class KinematicErrorModule(torch.nn.Module):
                 "ripple_sum": torch.nn.functional.one_hot(self.ripple_joint, 6).to(torch.float64).T.contiguous(),
             }
 
+    def loads_of(self, load: torch.Tensor | None, n: int) -> torch.Tensor | None:
+        """Each row's load [n, 4] for the torques of a load-aware model (``load`` [n, 4]; None or
+        a row with a NaN: ``load_reference``); None for a model that is not load-aware."""
+        if not self.load_aware:
+            return None
+        reference = self.load_reference.to(torch.float64)[None, :].expand(n, 4)
+        if load is None:
+            return reference
+        load = load.to(torch.float64)
+        unknown = torch.isnan(load.sum(dim=1, keepdim=True))  # (a NaN anywhere in the row)
+        return torch.where(unknown, reference, load)
+
     def joints_of(self, pose: torch.Tensor, q_in: torch.Tensor | None = None) -> torch.Tensor:
         """q [N, 6] rad the controller turns to for float64 ``pose``: the nominal IK on the
         identified branch, or per row on the branch of ``q_in`` [N, 6] rad (the controller's
@@ -459,7 +509,8 @@ class KinematicErrorModule(torch.nn.Module):
     def parts(self, pose: torch.Tensor, previous: torch.Tensor | None = None, q_in: torch.Tensor | None = None,
               ranges: torch.Tensor | None = None, tool: torch.Tensor | None = None, rotation: bool = False,
               approach: torch.Tensor | None = None, q_previous: torch.Tensor | None = None,
-              uncertainty: tuple[torch.Tensor, torch.Tensor] | None = None) -> tuple[torch.Tensor, ...]:
+              uncertainty: tuple[torch.Tensor, torch.Tensor] | None = None,
+              load: torch.Tensor | None = None) -> tuple[torch.Tensor, ...]:
         """(Ê [N, 3], q [N, 6], signs [N, 6], learned [N]) for float64 poses (``q_in``: see
         ``joints_of``); with joint ``ranges`` [6, 2] rad the ripple terms are left out where q
         is outside them (learned = 0 there, else 1). ``tool`` [N, 6]: each row's TCP on the
@@ -470,7 +521,8 @@ class KinematicErrorModule(torch.nn.Module):
         from ``previous``; NaN = from ``previous`` (the contract's ``approach`` input).
         ``q_previous`` [N, 6] rad: the controller's angles at the target before (see
         ``approach_signs``). ``uncertainty`` (covariance [P, P], σ²): + the std of E − Ê [N, 1]
-        mm last (the contract's ``error_std``: ``uncertainty``'s module text). Evaluated
+        mm last (the contract's ``error_std``: ``uncertainty``'s module text). ``load`` [N, 4]:
+        each row's load (``loads_of``; a load-aware model's torques). Evaluated
         batch-last (``batch_last``): the same quantities as ``error_at`` and, for the std,
         ``jacobian`` with ``residual_variance``, to rounding."""
         at = None if tool is None else (lambda p: at_tool(p, tool, self.tool0))  # noqa: E731
@@ -483,7 +535,7 @@ class KinematicErrorModule(torch.nn.Module):
             signs = torch.where(torch.isnan(approach), signs, approach)
         learned = torch.ones_like(q[:, 0]) if ranges is None else inside_ranges(q, ranges)
         mask = None if ranges is None else learned
-        out = self._evaluate(q, signs, pose, mask, tool, rotation, uncertainty)
+        out = self._evaluate(q, signs, pose, mask, tool, rotation, uncertainty, load)
         return (out[0], q, signs, learned, *out[1:])
 
     def previous_joints(self, q: torch.Tensor, pose: torch.Tensor, previous: torch.Tensor,
@@ -514,7 +566,8 @@ class KinematicErrorModule(torch.nn.Module):
         return before(q).scatter(0, rows[:, None].expand(-1, q.shape[1]), solved)
 
     def _evaluate(self, q: torch.Tensor, signs: torch.Tensor, pose: torch.Tensor, learned: torch.Tensor | None,
-                  tool: torch.Tensor | None, rotation: bool, uncertainty) -> tuple[torch.Tensor, ...]:
+                  tool: torch.Tensor | None, rotation: bool, uncertainty,
+                  load: torch.Tensor | None = None) -> tuple[torch.Tensor, ...]:
         """(Ê [N, 3] [, r̂ [N, 3] rad] [, error_std [N, 1] mm]) at q [N, 6] reached with ``signs``
         for the commanded ``pose`` [N, 6]: ``error_at``'s quantities (and ``_error_std``),
         batch-last (``batch_last``: vectors [3, N], rotations [3, 3, N])."""
@@ -523,7 +576,8 @@ class KinematicErrorModule(torch.nn.Module):
         tools = None if tool is None else torch.where(torch.isnan(tool[:, :3]), self.tool0[:3], tool[:, :3]).t()
         end = c["end"] if tools is None else c["end_turn"] @ tools + c["end_shift"][:, None]
         f = bl.frames(c["turns"], c["offsets"], qt, end)
-        tau = bl.torque_terms(self.arm, f)  # [27, N] (the fit's ``torques``: of the identified chain at q)
+        # [27, N] (the fit's ``torques``: of the identified chain at q, with each row's load)
+        tau = bl.torque_terms(self.arm, f, self.loads_of(load, q.shape[0]))
         dq = self._joint_error(qt, st, tau - self.tau_mean[:, None], learned, zero=False)
         omega = f.axes(self.arm.axes)  # [6, 3, N]
         sens = bl.cross(omega, f.tcp[None] - f.origins_stacked(), 1)  # [6, 3, N]
@@ -617,15 +671,16 @@ class KinematicErrorModule(torch.nn.Module):
         t = torch.where(torch.isnan(tool[:, :3]), self.tool0[:3].expand(tool.shape[0], 3), tool[:, :3])
         return identified_end(self.arm, self.layout.unpack(self.theta), t)
 
-    def torques(self, q: torch.Tensor) -> torch.Tensor:
+    def torques(self, q: torch.Tensor, load: torch.Tensor | None = None) -> torch.Tensor:
         """The gravity torques [N, 6] the model uses: of its own chain at q, without the base
-        (gravity acts in the robot's frame, not in the registered one)."""
+        (gravity acts in the robot's frame, not in the registered one), with each row's ``load``
+        (``loads_of``)."""
         rot, org, _ = self.arm.frames(q, placements=self.placements, end=self.end)
-        return self.arm.torque_terms(rot, org)
+        return self.arm.torque_terms(rot, org, self.loads_of(load, q.shape[0]))
 
     def error_at(self, q: torch.Tensor, signs: torch.Tensor, position: torch.Tensor,
                  learned: torch.Tensor | None = None, tool: torch.Tensor | None = None,
-                 attitude: torch.Tensor | None = None):
+                 attitude: torch.Tensor | None = None, load: torch.Tensor | None = None):
         """Ê [N, 3] for commanded positions [N, 3] whose IK is q [N, 6], reached with ``signs``;
         ``learned`` [N] (1 keep, 0 drop) scales the gear-ripple terms, which do not extrapolate
         outside the trained joint ranges (the physical groups do); ``tool`` [N, 6]: each row's TCP
@@ -637,7 +692,7 @@ class KinematicErrorModule(torch.nn.Module):
         p["zero"] = torch.zeros_like(p["zero"])  # (folded into the placements)
         end = self.end if tool is None else self.tool_end(tool)
         rot, org, tcp = self.arm.frames(q, placements=self.placements, end=end)
-        tau = self.arm.torque_terms(rot, org) - self.tau_mean
+        tau = self.arm.torque_terms(rot, org, self.loads_of(load, q.shape[0])) - self.tau_mean
         # outside the trained arcs (``learned`` 0) every ripple order goes: fitted on what the
         # physical part leaves at the angles the data visited (low orders included: on the IPA
         # UR10 the orders 1-2 fitted on Series C's arcs made the other series worse, not better)
@@ -714,7 +769,8 @@ class KinematicModel(Estimator):
 
     def fit(self, poses: np.ndarray, errors: np.ndarray, previous: np.ndarray | None = None,
             q_deg: np.ndarray | None = None, tools: np.ndarray | None = None,
-            rotation_errors: np.ndarray | None = None, previous_q_deg: np.ndarray | None = None) -> "KinematicModel":
+            rotation_errors: np.ndarray | None = None, previous_q_deg: np.ndarray | None = None,
+            campaigns: np.ndarray | None = None, loads: np.ndarray | None = None) -> "KinematicModel":
         """Fit to commanded poses [N, 6], errors E = P − P_measured [N, 3] and (optionally) the
         pose visited before each row [N, 6] (``features.previous_poses`` of the rows in their
         visiting order; the row itself = came from HOME); ``q_deg`` [N, 6] are the controller's
@@ -727,7 +783,15 @@ class KinematicModel(Estimator):
         commanded → measured orientation, base frame, ``frames.rotation_error_deg``): the
         orientation is fitted too, in the same least squares (see ``lever_``), with the tool's
         rotation as three more parameters — with one tool only (data of several tools: position
-        only, ``orientation_`` False)."""
+        only, ``orientation_`` False). ``campaigns`` [N] int (0, 1, …): each row's measurement
+        campaign (tracker set-up); campaigns beyond the first get their own rigid frame (6
+        parameters each) in the same least squares, the robot's parameters shared
+        (``campaign_frames_``; ``to_base`` moves rows into the first campaign's frame, which the
+        model predicts in); position only. ``loads`` [N, 4]: the load each row was measured with
+        (mass kg, centre of mass cx, cy, cz mm in the flange frame): the compliance's torques take
+        it, the model is load-aware (``load_reference_``: the load of most rows, what a NaN row
+        of the graph's ``load`` input means; ``measured_loads_``, ``load_rows_``); None: every row
+        at the description's payload, as before loads existed."""
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
         errors = np.asarray(errors, dtype=np.float64).reshape(-1, 3)
         self.arm_ = Arm(self.description)
@@ -746,7 +810,9 @@ class KinematicModel(Estimator):
         several = self.tools_ is not None and len(np.unique(np.round(self.tools_[:, :3]), axis=0)) > 1
         # (no physical groups, e.g. dnn-joints' networks alone: nothing that could carry an orientation;
         # per-row tools: the identified ends are positions only)
-        self.orientation_ = (rotation_errors is not None and tools_t is None
+        campaigns = None if campaigns is None else np.asarray(campaigns, dtype=np.int64).reshape(-1)
+        several_campaigns = campaigns is not None and len(np.unique(campaigns)) > 1
+        self.orientation_ = (rotation_errors is not None and tools_t is None and not several_campaigns
                              and any(g != "tool_rotation" for g in self.groups))
         rotation_errors = rotation_errors if self.orientation_ else None
         groups = tuple(g for g in self.groups
@@ -760,6 +826,7 @@ class KinematicModel(Estimator):
                 f"parameters of {', '.join(groups)}: a model fitted on them would be worse than none; measure "
                 f"at least {-(-n_par // per_row)} poses", code=P505)
         self.use_previous_ = previous is not None  # the approach signs: backlash, and the residual nets' inputs
+        self._set_loads(loads, len(poses))
         q, s, tau, tcp, pose_t, poses, errors, nominal_rot, keep = self._prepare(poses, errors, previous, q_deg,
                                                                                 tools_t, at, previous_q_deg)
         if not keep.all():  # (a few singular / unreachable rows: left out, named by the caller)
@@ -776,7 +843,12 @@ class KinematicModel(Estimator):
             measured = (measured, small_rotation(turn) @ nominal_rot)
             self.lever_ = LEVER_MM
         layout = Layout(groups, list(self.ripple) if isinstance(self.ripple, list) else [])
-        theta, tau = self._fit_physical(layout, q, s, tau, measured)
+        self.campaign_frames_ = self.campaign_std_ = None
+        if several_campaigns and layout.n:
+            theta, tau, measured = self._fit_campaigns(layout, q, s, tau, measured, campaigns[keep])
+            errors = (tcp - measured).numpy()  # (in the first campaign's frame)
+        else:
+            theta, tau = self._fit_physical(layout, q, s, tau, measured)
         self.ripple_search_, self.ripple_rounds_, self.selection_, self.blocked_ = [], [], None, None
         region = self._regions(ik_poses[keep], q) if self.select == "blocked" and layout.n else None
         # (each training row's octant: the residual networks' check holds some out)
@@ -790,13 +862,13 @@ class KinematicModel(Estimator):
         self.layout_ = layout
         self.theta_ = theta
         self.module_ = KinematicErrorModule(self.arm_, self.ik_, layout, theta, self.use_previous_,
-                                            tau.mean(dim=0).numpy())
+                                            tau.mean(dim=0).numpy(), self.load_reference_)
         self.module_.orientation = self.orientation_
         with torch.no_grad():
             if self.orientation_:
-                fitted, turned = self.module_.error_at(q, s, pose_t[:, :3], attitude=nominal_rot)
+                fitted, turned = self.module_.error_at(q, s, pose_t[:, :3], attitude=nominal_rot, load=self.train_load_)
             else:
-                fitted = self.module_.error_at(q, s, pose_t[:, :3], tool=tools_t)
+                fitted = self.module_.error_at(q, s, pose_t[:, :3], tool=tools_t, load=self.train_load_)
         self.train_q_, self.train_signs_ = q.numpy(), s.numpy()
         self.train_residual_ = errors - fitted.numpy()
         self.train_rotation_residual_ = (np.asarray(rotation_errors).reshape(-1, 3) - np.degrees(turned.numpy())
@@ -880,7 +952,8 @@ class KinematicModel(Estimator):
             q = self.ik_(pose_t if at is None else at(pose_t)) if q_in is None else q_in
             ends = None if tools_t is None else self.arm_.flange[:3, 3] + mv(self.arm_.flange[:3, :3], tools_t[:, :3])
             rot, org, tcp = self.arm_.frames(q, end=ends)
-            tau = self.arm_.torque_terms(rot, org)
+            loads = getattr(self, "_loads_in", None)  # (fit's rows' loads: ``_set_loads``)
+            tau = self.arm_.torque_terms(rot, org, loads)
             nominal_rot = mc(rot[:, -1], self.arm_.end[:3, :3])  # the nominal TCP's rotation at q
             miss = torch.linalg.norm(tcp - pose_t[:, :3], dim=1).numpy()
             # the nominal arm at q must land on the pose: else out of reach (IK) or the joint
@@ -905,7 +978,9 @@ class KinematicModel(Estimator):
             if len(bad):
                 kt = torch.as_tensor(keep)
                 q, s, tau, tcp, pose_t, nominal_rot = q[kt], s[kt], tau[kt], tcp[kt], pose_t[kt], nominal_rot[kt]
+                loads = None if loads is None else loads[kt]
                 poses, errors = poses[keep], errors[keep]
+            self.train_load_ = loads  # [N, 4] the kept rows' loads (None: not load-aware)
         return q, s, tau, tcp, pose_t, poses, errors, nominal_rot, keep
 
     def _prior_scales(self, layout: Layout, tau: torch.Tensor) -> np.ndarray:
@@ -942,8 +1017,9 @@ class KinematicModel(Estimator):
         parameters ``free`` (bool [P]); the others keep their values, and its ``ripple_rows``
         (see :func:`jacobian`)."""
         arm = self.arm_
-        if weights is None:  # the fit's own prior: every parameter free, toward 0
-            w2 = self.prior_ / self._prior_scales(layout, tau) ** 2
+        campaign = self._campaign_parameters()
+        if weights is None:  # the fit's own prior: every parameter free, toward 0 (and the campaigns' frames)
+            w2 = self.prior_ / np.r_[self._prior_scales(layout, tau), self._campaign_scales()] ** 2
             free, anchor = slice(None), None
         else:
             w2 = np.asarray(weights, float)
@@ -962,8 +1038,11 @@ class KinematicModel(Estimator):
                 jac, sens = torch.cat([jac, lever * jac_r], dim=1), torch.cat([sens, lever * sens_r], dim=1)
                 r = r.numpy().reshape(-1)
             else:
-                tcp, jac, sens = jacobian(arm, layout, torch.as_tensor(t), q, s, tau, self._tool_rows,
-                                          ripple_rows=ripple_rows)
+                tt = torch.as_tensor(t)
+                tcp, jac, sens = jacobian(arm, layout, tt[:len(t) - campaign] if campaign else tt, q, s, tau,
+                                          self._tool_rows, ripple_rows=ripple_rows)
+                if campaign:  # (rows of other campaigns: their frame's turn and shift after the arm)
+                    tcp, jac, sens = campaign_frames(tcp, jac, sens, tt[len(t) - campaign:], self._campaign_rows)
                 r = (tcp - measured).numpy().reshape(-1)
             d = away(t)
             return r, jac.numpy().reshape(len(r), -1), sens.numpy(), float(r @ r + (w2f * d * d).sum())
@@ -996,6 +1075,77 @@ class KinematicModel(Estimator):
         self._state = (r, jac, sens)
         return theta
 
+    def _campaign_parameters(self) -> int:
+        """How many campaign-frame parameters the fit carries now (6 per campaign beyond the first)."""
+        rows = getattr(self, "_campaign_rows", None)
+        return 0 if rows is None else 6 * rows.shape[1]
+
+    def _campaign_scales(self) -> np.ndarray:
+        return np.tile(np.r_[np.full(3, CAMPAIGN_RAD), np.full(3, CAMPAIGN_MM)], self._campaign_parameters() // 6)
+
+    def _fit_campaigns(self, layout: Layout, q, s, tau, measured: torch.Tensor,
+                       campaigns: np.ndarray) -> tuple[np.ndarray, torch.Tensor, torch.Tensor]:
+        """The physical fit with a rigid frame per campaign beyond the first (``campaigns`` [N]
+        int), the robot's parameters shared: (θ of ``layout``, torques, the measured points
+        moved into the first campaign's frame). Sets ``campaign_frames_`` [K, 6] (rotation
+        vector rad, offset mm: the first campaign's rows ↦ each campaign's, the first zeros),
+        ``campaign_std_`` [K, 6] (the posterior std, σ²(JᵀJ + W)⁻¹, the robot's parameters
+        with them) and ``campaign_codes_`` (the campaigns in the order of those rows)."""
+        codes, index = np.unique(campaigns, return_inverse=True)
+        onehot = torch.nn.functional.one_hot(torch.as_tensor(index), len(codes)).to(torch.float64)[:, 1:]
+        self._campaign_rows = onehot
+        try:
+            theta, tau = self._fit_physical(layout, q, s, tau, measured)
+            r, jac, _ = self._state
+            scale = np.r_[self._prior_scales(layout, tau), self._campaign_scales()]
+            jtj = jac.T @ jac
+            a_scaled = scale[:, None] * (jtj + np.diag(self.prior_ / scale**2)) * scale[None, :]
+            a_inv = scale[:, None] * np.linalg.pinv(a_scaled, hermitian=True) * scale[None, :]
+            sigma2 = float(r @ r) / max(len(r) - float(np.trace(a_inv @ jtj)), 1.0)
+            std = np.sqrt(np.clip(np.diag(a_inv)[layout.n:], 0.0, None) * sigma2)
+        finally:
+            self._campaign_rows = None
+        frames = np.vstack([np.zeros(6), theta[layout.n:].reshape(-1, 6)])
+        self.campaign_frames_, self.campaign_std_ = frames, np.vstack([np.zeros(6), std.reshape(-1, 6)])
+        self.campaign_codes_ = codes
+        theta = theta[:layout.n].copy()
+        measured = to_first_frame(measured, torch.as_tensor(frames[index]))
+        self._levenberg_marquardt(layout, theta, q, s, tau, measured, 0)  # (the state of the fit without the frames)
+        return theta, tau, measured
+
+    def to_base(self, poses: np.ndarray, errors: np.ndarray, campaigns: np.ndarray | None) -> np.ndarray:
+        """E [N, 3] of rows of the campaigns ``campaigns`` [N] int (``fit``'s codes) moved into the
+        first campaign's frame — the frame the model predicts in — by the fitted campaign frames
+        (``errors`` as they are without campaigns)."""
+        frames = getattr(self, "campaign_frames_", None)
+        if frames is None or campaigns is None:
+            return np.asarray(errors, dtype=np.float64)
+        index = np.searchsorted(self.campaign_codes_, np.asarray(campaigns, dtype=np.int64))
+        if not (index < len(self.campaign_codes_)).all() or not (self.campaign_codes_[np.minimum(
+                index, len(self.campaign_codes_) - 1)] == campaigns).all():
+            raise ValueError("rows of a campaign the fit did not see")
+        p = np.asarray(poses, dtype=np.float64).reshape(-1, 6)[:, :3]
+        measured = torch.as_tensor(p - np.asarray(errors, dtype=np.float64).reshape(-1, 3))
+        with torch.no_grad():
+            return p - to_first_frame(measured, torch.as_tensor(frames[index])).numpy()
+
+    def _set_loads(self, loads: np.ndarray | None, n: int) -> None:
+        """The rows' loads for the fit (``fit``'s ``loads``): ``_loads_in`` [n, 4] tensor, the
+        distinct loads ``measured_loads_`` [K, 4] with their row counts ``load_rows_``, and the
+        reference ``load_reference_`` [4] (the load of most rows, the heaviest of a tie); all None
+        without loads."""
+        self._loads_in = self.load_reference_ = self.measured_loads_ = self.load_rows_ = None
+        if loads is None:
+            return
+        loads = np.asarray(loads, dtype=np.float64).reshape(-1, 4)
+        if len(loads) != n or not np.isfinite(loads).all() or (loads[:, 0] < 0).any():
+            raise ValueError("loads must be [N, 4] finite numbers (mass kg >= 0, centre of mass mm), one row per pose")
+        distinct, counts = np.unique(np.round(loads, 6), axis=0, return_counts=True)
+        self.measured_loads_, self.load_rows_ = distinct, counts
+        best = np.lexsort((distinct[:, 0], counts))[-1]  # (most rows, then the heaviest)
+        self.load_reference_ = distinct[best]
+        self._loads_in = torch.as_tensor(loads)
+
     def _first_prior(self) -> float:
         """The prior's weight before any fit: ``prior`` as given, the weak floor for "auto"."""
         return WEAK_PRIOR if self.prior == "auto" else float(self.prior)
@@ -1004,7 +1154,7 @@ class KinematicModel(Estimator):
         """(θ, the torques of the identified chain) of the groups in ``layout`` (with a fixed
         ripple list, those orders too): the first fit, the orientation's lever, the prior's
         weight (``prior_``) and the torques refitted."""
-        theta = np.zeros(layout.n)
+        theta = np.zeros(layout.n + self._campaign_parameters())
         self.prior_ = self._first_prior()
         if layout.n:
             theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
@@ -1022,14 +1172,15 @@ class KinematicModel(Estimator):
                 # not explain counts as noise): weight = σ̂². Directions the data hardly see
                 # stay near nominal instead of taking up what is particular to these poses
                 r = self._state[0]
-                self.prior_ = max(float(r @ r) / max(len(r) - layout.n, 1), WEAK_PRIOR)
+                self.prior_ = max(float(r @ r) / max(len(r) - len(theta), 1), WEAK_PRIOR)
                 theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
         # the torques of the identified chain (what the exported module computes, one forward
         # kinematics for everything), refitted twice: they depend on θ only weakly
         for _ in range(2 if layout.n and ("compliance" in layout.groups or "coupling" in layout.groups) else 0):
-            module = KinematicErrorModule(self.arm_, self.ik_, layout, theta, self.use_previous_, tau.mean(dim=0).numpy())
+            module = KinematicErrorModule(self.arm_, self.ik_, layout, theta[:layout.n], self.use_previous_,
+                                          tau.mean(dim=0).numpy(), getattr(self, "load_reference_", None))
             with torch.no_grad():
-                tau = module.torques(q)
+                tau = module.torques(q, getattr(self, "train_load_", None))
             theta = self._levenberg_marquardt(layout, theta, q, s, tau, measured, self.iterations)
         return theta, tau
 
@@ -1067,7 +1218,8 @@ class KinematicModel(Estimator):
         cv = self._blocked(layout, theta, q, region)
         weights = self.prior_ / self._prior_scales(layout, tau) ** 2
         slices = layout.slices()
-        optional = [g for g in OPTIONAL_GROUPS if g in layout.groups]
+        optional = [g for g in OPTIONAL_GROUPS if g in layout.groups
+                    and not (g == "compliance" and getattr(self, "load_reference_", None) is not None)]
         scores = []
         for k in range(len(optional) + 1):
             for drop in combinations(optional, k):

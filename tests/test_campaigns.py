@@ -1,0 +1,131 @@
+"""Several measurement campaigns in one fit (``postproc train a.csv c.csv``, a ``campaign`` column).
+
+One simulated KR 500 is measured twice: campaign A (120 rows, Y < 0) in the robot base frame,
+campaign C (120 rows, Y > 0) by a tracker set up elsewhere (its points turned by ~1 rad and
+shifted by metres). Each campaign gets its own tracker → base frame inside the identification,
+the robot's parameters shared: the model of both must be as good, at fresh targets over both
+regions, as a model of the same 240 rows measured in one frame; one file holding both set-ups
+without naming them is refused with what to do (P518), not "register them".
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from postproc.calibration.planning import latin_hypercube
+from postproc.calibration.simulator import SimulatedRobot
+from postproc.cli import main
+from postproc.core.frames import small_transform
+from postproc.core.registration import register_measurements
+from postproc.measurements.csv import measurement_csv, read_measurements
+from postproc.model.compensator import load_model
+from postproc.model.training.features import previous_poses
+from postproc.model.training.hybrid import HybridModel
+from postproc.robot.description import load_description
+
+TRACKER = small_transform(np.array([0.3, -0.2, 1.0]), np.array([2500.0, -800.0, 300.0]))  # base → tracker
+TRAIN = ["--method", "kinematic", "--val-fraction", "0", "--seed", "0"]
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    kr500 = load_description()
+    sim = SimulatedRobot(kr500, seed=3)
+    pa = latin_hypercube(120, box=(1600, 2300, -600, 0, 600, 1400), seed=1)
+    pc = latin_hypercube(120, box=(1600, 2300, 0, 600, 600, 1400), seed=2)
+    ma, mc = sim.measure(pa, rng_seed=1), sim.measure(pc, rng_seed=2)
+    mc_tracker = mc @ TRACKER[:3, :3].T + TRACKER[:3, 3]
+    folder = tmp_path_factory.mktemp("campaigns")
+    a, c = folder / "a.csv", folder / "c.csv"
+    a.write_text(measurement_csv(pa, ma, metadata={"frame": "base"}))
+    c.write_text(measurement_csv(pc, mc_tracker, metadata={"frame": "tracker"}))
+    both = np.r_[pa, pc], np.r_[ma, mc_tracker]
+    unnamed, named = folder / "both.csv", folder / "named.csv"
+    unnamed.write_text(measurement_csv(*both, metadata={"frame": "tracker"}))
+    named.write_text(measurement_csv(*both, metadata={"frame": "tracker"})
+                     .replace("z_meas\n", "z_meas,campaign\n", 1))
+    lines = named.read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("x,"))
+    lines[head + 1:] = [f"{line},{'day1' if i < len(pa) else 'day2'}" for i, line in enumerate(lines[head + 1:])]
+    named.write_text("\n".join(lines) + "\n")
+    targets = latin_hypercube(150, box=(1650, 2250, -550, 550, 650, 1350), seed=9)
+    # the reference: the same 240 rows measured in one frame (the base), one campaign
+    reference = HybridModel(kr500, residual="none", seed=0).fit(both[0], both[0][:, :3] - np.r_[ma, mc],
+                                                                 previous_poses(both[0]))
+    return {"sim": sim, "a": a, "c": c, "unnamed": unnamed, "named": named, "targets": targets,
+            "true": sim.true_error(targets), "reference": reference, "folder": folder}
+
+
+def _held_out(scene, predicted: np.ndarray, rigid: bool = False) -> float:
+    """Mean |E − Ê| mm at the fresh targets (``rigid``: after the rigid fit of the model's
+    positions to the true ones, for a model in a registered frame)."""
+    targets, true = scene["targets"], scene["true"]
+    if not rigid:
+        return float(np.linalg.norm(true - predicted, axis=1).mean())
+    positions, actual = targets[:, :3] - predicted, targets[:, :3] - true
+    moved = register_measurements(actual, positions, np.ones(len(targets), bool))[0]  # (the model's onto the true)
+    return float(np.linalg.norm(actual - moved, axis=1).mean())
+
+
+def test_one_file_with_two_set_ups_is_refused_with_what_to_do(scene, capsys):
+    out = scene["folder"] / "refused.onnx"
+    assert main(["train", str(scene["unnamed"]), "--register", "-o", str(out), *TRAIN]) == 2
+    err = capsys.readouterr().err
+    assert "P518" in err and "do not fit one tracker frame" in err and "campaign" in err
+    assert "register them" not in err  # (--register was given)
+    assert not out.exists()
+
+
+def test_two_files_are_two_campaigns_in_one_fit(scene, capsys):
+    out = scene["folder"] / "two.onnx"
+    assert main(["train", str(scene["a"]), str(scene["c"]), "--register", "-o", str(out), *TRAIN]) == 0
+    printed = capsys.readouterr().out
+    assert "campaign  a:" in printed and "campaign  c:" in printed
+    model = load_model(out)
+    targets = scene["targets"]
+    reference = _held_out(scene, scene["reference"].predict(targets, previous_poses(targets)))
+    mine = _held_out(scene, model.predict(targets, previous_poses(targets)))
+    # in the base frame (campaign a's: it is in the base), as good as one campaign of the same rows
+    assert reference < 0.05
+    assert mine < 1.5 * reference + 0.01, (mine, reference)
+    card = model.metadata["campaigns"]
+    assert [c["name"] for c in card] == ["a", "c"] and [c["rows"] for c in card] == [120, 120]
+    assert "registration" not in card[0] and card[0]["frame"]["reference"]
+    c = card[1]
+    # the registration found the tracker's frame (its inverse: tracker → base), the fit refined it, with a std
+    turn = np.radians(c["registration"]["rotation_deg"])
+    assert np.allclose(turn, -np.array([0.3, -0.2, 1.0]) @ small_transform(np.array([0.3, -0.2, 1.0]),
+                                                                               np.zeros(3))[:3, :3], atol=2e-3)
+    assert not c["frame"]["reference"] and all(s > 0 for s in c["frame"]["offset_std_mm"])
+    assert max(abs(v) for v in c["frame"]["offset_mm"]) < 5.0
+
+
+def test_a_campaign_column_names_the_set_ups(scene):
+    data = read_measurements(scene["named"])
+    assert list(dict.fromkeys(data.campaigns)) == ["day1", "day2"]
+    out = scene["folder"] / "named.onnx"
+    assert main(["train", str(scene["named"]), "--register", "-o", str(out), *TRAIN]) == 0
+    model = load_model(out)
+    assert [c["name"] for c in model.metadata["campaigns"]] == ["day1", "day2"]
+    targets = scene["targets"]
+    # both campaigns registered (the model's frame is day1's registration): scored after a rigid fit
+    reference = _held_out(scene, scene["reference"].predict(targets, previous_poses(targets)), rigid=True)
+    mine = _held_out(scene, model.predict(targets, previous_poses(targets)), rigid=True)
+    assert mine < 1.5 * reference + 0.01, (mine, reference)
+
+
+def test_without_campaigns_the_same_rows_fit_badly(scene):
+    """The wall the campaigns remove: each set-up registered alone, then fitted as one frame."""
+    kr500 = load_description()
+    data = read_measurements(scene["named"])
+    day = data.campaigns == "day2"
+    measured = data.measured.copy()
+    for mask in (day, ~day):
+        measured[mask] = register_measurements(data.poses[mask, :3], data.measured[mask], np.ones(mask.sum(), bool))[0]
+    poses = data.poses
+    model = HybridModel(kr500, residual="none", seed=0).fit(poses, poses[:, :3] - measured, previous_poses(poses))
+    targets = scene["targets"]
+    one_frame = _held_out(scene, model.predict(targets, previous_poses(targets)), rigid=True)
+    campaigns = HybridModel(kr500, residual="none", seed=0).fit(poses, poses[:, :3] - measured, previous_poses(poses),
+                                                                campaigns=day.astype(int))
+    assert _held_out(scene, campaigns.predict(targets, previous_poses(targets)), rigid=True) < one_frame / 4
