@@ -40,7 +40,7 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--fresh", action="store_true", help="check the configured source → output pairs")
     p.add_argument("--fix", action="store_true", help="with --fresh: rewrite stale or missing outputs")
     add(p, "model", "config", "strict", "ignore", "max_correction_mm", "max_std_mm", "iterations", "base", "tool",
-        "robroot", "external", "robot", "registers",
+        "robroot", "external", "robot", "registers", "load", "payloads",
         helps={"model": "the configured ONNX model (default: settings, else models/default.onnx)",
                "strict": "warnings are findings too (exit 1)",
                "max_correction_mm": "corrections above this are findings (default 5 mm)",

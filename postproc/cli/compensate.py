@@ -47,8 +47,8 @@ def add_parser(sub, common, formatter) -> None:
                    "the input's tree mirrored below it")
     add_settings_file(p)
     add(p, "model", "config", "base", "tool", "robroot", "external", "dialect", "iterations", "max_correction_mm",
-        "max_std_mm", "strict", "orientation", "robot", "fill_partial", "force", "registers",
-        helps={"robot": ROBOT_HELP + ": a model trained on another is refused (its 'robot' metadata), unless "
+        "max_std_mm", "strict", "orientation", "robot", "fill_partial", "force", "registers", "load",
+        "payloads", helps={"robot": ROBOT_HELP + ": a model trained on another is refused (its 'robot' metadata), unless "
                "--force; with a description file also the nominal robot's IK reach (P309)"})
     p.add_argument("--in-place", action="store_true", help="allow -o to be the input itself (overwrite it)")
     p.set_defaults(run=run)

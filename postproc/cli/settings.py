@@ -45,6 +45,13 @@ ARGUMENTS: dict[str, tuple[tuple[str, ...], dict]] = {
         "a controller backup's registers (Fanuc posreg.va / numreg.va): 'backup' uses the values the backup holds "
         "where no program read writes the register, and says so (P234); 'runtime' makes them run-time values "
         "(a PLC, vision or KAREL writes them){default}"))),
+    "load": (("--load",), dict(metavar="MASS[,CX,CY,CZ]", help=(
+        "the payload in force where the program sets none (kg; centre of mass in mm in the flange frame, default "
+        "0,0,0){default}; only a model that takes the load uses it (without it: the load the model was measured "
+        "with, said once: P339)"))),
+    "payloads": (("--payload",), dict(metavar="N=MASS[,CX,CY,CZ]", action="append", help=(
+        "payload schedule N of the controller, which a Fanuc program selects with PAYLOAD[N] (repeatable){default}; "
+        "without it such targets are left as written where the model takes the load (P235)"))),
     "iterations": (("--iterations",), dict(metavar="K", help=(
         "fixed-point iterations c ← P + Ê(c) (default: the model's)"))),
     "max_correction_mm": (("--max-correction",), dict(metavar="MM", help=(

@@ -104,7 +104,8 @@ def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, comm
         r = rows[members]
         same = ((t.poses[r] == t.poses[r[0]]) | (np.isnan(t.poses[r]) & np.isnan(t.poses[r[0]]))).all() and \
             (t.frame[r] == t.frame[r[0]]).all() and (t.twin[r] >= 0).sum() == len(r) - 1 and \
-            (selection.tool is None or (selection.tool[members] == selection.tool[members[0]]).all())
+            (selection.tool is None or (selection.tool[members] == selection.tool[members[0]]).all()) and \
+            _same_load(selection, members)
         if same:
             approach.append(g)
     settled, middles, notes = [], [], []
@@ -148,6 +149,14 @@ def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, comm
                       np.asarray(middles, float).reshape(-1, 3), notes, moved)
 
 
+def _same_load(selection: Selection, members: np.ndarray) -> bool:
+    """The runs (positions ``members`` in the selection) carry one payload (or the model takes none)."""
+    load = selection.load
+    if load is None:
+        return True
+    return bool(np.all((load[members] == load[members[0]]) | (np.isnan(load[members]) & np.isnan(load[members[0]]))))
+
+
 def _cause(program: Program, selection: Selection, members: np.ndarray) -> tuple[str, str]:
     """Why the runs (positions ``members`` in the selection) of one set of numbers need other
     corrections, the one cause that applies, and the remedy that works for it."""
@@ -157,6 +166,8 @@ def _cause(program: Program, selection: Selection, members: np.ndarray) -> tuple
         return ("its runs are in other frames (bases)", "give each frame its own point")
     if selection.tool is not None and (selection.tool[members] != selection.tool[members[0]]).any():
         return ("its runs are made with other tools", "give each tool its own point")
+    if not _same_load(selection, members):
+        return ("its runs carry other payloads (the model takes the load)", "give each payload its own point")
     if not ((t.poses[r] == t.poses[r[0]]) | (np.isnan(t.poses[r]) & np.isnan(t.poses[r[0]]))).all():
         return ("the point is copied into other points with other numbers (or moved to with other components)",
                 "give each use its own point")

@@ -81,10 +81,12 @@ class _CommandStream:
         # the X/Y/Z tokens as written: the poses less what the program adds to them (Targets.offset)
         self._written = t.poses[rows, :3] if t.offset is None else t.poses[rows, :3] - t.offset[rows]
         self._bases = model_bases(program, model)
+        self._starts = _relative_starts(t.relative, rows)
         if computed is not None:  # (commands and joints of every row, from the caller)
             chunks = iter([(0, computed.commanded, computed.joints)])
         else:  # checks ``iterations`` here, not on the thread
-            chunks = model.command_chunks(poses, iterations, joints=selection.joints, tool=selection.tool, with_joints=wanted,
+            chunks = model.command_chunks(poses, iterations, joints=selection.joints, tool=selection.tool, load=selection.load,
+                                          with_joints=wanted,
                                           orientation=orientation, chain=chain, std=self.std is not None,
                                           order=selection.order)
         # (made on this thread: the CLI's progress switch is this thread's context)
@@ -111,11 +113,15 @@ class _CommandStream:
                     commands = commands[:, :3]
                 correction = commands - poses[start:end, :3]
                 # back into each target's own frame: only the rotation of its base applies to a shift
+                self.commanded[start:end] = commands[:, :3]
+                if self._starts is not None:  # (a relative target moves from its start's command: less its correction)
+                    at = np.flatnonzero(self._starts[start:end] >= 0)
+                    froms = self._starts[start:end][at]
+                    correction[at] -= self.commanded[froms] - poses[froms, :3]
                 local = np.empty_like(correction)
                 frame_of = self._frame_of[start:end]
                 for f, here in frames.frame_groups(frame_of):
                     local[here] = frames.rotate_vectors(frames.inverse(self._bases[f]), correction[here])
-                self.commanded[start:end] = commands[:, :3]
                 if self.joints is not None and q is not None:
                     self.joints[start:end] = q
                 self.new_xyz[start:end, :3] = self._written[start:end] + local
@@ -155,6 +161,23 @@ class _CommandStream:
         if self._error is not None:
             raise self._error
         return self.commanded, self.new_xyz, self.joints
+
+
+def _relative_starts(relative: np.ndarray | None, rows: np.ndarray) -> np.ndarray | None:
+    """[n] for each of ``rows`` (the selection) the position in ``rows`` of the target a relative
+    target moves from (``Targets.relative``), -1 where none or where that target is left as
+    written (its command is its pose: nothing to take off); None: no relative target."""
+    if relative is None:
+        return None
+    mine = relative[rows]
+    if not (mine >= 0).any():
+        return None
+    position = np.full(len(relative), -1, np.int64)
+    position[rows] = np.arange(len(rows))
+    out = np.where(mine >= 0, position[np.maximum(mine, 0)], -1)
+    # (a start's command is known before the target that moves from it: the start runs first)
+    assert (out < np.arange(len(rows))).all()
+    return out
 
 
 def _rewrite_file(program: Program, index: int, text: str, rows: np.ndarray, stream: _CommandStream) -> str:

@@ -35,14 +35,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.diagnostics import (
-    P103, P212, P213, P216, P218, P230, P231, P301, P302, P303, P304, P305, P309, P310, P313, P321, P336, P340, P401,
+    P103, P212, P213, P216, P218, P230, P231, P235, P236, P301, P302, P303, P304, P305, P309, P310, P313, P321, P336,
+    P338, P339, P340, P401,
     P408, P409, P517, Diagnostic, PostprocError, line_col,
 )
 from ..model.compensator import Compensator
 from ..model.settle import Inside, Order
 from ..programs import Program
 from ..programs.base_poses import robot_base_poses
-from ..programs.locate import collect, where
+from ..core.diagnostics import listed
+from ..programs.locate import collect, motion_at, where
 from ..robot.description import is_description_file, load_description, robot_name
 from ..settings import Settings
 
@@ -66,6 +68,14 @@ class Selection:
     # the rows' predecessors in execution order (positions in ``rows``; None: row after row)
     order: Order | None = None
     base_poses: np.ndarray | None = field(default=None, repr=False)  # every row's robot-base pose (order)
+    # every program row's payload [N, 4] for a model that takes the load (NaN: its reference load;
+    # None: the model takes none, or no row has one): :func:`load_rule`
+    loads: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def load(self) -> np.ndarray | None:
+        """[len(rows), 4]: the model's input ``load`` at the selected rows (None: not given)."""
+        return None if self.loads is None else self.loads[self.rows]
 
     def without(self, drop: np.ndarray, code: str) -> "Selection":
         """The selection without the positions ``drop`` (left as written for ``code``)."""
@@ -75,7 +85,8 @@ class Selection:
         if len(drop):
             left[code] = np.concatenate([left.get(code, np.zeros(0, int)), self.rows[drop]])
         return Selection(self.rows[keep], self.poses[keep], None if self.joints is None else self.joints[keep],
-                         None if self.tool is None else self.tool[keep], left, base_poses=self.base_poses)
+                         None if self.tool is None else self.tool[keep], left, base_poses=self.base_poses,
+                         loads=self.loads)
 
 
 @dataclass
@@ -374,6 +385,79 @@ def start_poses(program: Program, model: Compensator, selection: Selection) -> n
     return out
 
 
+def _load_text(load) -> str:
+    m, x, y, z = (float(v) for v in load)
+    return f"{m:g} kg at ({x:g}, {y:g}, {z:g}) mm"
+
+
+def load_rule(program: Program, model: Compensator, settings: Settings,
+              use: np.ndarray) -> tuple[np.ndarray | None, list[Diagnostic], dict]:
+    """The payload at each target, for the model (one rule for every dialect: the analysis gives
+    each row's, ``Targets.load``): (every row's load [N, 4] or None, findings, rows left by code).
+
+    A model without the ``load`` input: nothing changes (every target is compensated for the load
+    it was measured with), said once where the program sets a payload (P236, a note). A model that
+    takes it: a row whose payload the program sets gets it; one where the program sets none gets
+    ``--load`` (settings ``load``), else NaN (the model's reference load: said once, P339); a row
+    whose payload is not statically known is left as written (P235, at each cause, naming the
+    motions); one the model cannot extrapolate to (``load_reach``) too (P338). Narrows ``use``."""
+    t = program.targets
+    out: list[Diagnostic] = []
+    rows = np.flatnonzero(use)
+    if not len(rows):
+        return None, out, {}
+    if not model.takes_load:  # (said where the program changes its payload: two known ones or more)
+        if t.load is not None:
+            sets = rows[~np.isnan(t.load[rows]).any(axis=1)]
+            loads = np.unique(t.load[sets], axis=0)
+            if len(loads) > 1:
+                said = ", ".join(_load_text(v) for v in loads[:3]) + (" …" if len(loads) > 3 else "")
+                out.append(Diagnostic(*where(program, int(sets[0])), P236,
+                                      f"the program changes its payload ({said}) but the model does not take a load: "
+                                      f"its {len(sets)} target(s) are compensated for the load the model was measured "
+                                      "with", "note"))
+        return None, out, {}
+    loads = np.full((len(t), 4), np.nan) if t.load is None else t.load.copy()
+    cause = np.full(len(t), -1, np.int32) if t.load_cause is None else t.load_cause
+    unset = np.isnan(loads).any(axis=1) & (cause < 0)
+    stated = settings.reading.load
+    if stated is not None:
+        loads[unset] = stated
+    elif (unset & use).any():
+        first = int(np.flatnonzero(unset & use)[0])
+        ref = model.reference_load
+        ref_text = f" ({_load_text(ref)})" if ref is not None else ""
+        out.append(Diagnostic(*where(program, first), P339,
+                              f"the program does not set the payload before {int((unset & use).sum())} target(s): "
+                              f"compensated for the load the model was measured with{ref_text}; state it with "
+                              "--load MASS[,CX,CY,CZ]", "note"))
+    left: dict = {}
+    unknown = use & (cause >= 0)
+    if unknown.any():
+        where_rows = np.flatnonzero(unknown)
+        for k in np.unique(cause[where_rows]).tolist():
+            mine = where_rows[cause[where_rows] == k]
+            path, line, col, why = t.load_causes[k]
+            n = len(np.unique(np.stack([t.file[mine], t.line[mine], t.col[mine]], axis=1), axis=0))
+            places = list(dict.fromkeys(motion_at(program, int(r)) for r in mine))
+            at = "" if places == [f"{path}:{line}"] else f" (at {listed(places)})"
+            out.append(Diagnostic(path, line, col, P235, f"payload not statically known ({why}): {n} target(s) "
+                                  f"left as written{at}; the model takes the load"))
+        use[where_rows] = False
+        left[P235] = where_rows
+    rows = np.flatnonzero(use)
+    if len(rows):
+        bad = rows[~np.asarray(model.load_reach(loads[rows]), bool)]
+        if len(bad):
+            measured = "; ".join(_load_text(v) for v in model.measured_loads) or "not stated"
+            out += collect(program, bad, P338, lambda i: f"the payload here, {_load_text(loads[bad[i]])}, is "
+                           f"beyond what the model can extrapolate to from the loads it was measured with "
+                           f"({measured}): left as written")
+            use[bad] = False
+            left[P338] = bad
+    return loads, out, left
+
+
 def frame_rule(program: Program, use: np.ndarray) -> list[Diagnostic]:
     """P103: a frame that is not finite (its targets would only be 'not fully known').
     Narrows ``use``."""
@@ -516,7 +600,7 @@ def std_rule(program: Program, model: Compensator, settings: Settings, commands:
     if std is None:
         # (no previous_joints: the graph solves each previous command on its target's branch)
         std = model.command_std(np.c_[commands.commanded, sel.poses[:, 3:6]], joints=sel.joints, tool=sel.tool,
-                                order=sel.order)
+                                order=sel.order, load=sel.load)
     high = np.flatnonzero(std > bound)
     high = high[np.argsort(-std[high], kind="stable")]
     digits = max(3, 1 - int(np.floor(np.log10(bound))) + 2) if bound > 0 else 3  # (0.0455 > 0.0455, not 0.045 > 0.0455)
@@ -551,8 +635,11 @@ def select_with_findings(program: Program, model: Compensator, settings: Setting
     unstated &= ~use
     out += known_rule(program, model, settings, poses, use)
     out += finite_rule(program, poses, use)
+    loads, found, load_left = load_rule(program, model, settings, use)
+    out += found
     rows = np.flatnonzero(use)
     left = dict(held)
+    left.update(load_left)
     if unstated.any():
         left[P218] = np.flatnonzero(unstated)
     selection = Selection(rows, poses[rows], left=left)
@@ -567,6 +654,7 @@ def select_with_findings(program: Program, model: Compensator, settings: Setting
     out += found
     selection.order = execution_order(program, selection, poses, model)
     selection.base_poses = poses
+    selection.loads = loads
     out += envelope_rule(program, model, selection)
     return selection, out
 
@@ -658,7 +746,7 @@ def run_model(model: Compensator, selection: Selection, iterations: int | None, 
     joints = np.empty((len(selection.rows), 6)) if wanted else None
     stds = np.empty(len(selection.rows)) if std else None
     for chunk in model.command_chunks(selection.poses, iterations, joints=selection.joints, tool=selection.tool,
-                                      with_joints=True, std=std, order=selection.order):
+                                      with_joints=True, std=std, order=selection.order, load=selection.load):
         start, part, q = chunk
         commanded[start:start + len(part)] = part
         if joints is not None:

@@ -201,10 +201,14 @@ class Move(Stmt):
     base (KRL: ``INV_POS($ROBROOT):$BASE``; RAPID: the work object's user and object frame);
     ``tool``: the TCP on the flange; ``joint``: an axis target (its ``target`` the joint values,
     not Cartesian); ``relative``: the target is relative to where the robot stands (``_REL``,
-    known only at run time); ``chain``: the motion's target becomes where the robot stands
+    ``INC``): ``target`` the move — X/Y/Z only — in the frame ``rel`` names (``"base"``: the
+    motion's frame's axes; ``"tool"``: the tool's axes where the robot stands), or an ``Unknown``
+    (its absolute target known only at run time); ``chain``: the motion's target becomes where the robot stands
     (a CIRC's auxiliary point does not); ``config``: the configuration the target states where
     it is not a field of the target (a Fanuc CONFIG string, RAPID's confdata record); ``ext``:
-    the external axes' values (a track's position) where the dialect states them apart."""
+    the external axes' values (a track's position) where the dialect states them apart; ``load``:
+    the payload the robot carries at it (KRL's ``$LOAD``, RAPID's tool load + ``GripLoad``), as an
+    expression (None: the dialect's ``Dialect.load_var``, the load it holds in force)."""
 
     kind: str
     target: Expr
@@ -216,6 +220,8 @@ class Move(Stmt):
     chain: bool = True
     config: Expr | None = None
     ext: Expr | None = None
+    rel: str = "base"
+    load: Expr | None = None
 
 
 @dataclass(slots=True)
@@ -227,11 +233,12 @@ class MoveRun(Stmt):
     the orientation's form is not A,B,C, ``orient`` [n, k] its numbers as written and ``ospans``
     [n, k, 2] their spans; a dialect may add its own columns, ``Dialect.run_extras``); in
     the frame and with the tool the program has in force at the run (its ``frame``/``tool``
-    expressions, as a Move's)."""
+    expressions, as a Move's; ``load`` too)."""
 
     rows: dict
     frame: Expr | None = None
     tool: Expr | None = None
+    load: Expr | None = None
 
     COLUMNS = ("pose", "written", "spans", "file", "line", "col", "motion", "chain", "config")
 

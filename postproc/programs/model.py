@@ -8,7 +8,7 @@ import numpy as np
 
 from ..core.diagnostics import P222, Diagnostic
 
-__all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "ActiveFrames", "RobotRoot", "STAMP_PREFIX"]
+__all__ = ["Frame", "Targets", "TargetsBuilder", "Program", "ActiveFrames", "RobotRoot", "STAMP_PREFIX", "parse_load"]
 
 # The one line postproc adds to a file it compensated (after the dialect's comment marker).
 STAMP_PREFIX = "postproc: compensated with model"
@@ -27,6 +27,31 @@ class Frame:
     base: np.ndarray
     tool: np.ndarray | None = None
     label: str = ""
+
+
+def parse_load(value, which: str = "load") -> tuple:
+    """A payload as its user states it: ``"MASS"`` or ``"MASS,CX,CY,CZ"`` (kg; centre of mass in
+    mm in the flange frame, default 0,0,0), a number or a list of one or four numbers → (mass, cx,
+    cy, cz); ValueError with the reason otherwise."""
+    if isinstance(value, bool):
+        raise ValueError(f"{which}: expected MASS or MASS,CX,CY,CZ (kg, mm), not {value!r}")
+    if isinstance(value, (int, float)):
+        items = [value]
+    elif isinstance(value, (list, tuple)):
+        items = list(value)
+    elif isinstance(value, str):
+        items = [v.strip() for v in value.split(",")]
+    else:
+        raise ValueError(f"{which}: expected MASS or MASS,CX,CY,CZ (kg, mm), not {value!r}")
+    if len(items) not in (1, 4):
+        raise ValueError(f"{which}: expected MASS or MASS,CX,CY,CZ (kg, mm), got {len(items)} numbers")
+    try:
+        four = tuple(float(v) for v in items) + (0.0, 0.0, 0.0)[:4 - len(items)]
+    except (TypeError, ValueError):
+        raise ValueError(f"{which}: expected MASS or MASS,CX,CY,CZ (kg, mm), not {value!r}") from None
+    if not all(np.isfinite(four)) or four[0] < 0:
+        raise ValueError(f"{which}: the mass must be a finite number ≥ 0 kg and the centre of mass finite")
+    return four
 
 
 @dataclass(frozen=True)
@@ -187,6 +212,18 @@ class Targets:
                                axis values (``PTP HOME``, ``movej(home_q)``; ``prev`` -1), NaN
                                elsewhere (None: no row has one): the arm configuration a
                                Cartesian target after it keeps
+    relative   [N] int32       a relative motion's target (KRL ``LIN_REL {Z 20}`` after a known
+                               start; its frame is the start's pose × the move, its X/Y/Z the
+                               move's numbers): the row of the motion it starts from — the robot
+                               moves from that row's command, so the rewrite takes that row's
+                               correction off its numbers —; -1 an absolute target, or a start
+                               without a row (None: every row is absolute)
+    load       [N, 4] float64  the payload the robot carries at the row: mass (kg), centre of mass
+                               cx, cy, cz (mm, flange frame); NaN where the program sets none (the
+                               model's reference load, or ``--load``) or where it is not known
+                               (None: no row has one and none is unknown)
+    load_cause [N] int32       -1, or why the row's payload is not statically known: an index
+                               into ``load_causes`` ((path, line, col, why) of each cause: P235)
 
     A frame's ``tool`` of None means the model's tool, stated by the user (``--tool model``);
     a $TOOL (or $BASE) that is not set and not stated (P221/P220) or set but not known makes
@@ -209,6 +246,10 @@ class Targets:
     twin: np.ndarray | None = None
     group: np.ndarray | None = None
     start: np.ndarray | None = None
+    relative: np.ndarray | None = None
+    load: np.ndarray | None = None
+    load_cause: np.ndarray | None = None
+    load_causes: list = field(default_factory=list)
 
     def __post_init__(self) -> None:
         if self.config is None:

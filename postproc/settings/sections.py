@@ -16,7 +16,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 from ..core.diagnostics import P222, P226, P308, PostprocError
-from ..programs.model import ActiveFrames
+from ..programs.model import ActiveFrames, parse_load
 
 __all__ = [
     "Settings", "Reading", "Rules", "Check", "Training", "Acceptance", "FreshPair", "Option", "OPTIONS",
@@ -44,12 +44,21 @@ class Reading:
     suffix), ``active`` (the $BASE / $TOOL / $ROBROOT / external units a program runs in where it
     does not set them itself), ``registers`` (a controller backup's register values: "backup"
     uses them where no program read writes the register, "runtime" makes every register a
-    run-time value — cells where a PLC, vision or KAREL writes them)."""
+    run-time value — cells where a PLC, vision or KAREL writes them), ``load`` (the payload in force
+    where a program sets none: mass kg, centre of mass cx, cy, cz mm; None: the model's reference
+    load), ``payloads`` (the controller's numbered payloads a program selects by number: a Fanuc
+    ``PAYLOAD[n]`` schedule, (n, load) pairs)."""
 
     config: tuple[Path, ...] | None = None
     dialect: str | None = None
     active: ActiveFrames | None = None
     registers: str = "backup"
+    load: tuple | None = None
+    payloads: tuple = ()
+
+    def payload(self, n: int) -> tuple | None:
+        """The load of payload schedule ``n`` (``payloads``), None where not stated."""
+        return next((load for k, load in self.payloads if k == n), None)
 
     @property
     def config_list(self) -> list[str] | None:
@@ -395,6 +404,27 @@ def _robroot(value, settings, source):
     return _with(settings.reading.active, robroot=robroot)
 
 
+def _load(value, settings, source):
+    return parse_load(value)  # (ValueError "load: …")
+
+
+def _payloads(value, settings, source):
+    """``{1 = "300,0,0,250", 2 = "12.5"}`` (or ``--payload 1=300,0,0,250`` given several times):
+    the controller's numbered payloads → (n, load) pairs."""
+    if isinstance(value, (list, tuple)) and all(isinstance(v, str) and "=" in v for v in value):
+        value = dict(v.split("=", 1) for v in value)
+    if not isinstance(value, dict):
+        raise ValueError('expected a table of numbered payloads, e.g. {1 = "300,0,0,250"}')
+    out = []
+    for k, v in value.items():
+        try:
+            n = int(str(k))
+        except ValueError:
+            raise ValueError(f"payloads: {k!r} is not a payload number") from None
+        out.append((n, parse_load(v, f"payloads.{k}")))
+    return tuple(sorted(out))
+
+
 def _external(value, settings, source):
     from ..robot.external import read_external
 
@@ -495,6 +525,8 @@ OPTIONS: dict[str, Option] = _options(
     ("robroot",          "reading",    "active",             "--robroot",             "robroot",         _robroot, P226),
     ("external",         "reading",    "active",             "--external",            "external",        _external),
     ("registers",        "reading",    "registers",          "--registers",           "registers",       _registers),
+    ("load",             "reading",    "load",               "--load",                "load",            _load, P222),
+    ("payloads",         "reading",    "payloads",           "--payload",             "payloads",        _payloads, P222),
     ("iterations",       "rules",      "iterations",         "--iterations",          "iterations",      _iterations),
     ("strict",           "rules",      "strict",             "--strict",              "strict",          _bool),
     ("force",            "rules",      "force",              "--force",               None,              _bool),

@@ -14,10 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core import frames as fr
-from ...core.diagnostics import P215, P232, listed
+from ...core.diagnostics import P215, P232, P235, listed
 from ..ir import Assign, Decl, Field, Invoke, Item, Loc, Name, walk
 from .values import (
-    Arr, Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, taint, tokens_of,
+    LOAD_NOT_SET, Arr, Load, Mat, Moving, NotSet, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, taint,
+    tokens_of,
 )
 
 __all__ = ["Dialect", "PoseView", "ABC", "AXIS_TYPES"]
@@ -69,6 +70,12 @@ class Dialect:
     visible_types: frozenset = frozenset()
     # what such a routine may change, in P232's words
     visible_what = "the global targets, tools and frames"
+    # the variable that holds the payload in force (a motion without its own ``Move.load`` carries
+    # it): set to ``values.LOAD_NOT_SET`` where each entry starts, assigned by the dialect's load
+    # statements (KRL ``$LOAD``, URScript ``set_payload``, Fanuc ``PAYLOAD[n]``); None: no such
+    load_var: str | None = "$LOAD"
+    # the names of a payload record's mass and centre of mass (KRL LOAD: M, CM; RAPID loaddata: MASS, COG)
+    load_fields = (("M", "MASS"), ("CM", "COG"))
 
     def axis_values(self, value) -> list | None:
         """The six arm axis values (deg, the controller's convention) of a joint motion's target
@@ -94,7 +101,10 @@ class Dialect:
         return {}
 
     def enter(self, an, st, routine) -> None:
-        """An entry routine starts: (handlers' routines start with the frames unknown)."""
+        """An entry routine starts: the payload not set (``load_var``); handlers' routines start
+        with the frames unknown."""
+        if self.load_var is not None:
+            st.vars[("G", self.load_var)] = LOAD_NOT_SET
         if routine.name in self.async_routines:
             an.havoc(st, None, f"{routine.name} runs as a handler: what is in force then is not known", routine.loc)
 
@@ -323,6 +333,52 @@ class Dialect:
 
             return Top(f"the tool is on the {f.unit.describe()}: a stationary tool", an.loc, P203)
         return Six(fr.matrix_to_frame(f.m), f.label)
+
+    def load(self, an, value):
+        """A value as the payload at a motion: ``values.Load`` (mass kg, centre of mass mm in the
+        flange frame), None (not set: the model's reference load, or the one stated with
+        ``--load``), or Top (not known statically: P235 where the model takes the load). A record
+        with a mass (``load_fields``: KRL's M, RAPID's MASS) and a centre of mass (CM / COG: X, Y,
+        Z); a negative mass is KUKA's "the machine data's default load": not known. Its numbers
+        are read (they escape)."""
+        if value is None or isinstance(value, NotSet):
+            return None
+        if isinstance(value, Load):
+            return value
+        if isinstance(value, Top):
+            return value if value.code == P235 else Top(value.why, value.loc, P235, value.tokens)
+        if isinstance(value, Rec):
+            an.consume(value, "a payload")
+            (m_names, cm_names) = self.load_fields
+            mass = next((value.fields[k] for k in m_names if k in value.fields), None)
+            cm = next((value.fields[k] for k in cm_names if k in value.fields), None)
+            label = value.label or "the payload"
+            if isinstance(mass, Top):
+                return Top(mass.why, mass.loc or an.loc, P235)
+            m = number(mass)
+            if m is None:
+                return Top(f"{label} has no known mass", value.loc or an.loc, P235)
+            if m < 0:
+                return Top(f"{label} has mass {m:g}: the machine data's default load, not in the files read", an.loc,
+                           P235)
+            xyz = [0.0, 0.0, 0.0]
+            if cm is None and m != 0:
+                return Top(f"the centre of mass of {label} is not set (only its mass)", value.loc or an.loc, P235)
+            if cm is not None:
+                if isinstance(cm, Top):
+                    return Top(f"its centre of mass: {cm.why}", cm.loc or an.loc, P235)
+                for k, name in enumerate("XYZ"):
+                    v = cm.fields.get(name) if isinstance(cm, Rec) else None
+                    if isinstance(v, Top):
+                        return Top(f"its centre of mass: {v.why}", v.loc or an.loc, P235)
+                    x = number(v) if v is not None else 0.0
+                    if x is None:
+                        return Top(f"the centre of mass of {label} is not a number", an.loc, P235)
+                    xyz[k] = x
+            if not all(np.isfinite([m] + xyz)):
+                return Top(f"{label} is not finite", an.loc, P235)
+            return Load([m] + xyz, label)
+        return Top("the payload is not a load record", an.loc, P235)
 
     SCALARS = frozenset({"INT", "REAL", "BOOL", "CHAR", "NUM", "DNUM", "BYTE", "FLOAT"})
 

@@ -34,7 +34,7 @@ from ..ir import (
     Agg, Assign, Async, AsyncSwitch, Call, Continue, Decl, Eval, Exit, Field, Goto, Halt, Havoc, If, Invoke, Item,
     Label, Lit, Loc, Loop, Move, MoveRun, Name, Note, Num, Op, Return, Routine, Switch, Unit, Unknown,
 )
-from .values import Arr, Mat, Rec, Taint, Tok, Top, join, number, same, taint, tokens_of
+from .values import Arr, Mat, Rec, Taint, Tok, Top, frame_product, join, number, same, taint, tokens_of
 
 __all__ = ["Analysis", "Recorder", "Use", "RunUse", "State", "START"]
 
@@ -125,6 +125,10 @@ class Use:
     config: object = None
     ext: object = None
     stand: frozenset = frozenset()  # (State.stand before it)
+    load: object = None  # the payload in force (values.Load; None: not set; Top: not known)
+    # a relative motion's (``Move.relative``): the key of the motion it is relative to (its
+    # target then in ``frame``: that motion's pose × the move), or why its start is not known (str)
+    rel: object = None
 
 
 @dataclass
@@ -139,6 +143,7 @@ class RunUse:
     preds: frozenset | None
     cur: object
     stand: frozenset = frozenset()  # (State.stand before it)
+    load: object = None  # the payload in force (as Use.load)
 
 
 @dataclass
@@ -209,6 +214,7 @@ class Analysis:
         self.gotos: dict = {}  # routine name → has a Goto
         self.handlers: dict = {}  # handler id → (Async statement, write set, why)
         self.reached: set = set()  # routines analysed
+        self.rel_aux: dict = {}  # a CIRC_REL's auxiliary point's key → the key of the motion both are relative to
 
     # ------------------------------------------------------------------ the whole program
     def run(self) -> Recorder:
@@ -589,6 +595,8 @@ class Analysis:
     def move(self, s: Move, st: State) -> State:
         act = self.act
         key = (id(s), act.path)
+        if s.relative and isinstance(s.target, Agg):
+            return self.move_relative(s, st, key)
         if s.joint or s.relative:
             # (an axis target: its value, where the robot stands after it — the arm configuration
             # a Cartesian target after it keeps, targets.build; a relative one: known at run time)
@@ -614,13 +622,89 @@ class Analysis:
             self.rec.escape(held, self.loc, f"a target that is {_written(s.target) or 'a value'} on some path only")
         if self.rec is not None:
             self.rec.uses.append(Use(key, s, target, filled, frame, tool, st.last, _written(s.target), config, ext,
-                                     st.stand))
+                                     st.stand, self.load_value(s.load, st)))
         st.last = frozenset([key])
         if s.chain:
             st.stand = frozenset([key])
         if s.chain:
             st.cur = (self.dialect.position(target), frame, tool) if isinstance(target, Rec) else None
         return st
+
+    def move_relative(self, s: Move, st: State, key) -> State:
+        """A relative motion whose move is X/Y/Z numbers (``Move.rel``): its absolute target is the
+        start — the pose of the one motion that runs just before it on every path, in the same
+        frame with the same tool — moved by them along the base's (``rel`` "base") or the tool's
+        axes ("tool"): recorded with the frame ``start × move`` (so its numbers are the move's);
+        where the robot stands after it is known. Otherwise why not (its target left, P210)."""
+        frame = self.frame_value(s.frame, st)
+        tool = self.tool_value(s.tool, st)
+        move = self.eval(s.target, st)
+        start, why = self._start_of(st, frame, tool)
+        if why is None and not isinstance(move, Rec):
+            why = "its move is not known here"
+        filled, fields = [], {}
+        if why is None:
+            here = dict(st.cur[0])
+            names = [k for k, _ in st.cur[0]]
+            start_pose = [here[k] for k in names]
+            local = frame_matrix(start_pose[:3], None if s.rel == "base" else start_pose[3:], self.dialect.form)
+            for k in ("X", "Y", "Z"):
+                v = move.fields.get(k)
+                if v is None:
+                    v = 0.0
+                    filled.append(k)
+                elif number(v) is None:
+                    why = f"its {k} is not known here"
+                fields[k] = v
+            if s.rel == "base":  # (the start's orientation: the move does not turn the tool)
+                fields.update({k: here[k] for k in names[3:]})
+            else:
+                fields.update(zip(names[3:], identity_orientation(self.dialect.form)))
+        if why is not None:
+            if self.rec is not None:
+                self.rec.uses.append(Use(key, s, Top(why, s.loc), (), frame, tool, st.last, "", stand=st.stand,
+                                         rel=why))
+            st.stand = st.stand | {key}
+            st.last, st.cur = frozenset([key]), None
+            return st
+        target = Rec(getattr(move, "type", ""), fields, move.loc)
+        moved = frame_product(frame, Mat(local), frame.label)
+        if self.rec is not None:
+            self.rec.uses.append(Use(key, s, target, tuple(filled), moved, tool, st.last, "", stand=st.stand,
+                                     rel=start, load=self.load_value(s.load, st)))
+        st.last = frozenset([key])
+        if s.chain:
+            end = local @ _np.r_[[number(fields[k]) for k in ("X", "Y", "Z")], 1.0]
+            st.cur = (tuple((k, float(end["XYZ".index(k)]) if k in ("X", "Y", "Z") else v) for k, v in st.cur[0]),
+                      frame, tool)
+            st.stand = frozenset([key])
+        else:  # (a CIRC_REL's auxiliary point: its end is relative to the same start)
+            self.rel_aux[key] = start
+        return st
+
+    def _start_of(self, st: State, frame, tool) -> tuple:
+        """(the key of the motion a relative motion starts from, None), or (None, why it is not known)."""
+        last = st.last
+        if not last or len(last) != 1:
+            return None, ("it is reached from several motions" if last else
+                          "where the robot stands before it is not known")
+        (start,) = last
+        start = self.rel_aux.get(start, start)
+        if start == START:
+            return None, "it is the program's first motion"
+        cur = st.cur
+        if cur is None:
+            return None, "where the robot stands before it is not known: after an axis motion, a target not known " \
+                "or a relative motion whose start is not known"
+        if not isinstance(frame, Mat):
+            return None, "its frame is not known"
+        if not same(cur[1], frame):
+            return None, "the frame changed since the motion before it"
+        if not same(cur[2], tool):
+            return None, "the tool changed since the motion before it"
+        if any(v is None or not math.isfinite(v) for _, v in cur[0]):
+            return None, "where the robot stands before it is not fully known"
+        return start, None
 
     def move_run(self, s: MoveRun, st: State) -> State:
         key = (id(s), self.act.path)
@@ -630,7 +714,7 @@ class Analysis:
         frame = self.frame_value(s.frame, st)
         tool = self.tool_value(s.tool, st)
         if self.rec is not None:
-            self.rec.uses.append(RunUse(key, s, frame, tool, st.last, st.cur, st.stand))
+            self.rec.uses.append(RunUse(key, s, frame, tool, st.last, st.cur, st.stand, self.load_value(s.load, st)))
         st.last = frozenset([key])
         if len(s):
             st.stand = frozenset([key])
@@ -641,6 +725,20 @@ class Analysis:
         if expr is None:
             return Mat(_EYE, "")
         return self.dialect.frame(self, self.eval(expr, st))
+
+    def load_value(self, expr, st: State):
+        """The payload at a motion (``Dialect.load``): its own ``load`` expression, else the
+        dialect's ``load_var`` in force (None where the dialect has none)."""
+        if expr is None:
+            name = self.dialect.load_var
+            if name is None:
+                return None
+            key, value = self.lookup(name, st)
+            if key is None:
+                return None
+        else:
+            value = self.eval(expr, st)
+        return self.dialect.load(self, value)
 
     def tool_value(self, expr, st: State):
         if expr is None:
@@ -965,3 +1063,19 @@ import numpy as _np  # noqa: E402
 
 _EYE = _np.eye(4)
 _EYE.setflags(write=False)
+
+
+def frame_matrix(xyz, orientation, form: str):
+    """The 4×4 of a position ``xyz`` with the orientation's numbers in ``form`` (None: unturned)."""
+    from ...core import frames as fr
+
+    m = _np.eye(4)
+    m[:3, 3] = xyz
+    if orientation is not None:
+        m[:3, :3] = fr.orientation_rotation(_np.asarray(orientation, float), form)
+    return m
+
+
+def identity_orientation(form: str) -> tuple:
+    """The numbers of no turn in ``form`` (A,B,C or a rotation vector: 0,0,0; a quaternion 1,0,0,0)."""
+    return (1.0, 0.0, 0.0, 0.0) if form == "quaternion" else (0.0, 0.0, 0.0)

@@ -19,7 +19,7 @@ import numpy as np
 
 from ...core import frames as fr
 from ...core.diagnostics import (
-    P201, P203, P211, P212, P214, P215, P217, P220, P221, P223, P224, P225, P233, Diagnostic, listed,
+    P201, P203, P210, P211, P212, P214, P215, P217, P220, P221, P223, P224, P225, P233, Diagnostic, listed,
 )
 from ..ir import MOTION_INDEX, Agg, Loc
 from ..model import Frame, Targets
@@ -31,6 +31,7 @@ __all__ = ["build", "Built"]
 # what a frame code says at the targets it leaves (old wording: "frame"/"tool" not statically known)
 _NAN = float("nan")
 _NO_AXES = (_NAN,) * 6
+_NO_LOAD = (_NAN,) * 4
 
 
 class _Axes:
@@ -85,7 +86,8 @@ class _Rows:
 
     def add_one(self, row: dict) -> int:
         """One row: pose [6], spans [12], abc [k][2], worient [k], file, line, col, frame, motion,
-        config (S, T), offset [3], prev, site, extras (name → value)."""
+        config (S, T), offset [3], prev, load [4] (NaN: not set), lcause (-1: the load is known or
+        not set; else an index into the load causes), site, extras (name → value)."""
         self.singles.append(row)
         self.n += 1
         return self.n - 1
@@ -110,6 +112,7 @@ class _Rows:
                                frame=column("frame", np.int32), motion=column("motion", np.int8),
                                config=column("config", np.int16, (2,)), offset=column("offset", float, (3,)),
                                prev=column("prev", np.int32), start=column("start", float, (6,)),
+                               load=column("load", float, (4,)), lcause=column("lcause", np.int32),
                                site=[r["site"] for r in rows], extras=extras))
 
     def tokens_of(self, row: int) -> set:
@@ -162,12 +165,31 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
     frame_ix: dict = {}
     unknown: dict = {}  # (code, why, loc) → [count, first (path, line, col)]
     key_row: dict = {}  # use key → its last row (-1: no row)
+    relative: dict = {}  # a relative motion's row → the row of the motion it starts from (-1: none)
     diagnostics: list[Diagnostic] = []
     assumed: set = set()  # frame indices taken with robot base = world assumed (P224)
     named = False
     pending: dict = {}  # pred key → [(use columns without prev), …] waiting for the pred's row
     used_keys: list = []
     key_axes: dict = {}  # a joint motion's key → its known axis values (deg): where it leaves the robot
+    load_causes: list = []  # why a row's payload is not known: (path, line, col, why), once each
+    cause_ix: dict = {}
+
+    def load_of(load, first) -> tuple:
+        """(the row's load [4] (NaN: not set or not known), its cause's index, -1 none) of a
+        motion's payload (``Use.load``: Load, None, Top); ``first``: the row's place (path, line,
+        col), where a cause has no place of its own."""
+        if isinstance(load, Top):
+            at = (_path(unit, load.loc.file), load.loc.line, load.loc.col) if load.loc is not None else first
+            key = (load.why,) + at
+            ix = cause_ix.get(key)
+            if ix is None:
+                ix = cause_ix[key] = len(load_causes)
+                load_causes.append(at + (load.why,))
+            return _NO_LOAD, ix
+        if load is None:
+            return _NO_LOAD, -1
+        return tuple(float(x) for x in load), -1
 
     def frame_index(base, tool):
         """Program.frames index of (base Mat, tool) or (-1, the Top that leaves it, its code)."""
@@ -236,7 +258,7 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
 
     for use in rec.uses:
         if isinstance(use, RunUse):
-            _run_rows(unit, dialect, use, rows, frame_index, count, prev_of, key_row, form, rec, pending)
+            _run_rows(unit, dialect, use, rows, frame_index, count, prev_of, key_row, form, rec, pending, load_of)
             continue
         key_row[use.key] = -1
         s = use.stmt
@@ -246,7 +268,12 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             axes = dialect.axis_values(target)
             if axes is not None:
                 key_axes[use.key] = tuple(axes)
-        if s.joint or s.relative:
+        if s.relative and isinstance(use.rel, str):  # (its start not known: execute.move_relative)
+            rec.note(P210, f"relative motion {s.kind.split('-')[0]}_REL left as written: its absolute target is "
+                     f"known only at run time ({use.rel}); it moves with the correction of the motion it starts from",
+                     loc, True)
+            continue
+        if s.joint or (s.relative and use.rel is None):
             continue
         if isinstance(target, Top):
             code = target.code if target.code in (P211, P214, P215, P217, P223) else P211
@@ -354,12 +381,15 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
                 _path(unit, why.loc.file), why.loc.line, why.loc.col, use)
             count(why, code, np.array([[aloc.file, aloc.line, aloc.col]]), at, (f"{_path(unit, loc.file)}:{loc.line}",))
         primary, others, axes = prev_of(use.preds, use.key)
+        load, lcause = load_of(use.load, first[:3])
         cols = dict(pose=pose, spans=spans, abc=abc_spans, worient=written_orient, file=file, line=aloc.line,
                     col=aloc.col, frame=ix, motion=MOTION_INDEX[s.kind], config=view.config, offset=offset,
-                    prev=primary, start=_NO_AXES if axes is None else axes, site=loc,
+                    prev=primary, start=_NO_AXES if axes is None else axes, load=load, lcause=lcause, site=loc,
                     extras=dialect.row_extras(use, view))
         r = rows.add_one(cols)
         key_row[use.key] = r
+        if s.relative:
+            relative[r] = key_row.get(use.rel, -1)
         _emitted(rec, rows, use.key, r)
         used_keys.append(use.key)
         _twins_of(cols, others, rows, pending)
@@ -375,6 +405,11 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             rows.add_one(twin)
     rows.flush()
     targets = _columns(rows, k_orient, form)
+    if relative:
+        targets.relative = np.full(len(targets), -1, np.int32)
+        targets.relative[list(relative)] = list(relative.values())
+    if targets.load is not None:
+        targets.load_causes = load_causes
     for (code, why), (left, first, wloc, places) in unknown.items():
         n = len(np.unique(np.concatenate(left).astype(np.int64), axis=0))
         if wloc is not None and code not in (P220, P221):
@@ -472,7 +507,8 @@ def _emitted(rec, rows: _Rows, key, row: int) -> None:
             rec.escape(rows.tokens_of(row), loc, "where the robot stands for a partial target after it")
 
 
-def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_of, key_row, form, rec, pending):
+def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_of, key_row, form, rec, pending,
+              load_of):
     """A MoveRun's rows: its frame for all, partial aggregates filled from the rows before
     (and where the robot stood before the run), the first row's predecessor."""
     r = use.run.rows
@@ -540,15 +576,19 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
     start = np.full((n, 6), np.nan)
     if axes is not None:
         start[0] = axes
+    load, lcause = load_of(use.load, (_path(unit, int(r["file"][0])), int(r["line"][0]), int(r["col"][0])))
     rows.add(pose=pose, spans=spans, abc=abc, worient=worient,
              file=r["file"], line=r["line"], col=r["col"], frame=np.full(n, ix, np.int32), motion=r["motion"],
-             config=r["config"], offset=np.zeros((n, 3)), prev=prev, start=start, site=None, extras=extras)
+             config=r["config"], offset=np.zeros((n, 3)), prev=prev, start=start,
+             load=np.tile(np.asarray(load, float), (n, 1)), lcause=np.full(n, lcause, np.int32), site=None,
+             extras=extras)
     key_row[use.key] = rows.n - 1
     if others:  # (the run's first target reached from its other predecessors)
         first = dict(pose=pose[0].tolist(), spans=spans[0].tolist(), abc=abc[0].tolist(), worient=worient[0].tolist(),
                      file=int(r["file"][0]), line=int(r["line"][0]), col=int(r["col"][0]), frame=ix,
                      motion=int(r["motion"][0]), config=tuple(int(x) for x in r["config"][0]), offset=[0.0, 0.0, 0.0],
-                     prev=-1, start=_NO_AXES, site=None, extras={k: v[0] for k, v in extras.items()})
+                     prev=-1, start=_NO_AXES, load=load, lcause=lcause, site=None,
+                     extras={k: v[0] for k, v in extras.items()})
         _twins_of(first, others, rows, pending)
     last = key_row[use.key]
     _emitted(rec, rows, use.key, last)
@@ -591,6 +631,9 @@ def _columns(rows: _Rows, k_orient: int, form: str) -> Targets:
     start = col("start")
     if not np.isnan(start).all():
         targets.start = start
+    load, lcause = col("load"), col("lcause")
+    if not np.isnan(load).all() or (lcause >= 0).any():  # (a program that sets no payload: None)
+        targets.load, targets.load_cause = load, lcause.astype(np.int32)
     if form != "abc":  # the rows' A,B,C from their orientation's numbers as written (build leaves them NaN)
         o = targets.orientation
         todo = np.isnan(targets.poses[:, 3]) & ~np.isnan(o).any(axis=1)

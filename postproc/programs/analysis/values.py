@@ -23,8 +23,8 @@ import numpy as np
 from ...core.diagnostics import P220, P221
 from ..ir import Loc
 
-__all__ = ["Top", "Tok", "Taint", "Rec", "Arr", "Mat", "Moving", "Six", "join", "same", "tokens_of", "number", "is_number",
-           "frame_product", "frame_inverse"]
+__all__ = ["Top", "Tok", "Taint", "Rec", "Arr", "Mat", "Moving", "Six", "Load", "NotSet", "LOAD_NOT_SET", "join", "same",
+           "tokens_of", "number", "is_number", "frame_product", "frame_inverse"]
 
 
 class Top:
@@ -267,6 +267,38 @@ class Six(tuple):
         self = super().__new__(cls, (float(x) for x in numbers))
         self.label = label
         return self
+
+
+class Load(tuple):
+    """A payload the robot carries: mass (kg) and centre of mass cx, cy, cz (mm, flange frame),
+    with the ``label`` it is named by in messages (``LOAD_DATA[2]``, ``GripLoad piece``); equal by
+    its numbers."""
+
+    label: str = ""
+
+    def __new__(cls, numbers, label: str = ""):
+        self = super().__new__(cls, (float(x) for x in numbers))
+        self.label = label
+        return self
+
+
+class NotSet:
+    """The payload where the program has not set one (and its user did not state it): the
+    controller's is whatever is in force; the model takes its own reference load there."""
+
+    __slots__ = ()
+
+    def __eq__(self, other):
+        return isinstance(other, NotSet)
+
+    def __hash__(self):
+        return hash("NotSet")
+
+    def __repr__(self):
+        return "NotSet"
+
+
+LOAD_NOT_SET = NotSet()
 
 
 def is_number(v) -> bool:

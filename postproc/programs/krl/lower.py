@@ -21,6 +21,35 @@ from ..ir import (
 )
 from .semantics import BUILTIN_FUNCTIONS
 
+def _rel_frame(node) -> str:
+    """The frame a _REL motion's move is in: ``#TOOL`` the tool's, else (``#BASE``, the default) the base's."""
+    for c in node.children:
+        if isinstance(c, Tree) and c.data == "motion_tail":
+            if any(isinstance(x, Token) and str(x).upper() == "#TOOL" for x in c.children):
+                return "tool"
+    return "base"
+
+
+def _rel_why(expr) -> str:
+    """Why a _REL target's absolute target is not the start plus a move of X/Y/Z ("" where it is)."""
+    if expr.data != "aggregate":
+        return "a move that is not a literal aggregate"
+    for item in expr.children:
+        if not isinstance(item, Tree):
+            continue
+        key, value = item.children[0], item.children[-1]
+        name = str(key).upper()
+        if name in ("X", "Y", "Z"):
+            continue
+        if name in ("A", "B", "C"):
+            v = value.children[-1] if value.data == "signed" else value
+            if v.data == "number" and float(str(v.children[0])) == 0.0:
+                continue
+            return "it turns the tool (A/B/C)"
+        return f"it moves {name}"
+    return ""
+
+
 _KIND_OF = {"PTP": "PTP", "LIN": "LIN", "SPTP": "SPTP", "SLIN": "SLIN", "SPL": "SPL"}
 _OPS = {"MOD": "mod", "AND": "and", "B_AND": "and", "OR": "or", "B_OR": "or", "EXOR": "xor", "B_EXOR": "xor",
         "NOT": "not", "B_NOT": "not"}
@@ -32,12 +61,13 @@ _CLOSER = {"DEF": "END", "DEFFCT": "ENDFCT", "DEFDAT": "ENDDAT", "IF": "ENDIF", 
 class _Gap(ir.Stmt):
     """Where the hot lines with keys below ``key`` (and above the gap before) stand."""
 
-    __slots__ = ("key", "base", "tool")
+    __slots__ = ("key", "base", "tool", "load")
 
-    def __init__(self, key: int, base, tool):
+    def __init__(self, key: int, base, tool, load=None):
         self.key = key
         self.base = base
         self.tool = tool
+        self.load = load
 
 
 def first_pos(tree):
@@ -71,6 +101,8 @@ class Lowering:
         self.bodies: list = []  # the statement lists being filled (innermost last)
         self.nodes: list = []  # the IR node of each open block (If, Switch, Loop, Routine…)
         self.spline: list = []  # (base, tool) expressions of open SPLINE … WITH blocks
+        self.spline_load: list = []  # their WITH $LOAD expressions (None: the $LOAD in force)
+        self.with_load = None  # the last frame_exprs' $LOAD (a WITH $LOAD = …; None: $LOAD in force)
         self.gaps: list = []
         self.routine = None
         self.in_def = False
@@ -89,7 +121,7 @@ class Lowering:
         """The hot lines up to this statement stand here (in the innermost open block)."""
         if self.bodies and self.in_def:
             base, tool = self.frame_exprs(())
-            g = _Gap(self.kbase, base, tool)
+            g = _Gap(self.kbase, base, tool, self.with_load)
             self.bodies[-1].append(g)
             self.gaps.append(g)
 
@@ -362,12 +394,15 @@ class Lowering:
         self.open_block("SPLINE", node)
         self.block_open["SPLINE"] = self.ln
         self.spline.append(self.frame_exprs(node.children))
+        self.spline_load.append(self.with_load)
 
     def s_spline_end(self, node):
         self.close_block({"SPLINE"}, node, "ENDSPLINE")
         self.spline_lines.append((self.block_open["SPLINE"], self.ln))
         if self.spline:
             self.spline.pop()
+        if self.spline_load:
+            self.spline_load.pop()
 
     # ------------------------------------------------------------ handlers
     def s_interrupt_decl(self, node):
@@ -437,13 +472,29 @@ class Lowering:
         base, tool = self.frame_exprs(node.children)
         if kw.endswith("_REL"):
             loc = self.here(first_pos(node))
-            self.emit(Note(P210, f"relative motion {kw} left as written (its absolute target is known only at run "
-                           "time)", loc, True))
+            moves = [self._relative(expr, kind, chain, base, tool, _rel_frame(node)) for expr, kind, chain in ops]
+            if all(m is not None for m in moves):  # (its start decides, the analysis: P210 where not known)
+                for m in moves:
+                    self.emit(m)
+                return
+            why = next(m for m in (_rel_why(expr) for expr, _, _ in ops) if m)
+            self.emit(Note(P210, f"relative motion {kw} left as written ({why}: its absolute target is known only "
+                           "at run time)", loc, True))
             for expr, kind, chain in ops:
                 self.emit(Move(kind, Unknown("a relative motion"), loc, relative=True, chain=chain))
             return
         for expr, kind, chain in ops:
             self.target(expr, kind, chain, base, tool)
+
+    def _relative(self, expr, kind, chain, base, tool, rel):
+        """The Move of a relative target that moves X/Y/Z only (a literal aggregate; A/B/C absent or
+        0): its absolute target is where the robot stands plus the move (the analysis); None for
+        any other (``_rel_why`` says why)."""
+        if _rel_why(expr):
+            return None
+        target = self.expr(expr)
+        frame = Call("KRL.FRAME", (Name("$ROBROOT"), base))
+        return Move(kind, target, target.loc, frame, tool, relative=True, chain=chain, rel=rel)
 
     def target(self, expr, kind, chain, base, tool):
         lefts = []
@@ -457,10 +508,10 @@ class Lowering:
             joint = target.type in ("AXIS", "E6AXIS") or bool(keys & _AXIS_KEYS)
             if not joint and not keys & {"X", "Y", "Z", "A", "B", "C"} and target.type not in ("POS", "E6POS", "FRAME"):
                 return  # (nothing that tells: {S 2})
-            self.emit(Move(kind, target, target.loc, frame, tool, joint=joint, chain=chain))
+            self.emit(Move(kind, target, target.loc, frame, tool, joint=joint, chain=chain, load=self.with_load))
             return
         if expr.data in ("name", "index", "member"):
-            self.emit(Move(kind, self.expr(expr), loc, frame, tool, chain=chain))
+            self.emit(Move(kind, self.expr(expr), loc, frame, tool, chain=chain, load=self.with_load))
             return
         value = self.expr(expr)  # (a function runs: what it does holds)
         self.emit(Eval(value, loc))
@@ -472,6 +523,7 @@ class Lowering:
         """(base, tool) expressions in force for a motion: $BASE/$TOOL, an open SPLINE's WITH,
         the motion's own WITH ($IPO_MODE #TCP: an external TCP, not supported)."""
         base, tool = self.spline[-1] if self.spline else (Name("$BASE"), Name("$TOOL"))
+        self.with_load = self.spline_load[-1] if self.spline_load else None
         items = []
         for c in children:
             if isinstance(c, Tree) and c.data == "motion_tail":
@@ -487,6 +539,8 @@ class Lowering:
                 base = self.expr(rhs)
             elif which == "$TOOL":
                 tool = self.expr(rhs)
+            elif which == "$LOAD":  # (the payload of this motion: Move.load)
+                self.with_load = self.expr(rhs)
             elif which == "$IPO_MODE":
                 mode = rhs.children[0].upper() if rhs.data == "enum" else None
                 if rhs.data == "fcall" and rhs.children[0].upper() == "SIPO_MODE":
@@ -588,7 +642,7 @@ class Lowering:
             for g, hi in zip(gaps, bounds.tolist()):
                 if hi > lo:
                     runs[id(g)] = MoveRun({k: v[lo:hi] for k, v in cols.items()},
-                                          Call("KRL.FRAME", (Name("$ROBROOT"), g.base)), g.tool)
+                                          Call("KRL.FRAME", (Name("$ROBROOT"), g.base)), g.tool, g.load)
                 lo = max(lo, hi)
         for key in self.file_routines:
             r = self.unit.routines[key]
@@ -602,10 +656,11 @@ def _resolved(body: list, runs: dict) -> list:
         if isinstance(s, _Gap):
             run = runs.get(id(s))
             if run is not None:
-                if out and isinstance(out[-1], MoveRun) and out[-1].frame == run.frame and out[-1].tool == run.tool:
+                if out and isinstance(out[-1], MoveRun) and out[-1].frame == run.frame and out[-1].tool == run.tool \
+                        and out[-1].load == run.load:
                     prev = out.pop()
                     run = MoveRun({k: np.concatenate([prev.rows[k], run.rows[k]]) for k in MoveRun.COLUMNS},
-                                  run.frame, run.tool)
+                                  run.frame, run.tool, run.load)
                 out.append(run)
             continue
         if isinstance(s, If):

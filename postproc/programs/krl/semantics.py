@@ -31,7 +31,7 @@ import re
 
 import numpy as np
 
-from ...core.diagnostics import P201, P203, P211, P215, P220, P221, P222, P223, P225, PostprocError
+from ...core.diagnostics import P201, P203, P211, P215, P220, P221, P222, P223, P225, P235, PostprocError
 from ...core.frames import frame_to_matrix
 from ..analysis.dialect import Dialect, PoseView
 from ..analysis.values import Arr, Mat, Moving, Rec, Six, Tok, Top, frame_inverse, frame_product, number
@@ -128,9 +128,9 @@ class KRL(Dialect):
             return Mat(_EYE, "$NULLFRAME")
         if STANDARD_AXIS.match(name):
             return Rec("E6AXIS", {}, None, name)
-        if name in ("BASE_DATA", "TOOL_DATA"):
+        if name in ("BASE_DATA", "TOOL_DATA", "LOAD_DATA"):
             why = f"{name}[…] needs $config.dat (not given)" if not self.config else f"{name} is not declared"
-            return Arr({}, Top(why, an.loc), "FRAME")
+            return Arr({}, Top(why, an.loc), "LOAD" if name == "LOAD_DATA" else "FRAME")
         if name in ("BASE_CORR_ON",):
             return False
         if name in ("MACHINE_FRAME_DAT", "MACHINE_TOOL_DAT"):
@@ -144,7 +144,7 @@ class KRL(Dialect):
     def implicit(self, an, name: str) -> tuple:
         act = an.act
         if act.routine is None:
-            return ("G", name) if act.module == "$CONFIG" or name in ("BASE_DATA", "TOOL_DATA") else \
+            return ("G", name) if act.module == "$CONFIG" or name in ("BASE_DATA", "TOOL_DATA", "LOAD_DATA") else \
                 ("M", act.module, name)
         return ("L", act.scope, name)
 
@@ -162,7 +162,7 @@ class KRL(Dialect):
         if names is not None:
             return super().touched(an, st, names)
         return [k for k in st.vars if k[0] == "G" and k[1] not in self.config_globals and k[1] != "$ROBROOT"] + \
-            [("G", f) for f in ("$BASE", "$TOOL", "FDAT_ACT")]
+            [("G", f) for f in ("$BASE", "$TOOL", "$LOAD", "FDAT_ACT")]
 
     # ---------------------------------------------------------------- values
     def field(self, an, base, name: str):
@@ -208,7 +208,7 @@ class KRL(Dialect):
         if s.action.name.upper() in SYSTEM_HANDLERS:
             return st
         why = f"{s.action.name}() (the {s.what} declared at line {s.loc.line}) is not in the files read"
-        for name in ("$BASE", "$TOOL"):
+        for name in ("$BASE", "$TOOL", "$LOAD"):
             st.vars[("G", name)] = Top(why, s.loc)
         return st
 
@@ -371,6 +371,27 @@ def _tool(an, st, n, via: str):
     return frame
 
 
+def _load(an, st, n, via: str):
+    """bas.src's #TOOL for $LOAD: ``LOAD_DATA[n]`` (n = 0: the machine data's default load
+    $DEF_L_M, not in the files read: not known)."""
+    if n is None:
+        return Top(f"{via} with a run-time number", an.loc, P235)
+    if n == 0:
+        return Top(f"{via} 0 sets $LOAD to the machine data's default load ($DEF_L_M), not in the files read", an.loc,
+                   P235)
+    key, data = an.lookup("LOAD_DATA", st)
+    if key is None:
+        data = an.dialect.undeclared(an, "LOAD_DATA")
+    v = data.get((n,)) if isinstance(data, Arr) else data
+    if isinstance(v, Rec):
+        return Rec(v.type or "LOAD", v.fields, v.loc, f"LOAD_DATA[{n}]")
+    if isinstance(v, Top):
+        why = f"LOAD_DATA[{n}] needs $config.dat (not given)" if not an.dialect.config else \
+            f"LOAD_DATA[{n}] is not set in the data given"
+        return Top(f"{why} ({via} sets $LOAD from it)", an.loc, P235)
+    return Top(f"LOAD_DATA[{n}] is not a load", an.loc, P235)
+
+
 def _fdat(an, fdat, which: str):
     """FDAT's TOOL_NO / BASE_NO → (number or None, why)."""
     if not isinstance(fdat, Rec):
@@ -395,15 +416,16 @@ def bas(an, st, args, loc):
         an.consume(arg, "BAS()")
     if cmd == "#BASE":
         st.vars[("G", "$BASE")] = _base(an, st, _int(arg), "BAS(#BASE, …)")
-    elif cmd == "#TOOL":
+    elif cmd == "#TOOL":  # (bas.src: $TOOL = TOOL_DATA[n], $LOAD = LOAD_DATA[n])
         st.vars[("G", "$TOOL")] = _tool(an, st, _int(arg), "BAS(#TOOL, …)")
+        st.vars[("G", "$LOAD")] = _load(an, st, _int(arg), "BAS(#TOOL, …)")
     elif cmd in ("#PTP_PARAMS", "#CP_PARAMS", "#FRAMES"):
         key, fdat = an.lookup("FDAT_ACT", st)
         fdat = fdat if key is not None else Top("FDAT_ACT is not known here", an.loc)
-        for name, which, fn in (("$BASE", "BASE", _base), ("$TOOL", "TOOL", _tool)):
+        for name, which, fn in (("$BASE", "BASE", _base), ("$TOOL", "TOOL", _tool), ("$LOAD", "TOOL", _load)):
             n, why = _fdat(an, fdat, which)
             st.vars[("G", name)] = fn(an, st, n, f"FDAT_ACT.{which}_NO") if n is not None else \
-                Top(why, an.loc, P201 if which == "BASE" else P203)
+                Top(why, an.loc, {"$BASE": P201, "$TOOL": P203, "$LOAD": P235}[name])
     return st
 
 
