@@ -432,12 +432,18 @@ def load_rule(program: Program, model: Compensator, settings: Settings,
                               f"compensated for the load the model was measured with{ref_text}; state it with "
                               "--load MASS[,CX,CY,CZ]", "note"))
     left: dict = {}
+    for k, (*_, schedule) in enumerate(t.load_causes):  # (a payload schedule its user states: Fanuc PAYLOAD[n])
+        stated_n = settings.reading.payload(schedule) if schedule is not None else None
+        if stated_n is not None:
+            mine = cause == k
+            loads[mine] = stated_n
+            cause = np.where(mine, -1, cause)
     unknown = use & (cause >= 0)
     if unknown.any():
         where_rows = np.flatnonzero(unknown)
         for k in np.unique(cause[where_rows]).tolist():
             mine = where_rows[cause[where_rows] == k]
-            path, line, col, why = t.load_causes[k]
+            path, line, col, why, _ = t.load_causes[k]
             n = len(np.unique(np.stack([t.file[mine], t.line[mine], t.col[mine]], axis=1), axis=0))
             places = list(dict.fromkeys(motion_at(program, int(r)) for r in mine))
             at = "" if places == [f"{path}:{line}"] else f" (at {listed(places)})"

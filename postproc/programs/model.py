@@ -223,7 +223,9 @@ class Targets:
                                model's reference load, or ``--load``) or where it is not known
                                (None: no row has one and none is unknown)
     load_cause [N] int32       -1, or why the row's payload is not statically known: an index
-                               into ``load_causes`` ((path, line, col, why) of each cause: P235)
+                               into ``load_causes`` ((path, line, col, why, schedule) of each
+                               cause: P235; ``schedule`` a payload schedule number its user
+                               may state, Fanuc's PAYLOAD[n], else None)
 
     A frame's ``tool`` of None means the model's tool, stated by the user (``--tool model``);
     a $TOOL (or $BASE) that is not set and not stated (P221/P220) or set but not known makes

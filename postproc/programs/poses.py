@@ -31,7 +31,8 @@ from .text import newline
 COLUMNS = ("x", "y", "z", "a", "b", "c")
 CONFIG = ("s", "t")
 JOINTS = ("q1", "q2", "q3", "q4", "q5", "q6")
-_OPTIONAL = CONFIG + JOINTS
+LOADS = ("load_mass", "load_cx", "load_cy", "load_cz")  # the payload at the row (kg; mm, flange frame), as a measurement CSV's
+_OPTIONAL = CONFIG + JOINTS + LOADS
 _ALL = COLUMNS + _OPTIONAL
 _COMMENT = re.compile(r"[ \t]*(#|;|//)")
 # ``# frame: controller`` (the robot controller's base) or ``# frame: model`` (the model's frame)
@@ -370,7 +371,15 @@ class _Rows:
             if any(c in self.columns for c in CONFIG):
                 targets.config = np.where(np.isnan(extra[:, :2]), -1, extra[:, :2]).astype(np.int16)
             if any(c in self.columns for c in JOINTS):
-                targets.joints = extra[:, 2:]
+                targets.joints = extra[:, 2:8]
+            if "load_mass" in self.columns:  # (a row without a mass: the payload not set there; cx..cz default 0)
+                load = extra[:, 8:12].copy()
+                load[:, 1:] = np.where(np.isnan(load[:, 1:]) & ~np.isnan(load[:, :1]), 0.0, load[:, 1:])
+                if (load[:, 0] < 0).any():
+                    row = int(np.flatnonzero(load[:, 0] < 0)[0])
+                    raise PostprocError("load_mass must be ≥ 0 kg", self.path, int(lineno[row]), 1, P103)
+                targets.load = load
+                targets.load_cause = np.full(n, -1, np.int32)
         return targets
 
 
@@ -464,6 +473,7 @@ def _analysed(files: list[str], texts: list[str], read: Targets) -> Targets:
     built = analyse(unit, dialect)
     targets = built.targets
     targets.joints = read.joints
+    targets.load, targets.load_cause = read.load, read.load_cause
     return targets
 
 

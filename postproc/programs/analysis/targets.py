@@ -183,9 +183,9 @@ def build(unit, dialect, rec, form: str | None = None) -> Built:
             at = (_path(unit, load.loc.file), load.loc.line, load.loc.col) if load.loc is not None else first
             key = (load.why,) + at
             ix = cause_ix.get(key)
-            if ix is None:
+            if ix is None:  # (a payload schedule its user may state: its number, ``fanuc.semantics.Schedule``)
                 ix = cause_ix[key] = len(load_causes)
-                load_causes.append(at + (load.why,))
+                load_causes.append(at + (load.why, getattr(load, "schedule", None)))
             return _NO_LOAD, ix
         if load is None:
             return _NO_LOAD, -1

@@ -451,6 +451,13 @@ class Lowering:
             self.emit(Assign(Name(which), Lit(float(number.group(1))) if number else Unknown("an indirect register"),
                              loc))
             return
+        if w == "PAYLOAD" and t.peek(1)[1] == "[":  # (the payload schedule in force from here: $LOAD)
+            t.take()
+            t.expect("[")
+            number = self.expr(t)
+            t.expect("]")
+            self.emit(Assign(Name("$LOAD"), Call("LS.PAYLOAD", (number,), loc), loc))
+            return
         if w in HARMLESS:
             return
         if w in ("UFRAME_NUM", "UTOOL_NUM") or (kind == "w" and t.peek(1)[1] in ("[", "=")):

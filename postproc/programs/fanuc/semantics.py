@@ -77,7 +77,7 @@ class LS(Dialect):
         self.uframes = uframes
         self.utools = utools
         self.registers = set(registers)
-        self.functions = {"LS.UFRAME": uframe_of, "LS.UTOOL": utool_of, "LS.AS_PR": as_register,
+        self.functions = {"LS.PAYLOAD": payload_of, "LS.UFRAME": uframe_of, "LS.UTOOL": utool_of, "LS.AS_PR": as_register,
                           "LS.Offset": offset, "LS.Tool_Offset": tool_offset, "LS.P": indirect, "LS.PR": indirect,
                           "LS.R": indirect, "LS.READ": read}
 
@@ -398,3 +398,32 @@ def read(an, st, args, call):
 
 # (kept importable)
 _ = Tok
+
+
+class Schedule(Top):
+    """The payload of the controller's schedule ``PAYLOAD[schedule]``: its numbers are the controller's
+    (not in an LS program): not known unless its user states them (settings ``payloads``,
+    ``--payload N=MASS,CX,CY,CZ``: ``compensation.findings.load_rule``)."""
+
+    __slots__ = ("schedule",)
+
+    def __init__(self, schedule: int, loc):
+        from ...core.diagnostics import P235
+
+        super().__init__(f"PAYLOAD[{schedule}]: the payload schedule's numbers are the controller's, not in the files "
+                         f"read (state them with --payload {schedule}=MASS,CX,CY,CZ or the settings' payloads)", loc,
+                         P235)
+        self.schedule = schedule
+
+
+def payload_of(an, st, args, call):
+    """``PAYLOAD[n]``: the controller's payload schedule n in force from here (``Schedule``)."""
+    from ...core.diagnostics import P235
+
+    n = number(args[0]) if args else None
+    an.consume(args[0] if args else None, "PAYLOAD[…]")
+    if n is None or n != int(n):
+        why = args[0].why if args and isinstance(args[0], Top) else "a number known only at run time"
+        return Top(f"PAYLOAD[…] with {why}", call.loc or an.loc, P235)
+    return Schedule(int(n), call.loc or an.loc)
+

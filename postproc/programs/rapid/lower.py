@@ -804,7 +804,8 @@ class Lowering:
             node = positional[k]
             want = "JOINTTARGET" if spec.joint else "ROBTARGET"
             target = self.expr(node, want)
-            self.emit(Move(kind, target, self.here(u, node), frame, tool, joint=spec.joint, chain=kind != "CIRC-aux"))
+            self.emit(Move(kind, target, self.here(u, node), frame, tool, joint=spec.joint, chain=kind != "CIRC-aux",
+                           load=_load_of(tool)))
         if spec.search >= 0 and spec.search < len(positional) and _assignable(positional[spec.search]):
             self.emit(Assign(self.expr(positional[spec.search]),
                              Unknown(f"the position {written} found, known at run time", P211), loc))
@@ -1494,7 +1495,12 @@ def _move_run(run: _Run, src: Source) -> MoveRun:
                 line=line.astype(np.int32), col=col.astype(np.int32), motion=motion,
                 chain=motion != _MOTION["CIRC-aux"], config=np.full((n, 2), -1, np.int16),
                 orient=values[:, 3:7].copy(), ospans=spans[:, 3:7].copy(), confdata=values[:, 7:11].copy())
-    return MoveRun(rows, run.frame, run.tool)
+    return MoveRun(rows, run.frame, run.tool, _load_of(run.tool))
+
+
+def _load_of(tool):
+    """The payload at a motion with ``tool`` (a ``RAPID.TOOL`` call): its tload + the GripLoad."""
+    return Call("RAPID.LOAD", (tool.args[0],)) if isinstance(tool, Call) and tool.name == "RAPID.TOOL" else None
 
 
 def _path(e) -> tuple:

@@ -210,12 +210,14 @@ class RAPID(Dialect):
         self.functions = {"RAPID.FRAME": frame_of, "RAPID.TOOL": tool_of, "RAPID.OFFS": offs,
                           "RAPID.RELTOOL": reltool, "RAPID.PDISPON": pdispon, "RAPID.NOFRAME": noframe,
                           "RAPID.POSEMULT": posemult, "RAPID.POSEINV": poseinv, "RAPID.ORIENTZYX": orientzyx,
-                          "RAPID.POSEVECT": posevect, "RAPID.MATH": math_of}
+                          "RAPID.POSEVECT": posevect, "RAPID.MATH": math_of, "RAPID.LOAD": load_of}
         self._frames: dict = {}
         self._tools: dict = {}
 
     # ---------------------------------------------------------------- names
     def procedure(self, name: str):
+        if name.upper() == "RAPID.GRIPLOAD":
+            return gripload
         if name.startswith("RAPID.") and name[6:] in INSTRUCTIONS:
             return _instruction
         return None
@@ -677,3 +679,61 @@ def math_of(an, st, args, call):
 
 
 _ = Tok
+
+
+# ------------------------------------------------------------------------------- payloads
+
+
+def gripload(an, st, args, loc):
+    """``GripLoad load``: the payload the robot grips from here (``GripLoad load0``: none), on top of
+    its tool's tload; the controller resets it to load0 when a program starts."""
+    value = an.eval(args[0], st) if args and args[0] is not None else None
+    st.vars[("G", "$LOAD")] = value
+    return st
+
+
+def _loaddata(an, value, what: str):
+    """A loaddata as (mass, cog x, y, z): ``values.Load``, or Top (P235)."""
+    from ...core.diagnostics import P235
+    from ..analysis.values import Load
+
+    if isinstance(value, Rec) and (value.label == "load0" or not value.fields):
+        return Load((0.0, 0.0, 0.0, 0.0), "load0")
+    if isinstance(value, Top):
+        return Top(f"{what}: {value.why}", value.loc or an.loc, P235)
+    if not isinstance(value, Rec):
+        return Top(f"{what} is not a loaddata", an.loc, P235)
+    return Dialect.load(an.dialect, an, Rec(value.type, value.fields, value.loc, value.label or what))
+
+
+def load_of(an, st, args, call):
+    """``RAPID.LOAD(tool)``: the payload at a motion with ``tool`` — its tload (cog in the flange
+    frame) plus the ``GripLoad`` in force (cog in the tool frame: moved to the flange by the tool's
+    tframe), their masses added and their centres of mass weighted."""
+    from ...core.diagnostics import P235
+    from ..analysis.values import Load, NotSet
+
+    tool = args[0]
+    if isinstance(tool, Top):
+        return Top(f"the tool is not known ({tool.why})", tool.loc or an.loc, P235)
+    if not isinstance(tool, Rec) or tool.type not in ("TOOLDATA", ""):
+        return Top("the tool is not a tooldata", an.loc, P235)
+    if tool.get("ROBHOLD") is not True:
+        return Top("a stationary tool: the robot holds the work object, whose load is not read", an.loc, P235)
+    own = _loaddata(an, tool.get("TLOAD"), f"the tload of {tool.label or 'the tool'}")
+    if isinstance(own, Top):
+        return own
+    _, grip = an.lookup("$LOAD", st)
+    if grip is None or isinstance(grip, NotSet):
+        return own
+    held = _loaddata(an, grip, "the GripLoad")
+    if isinstance(held, Top) or held[0] == 0:
+        return held if isinstance(held, Top) else own
+    f = an.dialect.frame(an, tool.get("TFRAME"))
+    if isinstance(f, Top):
+        return Top(f"the tool's tframe is not known ({f.why})", f.loc or an.loc, P235)
+    cog = f.m[:3, :3] @ np.asarray(held[1:], float) + f.m[:3, 3]
+    mass = own[0] + held[0]
+    centre = (own[0] * np.asarray(own[1:], float) + held[0] * cog) / mass
+    return Load([mass, *centre.tolist()], f"{own.label} + {held.label}")
+

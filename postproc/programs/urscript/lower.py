@@ -471,6 +471,14 @@ class Lowering:
             if args:
                 self.emit(Assign(Name("$TCP"), args[0], loc))
             return
+        if name in ("set_payload", "set_target_payload"):  # (the payload in force: mass kg, cog m → mm)
+            cog = args[1] if len(args) > 1 else keywords.get("cog")
+            mass = args[0] if args else keywords.get("m")
+            self.emit(Assign(Name("$LOAD"), Call("UR.PAYLOAD", (mass, cog), loc), loc))
+            return
+        if name == "set_payload_mass":
+            self.emit(Assign(Name("$LOAD"), Call("UR.PAYLOAD", (args[0] if args else None, None), loc), loc))
+            return
         if name in _PATH_MOVERS:
             which, on = _PATH_MOVERS[name]
             self.emit(Eval(Call("UR.VALUE." + name, tuple(args) + tuple(keywords.values()), loc), loc))

@@ -104,7 +104,8 @@ class UR(Dialect):
         self.threads = set(threads)
         self._last_tool = None
         self.functions = {"UR.FRAME": frame_of, "UR.pose_trans": pose_trans,
-                          "UR.pose_add": pose_add, "UR.pose_inv": pose_inv, "UR.IK": inverse_kin}
+                          "UR.pose_add": pose_add, "UR.pose_inv": pose_inv, "UR.IK": inverse_kin,
+                          "UR.PAYLOAD": payload}
 
     def function(self, name: str):
         if name.startswith("UR.VALUE."):  # (a builtin that reads or reports, by its name)
@@ -295,3 +296,32 @@ def inverse_kin(an, st, args, call):
 
 # (kept importable)
 _ = Tok
+
+
+def payload(an, st, args, call):
+    """``set_payload(m, cog)`` / ``set_target_payload(m, cog, …)``: the payload in force, mass (kg)
+    and centre of gravity (metres in the tool flange frame, here in mm); without ``cog`` the one in
+    force stays (``set_payload_mass``): not known unless the mass is 0."""
+    from ...core.diagnostics import P235
+    from ..analysis.values import Load, Rec
+
+    mass, cog = (list(args) + [None, None])[:2]
+    for v in (mass, cog):
+        an.consume(v, "a payload")
+    what = f"the payload set at line {call.loc.line}" if call.loc is not None else "the payload set"
+    m = number(mass)
+    if m is None:
+        why = mass.why if isinstance(mass, Top) else "its mass is not a number"
+        return Top(f"{what}: {why}", an.loc, P235)
+    if cog is None:
+        if m == 0:
+            return Load((0.0, 0.0, 0.0, 0.0), what)
+        return Top(f"{what} sets the mass only: the centre of gravity in force is not known", an.loc, P235)
+    if not isinstance(cog, Rec):
+        why = cog.why if isinstance(cog, Top) else "its centre of gravity is not a list of three numbers"
+        return Top(f"{what}: {why}", an.loc, P235)
+    xyz = [number(cog.fields.get(str(k))) for k in range(3)]
+    if None in xyz or m < 0:
+        return Top(f"{what}: its centre of gravity is not known", an.loc, P235)
+    return Load([m] + [1000.0 * x for x in xyz], what)
+
