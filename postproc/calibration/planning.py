@@ -10,7 +10,11 @@ A plan may state each pose's arm configuration (``plan_configurations``: the bra
 controller takes from HOME, or half the poses, in pairs, in the flipped-wrist configuration): the CSV
 then has ``s,t`` columns and the KRL program moves PTP to each pose with its S and T (a LIN
 cannot change the configuration). A plan may be for another tool than the description's
-(``$TOOL`` in the program, the reach check with that TCP).
+(``$TOOL`` in the program, the reach check with that TCP). A plan may be measured at several
+test loads (``load_parts``: consecutive parts, one load each, as a cell calibrates with two or
+three test loads): the CSV then has ``load_mass,load_cx,load_cy,load_cz`` columns, which
+``postproc measure`` simulates and carries into the measurements, and the KRL program halts at
+HOME to change the load and sets ``$LOAD`` for each part.
 """
 from __future__ import annotations
 
@@ -22,13 +26,13 @@ from pathlib import Path
 import numpy as np
 
 from ..core.diagnostics import P335, P500, P501, P503, P512, PostprocError
-from ..measurements.csv import TOOL_COLUMNS, label_columns, parse_rows
+from ..measurements.csv import LOAD_COLUMNS, TOOL_COLUMNS, label_columns, parse_rows
 
 __all__ = [
     "DEFAULT_BOX", "DEFAULT_ATTITUDE", "DEFAULT_RANGE", "POSE_COLUMNS", "latin_hypercube", "round_poses",
     "plan_csv_text", "write_plan_csv", "read_pose_csv", "read_plan_config", "read_plan_labels",
     "plan_configurations", "WRIST_CHOICES", "krl_measurement_program", "write_krl_measurement_program",
-    "ls_measurement_program",
+    "ls_measurement_program", "load_parts", "parse_load", "read_plan_loads",
 ]
 
 # the calibration box of the method (Hu, Hua & Tian) and models/kr500.toml's [workspace]
@@ -91,6 +95,43 @@ def tool_parts(n: int, tools) -> np.ndarray:
     return tools[np.arange(n) * len(tools) // max(n, 1)]
 
 
+def load_parts(n: int, loads) -> np.ndarray:
+    """Each of ``n`` rows' load [n, 4] when a plan is measured in consecutive parts of equal size
+    (±1), one per load of ``loads`` [k, 4] (mass kg, centre of mass mm in the flange frame)."""
+    loads = np.asarray(loads, float).reshape(-1, 4)
+    return loads[np.arange(n) * len(loads) // max(n, 1)]
+
+
+def parse_load(text: str, default_com=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """``MASS[,CX,CY,CZ]`` (kg; mm in the flange frame) → [4]; a mass alone takes ``default_com``
+    (``plan --load``: the description's payload's centre of mass), a mass of 0 no centre.
+    PostprocError P512 otherwise."""
+    try:
+        values = np.array([float(v) for v in str(text).split(",")])
+    except ValueError:
+        values = np.zeros(0)
+    if len(values) == 1:
+        values = np.r_[values, default_com]
+    if values.shape != (4,) or not np.isfinite(values).all() or values[0] < 0:
+        raise PostprocError(f"a load is MASS[,CX,CY,CZ] (kg >= 0; its centre of mass, mm in the flange frame), "
+                            f"not {text!r}", code=P512)
+    if values[0] == 0:
+        values[1:] = 0.0
+    return values
+
+
+def read_plan_loads(path: str | Path) -> np.ndarray | None:
+    """The ``load_mass..load_cz`` columns [N, 4] of a plan or pose CSV (each row's load), None
+    without them; all four or none (P501), a mass >= 0 (P502)."""
+    from ..measurements.csv import _load_columns
+
+    lines = Path(path).read_bytes().removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
+    first = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
+    if first is None:
+        return None
+    return _load_columns(lines, first, [h.strip().lower() for h in lines[first].split(",")], str(path))
+
+
 def read_plan_tools(path: str | Path) -> np.ndarray | None:
     """The ``tool_x..tool_c`` columns [N, 6] of a plan (each row's TCP), None without them."""
     lines = Path(path).read_bytes().removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
@@ -104,10 +145,12 @@ def read_plan_tools(path: str | Path) -> np.ndarray | None:
 
 
 def plan_csv_chunks(poses: np.ndarray, config: np.ndarray | None = None, chunk: int = CHUNK,
-                    tools: np.ndarray | None = None, metadata: dict[str, str] | None = None):
+                    tools: np.ndarray | None = None, metadata: dict[str, str] | None = None,
+                    loads: np.ndarray | None = None):
     """:func:`plan_csv_text` in pieces of ``chunk`` rows (for a writer that streams them), after
     ``# key: value`` lines (``metadata``: what shapes the measurement and is not a column, e.g. the
-    ``tool`` of a plan measured with one tool other than the description's)."""
+    ``tool`` of a plan measured with one tool other than the description's); ``loads`` [N, 4]:
+    each row's load, columns ``load_mass..load_cz``."""
     if metadata:
         yield "".join(f"# {key}: {value}\n" for key, value in metadata.items())
     fmt = [f"%.{MM_DECIMALS}f"] * 3 + [f"%.{DEG_DECIMALS}f"] * 3
@@ -118,6 +161,9 @@ def plan_csv_chunks(poses: np.ndarray, config: np.ndarray | None = None, chunk: 
     if tools is not None:
         tools = np.asarray(tools, float).reshape(-1, 6)
         fmt, header = fmt + ["%.10g"] * 6, header + list(TOOL_COLUMNS)
+    if loads is not None:
+        loads = np.asarray(loads, float).reshape(-1, 4)
+        fmt, header = fmt + ["%.10g"] * 4, header + list(LOAD_COLUMNS)
     yield ",".join(header) + "\n"
     for start in range(0, len(poses), chunk):
         buf = io.StringIO()
@@ -126,6 +172,8 @@ def plan_csv_chunks(poses: np.ndarray, config: np.ndarray | None = None, chunk: 
             table = np.hstack([table, config[start:start + chunk]])
         if tools is not None:
             table = np.hstack([table, tools[start:start + chunk]])
+        if loads is not None:
+            table = np.hstack([table, loads[start:start + chunk]])
         np.savetxt(buf, table, fmt=fmt, delimiter=",")
         yield buf.getvalue()
 
@@ -286,6 +334,7 @@ def krl_measurement_program(
     comment: str = "",
     config: np.ndarray | None = None,
     tools: np.ndarray | None = None,
+    loads: np.ndarray | None = None,
 ) -> str:
     """A runnable KRL module (one .src, targets inline) that measures ``poses`` in order:
     HOME, PTP above the first pose, then for each pose LIN to it, settle ``wait_s``, raise
@@ -295,7 +344,10 @@ def krl_measurement_program(
     approach PTP. Targets are in the robot base frame ($BASE = $NULLFRAME). With ``config``
     [N, 2] (S, T per pose) each pose is reached PTP with its S and T (E6POS components). With
     ``tools`` [N, 6] (each pose's TCP, in consecutive parts: ``tool_parts``) every part after the
-    first starts at HOME with a HALT to mount its tool, then sets its $TOOL."""
+    first starts at HOME with a HALT to mount its tool, then sets its $TOOL. With ``loads`` [N, 4]
+    (each pose's load, mass kg and centre of mass mm on the flange, in consecutive parts:
+    ``load_parts``) every part starts so to mount its test load, and sets $LOAD (the first part
+    too)."""
     if not comment.isascii():  # controllers read .src as ANSI: keep the program plain ASCII
         comment = comment.encode("ascii", "replace").decode()
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,23}", name):
@@ -306,6 +358,9 @@ def krl_measurement_program(
     if tools is not None:
         tools = np.asarray(tools, float).reshape(len(poses), 6)
         starts += (np.flatnonzero((np.diff(tools, axis=0) != 0).any(axis=1)) + 1).tolist()
+    if loads is not None:
+        loads = np.asarray(loads, float).reshape(len(poses), 4)
+        starts = sorted(set(starts) | set((np.flatnonzero((np.diff(loads, axis=0) != 0).any(axis=1)) + 1).tolist()))
     parts = []  # (first, end, the arm with that part's tool, approach above its first and last pose, their S, T)
     for first, end in zip(starts, starts[1:] + [len(poses)]):
         arm = robot if tools is None or np.array_equal(tools[first], robot.tool) else \
@@ -324,7 +379,7 @@ def krl_measurement_program(
         f"&COMMENT postproc measurement program, {len(poses)} poses",
         f"DEF {name}( )",
         f"; postproc measurement program: {len(poses)} poses in visiting order{', ' + comment if comment else ''}",
-        f"; robot {robot.name}, tool {robot.tool_name if len(parts) == 1 else f'in {len(parts)} parts, one each'}; "
+        f"; robot {robot.name}, tool {robot.tool_name if tools is None else f'in {len(parts)} parts, one each'}; "
         "targets in the robot base frame",
         f"; at each pose: LIN, settle {wait_s:g} s, $OUT[{trigger_out}]=TRUE asks the tracker to measure,",
         f"; $IN[{done_in}]=TRUE says it has; a measurement row is written per pose in this order",
@@ -344,9 +399,17 @@ def krl_measurement_program(
         moves = [f"PTP {_krl_pos(p, int(st[0]), int(st[1]))}{nl}MEASURE_HERE( )" for p, st in zip(poses, config)]
     body = []
     for k, (first, end, arm, above, status, turn) in enumerate(parts):
-        if k:
+        load = None if loads is None else loads[first]
+        mount = f"the test load {load[0]:g} kg at ({load[1]:g}, {load[2]:g}, {load[3]:g}) mm" if load is not None else ""
+        if k and (tools is None or np.array_equal(tools[first], tools[parts[k - 1][0]])):
+            body += [f"PTP {{{home}}}", f"; part {k + 1} of {len(parts)}: mount {mount}, then continue", "HALT"]
+        elif k:
             body += [f"PTP {{{home}}}", f"; part {k + 1} of {len(parts)}: mount the tool {_krl_frame(arm.tool)}, "
-                     "then continue", "HALT", f"$TOOL = {_krl_frame(arm.tool)}"]
+                     f"{'and ' + mount + ', ' if mount else ''}then continue", "HALT", f"$TOOL = {_krl_frame(arm.tool)}"]
+        elif mount:
+            body += [f"; part 1 of {len(parts)}: {mount} mounted"]
+        if load is not None:
+            body += [f"$LOAD.M = {load[0]:g}", f"$LOAD.CM = {{X {load[1]:g}, Y {load[2]:g}, Z {load[3]:g}, A 0, B 0, C 0}}"]
         body += [f"PTP {_krl_pos(above[0], int(status[0]), int(turn[0]))}", *moves[first:end],
                  f"LIN {_krl_pos(above[1])}"]
     tail = [

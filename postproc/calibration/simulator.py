@@ -7,7 +7,7 @@ The real robot then turns its joints to
     q_true = q + zero offsets                                 (mastering)
                + Σ_k a_jk·sin(n_k·q_j + φ_jk)                  (gear transmission error)
                − d_j·b_j/2                                     (backlash: d = sign of the last motion)
-               − K⁻¹·(τ_g(q, payload) − τ_g(mastering, no load)) (compliance under gravity)
+               − K⁻¹·(τ_g(q, load) − τ_g(mastering, no load))  (compliance under gravity)
 
 and its TCP lands at the real robot's forward kinematics of q_true: joint placements off by
 a small rigid motion each (position and direction of every axis, 6 numbers per joint), the
@@ -22,6 +22,12 @@ offsets, base, tool) of every drawn robot so that its mean error norm over the w
 (Latin hypercube, 2000 poses, fixed seed) is that figure; compliance, gear ripple, backlash
 and noise keep their physical sizes. The default robot (``seed`` of the file) is the one
 calibrated to Hu, Hua & Tian's uncompensated row (mean 0.754 mm).
+
+The load is what the robot carries at each target: the description's ``[payload]`` (its
+rated payload, ``rated``) unless a call gives ``loads`` [N, 4] (mass kg, centre of mass cx,
+cy, cz mm in the flange frame) per row: a pick-and-place program carries the part to the
+place and nothing back, a calibration campaign is measured at two or three test loads
+(``postproc plan --loads``). A load row with a NaN is the description's payload.
 
 Vectorised throughout: IK/FK and gravity torques (from the joint frames) in numpy over all
 poses, backlash signs from ``np.diff`` with a forward fill; Pinocchio is not needed.
@@ -298,13 +304,40 @@ class SimulatedRobot:
         return poses, q, self._joint_errors(q, approach_signs(q, self.robot.home_q))
 
     # ---------------------------------------------------------------- the physics
-    def deflection(self, q_deg: np.ndarray, payload: bool = True) -> np.ndarray:
-        """Joint deflection under gravity [N, 6] (deg): −K⁻¹·(τ_g(q) − τ_g at mastering)."""
+    def deflection(self, q_deg: np.ndarray, payload: bool = True, loads: np.ndarray | None = None) -> np.ndarray:
+        """Joint deflection under gravity [N, 6] (deg): −K⁻¹·(τ_g(q, load) − τ_g at mastering),
+        with the description's payload (``payload`` False: none) or each row's ``loads`` [N, 4]
+        (mass kg, centre of mass mm in the flange frame; a row with a NaN: the description's)."""
         q = np.atleast_2d(np.asarray(q_deg, float))
         if self.stiffness is None:
             return np.zeros_like(q)
-        tau = self.robot.gravity_torques(q, payload=payload) - self._tau_mastering
-        return -np.degrees(tau / self.stiffness)
+        loads = self.loads(loads, len(q))
+        if loads is None:
+            tau = self.robot.gravity_torques(q, payload=payload)
+        else:
+            from ..robot.kinematics.gravity import gravity_torques
+
+            tau = gravity_torques(self.description, q, chain=self.robot.flange_chain, loads=loads)
+        return -np.degrees((tau - self._tau_mastering) / self.stiffness)
+
+    @property
+    def rated(self) -> np.ndarray:
+        """[4] the description's payload (its rated payload): mass kg, centre of mass mm (flange)."""
+        d = self.description
+        return np.r_[d.payload_mass, d.payload_com].astype(float)
+
+    def loads(self, loads: np.ndarray | None, n: int) -> np.ndarray | None:
+        """Each of ``n`` rows' load [n, 4] (a row with a NaN: the description's payload), None
+        for ``loads`` None (the description's payload everywhere). Raises PostprocError for a
+        negative mass."""
+        if loads is None:
+            return None
+        loads = np.array(np.broadcast_to(np.asarray(loads, float), (n, 4)))
+        unknown = np.isnan(loads).any(axis=1)
+        loads[unknown] = self.rated
+        if not np.isfinite(loads).all() or (loads[:, 0] < 0).any():
+            raise PostprocError("a load must be a mass >= 0 kg and a centre of mass in mm (finite numbers)")
+        return loads
 
     def ripple(self, q_deg: np.ndarray) -> np.ndarray:
         """Gear transmission error [N, 6] (deg) at commanded joint angles."""
@@ -314,9 +347,9 @@ class SimulatedRobot:
         phase = q[:, :, None] * self.ripple_orders + self.ripple_phase
         return (self.ripple_amp_deg * np.sin(phase)).sum(axis=-1)
 
-    def _joint_errors(self, q_deg: np.ndarray, signs: np.ndarray) -> np.ndarray:
+    def _joint_errors(self, q_deg: np.ndarray, signs: np.ndarray, loads: np.ndarray | None = None) -> np.ndarray:
         """Everything the joints add to the command except the (scaled) zero offsets."""
-        return self.ripple(q_deg) - signs * self.backlash_deg / 2 + self.deflection(q_deg)
+        return self.ripple(q_deg) - signs * self.backlash_deg / 2 + self.deflection(q_deg, loads=loads)
 
     def _tcp(self, q_deg: np.ndarray, joint_errors: np.ndarray, tools: np.ndarray | None = None) -> np.ndarray:
         return self._tcp_matrix(q_deg, joint_errors, tools)[:, :3, 3]
@@ -406,25 +439,30 @@ class SimulatedRobot:
         start = self.robot.home_q if start_q is None else np.asarray(start_q, float)
         return approach_signs(self.joint_angles(poses), start)
 
-    def true_joint_angles(self, poses: np.ndarray, start_q: np.ndarray | None = None) -> np.ndarray:
-        """Joint angles [N, 6] (deg) the real joints take when the poses are visited in order."""
+    def true_joint_angles(self, poses: np.ndarray, start_q: np.ndarray | None = None,
+                          loads: np.ndarray | None = None) -> np.ndarray:
+        """Joint angles [N, 6] (deg) the real joints take when the poses are visited in order
+        (carrying ``loads`` [N, 4], default the description's payload)."""
         q = self.joint_angles(poses)
         start = self.robot.home_q if start_q is None else np.asarray(start_q, float)
-        return q + self._joint_errors(q, approach_signs(q, start)) + self.scale * self.zero_offsets_deg
+        return q + self._joint_errors(q, approach_signs(q, start), loads) + self.scale * self.zero_offsets_deg
 
     def actual_poses(self, commanded_poses: np.ndarray, start_q: np.ndarray | None = None, *,
                      q_deg: np.ndarray | None = None, config: np.ndarray | None = None,
                      tools: np.ndarray | None = None, motions: np.ndarray | None = None,
-                     prev: np.ndarray | None = None, axes: np.ndarray | None = None) -> np.ndarray:
+                     prev: np.ndarray | None = None, axes: np.ndarray | None = None,
+                     loads: np.ndarray | None = None) -> np.ndarray:
         """Where the TCP really goes as transforms [N, 4, 4] (mm, robot base frame) when the
         commanded poses [N, 6] are visited in order from ``start_q`` (default HOME), at the
         joint angles ``q_deg`` if given, else in their configuration ``config`` (see
-        :meth:`joint_angles`), with each row's ``tools``. Deterministic: no noise."""
+        :meth:`joint_angles`), with each row's ``tools``, carrying each row's ``loads`` [N, 4]
+        (mass kg, centre of mass mm in the flange frame; None or a NaN row: the description's
+        payload). Deterministic: no noise."""
         q = (self.joint_angles(commanded_poses, config, tools, motions, prev, axes) if q_deg is None
              else np.asarray(q_deg, float))
         start = self.robot.home_q if start_q is None else np.asarray(start_q, float)
         signs = approach_signs(q, start) if prev is None else ordered_approach_signs(q, prev, start, axes)
-        return self._tcp_matrix(q, self._joint_errors(q, signs), tools)
+        return self._tcp_matrix(q, self._joint_errors(q, signs, loads), tools)
 
     def actual_positions(self, commanded_poses: np.ndarray, start_q: np.ndarray | None = None, **options) -> np.ndarray:
         """Where the TCP really goes [N, 3] (mm, robot base frame): :meth:`actual_poses`' positions."""
@@ -435,7 +473,7 @@ class SimulatedRobot:
         """Tracker readings [N, 3] (mm, robot base frame): the actual positions + the robot's
         repeatability + tracker noise (Gaussian, per axis), visited in order. With
         ``orientation``: [N, 6], the probe's A, B, C too (+ ``orientation_noise_deg``).
-        ``options``: q_deg, config, tools, motions (see :meth:`actual_poses`)."""
+        ``options``: q_deg, config, tools, motions, loads (see :meth:`actual_poses`)."""
         actual = self.actual_poses(commanded_poses, start_q, **options)
         rng = np.random.default_rng(rng_seed)
         sigma = math.hypot(self.spec.tracker_noise_mm, self.spec.repeatability_mm)
@@ -452,10 +490,11 @@ class SimulatedRobot:
         """Per-axis standard deviation of a measurement about the true mean position (mm)."""
         return math.hypot(self.spec.tracker_noise_mm, self.spec.repeatability_mm)
 
-    def true_error(self, poses: np.ndarray, start_q: np.ndarray | None = None) -> np.ndarray:
-        """E = P_target − P_actual [N, 3] (mm) for poses visited in order (no noise)."""
+    def true_error(self, poses: np.ndarray, start_q: np.ndarray | None = None, **options) -> np.ndarray:
+        """E = P_target − P_actual [N, 3] (mm) for poses visited in order (no noise); ``options``
+        as :meth:`actual_poses` (``loads`` among them)."""
         poses = np.atleast_2d(np.asarray(poses, float))
-        return poses[:, :3] - self.actual_positions(poses, start_q)
+        return poses[:, :3] - self.actual_positions(poses, start_q, **options)
 
     def verify(self, targets: np.ndarray, commands: np.ndarray, rng_seed: int | None = 0,
                noise: bool = True, **options) -> dict:
@@ -466,7 +505,8 @@ class SimulatedRobot:
         "errors_after"} (the last two [N] arrays of norms, mm), and "orientation_before" /
         "orientation_after": Table 2 of the angle (deg) between the target's and the actual
         orientation (a 6-DOF probe, ``orientation_noise_deg``). ``options`` (config, tools,
-        motions; see :meth:`actual_poses`): the program's configurations and tools, for both runs."""
+        motions, loads; see :meth:`actual_poses`): the program's configurations, tools and the
+        load carried at each target, for both runs."""
         targets = np.atleast_2d(np.asarray(targets, float))
         commands = np.atleast_2d(np.asarray(commands, float))
         if targets.shape != commands.shape:

@@ -20,7 +20,10 @@ those configurations (s,t copied to the output); with --tool the output starts w
 consecutive parts, one tool each (the tool changed between them), and each row names its TCP
 in columns tool_x..tool_c: data that separate the tool mount's rotation (`postproc train`);
 a plan with tool_x..tool_c columns (`postproc plan --tool A --tool B`) is measured with them.
-A plan's pose,cycle columns (`postproc plan --iso9283`) are copied to the output, so that
+A plan's load_mass..load_cz columns (`postproc plan --load`) are the load carried at each row:
+simulated (the robot deflects under it) and copied to the output, which `postproc train`
+identifies the compliance under; --load MASS[,CX,CY,CZ] given once or more measures the plan
+with that load, or in as many parts, one load each. A plan's pose,cycle columns (`postproc plan --iso9283`) are copied to the output, so that
 `postproc report --iso9283` names the poses P1..P5 as the plan does.
 """
 
@@ -46,6 +49,10 @@ def add_parser(sub, common, formatter) -> None:
     p.add_argument("--tool", metavar="X,Y,Z,A,B,C", action="append",
                    help="the TCP on the flange measured (default the description's [tool]); give it two or three "
                    "times to measure the plan in as many parts, one per tool")
+    p.add_argument("--load", metavar="MASS[,CX,CY,CZ]", action="append",
+                   help="the load carried (kg; centre of mass mm in the flange frame, default the description's "
+                   "[payload] com; default load: the description's [payload]); two or three times: the plan in as "
+                   "many parts, one load each (output columns load_mass..load_cz)")
     p.set_defaults(run=run)
 
 
@@ -56,7 +63,10 @@ def run(args) -> int:
 
     from ..calibration.planning import (
         read_plan_config,
+        load_parts,
+        parse_load,
         read_plan_labels,
+        read_plan_loads,
         read_plan_tools,
         read_pose_csv,
         tool_parts,
@@ -65,7 +75,7 @@ def run(args) -> int:
     from ..core.diagnostics import P320, P335, PostprocError
     from ..core.outputs import check_outputs, write
     from ..core.progress import stages
-    from ..measurements.csv import TOOL_COLUMNS, measurement_csv, parse_tool, read_metadata
+    from ..measurements.csv import LOAD_COLUMNS, TOOL_COLUMNS, measurement_csv, parse_tool, read_metadata
     from ..robot.description import robot_description
     from . import show_progress
 
@@ -93,6 +103,12 @@ def run(args) -> int:
         if given:  # consecutive parts of the plan, one tool each
             tools = tool_parts(len(poses), given)
         several = tools is not None and len(np.unique(tools, axis=0)) > 1
+        loads = read_plan_loads(args.plan)
+        if loads is not None and args.load:
+            raise PostprocError("the plan names each row's load (load_mass..load_cz): --load would contradict it",
+                                args.plan, code=P320)
+        if args.load:
+            loads = load_parts(len(poses), [parse_load(t, sim.description.payload_com) for t in args.load])
         stage("controller IK")
         ok = sim.reachable_in(poses, config, tools)
         if not ok.all():
@@ -102,7 +118,7 @@ def run(args) -> int:
                                 args.plan, int(lines[bad[0]]), 1, P335)
         stage("simulate and measure")
         q = sim.joint_angles(poses, config, tools)
-        measured = sim.measure(poses, rng_seed=args.seed, orientation=True, q_deg=q, tools=tools)
+        measured = sim.measure(poses, rng_seed=args.seed, orientation=True, q_deg=q, tools=tools, loads=loads)
         extra = {name: measured[:, 3 + k] for k, name in enumerate(("a_meas", "b_meas", "c_meas"))}
         extra |= {f"q{k + 1}": q[:, k] for k in range(6)}
         fmt = ["%.10g"] * 6 + ["%.4f"] * 3 + ["%.5f"] * 3 + ["%.6f"] * 6
@@ -112,6 +128,9 @@ def run(args) -> int:
         if several:
             extra |= {name: tools[:, k] for k, name in enumerate(TOOL_COLUMNS)}
             fmt += ["%.10g"] * 6
+        if loads is not None:  # (the load at each row: what train identifies the compliance under)
+            extra |= {name: loads[:, k] for k, name in enumerate(LOAD_COLUMNS)}
+            fmt += ["%.10g"] * 4
         extra |= labels  # an ISO 9283 plan's pose,cycle: the report names the poses as the plan does
         fmt += ["%d"] * len(labels)
         # (what a model trained on these rows is: a demonstration model of a simulated robot, its card says)

@@ -14,6 +14,8 @@ EXAMPLES = """examples:
   postproc plan --iso9283 --cube 2000 0 900 400 --cycles 10 -o iso.csv
   postproc plan -n 600 -o plan.csv --krl m.src --tool 300,0,75,0,0,0 --tool 450,0,75,0,0,0 --tool 300,0,200,0,0,0
                                                                (three tools: the plan in three parts)
+  postproc plan -n 600 -o plan.csv --krl m.src --load 0 --load 300,220,0,40
+                                                               (two test loads: the plan in two parts)
   postproc plan --for part1.src part2.mod -n 300 -o plan.csv --krl m.src   (for the programs that will run)
   postproc plan --for part1.src --data measured.csv -o more.csv   (what the data does not cover: P337; more poses)
 
@@ -58,6 +60,11 @@ def add_parser(sub, common, formatter) -> None:
                    "parts, one tool each (columns tool_x..tool_c; KRL: HOME and HALT to change the tool between "
                    "them), data that separate the tool mount's rotation (README: Any tool); with --for: the $TOOL of "
                    "programs that do not set it, as compensate takes it")
+    p.add_argument("--load", metavar="MASS[,CX,CY,CZ]", action="append",
+                   help="a test load the plan is measured with (kg; its centre of mass, mm in the flange frame, "
+                   "default the description's [payload] com); give it two or three times to measure the plan in as "
+                   "many parts, one load each (columns load_mass..load_cz; KRL: HOME and HALT to change the load, "
+                   "$LOAD set): data from which train identifies what loads do")
     p.add_argument("--wait", type=float, default=1.0, metavar="S",
                    help="settling time before each measurement (default 1 s)")
     progs = p.add_argument_group("a plan for the programs that will run (instead of the Latin hypercube)")
@@ -120,6 +127,12 @@ def run(args) -> int:
                             "configurations ([robot] configuration = \"fanuc\", e.g. models/r2000ic.toml)", code=P512)
     if args.ls is not None and (args.iso9283 or len(tools) > 1):
         raise PostprocError("--ls writes a Latin-hypercube plan measured with one tool", code=P512)
+    from ..calibration.planning import load_parts, parse_load
+
+    loads = [parse_load(t, description.payload_com) for t in args.load or []]
+    if loads and (args.programs or args.iso9283 or args.ls is not None or len(tools) > 1):
+        raise PostprocError("--load plans a Latin-hypercube campaign at test loads (CSV and --krl), with one tool: "
+                            "leave out --for, --iso9283, --ls and a second --tool", code=P512)
     if args.programs:
         return _run_for(args, description)
     if args.data:
@@ -156,13 +169,14 @@ def run(args) -> int:
         stage("write")
         # (one tool: said in the plan, so that measure simulates the tool the program measures with)
         meta = {"tool": ",".join(f"{v:g}" for v in tools[0])} if len(tools) == 1 else None
-        outputs = [(Path(args.output), plan_csv_chunks(poses, config, tools=rows, metadata=meta))]
+        load_rows = load_parts(len(poses), loads) if loads else None
+        outputs = [(Path(args.output), plan_csv_chunks(poses, config, tools=rows, metadata=meta, loads=load_rows))]
         if args.krl is not None:
             src = Path(args.krl)
             comment = (f"Latin hypercube seed {args.seed}, box {list(map(float, box))}, "
                        f"attitude {list(map(float, attitude))} +- {range_deg:g} deg")
             outputs.append((src, krl_measurement_program(poses, src.stem, robot, wait_s=args.wait, comment=comment,
-                                                                  config=config, tools=rows)))
+                                                                  config=config, tools=rows, loads=load_rows)))
         if args.ls is not None:
             from ..calibration.planning import ls_measurement_program
 

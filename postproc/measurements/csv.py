@@ -22,6 +22,10 @@ per row: the measurement set-up — tracker placement, day — it was measured i
 gets its own tracker → base frame in the fit: ``Measurements.campaigns``). Several files given
 to one ``train`` are one data set of several campaigns (``combine_measurements``: each file a
 campaign, or its own ``campaign`` column's, with its own ``# key: value`` lines).
+Columns ``load_mass, load_cx, load_cy, load_cz`` (kg; mm in the flange frame): the load the robot
+carried at each row (a campaign measured at two or three test loads): all four or none (P501),
+a mass ≥ 0 (P502); ``Measurements.loads``, which ``train`` identifies the compliance under (a
+load-aware model). The same pose at two loads is two measurements.
 
 Codes: P500 unreadable/empty, P501 missing or misnamed column, P502 a value that is not a
 finite number, P503 wrong number of fields, P504 duplicate pose.
@@ -50,6 +54,7 @@ __all__ = [
     "POSE_COLUMNS", "MEAS_COLUMNS", "COLUMNS", "TOOL_COLUMNS", "ORIENTATION_COLUMNS", "STATUS_TURN_COLUMNS",
     "LABEL_COLUMNS", "Measurements", "read_measurements", "parse_measurements", "parse_rows", "label_columns",
     "read_metadata", "measurement_csv", "write_measurements", "parse_tool", "CAMPAIGN_COLUMN", "combine_measurements",
+    "LOAD_COLUMNS",
 ]
 
 POSE_COLUMNS = ("x", "y", "z", "a", "b", "c")
@@ -61,6 +66,8 @@ STATUS_TURN_COLUMNS = ("s", "t")
 # a plan's labels of each row, carried by ``postproc measure``: the ISO 9283 pose (1…5 = P1…P5 as
 # the plan names them) and the cycle (1…n)
 LABEL_COLUMNS = ("pose", "cycle")
+# the load carried at each row: mass (kg) and its centre of mass in the flange frame (mm)
+LOAD_COLUMNS = ("load_mass", "load_cx", "load_cy", "load_cz")
 # the measurement set-up (campaign) of each row: any name (a tracker placement, a day)
 CAMPAIGN_COLUMN = "campaign"
 
@@ -84,6 +91,7 @@ class Measurements:
     campaigns: np.ndarray | None = None  # [N] str: each row's campaign (set-up), None: one campaign
     # each campaign's file and '# key: value' lines: {name: {"path": str, "meta": dict}} (with ``campaigns``)
     campaign_files: dict = field(default_factory=dict)
+    loads: np.ndarray | None = None  # [N, 4] from 'load_mass','load_cx'..'load_cz' (kg, mm flange), if there
 
     @property
     def errors(self) -> np.ndarray:
@@ -147,10 +155,12 @@ def parse_measurements(data: bytes, path: str = "<data>", repeats: bool = False)
     status_turn = _status_turn_columns(lines, first, header, path) if joints is None else None
     labels = label_columns(lines, first, header, path)
     campaigns = _campaign_column(lines, first, header, path)
+    loads = _load_columns(lines, first, header, path)
     # the same pose in another arm configuration (joint angles a degree or more apart) or
     # with another tool is another measurement, not a repeat
     key = table[:, :6] if joints is None else np.c_[table[:, :6], np.round(joints)]
     key = key if tools is None else np.c_[key, tools]
+    key = key if loads is None else np.c_[key, loads]  # (the same pose under another load: another measurement)
     if campaigns is not None:  # (the same pose measured in two set-ups is two measurements)
         key = np.c_[key, np.unique(campaigns, return_inverse=True)[1]]
     if not repeats:
@@ -158,7 +168,27 @@ def parse_measurements(data: bytes, path: str = "<data>", repeats: bool = False)
     holdout = table[:, 9] != 0 if table.shape[1] > 9 else None
     files = {} if campaigns is None else {str(c): {"path": path, "meta": dict(meta)} for c in dict.fromkeys(campaigns)}
     return Measurements(table[:, :6].copy(), table[:, 6:9].copy(), line_numbers, sha, path, meta, holdout, joints,
-                        tools, orientation, status_turn, labels, campaigns, files)
+                        tools, orientation, status_turn, labels, campaigns, files, loads)
+
+
+def _load_columns(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:
+    """The load of each row [N, 4] (kg, mm in the flange frame) from ``load_mass, load_cx,
+    load_cy, load_cz``: all four or none (P501), finite numbers (P502), a mass ≥ 0 (P502)."""
+    present = [name in header for name in LOAD_COLUMNS]
+    if not any(present):
+        return None
+    if not all(present):
+        missing = ", ".join(n for n, p in zip(LOAD_COLUMNS, present) if not p)
+        raise PostprocError(f"missing column(s) {missing}: a row's load is {','.join(LOAD_COLUMNS)} (mass kg, its "
+                            "centre of mass mm in the flange frame)", path, first + 1, 1, P501)
+    index = [header.index(n) for n in LOAD_COLUMNS]
+    values, numbers = parse_rows(lines, first, header, index, path)
+    bad = np.flatnonzero(values[:, 0] < 0)
+    if len(bad):
+        raw = lines[int(numbers[bad[0]]) - 1]
+        raise PostprocError(f"column 'load_mass': {values[bad[0], 0]:g} kg is not a mass (>= 0)", path,
+                            int(numbers[bad[0]]), _field_starts(raw)[index[0]] + 1, P502)
+    return values
 
 
 def _campaign_column(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:
@@ -184,7 +214,7 @@ def combine_measurements(parts: Sequence[Measurements]) -> Measurements:
     """Several measurement files as one data set of several campaigns: each file's rows are its
     campaign (named after the file; a file with a ``campaign`` column keeps its names, after the
     file's), with the file's own ``# key: value`` lines (``campaign_files``). Columns that only some
-    files have are left out (joint angles, orientations, S/T, labels); tools: each file's
+    files have are left out (joint angles, orientations, S/T, labels, loads); tools: each file's
     ``tool_x..tool_c`` or ``# tool:`` line, all or none (P320 otherwise)."""
     from ..core.diagnostics import P320
 
@@ -219,7 +249,7 @@ def combine_measurements(parts: Sequence[Measurements]) -> Measurements:
                         np.concatenate([p.lines for p in parts]), sha, " + ".join(p.path for p in parts), meta,
                         joined([p.holdout for p in parts]), joined([p.joints for p in parts]), joined(tools),
                         joined([p.orientation for p in parts]), joined([p.status_turn for p in parts]), {},
-                        np.concatenate(campaigns), files)
+                        np.concatenate(campaigns), files, joined([p.loads for p in parts]))
 
 
 def _tool_columns(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:

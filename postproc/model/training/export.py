@@ -21,6 +21,7 @@ from ...core import outputs
 from ..contract import (
     INPUT_APPROACH,
     INPUT_JOINTS,
+    INPUT_LOAD,
     INPUT_POSE,
     INPUT_PREVIOUS,
     INPUT_PREVIOUS_JOINTS,
@@ -40,9 +41,10 @@ OPSET = 17
 
 def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False, joints: bool = False,
                joints_input: bool = False, approach_input: bool = False, tool_input: bool = False,
-               previous_joints_input: bool = False, rotation: bool = False, std: bool = False) -> bytes:
+               previous_joints_input: bool = False, rotation: bool = False, std: bool = False,
+               load_input: bool = False) -> bytes:
     """The serialised ONNX model of ``module`` (pose [N, 6] [, previous_pose [N, 6]] [, joints
-    [N, 6] deg] [, approach [N, 6]] [, tool [N, 6]] [, previous_joints [N, 6] deg] → error
+    [N, 6] deg] [, approach [N, 6]] [, tool [N, 6]] [, previous_joints [N, 6] deg] [, load [N, 4]] → error
     [N, 3] [, ik_joints [N, 6] deg] [, rotation_error [N, 3] deg] [, error_std [N, 1] mm]) with
     metadata; inputs and outputs in that order."""
     inputs = [INPUT_POSE, INPUT_PREVIOUS] if previous else [INPUT_POSE]
@@ -54,12 +56,15 @@ def onnx_bytes(module: torch.nn.Module, metadata: dict, previous: bool = False, 
         inputs.append(INPUT_TOOL)
     if previous_joints_input:
         inputs.append(INPUT_PREVIOUS_JOINTS)
+    if load_input:
+        inputs.append(INPUT_LOAD)
     outputs = [OUTPUT_ERROR, OUTPUT_JOINTS] if joints else [OUTPUT_ERROR]
     if rotation:
         outputs.append(OUTPUT_ROTATION)
     if std:
         outputs.append(OUTPUT_STD)
-    example = tuple(torch.tensor([[2000.0, 0.0, 900.0, 0.0, 90.0, 0.0]] * 2, dtype=torch.float32) for _ in inputs)
+    example = tuple(torch.tensor([[100.0, 0.0, 0.0, 200.0]] * 2, dtype=torch.float32) if name == INPUT_LOAD
+                    else torch.tensor([[2000.0, 0.0, 900.0, 0.0, 90.0, 0.0]] * 2, dtype=torch.float32) for name in inputs)
     buffer = io.BytesIO()
     with warnings.catch_warnings():
         # the TorchScript exporter announces its deprecation on every call

@@ -15,7 +15,14 @@ import torch
 
 from ...robot.kinematics.twin import wrapped_step
 
-__all__ = ["previous_poses", "previous_joints", "motion_signs", "wrap_angles", "inside_ranges", "joint_features"]
+# a load-aware model (trained on data at known loads: ``KinematicModel.fit``'s ``loads``) is held
+# to masses from 0 to this × the largest it was measured with, and centres of mass up to this ×
+# the farthest (the card's ``loads.extrapolate``; ``Compensator.load_reach``): its compliance is
+# physical, the torque of a load linear in its mass, so it extrapolates; benchmarks/loads.py
+# measures it at 500 kg from data at 0 and 300 kg (1.67×)
+LOAD_EXTRAPOLATE = 2.0
+
+__all__ = ["LOAD_EXTRAPOLATE", "previous_poses", "previous_joints", "motion_signs", "wrap_angles", "inside_ranges", "joint_features"]
 
 
 def previous_poses(poses: np.ndarray, first: np.ndarray | None = None) -> np.ndarray:

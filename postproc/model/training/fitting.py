@@ -274,6 +274,15 @@ def _require_one_tool(rows: _Rows, method: str) -> None:
                             f"{_several_tools(rows)}: train --method hybrid (a physical model)", rows.source, code=P320)
 
 
+def blind_loads_card(loads: np.ndarray) -> dict:
+    """The card's ``loads`` of a model that does not take the load (``aware`` False): the loads
+    its data was measured with and the rows at each."""
+    distinct, counts = np.unique(np.round(np.asarray(loads, dtype=np.float64).reshape(-1, 4), 6), axis=0,
+                                 return_counts=True)
+    return {"measured": [[float(v) for v in row] for row in distinct], "rows": [int(n) for n in counts],
+            "aware": False}
+
+
 def _take(values: np.ndarray | None, rows: np.ndarray) -> np.ndarray | None:
     return None if values is None else values[rows]
 
@@ -337,6 +346,11 @@ def _identified(rows: _Rows, method: str, description, pose_only: bool, update, 
     inputs = _Inputs(previous, q_deg, None if previous is None else previous_joints(q_deg))
     t = rows.train
     refit = None
+    loads = rows.data.loads
+    if loads is not None and (method == "dnn-joints" or update):
+        rows.notes.append(f"warning: {'--update' if update else '--method ' + method} does not identify what loads "
+                          "do: load_mass..load_cz not used (a load-blind model: the card states the loads measured)")
+        loads = None
     if update:
         refit = _update(rows, description, update, q_deg, rotation_errors)
         model = refit.model
@@ -352,7 +366,8 @@ def _identified(rows: _Rows, method: str, description, pose_only: bool, update, 
         model = HybridModel(description, **{**SETTINGS[method], **params})
         try:
             model.fit(poses[t], rows.errors[t], _take(previous, t), _take(q_deg, t), _take(rows.tools, t),
-                      _take(rotation_errors, t), _take(inputs.q_previous, t), campaigns=_take(rows.campaigns, t))
+                      _take(rotation_errors, t), _take(inputs.q_previous, t), campaigns=_take(rows.campaigns, t),
+                      loads=_take(loads, t))
         except PostprocError as exc:  # (the estimator knows rows, not files: its findings are the data's)
             if not exc.path:
                 exc.path = str(getattr(rows.data, "path", "") or "")
@@ -399,8 +414,9 @@ def _identified_card(model, description, rows: _Rows, inputs: _Inputs, rotation_
         rows.notes.append(f"warning: {100 * (1 - share):.1f} % of the training rows were reached on another IK "
                           f"branch than {list(model.kinematic_.ik_.branch)}: the model assumes that one everywhere")
     poses = data.poses
+    loads = rows.data.loads if getattr(model.kinematic_, "load_reference_", None) is not None else None
     predicted = model.predict(poses[val], _take(inputs.previous, val), _take(inputs.q_deg, val),
-                              _take(rows.tools, val), _take(inputs.q_previous, val))
+                              _take(rows.tools, val), _take(inputs.q_previous, val), loads=_take(loads, val))
     accuracy = accuracy_card(rows.errors[val], predicted, model.train_stats_["mean"], len(train))
     blocked = model.kinematic_.blocked_figures()
     if blocked is not None:  # beside the random held-out rows': each region predicted without it
@@ -431,13 +447,16 @@ def _identified_card(model, description, rows: _Rows, inputs: _Inputs, rotation_
         own = model.description_.tool
         same = np.allclose(own, description.tool)
         metadata["tool"] = model.tool_card(description.tool_name if same else tool_name(own))
+    if data.loads is not None and loads is None:  # (measured at loads it does not take)
+        metadata["loads"] = blind_loads_card(data.loads)
     return model.card(**metadata)
 
 
 def _campaigns_card(km, rows: _Rows) -> list[dict]:
     """The card's ``campaigns``: each campaign's name, file, rows, and its tracker → base frame —
-    the registration (rotation vector deg, offset mm; rms) and the identification's refinement of
-    it (the first campaign's is the model's own base: none), with its std."""
+    the registration (rotation vector deg, offset mm, the matrix; rms) and the identification's
+    refinement of it (the first campaign's is the model's own base: none) and its tool offset
+    (mm along the TCP's axes, against the first campaign's tool), with their std."""
     out = []
     frames = km.campaign_frames_
     codes = [] if frames is None else list(km.campaign_codes_)
@@ -451,14 +470,16 @@ def _campaigns_card(km, rows: _Rows) -> list[dict]:
 
             entry["registration"] = {"rotation_deg": [round(float(v), 6) for v in np.degrees(
                 rotation_vector(transform[:3, :3]))], "offset_mm": [round(float(v), 4) for v in transform[:3, 3]],
-                "rms_mm": round(float(rms), 4)}
+                "rms_mm": round(float(rms), 4), "tracker_to_base": np.round(transform, 9).tolist()}
         if k in codes:
             i = codes.index(k)
             f, sd = frames[i], km.campaign_std_[i]
             entry["frame"] = {"reference": i == 0, "rotation_deg": [round(float(v), 6) for v in np.degrees(f[:3])],
-                              "offset_mm": [round(float(v), 4) for v in f[3:]],
+                              "offset_mm": [round(float(v), 4) for v in f[3:6]],
                               "rotation_std_deg": [round(float(v), 6) for v in np.degrees(sd[:3])],
-                              "offset_std_mm": [round(float(v), 4) for v in sd[3:]]}
+                              "offset_std_mm": [round(float(v), 4) for v in sd[3:6]],
+                              "tool_mm": [round(float(v), 4) for v in f[6:9]],
+                              "tool_std_mm": [round(float(v), 4) for v in sd[6:9]]}
         out.append(entry)
     return out
 
@@ -474,6 +495,10 @@ def _network(rows: _Rows, method: str, robot_meta: dict, search: bool, search_en
     if rows.tools is not None:  # a pose → error map learns one TCP's error
         _require_one_tool(rows, method)
         robot_meta["tool"] = tool_metadata(rows.tools[0])
+    if rows.data.loads is not None:  # a pose → error map learns the error at the loads it saw
+        rows.notes.append(f"warning: --method {method} does not identify what loads do: load_mass..load_cz not used "
+                          "(a load-blind model: the card states the loads measured; train --method hybrid)")
+        robot_meta["loads"] = blind_loads_card(rows.data.loads)
     model = ErrorModel(method=method, **params)
     poses, errors, train, val = rows.data.poses, rows.errors, rows.train, rows.val
     found = _search(model, rows, search_engine) if search else None

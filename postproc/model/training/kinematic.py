@@ -113,8 +113,9 @@ LEVER_MM = 1000.0
 LEVER_RANGE = (10.0, 10000.0)
 # the prior's unit sizes of a campaign's frame (rows measured in another tracker set-up: ``fit``'s
 # ``campaigns``), each after its own rigid registration: 10 mrad, 10 mm — a weak prior, the
-# frames are the data's to fix
+# frames are the data's to fix; and of its own tool (reflector) offset, along the TCP's axes
 CAMPAIGN_RAD, CAMPAIGN_MM = 1e-2, 10.0
+CAMPAIGN_SIZE = 9  # per campaign beyond the first: rotation vector (3), offset (3), tool offset (3)
 
 
 def nominal_digest(description: RobotDescription) -> str:
@@ -329,27 +330,34 @@ def residual_variance(jac: torch.Tensor, covariance: torch.Tensor, sigma2: torch
 
 
 def campaign_frames(tcp: torch.Tensor, jac: torch.Tensor, sens: torch.Tensor, frames: torch.Tensor,
-                    rows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """The identified TCPs [N, 3] seen in each row's campaign frame: R(ω_k)·tcp + t_k for the rows
-    of campaign k ≥ 1 (``rows`` [N, K − 1] one-hot; ``frames`` [6(K − 1)] rotation vectors rad and
-    offsets mm), with the Jacobian [N, 3, P] turned and the frames' columns [N, 3, 6(K − 1)]
-    appended (e_i × R·tcp, e_i; as the base group's, at θ), and the joint sensitivities [N, 3, 6]
-    turned."""
-    per_row = rows @ frames.reshape(-1, 6)  # [N, 6] (the first campaign's rows: 0)
+                    rows: torch.Tensor, tcp_axes: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The identified TCPs [N, 3] seen in each row's campaign: R(ω_k)·(tcp + R_tcp·d_k) + t_k for
+    the rows of campaign k ≥ 1 (``rows`` [N, K − 1] one-hot; ``frames`` [9(K − 1)]: rotation vector
+    rad, offset mm, tool offset d mm along the TCP's axes ``tcp_axes`` [N, 3, 3]), with the
+    Jacobian [N, 3, P] turned and the campaigns' columns [N, 3, 9(K − 1)] appended (e_i × the
+    point, e_i, R·R_tcp; as the base and tool groups', at θ), and the joint sensitivities
+    [N, 3, 6] turned."""
+    per_row = rows @ frames.reshape(-1, CAMPAIGN_SIZE)  # [N, 9] (the first campaign's rows: 0)
     turn = small_rotation(per_row[:, :3])  # [N, 3, 3]
-    turned = mv(turn, tcp)
+    turned = mv(turn, tcp + mv(tcp_axes, per_row[:, 6:]))
     n = tcp.shape[0]
     eye = torch.eye(3, dtype=tcp.dtype)
     cross = torch.linalg.cross(eye[None].expand(n, 3, 3), turned[:, None, :].expand(n, 3, 3)).transpose(1, 2)
-    cols = torch.cat([cross, eye.expand(n, 3, 3)], dim=2)  # [N, 3, 6]
+    cols = torch.cat([cross, eye.expand(n, 3, 3), turn @ tcp_axes], dim=2)  # [N, 3, 9]
     cols = (cols[:, :, None, :] * rows[:, None, :, None]).reshape(n, 3, -1)
-    return turned + per_row[:, 3:], torch.cat([turn @ jac, cols], dim=2), turn @ sens
+    return turned + per_row[:, 3:6], torch.cat([turn @ jac, cols], dim=2), turn @ sens
 
 
-def to_first_frame(measured: torch.Tensor, per_row: torch.Tensor) -> torch.Tensor:
-    """Measured points [N, 3] of rows in campaign frames (``per_row`` [N, 6]: each row's frame,
-    rotation vector rad and offset mm, as ``campaign_frames``) in the first campaign's: R(ω)ᵀ(m − t)."""
-    return mv(small_rotation(per_row[:, :3]).transpose(1, 2), measured - per_row[:, 3:])
+def to_first_frame(measured: torch.Tensor, per_row: torch.Tensor, tcp_axes: torch.Tensor) -> torch.Tensor:
+    """Measured points [N, 3] of rows of campaigns (``per_row`` [N, 9]: each row's campaign's frame
+    and tool offset, as ``campaign_frames``; ``tcp_axes`` [N, 3, 3]) in the first campaign's frame,
+    at its tool: R(ω)ᵀ(m − t) − R_tcp·d."""
+    return mv(small_rotation(per_row[:, :3]).transpose(1, 2), measured - per_row[:, 3:6]) - mv(tcp_axes, per_row[:, 6:])
+
+
+def tcp_axes_of(poses: np.ndarray) -> torch.Tensor:
+    """[N, 3, 3] the TCP's axes at commanded poses [N, 6] (a campaign's tool offset moves along them)."""
+    return torch.as_tensor(frames.rotation_from_abc(np.asarray(poses, dtype=np.float64).reshape(-1, 6)[:, 3:6]))
 
 
 def _joint_columns(layout: Layout, q: torch.Tensor, signs: torch.Tensor, tau: torch.Tensor,
@@ -784,8 +792,8 @@ class KinematicModel(Estimator):
         orientation is fitted too, in the same least squares (see ``lever_``), with the tool's
         rotation as three more parameters — with one tool only (data of several tools: position
         only, ``orientation_`` False). ``campaigns`` [N] int (0, 1, …): each row's measurement
-        campaign (tracker set-up); campaigns beyond the first get their own rigid frame (6
-        parameters each) in the same least squares, the robot's parameters shared
+        campaign (tracker set-up); campaigns beyond the first get their own rigid frame and tool
+        (reflector) offset (9 parameters each) in the same least squares, the robot's parameters shared
         (``campaign_frames_``; ``to_base`` moves rows into the first campaign's frame, which the
         model predicts in); position only. ``loads`` [N, 4]: the load each row was measured with
         (mass kg, centre of mass cx, cy, cz mm in the flange frame): the compliance's torques take
@@ -845,7 +853,7 @@ class KinematicModel(Estimator):
         layout = Layout(groups, list(self.ripple) if isinstance(self.ripple, list) else [])
         self.campaign_frames_ = self.campaign_std_ = None
         if several_campaigns and layout.n:
-            theta, tau, measured = self._fit_campaigns(layout, q, s, tau, measured, campaigns[keep])
+            theta, tau, measured = self._fit_campaigns(layout, q, s, tau, measured, campaigns[keep], poses)
             errors = (tcp - measured).numpy()  # (in the first campaign's frame)
         else:
             theta, tau = self._fit_physical(layout, q, s, tau, measured)
@@ -1041,8 +1049,9 @@ class KinematicModel(Estimator):
                 tt = torch.as_tensor(t)
                 tcp, jac, sens = jacobian(arm, layout, tt[:len(t) - campaign] if campaign else tt, q, s, tau,
                                           self._tool_rows, ripple_rows=ripple_rows)
-                if campaign:  # (rows of other campaigns: their frame's turn and shift after the arm)
-                    tcp, jac, sens = campaign_frames(tcp, jac, sens, tt[len(t) - campaign:], self._campaign_rows)
+                if campaign:  # (rows of other campaigns: their tool offset, their frame's turn and shift after the arm)
+                    tcp, jac, sens = campaign_frames(tcp, jac, sens, tt[len(t) - campaign:], self._campaign_rows,
+                                                     self._campaign_axes)
                 r = (tcp - measured).numpy().reshape(-1)
             d = away(t)
             return r, jac.numpy().reshape(len(r), -1), sens.numpy(), float(r @ r + (w2f * d * d).sum())
@@ -1076,24 +1085,29 @@ class KinematicModel(Estimator):
         return theta
 
     def _campaign_parameters(self) -> int:
-        """How many campaign-frame parameters the fit carries now (6 per campaign beyond the first)."""
+        """How many campaign parameters the fit carries now (CAMPAIGN_SIZE per campaign beyond the first)."""
         rows = getattr(self, "_campaign_rows", None)
-        return 0 if rows is None else 6 * rows.shape[1]
+        return 0 if rows is None else CAMPAIGN_SIZE * rows.shape[1]
 
     def _campaign_scales(self) -> np.ndarray:
-        return np.tile(np.r_[np.full(3, CAMPAIGN_RAD), np.full(3, CAMPAIGN_MM)], self._campaign_parameters() // 6)
+        return np.tile(np.r_[np.full(3, CAMPAIGN_RAD), np.full(6, CAMPAIGN_MM)],
+                       self._campaign_parameters() // CAMPAIGN_SIZE)
 
-    def _fit_campaigns(self, layout: Layout, q, s, tau, measured: torch.Tensor,
-                       campaigns: np.ndarray) -> tuple[np.ndarray, torch.Tensor, torch.Tensor]:
-        """The physical fit with a rigid frame per campaign beyond the first (``campaigns`` [N]
-        int), the robot's parameters shared: (θ of ``layout``, torques, the measured points
-        moved into the first campaign's frame). Sets ``campaign_frames_`` [K, 6] (rotation
-        vector rad, offset mm: the first campaign's rows ↦ each campaign's, the first zeros),
-        ``campaign_std_`` [K, 6] (the posterior std, σ²(JᵀJ + W)⁻¹, the robot's parameters
-        with them) and ``campaign_codes_`` (the campaigns in the order of those rows)."""
+    def _fit_campaigns(self, layout: Layout, q, s, tau, measured: torch.Tensor, campaigns: np.ndarray,
+                       poses: np.ndarray) -> tuple[np.ndarray, torch.Tensor, torch.Tensor]:
+        """The physical fit with a rigid frame and a tool offset per campaign beyond the first
+        (``campaigns`` [N] int; ``poses`` [N, 6] the rows' commanded poses), the robot's
+        parameters shared: (θ of ``layout``, torques, the measured points moved into the first
+        campaign's frame at its tool). Sets ``campaign_frames_`` [K, 9] (rotation vector rad,
+        offset mm: the first campaign's frame ↦ each campaign's; the tool offset mm along the
+        TCP's axes; the first zeros), ``campaign_std_`` [K, 9] (the posterior std, σ²(JᵀJ + W)⁻¹,
+        the robot's parameters with them) and ``campaign_codes_`` (the campaigns in that order).
+        A tool offset the rows cannot tell from the frame's shift (one orientation) stays where
+        the prior splits it: the same points either way."""
         codes, index = np.unique(campaigns, return_inverse=True)
         onehot = torch.nn.functional.one_hot(torch.as_tensor(index), len(codes)).to(torch.float64)[:, 1:]
-        self._campaign_rows = onehot
+        axes = tcp_axes_of(poses)
+        self._campaign_rows, self._campaign_axes = onehot, axes
         try:
             theta, tau = self._fit_physical(layout, q, s, tau, measured)
             r, jac, _ = self._state
@@ -1105,18 +1119,19 @@ class KinematicModel(Estimator):
             std = np.sqrt(np.clip(np.diag(a_inv)[layout.n:], 0.0, None) * sigma2)
         finally:
             self._campaign_rows = None
-        frames = np.vstack([np.zeros(6), theta[layout.n:].reshape(-1, 6)])
-        self.campaign_frames_, self.campaign_std_ = frames, np.vstack([np.zeros(6), std.reshape(-1, 6)])
+        frames = np.vstack([np.zeros(CAMPAIGN_SIZE), theta[layout.n:].reshape(-1, CAMPAIGN_SIZE)])
+        self.campaign_frames_ = frames
+        self.campaign_std_ = np.vstack([np.zeros(CAMPAIGN_SIZE), std.reshape(-1, CAMPAIGN_SIZE)])
         self.campaign_codes_ = codes
         theta = theta[:layout.n].copy()
-        measured = to_first_frame(measured, torch.as_tensor(frames[index]))
+        measured = to_first_frame(measured, torch.as_tensor(frames[index]), axes)
         self._levenberg_marquardt(layout, theta, q, s, tau, measured, 0)  # (the state of the fit without the frames)
         return theta, tau, measured
 
     def to_base(self, poses: np.ndarray, errors: np.ndarray, campaigns: np.ndarray | None) -> np.ndarray:
         """E [N, 3] of rows of the campaigns ``campaigns`` [N] int (``fit``'s codes) moved into the
-        first campaign's frame — the frame the model predicts in — by the fitted campaign frames
-        (``errors`` as they are without campaigns)."""
+        first campaign's frame and tool — which the model predicts for — by the fitted campaign
+        frames and tool offsets (``errors`` as they are without campaigns)."""
         frames = getattr(self, "campaign_frames_", None)
         if frames is None or campaigns is None:
             return np.asarray(errors, dtype=np.float64)
@@ -1124,10 +1139,11 @@ class KinematicModel(Estimator):
         if not (index < len(self.campaign_codes_)).all() or not (self.campaign_codes_[np.minimum(
                 index, len(self.campaign_codes_) - 1)] == campaigns).all():
             raise ValueError("rows of a campaign the fit did not see")
-        p = np.asarray(poses, dtype=np.float64).reshape(-1, 6)[:, :3]
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
+        p = poses[:, :3]
         measured = torch.as_tensor(p - np.asarray(errors, dtype=np.float64).reshape(-1, 3))
         with torch.no_grad():
-            return p - to_first_frame(measured, torch.as_tensor(frames[index])).numpy()
+            return p - to_first_frame(measured, torch.as_tensor(frames[index]), tcp_axes_of(poses)).numpy()
 
     def _set_loads(self, loads: np.ndarray | None, n: int) -> None:
         """The rows' loads for the fit (``fit``'s ``loads``): ``_loads_in`` [n, 4] tensor, the

@@ -115,7 +115,7 @@ class PositionStd:
 
 def _jac(model: KinematicModel, q: torch.Tensor, signs: torch.Tensor) -> np.ndarray:
     with torch.no_grad():
-        tau = model.module_.torques(q)
+        tau = model.module_.torques(q, getattr(model, "train_load_", None))  # (the rows' loads)
         _, jac, _ = jacobian(model.arm_, model.layout_, torch.as_tensor(model.theta_), q, signs, tau)
     return jac.numpy()  # [N, 3, P]
 
@@ -130,7 +130,7 @@ def parameter_covariance(model: KinematicModel, residual: np.ndarray | None = No
     s = torch.as_tensor(model.train_signs_)
     jac = _jac(model, q, s).reshape(-1, len(model.theta_))
     with torch.no_grad():
-        tau = model.module_.torques(q)
+        tau = model.module_.torques(q, getattr(model, "train_load_", None))  # (the rows' loads)
     scale = model._prior_scales(model.layout_, tau)  # each parameter's typical size
     w = model.prior_ / scale**2  # the fit's prior curvature
     jtj = jac.T @ jac

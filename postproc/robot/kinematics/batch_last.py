@@ -17,7 +17,7 @@ from __future__ import annotations
 import torch
 
 from ...core.frames import MM, abc_entries
-from .gravity import gravity_from_points, holding_torques
+from .gravity import gravity_from_points, holding_torques, load_torques
 
 __all__ = ["const_mat", "mat", "mat_t", "mat_vec", "const_vec", "cross", "unit_crosses", "abc_rotations", "joint_turns",
            "Frames", "frames", "torque_terms"]
@@ -125,15 +125,25 @@ def frames(turns: torch.Tensor, offsets: torch.Tensor, q: torch.Tensor, end: tor
     return Frames(rotations, origins, tcp)
 
 
-def torque_terms(arm, f: Frames) -> torch.Tensor:
+def torque_terms(arm, f: Frames, load: torch.Tensor | None = None) -> torch.Tensor:
     """[6 + 21, N]: ``Arm.torque_terms`` (the gravity torques, then each link's share τ_ji, i ≥ j,
     in ``coupling_pairs`` order) of the frames ``f``: ``gravity.gravity_from_points`` /
-    ``holding_torques``, the one gravity formula, on [N, …] views of the batch-last frames."""
+    ``holding_torques``, the one gravity formula, on [N, …] views of the batch-last frames.
+    ``load`` [N, 4] (no NaN): each row's load in place of the payload (``Arm.torque_terms``)."""
     from .twin import coupling_pairs
 
     omega = f.axes(arm.axes)[:, :2]  # [6, 2, N] (only x, y turn against gravity)
     origins = f.origins_stacked()[:, :2]
     centres = torch.stack([o[:2] + const_vec(r[:2], c) for r, o, c in zip(f.rotations, f.origins, arm.coms)])
+    if load is not None:
+        j_idx, i_idx = (torch.tensor(v) for v in coupling_pairs(len(arm.axes)))
+        in_last = (load[:, 1:] @ arm.flange[:3, :3].T + arm.flange[:3, 3]).t()  # [3, N]
+        centre = (f.origins[-1][:2] + mat_vec(f.rotations[-1][:2], in_last)).t()  # [N, 2]
+        o, w = origins.transpose(1, 2), omega.transpose(1, 2)
+        total = [a + b for a, b in zip(gravity_from_points(o, centres.transpose(1, 2), w, arm.masses),
+                                       load_torques(o, w, load[:, 0], centre))]
+        lever = (centres[i_idx] - origins[j_idx]) * (MM * arm.masses[i_idx])[:, None, None]
+        return torch.cat([torch.stack(total), holding_torques(omega[j_idx].transpose(1, 2), lever.transpose(1, 2))])
     payload = (f.origins[-1][:2] + const_vec(f.rotations[-1][:2], arm.payload_com)).t()
     total = gravity_from_points(origins.transpose(1, 2), centres.transpose(1, 2), omega.transpose(1, 2), arm.masses,
                                 arm.payload_mass, payload)

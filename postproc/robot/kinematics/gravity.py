@@ -1,4 +1,8 @@
-"""Gravity torques of a description's links and payload (numpy)."""
+"""Gravity torques of a description's links and payload (numpy).
+
+A load (payload) is (mass kg, centre of mass cx, cy, cz mm in the flange frame): the
+description's ``[payload]``, or per row ``loads`` [N, 4] (what the robot carries at each
+target: ``load_torques``, the one formula the simulator and the identification's graph share)."""
 from __future__ import annotations
 
 import numpy as np
@@ -7,7 +11,9 @@ from ...core.frames import MM
 from ..description import RobotDescription
 from .chain import Chain, _times
 
-__all__ = ['GRAVITY', 'gravity_torques', 'gravity_from_points', 'holding_torques']
+__all__ = ['GRAVITY', 'gravity_torques', 'gravity_from_points', 'holding_torques', 'load_torques', 'LOAD_WIDTH']
+
+LOAD_WIDTH = 4  # a load row: mass kg, centre of mass cx, cy, cz mm (flange frame)
 
 
 GRAVITY = 9.81  # m/s², along −Z of the robot base frame (Pinocchio's default)
@@ -41,17 +47,32 @@ def gravity_from_points(origins, centres, omega, masses, payload_mass: float = 0
     return torques[::-1]
 
 
+def load_torques(origins, omega, mass, centre) -> list:
+    """Joint torques (J arrays [N], Nm) that hold one load against gravity: ``mass`` [N] kg at
+    ``centre`` [N, 3] mm (base frame) on the last link, joint origins and axes [N, 3] per joint
+    (base frame). numpy arrays or torch tensors alike (:func:`holding_torques`)."""
+    return [holding_torques(w, (centre[..., :2] - p[..., :2]) * (mass[..., None] * MM)) for p, w in zip(origins, omega)]
+
+
 def gravity_torques(description: RobotDescription, q_deg: np.ndarray, payload: bool = True,
-                    chain: Chain | None = None) -> np.ndarray:
+                    chain: Chain | None = None, loads: np.ndarray | None = None) -> np.ndarray:
     """Joint torques [N, J] (Nm) that hold a description's arm (with its payload, or without)
     against gravity at joint angles [N, J] (deg): :func:`gravity_from_points` of the joint
     frames of its ``chain`` (default ``Chain.of(description, tool=False)``), all poses at once, a block of
-    rows at a time (tests/test_kinematics.py checks it against ``pin.computeGeneralizedGravity``)."""
+    rows at a time (tests/test_kinematics.py checks it against ``pin.computeGeneralizedGravity``).
+    ``loads`` [N, 4] (or [4]): each row's load (mass kg, centre of mass mm in the flange frame)
+    in place of the description's payload (``payload`` is then not read)."""
     d = description
     chain = Chain.of(d, tool=False) if chain is None else chain
     q = np.radians(np.atleast_2d(np.asarray(q_deg, float)))
     coms, axes, masses, payload_com = d.coms, d.axes, d.masses, d.payload_com_in_last
     out = np.empty_like(q)
+    if loads is not None:
+        loads = np.broadcast_to(np.asarray(loads, float), (len(q), LOAD_WIDTH))
+        if not np.isfinite(loads).all() or (loads[:, 0] < 0).any():
+            raise ValueError("a load must be finite numbers with a mass >= 0 kg")
+        flange = d.flange_matrix
+        in_last = loads[:, 1:] @ flange[:3, :3].T + flange[:3, 3]  # [N, 3] the loads' centres in the last joint's frame
     for start in range(0, len(q), GRAVITY_ROWS):  # blocks that stay in the cache
         rows = slice(start, start + GRAVITY_ROWS)
         origins, centres, omega = [], [], []
@@ -59,7 +80,13 @@ def gravity_torques(description: RobotDescription, q_deg: np.ndarray, payload: b
             origins.append(p.T)
             centres.append((p + _times(r, coms[j])).T)
             omega.append(_times(r, axes[j]).T)
-        torques = gravity_from_points(origins, centres, omega, masses, d.payload_mass if payload else 0.0,
-                                      (p + _times(r, payload_com)).T)
+        if loads is None:
+            torques = gravity_from_points(origins, centres, omega, masses, d.payload_mass if payload else 0.0,
+                                          (p + _times(r, payload_com)).T)
+        else:
+            block = in_last[rows].T  # [3, n]
+            centre = (p + r[:, 0] * block[0] + r[:, 1] * block[1] + r[:, 2] * block[2]).T
+            arm = gravity_from_points(origins, centres, omega, masses)
+            torques = [a + b for a, b in zip(arm, load_torques(origins, omega, loads[rows, 0], centre))]
         out[rows] = np.stack(torques, axis=1)
     return out

@@ -28,7 +28,7 @@ import torch
 
 from ...core.frames import MM, abc_entries
 from ..description import RobotDescription
-from .gravity import GRAVITY, gravity_from_points, holding_torques
+from .gravity import GRAVITY, gravity_from_points, holding_torques, load_torques
 from .ik import (
     UR_SINGULAR_TORCH,
     KukaGeometry,
@@ -269,14 +269,32 @@ class Arm:
         return torch.stack(gravity_from_points(origins.unbind(1), *self._points(rotations, origins), self.masses,
                                                self.payload_mass, payload), dim=1)
 
-    def torque_terms(self, rotations: torch.Tensor, origins: torch.Tensor) -> torch.Tensor:
+    def load_centre(self, rotations: torch.Tensor, origins: torch.Tensor, load: torch.Tensor) -> torch.Tensor:
+        """[N, 3] mm: each row's load's centre of mass (``load`` [N, 4], mass kg and centre mm in
+        the flange frame) in the base frame."""
+        in_last = load[:, 1:] @ self.flange[:3, :3].T + self.flange[:3, 3]
+        return origins[:, -1] + mv(rotations[:, -1], in_last)
+
+    def torque_terms(self, rotations: torch.Tensor, origins: torch.Tensor,
+                     load: torch.Tensor | None = None) -> torch.Tensor:
         """[N, J + J(J+1)/2]: the gravity torques of :meth:`gravity_torques`, then each link's
         own share of them, τ_ji for i ≥ j (pairs in ``coupling_pairs`` order): the regressors
-        of a compliance whose link masses and lever arms are not known (only their directions)."""
-        total = self.gravity_torques(rotations, origins)
+        of a compliance whose link masses and lever arms are not known (only their directions).
+        With ``load`` [N, 4] (each row's load: mass kg, centre of mass mm in the flange frame; no
+        NaN) in place of the description's payload: the arm's links' torques and shares, the
+        load's own torque (``gravity.load_torques``, exact for a known mass and centre) added to
+        the gravity torques only — a load-aware compliance, whose shares stay the arm's."""
         j_idx, i_idx = coupling_pairs(len(self.axes))
         centres, omega = (torch.stack(points, 1) for points in self._points(rotations, origins))
         weights = self.masses.clone()
+        if load is not None:
+            points = self._points(rotations, origins)
+            arm = gravity_from_points(origins.unbind(1), *points, self.masses)
+            held = load_torques(origins.unbind(1), points[1], load[:, 0], self.load_centre(rotations, origins, load))
+            total = torch.stack([a + b for a, b in zip(arm, held)], dim=1)
+            lever = (centres[:, i_idx] - origins[:, j_idx]) * MM * weights[i_idx][:, None]
+            return torch.cat([total, holding_torques(omega[:, j_idx], lever)], dim=1)
+        total = self.gravity_torques(rotations, origins)
         weights[-1] = weights[-1] + self.payload_mass
         lever = (centres[:, i_idx] - origins[:, j_idx]) * MM * weights[i_idx][:, None]  # [N, P, 3]
         return torch.cat([total, holding_torques(omega[:, j_idx], lever)], dim=1)
