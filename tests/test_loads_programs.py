@@ -10,13 +10,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
 
 from postproc.cli import main
 from postproc.compensation.pipeline import compensate_program
 from postproc.model.compensator import load_model
+from postproc.programs import ActiveFrames
 from postproc.programs.io import read_program
 from postproc.settings import Settings
+from postproc.testing.generate import krl_programs
 from postproc.testing.models import affine_model
+from postproc.testing.oracle import check
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "samples" / "krl" / "pick_place_load.src"
@@ -230,3 +234,46 @@ def test_fanuc_payload_schedules_as_stated_and_pose_list_loads_reach_the_model(m
     got = np.array(re.findall(r"^([-\d.]+),([-\d.]+),([-\d.]+),", report.outputs[str(csv)], re.M), float)
     load = program.targets.load
     assert np.abs(got - aware.command(program.targets.poses, load=load)).max() < 2e-3
+
+
+@pytest.fixture(scope="module")
+def loaded(tmp_path_factory):
+    """A load-aware model (its correction varies over space, with the approach and with the mass)."""
+    path = tmp_path_factory.mktemp("l") / "l.onnx"
+    return load_model(affine_model(path, offset=(0.2, -0.1, 0.15), gain=np.diag([2e-3, 1.5e-3, 2.5e-3]),
+                                   previous_gain=5e-5, tool={"name": "any"}, load_gain=np.diag([2e-4, 5e-4, 0.0]),
+                                   load_offset=(0.1, 0.05, -0.2)))
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(krl_programs(loads=True))
+def test_every_target_runs_with_the_load_the_analysis_gave_it(loaded, program):
+    """Random KRL programs whose payload changes ($LOAD, $LOAD.M, BAS(#TOOL, n) from LOAD_DATA, code not
+    read; in branches and loops): on every oracle's path each compensated target is at P + Ê(P, the load
+    the run carries there) — the world's where the analysis did not know it — or was left as written."""
+    files, texts, config = program
+    checked = check(files, texts, "krl", loaded, config=config, active=ActiveFrames(base=0, tool="model"),
+                    seeds=range(3))
+    assert checked.violations == [], "\n".join(checked.violations) + "\n" + texts[0]
+
+
+def test_the_property_sees_a_load_the_analysis_got_wrong(loaded, tmp_path):
+    """The oracle is not blind to loads: the same program, checked as if the load were not tracked
+    (every row's load dropped: the model's reference), is found wrong on the rows that carry 0 kg."""
+    from postproc.programs.analysis import targets as built
+
+    files, texts = ["t.src"], [SAMPLE.read_text(encoding="latin-1").replace("pick_place_load", "t")]
+    assert check(files, texts, "krl", loaded, seeds=range(1)).violations == []
+    columns = built._columns
+
+    def blind(*args, **kwargs):
+        out = columns(*args, **kwargs)
+        out.load, out.load_cause = None, None
+        return out
+
+    built._columns = blind
+    try:
+        violations = check(files, texts, "krl", loaded, seeds=range(1)).violations
+    finally:
+        built._columns = columns
+    assert len(violations) == 3  # (the rows at 0 kg, commanded for the reference 300 kg)

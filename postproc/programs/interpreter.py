@@ -53,6 +53,9 @@ class Motion:
     axes: list | None = None  # (a joint motion: its six axis values where known, deg)
     motion: str = ""  # the motion kind (robot.conventions.MOTIONS: a run's row its own)
     config: tuple = (-1, -1)  # the configuration its target writes: KRL's (S, T), -1 not written
+    # the payload the robot carries at it (mass kg, cx, cy, cz mm): as the program sets it, the world's
+    # where the analysis does not know it (the oracle's), None where the program sets none
+    load: tuple | None = None
 
 
 class Oracle:
@@ -99,6 +102,11 @@ class Oracle:
             six = np.r_[r.uniform(-200, 200, 3), r.uniform(-30, 30, 3)]
             return Mat(fr.frame_to_matrix(six), "the world's frame")
         return self._draw(self._key(site, "frame"), make)
+
+    def load(self, site) -> tuple:
+        """A payload the world has where the program's is not known (mass kg, centre of mass mm)."""
+        return self._draw(self._key(site, "load"), lambda r: (float(r.choice([0.0, 120.0, 300.0, 450.0])), 0.0,
+                                                              float(r.uniform(-40, 40)), float(r.uniform(0, 300))))
 
     def model_tool(self) -> np.ndarray:
         """The model's own tool on the flange in this world (drawn once)."""
@@ -273,6 +281,8 @@ class Interpreter(Analysis):
 
     # ------------------------------------------------------------------ motions
     def move(self, s: Move, st: State) -> State:
+        if s.relative and isinstance(s.target, Agg):
+            return self.move_relative(s, st)
         if s.joint or s.relative:
             axes = None
             if s.joint and not s.relative:
@@ -299,7 +309,43 @@ class Interpreter(Analysis):
             token = view.xyz[0].token[:2]
         self.motions.append(Motion(s.loc, s.kind, m, tool if not isinstance(tool, Top) else None,
                                    view.loc if view is not None else None, token, motion=s.kind,
-                                   config=tuple(view.config) if view is not None and view.config else (-1, -1)))
+                                   config=tuple(view.config) if view is not None and view.config else (-1, -1),
+                                   load=self.load_in_force(s.load, st)))
+        if s.chain:
+            st.cur = (m, frame, tool) if m is not None else None
+        return st
+
+    def move_relative(self, s: Move, st: State) -> State:
+        """A relative motion (``Move.rel``): from the pose last commanded — as the new tool reads
+        it where the tool changed (the flange stays) — by the move's X/Y/Z along the motion's
+        frame's axes ("base") or the tool's ("tool"); None where the run does not know it."""
+        move = self.eval(s.target, st)
+        frame = self.frame_value(s.frame, st)
+        if isinstance(frame, Top):
+            frame = self.oracle.frame(self.here)
+        tool = self.tool_value(s.tool, st)
+        m = None
+        if isinstance(move, Rec) and st.cur is not None and st.cur[0] is not None and isinstance(frame, Mat):
+            here = st.cur[0]
+            if not _equal_tools(st.cur[2], tool):
+                before, now = self._tool_matrix(st.cur[2]), self._tool_matrix(tool)
+                here = None if before is None or now is None else here @ np.linalg.inv(before) @ now
+            d = [number(move.fields.get(k, 0.0)) for k in ("X", "Y", "Z")]
+            if here is not None and all(v is not None for v in d):
+                step = np.eye(4)
+                step[:3, 3] = d
+                if s.rel == "base":
+                    m = here.copy()
+                    m[:3, 3] += frame.m[:3, :3] @ np.asarray(d, float)
+                else:
+                    m = here @ step
+        view = self.dialect.view(move) if isinstance(move, Rec) else None
+        token = None
+        if view is not None and view.xyz and hasattr(view.xyz[0], "token"):
+            token = view.xyz[0].token[:2]
+        self.motions.append(Motion(s.loc, s.kind, m, tool if not isinstance(tool, Top) else None,
+                                   view.loc if view is not None else None, token, motion=s.kind,
+                                   load=self.load_in_force(s.load, st)))
         if s.chain:
             st.cur = (m, frame, tool) if m is not None else None
         return st
@@ -338,6 +384,7 @@ class Interpreter(Analysis):
         if isinstance(frame, Top):
             frame = self.oracle.frame(self.here)
         tool = self.tool_value(s.tool, st)
+        load = self.load_in_force(s.load, st)
         r = s.rows
         names = ("X", "Y", "Z", "A", "B", "C")
         for i in range(len(r["line"])):
@@ -353,7 +400,7 @@ class Interpreter(Analysis):
             token = (int(r["file"][i]), int(r["spans"][i, 0])) if r["spans"][i, 0] >= 0 else None
             self.motions.append(Motion(site, "row", m, tool if not isinstance(tool, Top) else None, site, token,
                                        motion=MOTIONS[int(r["motion"][i])],
-                                       config=tuple(int(v) for v in r["config"][i])))
+                                       config=tuple(int(v) for v in r["config"][i]), load=load))
             if r["chain"][i]:
                 st.cur = (m, frame, tool) if m is not None else None
         return st
@@ -366,6 +413,14 @@ class Interpreter(Analysis):
         if any(k not in out for k in names):
             return None
         return np.array([float(out[k]) for k in names])
+
+    def load_in_force(self, expr, st):
+        """The payload at a motion (``Analysis.load_value``) in this run: the world's (the oracle's)
+        where the program's is not known, None where it sets none."""
+        v = self.load_value(expr, st)
+        if isinstance(v, Top):
+            return self.oracle.load(self.here)
+        return None if v is None else tuple(float(x) for x in v)
 
     def tool_value(self, expr, st):
         v = super().tool_value(expr, st)

@@ -39,11 +39,30 @@ def _st(draw, configurations: bool) -> str:
     return f",S {s}" + (f",T {t}" if t is not None else "")
 
 
+_LOAD_MASSES = (0, 150, 300)
+
+
+def _load_statement(draw) -> str:
+    """A payload change (issue 33): ``$LOAD`` set whole, its mass alone, or from LOAD_DATA by the tool's
+    number (BAS #TOOL: $config.dat's LOAD_DATA[1], 2 not in it), or by code not read."""
+    choice = draw(st.integers(0, 4))
+    if choice <= 1:
+        m, z = draw(st.sampled_from(_LOAD_MASSES)), draw(st.integers(0, 300))
+        return f"$LOAD = {{M {m}.0,CM {{X 0.0,Y 0.0,Z {z}.0,A 0.0,B 0.0,C 0.0}},J {{X 0.0,Y 0.0,Z 0.0}}}}"
+    if choice == 2:
+        return f"$LOAD.M = {draw(st.sampled_from(_LOAD_MASSES))}.0"
+    if choice == 3:
+        return f"BAS(#TOOL, {draw(st.integers(1, 2))})\n$TOOL = $NULLFRAME"
+    return "gripper()"
+
+
 @st.composite
-def _statements(draw, depth: int, labels: list, configurations: bool = False):
+def _statements(draw, depth: int, labels: list, configurations: bool = False, loads: bool = False):
     out = []
     cf = configurations
     for _ in range(draw(st.integers(1, 4))):
+        if loads and draw(st.integers(0, 2)) == 0:
+            out += _load_statement(draw).split("\n")
         k = draw(st.integers(1, 4))
         choice = draw(st.integers(0, 15 if depth > 0 else 10))
         if choice == 0:
@@ -77,8 +96,8 @@ def _statements(draw, depth: int, labels: list, configurations: bool = False):
             out.append(f"LIN XP{k}")
             out.append(f"{label}:")
         elif choice in (11, 12):
-            then = draw(_statements(depth - 1, labels, cf))
-            other = draw(_statements(depth - 1, labels, cf)) if draw(st.booleans()) else []
+            then = draw(_statements(depth - 1, labels, cf, loads))
+            other = draw(_statements(depth - 1, labels, cf, loads)) if draw(st.booleans()) else []
             out.append(f"IF $IN[{k}] THEN")
             out += ["  " + s for s in then]
             if other:
@@ -87,11 +106,11 @@ def _statements(draw, depth: int, labels: list, configurations: bool = False):
             out.append("ENDIF")
         elif choice == 13:
             out.append("FOR I = 1 TO 2")
-            out += ["  " + s for s in draw(_statements(depth - 1, labels, cf))]
+            out += ["  " + s for s in draw(_statements(depth - 1, labels, cf, loads))]
             out.append("ENDFOR")
         elif choice == 14:
             out.append(f"WHILE $IN[{k + 4}]")
-            out += ["  " + s for s in draw(_statements(depth - 1, labels, cf))]
+            out += ["  " + s for s in draw(_statements(depth - 1, labels, cf, loads))]
             out.append("ENDWHILE")
         else:
             out.append(f"SWITCH nB\nCASE 1\n  LIN XP{k}\nCASE 2\n  BAS(#BASE, 1)\nDEFAULT\n  LIN XP{draw(st.integers(1, 4))}"
@@ -100,16 +119,24 @@ def _statements(draw, depth: int, labels: list, configurations: bool = False):
 
 
 @st.composite
-def krl_programs(draw, depth: int = 2, configurations: bool = False):
+def krl_programs(draw, depth: int = 2, configurations: bool = False, loads: bool = False):
     """(files, texts, config texts) of a random KRL module (see the module text); with
     ``configurations`` its points and literal targets write S/T (``_st``) and some literal
-    targets are PTPs: a LIN's S/T the controller does not read, a PTP's it does."""
+    targets are PTPs: a LIN's S/T the controller does not read, a PTP's it does; with ``loads``
+    the payload changes between the motions (``_load_statement``: $LOAD, $LOAD.M, BAS(#TOOL, n)
+    with LOAD_DATA[1] in the $config.dat, code not read), in branches and loops too."""
     labels: list = []
-    body = ["BAS(#BASE, 0)", "nB = 1"] + draw(_statements(depth, labels, configurations))
+    body = ["BAS(#BASE, 0)", "nB = 1"] + draw(_statements(depth, labels, configurations, loads))
     src = ("DEF t( )\n  DECL INT nB, I\n  EXT gripper()\n" + "".join(f"  {s}\n" for s in body) + "END\n" + SUBS)
     dat = ("DEFDAT t\n" + "".join(f"  {_point(draw, f'XP{i}', configurations)}\n" for i in range(1, 5)) +
            "  DECL FRAME XF={X 20.0,Y 10.0,Z -5.0,A 3.0,B 0.0,C 0.0}\nENDDAT\n")
-    return ["t.src", "t.dat"], [src, dat], [CONFIG]
+    return ["t.src", "t.dat"], [src, dat], [LOAD_CONFIG if loads else CONFIG]
+
+
+# the $config.dat with LOAD_DATA (BAS(#TOOL, 1) sets $LOAD from it; LOAD_DATA[2] is not set: not known)
+LOAD_CONFIG = CONFIG.replace("ENDDAT\n", "DECL GLOBAL LOAD LOAD_DATA[16]\n"
+                             "LOAD_DATA[1]={M 150.0,CM {X 0.0,Y 20.0,Z 180.0,A 0.0,B 0.0,C 0.0},J {X 0.0,Y 0.0,Z 0.0}}\n"
+                             "ENDDAT\n")
 
 
 # ---------------------------------------------------------------------------------------- RAPID

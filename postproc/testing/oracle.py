@@ -144,7 +144,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
     defaults) and check the property over the oracles of ``seeds`` (see the module text);
     ``read_with``: ``data`` (a backup's system files), ``task``, ``registers`` (``read_program``'s)."""
     from ..compensation.pipeline import compensate_program
-    from ..core.diagnostics import P231, P322, PostprocError
+    from ..core.diagnostics import P210, P231, P322, PostprocError
     from ..programs.analysis import analyse
     from ..programs.interpreter import Oracle, run
     from ..programs.io import read_program
@@ -162,6 +162,9 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
     # points compensated for their own runs whose runs at an offset move with them, said (P231):
     # those runs are not at their own P + Ê, and need not be
     with_point = {(w.path, w.line, w.col) for w in report.warnings if w.code == P231}
+    # relative motions left as written whose start is not known (P210): they move with their start's
+    # correction, said so
+    with_point |= {(w.path, w.line, w.col) for w in report.warnings if w.code == P210}
     for note in report.notes:
         if note.code == P322:
             # "… at most 0.098 mm from each run's own"
@@ -173,6 +176,14 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
     unit_a, dialect_a = lowered(files, texts, dialect, config, active, **read_with)
     unit_b, dialect_b = lowered(files, new_texts, dialect, config, active, **read_with)
     axes_pose = _axes_pose(model, program)
+    stated_load = settings.reading.load if settings is not None else None
+
+    def load_of(motion):
+        """The payload the model takes at a motion of the run (its ``load`` input, [1, 4]): the one the run
+        carries; where the program sets none, the one stated (``--load``), else NaN (the model's reference)."""
+        load = motion.load if motion.load is not None else stated_load
+        return np.full((1, 4), np.nan) if load is None else np.asarray(load, float)[None]
+
     controller = _controller(model, program)
     # targets compensate reached from nothing known: Targets.prev -1, or a predecessor whose pose in
     # the robot base is not known (its frame or its numbers): the model's first-target rule. Kept as
@@ -224,7 +235,8 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                         out.violations.append(f"seed {seed} {entry}: motion {i} at {files[ma.site.file]}:"
                                               f"{ma.site.line} is compensated and the controller has no joint "
                                               "angles for it")
-                e = model.predict(c[None], previous[None] if model.wants_previous else None, joints=q)[0]
+                e = model.predict(c[None], previous[None] if model.wants_previous else None, joints=q,
+                                  load=load_of(mb))[0]
                 moved = np.abs(c[:3] - p[:3]).max() > 1e-6
                 if moved:
                     out.compensated += 1
@@ -236,7 +248,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                         dev = 0.0  # (a run at an offset from its point, or the point: its P231 said so)
                     if dev > allowed and ((_key(ma), came) in alone or (_key(ma), ANY) in alone) \
                             and model.wants_previous:
-                        e_alone = model.predict(c[None], c[None])[0]  # (nothing known before: itself)
+                        e_alone = model.predict(c[None], c[None], load=load_of(mb))[0]  # (nothing known before: itself)
                         dev = min(dev, float(np.linalg.norm(c[:3] - p[:3] - e_alone)))
                     if dev > allowed:
                         out.violations.append(
@@ -245,7 +257,7 @@ def check(files, texts, dialect: str, model, config=None, active=None, seeds=ran
                             f"P + Ê (allowed {allowed:.4f})")
                 else:
                     e0 = model.predict(p[None], (prev if prev is not None else p)[None] if model.wants_previous
-                                       else None, joints=q)[0]
+                                       else None, joints=q, load=load_of(ma))[0]
                     if np.linalg.norm(e0) > tol_mm:
                         out.untouched += 1
                         if report.complete:
