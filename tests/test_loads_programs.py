@@ -201,7 +201,33 @@ POSES = """x,y,z,a,b,c,load_mass,load_cx,load_cy,load_cz
 """
 
 
+KRL_WITH = """DEF w( )
+  EXT Other( )
+  $BASE = $NULLFRAME
+  $TOOL = {X 0,Y 0,Z 200,A 0,B 0,C 0}
+  $LOAD = {M 0,CM {X 0,Y 0,Z 0,A 0,B 0,C 0},J {X 0,Y 0,Z 0}}
+  LIN {X 2000,Y 0,Z 900,A 0,B 90,C 0}
+  SLIN {X 2000,Y 100,Z 900,A 0,B 90,C 0} WITH $LOAD = {M 300,CM {X 0,Y 0,Z 250,A 0,B 0,C 0},J {X 0,Y 0,Z 0}}
+  LIN {X 2000,Y 200,Z 900,A 0,B 90,C 0}
+  BAS(#TOOL, 2)
+  LIN {X 2000,Y 300,Z 900,A 0,B 90,C 0}
+  $LOAD.M = 40
+  LIN {X 2000,Y 400,Z 900,A 0,B 90,C 0}
+  Other( )
+  LIN {X 2010,Y 0,Z 900,A 0,B 90,C 0}
+END
+"""
+
+
 def test_each_dialect_gives_each_target_the_load_in_force(tmp_path):
+    # KRL: a motion's WITH $LOAD for that motion only; BAS(#TOOL, n) from $config.dat's LOAD_DATA[n]; a
+    # component set; code not read leaves it unknown
+    config = [(ROOT / "samples" / "krl" / "config" / "$config.dat").read_text(encoding="latin-1")]
+    krl = read_program([str(tmp_path / "w.src")], [KRL_WITH], "krl", config=config).targets
+    assert np.allclose(krl.load[:5], [[0, 0, 0, 0], [300, 0, 0, 250], [0, 0, 0, 0], [8, 0, 0, 90], [40, 0, 0, 90]])
+    assert np.isnan(krl.load[5]).all() and "Other()" in krl.load_causes[krl.load_cause[5]][3]
+    unknown = read_program([str(tmp_path / "w.src")], [KRL_WITH], "krl").targets  # (no $config.dat)
+    assert "LOAD_DATA[2] needs $config.dat" in unknown.load_causes[unknown.load_cause[3]][3]
     rapid = _read(tmp_path / "pp.mod", RAPID, "rapid").targets
     # the tool's tload (15 kg, cog 80 mm), + the gripped 300 kg (cog 50 mm in the tool frame: 250 on the flange)
     assert np.allclose(rapid.load, [[15, 0, 0, 80], [315, 0, 0, (15 * 80 + 300 * 250) / 315], [15, 0, 0, 80]])

@@ -162,7 +162,7 @@ def _analyse(shape: _Shape) -> None:
             root = item.children[0]
             while root.data in ("member", "index"):
                 root = root.children[0]
-            if root.data == "name" and root.children[0].upper() in ("$BASE", "$TOOL", "$ROBROOT", "$IPO_MODE"):
+            if root.data == "name" and root.children[0].upper() in ("$BASE", "$TOOL", "$ROBROOT", "$IPO_MODE", "$LOAD"):
                 return
     if stmt.data == "move":
         ops = [(stmt.children[1], _MOTION[_KIND_OF[kw]], True)]
