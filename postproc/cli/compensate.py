@@ -74,7 +74,7 @@ def run(args) -> int:
 
     from ..compensation.api import model_of
     from ..compensation.pipeline import compensate_program
-    from ..core.diagnostics import EXIT_FINDINGS, EXIT_OK, P323, P340
+    from ..core.diagnostics import EXIT_FINDINGS, EXIT_OK, P236, P323, P339, P340
     from ..programs.io import check_program_outputs, load_program
 
     inputs = args.input
@@ -108,7 +108,7 @@ def run(args) -> int:
             said = joints_text(model_of(settings.model))
             if said:
                 print(f"postproc: {said}", file=sys.stderr)
-        for w in report.warnings + [n for n in report.notes if args.verbose or n.code in (P340, P323)]:
+        for w in report.warnings + [n for n in report.notes if args.verbose or n.code in (P340, P323, P236, P339)]:
             print(w.format(), file=sys.stderr)
         if len(report.written) > 1:  # (several files: what each file written holds; the summary stays last)
             for line in report.files_summary():
