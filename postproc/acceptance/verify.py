@@ -136,6 +136,10 @@ def execution(program, rows, sim) -> dict:
         if program.frames[f].tool is not None:
             tools[here] = program.frames[f].tool
     options = {"config": stated, "tools": tools, "motions": t.motion[rows]}
+    if getattr(t, "load", None) is not None and not np.isnan(t.load[rows]).all():
+        # the payload in force at each target as the program sets it (NaN: not set or not known:
+        # the simulated robot carries its description's [payload] there)
+        options["loads"] = t.load[rows]
     if t.prev is not None:  # (in execution order: each row after its predecessor, a row of these or none)
         at = np.full(len(t), -1)
         at[rows] = np.arange(len(rows))
@@ -195,7 +199,7 @@ def _pair(original: str, compensated: str, settings: Settings, description):
 def _check_reach(sim, programs, rows, options) -> None:
     """P335 at the first target of either program the simulated robot cannot reach."""
     for program, poses, label in programs:
-        ok = sim.reachable_in(poses, **options)
+        ok = sim.reachable_in(poses, **{k: v for k, v in options.items() if k != "loads"})  # (reach: no load)
         if not ok.all():
             bad = np.flatnonzero(~ok)
             r, t = rows[bad[0]], program.targets

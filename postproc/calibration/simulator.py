@@ -23,11 +23,12 @@ offsets, base, tool) of every drawn robot so that its mean error norm over the w
 and noise keep their physical sizes. The default robot (``seed`` of the file) is the one
 calibrated to Hu, Hua & Tian's uncompensated row (mean 0.754 mm).
 
-The load is what the robot carries at each target: the description's ``[payload]`` (its
-rated payload, ``rated``) unless a call gives ``loads`` [N, 4] (mass kg, centre of mass cx,
+The load is what the robot carries at each target: the description's ``[payload]``
+(``default_load``) unless a call gives ``loads`` [N, 4] (mass kg, centre of mass cx,
 cy, cz mm in the flange frame) per row: a pick-and-place program carries the part to the
 place and nothing back, a calibration campaign is measured at two or three test loads
-(``postproc plan --loads``). A load row with a NaN is the description's payload.
+(``postproc plan --load``). A load row with a NaN is the description's payload; a load
+heavier than the robot's rated payload (``[payload] rated``, ``rated_payload``) is refused.
 
 Vectorised throughout: IK/FK and gravity torques (from the joint frames) in numpy over all
 poses, backlash signs from ``np.diff`` with a forward fill; Pinocchio is not needed.
@@ -49,7 +50,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core import frames
-from ..core.diagnostics import P331, P335, PostprocError
+from ..core.diagnostics import P331, P335, P512, PostprocError
 from ..core.frames import nearest_triple, rotation_angle_deg, small_transform
 from ..core.stats import table2
 from ..core.toml import check_value
@@ -321,10 +322,17 @@ class SimulatedRobot:
         return -np.degrees((tau - self._tau_mastering) / self.stiffness)
 
     @property
-    def rated(self) -> np.ndarray:
-        """[4] the description's payload (its rated payload): mass kg, centre of mass mm (flange)."""
+    def default_load(self) -> np.ndarray:
+        """[4] the description's payload (``[payload]`` mass and com): the load of a row that
+        states none; mass kg, centre of mass mm (flange)."""
         d = self.description
         return np.r_[d.payload_mass, d.payload_com].astype(float)
+
+    @property
+    def rated_payload(self) -> float | None:
+        """The robot's rated payload (kg, the description's ``[payload] rated``), None where the
+        description does not state it."""
+        return self.description.payload_rated
 
     def loads(self, loads: np.ndarray | None, n: int) -> np.ndarray | None:
         """Each of ``n`` rows' load [n, 4] (a row with a NaN: the description's payload), None
@@ -334,9 +342,13 @@ class SimulatedRobot:
             return None
         loads = np.array(np.broadcast_to(np.asarray(loads, float), (n, 4)))
         unknown = np.isnan(loads).any(axis=1)
-        loads[unknown] = self.rated
+        loads[unknown] = self.default_load
         if not np.isfinite(loads).all() or (loads[:, 0] < 0).any():
-            raise PostprocError("a load must be a mass >= 0 kg and a centre of mass in mm (finite numbers)")
+            raise PostprocError("a load must be a mass >= 0 kg and a centre of mass in mm (finite numbers)", code=P512)
+        rated = self.rated_payload
+        if rated is not None and (loads[:, 0] > rated).any():
+            raise PostprocError(f"a load of {loads[:, 0].max():g} kg is more than {self.robot.name}'s rated payload "
+                                f"{rated:g} kg ([payload] rated of its description)", code=P512)
         return loads
 
     def ripple(self, q_deg: np.ndarray) -> np.ndarray:

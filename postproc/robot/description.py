@@ -28,7 +28,7 @@ _SCHEMA: dict[str, dict[str, str]] = {
               "com": "vec:3", "inertia": "vec:3"},
     "flange": {"origin": "vec:6"},
     "tool": {"name": "str", "frame": "vec:6"},
-    "payload": {"mass": "num", "com": "vec:3"},
+    "payload": {"mass": "num", "com": "vec:3", "rated": "num"},
     "workspace": {"box": "vec:6", "attitude": "vec:3", "range": "num"},
     "errors": {},  # checked by postproc.calibration.simulator, which owns the error model
     "external": {},  # [[external]]: a track / turntable (checked by postproc.robot.external)
@@ -63,6 +63,9 @@ class RobotDescription:
     tool_name: str = "tool"
     payload_mass: float = 0.0
     payload_com: np.ndarray = field(default_factory=lambda: np.zeros(3))  # mm, flange frame
+    # the robot's rated payload (kg, [payload] rated): the heaviest load it is built to carry; the
+    # simulator refuses heavier test loads (None: not stated, the payload's mass taken)
+    payload_rated: float | None = None
     home_q: np.ndarray = field(default_factory=lambda: np.zeros(6))
     workspace: dict = field(default_factory=dict)  # box [6], attitude [3], range
     errors: dict = field(default_factory=dict)  # the raw [errors] table (see postproc.calibration.simulator)
@@ -208,6 +211,9 @@ def parse_description(text: str, path: str = "<robot>", doc: dict | None = None)
     payload = section("payload", doc.get("payload", {}))
     if payload.get("mass", 0.0) < 0:
         raise fail_at("payload", "mass")("payload mass must not be negative")
+    if "rated" in payload and not payload.get("mass", 0.0) <= payload["rated"]:
+        raise fail_at("payload", "rated")(f"the rated payload {payload['rated']:g} kg must be at least the payload's "
+                                          f"mass {payload.get('mass', 0.0):g} kg")
     workspace = section("workspace", doc.get("workspace", {}))
     home = robot["home"]
     form = robot.get("configuration", "")
@@ -226,6 +232,7 @@ def parse_description(text: str, path: str = "<robot>", doc: dict | None = None)
         tool_name=tool.get("name", "tool"),
         payload_mass=payload.get("mass", 0.0),
         payload_com=payload.get("com", np.zeros(3)),
+        payload_rated=payload.get("rated"),
         home_q=home,
         workspace=workspace,
         errors=dict(errors),
