@@ -138,7 +138,8 @@ def _print_identified(args, trained) -> None:
         f = c.get("frame")
         frame = ("the model's own frame (reference)" if f is None or f["reference"] else
                  "frame " + ", ".join(f"{v:+.4f}±{e:.4f}°" for v, e in zip(f["rotation_deg"], f["rotation_std_deg"]))
-                 + "; " + ", ".join(f"{v:+.3f}±{e:.3f}" for v, e in zip(f["offset_mm"], f["offset_std_mm"])) + " mm")
+                 + "; " + ", ".join(f"{v:+.3f}±{e:.3f}" for v, e in zip(f["offset_mm"], f["offset_std_mm"])) + " mm; tool "
+                 + ", ".join(f"{v:+.3f}±{e:.3f}" for v, e in zip(f["tool_mm"], f["tool_std_mm"])) + " mm")
         reg = c.get("registration")
         print(f"campaign  {c['name']}: {c['train_rows']} training rows; "
               + (f"registered (rms {reg['rms_mm']:.3f} mm); " if reg else "") + frame)

@@ -373,7 +373,7 @@ def _identified(rows: _Rows, method: str, description, pose_only: bool, update, 
                 exc.path = str(getattr(rows.data, "path", "") or "")
             raise
         if model.kinematic_.campaign_frames_ is not None:  # (every row in the frame the model predicts in)
-            rows.errors = model.kinematic_.to_base(poses, rows.errors, rows.campaigns)
+            rows.errors = model.kinematic_.to_base(poses, rows.errors, rows.campaigns, q_deg)
     card = _identified_card(model, description, rows, inputs, rotation_errors, refit, name)
     return TrainedModel(model, card, rows.train, rows.val, rows.notes, update=refit)
 
@@ -479,7 +479,9 @@ def _campaigns_card(km, rows: _Rows) -> list[dict]:
                               "rotation_std_deg": [round(float(v), 6) for v in np.degrees(sd[:3])],
                               "offset_std_mm": [round(float(v), 4) for v in sd[3:6]],
                               "tool_mm": [round(float(v), 4) for v in f[6:9]],
-                              "tool_std_mm": [round(float(v), 4) for v in sd[6:9]]}
+                              "tool_std_mm": [round(float(v), 4) for v in sd[6:9]],
+                              "zero_deg": [round(float(v), 6) for v in np.degrees(f[9:15])],
+                              "zero_std_deg": [round(float(v), 6) for v in np.degrees(sd[9:15])]}
         out.append(entry)
     return out
 

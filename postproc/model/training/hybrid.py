@@ -276,7 +276,7 @@ class HybridModel(Estimator):
             self.kinematic_ = KinematicModel(self.description_, **(self.kinematic or {})).fit(
                 poses, errors, previous, q_deg, tools, rotation_errors, previous_q_deg, campaigns=campaigns,
                 loads=loads)
-            errors = self.kinematic_.to_base(poses, errors, campaigns)
+            errors = self.kinematic_.to_base(poses, errors, campaigns, q_deg)
             if self.kinematic_.campaign_frames_ is not None:
                 rotation_errors = None  # (position only with several campaigns)
             t1 = time.perf_counter()

@@ -114,8 +114,10 @@ LEVER_RANGE = (10.0, 10000.0)
 # the prior's unit sizes of a campaign's frame (rows measured in another tracker set-up: ``fit``'s
 # ``campaigns``), each after its own rigid registration: 10 mrad, 10 mm — a weak prior, the
 # frames are the data's to fix; and of its own tool (reflector) offset, along the TCP's axes
-CAMPAIGN_RAD, CAMPAIGN_MM = 1e-2, 10.0
-CAMPAIGN_SIZE = 9  # per campaign beyond the first: rotation vector (3), offset (3), tool offset (3)
+# and joint zero offsets (re-mastered axes: 5 mrad, as update.DRIFT) — what ``--update`` re-fits
+# between campaigns
+CAMPAIGN_RAD, CAMPAIGN_MM, CAMPAIGN_ZERO_RAD = 1e-2, 10.0, 5e-3
+CAMPAIGN_SIZE = 15  # per campaign beyond the first: rotation vector (3), offset (3), tool offset (3), zeros (6)
 
 
 def nominal_digest(description: RobotDescription) -> str:
@@ -331,28 +333,30 @@ def residual_variance(jac: torch.Tensor, covariance: torch.Tensor, sigma2: torch
 
 def campaign_frames(tcp: torch.Tensor, jac: torch.Tensor, sens: torch.Tensor, frames: torch.Tensor,
                     rows: torch.Tensor, tcp_axes: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """The identified TCPs [N, 3] seen in each row's campaign: R(ω_k)·(tcp + R_tcp·d_k) + t_k for
-    the rows of campaign k ≥ 1 (``rows`` [N, K − 1] one-hot; ``frames`` [9(K − 1)]: rotation vector
-    rad, offset mm, tool offset d mm along the TCP's axes ``tcp_axes`` [N, 3, 3]), with the
-    Jacobian [N, 3, P] turned and the campaigns' columns [N, 3, 9(K − 1)] appended (e_i × the
-    point, e_i, R·R_tcp; as the base and tool groups', at θ), and the joint sensitivities
-    [N, 3, 6] turned."""
-    per_row = rows @ frames.reshape(-1, CAMPAIGN_SIZE)  # [N, 9] (the first campaign's rows: 0)
+    """The identified TCPs [N, 3] seen in each row's campaign: R(ω_k)·(tcp + R_tcp·d_k + S·z_k) + t_k
+    for the rows of campaign k ≥ 1 (``rows`` [N, K − 1] one-hot; ``frames`` [15(K − 1)]: rotation
+    vector rad, offset mm, tool offset d mm along the TCP's axes ``tcp_axes`` [N, 3, 3], joint zero
+    offsets z rad to first order through the joint sensitivities S = ``sens`` [N, 3, 6]), with the
+    Jacobian [N, 3, P] turned and the campaigns' columns [N, 3, 15(K − 1)] appended (e_i × the
+    point, e_i, R·R_tcp, R·S; as the base, tool and zero groups', at θ), and S turned."""
+    per_row = rows @ frames.reshape(-1, CAMPAIGN_SIZE)  # [N, 15] (the first campaign's rows: 0)
     turn = small_rotation(per_row[:, :3])  # [N, 3, 3]
-    turned = mv(turn, tcp + mv(tcp_axes, per_row[:, 6:]))
+    turned = mv(turn, tcp + mv(tcp_axes, per_row[:, 6:9]) + mv(sens, per_row[:, 9:]))
     n = tcp.shape[0]
     eye = torch.eye(3, dtype=tcp.dtype)
     cross = torch.linalg.cross(eye[None].expand(n, 3, 3), turned[:, None, :].expand(n, 3, 3)).transpose(1, 2)
-    cols = torch.cat([cross, eye.expand(n, 3, 3), turn @ tcp_axes], dim=2)  # [N, 3, 9]
+    cols = torch.cat([cross, eye.expand(n, 3, 3), turn @ tcp_axes, turn @ sens], dim=2)  # [N, 3, 15]
     cols = (cols[:, :, None, :] * rows[:, None, :, None]).reshape(n, 3, -1)
     return turned + per_row[:, 3:6], torch.cat([turn @ jac, cols], dim=2), turn @ sens
 
 
-def to_first_frame(measured: torch.Tensor, per_row: torch.Tensor, tcp_axes: torch.Tensor) -> torch.Tensor:
-    """Measured points [N, 3] of rows of campaigns (``per_row`` [N, 9]: each row's campaign's frame
-    and tool offset, as ``campaign_frames``; ``tcp_axes`` [N, 3, 3]) in the first campaign's frame,
-    at its tool: R(ω)ᵀ(m − t) − R_tcp·d."""
-    return mv(small_rotation(per_row[:, :3]).transpose(1, 2), measured - per_row[:, 3:6]) - mv(tcp_axes, per_row[:, 6:])
+def to_first_frame(measured: torch.Tensor, per_row: torch.Tensor, tcp_axes: torch.Tensor,
+                   sens: torch.Tensor) -> torch.Tensor:
+    """Measured points [N, 3] of rows of campaigns (``per_row`` [N, 15]: each row's campaign's
+    frame, tool offset and zero offsets, as ``campaign_frames``; ``tcp_axes`` [N, 3, 3], ``sens``
+    [N, 3, 6]) in the first campaign's frame, at its tool and zeros: R(ω)ᵀ(m − t) − R_tcp·d − S·z."""
+    return (mv(small_rotation(per_row[:, :3]).transpose(1, 2), measured - per_row[:, 3:6])
+            - mv(tcp_axes, per_row[:, 6:9]) - mv(sens, per_row[:, 9:]))
 
 
 def tcp_axes_of(poses: np.ndarray) -> torch.Tensor:
@@ -1090,7 +1094,7 @@ class KinematicModel(Estimator):
         return 0 if rows is None else CAMPAIGN_SIZE * rows.shape[1]
 
     def _campaign_scales(self) -> np.ndarray:
-        return np.tile(np.r_[np.full(3, CAMPAIGN_RAD), np.full(6, CAMPAIGN_MM)],
+        return np.tile(np.r_[np.full(3, CAMPAIGN_RAD), np.full(6, CAMPAIGN_MM), np.full(6, CAMPAIGN_ZERO_RAD)],
                        self._campaign_parameters() // CAMPAIGN_SIZE)
 
     def _fit_campaigns(self, layout: Layout, q, s, tau, measured: torch.Tensor, campaigns: np.ndarray,
@@ -1124,14 +1128,18 @@ class KinematicModel(Estimator):
         self.campaign_std_ = np.vstack([np.zeros(CAMPAIGN_SIZE), std.reshape(-1, CAMPAIGN_SIZE)])
         self.campaign_codes_ = codes
         theta = theta[:layout.n].copy()
-        measured = to_first_frame(measured, torch.as_tensor(frames[index]), axes)
+        with torch.no_grad():
+            sens = jacobian(self.arm_, layout, torch.as_tensor(theta), q, s, tau, self._tool_rows)[2]
+        measured = to_first_frame(measured, torch.as_tensor(frames[index]), axes, sens)
         self._levenberg_marquardt(layout, theta, q, s, tau, measured, 0)  # (the state of the fit without the frames)
         return theta, tau, measured
 
-    def to_base(self, poses: np.ndarray, errors: np.ndarray, campaigns: np.ndarray | None) -> np.ndarray:
+    def to_base(self, poses: np.ndarray, errors: np.ndarray, campaigns: np.ndarray | None,
+                q_deg: np.ndarray | None = None) -> np.ndarray:
         """E [N, 3] of rows of the campaigns ``campaigns`` [N] int (``fit``'s codes) moved into the
         first campaign's frame and tool — which the model predicts for — by the fitted campaign
-        frames and tool offsets (``errors`` as they are without campaigns)."""
+        frames, tool and zero offsets (``errors`` as they are without campaigns); ``q_deg`` [N, 6] the
+        rows' joint angles if known (they pick the IK branch of the zero offsets' sensitivities)."""
         frames = getattr(self, "campaign_frames_", None)
         if frames is None or campaigns is None:
             return np.asarray(errors, dtype=np.float64)
@@ -1143,7 +1151,12 @@ class KinematicModel(Estimator):
         p = poses[:, :3]
         measured = torch.as_tensor(p - np.asarray(errors, dtype=np.float64).reshape(-1, 3))
         with torch.no_grad():
-            return p - to_first_frame(measured, torch.as_tensor(frames[index]), tcp_axes_of(poses)).numpy()
+            pose = torch.as_tensor(poses)
+            q_in = None if q_deg is None else torch.as_tensor(np.radians(np.asarray(q_deg, dtype=np.float64).reshape(-1, 6)))
+            q = self.module_.joints_of(pose, q_in)
+            sens = jacobian(self.arm_, self.layout_, torch.as_tensor(self.theta_), q, torch.zeros_like(q),
+                            self.module_.torques(q))[2]
+            return p - to_first_frame(measured, torch.as_tensor(frames[index]), tcp_axes_of(poses), sens).numpy()
 
     def _set_loads(self, loads: np.ndarray | None, n: int) -> None:
         """The rows' loads for the fit (``fit``'s ``loads``): ``_loads_in`` [n, 4] tensor, the
