@@ -166,15 +166,25 @@ def test_edge_mixed_endings_tabs_odd_numbers():
     assert t.col.tolist() == [6, 8, 6, 7, 26, 6]
 
 
-def test_edge_relative_moves_warn_and_break_the_chain():
+def test_edge_relative_moves_from_a_known_start_are_targets_the_others_warn():
     path = SAMPLES / "edge" / "rel_moves.src"  # (sets $BASE, not $TOOL: stated)
     p = krl.read([str(path)], [text_of(path)], active=STATED)
-    assert len(p.targets) == 2
-    # LIN {X 210.0} after the relative moves takes Y/Z from where they left the robot: from the
-    # first LIN's command, whose numbers it reads at run time (held, P217)
-    assert codes(p) == ["P217"] + ["P210"] * 5
-    assert [d.line for d in p.diagnostics] == [4, 5, 6, 7, 8, 9]
-    assert np.isnan(p.targets.poses[1, 1:]).all()  # LIN {X 210.0} after a relative move
+    t = p.targets
+    # LIN, LIN_REL {Z -20} and LIN_REL {X 5,Y 5} #TOOL from known starts, then LIN {X 210.0}
+    assert t.line.tolist() == [4, 5, 6, 10]
+    assert t.relative.tolist() == [-1, 0, 1, -1]
+    # a relative target's numbers are the move's, in the frame start × move: #BASE keeps the base's
+    # axes at the start's position, #TOOL turns with the tool (B 90: tool X is the base's -Z)
+    assert np.allclose(t.poses[1, :3], [0, 0, -20]) and np.allclose(t.poses[2, :3], [5, 5, 0])
+    base = np.array([1800.0, -400.0, 600.0])
+    in_robot = [p.frames[t.frame[r]].base @ np.r_[t.poses[r, :3], 1.0] for r in (1, 2)]
+    assert np.allclose(in_robot[0][:3], base + [200, 300, 380])
+    assert np.allclose(in_robot[1][:3], base + [200, 300 + 5, 380 - 5], atol=1e-9)
+    # PTP_REL {A3 5} turns an axis: after it nothing is known; LIN {X 210.0} takes Y/Z from where
+    # the relative moves left the robot at run time: the LIN_REL #TOOL's command is read there (P217)
+    assert codes(p) == ["P217"] + ["P210"] * 4
+    assert [d.line for d in p.diagnostics] == [6, 7, 8, 8, 9]
+    assert np.isnan(t.poses[3, 1:]).all()
 
 
 def test_edge_frames_against_hand_computed_transforms():

@@ -269,7 +269,9 @@ def group_rule(program: Program, selection: Selection) -> tuple[Selection, list[
     * a row that shares its numbers with a row left as written (another run of it, a point it is
       copied from or into): rewriting them would move that row too;
     * the row before a partial target left as written (``LIN {Z 5}``): at run time it takes its
-      missing X/Y/Z from that row's command, which, compensated, would move it.
+      missing X/Y/Z from that row's command, which, compensated, would move it — where that row
+      is a run at an offset from a point (P231: it moves with the point's correction), the
+      point's rows.
     """
     t = program.targets
     group = getattr(t, "group", None)
@@ -300,6 +302,17 @@ def group_rule(program: Program, selection: Selection) -> tuple[Selection, list[
             for r, by in zip(feeds[fed].tolist(), np.flatnonzero(source)[fed].tolist()):
                 why.setdefault(r, by)
                 drop[r] = True
+            # a run at an offset from a point (P231) moves with the point's correction, and a partial
+            # target left after it would move with it: the point's rows are left with it
+            moving = with_point[feeds]
+            if moving.any() and group is not None:
+                for f, by in zip(feeds[moving].tolist(), np.flatnonzero(source)[moving].tolist()):
+                    with_point[f] = False
+                    if group[f] >= 0:
+                        tied = chosen & (group == group[f])
+                        for r in np.flatnonzero(tied).tolist():
+                            why.setdefault(r, by)
+                        drop |= tied
         if not drop.any():
             break
         chosen &= ~drop

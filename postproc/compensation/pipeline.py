@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.diagnostics import (
-    INCOMPLETE, LEFT_AS_WRITTEN, P201, P203, P212, P220, P221, P224, P225, P230, P231, P232, P306, P323, P312,
+    INCOMPLETE, LEFT_AS_WRITTEN, P201, P203, P210, P212, P220, P221, P224, P225, P230, P231, P232, P306, P323, P312,
     P314, P321, P322, P340, Diagnostic,
     PostprocError,
 )
@@ -24,7 +24,7 @@ from ..core.outputs import check_outputs, write
 from ..model.settle import Chain, Inside
 from ..model.compensator import Compensator
 from ..programs import STAMP_PREFIX, Program
-from ..programs.locate import where
+from ..programs.locate import motion_at, where
 from ..programs.rewrite import insert_stamp, stamp_line
 from ..settings import Settings
 from .agreement import _agreement
@@ -335,6 +335,7 @@ def compensate_program(
         break
     commands = Commands(selection, commanded, joints, Inside.join(stream.inside), stream.std)
     after = command_findings(program, commands, model, settings)
+    after += _moved_with_start(program, selection)
     _raise_first(after, strict)
     assert outputs is not None  # _Unsafe is raised only for what output_rule refuses
     warnings += after
@@ -363,6 +364,21 @@ def compensate_program(
     report.outputs = dict(zip(program.files, outputs))
     report.per_file = _per_file(program, selection)
     return report
+
+
+def _moved_with_start(program: Program, selection: Selection) -> list[Diagnostic]:
+    """P210 at each relative target left as written (a rule after the analysis left it) whose start
+    is compensated: the robot moves from the start's command, so the target moves with its correction."""
+    relative = program.targets.relative
+    if relative is None:
+        return []
+    chosen = np.zeros(len(relative), bool)
+    chosen[selection.rows] = True
+    rows = np.flatnonzero(~chosen & (relative >= 0))
+    rows = rows[chosen[relative[rows]]]
+    return [Diagnostic(*where(program, int(r)), P210, "relative motion left as written; it moves with the "
+                       f"correction of the motion it starts from (at {motion_at(program, int(relative[r]))})")
+            for r in rows.tolist()]
 
 
 # a triple changed by this many degrees (A or C) for a rotation this many times smaller: near B = ±90°

@@ -60,7 +60,7 @@ P191 = _code("P191", "error", "last check before writing: the new text does not 
 # P2xx: frames and targets not statically known (the target is left as written)
 P201 = _code("P201", "warning", "the target's base (frame) is not statically known: left as written")
 P203 = _code("P203", "warning", "the target's $TOOL is not known: left as written")
-P210 = _code("P210", "warning", "a _REL motion: its absolute target is known only at run time")
+P210 = _code("P210", "warning", "a relative motion (_REL, INC) whose start is not known statically: its absolute target is known only at run time")
 P211 = _code("P211", "warning", "a target computed at run time (or an element the reader cannot enumerate)")
 P212 = _code("P212", "warning", "target position not fully known: left as written")
 P213 = _code("P213", "warning", "target orientation not known (the model's nominal attitude is assumed)")

@@ -73,8 +73,13 @@ def _statements(draw, depth: int, labels: list, configurations: bool = False, lo
             x, y, z = draw(_coord), draw(_coord), draw(st.integers(-150, 200))
             motion = "PTP" if cf and draw(st.booleans()) else "LIN"
             out.append(f"{motion} {{X {2000 + x}.25,Y {y}.75,Z {900 + z}.5,A 0.0,B 90.0,C 0.0{_st(draw, cf)}}}")
-        elif choice == 3:
+        elif choice == 3 and draw(st.booleans()):
             out.append(f"LIN {{Z {900 + draw(st.integers(-100, 150))}.0}}")
+        elif choice == 3:  # a relative motion: from the start known on every path, a target of its own
+            d = draw(st.integers(-30, 30))
+            out.append(draw(st.sampled_from([f"LIN_REL {{X {d}.5,Z 10.0}}", f"LIN_REL {{Y {d}.0}} #TOOL",
+                                             f"SLIN_REL {{Z {d}.25,A 0}}", "CIRC_REL {X 20.0,Y 20.0},{X 40.0,Y 0.0}",
+                                             "PTP_REL {A3 5.0}"])))
         elif choice == 4:
             out.append(f"BAS(#BASE, {draw(st.integers(0, 2))})")
         elif choice == 5:

@@ -580,7 +580,8 @@ def _run_rows(unit, dialect, use: RunUse, rows: _Rows, frame_index, count, prev_
     rows.add(pose=pose, spans=spans, abc=abc, worient=worient,
              file=r["file"], line=r["line"], col=r["col"], frame=np.full(n, ix, np.int32), motion=r["motion"],
              config=r["config"], offset=np.zeros((n, 3)), prev=prev, start=start,
-             load=np.tile(np.asarray(load, float), (n, 1)), lcause=np.full(n, lcause, np.int32), site=None,
+             load=None if lcause < 0 and np.isnan(load).all() else np.tile(np.asarray(load, float), (n, 1)),
+             lcause=None if lcause < 0 else np.full(n, lcause, np.int32), site=None,  # (None: not set, no column)
              extras=extras)
     key_row[use.key] = rows.n - 1
     if others:  # (the run's first target reached from its other predecessors)
@@ -631,9 +632,13 @@ def _columns(rows: _Rows, k_orient: int, form: str) -> Targets:
     start = col("start")
     if not np.isnan(start).all():
         targets.start = start
-    load, lcause = col("load"), col("lcause")
-    if not np.isnan(load).all() or (lcause >= 0).any():  # (a program that sets no payload: None)
-        targets.load, targets.load_cause = load, lcause.astype(np.int32)
+    if any(p["load"] is not None or p["lcause"] is not None for p in parts):  # (a program that sets none: None)
+        load = np.concatenate([p["load"] if p["load"] is not None else np.full((len(p["line"]), 4), np.nan)
+                               for p in parts])
+        lcause = np.concatenate([p["lcause"] if p["lcause"] is not None else np.full(len(p["line"]), -1, np.int32)
+                                 for p in parts]).astype(np.int32)
+        if not np.isnan(load).all() or (lcause >= 0).any():
+            targets.load, targets.load_cause = load, lcause
     if form != "abc":  # the rows' A,B,C from their orientation's numbers as written (build leaves them NaN)
         o = targets.orientation
         todo = np.isnan(targets.poses[:, 3]) & ~np.isnan(o).any(axis=1)

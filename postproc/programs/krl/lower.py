@@ -30,23 +30,16 @@ def _rel_frame(node) -> str:
     return "base"
 
 
-def _rel_why(expr) -> str:
-    """Why a _REL target's absolute target is not the start plus a move of X/Y/Z ("" where it is)."""
-    if expr.data != "aggregate":
+def _rel_why(target) -> str:
+    """Why a _REL target (lowered) is not a move of X/Y/Z from the start ("" where it is)."""
+    if not isinstance(target, Agg):
         return "a move that is not a literal aggregate"
-    for item in expr.children:
-        if not isinstance(item, Tree):
-            continue
-        key, value = item.children[0], item.children[-1]
-        name = str(key).upper()
+    for name, value in target.items:
         if name in ("X", "Y", "Z"):
             continue
-        if name in ("A", "B", "C"):
-            v = value.children[-1] if value.data == "signed" else value
-            if v.data == "number" and float(str(v.children[0])) == 0.0:
-                continue
-            return "it turns the tool (A/B/C)"
-        return f"it moves {name}"
+        if name in ("A", "B", "C") and isinstance(value, Num) and value.value == 0.0:
+            continue
+        return "it turns the tool (A/B/C)" if name in ("A", "B", "C") else f"it moves {name}"
     return ""
 
 
@@ -472,29 +465,21 @@ class Lowering:
         base, tool = self.frame_exprs(node.children)
         if kw.endswith("_REL"):
             loc = self.here(first_pos(node))
-            moves = [self._relative(expr, kind, chain, base, tool, _rel_frame(node)) for expr, kind, chain in ops]
-            if all(m is not None for m in moves):  # (its start decides, the analysis: P210 where not known)
-                for m in moves:
-                    self.emit(m)
+            lowered = [self.expr(expr) if expr.data == "aggregate" else None for expr, _, _ in ops]
+            why = next((w for w in map(_rel_why, lowered) if w), "")
+            if not why:  # (its start decides, the analysis: P210 where it is not known)
+                frame = Call("KRL.FRAME", (Name("$ROBROOT"), base))
+                for target, (_, kind, chain) in zip(lowered, ops):
+                    self.emit(Move(kind, target, target.loc, frame, tool, relative=True, chain=chain,
+                                   rel=_rel_frame(node)))
                 return
-            why = next(m for m in (_rel_why(expr) for expr, _, _ in ops) if m)
-            self.emit(Note(P210, f"relative motion {kw} left as written ({why}: its absolute target is known only "
-                           "at run time)", loc, True))
+            self.emit(Note(P210, f"relative motion {kw} left as written: its absolute target is known only at run "
+                           f"time ({why})", loc, True))
             for expr, kind, chain in ops:
                 self.emit(Move(kind, Unknown("a relative motion"), loc, relative=True, chain=chain))
             return
         for expr, kind, chain in ops:
             self.target(expr, kind, chain, base, tool)
-
-    def _relative(self, expr, kind, chain, base, tool, rel):
-        """The Move of a relative target that moves X/Y/Z only (a literal aggregate; A/B/C absent or
-        0): its absolute target is where the robot stands plus the move (the analysis); None for
-        any other (``_rel_why`` says why)."""
-        if _rel_why(expr):
-            return None
-        target = self.expr(expr)
-        frame = Call("KRL.FRAME", (Name("$ROBROOT"), base))
-        return Move(kind, target, target.loc, frame, tool, relative=True, chain=chain, rel=rel)
 
     def target(self, expr, kind, chain, base, tool):
         lefts = []
