@@ -125,7 +125,7 @@ def test_the_load_input_absent_nan_and_the_reference_are_one_load(sim, fitted, c
 def test_plan_and_measure_at_test_loads_write_the_load_columns(tmp_path, sim):
     plan, measured = tmp_path / "plan.csv", tmp_path / "measured.csv"
     assert cli(["plan", "-n", "30", "-o", str(plan), "--krl", str(tmp_path / "m.src"),
-                "--load", "0", "--load", "300", "-q"]) == 0
+                "--load", "0", "--load", "300,220,0,40", "-q"]) == 0
     loads = read_plan_loads(plan)
     assert loads[:15].tolist() == [[0, 0, 0, 0]] * 15 and loads[15:].tolist() == [[300, *COM]] * 15
     src = (tmp_path / "m.src").read_text()

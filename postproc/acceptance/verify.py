@@ -55,6 +55,9 @@ def verify(original: str, compensated: str, settings: Settings, *, robot_seed: i
     p_comp, n2 = _fill(p_comp, comp, attitude, "COMPENSATED")
     notes += n1 + n2
     options = execution(orig, rows, sim)
+    stated = _stated_loads(orig, rows, settings.reading)
+    if stated is not None:
+        options["loads"] = stated
     _check_reach(sim, ((orig, p_orig, "ORIGINAL"), (comp, p_comp, "COMPENSATED")), rows, options)
     result = sim.verify(p_orig, p_comp, rng_seed=seed, noise=noise, **options)
     model = None
@@ -120,7 +123,8 @@ def execution(program, rows, sim) -> dict:
     RAPID confdata, FANUC CONFIG on the simulated robot's description: configuration.
     stated_configuration; a form the description cannot say is P309, refused), motion kinds
     (conventions.execution_kinds) and $TOOL (the simulated robot's tool where the program's is
-    unknown) — the options of SimulatedRobot.verify. Both runs use the ORIGINAL's."""
+    unknown) — the options of SimulatedRobot.verify (``verify`` adds each target's payload:
+    ``_stated_loads``). Both runs use the ORIGINAL's."""
     from ..robot.configuration import stated_configuration
 
     t = program.targets
@@ -136,10 +140,6 @@ def execution(program, rows, sim) -> dict:
         if program.frames[f].tool is not None:
             tools[here] = program.frames[f].tool
     options = {"config": stated, "tools": tools, "motions": t.motion[rows]}
-    if getattr(t, "load", None) is not None and not np.isnan(t.load[rows]).all():
-        # the payload in force at each target as the program sets it (NaN: not set or not known:
-        # the simulated robot carries its description's [payload] there)
-        options["loads"] = t.load[rows]
     if t.prev is not None:  # (in execution order: each row after its predecessor, a row of these or none)
         at = np.full(len(t), -1)
         at[rows] = np.arange(len(rows))
@@ -147,6 +147,26 @@ def execution(program, rows, sim) -> dict:
     if t.start is not None:
         options["axes"] = t.start[rows]
     return options
+
+
+def _stated_loads(program, rows, reading) -> np.ndarray | None:
+    """The payload at targets ``rows`` as compensate took it: the program's (``$LOAD``, ``tload``,
+    ``set_payload``…: ``Targets.load``), ``--load`` where it sets none, ``--payload n=…`` for a
+    payload schedule it selects (Fanuc ``PAYLOAD[n]``); NaN rows where none of them says (the
+    simulated robot carries its description's payload there). None where nothing is said."""
+    t = program.targets
+    if getattr(t, "load", None) is None and reading.load is None:
+        return None
+    loads = np.full((len(t), 4), np.nan) if t.load is None else t.load.copy()
+    cause = np.full(len(t), -1, np.int32) if getattr(t, "load_cause", None) is None else t.load_cause
+    if reading.load is not None:
+        loads[np.isnan(loads).any(axis=1) & (cause < 0)] = reading.load
+    for k, (*_, schedule) in enumerate(getattr(t, "load_causes", None) or []):
+        stated = reading.payload(schedule) if schedule is not None else None
+        if stated is not None:
+            loads[cause == k] = stated
+    loads = loads[rows]
+    return None if np.isnan(loads).all() else loads
 
 
 def _in_description(program, description):

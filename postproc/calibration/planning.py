@@ -102,16 +102,16 @@ def load_parts(n: int, loads) -> np.ndarray:
     return loads[np.arange(n) * len(loads) // max(n, 1)]
 
 
-def parse_load(text: str, default_com=(0.0, 0.0, 0.0)) -> np.ndarray:
-    """``MASS[,CX,CY,CZ]`` (kg; mm in the flange frame) → [4]; a mass alone takes ``default_com``
-    (``plan --load``: the description's payload's centre of mass), a mass of 0 no centre.
+def parse_load(text: str) -> np.ndarray:
+    """``MASS[,CX,CY,CZ]`` (kg; mm in the flange frame) → [4]; a mass alone has its centre of mass
+    at the flange (0, 0, 0), as ``compensate --load`` reads it; a mass of 0 no centre.
     PostprocError P512 otherwise."""
     try:
         values = np.array([float(v) for v in str(text).split(",")])
     except ValueError:
         values = np.zeros(0)
     if len(values) == 1:
-        values = np.r_[values, default_com]
+        values = np.r_[values, 0.0, 0.0, 0.0]
     if values.shape != (4,) or not np.isfinite(values).all() or values[0] < 0:
         raise PostprocError(f"a load is MASS[,CX,CY,CZ] (kg >= 0; its centre of mass, mm in the flange frame), "
                             f"not {text!r}", code=P512)

@@ -50,8 +50,7 @@ def add_parser(sub, common, formatter) -> None:
                    help="the TCP on the flange measured (default the description's [tool]); give it two or three "
                    "times to measure the plan in as many parts, one per tool")
     p.add_argument("--load", metavar="MASS[,CX,CY,CZ]", action="append",
-                   help="the load carried (kg; centre of mass mm in the flange frame, default the description's "
-                   "[payload] com; default load: the description's [payload]); two or three times: the plan in as "
+                   help="the load carried (kg; centre of mass mm in the flange frame, default 0,0,0; default load: the description's [payload]); two or three times: the plan in as "
                    "many parts, one load each (output columns load_mass..load_cz)")
     p.set_defaults(run=run)
 
@@ -108,7 +107,7 @@ def run(args) -> int:
             raise PostprocError("the plan names each row's load (load_mass..load_cz): --load would contradict it",
                                 args.plan, code=P320)
         if args.load:
-            loads = load_parts(len(poses), [parse_load(t, sim.description.payload_com) for t in args.load])
+            loads = load_parts(len(poses), [parse_load(t) for t in args.load])
         stage("controller IK")
         ok = sim.reachable_in(poses, config, tools)
         if not ok.all():

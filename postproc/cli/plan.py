@@ -62,7 +62,7 @@ def add_parser(sub, common, formatter) -> None:
                    "programs that do not set it, as compensate takes it")
     p.add_argument("--load", metavar="MASS[,CX,CY,CZ]", action="append",
                    help="a test load the plan is measured with (kg; its centre of mass, mm in the flange frame, "
-                   "default the description's [payload] com); give it two or three times to measure the plan in as "
+                   "default 0,0,0: at the flange, as compensate --load); give it two or three times to measure the plan in as "
                    "many parts, one load each (columns load_mass..load_cz; KRL: HOME and HALT to change the load, "
                    "$LOAD set): data from which train identifies what loads do")
     p.add_argument("--wait", type=float, default=1.0, metavar="S",
@@ -129,7 +129,7 @@ def run(args) -> int:
         raise PostprocError("--ls writes a Latin-hypercube plan measured with one tool", code=P512)
     from ..calibration.planning import load_parts, parse_load
 
-    loads = [parse_load(t, description.payload_com) for t in args.load or []]
+    loads = [parse_load(t) for t in args.load or []]
     if loads and (args.programs or args.iso9283 or args.ls is not None or len(tools) > 1):
         raise PostprocError("--load plans a Latin-hypercube campaign at test loads (CSV and --krl), with one tool: "
                             "leave out --for, --iso9283, --ls and a second --tool", code=P512)

@@ -36,7 +36,7 @@ def add_parser(sub, common, formatter) -> None:
     add(p, "robot", helps={"robot": ROBOT_HELP + ", with [errors] (default models/kr500.toml)"})
     p.add_argument("--robot-seed", type=int, metavar="S",
                    help="draw another robot (default: the file's calibrated one)")
-    add(p, "config", "base", "tool", "robroot", "external",
+    add(p, "config", "base", "tool", "robroot", "external", "load", "payloads",
         helps={"config": "$config.dat with BASE_DATA / TOOL_DATA (the one the programs were compensated with)"})
     p.add_argument("--seed", type=int, default=0, metavar="S", help="measurement noise seed (default 0)")
     p.add_argument("--no-noise", action="store_true", help="exact positions: no tracker noise, no repeatability")

@@ -6,7 +6,7 @@
 MODULE cam_contour
   ! Offline-programming style: one inline robtarget per motion, S4/IRC5 .prg header.
   ! Written for postproc's samples.
-  TASK PERS tooldata tSpindle:=[TRUE,[[0,0,180.5],[1,0,0,0]],[12,[0,0,90],[1,0,0,0],0,0,0]];
+  TASK PERS tooldata tSpindle:=[TRUE,[[0,0,180.5],[1,0,0,0]],[80,[0,0,120],[1,0,0,0],0,0,0]];
   TASK PERS wobjdata wFixture:=[FALSE,TRUE,"",[[1950,-120,640],[0.9961947,0,0,0.0871557]],[[10,5,0],[1,0,0,0]]];
 
   PROC contour()
