@@ -25,8 +25,8 @@ with the rows' joint angles and visiting order, exported to ONNX and run through
   ``--register``, q1..q6 — ``--val-fraction 0.2 --split-seed`` SEED, the hybrid default, seed 0):
   each campaign registered on its own training rows and given its own frame in the
   identification. Scored as ``cross``: B and D after their own rigid fit, B also in C's frame (C's
-  registration and fitted frame from the card, no re-fit), A and C on their held-out rows in
-  their frames from the card. Goals (issue 32): B ≤ 0.25, D ≤ 0.28 (the classical 27-parameter
+  registration, its fitted frame, tool and zero offsets, no re-fit), A and C on their held-out
+  rows as their campaigns (the same). Goals (issue 32): B ≤ 0.25, D ≤ 0.28 (the classical 27-parameter
   calibration with one frame per series: 0.226 / 0.276).
 * ``random``: B and D on their own 80 % (A and C: ``cross``), the 20 % held out: ≤ 0.10, max ≤ 0.6.
 * ``octant``: each series' rows split into the octants of A1/A2/A3 (each at its median along its
@@ -116,19 +116,18 @@ def train(description, parts: list[tuple[Series, np.ndarray]], path: Path, name:
 
 
 def scored(compensator, s: Series, rows: np.ndarray, frame: np.ndarray | None = None,
-           tool: np.ndarray | None = None) -> dict:
+           measured: np.ndarray | None = None) -> dict:
     """|E − Ê| at ``rows`` through the ONNX file: in ``frame`` (a tracker → base transform, no
-    re-fit) or, None, after the rigid fit of the measured points to the predicted positions."""
+    re-fit) or, None, after the rigid fit of the measured points to the predicted positions; or the
+    ``measured`` points [len(rows), 3] given in the model's frame."""
     predicted, std = compensator.predict(s.poses[rows], s.previous[rows], joints=s.joints[rows], std=True)
     positions = s.poses[rows, :3] - predicted
-    if frame is None:
+    if measured is not None:
+        pass
+    elif frame is None:
         measured = register_measurements(positions, s.raw[rows], np.ones(len(rows), bool))[0]
     else:
         measured = s.raw[rows] @ frame[:3, :3].T + frame[:3, 3]
-        if tool is not None:  # (a campaign's own tool offset, along the TCP's axes: the card's)
-            from postproc.core.frames import rotation_from_abc
-
-            measured = measured - rotation_from_abc(s.poses[rows, 3:6]) @ tool
     residual = positions - measured
     return {"rows": int(len(rows)), "mm": stats(residual), "uncompensated_mm": stats(s.errors[rows]),
             "error_std_median_mm": round(float(np.median(std)), 4), "two_sigma_coverage": coverage(residual, std)}
@@ -186,22 +185,17 @@ def _campaign_file(s: Series):
                         joints=s.joints.copy())
 
 
-def _raw_to_model(entry: dict) -> np.ndarray:
-    """[4, 4] a campaign's tracker points → the model's frame, from the card's ``campaigns`` entry:
-    its registration, then its fitted frame undone (m_first = Rᵀ(m − t); its tool offset: ``_tool``)."""
-    from postproc.core.frames import small_transform
-
+def in_campaign(trained, s: Series, rows: np.ndarray, campaign: str) -> np.ndarray:
+    """[len(rows), 3] the tracker points of ``rows`` as campaign ``campaign`` of the fit saw them,
+    in the model's frame at its tool and zeros: the campaign's registration (the card's), then its
+    fitted frame, tool and zero offsets undone (``KinematicModel.to_base``)."""
+    names = [c["name"] for c in trained.card["campaigns"]]
+    entry = trained.card["campaigns"][names.index(campaign)]
     registration = np.asarray(entry["registration"]["tracker_to_base"], dtype=float)
-    f = entry.get("frame")
-    if f is None or f["reference"]:
-        return registration
-    frame = small_transform(np.radians(f["rotation_deg"]), np.asarray(f["offset_mm"], float))
-    return np.linalg.inv(frame) @ registration
-
-
-def _tool(entry: dict) -> np.ndarray | None:
-    f = entry.get("frame")
-    return None if f is None or f["reference"] else np.asarray(f["tool_mm"], float)
+    measured = s.raw[rows] @ registration[:3, :3].T + registration[:3, 3]
+    code = np.full(len(rows), names.index(campaign))
+    errors = trained.model.kinematic_.to_base(s.poses[rows], s.poses[rows, :3] - measured, code, s.joints[rows])
+    return s.poses[rows, :3] - errors
 
 
 def campaigns_model(data: dict, description, out: Path, seed: int):
@@ -221,8 +215,6 @@ def part_campaigns(data: dict, description, out: Path, seed: int) -> dict:
     trained, comp, _ = campaigns_model(data, description, out, seed)
     seconds = round(time.perf_counter() - t0, 1)
     card = trained.card
-    frames = {c["name"]: _raw_to_model(c) for c in card["campaigns"]}
-    tools = {c["name"]: _tool(c) for c in card["campaigns"]}
     entry = {"protocol": "training.fit([A.csv, C.csv], --register --val-fraction 0.2 --split-seed SEED, hybrid, seed 0): "
                          "two campaigns, each its own frame in the identification; B, D after their own rigid fit",
              "seed": seed, "train_rows": int(len(trained.train_rows)), "seconds": seconds,
@@ -231,12 +223,13 @@ def part_campaigns(data: dict, description, out: Path, seed: int) -> dict:
     for name in "AC":  # each training series' held-out rows in its own frame (the card's)
         s = data[name]
         held = trained.val_rows[(trained.val_rows >= offset) & (trained.val_rows < offset + len(s))] - offset
-        entry["series"][f"{name} held out (random)"] = scored(comp, s, held, frames[name], tools[name])
+        entry["series"][f"{name} held out (random)"] = scored(comp, s, held, measured=in_campaign(trained, s, held, name))
         offset += len(s)
     for name in "BD":
         s = data[name]
         entry["series"][name] = scored(comp, s, np.arange(len(s)))
-    entry["series"]["B in C's frame"] = scored(comp, data["B"], np.arange(len(data["B"])), frames["C"], tools["C"])
+    b = np.arange(len(data["B"]))
+    entry["series"]["B in C's frame"] = scored(comp, data["B"], b, measured=in_campaign(trained, data["B"], b, "C"))
     _print(f"trained on A+C as two campaigns in one fit ({entry['train_rows']} rows, {seconds} s, seed {seed}): "
            f"{trained.model.structure}", entry["series"], CAMPAIGN_GOALS)
     for c in card["campaigns"]:
