@@ -8,11 +8,18 @@ targets were looked at and the violations; writes benchmarks/results/interpreter
 
     python benchmarks/interpreter.py --dialect all --examples 200 --seeds 4
     python benchmarks/interpreter.py --joints      (KRL with S/T on PTP and CP motions, a model of the joints)
+    python benchmarks/interpreter.py --loads       (KRL whose payload changes, a model that takes the load)
 
 ``--joints``: KRL programs whose points and literal targets write S/T (a LIN's the controller
 ignores, a PTP's it reads), compensated with a model E = G·sin(q) of the controller's joint
 angles; the check evaluates it at the configuration the controller really runs on each path
 (results: interpreter_joints.json).
+
+``--loads`` (issue 33): KRL programs whose payload changes between the motions ($LOAD, $LOAD.M,
+BAS(#TOOL, n) with LOAD_DATA, code not read; in branches and loops), compensated with a model
+whose correction varies over space and with the mass; every executed target must be at P + Ê for
+the payload the run carries there — the world's where the analysis does not know it — or be left
+(results: interpreter_loads.json).
 """
 from __future__ import annotations
 
@@ -36,10 +43,10 @@ JOINT_GAIN = np.array([[0.0, 0.3, 0.0, 0.4, 0.0, 0.5], [0.2, 0.0, 0.0, 0.0, 0.6,
 
 
 def bench(dialect: str, model, examples: int, seeds: int, depth: int, dump: str | None = None,
-          configurations: bool = False) -> dict:
+          configurations: bool = False, loads: bool = False) -> dict:
     programs, active = dialect_cases(dialect, depth)
-    if configurations:
-        programs = krl_programs(depth, configurations=True)
+    if configurations or loads:
+        programs = krl_programs(depth, configurations=configurations, loads=loads)
     totals = dict(programs=0, paths=0, motions=0, compensated=0, untouched=0, refused=0, violations=0)
     found: list = []
     t0 = time.perf_counter()
@@ -87,7 +94,18 @@ def main() -> None:
                              "larger makes a wrong predecessor show (5e-4: 0.1 mm over 200 mm)")
     parser.add_argument("--joints", action="store_true",
                         help="KRL with S/T, a model of the controller's joint angles (module text)")
+    parser.add_argument("--loads", action="store_true",
+                        help="KRL whose payload changes, a model that takes the load (module text)")
     args = parser.parse_args()
+    if args.loads:
+        with tempfile.TemporaryDirectory() as tmp:
+            model = load_model(affine_model(Path(tmp) / "l.onnx", offset=(0.2, -0.1, 0.15),
+                                            gain=np.diag([2e-3, 1.5e-3, 2.5e-3]), previous_gain=args.previous_gain,
+                                            tool={"name": "any"}, load_gain=np.diag([2e-4, 5e-4, 0.0]),
+                                            load_offset=(0.1, 0.05, -0.2)))
+        results = {"krl": bench("krl", model, args.examples, args.seeds, args.depth, args.dump, loads=True)}
+        record("interpreter_loads", dict(dialects=results, examples=args.examples, seeds=args.seeds, depth=args.depth))
+        return
     if args.joints:
         with tempfile.TemporaryDirectory() as tmp:
             model = load_model(joint_model(Path(tmp) / "j.onnx", JOINT_GAIN,
