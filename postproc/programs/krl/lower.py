@@ -471,7 +471,7 @@ class Lowering:
                 frame = Call("KRL.FRAME", (Name("$ROBROOT"), base))
                 for target, (_, kind, chain) in zip(lowered, ops):
                     self.emit(Move(kind, target, target.loc, frame, tool, relative=True, chain=chain,
-                                   rel=_rel_frame(node)))
+                                   rel=_rel_frame(node), load=self.with_load))
                 return
             self.emit(Note(P210, f"relative motion {kw} left as written: its absolute target is known only at run "
                            f"time ({why})", loc, True))
