@@ -129,3 +129,15 @@ def test_without_campaigns_the_same_rows_fit_badly(scene):
     campaigns = HybridModel(kr500, residual="none", seed=0).fit(poses, poses[:, :3] - measured, previous_poses(poses),
                                                                 campaigns=day.astype(int))
     assert _held_out(scene, campaigns.predict(targets, previous_poses(targets)), rigid=True) < one_frame / 4
+
+
+@pytest.mark.parametrize("option", [["--method", "gpso"], ["--method", "dnn-joints"], ["--update", "old.onnx"]])
+def test_what_cannot_take_several_campaigns_says_so(scene, capsys, option):
+    """A pose-only network, dnn-joints (no identification: no frames to fit) and --update (one new
+    campaign) refuse several campaigns (P519) instead of mixing their frames."""
+    out = scene["folder"] / "several.onnx"
+    option = [str(scene["folder"] / v) if v.endswith(".onnx") else v for v in option]
+    assert main(["train", str(scene["a"]), str(scene["c"]), "--register", "-o", str(out), *option]) == 2
+    err = capsys.readouterr().err
+    assert "P519" in err and "2 campaigns (a, c)" in err
+    assert not out.exists()

@@ -129,7 +129,7 @@ def fit(measurements, settings: Settings = Settings(), *, progress: bool = False
                             "identifies the robot's parameters (its residual networks have a fixed recipe: --hidden, "
                             "--epochs): leave it out", code=P516)
     rows = _split(measurements, tool, t.val_fraction, t.split_seed)
-    if len(rows.campaign_names) > 1 and (method not in IDENTIFIED or update):
+    if len(rows.campaign_names) > 1 and (method not in IDENTIFIED or update or method == "dnn-joints"):
         what = "--update re-fits OLD on one new campaign" if update else f"--method {method} learns in one frame"
         raise PostprocError(f"the data hold {len(rows.campaign_names)} campaigns ({', '.join(rows.campaign_names)}): "
                             f"{what}; give one campaign's rows, or train --method hybrid on them all",
@@ -239,11 +239,11 @@ def _campaigns_measured(rows: _Rows, register: bool) -> np.ndarray:
         info = data.campaign_files.get(name, {"path": rows.source, "meta": data.meta})
         path, frame = info["path"], info["meta"].get("frame", "base" if not register else "tracker").lower()
         fit_rows = mine & train
+        if fit_rows.sum() < MIN_CAMPAIGN_ROWS and len(rows.campaign_names) > 1:
+            raise PostprocError(f"campaign {name!r} has {int(fit_rows.sum())} training rows: a frame of its own "
+                                f"needs at least {MIN_CAMPAIGN_ROWS} (measure more, or leave it out)", path,
+                                int(data.lines[np.flatnonzero(mine)[0]]), 1, P519)
         if register and frame != "base":
-            if fit_rows.sum() < MIN_CAMPAIGN_ROWS:
-                raise PostprocError(f"campaign {name!r} has {int(fit_rows.sum())} training rows: a frame of its own "
-                                    f"needs at least {MIN_CAMPAIGN_ROWS} (measure more, or leave it out)", path,
-                                    int(data.lines[np.flatnonzero(mine)[0]]), 1, P519)
             moved, transform, rms = register_measurements(poses[mine, :3], measured[mine], fit_rows[mine])
             measured[mine] = moved
             rows.registrations[name] = (transform, rms)
