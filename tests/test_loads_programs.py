@@ -31,8 +31,8 @@ GAIN = np.diag([0.001, 0.002, -0.001])
 def models(tmp_path_factory):
     d = tmp_path_factory.mktemp("loads")
     aware = affine_model(d / "aware.onnx", gain=GAIN, offset=(0.2, 0.1, -0.1), load_gain=np.diag([0.0005, 0.001, 0.0]),
-                         load_offset=(0.1, 0.05, -0.2))
-    blind = affine_model(d / "blind.onnx", gain=GAIN, offset=(0.2, 0.1, -0.1))
+                         load_offset=(0.1, 0.05, -0.2), tool={"name": "any"})
+    blind = affine_model(d / "blind.onnx", gain=GAIN, offset=(0.2, 0.1, -0.1), tool={"name": "any"})
     return load_model(aware), load_model(blind), aware, blind
 
 
@@ -51,9 +51,9 @@ def test_pick_and_place_krl_commands_differ_by_the_load_as_the_model_says(models
     text = SAMPLE.read_text(encoding="latin-1")
     program = _read(SAMPLE, text, "krl")
     t = program.targets
-    # the pick moves carry 0 kg, the place moves 300 kg (centre of mass 250 mm out), the last one 0 again
+    # the pick moves carry 0 kg, the place moves 300 kg (centre of mass 220 mm out), the last one 0 again
     assert t.load[:, 0].tolist() == [0.0, 0.0, 300.0, 300.0, 300.0, 0.0]
-    assert t.load[2].tolist() == [300.0, 0.0, 0.0, 250.0]
+    assert t.load[2].tolist() == [300.0, 220.0, 0.0, 40.0]
     report = compensate_program(program, aware, Settings())
     assert report.complete and report.left == 0
     new = _krl_numbers(report.outputs[str(SAMPLE)])
