@@ -303,3 +303,33 @@ def test_the_property_sees_a_load_the_analysis_got_wrong(loaded, tmp_path):
     finally:
         built._columns = columns
     assert len(violations) == 3  # (the rows at 0 kg, commanded for the reference 300 kg)
+
+
+KRL_POINT = """DEF pt( )
+  $BASE = {X 0,Y 0,Z 0,A 0,B 0,C 0}
+  $TOOL = {X 0,Y 0,Z 200,A 0,B 0,C 0}
+  $LOAD = {M 0,CM {X 0,Y 0,Z 0,A 0,B 0,C 0},J {X 0,Y 0,Z 0}}
+  LIN XP1
+  LIN XP2
+  $LOAD = {M 300,CM {X 0,Y 0,Z 250,A 0,B 0,C 0},J {X 0,Y 0,Z 0}}
+  LIN XP1
+END
+"""
+KRL_POINT_DAT = """DEFDAT pt
+  DECL E6POS XP1={X 1900.0,Y -300.0,Z 900.0,A 0.0,B 90.0,C 0.0}
+  DECL E6POS XP2={X 2000.0,Y 300.0,Z 900.0,A 0.0,B 90.0,C 0.0}
+ENDDAT
+"""
+
+
+def test_a_point_run_with_two_payloads_is_left_at_both_runs(models, tmp_path):
+    """One point, two payloads: two corrections, one set of numbers — left (P230, naming the cause);
+    a load-blind model compensates it once, as before."""
+    aware, blind, _, _ = models
+    files = [str(tmp_path / "pt.src"), str(tmp_path / "pt.dat")]
+    report = compensate_program(read_program(files, [KRL_POINT, KRL_POINT_DAT], "krl"), aware, Settings())
+    (w,) = [w for w in report.warnings if w.code == "P230"]
+    assert "other payloads" in w.message and "give each payload its own point" in w.message
+    assert "X 1900.0,Y -300.0" in report.outputs[files[1]] and "X 2000.0,Y 300.0" not in report.outputs[files[1]]
+    plain = compensate_program(read_program(files, [KRL_POINT, KRL_POINT_DAT], "krl"), blind, Settings())
+    assert plain.complete and "X 1900.0,Y -300.0" not in plain.outputs[files[1]]
