@@ -228,6 +228,11 @@ def test_each_dialect_gives_each_target_the_load_in_force(tmp_path):
     assert np.isnan(krl.load[5]).all() and "Other()" in krl.load_causes[krl.load_cause[5]][3]
     unknown = read_program([str(tmp_path / "w.src")], [KRL_WITH], "krl").targets  # (no $config.dat)
     assert "LOAD_DATA[2] needs $config.dat" in unknown.load_causes[unknown.load_cause[3]][3]
+    # inline forms: BAS(#PTP_PARAMS) / SPLINE … WITH $LOAD = SLOAD(FS1.TOOL_NO): LOAD_DATA[1] of the $config.dat
+    from postproc.programs.io import load_program
+
+    weld = load_program(str(ROOT / "samples" / "krl" / "weld_cell.src"), [str(ROOT / "samples/krl/config/$config.dat")])
+    assert len(weld.targets) == 20 and (weld.targets.load == [12.5, 0, 0, 120]).all()
     rapid = _read(tmp_path / "pp.mod", RAPID, "rapid").targets
     # the tool's tload (15 kg, cog 80 mm), + the gripped 300 kg (cog 50 mm in the tool frame: 250 on the flange)
     assert np.allclose(rapid.load, [[15, 0, 0, 80], [315, 0, 0, (15 * 80 + 300 * 250) / 315], [15, 0, 0, 80]])

@@ -572,6 +572,8 @@ class Lowering:
                 return Call("KRL.EK", args, loc)
             if name in ("STOOL2", "STOOL"):
                 return Call("KRL.STOOL2", args, loc)
+            if name == "SLOAD":  # (KSS: the LOAD_DATA of a tool number, as BAS(#TOOL, n) sets $LOAD)
+                return Call("KRL.SLOAD", args, loc)
             if name in BUILTIN_FUNCTIONS:
                 return Call("KRL.BUILTIN", (Lit(name),) + args, loc)
             return Call(str(node.children[0]), args, loc)

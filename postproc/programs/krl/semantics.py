@@ -92,7 +92,7 @@ class KRL(Dialect):
         self.procedures = {"KRL.BAS": bas, "KRL.START": start, "KRL.NOP": lambda an, st, args, loc: st}
         for name in HARMLESS:
             self.procedures[name] = _harmless
-        self.functions = {"KRL.EK": ek, "KRL.FRAME": frame_of, "KRL.SBASE": sbase, "KRL.STOOL2": stool2, "KRL.BUILTIN": builtin,
+        self.functions = {"KRL.EK": ek, "KRL.FRAME": frame_of, "KRL.SBASE": sbase, "KRL.STOOL2": stool2, "KRL.SLOAD": sload, "KRL.BUILTIN": builtin,
                           "KRL.IPO_BASE": ipo_base}
 
     # ---------------------------------------------------------------- external units
@@ -446,6 +446,13 @@ def stool2(an, st, args, call):
     """``STOOL2(fdat)``: the tool of an FDAT."""
     n, why = _fdat(an, args[0] if args else None, "TOOL")
     return _tool(an, st, n, "STOOL2(…)") if n is not None else Top(why, an.loc, P203)
+
+
+def sload(an, st, args, call):
+    """``SLOAD(n)``: the load bas.src would set for tool n (``LOAD_DATA[n]``)."""
+    if args:
+        an.consume(args[0], "SLOAD()")
+    return _load(an, st, _int(args[0]) if args else None, "SLOAD(…)")
 
 
 def builtin(an, st, args, call):
