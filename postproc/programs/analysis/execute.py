@@ -34,7 +34,7 @@ from ..ir import (
     Agg, Assign, Async, AsyncSwitch, Call, Continue, Decl, Eval, Exit, Field, Goto, Halt, Havoc, If, Invoke, Item,
     Label, Lit, Loc, Loop, Move, MoveRun, Name, Note, Num, Op, Return, Routine, Switch, Unit, Unknown,
 )
-from .values import Arr, Mat, Rec, Taint, Tok, Top, frame_product, join, number, same, taint, tokens_of
+from .values import Arr, Mat, NotSet, Rec, Taint, Tok, Top, frame_product, join, number, same, taint, tokens_of
 
 __all__ = ["Analysis", "Recorder", "Use", "RunUse", "State", "START"]
 
@@ -994,6 +994,9 @@ class Analysis:
                 new = base.with_field(target.name, value)
             elif isinstance(base, Top):
                 new = base
+            elif isinstance(base, NotSet):  # (a payload the program has not set: one component of it known)
+                new = Top(f"{_written(target.base)}.{target.name} is set where {_written(target.base)} is not: the "
+                          "rest of it is the controller's", self.loc)
             else:
                 new = Top(f"{_written(target.base)} is not a record", self.loc)
             self.write(target.base, new, st)
