@@ -122,7 +122,7 @@ def test_the_load_input_absent_nan_and_the_reference_are_one_load(sim, fitted, c
     assert capfd.readouterr().err == ""
 
 
-def test_plan_and_measure_at_test_loads_write_the_load_columns(tmp_path, sim):
+def test_plan_and_measure_at_test_loads_write_the_load_columns(tmp_path, sim, fitted, capsys):
     plan, measured = tmp_path / "plan.csv", tmp_path / "measured.csv"
     assert cli(["plan", "-n", "30", "-o", str(plan), "--krl", str(tmp_path / "m.src"),
                 "--load", "0", "--load", "300,220,0,40", "-q"]) == 0
@@ -139,3 +139,7 @@ def test_plan_and_measure_at_test_loads_write_the_load_columns(tmp_path, sim):
     expected = sim.actual_positions(data.poses, q_deg=q, loads=loads)
     assert np.linalg.norm(data.measured - expected, axis=1).max() < 0.2  # (noise only)
     assert cli(["plan", "-n", "10", "-o", str(plan), "--load", "-5", "-q"]) == 2
+    # a load-aware model is not re-calibrated at one load (its torques would lose the load): refused
+    capsys.readouterr()
+    assert cli(["train", str(measured), "--update", str(fitted[2]), "-o", str(tmp_path / "u.onnx"), "-q"]) == 2
+    assert "P317" in capsys.readouterr().err and not (tmp_path / "u.onnx").exists()

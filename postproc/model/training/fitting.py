@@ -389,6 +389,9 @@ def _update(rows: _Rows, description, old_path, q_deg: np.ndarray | None, rotati
                             "other tools (# tool: / tool_x..tool_c / --tool): train a new model", rows.source,
                             code=P317)
     old = read_old_model(old_path, description)
+    if isinstance(old.card.get("loads"), dict) and old.card["loads"].get("aware"):
+        raise PostprocError(f"--update re-fits a model measured at one load; {old_path} takes the load (its card's "
+                            "loads): train a new model on the old and the new rows", str(old_path), code=P317)
     poses, t = rows.data.poses, rows.train
     try:
         return update_model(old, description, poses[t], rows.errors[t], _take(previous_poses(poses), t),
