@@ -143,3 +143,20 @@ def test_plan_and_measure_at_test_loads_write_the_load_columns(tmp_path, sim, fi
     capsys.readouterr()
     assert cli(["train", str(measured), "--update", str(fitted[2]), "-o", str(tmp_path / "u.onnx"), "-q"]) == 2
     assert "P317" in capsys.readouterr().err and not (tmp_path / "u.onnx").exists()
+
+
+def test_a_model_measured_at_one_mass_reaches_that_load_only(tmp_path):
+    """The card's rule (benchmarks/loads.py: one load measured, 5-10x the error at the others):
+    two masses reach 0..k x the heaviest, one mass only itself."""
+    from postproc.model.card import load_lines
+    from postproc.testing.models import affine_model
+
+    one = load_model(affine_model(tmp_path / "one.onnx", gain=np.eye(3) * 1e-3, load_gain=1e-3,
+                                  loads={"measured": [[300, *COM]], "reference": [300, *COM], "extrapolate": 1.0}))
+    two = load_model(affine_model(tmp_path / "two.onnx", gain=np.eye(3) * 1e-3, load_gain=1e-3))
+    loads = np.array([[300, *COM], [300.5, *COM], [0, 0, 0, 0], [150, *COM], [np.nan] * 4])
+    assert one.load_reach(loads).tolist() == [True, True, False, False, True]
+    assert two.load_reach(loads).tolist() == [True, True, True, True, True]
+    assert "reaches that load only" in "\n".join(load_lines(one))
+    assert "reaches 0…600 kg" in "\n".join(load_lines(two))
+

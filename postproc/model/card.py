@@ -15,6 +15,8 @@ from __future__ import annotations
 import json
 from functools import cache
 
+import numpy as np
+
 from ..core.resources import schema_path
 from .compensator import Compensator
 from .contract import (
@@ -120,10 +122,13 @@ def load_lines(model: Compensator) -> list[str]:
         lines.append("loads measured: not stated")
     if model.takes_load:
         k = float(loads.get("extrapolate", 1.0))
-        top = k * measured[:, 0].max() if len(measured) else float("nan")
-        lines.append(f"load-aware: input load [N, 4] (the error at each target's payload); a NaN row = "
-                     f"{_load(ref) if ref is not None else 'the reference load'}; reaches 0…{top:g} kg "
-                     f"({k:g} × the largest measured mass)")
+        nan = f"a NaN row = {_load(ref) if ref is not None else 'the reference load'}"
+        if len(np.unique(measured[:, 0])) > 1:
+            reach = f"reaches 0…{k * measured[:, 0].max():g} kg ({k:g} × the largest measured mass)"
+        else:
+            reach = ("measured at one mass: reaches that load only (measure at two or more loads for other "
+                     "loads)") if len(measured) else "reaches no stated load"
+        lines.append(f"load-aware: input load [N, 4] (the error at each target's payload); {nan}; {reach}")
     elif len(measured):
         lines.append("load-blind: no input load; the error at any other load than "
                      + ("the one" if len(measured) == 1 else "those") + " measured is not modelled")

@@ -325,12 +325,12 @@ class Compensator:
     def load_reach(self, load: np.ndarray) -> np.ndarray:
         """[N] bool: True where the model can compensate a target carrying ``load`` [N, 4] (mass
         kg, centre of mass mm; a row with a NaN is the reference load: True). A load-aware model
-        (``takes_load``) reaches the masses in [0, ``loads.extrapolate`` × the largest measured
-        mass] (and a centre of mass no farther from the flange than ``loads.extrapolate`` × the
-        farthest measured, at least ``loads.com_mm``: the card's rule, from benchmarks/loads.py);
-        a model without ``load`` input reaches only the loads it was measured with (within
-        ``loads.mass_tolerance_kg``, default 1 kg, and 10 mm); a model whose card states no loads
-        reaches the NaN rows only."""
+        (``takes_load``) measured at two or more masses reaches the masses in [0,
+        ``loads.extrapolate`` × the largest measured mass] (and a centre of mass no farther from
+        the flange than ``loads.extrapolate`` × the farthest measured, at least ``loads.com_mm``:
+        the card's rule, from benchmarks/loads.py); one measured at one mass, and a model without
+        ``load`` input, reach only the loads measured (within ``loads.mass_tolerance_kg``, default
+        1 kg, and 10 mm); a model whose card states no loads reaches the NaN rows only."""
         load = np.asarray(load, float).reshape(-1, 4)
         unknown = np.isnan(load).any(axis=1)
         measured = self.measured_loads
@@ -338,7 +338,7 @@ class Compensator:
             return unknown
         mass, com = load[:, 0], np.linalg.norm(load[:, 1:], axis=1)
         with np.errstate(invalid="ignore"):
-            if self.takes_load:
+            if self.takes_load and len(np.unique(measured[:, 0])) > 1:
                 k = float(self.loads.get("extrapolate", 1.0))
                 top = k * measured[:, 0].max()
                 far = max(k * np.linalg.norm(measured[:, 1:], axis=1).max(), float(self.loads.get("com_mm", 0.0)))
