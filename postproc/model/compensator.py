@@ -119,8 +119,9 @@ and the interface of any other program that runs the file (onnxruntime alone: ``
   optional ``loads`` {"measured": [[mass, cx, cy, cz], ...] the distinct loads of the data (kg,
   mm in the flange frame), "rows": [n, ...] the rows at each, "reference": [mass, cx, cy, cz]
   (what a NaN row of ``load`` means; for a model without ``load`` the load it assumes),
-  "extrapolate": k (a load-aware model reaches masses 0…k × the largest measured, centres of
-  mass up to k × the farthest measured or "com_mm"), "aware": bool}; a card without ``loads``
+  "extrapolate": k (a load-aware model measured at two or more masses reaches masses 0…k × the
+  largest measured, centres of mass up to k × the farthest measured or "com_mm"; one measured at
+  one mass, and a load-blind one, only the loads measured: ``load_reach``), "aware": bool}; a card without ``loads``
   says nothing of the load (``measured_loads`` empty);
   optional ``demonstration`` {"robot", "robot_seed"}: trained on data ``postproc measure``
   simulated, a demonstration model of a simulated robot (compensate and check say so, P340).
