@@ -25,9 +25,9 @@ def sim():
 
 @pytest.fixture(scope="module")
 def fitted(sim, tmp_path_factory):
-    """A load-aware and a load-blind model of one campaign at 0 and 300 kg (150 poses), the
+    """A load-aware and a load-blind model of one campaign at 0 and 300 kg (110 poses), the
     aware one exported."""
-    poses = latin_hypercube(150, seed=4)
+    poses = latin_hypercube(110, seed=4)
     poses = poses[sim.reachable(poses)]
     loads = np.zeros((len(poses), 4))
     loads[len(poses) // 2:] = (300.0, *COM)
