@@ -243,6 +243,8 @@ def test_each_dialect_gives_each_target_the_load_in_force(tmp_path):
     fanuc = _read(tmp_path / "pp.ls", FANUC, "fanuc").targets
     assert np.isnan(fanuc.load).all() and (fanuc.load_cause >= 0).all()  # (the schedule is the controller's)
     assert [c[4] for c in fanuc.load_causes] == [1, 2] and [c[1] for c in fanuc.load_causes] == [6, 8]
+    called = _read(tmp_path / "pp.ls", FANUC.replace("PAYLOAD[2]", "CALL GRIP"), "fanuc").targets
+    assert "GRIP() called at line 8" in called.load_causes[called.load_cause[1]][3]  # (a program not read may select one)
     poses = _read(tmp_path / "pp.csv", POSES, "poses").targets
     assert np.array_equal(poses.load[:2], [[0, 0, 0, 0], [300, 0, 0, 250]]) and np.isnan(poses.load[2]).all()
 

@@ -468,8 +468,10 @@ class Dialect:
         elif isinstance(action, Invoke):
             routine = an.unit.routines.get(self.routine_key(an, action.name))
             if routine is None:
-                if self.procedure(action.name) is None:  # code not read: the frames (not known to set points)
+                if self.procedure(action.name) is None:  # code not read: the frames and the payload (not points)
                     out.update(("G", n) for n in self.frame_names)
+                    if self.load_var is not None:
+                        out.add(("G", self.load_var))
                 return
             if routine.name in seen:
                 return
@@ -495,7 +497,7 @@ class Dialect:
         declaration until the program sets them again."""
         why = f"{s.action.name}() (the {s.what} declared at line {s.loc.line}) is not in the files read"
         top = Top(why, s.loc)
-        for name in self.frame_names:
+        for name in self.frame_names + ((self.load_var,) if self.load_var is not None else ()):
             st.vars[("G", name)] = top
         return st
 

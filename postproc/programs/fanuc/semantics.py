@@ -127,13 +127,14 @@ class LS(Dialect):
         if names is not None:
             return []
         keys = [k for k in st.vars if k[0] == "G" and k[1].startswith(("R[", "PR["))]
-        return keys + [("G", n) for n in self.frame_names] + [("G", n) for n in self.registers]
+        return keys + [("G", n) for n in self.frame_names] + [("G", n) for n in self.registers] + \
+            [("G", self.load_var)]  # (the payload: a program not read may select another, PAYLOAD[n])
 
     def unread_handler(self, an, st, s):
         """``RUN prog``: the program runs beside this one and may set every register and the
         selected frames at any time while it runs (to the end of this one)."""
         why = f"may be set by {s.action.name} (started with RUN at line {s.loc.line}, not read)"
-        writes = {("G", n) for n in self.registers} | {("G", n) for n in self.frame_names}
+        writes = {("G", n) for n in self.registers} | {("G", n) for n in self.frame_names} | {("G", self.load_var)}
         an.handlers[id(s)] = (s, writes, why)
         st.on = st.on | {id(s)}
         return an._pin(st)
