@@ -236,6 +236,12 @@ def test_each_dialect_gives_each_target_the_load_in_force(tmp_path):
     rapid = _read(tmp_path / "pp.mod", RAPID, "rapid").targets
     # the tool's tload (15 kg, cog 80 mm), + the gripped 300 kg (cog 50 mm in the tool frame: 250 on the flange)
     assert np.allclose(rapid.load, [[15, 0, 0, 80], [315, 0, 0, (15 * 80 + 300 * 250) / 315], [15, 0, 0, 80]])
+    # a TRAP that sets the GripLoad, connected and switched on: the payload is not known while it may run
+    trap = RAPID.replace("    GripLoad load0;\n", "").replace("  PROC main()\n", "  VAR intnum iGrip;\n  PROC main()\n")
+    trap = trap.replace("    GripLoad piece;\n", "    CONNECT iGrip WITH tDrop;\n    ISignalDI diGrip, 1, iGrip;\n")
+    trap = trap.replace("ENDMODULE", "  TRAP tDrop\n    GripLoad load0;\n  ENDTRAP\nENDMODULE")
+    trapped = _read(tmp_path / "trap.mod", trap, "rapid").targets
+    assert trapped.load_cause.tolist() == [-1, 0, 0] and "TRAP" in trapped.load_causes[0][3]
     ur = _read(tmp_path / "pp.script", URSCRIPT, "urscript").targets
     assert np.allclose(ur.load[:3], [[0, 0, 0, 0], [12.5, 0, 10, 80], [3, 0, 0, 50]])  # (cog in metres → mm)
     assert np.isnan(ur.load[3]).all() and ur.load_cause[3] >= 0  # (set_payload_mass: the cog in force not known)

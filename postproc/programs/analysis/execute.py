@@ -890,7 +890,8 @@ class Analysis:
                     for h in st.on:
                         decl, writes, why = self.handlers[h]
                         if key in writes:  # (a frame: at the handler; another variable: where it is read)
-                            at = decl.loc if name in self.dialect.frame_names else self.loc
+                            at = decl.loc if name in self.dialect.frame_names or name == self.dialect.load_var \
+                                else self.loc
                             return key, Top(f"{name} {why}", at, self.dialect.handler_code(key))
                 return key, v
         return None, None

@@ -713,6 +713,8 @@ class Lowering:
             self.emit(AsyncSwitch(None, True, loc))
         elif name == "IDISABLE":
             pass  # (interrupts are queued while disabled: they run at IEnable)
+        elif name == "GRIPLOAD" and positional and self.resolve(name) is None:  # (the payload gripped: $LOAD)
+            self.emit(Assign(Name("$LOAD"), self.expr(positional[0], "LOADDATA"), loc))
         elif name in ("INCR", "DECR", "ADD", "CLEAR") and positional and self.resolve(name) is None:
             target = self.expr(positional[0])
             if name == "CLEAR":
