@@ -57,7 +57,7 @@ import numpy as np
 import torch
 
 from ...core import frames
-from ...core.diagnostics import P505, P508, PostprocError
+from ...core.diagnostics import P505, P508, P519, PostprocError
 from ...robot.description import RobotDescription
 from ...robot.kinematics import batch_last as bl
 from ...robot.kinematics.twin import (
@@ -856,7 +856,10 @@ class KinematicModel(Estimator):
             self.lever_ = LEVER_MM
         layout = Layout(groups, list(self.ripple) if isinstance(self.ripple, list) else [])
         self.campaign_frames_ = self.campaign_std_ = None
-        if several_campaigns and layout.n:
+        if several_campaigns and not layout.n:
+            raise PostprocError("several campaigns need an identification to give each its frame: these groups are "
+                                "empty (no physical parameter to fit)", code=P519)
+        if several_campaigns:
             theta, tau, measured = self._fit_campaigns(layout, q, s, tau, measured, campaigns[keep], poses)
             errors = (tcp - measured).numpy()  # (in the first campaign's frame)
         else:
