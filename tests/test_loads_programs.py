@@ -346,3 +346,22 @@ def test_a_point_run_with_two_payloads_is_left_at_both_runs(models, tmp_path):
     assert "X 1900.0,Y -300.0" in report.outputs[files[1]] and "X 2000.0,Y 300.0" not in report.outputs[files[1]]
     plain = compensate_program(read_program(files, [KRL_POINT, KRL_POINT_DAT], "krl"), blind, Settings())
     assert plain.complete and "X 1900.0,Y -300.0" not in plain.outputs[files[1]]
+
+
+def test_a_load_blind_model_says_a_payload_it_was_not_measured_with(tmp_path):
+    # a model that does not take the load, measured at 300 kg (its card says so): a program that
+    # carries 0 kg throughout is compensated for 300 kg — said at the first such target (P341)
+    blind = load_model(affine_model(tmp_path / "blind.onnx", gain=GAIN, offset=(0.2, 0.1, -0.1),
+                                    loads={"measured": [[300, 0, 0, 250]], "reference": [300, 0, 0, 250]}))
+    text = ("DEF p()\n  $BASE = {X 1800, Y 0, Z 0, A 0, B 0, C 0}\n  $TOOL = {X 0, Y 0, Z 200, A 0, B 0, C 0}\n"
+            "  $LOAD = {M 0,CM {X 0,Y 0,Z 0,A 0,B 0,C 0},J {X 0,Y 0,Z 0}}\n"
+            "  LIN {X 100, Y 0, Z 900, A 0, B 90, C 0}\n  LIN {X 200, Y 50, Z 950, A 0, B 90, C 0}\nEND\n")
+    program = read_program(["p.src"], [text], "krl")
+    report = compensate_program(program, blind)
+    said = [w for w in report.warnings if w.code == "P341"]
+    assert len(said) == 1 and said[0].line == 5 and "2 target(s)" in said[0].message
+    assert report.compensated == 2
+    # at the load it was measured with: nothing to say
+    same = text.replace("{M 0,CM {X 0,Y 0,Z 0,", "{M 300,CM {X 0,Y 0,Z 250,")
+    report = compensate_program(read_program(["p.src"], [same], "krl"), blind)
+    assert not [w for w in report.warnings if w.code == "P341"] and report.compensated == 2

@@ -36,7 +36,7 @@ import numpy as np
 
 from ..core.diagnostics import (
     P103, P212, P213, P216, P218, P230, P231, P235, P236, P301, P302, P303, P304, P305, P309, P310, P313, P321, P336,
-    P338, P339, P340, P401,
+    P338, P339, P340, P341, P401,
     P408, P409, P517, Diagnostic, PostprocError, line_col,
 )
 from ..model.compensator import Compensator
@@ -429,6 +429,16 @@ def load_rule(program: Program, model: Compensator, settings: Settings,
                                       f"the program changes its payload ({said}) but the model does not take a load: "
                                       f"its {len(sets)} target(s) are compensated for the load the model was measured "
                                       "with", "note"))
+            # (a card that states the loads measured: a payload it was not measured with is said)
+            if len(sets) and len(model.measured_loads):
+                other = sets[~np.asarray(model.load_reach(t.load[sets]), bool)]
+                if len(other):
+                    measured = "; ".join(_load_text(v) for v in model.measured_loads)
+                    out += collect(program, other[:1], P341, f"the payload here, {_load_text(t.load[other[0]])}, is "
+                                   f"not the one the model was measured with ({measured}), and the model does not "
+                                   f"take the load: {len(other)} target(s) with other payloads are compensated for "
+                                   "the measured one, their deflection under the payload stays (train with the "
+                                   "payloads as load columns: a load-aware model)")
         return None, out, {}
     loads = np.full((len(t), 4), np.nan) if t.load is None else t.load.copy()
     cause = np.full(len(t), -1, np.int32) if t.load_cause is None else t.load_cause

@@ -160,6 +160,9 @@ P339 = _code("P339", "note", "the model takes a load and the program does not se
              "compensated for the load the model was measured with (its reference); state it with --load")
 P340 = _code("P340", "note", "(compensate, check) the model is a demonstration model of a simulated robot (its card's "
              "'demonstration'): it knows nothing of a real robot; train one for yours")
+P341 = _code("P341", "warning", "(compensate, check) the model does not take the load, and the program's payload is not "
+             "the one it was measured with: its targets are compensated, the deflection under the other payload "
+             "stays")
 # P4xx: stamps and compensated outputs
 P401 = _code("P401", "error", "already compensated (a stamp line): compensate refuses unless --force")
 P402 = _code("P402", "error", "compensated with a model other than the configured one")

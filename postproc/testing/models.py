@@ -94,6 +94,8 @@ def affine_model(
                       helper.make_node("MatMul", ["step", "prevT"], ["plin"]),
                       helper.make_node("Add", ["base_error", "plin"], ["error"])]
             inits.append(numpy_helper.from_array(previous_gain.T.astype(np.float32), "prevT"))
+    if load_gain is None and loads is not None:  # (a load-blind model whose card says what it was measured with)
+        extra_meta["loads"] = loads
     if load_gain is not None:
         load_gain = np.asarray(load_gain, float) * (np.eye(3) if np.ndim(load_gain) == 0 else 1.0)
         loads = loads or {"measured": [[0, 0, 0, 0], [300, 0, 0, 250]], "reference": [300, 0, 0, 250],
