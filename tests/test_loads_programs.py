@@ -105,6 +105,13 @@ def test_a_load_not_known_is_left_located_at_its_cause_and_exits_1(models, tmp_p
     written = out.read_text(encoding="latin-1")
     assert "LIN {X 1900,Y 300,Z 900," in written and "LIN {X 2000,Y 200,Z 900," in written  # (as written)
     assert "LIN {X 1900,Y -300,Z 900," not in written  # (its load is known: compensated)
+    # the user states it: --load taken where the payload is not known, said at each cause (P339), exit 0
+    out3 = tmp_path / "out3.src"
+    assert main(["compensate", str(src), "-o", str(out3), "--model", str(aware_path), "--load", "150,0,0,100"]) == 0
+    err = capsys.readouterr().err
+    notes = [line for line in err.splitlines() if " P339 " in line]
+    assert any(line.startswith(f"{src}:6:") and "150 kg" in line for line in notes), err
+    assert "LIN {X 1900,Y 300,Z 900," not in out3.read_text(encoding="latin-1")
     # a load-blind model: no P235, every target compensated (exit 0), as before this issue
     out2 = tmp_path / "out2.src"
     assert main(["compensate", str(src), "-o", str(out2), "--model", str(blind_path)]) == 0

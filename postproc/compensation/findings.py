@@ -412,8 +412,9 @@ def load_rule(program: Program, model: Compensator, settings: Settings,
     it was measured with), said once where the program sets a payload (P236, a note). A model that
     takes it: a row whose payload the program sets gets it; one where the program sets none gets
     ``--load`` (settings ``load``), else NaN (the model's reference load: said once, P339); a row
-    whose payload is not statically known is left as written (P235, at each cause, naming the
-    motions); one the model cannot extrapolate to (``load_reach``) too (P338). Narrows ``use``."""
+    whose payload is not statically known gets ``--load`` where the user states it (said at each
+    cause, P339), else is left as written (P235, at each cause, naming the motions); one the
+    model cannot extrapolate to (``load_reach``) too (P338). Narrows ``use``."""
     t = program.targets
     out: list[Diagnostic] = []
     rows = np.flatnonzero(use)
@@ -462,6 +463,16 @@ def load_rule(program: Program, model: Compensator, settings: Settings,
             loads[mine] = stated_n
             cause = np.where(mine, -1, cause)
     unknown = use & (cause >= 0)
+    if unknown.any() and stated is not None:  # (the user states the payload: taken where it is not known, said)
+        where_rows = np.flatnonzero(unknown)
+        for k in np.unique(cause[where_rows]).tolist():
+            mine = where_rows[cause[where_rows] == k]
+            path, line, col, why, _ = t.load_causes[k]
+            out.append(Diagnostic(path, line, col, P339, f"payload not statically known ({why}): --load "
+                                  f"{_load_text(stated)} taken at {len(mine)} target(s) (at "
+                                  f"{listed(list(dict.fromkeys(motion_at(program, int(r)) for r in mine)))})", "note"))
+        loads[where_rows] = stated
+        unknown[:] = False
     if unknown.any():
         where_rows = np.flatnonzero(unknown)
         for k in np.unique(cause[where_rows]).tolist():

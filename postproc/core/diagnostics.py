@@ -156,8 +156,9 @@ P337 = _code("P337", "warning", "plan --for: a program target the measurement da
              "configuration, its tool, or a joint outside the data's arcs); as a note: targets not planned for")
 P338 = _code("P338", "warning", "a target's payload differs from every load the model was measured with by more than it "
              "can extrapolate (the card's loads): left as written")
-P339 = _code("P339", "note", "the model takes a load and the program does not set the payload before these targets: "
-             "compensated for the load the model was measured with (its reference); state it with --load")
+P339 = _code("P339", "note", "the model takes a load and the program does not set the payload before these targets "
+             "(or not statically): compensated for --load where given, else for the load the model was measured "
+             "with (its reference); state it with --load")
 P340 = _code("P340", "note", "(compensate, check) the model is a demonstration model of a simulated robot (its card's "
              "'demonstration'): it knows nothing of a real robot; train one for yours")
 P341 = _code("P341", "warning", "(compensate, check) the model does not take the load, and the program's payload is not "
