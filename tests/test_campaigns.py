@@ -1,10 +1,10 @@
 """Several measurement campaigns in one fit (``postproc train a.csv c.csv``, a ``campaign`` column).
 
-One simulated KR 500 is measured twice: campaign A (120 rows, Y < 0) in the robot base frame,
-campaign C (120 rows, Y > 0) by a tracker set up elsewhere (its points turned by ~1 rad and
+One simulated KR 500 is measured twice: campaign A (80 rows, Y < 0) in the robot base frame,
+campaign C (80 rows, Y > 0) by a tracker set up elsewhere (its points turned by ~1 rad and
 shifted by metres). Each campaign gets its own tracker → base frame inside the identification,
 the robot's parameters shared: the model of both must be as good, at fresh targets over both
-regions, as a model of the same 240 rows measured in one frame; one file holding both set-ups
+regions, as a model of the same 160 rows measured in one frame; one file holding both set-ups
 without naming them is refused with what to do (P518), not "register them".
 """
 from __future__ import annotations
@@ -25,14 +25,15 @@ from postproc.robot.description import load_description
 
 TRACKER = small_transform(np.array([0.3, -0.2, 1.0]), np.array([2500.0, -800.0, 300.0]))  # base → tracker
 TRAIN = ["--method", "kinematic", "--val-fraction", "0", "--seed", "0"]
+N = 80  # rows per campaign
 
 
 @pytest.fixture(scope="module")
 def scene(tmp_path_factory):
     kr500 = load_description()
     sim = SimulatedRobot(kr500, seed=3)
-    pa = latin_hypercube(120, box=(1600, 2300, -600, 0, 600, 1400), seed=1)
-    pc = latin_hypercube(120, box=(1600, 2300, 0, 600, 600, 1400), seed=2)
+    pa = latin_hypercube(N, box=(1600, 2300, -600, 0, 600, 1400), seed=1)
+    pc = latin_hypercube(N, box=(1600, 2300, 0, 600, 600, 1400), seed=2)
     ma, mc = sim.measure(pa, rng_seed=1), sim.measure(pc, rng_seed=2)
     mc_tracker = mc @ TRACKER[:3, :3].T + TRACKER[:3, 3]
     folder = tmp_path_factory.mktemp("campaigns")
@@ -49,7 +50,7 @@ def scene(tmp_path_factory):
     lines[head + 1:] = [f"{line},{'day1' if i < len(pa) else 'day2'}" for i, line in enumerate(lines[head + 1:])]
     named.write_text("\n".join(lines) + "\n")
     targets = latin_hypercube(150, box=(1650, 2250, -550, 550, 650, 1350), seed=9)
-    # the reference: the same 240 rows measured in one frame (the base), one campaign
+    # the reference: the same rows measured in one frame (the base), one campaign
     reference = HybridModel(kr500, residual="none", seed=0).fit(both[0], both[0][:, :3] - np.r_[ma, mc],
                                                                  previous_poses(both[0]))
     return {"sim": sim, "a": a, "c": c, "unnamed": unnamed, "named": named, "targets": targets,
@@ -73,7 +74,29 @@ def test_one_file_with_two_set_ups_is_refused_with_what_to_do(scene, capsys):
     err = capsys.readouterr().err
     assert "P518" in err and "do not fit one tracker frame" in err and "campaign" in err
     assert "register them" not in err  # (--register was given)
+    # where the set-ups meet: A's N rows are lines 3…N + 2 (after '# frame:' and the header)
+    assert f"lines up to {N + 2} and from {N + 3}" in err
     assert not out.exists()
+
+
+def test_a_file_whose_rows_fit_two_frames_far_better_says_so(scene, capsys):
+    """Two set-ups 20 mm and 2 mrad apart in one file: errors a robot could make (not refused),
+    but two frames fit them far better than one: train says where, and how to name them."""
+    lines = scene["unnamed"].read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("x,"))
+    data = read_measurements(scene["unnamed"])
+    measured = data.measured.copy()
+    measured[N:] = (data.measured[N:] - TRACKER[:3, 3]) @ TRACKER[:3, :3]  # C back in the base frame
+    near = small_transform(np.array([0.002, 0.0, -0.001]), np.array([20.0, -5.0, 3.0]))
+    measured[N:] = measured[N:] @ near[:3, :3].T + near[:3, 3]
+    mild = scene["folder"] / "mild.csv"
+    mild.write_text(measurement_csv(data.poses, measured, metadata={"frame": "tracker"}))
+    out = scene["folder"] / "mild.onnx"  # (a small network: the finding is the data's, before any fit)
+    assert main(["train", str(mild), "--register", "-o", str(out), "--method", "plain", "--hidden", "4",
+                 "--epochs", "3", "--val-fraction", "0"]) == 0
+    err = capsys.readouterr().err
+    assert f"fit two tracker frames far better than one (lines up to {N + 2} and from {N + 3}" in err
+    assert head == 1
 
 
 def test_two_files_are_two_campaigns_in_one_fit(scene, capsys):
@@ -89,7 +112,7 @@ def test_two_files_are_two_campaigns_in_one_fit(scene, capsys):
     assert reference < 0.05
     assert mine < 1.5 * reference + 0.01, (mine, reference)
     card = model.metadata["campaigns"]
-    assert [c["name"] for c in card] == ["a", "c"] and [c["rows"] for c in card] == [120, 120]
+    assert [c["name"] for c in card] == ["a", "c"] and [c["rows"] for c in card] == [N, N]
     assert "registration" not in card[0] and card[0]["frame"]["reference"]
     c = card[1]
     # the registration found the tracker's frame (its inverse: tracker → base), the fit refined it, with a std

@@ -21,6 +21,7 @@ from ...measurements.csv import Measurements
 __all__ = [
     "measured_tools",
     "check_errors",
+    "frame_split",
     "check_rotation_errors",
     "split_indices",
     "check_size",
@@ -110,11 +111,12 @@ FRAME_ERROR_MM = 50.0
 
 
 def check_errors(positions: np.ndarray, measured: np.ndarray, lines: np.ndarray, path: str = "",
-                 registered: bool = False, campaign: str | None = None) -> list[str]:
+                 registered: bool = False, campaign: str | None = None, split: str | None = None) -> list[str]:
     """Refuse errors E = positions − measured [N, 3] that no robot makes — median |E| above FRAME_ERROR_MM:
     another frame or unit (P509: register them, or convert); where the rows were ``registered``
     already (one rigid fit of them all), several set-ups in one file (P518: name the campaigns;
-    ``campaign``: the campaign these rows are, whose set-up they do not fit); return warnings
+    ``campaign``: the campaign these rows are, whose set-up they do not fit; ``split``:
+    ``frame_split``'s warning, where it found the place); return warnings
     naming the rows (file lines) whose |E| is far
     above the others' (more than 10 × the median + 5 mm): a mis-measured point or a
     wrong row."""
@@ -131,7 +133,8 @@ def check_errors(positions: np.ndarray, measured: np.ndarray, lines: np.ndarray,
         name = ("split it: each set-up its own campaign name" if campaign else
                 "name them with a 'campaign' column or give each campaign's file to train (train a.csv c.csv ...)")
         raise PostprocError(f"{what} not fit one tracker frame (rigid fit residual {rms:.4g} mm rms, {median:.4g} mm "
-                            f"median; line {lines[i]}: {size[i]:.4g} mm): the measurements hold several set-ups: {name}",
+                            f"median; line {lines[i]}: {size[i]:.4g} mm): the measurements hold several set-ups: {name}"
+                            + (f" ({split.removeprefix('warning: ').split(': if they')[0]})" if split else ""),
                             path, int(lines[i]), 1, P518)
     if median > FRAME_ERROR_MM:  # (not metres: postproc.core.units said so above)
         i = int(np.argmax(size))
@@ -144,6 +147,48 @@ def check_errors(positions: np.ndarray, measured: np.ndarray, lines: np.ndarray,
     shown = ", ".join(str(int(lines[i])) for i in far[:10]) + (" ..." if len(far) > 10 else "")
     return [f"warning: {len(far)} row(s) with an error far above the others' (median {median:.3f} mm): "
             f"line(s) {shown}"]
+
+
+# a file whose rows, split once in their order, fit two rigid frames this many times better
+# (rms) than one looks like two set-ups: a robot's own error splits far less (the IPA UR10's
+# series cut at their best place: A, B, C 1.00, D 1.37; A and C in one file: 223)
+SPLIT_GAIN = 2.0
+
+
+def _rigid_rss(n: np.ndarray, s_c, s_m, s_cc, s_mm, s_cm) -> np.ndarray:
+    """The least residual sum of squares of a rigid fit c ≈ R·m + t from the points' sums (count
+    ``n`` [K], Σc, Σm [K, 3], Σ|c|², Σ|m|² [K], Σ c·mᵀ [K, 3, 3]): Kabsch's, without the points."""
+    n = np.maximum(n, 1)[:, None]
+    cov = s_cm - s_c[:, :, None] * s_m[:, None, :] / n[:, :, None]
+    spread = s_cc - (s_c**2).sum(1) / n[:, 0] + s_mm - (s_m**2).sum(1) / n[:, 0]
+    u, d, vt = np.linalg.svd(cov)
+    sign = np.sign(np.linalg.det(u) * np.linalg.det(vt))
+    return np.maximum(spread - 2.0 * (d[:, 0] + d[:, 1] + sign * d[:, 2]), 0.0)
+
+
+def frame_split(commanded: np.ndarray, measured: np.ndarray, lines: np.ndarray, least: int = 12) -> str | None:
+    """A warning where the rows (in file order, tracker frame) fit two rigid frames — the rows
+    before and after one place in the file, every place tried (each side ``least`` rows or more)
+    — ``SPLIT_GAIN`` times better (rms) than one: the file may hold two set-ups that a rigid
+    registration of them all mixes. None otherwise."""
+    c, m = np.asarray(commanded, float), np.asarray(measured, float)
+    n = len(c)
+    if n < 2 * least:
+        return None
+    sums = [np.cumsum(v, axis=0) for v in (c, m, (c**2).sum(1), (m**2).sum(1), c[:, :, None] * m[:, None, :])]
+    total = [v[-1] for v in sums]
+    k = np.arange(least, n - least + 1)
+    before = _rigid_rss(k.astype(float), *(v[k - 1] for v in sums))
+    after = _rigid_rss((n - k).astype(float), *(t[None] - v[k - 1] for t, v in zip(total, sums)))
+    one = float(np.sqrt(_rigid_rss(np.array([float(n)]), *(t[None] for t in total))[0] / n))
+    i = int(np.argmin(before + after))
+    two = float(np.sqrt((before[i] + after[i]) / n))
+    if two * SPLIT_GAIN > one:
+        return None
+    cut = int(k[i])
+    return (f"warning: the rows fit two tracker frames far better than one (lines up to {int(lines[cut - 1])} and from "
+            f"{int(lines[cut])}: rms {two:.3g} mm, one frame {one:.3g} mm): if they are two set-ups, name them (a "
+            "'campaign' column, or each set-up's file given to train)")
 
 
 # measured orientations further than this (deg, median angle) from the commanded ones are not a

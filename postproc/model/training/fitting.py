@@ -185,6 +185,7 @@ def _measured(rows: _Rows, register: bool, method: str) -> None:
     data = rows.data
     poses, measured = data.poses, data.measured
     frame = data.meta.get("frame", "base").lower()
+    split = None
     if rows.campaigns is not None:
         measured = _campaigns_measured(rows, register)
     elif register:
@@ -192,8 +193,13 @@ def _measured(rows: _Rows, register: bool, method: str) -> None:
 
         mask = np.zeros(len(data), dtype=bool)
         mask[rows.train] = True
+        from .data import frame_split
+
+        split = frame_split(poses[rows.train, :3], measured[rows.train], data.lines[rows.train])
         measured, transform, rms = register_measurements(poses[:, :3], measured, mask)
         rows.notes.append(f"registered tracker → base on {len(rows.train)} training rows (rms {rms:.3f} mm)")
+        if split:
+            rows.notes.append(split)  # (said, and in P518 where the errors refuse the rows)
         if data.orientation is not None:  # the probe's orientation turns with the tracker frame
             from ...core.frames import abc_from_rotation, rotation_from_abc
 
@@ -208,7 +214,7 @@ def _measured(rows: _Rows, register: bool, method: str) -> None:
             "the validation figures are optimistic; use the import's --split-seed and a smaller --val-fraction"
         )
     if rows.campaigns is None:
-        rows.notes += check_errors(poses[:, :3], measured, data.lines, rows.source, registered=register)
+        rows.notes += check_errors(poses[:, :3], measured, data.lines, rows.source, registered=register, split=split)
     rotation_errors = data.rotation_errors
     if rotation_errors is not None:
         check_rotation_errors(rotation_errors, data.lines, rows.source)
