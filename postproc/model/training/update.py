@@ -17,7 +17,10 @@ alone, 0.386 with all three)
   (OLD's lever, mm/rad) and the updated model keeps ``rotation_error``; new rows without
   orientations give a model without it (OLD's orientation part would be stale after a re-mount)
 
-of OLD's identified model on the new rows, as regularised least squares toward OLD's values
+of OLD's identified model on the new rows — the rows are a new campaign: base, zero and tool are
+the 15 parameters every campaign after the first gets in a fit of several campaigns
+(``KinematicModel.fit(campaigns=)``; several campaigns in an update are refused, P519, in
+training/fitting.py) — as regularised least squares toward OLD's values
 (and, where the new rows ask for it, the joint placements: see "The region" below):
 
     min ‖FK_id(q; θ) − measured‖² + Σ_i (σ_r² / s_i²)·(θ_i − θ_i,old)²
