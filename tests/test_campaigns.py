@@ -121,6 +121,10 @@ def test_two_files_are_two_campaigns_in_one_fit(scene, capsys):
                                                                                np.zeros(3))[:3, :3], atol=2e-3)
     assert not c["frame"]["reference"] and all(s > 0 for s in c["frame"]["offset_std_mm"])
     assert max(abs(v) for v in c["frame"]["offset_mm"]) < 5.0
+    capsys.readouterr()
+    assert main(["model", "info", str(out)]) == 0
+    assert f"campaigns: 2 in one fit, each its own frame, tool and zero offsets: a ({N} rows; the model's frame), c" \
+        in capsys.readouterr().out
 
 
 def test_a_campaign_column_names_the_set_ups(scene):

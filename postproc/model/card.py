@@ -182,6 +182,20 @@ def card_lines(model: Compensator) -> list[str]:
     update = card.get("update")
     if isinstance(update, dict):
         lines.append(f"re-calibrated from {update.get('from', '?')} on {update.get('rows', '?')} rows")
+    campaigns = card.get("campaigns")
+    if isinstance(campaigns, list) and len(campaigns) > 1:
+        said = []
+        for c in campaigns:
+            f = c.get("frame") if isinstance(c, dict) else None
+            if not isinstance(f, dict) or f.get("reference"):
+                said.append(f"{c.get('name', '?')} ({c.get('rows', '?')} rows; the model's frame)")
+                continue
+            turn = float(np.linalg.norm(f.get("rotation_deg", [0, 0, 0])))
+            shift = float(np.linalg.norm(f.get("offset_mm", [0, 0, 0])))
+            said.append(f"{c.get('name', '?')} ({c.get('rows', '?')} rows; its frame {turn:.3g}° / {shift:.3g} mm "
+                        "from the model's)")
+        lines.append(f"campaigns: {len(campaigns)} in one fit, each its own frame, tool and zero offsets: "
+                     + ", ".join(said))
     if card.get("data_sha256"):
         lines.append(f"data sha256: {card['data_sha256']}")
     return lines
