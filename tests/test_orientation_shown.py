@@ -37,8 +37,8 @@ def test_near_b_90_the_nearest_triple_is_written_and_the_move_of_a_and_c_is_said
     angle = frames.rotation_angle_deg(old, new)
     assert angle.max() < 1.0 and np.abs(new[:, [0, 2]] - old[:, [0, 2]]).max() > 1.0
     m = re.search(r"A and C change by up to ([\d.]+)° for a rotation of at most ([\d.]+)°", said[0])
-    assert float(m.group(1)) == pytest.approx(np.abs(new - old).max(), abs=2e-3)
-    assert float(m.group(2)) == pytest.approx(angle.max(), abs=2e-3)
+    assert float(m.group(1)) == pytest.approx(np.abs(new - old).max(), abs=6e-3)  # (the message says 2 decimals)
+    assert float(m.group(2)) == pytest.approx(angle.max(), abs=6e-3)  # (the message says 2 decimals)
     # the triple written is the nearest of the two that state the new rotation
     alt = np.c_[new[:, 0] + 180, 180 - new[:, 1], new[:, 2] + 180]
     np.testing.assert_allclose(frames.nearest_triple(alt, old), new, atol=1e-9)
