@@ -168,3 +168,47 @@ def test_what_cannot_take_several_campaigns_says_so(scene, capsys, option):
     err = capsys.readouterr().err
     assert "P519" in err and "2 campaigns (a, c)" in err
     assert not out.exists()
+
+
+def _drift(points: np.ndarray, amplitude: float, phase: float) -> np.ndarray:
+    """A day's error no frame, tool or zero offset explains (the robot warmed, a link settled):
+    a smooth field of ``amplitude`` mm over the workspace."""
+    u = points / 300.0
+    return amplitude * np.c_[np.sin(u[:, 0] + phase), np.cos(u[:, 1] - phase), np.sin(u[:, 2] + 2 * phase)]
+
+
+def test_error_std_takes_another_day_s_spread_from_the_campaigns(scene, capsys):
+    """Two days that differ by more than a frame: train measures what another day adds (each
+    campaign predicted by the model of the other, after its own rigid fit), error_std takes it,
+    and its 2σ band covers a third day's residuals; with one day train says it cannot tell."""
+    sim, folder = scene["sim"], scene["folder"]
+    pa = latin_hypercube(N, box=(1600, 2300, -600, 600, 600, 1400), seed=21)
+    pc = latin_hypercube(N, box=(1600, 2300, -600, 600, 600, 1400), seed=22)
+    ma = sim.measure(pa, rng_seed=21) + _drift(pa[:, :3], 0.15, 0.0)
+    mc = sim.measure(pc, rng_seed=22) + _drift(pc[:, :3], 0.15, 1.3)
+    day1, day2 = folder / "day1.csv", folder / "day2.csv"
+    day1.write_text(measurement_csv(pa, ma, metadata={"frame": "base"}))
+    day2.write_text(measurement_csv(pc, mc, metadata={"frame": "base"}))
+    out = folder / "days.onnx"
+    assert main(["train", str(day1), str(day2), "-o", str(out), *TRAIN]) == 0
+    assert "another day's spread" in capsys.readouterr().out
+    model = load_model(out)
+    spread = model.metadata["uncertainty"]
+    assert spread["other_days_std_mm"] == pytest.approx(spread["residual_std_mm"])  # (the larger one)
+    # a third day, scored after its own rigid fit: its residuals inside the 2σ band
+    targets = latin_hypercube(150, box=(1650, 2250, -550, 550, 650, 1350), seed=23)
+    actual = sim.actual_positions(targets) - _drift(targets[:, :3], 0.15, 2.6)
+    predicted, std = model.predict(targets, previous_poses(targets), std=True)
+    positions = targets[:, :3] - predicted
+    moved = register_measurements(actual, positions, np.ones(len(targets), bool))[0]
+    residual = np.abs(actual - moved)
+    cover = float((residual <= 2 * std.reshape(-1, 1)).mean())
+    assert cover >= 0.9, cover
+    # the training rows' residual alone is too narrow a band (its std per coordinate: mean |E − Ê| / 1.6,
+    # as for a 3-D Gaussian)
+    own = model.metadata["accuracy"]["train_mean_mm"] / 1.6
+    assert spread["other_days_std_mm"] > 1.5 * own
+    assert float((residual <= 2 * own).mean()) < 0.9
+    # one day: train says its error_std is of that set-up only
+    assert main(["train", str(day1), "-o", str(folder / "day1.onnx"), *TRAIN]) == 0
+    assert "one campaign cannot tell what another day adds" in capsys.readouterr().out

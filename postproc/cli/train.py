@@ -143,6 +143,14 @@ def _print_identified(args, trained) -> None:
         reg = c.get("registration")
         print(f"campaign  {c['name']}: {c['train_rows']} training rows; "
               + (f"registered (rms {reg['rms_mm']:.3f} mm); " if reg else "") + frame)
+    spread = card.get("uncertainty") or {}
+    if "other_days_std_mm" in spread:
+        print(f"std       error_std with another day's spread: {spread['other_days_std_mm']:.3f} mm per coordinate "
+              "(each campaign predicted by the model of the others, after its own rigid fit)")
+    elif spread and trained.update is None:
+        print(f"std       error_std of this set-up (residual {spread['residual_std_mm']:.3f} mm per coordinate): one "
+              "campaign cannot tell what another day adds (a tracker set up again, re-mastering); measure a second "
+              "campaign and train on both to know it")
     print_figures(accuracy, model.train_stats_)
     if "val_rotation_deg" in accuracy:
         r = accuracy["val_rotation_deg"]

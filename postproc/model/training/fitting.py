@@ -378,10 +378,42 @@ def _identified(rows: _Rows, method: str, description, pose_only: bool, update, 
             if not exc.path:
                 exc.path = str(getattr(rows.data, "path", "") or "")
             raise
+        if rows.campaigns is not None and len(rows.campaign_names) > 1:
+            model.days_var_ = _other_days_variance(rows, description, {**SETTINGS[method], **params}, inputs,
+                                                   loads)
         if model.kinematic_.campaign_frames_ is not None:  # (every row in the frame the model predicts in)
             rows.errors = model.kinematic_.to_base(poses, rows.errors, rows.campaigns, q_deg)
     card = _identified_card(model, description, rows, inputs, rotation_errors, refit, name)
     return TrainedModel(model, card, rows.train, rows.val, rows.notes, update=refit)
+
+
+def _other_days_variance(rows: _Rows, description, settings: dict, inputs: _Inputs, loads) -> float:
+    """The residual variance (mm² per coordinate) a model of these data leaves on another day:
+    each campaign predicted by the model fitted on the other campaigns' training rows, after the
+    campaign's own rigid fit (as a user scores a new set-up: its frame is its own), the mean over
+    the campaigns. The graph's ``error_std`` takes it where it is larger than the residual at the
+    training rows (``HybridModel.days_var_``): a campaign differs from another by more than its
+    frame (the tracker's set-up, re-mastering, temperature), and so does the next day."""
+    from ...core.registration import fit_rigid
+    from .hybrid import HybridModel
+
+    poses, t = rows.data.poses, rows.train
+    camp = rows.campaigns[t]
+    out = []
+    for k in np.unique(camp).tolist():
+        others, mine = t[camp != k], t[camp == k]
+        left = np.unique(rows.campaigns[others], return_inverse=True)[1]
+        loo = HybridModel(description, **settings)
+        loo.fit(poses[others], rows.errors[others], _take(inputs.previous, others), _take(inputs.q_deg, others),
+                _take(rows.tools, others), None, _take(inputs.q_previous, others),
+                campaigns=left if left.max() > 0 else None, loads=_take(loads, others))
+        predicted = loo.predict(poses[mine], _take(inputs.previous, mine), _take(inputs.q_deg, mine),
+                                _take(rows.tools, mine), _take(inputs.q_previous, mine), loads=_take(loads, mine))
+        measured, actual = poses[mine, :3] - rows.errors[mine], poses[mine, :3] - predicted
+        rotation, shift = fit_rigid(measured, actual)
+        residual = actual - (measured @ rotation.T + shift)
+        out.append(float(np.mean(residual ** 2)))
+    return float(np.mean(out))
 
 
 def _update(rows: _Rows, description, old_path, q_deg: np.ndarray | None, rotation_errors: np.ndarray | None):

@@ -592,6 +592,11 @@ class HybridModel(Estimator):
             learned = self.module_.learned_var
             if learned is not None:  # (models whose error_std adds what the learned parts explain outside their arcs)
                 meta["uncertainty"]["learned_std_mm"] = round(math.sqrt(float(learned)), 6)
+            if getattr(self, "days_var_", 0.0) > 0:
+                meta["uncertainty"]["other_days_std_mm"] = round(math.sqrt(self.days_var_), 6)
+                meta["uncertainty"]["other_days_rule"] = (
+                    "residual_std_mm is the larger of the training rows' and other_days_std_mm: each campaign "
+                    "predicted by the model of the others, after its own rigid fit")
             if getattr(self, "uncertainty_calibration_", None):
                 meta["uncertainty"]["calibration"] = self.uncertainty_calibration_
         meta.update(metadata)
@@ -638,7 +643,9 @@ class HybridModel(Estimator):
             return False
         cov = self._covariance()
         self.uncertainty_calibration_ = cov.calibration
-        self.module_.set_uncertainty(cov.predictive, cov.sigma2, getattr(self, "learned_var_", 0.0))
+        # (data of several campaigns: what a campaign left out of the fit leaves, where larger — ``days_var_``)
+        sigma2 = max(cov.sigma2, getattr(self, "days_var_", 0.0))
+        self.module_.set_uncertainty(cov.predictive, sigma2, getattr(self, "learned_var_", 0.0))
         return True
 
     def _covariance(self):
