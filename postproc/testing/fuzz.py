@@ -327,6 +327,17 @@ def check_output(files: list[str], texts: list[str], outputs: list[str], model, 
     stripped = [_strip_stamp(t, stamp) for t in outputs]
     a = before.targets
     moved = (a.frame >= 0) & np.isfinite(a.poses[:, :3]).all(axis=1)  # what compensate changes
+    # targets whose S/T state another arm configuration than the model's one branch (P313: a mutated
+    # angle can make one) stay as written: compensate's own rule, which this check does not model
+    from ..compensation.findings import select_with_findings
+    from ..core.diagnostics import P313
+    from ..settings import Settings
+
+    try:
+        selection, _ = select_with_findings(before, model, Settings())
+        moved[np.asarray(selection.left.get(P313, []), int)] = False
+    except Exception:  # noqa: BLE001 (an error of the rules: compensate refused, exit 2, checked before)
+        pass
     # rows the analysis holds (P217: their numbers are read elsewhere too) stay as written
     for rows in (getattr(before, "held", None) or {}).values():
         moved[np.asarray(rows, int)] = False

@@ -950,7 +950,7 @@ class Analysis:
             v = self.eval(x, st)
             self.consume(v, "an index")
             n = number(v)
-            if n is None or n != int(n):
+            if n is None or not math.isfinite(n) or n != int(n):
                 return Top(v.why if isinstance(v, Top) else "an index that is not a whole number", self.loc)
             out.append(int(n))
         return tuple(out)
