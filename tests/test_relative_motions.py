@@ -127,3 +127,15 @@ def test_a_relative_target_left_for_another_reason_takes_its_start_with_it(tmp_p
     assert out[-2] == "  LIN_REL {Z 100}" and out[-4] == "  LIN {X 100, Y 0, Z 1000, A 0, B 90, C 0}"
     assert report.compensated == 1 and not report.complete
     assert {w.code for w in report.warnings} >= {"P338", "P230"}
+
+
+def test_orientation_is_not_corrected_on_relative_motions(tmp_path, capsys):
+    from postproc.cli import main
+
+    src = tmp_path / "r.src"
+    src.write_text("DEF r()\n  $BASE = {X 1800, Y 0, Z 0, A 0, B 0, C 0}\n  $TOOL = {X 0, Y 0, Z 200, A 0, B 0, C 0}\n"
+                   "  LIN {X 100, Y 0, Z 900, A 0, B 90, C 0}\n  LIN_REL {Z 50}\nEND\n")
+    out = tmp_path / "out.src"
+    assert main(["compensate", str(src), "-o", str(out), "--orientation"]) == 2 and not out.exists()
+    err = capsys.readouterr().err
+    assert f"{src}:5:11: P312 --orientation: a relative motion" in err

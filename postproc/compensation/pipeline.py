@@ -478,6 +478,11 @@ def _orientation_check(program: Program, model: Compensator, rows: np.ndarray) -
                             program.files[0], 1, 1, P312)
     missing = rows[(spans[rows, :, 0] < 0).any(axis=1)]
     if len(missing):
+        relative = program.targets.relative
+        if relative is not None and relative[missing[0]] >= 0:
+            raise PostprocError("--orientation: a relative motion turns the tool by its A, B, C from where it starts: "
+                                "postproc corrects its position only; compensate without --orientation",
+                                *where(program, int(missing[0])), P312)
         raise PostprocError("--orientation: this target does not write all of A, B, C", *where(program, int(missing[0])),
                             P312)
 
