@@ -671,3 +671,12 @@ def test_planning_measurement_program_reads_back():
     assert len(p.frames) == 1
     np.testing.assert_allclose(p.frames[0].base, np.eye(4))
     np.testing.assert_allclose(p.frames[0].tool, StubRobot.tool)
+
+
+@pytest.mark.parametrize("lhs", ["#BASE", "5", "ABS(X)"])
+def test_an_assignment_to_what_is_not_a_variable_is_refused_located(lhs):
+    # (found by the fuzzer: '#BASE = {…}' for '$BASE = {…}' crashed the analysis)
+    text = f"DEF p()\n  {lhs} = {{X 1800.0,Y -400.0,Z 600.0,A 0.0,B 0.0,C 0.0}}\n  LIN {{X 1,Y 2,Z 3}}\nEND\n"
+    with pytest.raises(PostprocError) as e:
+        krl.read(["p.src"], [text], active=ActiveFrames(base=0, tool="model"))
+    assert (e.value.line, e.value.col, e.value.code) == (2, 3, "P101") and "not a variable" in str(e.value)

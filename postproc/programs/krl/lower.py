@@ -428,7 +428,10 @@ class Lowering:
     # ------------------------------------------------------------ statements
     def s_assign(self, node):
         lhs, rhs = node.children
-        self.emit(Assign(self.expr(lhs), self.expr(rhs), self.here(first_pos(node))))
+        target = self.expr(lhs)
+        if not isinstance(target, (Name, Field, Item)):  # (#BASE = …: an ENUM value, a number, a call)
+            self.err("the left side of '=' is not a variable", first_pos(node) or 0)
+        self.emit(Assign(target, self.expr(rhs), self.here(first_pos(node))))
 
     def s_call(self, node):
         self.emit(self.call_stmt(node))
