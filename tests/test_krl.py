@@ -680,3 +680,16 @@ def test_an_assignment_to_what_is_not_a_variable_is_refused_located(lhs):
     with pytest.raises(PostprocError) as e:
         krl.read(["p.src"], [text], active=ActiveFrames(base=0, tool="model"))
     assert (e.value.line, e.value.col, e.value.code) == (2, 3, "P101") and "not a variable" in str(e.value)
+
+
+@pytest.mark.parametrize("old, new", [("INTERRUPT ON 5", "INTERRUPT ON 1E999"), ("INTERRUPT OFF 5", "INTERRUPT OFF 1E999"),
+                                      ("INTERRUPT DECL 5 WHEN", "INTERRUPT DECL 1E999 WHEN")])
+def test_numbers_of_infinity_where_a_whole_number_stands_are_not_known(old, new):
+    # (found by the fuzzer: an interrupt's number or an index of 1E999 crashed the analysis: int(inf))
+    path = SAMPLES / "syntax" / "handlers.src"
+    text = text_of(path).replace(old, new)
+    assert new in text
+    p = krl.read([str(path)], [text], active=ActiveFrames(base=0, tool="model"))
+    assert len(p.targets)
+    index = "DEF q()\n  DECL E6POS XP[2]\n  LIN XP[1E999]\nEND\n"
+    assert [d.code for d in krl.read(["q.src"], [index], active=ActiveFrames(base=0, tool="model")).diagnostics]

@@ -34,7 +34,9 @@ from ..ir import (
     Agg, Assign, Async, AsyncSwitch, Call, Continue, Decl, Eval, Exit, Field, Goto, Halt, Havoc, If, Invoke, Item,
     Label, Lit, Loc, Loop, Move, MoveRun, Name, Note, Num, Op, Return, Routine, Switch, Unit, Unknown,
 )
-from .values import Arr, Mat, NotSet, Rec, Taint, Tok, Top, frame_product, join, number, same, taint, tokens_of
+from .values import (
+    Arr, Mat, NotSet, Rec, Taint, Tok, Top, frame_product, join, number, same, taint, tokens_of, whole_number,
+)
 
 __all__ = ["Analysis", "Recorder", "Use", "RunUse", "State", "START"]
 
@@ -849,12 +851,9 @@ class Analysis:
         time switches every one on (any may be), and none off (which is not known)."""
         n = None
         if s.number is not None:
-            v = number(self.eval(s.number, st))
-            if v is None:
-                if not s.on:
-                    return st
-            else:
-                n = int(v)
+            n = whole_number(self.eval(s.number, st))
+            if n is None and not s.on:
+                return st
         chosen = [h for h, (decl, _, _) in self.handlers.items()
                   if n is None or decl.number is None or self._number(decl.number, st) in (n, None)]
         if s.on:
@@ -869,8 +868,7 @@ class Analysis:
         return st
 
     def _number(self, expr, st):
-        v = self.eval(expr, st)
-        return int(number(v)) if number(v) is not None else None
+        return whole_number(self.eval(expr, st))
 
     def _pin(self, st: State) -> State:
         for h in st.on:
@@ -949,10 +947,10 @@ class Analysis:
         for x in index:
             v = self.eval(x, st)
             self.consume(v, "an index")
-            n = number(v)
-            if n is None or not math.isfinite(n) or n != int(n):
+            n = whole_number(v)
+            if n is None:
                 return Top(v.why if isinstance(v, Top) else "an index that is not a whole number", self.loc)
-            out.append(int(n))
+            out.append(n)
         return tuple(out)
 
     def consume(self, value, why: str) -> None:
@@ -1047,8 +1045,8 @@ def _written(e) -> str:
     if isinstance(e, Field):
         return f"{_written(e.base)}.{e.written or e.name}"
     if isinstance(e, Item):
-        parts = [str(int(x.value)) if isinstance(x, (Num, Lit)) and isinstance(getattr(x, "value", None), (int, float))
-                 else "…" for x in e.index]
+        parts = [str(whole_number(x.value)) if isinstance(x, (Num, Lit)) and whole_number(getattr(x, "value", None))
+                 is not None else "…" for x in e.index]
         return f"{_written(e.base)}[{', '.join(parts)}]"
     if isinstance(e, Call):
         return f"{e.name.split('.')[-1]}(…)"

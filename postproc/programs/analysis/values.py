@@ -18,6 +18,8 @@ Values are immutable; equality is structural (the fixed point compares states).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ...core.diagnostics import P220, P221
@@ -312,6 +314,14 @@ def number(v):
     if isinstance(v, (int, float)) and not isinstance(v, bool):
         return float(v)
     return None
+
+
+def whole_number(v) -> int | None:
+    """The int of a known whole, finite number (an index, a handler's or a frame's number), else None."""
+    n = number(v)
+    if n is None or not math.isfinite(n) or n != int(n):
+        return None
+    return int(n)
 
 
 def tokens_of(v, out: set | None = None) -> set:

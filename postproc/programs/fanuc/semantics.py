@@ -43,7 +43,7 @@ import numpy as np
 from ...core import frames as fr
 from ...core.diagnostics import P201, P203, P211, P215, P223, P225, P234
 from ..analysis.dialect import Dialect, PoseView
-from ..analysis.values import Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, tokens_of
+from ..analysis.values import Mat, Moving, Rec, Six, Taint, Tok, Top, frame_inverse, frame_product, number, tokens_of, whole_number
 
 _EXTERNAL = re.compile(r"^(?:E[1-9]|GP[2-9]\.J[1-9])$")
 
@@ -196,10 +196,7 @@ class LS(Dialect):
 
 
 def _frame_no(value):
-    n = number(value)
-    if n is None or n != int(n):
-        return None
-    return int(n)
+    return whole_number(value)
 
 
 def uframe_of(an, st, args, call):
@@ -421,10 +418,10 @@ def payload_of(an, st, args, call):
     """``PAYLOAD[n]``: the controller's payload schedule n in force from here (``Schedule``)."""
     from ...core.diagnostics import P235
 
-    n = number(args[0]) if args else None
+    n = whole_number(args[0]) if args else None
     an.consume(args[0] if args else None, "PAYLOAD[…]")
-    if n is None or n != int(n):
+    if n is None:
         why = args[0].why if args and isinstance(args[0], Top) else "a number known only at run time"
         return Top(f"PAYLOAD[…] with {why}", call.loc or an.loc, P235)
-    return Schedule(int(n), call.loc or an.loc)
+    return Schedule(n, call.loc or an.loc)
 

@@ -34,7 +34,7 @@ import numpy as np
 from ...core.diagnostics import P201, P203, P211, P215, P220, P221, P222, P223, P225, P235, PostprocError
 from ...core.frames import frame_to_matrix
 from ..analysis.dialect import Dialect, PoseView
-from ..analysis.values import Arr, Mat, Moving, Rec, Six, Tok, Top, frame_inverse, frame_product, number
+from ..analysis.values import Arr, Mat, Moving, Rec, Six, Tok, Top, frame_inverse, frame_product, number, whole_number
 from ..ir import Loc
 
 __all__ = ["KRL", "HARMLESS", "BUILTIN_FUNCTIONS"]
@@ -297,10 +297,7 @@ def _data_frame(an, st, name: str, n, label_prefix: str):
 
 
 def _int(v):
-    n = number(v)
-    if n is None or not math.isfinite(n) or n != int(n):
-        return None
-    return int(n)
+    return whole_number(v)
 
 
 def _base(an, st, n, via: str):
