@@ -212,3 +212,29 @@ def test_error_std_takes_another_day_s_spread_from_the_campaigns(scene, capsys):
     # one day: train says its error_std is of that set-up only
     assert main(["train", str(day1), "-o", str(folder / "day1.onnx"), *TRAIN]) == 0
     assert "one campaign cannot tell what another day adds" in capsys.readouterr().out
+
+
+def test_campaigns_each_at_one_load_are_said_one_at_two_loads_is_not(scene, capsys):
+    """A campaign's own frame and zero offsets take up part of what its load does: with each
+    campaign at one load train says so; one campaign at two loads fixes what loads do."""
+    sim, folder = scene["sim"], scene["folder"]
+    pa = latin_hypercube(N, box=(1600, 2300, -600, 600, 600, 1400), seed=31)
+    pc = latin_hypercube(N, box=(1600, 2300, -600, 600, 600, 1400), seed=32)
+    heavy = np.tile([300.0, 220.0, 0.0, 40.0], (N, 1))
+    empty = np.zeros((N, 4))
+
+    def write(path, poses, loads, seed):
+        measured = sim.measure(poses, rng_seed=seed, loads=loads)
+        columns = dict(zip(("load_mass", "load_cx", "load_cy", "load_cz"), loads.T))
+        path.write_text(measurement_csv(poses, measured, extra=columns, metadata={"frame": "base"}))
+
+    write(folder / "empty.csv", pa, empty, 31)
+    write(folder / "heavy.csv", pc, heavy, 32)
+    out = folder / "one_load_each.onnx"
+    assert main(["train", str(folder / "empty.csv"), str(folder / "heavy.csv"), "-o", str(out), *TRAIN]) == 0
+    said = "each campaign was measured at one load (empty 0 kg, heavy 300 kg)"
+    assert said in capsys.readouterr().err and load_model(out).takes_load
+    both = np.where(np.arange(N)[:, None] % 2 == 0, empty, heavy)
+    write(folder / "both.csv", pa, both, 33)
+    assert main(["train", str(folder / "both.csv"), str(folder / "heavy.csv"), "-o", str(out), *TRAIN]) == 0
+    assert "each campaign was measured at one load" not in capsys.readouterr().err
