@@ -37,13 +37,12 @@ import numpy as np
 from ..core.diagnostics import (
     P103, P212, P213, P216, P218, P230, P231, P235, P236, P301, P302, P303, P304, P305, P309, P310, P313, P321, P336,
     P338, P339, P340, P341, P401,
-    P408, P409, P517, Diagnostic, PostprocError, line_col,
+    P408, P409, P517, Diagnostic, PostprocError, line_col, listed,
 )
 from ..model.compensator import Compensator
 from ..model.settle import Inside, Order
 from ..programs import Program
 from ..programs.base_poses import robot_base_poses
-from ..core.diagnostics import listed
 from ..programs.locate import collect, motion_at, where
 from ..robot.description import is_description_file, load_description, robot_name
 from ..settings import Settings
