@@ -106,15 +106,13 @@ def parse_load(text: str) -> np.ndarray:
     """``MASS[,CX,CY,CZ]`` (kg; mm in the flange frame) → [4]; a mass alone has its centre of mass
     at the flange (0, 0, 0), as ``compensate --load`` reads it; a mass of 0 no centre.
     PostprocError P512 otherwise."""
+    from ..programs.model import parse_load as parse_stated
+
     try:
-        values = np.array([float(v) for v in str(text).split(",")])
+        values = np.array(parse_stated(str(text)))
     except ValueError:
-        values = np.zeros(0)
-    if len(values) == 1:
-        values = np.r_[values, 0.0, 0.0, 0.0]
-    if values.shape != (4,) or not np.isfinite(values).all() or values[0] < 0:
         raise PostprocError(f"a load is MASS[,CX,CY,CZ] (kg >= 0; its centre of mass, mm in the flange frame), "
-                            f"not {text!r}", code=P512)
+                            f"not {text!r}", code=P512) from None
     if values[0] == 0:
         values[1:] = 0.0
     return values
