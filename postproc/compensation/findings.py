@@ -462,28 +462,26 @@ def load_rule(program: Program, model: Compensator, settings: Settings,
             loads[mine] = stated_n
             cause = np.where(mine, -1, cause)
     unknown = use & (cause >= 0)
-    if unknown.any() and stated is not None:  # (the user states the payload: taken where it is not known, said)
+    if unknown.any():  # (said at each cause: taken from --load where the user states it, else left, P235)
         where_rows = np.flatnonzero(unknown)
         for k in np.unique(cause[where_rows]).tolist():
             mine = where_rows[cause[where_rows] == k]
             path, line, col, why, _ = t.load_causes[k]
-            out.append(Diagnostic(path, line, col, P339, f"payload not statically known ({why}): --load "
-                                  f"{_load_text(stated)} taken at {len(mine)} target(s) (at "
-                                  f"{listed(list(dict.fromkeys(motion_at(program, int(r)) for r in mine)))})", "note"))
-        loads[where_rows] = stated
-        unknown[:] = False
-    if unknown.any():
-        where_rows = np.flatnonzero(unknown)
-        for k in np.unique(cause[where_rows]).tolist():
-            mine = where_rows[cause[where_rows] == k]
-            path, line, col, why, _ = t.load_causes[k]
-            n = len(np.unique(np.stack([t.file[mine], t.line[mine], t.col[mine]], axis=1), axis=0))
             places = list(dict.fromkeys(motion_at(program, int(r)) for r in mine))
+            if stated is not None:
+                out.append(Diagnostic(path, line, col, P339, f"payload not statically known ({why}): --load "
+                                      f"{_load_text(stated)} taken at {len(mine)} target(s) (at {listed(places)})",
+                                      "note"))
+                continue
+            n = len(np.unique(np.stack([t.file[mine], t.line[mine], t.col[mine]], axis=1), axis=0))
             at = "" if places == [f"{path}:{line}"] else f" (at {listed(places)})"
             out.append(Diagnostic(path, line, col, P235, f"payload not statically known ({why}): {n} target(s) "
                                   f"left as written{at}; the model takes the load"))
-        use[where_rows] = False
-        left[P235] = where_rows
+        if stated is not None:
+            loads[where_rows] = stated
+        else:
+            use[where_rows] = False
+            left[P235] = where_rows
     rows = np.flatnonzero(use)
     if len(rows):
         bad = rows[~np.asarray(model.load_reach(loads[rows]), bool)]
