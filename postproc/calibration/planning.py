@@ -118,25 +118,31 @@ def parse_load(text: str) -> np.ndarray:
     return values
 
 
+def _plan_header(path: str | Path) -> tuple[list[str], int, list[str]] | None:
+    """A plan/pose CSV's (lines, the header's line index, its column names lower-case), None for
+    a file of comments only."""
+    lines = Path(path).read_bytes().removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
+    first = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
+    if first is None:
+        return None
+    return lines, first, [h.strip().lower() for h in lines[first].split(",")]
+
+
 def read_plan_loads(path: str | Path) -> np.ndarray | None:
     """The ``load_mass..load_cz`` columns [N, 4] of a plan or pose CSV (each row's load), None
     without them; all four or none (P501), a mass >= 0 (P502)."""
     from ..measurements.csv import _load_columns
 
-    lines = Path(path).read_bytes().removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
-    first = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
-    if first is None:
-        return None
-    return _load_columns(lines, first, [h.strip().lower() for h in lines[first].split(",")], str(path))
+    found = _plan_header(path)
+    return None if found is None else _load_columns(*found, str(path))
 
 
 def read_plan_tools(path: str | Path) -> np.ndarray | None:
     """The ``tool_x..tool_c`` columns [N, 6] of a plan (each row's TCP), None without them."""
-    lines = Path(path).read_bytes().removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
-    first = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
-    if first is None:
+    found = _plan_header(path)
+    if found is None:
         return None
-    header = [h.strip().lower() for h in lines[first].split(",")]
+    lines, first, header = found
     if not set(TOOL_COLUMNS) <= set(header):
         return None
     return parse_rows(lines, first, header, [header.index(c) for c in TOOL_COLUMNS], str(path))[0]
@@ -220,11 +226,8 @@ def plan_configurations(robot, poses: np.ndarray, wrist: str = "home") -> tuple[
 def read_plan_labels(path: str | Path) -> dict[str, np.ndarray]:
     """The plan's labels of each row (``measurements.LABEL_COLUMNS``: ``pose``, ``cycle`` of an
     ISO 9283 plan) as ints [N], {} without them; ``postproc measure`` carries them over."""
-    lines = Path(path).read_bytes().removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
-    first = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
-    if first is None:
-        return {}
-    return label_columns(lines, first, [h.strip().lower() for h in lines[first].split(",")], str(path))
+    found = _plan_header(path)
+    return {} if found is None else label_columns(*found, str(path))
 
 
 def read_plan_config(path: str | Path) -> np.ndarray | None:
