@@ -122,11 +122,9 @@ def scored(compensator, s: Series, rows: np.ndarray, frame: np.ndarray | None = 
     ``measured`` points [len(rows), 3] given in the model's frame."""
     predicted, std = compensator.predict(s.poses[rows], s.previous[rows], joints=s.joints[rows], std=True)
     positions = s.poses[rows, :3] - predicted
-    if measured is not None:
-        pass
-    elif frame is None:
+    if measured is None and frame is None:
         measured = register_measurements(positions, s.raw[rows], np.ones(len(rows), bool))[0]
-    else:
+    elif measured is None:
         measured = s.raw[rows] @ frame[:3, :3].T + frame[:3, 3]
     residual = positions - measured
     return {"rows": int(len(rows)), "mm": stats(residual), "uncompensated_mm": stats(s.errors[rows]),
