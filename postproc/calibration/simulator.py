@@ -312,13 +312,10 @@ class SimulatedRobot:
         q = np.atleast_2d(np.asarray(q_deg, float))
         if self.stiffness is None:
             return np.zeros_like(q)
-        loads = self.loads(loads, len(q))
-        if loads is None:
-            tau = self.robot.gravity_torques(q, payload=payload)
-        else:
-            from ..robot.kinematics.gravity import gravity_torques
+        from ..robot.kinematics.gravity import gravity_torques
 
-            tau = gravity_torques(self.description, q, chain=self.robot.flange_chain, loads=loads)
+        # (Robot.gravity_torques' call, each row's load in place of the description's payload where given)
+        tau = gravity_torques(self.robot.description, q, payload, self.robot.flange_chain, self.loads(loads, len(q)))
         return -np.degrees((tau - self._tau_mastering) / self.stiffness)
 
     @property
