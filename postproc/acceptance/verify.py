@@ -155,13 +155,13 @@ def _stated_loads(program, rows, reading) -> np.ndarray | None:
     payload schedule it selects (Fanuc ``PAYLOAD[n]``); NaN rows where none of them says (the
     simulated robot carries its description's payload there). None where nothing is said."""
     t = program.targets
-    if getattr(t, "load", None) is None and reading.load is None:
+    if t.load is None and reading.load is None:
         return None
     loads = np.full((len(t), 4), np.nan) if t.load is None else t.load.copy()
-    cause = np.full(len(t), -1, np.int32) if getattr(t, "load_cause", None) is None else t.load_cause
+    cause = np.full(len(t), -1, np.int32) if t.load_cause is None else t.load_cause
     if reading.load is not None:
         loads[np.isnan(loads).any(axis=1) & (cause < 0)] = reading.load
-    for k, (*_, schedule) in enumerate(getattr(t, "load_causes", None) or []):
+    for k, (*_, schedule) in enumerate(t.load_causes):
         stated = reading.payload(schedule) if schedule is not None else None
         if stated is not None:
             loads[cause == k] = stated
