@@ -12,7 +12,7 @@ import pytest
 from postproc.cli import main
 from postproc.programs import STAMP_PREFIX
 
-from helpers import REPO
+from helpers import REPO, SYS_CFG
 
 GAIN = np.diag([1e-3, 2e-3, -1e-3])  # a correction that varies over space: a frame or file mix-up shows
 WELD = REPO / "samples/rapid/weld_cell.mod"
@@ -191,14 +191,6 @@ def test_a_file_no_reader_takes_and_binary_tp_programs_are_refused(tmp_path, cap
     assert "P107 no programs here" in capsys.readouterr().err
 
 
-SYS_CFG = """SYS:CFG_1.0:6:0::
-#
-CAB_TASKS:
-
-      -Name "T_ROB1" -Type "NORMAL" -UseMechanicalUnitGroup "rob1" -MotionTask
-
-      -Name "T_ROB2" -Type "NORMAL" -UseMechanicalUnitGroup "rob2" -MotionTask
-"""
 MOC_CFG = """MOC:CFG_1.0:6:0::
 #
 MECHANICAL_UNIT:

@@ -16,6 +16,8 @@ from postproc.programs.rapid import syspar as sp
 from postproc.programs.urscript import read as ur_read
 from postproc.robot.external import ExternalUnit
 
+from helpers import SYS_CFG
+
 EAX = "[9E9,9E9,9E9,9E9,9E9,9E9]"
 GAIN = np.array([[2e-3, 0, 0], [0, -1e-3, 5e-4], [0, 0, 3e-3]])  # a correction that varies over space
 OFFSET = np.array([0.3, -0.2, 0.1])
@@ -457,14 +459,6 @@ def test_a_base_frame_in_moc_takes_the_world_to_the_robot_base(model):
     np.testing.assert_allclose(numbers(report.outputs["m.mod"], "pW"), expected, atol=1e-3)
 
 
-SYS = """SYS:CFG_1.0:6:0::
-#
-CAB_TASKS:
-
-      -Name "T_ROB1" -Type "NORMAL" -UseMechanicalUnitGroup "rob1" -MotionTask
-
-      -Name "T_ROB2" -Type "NORMAL" -UseMechanicalUnitGroup "rob2" -MotionTask
-"""
 MOC2 = """MOC:CFG_1.0:6:0::
 #
 MECHANICAL_UNIT_GROUP:
@@ -482,7 +476,7 @@ ROBOT:
 
 
 def test_a_multimove_task_takes_its_own_robots_base():
-    syspar = {"SYSPAR/SYS.cfg": SYS, "SYSPAR/MOC.cfg": MOC2}
+    syspar = {"SYSPAR/SYS.cfg": SYS_CFG, "SYSPAR/MOC.cfg": MOC2}
     text = f"MODULE M\n  PROC main()\n    MoveL {rt(2500, 0, 900)}, v100, fine, tool0;\n  ENDPROC\nENDMODULE\n"
     np.testing.assert_allclose(rows(rapid.read(["m.mod"], [text], syspar=syspar, task="T_ROB1"))[0], [2500, 0, 900])
     np.testing.assert_allclose(rows(rapid.read(["m.mod"], [text], syspar=syspar, task="T_ROB2"))[0], [500, 0, 900])

@@ -6,6 +6,16 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent.parent
 DOCS = REPO / "docs"
 
+# A backup's SYSPAR/SYS.cfg of a two-robot cell: motion tasks T_ROB1 and T_ROB2 on groups rob1, rob2.
+SYS_CFG = """SYS:CFG_1.0:6:0::
+#
+CAB_TASKS:
+
+      -Name "T_ROB1" -Type "NORMAL" -UseMechanicalUnitGroup "rob1" -MotionTask
+
+      -Name "T_ROB2" -Type "NORMAL" -UseMechanicalUnitGroup "rob2" -MotionTask
+"""
+
 
 def pages() -> dict[str, str]:
     """The pages a reader gets: README.md and every Markdown file of docs/ (the docs site), by
