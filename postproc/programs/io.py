@@ -188,8 +188,7 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
     if dialect == "rapid":
         from . import rapid
 
-        backup = {"syspar": data, "task": task} if data or task else {}
-        program = rapid.read(files, texts, config=config, external=external, **backup)
+        program = rapid.read(files, texts, config=config, external=external, **_backup("rapid", data, task, registers))
         program.config = list(config) if config else None
         if external:  # (read again as it was read: guards.check_round_trip)
             program.active = ActiveFrames(external=external)
@@ -198,8 +197,8 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
     if dialect == "fanuc":
         from . import fanuc
 
-        backup = {"va": data, "registers": registers} if data else {}
-        program = fanuc.read(files, texts, frames=config, external=external, **backup)
+        program = fanuc.read(files, texts, frames=config, external=external,
+                             **_backup("fanuc", data, task, registers))
         program.config = list(config) if config else None
         if external:
             program.active = ActiveFrames(external=external)
@@ -207,6 +206,13 @@ def read_program(files: list[str], texts: list[str], dialect: str, config: list[
         return program
     raise ValueError(f"unknown dialect {dialect!r}")
 
+
+def _backup(dialect: str, data: dict[str, str] | None, task: str | None, registers: str) -> dict:
+    """The keyword arguments a reader takes for a backup's system files (none without them): a
+    Fanuc reader's .va texts and ``registers``, a RAPID reader's SYSPAR texts and ``task``."""
+    if dialect == "fanuc":
+        return {"va": data, "registers": registers} if data else {}
+    return {"syspar": data, "task": task} if data or task else {}
 
 def lower(files: list[str], texts: list[str], dialect: str, config: list[str] | None = None,
           active: ActiveFrames | None = None, data: dict[str, str] | None = None, task: str | None = None,
@@ -234,10 +240,9 @@ def lower(files: list[str], texts: list[str], dialect: str, config: list[str] | 
         return reader.lower(files, texts, active=active)
     if active is not None and (active.frames_stated or active.robroot is not None):
         raise ValueError(f"active frames are KRL's ($BASE/$TOOL at the start): not {dialect}")
+    backup = _backup(dialect, data, task, registers)
     if dialect == "fanuc":  # (its frame file, a backup's .va files)
-        backup = {"va": data, "registers": registers} if data else {}
         return reader.lower(files, texts, frames=config, external=external, **backup)
-    backup = {"syspar": data, "task": task} if data or task else {}
     if external or backup:
         return reader.lower(files, texts, config=config, external=external, **backup)
     return reader.lower(files, texts, config=config)
