@@ -150,22 +150,13 @@ def execution(program, rows, sim) -> dict:
 
 
 def _stated_loads(program, rows, reading) -> np.ndarray | None:
-    """The payload at targets ``rows`` as compensate took it: the program's (``$LOAD``, ``tload``,
-    ``set_payload``…: ``Targets.load``), ``--load`` where it sets none, ``--payload n=…`` for a
-    payload schedule it selects (Fanuc ``PAYLOAD[n]``); NaN rows where none of them says (the
-    simulated robot carries its description's payload there). None where nothing is said."""
-    t = program.targets
-    if t.load is None and reading.load is None:
+    """The payload at targets ``rows`` as compensate took it (``findings.payloads``); None where
+    nothing says one (the simulated robot carries its description's payload there)."""
+    from ..compensation.findings import payloads
+
+    if program.targets.load is None and reading.load is None:
         return None
-    loads = np.full((len(t), 4), np.nan) if t.load is None else t.load.copy()
-    cause = np.full(len(t), -1, np.int32) if t.load_cause is None else t.load_cause
-    if reading.load is not None:
-        loads[np.isnan(loads).any(axis=1) & (cause < 0)] = reading.load
-    for k, (*_, schedule) in enumerate(t.load_causes):
-        stated = reading.payload(schedule) if schedule is not None else None
-        if stated is not None:
-            loads[cause == k] = stated
-    loads = loads[rows]
+    loads = payloads(program, reading)[0][rows]
     return None if np.isnan(loads).all() else loads
 
 

@@ -402,6 +402,26 @@ def _load_text(load) -> str:
     return f"{m:g} kg at ({x:g}, {y:g}, {z:g}) mm"
 
 
+def payloads(program: Program, reading) -> tuple[np.ndarray, np.ndarray]:
+    """The payload at every target as compensate takes it (``verify`` simulates the same): (loads
+    [N, 4], cause [N]). The program's (``Targets.load``); a payload schedule its user states
+    (``--payload n=…``: Fanuc ``PAYLOAD[n]``, cause then -1); ``--load`` (``reading.load``) where
+    the program sets none or its payload is not statically known (its cause kept: said there);
+    NaN rows where none of them says (the model's reference load). ``cause`` ≥ 0: an index into
+    ``Targets.load_causes``, the payload not statically known."""
+    t = program.targets
+    loads = np.full((len(t), 4), np.nan) if t.load is None else t.load.copy()
+    cause = np.full(len(t), -1, np.int32) if t.load_cause is None else t.load_cause.copy()
+    for k, (*_, schedule) in enumerate(t.load_causes):  # (a payload schedule its user states: Fanuc PAYLOAD[n])
+        stated = reading.payload(schedule) if schedule is not None else None
+        if stated is not None:
+            loads[cause == k] = stated
+            cause[cause == k] = -1
+    if reading.load is not None:
+        loads[np.isnan(loads).any(axis=1) | (cause >= 0)] = reading.load
+    return loads, cause
+
+
 def load_rule(program: Program, model: Compensator, settings: Settings,
               use: np.ndarray) -> tuple[np.ndarray | None, list[Diagnostic], dict]:
     """The payload at each target, for the model (one rule for every dialect: the analysis gives
@@ -440,13 +460,10 @@ def load_rule(program: Program, model: Compensator, settings: Settings,
                                    "the measured one, their deflection under the payload stays (train with the "
                                    "payloads as load columns: a load-aware model)")
         return None, out, {}
-    loads = np.full((len(t), 4), np.nan) if t.load is None else t.load.copy()
-    cause = np.full(len(t), -1, np.int32) if t.load_cause is None else t.load_cause
-    unset = np.isnan(loads).any(axis=1) & (cause < 0)
+    loads, cause = payloads(program, settings.reading)
+    unset = np.isnan(loads).any(axis=1) & (cause < 0)  # (none said: the model's reference)
     stated = settings.reading.load
-    if stated is not None:
-        loads[unset] = stated
-    elif (unset & use).any():
+    if (unset & use).any():
         first = int(np.flatnonzero(unset & use)[0])
         ref = model.reference_load
         ref_text = f" ({_load_text(ref)})" if ref is not None else ""
@@ -455,12 +472,6 @@ def load_rule(program: Program, model: Compensator, settings: Settings,
                               f"compensated for the load the model was measured with{ref_text}; state it with "
                               "--load MASS[,CX,CY,CZ]", "note"))
     left: dict = {}
-    for k, (*_, schedule) in enumerate(t.load_causes):  # (a payload schedule its user states: Fanuc PAYLOAD[n])
-        stated_n = settings.reading.payload(schedule) if schedule is not None else None
-        if stated_n is not None:
-            mine = cause == k
-            loads[mine] = stated_n
-            cause = np.where(mine, -1, cause)
     unknown = use & (cause >= 0)
     if unknown.any():  # (said at each cause: taken from --load where the user states it, else left, P235)
         where_rows = np.flatnonzero(unknown)
@@ -477,9 +488,7 @@ def load_rule(program: Program, model: Compensator, settings: Settings,
             at = "" if places == [f"{path}:{line}"] else f" (at {listed(places)})"
             out.append(Diagnostic(path, line, col, P235, f"payload not statically known ({why}): {n} target(s) "
                                   f"left as written{at}; the model takes the load"))
-        if stated is not None:
-            loads[where_rows] = stated
-        else:
+        if stated is None:
             use[where_rows] = False
             left[P235] = where_rows
     rows = np.flatnonzero(use)
