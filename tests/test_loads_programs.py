@@ -372,3 +372,19 @@ def test_a_load_blind_model_says_a_payload_it_was_not_measured_with(tmp_path):
     same = text.replace("{M 0,CM {X 0,Y 0,Z 0,", "{M 300,CM {X 0,Y 0,Z 250,")
     report = compensate_program(read_program(["p.src"], [same], "krl"), blind)
     assert not [w for w in report.warnings if w.code == "P341"] and report.compensated == 2
+
+
+def test_verify_simulates_the_payload_compensate_took():
+    # --load where the payload is not statically known: compensate takes it (P339), so must verify
+    from dataclasses import replace
+
+    from postproc.acceptance.verify import _stated_loads
+    from postproc.compensation.findings import payloads
+
+    program = read_program(["unk.src"], [KRL_UNKNOWN], "krl")
+    reading = replace(Settings().reading, load=np.array([150.0, 0.0, 0.0, 100.0]))
+    unknown = np.flatnonzero(program.targets.load_cause >= 0)
+    assert len(unknown)
+    rows = np.arange(len(program.targets))
+    assert np.allclose(_stated_loads(program, rows, reading)[unknown], [150.0, 0.0, 0.0, 100.0])
+    assert np.allclose(_stated_loads(program, rows, reading), payloads(program, reading)[0], equal_nan=True)
