@@ -238,3 +238,33 @@ def test_two_sigma_covers_90_to_98_percent_of_held_out_ipa_rows(tmp_path):
     error, std = model.predict(s.commanded[held], joints=s.joints[held], std=True)
     inside = np.abs(errors[held] - error) <= 2.0 * std[:, None]
     assert len(held) == 30 and 0.90 <= inside.mean() <= 0.98
+
+
+def test_one_wrist_configurations_data_keeps_its_compliance_and_the_flipped_wrists_band_holds(tmp_path):
+    """Data of one wrist configuration cannot tell the compliance and couplings from none: the
+    blocked selection keeps them (blocked.HARM_SE), and in the flipped wrist the model lands
+    nearer and its error_std covers what it leaves (benchmarks/transfer.py --parts flipped)."""
+    from postproc.calibration.planning import plan_configurations
+    from postproc.model.training.card import arm_metadata
+    from postproc.model.training.hybrid import HybridModel
+    from postproc.robot import configuration
+
+    sim = SimulatedRobot()
+    poses = latin_hypercube(300, box=(1800, 2200, -400, 400, 700, 1100), seed=5)
+    config, ok = plan_configurations(sim.robot, poses, "home")
+    poses, config = poses[ok], config[ok]
+    q = sim.joint_angles(poses, config)
+    hm = HybridModel(load_description(), seed=0).fit(poses, poses[:, :3] - sim.measure(poses, rng_seed=0, q_deg=q),
+                                                     previous_poses(poses), q)
+    assert hm.kinematic_.selection_["dropped"] == []
+    model = load_model(hm.export_onnx(tmp_path / "one_wrist.onnx", name="one-wrist", **arm_metadata(load_description())))
+    targets = latin_hypercube(150, box=(1850, 2150, -300, 300, 750, 1050), seed=11)
+    home, ok = plan_configurations(sim.robot, targets, "home")
+    targets, home = targets[ok], home[ok]
+    q_t, found = configuration.stated_joints(sim.robot, targets, home[:, 0] ^ 4, np.full(len(targets), -1))
+    p, q_t = targets[found][:60], q_t[found][:60]
+    true = p[:, :3] - sim.actual_positions(p, q_deg=q_t)
+    predicted, std = model.predict(p, previous_poses(p), joints=q_t, std=True)
+    residual = true - predicted
+    assert np.linalg.norm(residual, axis=1).mean() < 0.4 * np.linalg.norm(true, axis=1).mean()
+    assert (np.abs(residual) <= 2.0 * std.reshape(-1, 1)).mean() >= 0.9
