@@ -1239,11 +1239,12 @@ class KinematicModel(Estimator):
                        region: list) -> tuple[Layout, np.ndarray, torch.Tensor]:
         """The physical groups kept: of the candidates without some of ``blocked.OPTIONAL_GROUPS``
         the one whose blocked held-out sum of squares is least — within ``blocked.PARSIMONY`` of
-        it or ``blocked.HARM_SE`` standard errors of the difference (the regions' paired sums),
-        the one with most parameters: a physical group is left out where holding regions out
+        it, the one with most parameters: a physical group is left out where holding regions out
         shows it does harm, not where the data cannot tell (IPA Series C, one arm configuration,
         cannot tell its 21 couplings from none; kept, they carry it to Series A and D at 0.53 /
-        0.52 mm, left out at 0.60 / 0.68); refitted without the groups it leaves out."""
+        0.52 mm, left out at 0.60 / 0.68). The joint compliance (6 stiffnesses, which every arm
+        has) is left out only where that harm exceeds ``blocked.HARM_SE`` standard errors of
+        the difference (the regions' paired sums); refitted without the groups it leaves out."""
         from itertools import combinations
 
         from .blocked import HARM_SE, OPTIONAL_GROUPS, PARSIMONY
@@ -1259,12 +1260,13 @@ class KinematicModel(Estimator):
                 cols = np.concatenate([np.arange(slices[g].start, slices[g].stop) for g in layout.groups
                                        if g not in drop and slices[g].stop > slices[g].start])
                 scores.append((drop, cols, cv.evaluate(cols, np.zeros(0, int), weights)))
-        best = min((c[2] for c in scores), key=lambda e: e.sse)
-
-        def harmless(e) -> bool:  # (as good as the best, as far as the regions can tell)
-            return e.sse - best.sse <= max(PARSIMONY * best.sse, HARM_SE * cv.difference_se(e, best))
-
-        drop, chosen_cols, chosen = max((c for c in scores if harmless(c[2])), key=lambda c: len(c[1]))
+        best = min(e.sse for _, _, e in scores)
+        drop, chosen_cols, chosen = max((c for c in scores if c[2].sse <= (1.0 + PARSIMONY) * best),
+                                        key=lambda c: len(c[1]))
+        if "compliance" in drop:  # (a physical effect of every arm: left out only where it does harm)
+            kept = next(c for c in scores if set(c[0]) == set(drop) - {"compliance"})
+            if kept[2].sse - chosen.sse <= HARM_SE * cv.difference_se(kept[2], chosen):
+                drop, chosen_cols, chosen = kept
         self.selection_ = {"regions": cv.regions, "rows": int(len(q)),
                            "groups": {("without " + " and ".join(d)) if d else "all": round(e.rms, 6)
                                       for d, _, e in scores},
