@@ -138,8 +138,10 @@ target's command) produces; a joint that does not move keeps the sign of its las
 (as the robot's gear does: the simulator's rule). A target that is not is solved again under
 each hypothesis of the approach signs of its joints that move least (at most SETTLE_JOINTS;
 2^k sign sets and the middle of the lost motion), batched; the command whose joint motion
-agrees with its hypothesis is kept (the smallest worst case over both sides if several do),
-and if none agrees the one with the smallest worst case over both sides (the joint then sits
+agrees with its hypothesis is kept — it lands within SETTLE_TOLERANCE_MM and, with the
+orientation, its attitude within SETTLE_TOLERANCE_DEG (a wrist's side turns a tool whose TCP
+is on the A6 axis without moving it) — the one nearest the plain iteration's command if
+several do, and if none agrees the one with the smallest worst case over both sides (the joint then sits
 in its dead band: ``Settled.inside``, reported by compensate as P321). Targets after a changed
 one are checked again, in program order across chunks.
 """

@@ -15,6 +15,10 @@ if TYPE_CHECKING:
 # a command further than this from c = P + Ê(c) under its own joint motion is not settled (mm):
 # the plain iteration leaves ~1e-6 mm where the approach signs hold still
 SETTLE_TOLERANCE_MM = 1e-3
+# ... and, with the orientation, an attitude further than this (deg) from its own correction: a
+# wrist joint's side turns the tool about a TCP on its axis by the lost motion (~0.02°) and
+# moves it by nothing, so the position alone cannot tell the sides apart
+SETTLE_TOLERANCE_DEG = 1e-4
 
 
 # joints whose approach sign is hypothesised per unsettled target (2^k + 1 candidates)
@@ -345,15 +349,19 @@ class _Settle:
         twin = stay[np.abs(cand[stay] - prev[stay]).max(axis=1) <= SETTLE_TOLERANCE_MM]
         cand[twin] = prev[twin]
         # where each candidate lands with the sides its own motion takes
-        real, q_cand, _, unsure = self._landing(cand, prev, np.full((b * h, 6), np.nan), sub, qp, sp)
+        real, q_cand, turn_real, unsure = self._landing(cand, prev, np.full((b * h, 6), np.nan), sub, qp, sp)
         error = np.linalg.norm(target[:, :3] - cand[:, :3] + real, axis=1).reshape(b, h)
+        lands = np.ones((b, h), bool)
+        if self.orientation:  # (the attitude lands too: a wrist's side can turn it alone)
+            lands = (np.abs(_wrap_deg(_corrected_attitude(target[:, 3:6], turn_real) - cand[:, 3:6])).max(axis=1)
+                     <= SETTLE_TOLERANCE_DEG).reshape(b, h)
         moved = _wrap_deg(q_cand - qp)
         side = np.where(np.abs(moved) <= SAME_DEG, np.nan_to_num(sp), np.sign(moved))
         side = np.take_along_axis(side, slots[rep], axis=1).reshape(b, h, m)
         unsure_slot = np.take_along_axis(unsure, slots[rep], axis=1).reshape(b, h, m)
         # a joint is in doubt where the candidates take it to either side or too little to tell
         doubt = (side.max(axis=1) != side.min(axis=1)) | unsure_slot.any(axis=1)  # [b, m]
-        agrees = (error <= SETTLE_TOLERANCE_MM) & ~unsure.any(axis=1).reshape(b, h)
+        agrees = (error <= SETTLE_TOLERANCE_MM) & lands & ~unsure.any(axis=1).reshape(b, h)
         settled = agrees.any(axis=1)
         # where one agrees: the one nearest the plain fixed point's command
         near = np.linalg.norm(cand[:, :3] - trial[bad][rep][:, :3], axis=1).reshape(b, h)
