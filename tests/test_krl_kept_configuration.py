@@ -38,7 +38,11 @@ def test_the_issues_lin_is_compensated_in_the_wrist_the_robot_keeps():
     kept, _ = compensate_text(program(PTP, LIN.replace("S 6,T 58", "S 2,T 2")), model, name="lin.src", active=STATED)
     bare, _ = compensate_text(program(PTP, LIN.replace(",S 6,T 58", "")), model, name="lin.src", active=STATED)
     assert written(out, 2) == written(kept, 2) == written(bare, 2)  # the S/T written on a LIN change nothing
-    assert written(out, 2) == [2004.625, -415.325, 1230.548]  # (the issue's: the kept wrist's correction)
+    # the kept wrist's correction: a PTP there with the S/T of the wrist kept, not of the one written
+    ptp = lambda st: written(compensate_text(program(PTP, LIN.replace("LIN", "PTP").replace("S 6,T 58", st)),  # noqa: E731
+                                             model, name="lin.src", active=STATED)[0], 2)
+    assert written(out, 2) == ptp("S 2,T 2")
+    assert np.linalg.norm(np.subtract(written(out, 2), ptp("S 6,T 58"))) > 0.5
     assert "S 6,T 58}" in [row for row in out.splitlines() if "LIN" in row][0]  # the S/T stay as written
     assert report.complete and report.compensated == 2
     (note,) = [n for n in report.notes if n.code == "P314"]
