@@ -88,7 +88,7 @@ def test_plan_writes_a_fanuc_measurement_program_whose_config_reads_back(tmp_pat
     from postproc.robot import configuration, conventions
     from postproc.compensation.api import compensate_text
     from postproc.programs.io import parse_program_text
-    from postproc.calibration.planning import read_plan_config, read_pose_csv
+    from postproc.calibration.planning import read_plan, read_pose_csv
     from postproc.robot.arm import Robot
     from postproc.robot.description import load_description
 
@@ -97,7 +97,7 @@ def test_plan_writes_a_fanuc_measurement_program_whose_config_reads_back(tmp_pat
                  "--ls", str(ls), "-q"]) == 0
     robot = Robot(load_description(model_path("r2000ic.toml")))
     poses, _ = read_pose_csv(plan)
-    st = read_plan_config(plan)
+    st = read_plan(plan).config
     q, ok = configuration.stated_joints(robot, poses, st[:, 0], st[:, 1])
     frames_file = tmp_path / "frames.toml"
     frames_file.write_text("[utool.1]\nxyzwpr = [0, 0, 300, 0, 0, 0]\n")

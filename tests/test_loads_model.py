@@ -5,7 +5,7 @@ import numpy as np
 import onnxruntime
 import pytest
 
-from postproc.calibration.planning import latin_hypercube, read_plan_loads
+from postproc.calibration.planning import latin_hypercube, read_plan
 from postproc.calibration.simulator import SimulatedRobot
 from postproc.cli import main as cli
 from postproc.core.diagnostics import PostprocError
@@ -126,7 +126,7 @@ def test_plan_and_measure_at_test_loads_write_the_load_columns(tmp_path, sim, fi
     plan, measured = tmp_path / "plan.csv", tmp_path / "measured.csv"
     assert cli(["plan", "-n", "30", "-o", str(plan), "--krl", str(tmp_path / "m.src"),
                 "--load", "0", "--load", "300,220,0,40", "-q"]) == 0
-    loads = read_plan_loads(plan)
+    loads = read_plan(plan).loads
     assert loads[:15].tolist() == [[0, 0, 0, 0]] * 15 and loads[15:].tolist() == [[300, *COM]] * 15
     src = (tmp_path / "m.src").read_text()
     assert src.count("HALT") == 1 and "$LOAD.M = 300" in src and "$LOAD.M = 0" in src

@@ -9,7 +9,7 @@ import pytest
 from postproc.robot import configuration, conventions
 from postproc.cli import main
 from postproc.model.envelope import joint_arcs, widened_arcs
-from postproc.calibration.planning import latin_hypercube, plan_configurations, read_plan_config, read_pose_csv
+from postproc.calibration.planning import latin_hypercube, plan_configurations, read_plan, read_pose_csv
 from postproc.robot.arm import Robot
 from postproc.robot.description import load_description
 
@@ -47,7 +47,7 @@ def test_plan_for_covers_each_configuration_of_the_programs(programs, capsys):
                  str(d / "plan.csv"), "--krl", str(d / "measure.src")]) == 0
     assert "40 poses for 60 targets of 2 program(s)" in capsys.readouterr().err
     poses, _ = read_pose_csv(d / "plan.csv")
-    config = read_plan_config(d / "plan.csv")
+    config = read_plan(d / "plan.csv").config
     assert len(poses) == 40 and set(np.unique(config[:, 0] & 7)) == {2, 6}
     for status, q_targets in joints.items():
         rows = (config[:, 0] & 7) == status

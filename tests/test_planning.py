@@ -141,3 +141,23 @@ def test_measure_with_another_tool_records_it(tmp_path):
     table = np.loadtxt(out, delimiter=",", skiprows=4)
     arm = Robot(load_description().replace(tool=np.array([150.0, 20, 250, 0, 0, 0])))
     np.testing.assert_allclose(arm.fk(table[:, 12:18])[:, :3], table[:, :3], atol=1e-3)
+
+
+def test_read_plan_reads_every_column_once_and_locates_a_bad_status_on_its_file_line(tmp_path):
+    """read_plan: poses, s,t, labels, tools, loads and the '# key: value' lines of one file; a bad
+    s value is reported at its own line, counting the lines above the header."""
+    from postproc.calibration.planning import read_plan
+    from postproc.core.diagnostics import PostprocError
+
+    plan = tmp_path / "plan.csv"
+    head = "# tool: 0,0,150,0,0,0\n# note: two rows\nx,y,z,a,b,c,s,t,pose,tool_x,tool_y,tool_z,tool_a,tool_b,tool_c\n"
+    plan.write_text(head + "1,2,3,4,5,6,2,2,1,0,0,150,0,0,0\n\n7,8,9,10,11,12,6,58,2,0,10,150,0,0,0\n")
+    p = read_plan(plan)
+    assert p.poses.tolist() == [[1, 2, 3, 4, 5, 6], [7, 8, 9, 10, 11, 12]] and p.lines.tolist() == [4, 6]
+    assert p.config.tolist() == [[2, 2], [6, 58]] and p.labels["pose"].tolist() == [1, 2]
+    assert p.tools[:, 1].tolist() == [0, 10] and p.loads is None
+    assert p.metadata == {"tool": "0,0,150,0,0,0", "note": "two rows"}
+    plan.write_text(head + "1,2,3,4,5,6,2,2,1,0,0,150,0,0,0\n7,8,9,10,11,12,x,58,2,0,10,150,0,0,0\n")
+    with pytest.raises(PostprocError) as err:
+        read_plan(plan)
+    assert err.value.line == 5 and "column s" in str(err.value)

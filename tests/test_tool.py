@@ -157,14 +157,14 @@ def test_train_refuses_a_tool_option_that_contradicts_the_data_before_fitting(tm
 def test_plan_and_measure_with_three_tools_give_a_krl_program_and_data_with_each_rows_tool(tmp_path):
     from postproc.cli import main
     from postproc.programs.io import load_program
-    from postproc.calibration.planning import read_plan_tools
+    from postproc.calibration.planning import read_plan
     from postproc.measurements.csv import read_measurements
 
     tools = [SimulatedRobot().robot.tool, LONGER, SIDEWAYS]
     args = sum((["--tool", ",".join(f"{v:g}" for v in t)] for t in tools), [])
     plan, src, measured = tmp_path / "plan.csv", tmp_path / "m3.src", tmp_path / "m.csv"
     assert main(["plan", "-n", "30", "--seed", "2", "-o", str(plan), "--krl", str(src), "-q", *args]) == 0
-    rows = read_plan_tools(plan)
+    rows = read_plan(plan).tools
     np.testing.assert_array_equal(rows, np.repeat(tools, 10, axis=0))  # three parts in visiting order
     # the KRL program sets each part's $TOOL (after HOME and a HALT to change it): read back, the
     # measured targets carry the plan's tools

@@ -11,7 +11,7 @@ controller takes from HOME, or half the poses, in pairs, in the flipped-wrist co
 then has ``s,t`` columns and the KRL program moves PTP to each pose with its S and T (a LIN
 cannot change the configuration). A plan may be for another tool than the description's
 (``$TOOL`` in the program, the reach check with that TCP). A plan may be measured at several
-test loads (``load_parts``: consecutive parts, one load each, as a cell calibrates with two or
+test loads (``in_parts``: consecutive parts, one load each, as a cell calibrates with two or
 three test loads): the CSV then has ``load_mass,load_cx,load_cy,load_cz`` columns, which
 ``postproc measure`` simulates and carries into the measurements, and the KRL program halts at
 HOME to change the load and sets ``$LOAD`` for each part.
@@ -21,6 +21,7 @@ from __future__ import annotations
 import io
 import re
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -30,9 +31,9 @@ from ..measurements.csv import LOAD_COLUMNS, TOOL_COLUMNS, label_columns, parse_
 
 __all__ = [
     "DEFAULT_BOX", "DEFAULT_ATTITUDE", "DEFAULT_RANGE", "POSE_COLUMNS", "latin_hypercube", "round_poses",
-    "plan_csv_text", "write_plan_csv", "read_pose_csv", "read_plan_config", "read_plan_labels",
+    "plan_csv_text", "write_plan_csv", "read_pose_csv", "Plan", "read_plan",
     "plan_configurations", "WRIST_CHOICES", "krl_measurement_program", "write_krl_measurement_program",
-    "ls_measurement_program", "load_parts", "parse_load", "read_plan_loads",
+    "ls_measurement_program", "in_parts", "parse_load",
 ]
 
 # the calibration box of the method (Hu, Hua & Tian) and models/kr500.toml's [workspace]
@@ -88,18 +89,12 @@ def plan_csv_text(poses: np.ndarray, config: np.ndarray | None = None, tools: np
     return "".join(plan_csv_chunks(poses, config, tools=tools))
 
 
-def tool_parts(n: int, tools) -> np.ndarray:
-    """Each of ``n`` rows' TCP [n, 6] when a plan is measured in consecutive parts of equal
-    size (±1), one per tool of ``tools`` [k, 6], the tool changed between them."""
-    tools = np.asarray(tools, float).reshape(-1, 6)
-    return tools[np.arange(n) * len(tools) // max(n, 1)]
-
-
-def load_parts(n: int, loads) -> np.ndarray:
-    """Each of ``n`` rows' load [n, 4] when a plan is measured in consecutive parts of equal size
-    (±1), one per load of ``loads`` [k, 4] (mass kg, centre of mass mm in the flange frame)."""
-    loads = np.asarray(loads, float).reshape(-1, 4)
-    return loads[np.arange(n) * len(loads) // max(n, 1)]
+def in_parts(n: int, values) -> np.ndarray:
+    """Each of ``n`` rows' value [n, m] when a plan is measured in consecutive parts of equal size
+    (±1), one per row of ``values`` [k, m] — a tool [k, 6] (its TCP) or a test load [k, 4] (mass
+    kg, centre of mass mm in the flange frame) — changed between them."""
+    values = np.atleast_2d(np.asarray(values, float))
+    return values[np.arange(n) * len(values) // max(n, 1)]
 
 
 def parse_load(text: str) -> np.ndarray:
@@ -118,34 +113,50 @@ def parse_load(text: str) -> np.ndarray:
     return values
 
 
-def _plan_header(path: str | Path) -> tuple[list[str], int, list[str]] | None:
+def _plan_header(lines: list[str]) -> tuple[list[str], int, list[str]] | None:
     """A plan/pose CSV's (lines, the header's line index, its column names lower-case), None for
     a file of comments only."""
-    lines = Path(path).read_bytes().removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()
     first = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
     if first is None:
         return None
     return lines, first, [h.strip().lower() for h in lines[first].split(",")]
 
 
-def read_plan_loads(path: str | Path) -> np.ndarray | None:
-    """The ``load_mass..load_cz`` columns [N, 4] of a plan or pose CSV (each row's load), None
-    without them; all four or none (P501), a mass >= 0 (P502)."""
-    from ..measurements.csv import _load_columns
+@dataclass
+class Plan:
+    """A plan or pose CSV read once (:func:`read_plan`): the poses [N, 6] and their 1-based file
+    lines [N]; the ``s,t`` columns [N, 2] (ints, -1 where empty; None without them); the labels
+    of each row (``measurements.LABEL_COLUMNS``: ``pose``, ``cycle`` of an ISO 9283 plan; {}
+    without them); each row's TCP ``tool_x..tool_c`` [N, 6] and load ``load_mass..load_cz``
+    [N, 4] (None without them; the loads all four or none, P501, a mass >= 0, P502); the
+    ``# key: value`` lines above the header (keys lower-cased: ``tool`` of a plan measured with
+    one tool other than the description's)."""
 
-    found = _plan_header(path)
-    return None if found is None else _load_columns(*found, str(path))
+    poses: np.ndarray
+    lines: np.ndarray
+    config: np.ndarray | None
+    labels: dict[str, np.ndarray]
+    tools: np.ndarray | None
+    loads: np.ndarray | None
+    metadata: dict[str, str]
 
 
-def read_plan_tools(path: str | Path) -> np.ndarray | None:
-    """The ``tool_x..tool_c`` columns [N, 6] of a plan (each row's TCP), None without them."""
-    found = _plan_header(path)
-    if found is None:
-        return None
-    lines, first, header = found
-    if not set(TOOL_COLUMNS) <= set(header):
-        return None
-    return parse_rows(lines, first, header, [header.index(c) for c in TOOL_COLUMNS], str(path))[0]
+def read_plan(path: str | Path) -> Plan:
+    """The plan or pose CSV at ``path``, read and decoded once (:class:`Plan`); PostprocError with
+    file:line:col (P500–P503) on anything malformed."""
+    from ..measurements.csv import _load_columns, metadata_of
+
+    text = _read_text(path)
+    poses, numbers = parse_pose_csv(text, str(path))
+    lines = text.splitlines()
+    found = _plan_header(lines)
+    assert found is not None  # (parse_pose_csv found the header)
+    _, first, header = found
+    tools = None
+    if set(TOOL_COLUMNS) <= set(header):
+        tools = parse_rows(lines, first, header, [header.index(c) for c in TOOL_COLUMNS], str(path))[0]
+    return Plan(poses, numbers, _plan_config(lines, first, header, str(path)), label_columns(*found, str(path)),
+                tools, _load_columns(*found, str(path)), metadata_of(lines))
 
 
 def plan_csv_chunks(poses: np.ndarray, config: np.ndarray | None = None, chunk: int = CHUNK,
@@ -223,31 +234,23 @@ def plan_configurations(robot, poses: np.ndarray, wrist: str = "home") -> tuple[
     return np.stack([status, turn], axis=1), ok
 
 
-def read_plan_labels(path: str | Path) -> dict[str, np.ndarray]:
-    """The plan's labels of each row (``measurements.LABEL_COLUMNS``: ``pose``, ``cycle`` of an
-    ISO 9283 plan) as ints [N], {} without them; ``postproc measure`` carries them over."""
-    found = _plan_header(path)
-    return {} if found is None else label_columns(*found, str(path))
-
-
-def read_plan_config(path: str | Path) -> np.ndarray | None:
+def _plan_config(lines: list[str], first: int, header: list[str], path: str) -> np.ndarray | None:
     """The ``s,t`` columns [N, 2] of a plan/pose CSV (ints; -1 where empty), None without them."""
-    text = Path(path).read_bytes().removeprefix(b"\xef\xbb\xbf").decode("latin-1")
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    header = [h.strip().lower() for h in lines[0].split(",")]
     if "s" not in header or "t" not in header:
         return None
     cols = [header.index("s"), header.index("t")]
-    out = np.full((len(lines) - 1, 2), -1, dtype=np.int64)
-    for i, line in enumerate(lines[1:]):
+    rows = [(i, ln) for i, ln in enumerate(lines[first + 1:], start=first + 2)
+            if ln.strip() and not ln.lstrip().startswith("#")]
+    out = np.full((len(rows), 2), -1, dtype=np.int64)
+    for k_row, (number, line) in enumerate(rows):
         fields = line.split(",")
         for k, c in enumerate(cols):
             value = fields[c].strip() if c < len(fields) else ""
             if value:
                 try:
-                    out[i, k] = int(float(value))
+                    out[k_row, k] = int(float(value))
                 except ValueError:
-                    raise PostprocError(f"column {'st'[k]} is not an integer: {value!r}", str(path), i + 2, 1,
+                    raise PostprocError(f"column {'st'[k]} is not an integer: {value!r}", path, number, 1,
                                         P503) from None
     return out
 
@@ -260,12 +263,16 @@ def read_pose_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     x,y,z,a,b,c (any case, any order, extra columns ignored; blank lines and ``#`` comments
     skipped). PostprocError with file:line:col (P500–P503, as the measurement reader) on
     anything malformed."""
-    path = Path(path)
+    return parse_pose_csv(_read_text(path), str(path))
+
+
+def _read_text(path: str | Path) -> str:
+    """A pose CSV's text (a UTF-8 byte-order mark dropped; latin-1: any byte reads)."""
     try:
-        data = path.read_bytes()
+        data = Path(path).read_bytes()
     except OSError as exc:
         raise PostprocError(f"cannot read pose file: {exc.strerror or exc}", str(path), code=P500) from exc
-    return parse_pose_csv(data.removeprefix(b"\xef\xbb\xbf").decode("latin-1"), str(path))
+    return data.removeprefix(b"\xef\xbb\xbf").decode("latin-1")
 
 
 def parse_pose_csv(text: str, path: str = "<poses>") -> tuple[np.ndarray, np.ndarray]:
@@ -344,10 +351,10 @@ def krl_measurement_program(
     ``robot`` (a :class:`postproc.robot.arm.Robot`) gives HOME, the tool and the S/T of the
     approach PTP. Targets are in the robot base frame ($BASE = $NULLFRAME). With ``config``
     [N, 2] (S, T per pose) each pose is reached PTP with its S and T (E6POS components). With
-    ``tools`` [N, 6] (each pose's TCP, in consecutive parts: ``tool_parts``) every part after the
+    ``tools`` [N, 6] (each pose's TCP, in consecutive parts: ``in_parts``) every part after the
     first starts at HOME with a HALT to mount its tool, then sets its $TOOL. With ``loads`` [N, 4]
     (each pose's load, mass kg and centre of mass mm on the flange, in consecutive parts:
-    ``load_parts``) every part starts so to mount its test load, and sets $LOAD (the first part
+    ``in_parts``) every part starts so to mount its test load, and sets $LOAD (the first part
     too)."""
     if not comment.isascii():  # controllers read .src as ANSI: keep the program plain ASCII
         comment = comment.encode("ascii", "replace").decode()

@@ -60,21 +60,12 @@ def run(args) -> int:
 
     import numpy as np
 
-    from ..calibration.planning import (
-        read_plan_config,
-        load_parts,
-        parse_load,
-        read_plan_labels,
-        read_plan_loads,
-        read_plan_tools,
-        read_pose_csv,
-        tool_parts,
-    )
+    from ..calibration.planning import in_parts, parse_load, read_plan
     from ..calibration.simulator import SimulatedRobot
     from ..core.diagnostics import P320, P335, PostprocError
     from ..core.outputs import check_outputs, write
     from ..core.progress import stages
-    from ..measurements.csv import LOAD_COLUMNS, TOOL_COLUMNS, measurement_csv, parse_tool, read_metadata
+    from ..measurements.csv import LOAD_COLUMNS, TOOL_COLUMNS, measurement_csv, parse_tool
     from ..robot.description import robot_description
     from . import show_progress
 
@@ -82,11 +73,10 @@ def run(args) -> int:
     with stages(["read plan", "draw robot", "controller IK", "simulate and measure", "write"], "measure",
                 show_progress(args)) as stage:
         stage("read plan")
-        poses, lines = read_pose_csv(args.plan)
-        config = read_plan_config(args.plan)
-        labels = read_plan_labels(args.plan)
+        plan = read_plan(args.plan)
+        poses, lines, config, labels = plan.poses, plan.lines, plan.config, plan.labels
         given = [parse_tool(t) for t in args.tool or []]
-        planned = read_metadata(args.plan).get("tool")  # (plan --tool with one tool: '# tool: X,Y,Z,A,B,C')
+        planned = plan.metadata.get("tool")  # (plan --tool with one tool: '# tool: X,Y,Z,A,B,C')
         if planned is not None:
             tool = parse_tool(planned)
             if given and not (len(given) == 1 and np.allclose(given[0], tool)):
@@ -95,19 +85,19 @@ def run(args) -> int:
             given = [tool]
         stage("draw robot")
         sim = SimulatedRobot(robot_description(args.robot), args.robot_seed)
-        tools = read_plan_tools(args.plan)
+        tools = plan.tools
         if tools is not None and given:
             raise PostprocError("the plan names each row's tool (tool_x..tool_c): --tool would contradict it",
                                 args.plan, code=P320)
         if given:  # consecutive parts of the plan, one tool each
-            tools = tool_parts(len(poses), given)
+            tools = in_parts(len(poses), given)
         several = tools is not None and len(np.unique(tools, axis=0)) > 1
-        loads = read_plan_loads(args.plan)
+        loads = plan.loads
         if loads is not None and args.load:
             raise PostprocError("the plan names each row's load (load_mass..load_cz): --load would contradict it",
                                 args.plan, code=P320)
         if args.load:
-            loads = load_parts(len(poses), [parse_load(t) for t in args.load])
+            loads = in_parts(len(poses), [parse_load(t) for t in args.load])
         stage("controller IK")
         ok = sim.reachable_in(poses, config, tools)
         if not ok.all():

@@ -101,7 +101,6 @@ def run(args) -> int:
         plan_csv_chunks,
         reachable,
         round_poses,
-        tool_parts,
     )
     from ..core.diagnostics import P335, P512, PostprocError
     from ..core.outputs import check_outputs, write
@@ -127,7 +126,7 @@ def run(args) -> int:
                             "configurations ([robot] configuration = \"fanuc\", e.g. models/r2000ic.toml)", code=P512)
     if args.ls is not None and (args.iso9283 or len(tools) > 1):
         raise PostprocError("--ls writes a Latin-hypercube plan measured with one tool", code=P512)
-    from ..calibration.planning import load_parts, parse_load
+    from ..calibration.planning import in_parts, parse_load
 
     loads = [parse_load(t) for t in args.load or []]
     if loads and (args.programs or args.iso9283 or args.ls is not None or len(tools) > 1):
@@ -149,7 +148,7 @@ def run(args) -> int:
         poses = round_poses(latin_hypercube(args.poses, box, attitude, range_deg, args.seed))
         robot = Robot(description)
         stage("reach check (IK)")
-        rows = tool_parts(len(poses), tools) if len(tools) > 1 else None
+        rows = in_parts(len(poses), tools) if len(tools) > 1 else None
         config = None if args.wrist is None else np.zeros((len(poses), 2), np.int64)
         ok = np.zeros(len(poses), bool)
         for k, tool in enumerate(tools if rows is not None else [robot.tool]):  # each part with its own tool
@@ -169,7 +168,7 @@ def run(args) -> int:
         stage("write")
         # (one tool: said in the plan, so that measure simulates the tool the program measures with)
         meta = {"tool": ",".join(f"{v:g}" for v in tools[0])} if len(tools) == 1 else None
-        load_rows = load_parts(len(poses), loads) if loads else None
+        load_rows = in_parts(len(poses), loads) if loads else None
         outputs = [(Path(args.output), plan_csv_chunks(poses, config, tools=rows, metadata=meta, loads=load_rows))]
         if args.krl is not None:
             src = Path(args.krl)

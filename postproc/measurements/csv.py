@@ -53,7 +53,7 @@ from ..core.diagnostics import P500, P501, P502, P503, P504, P512, PostprocError
 __all__ = [
     "POSE_COLUMNS", "MEAS_COLUMNS", "COLUMNS", "TOOL_COLUMNS", "ORIENTATION_COLUMNS", "STATUS_TURN_COLUMNS",
     "LABEL_COLUMNS", "Measurements", "read_measurements", "parse_measurements", "parse_rows", "label_columns",
-    "read_metadata", "measurement_csv", "write_measurements", "parse_tool", "CAMPAIGN_COLUMN", "combine_measurements",
+    "read_metadata", "metadata_of", "measurement_csv", "write_measurements", "parse_tool", "CAMPAIGN_COLUMN", "combine_measurements",
     "LOAD_COLUMNS",
 ]
 
@@ -405,14 +405,20 @@ def read_metadata(path: str | os.PathLike) -> dict[str, str]:
 
     ``read_metadata(p).get("frame", "base")`` is the frame of the measured columns.
     """
-    meta: dict[str, str] = {}
     with open(path, encoding="utf-8") as f:
-        for line in f:
-            if not line.startswith("#"):
-                break
-            key, sep, value = line[1:].partition(":")
-            if sep:
-                meta[key.strip().lower()] = value.strip()
+        return metadata_of(f)
+
+
+def metadata_of(lines) -> dict[str, str]:
+    """The ``# key: value`` lines (keys lower-cased) at the top of ``lines`` (an iterable of
+    text lines: a file's, a plan's), up to the first line that is not a comment."""
+    meta: dict[str, str] = {}
+    for line in lines:
+        if not line.startswith("#"):
+            break
+        key, sep, value = line[1:].partition(":")
+        if sep:
+            meta[key.strip().lower()] = value.strip()
     return meta
 
 
