@@ -102,7 +102,7 @@ def _agreement(program: Program, selection: Selection, new_xyz: np.ndarray, comm
     for g in ([] if orientation else bad_groups.tolist()):  # (--orientation: the middle of turns is not settled)
         members = np.flatnonzero(group == g)
         r = rows[members]
-        same = ((t.poses[r] == t.poses[r[0]]) | (np.isnan(t.poses[r]) & np.isnan(t.poses[r[0]]))).all() and \
+        same = _alike(t.poses[r]) and \
             (t.frame[r] == t.frame[r[0]]).all() and (t.twin[r] >= 0).sum() == len(r) - 1 and \
             (selection.tool is None or (selection.tool[members] == selection.tool[members[0]]).all()) and \
             _same_load(selection, members)
@@ -154,7 +154,13 @@ def _same_load(selection: Selection, members: np.ndarray) -> bool:
     load = selection.load
     if load is None:
         return True
-    return bool(np.all((load[members] == load[members[0]]) | (np.isnan(load[members]) & np.isnan(load[members[0]]))))
+    return _alike(load[members])
+
+
+def _alike(values: np.ndarray) -> bool:
+    """Every row of ``values`` [k, ...] equals the first, NaN equal to NaN (a component not written)."""
+    v = np.asarray(values, float)
+    return bool(((v == v[0]) | (np.isnan(v) & np.isnan(v[0]))).all())
 
 
 def _cause(program: Program, selection: Selection, members: np.ndarray) -> tuple[str, str]:
@@ -168,7 +174,7 @@ def _cause(program: Program, selection: Selection, members: np.ndarray) -> tuple
         return ("its runs are made with other tools", "give each tool its own point")
     if not _same_load(selection, members):
         return ("its runs carry other payloads (the model takes the load)", "give each payload its own point")
-    if not ((t.poses[r] == t.poses[r[0]]) | (np.isnan(t.poses[r]) & np.isnan(t.poses[r[0]]))).all():
+    if not _alike(t.poses[r]):
         return ("the point is copied into other points with other numbers (or moved to with other components)",
                 "give each use its own point")
     if selection.joints is not None and not np.allclose(selection.joints[members], selection.joints[members[0]],
