@@ -326,10 +326,7 @@ class Interpreter(Analysis):
         tool = self.tool_value(s.tool, st)
         m = None
         if isinstance(move, Rec) and st.cur is not None and st.cur[0] is not None and isinstance(frame, Mat):
-            here = st.cur[0]
-            if not _equal_tools(st.cur[2], tool):
-                before, now = self._tool_matrix(st.cur[2]), self._tool_matrix(tool)
-                here = None if before is None or now is None else here @ np.linalg.inv(before) @ now
+            here = self._standing(st, tool)
             d = [number(move.fields.get(k, 0.0)) for k in ("X", "Y", "Z")]
             if here is not None and all(v is not None for v in d):
                 step = np.eye(4)
@@ -358,18 +355,24 @@ class Interpreter(Analysis):
         missing = [k for k in names if k not in target.fields]
         if not missing or st.cur is None or not isinstance(frame, Mat):
             return target
-        here = st.cur[0]
-        if not _equal_tools(st.cur[2], tool):
-            before, now = self._tool_matrix(st.cur[2]), self._tool_matrix(tool)
-            if before is None or now is None:
-                return target
-            here = here @ np.linalg.inv(before) @ now
+        here = self._standing(st, tool)
+        if here is None:
+            return target
         here = np.linalg.inv(frame.m) @ here
         six = fr.matrix_to_frame(here)
         fields = dict(target.fields)
         for k in missing:
             fields[k] = float(six[names.index(k)])
         return Rec(target.type, fields, target.loc, target.label)
+
+    def _standing(self, st: State, tool):
+        """The TCP pose [4, 4] (robot base) where the robot stands after the last command, for
+        ``tool``: the flange stays where the tool before left it (None where a tool is not known)."""
+        here = st.cur[0]
+        if here is None or _equal_tools(st.cur[2], tool):
+            return here
+        before, now = self._tool_matrix(st.cur[2]), self._tool_matrix(tool)
+        return None if before is None or now is None else here @ np.linalg.inv(before) @ now
 
     def _pose(self, target, frame):
         if not isinstance(target, Rec) or not isinstance(frame, Mat):
