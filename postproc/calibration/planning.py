@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.diagnostics import P335, P500, P501, P503, P512, PostprocError
-from ..measurements.csv import LOAD_COLUMNS, TOOL_COLUMNS, label_columns, parse_rows
+from ..measurements.csv import LOAD_COLUMNS, TOOL_COLUMNS, data_rows, is_data, label_columns, parse_rows
 
 __all__ = [
     "DEFAULT_BOX", "DEFAULT_ATTITUDE", "DEFAULT_RANGE", "POSE_COLUMNS", "latin_hypercube", "round_poses",
@@ -116,7 +116,7 @@ def parse_load(text: str) -> np.ndarray:
 def _plan_header(lines: list[str]) -> tuple[list[str], int, list[str]] | None:
     """A plan/pose CSV's (lines, the header's line index, its column names lower-case), None for
     a file of comments only."""
-    first = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
+    first = next((i for i, ln in enumerate(lines) if is_data(ln)), None)
     if first is None:
         return None
     return lines, first, [h.strip().lower() for h in lines[first].split(",")]
@@ -239,8 +239,7 @@ def _plan_config(lines: list[str], first: int, header: list[str], path: str) -> 
     if "s" not in header or "t" not in header:
         return None
     cols = [header.index("s"), header.index("t")]
-    rows = [(i, ln) for i, ln in enumerate(lines[first + 1:], start=first + 2)
-            if ln.strip() and not ln.lstrip().startswith("#")]
+    rows = data_rows(lines, first)
     out = np.full((len(rows), 2), -1, dtype=np.int64)
     for k_row, (number, line) in enumerate(rows):
         fields = line.split(",")
@@ -279,14 +278,12 @@ def parse_pose_csv(text: str, path: str = "<poses>") -> tuple[np.ndarray, np.nda
     """Parse the text of a pose CSV (see :func:`read_pose_csv`)."""
     lines = text.splitlines()
     poses = _parse_pose_lines(lines, path)
-    first = next(i for i, raw in enumerate(lines) if raw.strip() and not raw.lstrip().startswith("#"))
-    numbers = np.array([i + 1 for i in range(first + 1, len(lines))
-                        if lines[i].strip() and not lines[i].lstrip().startswith("#")], dtype=np.int64)
-    return poses, numbers
+    first = next(i for i, raw in enumerate(lines) if is_data(raw))
+    return poses, np.array([number for number, _ in data_rows(lines, first)], dtype=np.int64)
 
 
 def _parse_pose_lines(lines: list[str], path: str) -> np.ndarray:
-    first = next((i for i, raw in enumerate(lines) if raw.strip() and not raw.lstrip().startswith("#")), None)
+    first = next((i for i, raw in enumerate(lines) if is_data(raw)), None)
     if first is None:
         raise PostprocError("empty pose file (expected a header with x,y,z,a,b,c)", path, 1, 1, P500)
     header = [h.strip().lower() for h in lines[first].split(",")]

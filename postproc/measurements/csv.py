@@ -52,7 +52,8 @@ from ..core.diagnostics import P500, P501, P502, P503, P504, P512, PostprocError
 
 __all__ = [
     "POSE_COLUMNS", "MEAS_COLUMNS", "COLUMNS", "TOOL_COLUMNS", "ORIENTATION_COLUMNS", "STATUS_TURN_COLUMNS",
-    "LABEL_COLUMNS", "Measurements", "read_measurements", "parse_measurements", "parse_rows", "label_columns",
+    "LABEL_COLUMNS", "Measurements", "read_measurements", "parse_measurements", "parse_rows", "data_rows", "is_data",
+    "label_columns",
     "read_metadata", "metadata_of", "measurement_csv", "write_measurements", "parse_tool", "CAMPAIGN_COLUMN", "combine_measurements",
     "LOAD_COLUMNS",
 ]
@@ -197,10 +198,7 @@ def _campaign_column(lines: list[str], first: int, header: list[str], path: str)
         return None
     k = header.index(CAMPAIGN_COLUMN)
     names = []
-    for number in range(first + 2, len(lines) + 1):
-        raw = lines[number - 1]
-        if not raw.strip() or raw.strip().startswith("#"):
-            continue
+    for number, raw in data_rows(lines, first):
         fields = raw.split(",")
         name = fields[k].strip() if k < len(fields) else ""
         if not name:
@@ -322,17 +320,25 @@ def _joint_columns(lines: list[str], first: int, header: list[str], path: str) -
         return None
 
 
+def is_data(raw: str) -> bool:
+    """A CSV line that holds the header or a row: not blank, not a ``#`` comment."""
+    line = raw.strip()
+    return bool(line) and not line.startswith("#")
+
+
+def data_rows(lines: list[str], first: int) -> list[tuple[int, str]]:
+    """(1-based line number, text) of each row after the header line ``lines[first]``: blank
+    and ``#`` lines skipped."""
+    return [(number, lines[number - 1]) for number in range(first + 2, len(lines) + 1) if is_data(lines[number - 1])]
+
+
 def parse_rows(lines: list[str], first: int, header: list[str], index: list[int],
                path: str) -> tuple[np.ndarray, np.ndarray]:
     """The columns ``index`` of the rows after header line ``lines[first]`` as floats [N, len(index)]
     and their 1-based line numbers [N]; blank and ``#`` lines skipped. PostprocError with
     file:line:col on a row of another width (P503) or a value that is not a finite number (P502)."""
     rows, numbers = [], []
-    for number in range(first + 2, len(lines) + 1):
-        raw = lines[number - 1]
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
+    for number, raw in data_rows(lines, first):
         fields = raw.split(",")
         if len(fields) != len(header):
             raise PostprocError(f"row has {len(fields)} fields, the header has {len(header)}", path, number, 1, P503)
