@@ -22,7 +22,16 @@ from ...robot.kinematics.twin import wrapped_step
 # measures it at 500 kg from data at 0 and 300 kg (1.67×)
 LOAD_EXTRAPOLATE = 2.0
 
-__all__ = ["LOAD_EXTRAPOLATE", "previous_poses", "previous_joints", "motion_signs", "wrap_angles", "inside_ranges", "joint_features"]
+__all__ = ["LOAD_EXTRAPOLATE", "measured_loads", "previous_poses", "previous_joints", "motion_signs", "wrap_angles", "inside_ranges", "joint_features"]
+
+
+def measured_loads(loads: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The distinct loads [K, 4] of the rows' ``loads`` [N, 4] (mass kg, centre of mass mm; to
+    1e-6), the rows at each [K], and the card's words for them (``measured``, ``rows``)."""
+    distinct, counts = np.unique(np.round(np.asarray(loads, dtype=np.float64).reshape(-1, 4), 6), axis=0,
+                                 return_counts=True)
+    return distinct, counts, {"measured": [[float(v) for v in row] for row in distinct],
+                              "rows": [int(n) for n in counts]}
 
 
 def previous_poses(poses: np.ndarray, first: np.ndarray | None = None) -> np.ndarray:

@@ -283,10 +283,9 @@ def _require_one_tool(rows: _Rows, method: str) -> None:
 def blind_loads_card(loads: np.ndarray) -> dict:
     """The card's ``loads`` of a model that does not take the load (``aware`` False): the loads
     its data was measured with and the rows at each."""
-    distinct, counts = np.unique(np.round(np.asarray(loads, dtype=np.float64).reshape(-1, 4), 6), axis=0,
-                                 return_counts=True)
-    return {"measured": [[float(v) for v in row] for row in distinct], "rows": [int(n) for n in counts],
-            "aware": False}
+    from .features import measured_loads
+
+    return {**measured_loads(loads)[2], "aware": False}
 
 
 def _take(values: np.ndarray | None, rows: np.ndarray) -> np.ndarray | None:

@@ -628,8 +628,7 @@ class HybridModel(Estimator):
         # (one mass measured: the compliance is seen under that load only, the arm's own share not
         # told from the load's; benchmarks/loads.py: 6-9x the error at other loads; held to it)
         several = len(np.unique(km.measured_loads_[:, 0])) > 1
-        return {"measured": [[round(float(v), 6) for v in row] for row in km.measured_loads_],
-                "rows": [int(n) for n in km.load_rows_],
+        return {**km.measured_card_,
                 "reference": [round(float(v), 6) for v in km.load_reference_],
                 "extrapolate": LOAD_EXTRAPOLATE if several else 1.0, "aware": True}
 

@@ -76,7 +76,7 @@ from ...robot.kinematics.twin import (
     wrapped_step,
 )
 from .estimator import Estimator
-from .features import inside_ranges, motion_signs
+from .features import inside_ranges, measured_loads, motion_signs
 
 __all__ = [
     "Layout", "KinematicModel", "KinematicErrorModule", "GROUPS", "DEFAULT_GROUPS", "unseparated_mount",
@@ -1166,13 +1166,13 @@ class KinematicModel(Estimator):
         distinct loads ``measured_loads_`` [K, 4] with their row counts ``load_rows_``, and the
         reference ``load_reference_`` [4] (the load of most rows, the heaviest of a tie); all None
         without loads."""
-        self._loads_in = self.load_reference_ = self.measured_loads_ = self.load_rows_ = None
+        self._loads_in = self.load_reference_ = self.measured_loads_ = self.load_rows_ = self.measured_card_ = None
         if loads is None:
             return
         loads = np.asarray(loads, dtype=np.float64).reshape(-1, 4)
         if len(loads) != n or not np.isfinite(loads).all() or (loads[:, 0] < 0).any():
             raise ValueError("loads must be [N, 4] finite numbers (mass kg >= 0, centre of mass mm), one row per pose")
-        distinct, counts = np.unique(np.round(loads, 6), axis=0, return_counts=True)
+        distinct, counts, self.measured_card_ = measured_loads(loads)
         self.measured_loads_, self.load_rows_ = distinct, counts
         best = np.lexsort((distinct[:, 0], counts))[-1]  # (most rows, then the heaviest)
         self.load_reference_ = distinct[best]
