@@ -855,7 +855,7 @@ class Analysis:
             if n is None and not s.on:
                 return st
         chosen = [h for h, (decl, _, _) in self.handlers.items()
-                  if n is None or decl.number is None or self._number(decl.number, st) in (n, None)]
+                  if n is None or decl.number is None or whole_number(self.eval(decl.number, st)) in (n, None)]
         if s.on:
             st.on = st.on | set(chosen)
             return self._pin(st)
@@ -866,9 +866,6 @@ class Analysis:
             for k in writes:
                 st.vars[k] = Top(f"{_key_name(k)} {why}", decl.loc, self.dialect.handler_code(k))
         return st
-
-    def _number(self, expr, st):
-        return whole_number(self.eval(expr, st))
 
     def _pin(self, st: State) -> State:
         for h in st.on:

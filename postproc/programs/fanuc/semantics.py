@@ -180,9 +180,9 @@ class LS(Dialect):
         if not isinstance(target, Rec):
             return None
         for field, name in (("UF", "UFRAME_NUM"), ("UT", "UTOOL_NUM")):
-            own = _frame_no(target.fields.get(field))
+            own = whole_number(target.fields.get(field))
             _, selected = an.lookup(name, st)
-            active = _frame_no(selected) if not isinstance(selected, Top) else None
+            active = whole_number(selected) if not isinstance(selected, Top) else None
             if own is not None and active is not None and own != active:
                 return f"{target.label or 'the position'} is taught in {field} {own} and {name}={active} is selected"
         return None
@@ -193,10 +193,6 @@ class LS(Dialect):
 
 
 # ------------------------------------------------------------------------------- builtins
-
-
-def _frame_no(value):
-    return whole_number(value)
 
 
 def uframe_of(an, st, args, call):
@@ -214,18 +210,18 @@ def uframe_of(an, st, args, call):
             return Top(ext if track is None else f"{ext} (the track given is {track.axis})", an.loc, P225)
         uf = target.fields.get("UF")
         if uf is not None:
-            n = _frame_no(uf)
+            n = whole_number(uf)
             if n is None:
                 return Top(f"user frame UF {uf} of {target.label or 'the position'} is not in the frame file "
                            "(--frames)", an.loc, P201)
-            active = _frame_no(selected)
+            active = whole_number(selected)
             if active is not None and active != n:
                 return Top(f"the position is taught in UF {n} and UFRAME_NUM={active} is selected: the controller "
                            f"stops (user frame mismatch) or, with its frame check off, moves in UF {active}", an.loc, P201)
             return _on_track(an, _frame(an, st, f"UFRAME[{n}]"))
     if isinstance(selected, Top):
         return selected
-    n = _frame_no(selected)
+    n = whole_number(selected)
     if n is None:
         return Top("UFRAME_NUM is not a frame number", an.loc, P201)
     return _on_track(an, _frame(an, st, f"UFRAME[{n}]"))
@@ -256,18 +252,18 @@ def utool_of(an, st, args, call):
     n = None
     if isinstance(target, Rec) and target.fields.get("UT") is not None:
         ut = target.fields.get("UT")
-        n = _frame_no(ut)
+        n = whole_number(ut)
         if n is None:
             return Top(f"tool frame UT {ut} of {target.label or 'the position'} is not in the frame file (--frames)",
                        an.loc, P203)
-        active = _frame_no(selected)
+        active = whole_number(selected)
         if active is not None and active != n:
             return Top(f"the position is taught with UT {n} and UTOOL_NUM={active} is selected: the controller stops "
                        f"(tool frame mismatch) or, with its frame check off, moves with UT {active}", an.loc, P203)
     else:
         if isinstance(selected, Top):
             return selected
-        n = _frame_no(selected)
+        n = whole_number(selected)
         if n is None:
             return Top("UTOOL_NUM is not a tool number", an.loc, P203)
     name = f"UTOOL[{n}]"
@@ -373,7 +369,7 @@ def indirect(an, st, args, call):
     (index,) = args
     kind = call.name.split(".")[-1]
     an.consume(index, "an index")
-    n = _frame_no(index)
+    n = whole_number(index)
     if n is None:
         why = index.why if isinstance(index, Top) else "an index that is not a whole number"
         return Top(f"{kind}[…] with a run-time index ({why})", an.loc, P211)

@@ -296,10 +296,6 @@ def _data_frame(an, st, name: str, n, label_prefix: str):
     return Top(f"{name}[{n}] is not a frame", an.loc)
 
 
-def _int(v):
-    return whole_number(v)
-
-
 def _base(an, st, n, via: str):
     """bas.src's #BASE: BASE_DATA[n], BASE_CORR on top where BASE_CORR_ON, not known on an
     external kinematic (MACHINE_FRAME_DAT[n].MACH_DEF_INDEX > 0)."""
@@ -313,7 +309,7 @@ def _base(an, st, n, via: str):
     key, mach = an.lookup("MACHINE_FRAME_DAT", st)
     mach = mach if key is not None else an.dialect.undeclared(an, "MACHINE_FRAME_DAT")
     entry = mach.get((n,)) if isinstance(mach, Arr) else mach
-    index = _int(entry.get("MACH_DEF_INDEX")) if isinstance(entry, Rec) else None
+    index = whole_number(entry.get("MACH_DEF_INDEX")) if isinstance(entry, Rec) else None
     if isinstance(entry, Top) or index is None:
         if not (isinstance(entry, Top) and "not set" in entry.why):  # (an element the data leave out: fixed)
             return Top(f"MACHINE_FRAME_DAT[{n}] (is BASE_DATA[{n}] on an external kinematic?) is not known", an.loc,
@@ -362,7 +358,7 @@ def _tool(an, st, n, via: str):
         return Top(frame.why, frame.loc, P203)
     key, mach = an.lookup("MACHINE_TOOL_DAT", st)
     entry = mach.get((n,)) if key is not None and isinstance(mach, Arr) else None
-    index = _int(entry.get("MACH_DEF_INDEX")) if isinstance(entry, Rec) else 0
+    index = whole_number(entry.get("MACH_DEF_INDEX")) if isinstance(entry, Rec) else 0
     if index:
         return Top(f"TOOL_DATA[{n}] is on the external kinematic MACHINE_DEF[{index}] (a stationary tool)", an.loc, P203)
     return frame
@@ -399,7 +395,7 @@ def _fdat(an, fdat, which: str):
     n = fdat.get(f"{which}_NO")
     if n is None:
         return None, f"FDAT without {which}_NO"
-    k = _int(n)
+    k = whole_number(n)
     if k is None:
         return None, f"FDAT with a {which}_NO that is not a whole number"
     return k, ""
@@ -412,10 +408,10 @@ def bas(an, st, args, loc):
     if arg is not None:
         an.consume(arg, "BAS()")
     if cmd == "#BASE":
-        st.vars[("G", "$BASE")] = _base(an, st, _int(arg), "BAS(#BASE, …)")
+        st.vars[("G", "$BASE")] = _base(an, st, whole_number(arg), "BAS(#BASE, …)")
     elif cmd == "#TOOL":  # (bas.src: $TOOL = TOOL_DATA[n], $LOAD = LOAD_DATA[n])
-        st.vars[("G", "$TOOL")] = _tool(an, st, _int(arg), "BAS(#TOOL, …)")
-        st.vars[("G", "$LOAD")] = _load(an, st, _int(arg), "BAS(#TOOL, …)")
+        st.vars[("G", "$TOOL")] = _tool(an, st, whole_number(arg), "BAS(#TOOL, …)")
+        st.vars[("G", "$LOAD")] = _load(an, st, whole_number(arg), "BAS(#TOOL, …)")
     elif cmd in ("#PTP_PARAMS", "#CP_PARAMS", "#FRAMES"):
         key, fdat = an.lookup("FDAT_ACT", st)
         fdat = fdat if key is not None else Top("FDAT_ACT is not known here", an.loc)
@@ -436,7 +432,7 @@ def ek(an, st, args, call):
 
 def sbase(an, st, args, call):
     """``SBASE(n)``: the base bas.src would set for BASE_DATA[n]."""
-    return _base(an, st, _int(args[0]) if args else None, "SBASE(…)")
+    return _base(an, st, whole_number(args[0]) if args else None, "SBASE(…)")
 
 
 def stool2(an, st, args, call):
@@ -449,7 +445,7 @@ def sload(an, st, args, call):
     """``SLOAD(n)``: the load bas.src would set for tool n (``LOAD_DATA[n]``)."""
     if args:
         an.consume(args[0], "SLOAD()")
-    return _load(an, st, _int(args[0]) if args else None, "SLOAD(…)")
+    return _load(an, st, whole_number(args[0]) if args else None, "SLOAD(…)")
 
 
 def builtin(an, st, args, call):
